@@ -2,13 +2,16 @@
 //!
 //! `no_std`, no heap, no panics on input from the wire. Layers:
 //! [`esc`] (access to the ESC address space, drivers for LAN9252 and ET1100),
-//! [`registers`] and [`al_status`] (the one register map and AL status code table).
+//! [`registers`] and [`al_status`] (the one register map and AL status code table),
+//! [`esm`] (state machine), [`od`] (object dictionary description and checks).
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_op_in_unsafe_fn)]
 #![warn(missing_docs)]
 
 pub mod al_status;
 pub mod esc;
+pub mod esm;
+pub mod od;
 pub mod registers;
 
 pub use al_status::AlStatusCode;

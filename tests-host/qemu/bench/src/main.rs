@@ -1,2 +1,38 @@
-#![no_std]
-#![no_main]
+//! Benchmark image: each benchmark runs its hot path once between the instruction-count
+//! markers of `qemu_runner::bench`. `cargo xtask bench` runs this image under QEMU with
+//! the counting plugin and pairs the printed `BENCH <name>` lines with the counts.
+//! On the host the same binary runs the benchmarks natively (a smoke test, no counts).
+#![cfg_attr(target_os = "none", no_std, no_main)]
+
+mod ecat_benches;
+mod firmware_benches;
+mod foc_benches;
+
+/// Prints the benchmark name, then runs `f` once between the markers.
+pub fn bench<R>(name: &str, f: impl FnOnce() -> R) -> R {
+    #[cfg(target_os = "none")]
+    qemu_runner::println!("BENCH {name}");
+    #[cfg(not(target_os = "none"))]
+    println!("BENCH {name}");
+    qemu_runner::bench::measure(f)
+}
+
+fn run_all() {
+    foc_benches::run();
+    ecat_benches::run();
+    firmware_benches::run();
+}
+
+#[cfg(target_os = "none")]
+#[no_mangle]
+pub extern "C" fn main() -> ! {
+    run_all();
+    qemu_runner::println!("BENCH-END");
+    qemu_runner::target::exit(0)
+}
+
+#[cfg(not(target_os = "none"))]
+fn main() {
+    run_all();
+    println!("BENCH-END");
+}

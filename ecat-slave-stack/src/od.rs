@@ -1,0 +1,534 @@
+//! The object dictionary framework.
+//!
+//! One static description per object ([`Object`]) and per entry ([`Entry`]) — index,
+//! sub-index, name, data type, bit length, access per ESM state, PDO mappability,
+//! range, default, unit, saved-or-not. That single description feeds the SDO server
+//! (access, length and range checks), the PDO mapping rules, SDO information, the
+//! SII image, the ESI XML and the generated dictionary reference. The *values* are
+//! owned by the application, which implements [`Dictionary`].
+//!
+//! The generic checks done by the stack before a write reaches the application are
+//! in [`check_write`]; lookups are binary searches over the sorted object table.
+
+use crate::esm::EsmState;
+
+/// CoE data type codes (ETG.1000.6), as used by SDO information, the SII and the ESI.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u16)]
+pub enum DataType {
+    /// BOOL (1 bit).
+    Boolean = 0x0001,
+    /// INT8.
+    Integer8 = 0x0002,
+    /// INT16.
+    Integer16 = 0x0003,
+    /// INT32.
+    Integer32 = 0x0004,
+    /// UINT8 (USINT).
+    Unsigned8 = 0x0005,
+    /// UINT16 (UINT).
+    Unsigned16 = 0x0006,
+    /// UINT32 (UDINT).
+    Unsigned32 = 0x0007,
+    /// REAL32.
+    Real32 = 0x0008,
+    /// VISIBLE_STRING.
+    VisibleString = 0x0009,
+    /// OCTET_STRING.
+    OctetString = 0x000A,
+    /// INT64.
+    Integer64 = 0x0015,
+    /// UINT64.
+    Unsigned64 = 0x001B,
+    /// BIT1 … BIT8 are 0x0030 + n − 1; padding entries use these.
+    Bit1 = 0x0030,
+    /// BIT2.
+    Bit2 = 0x0031,
+    /// BIT3.
+    Bit3 = 0x0032,
+    /// BIT4.
+    Bit4 = 0x0033,
+    /// BIT5.
+    Bit5 = 0x0034,
+    /// BIT6.
+    Bit6 = 0x0035,
+    /// BIT7.
+    Bit7 = 0x0036,
+    /// BIT8.
+    Bit8 = 0x0037,
+}
+
+impl DataType {
+    /// The raw code.
+    pub const fn code(self) -> u16 {
+        self as u16
+    }
+    /// Name as written in ESI files (ETG.2000).
+    pub const fn esi_name(self) -> &'static str {
+        match self {
+            Self::Boolean => "BOOL",
+            Self::Integer8 => "SINT",
+            Self::Integer16 => "INT",
+            Self::Integer32 => "DINT",
+            Self::Unsigned8 => "USINT",
+            Self::Unsigned16 => "UINT",
+            Self::Unsigned32 => "UDINT",
+            Self::Real32 => "REAL",
+            Self::VisibleString => "STRING",
+            Self::OctetString => "OCTET_STRING",
+            Self::Integer64 => "LINT",
+            Self::Unsigned64 => "ULINT",
+            Self::Bit1 => "BIT1",
+            Self::Bit2 => "BIT2",
+            Self::Bit3 => "BIT3",
+            Self::Bit4 => "BIT4",
+            Self::Bit5 => "BIT5",
+            Self::Bit6 => "BIT6",
+            Self::Bit7 => "BIT7",
+            Self::Bit8 => "BIT8",
+        }
+    }
+    /// True for the signed integer types.
+    pub const fn is_signed(self) -> bool {
+        matches!(self, Self::Integer8 | Self::Integer16 | Self::Integer32 | Self::Integer64)
+    }
+    /// True for types whose length is not fixed by the type (strings).
+    pub const fn is_variable_length(self) -> bool {
+        matches!(self, Self::VisibleString | Self::OctetString)
+    }
+}
+
+/// Access rights of one entry, per ESM state (Pre-Op, Safe-Op, Op). In Init there is
+/// no mailbox, hence no SDO access.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Access(u8);
+
+impl Access {
+    const R_PREOP: u8 = 1 << 0;
+    const R_SAFEOP: u8 = 1 << 1;
+    const R_OP: u8 = 1 << 2;
+    const W_PREOP: u8 = 1 << 3;
+    const W_SAFEOP: u8 = 1 << 4;
+    const W_OP: u8 = 1 << 5;
+    const R_ALL: u8 = Self::R_PREOP | Self::R_SAFEOP | Self::R_OP;
+    const W_ALL: u8 = Self::W_PREOP | Self::W_SAFEOP | Self::W_OP;
+
+    /// Read-only in every state.
+    pub const RO: Access = Access(Self::R_ALL);
+    /// Read and write in every state.
+    pub const RW: Access = Access(Self::R_ALL | Self::W_ALL);
+    /// Readable always, writable only in Pre-Op (mapping and assignment objects).
+    pub const RW_PREOP: Access = Access(Self::R_ALL | Self::W_PREOP);
+    /// Readable always, writable in Pre-Op and Safe-Op but not in Op.
+    pub const RW_PREOP_SAFEOP: Access = Access(Self::R_ALL | Self::W_PREOP | Self::W_SAFEOP);
+    /// Write-only in every state.
+    pub const WO: Access = Access(Self::W_ALL);
+
+    /// Readable in at least one state.
+    pub const fn readable(self) -> bool {
+        self.0 & Self::R_ALL != 0
+    }
+    /// Writable in at least one state.
+    pub const fn writable(self) -> bool {
+        self.0 & Self::W_ALL != 0
+    }
+    /// Readable in `state`.
+    pub fn readable_in(self, state: EsmState) -> bool {
+        self.0 & Self::read_bit(state) != 0
+    }
+    /// Writable in `state`.
+    pub fn writable_in(self, state: EsmState) -> bool {
+        self.0 & (Self::read_bit(state) << 3) != 0
+    }
+    fn read_bit(state: EsmState) -> u8 {
+        match state {
+            EsmState::PreOp => Self::R_PREOP,
+            EsmState::SafeOp => Self::R_SAFEOP,
+            EsmState::Op => Self::R_OP,
+            EsmState::Init | EsmState::Bootstrap => 0,
+        }
+    }
+    /// The 16-bit access word of SDO information's entry description
+    /// (bits 0-2 read in PreOp/SafeOp/Op, bits 3-5 write in PreOp/SafeOp/Op; the PDO
+    /// bits 6 and 7 are added by [`Entry::sdo_info_access`]).
+    pub const fn bits(self) -> u16 {
+        self.0 as u16
+    }
+    /// ESI `<Access>` text: "ro", "rw", "wo".
+    pub const fn esi(self) -> &'static str {
+        match (self.readable(), self.writable()) {
+            (true, true) => "rw",
+            (false, true) => "wo",
+            _ => "ro",
+        }
+    }
+}
+
+/// Whether an entry may be mapped into process data, and in which direction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PdoMappable {
+    /// Not mappable.
+    No,
+    /// Mappable into an RxPDO (outputs of the master).
+    Rx,
+    /// Mappable into a TxPDO (inputs of the master).
+    Tx,
+    /// Mappable in both directions.
+    RxTx,
+}
+
+impl PdoMappable {
+    /// Mappable into an RxPDO.
+    pub const fn rx(self) -> bool {
+        matches!(self, Self::Rx | Self::RxTx)
+    }
+    /// Mappable into a TxPDO.
+    pub const fn tx(self) -> bool {
+        matches!(self, Self::Tx | Self::RxTx)
+    }
+}
+
+/// Default value of an entry (also the ESI `DefaultData`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DefaultValue {
+    /// No meaningful default (measured values, counters filled at run time).
+    None,
+    /// A numeric default.
+    Int(i64),
+    /// A text default (visible strings).
+    Text(&'static str),
+}
+
+/// CoE object codes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum ObjectCode {
+    /// A single variable (sub-index 0 only).
+    Var = 7,
+    /// An array: sub-index 0 holds the count, entries 1..n share a type.
+    Array = 8,
+    /// A record: sub-index 0 holds the count, entries have their own types.
+    Record = 9,
+}
+
+/// The static description of one entry (sub-index) of an object.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Entry {
+    /// Sub-index.
+    pub sub: u8,
+    /// Name (SDO information, ESI, documentation).
+    pub name: &'static str,
+    /// Data type.
+    pub data_type: DataType,
+    /// Length in bits (for strings: the maximum length).
+    pub bits: u16,
+    /// Access per ESM state.
+    pub access: Access,
+    /// PDO mappability.
+    pub pdo: PdoMappable,
+    /// Smallest accepted value on write (numeric types).
+    pub min: i64,
+    /// Largest accepted value on write (numeric types).
+    pub max: i64,
+    /// Default value.
+    pub default: DefaultValue,
+    /// Unit text ("mA", "ms", "inc", …); empty when dimensionless.
+    pub unit: &'static str,
+    /// Stored in flash by 'save' (0x1010).
+    pub saved: bool,
+}
+
+impl Entry {
+    /// A numeric entry with the natural range of its type, no default, not saved.
+    pub const fn new(sub: u8, name: &'static str, data_type: DataType, access: Access) -> Self {
+        let (bits, min, max) = type_range(data_type);
+        Entry {
+            sub,
+            name,
+            data_type,
+            bits,
+            access,
+            pdo: PdoMappable::No,
+            min,
+            max,
+            default: DefaultValue::None,
+            unit: "",
+            saved: false,
+        }
+    }
+    /// A visible string of at most `max_len` bytes (read-only).
+    pub const fn text(sub: u8, name: &'static str, max_len: u16, value: &'static str) -> Self {
+        Entry {
+            sub,
+            name,
+            data_type: DataType::VisibleString,
+            bits: max_len * 8,
+            access: Access::RO,
+            pdo: PdoMappable::No,
+            min: 0,
+            max: 0,
+            default: DefaultValue::Text(value),
+            unit: "",
+            saved: false,
+        }
+    }
+    /// Sets the accepted range.
+    pub const fn range(mut self, min: i64, max: i64) -> Self {
+        self.min = min;
+        self.max = max;
+        self
+    }
+    /// Sets the default value.
+    pub const fn default(mut self, v: i64) -> Self {
+        self.default = DefaultValue::Int(v);
+        self
+    }
+    /// Sets the unit.
+    pub const fn unit(mut self, unit: &'static str) -> Self {
+        self.unit = unit;
+        self
+    }
+    /// Marks the entry as stored by 'save'.
+    pub const fn saved(mut self) -> Self {
+        self.saved = true;
+        self
+    }
+    /// Sets PDO mappability.
+    pub const fn pdo(mut self, pdo: PdoMappable) -> Self {
+        self.pdo = pdo;
+        self
+    }
+    /// Size in bytes on the wire (rounded up).
+    pub const fn byte_len(&self) -> usize {
+        (self.bits as usize).div_ceil(8)
+    }
+    /// The access word of SDO information's entry description: bits 0-5 from
+    /// [`Access::bits`], bit 6 RxPDO mappable, bit 7 TxPDO mappable.
+    pub const fn sdo_info_access(&self) -> u16 {
+        self.access.bits()
+            | if self.pdo.rx() { 1 << 6 } else { 0 }
+            | if self.pdo.tx() { 1 << 7 } else { 0 }
+    }
+}
+
+/// Bit length and value range of a numeric type.
+pub const fn type_range(t: DataType) -> (u16, i64, i64) {
+    match t {
+        DataType::Boolean => (1, 0, 1),
+        DataType::Integer8 => (8, i8::MIN as i64, i8::MAX as i64),
+        DataType::Integer16 => (16, i16::MIN as i64, i16::MAX as i64),
+        DataType::Integer32 => (32, i32::MIN as i64, i32::MAX as i64),
+        DataType::Integer64 => (64, i64::MIN, i64::MAX),
+        DataType::Unsigned8 => (8, 0, u8::MAX as i64),
+        DataType::Unsigned16 => (16, 0, u16::MAX as i64),
+        DataType::Unsigned32 => (32, 0, u32::MAX as i64),
+        // u64 values above i64::MAX are not range-checked.
+        DataType::Unsigned64 => (64, 0, i64::MAX),
+        DataType::Real32 => (32, 0, 0),
+        DataType::VisibleString | DataType::OctetString => (0, 0, 0),
+        DataType::Bit1 => (1, 0, 1),
+        DataType::Bit2 => (2, 0, 3),
+        DataType::Bit3 => (3, 0, 7),
+        DataType::Bit4 => (4, 0, 15),
+        DataType::Bit5 => (5, 0, 31),
+        DataType::Bit6 => (6, 0, 63),
+        DataType::Bit7 => (7, 0, 127),
+        DataType::Bit8 => (8, 0, 255),
+    }
+}
+
+/// The static description of one object.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Object {
+    /// Index.
+    pub index: u16,
+    /// Name.
+    pub name: &'static str,
+    /// VAR, ARRAY or RECORD.
+    pub code: ObjectCode,
+    /// Entries sorted by sub-index. A VAR has exactly one entry (sub-index 0); an
+    /// ARRAY or RECORD has its sub-index 0 (UINT8 count) first.
+    pub entries: &'static [Entry],
+    /// What the object means (dictionary reference, ESI comment).
+    pub description: &'static str,
+}
+
+impl Object {
+    /// The entry with sub-index `sub`.
+    pub fn entry(&self, sub: u8) -> Option<&'static Entry> {
+        self.entries.iter().find(|e| e.sub == sub)
+    }
+    /// Highest sub-index described.
+    pub fn max_sub(&self) -> u8 {
+        self.entries.last().map_or(0, |e| e.sub)
+    }
+}
+
+/// Finds an object in a table sorted by index (binary search).
+pub fn find(objects: &'static [Object], index: u16) -> Option<&'static Object> {
+    objects.binary_search_by_key(&index, |o| o.index).ok().map(|i| &objects[i])
+}
+
+/// Finds an entry, distinguishing "no object" from "no sub-index".
+pub fn find_entry(objects: &'static [Object], index: u16, sub: u8) -> Result<&'static Entry, SdoAbort> {
+    let obj = find(objects, index).ok_or(SdoAbort::ObjectDoesNotExist)?;
+    obj.entry(sub).ok_or(SdoAbort::SubindexDoesNotExist)
+}
+
+/// True when `objects` is strictly sorted by index and every object's entries are
+/// strictly sorted by sub-index (checked by tests of every dictionary).
+pub fn is_well_formed(objects: &[Object]) -> bool {
+    objects.windows(2).all(|w| w[0].index < w[1].index)
+        && objects.iter().all(|o| {
+            !o.entries.is_empty() && o.entries.windows(2).all(|w| w[0].sub < w[1].sub)
+        })
+}
+
+/// Decodes a little-endian numeric value of `t` from `data` (sign-extended).
+pub fn decode_int(t: DataType, data: &[u8]) -> Option<i64> {
+    let mut b = [0u8; 8];
+    let n = data.len().min(8);
+    b[..n].copy_from_slice(&data[..n]);
+    let raw = u64::from_le_bytes(b);
+    Some(match t {
+        DataType::Integer8 => raw as u8 as i8 as i64,
+        DataType::Integer16 => raw as u16 as i16 as i64,
+        DataType::Integer32 => raw as u32 as i32 as i64,
+        DataType::Integer64 => raw as i64,
+        DataType::Unsigned64 => raw.min(i64::MAX as u64) as i64,
+        DataType::Real32 | DataType::VisibleString | DataType::OctetString => return None,
+        _ => raw as i64,
+    })
+}
+
+/// The checks every SDO write goes through before the application sees it:
+/// access in this ESM state, length, and range.
+pub fn check_write(entry: &Entry, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+    if !entry.access.writable() {
+        return Err(SdoAbort::WriteReadOnly);
+    }
+    if !entry.access.writable_in(state) {
+        return Err(SdoAbort::StateConflict);
+    }
+    let len = entry.byte_len();
+    if entry.data_type.is_variable_length() {
+        if data.len() > len {
+            return Err(SdoAbort::LengthTooHigh);
+        }
+        return Ok(());
+    }
+    if data.len() > len {
+        return Err(SdoAbort::LengthTooHigh);
+    }
+    if data.len() < len {
+        return Err(SdoAbort::LengthTooLow);
+    }
+    if let Some(v) = decode_int(entry.data_type, data) {
+        if v > entry.max {
+            return Err(SdoAbort::ValueTooHigh);
+        }
+        if v < entry.min {
+            return Err(SdoAbort::ValueTooLow);
+        }
+    }
+    Ok(())
+}
+
+/// The checks every SDO read goes through.
+pub fn check_read(entry: &Entry, state: EsmState) -> Result<(), SdoAbort> {
+    if !entry.access.readable() {
+        return Err(SdoAbort::ReadWriteOnly);
+    }
+    if !entry.access.readable_in(state) {
+        return Err(SdoAbort::StateConflict);
+    }
+    Ok(())
+}
+
+/// SDO abort codes (CiA 301 / ETG.1000.6), the single table of the stack.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum SdoAbort {
+    /// Toggle bit not changed.
+    ToggleBit = 0x0503_0000,
+    /// SDO protocol timed out.
+    Timeout = 0x0504_0000,
+    /// Client/server command specifier not valid or unknown.
+    InvalidCommand = 0x0504_0001,
+    /// Out of memory.
+    OutOfMemory = 0x0504_0005,
+    /// Unsupported access to an object (e.g. complete access where not possible).
+    UnsupportedAccess = 0x0601_0000,
+    /// Attempt to read a write-only object.
+    ReadWriteOnly = 0x0601_0001,
+    /// Attempt to write a read-only object.
+    WriteReadOnly = 0x0601_0002,
+    /// Sub-index cannot be written, sub-index 0 must be 0 for write access.
+    SubindexZeroFirst = 0x0601_0003,
+    /// Complete access not supported for variable-length objects.
+    CompleteAccessVariableLength = 0x0601_0004,
+    /// Object length exceeds mailbox size.
+    ExceedsMailbox = 0x0601_0005,
+    /// Object mapped to an RxPDO, SDO download blocked.
+    MappedToRxPdo = 0x0601_0006,
+    /// Object does not exist in the object dictionary.
+    ObjectDoesNotExist = 0x0602_0000,
+    /// Object cannot be mapped to the PDO.
+    NotMappable = 0x0604_0041,
+    /// Number and length of the objects to be mapped would exceed the PDO length.
+    PdoLengthExceeded = 0x0604_0042,
+    /// General parameter incompatibility.
+    ParameterIncompatibility = 0x0604_0043,
+    /// General internal incompatibility in the device.
+    InternalIncompatibility = 0x0604_0047,
+    /// Access failed due to a hardware error.
+    HardwareError = 0x0606_0000,
+    /// Data type does not match, length of service parameter does not match.
+    TypeMismatch = 0x0607_0010,
+    /// Data type does not match, length of service parameter too high.
+    LengthTooHigh = 0x0607_0012,
+    /// Data type does not match, length of service parameter too low.
+    LengthTooLow = 0x0607_0013,
+    /// Sub-index does not exist.
+    SubindexDoesNotExist = 0x0609_0011,
+    /// Value range of parameter exceeded (write access).
+    ValueRangeExceeded = 0x0609_0030,
+    /// Value of parameter written too high.
+    ValueTooHigh = 0x0609_0031,
+    /// Value of parameter written too low.
+    ValueTooLow = 0x0609_0032,
+    /// Maximum value is less than minimum value.
+    MaxLessThanMin = 0x0609_0036,
+    /// General error.
+    GeneralError = 0x0800_0000,
+    /// Data cannot be transferred or stored to the application.
+    DataCannotBeStored = 0x0800_0020,
+    /// … because of local control.
+    LocalControl = 0x0800_0021,
+    /// … because of the present device (ESM) state.
+    StateConflict = 0x0800_0022,
+    /// No data available.
+    NoDataAvailable = 0x0800_0024,
+}
+
+impl SdoAbort {
+    /// The raw 32-bit code sent in the abort frame.
+    pub const fn code(self) -> u32 {
+        self as u32
+    }
+}
+
+/// What the application provides: the static description and the values.
+///
+/// The stack calls [`Dictionary::read`] / [`Dictionary::write`] only for entries that
+/// exist and have passed [`check_read`] / [`check_write`]; the application adds its own
+/// rules (e.g. sub-index 0 of a mapping object must be 0 first, 'save' signatures,
+/// read-only-while-auto-tune) and returns the matching abort.
+pub trait Dictionary {
+    /// The objects, sorted by index.
+    fn objects(&self) -> &'static [Object];
+    /// Writes the entry's current value into `buf` (little-endian) and returns its length.
+    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort>;
+    /// Stores a new value (already checked for access, length and range).
+    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort>;
+}
