@@ -1,1 +1,437 @@
-fn main() {}
+//! Project automation: `cargo xtask <command>`.
+//!
+//! * `test`   — installs what is missing (rustup target, qemu-system-arm via apt-get when
+//!   root), then fmt check, clippy (host crates, bare-metal libraries, board firmware),
+//!   host tests, the harness self-test, the QEMU tests of every logic crate, the
+//!   firmware release builds with their flash/RAM budget; ends with `N passed, N failed`.
+//! * `bench`  — instruction counts of the hot paths under QEMU (TCG plugin) and the
+//!   control-quality figures of the plant simulation → `BENCHMARKS.md`.
+//! * `demo`   — the simulated-drive commissioning demo (no hardware).
+//! * `esi`    — writes the ESI XML and the SII image into `target/esi/`.
+//! * `od-doc` — writes the object dictionary reference (`docs/object-dictionary.md`).
+//! * `size`   — builds the board firmware and prints its flash/RAM use.
+//! * `flash`  — builds and flashes the board firmware with probe-rs (needs a probe).
+
+use std::env;
+use std::fmt::Write as _;
+use std::fs;
+use std::io::{BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
+use std::process::{Command, ExitCode, Stdio};
+use std::sync::mpsc;
+use std::thread;
+
+const THUMB: &str = "thumbv7em-none-eabihf";
+/// Budget of the finished product (issue: flash 96 KiB, RAM 24 KiB).
+const FLASH_BUDGET: u64 = 96 * 1024;
+const RAM_BUDGET: u64 = 24 * 1024;
+/// Crates whose `tests/portable*.rs` run on the host and under QEMU.
+const PORTABLE_CRATES: &[&str] = &["foc", "ecat-slave-stack", "firmware"];
+/// Board firmware flavours (ESC chip), built and size-checked by `test`.
+const FIRMWARE_FLAVOURS: &[&str] = &["esc-lan9252", "esc-et1100"];
+
+fn main() -> ExitCode {
+    let args: Vec<String> = env::args().skip(1).collect();
+    let root = root();
+    env::set_current_dir(&root).expect("cd to workspace root");
+    let rest = &args.get(1..).unwrap_or(&[]);
+    let ok = match args.first().map(String::as_str) {
+        Some("test") => test(),
+        Some("bench") => bench(),
+        Some("demo") => run_status(&mut cargo(&["run", "-p", "tests-host", "--release", "--bin", "demo", "--"]).args(*rest)),
+        Some("esi") => run_status(&mut cargo(&["run", "-p", "tests-host", "--release", "--bin", "drive-docs", "--", "esi", "target/esi"])),
+        Some("od-doc") => run_status(&mut cargo(&["run", "-p", "tests-host", "--release", "--bin", "drive-docs", "--", "od-doc", "docs/object-dictionary.md"])),
+        Some("size") => size_report().is_ok(),
+        Some("flash") => run_status(&mut cargo(&["flash"])),
+        _ => {
+            eprintln!("usage: cargo xtask <test|bench|demo|esi|od-doc|size|flash>");
+            false
+        }
+    };
+    if ok {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    }
+}
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("workspace root").to_path_buf()
+}
+
+fn cargo(args: &[&str]) -> Command {
+    let mut c = Command::new(env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    c.args(args);
+    c
+}
+
+fn run_status(cmd: &mut Command) -> bool {
+    eprintln!("$ {}", show(cmd));
+    cmd.status().map(|s| s.success()).unwrap_or(false)
+}
+
+fn show(cmd: &Command) -> String {
+    let mut s = cmd.get_program().to_string_lossy().into_owned();
+    for a in cmd.get_args() {
+        s.push(' ');
+        s.push_str(&a.to_string_lossy());
+    }
+    s
+}
+
+/// Runs a command, echoing its output live, and returns (success, stdout+stderr text).
+fn run_capture(cmd: &mut Command) -> (bool, String) {
+    eprintln!("$ {}", show(cmd));
+    cmd.stdout(Stdio::piped()).stderr(Stdio::piped());
+    let mut child = match cmd.spawn() {
+        Ok(c) => c,
+        Err(e) => return (false, format!("cannot start: {e}")),
+    };
+    let (tx, rx) = mpsc::channel::<String>();
+    let mut handles = Vec::new();
+    let out: Box<dyn Read + Send> = Box::new(child.stdout.take().expect("stdout"));
+    let err: Box<dyn Read + Send> = Box::new(child.stderr.take().expect("stderr"));
+    for (stream, is_err) in [(out, false), (err, true)] {
+        let tx = tx.clone();
+        handles.push(thread::spawn(move || {
+            for line in BufReader::new(stream).lines().map_while(Result::ok) {
+                if is_err {
+                    eprintln!("{line}");
+                } else {
+                    println!("{line}");
+                }
+                let _ = tx.send(line);
+            }
+        }));
+    }
+    drop(tx);
+    let status = child.wait();
+    for h in handles {
+        let _ = h.join();
+    }
+    let text: Vec<String> = rx.into_iter().collect();
+    (status.map(|s| s.success()).unwrap_or(false), text.join("\n"))
+}
+
+/// Sums libtest-style `test result: ... N passed; M failed` lines.
+fn count_results(text: &str) -> (u64, u64) {
+    let (mut passed, mut failed) = (0, 0);
+    for line in text.lines() {
+        let Some(pos) = line.find("test result:") else { continue };
+        let rest = &line[pos..];
+        passed += number_before(rest, " passed").unwrap_or(0);
+        failed += number_before(rest, " failed").unwrap_or(0);
+    }
+    (passed, failed)
+}
+
+fn number_before(s: &str, word: &str) -> Option<u64> {
+    let end = s.find(word)?;
+    let start = s[..end].rfind(|c: char| !c.is_ascii_digit()).map_or(0, |i| i + 1);
+    s[start..end].parse().ok()
+}
+
+// ---------------------------------------------------------------------------------------
+// test
+// ---------------------------------------------------------------------------------------
+
+struct Tally {
+    passed: u64,
+    failed: u64,
+    failed_steps: Vec<String>,
+}
+
+impl Tally {
+    fn step(&mut self, name: &str, ok: bool) {
+        if ok {
+            self.passed += 1;
+        } else {
+            self.failed += 1;
+            self.failed_steps.push(name.to_string());
+        }
+    }
+    fn tests(&mut self, name: &str, ok: bool, text: &str) {
+        let (p, f) = count_results(text);
+        self.passed += p;
+        self.failed += f;
+        if !ok || f > 0 {
+            if f == 0 {
+                // The command failed without a failing test (build error, crash).
+                self.failed += 1;
+            }
+            self.failed_steps.push(name.to_string());
+        }
+    }
+}
+
+fn ensure_tools() -> Result<(), String> {
+    let installed = Command::new("rustup").args(["target", "list", "--installed"]).output();
+    let has_target = installed
+        .as_ref()
+        .map(|o| String::from_utf8_lossy(&o.stdout).lines().any(|l| l.trim() == THUMB))
+        .unwrap_or(false);
+    if !has_target && !run_status(Command::new("rustup").args(["target", "add", THUMB])) {
+        return Err(format!("could not install the rustup target {THUMB}"));
+    }
+    let has_qemu = Command::new("qemu-system-arm").arg("--version").output().is_ok_and(|o| o.status.success());
+    if !has_qemu {
+        let root = Command::new("id").arg("-u").output().map(|o| String::from_utf8_lossy(&o.stdout).trim() == "0");
+        if root.unwrap_or(false) {
+            let ok = run_status(Command::new("apt-get").args(["update", "-q"]))
+                && run_status(Command::new("apt-get").args(["install", "-y", "-q", "qemu-system-arm"]).env("DEBIAN_FRONTEND", "noninteractive"));
+            if !ok {
+                return Err("apt-get install qemu-system-arm failed".into());
+            }
+        } else {
+            return Err("qemu-system-arm is missing: run `sudo apt-get install -y qemu-system-arm`".into());
+        }
+    }
+    Ok(())
+}
+
+fn test() -> bool {
+    let mut t = Tally { passed: 0, failed: 0, failed_steps: Vec::new() };
+    if let Err(e) = ensure_tools() {
+        eprintln!("error: {e}");
+        t.step("install tools", false);
+        return summary(&t);
+    }
+
+    t.step("cargo fmt --check", run_status(&mut cargo(&["fmt", "--all", "--check"])));
+    t.step(
+        "clippy (host crates)",
+        run_status(&mut cargo(&["clippy", "--all-targets", "--", "-D", "warnings"])),
+    );
+    t.step(
+        "clippy (bare-metal libraries)",
+        run_status(&mut cargo(&["clippy", "-p", "foc", "-p", "ecat-slave-stack", "-p", "firmware", "-p", "qemu-bench", "--target", THUMB, "--", "-D", "warnings"])),
+    );
+    for flavour in FIRMWARE_FLAVOURS {
+        let features = format!("board,{flavour}");
+        t.step(
+            &format!("clippy (board firmware, {flavour})"),
+            run_status(&mut cargo(&["clippy", "-p", "firmware", "--features", &features, "--target", THUMB, "--", "-D", "warnings"])),
+        );
+    }
+
+    let (ok, text) = run_capture(&mut cargo(&["test"]));
+    t.tests("host tests", ok, &text);
+
+    // Harness self-test: an image with a deliberately failing test must fail, on the
+    // host and under QEMU, and say which test failed.
+    for (label, extra) in [("host", None), ("qemu", Some(THUMB))] {
+        let mut cmd = cargo(&["run", "-q", "-p", "qemu-runner", "--example", "must_fail"]);
+        if let Some(target) = extra {
+            cmd.args(["--target", target]);
+        }
+        let (ok, text) = run_capture(&mut cmd);
+        let detected = !ok && text.contains("deliberately_failing ... FAILED") && text.contains("test result: FAILED");
+        eprintln!("harness self-test ({label}): failing test {}", if detected { "detected as expected" } else { "NOT detected" });
+        t.step(&format!("harness self-test ({label})"), detected);
+    }
+
+    for krate in PORTABLE_CRATES {
+        let (ok, text) = run_capture(&mut cargo(&["test", "-p", krate, "--target", THUMB, "--test", "portable*"]));
+        let (p, _) = count_results(&text);
+        eprintln!("QEMU: {krate}: {p} tests passed");
+        t.tests(&format!("QEMU tests of {krate}"), ok && p > 0, &text);
+    }
+
+    match size_report() {
+        Ok(within) => t.step("firmware release build within budget", within),
+        Err(e) => {
+            eprintln!("error: {e}");
+            t.step("firmware release build", false);
+        }
+    }
+    summary(&t)
+}
+
+fn summary(t: &Tally) -> bool {
+    if !t.failed_steps.is_empty() {
+        eprintln!("\nfailed: {}", t.failed_steps.join(", "));
+    }
+    println!("{} passed, {} failed", t.passed, t.failed);
+    t.failed == 0
+}
+
+// ---------------------------------------------------------------------------------------
+// firmware size
+// ---------------------------------------------------------------------------------------
+
+/// Builds every firmware flavour in release and prints flash/RAM use. Ok(true) when all
+/// are within budget.
+fn size_report() -> Result<bool, String> {
+    let mut within = true;
+    for flavour in FIRMWARE_FLAVOURS {
+        let features = format!("board,{flavour}");
+        let target_dir = format!("target/firmware-{flavour}");
+        if !run_status(&mut cargo(&["build", "-p", "firmware", "--release", "--features", &features, "--target", THUMB, "--target-dir", &target_dir])) {
+            return Err(format!("firmware build ({flavour}) failed"));
+        }
+        let elf = format!("{target_dir}/{THUMB}/release/firmware");
+        let (flash, ram) = elf_usage(&elf)?;
+        let ok = flash <= FLASH_BUDGET && ram <= RAM_BUDGET;
+        within &= ok;
+        println!(
+            "firmware ({flavour}): flash {flash} B ({:.1} KiB of {} KiB), RAM {ram} B ({:.1} KiB of {} KiB) — {}  [{elf}]",
+            flash as f64 / 1024.0,
+            FLASH_BUDGET / 1024,
+            ram as f64 / 1024.0,
+            RAM_BUDGET / 1024,
+            if ok { "within budget" } else { "OVER BUDGET" }
+        );
+    }
+    Ok(within)
+}
+
+/// Flash = sections loaded into flash (.vector_table, .text, .rodata, .data image);
+/// RAM = .data + .bss + .uninit (static RAM; the stack takes the rest).
+fn elf_usage(elf: &str) -> Result<(u64, u64), String> {
+    let out = Command::new("size").args(["-A", "-d", elf]).output().map_err(|e| format!("size: {e}"))?;
+    if !out.status.success() {
+        return Err(format!("size -A {elf} failed"));
+    }
+    let (mut flash, mut ram) = (0u64, 0u64);
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        let cols: Vec<&str> = line.split_whitespace().collect();
+        if cols.len() < 3 {
+            continue;
+        }
+        let (name, Ok(size), Ok(addr)) = (cols[0], cols[1].parse::<u64>(), cols[2].parse::<u64>()) else { continue };
+        match name {
+            ".vector_table" | ".text" | ".rodata" | ".gnu.sgstubs" => flash += size,
+            ".data" => {
+                flash += size;
+                ram += size;
+            }
+            ".bss" | ".uninit" => ram += size,
+            _ if (0x0800_0000..0x0810_0000).contains(&addr) && size > 0 && !name.starts_with(".defmt") => flash += size,
+            _ => {}
+        }
+    }
+    Ok((flash, ram))
+}
+
+// ---------------------------------------------------------------------------------------
+// bench
+// ---------------------------------------------------------------------------------------
+
+/// Goals from the issues, by benchmark name.
+const GOALS: &[(&str, &str)] = &[
+    ("current loop step", "≤ 300"),
+    ("CSP cycle", "≤ 1500"),
+];
+
+fn bench() -> bool {
+    if let Err(e) = ensure_tools() {
+        eprintln!("error: {e}");
+        return false;
+    }
+    let target_dir = "target/bench";
+    if !run_status(&mut cargo(&["build", "-p", "qemu-bench", "--target", THUMB, "--profile", "bench-qemu", "--target-dir", target_dir])) {
+        return false;
+    }
+    let elf = format!("{target_dir}/{THUMB}/bench-qemu/qemu-bench");
+    let plugin = format!("{target_dir}/libinsn_count.so");
+    if !run_status(Command::new("gcc").args(["-O2", "-shared", "-fPIC", "-Wall", "-o", &plugin, "xtask/qemu-plugin/insn_count.c"])) {
+        eprintln!("error: building the QEMU plugin needs gcc");
+        return false;
+    }
+    let (Some(start), Some(stop)) = (symbol(&elf, "bench_start"), symbol(&elf, "bench_stop")) else {
+        eprintln!("error: marker symbols not found in {elf}");
+        return false;
+    };
+    let first = match run_bench_image(&elf, &plugin, start, stop) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return false;
+        }
+    };
+    let second = match run_bench_image(&elf, &plugin, start, stop) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return false;
+        }
+    };
+    let repeat = first == second;
+    eprintln!("instruction counts of two runs {}", if repeat { "are identical" } else { "DIFFER" });
+
+    let overhead = first.iter().find(|(n, _)| n == "(marker overhead)").map_or(0, |(_, c)| *c);
+    let mut md = String::new();
+    md.push_str("# Benchmarks\n\nGenerated by `cargo xtask bench`; do not edit by hand.\n\n");
+    md.push_str("## Executed instructions under QEMU (Cortex-M4F, mps2-an386)\n\n");
+    let _ = writeln!(
+        md,
+        "Counted by a QEMU TCG plugin (`xtask/qemu-plugin/insn_count.c`) between the entry of \
+         `bench_start` and the entry of `bench_stop`, minus the {overhead} instructions of the \
+         markers themselves. Build profile `bench-qemu` (opt-level 3, LTO). These are executed \
+         instructions, not cycles: QEMU has no timing model. Two runs gave {} counts.\n",
+        if repeat { "identical" } else { "DIFFERENT" }
+    );
+    md.push_str("| benchmark | goal | instructions |\n|---|---|---|\n");
+    for (name, count) in &first {
+        if name == "(marker overhead)" {
+            continue;
+        }
+        let goal = GOALS.iter().find(|(g, _)| name.starts_with(g)).map_or("—", |(_, g)| g);
+        let _ = writeln!(md, "| {name} | {goal} | {} |", count.saturating_sub(overhead));
+    }
+
+    md.push_str("\n## Control quality (plant simulation)\n\n");
+    if Path::new("tests-host/src/bin/control-report.rs").exists() {
+        let (ok, text) = run_capture(&mut cargo(&["run", "-q", "-p", "tests-host", "--release", "--bin", "control-report", "--", "--plots", "target/plots"]));
+        if !ok {
+            eprintln!("error: control-report failed");
+            return false;
+        }
+        md.push_str(&text);
+        md.push('\n');
+    } else {
+        md.push_str("Not yet available: the plant simulation report does not exist yet.\n");
+    }
+    if let Ok(extra) = fs::read_to_string("docs/benchmarks-notes.md") {
+        md.push('\n');
+        md.push_str(&extra);
+    }
+    if fs::write("BENCHMARKS.md", &md).is_err() {
+        eprintln!("error: cannot write BENCHMARKS.md");
+        return false;
+    }
+    println!("wrote BENCHMARKS.md ({} benchmarks)", first.len().saturating_sub(1));
+    repeat
+}
+
+fn symbol(elf: &str, name: &str) -> Option<u64> {
+    let out = Command::new("readelf").args(["-sW", elf]).output().ok()?;
+    String::from_utf8_lossy(&out.stdout).lines().find_map(|l| {
+        let cols: Vec<&str> = l.split_whitespace().collect();
+        (cols.len() >= 8 && cols[7] == name).then(|| u64::from_str_radix(cols[1], 16).ok()).flatten()
+    })
+}
+
+/// Runs the benchmark image once; returns (name, instructions) in order.
+fn run_bench_image(elf: &str, plugin: &str, start: u64, stop: u64) -> Result<Vec<(String, u64)>, String> {
+    let log = format!("{elf}.plugin.log");
+    let _ = fs::remove_file(&log);
+    let plugin_arg = format!("{plugin},start={start:#x},stop={stop:#x}");
+    let out = Command::new("qemu-system-arm")
+        .args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-nographic", "-monitor", "none", "-serial", "none"])
+        .args(["-semihosting-config", "enable=on,target=native", "-d", "plugin", "-D", &log])
+        .args(["-plugin", &plugin_arg, "-kernel", elf])
+        .output()
+        .map_err(|e| format!("qemu-system-arm: {e}"))?;
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    if !out.status.success() {
+        return Err(format!("benchmark image failed:\n{stdout}{}", String::from_utf8_lossy(&out.stderr)));
+    }
+    let names: Vec<String> = stdout.lines().filter_map(|l| l.strip_prefix("BENCH ")).map(str::to_string).collect();
+    let log_text = fs::read_to_string(&log).map_err(|e| format!("plugin log: {e}"))?;
+    let counts: Vec<u64> = log_text.lines().filter_map(|l| l.strip_prefix("count ")?.trim().parse().ok()).collect();
+    if names.len() != counts.len() || !stdout.contains("BENCH-END") {
+        return Err(format!("{} benchmark names but {} counts", names.len(), counts.len()));
+    }
+    Ok(names.into_iter().zip(counts).collect())
+}

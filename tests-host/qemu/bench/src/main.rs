@@ -17,7 +17,12 @@ pub fn bench<R>(name: &str, f: impl FnOnce() -> R) -> R {
     qemu_runner::bench::measure(f)
 }
 
+/// Name of the calibration row: an empty closure between the markers. Its count (the
+/// cost of the markers themselves) is subtracted from every other row.
+pub const OVERHEAD: &str = "(marker overhead)";
+
 fn run_all() {
+    bench(OVERHEAD, || ());
     foc_benches::run();
     ecat_benches::run();
     firmware_benches::run();
