@@ -90,7 +90,10 @@ impl DataType {
     }
     /// True for the signed integer types.
     pub const fn is_signed(self) -> bool {
-        matches!(self, Self::Integer8 | Self::Integer16 | Self::Integer32 | Self::Integer64)
+        matches!(
+            self,
+            Self::Integer8 | Self::Integer16 | Self::Integer32 | Self::Integer64
+        )
     }
     /// True for types whose length is not fixed by the type (strings).
     pub const fn is_variable_length(self) -> bool {
@@ -366,11 +369,18 @@ impl Object {
 
 /// Finds an object in a table sorted by index (binary search).
 pub fn find(objects: &'static [Object], index: u16) -> Option<&'static Object> {
-    objects.binary_search_by_key(&index, |o| o.index).ok().map(|i| &objects[i])
+    objects
+        .binary_search_by_key(&index, |o| o.index)
+        .ok()
+        .map(|i| &objects[i])
 }
 
 /// Finds an entry, distinguishing "no object" from "no sub-index".
-pub fn find_entry(objects: &'static [Object], index: u16, sub: u8) -> Result<&'static Entry, SdoAbort> {
+pub fn find_entry(
+    objects: &'static [Object],
+    index: u16,
+    sub: u8,
+) -> Result<&'static Entry, SdoAbort> {
     let obj = find(objects, index).ok_or(SdoAbort::ObjectDoesNotExist)?;
     obj.entry(sub).ok_or(SdoAbort::SubindexDoesNotExist)
 }
@@ -379,9 +389,9 @@ pub fn find_entry(objects: &'static [Object], index: u16, sub: u8) -> Result<&'s
 /// strictly sorted by sub-index (checked by tests of every dictionary).
 pub fn is_well_formed(objects: &[Object]) -> bool {
     objects.windows(2).all(|w| w[0].index < w[1].index)
-        && objects.iter().all(|o| {
-            !o.entries.is_empty() && o.entries.windows(2).all(|w| w[0].sub < w[1].sub)
-        })
+        && objects
+            .iter()
+            .all(|o| !o.entries.is_empty() && o.entries.windows(2).all(|w| w[0].sub < w[1].sub))
 }
 
 /// Decodes a little-endian numeric value of `t` from `data` (sign-extended).
@@ -531,4 +541,296 @@ pub trait Dictionary {
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort>;
     /// Stores a new value (already checked for access, length and range).
     fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort>;
+}
+
+impl SdoAbort {
+    /// Every code of the table, in numeric order.
+    pub const ALL: &'static [SdoAbort] = &[
+        Self::ToggleBit,
+        Self::Timeout,
+        Self::InvalidCommand,
+        Self::OutOfMemory,
+        Self::UnsupportedAccess,
+        Self::ReadWriteOnly,
+        Self::WriteReadOnly,
+        Self::SubindexZeroFirst,
+        Self::CompleteAccessVariableLength,
+        Self::ExceedsMailbox,
+        Self::MappedToRxPdo,
+        Self::ObjectDoesNotExist,
+        Self::NotMappable,
+        Self::PdoLengthExceeded,
+        Self::ParameterIncompatibility,
+        Self::InternalIncompatibility,
+        Self::HardwareError,
+        Self::TypeMismatch,
+        Self::LengthTooHigh,
+        Self::LengthTooLow,
+        Self::SubindexDoesNotExist,
+        Self::ValueRangeExceeded,
+        Self::ValueTooHigh,
+        Self::ValueTooLow,
+        Self::MaxLessThanMin,
+        Self::GeneralError,
+        Self::DataCannotBeStored,
+        Self::LocalControl,
+        Self::StateConflict,
+        Self::NoDataAvailable,
+    ];
+
+    /// The abort with this raw code, if it is in the table.
+    pub fn from_code(code: u32) -> Option<Self> {
+        Self::ALL.iter().copied().find(|a| a.code() == code)
+    }
+}
+
+/// The OD lists of SDO information's "get OD list" service (ETG.1000.6).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u16)]
+pub enum OdListType {
+    /// Not a list: the answer is the number of objects of lists 1 to 5.
+    Counts = 0,
+    /// All objects.
+    All = 1,
+    /// Objects with at least one RxPDO-mappable entry.
+    RxPdoMappable = 2,
+    /// Objects with at least one TxPDO-mappable entry.
+    TxPdoMappable = 3,
+    /// Objects to store for a device replacement (backup): in this stack, objects with
+    /// at least one entry marked [`Entry::saved`].
+    Backup = 4,
+    /// Start-up parameters ("settings"): in this stack, also the objects with at least one
+    /// [`Entry::saved`] entry — the parameters a master may write at start-up are exactly
+    /// the ones the drive stores.
+    Settings = 5,
+}
+
+impl OdListType {
+    /// Lists 1 to 5, in the order of the counts answer of list type 0.
+    pub const LISTS: [OdListType; 5] = [
+        Self::All,
+        Self::RxPdoMappable,
+        Self::TxPdoMappable,
+        Self::Backup,
+        Self::Settings,
+    ];
+
+    /// Decodes the list type of a request.
+    pub const fn from_code(code: u16) -> Option<Self> {
+        match code {
+            0 => Some(Self::Counts),
+            1 => Some(Self::All),
+            2 => Some(Self::RxPdoMappable),
+            3 => Some(Self::TxPdoMappable),
+            4 => Some(Self::Backup),
+            5 => Some(Self::Settings),
+            _ => None,
+        }
+    }
+
+    /// The raw code.
+    pub const fn code(self) -> u16 {
+        self as u16
+    }
+
+    /// True when `obj` belongs to this list ([`OdListType::Counts`] contains nothing).
+    pub fn contains(self, obj: &Object) -> bool {
+        match self {
+            Self::Counts => false,
+            Self::All => true,
+            Self::RxPdoMappable => obj.entries.iter().any(|e| e.pdo.rx()),
+            Self::TxPdoMappable => obj.entries.iter().any(|e| e.pdo.tx()),
+            Self::Backup | Self::Settings => obj.entries.iter().any(|e| e.saved),
+        }
+    }
+
+    /// Number of objects of `objects` in this list.
+    pub fn count(self, objects: &[Object]) -> usize {
+        objects.iter().filter(|o| self.contains(o)).count()
+    }
+}
+
+/// Writes a Markdown reference of the object dictionary (`cargo xtask od-doc`): one
+/// section per object with its description and a table of its entries (sub-index, name,
+/// type, bits, access per ESM state, PDO mapping, range, default, unit, saved).
+pub fn write_reference(objects: &[Object], w: &mut impl core::fmt::Write) -> core::fmt::Result {
+    writeln!(w, "# Object dictionary\n")?;
+    writeln!(
+        w,
+        "Access: `r`/`w` followed by the ESM states where it applies \
+         (P = Pre-Op, S = Safe-Op, O = Op). PDO: Rx/Tx mappable.\n"
+    )?;
+    writeln!(w, "| Index | Name | Object code | Entries |")?;
+    writeln!(w, "|---|---|---|---|")?;
+    for o in objects {
+        write!(w, "| 0x{:04X} | ", o.index)?;
+        write_md(w, o.name)?;
+        writeln!(w, " | {} | {} |", object_code_name(o.code), o.entries.len())?;
+    }
+    for o in objects {
+        write!(w, "\n## 0x{:04X} ", o.index)?;
+        write_md(w, o.name)?;
+        writeln!(w, " ({})\n", object_code_name(o.code))?;
+        if !o.description.is_empty() {
+            write_md(w, o.description)?;
+            writeln!(w, "\n")?;
+        }
+        writeln!(
+            w,
+            "| Sub | Name | Type | Bits | Access | PDO | Min | Max | Default | Unit | Saved |"
+        )?;
+        writeln!(w, "|---|---|---|---|---|---|---|---|---|---|---|")?;
+        for e in o.entries {
+            write!(w, "| {} | ", e.sub)?;
+            write_md(w, e.name)?;
+            write!(w, " | {} | {} | ", e.data_type.esi_name(), e.bits)?;
+            write_access(w, e.access)?;
+            let pdo = match e.pdo {
+                PdoMappable::No => "-",
+                PdoMappable::Rx => "Rx",
+                PdoMappable::Tx => "Tx",
+                PdoMappable::RxTx => "Rx/Tx",
+            };
+            write!(w, " | {} | ", pdo)?;
+            if has_numeric_range(e.data_type) {
+                write!(w, "{} | {} | ", e.min, e.max)?;
+            } else {
+                write!(w, "- | - | ")?;
+            }
+            match e.default {
+                DefaultValue::None => write!(w, "-")?,
+                DefaultValue::Int(v) => write!(w, "{}", v)?,
+                DefaultValue::Text(t) => {
+                    write!(w, "\"")?;
+                    write_md(w, t)?;
+                    write!(w, "\"")?;
+                }
+            }
+            write!(w, " | ")?;
+            if e.unit.is_empty() {
+                write!(w, "-")?;
+            } else {
+                write_md(w, e.unit)?;
+            }
+            writeln!(w, " | {} |", if e.saved { "yes" } else { "no" })?;
+        }
+    }
+    Ok(())
+}
+
+fn object_code_name(c: ObjectCode) -> &'static str {
+    match c {
+        ObjectCode::Var => "VAR",
+        ObjectCode::Array => "ARRAY",
+        ObjectCode::Record => "RECORD",
+    }
+}
+
+/// True for the types whose [`Entry::min`]/[`Entry::max`] are meaningful.
+pub const fn has_numeric_range(t: DataType) -> bool {
+    !matches!(
+        t,
+        DataType::Real32 | DataType::VisibleString | DataType::OctetString
+    )
+}
+
+fn write_access(w: &mut impl core::fmt::Write, a: Access) -> core::fmt::Result {
+    const STATES: [(EsmState, char); 3] = [
+        (EsmState::PreOp, 'P'),
+        (EsmState::SafeOp, 'S'),
+        (EsmState::Op, 'O'),
+    ];
+    let mut any = false;
+    for (kind, test) in [
+        ('r', Access::readable_in as fn(Access, EsmState) -> bool),
+        ('w', Access::writable_in),
+    ] {
+        if STATES.iter().any(|(s, _)| test(a, *s)) {
+            if any {
+                write!(w, " ")?;
+            }
+            write!(w, "{}", kind)?;
+            for (s, c) in STATES {
+                if test(a, s) {
+                    write!(w, "{}", c)?;
+                }
+            }
+            any = true;
+        }
+    }
+    if !any {
+        write!(w, "-")?;
+    }
+    Ok(())
+}
+
+/// Writes text into a Markdown table cell: `|` escaped, line breaks as spaces.
+fn write_md(w: &mut impl core::fmt::Write, s: &str) -> core::fmt::Result {
+    for c in s.chars() {
+        match c {
+            '|' => w.write_str("\\|")?,
+            '\n' | '\r' => w.write_char(' ')?,
+            c => w.write_char(c)?,
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod reference_tests {
+    use super::*;
+
+    static OBJS: &[Object] = &[
+        Object {
+            index: 0x1000,
+            name: "Device type",
+            code: ObjectCode::Var,
+            entries: &[
+                Entry::new(0, "Device type", DataType::Unsigned32, Access::RO).default(0x0002_0192),
+            ],
+            description: "Profile | type",
+        },
+        Object {
+            index: 0x2000,
+            name: "Gains",
+            code: ObjectCode::Record,
+            entries: &[
+                Entry::new(0, "Count", DataType::Unsigned8, Access::RO),
+                Entry::new(1, "Kp", DataType::Unsigned16, Access::RW_PREOP)
+                    .unit("mA")
+                    .saved()
+                    .pdo(PdoMappable::Rx),
+                Entry::text(2, "Label", 8, "abc"),
+            ],
+            description: "",
+        },
+    ];
+
+    #[test]
+    fn reference_lists_every_entry() {
+        let mut s = std::string::String::new();
+        write_reference(OBJS, &mut s).unwrap();
+        assert!(s.contains("| 0x1000 | Device type | VAR | 1 |"));
+        assert!(s.contains("## 0x2000 Gains (RECORD)"));
+        assert!(s.contains("Profile \\| type"));
+        assert!(s.contains("| 1 | Kp | UINT | 16 | rPSO wP | Rx | 0 | 65535 | - | mA | yes |"));
+        assert!(s.contains("| 2 | Label | STRING | 64 | rPSO | - | - | - | \"abc\" | - | no |"));
+        assert!(s.contains(
+            "| 0 | Device type | UDINT | 32 | rPSO | - | 0 | 4294967295 | 131474 | - | no |"
+        ));
+    }
+
+    #[test]
+    fn od_lists_and_abort_table() {
+        assert_eq!(OdListType::All.count(OBJS), 2);
+        assert_eq!(OdListType::RxPdoMappable.count(OBJS), 1);
+        assert_eq!(OdListType::TxPdoMappable.count(OBJS), 0);
+        assert_eq!(OdListType::Settings.count(OBJS), 1);
+        assert_eq!(OdListType::from_code(6), None);
+        for a in SdoAbort::ALL {
+            assert_eq!(SdoAbort::from_code(a.code()), Some(*a));
+        }
+        assert!(SdoAbort::ALL.windows(2).all(|w| w[0].code() < w[1].code()));
+        assert_eq!(SdoAbort::from_code(0x0504_0002), None);
+    }
 }
