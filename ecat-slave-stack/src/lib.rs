@@ -12,7 +12,11 @@ pub mod al_status;
 pub mod esc;
 pub mod esm;
 pub mod od;
+pub mod pdo;
 pub mod registers;
+pub mod slave;
+pub mod sm;
+pub mod sync;
 
 pub use al_status::AlStatusCode;
 pub use esc::{EscAccess, EscError};

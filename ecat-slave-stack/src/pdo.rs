@@ -1,0 +1,799 @@
+//! Process data mapping: the objects 0x1600-0x1603, 0x1A00-0x1A03, 0x1C00, 0x1C12,
+//! 0x1C13, their SDO rules, and the copy plan of the cyclic path.
+//!
+//! # Objects
+//! * 0x1600-0x1603 RxPDO mapping, 0x1A00-0x1A03 TxPDO mapping (RECORD): sub-index 0
+//!   is the number of entries (0-16), sub-indices 1-16 are `index << 16 | sub << 8 |
+//!   bit length`; index 0 (sub-index 0) is a padding gap of the given length.
+//! * 0x1C00 SM communication types (read-only: 1 mailbox out, 2 mailbox in,
+//!   3 outputs, 4 inputs).
+//! * 0x1C12 / 0x1C13 RxPDO / TxPDO assignment of SM2 / SM3: up to 4 map indices
+//!   (0x1600-0x1603 resp. 0x1A00-0x1A03).
+//!
+//! # Write rules (CiA 301 / ETG.1020)
+//! * Writable only in Pre-Op → else 0x08000022.
+//! * An entry (sub-index ≥ 1) is writable only while sub-index 0 is 0 → else
+//!   0x06010003. The value must name an existing entry of the product dictionary that is
+//!   mappable in the map's direction and whose bit length is the mapped length →
+//!   else 0x06040041 (a length that differs from the object's: 0x06040043); padding
+//!   (index 0) must have sub-index 0 and a length of 1-64 bits.
+//! * Writing sub-index 0 = n validates entries 1..n; a map longer than 64 bytes, or an
+//!   assigned set of maps longer than 64 bytes per direction → 0x06040042.
+//! * Assignment entries must be one of the four maps of the direction → 0x06090030;
+//!   the same map twice → 0x06040043.
+//!
+//! # Cyclic path
+//! On P→S the assigned maps are compiled into a [`CopyPlan`]: each mapped entry is
+//! resolved once to an application slot ([`ProcessData::rx_slot`] /
+//! [`ProcessData::tx_slot`]) and a bit offset. [`unpack`] and [`pack`] then only walk
+//! that array: no dictionary lookups, no mapping decoding per cycle. Values travel as
+//! raw little-endian bit patterns in a `u64`, zero-extended; the application knows
+//! each slot's type and sign-extends where needed.
+
+use crate::al_status::AlStatusCode;
+use crate::esm::EsmState;
+use crate::od::{self, Access, DataType, Entry, Object, ObjectCode, SdoAbort};
+
+/// Entries per mapping object.
+pub const MAX_ENTRIES: usize = 16;
+/// Maps per direction.
+pub const MAPS: usize = 4;
+/// Process data bytes per direction.
+pub const MAX_BYTES: usize = 64;
+/// First RxPDO mapping object.
+pub const RX_MAP_BASE: u16 = 0x1600;
+/// First TxPDO mapping object.
+pub const TX_MAP_BASE: u16 = 0x1A00;
+/// SM communication types.
+pub const SM_COMM_TYPE: u16 = 0x1C00;
+/// RxPDO assignment (SM2).
+pub const RX_ASSIGN: u16 = 0x1C12;
+/// TxPDO assignment (SM3).
+pub const TX_ASSIGN: u16 = 0x1C13;
+/// Most mapped (non-padding) entries a plan can hold per direction.
+pub const MAX_PLAN_ENTRIES: usize = MAX_ENTRIES * MAPS;
+
+/// Direction of a map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dir {
+    /// RxPDO: outputs of the master, SM2.
+    Rx,
+    /// TxPDO: inputs of the master, SM3.
+    Tx,
+}
+
+impl Dir {
+    /// AL status code of an invalid mapping in this direction at P→S.
+    pub const fn mapping_error(self) -> AlStatusCode {
+        match self {
+            Dir::Rx => AlStatusCode::InvalidOutputMapping,
+            Dir::Tx => AlStatusCode::InvalidInputMapping,
+        }
+    }
+}
+
+/// The application side of the cyclic data.
+///
+/// Slots are the application's own numbering of the values it exchanges; they are
+/// resolved once per P→S and then used on every cycle.
+pub trait ProcessData {
+    /// Slot receiving the RxPDO entry `index:sub`, `None` if the application cannot
+    /// take it (then the mapping is refused at P→S with 0x0025).
+    fn rx_slot(&self, index: u16, sub: u8) -> Option<u16>;
+    /// Slot providing the TxPDO entry `index:sub`, `None` → 0x0024 at P→S.
+    fn tx_slot(&self, index: u16, sub: u8) -> Option<u16>;
+    /// Stores a received raw value (zero-extended little-endian bit pattern).
+    fn set_rx(&mut self, slot: u16, raw: u64);
+    /// The raw value to send (only the mapped number of low bits is used).
+    fn get_tx(&self, slot: u16) -> u64;
+}
+
+/// One mapping object's contents.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Map {
+    n: u8,
+    e: [u32; MAX_ENTRIES],
+}
+
+impl Map {
+    const EMPTY: Map = Map {
+        n: 0,
+        e: [0; MAX_ENTRIES],
+    };
+    fn from_slice(v: &[u32]) -> Map {
+        let mut m = Map::EMPTY;
+        let n = v.len().min(MAX_ENTRIES);
+        m.e[..n].copy_from_slice(&v[..n]);
+        m.n = n as u8;
+        m
+    }
+    fn entries(&self) -> &[u32] {
+        &self.e[..(self.n as usize).min(MAX_ENTRIES)]
+    }
+    fn bits(&self) -> u32 {
+        self.entries().iter().map(|e| *e & 0xFF).sum()
+    }
+}
+
+/// One assignment object's contents.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Assign {
+    n: u8,
+    e: [u16; MAPS],
+}
+
+impl Assign {
+    fn from_slice(v: &[u16]) -> Assign {
+        let mut a = Assign { n: 0, e: [0; MAPS] };
+        let n = v.len().min(MAPS);
+        a.e[..n].copy_from_slice(&v[..n]);
+        a.n = n as u8;
+        a
+    }
+    fn entries(&self) -> &[u16] {
+        &self.e[..(self.n as usize).min(MAPS)]
+    }
+}
+
+/// The product's default mapping and assignment (drive-requirements §3.2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PdoDefaults {
+    /// Contents of 0x1600-0x1603 (at most 16 entries each).
+    pub rx: [&'static [u32]; MAPS],
+    /// Contents of 0x1A00-0x1A03.
+    pub tx: [&'static [u32]; MAPS],
+    /// 0x1C12.
+    pub rx_assign: &'static [u16],
+    /// 0x1C13.
+    pub tx_assign: &'static [u16],
+}
+
+impl PdoDefaults {
+    /// Nothing mapped.
+    pub const EMPTY: PdoDefaults = PdoDefaults {
+        rx: [&[]; MAPS],
+        tx: [&[]; MAPS],
+        rx_assign: &[],
+        tx_assign: &[],
+    };
+}
+
+/// Encodes a mapping entry.
+pub const fn entry(index: u16, sub: u8, bits: u8) -> u32 {
+    (index as u32) << 16 | (sub as u32) << 8 | bits as u32
+}
+
+/// The mapping and assignment objects' values.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PdoConfig {
+    rx: [Map; MAPS],
+    tx: [Map; MAPS],
+    rx_assign: Assign,
+    tx_assign: Assign,
+    defaults: PdoDefaults,
+}
+
+fn check_entry(value: u32, dir: Dir, objects: &'static [Object]) -> Result<(), SdoAbort> {
+    let index = (value >> 16) as u16;
+    let sub = (value >> 8) as u8;
+    let bits = (value & 0xFF) as u16;
+    if index == 0 {
+        return if sub == 0 && (1..=64).contains(&bits) {
+            Ok(())
+        } else {
+            Err(SdoAbort::NotMappable)
+        };
+    }
+    let e = od::find_entry(objects, index, sub).map_err(|_| SdoAbort::NotMappable)?;
+    let ok = match dir {
+        Dir::Rx => e.pdo.rx(),
+        Dir::Tx => e.pdo.tx(),
+    };
+    if !ok || e.bits == 0 || e.bits > 64 {
+        return Err(SdoAbort::NotMappable);
+    }
+    if e.bits != bits {
+        return Err(SdoAbort::ParameterIncompatibility);
+    }
+    Ok(())
+}
+
+fn write_u8(buf: &mut [u8], v: u8) -> Result<usize, SdoAbort> {
+    let b = buf.get_mut(0).ok_or(SdoAbort::ExceedsMailbox)?;
+    *b = v;
+    Ok(1)
+}
+
+fn write_le(buf: &mut [u8], v: &[u8]) -> Result<usize, SdoAbort> {
+    let dst = buf.get_mut(..v.len()).ok_or(SdoAbort::ExceedsMailbox)?;
+    dst.copy_from_slice(v);
+    Ok(v.len())
+}
+
+fn exact<const N: usize>(data: &[u8]) -> Result<[u8; N], SdoAbort> {
+    if data.len() > N {
+        return Err(SdoAbort::LengthTooHigh);
+    }
+    if data.len() < N {
+        return Err(SdoAbort::LengthTooLow);
+    }
+    let mut b = [0u8; N];
+    b.copy_from_slice(data);
+    Ok(b)
+}
+
+impl PdoConfig {
+    /// The defaults' contents.
+    pub fn new(defaults: PdoDefaults) -> Self {
+        let mut c = PdoConfig {
+            rx: [Map::EMPTY; MAPS],
+            tx: [Map::EMPTY; MAPS],
+            rx_assign: Assign::from_slice(&[]),
+            tx_assign: Assign::from_slice(&[]),
+            defaults,
+        };
+        c.restore_defaults();
+        c
+    }
+
+    /// Back to the product's defaults (0x1011 restore, power-up).
+    pub fn restore_defaults(&mut self) {
+        for i in 0..MAPS {
+            self.rx[i] = Map::from_slice(self.defaults.rx[i]);
+            self.tx[i] = Map::from_slice(self.defaults.tx[i]);
+        }
+        self.rx_assign = Assign::from_slice(self.defaults.rx_assign);
+        self.tx_assign = Assign::from_slice(self.defaults.tx_assign);
+    }
+
+    fn maps(&self, dir: Dir) -> &[Map; MAPS] {
+        match dir {
+            Dir::Rx => &self.rx,
+            Dir::Tx => &self.tx,
+        }
+    }
+    fn assign(&self, dir: Dir) -> &Assign {
+        match dir {
+            Dir::Rx => &self.rx_assign,
+            Dir::Tx => &self.tx_assign,
+        }
+    }
+
+    /// The entries of map `index` (0x1600-0x1603, 0x1A00-0x1A03).
+    pub fn map_entries(&self, index: u16) -> Option<&[u32]> {
+        let (dir, i) = map_slot(index)?;
+        Some(self.maps(dir)[i].entries())
+    }
+
+    /// The assigned maps of a direction.
+    pub fn assigned(&self, dir: Dir) -> &[u16] {
+        self.assign(dir).entries()
+    }
+
+    /// Total mapped bits of the assigned maps of `dir`.
+    pub fn assigned_bits(&self, dir: Dir) -> u32 {
+        self.assigned_bits_with(dir, None)
+    }
+
+    /// Process data bytes of `dir` (bits rounded up).
+    pub fn assigned_bytes(&self, dir: Dir) -> u16 {
+        self.assigned_bits(dir).div_ceil(8).min(u16::MAX as u32) as u16
+    }
+
+    fn assigned_bits_with(&self, dir: Dir, replace: Option<(usize, &Map)>) -> u32 {
+        self.assign(dir)
+            .entries()
+            .iter()
+            .filter_map(|idx| map_slot(*idx).filter(|(d, _)| *d == dir).map(|(_, i)| i))
+            .map(|i| match replace {
+                Some((r, m)) if r == i => m.bits(),
+                _ => self.maps(dir)[i].bits(),
+            })
+            .sum()
+    }
+
+    /// Reads one entry of 0x1600-0x1603, 0x1A00-0x1A03, 0x1C00, 0x1C12, 0x1C13.
+    pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        if let Some((dir, i)) = map_slot(index) {
+            let m = &self.maps(dir)[i];
+            return match sub {
+                0 => write_u8(buf, m.n),
+                1..=16 => write_le(buf, &m.e[sub as usize - 1].to_le_bytes()),
+                _ => Err(SdoAbort::SubindexDoesNotExist),
+            };
+        }
+        match index {
+            SM_COMM_TYPE => match sub {
+                0 => write_u8(buf, 4),
+                1..=4 => write_u8(buf, sub),
+                _ => Err(SdoAbort::SubindexDoesNotExist),
+            },
+            RX_ASSIGN | TX_ASSIGN => {
+                let a = if index == RX_ASSIGN {
+                    &self.rx_assign
+                } else {
+                    &self.tx_assign
+                };
+                match sub {
+                    0 => write_u8(buf, a.n),
+                    1..=4 => write_le(buf, &a.e[sub as usize - 1].to_le_bytes()),
+                    _ => Err(SdoAbort::SubindexDoesNotExist),
+                }
+            }
+            _ => Err(SdoAbort::ObjectDoesNotExist),
+        }
+    }
+
+    /// Writes one entry (rules in the module docs). `objects` is the full product
+    /// dictionary, used to check mappability.
+    pub fn write(
+        &mut self,
+        index: u16,
+        sub: u8,
+        data: &[u8],
+        state: EsmState,
+        objects: &'static [Object],
+    ) -> Result<(), SdoAbort> {
+        if let Some((dir, i)) = map_slot(index) {
+            if sub > MAX_ENTRIES as u8 {
+                return Err(SdoAbort::SubindexDoesNotExist);
+            }
+            if state != EsmState::PreOp {
+                return Err(SdoAbort::StateConflict);
+            }
+            if sub == 0 {
+                let [n] = exact::<1>(data)?;
+                if n as usize > MAX_ENTRIES {
+                    return Err(SdoAbort::ValueTooHigh);
+                }
+                let mut m = self.maps(dir)[i];
+                m.n = n;
+                for e in m.entries() {
+                    check_entry(*e, dir, objects)?;
+                }
+                if m.bits() > (MAX_BYTES * 8) as u32 {
+                    return Err(SdoAbort::PdoLengthExceeded);
+                }
+                if self.assigned_bits_with(dir, Some((i, &m))) > (MAX_BYTES * 8) as u32 {
+                    return Err(SdoAbort::PdoLengthExceeded);
+                }
+                match dir {
+                    Dir::Rx => self.rx[i] = m,
+                    Dir::Tx => self.tx[i] = m,
+                }
+                return Ok(());
+            }
+            let v = u32::from_le_bytes(exact::<4>(data)?);
+            if self.maps(dir)[i].n != 0 {
+                return Err(SdoAbort::SubindexZeroFirst);
+            }
+            check_entry(v, dir, objects)?;
+            let slot = &mut match dir {
+                Dir::Rx => &mut self.rx,
+                Dir::Tx => &mut self.tx,
+            }[i];
+            slot.e[sub as usize - 1] = v;
+            return Ok(());
+        }
+        match index {
+            SM_COMM_TYPE => {
+                if sub > 4 {
+                    Err(SdoAbort::SubindexDoesNotExist)
+                } else {
+                    Err(SdoAbort::WriteReadOnly)
+                }
+            }
+            RX_ASSIGN | TX_ASSIGN => {
+                let dir = if index == RX_ASSIGN { Dir::Rx } else { Dir::Tx };
+                if sub > MAPS as u8 {
+                    return Err(SdoAbort::SubindexDoesNotExist);
+                }
+                if state != EsmState::PreOp {
+                    return Err(SdoAbort::StateConflict);
+                }
+                if sub == 0 {
+                    let [n] = exact::<1>(data)?;
+                    if n as usize > MAPS {
+                        return Err(SdoAbort::ValueTooHigh);
+                    }
+                    let mut a = *self.assign(dir);
+                    a.n = n;
+                    let list = a.entries();
+                    for (k, idx) in list.iter().enumerate() {
+                        if !matches!(map_slot(*idx), Some((d, _)) if d == dir) {
+                            return Err(SdoAbort::ValueRangeExceeded);
+                        }
+                        if list[..k].contains(idx) {
+                            return Err(SdoAbort::ParameterIncompatibility);
+                        }
+                    }
+                    let old = *self.assign(dir);
+                    self.set_assign(dir, a);
+                    if self.assigned_bits(dir) > (MAX_BYTES * 8) as u32 {
+                        self.set_assign(dir, old);
+                        return Err(SdoAbort::PdoLengthExceeded);
+                    }
+                    return Ok(());
+                }
+                let v = u16::from_le_bytes(exact::<2>(data)?);
+                if self.assign(dir).n != 0 {
+                    return Err(SdoAbort::SubindexZeroFirst);
+                }
+                if !matches!(map_slot(v), Some((d, _)) if d == dir) {
+                    return Err(SdoAbort::ValueRangeExceeded);
+                }
+                let mut a = *self.assign(dir);
+                a.e[sub as usize - 1] = v;
+                self.set_assign(dir, a);
+                Ok(())
+            }
+            _ => Err(SdoAbort::ObjectDoesNotExist),
+        }
+    }
+
+    fn set_assign(&mut self, dir: Dir, a: Assign) {
+        match dir {
+            Dir::Rx => self.rx_assign = a,
+            Dir::Tx => self.tx_assign = a,
+        }
+    }
+
+    /// Compiles the assigned maps of `dir` into a plan (P→S). Any entry that is not
+    /// valid in the dictionary, has no application slot, or a total above 64 bytes →
+    /// the direction's mapping error (0x0025 Rx / 0x0024 Tx).
+    pub fn compile_dir<P: ProcessData + ?Sized>(
+        &self,
+        dir: Dir,
+        app: &P,
+        objects: &'static [Object],
+    ) -> Result<DirPlan, AlStatusCode> {
+        let err = dir.mapping_error();
+        let mut plan = DirPlan::EMPTY;
+        let mut offset: u32 = 0;
+        for idx in self.assign(dir).entries() {
+            let (d, i) = map_slot(*idx).ok_or(err)?;
+            if d != dir {
+                return Err(err);
+            }
+            for e in self.maps(dir)[i].entries() {
+                check_entry(*e, dir, objects).map_err(|_| err)?;
+                let index = (*e >> 16) as u16;
+                let sub = (*e >> 8) as u8;
+                let bits = (*e & 0xFF) as u8;
+                if index != 0 {
+                    let slot = match dir {
+                        Dir::Rx => app.rx_slot(index, sub),
+                        Dir::Tx => app.tx_slot(index, sub),
+                    }
+                    .ok_or(err)?;
+                    let n = plan.n as usize;
+                    let pe = plan.entries.get_mut(n).ok_or(err)?;
+                    *pe = PlanEntry {
+                        slot,
+                        bit_offset: offset as u16,
+                        bits,
+                    };
+                    plan.n += 1;
+                }
+                offset += bits as u32;
+                if offset > (MAX_BYTES * 8) as u32 {
+                    return Err(err);
+                }
+            }
+        }
+        plan.bytes = offset.div_ceil(8) as u16;
+        Ok(plan)
+    }
+
+    /// Compiles both directions (outputs first: 0x0025 before 0x0024).
+    pub fn compile<P: ProcessData + ?Sized>(
+        &self,
+        app: &P,
+        objects: &'static [Object],
+    ) -> Result<CopyPlan, AlStatusCode> {
+        let rx = self.compile_dir(Dir::Rx, app, objects)?;
+        let tx = self.compile_dir(Dir::Tx, app, objects)?;
+        Ok(CopyPlan { rx, tx })
+    }
+}
+
+/// (direction, 0-3) of a mapping object index.
+pub const fn map_slot(index: u16) -> Option<(Dir, usize)> {
+    if index >= RX_MAP_BASE && index < RX_MAP_BASE + MAPS as u16 {
+        Some((Dir::Rx, (index - RX_MAP_BASE) as usize))
+    } else if index >= TX_MAP_BASE && index < TX_MAP_BASE + MAPS as u16 {
+        Some((Dir::Tx, (index - TX_MAP_BASE) as usize))
+    } else {
+        None
+    }
+}
+
+/// True for the indices this module serves.
+pub const fn is_pdo_index(index: u16) -> bool {
+    map_slot(index).is_some() || matches!(index, SM_COMM_TYPE | RX_ASSIGN | TX_ASSIGN)
+}
+
+/// One mapped entry of a plan.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PlanEntry {
+    /// Application slot.
+    pub slot: u16,
+    /// Bit offset in the process image.
+    pub bit_offset: u16,
+    /// Length in bits (1-64).
+    pub bits: u8,
+}
+
+/// The compiled plan of one direction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DirPlan {
+    entries: [PlanEntry; MAX_PLAN_ENTRIES],
+    n: u8,
+    bytes: u16,
+}
+
+impl DirPlan {
+    /// No entries, 0 bytes.
+    pub const EMPTY: DirPlan = DirPlan {
+        entries: [PlanEntry {
+            slot: 0,
+            bit_offset: 0,
+            bits: 0,
+        }; MAX_PLAN_ENTRIES],
+        n: 0,
+        bytes: 0,
+    };
+    /// The mapped entries (padding excluded).
+    pub fn entries(&self) -> &[PlanEntry] {
+        &self.entries[..(self.n as usize).min(MAX_PLAN_ENTRIES)]
+    }
+    /// Size of the process image in bytes.
+    pub const fn bytes(&self) -> u16 {
+        self.bytes
+    }
+}
+
+/// The compiled plans of both directions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CopyPlan {
+    /// RxPDO (SM2 → application).
+    pub rx: DirPlan,
+    /// TxPDO (application → SM3).
+    pub tx: DirPlan,
+}
+
+impl CopyPlan {
+    /// Nothing mapped.
+    pub const EMPTY: CopyPlan = CopyPlan {
+        rx: DirPlan::EMPTY,
+        tx: DirPlan::EMPTY,
+    };
+}
+
+#[inline]
+fn mask(bits: u8) -> u64 {
+    if bits >= 64 {
+        u64::MAX
+    } else {
+        (1u64 << bits) - 1
+    }
+}
+
+/// Extracts `bits` bits at `bit_offset` (little-endian bit order) from `data`; bytes
+/// beyond `data` read as 0.
+#[inline]
+pub fn extract(data: &[u8], bit_offset: u16, bits: u8) -> u64 {
+    let byte = (bit_offset / 8) as usize;
+    let shift = (bit_offset % 8) as u32;
+    if shift == 0 && bits.is_multiple_of(8) {
+        let n = (bits / 8) as usize;
+        if let Some(src) = data.get(byte..byte + n) {
+            let mut b = [0u8; 8];
+            b[..n.min(8)].copy_from_slice(&src[..n.min(8)]);
+            return u64::from_le_bytes(b);
+        }
+    }
+    let mut b = [0u8; 16];
+    let end = (byte + 9).min(data.len());
+    if byte < end {
+        b[..end - byte].copy_from_slice(&data[byte..end]);
+    }
+    let lo = u64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]);
+    let v = if shift == 0 {
+        lo
+    } else {
+        (lo >> shift) | ((b[8] as u64) << (64 - shift))
+    };
+    v & mask(bits)
+}
+
+/// Inserts the low `bits` bits of `value` at `bit_offset` into `data`; bits beyond
+/// `data` are dropped, the other bits of `data` are kept.
+#[inline]
+pub fn insert(data: &mut [u8], bit_offset: u16, bits: u8, value: u64) {
+    let byte = (bit_offset / 8) as usize;
+    let shift = (bit_offset % 8) as u32;
+    if shift == 0 && bits.is_multiple_of(8) {
+        let n = (bits / 8) as usize;
+        if let Some(dst) = data.get_mut(byte..byte + n) {
+            let b = value.to_le_bytes();
+            dst.copy_from_slice(&b[..n.min(8)]);
+            return;
+        }
+    }
+    let m = mask(bits);
+    let v = value & m;
+    for k in 0..=(bits as u32 + shift).div_ceil(8) as usize {
+        let Some(d) = data.get_mut(byte + k) else {
+            break;
+        };
+        let pos = (k as i32) * 8 - shift as i32;
+        let (mk, vk) = if pos >= 0 {
+            let p = pos as u32;
+            (
+                m.checked_shr(p).unwrap_or(0) as u8,
+                v.checked_shr(p).unwrap_or(0) as u8,
+            )
+        } else {
+            (
+                ((m << (-pos) as u32) & 0xFF) as u8,
+                ((v << (-pos) as u32) & 0xFF) as u8,
+            )
+        };
+        *d = (*d & !mk) | vk;
+    }
+}
+
+/// Copies the outputs of `sm2` into the application through the plan.
+#[inline]
+pub fn unpack<P: ProcessData + ?Sized>(plan: &DirPlan, sm2: &[u8], app: &mut P) {
+    for e in plan.entries() {
+        app.set_rx(e.slot, extract(sm2, e.bit_offset, e.bits));
+    }
+}
+
+/// Copies the application's inputs into `sm3` through the plan (padding bits keep
+/// their contents: zero the buffer once).
+#[inline]
+pub fn pack<P: ProcessData + ?Sized>(plan: &DirPlan, app: &P, sm3: &mut [u8]) {
+    for e in plan.entries() {
+        insert(sm3, e.bit_offset, e.bits, app.get_tx(e.slot));
+    }
+}
+
+macro_rules! map_entries {
+    ($($sub:literal),*) => {
+        &[
+            Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RW_PREOP).range(0, MAX_ENTRIES as i64),
+            $(Entry::new($sub, concat!("Mapping entry ", $sub), DataType::Unsigned32, Access::RW_PREOP),)*
+        ]
+    };
+}
+
+const MAP_ENTRIES: &[Entry] = map_entries!(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16);
+
+const fn map_object(index: u16, name: &'static str) -> Object {
+    Object {
+        index,
+        name,
+        code: ObjectCode::Record,
+        entries: MAP_ENTRIES,
+        description: "PDO mapping: sub-index 0 = number of entries, then index<<16 | sub<<8 | bit length; Pre-Op only, sub-index 0 to 0 first",
+    }
+}
+
+const RX_ASSIGN_ENTRIES: &[Entry] = &[
+    Entry::new(
+        0,
+        "Number of assigned PDOs",
+        DataType::Unsigned8,
+        Access::RW_PREOP,
+    )
+    .range(0, MAPS as i64),
+    Entry::new(1, "Assigned PDO 1", DataType::Unsigned16, Access::RW_PREOP).range(0x1600, 0x1603),
+    Entry::new(2, "Assigned PDO 2", DataType::Unsigned16, Access::RW_PREOP).range(0x1600, 0x1603),
+    Entry::new(3, "Assigned PDO 3", DataType::Unsigned16, Access::RW_PREOP).range(0x1600, 0x1603),
+    Entry::new(4, "Assigned PDO 4", DataType::Unsigned16, Access::RW_PREOP).range(0x1600, 0x1603),
+];
+const TX_ASSIGN_ENTRIES: &[Entry] = &[
+    Entry::new(
+        0,
+        "Number of assigned PDOs",
+        DataType::Unsigned8,
+        Access::RW_PREOP,
+    )
+    .range(0, MAPS as i64),
+    Entry::new(1, "Assigned PDO 1", DataType::Unsigned16, Access::RW_PREOP).range(0x1A00, 0x1A03),
+    Entry::new(2, "Assigned PDO 2", DataType::Unsigned16, Access::RW_PREOP).range(0x1A00, 0x1A03),
+    Entry::new(3, "Assigned PDO 3", DataType::Unsigned16, Access::RW_PREOP).range(0x1A00, 0x1A03),
+    Entry::new(4, "Assigned PDO 4", DataType::Unsigned16, Access::RW_PREOP).range(0x1A00, 0x1A03),
+];
+const SM_TYPE_ENTRIES: &[Entry] = &[
+    Entry::new(
+        0,
+        "Number of sync managers",
+        DataType::Unsigned8,
+        Access::RO,
+    )
+    .default(4),
+    Entry::new(1, "SM0 communication type", DataType::Unsigned8, Access::RO).default(1),
+    Entry::new(2, "SM1 communication type", DataType::Unsigned8, Access::RO).default(2),
+    Entry::new(3, "SM2 communication type", DataType::Unsigned8, Access::RO).default(3),
+    Entry::new(4, "SM3 communication type", DataType::Unsigned8, Access::RO).default(4),
+];
+
+/// Descriptions of the objects this module and [`crate::sync`] serve (0x1600-0x1C33),
+/// sorted by index.
+pub const OBJECTS: &[Object] = &[
+    map_object(0x1600, "RxPDO mapping 1"),
+    map_object(0x1601, "RxPDO mapping 2"),
+    map_object(0x1602, "RxPDO mapping 3"),
+    map_object(0x1603, "RxPDO mapping 4"),
+    map_object(0x1A00, "TxPDO mapping 1"),
+    map_object(0x1A01, "TxPDO mapping 2"),
+    map_object(0x1A02, "TxPDO mapping 3"),
+    map_object(0x1A03, "TxPDO mapping 4"),
+    Object {
+        index: SM_COMM_TYPE,
+        name: "Sync manager communication type",
+        code: ObjectCode::Array,
+        entries: SM_TYPE_ENTRIES,
+        description: "1 mailbox out, 2 mailbox in, 3 process data outputs, 4 process data inputs",
+    },
+    Object {
+        index: RX_ASSIGN,
+        name: "RxPDO assign",
+        code: ObjectCode::Array,
+        entries: RX_ASSIGN_ENTRIES,
+        description: "RxPDO mapping objects carried by SM2 (outputs)",
+    },
+    Object {
+        index: TX_ASSIGN,
+        name: "TxPDO assign",
+        code: ObjectCode::Array,
+        entries: TX_ASSIGN_ENTRIES,
+        description: "TxPDO mapping objects carried by SM3 (inputs)",
+    },
+    crate::sync::SM2_SYNC_OBJECT,
+    crate::sync::SM3_SYNC_OBJECT,
+];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn objects_are_well_formed() {
+        assert!(od::is_well_formed(OBJECTS));
+    }
+
+    #[test]
+    fn extract_insert_round_trip_at_every_offset() {
+        for bits in 1u8..=64 {
+            for off in 0u16..24 {
+                let mut buf = [0xA5u8; 16];
+                let v = 0x0123_4567_89AB_CDEFu64 & mask(bits);
+                insert(&mut buf, off, bits, v);
+                assert_eq!(extract(&buf, off, bits), v, "bits {bits} off {off}");
+                // Bits outside the field are untouched.
+                let mut ref_buf = [0xA5u8; 16];
+                insert(&mut ref_buf, off, bits, extract(&[0xA5u8; 16], off, bits));
+                for i in 0..128u16 {
+                    if i < off || i >= off + bits as u16 {
+                        assert_eq!(extract(&buf, i, 1), extract(&ref_buf, i, 1));
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn extract_beyond_buffer_is_zero_and_insert_drops() {
+        let buf = [0xFFu8; 2];
+        assert_eq!(extract(&buf, 8, 16), 0xFF);
+        assert_eq!(extract(&buf, 40, 8), 0);
+        let mut b = [0u8; 2];
+        insert(&mut b, 12, 16, 0xFFFF);
+        assert_eq!(b, [0x00, 0xF0]);
+    }
+}

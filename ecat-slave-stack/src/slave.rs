@@ -1,0 +1,886 @@
+//! The slave runtime: ties the ESC, the state machine, the mailbox, the process data
+//! and the synchronisation together.
+//!
+//! ```text
+//! let mut slave = Slave::new(esc, SlaveConfig { .. });
+//! slave.init()?;
+//! loop {
+//!     slave.poll(&mut app, now_us)?;      // main loop / ESC IRQ
+//! }
+//! // DC SYNC0 interrupt (optional, instead of letting poll() see the SYNC0 event):
+//! slave.cycle(&mut app, now_us)?;
+//! ```
+//!
+//! [`Slave::poll`] reads the AL event request register once and then handles, in this
+//! order: AL control (ESM requests and their checks), SyncManager activation changes
+//! (mailbox repeat request, process-data SM switched off), supervision (pending S→O
+//! waiting for the SYNC0 lock, process-data watchdog, SYNC0 missing, application
+//! error), the mailbox (SM0 received → [`MailboxServer::on_request`], SM1 free →
+//! [`MailboxServer::next_output`]) and, in Safe-Op/Op, the process data: SM2 event →
+//! outputs read; the cycle (unpack → [`SlaveApplication::cycle`] → pack → SM3) runs
+//! per SM2 event (SM-synchronous), per local period (free run) or per SYNC0 (DC).
+//! Outputs are handed to the application only in Op.
+//!
+//! Objects 0x1600-0x1C33 and 0x2200 are served by the runtime itself (its
+//! [`PdoConfig`] and [`SyncState`]); every other index goes to the application's
+//! [`Dictionary`] ([`CommDictionary`]).
+
+use crate::al_status::AlStatusCode;
+use crate::esc::{EscAccess, EscError};
+use crate::esm::{Decision, Esm, EsmHooks, EsmState};
+use crate::od::{Dictionary, Object, SdoAbort};
+use crate::pdo::{self, CopyPlan, PdoConfig, PdoDefaults, ProcessData};
+use crate::registers::{self as reg, al_event};
+use crate::sm::{self, MailboxLimits, PdDirection, RamWindow, SmRegs};
+use crate::sync::{self, SyncEvent, SyncMode, SyncState};
+
+use fallback::FallbackMailbox as MailboxServer;
+
+/// Largest mailbox SyncManager handled.
+pub const MAX_MAILBOX: usize = 256;
+
+/// What the application gives the runtime: its dictionary, its cyclic data, the ESM
+/// hooks ([`EsmHooks::on_state_change`] carries the CiA 402 coupling), and a few
+/// optional callbacks.
+pub trait SlaveApplication: Dictionary + ProcessData + EsmHooks {
+    /// One application cycle, between unpacking the outputs and packing the inputs.
+    fn cycle(&mut self, info: &CycleInfo) {
+        let _ = info;
+    }
+    /// Fresh outputs stopped (process-data watchdog 0x001B, SYNC0 lost 0x002C /
+    /// 0x0032, sync error 0x001A): apply the communication-loss reaction now. The
+    /// ESM change itself is reported through [`EsmHooks::on_state_change`] too.
+    fn on_outputs_lost(&mut self, code: AlStatusCode) {
+        let _ = code;
+    }
+    /// Device identification value (AL control bit 5); `None` = the station alias
+    /// register 0x0012.
+    fn device_id(&mut self) -> Option<u16> {
+        None
+    }
+    /// A local error that must take the slave out of Op (e.g. supply voltage); the
+    /// S→O transition is refused with it while it is pending. Drive faults are not ESM
+    /// errors: a PDS state change never changes the ESM state.
+    fn local_error(&mut self) -> Option<AlStatusCode> {
+        None
+    }
+    /// 0x10F1:02, the sync error counter limit.
+    fn sync_error_limit(&self) -> u16 {
+        4
+    }
+    /// A µs clock for the computation-time diagnostic; `None` = not measured.
+    fn now_us(&mut self) -> Option<u64> {
+        None
+    }
+}
+
+/// What one cycle is about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CycleInfo {
+    /// ESM state.
+    pub state: EsmState,
+    /// New outputs were unpacked into the application in this cycle (Op only).
+    pub outputs_fresh: bool,
+    /// Synchronisation mode.
+    pub mode: SyncMode,
+    /// Time of the cycle (caller's clock, µs).
+    pub now_us: u64,
+}
+
+/// Product configuration of the runtime.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SlaveConfig {
+    /// Written into 0x0012 by [`Slave::init`] (from DIP switches or 0x2150).
+    pub station_alias: Option<u16>,
+    /// Mailbox limits checked at I→P.
+    pub mailbox_limits: MailboxLimits,
+    /// Default PDO mapping and assignment.
+    pub pdo_defaults: PdoDefaults,
+    /// Calc-and-copy times reported in 0x1C32:06 / 0x1C33:06, ns.
+    pub calc_copy_ns: (u32, u32),
+}
+
+impl Default for SlaveConfig {
+    fn default() -> Self {
+        SlaveConfig {
+            station_alias: None,
+            mailbox_limits: MailboxLimits::XINJE,
+            pdo_defaults: PdoDefaults::EMPTY,
+            calc_copy_ns: (0, 0),
+        }
+    }
+}
+
+/// ESC information registers 0x0000-0x0009.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct EscInfo {
+    /// 0x0000.
+    pub esc_type: u8,
+    /// 0x0001.
+    pub revision: u8,
+    /// 0x0002.
+    pub build: u16,
+    /// 0x0004.
+    pub fmmus: u8,
+    /// 0x0005.
+    pub sync_managers: u8,
+    /// 0x0006, KiB.
+    pub ram_kib: u8,
+    /// 0x0008.
+    pub features: u16,
+}
+
+/// The dictionary seen by the mailbox: the runtime's communication objects in front
+/// of the application's dictionary.
+pub struct CommDictionary<'a, A: Dictionary + ?Sized> {
+    /// Mapping and assignment.
+    pub pdo: &'a mut PdoConfig,
+    /// Sync objects and timing diagnostics.
+    pub sync: &'a mut SyncState,
+    /// Everything else.
+    pub app: &'a mut A,
+}
+
+impl<A: Dictionary + ?Sized> Dictionary for CommDictionary<'_, A> {
+    fn objects(&self) -> &'static [Object] {
+        self.app.objects()
+    }
+    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        if pdo::is_pdo_index(index) {
+            self.pdo.read(index, sub, buf)
+        } else if sync::is_sync_index(index) {
+            self.sync.read(index, sub, buf)
+        } else {
+            self.app.read(index, sub, buf)
+        }
+    }
+    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        if pdo::is_pdo_index(index) {
+            let objects = self.app.objects();
+            self.pdo.write(index, sub, data, state, objects)
+        } else if sync::is_sync_index(index) {
+            self.sync.write(index, sub, data, state)
+        } else {
+            self.app.write(index, sub, data, state)
+        }
+    }
+}
+
+enum Step {
+    Done(Result<(), AlStatusCode>),
+    Pending,
+}
+
+/// The slave runtime over any [`EscAccess`].
+pub struct Slave<E: EscAccess> {
+    esc: E,
+    cfg: SlaveConfig,
+    info: EscInfo,
+    ram: RamWindow,
+    esm: Esm,
+    pdo: PdoConfig,
+    sync: SyncState,
+    plan: CopyPlan,
+    mbx: MailboxServer,
+    sms: [SmRegs; 4],
+    /// SM0/SM1 as validated at I→P, SM2/SM3 as validated at P→S: the buffers the
+    /// runtime accesses (never a configuration it has not checked).
+    active: [SmRegs; 4],
+    station: u16,
+    rx_buf: [u8; pdo::MAX_BYTES],
+    tx_buf: [u8; pdo::MAX_BYTES],
+    mbx_buf: [u8; MAX_MAILBOX],
+    sm1_busy: bool,
+    repeat_ack: bool,
+    outputs_fresh: bool,
+    outputs_seen: bool,
+    wd_armed: bool,
+    pending_since: u64,
+    last_status: Option<(u16, u16)>,
+}
+
+impl<E: EscAccess> Slave<E> {
+    /// A runtime in Init; no ESC access until [`Slave::init`].
+    pub fn new(esc: E, cfg: SlaveConfig) -> Self {
+        Slave {
+            esc,
+            info: EscInfo::default(),
+            ram: RamWindow::from_kib(4),
+            esm: Esm::new(),
+            pdo: PdoConfig::new(cfg.pdo_defaults),
+            sync: SyncState::new(cfg.calc_copy_ns),
+            plan: CopyPlan::EMPTY,
+            mbx: MailboxServer::new(128),
+            sms: [SmRegs::default(); 4],
+            active: [SmRegs::default(); 4],
+            station: 0,
+            rx_buf: [0; pdo::MAX_BYTES],
+            tx_buf: [0; pdo::MAX_BYTES],
+            mbx_buf: [0; MAX_MAILBOX],
+            sm1_busy: false,
+            repeat_ack: false,
+            outputs_fresh: false,
+            outputs_seen: false,
+            wd_armed: false,
+            pending_since: 0,
+            last_status: None,
+            cfg,
+        }
+    }
+
+    /// Reads the ESC information, writes the alias (if configured), the AL event mask
+    /// and AL status Init without error.
+    pub fn init(&mut self) -> Result<EscInfo, EscError> {
+        let mut b = [0u8; 10];
+        self.esc.read(reg::ESC_TYPE, &mut b)?;
+        self.info = EscInfo {
+            esc_type: b[0],
+            revision: b[1],
+            build: u16::from_le_bytes([b[2], b[3]]),
+            fmmus: b[4],
+            sync_managers: b[5],
+            ram_kib: b[6],
+            features: u16::from_le_bytes([b[8], b[9]]),
+        };
+        self.ram = RamWindow::from_kib(self.info.ram_kib);
+        if let Some(a) = self.cfg.station_alias {
+            self.esc.write_u16(reg::STATION_ALIAS, a)?;
+        }
+        self.esm = Esm::new();
+        self.last_status = None;
+        self.write_event_mask()?;
+        self.write_status()?;
+        Ok(self.info)
+    }
+
+    /// Current ESM state.
+    pub fn state(&self) -> EsmState {
+        self.esm.state()
+    }
+    /// The AL status (state, error, code).
+    pub fn esm(&self) -> &Esm {
+        &self.esm
+    }
+    /// ESC information read by [`Slave::init`].
+    pub fn esc_info(&self) -> EscInfo {
+        self.info
+    }
+    /// The ESC.
+    pub fn esc_mut(&mut self) -> &mut E {
+        &mut self.esc
+    }
+    /// Mapping and assignment.
+    pub fn pdo(&self) -> &PdoConfig {
+        &self.pdo
+    }
+    /// Mapping and assignment (e.g. restore defaults on 0x1011).
+    pub fn pdo_mut(&mut self) -> &mut PdoConfig {
+        &mut self.pdo
+    }
+    /// Sync state, 0x1C32/0x1C33 and diagnostics.
+    pub fn sync(&self) -> &SyncState {
+        &self.sync
+    }
+    /// The compiled copy plan (valid in Safe-Op/Op).
+    pub fn plan(&self) -> &CopyPlan {
+        &self.plan
+    }
+    /// Station address read at I→P.
+    pub fn station_address(&self) -> u16 {
+        self.station
+    }
+    /// The dictionary as the mailbox sees it (communication objects first).
+    pub fn dictionary<'a, A: Dictionary + ?Sized>(
+        &'a mut self,
+        app: &'a mut A,
+    ) -> CommDictionary<'a, A> {
+        CommDictionary {
+            pdo: &mut self.pdo,
+            sync: &mut self.sync,
+            app,
+        }
+    }
+    /// Queues an emergency message (sent when SM1 is free, in Pre-Op and above).
+    pub fn emergency(&mut self, error_code: u16, error_register: u8, data: [u8; 5]) {
+        self.mbx.emergency(error_code, error_register, data);
+    }
+
+    /// One pass of the runtime (module docs).
+    pub fn poll<A: SlaveApplication>(&mut self, app: &mut A, now_us: u64) -> Result<(), EscError> {
+        let ev = self.esc.al_event()?;
+        if ev & al_event::AL_CONTROL != 0 {
+            self.handle_al_control(app, now_us)?;
+        }
+        if ev & al_event::SM_CHANGE != 0 {
+            self.handle_sm_change(app)?;
+        }
+        self.supervise(app, now_us)?;
+        if self.esm.state().mailbox_running() {
+            if ev & al_event::sm(0) != 0 {
+                self.receive_mailbox(app, now_us)?;
+            }
+            self.mbx.tick(now_us);
+            self.send_mailbox(now_us)?;
+        }
+        if self.esm.state().process_data_running() {
+            self.process_data(app, ev, now_us, false)?;
+        }
+        self.write_status()
+    }
+
+    /// One process-data cycle triggered from outside (DC SYNC0 interrupt, or a
+    /// free-run timer): acknowledges SYNC0, takes new outputs if the master wrote
+    /// them, runs the cycle. Does nothing outside Safe-Op/Op.
+    pub fn cycle<A: SlaveApplication>(&mut self, app: &mut A, now_us: u64) -> Result<(), EscError> {
+        if !self.esm.state().process_data_running() {
+            return Ok(());
+        }
+        let ev = self.esc.al_event()?;
+        self.process_data(app, ev, now_us, true)?;
+        self.write_status()
+    }
+
+    // ---- ESM -------------------------------------------------------------------
+
+    fn handle_al_control<A: SlaveApplication>(
+        &mut self,
+        app: &mut A,
+        now: u64,
+    ) -> Result<(), EscError> {
+        let ctl = self.esc.read_u16(reg::AL_CONTROL)?;
+        let before = self.esm.state();
+        match self.esm.request(ctl) {
+            Decision::None | Decision::Refuse { .. } => {}
+            Decision::Transition { from, to } => match self.transition(app, from, to)? {
+                Step::Done(r) => {
+                    self.esm.finish(from, to, r);
+                }
+                Step::Pending => {
+                    self.esm.set_pending(to);
+                    self.pending_since = now;
+                }
+            },
+        }
+        let id = match app.device_id() {
+            Some(id) => id,
+            None => self.esc.read_u16(reg::STATION_ALIAS)?,
+        };
+        self.esm.id_request(ctl, id);
+        self.state_changed(app, before)
+    }
+
+    fn transition<A: SlaveApplication>(
+        &mut self,
+        app: &mut A,
+        from: EsmState,
+        to: EsmState,
+    ) -> Result<Step, EscError> {
+        use EsmState::*;
+        Ok(match (from, to) {
+            (Init, PreOp) => Step::Done(self.start_mailbox()?),
+            (PreOp, SafeOp) => Step::Done(self.start_process_data(app)?),
+            (SafeOp, Op) => {
+                if let Some(code) = app.local_error() {
+                    Step::Done(Err(code))
+                } else if self.sync.mode == SyncMode::DcSync0 && !self.sync.sup.locked() {
+                    Step::Pending
+                } else {
+                    Step::Done(Ok(()))
+                }
+            }
+            _ => Step::Done(Ok(())),
+        })
+    }
+
+    fn read_sms(&mut self) -> Result<(), EscError> {
+        let mut b = [0u8; 32];
+        self.esc.read(reg::SM_BASE, &mut b)?;
+        for (n, s) in self.sms.iter_mut().enumerate() {
+            *s = SmRegs::from_block(&b, n);
+        }
+        Ok(())
+    }
+
+    fn start_mailbox(&mut self) -> Result<Result<(), AlStatusCode>, EscError> {
+        self.station = self.esc.read_u16(reg::STATION_ADDRESS)?;
+        self.read_sms()?;
+        let [sm0, sm1, sm2, sm3] = self.sms;
+        if let Err(c) =
+            sm::validate_mailbox(&sm0, &sm1, &[sm2, sm3], &self.cfg.mailbox_limits, self.ram)
+        {
+            return Ok(Err(c));
+        }
+        self.active[0] = sm0;
+        self.active[1] = sm1;
+        self.mbx = MailboxServer::new(sm1.len as usize);
+        self.sm1_busy = false;
+        self.repeat_ack = sm1.repeat_request();
+        // Make sure neither mailbox SM is deactivated from the PDI side; start the
+        // repeat handshake from the master's current toggle value.
+        self.esc
+            .write_u8(reg::sm_register(0) + reg::sm::PDI_CONTROL, 0)?;
+        let ack = if self.repeat_ack {
+            sm::pdi_control::REPEAT_ACK
+        } else {
+            0
+        };
+        self.esc
+            .write_u8(reg::sm_register(1) + reg::sm::PDI_CONTROL, ack)?;
+        Ok(Ok(()))
+    }
+
+    fn start_process_data<A: SlaveApplication>(
+        &mut self,
+        app: &mut A,
+    ) -> Result<Result<(), AlStatusCode>, EscError> {
+        self.read_sms()?;
+        let [sm0, sm1, sm2, sm3] = self.sms;
+        let plan = match self.pdo.compile(app, app.objects()) {
+            Ok(p) => p,
+            Err(c) => return Ok(Err(c)),
+        };
+        let rx = plan.rx.bytes();
+        let tx = plan.tx.bytes();
+        if let Err(c) =
+            sm::validate_process_data(&sm2, PdDirection::Outputs, rx, &[sm0, sm1, sm3], self.ram)
+        {
+            return Ok(Err(c));
+        }
+        if let Err(c) =
+            sm::validate_process_data(&sm3, PdDirection::Inputs, tx, &[sm0, sm1, sm2], self.ram)
+        {
+            return Ok(Err(c));
+        }
+        let activation = self.esc.read_u8(reg::DC_ACTIVATION)?;
+        let cycle = self.esc.read_u32(reg::DC_SYNC0_CYCLE)?;
+        let mode = match sync::resolve_mode(
+            self.sync.sm2.written_type,
+            self.sync.sm3.written_type,
+            activation,
+            cycle,
+            rx > 0,
+        ) {
+            Ok(m) => m,
+            Err(c) => return Ok(Err(c)),
+        };
+        let wd_div = self.esc.read_u16(reg::WATCHDOG_DIVIDER)?;
+        let wd_time = self.esc.read_u16(reg::WATCHDOG_TIME_PD)?;
+        let cycle_for_wd = if mode == SyncMode::DcSync0 {
+            cycle
+        } else {
+            self.sync.sm2.cycle_ns
+        };
+        if let Err(c) = sm::validate_watchdog(&sm2, rx > 0, wd_div, wd_time, cycle_for_wd) {
+            return Ok(Err(c));
+        }
+        self.plan = plan;
+        self.active[2] = sm2;
+        self.active[3] = sm3;
+        self.sync.enter(mode, cycle, rx > 0);
+        self.wd_armed = rx > 0 && wd_time != 0;
+        self.outputs_fresh = false;
+        self.outputs_seen = false;
+        self.rx_buf = [0; pdo::MAX_BYTES];
+        self.tx_buf = [0; pdo::MAX_BYTES];
+        // First inputs, so the master never reads an undefined image.
+        self.write_inputs(app)?;
+        Ok(Ok(()))
+    }
+
+    /// Side effects of a state change (both directions) and the application hook.
+    fn state_changed<A: SlaveApplication>(
+        &mut self,
+        app: &mut A,
+        before: EsmState,
+    ) -> Result<(), EscError> {
+        let after = self.esm.state();
+        if after == before {
+            return Ok(());
+        }
+        if before.process_data_running() && !after.process_data_running() {
+            self.sync.leave();
+            self.plan = CopyPlan::EMPTY;
+            self.wd_armed = false;
+            self.outputs_fresh = false;
+        }
+        if before.mailbox_running() && !after.mailbox_running() {
+            self.mbx.reset();
+            self.sm1_busy = false;
+            self.sync.reset_written();
+        }
+        if before == EsmState::Op {
+            self.outputs_fresh = false;
+        }
+        self.write_event_mask()?;
+        app.on_state_change(before, after);
+        Ok(())
+    }
+
+    fn write_event_mask(&mut self) -> Result<(), EscError> {
+        let mut m = al_event::AL_CONTROL | al_event::SM_CHANGE | al_event::WATCHDOG;
+        let s = self.esm.state();
+        if s.mailbox_running() {
+            m |= al_event::sm(0) | al_event::sm(1);
+        }
+        if s.process_data_running() {
+            if self.plan.rx.bytes() > 0 {
+                m |= al_event::sm(2);
+            } else if self.plan.tx.bytes() > 0 {
+                m |= al_event::sm(3);
+            }
+            if self.sync.mode == SyncMode::DcSync0 {
+                m |= al_event::SYNC0;
+            }
+        }
+        self.esc.write_u32(reg::AL_EVENT_MASK, m)
+    }
+
+    fn write_status(&mut self) -> Result<(), EscError> {
+        let st = (self.esm.status_word(), self.esm.code());
+        if self.last_status != Some(st) {
+            self.esc.write_u16(reg::AL_STATUS_CODE, st.1)?;
+            self.esc.write_u16(reg::AL_STATUS, st.0)?;
+            self.last_status = Some(st);
+        }
+        Ok(())
+    }
+
+    fn local_error<A: SlaveApplication>(
+        &mut self,
+        app: &mut A,
+        code: AlStatusCode,
+    ) -> Result<(), EscError> {
+        let before = self.esm.state();
+        self.esm.local_error(code);
+        if matches!(
+            code,
+            AlStatusCode::SmWatchdog
+                | AlStatusCode::FatalSyncError
+                | AlStatusCode::PllError
+                | AlStatusCode::SyncError
+        ) {
+            app.on_outputs_lost(code);
+        }
+        self.outputs_seen = false;
+        self.state_changed(app, before)
+    }
+
+    fn supervise<A: SlaveApplication>(&mut self, app: &mut A, now: u64) -> Result<(), EscError> {
+        if let Some(to) = self.esm.pending() {
+            if self.sync.sup.locked() {
+                let before = self.esm.state();
+                self.esm.finish(before, to, Ok(()));
+                self.state_changed(app, before)?;
+            } else if now.saturating_sub(self.pending_since) > sync::LOCK_TIMEOUT_US {
+                let before = self.esm.state();
+                self.esm.finish(before, to, Err(AlStatusCode::NoSync));
+                self.state_changed(app, before)?;
+            }
+        }
+        let s = self.esm.state();
+        if !s.process_data_running() || self.esm.error() {
+            return Ok(());
+        }
+        if self.wd_armed && (s == EsmState::Op || self.outputs_seen) {
+            let st = self.esc.read_u16(reg::WATCHDOG_STATUS_PD)?;
+            if st & 1 == 0 {
+                return self.local_error(app, AlStatusCode::SmWatchdog);
+            }
+        }
+        if let SyncEvent::Error(code) = self.sync.sup.check(now) {
+            return self.local_error(app, code);
+        }
+        if s == EsmState::Op {
+            if let Some(code) = app.local_error() {
+                return self.local_error(app, code);
+            }
+        }
+        Ok(())
+    }
+
+    fn handle_sm_change<A: SlaveApplication>(&mut self, app: &mut A) -> Result<(), EscError> {
+        self.read_sms()?;
+        let s = self.esm.state();
+        if s.mailbox_running() {
+            let sm1 = self.sms[1];
+            if sm1.repeat_request() != self.repeat_ack {
+                let buf = SmRegs {
+                    status: sm1.status,
+                    activate: sm1.activate,
+                    ..self.active[1]
+                };
+                self.repeat_mailbox(buf)?;
+            }
+        }
+        if s.process_data_running() && !self.esm.error() {
+            if self.plan.rx.bytes() > 0 && !self.sms[2].enabled() {
+                return self.local_error(app, AlStatusCode::InvalidOutputConfig);
+            }
+            if self.plan.tx.bytes() > 0 && !self.sms[3].enabled() {
+                return self.local_error(app, AlStatusCode::InvalidInputConfig);
+            }
+        }
+        Ok(())
+    }
+
+    // ---- mailbox ---------------------------------------------------------------
+
+    fn receive_mailbox<A: SlaveApplication>(
+        &mut self,
+        app: &mut A,
+        now: u64,
+    ) -> Result<(), EscError> {
+        let sm0 = self.active[0];
+        let len = (sm0.len as usize).min(MAX_MAILBOX);
+        if len == 0 {
+            return Ok(());
+        }
+        // Reading the whole buffer (last byte included) hands it back to the master.
+        self.esc.read(sm0.start, &mut self.mbx_buf[..len])?;
+        let state = self.esm.state();
+        let mut dict = CommDictionary {
+            pdo: &mut self.pdo,
+            sync: &mut self.sync,
+            app,
+        };
+        self.mbx
+            .on_request(&self.mbx_buf[..len], &mut dict, state, now);
+        Ok(())
+    }
+
+    fn send_mailbox(&mut self, now: u64) -> Result<(), EscError> {
+        let sm1 = self.active[1];
+        let len = (sm1.len as usize).min(MAX_MAILBOX);
+        if len == 0 {
+            return Ok(());
+        }
+        if self.sm1_busy {
+            let st = self.esc.read_u8(reg::sm_register(1) + reg::sm::STATUS)?;
+            if st & sm::status::MAILBOX_FULL != 0 {
+                return Ok(());
+            }
+            self.sm1_busy = false;
+        }
+        let n = self.mbx.next_output(&mut self.mbx_buf[..len], now);
+        if n > 0 {
+            self.write_sm1(sm1, n)?;
+        }
+        Ok(())
+    }
+
+    /// Writes `mbx_buf[..n]` into SM1 so that the last byte of the buffer is written
+    /// (buffer hand-over rule).
+    fn write_sm1(&mut self, sm1: SmRegs, n: usize) -> Result<(), EscError> {
+        let len = (sm1.len as usize).min(MAX_MAILBOX);
+        let n = n.min(len);
+        self.esc.write(sm1.start, &self.mbx_buf[..n])?;
+        if n < len {
+            self.esc.write_u8(sm1.last_byte(), 0)?;
+        }
+        self.sm1_busy = true;
+        Ok(())
+    }
+
+    fn repeat_mailbox(&mut self, sm1: SmRegs) -> Result<(), EscError> {
+        let len = (sm1.len as usize).min(MAX_MAILBOX);
+        let n = self.mbx.repeat_last(&mut self.mbx_buf[..len]);
+        let pdi = reg::sm_register(1) + reg::sm::PDI_CONTROL;
+        let new_ack = sm1.repeat_request();
+        let ack_bits = if new_ack {
+            sm::pdi_control::REPEAT_ACK
+        } else {
+            0
+        };
+        if n > 0 {
+            if sm1.status & sm::status::MAILBOX_FULL != 0 {
+                // An unread mailbox is in the way: flush SM1 by deactivating it.
+                self.esc.write_u8(
+                    pdi,
+                    sm::pdi_control::DEACTIVATE | (ack_bits ^ sm::pdi_control::REPEAT_ACK),
+                )?;
+                self.esc
+                    .write_u8(pdi, ack_bits ^ sm::pdi_control::REPEAT_ACK)?;
+            }
+            self.write_sm1(sm1, n)?;
+        }
+        self.esc.write_u8(pdi, ack_bits)?;
+        self.repeat_ack = new_ack;
+        Ok(())
+    }
+
+    // ---- process data ----------------------------------------------------------
+
+    fn process_data<A: SlaveApplication>(
+        &mut self,
+        app: &mut A,
+        ev: u32,
+        now: u64,
+        external: bool,
+    ) -> Result<(), EscError> {
+        let rx_len = self.plan.rx.bytes() as usize;
+        let got_sm2 = rx_len > 0 && ev & al_event::sm(2) != 0;
+        if got_sm2 {
+            let start = self.active[2].start;
+            self.esc
+                .read(start, &mut self.rx_buf[..rx_len.min(pdo::MAX_BYTES)])?;
+            self.outputs_fresh = true;
+            self.outputs_seen = true;
+            self.sync.sm2_since_sync0 = true;
+            self.sync.last_sm2 = Some(now);
+        }
+        let run = match self.sync.mode {
+            SyncMode::DcSync0 => {
+                let sync0 = ev & al_event::SYNC0 != 0 || external;
+                if sync0 {
+                    self.esc.read_u8(reg::DC_SYNC0_STATUS)?;
+                    self.on_sync0(app, now)?;
+                }
+                sync0
+            }
+            SyncMode::SmSync => external || got_sm2 || (rx_len == 0 && ev & al_event::sm(3) != 0),
+            SyncMode::FreeRun => {
+                external
+                    || self.sync.last_cycle.is_none_or(|t| {
+                        now.saturating_sub(t) >= self.sync.free_run_period_us() as u64
+                    })
+            }
+        };
+        if run && self.esm.state().process_data_running() {
+            self.run_cycle(app, now)?;
+        }
+        Ok(())
+    }
+
+    fn on_sync0<A: SlaveApplication>(&mut self, app: &mut A, now: u64) -> Result<(), EscError> {
+        let (event, interval) = self.sync.sup.on_sync0(now);
+        if let Some(i) = interval {
+            self.sync.diag.sync0_period(i);
+        }
+        if let Some(t) = self.sync.last_sm2 {
+            if self.sync.sm2_since_sync0 {
+                self.sync.diag.pdi_to_sync0 = now.saturating_sub(t).min(u32::MAX as u64) as u32;
+            }
+        }
+        if let SyncEvent::Error(code) = event {
+            if !self.esm.error() {
+                return self.local_error(app, code);
+            }
+        }
+        if self.esm.state() == EsmState::Op && self.plan.rx.bytes() > 0 && !self.esm.error() {
+            let got = self.sync.sm2_since_sync0;
+            if let Some(code) = self.sync.account_sm_event(got, app.sync_error_limit()) {
+                self.sync.sm2_since_sync0 = false;
+                return self.local_error(app, code);
+            }
+        }
+        self.sync.sm2_since_sync0 = false;
+        Ok(())
+    }
+
+    fn run_cycle<A: SlaveApplication>(&mut self, app: &mut A, now: u64) -> Result<(), EscError> {
+        if let Some(t) = self.sync.last_cycle {
+            self.sync.diag.pdi_period = now.saturating_sub(t).min(u32::MAX as u64) as u32;
+        }
+        self.sync.last_cycle = Some(now);
+        let start = app.now_us();
+        let state = self.esm.state();
+        let fresh = state == EsmState::Op && self.outputs_fresh;
+        if fresh {
+            pdo::unpack(&self.plan.rx, &self.rx_buf, app);
+            self.outputs_fresh = false;
+        }
+        app.cycle(&CycleInfo {
+            state,
+            outputs_fresh: fresh,
+            mode: self.sync.mode,
+            now_us: now,
+        });
+        self.write_inputs(app)?;
+        if let (Some(a), Some(b)) = (start, app.now_us()) {
+            self.sync
+                .computation(b.saturating_sub(a), app.sync_error_limit());
+        }
+        Ok(())
+    }
+
+    fn write_inputs<A: SlaveApplication>(&mut self, app: &mut A) -> Result<(), EscError> {
+        let tx_len = (self.plan.tx.bytes() as usize).min(pdo::MAX_BYTES);
+        if tx_len == 0 {
+            return Ok(());
+        }
+        pdo::pack(&self.plan.tx, app, &mut self.tx_buf[..tx_len]);
+        self.esc.write(self.active[3].start, &self.tx_buf[..tx_len])
+    }
+}
+
+mod fallback {
+    //! Stand-in for the CoE mailbox server until `crate::mailbox` exists: answers
+    //! every request with a mailbox error reply "protocol not supported" (0x0002).
+    use crate::esm::EsmState;
+    use crate::od::Dictionary;
+
+    /// Same interface as `mailbox::MailboxServer`.
+    pub struct FallbackMailbox {
+        reply: [u8; 10],
+        pending: bool,
+        last: [u8; 10],
+        last_len: usize,
+        counter: u8,
+    }
+
+    impl FallbackMailbox {
+        pub fn new(_mailbox_size: usize) -> Self {
+            FallbackMailbox {
+                reply: [0; 10],
+                pending: false,
+                last: [0; 10],
+                last_len: 0,
+                counter: 0,
+            }
+        }
+        pub fn on_request(
+            &mut self,
+            frame: &[u8],
+            _dict: &mut impl Dictionary,
+            _state: EsmState,
+            _now_us: u64,
+        ) {
+            if frame.len() < 6 {
+                return;
+            }
+            // Header: length 4, address 0, channel/priority 0, type 0 (error), counter
+            // assigned when sent; payload: 0x0001 (command), 0x0002 (detail).
+            self.reply = [4, 0, 0, 0, 0, 0, 0x01, 0x00, 0x02, 0x00];
+            self.pending = true;
+        }
+        pub fn next_output(&mut self, out: &mut [u8], _now_us: u64) -> usize {
+            if !self.pending || out.len() < self.reply.len() {
+                return 0;
+            }
+            self.counter = if self.counter >= 7 {
+                1
+            } else {
+                self.counter + 1
+            };
+            self.reply[5] = self.counter << 4;
+            out[..10].copy_from_slice(&self.reply);
+            self.last = self.reply;
+            self.last_len = 10;
+            self.pending = false;
+            10
+        }
+        pub fn repeat_last(&self, out: &mut [u8]) -> usize {
+            if self.last_len == 0 || out.len() < self.last_len {
+                return 0;
+            }
+            out[..self.last_len].copy_from_slice(&self.last[..self.last_len]);
+            self.last_len
+        }
+        pub fn tick(&mut self, _now_us: u64) {}
+        pub fn reset(&mut self) {
+            self.pending = false;
+            self.last_len = 0;
+        }
+        pub fn emergency(&mut self, _error_code: u16, _error_register: u8, _data: [u8; 5]) {}
+    }
+}

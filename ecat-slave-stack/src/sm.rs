@@ -1,0 +1,386 @@
+//! SyncManager register views and the checks of the ESM transitions.
+//!
+//! [`SmRegs`] is the 8-byte register block of one SyncManager (digest §1.10) as read
+//! from `0x0800 + 8·n`. The validation functions are pure: the runtime reads the
+//! registers and passes them in.
+//!
+//! * [`validate_mailbox`] (I→P): SM0 32-256 bytes, SM1 40-256 bytes (the Xinje
+//!   limits), even start addresses, inside process RAM, no overlap with each other or
+//!   with an SM2/SM3 area the master has configured, mode/direction 0x26 / 0x22
+//!   (mailbox mode, write resp. read, AL event interrupt), enabled → else 0x0016.
+//! * [`validate_process_data`] (P→S): SM2/SM3 start inside process RAM with room for
+//!   three buffers, length equal to the mapped size, buffered mode, right direction,
+//!   enabled iff the size is non-zero, no overlap with the mailboxes or each other
+//!   (a 3-buffer SM occupies 3 × length) → 0x001D (outputs) / 0x001E (inputs).
+//! * [`validate_watchdog`] (P→S): 0x0420 ≠ 0 exactly when SM2's watchdog trigger
+//!   (control bit 6) is set, and an enabled watchdog at least twice the cycle time →
+//!   else 0x001F.
+
+use crate::al_status::AlStatusCode;
+use crate::registers;
+
+/// Control byte bits.
+pub mod control {
+    /// Mode field, bits 1:0.
+    pub const MODE_MASK: u8 = 0x03;
+    /// Buffered (3-buffer) mode.
+    pub const MODE_BUFFERED: u8 = 0x00;
+    /// Mailbox (1-buffer) mode.
+    pub const MODE_MAILBOX: u8 = 0x02;
+    /// Direction field, bits 3:2.
+    pub const DIR_MASK: u8 = 0x0C;
+    /// ECAT reads, PDI writes (inputs, mailbox in).
+    pub const DIR_READ: u8 = 0x00;
+    /// ECAT writes, PDI reads (outputs, mailbox out).
+    pub const DIR_WRITE: u8 = 0x04;
+    /// Interrupt into the AL event register.
+    pub const AL_EVENT_IRQ: u8 = 0x20;
+    /// Watchdog trigger.
+    pub const WATCHDOG: u8 = 0x40;
+}
+
+/// Status byte bits.
+pub mod status {
+    /// Mailbox full (1-buffer mode).
+    pub const MAILBOX_FULL: u8 = 0x08;
+}
+
+/// Activate byte bits.
+pub mod activate {
+    /// SM enabled.
+    pub const ENABLE: u8 = 0x01;
+    /// Repeat request (toggled by the master).
+    pub const REPEAT_REQUEST: u8 = 0x02;
+}
+
+/// PDI control byte bits.
+pub mod pdi_control {
+    /// Deactivate the SM from the PDI.
+    pub const DEACTIVATE: u8 = 0x01;
+    /// Repeat acknowledge.
+    pub const REPEAT_ACK: u8 = 0x02;
+}
+
+/// One SyncManager register block.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SmRegs {
+    /// Physical start address.
+    pub start: u16,
+    /// Length in bytes.
+    pub len: u16,
+    /// Control byte.
+    pub control: u8,
+    /// Status byte.
+    pub status: u8,
+    /// Activate byte.
+    pub activate: u8,
+    /// PDI control byte.
+    pub pdi_control: u8,
+}
+
+impl SmRegs {
+    /// Decodes the 8 register bytes.
+    pub const fn from_bytes(b: &[u8; 8]) -> Self {
+        SmRegs {
+            start: u16::from_le_bytes([b[0], b[1]]),
+            len: u16::from_le_bytes([b[2], b[3]]),
+            control: b[4],
+            status: b[5],
+            activate: b[6],
+            pdi_control: b[7],
+        }
+    }
+    /// Encodes the 8 register bytes.
+    pub const fn to_bytes(&self) -> [u8; 8] {
+        let s = self.start.to_le_bytes();
+        let l = self.len.to_le_bytes();
+        [
+            s[0],
+            s[1],
+            l[0],
+            l[1],
+            self.control,
+            self.status,
+            self.activate,
+            self.pdi_control,
+        ]
+    }
+    /// Decodes SM `n` from a block of consecutive SM registers starting at SM0.
+    pub fn from_block(block: &[u8], n: usize) -> Self {
+        let mut b = [0u8; 8];
+        if let Some(src) = block.get(n * 8..n * 8 + 8) {
+            b.copy_from_slice(src);
+        }
+        Self::from_bytes(&b)
+    }
+    /// Activate bit 0.
+    pub const fn enabled(&self) -> bool {
+        self.activate & activate::ENABLE != 0
+    }
+    /// Mode field.
+    pub const fn mode(&self) -> u8 {
+        self.control & control::MODE_MASK
+    }
+    /// Direction field.
+    pub const fn direction(&self) -> u8 {
+        self.control & control::DIR_MASK
+    }
+    /// Repeat request bit of the activate byte.
+    pub const fn repeat_request(&self) -> bool {
+        self.activate & activate::REPEAT_REQUEST != 0
+    }
+    /// Bytes of RAM this SM occupies: 3 × length in buffered mode.
+    pub const fn footprint(&self) -> u32 {
+        if self.mode() == control::MODE_BUFFERED {
+            3 * self.len as u32
+        } else {
+            self.len as u32
+        }
+    }
+    /// The occupied RAM range `[start, end)`.
+    pub const fn range(&self) -> (u32, u32) {
+        (self.start as u32, self.start as u32 + self.footprint())
+    }
+    /// Address of the last byte of the (first) buffer.
+    pub const fn last_byte(&self) -> u16 {
+        self.start.wrapping_add(self.len.saturating_sub(1))
+    }
+}
+
+/// Limits of the mailbox configuration accepted at I→P.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MailboxLimits {
+    /// SM0 (mailbox out) length range.
+    pub sm0_len: (u16, u16),
+    /// SM1 (mailbox in) length range.
+    pub sm1_len: (u16, u16),
+}
+
+impl MailboxLimits {
+    /// The Xinje limits (drive-requirements §2): SM0 32-256, SM1 40-256 bytes.
+    pub const XINJE: MailboxLimits = MailboxLimits {
+        sm0_len: (32, 256),
+        sm1_len: (40, 256),
+    };
+}
+
+impl Default for MailboxLimits {
+    fn default() -> Self {
+        Self::XINJE
+    }
+}
+
+/// The process RAM window `[0x1000, 0x1000 + size)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RamWindow {
+    /// First address.
+    pub start: u32,
+    /// One past the last address.
+    pub end: u32,
+}
+
+impl RamWindow {
+    /// Process RAM of `kib` KiB (register 0x0006), at least 1 KiB assumed.
+    pub const fn from_kib(kib: u8) -> Self {
+        let size = if kib == 0 { 1024 } else { kib as u32 * 1024 };
+        RamWindow {
+            start: registers::PROCESS_RAM as u32,
+            end: registers::PROCESS_RAM as u32 + size,
+        }
+    }
+    /// True when `[a, b)` lies inside the window.
+    pub const fn contains(&self, a: u32, b: u32) -> bool {
+        a >= self.start && b <= self.end && a <= b
+    }
+}
+
+const fn overlap(a: (u32, u32), b: (u32, u32)) -> bool {
+    a.0 < b.1 && b.0 < a.1
+}
+
+fn check_mailbox_sm(
+    sm: &SmRegs,
+    len: (u16, u16),
+    dir: u8,
+    ram: RamWindow,
+) -> Result<(), AlStatusCode> {
+    let bad = Err(AlStatusCode::InvalidMailboxConfig);
+    if !sm.enabled() || sm.len < len.0 || sm.len > len.1 || !sm.start.is_multiple_of(2) {
+        return bad;
+    }
+    if sm.mode() != control::MODE_MAILBOX
+        || sm.direction() != dir
+        || sm.control & control::AL_EVENT_IRQ == 0
+    {
+        return bad;
+    }
+    let (a, b) = sm.range();
+    if !ram.contains(a, b) {
+        return bad;
+    }
+    Ok(())
+}
+
+/// The I→P check of SM0/SM1 (see the module docs). `pd` are SM2 and SM3 as the
+/// master left them; a process-data SM with length 0 occupies nothing.
+pub fn validate_mailbox(
+    sm0: &SmRegs,
+    sm1: &SmRegs,
+    pd: &[SmRegs],
+    limits: &MailboxLimits,
+    ram: RamWindow,
+) -> Result<(), AlStatusCode> {
+    check_mailbox_sm(sm0, limits.sm0_len, control::DIR_WRITE, ram)?;
+    check_mailbox_sm(sm1, limits.sm1_len, control::DIR_READ, ram)?;
+    if overlap(sm0.range(), sm1.range()) {
+        return Err(AlStatusCode::InvalidMailboxConfig);
+    }
+    for p in pd.iter().filter(|p| p.len > 0) {
+        if overlap(sm0.range(), p.range()) || overlap(sm1.range(), p.range()) {
+            return Err(AlStatusCode::InvalidMailboxConfig);
+        }
+    }
+    Ok(())
+}
+
+/// Which process-data SyncManager is checked.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PdDirection {
+    /// SM2, outputs of the master (RxPDO), ECAT writes.
+    Outputs,
+    /// SM3, inputs of the master (TxPDO), ECAT reads.
+    Inputs,
+}
+
+impl PdDirection {
+    /// 0x001D for outputs, 0x001E for inputs.
+    pub const fn error(self) -> AlStatusCode {
+        match self {
+            Self::Outputs => AlStatusCode::InvalidOutputConfig,
+            Self::Inputs => AlStatusCode::InvalidInputConfig,
+        }
+    }
+    const fn dir_bits(self) -> u8 {
+        match self {
+            Self::Outputs => control::DIR_WRITE,
+            Self::Inputs => control::DIR_READ,
+        }
+    }
+}
+
+/// The P→S check of SM2 (outputs) or SM3 (inputs) against the mapped size in bytes.
+/// `others` are the SyncManagers it must not overlap (the mailboxes and the other
+/// process-data SM).
+pub fn validate_process_data(
+    sm: &SmRegs,
+    dir: PdDirection,
+    mapped_bytes: u16,
+    others: &[SmRegs],
+    ram: RamWindow,
+) -> Result<(), AlStatusCode> {
+    let bad = Err(dir.error());
+    if mapped_bytes == 0 {
+        // Nothing mapped: the SM must not carry data.
+        return if sm.enabled() && sm.len > 0 {
+            bad
+        } else {
+            Ok(())
+        };
+    }
+    if !sm.enabled() || sm.len != mapped_bytes {
+        return bad;
+    }
+    if sm.mode() != control::MODE_BUFFERED || sm.direction() != dir.dir_bits() {
+        return bad;
+    }
+    let (a, b) = sm.range();
+    if !ram.contains(a, b) {
+        return bad;
+    }
+    for o in others.iter().filter(|o| o.len > 0) {
+        if overlap((a, b), o.range()) {
+            return bad;
+        }
+    }
+    Ok(())
+}
+
+/// Process-data watchdog time in ns from the divider (0x0400) and the time (0x0420).
+pub const fn watchdog_ns(divider: u16, time: u16) -> u64 {
+    (divider as u64 + 2) * 40 * time as u64
+}
+
+/// The P→S watchdog check: with outputs, 0x0420 ≠ 0 exactly when SM2 control bit 6
+/// is set; an enabled watchdog must be at least 2 × `cycle_ns` (0 = cycle unknown,
+/// not checked) → else 0x001F.
+pub fn validate_watchdog(
+    sm2: &SmRegs,
+    outputs: bool,
+    divider: u16,
+    time: u16,
+    cycle_ns: u32,
+) -> Result<(), AlStatusCode> {
+    if !outputs {
+        return Ok(());
+    }
+    let trigger = sm2.control & control::WATCHDOG != 0;
+    if (time != 0) != trigger {
+        return Err(AlStatusCode::InvalidWatchdogConfig);
+    }
+    if time != 0 && cycle_ns != 0 && watchdog_ns(divider, time) < 2 * cycle_ns as u64 {
+        return Err(AlStatusCode::InvalidWatchdogConfig);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sm(start: u16, len: u16, control: u8) -> SmRegs {
+        SmRegs {
+            start,
+            len,
+            control,
+            status: 0,
+            activate: 1,
+            pdi_control: 0,
+        }
+    }
+    const RAM: RamWindow = RamWindow::from_kib(4);
+
+    #[test]
+    fn standard_layout_is_accepted() {
+        let sm0 = sm(0x1000, 128, 0x26);
+        let sm1 = sm(0x1080, 128, 0x22);
+        let sm2 = sm(0x1100, 12, 0x64);
+        let sm3 = sm(0x1400, 19, 0x20);
+        assert_eq!(
+            validate_mailbox(&sm0, &sm1, &[sm2, sm3], &MailboxLimits::XINJE, RAM),
+            Ok(())
+        );
+        assert_eq!(
+            validate_process_data(&sm2, PdDirection::Outputs, 12, &[sm0, sm1, sm3], RAM),
+            Ok(())
+        );
+        assert_eq!(
+            validate_process_data(&sm3, PdDirection::Inputs, 19, &[sm0, sm1, sm2], RAM),
+            Ok(())
+        );
+        assert_eq!(validate_watchdog(&sm2, true, 2498, 1000, 1_000_000), Ok(()));
+    }
+
+    #[test]
+    fn register_bytes_round_trip() {
+        let r = SmRegs {
+            start: 0x1234,
+            len: 0x0056,
+            control: 0x64,
+            status: 0x08,
+            activate: 3,
+            pdi_control: 2,
+        };
+        assert_eq!(SmRegs::from_bytes(&r.to_bytes()), r);
+        assert_eq!(SmRegs::from_block(&[0u8; 3], 1), SmRegs::default());
+    }
+}
