@@ -9,8 +9,10 @@
 #![warn(missing_docs)]
 
 pub mod al_status;
+pub mod coe;
 pub mod esc;
 pub mod esm;
+pub mod mailbox;
 pub mod od;
 pub mod pdo;
 pub mod registers;

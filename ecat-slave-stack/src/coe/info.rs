@@ -1,0 +1,487 @@
+//! SDO information (CoE service 8): the master browses the object dictionary.
+//!
+//! After the CoE header: opcode (bits 6:0) with the "incomplete" flag (bit 7), a reserved
+//! byte and a u16 "fragments left" ([`field`]), then the service data:
+//!
+//! | Opcode | Request | Response |
+//! |---|---|---|
+//! | 0x01 → 0x02 get OD list | u16 list type | u16 list type, u16 indices (list 0: five u16 counts of lists 1–5) |
+//! | 0x03 → 0x04 get object description | u16 index | u16 index, u16 data type, u8 max sub-index, u8 object code, name |
+//! | 0x05 → 0x06 get entry description | u16 index, u8 sub-index, u8 value-info request | u16 index, u8 sub-index, u8 value info, u16 data type, u16 bit length, u16 access, [default] [min] [max], name |
+//! | — → 0x07 error | | u32 abort code |
+//!
+//! A response longer than the mailbox is sent as consecutive fragments: every fragment
+//! but the last has the incomplete flag; "fragments left" counts down to 0. The list type
+//! is only in the first fragment of an OD list.
+//!
+//! Choices of this implementation:
+//! * OD lists 4 (backup) and 5 (settings) both hold the objects with at least one entry
+//!   marked `saved` ([`od::OdListType`]).
+//! * Entry description access word: bits 0–5 read/write per ESM state, bit 6 RxPDO, bit 7
+//!   TxPDO mappable, bits 8 (backup) and 9 (setting) for `saved` entries.
+//! * Value info: default (0x10), minimum (0x20) and maximum (0x40) are returned for
+//!   numeric entries when requested, each at the entry's byte length; the response's
+//!   value-info byte says which ones are present (bits 0–2 of the request are echoed).
+//!   There are no ETG unit codes in the dictionary, so the unit-type flag (0x08) is never
+//!   answered; instead a unit is appended to the entry name as `"name [unit]"`.
+//! * Object description data type: the entry's type for VAR, the element type (sub-index
+//!   1) for ARRAY, 0x002A (RECORD) for RECORD.
+//! * Missing object → error 0x06020000, missing sub-index → 0x06090011, unknown list type
+//!   → 0x06010000, unknown opcode → 0x05040001.
+
+use super::{Header, Service, HEADER_LEN as COE_HEADER_LEN};
+use crate::mailbox::ErrorDetail;
+use crate::od::{self, DefaultValue, Dictionary, Entry, Object, ObjectCode, OdListType, SdoAbort};
+
+/// Size of the SDO information header (opcode, reserved, fragments left).
+pub const INFO_HEADER_LEN: usize = 4;
+/// CoE header + SDO information header.
+pub const PREFIX_LEN: usize = COE_HEADER_LEN + INFO_HEADER_LEN;
+/// Data type code reported for RECORD objects.
+pub const RECORD_TYPE: u16 = 0x002A;
+
+/// Byte offsets after the CoE header.
+pub mod field {
+    use core::ops::{Range, RangeFrom};
+    /// Opcode (bits 6:0) and incomplete flag (bit 7).
+    pub const OPCODE: usize = 0;
+    /// Fragments left (u16).
+    pub const FRAGMENTS_LEFT: Range<usize> = 2..4;
+    /// Service data.
+    pub const DATA: RangeFrom<usize> = 4..;
+}
+
+/// Opcodes.
+pub mod opcode {
+    /// Get OD list request.
+    pub const OD_LIST_REQUEST: u8 = 0x01;
+    /// Get OD list response.
+    pub const OD_LIST_RESPONSE: u8 = 0x02;
+    /// Get object description request.
+    pub const OBJECT_DESCRIPTION_REQUEST: u8 = 0x03;
+    /// Get object description response.
+    pub const OBJECT_DESCRIPTION_RESPONSE: u8 = 0x04;
+    /// Get entry description request.
+    pub const ENTRY_DESCRIPTION_REQUEST: u8 = 0x05;
+    /// Get entry description response.
+    pub const ENTRY_DESCRIPTION_RESPONSE: u8 = 0x06;
+    /// SDO information error.
+    pub const ERROR: u8 = 0x07;
+    /// Incomplete flag (more fragments follow).
+    pub const INCOMPLETE: u8 = 0x80;
+}
+
+/// Value-info flags of the entry description.
+pub mod value_info {
+    /// Unit type (never answered by this server, see the module docs).
+    pub const UNIT_TYPE: u8 = 0x08;
+    /// Default value.
+    pub const DEFAULT: u8 = 0x10;
+    /// Minimum value.
+    pub const MINIMUM: u8 = 0x20;
+    /// Maximum value.
+    pub const MAXIMUM: u8 = 0x40;
+    /// The flags that carry no data and are echoed.
+    pub const ECHOED: u8 = 0x07;
+}
+
+/// A zero-copy view of an SDO information frame (after the CoE header).
+#[derive(Debug, Clone)]
+pub struct Frame<T: AsRef<[u8]>> {
+    buffer: T,
+}
+
+impl<T: AsRef<[u8]>> Frame<T> {
+    /// Wraps a buffer; accessors read 0 / empty beyond its end.
+    pub const fn new(buffer: T) -> Self {
+        Frame { buffer }
+    }
+    fn byte(&self, i: usize) -> u8 {
+        self.buffer.as_ref().get(i).copied().unwrap_or(0)
+    }
+    /// True when the buffer holds the 4-byte header.
+    pub fn has_header(&self) -> bool {
+        self.buffer.as_ref().len() >= INFO_HEADER_LEN
+    }
+    /// Opcode without the incomplete flag.
+    pub fn opcode(&self) -> u8 {
+        self.byte(field::OPCODE) & 0x7F
+    }
+    /// Incomplete flag.
+    pub fn incomplete(&self) -> bool {
+        self.byte(field::OPCODE) & opcode::INCOMPLETE != 0
+    }
+    /// Fragments left.
+    pub fn fragments_left(&self) -> u16 {
+        u16::from_le_bytes([
+            self.byte(field::FRAGMENTS_LEFT.start),
+            self.byte(field::FRAGMENTS_LEFT.end - 1),
+        ])
+    }
+    /// Service data.
+    pub fn data(&self) -> &[u8] {
+        self.buffer.as_ref().get(field::DATA).unwrap_or(&[])
+    }
+}
+
+/// Writes the CoE + information header into `out[..6]`.
+fn emit_prefix(out: &mut [u8], op: u8, incomplete: bool, fragments_left: u16) {
+    Header::of(Service::SdoInformation).emit(out);
+    out[2] = op | if incomplete { opcode::INCOMPLETE } else { 0 };
+    out[3] = 0;
+    out[4..6].copy_from_slice(&fragments_left.to_le_bytes());
+}
+
+/// Writes an SDO information error (10 bytes) into `out`; 0 if `out` is too short.
+pub fn emit_error(out: &mut [u8], abort: SdoAbort) -> usize {
+    let Some(b) = out.get_mut(..PREFIX_LEN + 4) else {
+        return 0;
+    };
+    emit_prefix(b, opcode::ERROR, false, 0);
+    b[6..10].copy_from_slice(&abort.code().to_le_bytes());
+    PREFIX_LEN + 4
+}
+
+/// The answer to a request.
+#[derive(Debug, Clone, Copy)]
+pub enum Answer {
+    /// A single frame of this length was written (an error).
+    Frame(usize),
+    /// A response sent as one or more fragments by [`InfoJob::next_fragment`].
+    Series(InfoJob),
+}
+
+const HEAD_MAX: usize = 40;
+
+#[derive(Debug, Clone, Copy)]
+enum Body {
+    OdList {
+        list: OdListType,
+        objects: &'static [Object],
+    },
+    Bytes {
+        head: [u8; HEAD_MAX],
+        head_len: u8,
+        tail: [&'static [u8]; 4],
+    },
+}
+
+/// A response being sent fragment by fragment (no heap: OD lists are generated from the
+/// static object table for each fragment).
+#[derive(Debug, Clone, Copy)]
+pub struct InfoJob {
+    op: u8,
+    body: Body,
+    next: u16,
+    fragments: u16,
+    per_fragment: usize,
+}
+
+impl InfoJob {
+    fn new(op: u8, body: Body, cap: usize) -> Self {
+        let mut per = cap.saturating_sub(PREFIX_LEN).max(2);
+        if matches!(body, Body::OdList { .. }) {
+            per &= !1;
+        }
+        let mut job = InfoJob {
+            op,
+            body,
+            next: 0,
+            fragments: 1,
+            per_fragment: per,
+        };
+        let total = job.payload_len();
+        job.fragments = total.div_ceil(per).clamp(1, u16::MAX as usize) as u16;
+        job
+    }
+
+    /// Length of the whole response data (all fragments).
+    pub fn payload_len(&self) -> usize {
+        match self.body {
+            Body::OdList {
+                list: OdListType::Counts,
+                ..
+            } => 2 + 2 * OdListType::LISTS.len(),
+            Body::OdList { list, objects } => 2 + 2 * list.count(objects),
+            Body::Bytes { head_len, tail, .. } => {
+                head_len as usize + tail.iter().map(|t| t.len()).sum::<usize>()
+            }
+        }
+    }
+
+    /// Number of fragments of the response.
+    pub fn fragments(&self) -> u16 {
+        self.fragments
+    }
+
+    /// Writes the next fragment (CoE payload) into `out` (the mailbox data area, the
+    /// size given to the request). Returns its length and whether it was the last.
+    pub fn next_fragment(&mut self, out: &mut [u8]) -> (usize, bool) {
+        if self.next >= self.fragments || out.len() < PREFIX_LEN + self.per_fragment {
+            self.next = self.fragments;
+            return (0, true);
+        }
+        let left = self.fragments - 1 - self.next;
+        emit_prefix(out, self.op, left > 0, left);
+        let start = self.next as usize * self.per_fragment;
+        let end = (start + self.per_fragment).min(self.payload_len());
+        let dst = &mut out[PREFIX_LEN..PREFIX_LEN + (end - start)];
+        self.fill(start, dst);
+        self.next += 1;
+        (PREFIX_LEN + dst.len(), self.next >= self.fragments)
+    }
+
+    /// Copies the response data `[start, start + dst.len())` into `dst`.
+    fn fill(&self, start: usize, dst: &mut [u8]) {
+        match self.body {
+            Body::OdList { list, objects } => {
+                // Item 0 is the list type, items 1.. the indices (or the five counts).
+                let first_item = start / 2;
+                let n_items = dst.len() / 2;
+                let mut put = |item: usize, v: u16| {
+                    let o = (item - first_item) * 2;
+                    if let Some(d) = dst.get_mut(o..o + 2) {
+                        d.copy_from_slice(&v.to_le_bytes());
+                    }
+                };
+                if n_items == 0 {
+                    return;
+                }
+                let mut item = first_item;
+                if item == 0 {
+                    put(0, list.code());
+                    item = 1;
+                }
+                let end_item = first_item + n_items;
+                if list == OdListType::Counts {
+                    for (i, l) in OdListType::LISTS.iter().enumerate() {
+                        if (item..end_item).contains(&(i + 1)) {
+                            put(i + 1, l.count(objects) as u16);
+                        }
+                    }
+                } else {
+                    let it = objects.iter().filter(|o| list.contains(o)).enumerate();
+                    for (i, o) in it
+                        .skip(item.saturating_sub(1))
+                        .take(end_item.saturating_sub(item))
+                    {
+                        put(i + 1, o.index);
+                    }
+                }
+            }
+            Body::Bytes {
+                head,
+                head_len,
+                tail,
+            } => {
+                let mut pos = 0usize; // position in the whole payload
+                let mut w = 0usize; // written into dst
+                let parts =
+                    core::iter::once(&head[..head_len as usize]).chain(tail.iter().copied());
+                for part in parts {
+                    let (p0, p1) = (pos, pos + part.len());
+                    pos = p1;
+                    let a = (start + w).max(p0);
+                    let b = (start + dst.len()).min(p1);
+                    if a < b {
+                        dst[w..w + (b - a)].copy_from_slice(&part[a - p0..b - p0]);
+                        w += b - a;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Data type code of an object for its description.
+pub fn object_data_type(obj: &Object) -> u16 {
+    match obj.code {
+        ObjectCode::Record => RECORD_TYPE,
+        ObjectCode::Array => obj
+            .entry(1)
+            .or(obj.entries.first())
+            .map_or(0, |e| e.data_type.code()),
+        ObjectCode::Var => obj.entries.first().map_or(0, |e| e.data_type.code()),
+    }
+}
+
+/// Access word of the entry description (bits 8 and 9 for saved entries).
+pub const fn entry_access_word(e: &Entry) -> u16 {
+    e.sdo_info_access() | if e.saved { (1 << 8) | (1 << 9) } else { 0 }
+}
+
+/// Executes one SDO information request (`body` after the CoE header). `out` is the
+/// mailbox data area; `cap` its size (fragment size).
+pub fn on_request(
+    body: &[u8],
+    out: &mut [u8],
+    dict: &mut impl Dictionary,
+    cap: usize,
+) -> Result<Answer, ErrorDetail> {
+    let f = Frame::new(body);
+    if !f.has_header() {
+        return Err(ErrorDetail::SizeTooShort);
+    }
+    let objects = dict.objects();
+    let d = f.data();
+    let err = |out: &mut [u8], a: SdoAbort| Answer::Frame(emit_error(out, a));
+    let u16_at = |i: usize| u16::from_le_bytes([d[i], d[i + 1]]);
+    match f.opcode() {
+        opcode::OD_LIST_REQUEST => {
+            if d.len() < 2 {
+                return Err(ErrorDetail::SizeTooShort);
+            }
+            Ok(match OdListType::from_code(u16_at(0)) {
+                Some(list) => Answer::Series(InfoJob::new(
+                    opcode::OD_LIST_RESPONSE,
+                    Body::OdList { list, objects },
+                    cap,
+                )),
+                None => err(out, SdoAbort::UnsupportedAccess),
+            })
+        }
+        opcode::OBJECT_DESCRIPTION_REQUEST => {
+            if d.len() < 2 {
+                return Err(ErrorDetail::SizeTooShort);
+            }
+            let index = u16_at(0);
+            let Some(obj) = od::find(objects, index) else {
+                return Ok(err(out, SdoAbort::ObjectDoesNotExist));
+            };
+            let mut head = [0u8; HEAD_MAX];
+            head[0..2].copy_from_slice(&index.to_le_bytes());
+            head[2..4].copy_from_slice(&object_data_type(obj).to_le_bytes());
+            head[4] = obj.max_sub();
+            head[5] = obj.code as u8;
+            let body = Body::Bytes {
+                head,
+                head_len: 6,
+                tail: [obj.name.as_bytes(), &[], &[], &[]],
+            };
+            Ok(Answer::Series(InfoJob::new(
+                opcode::OBJECT_DESCRIPTION_RESPONSE,
+                body,
+                cap,
+            )))
+        }
+        opcode::ENTRY_DESCRIPTION_REQUEST => {
+            if d.len() < 4 {
+                return Err(ErrorDetail::SizeTooShort);
+            }
+            let (index, sub, request) = (u16_at(0), d[2], d[3]);
+            let e = match od::find_entry(objects, index, sub) {
+                Ok(e) => e,
+                Err(a) => return Ok(err(out, a)),
+            };
+            Ok(Answer::Series(InfoJob::new(
+                opcode::ENTRY_DESCRIPTION_RESPONSE,
+                entry_body(index, e, request),
+                cap,
+            )))
+        }
+        _ => Ok(err(out, SdoAbort::InvalidCommand)),
+    }
+}
+
+fn entry_body(index: u16, e: &'static Entry, request: u8) -> Body {
+    let mut head = [0u8; HEAD_MAX];
+    head[0..2].copy_from_slice(&index.to_le_bytes());
+    head[2] = e.sub;
+    head[4..6].copy_from_slice(&e.data_type.code().to_le_bytes());
+    head[6..8].copy_from_slice(&e.bits.to_le_bytes());
+    head[8..10].copy_from_slice(&entry_access_word(e).to_le_bytes());
+    let mut len = 10usize;
+    let mut vi = request & value_info::ECHOED;
+    let n = e.byte_len();
+    let numeric = od::has_numeric_range(e.data_type) && (1..=8).contains(&n);
+    if numeric {
+        let default = match e.default {
+            DefaultValue::Int(v) => Some(v),
+            _ => None,
+        };
+        let fields = [
+            (value_info::DEFAULT, default),
+            (value_info::MINIMUM, Some(e.min)),
+            (value_info::MAXIMUM, Some(e.max)),
+        ];
+        for (flag, v) in fields {
+            if let (true, Some(v)) = (request & flag != 0, v) {
+                head[len..len + n].copy_from_slice(&v.to_le_bytes()[..n]);
+                len += n;
+                vi |= flag;
+            }
+        }
+    }
+    head[3] = vi;
+    let tail: [&'static [u8]; 4] = if e.unit.is_empty() {
+        [e.name.as_bytes(), &[], &[], &[]]
+    } else {
+        [e.name.as_bytes(), b" [", e.unit.as_bytes(), b"]"]
+    };
+    Body::Bytes {
+        head,
+        head_len: len as u8,
+        tail,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn info_frame_view_and_error() {
+        let f = Frame::new(&[0x86u8, 0x00, 0x03, 0x00, 0xAA][..]);
+        assert!(f.has_header());
+        assert_eq!(
+            (f.opcode(), f.incomplete(), f.fragments_left(), f.data()),
+            (6, true, 3, &[0xAA][..])
+        );
+        let s = Frame::new(&[0x01u8][..]);
+        assert!(!s.has_header());
+        assert_eq!(s.fragments_left(), 0);
+        assert!(s.data().is_empty());
+        let mut out = [0u8; 10];
+        assert_eq!(emit_error(&mut out, SdoAbort::ObjectDoesNotExist), 10);
+        assert_eq!(
+            out,
+            [0x00, 0x80, 0x07, 0x00, 0x00, 0x00, 0x00, 0x00, 0x02, 0x06]
+        );
+        assert_eq!(emit_error(&mut out[..9], SdoAbort::ObjectDoesNotExist), 0);
+    }
+
+    #[test]
+    fn fragments_cover_the_payload_exactly() {
+        static NAME: &str = "A rather long object name that needs several fragments";
+        let mut head = [0u8; HEAD_MAX];
+        head[..6].copy_from_slice(&[1, 2, 3, 4, 5, 6]);
+        for cap in 10..80 {
+            let body = Body::Bytes {
+                head,
+                head_len: 6,
+                tail: [NAME.as_bytes(), b" [", b"mm", b"]"],
+            };
+            let mut job = InfoJob::new(opcode::OBJECT_DESCRIPTION_RESPONSE, body, cap);
+            let total = 6 + NAME.len() + 5;
+            assert_eq!(job.payload_len(), total);
+            let mut all = [0u8; 128];
+            let mut n = 0;
+            let mut out = [0u8; 80];
+            for k in 0..job.fragments() {
+                let (len, last) = job.next_fragment(&mut out[..cap]);
+                assert!(len <= cap && len > PREFIX_LEN);
+                assert_eq!(last, k + 1 == job.fragments());
+                assert_eq!(
+                    u16::from_le_bytes([out[4], out[5]]),
+                    job.fragments() - 1 - k
+                );
+                all[n..n + len - PREFIX_LEN].copy_from_slice(&out[PREFIX_LEN..len]);
+                n += len - PREFIX_LEN;
+            }
+            assert_eq!(job.next_fragment(&mut out[..cap]), (0, true));
+            assert_eq!(n, total);
+            assert_eq!(&all[6..6 + NAME.len()], NAME.as_bytes());
+            assert_eq!(&all[6 + NAME.len()..n], b" [mm]");
+        }
+    }
+}

@@ -1,0 +1,733 @@
+//! The EtherCAT mailbox (ETG.1000.4/.6): the 6-byte header, mailbox error replies, the
+//! counter rules, and the [`MailboxServer`] that the slave runtime drives with the SM0
+//! buffers it receives and the SM1 buffers it sends.
+//!
+//! Wire layout (little-endian):
+//!
+//! | Byte | Bits | Field |
+//! |---|---|---|
+//! | 0–1 | | length = bytes following the header |
+//! | 2–3 | | address (originator station address; 0 = master) |
+//! | 4 | 5:0 | channel (0) |
+//! | 4 | 7:6 | priority |
+//! | 5 | 3:0 | type (0 error, 1 AoE, 2 EoE, 3 CoE, 4 FoE, 5 SoE, 15 VoE) |
+//! | 5 | 6:4 | counter 1…7 (0 = no counter) |
+//!
+//! # The server
+//!
+//! [`MailboxServer::on_request`] parses one SM0 buffer, executes it (CoE SDO, SDO
+//! information) and keeps the answer; [`MailboxServer::next_output`] hands out the next
+//! frame for SM1 — the pending reply or the next SDO information fragment first, then
+//! queued emergencies — and gives it the next counter (1…7, wrapping to 1). The last frame
+//! handed out stays available for the mailbox repeat request ([`MailboxServer::repeat_last`]).
+//!
+//! Rules:
+//! * A request whose counter is not 0 and equals the counter of the previous request is a
+//!   repetition (the master did not get our answer): it is **not executed again**; if the
+//!   answer to the original was already handed out it is queued once more (with a new
+//!   counter), an SDO information answer is restarted from its first fragment.
+//! * One answer is kept per request. A new request that arrives before the previous
+//!   answer was fetched replaces that answer (the master breaks the protocol if it does
+//!   not wait for the answer).
+//! * Malformed frames get a mailbox error reply (type 0, see [`ErrorDetail`]); so do
+//!   mailbox types other than CoE and CoE services other than SDO request and SDO
+//!   information.
+//! * No heap: the answer, the last sent frame and the SDO transfer data live in fixed
+//!   buffers of [`MAX_MAILBOX_SIZE`] and [`crate::coe::sdo::TRANSFER_MAX`] bytes.
+
+use crate::coe::{self, emcy::EmergencyQueue, info::InfoJob, sdo::SdoServer};
+use crate::esm::EsmState;
+use crate::od::Dictionary;
+
+/// Byte ranges of the mailbox header.
+pub mod field {
+    use core::ops::{Range, RangeFrom};
+    /// Length of the data after the header (u16).
+    pub const LENGTH: Range<usize> = 0..2;
+    /// Station address of the originator (u16).
+    pub const ADDRESS: Range<usize> = 2..4;
+    /// Channel (bits 5:0) and priority (bits 7:6).
+    pub const CHANNEL_PRIORITY: usize = 4;
+    /// Type (bits 3:0) and counter (bits 6:4).
+    pub const TYPE_COUNTER: usize = 5;
+    /// The mailbox data.
+    pub const PAYLOAD: RangeFrom<usize> = 6..;
+}
+
+/// Size of the mailbox header.
+pub const HEADER_LEN: usize = 6;
+/// Largest mailbox (SM0/SM1 length) the server handles; larger ones are used only up to
+/// this size.
+pub const MAX_MAILBOX_SIZE: usize = 256;
+/// Smallest mailbox the server handles (an SDO initiate frame is 16 bytes).
+pub const MIN_MAILBOX_SIZE: usize = 16;
+
+/// Mailbox types (protocols).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MailboxType {
+    /// Mailbox error reply.
+    Error,
+    /// ADS over EtherCAT.
+    Aoe,
+    /// Ethernet over EtherCAT.
+    Eoe,
+    /// CANopen over EtherCAT.
+    Coe,
+    /// File access over EtherCAT.
+    Foe,
+    /// Servo profile over EtherCAT.
+    Soe,
+    /// Vendor specific.
+    Voe,
+    /// Any other code.
+    Unknown(u8),
+}
+
+impl MailboxType {
+    /// Decodes the 4-bit type.
+    pub const fn from_bits(v: u8) -> Self {
+        match v & 0x0F {
+            0 => Self::Error,
+            1 => Self::Aoe,
+            2 => Self::Eoe,
+            3 => Self::Coe,
+            4 => Self::Foe,
+            5 => Self::Soe,
+            0x0F => Self::Voe,
+            x => Self::Unknown(x),
+        }
+    }
+    /// The 4-bit code.
+    pub const fn bits(self) -> u8 {
+        match self {
+            Self::Error => 0,
+            Self::Aoe => 1,
+            Self::Eoe => 2,
+            Self::Coe => 3,
+            Self::Foe => 4,
+            Self::Soe => 5,
+            Self::Voe => 0x0F,
+            Self::Unknown(x) => x & 0x0F,
+        }
+    }
+}
+
+/// Detail codes of a mailbox error reply (type 0, service word 0x0001).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u16)]
+pub enum ErrorDetail {
+    /// Syntax of the 6-byte header is wrong (buffer shorter than a header).
+    Syntax = 0x0001,
+    /// The mailbox protocol is not supported (only CoE is).
+    UnsupportedProtocol = 0x0002,
+    /// Channel field is not 0.
+    InvalidChannel = 0x0003,
+    /// The service of the protocol is not supported (CoE services other than 2 and 8).
+    ServiceNotSupported = 0x0004,
+    /// Invalid header: length 0 or type 0 (error) received from the master.
+    InvalidHeader = 0x0005,
+    /// The data is too short for the service it names.
+    SizeTooShort = 0x0006,
+    /// No memory for the request.
+    NoMoreMemory = 0x0007,
+    /// The length field is inconsistent (larger than the mailbox).
+    InvalidSize = 0x0008,
+    /// A service is in work.
+    ServiceInWork = 0x0009,
+}
+
+impl ErrorDetail {
+    /// Decodes a detail code.
+    pub const fn from_code(v: u16) -> Option<Self> {
+        Some(match v {
+            1 => Self::Syntax,
+            2 => Self::UnsupportedProtocol,
+            3 => Self::InvalidChannel,
+            4 => Self::ServiceNotSupported,
+            5 => Self::InvalidHeader,
+            6 => Self::SizeTooShort,
+            7 => Self::NoMoreMemory,
+            8 => Self::InvalidSize,
+            9 => Self::ServiceInWork,
+            _ => return None,
+        })
+    }
+}
+
+/// Why a buffer could not be read as a mailbox frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WireError {
+    /// Shorter than the header, or the length field exceeds the buffer.
+    Truncated,
+}
+
+/// A zero-copy view of a mailbox frame.
+#[derive(Debug, Clone)]
+pub struct Frame<T: AsRef<[u8]>> {
+    buffer: T,
+}
+
+impl<T: AsRef<[u8]>> Frame<T> {
+    /// Wraps a buffer without checking it.
+    pub const fn new_unchecked(buffer: T) -> Self {
+        Frame { buffer }
+    }
+    /// Wraps a buffer after [`Frame::check_len`].
+    pub fn new_checked(buffer: T) -> Result<Self, WireError> {
+        let f = Self::new_unchecked(buffer);
+        f.check_len()?;
+        Ok(f)
+    }
+    /// Checks that the header fits and that the length field does not exceed the buffer;
+    /// after this the accessors cannot panic.
+    pub fn check_len(&self) -> Result<(), WireError> {
+        let b = self.buffer.as_ref();
+        if b.len() < HEADER_LEN || b.len() - HEADER_LEN < self.length() as usize {
+            return Err(WireError::Truncated);
+        }
+        Ok(())
+    }
+    /// Returns the buffer.
+    pub fn into_inner(self) -> T {
+        self.buffer
+    }
+    fn byte(&self, i: usize) -> u8 {
+        self.buffer.as_ref().get(i).copied().unwrap_or(0)
+    }
+    /// The length field (0 when the buffer is too short to hold it).
+    pub fn length(&self) -> u16 {
+        u16::from_le_bytes([
+            self.byte(field::LENGTH.start),
+            self.byte(field::LENGTH.start + 1),
+        ])
+    }
+    /// The address field.
+    pub fn address(&self) -> u16 {
+        u16::from_le_bytes([
+            self.byte(field::ADDRESS.start),
+            self.byte(field::ADDRESS.start + 1),
+        ])
+    }
+    /// The channel (bits 5:0 of byte 4).
+    pub fn channel(&self) -> u8 {
+        self.byte(field::CHANNEL_PRIORITY) & 0x3F
+    }
+    /// The priority (bits 7:6 of byte 4).
+    pub fn priority(&self) -> u8 {
+        self.byte(field::CHANNEL_PRIORITY) >> 6
+    }
+    /// The mailbox type.
+    pub fn mailbox_type(&self) -> MailboxType {
+        MailboxType::from_bits(self.byte(field::TYPE_COUNTER))
+    }
+    /// The counter (0…7).
+    pub fn counter(&self) -> u8 {
+        (self.byte(field::TYPE_COUNTER) >> 4) & 0x07
+    }
+    /// The mailbox data: `length` bytes after the header (clamped to the buffer).
+    pub fn payload(&self) -> &[u8] {
+        let b = self.buffer.as_ref();
+        let end = (HEADER_LEN + self.length() as usize).min(b.len());
+        b.get(HEADER_LEN..end).unwrap_or(&[])
+    }
+}
+
+impl<T: AsRef<[u8]> + AsMut<[u8]>> Frame<T> {
+    /// Sets the length field. Panics if the buffer is shorter than a header.
+    pub fn set_length(&mut self, v: u16) {
+        self.buffer.as_mut()[field::LENGTH].copy_from_slice(&v.to_le_bytes());
+    }
+    /// Sets the address field.
+    pub fn set_address(&mut self, v: u16) {
+        self.buffer.as_mut()[field::ADDRESS].copy_from_slice(&v.to_le_bytes());
+    }
+    /// Sets channel and priority.
+    pub fn set_channel_priority(&mut self, channel: u8, priority: u8) {
+        self.buffer.as_mut()[field::CHANNEL_PRIORITY] = (channel & 0x3F) | ((priority & 3) << 6);
+    }
+    /// Sets type and counter.
+    pub fn set_type_counter(&mut self, t: MailboxType, counter: u8) {
+        self.buffer.as_mut()[field::TYPE_COUNTER] = t.bits() | ((counter & 7) << 4);
+    }
+    /// Sets only the counter, keeping the type.
+    pub fn set_counter(&mut self, counter: u8) {
+        let b = &mut self.buffer.as_mut()[field::TYPE_COUNTER];
+        *b = (*b & 0x8F) | ((counter & 7) << 4);
+    }
+    /// The mailbox data area (everything after the header).
+    pub fn payload_mut(&mut self) -> &mut [u8] {
+        &mut self.buffer.as_mut()[field::PAYLOAD]
+    }
+}
+
+/// A parsed mailbox header.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Repr {
+    /// Length of the data after the header.
+    pub length: u16,
+    /// Station address of the originator.
+    pub address: u16,
+    /// Channel.
+    pub channel: u8,
+    /// Priority 0…3.
+    pub priority: u8,
+    /// Type.
+    pub mailbox_type: MailboxType,
+    /// Counter 0…7.
+    pub counter: u8,
+}
+
+impl Repr {
+    /// Parses a checked frame.
+    pub fn parse<T: AsRef<[u8]>>(frame: &Frame<T>) -> Result<Self, WireError> {
+        frame.check_len()?;
+        Ok(Repr {
+            length: frame.length(),
+            address: frame.address(),
+            channel: frame.channel(),
+            priority: frame.priority(),
+            mailbox_type: frame.mailbox_type(),
+            counter: frame.counter(),
+        })
+    }
+    /// Writes the header into a frame whose buffer holds at least [`HEADER_LEN`] bytes.
+    pub fn emit<T: AsRef<[u8]> + AsMut<[u8]>>(&self, frame: &mut Frame<T>) {
+        frame.set_length(self.length);
+        frame.set_address(self.address);
+        frame.set_channel_priority(self.channel, self.priority);
+        frame.set_type_counter(self.mailbox_type, self.counter);
+    }
+}
+
+/// Writes a complete mailbox error reply (10 bytes) into `out`; returns its length, or 0
+/// when `out` is too short. The counter is left 0.
+pub fn emit_error(out: &mut [u8], detail: ErrorDetail) -> usize {
+    let Some(buf) = out.get_mut(..HEADER_LEN + 4) else {
+        return 0;
+    };
+    let mut f = Frame::new_unchecked(&mut *buf);
+    Repr {
+        length: 4,
+        address: 0,
+        channel: 0,
+        priority: 0,
+        mailbox_type: MailboxType::Error,
+        counter: 0,
+    }
+    .emit(&mut f);
+    let p = f.payload_mut();
+    p[0..2].copy_from_slice(&1u16.to_le_bytes());
+    p[2..4].copy_from_slice(&(detail as u16).to_le_bytes());
+    HEADER_LEN + 4
+}
+
+/// Next outgoing counter after `c`: 1…7, wrapping 7 → 1.
+pub const fn next_counter(c: u8) -> u8 {
+    if c >= 7 || c == 0 {
+        1
+    } else {
+        c + 1
+    }
+}
+
+/// What the kept answer to the last request was, for re-answering a repeated request.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum LastAnswer {
+    /// Nothing to repeat (no answer, or answered nothing, e.g. a master abort).
+    None,
+    /// The single frame in `reply`.
+    Frame,
+    /// An SDO information series (restarted from its first fragment).
+    Info,
+}
+
+/// The mailbox side of the slave: executes SM0 requests and produces SM1 frames.
+pub struct MailboxServer {
+    size: usize,
+    /// The answer to the last request (counter not yet set).
+    reply: [u8; MAX_MAILBOX_SIZE],
+    reply_len: usize,
+    reply_pending: bool,
+    last_answer: LastAnswer,
+    /// The SDO information series of the last request (restartable copy in `info_orig`).
+    info: Option<InfoJob>,
+    info_orig: Option<InfoJob>,
+    /// The last frame handed out (for the repeat request).
+    sent: [u8; MAX_MAILBOX_SIZE],
+    sent_len: usize,
+    /// Counter of the last frame handed out (0 before the first).
+    out_counter: u8,
+    /// Counter of the last request (None before the first).
+    in_counter: Option<u8>,
+    sdo: SdoServer,
+    emcy: EmergencyQueue,
+}
+
+impl MailboxServer {
+    /// A server for a mailbox of `mailbox_size` bytes (the SM0/SM1 length), clamped to
+    /// [`MIN_MAILBOX_SIZE`]…[`MAX_MAILBOX_SIZE`].
+    pub const fn new(mailbox_size: usize) -> Self {
+        let size = if mailbox_size < MIN_MAILBOX_SIZE {
+            MIN_MAILBOX_SIZE
+        } else if mailbox_size > MAX_MAILBOX_SIZE {
+            MAX_MAILBOX_SIZE
+        } else {
+            mailbox_size
+        };
+        MailboxServer {
+            size,
+            reply: [0; MAX_MAILBOX_SIZE],
+            reply_len: 0,
+            reply_pending: false,
+            last_answer: LastAnswer::None,
+            info: None,
+            info_orig: None,
+            sent: [0; MAX_MAILBOX_SIZE],
+            sent_len: 0,
+            out_counter: 0,
+            in_counter: None,
+            sdo: SdoServer::new(),
+            emcy: EmergencyQueue::new(),
+        }
+    }
+
+    /// The mailbox size in use.
+    pub const fn mailbox_size(&self) -> usize {
+        self.size
+    }
+
+    /// Changes the mailbox size (e.g. after the master configured SM0/SM1) and resets.
+    pub fn set_mailbox_size(&mut self, mailbox_size: usize) {
+        *self = Self::new(mailbox_size);
+    }
+
+    /// A whole SM0 buffer arrived: parse, execute, keep the answer for [`Self::next_output`].
+    pub fn on_request(
+        &mut self,
+        frame: &[u8],
+        dict: &mut impl Dictionary,
+        state: EsmState,
+        now_us: u64,
+    ) {
+        let expired = self.sdo.expire(now_us);
+        let frame = match frame.get(..self.size) {
+            Some(f) => f,
+            None => frame,
+        };
+        let view = Frame::new_unchecked(frame);
+        if frame.len() < HEADER_LEN {
+            self.answer_error(ErrorDetail::Syntax);
+            return;
+        }
+        // Repetition of the previous request: do not execute again.
+        let counter = view.counter();
+        if counter != 0 && self.in_counter == Some(counter) {
+            if !self.reply_pending && self.info.is_none() {
+                match self.last_answer {
+                    LastAnswer::Frame => self.reply_pending = true,
+                    LastAnswer::Info => self.info = self.info_orig,
+                    LastAnswer::None => {}
+                }
+            }
+            return;
+        }
+        self.in_counter = Some(counter);
+        let length = view.length() as usize;
+        if length == 0 || view.mailbox_type() == MailboxType::Error {
+            self.answer_error(ErrorDetail::InvalidHeader);
+            return;
+        }
+        if view.check_len().is_err() {
+            self.answer_error(ErrorDetail::InvalidSize);
+            return;
+        }
+        if view.channel() != 0 {
+            self.answer_error(ErrorDetail::InvalidChannel);
+            return;
+        }
+        if view.mailbox_type() != MailboxType::Coe {
+            self.answer_error(ErrorDetail::UnsupportedProtocol);
+            return;
+        }
+        self.on_coe(view.payload(), dict, state, now_us, expired);
+    }
+
+    fn on_coe(
+        &mut self,
+        payload: &[u8],
+        dict: &mut impl Dictionary,
+        state: EsmState,
+        now_us: u64,
+        expired: Option<(u16, u8)>,
+    ) {
+        let Some(hdr) = coe::Header::parse(payload) else {
+            self.answer_error(ErrorDetail::SizeTooShort);
+            return;
+        };
+        let body = payload.get(coe::HEADER_LEN..).unwrap_or(&[]);
+        let cap = self.size - HEADER_LEN;
+        match hdr.service {
+            coe::Service::SdoRequest => {
+                let out = &mut self.reply[HEADER_LEN..HEADER_LEN + cap];
+                match self.sdo.on_request(body, out, dict, state, now_us, expired) {
+                    Ok(0) => self.answer_none(),
+                    Ok(n) => self.answer_coe(n),
+                    Err(detail) => self.answer_error(detail),
+                }
+            }
+            coe::Service::SdoInformation => {
+                let out = &mut self.reply[HEADER_LEN..HEADER_LEN + cap];
+                match coe::info::on_request(body, out, dict, cap) {
+                    Ok(coe::info::Answer::Frame(n)) => self.answer_coe(n),
+                    Ok(coe::info::Answer::Series(job)) => {
+                        self.reply_pending = false;
+                        self.info = Some(job);
+                        self.info_orig = Some(job);
+                        self.last_answer = LastAnswer::Info;
+                    }
+                    Err(detail) => self.answer_error(detail),
+                }
+            }
+            _ => self.answer_error(ErrorDetail::ServiceNotSupported),
+        }
+    }
+
+    fn answer_none(&mut self) {
+        self.reply_pending = false;
+        self.info = None;
+        self.last_answer = LastAnswer::None;
+    }
+
+    fn answer_error(&mut self, detail: ErrorDetail) {
+        self.reply_len = emit_error(&mut self.reply, detail);
+        self.reply_pending = true;
+        self.info = None;
+        self.last_answer = LastAnswer::Frame;
+    }
+
+    /// The CoE payload of `n` bytes is in `reply[6..]`: add the header and keep it.
+    fn answer_coe(&mut self, n: usize) {
+        let mut f = Frame::new_unchecked(&mut self.reply[..]);
+        Repr {
+            length: n as u16,
+            address: 0,
+            channel: 0,
+            priority: 0,
+            mailbox_type: MailboxType::Coe,
+            counter: 0,
+        }
+        .emit(&mut f);
+        self.reply_len = HEADER_LEN + n;
+        self.reply_pending = true;
+        self.info = None;
+        self.last_answer = LastAnswer::Frame;
+    }
+
+    /// The next frame for SM1 (call when SM1 is free): the pending answer or the next SDO
+    /// information fragment first, then emergencies. Returns its length (0 = nothing to
+    /// send). The frame gets the next counter. `out` must hold a whole mailbox
+    /// ([`Self::mailbox_size`] bytes); bytes after the returned length are left as they
+    /// are (the runtime writes up to the last byte of SM1 to hand the buffer over).
+    pub fn next_output(&mut self, out: &mut [u8], now_us: u64) -> usize {
+        let _ = now_us;
+        let cap = self.size.min(out.len());
+        let n = if self.reply_pending {
+            self.reply_pending = false;
+            match out.get_mut(..self.reply_len) {
+                Some(dst) => {
+                    dst.copy_from_slice(&self.reply[..self.reply_len]);
+                    self.reply_len
+                }
+                None => 0,
+            }
+        } else if let Some(job) = self.info.as_mut() {
+            let (n, done) = match out.get_mut(HEADER_LEN..cap) {
+                Some(dst) if cap == self.size => {
+                    let (n, done) = job.next_fragment(dst);
+                    (n, done)
+                }
+                _ => (0, true),
+            };
+            if done {
+                self.info = None;
+            }
+            if n > 0 {
+                let mut f = Frame::new_unchecked(&mut out[..]);
+                Repr {
+                    length: n as u16,
+                    address: 0,
+                    channel: 0,
+                    priority: 0,
+                    mailbox_type: MailboxType::Coe,
+                    counter: 0,
+                }
+                .emit(&mut f);
+                HEADER_LEN + n
+            } else {
+                0
+            }
+        } else {
+            self.emcy.pop_frame(out)
+        };
+        if n == 0 {
+            return 0;
+        }
+        self.out_counter = next_counter(self.out_counter);
+        Frame::new_unchecked(&mut out[..]).set_counter(self.out_counter);
+        self.sent[..n].copy_from_slice(&out[..n]);
+        self.sent_len = n;
+        n
+    }
+
+    /// The mailbox repeat request: copies the last frame handed out by
+    /// [`Self::next_output`] (same counter) into `out`; returns its length (0 if none
+    /// was sent yet or `out` is too short).
+    pub fn repeat_last(&self, out: &mut [u8]) -> usize {
+        match out.get_mut(..self.sent_len) {
+            Some(dst) => {
+                dst.copy_from_slice(&self.sent[..self.sent_len]);
+                self.sent_len
+            }
+            None => 0,
+        }
+    }
+
+    /// Timeouts: a segmented SDO transfer without a request for
+    /// [`crate::coe::sdo::TRANSFER_TIMEOUT_US`] is aborted with 0x05040000 (the abort is
+    /// queued as the answer).
+    pub fn tick(&mut self, now_us: u64) {
+        if let Some((index, sub)) = self.sdo.expire(now_us) {
+            let cap = self.size - HEADER_LEN;
+            let n = coe::sdo::emit_abort(
+                &mut self.reply[HEADER_LEN..HEADER_LEN + cap],
+                index,
+                sub,
+                crate::od::SdoAbort::Timeout,
+            );
+            self.answer_coe(n);
+        }
+    }
+
+    /// Leaving Pre-Op towards Init: drops the transfer, pending answers and queued
+    /// emergencies (the mailbox is off), restarts both counters. The emergency overrun
+    /// counter is kept.
+    pub fn reset(&mut self) {
+        let size = self.size;
+        let overruns = self.emcy.overruns();
+        *self = Self::new(size);
+        self.emcy.set_overruns(overruns);
+    }
+
+    /// Queues an emergency message (CoE service 1): error code, error register (0x1001)
+    /// and 5 manufacturer bytes. When the queue is full the message is dropped and
+    /// counted ([`Self::emergency_overruns`]).
+    pub fn emergency(&mut self, error_code: u16, error_register: u8, data: [u8; 5]) {
+        self.emcy.push(coe::emcy::Emergency {
+            error_code,
+            error_register,
+            data,
+        });
+    }
+
+    /// Emergencies dropped because the queue was full (since start, saturating).
+    pub fn emergency_overruns(&self) -> u32 {
+        self.emcy.overruns()
+    }
+
+    /// Emergencies waiting for SM1.
+    pub fn emergencies_queued(&self) -> usize {
+        self.emcy.len()
+    }
+
+    /// True when a segmented SDO transfer is in progress.
+    pub fn transfer_active(&self) -> bool {
+        self.sdo.active()
+    }
+
+    /// True when an answer or SDO information fragment waits for SM1.
+    pub fn reply_pending(&self) -> bool {
+        self.reply_pending || self.info.is_some()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn header_parse_and_emit() {
+        let bytes = [0x0A, 0x00, 0x34, 0x12, 0x40, 0x53, 1, 2];
+        let f = Frame::new_checked(&bytes[..]).unwrap_err();
+        assert_eq!(f, WireError::Truncated);
+        let mut buf = [0u8; 16];
+        buf[..8].copy_from_slice(&bytes);
+        let f = Frame::new_checked(&buf[..]).unwrap();
+        let r = Repr::parse(&f).unwrap();
+        assert_eq!(
+            r,
+            Repr {
+                length: 10,
+                address: 0x1234,
+                channel: 0,
+                priority: 1,
+                mailbox_type: MailboxType::Coe,
+                counter: 5
+            }
+        );
+        assert_eq!(f.payload(), &buf[6..16]);
+        let mut out = [0u8; 6];
+        r.emit(&mut Frame::new_unchecked(&mut out[..]));
+        assert_eq!(out, bytes[..6]);
+        let mut f = Frame::new_unchecked(&mut out[..]);
+        f.set_counter(7);
+        assert_eq!(f.counter(), 7);
+        assert_eq!(f.mailbox_type(), MailboxType::Coe);
+        assert_eq!(out[5], 0x73);
+        // Accessors never panic on short buffers.
+        let short = Frame::new_unchecked(&[0x05u8][..]);
+        assert_eq!(short.length(), 5);
+        assert_eq!(short.counter(), 0);
+        assert!(short.payload().is_empty());
+        assert!(short.check_len().is_err());
+        let r = Repr::parse(&Frame::new_unchecked(&[0xFFu8, 0xFF, 0, 0, 0, 3][..]));
+        assert_eq!(r, Err(WireError::Truncated));
+    }
+
+    #[test]
+    fn types_details_counters() {
+        for t in 0..16u8 {
+            assert_eq!(MailboxType::from_bits(t).bits(), t);
+        }
+        assert_eq!(MailboxType::from_bits(0x13), MailboxType::Coe);
+        for d in 1..=9u16 {
+            assert_eq!(ErrorDetail::from_code(d).map(|e| e as u16), Some(d));
+        }
+        assert_eq!(ErrorDetail::from_code(0), None);
+        assert_eq!(ErrorDetail::from_code(10), None);
+        let mut c = 0;
+        let mut seen = [0u8; 14];
+        for s in seen.iter_mut() {
+            c = next_counter(c);
+            *s = c;
+        }
+        assert_eq!(seen, [1, 2, 3, 4, 5, 6, 7, 1, 2, 3, 4, 5, 6, 7]);
+        let mut b = [0u8; 12];
+        assert_eq!(emit_error(&mut b, ErrorDetail::InvalidSize), 10);
+        assert_eq!(b[..10], [4, 0, 0, 0, 0, 0, 1, 0, 8, 0]);
+        assert_eq!(emit_error(&mut b[..9], ErrorDetail::InvalidSize), 0);
+    }
+
+    #[test]
+    fn mailbox_size_is_clamped_and_short_outputs_are_refused() {
+        assert_eq!(MailboxServer::new(4).mailbox_size(), MIN_MAILBOX_SIZE);
+        assert_eq!(MailboxServer::new(4096).mailbox_size(), MAX_MAILBOX_SIZE);
+        let mut s = MailboxServer::new(64);
+        s.emergency(1, 2, [3; 5]);
+        let mut out = [0u8; 8];
+        assert_eq!(s.next_output(&mut out, 0), 0);
+        assert_eq!(s.emergencies_queued(), 1);
+        s.set_mailbox_size(128);
+        assert_eq!(s.mailbox_size(), 128);
+        assert_eq!(s.emergencies_queued(), 0);
+    }
+}
