@@ -585,12 +585,25 @@ fn mask(bits: u8) -> u64 {
 pub fn extract(data: &[u8], bit_offset: u16, bits: u8) -> u64 {
     let byte = (bit_offset / 8) as usize;
     let shift = (bit_offset % 8) as u32;
-    if shift == 0 && bits.is_multiple_of(8) {
-        let n = (bits / 8) as usize;
-        if let Some(src) = data.get(byte..byte + n) {
-            let mut b = [0u8; 8];
-            b[..n.min(8)].copy_from_slice(&src[..n.min(8)]);
-            return u64::from_le_bytes(b);
+    if shift == 0 {
+        // Byte-aligned 8/16/32-bit entries: direct loads, the common case.
+        match bits {
+            8 => {
+                if let Some(v) = data.get(byte) {
+                    return *v as u64;
+                }
+            }
+            16 => {
+                if let Some(&[a, b]) = data.get(byte..byte + 2) {
+                    return u16::from_le_bytes([a, b]) as u64;
+                }
+            }
+            32 => {
+                if let Some(&[a, b, c, d]) = data.get(byte..byte + 4) {
+                    return u32::from_le_bytes([a, b, c, d]) as u64;
+                }
+            }
+            _ => {}
         }
     }
     let mut b = [0u8; 16];
@@ -613,12 +626,27 @@ pub fn extract(data: &[u8], bit_offset: u16, bits: u8) -> u64 {
 pub fn insert(data: &mut [u8], bit_offset: u16, bits: u8, value: u64) {
     let byte = (bit_offset / 8) as usize;
     let shift = (bit_offset % 8) as u32;
-    if shift == 0 && bits.is_multiple_of(8) {
-        let n = (bits / 8) as usize;
-        if let Some(dst) = data.get_mut(byte..byte + n) {
-            let b = value.to_le_bytes();
-            dst.copy_from_slice(&b[..n.min(8)]);
-            return;
+    if shift == 0 {
+        match bits {
+            8 => {
+                if let Some(d) = data.get_mut(byte) {
+                    *d = value as u8;
+                    return;
+                }
+            }
+            16 => {
+                if let Some(d) = data.get_mut(byte..byte + 2) {
+                    d.copy_from_slice(&(value as u16).to_le_bytes());
+                    return;
+                }
+            }
+            32 => {
+                if let Some(d) = data.get_mut(byte..byte + 4) {
+                    d.copy_from_slice(&(value as u32).to_le_bytes());
+                    return;
+                }
+            }
+            _ => {}
         }
     }
     let m = mask(bits);

@@ -432,6 +432,9 @@ fn sync0(s: &mut Slave<FakeEsc>, app: &mut App, now: u64, with_outputs: bool) {
     s.poll(app, now).unwrap();
 }
 
+/// (start, length, control, enable) of one SyncManager.
+type SmCfg = (u16, u16, u8, bool);
+
 fn lcg(x: &mut u32) -> u32 {
     *x = x.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
     *x >> 8
@@ -458,7 +461,7 @@ qemu_runner::tests! {
 
     fn every_invalid_mailbox_config_gives_0x0016_in_init() {
         // (SM0 start, len, control, enable), (SM1 ...)
-        let cases: &[((u16, u16, u8, bool), (u16, u16, u8, bool))] = &[
+        let cases: &[(SmCfg, SmCfg)] = &[
             ((0x1000, 30, 0x26, true), (0x1080, 128, 0x22, true)),   // SM0 too short
             ((0x1000, 258, 0x26, true), (0x1200, 128, 0x22, true)),  // SM0 too long
             ((0x1000, 128, 0x26, true), (0x1080, 38, 0x22, true)),   // SM1 too short

@@ -1,3 +1,7 @@
 //! Benchmarks of the `ecat` area. Each call to [`crate::bench`] is one row of BENCHMARKS.md.
 
-pub fn run() {}
+mod esm_rows;
+
+pub fn run() {
+    esm_rows::run();
+}
