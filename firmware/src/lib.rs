@@ -1,1 +1,10 @@
 #![no_std]
+pub mod comm;
+pub mod dip;
+pub mod fault_led;
+pub mod faults;
+pub mod identity;
+pub mod io;
+pub mod monitor;
+pub mod params;
+pub mod storage;

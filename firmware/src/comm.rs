@@ -1,0 +1,537 @@
+//! Product communication objects: 0x1000 device type, 0x1001 error register, 0x1003
+//! pre-defined error field (the fault history in CiA 301 form), 0x1008-0x100A names
+//! and versions, 0x1010 store, 0x1011 restore defaults, 0x1018 identity, 0x10F1 error
+//! settings.
+//!
+//! Store / restore (drive-requirements §3.1):
+//! * 'save' (0x65766173) written to 0x1010:01-04 → [`StoreCommand::Save`];
+//! * 'load' (0x64616F6C) written to 0x1011:01-04 → [`StoreCommand::RestoreDefaults`];
+//! * 'load' written to 0x1010:04 (E5 behaviour) → restore defaults of all parameters;
+//! * any other value → abort 0x08000020.
+//!
+//! Sub-index 1 and 4 cover all parameters, 2 the communication area (0x1000-0x1FFF,
+//! including the PDO mapping and assignment), 3 the application area (0x6000-0x9FFF).
+//! [`Comm::write`] only decodes the command; the dictionary owner runs it with
+//! [`execute`] (it needs the whole dictionary and the flash) and answers the SDO with
+//! its result. Restored defaults take effect at the next power-up (CiA 301).
+//! Reading 0x1010 / 0x1011 sub 1-4 gives 1: "saves / restores on command".
+//!
+//! 0x1003: sub-index 0 = number of entries (writing 0 clears the history, anything
+//! else is refused with 0x06090030); sub-index n = error code (bits 0-15) and fault
+//! kind (bits 16-23) of the n-th newest fault.
+
+use ecat_slave_stack::od::{
+    self, Access, DataType, Dictionary, Entry, Object, ObjectCode, PdoMappable, SdoAbort,
+};
+use embedded_storage::nor_flash::NorFlash;
+
+use crate::faults::{Faults, HISTORY};
+use crate::identity::{self, Identity};
+use crate::storage::{SaveReport, Scope, Storage, StorageError};
+
+/// 'save' signature.
+pub const SAVE: u32 = 0x6576_6173;
+/// 'load' signature.
+pub const LOAD: u32 = 0x6461_6F6C;
+
+/// A store / restore command decoded from 0x1010 / 0x1011.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StoreCommand {
+    /// Store the parameters of the scope.
+    Save(Scope),
+    /// Restore the defaults of the scope (effective after restart).
+    RestoreDefaults(Scope),
+}
+
+/// Runs a store command against the flash and the whole dictionary.
+pub fn execute<F: NorFlash, D: Dictionary + ?Sized>(
+    cmd: StoreCommand,
+    storage: &Storage,
+    flash: &mut F,
+    dict: &mut D,
+) -> Result<SaveReport, StorageError> {
+    match cmd {
+        StoreCommand::Save(scope) => storage.save(flash, dict, scope),
+        StoreCommand::RestoreDefaults(scope) => storage.restore_defaults(flash, scope),
+    }
+}
+
+const fn rec(
+    index: u16,
+    name: &'static str,
+    code: ObjectCode,
+    entries: &'static [Entry],
+    description: &'static str,
+) -> Object {
+    Object {
+        index,
+        name,
+        code,
+        entries,
+        description,
+    }
+}
+
+const fn count(n: i64) -> Entry {
+    Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(n)
+}
+
+const fn cmd(sub: u8, name: &'static str) -> Entry {
+    Entry::new(sub, name, DataType::Unsigned32, Access::RW).default(1)
+}
+
+const fn ro32(sub: u8, name: &'static str) -> Entry {
+    Entry::new(sub, name, DataType::Unsigned32, Access::RO)
+}
+
+const NAME_BITS: u16 = identity::MAX_NAME_LEN as u16;
+
+/// The communication objects of the product, sorted.
+pub const OBJECTS: &[Object] = &[
+    rec(
+        0x1000,
+        "Device type",
+        ObjectCode::Var,
+        &[ro32(0, "Device type").default(0x0002_0192)],
+        "CiA 402 drive: 0x00020192 hybrid servo, 0x00040192 stepper",
+    ),
+    rec(
+        0x1001,
+        "Error register",
+        ObjectCode::Var,
+        &[
+            Entry::new(0, "Error register", DataType::Unsigned8, Access::RO)
+                .pdo(PdoMappable::Tx)
+                .default(0),
+        ],
+        "b0 generic, b1 current, b2 voltage, b4 communication, b5 profile",
+    ),
+    rec(
+        0x1003,
+        "Pre-defined error field",
+        ObjectCode::Array,
+        &[
+            Entry::new(0, "Number of errors", DataType::Unsigned8, Access::RW).default(0),
+            ro32(1, "Standard error field 1"),
+            ro32(2, "Standard error field 2"),
+            ro32(3, "Standard error field 3"),
+            ro32(4, "Standard error field 4"),
+            ro32(5, "Standard error field 5"),
+            ro32(6, "Standard error field 6"),
+        ],
+        "Newest fault first: bits 0-15 error code, bits 16-23 fault kind; write 0 to sub 0 clears",
+    ),
+    rec(
+        0x1008,
+        "Device name",
+        ObjectCode::Var,
+        &[Entry::text(
+            0,
+            "Device name",
+            NAME_BITS,
+            "ECS-HS EtherCAT hybrid servo",
+        )],
+        "Device name",
+    ),
+    rec(
+        0x1009,
+        "Hardware version",
+        ObjectCode::Var,
+        &[Entry::text(
+            0,
+            "Hardware version",
+            8,
+            identity::HARDWARE_VERSION,
+        )],
+        "Hardware version",
+    ),
+    rec(
+        0x100A,
+        "Software version",
+        ObjectCode::Var,
+        &[Entry::text(
+            0,
+            "Software version",
+            16,
+            identity::SOFTWARE_VERSION,
+        )],
+        "Software version",
+    ),
+    rec(
+        0x1010,
+        "Store parameters",
+        ObjectCode::Array,
+        &[
+            count(4),
+            cmd(1, "Save all parameters"),
+            cmd(2, "Save communication parameters"),
+            cmd(3, "Save application parameters"),
+            cmd(4, "Save all parameters (E5)"),
+        ],
+        "Write 'save' (0x65766173); 'load' to sub 4 restores defaults",
+    ),
+    rec(
+        0x1011,
+        "Restore default parameters",
+        ObjectCode::Array,
+        &[
+            count(4),
+            cmd(1, "Restore all defaults"),
+            cmd(2, "Restore communication defaults"),
+            cmd(3, "Restore application defaults"),
+            cmd(4, "Restore all defaults (E5)"),
+        ],
+        "Write 'load' (0x64616F6C); effective after restart",
+    ),
+    rec(
+        0x1018,
+        "Identity",
+        ObjectCode::Record,
+        &[
+            count(4),
+            ro32(1, "Vendor ID").default(identity::VENDOR_ID as i64),
+            ro32(2, "Product code").default(0x5840),
+            ro32(3, "Revision").default(identity::REVISION as i64),
+            ro32(4, "Serial number"),
+        ],
+        "Identity (equals the SII)",
+    ),
+    rec(
+        0x10F1,
+        "Error settings",
+        ObjectCode::Record,
+        &[
+            count(2),
+            Entry::new(1, "Local error reaction", DataType::Unsigned32, Access::RW)
+                .default(1)
+                .saved(),
+            Entry::new(
+                2,
+                "Sync error counter limit",
+                DataType::Unsigned16,
+                Access::RW,
+            )
+            .default(4)
+            .saved(),
+        ],
+        "Sync error counter limit used by the sync supervision",
+    ),
+];
+
+/// State of the communication objects.
+#[derive(Debug, Clone)]
+pub struct Comm {
+    identity: Identity,
+    local_error_reaction: u32,
+    sync_error_limit: u16,
+}
+
+impl Comm {
+    /// Defaults for `identity`.
+    pub fn new(identity: Identity) -> Self {
+        Comm {
+            identity,
+            local_error_reaction: 1,
+            sync_error_limit: 4,
+        }
+    }
+
+    /// The identity.
+    pub fn identity(&self) -> Identity {
+        self.identity
+    }
+
+    /// 0x10F1:02 (the sync supervision reads it).
+    pub fn sync_error_limit(&self) -> u16 {
+        self.sync_error_limit
+    }
+
+    /// 0x10F1:01.
+    pub fn local_error_reaction(&self) -> u32 {
+        self.local_error_reaction
+    }
+
+    /// SDO read.
+    pub fn read(
+        &self,
+        faults: &Faults,
+        index: u16,
+        sub: u8,
+        buf: &mut [u8],
+    ) -> Result<usize, SdoAbort> {
+        let entry = od::find_entry(OBJECTS, index, sub)?;
+        let text = match index {
+            0x1008 => Some(self.identity.device_name()),
+            0x1009 => Some(identity::HARDWARE_VERSION),
+            0x100A => Some(identity::SOFTWARE_VERSION),
+            _ => None,
+        };
+        if let Some(t) = text {
+            let out = buf.get_mut(..t.len()).ok_or(SdoAbort::ExceedsMailbox)?;
+            out.copy_from_slice(t.as_bytes());
+            return Ok(t.len());
+        }
+        let v: u32 = match (index, sub) {
+            (0x1000, _) => self.identity.variant.device_type(),
+            (0x1001, _) => u32::from(faults.error_register()),
+            (0x1003, 0) => faults.history_len() as u32,
+            (0x1003, n) => faults
+                .history(usize::from(n) - 1)
+                .map_or(0, |r| u32::from(r.code) | u32::from(r.kind as u8) << 16),
+            (0x1010 | 0x1011 | 0x1018, 0) => 4,
+            (0x1010 | 0x1011, _) => 1,
+            (0x1018, 1) => self.identity.vendor_id(),
+            (0x1018, 2) => self.identity.product_code(),
+            (0x1018, 3) => self.identity.revision(),
+            (0x1018, _) => self.identity.serial,
+            (0x10F1, 0) => 2,
+            (0x10F1, 1) => self.local_error_reaction,
+            (0x10F1, _) => u32::from(self.sync_error_limit),
+            _ => return Err(SdoAbort::ObjectDoesNotExist),
+        };
+        let len = entry.byte_len();
+        let out = buf.get_mut(..len).ok_or(SdoAbort::ExceedsMailbox)?;
+        out.copy_from_slice(&v.to_le_bytes()[..len]);
+        Ok(len)
+    }
+
+    /// SDO write (after the generic checks). A store / restore command is returned for
+    /// the dictionary owner to run with [`execute`].
+    pub fn write(
+        &mut self,
+        faults: &mut Faults,
+        index: u16,
+        sub: u8,
+        data: &[u8],
+    ) -> Result<Option<StoreCommand>, SdoAbort> {
+        let entry = od::find_entry(OBJECTS, index, sub)?;
+        if !entry.access.writable() {
+            return Err(SdoAbort::WriteReadOnly);
+        }
+        if data.len() != entry.byte_len() {
+            return Err(if data.len() > entry.byte_len() {
+                SdoAbort::LengthTooHigh
+            } else {
+                SdoAbort::LengthTooLow
+            });
+        }
+        let mut b = [0u8; 4];
+        b[..data.len()].copy_from_slice(data);
+        let v = u32::from_le_bytes(b);
+        match (index, sub) {
+            (0x1003, 0) => {
+                if v != 0 {
+                    return Err(SdoAbort::ValueRangeExceeded);
+                }
+                faults.clear_history();
+                Ok(None)
+            }
+            (0x1010, s) => {
+                let scope = Scope::from_sub(s).ok_or(SdoAbort::SubindexDoesNotExist)?;
+                match v {
+                    SAVE => Ok(Some(StoreCommand::Save(scope))),
+                    LOAD if s == 4 => Ok(Some(StoreCommand::RestoreDefaults(Scope::All))),
+                    _ => Err(SdoAbort::DataCannotBeStored),
+                }
+            }
+            (0x1011, s) => {
+                let scope = Scope::from_sub(s).ok_or(SdoAbort::SubindexDoesNotExist)?;
+                match v {
+                    LOAD => Ok(Some(StoreCommand::RestoreDefaults(scope))),
+                    _ => Err(SdoAbort::DataCannotBeStored),
+                }
+            }
+            (0x10F1, 1) => {
+                self.local_error_reaction = v;
+                Ok(None)
+            }
+            (0x10F1, 2) => {
+                self.sync_error_limit = v as u16;
+                Ok(None)
+            }
+            _ => Err(SdoAbort::WriteReadOnly),
+        }
+    }
+}
+
+/// Room the longest entry of this table needs in a read buffer.
+pub const MAX_READ_LEN: usize = identity::MAX_NAME_LEN;
+
+/// Keeps `HISTORY` and the 0x1003 table in step.
+const _: () = assert!(HISTORY == 6);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::faults::{FaultKind, Snapshot};
+    use crate::identity::Variant;
+    use ecat_slave_stack::esm::EsmState;
+
+    fn sdo_write(
+        c: &mut Comm,
+        f: &mut Faults,
+        index: u16,
+        sub: u8,
+        v: u32,
+    ) -> Result<Option<StoreCommand>, SdoAbort> {
+        let e = od::find_entry(OBJECTS, index, sub)?;
+        let data = &v.to_le_bytes()[..e.byte_len()];
+        od::check_write(e, data, EsmState::PreOp)?;
+        c.write(f, index, sub, data)
+    }
+
+    fn rd(c: &Comm, f: &Faults, index: u16, sub: u8) -> u32 {
+        let mut buf = [0u8; 4];
+        let n = c.read(f, index, sub, &mut buf).unwrap();
+        let mut b = [0u8; 4];
+        b[..n].copy_from_slice(&buf[..n]);
+        u32::from_le_bytes(b)
+    }
+
+    #[test]
+    fn identity_and_names() {
+        assert!(od::is_well_formed(OBJECTS));
+        let f = Faults::default();
+        for (v, dt, pc) in [
+            (Variant::HybridServo, 0x0002_0192, 0x5840),
+            (Variant::OpenLoop, 0x0004_0192, 0x5841),
+        ] {
+            let c = Comm::new(Identity::new(v, 0xABCD));
+            assert_eq!(rd(&c, &f, 0x1000, 0), dt);
+            assert_eq!(rd(&c, &f, 0x1018, 0), 4);
+            assert_eq!(rd(&c, &f, 0x1018, 1), 0x0E5C);
+            assert_eq!(rd(&c, &f, 0x1018, 2), pc);
+            assert_eq!(rd(&c, &f, 0x1018, 3), 0x0001_0000);
+            assert_eq!(rd(&c, &f, 0x1018, 4), 0xABCD);
+            let mut buf = [0u8; 64];
+            let n = c.read(&f, 0x1008, 0, &mut buf).unwrap();
+            assert_eq!(&buf[..n], v.device_name().as_bytes());
+            let n = c.read(&f, 0x100A, 0, &mut buf).unwrap();
+            assert_eq!(&buf[..n], env!("CARGO_PKG_VERSION").as_bytes());
+            assert_eq!(
+                c.read(&f, 0x1008, 0, &mut buf[..4]),
+                Err(SdoAbort::ExceedsMailbox)
+            );
+        }
+        let mut c = Comm::new(Identity::new(Variant::HybridServo, 0));
+        let mut f = Faults::default();
+        assert_eq!(
+            sdo_write(&mut c, &mut f, 0x1018, 1, 5),
+            Err(SdoAbort::WriteReadOnly)
+        );
+        assert_eq!(
+            sdo_write(&mut c, &mut f, 0x1000, 0, 5),
+            Err(SdoAbort::WriteReadOnly)
+        );
+        assert_eq!(
+            c.write(&mut f, 0x1018, 1, &[0; 4]),
+            Err(SdoAbort::WriteReadOnly)
+        );
+    }
+
+    #[test]
+    fn store_restore_signatures() {
+        let mut c = Comm::new(Identity::new(Variant::HybridServo, 0));
+        let mut f = Faults::default();
+        for sub in 1..=4u8 {
+            assert_eq!(rd(&c, &f, 0x1010, sub), 1);
+            assert_eq!(rd(&c, &f, 0x1011, sub), 1);
+            let scope = Scope::from_sub(sub).unwrap();
+            assert_eq!(
+                sdo_write(&mut c, &mut f, 0x1010, sub, SAVE),
+                Ok(Some(StoreCommand::Save(scope)))
+            );
+            assert_eq!(
+                sdo_write(&mut c, &mut f, 0x1011, sub, LOAD),
+                Ok(Some(StoreCommand::RestoreDefaults(scope)))
+            );
+            assert_eq!(
+                sdo_write(&mut c, &mut f, 0x1011, sub, SAVE),
+                Err(SdoAbort::DataCannotBeStored)
+            );
+            for bad in [0, 1, 0xFFFF_FFFF, SAVE + 1, 0x7361_7665] {
+                assert_eq!(
+                    sdo_write(&mut c, &mut f, 0x1010, sub, bad),
+                    Err(SdoAbort::DataCannotBeStored)
+                );
+                assert_eq!(
+                    sdo_write(&mut c, &mut f, 0x1011, sub, bad),
+                    Err(SdoAbort::DataCannotBeStored)
+                );
+            }
+        }
+        // E5: 'load' to 0x1010:04 restores every default; not on the other subs.
+        assert_eq!(
+            sdo_write(&mut c, &mut f, 0x1010, 4, LOAD),
+            Ok(Some(StoreCommand::RestoreDefaults(Scope::All)))
+        );
+        assert_eq!(
+            sdo_write(&mut c, &mut f, 0x1010, 1, LOAD),
+            Err(SdoAbort::DataCannotBeStored)
+        );
+        assert_eq!(
+            sdo_write(&mut c, &mut f, 0x1010, 0, 4),
+            Err(SdoAbort::WriteReadOnly)
+        );
+        assert_eq!(
+            sdo_write(&mut c, &mut f, 0x1010, 5, SAVE),
+            Err(SdoAbort::SubindexDoesNotExist)
+        );
+        assert_eq!(
+            c.write(&mut f, 0x1010, 1, &[0x73, 0x61, 0x76]),
+            Err(SdoAbort::LengthTooLow)
+        );
+        assert_eq!(
+            c.write(&mut f, 0x1010, 1, &[0; 5]),
+            Err(SdoAbort::LengthTooHigh)
+        );
+    }
+
+    #[test]
+    fn error_register_and_predefined_error_field() {
+        let mut c = Comm::new(Identity::new(Variant::HybridServo, 0));
+        let mut f = Faults::default();
+        assert_eq!(rd(&c, &f, 0x1001, 0), 0);
+        assert_eq!(rd(&c, &f, 0x1003, 0), 0);
+        f.raise(FaultKind::UnderVoltage, Snapshot::default(), 0);
+        f.raise(FaultKind::OverCurrent, Snapshot::default(), 1);
+        assert_eq!(rd(&c, &f, 0x1001, 0), 0x07);
+        assert_eq!(rd(&c, &f, 0x1003, 0), 2);
+        assert_eq!(rd(&c, &f, 0x1003, 1), 0x2310);
+        assert_eq!(rd(&c, &f, 0x1003, 2), 0x3220 | 4 << 16);
+        assert_eq!(rd(&c, &f, 0x1003, 3), 0);
+        assert_eq!(
+            sdo_write(&mut c, &mut f, 0x1003, 0, 1),
+            Err(SdoAbort::ValueRangeExceeded)
+        );
+        assert_eq!(
+            sdo_write(&mut c, &mut f, 0x1003, 1, 0),
+            Err(SdoAbort::WriteReadOnly)
+        );
+        assert_eq!(sdo_write(&mut c, &mut f, 0x1003, 0, 0), Ok(None));
+        assert_eq!(rd(&c, &f, 0x1003, 0), 0);
+        assert_eq!(rd(&c, &f, 0x1001, 0), 0x07, "active faults stay");
+    }
+
+    #[test]
+    fn error_settings() {
+        let mut c = Comm::new(Identity::new(Variant::HybridServo, 0));
+        let mut f = Faults::default();
+        assert_eq!(
+            (
+                rd(&c, &f, 0x10F1, 0),
+                rd(&c, &f, 0x10F1, 1),
+                rd(&c, &f, 0x10F1, 2)
+            ),
+            (2, 1, 4)
+        );
+        assert_eq!(sdo_write(&mut c, &mut f, 0x10F1, 2, 9), Ok(None));
+        assert_eq!(c.sync_error_limit(), 9);
+        assert_eq!(sdo_write(&mut c, &mut f, 0x10F1, 1, 0), Ok(None));
+        assert_eq!(c.local_error_reaction(), 0);
+        assert_eq!(
+            c.read(&f, 0x10F2, 0, &mut [0; 4]),
+            Err(SdoAbort::ObjectDoesNotExist)
+        );
+    }
+}

@@ -1,0 +1,815 @@
+//! Faults and protections (drive-requirements §6): detection from measured values,
+//! the 0x603F error code, the 0x1001 error register, one emergency per occurrence,
+//! the PDS fault request, the alarm output, latching (0x2057), masking (0x2056), and
+//! the history of the last six faults with a snapshot (objects 0x2400-0x2406).
+//!
+//! | fault | 603F | 1001 bits | red LED | latched | 0x2056 bit |
+//! |---|---|---|---|---|---|
+//! | over-current / phase short | 0x2310 | 0, 1 (current) | 1 | yes | 0 (always on, see below) |
+//! | over-voltage (> 55 V) | 0x3210 | 0, 2 (voltage) | 2 | yes | 1 |
+//! | phase / current-sensing | 0x5210 | 0, 1 (current) | 9 | no | 3 |
+//! | motor open / poor contact | 0x7120 | 0, 5 (profile) | 4 | no | 2 |
+//! | under-voltage (< 12 V) | 0x3220 | 0, 2 (voltage) | 3 | no | 6 |
+//! | position following error | 0x8611 | 0, 5 (profile) | 7 | no | 7 |
+//! | EtherCAT (watchdog, sync, ESM, PDO length) | caller's code (0x8700, 0xA000, 0xA001, 0x8210, 0x8220) | 0, 4 (communication) | — (ERR LED) | no | — |
+//!
+//! The rows are in order of severity (the red LED shows the most severe active fault;
+//! 0x603F reports the most severe active fault's code, 0 when none).
+//!
+//! **0x2056** (default 0x00C3): a set bit *enables* the detection. The default thus
+//! enables over-current, over-voltage, under-voltage and following error, and leaves
+//! the two power-up checks (motor open, current sensing) off. Over-current protection
+//! cannot be switched off: bit 0 is ignored (the PWM must stop on a short whatever
+//! the mask says).
+//!
+//! **Latching**: a latched fault (over-current, over-voltage) survives fault reset
+//! until power is cycled, unless 0x2057 = 1. Every fault also stays until its
+//! condition is gone (under-voltage clears 0.5 V above the threshold). Fault reset
+//! comes from the controlword bit 7 edge (CiA 402 helper) or a fault-clear input edge
+//! (I/O): both call [`Faults::fault_reset`].
+//!
+//! **Emergencies**: one per occurrence (a fault that is already active does not send
+//! again). Manufacturer data: byte 0 the [`FaultKind`] number, bytes 1-2 the bus
+//! voltage in 0.1 V, bytes 3-4 a detail (phase current in mA, following error in
+//! counts saturated to i16, or the caller's EtherCAT diagnosis). When a fault reset
+//! clears the last active fault, the CiA 301 "error reset" emergency (code 0x0000) is
+//! sent.
+
+use ecat_slave_stack::od::{Access, DataType, Entry, Object, ObjectCode, PdoMappable, SdoAbort};
+use heapless::Deque;
+
+/// The kinds of fault, most severe first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+#[repr(u8)]
+pub enum FaultKind {
+    /// Over-current or phase short circuit.
+    OverCurrent = 0,
+    /// Bus over-voltage.
+    OverVoltage = 1,
+    /// Phase fault or current-sensing fault (ADC offset, current does not follow).
+    PhaseSensing = 2,
+    /// Motor open or poor contact (no current response at power-up).
+    MotorOpen = 3,
+    /// Bus under-voltage.
+    UnderVoltage = 4,
+    /// Position following error.
+    FollowingError = 5,
+    /// EtherCAT communication fault (watchdog, sync, state transition, PDO length).
+    Ecat = 6,
+}
+
+/// Number of fault kinds.
+pub const KINDS: usize = 7;
+
+impl FaultKind {
+    /// All kinds, most severe first.
+    pub const ALL: [FaultKind; KINDS] = [
+        FaultKind::OverCurrent,
+        FaultKind::OverVoltage,
+        FaultKind::PhaseSensing,
+        FaultKind::MotorOpen,
+        FaultKind::UnderVoltage,
+        FaultKind::FollowingError,
+        FaultKind::Ecat,
+    ];
+    /// 0x603F code (EtherCAT faults carry the caller's code instead).
+    pub const fn code(self) -> u16 {
+        match self {
+            Self::OverCurrent => 0x2310,
+            Self::OverVoltage => 0x3210,
+            Self::PhaseSensing => 0x5210,
+            Self::MotorOpen => 0x7120,
+            Self::UnderVoltage => 0x3220,
+            Self::FollowingError => 0x8611,
+            Self::Ecat => 0x8700,
+        }
+    }
+    /// Bits of 0x1001 (bit 0 generic always included).
+    pub const fn error_register(self) -> u8 {
+        match self {
+            Self::OverCurrent | Self::PhaseSensing => 0x03,
+            Self::OverVoltage | Self::UnderVoltage => 0x05,
+            Self::MotorOpen | Self::FollowingError => 0x21,
+            Self::Ecat => 0x11,
+        }
+    }
+    /// Red LED flash count (`None`: shown by the EtherCAT ERR LED instead).
+    pub const fn flashes(self) -> Option<u8> {
+        match self {
+            Self::OverCurrent => Some(1),
+            Self::OverVoltage => Some(2),
+            Self::UnderVoltage => Some(3),
+            Self::MotorOpen => Some(4),
+            Self::FollowingError => Some(7),
+            Self::PhaseSensing => Some(9),
+            Self::Ecat => None,
+        }
+    }
+    /// Needs a power cycle (or 0x2057 = 1) to clear.
+    pub const fn latched(self) -> bool {
+        matches!(self, Self::OverCurrent | Self::OverVoltage)
+    }
+    /// Enable bit in 0x2056 (`None`: cannot be masked).
+    pub const fn mask_bit(self) -> Option<u8> {
+        match self {
+            Self::OverCurrent => Some(0),
+            Self::OverVoltage => Some(1),
+            Self::MotorOpen => Some(2),
+            Self::PhaseSensing => Some(3),
+            Self::UnderVoltage => Some(6),
+            Self::FollowingError => Some(7),
+            Self::Ecat => None,
+        }
+    }
+}
+
+/// Values captured when a fault occurs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Snapshot {
+    /// Phase A current, mA.
+    pub ia_ma: i16,
+    /// Phase B current, mA.
+    pub ib_ma: i16,
+    /// Bus voltage, 0.1 V.
+    pub bus_dv: u16,
+    /// Position following error, command units.
+    pub position_error: i32,
+    /// Speed, command units/s.
+    pub speed: i32,
+}
+
+/// One history entry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FaultRecord {
+    /// The kind.
+    pub kind: FaultKind,
+    /// Its 0x603F code.
+    pub code: u16,
+    /// Values at the time.
+    pub snapshot: Snapshot,
+    /// Milliseconds since power-up.
+    pub time_ms: u32,
+}
+
+/// An emergency for `MailboxServer::emergency`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Emergency {
+    /// Error code.
+    pub code: u16,
+    /// Error register (0x1001) at the time.
+    pub register: u8,
+    /// Manufacturer-specific data.
+    pub data: [u8; 5],
+}
+
+/// Thresholds of the protections.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FaultConfig {
+    /// Over-voltage above this bus voltage, mV (55 V for the 50 V class).
+    pub over_voltage_mv: u32,
+    /// Under-voltage below this bus voltage, mV.
+    pub under_voltage_mv: u32,
+    /// Under-voltage clears above threshold + this, mV.
+    pub under_voltage_hysteresis_mv: u32,
+    /// Over-current above this phase current magnitude, mA.
+    pub over_current_ma: u32,
+}
+
+impl Default for FaultConfig {
+    fn default() -> Self {
+        FaultConfig {
+            over_voltage_mv: 55_000,
+            under_voltage_mv: 12_000,
+            under_voltage_hysteresis_mv: 500,
+            over_current_ma: 10_500,
+        }
+    }
+}
+
+/// History depth.
+pub const HISTORY: usize = 6;
+
+/// Fault state of the drive.
+#[derive(Debug, Clone)]
+pub struct Faults {
+    cfg: FaultConfig,
+    mask: u16,
+    clear_allowed: bool,
+    active: [bool; KINDS],
+    present: [bool; KINDS],
+    ecat_code: u16,
+    history: [Option<FaultRecord>; HISTORY],
+    count: u16,
+    pds_request: bool,
+    emcy: Deque<Emergency, 8>,
+    bus_dv: u16,
+}
+
+impl Default for Faults {
+    fn default() -> Self {
+        Self::new(FaultConfig::default())
+    }
+}
+
+impl Faults {
+    /// Power-up state: nothing active, empty history, mask 0x00C3, no clearing of
+    /// latched faults.
+    pub fn new(cfg: FaultConfig) -> Self {
+        Faults {
+            cfg,
+            mask: 0x00C3,
+            clear_allowed: false,
+            active: [false; KINDS],
+            present: [false; KINDS],
+            ecat_code: 0,
+            history: [None; HISTORY],
+            count: 0,
+            pds_request: false,
+            emcy: Deque::new(),
+            bus_dv: 0,
+        }
+    }
+
+    /// Takes 0x2056 and 0x2057 (call when they change or every cycle).
+    pub fn configure(&mut self, mask: u16, clear_allowed: bool) {
+        self.mask = mask;
+        self.clear_allowed = clear_allowed;
+    }
+
+    /// Applies 0x2056 / 0x2057 from the parameters.
+    pub fn configure_from(&mut self, p: &crate::params::Params) {
+        use crate::params::P;
+        self.configure(p.get(P::FaultMask) as u16, p.get(P::FaultClearAllowed) == 1);
+    }
+
+    /// The thresholds.
+    pub fn config(&self) -> FaultConfig {
+        self.cfg
+    }
+
+    /// True when detection of `kind` is enabled by 0x2056.
+    pub fn enabled(&self, kind: FaultKind) -> bool {
+        match kind {
+            FaultKind::OverCurrent => true,
+            k => k.mask_bit().is_none_or(|b| self.mask & (1 << b) != 0),
+        }
+    }
+
+    /// Reports that the condition of `kind` is present. Returns true when this is a
+    /// new occurrence (then one emergency is queued, the history gets an entry and the
+    /// PDS fault request is set).
+    pub fn raise(&mut self, kind: FaultKind, snap: Snapshot, now_ms: u32) -> bool {
+        self.raise_with(kind, kind.code(), [0, 0], snap, now_ms)
+    }
+
+    /// An EtherCAT fault with its code (0x8700 sync, 0xA000/0xA001 ESM transition,
+    /// 0x8210/0x8220 PDO length, ...) and two diagnosis bytes for the emergency.
+    pub fn raise_ecat(&mut self, code: u16, diag: [u8; 2], now_ms: u32) -> bool {
+        let snap = Snapshot {
+            bus_dv: self.bus_dv,
+            ..Snapshot::default()
+        };
+        self.raise_with(FaultKind::Ecat, code, diag, snap, now_ms)
+    }
+
+    fn raise_with(
+        &mut self,
+        kind: FaultKind,
+        code: u16,
+        detail: [u8; 2],
+        snap: Snapshot,
+        now_ms: u32,
+    ) -> bool {
+        if !self.enabled(kind) {
+            return false;
+        }
+        let k = kind as usize;
+        self.present[k] = true;
+        if self.active[k] {
+            return false;
+        }
+        self.active[k] = true;
+        if kind == FaultKind::Ecat {
+            self.ecat_code = code;
+        }
+        self.history.rotate_right(1);
+        self.history[0] = Some(FaultRecord {
+            kind,
+            code,
+            snapshot: snap,
+            time_ms: now_ms,
+        });
+        self.count = self.count.saturating_add(1);
+        self.pds_request = true;
+        let v = snap.bus_dv.to_le_bytes();
+        let e = Emergency {
+            code,
+            register: self.error_register(),
+            data: [kind as u8, v[0], v[1], detail[0], detail[1]],
+        };
+        if self.emcy.is_full() {
+            self.emcy.pop_front();
+        }
+        let _ = self.emcy.push_back(e);
+        true
+    }
+
+    /// Reports that the condition of `kind` is gone (the fault itself stays until a
+    /// fault reset).
+    pub fn condition_gone(&mut self, kind: FaultKind) {
+        self.present[kind as usize] = false;
+    }
+
+    /// Checks the bus voltage (mV): over- and under-voltage.
+    pub fn check_bus_voltage(&mut self, mv: u32, snap: Snapshot, now_ms: u32) {
+        self.bus_dv = (mv / 100).min(u32::from(u16::MAX)) as u16;
+        let snap = Snapshot {
+            bus_dv: self.bus_dv,
+            ..snap
+        };
+        if mv > self.cfg.over_voltage_mv {
+            self.raise(FaultKind::OverVoltage, snap, now_ms);
+        } else {
+            self.condition_gone(FaultKind::OverVoltage);
+        }
+        if mv < self.cfg.under_voltage_mv {
+            self.raise(FaultKind::UnderVoltage, snap, now_ms);
+        } else if mv >= self.cfg.under_voltage_mv + self.cfg.under_voltage_hysteresis_mv {
+            self.condition_gone(FaultKind::UnderVoltage);
+        }
+    }
+
+    /// Checks the phase currents (mA) against the over-current limit. Returns true when
+    /// the PWM must be switched off now.
+    pub fn check_phase_currents(
+        &mut self,
+        ia_ma: i32,
+        ib_ma: i32,
+        snap: Snapshot,
+        now_ms: u32,
+    ) -> bool {
+        let m = ia_ma.unsigned_abs().max(ib_ma.unsigned_abs());
+        if m > self.cfg.over_current_ma {
+            let snap = Snapshot {
+                ia_ma: sat16(ia_ma),
+                ib_ma: sat16(ib_ma),
+                bus_dv: self.bus_dv,
+                ..snap
+            };
+            self.raise(FaultKind::OverCurrent, snap, now_ms);
+            true
+        } else {
+            self.condition_gone(FaultKind::OverCurrent);
+            false
+        }
+    }
+
+    /// Checks the following error (counts) against 0x2030.
+    pub fn check_following_error(&mut self, error: i32, limit: u16, snap: Snapshot, now_ms: u32) {
+        if error.unsigned_abs() > u32::from(limit) {
+            let snap = Snapshot {
+                position_error: error,
+                bus_dv: self.bus_dv,
+                ..snap
+            };
+            self.raise(FaultKind::FollowingError, snap, now_ms);
+        } else {
+            self.condition_gone(FaultKind::FollowingError);
+        }
+    }
+
+    /// Fault reset (controlword bit 7 edge, fault-clear input, 0x2093): clears every
+    /// active fault whose condition is gone and that is not latched (or 0x2057 = 1).
+    /// Returns true when no fault is active afterwards.
+    pub fn fault_reset(&mut self) -> bool {
+        let had = self.any_active();
+        for k in FaultKind::ALL {
+            let i = k as usize;
+            if self.active[i] && !self.present[i] && (!k.latched() || self.clear_allowed) {
+                self.active[i] = false;
+            }
+        }
+        let clear = !self.any_active();
+        if had && clear {
+            if self.emcy.is_full() {
+                self.emcy.pop_front();
+            }
+            let _ = self.emcy.push_back(Emergency {
+                code: 0,
+                register: 0,
+                data: [0; 5],
+            });
+        }
+        clear
+    }
+
+    /// True while `kind` is active.
+    pub fn is_active(&self, kind: FaultKind) -> bool {
+        self.active[kind as usize]
+    }
+
+    /// True while any fault is active (alarm output, PDS stays in Fault).
+    pub fn any_active(&self) -> bool {
+        self.active.iter().any(|&a| a)
+    }
+
+    /// Alarm output function (0x2005 bit 0).
+    pub fn alarm(&self) -> bool {
+        self.any_active()
+    }
+
+    /// The most severe active fault.
+    pub fn most_severe(&self) -> Option<FaultKind> {
+        FaultKind::ALL
+            .into_iter()
+            .find(|&k| self.active[k as usize])
+    }
+
+    /// 0x603F: code of the most severe active fault, 0 when none.
+    pub fn error_code(&self) -> u16 {
+        match self.most_severe() {
+            Some(FaultKind::Ecat) => self.ecat_code,
+            Some(k) => k.code(),
+            None => 0,
+        }
+    }
+
+    /// 0x1001: OR of the active faults' bits.
+    pub fn error_register(&self) -> u8 {
+        FaultKind::ALL
+            .iter()
+            .filter(|&&k| self.active[k as usize])
+            .fold(0, |r, &k| r | k.error_register())
+    }
+
+    /// Bit n set: [`FaultKind`] n active (0x2400:08).
+    pub fn active_mask(&self) -> u16 {
+        FaultKind::ALL
+            .iter()
+            .filter(|&&k| self.active[k as usize])
+            .fold(0, |r, &k| r | (1 << k as u16))
+    }
+
+    /// Flash count of the most severe active fault with a red LED code.
+    pub fn led_code(&self) -> Option<u8> {
+        FaultKind::ALL
+            .into_iter()
+            .filter(|&k| self.active[k as usize])
+            .find_map(|k| k.flashes())
+    }
+
+    /// True once per new fault: the CiA 402 state machine must go to Fault reaction
+    /// active (605E reaction).
+    pub fn take_pds_fault_request(&mut self) -> bool {
+        core::mem::take(&mut self.pds_request)
+    }
+
+    /// Next emergency for the mailbox.
+    pub fn pop_emergency(&mut self) -> Option<Emergency> {
+        self.emcy.pop_front()
+    }
+
+    /// History entry `n` (0 = newest).
+    pub fn history(&self, n: usize) -> Option<&FaultRecord> {
+        self.history.get(n).and_then(|r| r.as_ref())
+    }
+
+    /// Faults since power-up.
+    pub fn count(&self) -> u16 {
+        self.count
+    }
+
+    /// Number of history entries present.
+    pub fn history_len(&self) -> usize {
+        self.history.iter().filter(|r| r.is_some()).count()
+    }
+
+    /// Empties the history (0x2093 = 1, 0x1003:00 = 0). Active faults stay.
+    pub fn clear_history(&mut self) {
+        self.history = [None; HISTORY];
+    }
+
+    /// SDO read of 0x2400-0x2406.
+    pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        let entry = ecat_slave_stack::od::find_entry(OBJECTS, index, sub)?;
+        let v: u32 = match (index, sub) {
+            (0x2400, 0) => 8,
+            (0x2400, 1) => u32::from(self.count),
+            (0x2400, 2..=7) => self
+                .history(usize::from(sub) - 2)
+                .map_or(0, |r| u32::from(r.code)),
+            (0x2400, 8) => u32::from(self.active_mask()),
+            (0x2401..=0x2406, 0) => 7,
+            (0x2401..=0x2406, _) => match self.history(usize::from(index - 0x2401)) {
+                None => 0,
+                Some(r) => match sub {
+                    1 => u32::from(r.code),
+                    2 => r.snapshot.ia_ma as u16 as u32,
+                    3 => r.snapshot.ib_ma as u16 as u32,
+                    4 => u32::from(r.snapshot.bus_dv),
+                    5 => r.snapshot.position_error as u32,
+                    6 => r.snapshot.speed as u32,
+                    _ => r.time_ms,
+                },
+            },
+            _ => return Err(SdoAbort::ObjectDoesNotExist),
+        };
+        let len = entry.byte_len();
+        let out = buf.get_mut(..len).ok_or(SdoAbort::ExceedsMailbox)?;
+        out.copy_from_slice(&v.to_le_bytes()[..len]);
+        Ok(len)
+    }
+}
+
+fn sat16(v: i32) -> i16 {
+    v.clamp(i32::from(i16::MIN), i32::from(i16::MAX)) as i16
+}
+
+const fn ro(sub: u8, name: &'static str, t: DataType, unit: &'static str) -> Entry {
+    Entry::new(sub, name, t, Access::RO).unit(unit)
+}
+
+const COUNT8: Entry =
+    Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(8);
+const COUNT7: Entry =
+    Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(7);
+
+const SNAPSHOT: &[Entry] = &[
+    COUNT7,
+    ro(1, "Error code", DataType::Unsigned16, ""),
+    ro(2, "Phase A current", DataType::Integer16, "mA"),
+    ro(3, "Phase B current", DataType::Integer16, "mA"),
+    ro(4, "Bus voltage", DataType::Unsigned16, "0.1V"),
+    ro(5, "Position error", DataType::Integer32, "inc"),
+    ro(6, "Speed", DataType::Integer32, "inc/s"),
+    ro(7, "Time since power-up", DataType::Unsigned32, "ms"),
+];
+
+const fn snap_obj(index: u16, name: &'static str) -> Object {
+    Object {
+        index,
+        name,
+        code: ObjectCode::Record,
+        entries: SNAPSHOT,
+        description: "Values captured when the fault occurred (zeros when empty)",
+    }
+}
+
+/// Fault history objects (the Xinje U1 group): 0x2400 summary, 0x2401 newest fault's
+/// snapshot … 0x2406 sixth newest.
+pub const OBJECTS: &[Object] = &[
+    Object {
+        index: 0x2400,
+        name: "Fault history",
+        code: ObjectCode::Record,
+        entries: &[
+            COUNT8,
+            ro(1, "Faults since power-up", DataType::Unsigned16, ""),
+            ro(2, "Fault code 1 (newest)", DataType::Unsigned16, ""),
+            ro(3, "Fault code 2", DataType::Unsigned16, ""),
+            ro(4, "Fault code 3", DataType::Unsigned16, ""),
+            ro(5, "Fault code 4", DataType::Unsigned16, ""),
+            ro(6, "Fault code 5", DataType::Unsigned16, ""),
+            ro(7, "Fault code 6 (oldest)", DataType::Unsigned16, ""),
+            Entry::new(8, "Active faults", DataType::Unsigned16, Access::RO).pdo(PdoMappable::Tx),
+        ],
+        description: "Last six faults, newest first; sub 8: bit n = fault kind n active",
+    },
+    snap_obj(0x2401, "Fault 1 snapshot"),
+    snap_obj(0x2402, "Fault 2 snapshot"),
+    snap_obj(0x2403, "Fault 3 snapshot"),
+    snap_obj(0x2404, "Fault 4 snapshot"),
+    snap_obj(0x2405, "Fault 5 snapshot"),
+    snap_obj(0x2406, "Fault 6 snapshot"),
+];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ecat_slave_stack::od;
+
+    const S: Snapshot = Snapshot {
+        ia_ma: 0,
+        ib_ma: 0,
+        bus_dv: 240,
+        position_error: 0,
+        speed: 0,
+    };
+
+    fn all_enabled() -> Faults {
+        let mut f = Faults::default();
+        f.configure(0xFFFF, false);
+        f
+    }
+
+    #[test]
+    fn table_well_formed() {
+        assert!(od::is_well_formed(OBJECTS));
+    }
+
+    #[test]
+    fn each_fault_code_register_emcy_led_pds_alarm() {
+        let cases: &[(FaultKind, u16, u8, Option<u8>, bool)] = &[
+            (FaultKind::OverCurrent, 0x2310, 0x03, Some(1), true),
+            (FaultKind::OverVoltage, 0x3210, 0x05, Some(2), true),
+            (FaultKind::UnderVoltage, 0x3220, 0x05, Some(3), false),
+            (FaultKind::MotorOpen, 0x7120, 0x21, Some(4), false),
+            (FaultKind::FollowingError, 0x8611, 0x21, Some(7), false),
+            (FaultKind::PhaseSensing, 0x5210, 0x03, Some(9), false),
+        ];
+        for &(k, code, reg, led, latched) in cases {
+            let mut f = all_enabled();
+            assert!(f.raise(k, S, 1000));
+            assert!(!f.raise(k, S, 1001), "same occurrence");
+            assert_eq!(f.error_code(), code);
+            assert_eq!(f.error_register(), reg);
+            assert_eq!(f.led_code(), led);
+            assert!(f.alarm());
+            assert!(f.take_pds_fault_request());
+            assert!(!f.take_pds_fault_request());
+            let e = f.pop_emergency().unwrap();
+            assert_eq!(
+                (e.code, e.register, e.data[0], e.data[1]),
+                (code, reg, k as u8, 240)
+            );
+            assert_eq!(f.pop_emergency(), None, "exactly one emergency");
+            // Condition still present: reset does nothing.
+            assert!(!f.fault_reset());
+            assert!(f.is_active(k));
+            f.condition_gone(k);
+            assert_eq!(f.fault_reset(), !latched);
+            assert_eq!(f.is_active(k), latched);
+            if latched {
+                assert_eq!(f.pop_emergency(), None);
+                // 0x2057 = 1 allows clearing.
+                f.configure(0xFFFF, true);
+                assert!(f.fault_reset());
+            }
+            assert_eq!(
+                f.pop_emergency().map(|e| e.code),
+                Some(0),
+                "error reset emergency"
+            );
+            assert_eq!(
+                (f.error_code(), f.error_register(), f.led_code(), f.alarm()),
+                (0, 0, None, false)
+            );
+            // A new occurrence after clearing sends again.
+            assert!(f.raise(k, S, 2000));
+            assert_eq!(f.pop_emergency().map(|e| e.code), Some(code));
+            assert_eq!(f.count(), 2);
+        }
+    }
+
+    #[test]
+    fn thresholds() {
+        let mut f = Faults::default(); // 0x00C3: OC, OV, UV, FE
+        f.check_bus_voltage(55_000, S, 0);
+        assert!(!f.any_active());
+        f.check_bus_voltage(55_001, S, 0);
+        assert!(f.is_active(FaultKind::OverVoltage));
+        f.check_bus_voltage(24_000, S, 0);
+        f.check_bus_voltage(12_000, S, 0);
+        assert!(!f.is_active(FaultKind::UnderVoltage));
+        f.check_bus_voltage(11_999, S, 0);
+        assert!(f.is_active(FaultKind::UnderVoltage));
+        f.check_bus_voltage(12_400, S, 0);
+        assert!(!f.fault_reset(), "inside hysteresis, OV latched");
+        assert!(f.is_active(FaultKind::UnderVoltage));
+        f.check_bus_voltage(12_500, S, 0);
+        f.fault_reset();
+        assert!(!f.is_active(FaultKind::UnderVoltage));
+        assert!(
+            f.is_active(FaultKind::OverVoltage),
+            "latched until power cycle"
+        );
+        assert_eq!(f.led_code(), Some(2));
+        assert!(!f.check_phase_currents(10_500, -10_500, S, 0));
+        assert!(f.check_phase_currents(0, -10_501, S, 0));
+        assert_eq!(f.history(0).map(|r| r.snapshot.ib_ma), Some(-10_501));
+        assert_eq!(f.led_code(), Some(1), "most severe shown");
+        f.check_following_error(-1000, 1000, S, 0);
+        assert!(!f.is_active(FaultKind::FollowingError));
+        f.check_following_error(-1001, 1000, S, 0);
+        assert!(f.is_active(FaultKind::FollowingError));
+        assert_eq!(f.history(0).map(|r| r.snapshot.position_error), Some(-1001));
+        assert_eq!(f.error_code(), 0x2310);
+    }
+
+    #[test]
+    fn masking() {
+        let mut f = Faults::default();
+        assert!(!f.raise(FaultKind::MotorOpen, S, 0), "off by default");
+        assert!(!f.raise(FaultKind::PhaseSensing, S, 0));
+        f.configure(0, false);
+        assert!(!f.raise(FaultKind::OverVoltage, S, 0));
+        assert!(!f.raise(FaultKind::UnderVoltage, S, 0));
+        assert!(!f.raise(FaultKind::FollowingError, S, 0));
+        assert!(
+            f.raise(FaultKind::OverCurrent, S, 0),
+            "over-current cannot be masked"
+        );
+        assert!(
+            f.raise_ecat(0xA001, [4, 0], 0),
+            "EtherCAT faults cannot be masked"
+        );
+        assert_eq!(f.pop_emergency().map(|e| e.code), Some(0x2310));
+        assert_eq!(
+            f.pop_emergency().map(|e| (e.code, e.register, e.data[3])),
+            Some((0xA001, 0x13, 4))
+        );
+    }
+
+    #[test]
+    fn ecat_fault_has_no_red_led() {
+        let mut f = Faults::default();
+        assert!(f.raise_ecat(0x8700, [0, 0], 5));
+        assert_eq!(f.error_code(), 0x8700);
+        assert_eq!(f.error_register(), 0x11);
+        assert_eq!(f.led_code(), None);
+        assert!(f.take_pds_fault_request());
+        f.condition_gone(FaultKind::Ecat);
+        assert!(f.fault_reset());
+    }
+
+    #[test]
+    fn history_keeps_six_newest_readable_by_sdo() {
+        let mut f = all_enabled();
+        let kinds = [
+            FaultKind::UnderVoltage,
+            FaultKind::MotorOpen,
+            FaultKind::FollowingError,
+            FaultKind::PhaseSensing,
+            FaultKind::UnderVoltage,
+            FaultKind::MotorOpen,
+            FaultKind::FollowingError,
+        ];
+        for (i, &k) in kinds.iter().enumerate() {
+            let snap = Snapshot {
+                ia_ma: -(i as i16),
+                ib_ma: 100,
+                bus_dv: 123,
+                position_error: -7,
+                speed: 99,
+            };
+            assert!(f.raise(k, snap, 10 * i as u32));
+            f.condition_gone(k);
+            f.fault_reset();
+        }
+        assert_eq!(f.history_len(), 6);
+        let mut buf = [0u8; 4];
+        let rd = |f: &Faults, i, s, buf: &mut [u8; 4]| {
+            let n = f.read(i, s, buf).unwrap();
+            let e = od::find_entry(OBJECTS, i, s).unwrap();
+            od::decode_int(e.data_type, &buf[..n]).unwrap()
+        };
+        assert_eq!(rd(&f, 0x2400, 0, &mut buf), 8);
+        assert_eq!(rd(&f, 0x2400, 1, &mut buf), 7);
+        assert_eq!(rd(&f, 0x2400, 2, &mut buf), 0x8611);
+        assert_eq!(rd(&f, 0x2400, 3, &mut buf), 0x7120);
+        assert_eq!(
+            rd(&f, 0x2400, 7, &mut buf),
+            0x7120,
+            "second fault (oldest kept)"
+        );
+        assert_eq!(rd(&f, 0x2401, 1, &mut buf), 0x8611);
+        assert_eq!(rd(&f, 0x2401, 2, &mut buf), -6);
+        assert_eq!(rd(&f, 0x2401, 3, &mut buf), 100);
+        assert_eq!(rd(&f, 0x2401, 4, &mut buf), 123);
+        assert_eq!(rd(&f, 0x2401, 5, &mut buf), -7);
+        assert_eq!(rd(&f, 0x2401, 6, &mut buf), 99);
+        assert_eq!(rd(&f, 0x2401, 7, &mut buf), 60);
+        assert_eq!(rd(&f, 0x2406, 7, &mut buf), 10);
+        f.clear_history();
+        assert_eq!(rd(&f, 0x2401, 1, &mut buf), 0);
+        assert_eq!(rd(&f, 0x2400, 2, &mut buf), 0);
+        assert_eq!(
+            f.read(0x2407, 0, &mut buf),
+            Err(SdoAbort::ObjectDoesNotExist)
+        );
+        assert_eq!(
+            f.read(0x2401, 8, &mut buf),
+            Err(SdoAbort::SubindexDoesNotExist)
+        );
+        assert_eq!(
+            f.read(0x2401, 5, &mut [0u8; 2]),
+            Err(SdoAbort::ExceedsMailbox)
+        );
+    }
+
+    #[test]
+    fn emergency_queue_never_overflows() {
+        let mut f = all_enabled();
+        for i in 0..50u32 {
+            f.raise(FaultKind::UnderVoltage, S, i);
+            f.condition_gone(FaultKind::UnderVoltage);
+            f.fault_reset();
+        }
+        let mut n = 0;
+        while f.pop_emergency().is_some() {
+            n += 1;
+        }
+        assert_eq!(n, 8);
+        assert_eq!(f.count(), 50);
+    }
+}

@@ -1,0 +1,149 @@
+//! Identity of the product: the values that 0x1000, 0x1008-0x100A and 0x1018 report
+//! and that the SII image and the ESI file carry.
+//!
+//! Two variants share the firmware: the hybrid servo (encoder feedback, closed loop by
+//! default) and the open-loop stepper. The variant is chosen by the board at start-up
+//! (board strap or build option) and decides the product code, the device type, the
+//! names and the default of 0x2024.
+
+/// ETG vendor ID (placeholder until the vendor is registered with the ETG).
+pub const VENDOR_ID: u32 = 0x0000_0E5C;
+/// Revision number (0x1018:03, SII words 0x0C-0x0D).
+pub const REVISION: u32 = 0x0001_0000;
+/// ESI device group.
+pub const GROUP: &str = "Drives";
+/// Order code prefix.
+pub const ORDER_CODE: &str = "ECS";
+/// Hardware version (0x1009).
+pub const HARDWARE_VERSION: &str = "1.0";
+/// Software version (0x100A): the crate version.
+pub const SOFTWARE_VERSION: &str = env!("CARGO_PKG_VERSION");
+
+/// Longest device name of any variant (0x1008 is described with this maximum length).
+pub const MAX_NAME_LEN: usize = 32;
+
+/// The product variant.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Variant {
+    /// "ECS-HS": hybrid servo with incremental encoder, closed loop by default.
+    HybridServo,
+    /// "ECS-OL": open-loop stepper, no feedback.
+    OpenLoop,
+}
+
+impl Variant {
+    /// Product code (0x1018:02).
+    pub const fn product_code(self) -> u32 {
+        match self {
+            Self::HybridServo => 0x0000_5840,
+            Self::OpenLoop => 0x0000_5841,
+        }
+    }
+    /// Device type (0x1000): CiA 402 servo 0x00020192, stepper 0x00040192.
+    pub const fn device_type(self) -> u32 {
+        match self {
+            Self::HybridServo => 0x0002_0192,
+            Self::OpenLoop => 0x0004_0192,
+        }
+    }
+    /// Device name (0x1008, SII/ESI name).
+    pub const fn device_name(self) -> &'static str {
+        match self {
+            Self::HybridServo => "ECS-HS EtherCAT hybrid servo",
+            Self::OpenLoop => "ECS-OL EtherCAT stepper",
+        }
+    }
+    /// Short type name ("ECS-HS" / "ECS-OL").
+    pub const fn type_name(self) -> &'static str {
+        match self {
+            Self::HybridServo => "ECS-HS",
+            Self::OpenLoop => "ECS-OL",
+        }
+    }
+    /// Default of 0x2024 (1 open loop, 2 closed loop).
+    pub const fn default_loop_mode(self) -> u8 {
+        match self {
+            Self::HybridServo => 2,
+            Self::OpenLoop => 1,
+        }
+    }
+    /// Highest 0x2024 value the variant accepts (an open-loop drive has no encoder).
+    pub const fn max_loop_mode(self) -> u8 {
+        match self {
+            Self::HybridServo => 2,
+            Self::OpenLoop => 1,
+        }
+    }
+    /// True when the variant has encoder feedback.
+    pub const fn has_encoder(self) -> bool {
+        matches!(self, Self::HybridServo)
+    }
+}
+
+/// Everything that identifies one drive (the serial number comes from the chip's
+/// unique ID or the production data; 0 when unknown).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Identity {
+    /// The variant.
+    pub variant: Variant,
+    /// Serial number (0x1018:04).
+    pub serial: u32,
+}
+
+impl Identity {
+    /// Identity of a drive of `variant` with serial number `serial`.
+    pub const fn new(variant: Variant, serial: u32) -> Self {
+        Identity { variant, serial }
+    }
+    /// Vendor ID (0x1018:01).
+    pub const fn vendor_id(&self) -> u32 {
+        VENDOR_ID
+    }
+    /// Product code (0x1018:02).
+    pub const fn product_code(&self) -> u32 {
+        self.variant.product_code()
+    }
+    /// Revision (0x1018:03).
+    pub const fn revision(&self) -> u32 {
+        REVISION
+    }
+    /// Device name (0x1008).
+    pub const fn device_name(&self) -> &'static str {
+        self.variant.device_name()
+    }
+}
+
+/// A serial number derived from the 96-bit unique device ID of the MCU (CRC-32 of
+/// the 12 bytes), so every board reports a different 0x1018:04 without production data.
+pub fn serial_from_unique_id(uid: &[u8; 12]) -> u32 {
+    crate::storage::crc32(uid)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn variants_differ_and_names_fit() {
+        assert_ne!(
+            Variant::HybridServo.product_code(),
+            Variant::OpenLoop.product_code()
+        );
+        assert_eq!(Variant::HybridServo.device_type() & 0xFFFF, 0x0192);
+        assert_eq!(Variant::OpenLoop.device_type(), 0x0004_0192);
+        for v in [Variant::HybridServo, Variant::OpenLoop] {
+            assert!(v.device_name().len() <= MAX_NAME_LEN);
+            assert!(v.device_name().starts_with(v.type_name()));
+            assert!(v.default_loop_mode() <= v.max_loop_mode());
+        }
+        assert!(!SOFTWARE_VERSION.is_empty());
+    }
+
+    #[test]
+    fn serial_from_uid_is_stable_and_distinct() {
+        let a = serial_from_unique_id(&[1; 12]);
+        let b = serial_from_unique_id(&[2; 12]);
+        assert_ne!(a, b);
+        assert_eq!(a, serial_from_unique_id(&[1; 12]));
+    }
+}

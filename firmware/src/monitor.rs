@@ -1,0 +1,260 @@
+//! Monitoring objects (the Xinje U0 group, in our vendor range 0x2300-0x2308):
+//! electrical angle, phase currents set and measured, bus voltage, power-on count,
+//! running time. All read-only over SDO; the values that change every cycle are
+//! TxPDO-mappable.
+//!
+//! The power-on count and the accumulated running time are `saved` entries: they are
+//! written to flash with every 'save' and restored at power-up (the storage restore is
+//! the only writer, [`Monitor::write`]); [`Monitor::power_up`] then counts the new
+//! power-up. They are thus exact up to the last save (the board may also save on a
+//! power-fail warning).
+
+use ecat_slave_stack::od::{
+    self, Access, DataType, Entry, Object, ObjectCode, PdoMappable, SdoAbort,
+};
+
+const fn tx(name: &'static str, t: DataType, unit: &'static str) -> Entry {
+    Entry::new(0, name, t, Access::RO)
+        .pdo(PdoMappable::Tx)
+        .unit(unit)
+}
+
+const fn var(
+    index: u16,
+    name: &'static str,
+    entry: &'static [Entry],
+    description: &'static str,
+) -> Object {
+    Object {
+        index,
+        name,
+        code: ObjectCode::Var,
+        entries: entry,
+        description,
+    }
+}
+
+/// Monitoring objects, sorted.
+pub const OBJECTS: &[Object] = &[
+    var(
+        0x2300,
+        "Electrical angle",
+        &[tx("Electrical angle", DataType::Unsigned16, "1/65536 turn")],
+        "Electrical angle used by the current loop",
+    ),
+    var(
+        0x2301,
+        "Phase A current set",
+        &[tx("Phase A current set", DataType::Integer16, "mA")],
+        "Phase A current set-point",
+    ),
+    var(
+        0x2302,
+        "Phase B current set",
+        &[tx("Phase B current set", DataType::Integer16, "mA")],
+        "Phase B current set-point",
+    ),
+    var(
+        0x2303,
+        "Phase A current",
+        &[tx("Phase A current", DataType::Integer16, "mA")],
+        "Measured phase A current",
+    ),
+    var(
+        0x2304,
+        "Phase B current",
+        &[tx("Phase B current", DataType::Integer16, "mA")],
+        "Measured phase B current",
+    ),
+    var(
+        0x2305,
+        "Bus voltage",
+        &[tx("Bus voltage", DataType::Unsigned16, "10mV")],
+        "Measured DC bus voltage",
+    ),
+    var(
+        0x2306,
+        "Power-on count",
+        &[
+            Entry::new(0, "Power-on count", DataType::Unsigned32, Access::RO)
+                .default(0)
+                .saved(),
+        ],
+        "Number of power-ups (as of the last save)",
+    ),
+    var(
+        0x2307,
+        "Running time",
+        &[
+            Entry::new(0, "Running time", DataType::Unsigned32, Access::RO)
+                .unit("s")
+                .default(0)
+                .saved(),
+        ],
+        "Accumulated powered time (as of the last save)",
+    ),
+    var(
+        0x2308,
+        "Time since power-up",
+        &[tx("Time since power-up", DataType::Unsigned32, "ms")],
+        "Milliseconds since this power-up",
+    ),
+];
+
+/// Values measured by the control loops, updated by the application.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Measurements {
+    /// Electrical angle, 1/65536 turn.
+    pub electrical_angle: u16,
+    /// Phase A set-point, mA.
+    pub ia_set_ma: i16,
+    /// Phase B set-point, mA.
+    pub ib_set_ma: i16,
+    /// Phase A measured, mA.
+    pub ia_ma: i16,
+    /// Phase B measured, mA.
+    pub ib_ma: i16,
+    /// Bus voltage, 10 mV.
+    pub bus_10mv: u16,
+}
+
+/// Monitoring state.
+#[derive(Debug, Clone, Default)]
+pub struct Monitor {
+    /// Latest measurements.
+    pub m: Measurements,
+    power_on_count: u32,
+    base_running_s: u32,
+    since_power_up_ms: u64,
+}
+
+impl Monitor {
+    /// Zeroed state.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Counts this power-up (after the stored values were restored).
+    pub fn power_up(&mut self) {
+        self.power_on_count = self.power_on_count.wrapping_add(1);
+    }
+
+    /// Advances the powered time.
+    pub fn tick_ms(&mut self, dt_ms: u32) {
+        self.since_power_up_ms += u64::from(dt_ms);
+    }
+
+    /// Power-ups counted.
+    pub fn power_on_count(&self) -> u32 {
+        self.power_on_count
+    }
+
+    /// Accumulated running time, s.
+    pub fn running_time_s(&self) -> u32 {
+        self.base_running_s
+            .saturating_add((self.since_power_up_ms / 1000).min(u64::from(u32::MAX)) as u32)
+    }
+
+    /// Milliseconds since power-up (wrapping).
+    pub fn since_power_up_ms(&self) -> u32 {
+        self.since_power_up_ms as u32
+    }
+
+    /// SDO / PDO read.
+    pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        let entry = od::find_entry(OBJECTS, index, sub)?;
+        let v: u32 = match index {
+            0x2300 => u32::from(self.m.electrical_angle),
+            0x2301 => self.m.ia_set_ma as u16 as u32,
+            0x2302 => self.m.ib_set_ma as u16 as u32,
+            0x2303 => self.m.ia_ma as u16 as u32,
+            0x2304 => self.m.ib_ma as u16 as u32,
+            0x2305 => u32::from(self.m.bus_10mv),
+            0x2306 => self.power_on_count,
+            0x2307 => self.running_time_s(),
+            _ => self.since_power_up_ms(),
+        };
+        let len = entry.byte_len();
+        let out = buf.get_mut(..len).ok_or(SdoAbort::ExceedsMailbox)?;
+        out.copy_from_slice(&v.to_le_bytes()[..len]);
+        Ok(len)
+    }
+
+    /// Write: only the storage restore of the two saved counters reaches here (SDO
+    /// writes are refused by the generic read-only check before).
+    pub fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
+        od::find_entry(OBJECTS, index, sub)?;
+        let b: [u8; 4] = data.try_into().map_err(|_| {
+            if data.len() > 4 {
+                SdoAbort::LengthTooHigh
+            } else {
+                SdoAbort::LengthTooLow
+            }
+        })?;
+        let v = u32::from_le_bytes(b);
+        match index {
+            0x2306 => self.power_on_count = v,
+            0x2307 => {
+                self.base_running_s = v;
+                self.since_power_up_ms %= 1000;
+            }
+            _ => return Err(SdoAbort::WriteReadOnly),
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn objects_and_values() {
+        assert!(od::is_well_formed(OBJECTS));
+        let mut m = Monitor::new();
+        m.m = Measurements {
+            electrical_angle: 0x8000,
+            ia_set_ma: -1500,
+            ib_set_ma: 200,
+            ia_ma: -1490,
+            ib_ma: 190,
+            bus_10mv: 2400,
+        };
+        let mut buf = [0u8; 4];
+        let rd = |m: &Monitor, i: u16, buf: &mut [u8; 4]| {
+            let n = m.read(i, 0, buf).unwrap();
+            od::decode_int(od::find_entry(OBJECTS, i, 0).unwrap().data_type, &buf[..n]).unwrap()
+        };
+        assert_eq!(rd(&m, 0x2300, &mut buf), 0x8000);
+        assert_eq!(rd(&m, 0x2301, &mut buf), -1500);
+        assert_eq!(rd(&m, 0x2304, &mut buf), 190);
+        assert_eq!(rd(&m, 0x2305, &mut buf), 2400);
+        assert_eq!(m.write(0x2306, 0, &41u32.to_le_bytes()), Ok(()));
+        assert_eq!(m.write(0x2307, 0, &3600u32.to_le_bytes()), Ok(()));
+        m.power_up();
+        m.tick_ms(2500);
+        assert_eq!(rd(&m, 0x2306, &mut buf), 42);
+        assert_eq!(rd(&m, 0x2307, &mut buf), 3602);
+        assert_eq!(rd(&m, 0x2308, &mut buf), 2500);
+        assert_eq!(m.write(0x2300, 0, &[0, 0]), Err(SdoAbort::LengthTooLow));
+        assert_eq!(
+            m.write(0x2300, 0, &[0, 0, 0, 0]),
+            Err(SdoAbort::WriteReadOnly)
+        );
+        assert_eq!(m.write(0x2306, 0, &[0; 5]), Err(SdoAbort::LengthTooHigh));
+        assert_eq!(
+            m.read(0x2309, 0, &mut buf),
+            Err(SdoAbort::ObjectDoesNotExist)
+        );
+        assert_eq!(
+            m.read(0x2300, 1, &mut buf),
+            Err(SdoAbort::SubindexDoesNotExist)
+        );
+        let mut small = [0u8; 1];
+        assert_eq!(m.read(0x2306, 0, &mut small), Err(SdoAbort::ExceedsMailbox));
+        // Every entry is read-only for the SDO server.
+        for o in OBJECTS {
+            assert!(!o.entries[0].access.writable());
+        }
+    }
+}

@@ -1,0 +1,963 @@
+//! Vendor parameters 0x2000-0x2155 (drive-requirements §3.3): the one table of their
+//! access, default, range, unit and saved flag, and the values.
+//!
+//! The generic SDO checks (`od::check_write`) refuse out-of-range writes from this
+//! table with 0x06090031 / 0x06090032; [`Params::write`] repeats the range check (the
+//! storage restore path also comes here) and adds the product rules:
+//!
+//! * 0x2015 / 0x2016 (current Kp / Ki) are read-only while 0x2013 (auto-tune at
+//!   power-up) is 1: a write is refused with **0x08000021** ("cannot be stored because
+//!   of local control": the auto-tune owns the value). The entries stay `rw` in the
+//!   static description because the lock depends on another value.
+//! * 0x2040 / 0x2042: writing 1 clears the 32-bit received-pulse / encoder counter
+//!   (0x2039/0x2040 and 0x2041/0x2042 are its high and low 16 bits); 0 does nothing.
+//! * 0x2093 (fault clear record): writing 1 requests clearing the fault history
+//!   (0x2400-0x2406); it reads 1 until the application took the request
+//!   ([`Params::take_fault_history_clear`]), then 0.
+//! * 0x2001, 0x2150, 0x2151 take effect after a restart: SDO reads and writes see the
+//!   *pending* value, the drive uses the *active* copy latched by
+//!   [`Params::latch_power_up`] ([`ActiveConfig`]).
+//! * 0x2024 = 2 (closed loop) is refused with 0x06090031 on the open-loop variant.
+//! * 0x2155 (raw input levels) is filled by the I/O module ([`Params::set_raw_inputs`]).
+
+use ecat_slave_stack::od::{
+    self, Access, DataType, DefaultValue, Entry, Object, ObjectCode, PdoMappable, SdoAbort,
+};
+
+use crate::identity::Variant;
+
+const fn rws(
+    sub: u8,
+    name: &'static str,
+    t: DataType,
+    def: i64,
+    min: i64,
+    max: i64,
+    unit: &'static str,
+) -> Entry {
+    Entry::new(sub, name, t, Access::RW)
+        .range(min, max)
+        .default(def)
+        .unit(unit)
+        .saved()
+}
+
+const fn count(n: i64) -> Entry {
+    Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(n)
+}
+
+const fn var(
+    index: u16,
+    name: &'static str,
+    entry: &'static [Entry],
+    description: &'static str,
+) -> Object {
+    Object {
+        index,
+        name,
+        code: ObjectCode::Var,
+        entries: entry,
+        description,
+    }
+}
+
+const fn arr(
+    index: u16,
+    name: &'static str,
+    entries: &'static [Entry],
+    description: &'static str,
+) -> Object {
+    Object {
+        index,
+        name,
+        code: ObjectCode::Array,
+        entries,
+        description,
+    }
+}
+
+use DataType::{Unsigned16 as U16, Unsigned32 as U32, Unsigned8 as U8};
+
+/// The vendor parameter objects, sorted by index.
+pub const OBJECTS: &[Object] = &[
+    var(
+        0x2000,
+        "Peak current",
+        &[rws(0, "Peak current", U16, 3200, 1, 8400, "mA")],
+        "Peak phase current while running",
+    ),
+    var(
+        0x2001,
+        "Pulses per revolution",
+        &[rws(
+            0,
+            "Pulses per revolution",
+            U32,
+            50000,
+            200,
+            51200,
+            "inc/rev",
+        )],
+        "Command units per motor revolution; effective after restart",
+    ),
+    var(
+        0x2002,
+        "Stand-by time",
+        &[rws(0, "Stand-by time", U16, 500, 100, 10000, "ms")],
+        "Time without motion before the holding current applies",
+    ),
+    arr(
+        0x2005,
+        "Output function",
+        &[
+            count(2),
+            rws(1, "Output 1 function", U16, 1, 1, 4, ""),
+            rws(2, "Output 2 function", U16, 1, 1, 4, ""),
+        ],
+        "bit0 alarm, bit1 ready, bit2 in-position",
+    ),
+    var(
+        0x2008,
+        "Output level",
+        &[rws(0, "Output level", U8, 0, 0, 3, "")],
+        "bit n = 1: output n+1 is active-high",
+    ),
+    var(
+        0x2009,
+        "Command filter enable",
+        &[rws(0, "Command filter enable", U8, 0, 0, 1, "")],
+        "Command smoothing filter on/off",
+    ),
+    Object {
+        index: 0x2010,
+        name: "Command filter",
+        code: ObjectCode::Record,
+        entries: &[
+            count(2),
+            rws(2, "Command filter time", U16, 1000, 50, 25600, "us"),
+        ],
+        description: "Command smoothing filter time (sub-index 1 is not used)",
+    },
+    var(
+        0x2013,
+        "Current loop auto-tune",
+        &[rws(0, "Current loop auto-tune", U8, 1, 0, 1, "")],
+        "Measure R and L and compute the current gains at power-up",
+    ),
+    var(
+        0x2015,
+        "Current Kp",
+        &[rws(0, "Current Kp", U16, 1000, 200, 32767, "")],
+        "Current loop proportional gain; read-only while 0x2013 = 1",
+    ),
+    var(
+        0x2016,
+        "Current Ki",
+        &[rws(0, "Current Ki", U16, 200, 0, 32767, "")],
+        "Current loop integral gain; read-only while 0x2013 = 1",
+    ),
+    var(
+        0x2017,
+        "Current Kc",
+        &[Entry::new(0, "Current Kc", U16, Access::RO)
+            .range(80, 300)
+            .default(100)],
+        "Current loop anti-windup gain (read-only)",
+    ),
+    var(
+        0x2020,
+        "Motor resistance",
+        &[rws(0, "Motor resistance", U16, 1000, 1, 20000, "mOhm")],
+        "Phase resistance (auto-tune fills it)",
+    ),
+    var(
+        0x2021,
+        "Motor inductance",
+        &[rws(0, "Motor inductance", U16, 1, 1, 6000, "uH")],
+        "Phase inductance (auto-tune fills it)",
+    ),
+    var(
+        0x2024,
+        "Loop mode",
+        &[rws(0, "Loop mode", U8, 2, 1, 2, "")],
+        "1 open loop, 2 closed loop",
+    ),
+    var(
+        0x2025,
+        "Control mode",
+        &[rws(0, "Control mode", U8, 5, 0, 5, "")],
+        "0 DIP, 1 lead, 2 PM, 3 FOC, 4 self-test, 5 closed loop",
+    ),
+    var(
+        0x2026,
+        "Holding current",
+        &[rws(0, "Holding current", U8, 50, 0, 100, "%")],
+        "Stand-still current in % of peak (open loop)",
+    ),
+    var(
+        0x2029,
+        "Encoder resolution",
+        &[rws(
+            0,
+            "Encoder resolution",
+            U16,
+            1000,
+            200,
+            60000,
+            "lines/rev",
+        )],
+        "Encoder lines per revolution",
+    ),
+    var(
+        0x2030,
+        "Following error limit",
+        &[rws(0, "Following error limit", U16, 1000, 1, 60000, "inc")],
+        "Position following error limit in encoder counts (fault, 7 flashes)",
+    ),
+    var(
+        0x2039,
+        "Command pulses high",
+        &[Entry::new(0, "Command pulses high", U16, Access::RO)
+            .pdo(PdoMappable::Tx)
+            .default(0)],
+        "Received command pulses, bits 16-31",
+    ),
+    var(
+        0x2040,
+        "Command pulses low",
+        &[Entry::new(0, "Command pulses low", U16, Access::RW)
+            .range(0, 1)
+            .pdo(PdoMappable::Tx)
+            .default(0)],
+        "Received command pulses, bits 0-15; write 1 clears the counter",
+    ),
+    var(
+        0x2041,
+        "Encoder counts high",
+        &[Entry::new(0, "Encoder counts high", U16, Access::RO)
+            .pdo(PdoMappable::Tx)
+            .default(0)],
+        "Encoder feedback counts, bits 16-31",
+    ),
+    var(
+        0x2042,
+        "Encoder counts low",
+        &[Entry::new(0, "Encoder counts low", U16, Access::RW)
+            .range(0, 1)
+            .pdo(PdoMappable::Tx)
+            .default(0)],
+        "Encoder feedback counts, bits 0-15; write 1 clears the counter",
+    ),
+    var(
+        0x2051,
+        "Direction reversal",
+        &[rws(0, "Direction reversal", U8, 0, 0, 1, "")],
+        "1 reverses the motor direction",
+    ),
+    var(
+        0x2053,
+        "In-position output level",
+        &[rws(0, "In-position output level", U8, 0, 0, 1, "")],
+        "1: an in-position output is active-high",
+    ),
+    var(
+        0x2056,
+        "Fault detection mask",
+        &[rws(0, "Fault detection mask", U16, 0x00C3, 0, 0xFFFF, "")],
+        "bit = 1 enables the detection (see faults module)",
+    ),
+    var(
+        0x2057,
+        "Fault clear allowed",
+        &[rws(0, "Fault clear allowed", U8, 0, 0, 1, "")],
+        "1: latched faults may be cleared without a power cycle",
+    ),
+    var(
+        0x2058,
+        "Current soft-start",
+        &[rws(0, "Current soft-start", U16, 1, 0, 10000, "50us")],
+        "Current ramp on enable",
+    ),
+    var(
+        0x2083,
+        "Power-up wiggle",
+        &[rws(0, "Power-up wiggle", U8, 0, 0, 1, "")],
+        "Angle alignment by a small shaft movement at power-up",
+    ),
+    var(
+        0x2093,
+        "Fault clear record",
+        &[Entry::new(0, "Fault clear record", U8, Access::RW)
+            .range(0, 1)
+            .default(0)],
+        "Write 1: clear the fault history",
+    ),
+    var(
+        0x2137,
+        "Position loop Kp",
+        &[rws(0, "Position loop Kp", U16, 120, 0, 150, "")],
+        "Position loop proportional gain",
+    ),
+    var(
+        0x2138,
+        "Position loop Ki",
+        &[rws(0, "Position loop Ki", U16, 50, 0, 150, "")],
+        "Position loop integral gain",
+    ),
+    var(
+        0x2139,
+        "Velocity feed-forward",
+        &[rws(0, "Velocity feed-forward", U16, 70, 0, 150, "")],
+        "Velocity feed-forward gain",
+    ),
+    var(
+        0x2140,
+        "Speed loop Kp",
+        &[rws(0, "Speed loop Kp", U16, 60, 0, 150, "")],
+        "Speed loop proportional gain",
+    ),
+    var(
+        0x2150,
+        "Station alias",
+        &[rws(0, "Station alias", U16, 1, 1, 65535, "")],
+        "Station alias used when 0x2151 = 1; effective after restart",
+    ),
+    var(
+        0x2151,
+        "Alias source",
+        &[rws(0, "Alias source", U8, 0, 0, 1, "")],
+        "0 DIP (DIP 0: SII word 4), 1 object 0x2150; effective after restart",
+    ),
+    arr(
+        0x2152,
+        "Input function",
+        &[
+            count(5),
+            rws(1, "Input 1 function", U16, 1, 0, 0xFFFF, ""),
+            rws(2, "Input 2 function", U16, 2, 0, 0xFFFF, ""),
+            rws(3, "Input 3 function", U16, 4, 0, 0xFFFF, ""),
+            rws(4, "Input 4 function", U16, 8, 0, 0xFFFF, ""),
+            rws(5, "Input 5 function", U16, 0, 0, 0xFFFF, ""),
+        ],
+        "1 home, 2 limit-, 4 limit+, 8 fault clear, 16 quick stop, 32 probe",
+    ),
+    arr(
+        0x2153,
+        "Input filter",
+        &[
+            count(5),
+            rws(1, "Input 1 filter", U16, 20, 1, 60000, "50us"),
+            rws(2, "Input 2 filter", U16, 20, 1, 60000, "50us"),
+            rws(3, "Input 3 filter", U16, 20, 1, 60000, "50us"),
+            rws(4, "Input 4 filter", U16, 20, 1, 60000, "50us"),
+            rws(5, "Input 5 filter", U16, 20, 1, 60000, "50us"),
+        ],
+        "Digital input filter time",
+    ),
+    var(
+        0x2154,
+        "Input polarity",
+        &[rws(0, "Input polarity", U8, 0, 0, 0x1F, "")],
+        "bit n inverts input n+1",
+    ),
+    var(
+        0x2155,
+        "Input raw levels",
+        &[Entry::new(0, "Input raw levels", U8, Access::RO).pdo(PdoMappable::Tx)],
+        "bit n = electrical level of input n+1",
+    ),
+];
+
+/// One stored vendor parameter (the ones with a value slot in [`Params`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+#[allow(missing_docs)]
+pub enum P {
+    PeakCurrent,
+    PulsesPerRev,
+    StandbyTime,
+    Out1Function,
+    Out2Function,
+    OutputLevel,
+    CmdFilterEnable,
+    CmdFilterTime,
+    AutoTune,
+    CurrentKp,
+    CurrentKi,
+    CurrentKc,
+    MotorResistance,
+    MotorInductance,
+    LoopMode,
+    ControlMode,
+    HoldingCurrent,
+    EncoderResolution,
+    FollowingErrorLimit,
+    DirectionReversal,
+    InPositionLevel,
+    FaultMask,
+    FaultClearAllowed,
+    SoftStart,
+    PowerUpWiggle,
+    PosKp,
+    PosKi,
+    VelFf,
+    SpeedKp,
+    AliasValue,
+    AliasSource,
+    In1Function,
+    In2Function,
+    In3Function,
+    In4Function,
+    In5Function,
+    In1Filter,
+    In2Filter,
+    In3Filter,
+    In4Filter,
+    In5Filter,
+    InputPolarity,
+}
+
+/// (index, sub-index) of each [`P`], in the same order.
+pub const KEYS: [(u16, u8); 42] = [
+    (0x2000, 0),
+    (0x2001, 0),
+    (0x2002, 0),
+    (0x2005, 1),
+    (0x2005, 2),
+    (0x2008, 0),
+    (0x2009, 0),
+    (0x2010, 2),
+    (0x2013, 0),
+    (0x2015, 0),
+    (0x2016, 0),
+    (0x2017, 0),
+    (0x2020, 0),
+    (0x2021, 0),
+    (0x2024, 0),
+    (0x2025, 0),
+    (0x2026, 0),
+    (0x2029, 0),
+    (0x2030, 0),
+    (0x2051, 0),
+    (0x2053, 0),
+    (0x2056, 0),
+    (0x2057, 0),
+    (0x2058, 0),
+    (0x2083, 0),
+    (0x2137, 0),
+    (0x2138, 0),
+    (0x2139, 0),
+    (0x2140, 0),
+    (0x2150, 0),
+    (0x2151, 0),
+    (0x2152, 1),
+    (0x2152, 2),
+    (0x2152, 3),
+    (0x2152, 4),
+    (0x2152, 5),
+    (0x2153, 1),
+    (0x2153, 2),
+    (0x2153, 3),
+    (0x2153, 4),
+    (0x2153, 5),
+    (0x2154, 0),
+];
+
+const N: usize = KEYS.len();
+
+fn slot_of(index: u16, sub: u8) -> Option<usize> {
+    KEYS.binary_search(&(index, sub)).ok()
+}
+
+/// Values that only take effect at power-up (latched by [`Params::latch_power_up`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ActiveConfig {
+    /// 0x2001 in effect.
+    pub pulses_per_rev: u32,
+    /// 0x2150 in effect.
+    pub alias_value: u16,
+    /// 0x2151 in effect.
+    pub alias_source: u8,
+}
+
+/// The vendor parameter values plus the few run-time values of the vendor range.
+#[derive(Debug, Clone)]
+pub struct Params {
+    variant: Variant,
+    values: [i32; N],
+    active: ActiveConfig,
+    raw_inputs: u8,
+    command_pulses: u32,
+    encoder_counts: u32,
+    fault_history_clear: bool,
+}
+
+impl Params {
+    /// All parameters at their defaults for `variant` (0x2024 follows the variant);
+    /// the active copy equals the defaults.
+    pub fn new(variant: Variant) -> Self {
+        let mut values = [0i32; N];
+        for (slot, &(index, sub)) in KEYS.iter().enumerate() {
+            values[slot] = default_of(index, sub);
+        }
+        values[P::LoopMode as usize] = i32::from(variant.default_loop_mode());
+        let mut p = Params {
+            variant,
+            values,
+            active: ActiveConfig {
+                pulses_per_rev: 0,
+                alias_value: 0,
+                alias_source: 0,
+            },
+            raw_inputs: 0,
+            command_pulses: 0,
+            encoder_counts: 0,
+            fault_history_clear: false,
+        };
+        p.latch_power_up();
+        p
+    }
+
+    /// The variant these parameters belong to.
+    pub fn variant(&self) -> Variant {
+        self.variant
+    }
+
+    /// Puts every stored parameter back to its default (RAM only; the flash record is
+    /// handled by the storage module).
+    pub fn restore_defaults(&mut self) {
+        let fresh = Params::new(self.variant);
+        self.values = fresh.values;
+    }
+
+    /// Copies the "effective after restart" parameters into the active set. Call once
+    /// at power-up, after the stored record was loaded.
+    pub fn latch_power_up(&mut self) {
+        self.active = ActiveConfig {
+            pulses_per_rev: self.get(P::PulsesPerRev) as u32,
+            alias_value: self.get(P::AliasValue) as u16,
+            alias_source: self.get(P::AliasSource) as u8,
+        };
+    }
+
+    /// The values in effect for the "after restart" parameters.
+    pub fn active(&self) -> ActiveConfig {
+        self.active
+    }
+
+    /// Current (pending) value of a parameter.
+    pub fn get(&self, p: P) -> i32 {
+        self.values[p as usize]
+    }
+
+    /// Sets a parameter from inside the drive (auto-tune results, DIP values), clamped
+    /// to the table range. Not subject to the SDO rules (auto-tune lock).
+    pub fn set_internal(&mut self, p: P, value: i32) {
+        let (index, sub) = KEYS[p as usize];
+        let v = match od::find_entry(OBJECTS, index, sub) {
+            Ok(e) => i64::from(value).clamp(e.min, e.max) as i32,
+            Err(_) => value,
+        };
+        self.values[p as usize] = v;
+    }
+
+    /// Input function bits of input `n` (0-based, 0..5).
+    pub fn input_function(&self, n: usize) -> u16 {
+        const F: [P; 5] = [
+            P::In1Function,
+            P::In2Function,
+            P::In3Function,
+            P::In4Function,
+            P::In5Function,
+        ];
+        F.get(n).map_or(0, |&p| self.get(p) as u16)
+    }
+
+    /// Input filter of input `n` in 50 µs units.
+    pub fn input_filter(&self, n: usize) -> u16 {
+        const F: [P; 5] = [
+            P::In1Filter,
+            P::In2Filter,
+            P::In3Filter,
+            P::In4Filter,
+            P::In5Filter,
+        ];
+        F.get(n).map_or(1, |&p| self.get(p) as u16)
+    }
+
+    /// Sets the raw input levels reported by 0x2155.
+    pub fn set_raw_inputs(&mut self, levels: u8) {
+        self.raw_inputs = levels & 0x1F;
+    }
+
+    /// Adds received command pulses (0x2039/0x2040).
+    pub fn add_command_pulses(&mut self, delta: u32) {
+        self.command_pulses = self.command_pulses.wrapping_add(delta);
+    }
+
+    /// Adds encoder feedback counts (0x2041/0x2042).
+    pub fn add_encoder_counts(&mut self, delta: u32) {
+        self.encoder_counts = self.encoder_counts.wrapping_add(delta);
+    }
+
+    /// True once after 1 was written to 0x2093.
+    pub fn take_fault_history_clear(&mut self) -> bool {
+        core::mem::take(&mut self.fault_history_clear)
+    }
+
+    /// SDO read of a vendor parameter: little-endian value into `buf`, returns its length.
+    pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        let entry = od::find_entry(OBJECTS, index, sub)?;
+        let is_count =
+            sub == 0 && od::find(OBJECTS, index).is_some_and(|o| o.code != ObjectCode::Var);
+        let value: u32 = match (index, sub) {
+            _ if is_count => u32::from(od::find(OBJECTS, index).map_or(0, |o| o.max_sub())),
+            (0x2039, 0) => self.command_pulses >> 16,
+            (0x2040, 0) => self.command_pulses & 0xFFFF,
+            (0x2041, 0) => self.encoder_counts >> 16,
+            (0x2042, 0) => self.encoder_counts & 0xFFFF,
+            (0x2093, 0) => u32::from(self.fault_history_clear),
+            (0x2155, 0) => u32::from(self.raw_inputs),
+            _ => match slot_of(index, sub) {
+                Some(slot) => self.values[slot] as u32,
+                None => return Err(SdoAbort::SubindexDoesNotExist),
+            },
+        };
+        let len = entry.byte_len();
+        let out = buf.get_mut(..len).ok_or(SdoAbort::ExceedsMailbox)?;
+        out.copy_from_slice(&value.to_le_bytes()[..len]);
+        Ok(len)
+    }
+
+    /// SDO write of a vendor parameter (after the generic checks; repeated here).
+    pub fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
+        let entry = od::find_entry(OBJECTS, index, sub)?;
+        if !entry.access.writable() {
+            return Err(SdoAbort::WriteReadOnly);
+        }
+        let len = entry.byte_len();
+        if data.len() > len {
+            return Err(SdoAbort::LengthTooHigh);
+        }
+        if data.len() < len {
+            return Err(SdoAbort::LengthTooLow);
+        }
+        let v = od::decode_int(entry.data_type, data).ok_or(SdoAbort::TypeMismatch)?;
+        if v > entry.max {
+            return Err(SdoAbort::ValueTooHigh);
+        }
+        if v < entry.min {
+            return Err(SdoAbort::ValueTooLow);
+        }
+        match (index, sub) {
+            (0x2040, 0) => {
+                if v == 1 {
+                    self.command_pulses = 0;
+                }
+                return Ok(());
+            }
+            (0x2042, 0) => {
+                if v == 1 {
+                    self.encoder_counts = 0;
+                }
+                return Ok(());
+            }
+            (0x2093, 0) => {
+                if v == 1 {
+                    self.fault_history_clear = true;
+                }
+                return Ok(());
+            }
+            (0x2015, 0) | (0x2016, 0) if self.get(P::AutoTune) == 1 => {
+                return Err(SdoAbort::LocalControl);
+            }
+            (0x2024, 0) if v > i64::from(self.variant.max_loop_mode()) => {
+                return Err(SdoAbort::ValueTooHigh);
+            }
+            _ => {}
+        }
+        let slot = slot_of(index, sub).ok_or(SdoAbort::SubindexDoesNotExist)?;
+        self.values[slot] = v as i32;
+        Ok(())
+    }
+}
+
+fn default_of(index: u16, sub: u8) -> i32 {
+    match od::find_entry(OBJECTS, index, sub) {
+        Ok(Entry {
+            default: DefaultValue::Int(v),
+            ..
+        }) => *v as i32,
+        _ => 0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use ecat_slave_stack::esm::EsmState;
+
+    fn w(p: &mut Params, index: u16, sub: u8, v: i64) -> Result<(), SdoAbort> {
+        let e = od::find_entry(OBJECTS, index, sub)?;
+        let bytes = (v as u64).to_le_bytes();
+        let data = &bytes[..e.byte_len()];
+        od::check_write(e, data, EsmState::Op)?;
+        p.write(index, sub, data)
+    }
+
+    fn r(p: &Params, index: u16, sub: u8) -> i64 {
+        let mut buf = [0u8; 8];
+        let n = p.read(index, sub, &mut buf).unwrap();
+        let e = od::find_entry(OBJECTS, index, sub).unwrap();
+        od::decode_int(e.data_type, &buf[..n]).unwrap()
+    }
+
+    #[test]
+    fn table_is_well_formed_and_keys_match_saved_entries() {
+        assert!(od::is_well_formed(OBJECTS));
+        let mut keys = KEYS.to_vec();
+        keys.sort();
+        assert_eq!(keys, KEYS.to_vec(), "KEYS sorted");
+        let saved: std::vec::Vec<(u16, u8)> = OBJECTS
+            .iter()
+            .flat_map(|o| {
+                o.entries
+                    .iter()
+                    .filter(|e| e.saved)
+                    .map(move |e| (o.index, e.sub))
+            })
+            .collect();
+        // Every saved entry has a slot; the only unsaved slot is Kc (read-only).
+        for k in &saved {
+            assert!(KEYS.contains(k), "{k:x?} has no slot");
+        }
+        assert_eq!(saved.len() + 1, KEYS.len());
+        for o in OBJECTS {
+            assert!((0x2000..=0x2FFF).contains(&o.index));
+        }
+    }
+
+    #[test]
+    fn every_parameter_default_and_range_edges() {
+        for &(index, sub) in KEYS.iter() {
+            let e = od::find_entry(OBJECTS, index, sub).unwrap();
+            let mut p = Params::new(Variant::HybridServo);
+            p.set_internal(P::AutoTune, 0);
+            let DefaultValue::Int(def) = e.default else {
+                panic!("{index:x} no default")
+            };
+            if index != 0x2013 {
+                assert_eq!(r(&p, index, sub), def, "{index:x}:{sub} default");
+            }
+            if !e.access.writable() {
+                assert_eq!(w(&mut p, index, sub, def), Err(SdoAbort::WriteReadOnly));
+                continue;
+            }
+            assert_eq!(w(&mut p, index, sub, e.min), Ok(()), "{index:x} min");
+            assert_eq!(r(&p, index, sub), e.min);
+            assert_eq!(w(&mut p, index, sub, e.max), Ok(()), "{index:x} max");
+            assert_eq!(r(&p, index, sub), e.max);
+            let (_, tmin, tmax) = od::type_range(e.data_type);
+            if e.max < tmax {
+                assert_eq!(
+                    w(&mut p, index, sub, e.max + 1),
+                    Err(SdoAbort::ValueTooHigh)
+                );
+                assert_eq!(
+                    p.write(
+                        index,
+                        sub,
+                        &((e.max + 1) as u64).to_le_bytes()[..e.byte_len()]
+                    ),
+                    Err(SdoAbort::ValueTooHigh)
+                );
+                assert_eq!(r(&p, index, sub), e.max, "unchanged");
+            }
+            if e.min > tmin {
+                assert_eq!(w(&mut p, index, sub, e.min - 1), Err(SdoAbort::ValueTooLow));
+                assert_eq!(
+                    p.write(
+                        index,
+                        sub,
+                        &((e.min - 1) as u64).to_le_bytes()[..e.byte_len()]
+                    ),
+                    Err(SdoAbort::ValueTooLow)
+                );
+                assert_eq!(r(&p, index, sub), e.max, "unchanged");
+            }
+        }
+    }
+
+    #[test]
+    fn spec_table_values() {
+        let p = Params::new(Variant::HybridServo);
+        let expect: &[(u16, u8, i64, i64, i64)] = &[
+            (0x2000, 0, 3200, 1, 8400),
+            (0x2001, 0, 50000, 200, 51200),
+            (0x2002, 0, 500, 100, 10000),
+            (0x2005, 1, 1, 1, 4),
+            (0x2005, 2, 1, 1, 4),
+            (0x2008, 0, 0, 0, 3),
+            (0x2010, 2, 1000, 50, 25600),
+            (0x2013, 0, 1, 0, 1),
+            (0x2015, 0, 1000, 200, 32767),
+            (0x2016, 0, 200, 0, 32767),
+            (0x2017, 0, 100, 80, 300),
+            (0x2020, 0, 1000, 1, 20000),
+            (0x2021, 0, 1, 1, 6000),
+            (0x2024, 0, 2, 1, 2),
+            (0x2025, 0, 5, 0, 5),
+            (0x2026, 0, 50, 0, 100),
+            (0x2029, 0, 1000, 200, 60000),
+            (0x2030, 0, 1000, 1, 60000),
+            (0x2056, 0, 0xC3, 0, 0xFFFF),
+            (0x2058, 0, 1, 0, 10000),
+            (0x2137, 0, 120, 0, 150),
+            (0x2138, 0, 50, 0, 150),
+            (0x2139, 0, 70, 0, 150),
+            (0x2140, 0, 60, 0, 150),
+            (0x2150, 0, 1, 1, 65535),
+            (0x2151, 0, 0, 0, 1),
+            (0x2152, 1, 1, 0, 0xFFFF),
+            (0x2152, 2, 2, 0, 0xFFFF),
+            (0x2152, 3, 4, 0, 0xFFFF),
+            (0x2152, 4, 8, 0, 0xFFFF),
+            (0x2152, 5, 0, 0, 0xFFFF),
+            (0x2153, 3, 20, 1, 60000),
+            (0x2154, 0, 0, 0, 0x1F),
+        ];
+        for &(i, s, d, lo, hi) in expect {
+            let e = od::find_entry(OBJECTS, i, s).unwrap();
+            assert_eq!(
+                (e.default, e.min, e.max),
+                (DefaultValue::Int(d), lo, hi),
+                "{i:x}:{s}"
+            );
+            assert_eq!(r(&p, i, s), d);
+        }
+        assert_eq!(r(&p, 0x2005, 0), 2);
+        assert_eq!(r(&p, 0x2152, 0), 5);
+        assert_eq!(r(&p, 0x2010, 0), 2);
+        let mut buf = [0u8; 4];
+        assert_eq!(
+            p.read(0x2010, 1, &mut buf),
+            Err(SdoAbort::SubindexDoesNotExist)
+        );
+        assert_eq!(
+            p.read(0x2011, 0, &mut buf),
+            Err(SdoAbort::ObjectDoesNotExist)
+        );
+        assert_eq!(
+            p.read(0x2152, 6, &mut buf),
+            Err(SdoAbort::SubindexDoesNotExist)
+        );
+    }
+
+    #[test]
+    fn current_gains_locked_while_auto_tune() {
+        let mut p = Params::new(Variant::HybridServo);
+        assert_eq!(p.get(P::AutoTune), 1);
+        assert_eq!(w(&mut p, 0x2015, 0, 2000), Err(SdoAbort::LocalControl));
+        assert_eq!(w(&mut p, 0x2016, 0, 300), Err(SdoAbort::LocalControl));
+        assert_eq!(p.get(P::CurrentKp), 1000);
+        p.set_internal(P::CurrentKp, 1500); // auto-tune result
+        assert_eq!(r(&p, 0x2015, 0), 1500);
+        p.set_internal(P::CurrentKp, 100_000);
+        assert_eq!(r(&p, 0x2015, 0), 32767, "clamped");
+        assert_eq!(w(&mut p, 0x2013, 0, 0), Ok(()));
+        assert_eq!(w(&mut p, 0x2015, 0, 2000), Ok(()));
+        assert_eq!(w(&mut p, 0x2016, 0, 300), Ok(()));
+        assert_eq!((p.get(P::CurrentKp), p.get(P::CurrentKi)), (2000, 300));
+    }
+
+    #[test]
+    fn counters_clear_on_write_one() {
+        let mut p = Params::new(Variant::HybridServo);
+        p.add_command_pulses(0x0001_2345);
+        p.add_encoder_counts(0xFFFF_FFFF);
+        assert_eq!((r(&p, 0x2039, 0), r(&p, 0x2040, 0)), (1, 0x2345));
+        assert_eq!((r(&p, 0x2041, 0), r(&p, 0x2042, 0)), (0xFFFF, 0xFFFF));
+        assert_eq!(w(&mut p, 0x2039, 0, 1), Err(SdoAbort::WriteReadOnly));
+        assert_eq!(w(&mut p, 0x2040, 0, 2), Err(SdoAbort::ValueTooHigh));
+        assert_eq!(w(&mut p, 0x2040, 0, 0), Ok(()));
+        assert_eq!(r(&p, 0x2040, 0), 0x2345, "0 does nothing");
+        assert_eq!(w(&mut p, 0x2040, 0, 1), Ok(()));
+        assert_eq!((r(&p, 0x2039, 0), r(&p, 0x2040, 0)), (0, 0));
+        assert_eq!(r(&p, 0x2042, 0), 0xFFFF, "encoder untouched");
+        assert_eq!(w(&mut p, 0x2042, 0, 1), Ok(()));
+        assert_eq!((r(&p, 0x2041, 0), r(&p, 0x2042, 0)), (0, 0));
+    }
+
+    #[test]
+    fn after_restart_parameters_need_power_up() {
+        let mut p = Params::new(Variant::HybridServo);
+        assert_eq!(
+            p.active(),
+            ActiveConfig {
+                pulses_per_rev: 50000,
+                alias_value: 1,
+                alias_source: 0
+            }
+        );
+        w(&mut p, 0x2001, 0, 10000).unwrap();
+        w(&mut p, 0x2150, 0, 77).unwrap();
+        w(&mut p, 0x2151, 0, 1).unwrap();
+        assert_eq!(r(&p, 0x2001, 0), 10000, "SDO sees the pending value");
+        assert_eq!(p.active().pulses_per_rev, 50000, "drive keeps the old one");
+        assert_eq!(p.active().alias_source, 0);
+        p.latch_power_up();
+        assert_eq!(
+            p.active(),
+            ActiveConfig {
+                pulses_per_rev: 10000,
+                alias_value: 77,
+                alias_source: 1
+            }
+        );
+    }
+
+    #[test]
+    fn open_loop_variant_refuses_closed_loop() {
+        let mut p = Params::new(Variant::OpenLoop);
+        assert_eq!(r(&p, 0x2024, 0), 1);
+        assert_eq!(w(&mut p, 0x2024, 0, 2), Err(SdoAbort::ValueTooHigh));
+        assert_eq!(r(&p, 0x2024, 0), 1);
+    }
+
+    #[test]
+    fn garbage_writes_never_panic() {
+        let mut p = Params::new(Variant::HybridServo);
+        let before = p.values;
+        for o in OBJECTS {
+            for e in o.entries {
+                for len in 0..6 {
+                    let data = [0xFFu8; 6];
+                    let res = p.write(o.index, e.sub, &data[..len]);
+                    if len != e.byte_len() {
+                        assert!(res.is_err());
+                    }
+                }
+            }
+        }
+        let mut buf = [0u8; 1];
+        assert_eq!(p.read(0x2001, 0, &mut buf), Err(SdoAbort::ExceedsMailbox));
+        assert_eq!(p.write(0x2FFF, 0, &[0]), Err(SdoAbort::ObjectDoesNotExist));
+        // Every all-ones value is above the range of entries that have a limit; the
+        // unlimited ones (functions, mask, alias) took 0xFFFF.
+        assert_eq!(p.get(P::PeakCurrent), before[P::PeakCurrent as usize]);
+        assert_eq!(p.get(P::PulsesPerRev), before[P::PulsesPerRev as usize]);
+        assert!(!p.take_fault_history_clear());
+    }
+
+    #[test]
+    fn fault_clear_record() {
+        let mut p = Params::new(Variant::HybridServo);
+        assert_eq!(r(&p, 0x2093, 0), 0);
+        w(&mut p, 0x2093, 0, 1).unwrap();
+        assert_eq!(r(&p, 0x2093, 0), 1);
+        assert!(p.take_fault_history_clear());
+        assert!(!p.take_fault_history_clear());
+        assert_eq!(r(&p, 0x2093, 0), 0);
+    }
+}

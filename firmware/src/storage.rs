@@ -1,0 +1,956 @@
+//! Power-loss-safe parameter storage: two alternating flash records with a sequence
+//! number and a CRC-32, behind the `embedded_storage` [`NorFlash`] trait.
+//!
+//! # Record format (version 1)
+//! A record lives in one of two equal *slots* (`slot_size` bytes each, a multiple of
+//! the erase size). Little-endian throughout:
+//!
+//! | offset | size | field |
+//! |---|---|---|
+//! | 0 | 4 | magic `0x50534345` ("ECSP") |
+//! | 4 | 2 | format version (1) |
+//! | 6 | 2 | flags (0) |
+//! | 8 | 4 | sequence number (wrapping; the newer record wins) |
+//! | 12 | 4 | payload length in bytes |
+//! | 16 | 4 | CRC-32 (IEEE) of the payload followed by bytes 0..16 |
+//! | 20 | 12 | reserved (0) |
+//! | 32 | n | payload: entries `index u16, sub u8, len u8, value[len]` |
+//!
+//! The payload holds one entry per `saved` entry of the *whole* dictionary, read
+//! through [`Dictionary::read`] while iterating [`Dictionary::objects`]: the vendor
+//! parameters and also the PDO mapping / assignment objects of the stack, or anything
+//! another module marks `saved`. Restoring writes the values back through
+//! [`Dictionary::write`] (in Pre-Op) after checking that the entry still exists, is
+//! `saved`, has the same length and is in range; when an object's sub-index 0 is
+//! saved and writable (mapping and assignment objects) it is first written 0, then the
+//! other sub-indices, then its stored value — the order the PDO rules require.
+//!
+//! # Power-loss safety
+//! A save always goes to the slot that does *not* hold the newest valid record: erase,
+//! write the payload, and write the 32-byte header **last** (the header is the commit).
+//! A cut during the erase or the payload leaves that slot without a valid header; a cut
+//! inside the header leaves a CRC that does not match. Either way the other slot is
+//! untouched, so the old set survives. Load validates both slots and takes the valid
+//! one with the newer sequence number; an erased slot is normal (first boot), a
+//! non-erased invalid slot is reported ([`LoadReport::emergency`]).
+//!
+//! Restore defaults ('load' signature) writes a new record that keeps only what is
+//! outside the restored scope (nothing for "all"), so the defaults apply at the next
+//! power-up, as CiA 301 specifies for 0x1011.
+
+use ecat_slave_stack::esm::EsmState;
+use ecat_slave_stack::od::{self, Dictionary, ObjectCode, SdoAbort};
+use embedded_storage::nor_flash::{NorFlash, NorFlashError, NorFlashErrorKind};
+
+/// Record magic ("ECSP" little-endian).
+pub const RECORD_MAGIC: u32 = 0x5053_4345;
+/// Record format version.
+pub const FORMAT_VERSION: u16 = 1;
+/// Header length; also the write/read granularity the storage needs (WRITE_SIZE and
+/// READ_SIZE must divide it).
+pub const HEADER_LEN: usize = 32;
+/// Largest value stored per entry (longer values are skipped).
+pub const MAX_VALUE_LEN: usize = 64;
+const CHUNK: usize = 64;
+
+/// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, init and final XOR
+/// 0xFFFFFFFF), with a 16-entry nibble table.
+#[derive(Debug, Clone, Copy)]
+pub struct Crc32(u32);
+
+const CRC_NIBBLE: [u32; 16] = {
+    let mut t = [0u32; 16];
+    let mut i = 0;
+    while i < 16 {
+        let mut c = i as u32;
+        let mut k = 0;
+        while k < 4 {
+            c = if c & 1 != 0 {
+                (c >> 1) ^ 0xEDB8_8320
+            } else {
+                c >> 1
+            };
+            k += 1;
+        }
+        t[i] = c;
+        i += 1;
+    }
+    t
+};
+
+impl Default for Crc32 {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Crc32 {
+    /// A fresh CRC.
+    pub const fn new() -> Self {
+        Crc32(0xFFFF_FFFF)
+    }
+    /// Adds bytes.
+    pub fn update(&mut self, data: &[u8]) {
+        let mut c = self.0;
+        for &b in data {
+            c ^= u32::from(b);
+            c = (c >> 4) ^ CRC_NIBBLE[(c & 0xF) as usize];
+            c = (c >> 4) ^ CRC_NIBBLE[(c & 0xF) as usize];
+        }
+        self.0 = c;
+    }
+    /// The CRC of everything added.
+    pub const fn finish(self) -> u32 {
+        !self.0
+    }
+}
+
+/// CRC-32 of `data` (see [`Crc32`]).
+pub fn crc32(data: &[u8]) -> u32 {
+    let mut c = Crc32::new();
+    c.update(data);
+    c.finish()
+}
+
+/// Which part of the dictionary a store / restore command covers (0x1010 / 0x1011
+/// sub-index 1-4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scope {
+    /// Sub-index 1 (all parameters) and 4 (E5: all parameters).
+    All,
+    /// Sub-index 2: communication parameters 0x1000-0x1FFF.
+    Communication,
+    /// Sub-index 3: application parameters 0x6000-0x9FFF.
+    Application,
+}
+
+impl Scope {
+    /// The scope of a 0x1010 / 0x1011 sub-index.
+    pub fn from_sub(sub: u8) -> Option<Scope> {
+        match sub {
+            1 | 4 => Some(Scope::All),
+            2 => Some(Scope::Communication),
+            3 => Some(Scope::Application),
+            _ => None,
+        }
+    }
+    /// True when objects of `index` belong to this scope.
+    pub fn contains(self, index: u16) -> bool {
+        match self {
+            Scope::All => true,
+            Scope::Communication => (0x1000..=0x1FFF).contains(&index),
+            Scope::Application => (0x6000..=0x9FFF).contains(&index),
+        }
+    }
+}
+
+/// What one slot holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SlotStatus {
+    /// Fully erased (never written).
+    Erased,
+    /// A complete record.
+    Valid {
+        /// Its sequence number.
+        sequence: u32,
+        /// Its payload length.
+        payload_len: u32,
+    },
+    /// Written but not a valid record: torn save, interrupted erase, corruption, or a
+    /// read error.
+    Corrupt,
+}
+
+/// Why a save or restore failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StorageError {
+    /// The flash driver failed (or power was lost).
+    Flash(NorFlashErrorKind),
+    /// The flash geometry does not fit the storage layout (alignment, capacity).
+    Geometry,
+    /// The record does not fit in a slot.
+    RecordTooLarge,
+}
+
+impl StorageError {
+    /// The SDO abort answering a failed 0x1010 / 0x1011 command.
+    pub fn abort(self) -> SdoAbort {
+        match self {
+            StorageError::Flash(_) => SdoAbort::HardwareError,
+            StorageError::Geometry | StorageError::RecordTooLarge => SdoAbort::DataCannotBeStored,
+        }
+    }
+}
+
+fn fe<E: NorFlashError>(e: E) -> StorageError {
+    StorageError::Flash(e.kind())
+}
+
+/// Result of a save.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SaveReport {
+    /// Slot written.
+    pub slot: usize,
+    /// Sequence number of the new record.
+    pub sequence: u32,
+    /// Entries stored.
+    pub entries: u16,
+    /// Saved entries whose value could not be read (left out).
+    pub unreadable: u16,
+    /// Payload length.
+    pub payload_len: u32,
+}
+
+/// Result of the power-up load.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LoadReport {
+    /// State of both slots.
+    pub slots: [SlotStatus; 2],
+    /// Slot and sequence of the record applied; `None`: defaults.
+    pub source: Option<(usize, u32)>,
+    /// Entries written to the dictionary.
+    pub applied: u16,
+    /// Stored entries refused (unknown object, not saved any more, wrong length, out of
+    /// range, refused by the application).
+    pub skipped: u16,
+}
+
+/// Emergency code for a corrupt record while the other one was used (non-volatile
+/// memory, CiA 301 0x5530).
+pub const EMCY_RECORD_CORRUPT: u16 = 0x5530;
+/// Emergency code for "no valid record although flash was written": defaults in use
+/// (loss of parameters, 0x6310).
+pub const EMCY_PARAMETERS_LOST: u16 = 0x6310;
+/// Emergency code for stored entries that were refused (parameter error, 0x6320).
+pub const EMCY_PARAMETER_ERROR: u16 = 0x6320;
+
+impl LoadReport {
+    /// Bit n set: slot n is corrupt.
+    pub fn corrupt_mask(&self) -> u8 {
+        self.slots
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| **s == SlotStatus::Corrupt)
+            .fold(0, |m, (i, _)| m | (1 << i))
+    }
+    /// The emergency the drive sends after loading (error code, manufacturer data), or
+    /// `None` when the load was clean (including the blank flash of a first boot).
+    /// Data byte 0: 1 record corrupt (other used), 2 defaults used, 3 entries refused;
+    /// byte 1: corrupt slot mask; bytes 2-3: refused entry count.
+    pub fn emergency(&self) -> Option<(u16, [u8; 5])> {
+        let mask = self.corrupt_mask();
+        let sk = self.skipped.to_le_bytes();
+        if mask != 0 && self.source.is_none() {
+            Some((EMCY_PARAMETERS_LOST, [2, mask, sk[0], sk[1], 0]))
+        } else if mask != 0 {
+            Some((EMCY_RECORD_CORRUPT, [1, mask, sk[0], sk[1], 0]))
+        } else if self.skipped != 0 {
+            Some((EMCY_PARAMETER_ERROR, [3, 0, sk[0], sk[1], 0]))
+        } else {
+            None
+        }
+    }
+}
+
+/// The two-slot record store at `base` in a [`NorFlash`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Storage {
+    base: u32,
+    slot_size: u32,
+}
+
+/// Header fields.
+#[derive(Debug, Clone, Copy)]
+struct Header {
+    sequence: u32,
+    payload_len: u32,
+    crc: u32,
+}
+
+fn header_bytes(sequence: u32, payload_len: u32) -> [u8; HEADER_LEN] {
+    let mut h = [0u8; HEADER_LEN];
+    h[0..4].copy_from_slice(&RECORD_MAGIC.to_le_bytes());
+    h[4..6].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
+    h[6..8].copy_from_slice(&0u16.to_le_bytes());
+    h[8..12].copy_from_slice(&sequence.to_le_bytes());
+    h[12..16].copy_from_slice(&payload_len.to_le_bytes());
+    h
+}
+
+fn le32(b: &[u8]) -> u32 {
+    let mut a = [0u8; 4];
+    a.copy_from_slice(&b[..4]);
+    u32::from_le_bytes(a)
+}
+
+/// True when sequence `a` is newer than `b` (wrapping comparison).
+pub fn newer(a: u32, b: u32) -> bool {
+    (a.wrapping_sub(b) as i32) > 0
+}
+
+/// Sequential reader of a slot's payload.
+struct Reader {
+    start: u32,
+    end: u32,
+    pos: u32,
+    buf: [u8; CHUNK],
+    buf_at: u32,
+    buf_len: u32,
+}
+
+impl Reader {
+    fn new(start: u32, len: u32) -> Self {
+        Reader {
+            start,
+            end: len,
+            pos: 0,
+            buf: [0; CHUNK],
+            buf_at: 0,
+            buf_len: 0,
+        }
+    }
+    fn remaining(&self) -> u32 {
+        self.end - self.pos
+    }
+    /// Reads `out.len()` bytes; `Ok(false)` when the payload ends first.
+    fn read<F: NorFlash>(
+        &mut self,
+        flash: &mut F,
+        slot_end: u32,
+        out: &mut [u8],
+    ) -> Result<bool, StorageError> {
+        if (out.len() as u32) > self.remaining() {
+            self.pos = self.end;
+            return Ok(false);
+        }
+        for b in out.iter_mut() {
+            if self.pos < self.buf_at || self.pos >= self.buf_at + self.buf_len {
+                let at = self.pos - self.pos % CHUNK as u32;
+                let abs = self.start + at;
+                let n = (slot_end.saturating_sub(abs)).min(CHUNK as u32);
+                if n == 0 {
+                    return Ok(false);
+                }
+                flash.read(abs, &mut self.buf[..n as usize]).map_err(fe)?;
+                self.buf_at = at;
+                self.buf_len = n;
+            }
+            *b = self.buf[(self.pos - self.buf_at) as usize];
+            self.pos += 1;
+        }
+        Ok(true)
+    }
+}
+
+/// Buffered, CRC-computing writer of a slot's payload.
+struct Writer {
+    start: u32,
+    limit: u32,
+    flushed: u32,
+    buf: [u8; CHUNK],
+    fill: usize,
+    crc: Crc32,
+}
+
+impl Writer {
+    fn push<F: NorFlash>(&mut self, flash: &mut F, bytes: &[u8]) -> Result<(), StorageError> {
+        for &b in bytes {
+            if self.flushed + self.fill as u32 >= self.limit {
+                return Err(StorageError::RecordTooLarge);
+            }
+            self.buf[self.fill] = b;
+            self.fill += 1;
+            if self.fill == CHUNK {
+                self.flush(flash)?;
+            }
+        }
+        self.crc.update(bytes);
+        Ok(())
+    }
+    fn flush<F: NorFlash>(&mut self, flash: &mut F) -> Result<(), StorageError> {
+        if self.fill == 0 {
+            return Ok(());
+        }
+        let padded = self.fill.div_ceil(HEADER_LEN) * HEADER_LEN;
+        for b in &mut self.buf[self.fill..padded] {
+            *b = 0xFF;
+        }
+        flash
+            .write(self.start + self.flushed, &self.buf[..padded])
+            .map_err(fe)?;
+        self.flushed += self.fill as u32;
+        self.fill = 0;
+        Ok(())
+    }
+    fn len(&self) -> u32 {
+        self.flushed + self.fill as u32
+    }
+}
+
+/// A restored sub-index 0 waiting for the other sub-indices of its object.
+struct PendingCount {
+    index: u16,
+    value: [u8; 8],
+    len: usize,
+}
+
+impl Storage {
+    /// A store using two slots of `slot_size` bytes from `base` (checked against the
+    /// flash geometry by [`Storage::check`] on every operation).
+    pub const fn new(base: u32, slot_size: u32) -> Self {
+        Storage { base, slot_size }
+    }
+
+    /// Start address of slot `n` (0 or 1).
+    pub fn slot_address(&self, n: usize) -> u32 {
+        self.base + self.slot_size * n as u32
+    }
+
+    /// Checks that the layout fits `F`'s geometry.
+    pub fn check<F: NorFlash>(&self, flash: &F) -> Result<(), StorageError> {
+        let ok = F::WRITE_SIZE > 0
+            && F::READ_SIZE > 0
+            && F::ERASE_SIZE > 0
+            && HEADER_LEN.is_multiple_of(F::WRITE_SIZE)
+            && HEADER_LEN.is_multiple_of(F::READ_SIZE)
+            && (self.slot_size as usize).is_multiple_of(F::ERASE_SIZE)
+            && (self.slot_size as usize).is_multiple_of(HEADER_LEN)
+            && self.slot_size as usize >= 2 * HEADER_LEN
+            && (self.base as usize).is_multiple_of(F::ERASE_SIZE)
+            && (self.base as usize).saturating_add(2 * self.slot_size as usize) <= flash.capacity();
+        if ok {
+            Ok(())
+        } else {
+            Err(StorageError::Geometry)
+        }
+    }
+
+    fn read_header<F: NorFlash>(
+        &self,
+        flash: &mut F,
+        slot: usize,
+    ) -> Result<Option<Header>, StorageError> {
+        let mut h = [0u8; HEADER_LEN];
+        flash.read(self.slot_address(slot), &mut h).map_err(fe)?;
+        if le32(&h[0..]) != RECORD_MAGIC || u16::from_le_bytes([h[4], h[5]]) != FORMAT_VERSION {
+            return Ok(None);
+        }
+        let payload_len = le32(&h[12..]);
+        if payload_len > self.slot_size - HEADER_LEN as u32 {
+            return Ok(None);
+        }
+        Ok(Some(Header {
+            sequence: le32(&h[8..]),
+            payload_len,
+            crc: le32(&h[16..]),
+        }))
+    }
+
+    fn payload_crc<F: NorFlash>(
+        &self,
+        flash: &mut F,
+        slot: usize,
+        payload_len: u32,
+        head: &[u8; HEADER_LEN],
+    ) -> Result<u32, StorageError> {
+        let mut crc = Crc32::new();
+        let mut buf = [0u8; CHUNK];
+        let start = self.slot_address(slot) + HEADER_LEN as u32;
+        let mut done = 0u32;
+        while done < payload_len {
+            let n = (payload_len - done).min(CHUNK as u32);
+            // Reads stay aligned: whole 32-byte units, within the slot.
+            let rn = (n as usize).div_ceil(HEADER_LEN) * HEADER_LEN;
+            flash.read(start + done, &mut buf[..rn]).map_err(fe)?;
+            crc.update(&buf[..n as usize]);
+            done += n;
+        }
+        crc.update(&head[..16]);
+        Ok(crc.finish())
+    }
+
+    /// Classifies slot `n`.
+    pub fn slot_status<F: NorFlash>(&self, flash: &mut F, slot: usize) -> SlotStatus {
+        match self.try_slot_status(flash, slot) {
+            Ok(s) => s,
+            Err(_) => SlotStatus::Corrupt,
+        }
+    }
+
+    fn try_slot_status<F: NorFlash>(
+        &self,
+        flash: &mut F,
+        slot: usize,
+    ) -> Result<SlotStatus, StorageError> {
+        self.check(flash)?;
+        if let Some(h) = self.read_header(flash, slot)? {
+            let head = header_bytes(h.sequence, h.payload_len);
+            if self.payload_crc(flash, slot, h.payload_len, &head)? == h.crc {
+                return Ok(SlotStatus::Valid {
+                    sequence: h.sequence,
+                    payload_len: h.payload_len,
+                });
+            }
+            return Ok(SlotStatus::Corrupt);
+        }
+        // No header: erased only if every byte of the slot is.
+        let mut buf = [0u8; CHUNK];
+        let mut at = 0u32;
+        while at < self.slot_size {
+            let n = (self.slot_size - at).min(CHUNK as u32) as usize;
+            flash
+                .read(self.slot_address(slot) + at, &mut buf[..n])
+                .map_err(fe)?;
+            if buf[..n].iter().any(|&b| b != 0xFF) {
+                return Ok(SlotStatus::Corrupt);
+            }
+            at += n as u32;
+        }
+        Ok(SlotStatus::Erased)
+    }
+
+    /// Both slots' status and the slot holding the newest valid record.
+    pub fn scan<F: NorFlash>(&self, flash: &mut F) -> ([SlotStatus; 2], Option<(usize, u32, u32)>) {
+        let slots = [self.slot_status(flash, 0), self.slot_status(flash, 1)];
+        let mut best: Option<(usize, u32, u32)> = None;
+        for (i, s) in slots.iter().enumerate() {
+            if let SlotStatus::Valid {
+                sequence,
+                payload_len,
+            } = *s
+            {
+                if best.is_none_or(|(_, b, _)| newer(sequence, b)) {
+                    best = Some((i, sequence, payload_len));
+                }
+            }
+        }
+        (slots, best)
+    }
+
+    /// Power-up load: applies the newest valid record to `dict` (or nothing: defaults)
+    /// and reports what it found. Never panics on any flash content.
+    pub fn load<F: NorFlash, D: Dictionary + ?Sized>(
+        &self,
+        flash: &mut F,
+        dict: &mut D,
+    ) -> LoadReport {
+        let (slots, best) = self.scan(flash);
+        let mut report = LoadReport {
+            slots,
+            source: None,
+            applied: 0,
+            skipped: 0,
+        };
+        let Some((slot, sequence, len)) = best else {
+            return report;
+        };
+        report.source = Some((slot, sequence));
+        let slot_end = self.slot_address(slot) + self.slot_size;
+        let mut rd = Reader::new(self.slot_address(slot) + HEADER_LEN as u32, len);
+        let mut pending: Option<PendingCount> = None;
+        let mut value = [0u8; MAX_VALUE_LEN];
+        loop {
+            if rd.remaining() == 0 {
+                break;
+            }
+            let mut tl = [0u8; 4];
+            if !matches!(rd.read(flash, slot_end, &mut tl), Ok(true)) {
+                // Trailing bytes that are not a whole entry, or a read error.
+                report.skipped = report.skipped.saturating_add(1);
+                break;
+            }
+            let index = u16::from_le_bytes([tl[0], tl[1]]);
+            let sub = tl[2];
+            let n = tl[3] as usize;
+            if n > MAX_VALUE_LEN || n as u32 > rd.remaining() {
+                report.skipped = report.skipped.saturating_add(1);
+                break;
+            }
+            if !matches!(rd.read(flash, slot_end, &mut value[..n]), Ok(true)) {
+                report.skipped = report.skipped.saturating_add(1);
+                break;
+            }
+            if pending.as_ref().is_some_and(|p| p.index != index) {
+                if let Some(p) = pending.take() {
+                    apply(dict, p.index, 0, &p.value[..p.len], &mut report);
+                }
+            }
+            if sub == 0 && n <= 8 && count_first(dict, index) {
+                let zero = [0u8; 8];
+                let _ = dict.write(index, 0, &zero[..n], EsmState::PreOp);
+                let mut v = [0u8; 8];
+                v[..n].copy_from_slice(&value[..n]);
+                pending = Some(PendingCount {
+                    index,
+                    value: v,
+                    len: n,
+                });
+                continue;
+            }
+            apply(dict, index, sub, &value[..n], &mut report);
+        }
+        if let Some(p) = pending.take() {
+            apply(dict, p.index, 0, &p.value[..p.len], &mut report);
+        }
+        report
+    }
+
+    /// 'save': writes every `saved` entry of `dict` inside `scope` (plus, for a partial
+    /// scope, the stored entries outside it) as a new record in the other slot.
+    pub fn save<F: NorFlash, D: Dictionary + ?Sized>(
+        &self,
+        flash: &mut F,
+        dict: &mut D,
+        scope: Scope,
+    ) -> Result<SaveReport, StorageError> {
+        self.write_record(flash, Some(dict), scope)
+    }
+
+    /// 'load' (restore defaults): a new record without the entries of `scope`, so the
+    /// defaults apply at the next power-up.
+    pub fn restore_defaults<F: NorFlash>(
+        &self,
+        flash: &mut F,
+        scope: Scope,
+    ) -> Result<SaveReport, StorageError> {
+        self.write_record::<F, NoDict>(flash, None, scope)
+    }
+
+    fn write_record<F: NorFlash, D: Dictionary + ?Sized>(
+        &self,
+        flash: &mut F,
+        dict: Option<&mut D>,
+        scope: Scope,
+    ) -> Result<SaveReport, StorageError> {
+        self.check(flash)?;
+        let (_, best) = self.scan(flash);
+        let (target, sequence) = match best {
+            Some((slot, seq, _)) => (1 - slot, seq.wrapping_add(1)),
+            None => (0, 1),
+        };
+        let base = self.slot_address(target);
+        flash.erase(base, base + self.slot_size).map_err(fe)?;
+        let mut w = Writer {
+            start: base + HEADER_LEN as u32,
+            limit: self.slot_size - HEADER_LEN as u32,
+            flushed: 0,
+            buf: [0; CHUNK],
+            fill: 0,
+            crc: Crc32::new(),
+        };
+        let mut report = SaveReport {
+            slot: target,
+            sequence,
+            entries: 0,
+            unreadable: 0,
+            payload_len: 0,
+        };
+        // Entries of the previous record outside the scope survive a partial command.
+        if let (Some((old, _, len)), true) = (best, scope != Scope::All) {
+            let old_end = self.slot_address(old) + self.slot_size;
+            let mut rd = Reader::new(self.slot_address(old) + HEADER_LEN as u32, len);
+            let mut value = [0u8; MAX_VALUE_LEN];
+            loop {
+                let mut tl = [0u8; 4];
+                if !rd.read(flash, old_end, &mut tl)? {
+                    break;
+                }
+                let n = tl[3] as usize;
+                if n > MAX_VALUE_LEN || !rd.read(flash, old_end, &mut value[..n])? {
+                    break;
+                }
+                if !scope.contains(u16::from_le_bytes([tl[0], tl[1]])) {
+                    w.push(flash, &tl)?;
+                    w.push(flash, &value[..n])?;
+                    report.entries += 1;
+                }
+            }
+        }
+        if let Some(dict) = dict {
+            let objects = dict.objects();
+            let mut value = [0u8; MAX_VALUE_LEN];
+            for obj in objects.iter().filter(|o| scope.contains(o.index)) {
+                for e in obj.entries.iter().filter(|e| e.saved) {
+                    match dict.read(obj.index, e.sub, &mut value) {
+                        Ok(n) if n <= MAX_VALUE_LEN => {
+                            let i = obj.index.to_le_bytes();
+                            w.push(flash, &[i[0], i[1], e.sub, n as u8])?;
+                            w.push(flash, &value[..n])?;
+                            report.entries += 1;
+                        }
+                        _ => report.unreadable += 1,
+                    }
+                }
+            }
+        }
+        let payload_len = w.len();
+        w.flush(flash)?;
+        let mut head = header_bytes(sequence, payload_len);
+        let mut crc = w.crc;
+        crc.update(&head[..16]);
+        head[16..20].copy_from_slice(&crc.finish().to_le_bytes());
+        flash.write(base, &head).map_err(fe)?;
+        report.payload_len = payload_len;
+        Ok(report)
+    }
+}
+
+/// True when `index` is an object whose saved, writable sub-index 0 must be written 0
+/// before its other sub-indices (PDO mapping / assignment).
+fn count_first<D: Dictionary + ?Sized>(dict: &D, index: u16) -> bool {
+    match od::find(dict.objects(), index) {
+        Some(o) => {
+            o.code != ObjectCode::Var
+                && o.entries.len() > 1
+                && o.entry(0).is_some_and(|e| e.saved && e.access.writable())
+        }
+        None => false,
+    }
+}
+
+fn apply<D: Dictionary + ?Sized>(
+    dict: &mut D,
+    index: u16,
+    sub: u8,
+    data: &[u8],
+    report: &mut LoadReport,
+) {
+    let ok = match od::find_entry(dict.objects(), index, sub) {
+        Ok(e) if e.saved => {
+            let len_ok = if e.data_type.is_variable_length() {
+                data.len() <= e.byte_len()
+            } else {
+                data.len() == e.byte_len()
+            };
+            let range_ok = match od::decode_int(e.data_type, data) {
+                Some(v) => v >= e.min && v <= e.max,
+                None => true,
+            };
+            len_ok
+                && range_ok
+                && match dict.write(index, sub, data, EsmState::PreOp) {
+                    Ok(()) => true,
+                    // The device owns the value right now (e.g. current gains while
+                    // auto-tune is on): not an error of the record.
+                    Err(SdoAbort::LocalControl) => {
+                        return;
+                    }
+                    Err(_) => false,
+                }
+        }
+        _ => false,
+    };
+    if ok {
+        report.applied = report.applied.saturating_add(1);
+    } else {
+        report.skipped = report.skipped.saturating_add(1);
+    }
+}
+
+/// Placeholder dictionary type for [`Storage::restore_defaults`] (never called).
+struct NoDict;
+
+impl Dictionary for NoDict {
+    fn objects(&self) -> &'static [od::Object] {
+        &[]
+    }
+    fn read(&mut self, _: u16, _: u8, _: &mut [u8]) -> Result<usize, SdoAbort> {
+        Err(SdoAbort::ObjectDoesNotExist)
+    }
+    fn write(&mut self, _: u16, _: u8, _: &[u8], _: EsmState) -> Result<(), SdoAbort> {
+        Err(SdoAbort::ObjectDoesNotExist)
+    }
+}
+
+/// A RAM [`NorFlash`] for simulation and tests: `N` bytes, 32-byte pages, 8-byte write
+/// units (like the STM32G4's double words). Writing a byte that is not erased fails,
+/// as on the chip. It can lose power after a given number of byte operations (erase or
+/// write): the operation in progress stops there and every later one fails until
+/// [`RamFlash::power_on`].
+#[derive(Clone)]
+pub struct RamFlash<const N: usize> {
+    /// The memory.
+    pub mem: [u8; N],
+    budget: Option<usize>,
+    dead: bool,
+    /// Byte operations done since the last [`RamFlash::power_on`].
+    pub ops: usize,
+}
+
+impl<const N: usize> Default for RamFlash<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const N: usize> RamFlash<N> {
+    /// Erased flash.
+    pub const fn new() -> Self {
+        RamFlash {
+            mem: [0xFF; N],
+            budget: None,
+            dead: false,
+            ops: 0,
+        }
+    }
+    /// Power is lost after `ops` more byte operations.
+    pub fn cut_power_after(&mut self, ops: usize) {
+        self.budget = Some(ops);
+    }
+    /// Power back, no cut scheduled.
+    pub fn power_on(&mut self) {
+        self.budget = None;
+        self.dead = false;
+        self.ops = 0;
+    }
+    /// True once power was cut.
+    pub fn power_lost(&self) -> bool {
+        self.dead
+    }
+    fn step(&mut self) -> Result<(), NorFlashErrorKind> {
+        if self.dead {
+            return Err(NorFlashErrorKind::Other);
+        }
+        if let Some(b) = self.budget {
+            if b == 0 {
+                self.dead = true;
+                return Err(NorFlashErrorKind::Other);
+            }
+            self.budget = Some(b - 1);
+        }
+        self.ops += 1;
+        Ok(())
+    }
+}
+
+impl<const N: usize> embedded_storage::nor_flash::ErrorType for RamFlash<N> {
+    type Error = NorFlashErrorKind;
+}
+
+impl<const N: usize> embedded_storage::nor_flash::ReadNorFlash for RamFlash<N> {
+    const READ_SIZE: usize = 1;
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        if self.dead {
+            return Err(NorFlashErrorKind::Other);
+        }
+        let start = offset as usize;
+        let src = self
+            .mem
+            .get(start..start + bytes.len())
+            .ok_or(NorFlashErrorKind::OutOfBounds)?;
+        bytes.copy_from_slice(src);
+        Ok(())
+    }
+    fn capacity(&self) -> usize {
+        N
+    }
+}
+
+impl<const N: usize> NorFlash for RamFlash<N> {
+    const WRITE_SIZE: usize = 8;
+    const ERASE_SIZE: usize = 32;
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+        let (from, to) = (from as usize, to as usize);
+        if from > to || to > N {
+            return Err(NorFlashErrorKind::OutOfBounds);
+        }
+        if !from.is_multiple_of(Self::ERASE_SIZE) || !to.is_multiple_of(Self::ERASE_SIZE) {
+            return Err(NorFlashErrorKind::NotAligned);
+        }
+        for i in from..to {
+            self.step()?;
+            self.mem[i] = 0xFF;
+        }
+        Ok(())
+    }
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        let start = offset as usize;
+        if !start.is_multiple_of(Self::WRITE_SIZE) || !bytes.len().is_multiple_of(Self::WRITE_SIZE) {
+            return Err(NorFlashErrorKind::NotAligned);
+        }
+        if start + bytes.len() > N {
+            return Err(NorFlashErrorKind::OutOfBounds);
+        }
+        if self.mem[start..start + bytes.len()]
+            .iter()
+            .any(|&b| b != 0xFF)
+        {
+            return Err(NorFlashErrorKind::Other);
+        }
+        for (i, &b) in bytes.iter().enumerate() {
+            self.step()?;
+            self.mem[start + i] = b;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crc32_known_values() {
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+        assert_eq!(crc32(b""), 0);
+        let mut c = Crc32::new();
+        c.update(b"1234");
+        c.update(b"56789");
+        assert_eq!(c.finish(), 0xCBF4_3926);
+    }
+
+    #[test]
+    fn sequence_comparison_wraps() {
+        assert!(newer(2, 1));
+        assert!(!newer(1, 2));
+        assert!(newer(0, u32::MAX));
+        assert!(!newer(5, 5));
+    }
+
+    #[test]
+    fn scope_from_sub() {
+        assert_eq!(Scope::from_sub(1), Some(Scope::All));
+        assert_eq!(Scope::from_sub(4), Some(Scope::All));
+        assert_eq!(Scope::from_sub(2), Some(Scope::Communication));
+        assert_eq!(Scope::from_sub(3), Some(Scope::Application));
+        assert_eq!(Scope::from_sub(0), None);
+        assert_eq!(Scope::from_sub(5), None);
+        assert!(Scope::Communication.contains(0x1C12));
+        assert!(!Scope::Communication.contains(0x2000));
+        assert!(Scope::Application.contains(0x6060));
+    }
+
+    #[test]
+    fn geometry_is_checked() {
+        let mut f = RamFlash::<1024>::new();
+        assert_eq!(Storage::new(0, 512).check(&f), Ok(()));
+        assert_eq!(Storage::new(0, 513).check(&f), Err(StorageError::Geometry));
+        assert_eq!(
+            Storage::new(32, 512).check(&f),
+            Err(StorageError::Geometry),
+            "beyond capacity"
+        );
+        assert_eq!(
+            Storage::new(16, 256).check(&f),
+            Err(StorageError::Geometry),
+            "unaligned base"
+        );
+        assert_eq!(
+            Storage::new(0, 32).check(&f),
+            Err(StorageError::Geometry),
+            "too small"
+        );
+        let mut d = NoDict;
+        let r = Storage::new(0, 513).load(&mut f, &mut d);
+        assert_eq!(r.source, None);
+        assert_eq!(
+            Storage::new(0, 513).restore_defaults(&mut f, Scope::All),
+            Err(StorageError::Geometry)
+        );
+        assert_eq!(StorageError::Geometry.abort(), SdoAbort::DataCannotBeStored);
+        assert_eq!(
+            StorageError::Flash(NorFlashErrorKind::Other).abort(),
+            SdoAbort::HardwareError
+        );
+    }
+}
