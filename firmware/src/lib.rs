@@ -1,4 +1,5 @@
 #![no_std]
+pub mod cia402;
 pub mod comm;
 pub mod dip;
 pub mod fault_led;

@@ -1,0 +1,763 @@
+//! Homing (mode 6): methods 1-14, 17-30, 33, 34, 35 and 37.
+//!
+//! Every switch-based method is described by the *reference edge* `E` it homes on and
+//! the direction of the final approach to it (`final_dir`). The points before `E` seen
+//! in that direction form the approach side `P`, the others the far side `Q`. The
+//! engine then runs the same sequence for every method:
+//!
+//! 1. (home-switch zone methods only, while the side is unknown) search in the method's
+//!    initial direction at the switch-search speed 0x6099:01; on the method's limit
+//!    switch stop and reverse;
+//! 2. if on `P`: move in `final_dir` at 0x6099:01 until `Q` is reached, stop;
+//! 3. on `Q`: move against `final_dir` until `P` is reached (0x6099:01 the first time,
+//!    0x6099:02 after a reversal), stop;
+//! 4. final approach in `final_dir` at the zero-search speed 0x6099:02 until the side
+//!    changes: the position of that cycle is `E`;
+//! 5. methods with index: keep moving at 0x6099:02 until the encoder index pulse; its
+//!    hardware-latched position is the home position; without index the home position
+//!    is `E`;
+//! 6. stop, move back to the home position (0x6099:02) and make it read 0x607C
+//!    (position actual value at the home position = home offset).
+//!
+//! Every move accelerates and stops with 0x609A. Reaching a limit switch that the method
+//! does not use (or, in zone methods, after the reversal) is a homing error, as is an
+//! index method without an encoder index or a method whose inputs are not assigned.
+//! Methods 33/34 search the index directly (0x6099:02); 35/37 take the present position.
+
+use super::profile::{Motion, MoveStatus};
+
+/// 0x60FD bit of the negative limit switch.
+pub const DI_NEG_LIMIT: u32 = 1 << 0;
+/// 0x60FD bit of the positive limit switch.
+pub const DI_POS_LIMIT: u32 = 1 << 1;
+/// 0x60FD bit of the home switch.
+pub const DI_HOME: u32 = 1 << 2;
+
+/// Which input a method homes on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Sig {
+    Neg,
+    Pos,
+    Home,
+}
+
+impl Sig {
+    const fn mask(self) -> u32 {
+        match self {
+            Sig::Neg => DI_NEG_LIMIT,
+            Sig::Pos => DI_POS_LIMIT,
+            Sig::Home => DI_HOME,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    /// One edge: the signal equals `level` on the approach side.
+    Edge { sig: Sig, level: bool },
+    /// Home switch active on a zone `[lower, upper]`; `upper` chooses the edge;
+    /// `init_dir` is the first search direction, reversed on that side's limit switch.
+    Zone { upper: bool, init_dir: i8 },
+    /// Index pulse only, searching in `final_dir`.
+    Index,
+    /// The present position.
+    Here,
+}
+
+/// What a method does (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Method {
+    kind: Kind,
+    final_dir: i8,
+    index: bool,
+}
+
+impl Method {
+    /// The description of `method`, `None` if unsupported.
+    pub const fn describe(method: i8) -> Option<Method> {
+        use Kind::*;
+        let (kind, final_dir, index) = match method {
+            1 => (
+                Edge {
+                    sig: Sig::Neg,
+                    level: true,
+                },
+                1,
+                true,
+            ),
+            2 => (
+                Edge {
+                    sig: Sig::Pos,
+                    level: true,
+                },
+                -1,
+                true,
+            ),
+            3 => (
+                Edge {
+                    sig: Sig::Home,
+                    level: true,
+                },
+                -1,
+                true,
+            ),
+            4 => (
+                Edge {
+                    sig: Sig::Home,
+                    level: false,
+                },
+                1,
+                true,
+            ),
+            5 => (
+                Edge {
+                    sig: Sig::Home,
+                    level: true,
+                },
+                1,
+                true,
+            ),
+            6 => (
+                Edge {
+                    sig: Sig::Home,
+                    level: false,
+                },
+                -1,
+                true,
+            ),
+            7 => (
+                Zone {
+                    upper: false,
+                    init_dir: 1,
+                },
+                -1,
+                true,
+            ),
+            8 => (
+                Zone {
+                    upper: false,
+                    init_dir: 1,
+                },
+                1,
+                true,
+            ),
+            9 => (
+                Zone {
+                    upper: true,
+                    init_dir: 1,
+                },
+                -1,
+                true,
+            ),
+            10 => (
+                Zone {
+                    upper: true,
+                    init_dir: 1,
+                },
+                1,
+                true,
+            ),
+            11 => (
+                Zone {
+                    upper: true,
+                    init_dir: -1,
+                },
+                1,
+                true,
+            ),
+            12 => (
+                Zone {
+                    upper: true,
+                    init_dir: -1,
+                },
+                -1,
+                true,
+            ),
+            13 => (
+                Zone {
+                    upper: false,
+                    init_dir: -1,
+                },
+                1,
+                true,
+            ),
+            14 => (
+                Zone {
+                    upper: false,
+                    init_dir: -1,
+                },
+                -1,
+                true,
+            ),
+            17 => (
+                Edge {
+                    sig: Sig::Neg,
+                    level: true,
+                },
+                1,
+                false,
+            ),
+            18 => (
+                Edge {
+                    sig: Sig::Pos,
+                    level: true,
+                },
+                -1,
+                false,
+            ),
+            19 => (
+                Edge {
+                    sig: Sig::Home,
+                    level: true,
+                },
+                -1,
+                false,
+            ),
+            20 => (
+                Edge {
+                    sig: Sig::Home,
+                    level: false,
+                },
+                1,
+                false,
+            ),
+            21 => (
+                Edge {
+                    sig: Sig::Home,
+                    level: true,
+                },
+                1,
+                false,
+            ),
+            22 => (
+                Edge {
+                    sig: Sig::Home,
+                    level: false,
+                },
+                -1,
+                false,
+            ),
+            23 => (
+                Zone {
+                    upper: false,
+                    init_dir: 1,
+                },
+                -1,
+                false,
+            ),
+            24 => (
+                Zone {
+                    upper: false,
+                    init_dir: 1,
+                },
+                1,
+                false,
+            ),
+            25 => (
+                Zone {
+                    upper: true,
+                    init_dir: 1,
+                },
+                -1,
+                false,
+            ),
+            26 => (
+                Zone {
+                    upper: true,
+                    init_dir: 1,
+                },
+                1,
+                false,
+            ),
+            27 => (
+                Zone {
+                    upper: true,
+                    init_dir: -1,
+                },
+                1,
+                false,
+            ),
+            28 => (
+                Zone {
+                    upper: true,
+                    init_dir: -1,
+                },
+                -1,
+                false,
+            ),
+            29 => (
+                Zone {
+                    upper: false,
+                    init_dir: -1,
+                },
+                1,
+                false,
+            ),
+            30 => (
+                Zone {
+                    upper: false,
+                    init_dir: -1,
+                },
+                -1,
+                false,
+            ),
+            33 => (Index, -1, true),
+            34 => (Index, 1, true),
+            35 | 37 => (Here, 1, false),
+            _ => return None,
+        };
+        Some(Method {
+            kind,
+            final_dir,
+            index,
+        })
+    }
+
+    /// True if the method needs the encoder index pulse.
+    pub const fn needs_index(&self) -> bool {
+        self.index
+    }
+
+    /// 0x60FD bits the method needs assigned to inputs.
+    pub const fn needs_inputs(&self) -> u32 {
+        match self.kind {
+            Kind::Edge { sig, .. } => sig.mask(),
+            Kind::Zone { init_dir, .. } => {
+                DI_HOME
+                    | if init_dir > 0 {
+                        DI_POS_LIMIT
+                    } else {
+                        DI_NEG_LIMIT
+                    }
+            }
+            Kind::Index | Kind::Here => 0,
+        }
+    }
+}
+
+/// True if `method` is supported (0x6098 values accepted).
+pub const fn supported(method: i8) -> bool {
+    Method::describe(method).is_some()
+}
+
+/// Where the axis is relative to a home-switch zone.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Region {
+    Unknown,
+    Below,
+    Inside,
+    Above,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum After {
+    Replan,
+    SeekP { fast: bool },
+    Fine,
+    Return,
+    Error,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Step {
+    Idle,
+    Locate {
+        dir: i8,
+    },
+    /// Move in `dir` until the side is `P` (`to_p`) or `Q`.
+    Seek {
+        dir: i8,
+        fast: bool,
+        to_p: bool,
+    },
+    Fine,
+    IndexSearch,
+    Stopping {
+        then: After,
+    },
+    Return,
+    Done,
+    Error,
+}
+
+/// Homing status as shown in statusword bits 10, 12, 13.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HomingStatus {
+    /// Not started or interrupted.
+    Idle,
+    /// Running.
+    InProgress,
+    /// Home position set.
+    Attained,
+    /// Failed.
+    Error,
+}
+
+/// The parameters of one homing run (already limited by 0x60C5/0x60C6).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HomingParams {
+    /// 0x6098.
+    pub method: i8,
+    /// 0x6099:01 (command units/s).
+    pub fast: f32,
+    /// 0x6099:02 (command units/s).
+    pub slow: f32,
+    /// 0x609A (command units/s²).
+    pub acc: f32,
+    /// 0x607C.
+    pub offset: i32,
+    /// The encoder has an index pulse.
+    pub has_index: bool,
+    /// 0x60FD bits that are assigned to physical inputs.
+    pub assigned: u32,
+}
+
+/// What one homing cycle sees.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct HomingInputs {
+    /// 0x60FD.
+    pub digital_inputs: u32,
+    /// Position actual value (user units).
+    pub actual: i32,
+    /// Index pulse latched this cycle (user units).
+    pub index: Option<i32>,
+}
+
+/// The homing engine.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Homing {
+    step: Step,
+    method: Option<Method>,
+    params: Option<HomingParams>,
+    region: Region,
+    prev_active: bool,
+    edge: Option<i32>,
+    home: i32,
+    status: HomingStatus,
+}
+
+impl Default for Homing {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Homing {
+    /// Idle engine.
+    pub const fn new() -> Self {
+        Homing {
+            step: Step::Idle,
+            method: None,
+            params: None,
+            region: Region::Unknown,
+            prev_active: false,
+            edge: None,
+            home: 0,
+            status: HomingStatus::Idle,
+        }
+    }
+
+    /// Current status.
+    pub fn status(&self) -> HomingStatus {
+        self.status
+    }
+
+    /// True while the engine commands motion.
+    pub fn running(&self) -> bool {
+        !matches!(self.step, Step::Idle | Step::Done | Step::Error)
+    }
+
+    /// Reference edge found in the last run (user units at detection), for diagnostics.
+    pub fn edge(&self) -> Option<i32> {
+        self.edge
+    }
+
+    /// Forgets any run (mode change, disable): status Idle.
+    pub fn reset(&mut self) {
+        *self = Homing::new();
+    }
+
+    /// Starts a run (rising edge of controlword bit 4). Returns `Some(delta)` when the
+    /// home position is set immediately (methods 35/37): the caller shifts the
+    /// coordinates by `delta`.
+    pub fn start(&mut self, p: HomingParams, inp: &HomingInputs) -> Option<i32> {
+        *self = Homing::new();
+        self.params = Some(p);
+        let Some(m) = Method::describe(p.method) else {
+            self.fail_now();
+            return None;
+        };
+        self.method = Some(m);
+        if (m.needs_index() && !p.has_index) || m.needs_inputs() & !p.assigned != 0 {
+            self.fail_now();
+            return None;
+        }
+        let needs_motion = !matches!(m.kind, Kind::Here);
+        if needs_motion
+            && (p.slow <= 0.0 || p.acc <= 0.0 || (p.fast <= 0.0 && !matches!(m.kind, Kind::Index)))
+        {
+            self.fail_now();
+            return None;
+        }
+        self.status = HomingStatus::InProgress;
+        match m.kind {
+            Kind::Here => {
+                self.home = inp.actual;
+                self.step = Step::Done;
+                self.status = HomingStatus::Attained;
+                return Some(p.offset.wrapping_sub(inp.actual));
+            }
+            Kind::Index => self.step = Step::IndexSearch,
+            Kind::Zone { .. } => {
+                let active = inp.digital_inputs & DI_HOME != 0;
+                self.prev_active = active;
+                self.region = if active {
+                    Region::Inside
+                } else {
+                    Region::Unknown
+                };
+                self.plan();
+            }
+            Kind::Edge { sig, .. } => {
+                self.prev_active = inp.digital_inputs & sig.mask() != 0;
+                self.plan();
+            }
+        }
+        None
+    }
+
+    fn fail_now(&mut self) {
+        self.step = Step::Error;
+        self.status = HomingStatus::Error;
+    }
+
+    /// Ends a run that was interrupted (controlword bit 4 cleared, halt) once the axis
+    /// has stopped: the status becomes Idle ("interrupted / not started").
+    pub fn abort(&mut self) {
+        if self.running() {
+            self.step = Step::Idle;
+            self.status = HomingStatus::Idle;
+        }
+    }
+
+    /// Side of the axis relative to the reference edge: Some(true) = approach side.
+    fn side(&self, active: bool) -> Option<bool> {
+        let m = self.method?;
+        match m.kind {
+            Kind::Edge { level, .. } => Some(active == level),
+            Kind::Zone { upper, .. } => {
+                // Is the axis below the reference edge?
+                let below = match (self.region, upper) {
+                    (Region::Unknown, _) => return None,
+                    (Region::Below, _) => true,
+                    (Region::Inside, up) => up,
+                    (Region::Above, _) => false,
+                };
+                Some(below == (m.final_dir > 0))
+            }
+            _ => None,
+        }
+    }
+
+    fn plan(&mut self) {
+        let Some(m) = self.method else {
+            self.fail_now();
+            return;
+        };
+        match self.side(self.prev_active) {
+            None => {
+                if let Kind::Zone { init_dir, .. } = m.kind {
+                    self.step = Step::Locate { dir: init_dir };
+                }
+            }
+            Some(true) => {
+                self.step = Step::Seek {
+                    dir: m.final_dir,
+                    fast: true,
+                    to_p: false,
+                }
+            }
+            Some(false) => {
+                self.step = Step::Seek {
+                    dir: -m.final_dir,
+                    fast: true,
+                    to_p: true,
+                }
+            }
+        }
+    }
+
+    /// One cycle. Drives `motion` (user units) and returns `Some(delta)` when the home
+    /// position has been set: the caller shifts actual and demand positions by `delta`.
+    pub fn cycle(&mut self, motion: &mut Motion, inp: &HomingInputs, dt: f32) -> Option<i32> {
+        let (Some(p), Some(m)) = (self.params, self.method) else {
+            if self.running() {
+                self.fail_now();
+            }
+            return None;
+        };
+        let di = inp.digital_inputs;
+        let sig_mask = match m.kind {
+            Kind::Edge { sig, .. } => sig.mask(),
+            Kind::Zone { .. } => DI_HOME,
+            _ => 0,
+        };
+        let active = di & sig_mask != 0;
+        let v = motion.velocity();
+        let moving_dir: i8 = if v > 0.0 {
+            1
+        } else if v < 0.0 {
+            -1
+        } else {
+            0
+        };
+        let side_before = self.side(self.prev_active);
+        // Zone tracking from the switch edges and the direction of travel.
+        if let Kind::Zone { .. } = m.kind {
+            if active && !self.prev_active {
+                self.region = Region::Inside;
+            } else if !active && self.prev_active {
+                self.region = if moving_dir >= 0 {
+                    Region::Above
+                } else {
+                    Region::Below
+                };
+            }
+        }
+        self.prev_active = active;
+        let side = self.side(active);
+        // Limit switch in the direction of travel that the method does not home on.
+        let lim_mask = if moving_dir > 0 {
+            DI_POS_LIMIT
+        } else if moving_dir < 0 {
+            DI_NEG_LIMIT
+        } else {
+            0
+        };
+        let limit_hit = di & lim_mask & !sig_mask != 0;
+        let fast = p.fast;
+        let slow = p.slow;
+        let acc = p.acc;
+        match self.step {
+            Step::Idle | Step::Done | Step::Error => {
+                motion.stop(acc, dt);
+            }
+            Step::Locate { dir } => {
+                if side.is_some() {
+                    self.step = Step::Stopping {
+                        then: After::Replan,
+                    };
+                    motion.stop(acc, dt);
+                } else if limit_hit {
+                    let reversing =
+                        matches!(m.kind, Kind::Zone { init_dir, .. } if init_dir == dir);
+                    if reversing {
+                        self.region = if dir > 0 {
+                            Region::Above
+                        } else {
+                            Region::Below
+                        };
+                        self.step = Step::Stopping {
+                            then: After::Replan,
+                        };
+                    } else {
+                        self.step = Step::Stopping { then: After::Error };
+                    }
+                    motion.stop(acc, dt);
+                } else {
+                    motion.ramp_velocity(dir as f32 * fast, acc, acc, dt);
+                }
+            }
+            Step::Seek { dir, fast: f, to_p } => {
+                if side == Some(to_p) {
+                    let then = if to_p {
+                        After::Fine
+                    } else {
+                        After::SeekP { fast: false }
+                    };
+                    self.step = Step::Stopping { then };
+                    motion.stop(acc, dt);
+                } else if limit_hit {
+                    self.step = Step::Stopping { then: After::Error };
+                    motion.stop(acc, dt);
+                } else {
+                    let speed = if f { fast } else { slow };
+                    motion.ramp_velocity(dir as f32 * speed, acc, acc, dt);
+                }
+            }
+            Step::Fine => {
+                if side_before == Some(true) && side == Some(false) {
+                    self.edge = Some(inp.actual);
+                    if m.index {
+                        self.step = Step::IndexSearch;
+                        motion.ramp_velocity(m.final_dir as f32 * slow, acc, acc, dt);
+                    } else {
+                        self.home = inp.actual;
+                        self.step = Step::Stopping {
+                            then: After::Return,
+                        };
+                        motion.stop(acc, dt);
+                    }
+                } else if side == Some(false) {
+                    // Pushed over the edge before the approach started: approach again.
+                    self.step = Step::Seek {
+                        dir: -m.final_dir,
+                        fast: false,
+                        to_p: true,
+                    };
+                    motion.stop(acc, dt);
+                } else if limit_hit {
+                    self.step = Step::Stopping { then: After::Error };
+                    motion.stop(acc, dt);
+                } else {
+                    motion.ramp_velocity(m.final_dir as f32 * slow, acc, acc, dt);
+                }
+            }
+            Step::IndexSearch => {
+                let idx = inp.index.filter(|&i| match self.edge {
+                    Some(e) => i.wrapping_sub(e) as i64 * m.final_dir as i64 >= 0,
+                    None => true,
+                });
+                if let Some(i) = idx {
+                    self.home = i;
+                    self.step = Step::Stopping {
+                        then: After::Return,
+                    };
+                    motion.stop(acc, dt);
+                } else if limit_hit {
+                    self.step = Step::Stopping { then: After::Error };
+                    motion.stop(acc, dt);
+                } else {
+                    motion.ramp_velocity(m.final_dir as f32 * slow, acc, acc, dt);
+                }
+            }
+            Step::Stopping { then } => {
+                if motion.stop(acc, dt) {
+                    match then {
+                        After::Replan => self.plan(),
+                        After::SeekP { fast: f } => {
+                            self.step = Step::Seek {
+                                dir: -m.final_dir,
+                                fast: f,
+                                to_p: true,
+                            }
+                        }
+                        After::Fine => self.step = Step::Fine,
+                        After::Return => self.step = Step::Return,
+                        After::Error => self.fail_now(),
+                    }
+                }
+            }
+            Step::Return => {
+                if motion.to_position(self.home, slow, acc, acc, 0.0, 0.0, dt)
+                    == MoveStatus::Reached
+                {
+                    self.step = Step::Done;
+                    self.status = HomingStatus::Attained;
+                    return Some(p.offset.wrapping_sub(self.home));
+                }
+            }
+        }
+        None
+    }
+}

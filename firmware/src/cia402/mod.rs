@@ -1,0 +1,1327 @@
+//! CiA 402 (IEC 61800-7-201/-301) drive profile: power drive system, operating modes
+//! (PP, PV, HM, CSP, CSV), homing, touch probe, limits and supervision, and the
+//! 0x6000-0x6FFF part of the object dictionary.
+//!
+//! The application calls [`Cia402::cycle`] once per control cycle with the measured
+//! state of the axis ([`DriveFeedback`]) and gets the set-points for the servo loops
+//! ([`DriveCommand`]). The module knows nothing of the motor control crate: positions are
+//! `i32` command units (0x2001 per motor revolution), velocities command units/s.
+//!
+//! Coordinates: *raw* values are motor-side (what [`DriveFeedback`] reports and
+//! [`DriveCommand`] takes); *user* values are what the objects show:
+//! `user = polarity · raw + home shift` (0x607E bit 7 for positions, bit 6 for
+//! velocities; the home shift is set by homing so that the home position reads 0x607C).
+//!
+//! Submodules: [`pds`] (states and the transition table), [`profile`] (trajectory
+//! generator), [`homing`], [`probe`] (touch probe), [`objects`] (dictionary entries,
+//! SDO read/write, PDO slots).
+
+pub mod homing;
+pub mod objects;
+pub mod pds;
+pub mod probe;
+pub mod profile;
+
+use homing::{Homing, HomingInputs, HomingParams, HomingStatus};
+use pds::{Command, Event, Guard, PdsState};
+pub use probe::EdgeLatch;
+use probe::TouchProbe;
+use profile::{Motion, MoveStatus};
+
+/// Mode of operation values (0x6060 / 0x6061).
+pub mod mode {
+    /// No mode.
+    pub const NONE: i8 = 0;
+    /// Profile position.
+    pub const PP: i8 = 1;
+    /// Profile velocity.
+    pub const PV: i8 = 3;
+    /// Homing.
+    pub const HM: i8 = 6;
+    /// Cyclic synchronous position.
+    pub const CSP: i8 = 8;
+    /// Cyclic synchronous velocity.
+    pub const CSV: i8 = 9;
+}
+
+/// 0x6502: PP (bit 0), PV (bit 2), HM (bit 5), CSP (bit 7), CSV (bit 8).
+pub const SUPPORTED_MODES: u32 = (1 << 0) | (1 << 2) | (1 << 5) | (1 << 7) | (1 << 8);
+
+/// True if `m` may be written to 0x6060 (0 or a supported mode).
+pub const fn mode_supported(m: i8) -> bool {
+    m == 0 || (m >= 1 && m <= 32 && SUPPORTED_MODES & (1 << (m - 1)) != 0)
+}
+
+/// Error code (0x603F) of a following error.
+pub const ERR_FOLLOWING: u16 = 0x8611;
+/// Error code used when the ESM leaves Op while the drive function is enabled.
+pub const ERR_COMMUNICATION: u16 = 0x8100;
+
+/// Statusword bits.
+pub mod sw {
+    /// Voltage enabled.
+    pub const VOLTAGE_ENABLED: u16 = 1 << 4;
+    /// Warning.
+    pub const WARNING: u16 = 1 << 7;
+    /// Manufacturer (E5): abnormal stop (limit switch, quick stop, halt).
+    pub const ABNORMAL_STOP: u16 = 1 << 8;
+    /// Remote: the controlword is processed.
+    pub const REMOTE: u16 = 1 << 9;
+    /// Target reached.
+    pub const TARGET_REACHED: u16 = 1 << 10;
+    /// Internal limit active.
+    pub const INTERNAL_LIMIT: u16 = 1 << 11;
+    /// Mode specific: PP set-point acknowledge, PV speed zero, HM attained, CSx follows.
+    pub const BIT12: u16 = 1 << 12;
+    /// Mode specific: following error (PP, CSP), homing error (HM).
+    pub const BIT13: u16 = 1 << 13;
+    /// Manufacturer (E5): a motion parameter (0x6081 / 0x6083 / 0x6084) is zero.
+    pub const PARAM_ZERO: u16 = 1 << 14;
+    /// Manufacturer (E5): a new set-point can be accepted (PP).
+    pub const SETPOINT_FREE: u16 = 1 << 15;
+}
+
+/// Controlword bits used here besides the PDS command bits.
+mod cw {
+    pub const NEW_SETPOINT: u16 = 1 << 4;
+    pub const CHANGE_IMMEDIATELY: u16 = 1 << 5;
+    pub const RELATIVE: u16 = 1 << 6;
+    pub const FAULT_RESET: u16 = 1 << 7;
+    pub const HALT: u16 = 1 << 8;
+    pub const CHANGE_ON_SETPOINT: u16 = 1 << 9;
+}
+
+/// What the drive measured this cycle (raw, motor-side values).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct DriveFeedback {
+    /// Actual position (command units).
+    pub position: i32,
+    /// Actual velocity (command units/s).
+    pub velocity: i32,
+    /// Actual torque, per mille of rated torque (0x6077).
+    pub torque: i16,
+    /// Actual current, per mille of rated current (0x6078).
+    pub current: i16,
+    /// Digital inputs in 0x60FD layout (bit 0 negative limit, 1 positive limit, 2 home),
+    /// already mapped through the input functions 0x2152.
+    pub digital_inputs: u32,
+    /// Position latched at an encoder index pulse during this cycle.
+    pub index: Option<i32>,
+    /// Positions latched at the edges of input 1 (touch probe 1) during this cycle.
+    pub probe1: EdgeLatch,
+    /// Positions latched at the edges of input 2 (touch probe 2) during this cycle.
+    pub probe2: EdgeLatch,
+    /// Active fault condition as a CiA 402 error code (0 = none). While non-zero the
+    /// drive goes to / stays in Fault and a fault reset is refused.
+    pub fault: u16,
+    /// The power stage is already off because of the fault (over-current, …): the fault
+    /// reaction cannot ramp.
+    pub power_stage_tripped: bool,
+    /// A warning condition (statusword bit 7).
+    pub warning: bool,
+    /// The servo is at its current / torque limit (statusword bit 11).
+    pub current_limited: bool,
+    /// A quick-stop input function is active (acts like controlword bit 2 = 0).
+    pub quick_stop_input: bool,
+}
+
+/// Which set-point the servo loops should follow.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SetpointKind {
+    /// Follow `position`, with `velocity` as feed-forward.
+    #[default]
+    Position,
+    /// Follow `velocity` (CSV); `position` is its integral.
+    Velocity,
+}
+
+/// Set-points for the servo loops (raw, motor-side values).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct DriveCommand {
+    /// Power stage on (high voltage applied): Switched on, Operation enabled, Quick stop
+    /// active, Fault reaction active.
+    pub power_stage: bool,
+    /// Drive function enabled: the loops must control the motor.
+    pub drive_enabled: bool,
+    /// Which set-point is primary.
+    pub kind: SetpointKind,
+    /// Position demand (command units).
+    pub position: i32,
+    /// Velocity demand / feed-forward (command units/s).
+    pub velocity: f32,
+    /// Torque limit, per mille of rated torque (0x6072).
+    pub torque_limit: u16,
+    /// Release the holding brake.
+    pub brake_release: bool,
+}
+
+/// The writable CiA 402 parameters (values of the RW objects).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Params {
+    /// 0x605A quick stop option code.
+    pub quick_stop_option: i16,
+    /// 0x605B shutdown option code.
+    pub shutdown_option: i16,
+    /// 0x605C disable operation option code.
+    pub disable_op_option: i16,
+    /// 0x605D halt option code.
+    pub halt_option: i16,
+    /// 0x605E fault reaction option code.
+    pub fault_reaction_option: i16,
+    /// 0x6065 following error window (0xFFFFFFFF = off).
+    pub following_error_window: u32,
+    /// 0x6066 following error time-out (ms).
+    pub following_error_timeout: u16,
+    /// 0x6067 position window.
+    pub position_window: u32,
+    /// 0x6068 position window time (ms).
+    pub position_window_time: u16,
+    /// 0x606D velocity window.
+    pub velocity_window: u16,
+    /// 0x606E velocity window time (ms).
+    pub velocity_window_time: u16,
+    /// 0x606F velocity threshold (speed zero).
+    pub velocity_threshold: u16,
+    /// 0x6072 max torque (per mille).
+    pub max_torque: u16,
+    /// 0x6073 max current (per mille).
+    pub max_current: u16,
+    /// 0x607A target position.
+    pub target_position: i32,
+    /// 0x607C home offset.
+    pub home_offset: i32,
+    /// 0x607D:01 min software position limit.
+    pub sw_limit_min: i32,
+    /// 0x607D:02 max software position limit.
+    pub sw_limit_max: i32,
+    /// 0x607E polarity.
+    pub polarity: u8,
+    /// 0x607F max profile velocity.
+    pub max_profile_velocity: u32,
+    /// 0x6080 max motor speed (command units/s).
+    pub max_motor_speed: u32,
+    /// 0x6081 profile velocity.
+    pub profile_velocity: u32,
+    /// 0x6082 start/stop speed (E5).
+    pub start_stop_speed: u32,
+    /// 0x6083 profile acceleration.
+    pub profile_acceleration: u32,
+    /// 0x6084 profile deceleration.
+    pub profile_deceleration: u32,
+    /// 0x6085 quick stop deceleration.
+    pub quick_stop_deceleration: u32,
+    /// 0x6086 motion profile type (0 = trapezoid).
+    pub motion_profile_type: i16,
+    /// 0x6098 homing method.
+    pub homing_method: i8,
+    /// 0x6099:01 speed during search for switch.
+    pub homing_speed_switch: u32,
+    /// 0x6099:02 speed during search for zero.
+    pub homing_speed_zero: u32,
+    /// 0x609A homing acceleration.
+    pub homing_acceleration: u32,
+    /// 0x60B0 position offset.
+    pub position_offset: i32,
+    /// 0x60B1 velocity offset.
+    pub velocity_offset: i32,
+    /// 0x60C2:01 interpolation period value.
+    pub interpolation_period: u8,
+    /// 0x60C2:02 interpolation period index (power of ten).
+    pub interpolation_index: i8,
+    /// 0x60C5 max acceleration.
+    pub max_acceleration: u32,
+    /// 0x60C6 max deceleration.
+    pub max_deceleration: u32,
+    /// 0x60F2 positioning option code.
+    pub positioning_option: u16,
+    /// 0x60FE:01 physical outputs.
+    pub digital_outputs: u32,
+    /// 0x60FE:02 output bit mask.
+    pub digital_outputs_mask: u32,
+    /// 0x60FF target velocity.
+    pub target_velocity: i32,
+}
+
+impl Params {
+    /// The defaults (same values as the `default` of the dictionary entries).
+    pub const DEFAULT: Params = Params {
+        quick_stop_option: 2,
+        shutdown_option: 0,
+        disable_op_option: 1,
+        halt_option: 1,
+        fault_reaction_option: 2,
+        following_error_window: 50_000,
+        following_error_timeout: 100,
+        position_window: 100,
+        position_window_time: 0,
+        velocity_window: 100,
+        velocity_window_time: 0,
+        velocity_threshold: 100,
+        max_torque: 1000,
+        max_current: 1000,
+        target_position: 0,
+        home_offset: 0,
+        sw_limit_min: i32::MIN,
+        sw_limit_max: i32::MAX,
+        polarity: 0,
+        max_profile_velocity: 5_000_000,
+        max_motor_speed: 5_000_000,
+        profile_velocity: 50_000,
+        start_stop_speed: 0,
+        profile_acceleration: 500_000,
+        profile_deceleration: 500_000,
+        quick_stop_deceleration: 2_000_000,
+        motion_profile_type: 0,
+        homing_method: 37,
+        homing_speed_switch: 20_000,
+        homing_speed_zero: 2_000,
+        homing_acceleration: 200_000,
+        position_offset: 0,
+        velocity_offset: 0,
+        interpolation_period: 1,
+        interpolation_index: -3,
+        max_acceleration: 100_000_000,
+        max_deceleration: 100_000_000,
+        positioning_option: 0,
+        digital_outputs: 0,
+        digital_outputs_mask: 0,
+        target_velocity: 0,
+    };
+
+    fn vmax(&self) -> f32 {
+        self.max_profile_velocity.min(self.max_motor_speed) as f32
+    }
+    fn acc(&self, a: u32) -> f32 {
+        a.min(self.max_acceleration) as f32
+    }
+    fn dec(&self, a: u32) -> f32 {
+        a.min(self.max_deceleration) as f32
+    }
+    /// Deceleration of a stop option (1 slow-down, 2 quick-stop, 3/4 limit); `None` =
+    /// disable the drive function at once.
+    fn option_decel(&self, code: i16) -> Option<f32> {
+        match code {
+            1 | 5 => Some(self.dec(self.profile_deceleration)),
+            2 | 6 => Some(self.quick_stop_deceleration as f32),
+            3 | 4 | 7 | 8 => Some(self.max_deceleration as f32),
+            _ => None,
+        }
+    }
+    fn sw_limits(&self) -> Option<(i32, i32)> {
+        if self.sw_limit_min < self.sw_limit_max
+            && (self.sw_limit_min != i32::MIN || self.sw_limit_max != i32::MAX)
+        {
+            Some((self.sw_limit_min, self.sw_limit_max))
+        } else {
+            None
+        }
+    }
+    /// Interpolation period of 0x60C2 in seconds (0 if unset).
+    pub fn interpolation_period_s(&self) -> f32 {
+        let mut t = self.interpolation_period as f32;
+        let mut i = self.interpolation_index;
+        while i < 0 {
+            t *= 0.1;
+            i += 1;
+        }
+        while i > 0 {
+            t *= 10.0;
+            i -= 1;
+        }
+        t
+    }
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// One PP set-point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Setpoint {
+    target: i32,
+    vel: f32,
+    acc: f32,
+    dec: f32,
+}
+
+/// Profile position state.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct Pp {
+    active: Option<Setpoint>,
+    buffered: Option<Setpoint>,
+    ack: bool,
+    last_target: i32,
+    /// The running target was clamped by the software limits.
+    clamped: bool,
+}
+
+/// CSP / CSV interpolation state.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct Cyclic {
+    from: i32,
+    to: i32,
+    elapsed: f32,
+    started: bool,
+}
+
+/// A stop in Operation enabled that is not a PDS state of its own.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Pending {
+    None,
+    /// Transition 5 or 8 waits for the slow-down ramp.
+    Transition(Command),
+}
+
+/// The CiA 402 drive profile.
+#[derive(Debug, Clone)]
+pub struct Cia402 {
+    /// The writable parameters.
+    pub params: Params,
+    state: PdsState,
+    controlword: u16,
+    prev_cw: u16,
+    mode_request: i8,
+    mode: i8,
+    motion: Motion,
+    pp: Pp,
+    hm: Homing,
+    cyc: Cyclic,
+    probe: TouchProbe,
+    pending: Pending,
+    error_code: u16,
+    latched_fault: u16,
+    init_done: bool,
+    shift: i32,
+    // Measured / derived values.
+    raw_position: i32,
+    actual_position: i32,
+    actual_velocity: i32,
+    actual_torque: i16,
+    actual_current: i16,
+    digital_inputs: u32,
+    following_error: i32,
+    statusword: u16,
+    // Supervision.
+    fe_time: f32,
+    fe_flag: bool,
+    window_time: f32,
+    vel_window_time: f32,
+    target_reached: bool,
+    internal_limit: bool,
+    abnormal_stop: bool,
+    halted: bool,
+    // Configuration from the application.
+    has_index: bool,
+    assigned_inputs: u32,
+    rated_current_ma: u32,
+    encoder_increments: u32,
+    units_per_rev: u32,
+}
+
+impl Default for Cia402 {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+fn pol(neg: bool, v: i32) -> i32 {
+    if neg {
+        v.wrapping_neg()
+    } else {
+        v
+    }
+}
+
+impl Cia402 {
+    /// Power-on (transition 0): Not ready to switch on, default parameters.
+    pub fn new() -> Self {
+        Cia402 {
+            params: Params::DEFAULT,
+            state: PdsState::NotReadyToSwitchOn,
+            controlword: 0,
+            prev_cw: 0,
+            mode_request: 0,
+            mode: 0,
+            motion: Motion::at(0),
+            pp: Pp::default(),
+            hm: Homing::new(),
+            cyc: Cyclic::default(),
+            probe: TouchProbe::default(),
+            pending: Pending::None,
+            error_code: 0,
+            latched_fault: 0,
+            init_done: false,
+            shift: 0,
+            raw_position: 0,
+            actual_position: 0,
+            actual_velocity: 0,
+            actual_torque: 0,
+            actual_current: 0,
+            digital_inputs: 0,
+            following_error: 0,
+            statusword: 0,
+            fe_time: 0.0,
+            fe_flag: false,
+            window_time: 0.0,
+            vel_window_time: 0.0,
+            target_reached: false,
+            internal_limit: false,
+            abnormal_stop: false,
+            halted: false,
+            has_index: true,
+            assigned_inputs: homing::DI_NEG_LIMIT | homing::DI_POS_LIMIT | homing::DI_HOME,
+            rated_current_ma: 3200,
+            encoder_increments: 4000,
+            units_per_rev: 50_000,
+        }
+    }
+
+    // ----- configuration from the application -----
+
+    /// Whether an encoder index pulse exists (hybrid servo with Z). Without it the
+    /// index homing methods end in homing error and index touch probes never trigger.
+    pub fn set_has_index(&mut self, yes: bool) {
+        self.has_index = yes;
+    }
+    /// Which 0x60FD bits (limit and home switches) are assigned to inputs (0x2152).
+    pub fn set_assigned_inputs(&mut self, mask: u32) {
+        self.assigned_inputs = mask;
+    }
+    /// Rated motor current shown in 0x6075 (mA).
+    pub fn set_rated_current_ma(&mut self, ma: u32) {
+        self.rated_current_ma = ma;
+    }
+    /// Encoder increments per motor revolution (0x608F:01) and command units per
+    /// revolution (0x2001, shown as feed in 0x6092:01).
+    pub fn set_resolution(&mut self, encoder_increments: u32, units_per_rev: u32) {
+        self.encoder_increments = encoder_increments;
+        self.units_per_rev = units_per_rev;
+    }
+
+    // ----- ESM coupling -----
+
+    /// The ESM left Op (Op → Safe-Op / Pre-Op / Init, watchdog). With the drive function
+    /// enabled (Operation enabled, Quick stop active) this is a fault (0x8100, reaction
+    /// 0x605E); Switched on / Ready to switch on fall to Switch on disabled. The
+    /// controlword is cleared (no master commands outside Op).
+    pub fn on_esm_left_op_while_enabled(&mut self) {
+        self.controlword = 0;
+        self.prev_cw = 0;
+        match self.state {
+            PdsState::OperationEnabled | PdsState::QuickStopActive => {
+                self.fault_detected(ERR_COMMUNICATION)
+            }
+            PdsState::SwitchedOn | PdsState::ReadyToSwitchOn => {
+                self.enter(PdsState::SwitchOnDisabled);
+            }
+            _ => {}
+        }
+    }
+
+    /// The ESM went to Init: the PDS goes to Switch on disabled (from any state; a fault
+    /// whose condition persists is raised again by the next cycle).
+    pub fn on_esm_init(&mut self) {
+        self.controlword = 0;
+        self.prev_cw = 0;
+        self.latched_fault = 0;
+        self.error_code = 0;
+        self.init_done = true;
+        self.enter(PdsState::SwitchOnDisabled);
+    }
+
+    /// Raises a fault detected elsewhere (transition 13, 0x603F = `code`). It stays
+    /// latched until a fault reset.
+    pub fn raise_fault(&mut self, code: u16) {
+        self.latched_fault = code;
+        self.fault_detected(code);
+    }
+
+    // ----- values -----
+
+    /// PDS state.
+    pub fn state(&self) -> PdsState {
+        self.state
+    }
+    /// 0x6041 as computed in the last cycle.
+    pub fn statusword(&self) -> u16 {
+        self.statusword
+    }
+    /// 0x6040.
+    pub fn controlword(&self) -> u16 {
+        self.controlword
+    }
+    /// Writes 0x6040 (acts in the next cycle).
+    pub fn set_controlword(&mut self, cw: u16) {
+        self.controlword = cw;
+    }
+    /// 0x6060.
+    pub fn mode_request(&self) -> i8 {
+        self.mode_request
+    }
+    /// Writes 0x6060; unsupported values are ignored (the SDO path refuses them).
+    pub fn set_mode(&mut self, m: i8) {
+        if mode_supported(m) {
+            self.mode_request = m;
+        }
+    }
+    /// 0x6061.
+    pub fn mode_display(&self) -> i8 {
+        self.mode
+    }
+    /// 0x603F.
+    pub fn error_code(&self) -> u16 {
+        self.error_code
+    }
+    /// 0x6064.
+    pub fn position_actual(&self) -> i32 {
+        self.actual_position
+    }
+    /// 0x6062 position demand value (user units).
+    pub fn position_demand(&self) -> i32 {
+        self.motion.position()
+    }
+    /// 0x60FC position demand internal value (raw).
+    pub fn position_demand_internal(&self) -> i32 {
+        self.user_to_raw(self.motion.position())
+    }
+    /// 0x606B velocity demand value.
+    pub fn velocity_demand(&self) -> i32 {
+        self.motion.velocity() as i32
+    }
+    /// 0x606C.
+    pub fn velocity_actual(&self) -> i32 {
+        self.actual_velocity
+    }
+    /// 0x60F4.
+    pub fn following_error(&self) -> i32 {
+        self.following_error
+    }
+    /// 0x60FD.
+    pub fn digital_inputs(&self) -> u32 {
+        self.digital_inputs
+    }
+    /// 0x60FE:01 masked by 0x60FE:02: the outputs the master drives.
+    pub fn digital_outputs(&self) -> u32 {
+        self.params.digital_outputs & self.params.digital_outputs_mask
+    }
+    /// Touch probe state.
+    pub fn touch_probe(&self) -> &TouchProbe {
+        &self.probe
+    }
+    /// Homing status.
+    pub fn homing_status(&self) -> HomingStatus {
+        self.hm.status()
+    }
+
+    fn pos_neg(&self) -> bool {
+        self.params.polarity & 0x80 != 0
+    }
+    fn vel_neg(&self) -> bool {
+        self.params.polarity & 0x40 != 0
+    }
+    fn raw_to_user(&self, raw: i32) -> i32 {
+        pol(self.pos_neg(), raw).wrapping_add(self.shift)
+    }
+    fn user_to_raw(&self, user: i32) -> i32 {
+        pol(self.pos_neg(), user.wrapping_sub(self.shift))
+    }
+
+    // ----- PDS -----
+
+    fn enter(&mut self, to: PdsState) {
+        let from = self.state;
+        self.state = to;
+        self.pending = Pending::None;
+        if to == PdsState::OperationEnabled && from != PdsState::QuickStopActive {
+            // Transition 4: clear internal set-points, start from where the axis is.
+            self.motion.reset(self.actual_position);
+            self.pp = Pp {
+                last_target: self.actual_position,
+                ..Pp::default()
+            };
+            self.hm.reset();
+            self.cyc = Cyclic::default();
+            self.fe_time = 0.0;
+            self.fe_flag = false;
+        }
+        if !to.voltage_enabled() || to == PdsState::SwitchedOn {
+            self.hm.reset();
+        }
+    }
+
+    fn fault_detected(&mut self, code: u16) {
+        if matches!(self.state, PdsState::Fault | PdsState::FaultReactionActive) {
+            return;
+        }
+        self.error_code = code;
+        if let Some(t) = pds::find(self.state, Event::FaultDetected, |_| true) {
+            self.enter(t.to);
+        }
+    }
+
+    fn guard_ok(&self, g: Guard, fault_now: u16) -> bool {
+        match g {
+            Guard::None => true,
+            Guard::QuickStopStays => (5..=8).contains(&self.params.quick_stop_option),
+            Guard::QuickStopEnds => !(5..=8).contains(&self.params.quick_stop_option),
+            Guard::FaultCleared => fault_now == 0 && self.latched_fault == 0,
+        }
+    }
+
+    /// Fires the transition for `ev`, if any. Returns its number.
+    fn fire(&mut self, ev: Event, fault_now: u16) -> Option<u8> {
+        let t = pds::find(self.state, ev, |g| self.guard_ok(g, fault_now))?;
+        self.enter(t.to);
+        Some(t.number)
+    }
+
+    /// One control cycle (`dt` in seconds).
+    pub fn cycle(&mut self, fb: &DriveFeedback, dt: f32) -> DriveCommand {
+        let dt = if dt > 0.0 && dt < 1.0 { dt } else { 0.001 };
+        // 1. Measured values in user units.
+        self.raw_position = fb.position;
+        self.actual_position = self.raw_to_user(fb.position);
+        self.actual_velocity = pol(self.vel_neg(), fb.velocity);
+        self.actual_torque = fb.torque;
+        self.actual_current = fb.current;
+        self.digital_inputs = fb.digital_inputs;
+        let index = if self.has_index { fb.index } else { None };
+        {
+            let neg = self.pos_neg();
+            let shift = self.shift;
+            self.probe.update(fb.probe1, fb.probe2, index, |r| {
+                pol(neg, r).wrapping_add(shift)
+            });
+        }
+
+        // 2. PDS transitions.
+        if !self.init_done {
+            self.init_done = true;
+            self.fire(Event::InitDone, fb.fault);
+        }
+        if fb.fault != 0 {
+            self.fault_detected(fb.fault);
+        }
+        let cwv = self.controlword;
+        let reset_edge = cwv & cw::FAULT_RESET != 0 && self.prev_cw & cw::FAULT_RESET == 0;
+        if reset_edge
+            && self.state == PdsState::Fault
+            && self.fire(Event::FaultResetEdge, fb.fault).is_some()
+        {
+            self.error_code = 0;
+            self.fe_flag = false;
+        }
+        let mut cmd = Command::decode(cwv);
+        if fb.quick_stop_input
+            && matches!(
+                cmd,
+                Command::Shutdown | Command::SwitchOn | Command::EnableOperation
+            )
+        {
+            cmd = Command::QuickStop;
+        }
+        if cmd != Command::FaultReset {
+            self.apply_command(cmd, fb);
+        }
+
+        // 3. Mode switch (0x6061 follows 0x6060 once the new mode runs).
+        if self.mode != self.mode_request {
+            self.mode = self.mode_request;
+            self.pp = Pp {
+                last_target: self.motion.position(),
+                ..Pp::default()
+            };
+            self.hm.reset();
+            self.cyc = Cyclic::default();
+        }
+
+        // 4. Motion.
+        self.internal_limit = false;
+        self.abnormal_stop = false;
+        self.halted = false;
+        let mut drive_enabled = false;
+        let mut kind = SetpointKind::Position;
+        match self.state {
+            PdsState::OperationEnabled => {
+                drive_enabled = true;
+                if let Pending::Transition(c) = self.pending {
+                    let code = if c == Command::Shutdown {
+                        self.params.shutdown_option
+                    } else {
+                        self.params.disable_op_option
+                    };
+                    let dec = self.params.option_decel(code).unwrap_or(0.0);
+                    if self.motion.stop(dec, dt) {
+                        let ev = Event::Cmd(c);
+                        self.fire(ev, fb.fault);
+                        drive_enabled = false;
+                    }
+                } else {
+                    kind = self.run_mode(index, dt);
+                }
+            }
+            PdsState::QuickStopActive => {
+                self.abnormal_stop = true;
+                drive_enabled = true;
+                let code = self.params.quick_stop_option;
+                let stopped = match self.params.option_decel(code) {
+                    Some(dec) => self.motion.stop(dec, dt),
+                    None => {
+                        drive_enabled = false;
+                        true
+                    }
+                };
+                self.target_reached = stopped;
+                if stopped && self.fire(Event::QuickStopDone, fb.fault).is_some() {
+                    drive_enabled = false;
+                }
+            }
+            PdsState::FaultReactionActive => {
+                drive_enabled = !fb.power_stage_tripped;
+                let stopped = match (
+                    fb.power_stage_tripped,
+                    self.params.option_decel(self.params.fault_reaction_option),
+                ) {
+                    (false, Some(dec)) => self.motion.stop(dec, dt),
+                    _ => true,
+                };
+                if stopped {
+                    self.fire(Event::FaultReactionDone, fb.fault);
+                    drive_enabled = false;
+                }
+            }
+            _ => {}
+        }
+        if !drive_enabled {
+            self.motion.reset(self.actual_position);
+        }
+
+        // 5. Supervision.
+        self.following_error = self.motion.position().wrapping_sub(self.actual_position);
+        let position_mode = matches!(self.mode, mode::PP | mode::HM | mode::CSP);
+        if drive_enabled && position_mode && self.params.following_error_window != u32::MAX {
+            if self.following_error.unsigned_abs() > self.params.following_error_window {
+                self.fe_time += dt;
+                if self.fe_time * 1000.0 > self.params.following_error_timeout as f32 {
+                    self.fe_flag = true;
+                    self.latched_fault = ERR_FOLLOWING;
+                    self.fault_detected(ERR_FOLLOWING);
+                }
+            } else {
+                self.fe_time = 0.0;
+            }
+        } else {
+            self.fe_time = 0.0;
+        }
+        if fb.current_limited
+            || (self.params.max_torque > 0 && fb.torque.unsigned_abs() >= self.params.max_torque)
+        {
+            self.internal_limit = true;
+        }
+
+        // 6. Statusword.
+        self.statusword = self.build_statusword(fb);
+        self.prev_cw = cwv;
+
+        let power = self.state.voltage_enabled();
+        DriveCommand {
+            power_stage: power,
+            drive_enabled,
+            kind,
+            position: self.user_to_raw(self.motion.position()),
+            velocity: {
+                let v = self.motion.velocity();
+                if self.vel_neg() {
+                    -v
+                } else {
+                    v
+                }
+            },
+            torque_limit: self.params.max_torque,
+            brake_release: drive_enabled,
+        }
+    }
+
+    fn apply_command(&mut self, cmd: Command, fb: &DriveFeedback) {
+        // Transitions 5 and 8 with a slow-down option wait for the ramp.
+        if self.state == PdsState::OperationEnabled
+            && matches!(cmd, Command::SwitchOn | Command::Shutdown)
+        {
+            let code = if cmd == Command::Shutdown {
+                self.params.shutdown_option
+            } else {
+                self.params.disable_op_option
+            };
+            if code == 1 && self.motion.velocity() != 0.0 {
+                self.pending = Pending::Transition(cmd);
+                return;
+            }
+        }
+        if self.state == PdsState::OperationEnabled && self.pending != Pending::None {
+            self.pending = Pending::None;
+        }
+        self.fire(Event::Cmd(cmd), fb.fault);
+    }
+
+    /// Runs the active mode in Operation enabled; returns the set-point kind.
+    fn run_mode(&mut self, index: Option<i32>, dt: f32) -> SetpointKind {
+        let cwv = self.controlword;
+        let halt = cwv & cw::HALT != 0;
+        let p = self.params;
+        let di = self.digital_inputs;
+        let homing = self.mode == mode::HM;
+        // Hardware limits (not while homing: homing uses them as references).
+        let pos_lim = !homing && di & homing::DI_POS_LIMIT != 0;
+        let neg_lim = !homing && di & homing::DI_NEG_LIMIT != 0;
+        if pos_lim || neg_lim {
+            self.internal_limit = true;
+        }
+        let qs_dec = p.quick_stop_deceleration as f32;
+        match self.mode {
+            mode::PP => {
+                self.run_pp(halt, pos_lim, neg_lim, dt);
+                SetpointKind::Position
+            }
+            mode::PV => {
+                let vmax = p.vmax();
+                let mut target = (p.target_velocity as f32).clamp(-vmax, vmax);
+                let mut dec = p.dec(p.profile_deceleration);
+                if halt {
+                    self.halted = true;
+                    self.abnormal_stop = true;
+                    target = 0.0;
+                    dec = p.option_decel(p.halt_option).unwrap_or(0.0);
+                }
+                let v = self.motion.velocity();
+                if (pos_lim && (target > 0.0 || v > 0.0)) || (neg_lim && (target < 0.0 || v < 0.0))
+                {
+                    self.abnormal_stop = true;
+                    target = 0.0;
+                    dec = qs_dec;
+                }
+                if let Some((lo, hi)) = p.sw_limits() {
+                    let pos = self.motion.position() as f32;
+                    let brake = v * v / (2.0 * dec.max(1.0));
+                    if (v >= 0.0 && target > 0.0 && pos + brake >= hi as f32)
+                        || (v <= 0.0 && target < 0.0 && pos - brake <= lo as f32)
+                    {
+                        self.internal_limit = true;
+                        target = 0.0;
+                    }
+                }
+                self.motion
+                    .ramp_velocity(target, p.acc(p.profile_acceleration), dec, dt);
+                let tv = target as i32;
+                let reached = self.actual_velocity.wrapping_sub(tv).unsigned_abs()
+                    <= p.velocity_window as u32;
+                self.vel_window_time = if reached {
+                    self.vel_window_time + dt
+                } else {
+                    0.0
+                };
+                self.target_reached = if halt {
+                    self.motion.velocity() == 0.0
+                } else {
+                    reached && self.vel_window_time * 1000.0 >= p.velocity_window_time as f32
+                };
+                SetpointKind::Position
+            }
+            mode::HM => {
+                self.run_hm(halt, index, dt);
+                SetpointKind::Position
+            }
+            mode::CSP | mode::CSV => {
+                let csv = self.mode == mode::CSV;
+                if halt {
+                    self.halted = true;
+                    self.abnormal_stop = true;
+                    self.cyc.started = false;
+                    self.motion
+                        .stop(p.option_decel(p.halt_option).unwrap_or(0.0), dt);
+                    return if csv {
+                        SetpointKind::Velocity
+                    } else {
+                        SetpointKind::Position
+                    };
+                }
+                if csv {
+                    let vmax = p.vmax();
+                    let mut v = (p.target_velocity.saturating_add(p.velocity_offset) as f32)
+                        .clamp(-vmax, vmax);
+                    if (pos_lim && v > 0.0) || (neg_lim && v < 0.0) {
+                        self.abnormal_stop = true;
+                        v = 0.0;
+                    }
+                    // Direct set-point every cycle (no ramp); the position integrates it.
+                    self.motion.run_at(v, dt);
+                    self.clamp_sw_limit();
+                    SetpointKind::Velocity
+                } else {
+                    self.run_csp(pos_lim, neg_lim, dt);
+                    SetpointKind::Position
+                }
+            }
+            _ => {
+                self.motion.stop(qs_dec, dt);
+                SetpointKind::Position
+            }
+        }
+    }
+
+    fn clamp_sw_limit(&mut self) -> bool {
+        if let Some((lo, hi)) = self.params.sw_limits() {
+            let pos = self.motion.position();
+            let v = self.motion.velocity();
+            if pos > hi || (pos == hi && v > 0.0) {
+                self.motion.set(hi, 0.0);
+                self.internal_limit = true;
+                return true;
+            }
+            if pos < lo || (pos == lo && v < 0.0) {
+                self.motion.set(lo, 0.0);
+                self.internal_limit = true;
+                return true;
+            }
+        }
+        false
+    }
+
+    fn run_csp(&mut self, pos_lim: bool, neg_lim: bool, dt: f32) {
+        let p = self.params;
+        let mut target = p.target_position.wrapping_add(p.position_offset);
+        if let Some((lo, hi)) = p.sw_limits() {
+            if target > hi {
+                target = hi;
+                self.internal_limit = true;
+            } else if target < lo {
+                target = lo;
+                self.internal_limit = true;
+            }
+        }
+        let cur = self.motion.position();
+        let period = p.interpolation_period_s();
+        let period = if period > dt * 0.999 { period } else { dt };
+        if !self.cyc.started {
+            self.cyc = Cyclic {
+                from: cur,
+                to: cur,
+                elapsed: period,
+                started: true,
+            };
+        }
+        if self.cyc.elapsed >= period * 0.999 {
+            // A new interpolation segment starts at every period boundary.
+            self.cyc.from = self.cyc.to;
+            self.cyc.to = target;
+            self.cyc.elapsed = 0.0;
+        }
+        self.cyc.elapsed += dt;
+        let seg = self.cyc.to.wrapping_sub(self.cyc.from);
+        let frac = self.cyc.elapsed / period;
+        let frac = if frac > 0.999 { 1.0 } else { frac };
+        let mut demand = self.cyc.from.wrapping_add((seg as f32 * frac) as i32);
+        let mut vel = seg as f32 / period + p.velocity_offset as f32;
+        let d = demand.wrapping_sub(cur);
+        if (pos_lim && d > 0) || (neg_lim && d < 0) {
+            self.abnormal_stop = true;
+            demand = cur;
+            vel = 0.0;
+            self.cyc.to = cur;
+            self.cyc.from = cur;
+        }
+        self.motion.set(demand, vel);
+    }
+
+    fn run_pp(&mut self, halt: bool, pos_lim: bool, neg_lim: bool, dt: f32) {
+        let cwv = self.controlword;
+        let p = self.params;
+        let rising = cwv & cw::NEW_SETPOINT != 0 && self.prev_cw & cw::NEW_SETPOINT == 0;
+        let params_ok =
+            p.profile_velocity != 0 && p.profile_acceleration != 0 && p.profile_deceleration != 0;
+        if rising && params_ok {
+            let base = self
+                .pp
+                .buffered
+                .or(self.pp.active)
+                .map_or(self.pp.last_target, |s| s.target);
+            let target = if cwv & cw::RELATIVE != 0 {
+                let reference = match p.positioning_option & 0x3 {
+                    1 => self.motion.position(),
+                    2 => self.actual_position,
+                    _ => base,
+                };
+                reference.wrapping_add(p.target_position)
+            } else {
+                p.target_position
+            };
+            let sp = Setpoint {
+                target,
+                vel: (p.profile_velocity as f32).min(p.vmax()),
+                acc: p.acc(p.profile_acceleration),
+                dec: p.dec(p.profile_deceleration),
+            };
+            self.pp.clamped = false;
+            if self.pp.active.is_none() || cwv & cw::CHANGE_IMMEDIATELY != 0 {
+                if let Some(a) = self.pp.active {
+                    self.pp.last_target = a.target;
+                }
+                self.pp.active = Some(sp);
+                self.pp.buffered = None;
+                self.pp.ack = true;
+            } else if self.pp.buffered.is_none() {
+                self.pp.buffered = Some(sp);
+                self.pp.ack = true;
+            }
+        }
+        if cwv & cw::NEW_SETPOINT == 0 && self.pp.buffered.is_none() {
+            self.pp.ack = false;
+        }
+        // Software limits: clamp the running targets.
+        if let Some((lo, hi)) = p.sw_limits() {
+            for sp in [self.pp.active.as_mut(), self.pp.buffered.as_mut()]
+                .into_iter()
+                .flatten()
+            {
+                if sp.target > hi {
+                    sp.target = hi;
+                    self.pp.clamped = true;
+                } else if sp.target < lo {
+                    sp.target = lo;
+                    self.pp.clamped = true;
+                }
+            }
+        }
+        if self.pp.clamped {
+            self.internal_limit = true;
+        }
+        let qs_dec = p.quick_stop_deceleration as f32;
+        if halt {
+            self.halted = true;
+            self.abnormal_stop = true;
+            self.pp.active = None;
+            self.pp.buffered = None;
+            let dec = p.option_decel(p.halt_option).unwrap_or(0.0);
+            let stopped = self.motion.stop(dec, dt);
+            self.pp.last_target = self.motion.position();
+            self.target_reached = stopped;
+            return;
+        }
+        // Hardware limit in the direction of travel: abort with the quick-stop ramp.
+        let v = self.motion.velocity();
+        let toward = |t: i32, pos: i32| t.wrapping_sub(pos);
+        if let Some(a) = self.pp.active {
+            let d = toward(a.target, self.motion.position());
+            if (pos_lim && (d > 0 || v > 0.0)) || (neg_lim && (d < 0 || v < 0.0)) {
+                self.pp.active = None;
+                self.pp.buffered = None;
+            }
+        }
+        if self.pp.active.is_none() && ((pos_lim && v > 0.0) || (neg_lim && v < 0.0)) {
+            self.abnormal_stop = true;
+        }
+        if let Some(a) = self.pp.active {
+            let through = cwv & cw::CHANGE_ON_SETPOINT != 0
+                && self.pp.buffered.is_some_and(|b| {
+                    let d1 = a.target.wrapping_sub(self.motion.position());
+                    let d2 = b.target.wrapping_sub(a.target);
+                    (d1 >= 0) == (d2 >= 0) && d2 != 0
+                });
+            let vt = if through {
+                a.vel.min(self.pp.buffered.map_or(0.0, |b| b.vel))
+            } else {
+                0.0
+            };
+            let st = self.motion.to_position(
+                a.target,
+                a.vel,
+                a.acc,
+                a.dec,
+                vt,
+                p.start_stop_speed as f32,
+                dt,
+            );
+            if st != MoveStatus::Moving {
+                self.pp.last_target = a.target;
+                self.pp.active = self.pp.buffered.take();
+            }
+        } else {
+            let dec = if self.abnormal_stop {
+                qs_dec
+            } else {
+                p.dec(p.profile_deceleration)
+            };
+            self.motion.stop(dec, dt);
+        }
+        // Target reached: no set-point left and the axis in the window for 0x6068 ms.
+        let done = self.pp.active.is_none() && self.motion.velocity() == 0.0;
+        let inwin = self
+            .motion
+            .position()
+            .wrapping_sub(self.actual_position)
+            .unsigned_abs()
+            <= p.position_window;
+        self.window_time = if done && inwin {
+            self.window_time + dt
+        } else {
+            0.0
+        };
+        self.target_reached =
+            done && inwin && self.window_time * 1000.0 >= p.position_window_time as f32;
+    }
+
+    fn run_hm(&mut self, halt: bool, index: Option<i32>, dt: f32) {
+        let cwv = self.controlword;
+        let p = self.params;
+        let inp = HomingInputs {
+            digital_inputs: self.digital_inputs,
+            actual: self.actual_position,
+            index: index.map(|r| self.raw_to_user(r)),
+        };
+        let start = cwv & cw::NEW_SETPOINT != 0 && self.prev_cw & cw::NEW_SETPOINT == 0;
+        let mut shift = None;
+        if halt || cwv & cw::NEW_SETPOINT == 0 {
+            // Halt or bit 4 cleared: interrupt (stop, status "interrupted").
+            let dec = if halt {
+                self.halted = true;
+                self.abnormal_stop = true;
+                p.option_decel(p.halt_option).unwrap_or(0.0)
+            } else {
+                p.acc(p.homing_acceleration)
+                    .min(p.dec(p.homing_acceleration))
+            };
+            if self.motion.stop(dec, dt) && self.hm.running() {
+                self.hm.abort();
+            }
+        } else if start {
+            let hp = HomingParams {
+                method: p.homing_method,
+                fast: (p.homing_speed_switch as f32).min(p.vmax()),
+                slow: (p.homing_speed_zero as f32).min(p.vmax()),
+                acc: p
+                    .acc(p.homing_acceleration)
+                    .min(p.dec(p.homing_acceleration)),
+                offset: p.home_offset,
+                has_index: self.has_index,
+                assigned: self.assigned_inputs,
+            };
+            shift = self.hm.start(hp, &inp);
+        } else {
+            shift = self.hm.cycle(&mut self.motion, &inp, dt);
+        }
+        if let Some(delta) = shift {
+            self.shift = self.shift.wrapping_add(delta);
+            self.actual_position = self.actual_position.wrapping_add(delta);
+            self.motion.shift(delta);
+        }
+        let done = !self.hm.running() && self.motion.velocity() == 0.0;
+        let inwin = self
+            .motion
+            .position()
+            .wrapping_sub(self.actual_position)
+            .unsigned_abs()
+            <= p.position_window;
+        self.window_time = if done && inwin {
+            self.window_time + dt
+        } else {
+            0.0
+        };
+        self.target_reached =
+            done && inwin && self.window_time * 1000.0 >= p.position_window_time as f32;
+    }
+
+    fn build_statusword(&self, fb: &DriveFeedback) -> u16 {
+        let st = self.state;
+        let mut s = st.statusword_bits();
+        if st == PdsState::NotReadyToSwitchOn {
+            return s;
+        }
+        s |= sw::REMOTE;
+        if st.voltage_enabled() {
+            s |= sw::VOLTAGE_ENABLED;
+        }
+        if fb.warning {
+            s |= sw::WARNING;
+        }
+        if self.internal_limit {
+            s |= sw::INTERNAL_LIMIT;
+        }
+        if self.abnormal_stop {
+            s |= sw::ABNORMAL_STOP;
+        }
+        let p = &self.params;
+        let param_zero = match self.mode {
+            mode::PP => {
+                p.profile_velocity == 0
+                    || p.profile_acceleration == 0
+                    || p.profile_deceleration == 0
+            }
+            mode::PV => p.profile_acceleration == 0 || p.profile_deceleration == 0,
+            _ => false,
+        };
+        if param_zero {
+            s |= sw::PARAM_ZERO;
+        }
+        match st {
+            PdsState::OperationEnabled => match self.mode {
+                mode::PP => {
+                    if self.target_reached {
+                        s |= sw::TARGET_REACHED;
+                    }
+                    if self.pp.ack {
+                        s |= sw::BIT12;
+                    } else {
+                        s |= sw::SETPOINT_FREE;
+                    }
+                    if self.fe_flag {
+                        s |= sw::BIT13;
+                    }
+                }
+                mode::PV => {
+                    if self.target_reached {
+                        s |= sw::TARGET_REACHED;
+                    }
+                    if self.actual_velocity.unsigned_abs() <= p.velocity_threshold as u32 {
+                        s |= sw::BIT12;
+                    }
+                }
+                mode::HM => match self.hm.status() {
+                    HomingStatus::Idle => {
+                        if self.motion.velocity() == 0.0 {
+                            s |= sw::TARGET_REACHED;
+                        }
+                    }
+                    HomingStatus::InProgress => {}
+                    HomingStatus::Attained => {
+                        s |= sw::BIT12;
+                        if self.target_reached {
+                            s |= sw::TARGET_REACHED;
+                        }
+                    }
+                    HomingStatus::Error => {
+                        s |= sw::BIT13;
+                        if self.motion.velocity() == 0.0 {
+                            s |= sw::TARGET_REACHED;
+                        }
+                    }
+                },
+                mode::CSP | mode::CSV => {
+                    if !self.halted && !self.abnormal_stop && self.pending == Pending::None {
+                        s |= sw::BIT12;
+                    }
+                    if self.mode == mode::CSP && self.fe_flag {
+                        s |= sw::BIT13;
+                    }
+                }
+                _ => {}
+            },
+            PdsState::QuickStopActive if self.target_reached && self.motion.velocity() == 0.0 => {
+                s |= sw::TARGET_REACHED;
+            }
+            _ => {}
+        }
+        s
+    }
+}

@@ -1,0 +1,732 @@
+//! The CiA 402 objects (0x6000-0x6FFF) of the dictionary: static descriptions
+//! ([`OBJECTS`]), SDO read/write on [`Cia402`], and the fast accessors of the cyclic
+//! path by compact slot ids ([`RX_SLOTS`], [`TX_SLOTS`]).
+//!
+//! Units: positions in command units ("inc", 0x2001 per motor revolution), velocities
+//! in command units/s, accelerations in command units/s², torque and current in per
+//! mille of the rated value, times in ms.
+
+use super::{homing, mode_supported, probe, Cia402, SUPPORTED_MODES};
+use ecat_slave_stack::od::{
+    self, Access, DataType, Entry, Object, ObjectCode, PdoMappable, SdoAbort,
+};
+
+const U8: DataType = DataType::Unsigned8;
+const U16: DataType = DataType::Unsigned16;
+const U32: DataType = DataType::Unsigned32;
+const I8: DataType = DataType::Integer8;
+const I16: DataType = DataType::Integer16;
+const I32: DataType = DataType::Integer32;
+const RO: Access = Access::RO;
+const RW: Access = Access::RW;
+const RX: PdoMappable = PdoMappable::Rx;
+const TX: PdoMappable = PdoMappable::Tx;
+
+const fn var(
+    index: u16,
+    name: &'static str,
+    entries: &'static [Entry],
+    description: &'static str,
+) -> Object {
+    Object {
+        index,
+        name,
+        code: ObjectCode::Var,
+        entries,
+        description,
+    }
+}
+const fn array(
+    index: u16,
+    name: &'static str,
+    entries: &'static [Entry],
+    description: &'static str,
+) -> Object {
+    Object {
+        index,
+        name,
+        code: ObjectCode::Array,
+        entries,
+        description,
+    }
+}
+const fn record(
+    index: u16,
+    name: &'static str,
+    entries: &'static [Entry],
+    description: &'static str,
+) -> Object {
+    Object {
+        index,
+        name,
+        code: ObjectCode::Record,
+        entries,
+        description,
+    }
+}
+const fn count(n: i64) -> Entry {
+    Entry::new(0, "Number of entries", U8, RO)
+        .range(n, n)
+        .default(n)
+}
+
+/// The CiA 402 objects, sorted by index.
+pub const OBJECTS: &[Object] = &[
+    var(0x603F, "Error code", &[Entry::new(0, "Error code", U16, RO).pdo(TX).default(0)],
+        "Code of the last fault (CiA 402 / CiA 301 error codes); 0 after a fault reset."),
+    var(0x6040, "Controlword", &[Entry::new(0, "Controlword", U16, RW).pdo(RX).default(0)],
+        "PDS commands (bits 0-3, 7 fault reset), mode-specific bits 4-6 and 9, bit 8 halt."),
+    var(0x6041, "Statusword", &[Entry::new(0, "Statusword", U16, RO).pdo(TX)],
+        "PDS state, voltage enabled, warning, remote, target reached, internal limit, mode bits, E5 bits 8/14/15."),
+    var(0x605A, "Quick stop option code", &[Entry::new(0, "Quick stop option code", I16, RW).range(0, 8).default(2).saved()],
+        "0 disable drive function; 1/2/3/4 slow-down / quick-stop / max-deceleration ramp then switch on disabled; 5-8 the same and stay in quick stop active."),
+    var(0x605B, "Shutdown option code", &[Entry::new(0, "Shutdown option code", I16, RW).range(0, 1).default(0).saved()],
+        "Transition 8: 0 disable drive function; 1 slow down with 0x6084, then disable."),
+    var(0x605C, "Disable operation option code", &[Entry::new(0, "Disable operation option code", I16, RW).range(0, 1).default(1).saved()],
+        "Transition 5: 0 disable drive function; 1 slow down with 0x6084, then disable."),
+    var(0x605D, "Halt option code", &[Entry::new(0, "Halt option code", I16, RW).range(1, 4).default(1).saved()],
+        "Controlword bit 8: 1 slow-down ramp, 2 quick-stop ramp, 3/4 max-deceleration ramp; stays in operation enabled."),
+    var(0x605E, "Fault reaction option code", &[Entry::new(0, "Fault reaction option code", I16, RW).range(0, 4).default(2).saved()],
+        "0 disable drive function; 1 slow-down ramp; 2 quick-stop ramp; 3/4 max-deceleration ramp."),
+    var(0x6060, "Modes of operation", &[Entry::new(0, "Modes of operation", I8, RW).pdo(RX).range(0, 9).default(0)],
+        "Requested mode: 0 none, 1 PP, 3 PV, 6 HM, 8 CSP, 9 CSV."),
+    var(0x6061, "Modes of operation display", &[Entry::new(0, "Modes of operation display", I8, RO).pdo(TX).default(0)],
+        "Mode that is running (changes when the switch is done)."),
+    var(0x6062, "Position demand value", &[Entry::new(0, "Position demand value", I32, RO).pdo(TX).unit("inc")],
+        "Output of the trajectory generator / CSP interpolation."),
+    var(0x6063, "Position actual internal value", &[Entry::new(0, "Position actual internal value", I32, RO).pdo(TX).unit("inc")],
+        "Actual position, motor side, before polarity and home offset."),
+    var(0x6064, "Position actual value", &[Entry::new(0, "Position actual value", I32, RO).pdo(TX).unit("inc")],
+        "Actual position in command units."),
+    var(0x6065, "Following error window", &[Entry::new(0, "Following error window", U32, RW).pdo(RX).default(50_000).unit("inc").saved()],
+        "Allowed |0x60F4|; 0xFFFFFFFF switches the supervision off."),
+    var(0x6066, "Following error time out", &[Entry::new(0, "Following error time out", U16, RW).default(100).unit("ms").saved()],
+        "Time the following error may exceed 0x6065 before statusword bit 13 and fault 0x8611."),
+    var(0x6067, "Position window", &[Entry::new(0, "Position window", U32, RW).pdo(RX).default(100).unit("inc").saved()],
+        "Target reached window."),
+    var(0x6068, "Position window time", &[Entry::new(0, "Position window time", U16, RW).default(0).unit("ms").saved()],
+        "Time in the window before target reached."),
+    var(0x606B, "Velocity demand value", &[Entry::new(0, "Velocity demand value", I32, RO).pdo(TX).unit("inc/s")],
+        "Velocity of the trajectory generator."),
+    var(0x606C, "Velocity actual value", &[Entry::new(0, "Velocity actual value", I32, RO).pdo(TX).unit("inc/s")],
+        "Measured velocity."),
+    var(0x606D, "Velocity window", &[Entry::new(0, "Velocity window", U16, RW).default(100).unit("inc/s").saved()],
+        "PV target reached window."),
+    var(0x606E, "Velocity window time", &[Entry::new(0, "Velocity window time", U16, RW).default(0).unit("ms").saved()],
+        "PV time in the window before target reached."),
+    var(0x606F, "Velocity threshold", &[Entry::new(0, "Velocity threshold", U16, RW).default(100).unit("inc/s").saved()],
+        "PV speed-zero threshold (statusword bit 12)."),
+    var(0x6072, "Max torque", &[Entry::new(0, "Max torque", U16, RW).pdo(RX).range(0, 3000).default(1000).unit("0.1 %").saved()],
+        "Torque limit for the servo loops (closed loop), per mille of rated torque."),
+    var(0x6073, "Max current", &[Entry::new(0, "Max current", U16, RW).range(0, 3000).default(1000).unit("0.1 %").saved()],
+        "Current limit, per mille of the rated current 0x6075."),
+    var(0x6075, "Motor rated current", &[Entry::new(0, "Motor rated current", U32, RO).unit("mA")],
+        "Rated current (follows the peak current setting 0x2000)."),
+    var(0x6077, "Torque actual value", &[Entry::new(0, "Torque actual value", I16, RO).pdo(TX).unit("0.1 %")],
+        "Measured torque, per mille of rated torque."),
+    var(0x6078, "Current actual value", &[Entry::new(0, "Current actual value", I16, RO).pdo(TX).unit("0.1 %")],
+        "Measured current, per mille of rated current."),
+    var(0x607A, "Target position", &[Entry::new(0, "Target position", I32, RW).pdo(RX).default(0).unit("inc")],
+        "PP target (absolute or relative), CSP target every cycle."),
+    var(0x607C, "Home offset", &[Entry::new(0, "Home offset", I32, RW).pdo(RX).default(0).unit("inc").saved()],
+        "Position actual value given to the home position when homing ends."),
+    array(0x607D, "Software position limit", &[
+        count(2),
+        Entry::new(1, "Min position limit", I32, RW).default(i32::MIN as i64).unit("inc").saved(),
+        Entry::new(2, "Max position limit", I32, RW).default(i32::MAX as i64).unit("inc").saved(),
+    ], "Demand positions are limited to [min, max] when min < max (the type limits mean off)."),
+    var(0x607E, "Polarity", &[Entry::new(0, "Polarity", U8, RW).default(0).saved()],
+        "Bit 7 inverts positions, bit 6 velocities (other bits refused); writable outside operation enabled."),
+    var(0x607F, "Max profile velocity", &[Entry::new(0, "Max profile velocity", U32, RW).pdo(RX).range(1, u32::MAX as i64).default(5_000_000).unit("inc/s").saved()],
+        "Upper limit of every profile / target velocity."),
+    var(0x6080, "Max motor speed", &[Entry::new(0, "Max motor speed", U32, RW).range(1, u32::MAX as i64).default(5_000_000).unit("inc/s").saved()],
+        "Upper limit of every velocity demand."),
+    var(0x6081, "Profile velocity", &[Entry::new(0, "Profile velocity", U32, RW).pdo(RX).default(50_000).unit("inc/s").saved()],
+        "PP travel speed, limited by min(0x607F, 0x6080)."),
+    var(0x6082, "End velocity", &[Entry::new(0, "Start/stop velocity", U32, RW).pdo(RX).default(0).unit("inc/s").saved()],
+        "E5: speed the PP profile may start from / stop at without a ramp."),
+    var(0x6083, "Profile acceleration", &[Entry::new(0, "Profile acceleration", U32, RW).pdo(RX).default(500_000).unit("inc/s²").saved()],
+        "PP / PV acceleration, limited by 0x60C5."),
+    var(0x6084, "Profile deceleration", &[Entry::new(0, "Profile deceleration", U32, RW).pdo(RX).default(500_000).unit("inc/s²").saved()],
+        "PP / PV deceleration and slow-down ramp, limited by 0x60C6."),
+    var(0x6085, "Quick stop deceleration", &[Entry::new(0, "Quick stop deceleration", U32, RW).pdo(RX).default(2_000_000).unit("inc/s²").saved()],
+        "Quick-stop ramp; also the stop ramp at a hardware limit switch."),
+    var(0x6086, "Motion profile type", &[Entry::new(0, "Motion profile type", I16, RW).range(0, 0).default(0).saved()],
+        "0 linear ramp (trapezoid); other types are not supported."),
+    array(0x608F, "Position encoder resolution", &[
+        count(2),
+        Entry::new(1, "Encoder increments", U32, RO).default(4000),
+        Entry::new(2, "Motor revolutions", U32, RO).default(1),
+    ], "Encoder increments per motor revolution."),
+    array(0x6091, "Gear ratio", &[
+        count(2),
+        Entry::new(1, "Motor revolutions", U32, RO).default(1),
+        Entry::new(2, "Shaft revolutions", U32, RO).default(1),
+    ], "Fixed 1:1 (scaling is set by 0x2001)."),
+    array(0x6092, "Feed constant", &[
+        count(2),
+        Entry::new(1, "Feed", U32, RO).default(50_000).unit("inc"),
+        Entry::new(2, "Shaft revolutions", U32, RO).default(1),
+    ], "Command units per revolution (0x2001)."),
+    var(0x6098, "Homing method", &[Entry::new(0, "Homing method", I8, RW).pdo(RX).range(1, 37).default(37).saved()],
+        "1-14, 17-30, 33, 34, 35, 37."),
+    array(0x6099, "Homing speeds", &[
+        count(2),
+        Entry::new(1, "Speed during search for switch", U32, RW).pdo(RX).default(20_000).unit("inc/s").saved(),
+        Entry::new(2, "Speed during search for zero", U32, RW).pdo(RX).default(2_000).unit("inc/s").saved(),
+    ], "Homing speeds."),
+    var(0x609A, "Homing acceleration", &[Entry::new(0, "Homing acceleration", U32, RW).pdo(RX).default(200_000).unit("inc/s²").saved()],
+        "Acceleration and deceleration of every homing move."),
+    var(0x60B0, "Position offset", &[Entry::new(0, "Position offset", I32, RW).pdo(RX).default(0).unit("inc")],
+        "Added to the CSP target position."),
+    var(0x60B1, "Velocity offset", &[Entry::new(0, "Velocity offset", I32, RW).pdo(RX).default(0).unit("inc/s")],
+        "Velocity feed-forward (CSP) / added to the CSV target."),
+    var(0x60B8, "Touch probe function", &[Entry::new(0, "Touch probe function", U16, RW).pdo(RX).default(0)],
+        "Per probe (2: bits 8-13): bit 0 enable, 1 continuous, 2 index pulse as trigger, 4 rising edge, 5 falling edge."),
+    var(0x60B9, "Touch probe status", &[Entry::new(0, "Touch probe status", U16, RO).pdo(TX)],
+        "Per probe: bit 0 enabled, 1 rising value stored, 2 falling value stored, 6/7 toggles in continuous mode."),
+    var(0x60BA, "Touch probe 1 positive edge", &[Entry::new(0, "Touch probe 1 positive edge", I32, RO).pdo(TX).unit("inc")],
+        "Position latched at the rising edge of probe 1."),
+    var(0x60BB, "Touch probe 1 negative edge", &[Entry::new(0, "Touch probe 1 negative edge", I32, RO).pdo(TX).unit("inc")],
+        "Position latched at the falling edge of probe 1."),
+    var(0x60BC, "Touch probe 2 positive edge", &[Entry::new(0, "Touch probe 2 positive edge", I32, RO).pdo(TX).unit("inc")],
+        "Position latched at the rising edge of probe 2."),
+    var(0x60BD, "Touch probe 2 negative edge", &[Entry::new(0, "Touch probe 2 negative edge", I32, RO).pdo(TX).unit("inc")],
+        "Position latched at the falling edge of probe 2."),
+    record(0x60C2, "Interpolation time period", &[
+        count(2),
+        Entry::new(1, "Interpolation time period value", U8, RW).range(1, 255).default(1),
+        Entry::new(2, "Interpolation time index", I8, RW).range(-6, -3).default(-3),
+    ], "Period = value · 10^index s; must equal the sync cycle."),
+    var(0x60C5, "Max acceleration", &[Entry::new(0, "Max acceleration", U32, RW).range(1, u32::MAX as i64).default(100_000_000).unit("inc/s²").saved()],
+        "Limit of 0x6083 and 0x609A."),
+    var(0x60C6, "Max deceleration", &[Entry::new(0, "Max deceleration", U32, RW).range(1, u32::MAX as i64).default(100_000_000).unit("inc/s²").saved()],
+        "Limit of 0x6084 and 0x609A; ramp of the option codes 3 and 4."),
+    var(0x60F2, "Positioning option code", &[Entry::new(0, "Positioning option code", U16, RW).range(0, 2).default(0).saved()],
+        "Bits 0-1, PP relative moves: 0 from the previous target, 1 from the position demand value, 2 from the position actual value."),
+    var(0x60F4, "Following error actual value", &[Entry::new(0, "Following error actual value", I32, RO).pdo(TX).unit("inc")],
+        "0x6062 − 0x6064."),
+    var(0x60FC, "Position demand internal value", &[Entry::new(0, "Position demand internal value", I32, RO).pdo(TX).unit("inc")],
+        "Position demand, motor side."),
+    var(0x60FD, "Digital inputs", &[Entry::new(0, "Digital inputs", U32, RO).pdo(TX)],
+        "Bit 0 negative limit, 1 positive limit, 2 home switch (after the input functions 0x2152)."),
+    array(0x60FE, "Digital outputs", &[
+        count(2),
+        Entry::new(1, "Physical outputs", U32, RW).pdo(RX).default(0),
+        Entry::new(2, "Bit mask", U32, RW).default(0),
+    ], "Outputs driven by the master where the mask bit is set."),
+    var(0x60FF, "Target velocity", &[Entry::new(0, "Target velocity", I32, RW).pdo(RX).default(0).unit("inc/s")],
+        "PV and CSV target."),
+    var(0x6502, "Supported drive modes", &[Entry::new(0, "Supported drive modes", U32, RO).default(SUPPORTED_MODES as i64)],
+        "Bit 0 PP, 2 PV, 5 HM, 7 CSP, 8 CSV."),
+];
+
+/// RxPDO-mappable entries; the position in this table is the slot id.
+pub const RX_SLOTS: &[(u16, u8)] = &[
+    (0x6040, 0),
+    (0x6060, 0),
+    (0x6065, 0),
+    (0x6067, 0),
+    (0x6072, 0),
+    (0x607A, 0),
+    (0x607C, 0),
+    (0x607F, 0),
+    (0x6081, 0),
+    (0x6082, 0),
+    (0x6083, 0),
+    (0x6084, 0),
+    (0x6085, 0),
+    (0x6098, 0),
+    (0x6099, 1),
+    (0x6099, 2),
+    (0x609A, 0),
+    (0x60B0, 0),
+    (0x60B1, 0),
+    (0x60B8, 0),
+    (0x60FE, 1),
+    (0x60FF, 0),
+];
+
+/// TxPDO-mappable entries; the position in this table is the slot id.
+pub const TX_SLOTS: &[(u16, u8)] = &[
+    (0x603F, 0),
+    (0x6041, 0),
+    (0x6061, 0),
+    (0x6062, 0),
+    (0x6063, 0),
+    (0x6064, 0),
+    (0x606B, 0),
+    (0x606C, 0),
+    (0x6077, 0),
+    (0x6078, 0),
+    (0x60B9, 0),
+    (0x60BA, 0),
+    (0x60BB, 0),
+    (0x60BC, 0),
+    (0x60BD, 0),
+    (0x60F4, 0),
+    (0x60FC, 0),
+    (0x60FD, 0),
+];
+
+fn slot_of(table: &[(u16, u8)], index: u16, sub: u8) -> Option<u8> {
+    table
+        .iter()
+        .position(|&e| e == (index, sub))
+        .map(|i| i as u8)
+}
+
+/// Slot id of an RxPDO-mappable entry.
+pub fn rx_slot(index: u16, sub: u8) -> Option<u8> {
+    slot_of(RX_SLOTS, index, sub)
+}
+
+/// Slot id of a TxPDO-mappable entry.
+pub fn tx_slot(index: u16, sub: u8) -> Option<u8> {
+    slot_of(TX_SLOTS, index, sub)
+}
+
+/// Reads `n` little-endian bytes (1..=4) as a u32.
+fn le(data: &[u8]) -> u32 {
+    let mut b = [0u8; 4];
+    let n = data.len().min(4);
+    b[..n].copy_from_slice(&data[..n]);
+    u32::from_le_bytes(b)
+}
+
+impl Cia402 {
+    /// Current value of an entry (sign-extended), `None` if the object/sub-index is
+    /// not one of [`OBJECTS`].
+    pub fn value(&self, index: u16, sub: u8) -> Option<i64> {
+        let p = &self.params;
+        Some(match (index, sub) {
+            (0x603F, 0) => self.error_code as i64,
+            (0x6040, 0) => self.controlword as i64,
+            (0x6041, 0) => self.statusword as i64,
+            (0x605A, 0) => p.quick_stop_option as i64,
+            (0x605B, 0) => p.shutdown_option as i64,
+            (0x605C, 0) => p.disable_op_option as i64,
+            (0x605D, 0) => p.halt_option as i64,
+            (0x605E, 0) => p.fault_reaction_option as i64,
+            (0x6060, 0) => self.mode_request as i64,
+            (0x6061, 0) => self.mode as i64,
+            (0x6062, 0) => self.position_demand() as i64,
+            (0x6063, 0) => self.raw_position as i64,
+            (0x6064, 0) => self.actual_position as i64,
+            (0x6065, 0) => p.following_error_window as i64,
+            (0x6066, 0) => p.following_error_timeout as i64,
+            (0x6067, 0) => p.position_window as i64,
+            (0x6068, 0) => p.position_window_time as i64,
+            (0x606B, 0) => self.velocity_demand() as i64,
+            (0x606C, 0) => self.actual_velocity as i64,
+            (0x606D, 0) => p.velocity_window as i64,
+            (0x606E, 0) => p.velocity_window_time as i64,
+            (0x606F, 0) => p.velocity_threshold as i64,
+            (0x6072, 0) => p.max_torque as i64,
+            (0x6073, 0) => p.max_current as i64,
+            (0x6075, 0) => self.rated_current_ma as i64,
+            (0x6077, 0) => self.actual_torque as i64,
+            (0x6078, 0) => self.actual_current as i64,
+            (0x607A, 0) => p.target_position as i64,
+            (0x607C, 0) => p.home_offset as i64,
+            (0x607D, 0)
+            | (0x608F, 0)
+            | (0x6091, 0)
+            | (0x6092, 0)
+            | (0x6099, 0)
+            | (0x60C2, 0)
+            | (0x60FE, 0) => 2,
+            (0x607D, 1) => p.sw_limit_min as i64,
+            (0x607D, 2) => p.sw_limit_max as i64,
+            (0x607E, 0) => p.polarity as i64,
+            (0x607F, 0) => p.max_profile_velocity as i64,
+            (0x6080, 0) => p.max_motor_speed as i64,
+            (0x6081, 0) => p.profile_velocity as i64,
+            (0x6082, 0) => p.start_stop_speed as i64,
+            (0x6083, 0) => p.profile_acceleration as i64,
+            (0x6084, 0) => p.profile_deceleration as i64,
+            (0x6085, 0) => p.quick_stop_deceleration as i64,
+            (0x6086, 0) => p.motion_profile_type as i64,
+            (0x608F, 1) => self.encoder_increments as i64,
+            (0x608F, 2) | (0x6091, 1) | (0x6091, 2) | (0x6092, 2) => 1,
+            (0x6092, 1) => self.units_per_rev as i64,
+            (0x6098, 0) => p.homing_method as i64,
+            (0x6099, 1) => p.homing_speed_switch as i64,
+            (0x6099, 2) => p.homing_speed_zero as i64,
+            (0x609A, 0) => p.homing_acceleration as i64,
+            (0x60B0, 0) => p.position_offset as i64,
+            (0x60B1, 0) => p.velocity_offset as i64,
+            (0x60B8, 0) => self.probe.function() as i64,
+            (0x60B9, 0) => self.probe.status() as i64,
+            (0x60BA, 0) => self.probe.value(0) as i64,
+            (0x60BB, 0) => self.probe.value(1) as i64,
+            (0x60BC, 0) => self.probe.value(2) as i64,
+            (0x60BD, 0) => self.probe.value(3) as i64,
+            (0x60C2, 1) => p.interpolation_period as i64,
+            (0x60C2, 2) => p.interpolation_index as i64,
+            (0x60C5, 0) => p.max_acceleration as i64,
+            (0x60C6, 0) => p.max_deceleration as i64,
+            (0x60F2, 0) => p.positioning_option as i64,
+            (0x60F4, 0) => self.following_error as i64,
+            (0x60FC, 0) => self.position_demand_internal() as i64,
+            (0x60FD, 0) => self.digital_inputs as i64,
+            (0x60FE, 1) => p.digital_outputs as i64,
+            (0x60FE, 2) => p.digital_outputs_mask as i64,
+            (0x60FF, 0) => p.target_velocity as i64,
+            (0x6502, 0) => SUPPORTED_MODES as i64,
+            _ => return None,
+        })
+    }
+
+    /// SDO read of a 0x6xxx entry: little-endian value into `buf`, returns its length.
+    pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        let e = od::find_entry(OBJECTS, index, sub)?;
+        if !e.access.readable() {
+            return Err(SdoAbort::ReadWriteOnly);
+        }
+        let v = self
+            .value(index, sub)
+            .ok_or(SdoAbort::SubindexDoesNotExist)?;
+        let n = e.byte_len();
+        let out = buf.get_mut(..n).ok_or(SdoAbort::ExceedsMailbox)?;
+        out.copy_from_slice(&(v as u64).to_le_bytes()[..n]);
+        Ok(n)
+    }
+
+    /// SDO write of a 0x6xxx entry: checks access, length and range (the same checks
+    /// as the stack's `check_write`, so a direct call is safe too) and the object's own
+    /// rules, then stores the value.
+    pub fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
+        let e = od::find_entry(OBJECTS, index, sub)?;
+        od::check_write(e, data, ecat_slave_stack::esm::EsmState::PreOp)?;
+        let v = od::decode_int(e.data_type, data).ok_or(SdoAbort::TypeMismatch)?;
+        match (index, sub) {
+            (0x6060, 0) if !mode_supported(v as i8) => return Err(SdoAbort::ValueRangeExceeded),
+            (0x6098, 0) if !homing::supported(v as i8) => return Err(SdoAbort::ValueRangeExceeded),
+            (0x60B8, 0) if !probe::function_valid(v as u16) => {
+                return Err(SdoAbort::ValueRangeExceeded)
+            }
+            (0x607E, 0) => {
+                if v as u8 & 0x3F != 0 {
+                    return Err(SdoAbort::ValueRangeExceeded);
+                }
+                if self.state.voltage_enabled() {
+                    return Err(SdoAbort::StateConflict);
+                }
+            }
+            _ => {}
+        }
+        self.store(index, sub, v);
+        Ok(())
+    }
+
+    /// Stores an already validated value (shared by SDO and PDO paths).
+    fn store(&mut self, index: u16, sub: u8, v: i64) {
+        let p = &mut self.params;
+        match (index, sub) {
+            (0x6040, 0) => self.controlword = v as u16,
+            (0x605A, 0) => p.quick_stop_option = v as i16,
+            (0x605B, 0) => p.shutdown_option = v as i16,
+            (0x605C, 0) => p.disable_op_option = v as i16,
+            (0x605D, 0) => p.halt_option = v as i16,
+            (0x605E, 0) => p.fault_reaction_option = v as i16,
+            (0x6060, 0) => self.set_mode(v as i8),
+            (0x6065, 0) => p.following_error_window = v as u32,
+            (0x6066, 0) => p.following_error_timeout = v as u16,
+            (0x6067, 0) => p.position_window = v as u32,
+            (0x6068, 0) => p.position_window_time = v as u16,
+            (0x606D, 0) => p.velocity_window = v as u16,
+            (0x606E, 0) => p.velocity_window_time = v as u16,
+            (0x606F, 0) => p.velocity_threshold = v as u16,
+            (0x6072, 0) => p.max_torque = v as u16,
+            (0x6073, 0) => p.max_current = v as u16,
+            (0x607A, 0) => p.target_position = v as i32,
+            (0x607C, 0) => p.home_offset = v as i32,
+            (0x607D, 1) => p.sw_limit_min = v as i32,
+            (0x607D, 2) => p.sw_limit_max = v as i32,
+            (0x607E, 0) => p.polarity = v as u8 & 0xC0,
+            (0x607F, 0) => p.max_profile_velocity = v as u32,
+            (0x6080, 0) => p.max_motor_speed = v as u32,
+            (0x6081, 0) => p.profile_velocity = v as u32,
+            (0x6082, 0) => p.start_stop_speed = v as u32,
+            (0x6083, 0) => p.profile_acceleration = v as u32,
+            (0x6084, 0) => p.profile_deceleration = v as u32,
+            (0x6085, 0) => p.quick_stop_deceleration = v as u32,
+            (0x6086, 0) => p.motion_profile_type = v as i16,
+            (0x6098, 0) => p.homing_method = v as i8,
+            (0x6099, 1) => p.homing_speed_switch = v as u32,
+            (0x6099, 2) => p.homing_speed_zero = v as u32,
+            (0x609A, 0) => p.homing_acceleration = v as u32,
+            (0x60B0, 0) => p.position_offset = v as i32,
+            (0x60B1, 0) => p.velocity_offset = v as i32,
+            (0x60B8, 0) => self.probe.set_function(v as u16),
+            (0x60C2, 1) => p.interpolation_period = v as u8,
+            (0x60C2, 2) => p.interpolation_index = v as i8,
+            (0x60C5, 0) => p.max_acceleration = v as u32,
+            (0x60C6, 0) => p.max_deceleration = v as u32,
+            (0x60F2, 0) => p.positioning_option = v as u16,
+            (0x60FE, 1) => p.digital_outputs = v as u32,
+            (0x60FE, 2) => p.digital_outputs_mask = v as u32,
+            (0x60FF, 0) => p.target_velocity = v as i32,
+            _ => {}
+        }
+    }
+
+    /// Cyclic path: stores an RxPDO entry by slot id from its little-endian bytes.
+    /// Unknown slots are ignored; out-of-range values are made harmless by the users
+    /// (an unsupported mode or homing method is not taken over).
+    #[inline]
+    pub fn set_rx(&mut self, slot: u8, data: &[u8]) {
+        self.set_rx_raw(slot, le(data));
+    }
+
+    /// Cyclic path: stores an RxPDO entry by slot id from its raw value.
+    pub fn set_rx_raw(&mut self, slot: u8, raw: u32) {
+        let p = &mut self.params;
+        match slot {
+            0 => self.controlword = raw as u16,
+            1 => self.set_mode(raw as u8 as i8),
+            2 => p.following_error_window = raw,
+            3 => p.position_window = raw,
+            4 => p.max_torque = (raw as u16).min(3000),
+            5 => p.target_position = raw as i32,
+            6 => p.home_offset = raw as i32,
+            7 => p.max_profile_velocity = raw.max(1),
+            8 => p.profile_velocity = raw,
+            9 => p.start_stop_speed = raw,
+            10 => p.profile_acceleration = raw,
+            11 => p.profile_deceleration = raw,
+            12 => p.quick_stop_deceleration = raw,
+            13 if homing::supported(raw as u8 as i8) => p.homing_method = raw as u8 as i8,
+            14 => p.homing_speed_switch = raw,
+            15 => p.homing_speed_zero = raw,
+            16 => p.homing_acceleration = raw,
+            17 => p.position_offset = raw as i32,
+            18 => p.velocity_offset = raw as i32,
+            19 => self.probe.set_function(raw as u16),
+            20 => p.digital_outputs = raw,
+            21 => p.target_velocity = raw as i32,
+            _ => {}
+        }
+    }
+
+    /// Cyclic path: the raw value of a TxPDO entry by slot id (0 for unknown slots).
+    pub fn get_tx_raw(&self, slot: u8) -> u32 {
+        match slot {
+            0 => self.error_code as u32,
+            1 => self.statusword as u32,
+            2 => self.mode as u8 as u32,
+            3 => self.motion.position() as u32,
+            4 => self.raw_position as u32,
+            5 => self.actual_position as u32,
+            6 => self.motion.velocity() as i32 as u32,
+            7 => self.actual_velocity as u32,
+            8 => self.actual_torque as u16 as u32,
+            9 => self.actual_current as u16 as u32,
+            10 => self.probe.status() as u32,
+            11 => self.probe.value(0) as u32,
+            12 => self.probe.value(1) as u32,
+            13 => self.probe.value(2) as u32,
+            14 => self.probe.value(3) as u32,
+            15 => self.following_error as u32,
+            16 => self.position_demand_internal() as u32,
+            17 => self.digital_inputs,
+            _ => 0,
+        }
+    }
+
+    /// Cyclic path: writes a TxPDO entry by slot id (little-endian, as many bytes as
+    /// fit in `buf`, at most 4) and returns the number written.
+    #[inline]
+    pub fn get_tx(&self, slot: u8, buf: &mut [u8]) -> usize {
+        let b = self.get_tx_raw(slot).to_le_bytes();
+        let n = buf.len().min(4);
+        buf[..n].copy_from_slice(&b[..n]);
+        n
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ecat_slave_stack::od::DefaultValue;
+
+    #[test]
+    fn table_is_well_formed_and_in_range() {
+        assert!(od::is_well_formed(OBJECTS));
+        assert!(OBJECTS.iter().all(|o| (0x6000..=0x6FFF).contains(&o.index)));
+    }
+
+    #[test]
+    fn every_entry_has_a_value_and_defaults_match() {
+        let d = Cia402::new();
+        for o in OBJECTS {
+            for e in o.entries {
+                let v = d.value(o.index, e.sub);
+                assert!(v.is_some(), "{:#06x}:{}", o.index, e.sub);
+                if let DefaultValue::Int(def) = e.default {
+                    assert_eq!(v, Some(def), "default of {:#06x}:{}", o.index, e.sub);
+                    assert!(
+                        def >= e.min && def <= e.max,
+                        "default range {:#06x}:{}",
+                        o.index,
+                        e.sub
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn slots_match_the_table() {
+        for (i, &(idx, sub)) in RX_SLOTS.iter().enumerate() {
+            let e = od::find_entry(OBJECTS, idx, sub).unwrap();
+            assert!(e.pdo.rx(), "{idx:#06x}");
+            assert_eq!(rx_slot(idx, sub), Some(i as u8));
+        }
+        for (i, &(idx, sub)) in TX_SLOTS.iter().enumerate() {
+            let e = od::find_entry(OBJECTS, idx, sub).unwrap();
+            assert!(e.pdo.tx(), "{idx:#06x}");
+            assert_eq!(tx_slot(idx, sub), Some(i as u8));
+        }
+        // Every mappable entry has a slot.
+        for o in OBJECTS {
+            for e in o.entries {
+                assert_eq!(
+                    e.pdo.rx(),
+                    rx_slot(o.index, e.sub).is_some(),
+                    "{:#06x}:{}",
+                    o.index,
+                    e.sub
+                );
+                assert_eq!(
+                    e.pdo.tx(),
+                    tx_slot(o.index, e.sub).is_some(),
+                    "{:#06x}:{}",
+                    o.index,
+                    e.sub
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn rx_slots_and_sdo_write_agree() {
+        // Writing each Rx slot and reading the entry back by SDO gives the same value.
+        for (i, &(idx, sub)) in RX_SLOTS.iter().enumerate() {
+            let e = od::find_entry(OBJECTS, idx, sub).unwrap();
+            let val: i64 = match (idx, sub) {
+                (0x6060, 0) => 3,
+                (0x6098, 0) => 17,
+                (0x60B8, 0) => 0x0011,
+                (0x6072, 0) => 800,
+                _ => e.max.min(12_345),
+            };
+            let mut d = Cia402::new();
+            d.set_rx(i as u8, &(val as u32).to_le_bytes()[..e.byte_len()]);
+            assert_eq!(d.value(idx, sub), Some(val), "{idx:#06x}:{sub}");
+        }
+    }
+
+    #[test]
+    fn tx_slots_and_sdo_read_agree() {
+        let mut d = Cia402::new();
+        let fb = crate::cia402::DriveFeedback {
+            position: -1234,
+            velocity: 777,
+            torque: -55,
+            current: 66,
+            digital_inputs: 0x5,
+            ..Default::default()
+        };
+        d.cycle(&fb, 0.001);
+        for (i, &(idx, sub)) in TX_SLOTS.iter().enumerate() {
+            let mut a = [0u8; 8];
+            let n = d.read(idx, sub, &mut a).unwrap();
+            let mut b = [0u8; 4];
+            d.get_tx(i as u8, &mut b[..n]);
+            assert_eq!(&a[..n], &b[..n], "{idx:#06x}:{sub}");
+        }
+    }
+
+    #[test]
+    fn sdo_errors() {
+        let mut d = Cia402::new();
+        let mut buf = [0u8; 4];
+        assert_eq!(
+            d.read(0x6000, 0, &mut buf),
+            Err(SdoAbort::ObjectDoesNotExist)
+        );
+        assert_eq!(
+            d.read(0x6040, 1, &mut buf),
+            Err(SdoAbort::SubindexDoesNotExist)
+        );
+        assert_eq!(
+            d.read(0x6064, 0, &mut buf[..2]),
+            Err(SdoAbort::ExceedsMailbox)
+        );
+        assert_eq!(d.write(0x6041, 0, &[0, 0]), Err(SdoAbort::WriteReadOnly));
+        assert_eq!(d.write(0x6040, 0, &[0]), Err(SdoAbort::LengthTooLow));
+        assert_eq!(d.write(0x6040, 0, &[0, 0, 0]), Err(SdoAbort::LengthTooHigh));
+        assert_eq!(d.write(0x6060, 0, &[2]), Err(SdoAbort::ValueRangeExceeded));
+        assert_eq!(d.write(0x6060, 0, &[0xFF]), Err(SdoAbort::ValueTooLow));
+        assert_eq!(d.write(0x6060, 0, &[10]), Err(SdoAbort::ValueTooHigh));
+        assert_eq!(d.write(0x6098, 0, &[15]), Err(SdoAbort::ValueRangeExceeded));
+        assert_eq!(d.write(0x6098, 0, &[36]), Err(SdoAbort::ValueRangeExceeded));
+        assert_eq!(d.write(0x605A, 0, &[9, 0]), Err(SdoAbort::ValueTooHigh));
+        assert_eq!(
+            d.write(0x607E, 0, &[0x01]),
+            Err(SdoAbort::ValueRangeExceeded)
+        );
+        assert_eq!(
+            d.write(0x60B8, 0, &[0x08, 0]),
+            Err(SdoAbort::ValueRangeExceeded)
+        );
+        assert_eq!(d.write(0x60C2, 2, &[0xF9]), Err(SdoAbort::ValueTooLow));
+        assert_eq!(d.write(0x607D, 0, &[2]), Err(SdoAbort::WriteReadOnly));
+        assert_eq!(
+            d.write(0x6502, 0, &[0, 0, 0, 0]),
+            Err(SdoAbort::WriteReadOnly)
+        );
+        // Rejected writes change nothing.
+        assert_eq!(d.value(0x6060, 0), Some(0));
+        assert_eq!(d.value(0x6098, 0), Some(37));
+        // Good writes.
+        d.write(0x6060, 0, &[8]).unwrap();
+        d.write(0x607D, 1, &(-1000i32).to_le_bytes()).unwrap();
+        assert_eq!(d.value(0x607D, 1), Some(-1000));
+        assert_eq!(d.read(0x6502, 0, &mut buf), Ok(4));
+        assert_eq!(u32::from_le_bytes(buf), 0x1A5);
+    }
+
+    #[test]
+    fn garbage_writes_never_panic() {
+        let mut d = Cia402::new();
+        let mut x: u32 = 0x1234_5678;
+        for o in OBJECTS {
+            for e in o.entries {
+                for len in 0..6 {
+                    for _ in 0..20 {
+                        x ^= x << 13;
+                        x ^= x >> 17;
+                        x ^= x << 5;
+                        let data = x.to_le_bytes();
+                        let mut buf = [0u8; 8];
+                        let d5 = [data[0], data[1], data[2], data[3], 0xAA];
+                        let _ = d.write(o.index, e.sub, &d5[..len.min(5)]);
+                        let _ = d.read(o.index, e.sub, &mut buf);
+                    }
+                }
+            }
+        }
+        for slot in 0..=255u8 {
+            d.set_rx(slot, &[0xFF, 0xFF, 0xFF, 0xFF]);
+            d.set_rx(slot, &[]);
+            let mut b = [0u8; 2];
+            d.get_tx(slot, &mut b);
+        }
+        for _ in 0..100 {
+            d.cycle(&crate::cia402::DriveFeedback::default(), 0.001);
+        }
+    }
+}

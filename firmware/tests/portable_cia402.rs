@@ -1,0 +1,892 @@
+#![cfg_attr(target_os = "none", no_std, no_main)]
+//! CiA 402 power drive system and operating modes, checked cycle by cycle against a
+//! simulated axis that follows the position demand with one cycle of delay (ideal
+//! servo). Runs on the host and under QEMU.
+use firmware::cia402::pds::{PdsState, TRANSITIONS};
+use firmware::cia402::{
+    mode, sw, Cia402, DriveCommand, DriveFeedback, EdgeLatch, ERR_COMMUNICATION, ERR_FOLLOWING,
+};
+
+const DT: f32 = 0.001;
+
+#[derive(Clone, Copy, PartialEq)]
+enum HomeSw {
+    None,
+    /// Active for x >= e (positive home switch).
+    Above(i32),
+    /// Active for x <= e (negative home switch).
+    Below(i32),
+    /// Active on [lo, hi].
+    Zone(i32, i32),
+}
+
+/// An ideal axis with limit switches, a home switch and an index pulse.
+struct Axis {
+    pos: i32,
+    vel: i32,
+    nl: i32,
+    pl: i32,
+    home: HomeSw,
+    pitch: i32,
+    phase: i32,
+    index: Option<i32>,
+    stuck: bool,
+    fault: u16,
+    extra_inputs: u32,
+    probe1: EdgeLatch,
+}
+
+impl Axis {
+    fn new(pos: i32) -> Axis {
+        Axis {
+            pos,
+            vel: 0,
+            nl: i32::MIN,
+            pl: i32::MAX,
+            home: HomeSw::None,
+            pitch: 1000,
+            phase: 100,
+            index: None,
+            stuck: false,
+            fault: 0,
+            extra_inputs: 0,
+            probe1: EdgeLatch::default(),
+        }
+    }
+    fn inputs(&self) -> u32 {
+        let x = self.pos;
+        let mut di = self.extra_inputs;
+        if x <= self.nl {
+            di |= 1;
+        }
+        if x >= self.pl {
+            di |= 2;
+        }
+        let h = match self.home {
+            HomeSw::None => false,
+            HomeSw::Above(e) => x >= e,
+            HomeSw::Below(e) => x <= e,
+            HomeSw::Zone(lo, hi) => x >= lo && x <= hi,
+        };
+        if h {
+            di |= 4;
+        }
+        di
+    }
+    fn feedback(&mut self) -> DriveFeedback {
+        DriveFeedback {
+            position: self.pos,
+            velocity: self.vel,
+            digital_inputs: self.inputs(),
+            index: self.index.take(),
+            probe1: core::mem::take(&mut self.probe1),
+            fault: self.fault,
+            ..Default::default()
+        }
+    }
+    fn apply(&mut self, c: &DriveCommand) {
+        if !c.drive_enabled || self.stuck {
+            self.vel = 0;
+            return;
+        }
+        let a = self.pos;
+        let b = c.position;
+        // Index pulses at phase + k·pitch crossed by the move a → b.
+        if a != b {
+            let (lo, hi) = if b > a { (a + 1, b) } else { (b, a - 1) };
+            let k0 = (lo - self.phase).div_euclid(self.pitch);
+            let mut p = k0 * self.pitch + self.phase;
+            if p < lo {
+                p += self.pitch;
+            }
+            if p <= hi {
+                // First crossed in the direction of travel.
+                self.index = Some(if b > a {
+                    p
+                } else {
+                    let k1 = (hi - self.phase).div_euclid(self.pitch);
+                    k1 * self.pitch + self.phase
+                });
+            }
+        }
+        self.vel = c.velocity as i32;
+        self.pos = b;
+    }
+}
+
+fn step(d: &mut Cia402, ax: &mut Axis) -> DriveCommand {
+    let fb = ax.feedback();
+    let c = d.cycle(&fb, DT);
+    ax.apply(&c);
+    c
+}
+
+fn steps(d: &mut Cia402, ax: &mut Axis, n: usize) {
+    for _ in 0..n {
+        step(d, ax);
+    }
+}
+
+fn cw(d: &mut Cia402, ax: &mut Axis, word: u16) -> u16 {
+    d.set_controlword(word);
+    step(d, ax);
+    d.statusword()
+}
+
+fn enable(d: &mut Cia402, ax: &mut Axis, m: i8) {
+    d.set_mode(m);
+    cw(d, ax, 0x0000);
+    assert_eq!(d.state(), PdsState::SwitchOnDisabled);
+    cw(d, ax, 0x0006);
+    assert_eq!(d.state(), PdsState::ReadyToSwitchOn);
+    cw(d, ax, 0x0007);
+    assert_eq!(d.state(), PdsState::SwitchedOn);
+    let s = cw(d, ax, 0x000F);
+    assert_eq!(d.state(), PdsState::OperationEnabled);
+    assert_eq!(s & 0x6F, 0x27);
+    assert_eq!(d.mode_display(), m);
+}
+
+fn state_of(sw: u16) -> PdsState {
+    PdsState::from_statusword(sw).unwrap()
+}
+
+/// Brings a fresh drive into `s` with controlwords (and a fault where needed).
+fn reach(s: PdsState) -> (Cia402, Axis) {
+    let mut d = Cia402::new();
+    let mut ax = Axis::new(0);
+    if s == PdsState::NotReadyToSwitchOn {
+        return (d, ax);
+    }
+    d.set_mode(mode::PV);
+    d.params.quick_stop_option = 6;
+    let path: &[u16] = match s {
+        PdsState::SwitchOnDisabled => &[0x00],
+        PdsState::ReadyToSwitchOn => &[0x00, 0x06],
+        PdsState::SwitchedOn => &[0x00, 0x06, 0x07],
+        PdsState::OperationEnabled => &[0x00, 0x06, 0x07, 0x0F],
+        PdsState::QuickStopActive => &[0x00, 0x06, 0x07, 0x0F, 0x0B],
+        _ => &[0x00, 0x06, 0x07, 0x0F],
+    };
+    for &w in path {
+        cw(&mut d, &mut ax, w);
+    }
+    if s == PdsState::Fault || s == PdsState::FaultReactionActive {
+        // A fault while moving: the reaction (quick-stop ramp) takes a few cycles.
+        d.params.target_velocity = 50_000;
+        steps(&mut d, &mut ax, 200);
+        ax.fault = 0x4310;
+        step(&mut d, &mut ax);
+        ax.fault = 0;
+        if s == PdsState::Fault {
+            steps(&mut d, &mut ax, 1000);
+        }
+    }
+    assert_eq!(d.state(), s);
+    (d, ax)
+}
+
+qemu_runner::tests! {
+    fn power_on_is_not_ready_then_switch_on_disabled() {
+        let mut d = Cia402::new();
+        assert_eq!(d.state(), PdsState::NotReadyToSwitchOn);
+        assert_eq!(d.statusword() & 0x4F, 0x00);
+        let mut ax = Axis::new(0);
+        let s = cw(&mut d, &mut ax, 0x0000);
+        assert_eq!(s & 0x4F, 0x40);
+        assert!(s & sw::REMOTE != 0);
+        assert!(s & sw::VOLTAGE_ENABLED == 0);
+    }
+
+    fn every_controlword_transition_of_the_table() {
+        // (from, controlword, expected state, transition number)
+        let cases: &[(PdsState, u16, PdsState, u8)] = &[
+            (PdsState::SwitchOnDisabled, 0x06, PdsState::ReadyToSwitchOn, 2),
+            (PdsState::ReadyToSwitchOn, 0x07, PdsState::SwitchedOn, 3),
+            (PdsState::ReadyToSwitchOn, 0x0F, PdsState::SwitchedOn, 3),
+            (PdsState::SwitchedOn, 0x0F, PdsState::OperationEnabled, 4),
+            (PdsState::OperationEnabled, 0x07, PdsState::SwitchedOn, 5),
+            (PdsState::SwitchedOn, 0x06, PdsState::ReadyToSwitchOn, 6),
+            (PdsState::ReadyToSwitchOn, 0x00, PdsState::SwitchOnDisabled, 7),
+            (PdsState::ReadyToSwitchOn, 0x02, PdsState::SwitchOnDisabled, 7),
+            (PdsState::OperationEnabled, 0x06, PdsState::ReadyToSwitchOn, 8),
+            (PdsState::OperationEnabled, 0x00, PdsState::SwitchOnDisabled, 9),
+            (PdsState::SwitchedOn, 0x00, PdsState::SwitchOnDisabled, 10),
+            (PdsState::SwitchedOn, 0x02, PdsState::SwitchOnDisabled, 10),
+            (PdsState::OperationEnabled, 0x02, PdsState::QuickStopActive, 11),
+            (PdsState::QuickStopActive, 0x00, PdsState::SwitchOnDisabled, 12),
+            (PdsState::Fault, 0x80, PdsState::SwitchOnDisabled, 15),
+            (PdsState::QuickStopActive, 0x0F, PdsState::OperationEnabled, 16),
+            // Commands that do nothing in a state.
+            (PdsState::SwitchOnDisabled, 0x0F, PdsState::SwitchOnDisabled, 0),
+            (PdsState::SwitchOnDisabled, 0x07, PdsState::SwitchOnDisabled, 0),
+            (PdsState::ReadyToSwitchOn, 0x06, PdsState::ReadyToSwitchOn, 0),
+            (PdsState::Fault, 0x0F, PdsState::Fault, 0),
+            (PdsState::OperationEnabled, 0x8F, PdsState::OperationEnabled, 0),
+        ];
+        for &(from, word, to, n) in cases {
+            if n != 0 {
+                assert!(TRANSITIONS.iter().any(|t| t.number == n && t.to == to));
+            }
+            let (mut d, mut ax) = reach(from);
+            let s = cw(&mut d, &mut ax, word);
+            assert_eq!(d.state(), to, "from {:?} cw {:#x}", from, word);
+            assert_eq!(state_of(s), to);
+            assert_eq!(s & sw::VOLTAGE_ENABLED != 0, to.voltage_enabled());
+        }
+    }
+
+    fn fault_reaction_then_fault_then_reset_on_rising_edge_only() {
+        let (mut d, mut ax) = reach(PdsState::OperationEnabled);
+        d.params.target_velocity = 100_000;
+        steps(&mut d, &mut ax, 300);
+        assert!(ax.vel > 0);
+        ax.fault = 0x2310;
+        let c = step(&mut d, &mut ax);
+        assert_eq!(d.state(), PdsState::FaultReactionActive); // 13
+        assert_eq!(d.error_code(), 0x2310);
+        assert!(c.drive_enabled); // reaction 2 ramps with the motor controlled
+        let mut n = 0;
+        while d.state() == PdsState::FaultReactionActive {
+            step(&mut d, &mut ax);
+            n += 1;
+            assert!(n < 1000);
+        }
+        // 100 000 / 2 000 000 per s² = 50 ms of ramp.
+        assert!((45..=56).contains(&n), "{n}");
+        assert_eq!(d.state(), PdsState::Fault); // 14
+        let c = step(&mut d, &mut ax);
+        assert!(!c.power_stage && !c.drive_enabled);
+        // Reset while the condition persists: refused.
+        cw(&mut d, &mut ax, 0x80);
+        assert_eq!(d.state(), PdsState::Fault);
+        ax.fault = 0;
+        // Bit 7 still high: no new edge, stays in Fault.
+        cw(&mut d, &mut ax, 0x80);
+        assert_eq!(d.state(), PdsState::Fault);
+        cw(&mut d, &mut ax, 0x00);
+        cw(&mut d, &mut ax, 0x80);
+        assert_eq!(d.state(), PdsState::SwitchOnDisabled); // 15
+        assert_eq!(d.error_code(), 0);
+    }
+
+    fn fault_reaction_option_0_and_tripped_power_stage_stop_at_once() {
+        for (opt, tripped) in [(0i16, false), (2, true)] {
+            let (mut d, mut ax) = reach(PdsState::OperationEnabled);
+            d.params.fault_reaction_option = opt;
+            d.params.target_velocity = 100_000;
+            steps(&mut d, &mut ax, 300);
+            ax.fault = 0x3210;
+            let fb = DriveFeedback { fault: 0x3210, power_stage_tripped: tripped, position: ax.pos, ..Default::default() };
+            let c = d.cycle(&fb, DT);
+            assert_eq!(d.state(), PdsState::Fault);
+            assert!(!c.drive_enabled);
+        }
+    }
+
+    fn quick_stop_every_option_code() {
+        for opt in 0i16..=8 {
+            let (mut d, mut ax) = reach(PdsState::OperationEnabled);
+            d.params.quick_stop_option = opt;
+            d.params.target_velocity = 100_000;
+            d.params.profile_deceleration = 400_000;
+            d.params.quick_stop_deceleration = 1_000_000;
+            d.params.max_deceleration = 5_000_000;
+            steps(&mut d, &mut ax, 300);
+            let s = cw(&mut d, &mut ax, 0x000B);
+            if opt == 0 {
+                // Drive function disabled at once: transitions 11 and 12 in one cycle.
+                assert_eq!(d.state(), PdsState::SwitchOnDisabled);
+                assert_eq!(ax.vel, 0);
+                continue;
+            }
+            assert_eq!(d.state(), PdsState::QuickStopActive, "opt {opt}");
+            assert_eq!(s & 0x6F, 0x07);
+            assert!(s & sw::ABNORMAL_STOP != 0);
+            let mut n: i32 = 1;
+            while ax.vel != 0 && n < 2000 {
+                step(&mut d, &mut ax);
+                n += 1;
+            }
+            let expect = match opt {
+                1 | 5 => 250,
+                2 | 6 => 100,
+                _ => 20,
+            };
+            assert!((n - expect).abs() <= 3, "opt {opt}: {n} cycles");
+            steps(&mut d, &mut ax, 3);
+            if opt <= 4 {
+                assert_eq!(d.state(), PdsState::SwitchOnDisabled, "opt {opt}"); // 12
+            } else {
+                assert_eq!(d.state(), PdsState::QuickStopActive, "opt {opt}");
+                assert!(d.statusword() & sw::TARGET_REACHED != 0);
+                let pos = ax.pos;
+                steps(&mut d, &mut ax, 50);
+                assert_eq!(ax.pos, pos, "held at standstill");
+                cw(&mut d, &mut ax, 0x000F);
+                assert_eq!(d.state(), PdsState::OperationEnabled); // 16
+            }
+        }
+    }
+
+    fn quick_stop_from_each_mode() {
+        for m in [mode::PP, mode::PV, mode::HM, mode::CSP, mode::CSV] {
+            let mut d = Cia402::new();
+            let mut ax = Axis::new(0);
+            ax.home = HomeSw::Above(1_000_000);
+            d.params.homing_method = 19;
+            enable(&mut d, &mut ax, m);
+            d.params.target_position = 1_000_000;
+            d.params.target_velocity = 50_000;
+            d.params.profile_velocity = 50_000;
+            d.params.homing_speed_switch = 50_000;
+            let mut csp_target = 0;
+            for _ in 0..300 {
+                if m == mode::CSP {
+                    csp_target += 50;
+                    d.params.target_position = csp_target;
+                }
+                cw(&mut d, &mut ax, 0x001F);
+            }
+            assert!(ax.vel >= 40_000, "mode {m}: {}", ax.vel);
+            cw(&mut d, &mut ax, 0x000B);
+            assert_eq!(d.state(), PdsState::QuickStopActive);
+            let mut n = 0;
+            while d.state() == PdsState::QuickStopActive {
+                cw(&mut d, &mut ax, 0x000B);
+                n += 1;
+                assert!(n < 200, "mode {m}");
+            }
+            // 0x605A = 2: 50 000 / 2 000 000 = 25 ms.
+            assert!((24..=28).contains(&n), "mode {m}: {n}");
+            assert_eq!(d.state(), PdsState::SwitchOnDisabled);
+        }
+    }
+
+    fn disable_operation_and_shutdown_option_codes() {
+        // 0x605C = 1: ramp with 0x6084 while still operation enabled, then 5.
+        let (mut d, mut ax) = reach(PdsState::OperationEnabled);
+        d.params.target_velocity = 100_000;
+        d.params.profile_deceleration = 1_000_000;
+        steps(&mut d, &mut ax, 300);
+        let mut n = 0;
+        while d.state() == PdsState::OperationEnabled {
+            cw(&mut d, &mut ax, 0x0007);
+            n += 1;
+            assert!(n < 500);
+        }
+        assert!((99..=103).contains(&n), "{n}");
+        assert_eq!(d.state(), PdsState::SwitchedOn);
+        // 0x605C = 0: immediately.
+        let (mut d, mut ax) = reach(PdsState::OperationEnabled);
+        d.params.disable_op_option = 0;
+        d.params.target_velocity = 100_000;
+        steps(&mut d, &mut ax, 300);
+        cw(&mut d, &mut ax, 0x0007);
+        assert_eq!(d.state(), PdsState::SwitchedOn);
+        // 0x605B = 1: ramp then 8.
+        let (mut d, mut ax) = reach(PdsState::OperationEnabled);
+        d.params.shutdown_option = 1;
+        d.params.target_velocity = 100_000;
+        d.params.profile_deceleration = 1_000_000;
+        steps(&mut d, &mut ax, 300);
+        cw(&mut d, &mut ax, 0x0006);
+        assert_eq!(d.state(), PdsState::OperationEnabled);
+        steps(&mut d, &mut ax, 120);
+        assert_eq!(d.state(), PdsState::ReadyToSwitchOn);
+        assert_eq!(ax.vel, 0);
+    }
+
+    fn esm_coupling() {
+        let (mut d, mut ax) = reach(PdsState::OperationEnabled);
+        d.on_esm_left_op_while_enabled();
+        steps(&mut d, &mut ax, 5);
+        assert_eq!(d.state(), PdsState::Fault);
+        assert_eq!(d.error_code(), ERR_COMMUNICATION);
+        d.on_esm_init();
+        assert_eq!(d.state(), PdsState::SwitchOnDisabled);
+        step(&mut d, &mut ax);
+        assert_eq!(d.statusword() & 0x4F, 0x40);
+        let (mut d, mut ax) = reach(PdsState::SwitchedOn);
+        d.on_esm_left_op_while_enabled();
+        step(&mut d, &mut ax);
+        assert_eq!(d.state(), PdsState::SwitchOnDisabled);
+    }
+
+    fn mode_display_follows_after_the_switch() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        d.set_mode(mode::PV);
+        assert_eq!(d.mode_display(), 0);
+        step(&mut d, &mut ax);
+        assert_eq!(d.mode_display(), mode::PV);
+        d.set_mode(2); // velocity mode (vl) is not supported: ignored
+        step(&mut d, &mut ax);
+        assert_eq!(d.mode_display(), mode::PV);
+        assert_eq!(d.value(0x6502, 0), Some(0x1A5));
+    }
+
+    fn pp_single_setpoint_handshake_cycle_by_cycle() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        enable(&mut d, &mut ax, mode::PP);
+        d.params.profile_velocity = 100_000;
+        d.params.profile_acceleration = 1_000_000;
+        d.params.profile_deceleration = 1_000_000;
+        let s = cw(&mut d, &mut ax, 0x000F);
+        assert!(s & sw::TARGET_REACHED != 0 && s & sw::BIT12 == 0 && s & sw::SETPOINT_FREE != 0);
+        d.params.target_position = 10_000;
+        let s = cw(&mut d, &mut ax, 0x003F); // new set-point, change immediately
+        assert!(s & sw::BIT12 != 0, "acknowledged in the same cycle");
+        assert!(s & sw::TARGET_REACHED == 0);
+        assert!(s & sw::SETPOINT_FREE == 0);
+        let s = cw(&mut d, &mut ax, 0x003F);
+        assert!(s & sw::BIT12 != 0, "held while bit 4 is high");
+        let s = cw(&mut d, &mut ax, 0x002F);
+        assert!(s & sw::BIT12 == 0, "cleared when bit 4 drops");
+        assert!(s & sw::SETPOINT_FREE != 0);
+        let mut n = 0;
+        while d.statusword() & sw::TARGET_REACHED == 0 {
+            cw(&mut d, &mut ax, 0x002F);
+            n += 1;
+            assert!(n < 1000);
+            // Speed never exceeds the profile velocity.
+            assert!(ax.vel <= 100_000);
+        }
+        // Within the window (the axis lags one cycle), then exactly on the target.
+        assert!((ax.pos - 10_000).abs() <= 100);
+        step(&mut d, &mut ax);
+        assert_eq!(ax.pos, 10_000);
+        step(&mut d, &mut ax);
+        assert_eq!(d.position_actual(), 10_000);
+        // 10 000 at 100 000/s with 1e6/s² ramps: 0.1 s + 0.1 s = ~200 cycles.
+        assert!((195..=215).contains(&n), "{n}");
+    }
+
+    fn pp_buffered_setpoint_and_change_on_setpoint() {
+        for through in [false, true] {
+            let mut d = Cia402::new();
+            let mut ax = Axis::new(0);
+            enable(&mut d, &mut ax, mode::PP);
+            d.params.profile_velocity = 100_000;
+            d.params.profile_acceleration = 1_000_000;
+            d.params.profile_deceleration = 1_000_000;
+            let b9 = if through { 0x200 } else { 0 };
+            d.params.target_position = 20_000;
+            cw(&mut d, &mut ax, 0x001F | b9);
+            cw(&mut d, &mut ax, 0x000F | b9);
+            steps(&mut d, &mut ax, 10);
+            d.params.target_position = 40_000;
+            let s = cw(&mut d, &mut ax, 0x001F | b9);
+            assert!(s & sw::BIT12 != 0);
+            let s = cw(&mut d, &mut ax, 0x000F | b9);
+            assert!(s & sw::BIT12 != 0, "buffer full: acknowledge stays");
+            assert!(s & sw::SETPOINT_FREE == 0);
+            // A third set-point is not accepted while the buffer is full.
+            d.params.target_position = -5;
+            cw(&mut d, &mut ax, 0x001F | b9);
+            cw(&mut d, &mut ax, 0x000F | b9);
+            let mut min_v_mid = i32::MAX;
+            let mut n = 0;
+            while !(d.statusword() & sw::TARGET_REACHED != 0 && ax.pos == 40_000) {
+                cw(&mut d, &mut ax, 0x000F | b9);
+                if (19_000..21_000).contains(&ax.pos) {
+                    min_v_mid = min_v_mid.min(ax.vel);
+                }
+                n += 1;
+                assert!(n < 5000);
+            }
+            assert!(d.statusword() & sw::BIT12 == 0, "buffer empty again");
+            if through {
+                assert!(min_v_mid >= 90_000, "passed through at speed: {min_v_mid}");
+            } else {
+                assert!(min_v_mid < 5_000, "stopped at the first target: {min_v_mid}");
+            }
+            steps(&mut d, &mut ax, 20);
+            assert_eq!(ax.pos, 40_000);
+        }
+    }
+
+    fn pp_change_immediately_and_relative() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(500);
+        enable(&mut d, &mut ax, mode::PP);
+        d.params.profile_velocity = 100_000;
+        d.params.target_position = 100_000;
+        cw(&mut d, &mut ax, 0x003F);
+        cw(&mut d, &mut ax, 0x002F);
+        steps(&mut d, &mut ax, 100);
+        assert!(ax.vel > 0);
+        // Change immediately to a target behind: reverses.
+        d.params.target_position = -3000;
+        cw(&mut d, &mut ax, 0x003F);
+        cw(&mut d, &mut ax, 0x002F);
+        let mut n = 0;
+        while d.statusword() & sw::TARGET_REACHED == 0 {
+            step(&mut d, &mut ax);
+            n += 1;
+            assert!(n < 5000);
+        }
+        assert_eq!(ax.pos, -3000);
+        // Relative to the previous target.
+        d.params.target_position = 1234;
+        cw(&mut d, &mut ax, 0x007F);
+        cw(&mut d, &mut ax, 0x006F);
+        steps(&mut d, &mut ax, 400);
+        assert_eq!(ax.pos, -3000 + 1234);
+        assert!(d.statusword() & sw::TARGET_REACHED != 0);
+    }
+
+    fn pp_zero_motion_parameter_sets_bit_14_and_refuses() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        enable(&mut d, &mut ax, mode::PP);
+        d.params.profile_acceleration = 0;
+        d.params.target_position = 1000;
+        let s = cw(&mut d, &mut ax, 0x003F);
+        assert!(s & sw::PARAM_ZERO != 0);
+        assert!(s & sw::BIT12 == 0);
+        steps(&mut d, &mut ax, 50);
+        assert_eq!(ax.pos, 0);
+        d.params.profile_acceleration = 100_000;
+        let s = cw(&mut d, &mut ax, 0x002F);
+        assert!(s & sw::PARAM_ZERO == 0);
+    }
+
+    fn pp_halt_stops_with_605d_and_reports_target_reached() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        enable(&mut d, &mut ax, mode::PP);
+        d.params.profile_velocity = 100_000;
+        d.params.profile_acceleration = 1_000_000;
+        d.params.quick_stop_deceleration = 5_000_000;
+        d.params.halt_option = 2;
+        d.params.target_position = 1_000_000;
+        cw(&mut d, &mut ax, 0x003F);
+        cw(&mut d, &mut ax, 0x002F);
+        steps(&mut d, &mut ax, 200);
+        let mut n = 0;
+        loop {
+            let s = cw(&mut d, &mut ax, 0x012F);
+            assert_eq!(d.state(), PdsState::OperationEnabled);
+            assert!(s & sw::ABNORMAL_STOP != 0);
+            if s & sw::TARGET_REACHED != 0 {
+                break;
+            }
+            n += 1;
+            assert!(n < 100);
+        }
+        // 100 000 / 5 000 000 = 20 ms.
+        assert!((19..=21).contains(&n), "{n}");
+        assert_eq!(ax.vel, 0);
+    }
+
+    fn following_error_sets_bit_13_and_faults() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        enable(&mut d, &mut ax, mode::PP);
+        d.params.following_error_window = 1000;
+        d.params.following_error_timeout = 10;
+        d.params.target_position = 100_000;
+        cw(&mut d, &mut ax, 0x003F);
+        ax.stuck = true;
+        let mut n = 0;
+        while d.state() == PdsState::OperationEnabled {
+            cw(&mut d, &mut ax, 0x002F);
+            n += 1;
+            assert!(n < 2000);
+        }
+        assert_eq!(d.error_code(), ERR_FOLLOWING);
+        assert!(d.following_error() > 1000);
+        assert!(matches!(d.state(), PdsState::FaultReactionActive | PdsState::Fault));
+    }
+
+    fn pv_velocity_reached_and_speed_zero() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        enable(&mut d, &mut ax, mode::PV);
+        d.params.profile_acceleration = 100_000;
+        d.params.profile_deceleration = 200_000;
+        d.params.velocity_window = 100;
+        d.params.velocity_threshold = 10;
+        let s = cw(&mut d, &mut ax, 0x000F);
+        assert!(s & sw::BIT12 != 0, "speed zero");
+        d.params.target_velocity = 20_000;
+        let mut n = 0;
+        while cw(&mut d, &mut ax, 0x000F) & sw::TARGET_REACHED == 0 {
+            n += 1;
+            assert!(n < 1000);
+            if n > 2 {
+                assert!(d.statusword() & sw::BIT12 == 0);
+            }
+        }
+        // 20 000 / 100 000 = 200 ms.
+        assert!((198..=203).contains(&n), "{n}");
+        d.params.target_velocity = -20_000;
+        n = 0;
+        while cw(&mut d, &mut ax, 0x000F) & sw::TARGET_REACHED == 0 {
+            n += 1;
+            assert!(n < 1000);
+        }
+        // 100 ms down, 200 ms up.
+        assert!((298..=304).contains(&n), "{n}");
+        // Halt: stop, target reached when stopped.
+        n = 0;
+        while cw(&mut d, &mut ax, 0x010F) & sw::TARGET_REACHED == 0 {
+            n += 1;
+            assert!(n < 1000);
+        }
+        assert_eq!(ax.vel, 0);
+        // Zero deceleration shows bit 14.
+        d.params.profile_deceleration = 0;
+        assert!(cw(&mut d, &mut ax, 0x000F) & sw::PARAM_ZERO != 0);
+    }
+
+    fn csp_follows_targets_with_offset_and_interpolation() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(100);
+        enable(&mut d, &mut ax, mode::CSP);
+        d.params.position_offset = 10;
+        let mut t = 90;
+        for i in 0..100 {
+            t += 7;
+            d.params.target_position = t;
+            let s = cw(&mut d, &mut ax, 0x000F);
+            assert!(s & sw::BIT12 != 0, "drive follows command");
+            assert_eq!(ax.pos, t + 10, "cycle {i}");
+            assert_eq!(d.position_demand(), t + 10);
+        }
+        assert!((ax.vel - 7000).abs() <= 1, "{}", ax.vel);
+        // Halt: not following.
+        let s = cw(&mut d, &mut ax, 0x010F);
+        assert!(s & sw::BIT12 == 0);
+        cw(&mut d, &mut ax, 0x000F);
+        // Sync cycle 1 ms, control cycle 250 µs: linear interpolation inside the period.
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        enable(&mut d, &mut ax, mode::CSP);
+        let mut seen = [0i32; 12];
+        for k in 0..3 {
+            d.params.target_position = (k + 1) * 400;
+            for j in 0..4 {
+                let fb = ax.feedback();
+                let c = d.cycle(&fb, 0.00025);
+                ax.apply(&c);
+                seen[(k * 4 + j) as usize] = c.position;
+            }
+        }
+        assert_eq!(seen, [100, 200, 300, 400, 500, 600, 700, 800, 900, 1000, 1100, 1200]);
+    }
+
+    fn csv_runs_at_target_velocity_plus_offset() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        enable(&mut d, &mut ax, mode::CSV);
+        d.params.target_velocity = 10_000;
+        d.params.velocity_offset = 500;
+        for _ in 0..100 {
+            let s = cw(&mut d, &mut ax, 0x000F);
+            assert!(s & sw::BIT12 != 0);
+        }
+        assert_eq!(ax.vel, 10_500);
+        assert!((ax.pos - 1050).abs() <= 11, "{}", ax.pos);
+    }
+
+    fn hardware_limit_stops_and_sets_bits_8_and_11() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        ax.pl = 5000;
+        enable(&mut d, &mut ax, mode::PV);
+        d.params.target_velocity = 50_000;
+        d.params.quick_stop_deceleration = 1_000_000;
+        let mut n = 0;
+        while ax.pos < 5000 {
+            cw(&mut d, &mut ax, 0x000F);
+            n += 1;
+            assert!(n < 1000);
+        }
+        steps(&mut d, &mut ax, 60);
+        assert_eq!(ax.vel, 0);
+        let s = d.statusword();
+        assert!(s & sw::ABNORMAL_STOP != 0 && s & sw::INTERNAL_LIMIT != 0);
+        // 50 000² / (2 · 1e6) = 1250 counts of braking.
+        assert!(ax.pos < 5000 + 1300);
+        // Away from the limit is allowed.
+        d.params.target_velocity = -10_000;
+        steps(&mut d, &mut ax, 300);
+        assert!(ax.vel < 0);
+    }
+
+    fn software_limits_clamp_pp_and_csp() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        d.params.sw_limit_min = -1000;
+        d.params.sw_limit_max = 2000;
+        enable(&mut d, &mut ax, mode::PP);
+        d.params.target_position = 50_000;
+        cw(&mut d, &mut ax, 0x003F);
+        cw(&mut d, &mut ax, 0x002F);
+        steps(&mut d, &mut ax, 500);
+        assert_eq!(ax.pos, 2000);
+        assert!(d.statusword() & sw::INTERNAL_LIMIT != 0);
+        d.set_mode(mode::CSP);
+        d.params.target_position = -5000;
+        let s = cw(&mut d, &mut ax, 0x000F);
+        assert_eq!(ax.pos, -1000);
+        assert!(s & sw::INTERNAL_LIMIT != 0);
+    }
+
+    fn polarity_inverts_positions_and_velocities() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        d.params.polarity = 0xC0;
+        enable(&mut d, &mut ax, mode::PP);
+        d.params.target_position = 3000;
+        cw(&mut d, &mut ax, 0x003F);
+        cw(&mut d, &mut ax, 0x002F);
+        steps(&mut d, &mut ax, 500);
+        assert_eq!(ax.pos, -3000);
+        assert_eq!(d.position_actual(), 3000);
+        assert_eq!(d.position_demand_internal(), -3000);
+    }
+
+    fn touch_probe_single_continuous_and_index() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        enable(&mut d, &mut ax, mode::CSP);
+        d.params.target_position = 0;
+        // Probe 1: input, single, both edges. Probe 2: index, continuous, rising.
+        d.set_rx(19, &0x1711u16.to_le_bytes());
+        d.set_rx(19, &0x1731u16.to_le_bytes());
+        step(&mut d, &mut ax);
+        assert_eq!(d.touch_probe().status(), 0x0101);
+        ax.probe1 = EdgeLatch { rising: Some(111), falling: None };
+        step(&mut d, &mut ax);
+        assert_eq!(d.touch_probe().status() & 0xFF, 0x03);
+        assert_eq!(d.touch_probe().value(0), 111);
+        ax.probe1 = EdgeLatch { rising: Some(222), falling: Some(333) };
+        step(&mut d, &mut ax);
+        assert_eq!(d.touch_probe().value(0), 111, "single: first event only");
+        assert_eq!(d.touch_probe().value(1), 333);
+        assert_eq!(d.touch_probe().status() & 0xFF, 0x07);
+        // Index pulses on probe 2, continuous: every one is latched, toggle bit 6.
+        ax.index = Some(1100);
+        step(&mut d, &mut ax);
+        assert_eq!(d.touch_probe().value(2), 1100);
+        assert_eq!(d.touch_probe().status() >> 8, 0x03);
+        ax.index = Some(2100);
+        step(&mut d, &mut ax);
+        assert_eq!(d.touch_probe().value(2), 2100);
+        assert_eq!(d.touch_probe().status() >> 8, 0x43);
+        // Re-arm probe 1 by switching it off and on.
+        d.set_rx(19, &0x1700u16.to_le_bytes());
+        step(&mut d, &mut ax);
+        assert_eq!(d.touch_probe().status() & 0xFF, 0);
+        d.set_rx(19, &0x1731u16.to_le_bytes());
+        ax.probe1 = EdgeLatch { rising: Some(444), falling: None };
+        step(&mut d, &mut ax);
+        assert_eq!(d.touch_probe().value(0), 444);
+    }
+
+    fn homing_every_method_ends_on_its_reference() {
+        // World: limits at ±20 000, home switch edge at 2 000 (or zone 2 000..6 000),
+        // index pulses at 100 + k·1000.
+        let cases: &[(i8, i32, i32)] = &[
+            // (method, start, expected home position)
+            (1, 0, -19_900), (2, 0, 19_100), (3, 0, 1_100), (3, 9000, 1_100), (4, 0, 2_100), (4, 9000, 2_100),
+            (5, 0, 2_100), (5, 9000, 2_100), (6, 0, 1_100), (6, 9000, 1_100),
+            (7, 0, 1_100), (7, 4000, 1_100), (7, 9000, 1_100),
+            (8, 0, 2_100), (8, 4000, 2_100), (8, 9000, 2_100),
+            (9, 0, 5_100), (9, 4000, 5_100), (9, 9000, 5_100),
+            (10, 0, 6_100), (10, 4000, 6_100), (10, 9000, 6_100),
+            (11, 0, 6_100), (11, 9000, 6_100), (12, 0, 5_100), (12, 9000, 5_100),
+            (13, 0, 2_100), (13, 9000, 2_100), (14, 0, 1_100), (14, 9000, 1_100),
+            (17, 0, -19_999), (18, 0, 19_999),
+            (19, 0, 1_999), (19, 9000, 1_999), (20, 0, 2_000), (20, 9000, 2_000),
+            (21, 0, 2_001), (21, 9000, 2_001), (22, 0, 2_000), (22, 9000, 2_000),
+            (23, 0, 1_999), (23, 9000, 1_999), (24, 0, 2_000), (24, 4000, 2_000),
+            (25, 0, 6_000), (25, 4000, 6_000), (26, 0, 6_001), (26, 9000, 6_001),
+            (27, 0, 6_001), (27, 9000, 6_001), (28, 0, 6_000), (28, 4000, 6_000),
+            (29, 0, 2_000), (29, 9000, 2_000), (30, 0, 1_999), (30, 4000, 1_999),
+            (33, 0, -900), (34, 0, 100), (35, 1234, 1234), (37, -77, -77),
+        ];
+        for &(method, start, expect) in cases {
+            let mut d = Cia402::new();
+            let mut ax = Axis::new(start);
+            ax.nl = -20_000;
+            ax.pl = 20_000;
+            ax.home = match method {
+                3 | 4 | 19 | 20 => HomeSw::Above(2000),
+                5 | 6 | 21 | 22 => HomeSw::Below(2000),
+                7..=14 | 23..=30 => HomeSw::Zone(2000, 6000),
+                _ => HomeSw::None,
+            };
+            d.params.homing_method = method;
+            d.params.homing_speed_switch = 10_000;
+            d.params.homing_speed_zero = 1_000;
+            d.params.homing_acceleration = 100_000;
+            d.params.home_offset = 555;
+            enable(&mut d, &mut ax, mode::HM);
+            let s = cw(&mut d, &mut ax, 0x000F);
+            assert_eq!(s & 0x3400, 0x0400, "not started");
+            let mut n = 0;
+            loop {
+                let s = cw(&mut d, &mut ax, 0x001F);
+                assert!(s & sw::BIT13 == 0, "method {method} start {start}: homing error");
+                if s & 0x3400 == 0x1400 {
+                    break;
+                }
+                n += 1;
+                assert!(n < 60_000, "method {method} start {start}: timeout at {}", ax.pos);
+            }
+            assert!((ax.pos - expect).abs() <= 1, "method {method} start {start}: {} vs {expect}", ax.pos);
+            assert!((d.position_actual() - 555).abs() <= 1, "method {method}");
+        }
+    }
+
+    fn homing_errors() {
+        // Index method without an encoder index.
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        d.set_has_index(false);
+        d.params.homing_method = 1;
+        enable(&mut d, &mut ax, mode::HM);
+        let s = cw(&mut d, &mut ax, 0x001F);
+        assert_eq!(s & 0x3400, 0x2400, "homing error, stopped");
+        // Home switch not assigned.
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        d.set_assigned_inputs(0b011);
+        d.params.homing_method = 19;
+        enable(&mut d, &mut ax, mode::HM);
+        let s = cw(&mut d, &mut ax, 0x001F);
+        assert!(s & sw::BIT13 != 0);
+        // Home switch never found: runs into the limit switch.
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        ax.pl = 3000;
+        d.params.homing_method = 20;
+        d.params.homing_speed_switch = 10_000;
+        enable(&mut d, &mut ax, mode::HM);
+        let mut n = 0;
+        while cw(&mut d, &mut ax, 0x001F) & sw::BIT13 == 0 {
+            n += 1;
+            assert!(n < 5000);
+        }
+        steps(&mut d, &mut ax, 5);
+        assert_eq!(d.statusword() & 0x3400, 0x2400);
+        // Interrupt by clearing bit 4: "not started / interrupted".
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        ax.nl = -20_000;
+        d.params.homing_method = 17;
+        enable(&mut d, &mut ax, mode::HM);
+        cw(&mut d, &mut ax, 0x001F);
+        steps(&mut d, &mut ax, 100);
+        assert_eq!(d.statusword() & 0x3400, 0x0000, "in progress");
+        for _ in 0..200 {
+            cw(&mut d, &mut ax, 0x000F);
+        }
+        assert_eq!(d.statusword() & 0x3400, 0x0400);
+    }
+}
