@@ -28,16 +28,15 @@
 use crate::al_status::AlStatusCode;
 use crate::esc::{EscAccess, EscError};
 use crate::esm::{Decision, Esm, EsmHooks, EsmState};
+use crate::mailbox::MailboxServer;
 use crate::od::{Dictionary, Object, SdoAbort};
 use crate::pdo::{self, CopyPlan, PdoConfig, PdoDefaults, ProcessData};
 use crate::registers::{self as reg, al_event};
 use crate::sm::{self, MailboxLimits, PdDirection, RamWindow, SmRegs};
 use crate::sync::{self, SyncEvent, SyncMode, SyncState};
 
-use fallback::FallbackMailbox as MailboxServer;
-
 /// Largest mailbox SyncManager handled.
-pub const MAX_MAILBOX: usize = 256;
+pub const MAX_MAILBOX: usize = crate::mailbox::MAX_MAILBOX_SIZE;
 
 /// What the application gives the runtime: its dictionary, its cyclic data, the ESM
 /// hooks ([`EsmHooks::on_state_change`] carries the CiA 402 coupling), and a few
@@ -412,7 +411,7 @@ impl<E: EscAccess> Slave<E> {
         }
         self.active[0] = sm0;
         self.active[1] = sm1;
-        self.mbx = MailboxServer::new(sm1.len as usize);
+        self.mbx.set_mailbox_size(sm0.len.min(sm1.len) as usize);
         self.sm1_busy = false;
         self.repeat_ack = sm1.repeat_request();
         // Make sure neither mailbox SM is deactivated from the PDI side; start the
@@ -810,77 +809,5 @@ impl<E: EscAccess> Slave<E> {
         }
         pdo::pack(&self.plan.tx, app, &mut self.tx_buf[..tx_len]);
         self.esc.write(self.active[3].start, &self.tx_buf[..tx_len])
-    }
-}
-
-mod fallback {
-    //! Stand-in for the CoE mailbox server until `crate::mailbox` exists: answers
-    //! every request with a mailbox error reply "protocol not supported" (0x0002).
-    use crate::esm::EsmState;
-    use crate::od::Dictionary;
-
-    /// Same interface as `mailbox::MailboxServer`.
-    pub struct FallbackMailbox {
-        reply: [u8; 10],
-        pending: bool,
-        last: [u8; 10],
-        last_len: usize,
-        counter: u8,
-    }
-
-    impl FallbackMailbox {
-        pub fn new(_mailbox_size: usize) -> Self {
-            FallbackMailbox {
-                reply: [0; 10],
-                pending: false,
-                last: [0; 10],
-                last_len: 0,
-                counter: 0,
-            }
-        }
-        pub fn on_request(
-            &mut self,
-            frame: &[u8],
-            _dict: &mut impl Dictionary,
-            _state: EsmState,
-            _now_us: u64,
-        ) {
-            if frame.len() < 6 {
-                return;
-            }
-            // Header: length 4, address 0, channel/priority 0, type 0 (error), counter
-            // assigned when sent; payload: 0x0001 (command), 0x0002 (detail).
-            self.reply = [4, 0, 0, 0, 0, 0, 0x01, 0x00, 0x02, 0x00];
-            self.pending = true;
-        }
-        pub fn next_output(&mut self, out: &mut [u8], _now_us: u64) -> usize {
-            if !self.pending || out.len() < self.reply.len() {
-                return 0;
-            }
-            self.counter = if self.counter >= 7 {
-                1
-            } else {
-                self.counter + 1
-            };
-            self.reply[5] = self.counter << 4;
-            out[..10].copy_from_slice(&self.reply);
-            self.last = self.reply;
-            self.last_len = 10;
-            self.pending = false;
-            10
-        }
-        pub fn repeat_last(&self, out: &mut [u8]) -> usize {
-            if self.last_len == 0 || out.len() < self.last_len {
-                return 0;
-            }
-            out[..self.last_len].copy_from_slice(&self.last[..self.last_len]);
-            self.last_len
-        }
-        pub fn tick(&mut self, _now_us: u64) {}
-        pub fn reset(&mut self) {
-            self.pending = false;
-            self.last_len = 0;
-        }
-        pub fn emergency(&mut self, _error_code: u16, _error_register: u8, _data: [u8; 5]) {}
     }
 }

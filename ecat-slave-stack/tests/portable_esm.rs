@@ -13,6 +13,7 @@ use ecat_slave_stack::od::{
 use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
 use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
+use ecat_slave_stack::sync;
 
 // ---- fake ESC -----------------------------------------------------------------
 
@@ -198,6 +199,19 @@ const E_2102: &[Entry] =
     &[Entry::new(0, "big", DataType::Unsigned64, Access::RW).pdo(PdoMappable::RxTx)];
 
 static OBJECTS: &[Object] = &[
+    pdo::OBJECTS[0],
+    pdo::OBJECTS[1],
+    pdo::OBJECTS[2],
+    pdo::OBJECTS[3],
+    pdo::OBJECTS[4],
+    pdo::OBJECTS[5],
+    pdo::OBJECTS[6],
+    pdo::OBJECTS[7],
+    pdo::OBJECTS[8],
+    pdo::OBJECTS[9],
+    pdo::OBJECTS[10],
+    pdo::OBJECTS[11],
+    pdo::OBJECTS[12],
     var(0x2100, "flag", DataType::Boolean, PdoMappable::RxTx, E_2100),
     var(0x2101, "nm", DataType::Unsigned16, PdoMappable::No, E_2101),
     var(
@@ -207,6 +221,7 @@ static OBJECTS: &[Object] = &[
         PdoMappable::RxTx,
         E_2102,
     ),
+    sync::DIAG_OBJECTS[0],
     var(0x6040, "cw", DataType::Unsigned16, PdoMappable::Rx, E_6040),
     var(0x6041, "sw", DataType::Unsigned16, PdoMappable::Tx, E_6041),
     var(0x6060, "mode", DataType::Integer8, PdoMappable::Rx, E_6060),
@@ -441,6 +456,11 @@ fn lcg(x: &mut u32) -> u32 {
 }
 
 qemu_runner::tests! {
+    fn test_dictionary_is_well_formed() {
+        assert!(ecat_slave_stack::od::is_well_formed(OBJECTS));
+        assert_eq!(pdo::OBJECTS.len(), 13);
+    }
+
     fn init_reports_init_and_sets_event_mask() {
         let mut s = Slave::new(FakeEsc::new(), SlaveConfig { station_alias: Some(0x0042), ..cfg() });
         let info = s.init().unwrap();
@@ -883,6 +903,31 @@ qemu_runner::tests! {
         assert!(s.esc_mut().read_sm1(&mut again));
         assert_eq!(&again[..10], &first[..10]);
         assert_eq!(s.esc_mut().m[(reg::sm_register(1) + reg::sm::PDI_CONTROL) as usize] & 0x02, 0x02);
+    }
+
+    fn sdo_through_the_mailbox_reaches_the_communication_objects() {
+        let (mut s, mut app) = new_slave();
+        to_preop(&mut s, &mut app);
+        // Expedited upload of 0x1C12:01, counter 1.
+        let mut req = [0u8; 128];
+        req[..16].copy_from_slice(&[10, 0, 0, 0, 0, 0x13, 0x00, 0x20, 0x40, 0x12, 0x1C, 0x01, 0, 0, 0, 0]);
+        s.esc_mut().ecat_write(0x1000, &req);
+        s.poll(&mut app, 0).unwrap();
+        let mut out = [0u8; 128];
+        assert!(s.esc_mut().read_sm1(&mut out));
+        assert_eq!(out[5] & 0x0F, 3, "CoE");
+        assert_eq!(out[7] >> 4, 3, "SDO response");
+        assert_eq!(&out[9..12], &[0x12, 0x1C, 0x01]);
+        assert_eq!(&out[12..14], &[0x00, 0x16]);
+        // Download 0x1C12:00 = 0 in Safe-Op: abort 0x08000022.
+        pd_sms(s.esc_mut(), 6, 6);
+        assert_eq!(request(&mut s, &mut app, 4, 10), (0x04, 0));
+        req[..16].copy_from_slice(&[10, 0, 0, 0, 0, 0x23, 0x00, 0x20, 0x2F, 0x12, 0x1C, 0x00, 0, 0, 0, 0]);
+        s.esc_mut().ecat_write(0x1000, &req);
+        s.poll(&mut app, 20).unwrap();
+        assert!(s.esc_mut().read_sm1(&mut out));
+        assert_eq!(out[8], 0x80, "abort");
+        assert_eq!(u32::from_le_bytes([out[12], out[13], out[14], out[15]]), 0x0800_0022);
     }
 
     fn pdo_sdo_rules() {

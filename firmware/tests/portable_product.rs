@@ -72,8 +72,8 @@ const PARTS: &[&[Object]] = &[
     comm::OBJECTS,
     MAPPING,
     params::OBJECTS,
-    faults::OBJECTS,
     monitor::OBJECTS,
+    faults::OBJECTS,
 ];
 
 const fn total(parts: &[&[Object]]) -> usize {
