@@ -1,0 +1,1191 @@
+//! A simulated EtherCAT slave controller (ESC): the register space and process RAM of a
+//! LAN9252 or ET1100, seen from both sides.
+//!
+//! * **ECAT side** (the wire): [`frame::process_frame`] runs an Ethernet frame through a
+//!   chain of simulators, executing every datagram command with the working-counter
+//!   rules, auto-increment addressing and FMMU logical mapping.
+//! * **PDI side** (the microcontroller): [`EscSim`] implements
+//!   [`ecat_slave_stack::EscAccess`], so the firmware talks to it exactly as to a chip
+//!   (the SPI chip models can also wrap it).
+//!
+//! What is modelled (digest §1): access rights per side (e.g. AL control is written by
+//! the master, AL status by the PDI; SM start/length/control only while the SM is
+//! disabled), SyncManager mailbox (1-buffer) and 3-buffer semantics with their status
+//! bits and AL/ECAT events, AL control → AL event bit 0 with the "mailbox" behaviour
+//! of AL control (device emulation off), the SII EEPROM interface at 0x0500-0x050F
+//! backed by an SII image, the process-data watchdog, the PDI watchdog, and distributed
+//! clocks (local time, receive-time latching, offset/delay, a drift compensation that
+//! settles on the first system-time write, SYNC0 generation). Time is simulated
+//! nanoseconds; it only moves through [`EscSim::advance_to`] (or the segment), never
+//! with the wall clock.
+//!
+//! Choices where the real chips' behaviour is not in our sources are marked
+//! *simulation choice* in the docs below.
+
+pub mod frame;
+mod sm;
+
+use ecat_slave_stack::registers as reg;
+use ecat_slave_stack::{EscAccess, EscError};
+use sm::SmRuntime;
+use std::cell::RefCell;
+use std::rc::Rc;
+
+/// Which chip is simulated. Decides the ESC information registers, the number of
+/// FMMUs/SyncManagers, the process RAM size and the SII read size.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Flavour {
+    /// Microchip LAN9252: 3 FMMUs, 4 SyncManagers, 4 KiB process RAM, 2 MII ports.
+    Lan9252,
+    /// Beckhoff ET1100: 8 FMMUs, 8 SyncManagers, 8 KiB process RAM.
+    Et1100,
+}
+
+impl Flavour {
+    /// ESC type (0x0000). *Simulation choice* for the LAN9252 value.
+    pub const fn esc_type(self) -> u8 {
+        match self {
+            Flavour::Lan9252 => 0xC0,
+            Flavour::Et1100 => 0x11,
+        }
+    }
+    /// ESC revision (0x0001).
+    pub const fn revision(self) -> u8 {
+        match self {
+            Flavour::Lan9252 => 0x02,
+            Flavour::Et1100 => 0x00,
+        }
+    }
+    /// ESC build (0x0002).
+    pub const fn build(self) -> u16 {
+        match self {
+            Flavour::Lan9252 => 0x0001,
+            Flavour::Et1100 => 0x0003,
+        }
+    }
+    /// Number of FMMUs (0x0004).
+    pub const fn fmmu_count(self) -> u8 {
+        match self {
+            Flavour::Lan9252 => 3,
+            Flavour::Et1100 => 8,
+        }
+    }
+    /// Number of SyncManagers (0x0005).
+    pub const fn sm_count(self) -> u8 {
+        match self {
+            Flavour::Lan9252 => 4,
+            Flavour::Et1100 => 8,
+        }
+    }
+    /// Process RAM in bytes (0x0006 holds it in KiB).
+    pub const fn ram_bytes(self) -> usize {
+        match self {
+            Flavour::Lan9252 => 4 * 1024,
+            Flavour::Et1100 => 8 * 1024,
+        }
+    }
+    /// Port descriptor (0x0007): ports 0 and 1 MII (ET1100: ports 2/3 not configured).
+    pub const fn port_descriptor(self) -> u8 {
+        match self {
+            Flavour::Lan9252 => 0x0F,
+            Flavour::Et1100 => 0x5F,
+        }
+    }
+    /// Features (0x0008): DC, 64-bit DC, MII enhanced link detection, separate FCS
+    /// handling, enhanced DC SYNC activation (+ EBUS bits on the ET1100).
+    pub const fn features(self) -> u16 {
+        match self {
+            Flavour::Lan9252 => 0x01CC,
+            Flavour::Et1100 => 0x01FC,
+        }
+    }
+    /// The SII interface delivers 8 bytes per read (0x0502 bit 6), else 4.
+    /// *Simulation choice*: the ET1100 flavour reads 8, the LAN9252 flavour 4, so that
+    /// both master code paths are exercised.
+    pub const fn sii_reads_8_bytes(self) -> bool {
+        matches!(self, Flavour::Et1100)
+    }
+    /// Size of the whole address space (registers + process RAM).
+    pub const fn address_space(self) -> usize {
+        0x1000 + self.ram_bytes()
+    }
+}
+
+/// Which side of the ESC performs an access.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    /// The EtherCAT master, through datagrams.
+    Ecat,
+    /// The local microcontroller (process data interface).
+    Pdi,
+}
+
+/// Counters a test can inspect.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SimStats {
+    /// SYNC0 pulses generated.
+    pub sync0_pulses: u64,
+    /// Process-data watchdog expiries.
+    pub pd_watchdog_expiries: u64,
+    /// PDI watchdog expiries.
+    pub pdi_watchdog_expiries: u64,
+    /// SII commands executed (read, write, reload).
+    pub sii_commands: u64,
+    /// ECAT writes to AL control ignored because the PDI had not read the previous one.
+    pub al_control_writes_ignored: u64,
+}
+
+/// Timing of the current frame at this ESC, set by the frame processor.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct FrameTiming {
+    /// Simulated time the frame entered port 0.
+    pub(crate) port0_ns: u64,
+    /// Simulated time the frame came back into port 1 (none at the end of the line).
+    pub(crate) port1_ns: Option<u64>,
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Sync0 {
+    active: bool,
+    next: u64,
+    cycle: u32,
+}
+
+/// One simulated ESC.
+pub struct EscSim {
+    flavour: Flavour,
+    mem: Vec<u8>,
+    sms: Vec<SmRuntime>,
+    sii: Vec<u8>,
+    sii_busy_reads: u8,
+    al_control_unread: bool,
+    now_ns: u64,
+    clock_base_ns: u64,
+    pll_correction: i64,
+    sync0: Sync0,
+    pd_wd_armed: bool,
+    pd_wd_last_ns: u64,
+    pdi_last_ns: u64,
+    timing: FrameTiming,
+    stats: SimStats,
+}
+
+/// The SII checksum: CRC-8, polynomial 0x07, init 0xFF, MSB first (digest §7.2).
+pub fn sii_crc8(bytes: &[u8]) -> u8 {
+    let mut crc: u8 = 0xFF;
+    for &b in bytes {
+        crc ^= b;
+        for _ in 0..8 {
+            crc = if crc & 0x80 != 0 {
+                (crc << 1) ^ 0x07
+            } else {
+                crc << 1
+            };
+        }
+    }
+    crc
+}
+
+fn get_u16(m: &[u8], a: usize) -> u16 {
+    u16::from_le_bytes([m[a], m[a + 1]])
+}
+fn get_u32(m: &[u8], a: usize) -> u32 {
+    u32::from_le_bytes([m[a], m[a + 1], m[a + 2], m[a + 3]])
+}
+fn get_u64(m: &[u8], a: usize) -> u64 {
+    let mut b = [0u8; 8];
+    b.copy_from_slice(&m[a..a + 8]);
+    u64::from_le_bytes(b)
+}
+fn put_u16(m: &mut [u8], a: usize, v: u16) {
+    m[a..a + 2].copy_from_slice(&v.to_le_bytes());
+}
+fn put_u32(m: &mut [u8], a: usize, v: u32) {
+    m[a..a + 4].copy_from_slice(&v.to_le_bytes());
+}
+fn put_u64(m: &mut [u8], a: usize, v: u64) {
+    m[a..a + 8].copy_from_slice(&v.to_le_bytes());
+}
+
+const SII_CTRL_WRITE_ENABLE: u16 = 1 << 0;
+const SII_CTRL_READ_8: u16 = 1 << 6;
+const SII_CTRL_ADDR_2BYTES: u16 = 1 << 7;
+const SII_CTRL_CMD_MASK: u16 = 0x0700;
+const SII_CTRL_CHECKSUM_ERR: u16 = 1 << 11;
+const SII_CTRL_NOT_LOADED: u16 = 1 << 12;
+const SII_CTRL_ACK_ERR: u16 = 1 << 13;
+const SII_CTRL_WE_ERR: u16 = 1 << 14;
+const SII_CTRL_BUSY: u16 = 1 << 15;
+
+/// ECAT event request bit: AL status changed.
+const ECAT_EVENT_AL_STATUS: u16 = 1 << 3;
+
+impl EscSim {
+    /// A freshly powered ESC that has loaded `sii` (the EEPROM image). A too short
+    /// image or a wrong checksum leaves the ESC with "EEPROM not loaded" (DL status
+    /// bit 0 clear, 0x0502 bits 11/12 set), as a chip with a blank EEPROM.
+    pub fn new(flavour: Flavour, sii: Vec<u8>) -> Self {
+        let sms = (0..flavour.sm_count())
+            .map(|_| SmRuntime::default())
+            .collect();
+        let mut esc = EscSim {
+            flavour,
+            mem: vec![0; flavour.address_space()],
+            sms,
+            sii,
+            sii_busy_reads: 0,
+            al_control_unread: false,
+            now_ns: 0,
+            clock_base_ns: 0,
+            pll_correction: 0,
+            sync0: Sync0::default(),
+            pd_wd_armed: false,
+            pd_wd_last_ns: 0,
+            pdi_last_ns: 0,
+            timing: FrameTiming::default(),
+            stats: SimStats::default(),
+        };
+        esc.power_on();
+        esc
+    }
+
+    fn power_on(&mut self) {
+        let f = self.flavour;
+        let m = &mut self.mem;
+        m[reg::ESC_TYPE as usize] = f.esc_type();
+        m[reg::ESC_REVISION as usize] = f.revision();
+        put_u16(m, reg::ESC_BUILD as usize, f.build());
+        m[reg::FMMU_COUNT as usize] = f.fmmu_count();
+        m[reg::SM_COUNT as usize] = f.sm_count();
+        m[reg::RAM_SIZE as usize] = (f.ram_bytes() / 1024) as u8;
+        m[reg::PORT_DESCRIPTOR as usize] = f.port_descriptor();
+        put_u16(m, reg::FEATURES as usize, f.features());
+        put_u16(m, reg::AL_CONTROL as usize, 0x0001);
+        put_u16(m, reg::AL_STATUS as usize, 0x0001);
+        put_u16(m, reg::WATCHDOG_DIVIDER as usize, 2498);
+        put_u16(m, reg::WATCHDOG_TIME_PDI as usize, 1000);
+        put_u16(m, reg::WATCHDOG_TIME_PD as usize, 1000);
+        put_u16(m, reg::WATCHDOG_STATUS_PD as usize, 0x0001);
+        self.set_ports(false);
+        self.load_sii_config();
+    }
+
+    /// (Re)loads the ESC configuration area from the SII image: PDI control and
+    /// configuration, SYNC pulse length, station alias (word 4).
+    fn load_sii_config(&mut self) {
+        let mut ctrl = get_u16(&self.mem, reg::SII_CONTROL as usize)
+            & !(SII_CTRL_CHECKSUM_ERR
+                | SII_CTRL_NOT_LOADED
+                | SII_CTRL_READ_8
+                | SII_CTRL_ADDR_2BYTES);
+        if self.flavour.sii_reads_8_bytes() {
+            ctrl |= SII_CTRL_READ_8;
+        }
+        if self.sii.len() > 2048 {
+            ctrl |= SII_CTRL_ADDR_2BYTES;
+        }
+        let ok = self.sii.len() >= 16 && sii_crc8(&self.sii[0..14]) == self.sii[14];
+        let dl = reg::DL_STATUS as usize;
+        if ok {
+            let s = &self.sii;
+            let w = |i: usize| u16::from_le_bytes([s[2 * i], s[2 * i + 1]]);
+            let (w0, w1, w2, w3, w4) = (w(0), w(1), w(2), w(3), w(4));
+            put_u16(&mut self.mem, reg::PDI_CONTROL as usize, w0);
+            put_u16(&mut self.mem, reg::PDI_CONFIG as usize, w1);
+            put_u16(&mut self.mem, reg::DC_PULSE_LENGTH as usize, w2);
+            put_u16(&mut self.mem, reg::PDI_CONFIG as usize + 2, w3);
+            put_u16(&mut self.mem, reg::STATION_ALIAS as usize, w4);
+            self.mem[dl] |= 0x01;
+        } else {
+            if self.sii.len() >= 16 {
+                ctrl |= SII_CTRL_CHECKSUM_ERR;
+            }
+            ctrl |= SII_CTRL_NOT_LOADED;
+            self.mem[dl] &= !0x01;
+        }
+        put_u16(&mut self.mem, reg::SII_CONTROL as usize, ctrl);
+    }
+
+    /// Sets the link state of the ports: port 0 always has a link (towards the
+    /// master); port 1 has one when another ESC follows, otherwise its loop is closed.
+    pub fn set_ports(&mut self, downstream: bool) {
+        // bit 1 PDI watchdog OK is kept; bit 0 (PDI operational) is kept.
+        let keep = get_u16(&self.mem, reg::DL_STATUS as usize) & 0x0003;
+        let mut v = keep | (1 << 4) | (1 << 9); // link + communication on port 0
+        if downstream {
+            v |= (1 << 5) | (1 << 11); // link + communication on port 1
+        } else {
+            v |= 1 << 10; // port 1 loop closed
+        }
+        v |= (1 << 12) | (1 << 14); // ports 2/3 closed
+        put_u16(&mut self.mem, reg::DL_STATUS as usize, v | 0x0002);
+    }
+
+    /// Gives this ESC's local clock a different power-up instant (ns added to the
+    /// simulated time), so that DC offsets are not trivially zero.
+    pub fn set_clock_base(&mut self, ns: u64) {
+        self.clock_base_ns = ns;
+    }
+
+    /// The simulated chip.
+    pub fn flavour(&self) -> Flavour {
+        self.flavour
+    }
+
+    /// Current simulated time (ns).
+    pub fn now_ns(&self) -> u64 {
+        self.now_ns
+    }
+
+    /// Counters for tests.
+    pub fn stats(&self) -> SimStats {
+        self.stats
+    }
+
+    /// The SII image (after any master writes through 0x0502).
+    pub fn sii(&self) -> &[u8] {
+        &self.sii
+    }
+
+    /// Raw view of the address space without side effects (for tests and tools).
+    pub fn peek(&self, addr: u16, len: usize) -> &[u8] {
+        let a = (addr as usize).min(self.mem.len());
+        let e = (a + len).min(self.mem.len());
+        &self.mem[a..e]
+    }
+
+    /// The PDI interrupt line: AL event request & AL event mask ≠ 0.
+    pub fn pdi_irq(&self) -> bool {
+        let req = get_u32(&self.mem, reg::AL_EVENT_REQUEST as usize);
+        let mask = get_u32(&self.mem, reg::AL_EVENT_MASK as usize);
+        req & mask != 0
+    }
+
+    /// AL status (0x0130) as the master would read it.
+    pub fn al_status(&self) -> u16 {
+        get_u16(&self.mem, reg::AL_STATUS as usize)
+    }
+
+    /// AL status code (0x0134).
+    pub fn al_status_code(&self) -> u16 {
+        get_u16(&self.mem, reg::AL_STATUS_CODE as usize)
+    }
+
+    // ---------------------------------------------------------------- events
+
+    fn al_event_set(&mut self, bits: u32) {
+        let a = reg::AL_EVENT_REQUEST as usize;
+        let v = get_u32(&self.mem, a) | bits;
+        put_u32(&mut self.mem, a, v);
+    }
+    fn al_event_clear(&mut self, bits: u32) {
+        let a = reg::AL_EVENT_REQUEST as usize;
+        let v = get_u32(&self.mem, a) & !bits;
+        put_u32(&mut self.mem, a, v);
+    }
+    fn ecat_event_set(&mut self, bits: u16) {
+        let a = reg::ECAT_EVENT_REQUEST as usize;
+        let v = get_u16(&self.mem, a) | bits;
+        put_u16(&mut self.mem, a, v);
+    }
+    fn ecat_event_clear(&mut self, bits: u16) {
+        let a = reg::ECAT_EVENT_REQUEST as usize;
+        let v = get_u16(&self.mem, a) & !bits;
+        put_u16(&mut self.mem, a, v);
+    }
+    /// ECAT event request & ECAT event mask, ORed into each datagram's IRQ field.
+    pub(crate) fn ecat_irq(&self) -> u16 {
+        get_u16(&self.mem, reg::ECAT_EVENT_REQUEST as usize)
+            & get_u16(&self.mem, reg::ECAT_EVENT_MASK as usize)
+    }
+
+    // ---------------------------------------------------------------- addressing
+
+    /// Configured station address (0x0010).
+    pub fn station_address(&self) -> u16 {
+        get_u16(&self.mem, reg::STATION_ADDRESS as usize)
+    }
+
+    /// True when a configured-address datagram with `adp` addresses this ESC
+    /// (station address, or the alias when DL control bit 24 enables it).
+    pub(crate) fn matches_configured(&self, adp: u16) -> bool {
+        if adp == self.station_address() {
+            return true;
+        }
+        let alias_enabled = self.mem[reg::DL_CONTROL as usize + 3] & 0x01 != 0;
+        alias_enabled && adp == get_u16(&self.mem, reg::STATION_ALIAS as usize)
+    }
+
+    // ---------------------------------------------------------------- access
+
+    /// Reads `buf.len()` bytes at `addr` from `side`. Bytes outside the implemented
+    /// address space are left unchanged in `buf`. Returns whether the access was
+    /// accepted (counts for the working counter): a read of an empty mailbox, of a
+    /// SyncManager buffer in the wrong direction or entirely outside the address space
+    /// is not accepted.
+    pub fn side_read(&mut self, side: Side, addr: u16, buf: &mut [u8]) -> bool {
+        if side == Side::Pdi {
+            self.pdi_touch();
+        }
+        let start = addr as usize;
+        let end = (start + buf.len()).min(self.mem.len());
+        if start >= end {
+            return false;
+        }
+        let mut accepted = false;
+        if start < 0x1000 {
+            let rend = end.min(0x1000);
+            self.read_registers(side, start, &mut buf[..rend - start]);
+            accepted = true;
+        }
+        if end > 0x1000 {
+            let rstart = start.max(0x1000);
+            let off = rstart - start;
+            accepted |= self.ram_read(side, rstart, &mut buf[off..off + (end - rstart)]);
+        }
+        accepted
+    }
+
+    /// Writes `data` at `addr` from `side`, applying the access rights and side
+    /// effects. Returns whether the access was accepted (see [`EscSim::side_read`]); writes
+    /// to read-only registers are ignored but accepted, as on the chips.
+    pub fn side_write(&mut self, side: Side, addr: u16, data: &[u8]) -> bool {
+        if side == Side::Pdi {
+            self.pdi_touch();
+        }
+        let start = addr as usize;
+        let end = (start + data.len()).min(self.mem.len());
+        if start >= end {
+            return false;
+        }
+        let mut accepted = false;
+        if start < 0x1000 {
+            let rend = end.min(0x1000);
+            self.write_registers(side, start, &data[..rend - start]);
+            accepted = true;
+        }
+        if end > 0x1000 {
+            let rstart = start.max(0x1000);
+            let off = rstart - start;
+            accepted |= self.ram_write(side, rstart, &data[off..off + (end - rstart)]);
+        }
+        accepted
+    }
+
+    fn pdi_touch(&mut self) {
+        self.pdi_last_ns = self.now_ns;
+        self.mem[reg::DL_STATUS as usize] |= 0x02;
+    }
+
+    /// Side-effect-free view of a byte range as the next consumer would see it
+    /// (used for read-modify-write of partial bytes by bit-granular FMMUs).
+    pub(crate) fn peek_for_rmw(&self, addr: usize, out: &mut [u8]) {
+        for (i, o) in out.iter_mut().enumerate() {
+            let a = addr + i;
+            *o = match self.sm_window_at(a) {
+                Some((n, off)) => self.sms[n].peek(&self.mem, self.sm_start(n), off),
+                None => self.mem.get(a).copied().unwrap_or(0),
+            };
+        }
+    }
+
+    // ---------------------------------------------------------------- registers
+
+    fn system_time_at(&self, t: u64) -> u64 {
+        let offset = get_u64(&self.mem, reg::DC_SYSTEM_TIME_OFFSET as usize);
+        t.wrapping_add(self.clock_base_ns)
+            .wrapping_add(offset)
+            .wrapping_add(self.pll_correction as u64)
+    }
+
+    /// The DC system time (0x0910) at the current simulated time.
+    pub fn system_time(&self) -> u64 {
+        self.system_time_at(self.now_ns)
+    }
+
+    fn access_time(&self, side: Side) -> u64 {
+        match side {
+            Side::Ecat => self.timing.port0_ns,
+            Side::Pdi => self.now_ns,
+        }
+    }
+
+    fn fmmu_end(&self) -> usize {
+        reg::FMMU_BASE as usize + 16 * self.flavour.fmmu_count() as usize
+    }
+    fn sm_end(&self) -> usize {
+        reg::SM_BASE as usize + 8 * self.flavour.sm_count() as usize
+    }
+
+    fn read_registers(&mut self, side: Side, start: usize, buf: &mut [u8]) {
+        let end = start + buf.len();
+        let overlaps = |a: usize, len: usize| start < a + len && a < end;
+        // Dynamic values first.
+        if overlaps(reg::DC_SYSTEM_TIME as usize, 8) {
+            let st = self.system_time_at(self.access_time(side));
+            put_u64(&mut self.mem, reg::DC_SYSTEM_TIME as usize, st);
+        }
+        buf.copy_from_slice(&self.mem[start..end]);
+        // Read side effects.
+        match side {
+            Side::Pdi => {
+                if overlaps(reg::AL_CONTROL as usize, 2) {
+                    self.al_control_unread = false;
+                    self.al_event_clear(reg::al_event::AL_CONTROL);
+                }
+                if overlaps(reg::DC_SYNC0_STATUS as usize, 1) {
+                    self.mem[reg::DC_SYNC0_STATUS as usize] = 0;
+                    self.al_event_clear(reg::al_event::SYNC0);
+                }
+                if overlaps(reg::WATCHDOG_STATUS_PD as usize, 2) {
+                    self.al_event_clear(reg::al_event::WATCHDOG);
+                }
+                for n in 0..self.sms.len() {
+                    if overlaps(reg::sm_register(n as u8) as usize + 6, 1) {
+                        self.al_event_clear(reg::al_event::SM_CHANGE);
+                    }
+                }
+            }
+            Side::Ecat => {
+                if overlaps(reg::AL_STATUS as usize, 2) {
+                    self.ecat_event_clear(ECAT_EVENT_AL_STATUS);
+                }
+            }
+        }
+        if overlaps(reg::SII_CONTROL as usize + 1, 1) && self.sii_busy_reads > 0 {
+            self.sii_busy_reads -= 1;
+            if self.sii_busy_reads == 0 {
+                self.sii_finish_busy();
+            }
+        }
+    }
+
+    fn sii_owner(&self) -> Side {
+        if self.mem[reg::SII_CONFIG as usize] & 0x01 != 0 {
+            Side::Pdi
+        } else {
+            Side::Ecat
+        }
+    }
+
+    #[allow(clippy::collapsible_match)] // one arm per register range reads better
+    fn write_registers(&mut self, side: Side, start: usize, data: &[u8]) {
+        let end = start + data.len();
+        let overlaps = |a: usize, len: usize| start < a + len && a < end;
+        let emulation = self.mem[reg::ESC_CONFIG as usize] & 0x01 != 0;
+        let sync_owner_pdi = self.mem[reg::DC_CYCLIC_UNIT_CONTROL as usize] & 0x01 != 0;
+        let old_activation = self.mem[reg::DC_ACTIVATION as usize];
+        let sii_busy = get_u16(&self.mem, reg::SII_CONTROL as usize) & SII_CTRL_BUSY != 0;
+        let mut al_control_written = false;
+        let mut sii_cmd_written = false;
+        for (i, &v) in data.iter().enumerate() {
+            let a = start + i;
+            match side {
+                Side::Ecat => match a {
+                    0x0010..=0x0011 | 0x0100..=0x0103 | 0x0108..=0x0109 | 0x0138..=0x0139 => {
+                        self.mem[a] = v
+                    }
+                    0x0120..=0x0121 => {
+                        if self.al_control_unread && !emulation {
+                            // AL control behaves like a mailbox: the PDI has not read
+                            // the previous request yet, the write is not taken.
+                            continue;
+                        }
+                        self.mem[a] = v;
+                        al_control_written = true;
+                    }
+                    0x0200..=0x0201 => self.mem[a] = v,
+                    // Error counters: any write clears them.
+                    0x0300..=0x0313 | 0x0442..=0x0443 => self.mem[a] = 0,
+                    0x0400..=0x0401 | 0x0410..=0x0411 | 0x0420..=0x0421 => self.mem[a] = v,
+                    0x0500 => {
+                        self.mem[a] = v & 0x03;
+                        if v & 0x02 != 0 {
+                            // Force ECAT access: reset the PDI access flag.
+                            self.mem[reg::SII_PDI_ACCESS as usize] &= !0x01;
+                            self.mem[a] &= !0x01;
+                        }
+                    }
+                    0x0502..=0x050F => {
+                        if self.sii_owner() == Side::Ecat && !sii_busy {
+                            self.sii_reg_write(a, v);
+                            sii_cmd_written |= a == 0x0503;
+                        }
+                    }
+                    0x0510..=0x0517 => self.mem[a] = v,
+                    _ if (0x0600..self.fmmu_end()).contains(&a) => {
+                        if (a - 0x0600) % 16 < 0x0D {
+                            self.mem[a] = v;
+                        }
+                    }
+                    _ if (0x0800..self.sm_end()).contains(&a) => self.sm_reg_write_ecat(a, v),
+                    0x0900..=0x0903 => {
+                        // A write to receive time port 0 latches the receive times.
+                        if a == start || a == 0x0900 {
+                            self.latch_receive_times();
+                        }
+                    }
+                    0x0920..=0x092B | 0x0930..=0x0935 => self.mem[a] = v,
+                    0x0980 => self.mem[a] = v,
+                    0x0981 | 0x0990..=0x0997 | 0x09A0..=0x09A7 if !sync_owner_pdi => {
+                        self.mem[a] = v
+                    }
+                    0x09A8..=0x09A9 => self.mem[a] = v,
+                    0x0F80..=0x0FFF => self.mem[a] = v,
+                    _ => {}
+                },
+                Side::Pdi => match a {
+                    0x0012..=0x0013 | 0x0138..=0x0139 | 0x0204..=0x0207 => self.mem[a] = v,
+                    0x0130..=0x0135 => {
+                        if !emulation {
+                            self.mem[a] = v;
+                            if a <= 0x0131 {
+                                self.ecat_event_set(ECAT_EVENT_AL_STATUS);
+                            }
+                        }
+                    }
+                    0x0501 => self.mem[a] = v & 0x01,
+                    0x0502..=0x050F => {
+                        if self.sii_owner() == Side::Pdi && !sii_busy {
+                            self.sii_reg_write(a, v);
+                            sii_cmd_written |= a == 0x0503;
+                        }
+                    }
+                    _ if (0x0800..self.sm_end()).contains(&a) => {
+                        if (a - 0x0800) % 8 == 7 {
+                            self.sm_pdi_control_write(a, v);
+                        }
+                    }
+                    0x0981 | 0x0990..=0x0997 | 0x09A0..=0x09A7 if sync_owner_pdi => self.mem[a] = v,
+                    0x0F80..=0x0FFF => self.mem[a] = v,
+                    _ => {}
+                },
+            }
+        }
+        if al_control_written {
+            if emulation {
+                let ctl = get_u16(&self.mem, reg::AL_CONTROL as usize);
+                put_u16(&mut self.mem, reg::AL_STATUS as usize, ctl & 0x000F);
+            } else {
+                self.al_control_unread = true;
+                self.al_event_set(reg::al_event::AL_CONTROL);
+            }
+        } else if side == Side::Ecat && overlaps(reg::AL_CONTROL as usize, 2) {
+            self.stats.al_control_writes_ignored += 1;
+        }
+        if sii_cmd_written {
+            self.sii_execute();
+        }
+        if side == Side::Ecat && overlaps(reg::DC_SYSTEM_TIME as usize, 8) {
+            self.system_time_write(start, data);
+        }
+        let owner_wrote = (side == Side::Pdi) == sync_owner_pdi;
+        if owner_wrote
+            && overlaps(reg::DC_ACTIVATION as usize, 1)
+            && old_activation != self.mem[reg::DC_ACTIVATION as usize]
+        {
+            self.sync_activation_changed();
+        }
+    }
+
+    // ---------------------------------------------------------------- SyncManagers
+
+    fn sm_start(&self, n: usize) -> usize {
+        get_u16(&self.mem, reg::sm_register(n as u8) as usize) as usize
+    }
+    fn sm_len(&self, n: usize) -> usize {
+        get_u16(&self.mem, reg::sm_register(n as u8) as usize + 2) as usize
+    }
+    fn sm_control(&self, n: usize) -> u8 {
+        self.mem[reg::sm_register(n as u8) as usize + 4]
+    }
+
+    fn sm_effective_enable(&self, n: usize) -> bool {
+        let base = reg::sm_register(n as u8) as usize;
+        self.mem[base + 6] & 0x01 != 0 && self.mem[base + 7] & 0x01 == 0
+    }
+
+    #[allow(clippy::collapsible_match)]
+    fn sm_reg_write_ecat(&mut self, a: usize, v: u8) {
+        let n = (a - 0x0800) / 8;
+        let off = (a - 0x0800) % 8;
+        let base = reg::sm_register(n as u8) as usize;
+        match off {
+            0..=4 => {
+                // Start, length and control are locked while the SM is enabled.
+                if self.mem[base + 6] & 0x01 == 0 {
+                    self.mem[a] = v;
+                }
+            }
+            6 => {
+                let old = self.mem[a];
+                let was = self.sm_effective_enable(n);
+                self.mem[a] = v & 0xC3;
+                if old != self.mem[a] {
+                    self.al_event_set(reg::al_event::SM_CHANGE);
+                }
+                if was != self.sm_effective_enable(n) {
+                    self.sm_reset(n);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn sm_pdi_control_write(&mut self, a: usize, v: u8) {
+        let n = (a - 0x0800) / 8;
+        let was = self.sm_effective_enable(n);
+        self.mem[a] = v & 0x03;
+        if was != self.sm_effective_enable(n) {
+            self.sm_reset(n);
+        }
+    }
+
+    fn sm_reset(&mut self, n: usize) {
+        let enabled = self.sm_effective_enable(n);
+        let len = self.sm_len(n);
+        let mailbox = self.sm_control(n) & 0x03 == 0x02;
+        self.sms[n].reset(enabled, if mailbox { 0 } else { len });
+        self.al_event_clear(reg::al_event::sm(n as u8));
+        self.sm_update_status(n);
+    }
+
+    fn sm_update_status(&mut self, n: usize) {
+        let st = self.sms[n].status_byte(self.sm_control(n) & 0x03 == 0x02);
+        self.mem[reg::sm_register(n as u8) as usize + 5] = st;
+    }
+
+    /// The enabled SyncManager whose buffer window contains `a`, with the offset.
+    fn sm_window_at(&self, a: usize) -> Option<(usize, usize)> {
+        (0..self.sms.len()).find_map(|n| {
+            if !self.sms[n].enabled || !self.sm_valid_mode(n) {
+                return None;
+            }
+            let (s, l) = (self.sm_start(n), self.sm_len(n));
+            (l > 0 && a >= s && a < s + l).then(|| (n, a - s))
+        })
+    }
+
+    fn sm_valid_mode(&self, n: usize) -> bool {
+        let c = self.sm_control(n);
+        matches!(c & 0x03, 0x00 | 0x02) && matches!(c & 0x0C, 0x00 | 0x04)
+    }
+
+    fn ram_read(&mut self, side: Side, start: usize, buf: &mut [u8]) -> bool {
+        self.ram_access(side, start, RamOp::Read(buf))
+    }
+    fn ram_write(&mut self, side: Side, start: usize, data: &[u8]) -> bool {
+        self.ram_access(side, start, RamOp::Write(data))
+    }
+
+    fn ram_access(&mut self, side: Side, start: usize, mut op: RamOp<'_>) -> bool {
+        let len = op.len();
+        let mut accepted = false;
+        let mut i = 0;
+        while i < len {
+            let a = start + i;
+            match self.sm_window_at(a) {
+                None => {
+                    // Plain memory up to the next SM window.
+                    let mut j = i + 1;
+                    while j < len && self.sm_window_at(start + j).is_none() {
+                        j += 1;
+                    }
+                    match &mut op {
+                        RamOp::Read(b) => b[i..j].copy_from_slice(&self.mem[a..start + j]),
+                        RamOp::Write(d) => self.mem[a..start + j].copy_from_slice(&d[i..j]),
+                    }
+                    accepted = true;
+                    i = j;
+                }
+                Some((n, off)) => {
+                    let win = self.sm_len(n);
+                    let take = (win - off).min(len - i);
+                    let ok = match &mut op {
+                        RamOp::Read(b) => {
+                            self.sm_access(n, side, off, SmOp::Read(&mut b[i..i + take]))
+                        }
+                        RamOp::Write(d) => {
+                            self.sm_access(n, side, off, SmOp::Write(&d[i..i + take]))
+                        }
+                    };
+                    accepted |= ok;
+                    i += take;
+                }
+            }
+        }
+        accepted
+    }
+
+    fn sm_access(&mut self, n: usize, side: Side, off: usize, op: SmOp<'_>) -> bool {
+        let ctl = self.sm_control(n);
+        let ecat_writes = ctl & 0x0C == 0x04;
+        // The master produces for a write-direction SM, the PDI for a read-direction one.
+        let producer = if ecat_writes { Side::Ecat } else { Side::Pdi };
+        let is_write = matches!(op, SmOp::Write(_));
+        if is_write != (side == producer) {
+            return false;
+        }
+        match side {
+            Side::Pdi => self.al_event_clear(reg::al_event::sm(n as u8)),
+            Side::Ecat if n < 8 => self.ecat_event_clear(1 << (4 + n)),
+            Side::Ecat => {}
+        }
+        let start = self.sm_start(n);
+        let win = self.sm_len(n);
+        let mailbox = ctl & 0x03 == 0x02;
+        let outcome = self.sms[n].access(&mut self.mem, start, win, mailbox, off, op);
+        if let Some(ev) = outcome.event {
+            // The event goes to the other side of the SM.
+            let to = if ev == sm::Event::Written {
+                other(producer)
+            } else {
+                producer
+            };
+            match to {
+                Side::Pdi => {
+                    if ctl & 0x20 != 0 {
+                        self.al_event_set(reg::al_event::sm(n as u8));
+                    }
+                }
+                Side::Ecat => {
+                    if ctl & 0x10 != 0 && n < 8 {
+                        self.ecat_event_set(1 << (4 + n));
+                    }
+                }
+            }
+            if ev == sm::Event::Written && side == Side::Ecat && ctl & 0x40 != 0 {
+                self.pd_watchdog_trigger();
+            }
+        }
+        self.sm_update_status(n);
+        outcome.accepted
+    }
+
+    // ---------------------------------------------------------------- SII
+
+    fn sii_reg_write(&mut self, a: usize, v: u8) {
+        match a {
+            0x0502 => {
+                // Only write enable is writable in the low byte.
+                self.mem[a] = (self.mem[a] & !0x01) | (v & 0x01);
+            }
+            0x0503 => {
+                // Command bits 10:8; status bits are read-only.
+                self.mem[a] = (self.mem[a] & !0x07) | (v & 0x07);
+            }
+            _ => self.mem[a] = v,
+        }
+    }
+
+    fn sii_execute(&mut self) {
+        let ca = reg::SII_CONTROL as usize;
+        let mut ctl = get_u16(&self.mem, ca);
+        let cmd = (ctl & SII_CTRL_CMD_MASK) >> 8;
+        ctl &= !SII_CTRL_CMD_MASK;
+        let word = get_u32(&self.mem, reg::SII_ADDRESS as usize) as usize;
+        match cmd {
+            0 => {
+                // No command: clears the error bits.
+                ctl &= !(SII_CTRL_ACK_ERR | SII_CTRL_WE_ERR);
+                put_u16(&mut self.mem, ca, ctl);
+                return;
+            }
+            1 => {
+                ctl &= !(SII_CTRL_ACK_ERR | SII_CTRL_WE_ERR);
+                let n = if self.flavour.sii_reads_8_bytes() {
+                    8
+                } else {
+                    4
+                };
+                for i in 0..8 {
+                    let b = if i < n {
+                        word.checked_mul(2)
+                            .and_then(|o| o.checked_add(i))
+                            .and_then(|o| self.sii.get(o).copied())
+                            .unwrap_or(0xFF)
+                    } else {
+                        0
+                    };
+                    self.mem[reg::SII_DATA as usize + i] = b;
+                }
+            }
+            2 => {
+                if ctl & SII_CTRL_WRITE_ENABLE == 0 {
+                    ctl |= SII_CTRL_WE_ERR;
+                } else {
+                    let o = word.saturating_mul(2);
+                    let cap = self.sii_capacity();
+                    if o + 2 <= cap {
+                        if self.sii.len() < o + 2 {
+                            self.sii.resize(o + 2, 0xFF);
+                        }
+                        let d = reg::SII_DATA as usize;
+                        self.sii[o] = self.mem[d];
+                        self.sii[o + 1] = self.mem[d + 1];
+                        ctl &= !(SII_CTRL_ACK_ERR | SII_CTRL_WE_ERR);
+                    } else {
+                        ctl |= SII_CTRL_ACK_ERR;
+                    }
+                }
+                ctl &= !SII_CTRL_WRITE_ENABLE;
+            }
+            4 => {
+                put_u16(&mut self.mem, ca, ctl);
+                self.load_sii_config();
+                ctl = get_u16(&self.mem, ca);
+                if self.flavour.sii_reads_8_bytes() {
+                    // Reload with 8-byte reads supplies words 0..3 in the data register.
+                    for i in 0..8 {
+                        self.mem[reg::SII_DATA as usize + i] =
+                            self.sii.get(i).copied().unwrap_or(0xFF);
+                    }
+                }
+            }
+            _ => {
+                ctl |= SII_CTRL_ACK_ERR;
+            }
+        }
+        self.stats.sii_commands += 1;
+        // Busy for the next status read: the master must poll.
+        ctl |= SII_CTRL_BUSY;
+        self.sii_busy_reads = 1;
+        put_u16(&mut self.mem, ca, ctl);
+    }
+
+    fn sii_finish_busy(&mut self) {
+        let ca = reg::SII_CONTROL as usize;
+        let ctl = get_u16(&self.mem, ca) & !SII_CTRL_BUSY;
+        put_u16(&mut self.mem, ca, ctl);
+        self.sii_busy_reads = 0;
+    }
+
+    /// EEPROM capacity in bytes from SII word 0x3E (KiBit − 1), at least the image.
+    fn sii_capacity(&self) -> usize {
+        let declared = if self.sii.len() >= 0x80 {
+            (u16::from_le_bytes([self.sii[0x7C], self.sii[0x7D]]) as usize + 1) * 128
+        } else {
+            128
+        };
+        declared.max(self.sii.len()).min(1 << 20)
+    }
+
+    // ---------------------------------------------------------------- DC
+
+    fn latch_receive_times(&mut self) {
+        let t0 = self.timing.port0_ns.wrapping_add(self.clock_base_ns);
+        put_u32(
+            &mut self.mem,
+            reg::DC_RECEIVE_TIME_PORT0 as usize,
+            t0 as u32,
+        );
+        if let Some(t1) = self.timing.port1_ns {
+            let t1 = t1.wrapping_add(self.clock_base_ns);
+            put_u32(
+                &mut self.mem,
+                reg::DC_RECEIVE_TIME_PORT0 as usize + 4,
+                t1 as u32,
+            );
+        }
+        put_u64(&mut self.mem, reg::DC_RECEIVE_TIME_PU as usize, t0);
+    }
+
+    fn system_time_write(&mut self, start: usize, data: &[u8]) {
+        // Only a write that starts at 0x0910 carries a comparable time value.
+        if start != reg::DC_SYSTEM_TIME as usize || data.len() < 4 {
+            return;
+        }
+        let delay = get_u32(&self.mem, reg::DC_SYSTEM_TIME_DELAY as usize) as u64;
+        let local = self.system_time_at(self.timing.port0_ns);
+        let diff: i64 = if data.len() >= 8 {
+            let mut b = [0u8; 8];
+            b.copy_from_slice(&data[..8]);
+            u64::from_le_bytes(b)
+                .wrapping_add(delay)
+                .wrapping_sub(local) as i64
+        } else {
+            let v = u32::from_le_bytes([data[0], data[1], data[2], data[3]]);
+            v.wrapping_add(delay as u32).wrapping_sub(local as u32) as i32 as i64
+        };
+        // 0x092C: bit 31 set when the local copy is smaller than the received time.
+        let mag = diff.unsigned_abs().min(0x7FFF_FFFF) as u32;
+        let reg_v = if diff > 0 { mag | 0x8000_0000 } else { mag };
+        put_u32(&mut self.mem, reg::DC_SYSTEM_TIME_DIFF as usize, reg_v);
+        // Drift compensation: the simulated clocks do not drift, so the control loop
+        // settles at once on the measured difference.
+        self.pll_correction = self.pll_correction.wrapping_add(diff);
+    }
+
+    fn sync_activation_changed(&mut self) {
+        let act = self.mem[reg::DC_ACTIVATION as usize];
+        let status = reg::DC_ACTIVATION_STATUS as usize;
+        if act & 0x03 == 0x03 {
+            let start = get_u64(&self.mem, reg::DC_START_TIME as usize);
+            let cycle = get_u32(&self.mem, reg::DC_SYNC0_CYCLE as usize);
+            self.sync0 = Sync0 {
+                active: true,
+                next: start,
+                cycle,
+            };
+            let now = self.system_time_at(self.now_ns.max(self.timing.port0_ns));
+            self.mem[status] = 0x01;
+            if start < now {
+                // Start time already past: the chip would wait for the 64-bit system
+                // time to wrap around; no SYNC0 in any simulated lifetime.
+                self.mem[status] |= 0x04;
+                self.sync0.active = false;
+            }
+        } else {
+            self.sync0.active = false;
+            self.mem[status] = 0;
+        }
+    }
+
+    // ---------------------------------------------------------------- watchdogs
+
+    fn watchdog_period_ns(&self, time_reg: u16) -> u64 {
+        let div = get_u16(&self.mem, reg::WATCHDOG_DIVIDER as usize) as u64;
+        let t = get_u16(&self.mem, time_reg as usize) as u64;
+        (div + 2) * 40 * t
+    }
+
+    fn pd_watchdog_trigger(&mut self) {
+        self.pd_wd_armed = true;
+        self.pd_wd_last_ns = self.now_ns;
+        self.mem[reg::WATCHDOG_STATUS_PD as usize] |= 0x01;
+    }
+
+    /// True while the process-data watchdog has not expired (0x0440 bit 0).
+    pub fn pd_watchdog_ok(&self) -> bool {
+        self.mem[reg::WATCHDOG_STATUS_PD as usize] & 0x01 != 0
+    }
+
+    // ---------------------------------------------------------------- time
+
+    /// Advances simulated time to `t_ns` (never backwards): generates SYNC0 pulses,
+    /// runs the process-data and PDI watchdogs, and ends a pending EEPROM busy phase.
+    pub fn advance_to(&mut self, t_ns: u64) {
+        if t_ns < self.now_ns {
+            return;
+        }
+        self.now_ns = t_ns;
+        if self.sii_busy_reads > 0 {
+            self.sii_finish_busy();
+        }
+        if self.sync0.active {
+            let st = self.system_time_at(t_ns);
+            if st >= self.sync0.next {
+                let pulses = if self.sync0.cycle == 0 {
+                    self.sync0.active = false;
+                    1
+                } else {
+                    (st - self.sync0.next) / self.sync0.cycle as u64 + 1
+                };
+                self.sync0.next = self
+                    .sync0
+                    .next
+                    .wrapping_add(pulses.wrapping_mul(self.sync0.cycle as u64));
+                self.stats.sync0_pulses += pulses;
+                self.mem[reg::DC_SYNC0_STATUS as usize] |= 0x01;
+                self.mem[reg::DC_ACTIVATION_STATUS as usize] &= !0x01;
+                self.al_event_set(reg::al_event::SYNC0);
+                put_u64(&mut self.mem, reg::DC_START_TIME as usize, self.sync0.next);
+            }
+        }
+        let pd_period = self.watchdog_period_ns(reg::WATCHDOG_TIME_PD);
+        if self.pd_wd_armed
+            && pd_period != 0
+            && self.pd_watchdog_ok()
+            && t_ns.saturating_sub(self.pd_wd_last_ns) > pd_period
+        {
+            self.mem[reg::WATCHDOG_STATUS_PD as usize] &= !0x01;
+            let c = reg::WATCHDOG_COUNTER_PD as usize;
+            self.mem[c] = self.mem[c].saturating_add(1);
+            self.stats.pd_watchdog_expiries += 1;
+            self.al_event_set(reg::al_event::WATCHDOG);
+        }
+        let pdi_period = self.watchdog_period_ns(reg::WATCHDOG_TIME_PDI);
+        let dl = reg::DL_STATUS as usize;
+        if pdi_period != 0
+            && self.mem[dl] & 0x02 != 0
+            && t_ns.saturating_sub(self.pdi_last_ns) > pdi_period
+        {
+            self.mem[dl] &= !0x02;
+            let c = reg::WATCHDOG_COUNTER_PDI as usize;
+            self.mem[c] = self.mem[c].saturating_add(1);
+            self.stats.pdi_watchdog_expiries += 1;
+        }
+    }
+
+    pub(crate) fn set_frame_timing(&mut self, timing: FrameTiming) {
+        self.timing = timing;
+    }
+}
+
+fn other(side: Side) -> Side {
+    match side {
+        Side::Ecat => Side::Pdi,
+        Side::Pdi => Side::Ecat,
+    }
+}
+
+enum RamOp<'a> {
+    Read(&'a mut [u8]),
+    Write(&'a [u8]),
+}
+impl RamOp<'_> {
+    fn len(&self) -> usize {
+        match self {
+            RamOp::Read(b) => b.len(),
+            RamOp::Write(d) => d.len(),
+        }
+    }
+}
+
+pub(crate) use sm::SmOp;
+
+/// A simulator shared between the wire side (the segment) and the PDI side (the
+/// firmware, directly or through an SPI chip model). Single-threaded.
+#[derive(Clone)]
+pub struct SharedEsc(pub Rc<RefCell<EscSim>>);
+
+impl SharedEsc {
+    /// Wraps a simulator.
+    pub fn new(esc: EscSim) -> Self {
+        SharedEsc(Rc::new(RefCell::new(esc)))
+    }
+    /// Borrows the simulator.
+    pub fn borrow(&self) -> std::cell::Ref<'_, EscSim> {
+        self.0.borrow()
+    }
+    /// Borrows the simulator mutably.
+    pub fn borrow_mut(&self) -> std::cell::RefMut<'_, EscSim> {
+        self.0.borrow_mut()
+    }
+}
+
+impl EscAccess for SharedEsc {
+    fn read(&mut self, addr: u16, buf: &mut [u8]) -> Result<(), EscError> {
+        EscAccess::read(&mut *self.0.borrow_mut(), addr, buf)
+    }
+    fn write(&mut self, addr: u16, data: &[u8]) -> Result<(), EscError> {
+        EscAccess::write(&mut *self.0.borrow_mut(), addr, data)
+    }
+}
+
+impl EscAccess for EscSim {
+    fn read(&mut self, addr: u16, buf: &mut [u8]) -> Result<(), EscError> {
+        if addr as usize + buf.len() > self.mem.len() {
+            return Err(EscError::OutOfRange);
+        }
+        self.side_read(Side::Pdi, addr, buf);
+        Ok(())
+    }
+    fn write(&mut self, addr: u16, data: &[u8]) -> Result<(), EscError> {
+        if addr as usize + data.len() > self.mem.len() {
+            return Err(EscError::OutOfRange);
+        }
+        self.side_write(Side::Pdi, addr, data);
+        Ok(())
+    }
+}
