@@ -319,14 +319,12 @@ impl Esm {
             self.error = false;
             self.code = 0;
         }
-        if let Decision::Transition { to, .. } = d {
-            if self.pending == Some(to) {
+        if let Some(p) = self.pending {
+            if (control & al_control::STATE_MASK) as u8 == p.bits() {
                 // The same request again while it is waiting: keep waiting.
                 return Decision::None;
             }
-        }
-        if d != Decision::None || (control & al_control::STATE_MASK) as u8 != self.state.bits() {
-            // A new request replaces a pending one.
+            // Any other request replaces the waiting one.
             self.pending = None;
         }
         if let Decision::Refuse { code, state } = d {

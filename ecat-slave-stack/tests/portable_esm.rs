@@ -6,7 +6,7 @@
 
 use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esc::{EscAccess, EscError};
-use ecat_slave_stack::esm::{EsmHooks, EsmState};
+use ecat_slave_stack::esm::{self, Decision, EsmHooks, EsmState};
 use ecat_slave_stack::od::{
     Access, DataType, Dictionary, Entry, Object, ObjectCode, PdoMappable, SdoAbort,
 };
@@ -266,6 +266,7 @@ struct App {
     cycles: u32,
     fresh_cycles: u32,
     refuse_tx: bool,
+    local: Option<AlStatusCode>,
 }
 
 impl App {
@@ -278,6 +279,7 @@ impl App {
             cycles: 0,
             fresh_cycles: 0,
             refuse_tx: false,
+            local: None,
         }
     }
     fn last_change(&self) -> Option<(EsmState, EsmState)> {
@@ -358,6 +360,9 @@ impl SlaveApplication for App {
     }
     fn on_outputs_lost(&mut self, code: AlStatusCode) {
         self.lost = Some(code);
+    }
+    fn local_error(&mut self) -> Option<AlStatusCode> {
+        self.local
     }
 }
 
@@ -459,6 +464,146 @@ qemu_runner::tests! {
     fn test_dictionary_is_well_formed() {
         assert!(ecat_slave_stack::od::is_well_formed(OBJECTS));
         assert_eq!(pdo::OBJECTS.len(), 13);
+    }
+
+    fn transition_table_matches_the_standard() {
+        use EsmState::*;
+        let states = [Init, PreOp, Bootstrap, SafeOp, Op];
+        let allowed = [
+            (Init, PreOp), (PreOp, Init), (PreOp, SafeOp), (SafeOp, Init), (SafeOp, PreOp),
+            (SafeOp, Op), (Op, Init), (Op, PreOp), (Op, SafeOp), (Bootstrap, Init),
+        ];
+        for from in states {
+            for to in states {
+                let d = esm::decide(from, false, to.bits() as u16);
+                let expect = if from == to {
+                    Decision::None
+                } else if allowed.contains(&(from, to)) {
+                    Decision::Transition { from, to }
+                } else {
+                    let code = if (from, to) == (Init, Bootstrap) {
+                        AlStatusCode::BootstrapNotSupported
+                    } else {
+                        AlStatusCode::InvalidStateChange
+                    };
+                    let state = match from {
+                        Op => SafeOp,
+                        Bootstrap => Init,
+                        s => s,
+                    };
+                    Decision::Refuse { code, state }
+                };
+                assert_eq!(d, expect, "{:?} → {:?}", from, to);
+                // With an error pending: ignored unless acknowledged or Init.
+                let d = esm::decide(from, true, to.bits() as u16);
+                if to == Init {
+                    assert_eq!(d, esm::decide(from, false, 1));
+                } else {
+                    assert_eq!(d, Decision::None);
+                }
+                assert_eq!(esm::decide(from, true, to.bits() as u16 | 0x10), expect);
+            }
+        }
+    }
+
+    fn oversized_default_maps_are_refused_at_preop_to_safeop() {
+        const BIG: &[u32] = &[
+            entry(0x2102, 0, 64), entry(0x2102, 0, 64), entry(0x2102, 0, 64), entry(0x2102, 0, 64),
+            entry(0x2102, 0, 64), entry(0x2102, 0, 64), entry(0x2102, 0, 64), entry(0x2102, 0, 64),
+            entry(0x2100, 0, 1),
+        ];
+        for (rx, tx, code) in [(BIG, TX1, 0x0025u16), (RX1, BIG, 0x0024)] {
+            let d = PdoDefaults { rx: [rx, &[], &[], &[]], tx: [tx, &[], &[], &[]], ..DEFAULTS };
+            let mut s = Slave::new(FakeEsc::new(), SlaveConfig { pdo_defaults: d, ..cfg() });
+            s.init().unwrap();
+            let mut app = App::new();
+            to_preop(&mut s, &mut app);
+            pd_sms(s.esc_mut(), 6, 6);
+            assert_eq!(request(&mut s, &mut app, 4, 0), (0x12, code));
+        }
+    }
+
+    fn input_only_device_cycles_on_the_sm3_event() {
+        let (mut s, mut app) = new_slave();
+        to_preop(&mut s, &mut app);
+        sdo_write(&mut s, &mut app, 0x1C12, 0, &[0]).unwrap();
+        pd_sms(s.esc_mut(), 0, 6);
+        assert_eq!(request(&mut s, &mut app, 4, 0), (0x04, 0));
+        assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C33, 1), 1);
+        assert_eq!(request(&mut s, &mut app, 8, 0), (0x08, 0));
+        let c = app.cycles;
+        s.poll(&mut app, 10).unwrap();
+        assert_eq!(app.cycles, c);
+        s.esc_mut().set_event(1 << 11, true);
+        s.poll(&mut app, 20).unwrap();
+        assert_eq!(app.cycles, c + 1);
+        // Enabling SM2 with data while nothing is mapped is refused.
+        let (mut s, mut app) = new_slave();
+        to_preop(&mut s, &mut app);
+        sdo_write(&mut s, &mut app, 0x1C12, 0, &[0]).unwrap();
+        pd_sms(s.esc_mut(), 6, 6);
+        assert_eq!(request(&mut s, &mut app, 4, 0), (0x12, 0x001D));
+    }
+
+    fn sync0_interrupt_entry_runs_the_cycle() {
+        let (mut s, mut app) = new_slave();
+        to_preop(&mut s, &mut app);
+        pd_sms(s.esc_mut(), 6, 6);
+        dc_on(s.esc_mut(), 3, 500_000);
+        request(&mut s, &mut app, 4, 0);
+        request(&mut s, &mut app, 8, 0);
+        let mut t = 0;
+        for _ in 0..8 {
+            t += 500;
+            s.esc_mut().ecat_write(0x1100, &[3, 0, 9, 0, 0, 0]);
+            s.cycle(&mut app, t).unwrap();
+            s.poll(&mut app, t + 1).unwrap();
+        }
+        assert_eq!(s.esc_mut().al_status(), (0x08, 0));
+        assert_eq!(app.v[1], 9);
+        assert_eq!(&s.esc_mut().m[0x1400..0x1402], &[4, 0]);
+        // cycle() outside Safe-Op/Op does nothing.
+        request(&mut s, &mut app, 2, t + 2);
+        let c = app.cycles;
+        s.cycle(&mut app, t + 3).unwrap();
+        assert_eq!(app.cycles, c);
+    }
+
+    fn pending_safeop_to_op_can_be_cancelled() {
+        let (mut s, mut app) = new_slave();
+        to_preop(&mut s, &mut app);
+        pd_sms(s.esc_mut(), 6, 6);
+        dc_on(s.esc_mut(), 3, 1_000_000);
+        request(&mut s, &mut app, 4, 0);
+        assert_eq!(request(&mut s, &mut app, 8, 0), (0x04, 0));
+        assert_eq!(s.esm().pending(), Some(EsmState::Op));
+        // Asking for Op again keeps the original deadline.
+        assert_eq!(request(&mut s, &mut app, 8, 600_000), (0x04, 0));
+        assert_eq!(request(&mut s, &mut app, 4, 700_000), (0x04, 0));
+        assert_eq!(s.esm().pending(), None);
+        s.poll(&mut app, 2_000_000).unwrap();
+        assert_eq!(s.esc_mut().al_status(), (0x04, 0));
+    }
+
+    fn local_error_refuses_op_and_takes_the_slave_out_of_op() {
+        let (mut s, mut app) = new_slave();
+        to_safeop(&mut s, &mut app);
+        app.local = Some(AlStatusCode::SupplyVoltageTooLow);
+        assert_eq!(request(&mut s, &mut app, 8, 0), (0x14, 0x0080));
+        app.local = None;
+        assert_eq!(request(&mut s, &mut app, 0x18, 0), (0x08, 0));
+        app.local = Some(AlStatusCode::ExternalHardwareNotReady);
+        s.poll(&mut app, 10).unwrap();
+        assert_eq!(s.esc_mut().al_status(), (0x14, 0x0052));
+        assert_eq!(app.last_change(), Some((EsmState::Op, EsmState::SafeOp)));
+    }
+
+    fn device_id_is_not_loaded_while_an_error_is_pending() {
+        let (mut s, mut app) = new_slave();
+        to_preop(&mut s, &mut app);
+        assert_eq!(request(&mut s, &mut app, 8, 0), (0x12, 0x0011));
+        assert_eq!(request(&mut s, &mut app, 0x22, 0), (0x12, 0x0011));
+        assert_eq!(request(&mut s, &mut app, 0x32, 0), (0x22, 0x1234));
     }
 
     fn init_reports_init_and_sets_event_mask() {
