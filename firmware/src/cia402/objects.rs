@@ -546,6 +546,28 @@ impl Cia402 {
     }
 }
 
+/// The cyclic path of the stack: slots are the indices of [`RX_SLOTS`] / [`TX_SLOTS`].
+/// (The drive's own `ProcessData` dispatches to these when it combines several
+/// modules' objects.)
+impl ecat_slave_stack::pdo::ProcessData for Cia402 {
+    fn rx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+        rx_slot(index, sub).map(u16::from)
+    }
+    fn tx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+        tx_slot(index, sub).map(u16::from)
+    }
+    #[inline]
+    fn set_rx(&mut self, slot: u16, raw: u64) {
+        if let Ok(s) = u8::try_from(slot) {
+            self.set_rx_raw(s, raw as u32);
+        }
+    }
+    #[inline]
+    fn get_tx(&self, slot: u16) -> u64 {
+        u8::try_from(slot).map_or(0, |s| self.get_tx_raw(s) as u64)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -647,6 +669,37 @@ mod tests {
             d.get_tx(i as u8, &mut b[..n]);
             assert_eq!(&a[..n], &b[..n], "{idx:#06x}:{sub}");
         }
+    }
+
+    #[test]
+    fn stack_process_data_trait() {
+        use ecat_slave_stack::pdo::ProcessData;
+        let mut d = Cia402::new();
+        let cw = ProcessData::rx_slot(&d, 0x6040, 0).unwrap();
+        let m = ProcessData::rx_slot(&d, 0x6060, 0).unwrap();
+        let t = ProcessData::rx_slot(&d, 0x607A, 0).unwrap();
+        assert_eq!(ProcessData::rx_slot(&d, 0x6041, 0), None);
+        assert_eq!(ProcessData::tx_slot(&d, 0x6040, 0), None);
+        ProcessData::set_rx(&mut d, cw, 0x0006);
+        ProcessData::set_rx(&mut d, m, 0xF8); // -8: not a mode, ignored
+        ProcessData::set_rx(&mut d, m, 0x08);
+        ProcessData::set_rx(&mut d, t, 0xFFFF_FFFE);
+        ProcessData::set_rx(&mut d, 0x1234, 5); // unknown slot: ignored
+        assert_eq!(d.value(0x6040, 0), Some(6));
+        assert_eq!(d.value(0x6060, 0), Some(8));
+        assert_eq!(d.value(0x607A, 0), Some(-2));
+        d.cycle(
+            &crate::cia402::DriveFeedback {
+                position: -5,
+                ..Default::default()
+            },
+            0.001,
+        );
+        let sw = ProcessData::tx_slot(&d, 0x6041, 0).unwrap();
+        let pos = ProcessData::tx_slot(&d, 0x6064, 0).unwrap();
+        assert_eq!(ProcessData::get_tx(&d, sw) as u16 & 0x6F, 0x21);
+        assert_eq!(ProcessData::get_tx(&d, pos) as u32 as i32, -5);
+        assert_eq!(ProcessData::get_tx(&d, 0x1234), 0);
     }
 
     #[test]
