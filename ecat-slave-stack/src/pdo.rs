@@ -692,8 +692,8 @@ pub fn pack<P: ProcessData + ?Sized>(plan: &DirPlan, app: &P, sm3: &mut [u8]) {
 macro_rules! map_entries {
     ($($sub:literal),*) => {
         &[
-            Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RW_PREOP).range(0, MAX_ENTRIES as i64),
-            $(Entry::new($sub, concat!("Mapping entry ", $sub), DataType::Unsigned32, Access::RW_PREOP),)*
+            Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RW_PREOP).range(0, MAX_ENTRIES as i64).saved(),
+            $(Entry::new($sub, concat!("Mapping entry ", $sub), DataType::Unsigned32, Access::RW_PREOP).saved(),)*
         ]
     };
 }
@@ -717,11 +717,20 @@ const RX_ASSIGN_ENTRIES: &[Entry] = &[
         DataType::Unsigned8,
         Access::RW_PREOP,
     )
-    .range(0, MAPS as i64),
-    Entry::new(1, "Assigned PDO 1", DataType::Unsigned16, Access::RW_PREOP).range(0x1600, 0x1603),
-    Entry::new(2, "Assigned PDO 2", DataType::Unsigned16, Access::RW_PREOP).range(0x1600, 0x1603),
-    Entry::new(3, "Assigned PDO 3", DataType::Unsigned16, Access::RW_PREOP).range(0x1600, 0x1603),
-    Entry::new(4, "Assigned PDO 4", DataType::Unsigned16, Access::RW_PREOP).range(0x1600, 0x1603),
+    .range(0, MAPS as i64)
+    .saved(),
+    Entry::new(1, "Assigned PDO 1", DataType::Unsigned16, Access::RW_PREOP)
+        .range(0x1600, 0x1603)
+        .saved(),
+    Entry::new(2, "Assigned PDO 2", DataType::Unsigned16, Access::RW_PREOP)
+        .range(0x1600, 0x1603)
+        .saved(),
+    Entry::new(3, "Assigned PDO 3", DataType::Unsigned16, Access::RW_PREOP)
+        .range(0x1600, 0x1603)
+        .saved(),
+    Entry::new(4, "Assigned PDO 4", DataType::Unsigned16, Access::RW_PREOP)
+        .range(0x1600, 0x1603)
+        .saved(),
 ];
 const TX_ASSIGN_ENTRIES: &[Entry] = &[
     Entry::new(
@@ -730,11 +739,20 @@ const TX_ASSIGN_ENTRIES: &[Entry] = &[
         DataType::Unsigned8,
         Access::RW_PREOP,
     )
-    .range(0, MAPS as i64),
-    Entry::new(1, "Assigned PDO 1", DataType::Unsigned16, Access::RW_PREOP).range(0x1A00, 0x1A03),
-    Entry::new(2, "Assigned PDO 2", DataType::Unsigned16, Access::RW_PREOP).range(0x1A00, 0x1A03),
-    Entry::new(3, "Assigned PDO 3", DataType::Unsigned16, Access::RW_PREOP).range(0x1A00, 0x1A03),
-    Entry::new(4, "Assigned PDO 4", DataType::Unsigned16, Access::RW_PREOP).range(0x1A00, 0x1A03),
+    .range(0, MAPS as i64)
+    .saved(),
+    Entry::new(1, "Assigned PDO 1", DataType::Unsigned16, Access::RW_PREOP)
+        .range(0x1A00, 0x1A03)
+        .saved(),
+    Entry::new(2, "Assigned PDO 2", DataType::Unsigned16, Access::RW_PREOP)
+        .range(0x1A00, 0x1A03)
+        .saved(),
+    Entry::new(3, "Assigned PDO 3", DataType::Unsigned16, Access::RW_PREOP)
+        .range(0x1A00, 0x1A03)
+        .saved(),
+    Entry::new(4, "Assigned PDO 4", DataType::Unsigned16, Access::RW_PREOP)
+        .range(0x1A00, 0x1A03)
+        .saved(),
 ];
 const SM_TYPE_ENTRIES: &[Entry] = &[
     Entry::new(

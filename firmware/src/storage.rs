@@ -23,7 +23,8 @@
 //! [`Dictionary::write`] (in Pre-Op) after checking that the entry still exists, is
 //! `saved`, has the same length and is in range; when an object's sub-index 0 is
 //! saved and writable (mapping and assignment objects) it is first written 0, then the
-//! other sub-indices, then its stored value — the order the PDO rules require.
+//! other sub-indices, then its stored value — the order the PDO rules require. For such
+//! objects only the sub-indices up to the count are stored.
 //!
 //! # Power-loss safety
 //! A save always goes to the slot that does *not* hold the newest valid record: erase,
@@ -670,7 +671,21 @@ impl Storage {
             let objects = dict.objects();
             let mut value = [0u8; MAX_VALUE_LEN];
             for obj in objects.iter().filter(|o| scope.contains(o.index)) {
-                for e in obj.entries.iter().filter(|e| e.saved) {
+                // Mapping-like objects: only the sub-indices inside the count are part
+                // of the configuration (the rest may hold values the rules refuse).
+                let limit = if has_count_first(obj) {
+                    match dict.read(obj.index, 0, &mut value) {
+                        Ok(1) => Some(value[0]),
+                        _ => None,
+                    }
+                } else {
+                    None
+                };
+                for e in obj
+                    .entries
+                    .iter()
+                    .filter(|e| e.saved && limit.is_none_or(|n| e.sub <= n))
+                {
                     match dict.read(obj.index, e.sub, &mut value) {
                         Ok(n) if n <= MAX_VALUE_LEN => {
                             let i = obj.index.to_le_bytes();
@@ -698,14 +713,13 @@ impl Storage {
 /// True when `index` is an object whose saved, writable sub-index 0 must be written 0
 /// before its other sub-indices (PDO mapping / assignment).
 fn count_first<D: Dictionary + ?Sized>(dict: &D, index: u16) -> bool {
-    match od::find(dict.objects(), index) {
-        Some(o) => {
-            o.code != ObjectCode::Var
-                && o.entries.len() > 1
-                && o.entry(0).is_some_and(|e| e.saved && e.access.writable())
-        }
-        None => false,
-    }
+    od::find(dict.objects(), index).is_some_and(has_count_first)
+}
+
+fn has_count_first(o: &od::Object) -> bool {
+    o.code != ObjectCode::Var
+        && o.entries.len() > 1
+        && o.entry(0).is_some_and(|e| e.saved && e.access.writable())
 }
 
 fn apply<D: Dictionary + ?Sized>(
@@ -865,7 +879,8 @@ impl<const N: usize> NorFlash for RamFlash<N> {
     }
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
         let start = offset as usize;
-        if !start.is_multiple_of(Self::WRITE_SIZE) || !bytes.len().is_multiple_of(Self::WRITE_SIZE) {
+        if !start.is_multiple_of(Self::WRITE_SIZE) || !bytes.len().is_multiple_of(Self::WRITE_SIZE)
+        {
             return Err(NorFlashErrorKind::NotAligned);
         }
         if start + bytes.len() > N {
