@@ -1,2 +1,3 @@
 //! placeholder
 pub mod esc_sim;
+pub mod ethercrab_seam;

@@ -1170,3 +1170,32 @@ fn fuzz_random_frames_never_panic() {
         }
     }
 }
+
+#[test]
+fn pdi_watchdog_and_dl_status() {
+    let mut escs = chain(2, Flavour::Et1100);
+    let dl = |escs: &mut Vec<EscSim>, pos: u16| {
+        let d = one(escs, Command::Aprd, pos, reg::DL_STATUS, &[0, 0]);
+        u16::from_le_bytes([d.data[0], d.data[1]])
+    };
+    let first = dl(&mut escs, 0);
+    let last = dl(&mut escs, 0xFFFF);
+    assert_eq!(first & 0x0001, 1, "EEPROM loaded, PDI operational");
+    assert_eq!(first & 0x0030, 0x0030, "links on ports 0 and 1");
+    assert_eq!(last & 0x0030, 0x0010, "end of line: port 1 without link");
+    assert_ne!(last & 0x0400, 0, "end of line: port 1 loop closed");
+    // Default PDI watchdog: 100 ms without a PDI access expires it.
+    escs[0].read_u8(0x0000).unwrap();
+    escs[0].advance_to(99_000_000);
+    assert_eq!(dl(&mut escs, 0) & 0x0002, 0x0002);
+    escs[0].advance_to(100_000_001);
+    assert_eq!(dl(&mut escs, 0) & 0x0002, 0);
+    assert_eq!(escs[0].peek(reg::WATCHDOG_COUNTER_PDI, 1), &[1]);
+    assert_eq!(escs[0].stats().pdi_watchdog_expiries, 1);
+    escs[0].read_u8(0x0000).unwrap();
+    assert_eq!(
+        dl(&mut escs, 0) & 0x0002,
+        0x0002,
+        "a PDI access restarts it"
+    );
+}

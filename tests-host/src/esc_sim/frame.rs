@@ -435,6 +435,16 @@ fn logical_access(esc: &mut EscSim, cmd: Command, logical: u32, data: &mut [u8])
     }
 }
 
+/// Anything that turns an outgoing frame into the returned frame: a chain of
+/// simulators with their firmware (the segment), or a real interface. Masters
+/// (the ethercrab seam, `virtual-drive`) talk to this.
+pub trait Wire {
+    /// Processes `frame` in place (the frame comes back in the same buffer).
+    fn transfer(&mut self, frame: &mut [u8]) -> FrameOutcome;
+    /// Simulated time, ns.
+    fn now_ns(&self) -> u64;
+}
+
 /// Builds EtherCAT frames for tests and tools (the master side of the wire).
 #[derive(Debug, Clone)]
 pub struct FrameBuilder {
