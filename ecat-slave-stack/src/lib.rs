@@ -11,11 +11,16 @@
 pub mod al_status;
 pub mod coe;
 pub mod esc;
+pub mod esi;
 pub mod esm;
+pub mod et1100;
+pub mod lan9252;
+pub mod leds;
 pub mod mailbox;
 pub mod od;
 pub mod pdo;
 pub mod registers;
+pub mod sii;
 pub mod slave;
 pub mod sm;
 pub mod sync;

@@ -1,0 +1,875 @@
+//! ESI (EtherCAT Slave Information, ETG.2000) XML from the device description and
+//! the object dictionary.
+//!
+//! [`write`] emits one `EtherCATInfo` document for one device:
+//! `Vendor`, `Descriptions/Groups`, `Descriptions/Devices/Device` with `Type`
+//! (ProductCode, RevisionNo), `Name`, `GroupType`, `Profile` (ProfileNo and the whole
+//! `Dictionary`: `DataTypes` for every base type, string length, array and record
+//! used, and one `Object` per entry of the object table passed in — index, name,
+//! type, bit size, default data, access, PDO mapping), `Fmmu`, `Sm`, `RxPdo`/`TxPdo`
+//! (default mappings, entry names and types looked up in the object table), `Mailbox`
+//! (CoE flags from the same [`CoeDetails`](crate::sii::CoeDetails) as the SII general
+//! category), `Dc` op modes and `Eeprom` (ByteSize and ConfigData = SII words 0-6).
+//!
+//! No heap: the document is streamed into any [`core::fmt::Write`]. Every text is
+//! XML-escaped. Before writing, the PDO maps are checked against the object table
+//! (entry exists, is mappable in the PDO's direction, bit length matches), so the ESI
+//! cannot promise a mapping the SDO server would refuse.
+//!
+//! Records and arrays are described as a `DataType` named `DT<index>` with one
+//! `SubItem` per entry; sub-index 0 occupies bits 0-7, the next entry starts at bit 16
+//! and the following ones are packed in order (the usual ETG layout).
+
+use core::fmt::{self, Write};
+
+use crate::od::{Access, DataType, DefaultValue, Entry, Object, ObjectCode, PdoMappable};
+use crate::sii::{DeviceDescription, SiiError, SmType};
+
+/// One entry of a default PDO mapping (index 0 = padding of `bits` bits).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PdoEntry {
+    /// Object index (0 for a gap).
+    pub index: u16,
+    /// Sub-index.
+    pub sub: u8,
+    /// Length in bits.
+    pub bits: u8,
+}
+
+/// A default PDO: mapping object index (0x1600-0x17FF RxPDO, 0x1A00-0x1BFF TxPDO),
+/// its entries and the SyncManager it is assigned to by default.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PdoMap {
+    /// Mapping object index.
+    pub index: u16,
+    /// Name.
+    pub name: &'static str,
+    /// SyncManager it is assigned to by default (None: selectable, not assigned).
+    pub sm: Option<u8>,
+    /// The mapping cannot be changed.
+    pub fixed: bool,
+    /// Must always be assigned.
+    pub mandatory: bool,
+    /// Entries in order.
+    pub entries: &'static [PdoEntry],
+}
+
+impl PdoMap {
+    /// True for an RxPDO (outputs of the master).
+    pub const fn is_rx(&self) -> bool {
+        self.index >= 0x1600 && self.index <= 0x17FF
+    }
+    /// True for a TxPDO (inputs of the master).
+    pub const fn is_tx(&self) -> bool {
+        self.index >= 0x1A00 && self.index <= 0x1BFF
+    }
+}
+
+/// Why the ESI could not be written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EsiError {
+    /// The writer failed (e.g. buffer full).
+    Fmt,
+    /// The device description is inconsistent.
+    Description(SiiError),
+    /// The object table is not sorted or has an object without entries.
+    ObjectsNotWellFormed,
+    /// A PDO index is outside 0x1600-0x17FF / 0x1A00-0x1BFF.
+    PdoIndex(u16),
+    /// A PDO's SyncManager does not exist or is not of its direction.
+    PdoSyncManager(u16),
+    /// A mapped entry does not exist in the object table.
+    UnknownEntry {
+        /// PDO.
+        pdo: u16,
+        /// Mapped index.
+        index: u16,
+        /// Mapped sub-index.
+        sub: u8,
+    },
+    /// A mapped entry is not mappable in the PDO's direction.
+    NotMappable {
+        /// PDO.
+        pdo: u16,
+        /// Mapped index.
+        index: u16,
+        /// Mapped sub-index.
+        sub: u8,
+    },
+    /// A mapped entry's bit length differs from the object table.
+    BitLength {
+        /// PDO.
+        pdo: u16,
+        /// Mapped index.
+        index: u16,
+        /// Mapped sub-index.
+        sub: u8,
+    },
+}
+
+impl From<fmt::Error> for EsiError {
+    fn from(_: fmt::Error) -> Self {
+        EsiError::Fmt
+    }
+}
+
+fn find_entry(objects: &[Object], index: u16, sub: u8) -> Option<(&Object, &Entry)> {
+    let i = objects.binary_search_by_key(&index, |o| o.index).ok()?;
+    let o = &objects[i];
+    o.entry(sub).map(|e| (o, e))
+}
+
+/// Checks the PDO maps against the object table and the SyncManagers.
+pub fn validate(
+    desc: &DeviceDescription,
+    objects: &[Object],
+    pdos: &[PdoMap],
+) -> Result<(), EsiError> {
+    desc.validate().map_err(EsiError::Description)?;
+    if !crate::od::is_well_formed(objects) {
+        return Err(EsiError::ObjectsNotWellFormed);
+    }
+    for p in pdos {
+        if !p.is_rx() && !p.is_tx() {
+            return Err(EsiError::PdoIndex(p.index));
+        }
+        if let Some(sm) = p.sm {
+            let want = if p.is_rx() {
+                SmType::Outputs
+            } else {
+                SmType::Inputs
+            };
+            match desc.sync_managers.get(sm as usize) {
+                Some(s) if s.kind == want => {}
+                _ => return Err(EsiError::PdoSyncManager(p.index)),
+            }
+        }
+        for e in p.entries {
+            if e.index == 0 {
+                continue;
+            }
+            let (pdo, index, sub) = (p.index, e.index, e.sub);
+            let (_, entry) = find_entry(objects, e.index, e.sub).ok_or(EsiError::UnknownEntry {
+                pdo,
+                index,
+                sub,
+            })?;
+            let ok = if p.is_rx() {
+                entry.pdo.rx()
+            } else {
+                entry.pdo.tx()
+            };
+            if !ok {
+                return Err(EsiError::NotMappable { pdo, index, sub });
+            }
+            if entry.bits != e.bits as u16 {
+                return Err(EsiError::BitLength { pdo, index, sub });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Writes `s` XML-escaped.
+pub fn escape<W: Write>(out: &mut W, s: &str) -> fmt::Result {
+    let mut start = 0;
+    for (i, c) in s.char_indices() {
+        let rep = match c {
+            '&' => "&amp;",
+            '<' => "&lt;",
+            '>' => "&gt;",
+            '"' => "&quot;",
+            '\'' => "&apos;",
+            _ => continue,
+        };
+        out.write_str(&s[start..i])?;
+        out.write_str(rep)?;
+        start = i + c.len_utf8();
+    }
+    out.write_str(&s[start..])
+}
+
+/// Text wrapper that escapes on display.
+struct Esc<'a>(&'a str);
+
+impl fmt::Display for Esc<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        escape(f, self.0)
+    }
+}
+
+/// The ESI type name of an entry ("UDINT", "STRING(16)").
+struct TypeName<'a>(&'a Entry);
+
+impl fmt::Display for TypeName<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.0.data_type {
+            DataType::VisibleString => write!(f, "STRING({})", self.0.bits / 8),
+            DataType::OctetString => write!(f, "OCTET_STRING({})", self.0.bits / 8),
+            t => f.write_str(t.esi_name()),
+        }
+    }
+}
+
+/// Hex bytes ("0A1B"), little-endian, of a default value of `len` bytes.
+struct Hex<'a>(&'a [u8]);
+
+impl fmt::Display for Hex<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for b in self.0 {
+            write!(f, "{b:02X}")?;
+        }
+        Ok(())
+    }
+}
+
+fn pdo_flag(p: PdoMappable) -> Option<&'static str> {
+    match p {
+        PdoMappable::No => None,
+        PdoMappable::Rx => Some("R"),
+        PdoMappable::Tx => Some("T"),
+        PdoMappable::RxTx => Some("RT"),
+    }
+}
+
+fn write_access<W: Write>(out: &mut W, a: Access) -> fmt::Result {
+    let restriction = if a == Access::RW_PREOP {
+        Some("PreOP")
+    } else if a == Access::RW_PREOP_SAFEOP {
+        Some("PreOP_SafeOP")
+    } else {
+        None
+    };
+    match restriction {
+        Some(r) => write!(
+            out,
+            "<Access WriteRestrictions=\"{r}\">{}</Access>",
+            a.esi()
+        ),
+        None => write!(out, "<Access>{}</Access>", a.esi()),
+    }
+}
+
+fn write_flags<W: Write>(out: &mut W, e: &Entry) -> fmt::Result {
+    out.write_str("<Flags>")?;
+    write_access(out, e.access)?;
+    if let Some(p) = pdo_flag(e.pdo) {
+        write!(out, "<PdoMapping>{p}</PdoMapping>")?;
+    }
+    out.write_str("</Flags>")
+}
+
+fn write_default<W: Write>(out: &mut W, e: &Entry) -> fmt::Result {
+    match e.default {
+        DefaultValue::None => Ok(()),
+        DefaultValue::Text(t) => write!(out, "<DefaultString>{}</DefaultString>", Esc(t)),
+        DefaultValue::Int(v) => {
+            let bytes = v.to_le_bytes();
+            let n = e.byte_len().clamp(1, 8);
+            write!(out, "<DefaultData>{}</DefaultData>", Hex(&bytes[..n]))
+        }
+    }
+}
+
+/// Bit offsets of a record's entries: sub 0 at 0, the next at 16, then packed.
+fn bit_offsets(
+    o: &Object,
+    mut f: impl FnMut(&Entry, u32) -> fmt::Result,
+) -> Result<u32, fmt::Error> {
+    let mut off = 0u32;
+    for (i, e) in o.entries.iter().enumerate() {
+        f(e, off)?;
+        off += e.bits as u32;
+        if i == 0 && o.entries.len() > 1 {
+            off = off.max(16);
+        }
+    }
+    Ok(off)
+}
+
+const BASE_TYPES: [DataType; 20] = [
+    DataType::Boolean,
+    DataType::Integer8,
+    DataType::Integer16,
+    DataType::Integer32,
+    DataType::Integer64,
+    DataType::Unsigned8,
+    DataType::Unsigned16,
+    DataType::Unsigned32,
+    DataType::Unsigned64,
+    DataType::Real32,
+    DataType::Bit1,
+    DataType::Bit2,
+    DataType::Bit3,
+    DataType::Bit4,
+    DataType::Bit5,
+    DataType::Bit6,
+    DataType::Bit7,
+    DataType::Bit8,
+    DataType::VisibleString,
+    DataType::OctetString,
+];
+
+fn write_data_types<W: Write>(out: &mut W, objects: &[Object]) -> fmt::Result {
+    out.write_str("<DataTypes>\n")?;
+    let all = || objects.iter().flat_map(|o| o.entries.iter());
+    // Fixed-size base types, each once.
+    for t in BASE_TYPES {
+        if t.is_variable_length() || !all().any(|e| e.data_type == t) {
+            continue;
+        }
+        let (bits, _, _) = crate::od::type_range(t);
+        writeln!(
+            out,
+            "<DataType><Name>{}</Name><BitSize>{bits}</BitSize></DataType>",
+            t.esi_name()
+        )?;
+    }
+    // Strings, one per distinct (type, length).
+    for (i, e) in all().enumerate() {
+        if !e.data_type.is_variable_length() {
+            continue;
+        }
+        if all()
+            .take(i)
+            .any(|p| p.data_type == e.data_type && p.bits == e.bits)
+        {
+            continue;
+        }
+        writeln!(
+            out,
+            "<DataType><Name>{}</Name><BitSize>{}</BitSize></DataType>",
+            TypeName(e),
+            e.bits
+        )?;
+    }
+    // Records and arrays.
+    for o in objects.iter().filter(|o| o.code != ObjectCode::Var) {
+        write!(out, "<DataType><Name>DT{:04X}</Name>", o.index)?;
+        let total = bit_offsets(o, |_, _| Ok(()))?;
+        writeln!(out, "<BitSize>{total}</BitSize>")?;
+        bit_offsets(o, |e, off| {
+            write!(
+                out,
+                "<SubItem><SubIdx>{}</SubIdx><Name>{}</Name><Type>{}</Type><BitSize>{}</BitSize><BitOffs>{off}</BitOffs>",
+                e.sub,
+                Esc(e.name),
+                TypeName(e),
+                e.bits
+            )?;
+            write_flags(out, e)?;
+            out.write_str("</SubItem>\n")
+        })?;
+        out.write_str("</DataType>\n")?;
+    }
+    out.write_str("</DataTypes>\n")
+}
+
+fn write_objects<W: Write>(out: &mut W, objects: &[Object]) -> fmt::Result {
+    out.write_str("<Objects>\n")?;
+    for o in objects {
+        write!(
+            out,
+            "<Object><Index>#x{:04X}</Index><Name>{}</Name>",
+            o.index,
+            Esc(o.name)
+        )?;
+        match (o.code, o.entries.first()) {
+            (ObjectCode::Var, Some(e)) => {
+                write!(
+                    out,
+                    "<Type>{}</Type><BitSize>{}</BitSize>",
+                    TypeName(e),
+                    e.bits
+                )?;
+                out.write_str("<Info>")?;
+                write_default(out, e)?;
+                out.write_str("</Info>")?;
+                write_flags(out, e)?;
+            }
+            _ => {
+                let total = bit_offsets(o, |_, _| Ok(()))?;
+                write!(
+                    out,
+                    "<Type>DT{:04X}</Type><BitSize>{total}</BitSize><Info>",
+                    o.index
+                )?;
+                for e in o.entries {
+                    write!(out, "<SubItem><Name>{}</Name><Info>", Esc(e.name))?;
+                    write_default(out, e)?;
+                    out.write_str("</Info></SubItem>")?;
+                }
+                out.write_str("</Info><Flags><Access>ro</Access></Flags>")?;
+            }
+        }
+        out.write_str("</Object>\n")?;
+    }
+    out.write_str("</Objects>\n")
+}
+
+fn write_pdo<W: Write>(out: &mut W, objects: &[Object], p: &PdoMap) -> fmt::Result {
+    let tag = if p.is_rx() { "RxPdo" } else { "TxPdo" };
+    write!(out, "<{tag}")?;
+    if p.fixed {
+        out.write_str(" Fixed=\"1\"")?;
+    }
+    if p.mandatory {
+        out.write_str(" Mandatory=\"1\"")?;
+    }
+    if let Some(sm) = p.sm {
+        write!(out, " Sm=\"{sm}\"")?;
+    }
+    writeln!(
+        out,
+        "><Index>#x{:04X}</Index><Name>{}</Name>",
+        p.index,
+        Esc(p.name)
+    )?;
+    for e in p.entries {
+        match find_entry(objects, e.index, e.sub) {
+            Some((o, entry)) if e.index != 0 => {
+                let name = if o.code == ObjectCode::Var {
+                    o.name
+                } else {
+                    entry.name
+                };
+                writeln!(
+                    out,
+                    "<Entry><Index>#x{:04X}</Index><SubIndex>{}</SubIndex><BitLen>{}</BitLen><Name>{}</Name><DataType>{}</DataType></Entry>",
+                    e.index,
+                    e.sub,
+                    e.bits,
+                    Esc(name),
+                    TypeName(entry)
+                )?;
+            }
+            _ => writeln!(
+                out,
+                "<Entry><Index>#x0</Index><BitLen>{}</BitLen></Entry>",
+                e.bits
+            )?,
+        }
+    }
+    writeln!(out, "</{tag}>")
+}
+
+fn physics(ports: u16) -> [u8; 4] {
+    let mut p = [0u8; 4];
+    for (i, c) in p.iter_mut().enumerate() {
+        *c = match (ports >> (4 * i)) & 0xF {
+            1 => b'Y',
+            3 => b'K',
+            _ => 0,
+        };
+    }
+    p
+}
+
+/// Writes the ESI document.
+pub fn write<W: Write>(
+    desc: &DeviceDescription,
+    objects: &[Object],
+    pdos: &[PdoMap],
+    out: &mut W,
+) -> Result<(), EsiError> {
+    validate(desc, objects, pdos)?;
+    out.write_str("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<EtherCATInfo Version=\"1.6\">\n")?;
+    writeln!(
+        out,
+        "<Vendor><Id>#x{:08X}</Id><Name>{}</Name></Vendor>",
+        desc.vendor_id,
+        Esc(desc.vendor_name)
+    )?;
+    out.write_str("<Descriptions>\n<Groups>\n")?;
+    writeln!(
+        out,
+        "<Group><Type>{}</Type><Name LcId=\"1033\">{}</Name></Group>",
+        Esc(desc.group_type),
+        Esc(desc.group_name)
+    )?;
+    out.write_str("</Groups>\n<Devices>\n<Device")?;
+    let ph = physics(desc.physical_ports);
+    let n = ph.iter().position(|c| *c == 0).unwrap_or(4);
+    if n > 0 {
+        out.write_str(" Physics=\"")?;
+        for c in &ph[..n] {
+            out.write_char(*c as char)?;
+        }
+        out.write_str("\"")?;
+    }
+    out.write_str(">\n")?;
+    writeln!(
+        out,
+        "<Type ProductCode=\"#x{:08X}\" RevisionNo=\"#x{:08X}\">{}</Type>",
+        desc.product_code,
+        desc.revision,
+        Esc(desc.type_name)
+    )?;
+    writeln!(out, "<Name LcId=\"1033\">{}</Name>", Esc(desc.name))?;
+    writeln!(out, "<GroupType>{}</GroupType>", Esc(desc.group_type))?;
+    writeln!(
+        out,
+        "<Profile><ProfileNo>{}</ProfileNo><AddInfo>0</AddInfo>",
+        desc.profile_no
+    )?;
+    out.write_str("<Dictionary>\n")?;
+    write_data_types(out, objects)?;
+    write_objects(out, objects)?;
+    out.write_str("</Dictionary>\n</Profile>\n")?;
+    for f in desc.fmmus.iter().filter(|f| !f.esi().is_empty()) {
+        writeln!(out, "<Fmmu>{}</Fmmu>", f.esi())?;
+    }
+    for sm in desc.sync_managers {
+        out.write_str("<Sm")?;
+        if sm.min_size != 0 {
+            write!(out, " MinSize=\"{}\"", sm.min_size)?;
+        }
+        if sm.max_size != 0 {
+            write!(out, " MaxSize=\"{}\"", sm.max_size)?;
+        }
+        if sm.default_size != 0 {
+            write!(out, " DefaultSize=\"{}\"", sm.default_size)?;
+        }
+        writeln!(
+            out,
+            " StartAddress=\"#x{:04X}\" ControlByte=\"#x{:02X}\" Enable=\"{}\">{}</Sm>",
+            sm.start,
+            sm.control,
+            sm.enable as u8,
+            sm.kind.esi()
+        )?;
+    }
+    for p in pdos.iter().filter(|p| p.is_rx()) {
+        write_pdo(out, objects, p)?;
+    }
+    for p in pdos.iter().filter(|p| p.is_tx()) {
+        write_pdo(out, objects, p)?;
+    }
+    let c = desc.coe;
+    writeln!(
+        out,
+        "<Mailbox DataLinkLayer=\"{}\"><CoE SdoInfo=\"{}\" PdoAssign=\"{}\" PdoConfig=\"{}\" PdoUpload=\"{}\" CompleteAccess=\"{}\"/></Mailbox>",
+        desc.mailbox_data_link_layer,
+        c.sdo_info,
+        c.pdo_assign,
+        c.pdo_config,
+        c.pdo_upload,
+        c.complete_access
+    )?;
+    if !desc.dc_op_modes.is_empty() {
+        out.write_str("<Dc>\n")?;
+        for m in desc.dc_op_modes {
+            write!(
+                out,
+                "<OpMode><Name>{}</Name><Desc>{}</Desc><AssignActivate>#x{:X}</AssignActivate>",
+                Esc(m.name),
+                Esc(m.description),
+                m.assign_activate
+            )?;
+            write!(
+                out,
+                "<CycleTimeSync0 Factor=\"{}\">{}</CycleTimeSync0><ShiftTimeSync0>{}</ShiftTimeSync0>",
+                m.sync0_factor, m.cycle_time_sync0, m.shift_time_sync0
+            )?;
+            if m.assign_activate & 0x0400 != 0 {
+                write!(
+                    out,
+                    "<CycleTimeSync1 Factor=\"{}\">0</CycleTimeSync1><ShiftTimeSync1>{}</ShiftTimeSync1>",
+                    m.sync1_factor, m.shift_time_sync1
+                )?;
+            }
+            out.write_str("</OpMode>\n")?;
+        }
+        out.write_str("</Dc>\n")?;
+    }
+    let cfg = desc.config_area();
+    writeln!(
+        out,
+        "<Eeprom><ByteSize>{}</ByteSize><ConfigData>{}</ConfigData></Eeprom>",
+        desc.eeprom_bytes,
+        Hex(&cfg[..14])
+    )?;
+    out.write_str("</Device>\n</Devices>\n</Descriptions>\n</EtherCATInfo>\n")?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    //! Host-only: the generated document parsed by a real XML parser.
+    use super::*;
+    use crate::od::Entry;
+    use crate::sii::{self, EscFlavour};
+
+    static ID: [Entry; 3] = [
+        Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(2),
+        Entry::new(1, "Vendor <ID>", DataType::Unsigned32, Access::RO).default(0x0E5C),
+        Entry::new(2, "Product & code", DataType::Unsigned32, Access::RO).default(0x5840),
+    ];
+    static CW: [Entry; 1] =
+        [Entry::new(0, "Controlword", DataType::Unsigned16, Access::RW).pdo(PdoMappable::Rx)];
+    static SW: [Entry; 1] =
+        [Entry::new(0, "Statusword", DataType::Unsigned16, Access::RO).pdo(PdoMappable::Tx)];
+    static NAME: [Entry; 1] = [Entry::text(0, "Device name", 12, "A \"quoted\" <name>")];
+    static FLAG: [Entry; 1] = [Entry::new(0, "Flag", DataType::Boolean, Access::RW).default(1)];
+    static OBJECTS: [Object; 5] = [
+        Object {
+            index: 0x1008,
+            name: "Device name",
+            code: ObjectCode::Var,
+            entries: &NAME,
+            description: "",
+        },
+        Object {
+            index: 0x1018,
+            name: "Identity",
+            code: ObjectCode::Record,
+            entries: &ID,
+            description: "",
+        },
+        Object {
+            index: 0x2001,
+            name: "Flag 'x'",
+            code: ObjectCode::Var,
+            entries: &FLAG,
+            description: "",
+        },
+        Object {
+            index: 0x6040,
+            name: "Controlword",
+            code: ObjectCode::Var,
+            entries: &CW,
+            description: "",
+        },
+        Object {
+            index: 0x6041,
+            name: "Statusword",
+            code: ObjectCode::Var,
+            entries: &SW,
+            description: "",
+        },
+    ];
+    static RX: [PdoEntry; 1] = [PdoEntry {
+        index: 0x6040,
+        sub: 0,
+        bits: 16,
+    }];
+    static TX: [PdoEntry; 2] = [
+        PdoEntry {
+            index: 0x6041,
+            sub: 0,
+            bits: 16,
+        },
+        PdoEntry {
+            index: 0,
+            sub: 0,
+            bits: 16,
+        },
+    ];
+    static PDOS: [PdoMap; 2] = [
+        PdoMap {
+            index: 0x1600,
+            name: "Outputs",
+            sm: Some(2),
+            fixed: false,
+            mandatory: true,
+            entries: &RX,
+        },
+        PdoMap {
+            index: 0x1A00,
+            name: "Inputs",
+            sm: Some(3),
+            fixed: true,
+            mandatory: false,
+            entries: &TX,
+        },
+    ];
+    const DESC: DeviceDescription = DeviceDescription {
+        vendor_id: 0x0E5C,
+        vendor_name: "Vendor & Sons <test>",
+        product_code: 0x5841,
+        revision: 0x0001_0000,
+        serial: 0,
+        type_name: "ECS-OL",
+        name: "ECS-OL EtherCAT stepper",
+        group_type: "Drives",
+        group_name: "Drives",
+        order_code: "ECS",
+        hardware_version: "1.0",
+        software_version: "0.1.0",
+        esc: EscFlavour::Et1100,
+        sync_pulse_length: 1000,
+        station_alias: 0,
+        mailbox_protocols: sii::MBOX_COE,
+        mailbox_data_link_layer: true,
+        coe: sii::STANDARD_COE,
+        fmmus: &sii::STANDARD_FMMUS,
+        sync_managers: &sii::STANDARD_SYNC_MANAGERS,
+        dc_op_modes: &sii::STANDARD_DC_OP_MODES,
+        eeprom_bytes: 2048,
+        physical_ports: 0x0011,
+        profile_no: 402,
+        ebus_current_ma: 0,
+    };
+
+    fn child<'a, 'i>(n: roxmltree::Node<'a, 'i>, tag: &str) -> roxmltree::Node<'a, 'i> {
+        n.children()
+            .find(|c| c.has_tag_name(tag))
+            .unwrap_or_else(|| panic!("no <{tag}> in <{}>", n.tag_name().name()))
+    }
+
+    #[test]
+    fn parses_and_matches_description_and_dictionary() {
+        let mut xml = String::new();
+        write(&DESC, &OBJECTS, &PDOS, &mut xml).unwrap();
+        let doc = roxmltree::Document::parse(&xml).expect("well-formed XML");
+        let root = doc.root_element();
+        assert_eq!(root.tag_name().name(), "EtherCATInfo");
+        let vendor = child(root, "Vendor");
+        assert_eq!(child(vendor, "Name").text(), Some("Vendor & Sons <test>"));
+        assert_eq!(child(vendor, "Id").text(), Some("#x00000E5C"));
+        let dev = child(child(child(root, "Descriptions"), "Devices"), "Device");
+        let ty = child(dev, "Type");
+        assert_eq!(ty.attribute("ProductCode"), Some("#x00005841"));
+        assert_eq!(ty.attribute("RevisionNo"), Some("#x00010000"));
+        assert_eq!(ty.text(), Some("ECS-OL"));
+        assert_eq!(child(dev, "Name").text(), Some("ECS-OL EtherCAT stepper"));
+        assert_eq!(child(dev, "GroupType").text(), Some("Drives"));
+        // Element order of ETG.2000's DeviceType.
+        let order: Vec<&str> = dev
+            .children()
+            .filter(|c| c.is_element())
+            .map(|c| c.tag_name().name())
+            .collect();
+        let rank = |t: &str| {
+            [
+                "Type",
+                "Name",
+                "GroupType",
+                "Profile",
+                "Fmmu",
+                "Sm",
+                "RxPdo",
+                "TxPdo",
+                "Mailbox",
+                "Dc",
+                "Eeprom",
+            ]
+            .iter()
+            .position(|x| *x == t)
+            .unwrap()
+        };
+        assert!(
+            order.windows(2).all(|w| rank(w[0]) <= rank(w[1])),
+            "{order:?}"
+        );
+        let profile = child(dev, "Profile");
+        assert_eq!(child(profile, "ProfileNo").text(), Some("402"));
+        let dict = child(profile, "Dictionary");
+        // Exactly the objects passed in, in order, with their names.
+        let objs: Vec<_> = child(dict, "Objects")
+            .children()
+            .filter(|c| c.has_tag_name("Object"))
+            .collect();
+        assert_eq!(objs.len(), OBJECTS.len());
+        for (o, x) in OBJECTS.iter().zip(&objs) {
+            assert_eq!(
+                child(*x, "Index").text().unwrap(),
+                format!("#x{:04X}", o.index)
+            );
+            assert_eq!(child(*x, "Name").text(), Some(o.name));
+            // every Type is defined in DataTypes
+            let t = child(*x, "Type").text().unwrap();
+            let dts = child(dict, "DataTypes");
+            assert!(
+                dts.children()
+                    .any(|d| d.has_tag_name("DataType") && child(d, "Name").text() == Some(t)),
+                "type {t} not defined"
+            );
+        }
+        let rec = objs[1];
+        assert_eq!(child(rec, "BitSize").text(), Some("80"));
+        let subs: Vec<_> = child(rec, "Info")
+            .children()
+            .filter(|c| c.has_tag_name("SubItem"))
+            .collect();
+        assert_eq!(subs.len(), 3);
+        assert_eq!(child(subs[1], "Name").text(), Some("Vendor <ID>"));
+        assert_eq!(
+            child(child(subs[2], "Info"), "DefaultData").text(),
+            Some("40580000")
+        );
+        assert_eq!(
+            child(child(objs[0], "Info"), "DefaultString").text(),
+            Some("A \"quoted\" <name>")
+        );
+        assert_eq!(child(objs[2], "Name").text(), Some("Flag 'x'"));
+        assert_eq!(
+            child(child(objs[2], "Info"), "DefaultData").text(),
+            Some("01")
+        );
+        let cw_flags = child(objs[3], "Flags");
+        assert_eq!(child(cw_flags, "Access").text(), Some("rw"));
+        assert_eq!(child(cw_flags, "PdoMapping").text(), Some("R"));
+        // Sm list = SII SyncManager list.
+        let sms: Vec<_> = dev.children().filter(|c| c.has_tag_name("Sm")).collect();
+        assert_eq!(sms.len(), DESC.sync_managers.len());
+        for (s, x) in DESC.sync_managers.iter().zip(&sms) {
+            assert_eq!(
+                x.attribute("StartAddress").unwrap(),
+                format!("#x{:04X}", s.start)
+            );
+            assert_eq!(
+                x.attribute("ControlByte").unwrap(),
+                format!("#x{:02X}", s.control)
+            );
+            assert_eq!(x.attribute("Enable"), Some("1"));
+            assert_eq!(x.text(), Some(s.kind.esi()));
+        }
+        let fmmus: Vec<_> = dev
+            .children()
+            .filter(|c| c.has_tag_name("Fmmu"))
+            .map(|c| c.text().unwrap())
+            .collect();
+        assert_eq!(fmmus, ["Outputs", "Inputs", "MBoxState"]);
+        let rx = child(dev, "RxPdo");
+        assert_eq!(rx.attribute("Sm"), Some("2"));
+        assert_eq!(rx.attribute("Mandatory"), Some("1"));
+        let tx = child(dev, "TxPdo");
+        assert_eq!(tx.attribute("Fixed"), Some("1"));
+        let entries: Vec<_> = tx.children().filter(|c| c.has_tag_name("Entry")).collect();
+        assert_eq!(entries.len(), 2);
+        assert_eq!(child(entries[0], "DataType").text(), Some("UINT"));
+        assert_eq!(child(entries[1], "Index").text(), Some("#x0"));
+        let coe = child(child(dev, "Mailbox"), "CoE");
+        for a in ["SdoInfo", "PdoAssign", "PdoConfig", "CompleteAccess"] {
+            assert_eq!(coe.attribute(a), Some("true"), "{a}");
+        }
+        assert_eq!(coe.attribute("PdoUpload"), Some("false"));
+        let modes: Vec<_> = child(dev, "Dc")
+            .children()
+            .filter(|c| c.has_tag_name("OpMode"))
+            .collect();
+        assert_eq!(modes.len(), 2);
+        assert_eq!(child(modes[1], "AssignActivate").text(), Some("#x300"));
+        let ee = child(dev, "Eeprom");
+        assert_eq!(child(ee, "ByteSize").text(), Some("2048"));
+        // ConfigData = SII words 0-6 of the ET1100 flavour.
+        assert_eq!(
+            child(ee, "ConfigData").text(),
+            Some("050C030EE8030000000000000000")
+        );
+        let mut img = vec![0u8; 2048];
+        let n = sii::build(&DESC, &mut img).unwrap();
+        let s = sii::Sii::new(&img[..n]);
+        let g = s.general().unwrap();
+        assert_eq!(g.coe_details & 0x2E, 0x2E);
+        assert_eq!(
+            g.coe_details & (1 << 5) != 0,
+            coe.attribute("CompleteAccess") == Some("true")
+        );
+        assert_eq!(
+            g.flags & 4 != 0,
+            child(dev, "Mailbox").attribute("DataLinkLayer") == Some("true")
+        );
+    }
+}

@@ -1,0 +1,962 @@
+//! The device description and the SII EEPROM image built from it.
+//!
+//! One [`DeviceDescription`] value (chosen by the product) feeds the SII image
+//! ([`build`]) and the ESI XML ([`crate::esi::write`]), so the two can never
+//! disagree: identity, names, mailbox SyncManagers, CoE details, FMMU and
+//! SyncManager lists, DC op modes and the ESC configuration area come from the same
+//! fields. [`Sii`] is a zero-copy, panic-free view of an image (used by the tests,
+//! the ESC simulator and anyone who must read an EEPROM dump back).
+//!
+//! # Image layout (ETG.1000.6 / ETG.2010, word addresses)
+//! | words | content |
+//! |---|---|
+//! | 0x00-0x07 | ESC configuration area: PDI control (→0x0140), PDI configuration (→0x0150), SYNC pulse length (→0x0982), extended PDI configuration (→0x0152), station alias (→0x0012), 2 reserved, checksum (CRC-8 over bytes 0-13 in the low byte) |
+//! | 0x08-0x0F | vendor ID, product code, revision, serial number (u32 each) |
+//! | 0x10-0x13 | reserved (0) |
+//! | 0x14-0x17 | bootstrap mailbox out/in offset and size (0: Bootstrap is not supported) |
+//! | 0x18-0x1B | standard mailbox out (SM0) / in (SM1) offset and size |
+//! | 0x1C | mailbox protocols (0x0004 = CoE) |
+//! | 0x3E | EEPROM size in Kibit − 1 |
+//! | 0x3F | version (1) |
+//! | 0x40… | categories: strings (10), general (30), FMMU (40), SyncManager (41), DC (60), end (0xFFFF) |
+//!
+//! # PDI configuration per ESC flavour
+//! * **LAN9252**: PDI type 0x80 (the ESC core's on-chip bus to the LAN9252 host
+//!   interface; the host interface itself is strapped to SPI). 0x0150 unused (0).
+//! * **ET1100**: PDI type 0x05 (SPI slave); 0x0150 = 0x03: SPI mode 3, SPI_IRQ
+//!   push-pull active low, SPI_SEL active low, normal data-out sampling.
+//!
+//! Both: 0x0141 = 0x0C (device emulation off — the µC runs the ESM —, no enhanced link
+//! detection, DC SYNC-out and latch-in units on); 0x0151 = 0x0E (SYNC0 pin is an
+//! output, push-pull active high, and is mapped to AL event bit 2; SYNC1/LATCH1 pin
+//! as latch input); SYNC pulse length 1000 × 10 ns = 10 µs unless described otherwise.
+
+/// Mailbox protocol bit of SII word 0x1C: CoE.
+pub const MBOX_COE: u16 = 0x0004;
+/// All protocol bits defined by ETG.1000.6 (AoE, EoE, CoE, FoE, SoE, VoE).
+pub const MBOX_VALID: u16 = 0x003F;
+
+/// Category types.
+pub mod category {
+    /// Strings.
+    pub const STRINGS: u16 = 10;
+    /// General.
+    pub const GENERAL: u16 = 30;
+    /// FMMU usage.
+    pub const FMMU: u16 = 40;
+    /// SyncManagers.
+    pub const SYNC_MANAGER: u16 = 41;
+    /// TxPDO (not written: CoE devices describe PDOs in the object dictionary).
+    pub const TXPDO: u16 = 50;
+    /// RxPDO (not written).
+    pub const RXPDO: u16 = 51;
+    /// Distributed clocks op modes.
+    pub const DC: u16 = 60;
+    /// End marker.
+    pub const END: u16 = 0xFFFF;
+}
+
+/// Word addresses of the fixed part.
+pub mod word {
+    /// PDI control.
+    pub const PDI_CONTROL: usize = 0x00;
+    /// PDI configuration.
+    pub const PDI_CONFIG: usize = 0x01;
+    /// SYNC impulse length.
+    pub const SYNC_PULSE: usize = 0x02;
+    /// Extended PDI configuration.
+    pub const PDI_CONFIG2: usize = 0x03;
+    /// Configured station alias.
+    pub const ALIAS: usize = 0x04;
+    /// Checksum.
+    pub const CHECKSUM: usize = 0x07;
+    /// Vendor ID (2 words).
+    pub const VENDOR_ID: usize = 0x08;
+    /// Product code (2 words).
+    pub const PRODUCT_CODE: usize = 0x0A;
+    /// Revision (2 words).
+    pub const REVISION: usize = 0x0C;
+    /// Serial number (2 words).
+    pub const SERIAL: usize = 0x0E;
+    /// Bootstrap receive mailbox offset.
+    pub const BOOT_RX_OFFSET: usize = 0x14;
+    /// Standard receive mailbox (SM0) offset.
+    pub const MBX_RX_OFFSET: usize = 0x18;
+    /// Standard receive mailbox size.
+    pub const MBX_RX_SIZE: usize = 0x19;
+    /// Standard send mailbox (SM1) offset.
+    pub const MBX_TX_OFFSET: usize = 0x1A;
+    /// Standard send mailbox size.
+    pub const MBX_TX_SIZE: usize = 0x1B;
+    /// Mailbox protocols.
+    pub const MBX_PROTOCOLS: usize = 0x1C;
+    /// EEPROM size.
+    pub const SIZE: usize = 0x3E;
+    /// Version.
+    pub const VERSION: usize = 0x3F;
+    /// First category.
+    pub const CATEGORIES: usize = 0x40;
+}
+
+/// CRC-8 of the configuration area: polynomial x⁸+x²+x+1 (0x07), initial value
+/// 0xFF, MSB first, no reflection, no final XOR.
+pub const fn crc8(data: &[u8]) -> u8 {
+    let mut crc: u8 = 0xFF;
+    let mut i = 0;
+    while i < data.len() {
+        crc ^= data[i];
+        let mut b = 0;
+        while b < 8 {
+            crc = if crc & 0x80 != 0 {
+                (crc << 1) ^ 0x07
+            } else {
+                crc << 1
+            };
+            b += 1;
+        }
+        i += 1;
+    }
+    crc
+}
+
+/// Which ESC the device is built with (selects the PDI configuration words).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EscFlavour {
+    /// Microchip LAN9252 (host SPI), 4 KiB process RAM.
+    Lan9252,
+    /// Beckhoff ET1100 with SPI PDI, 8 KiB process RAM.
+    Et1100,
+}
+
+impl EscFlavour {
+    /// SII word 0: PDI control (0x0140) and ESC configuration (0x0141).
+    pub const fn pdi_control(self) -> u16 {
+        match self {
+            EscFlavour::Lan9252 => 0x0C80,
+            EscFlavour::Et1100 => 0x0C05,
+        }
+    }
+    /// SII word 1: PDI configuration (0x0150) and SYNC/latch configuration (0x0151).
+    pub const fn pdi_config(self) -> u16 {
+        match self {
+            EscFlavour::Lan9252 => 0x0E00,
+            EscFlavour::Et1100 => 0x0E03,
+        }
+    }
+    /// SII word 3: extended PDI configuration (0x0152:0x0153); unused for both.
+    pub const fn pdi_config2(self) -> u16 {
+        0
+    }
+    /// One past the last process-RAM address.
+    pub const fn ram_end(self) -> u32 {
+        match self {
+            EscFlavour::Lan9252 => 0x2000,
+            EscFlavour::Et1100 => 0x3000,
+        }
+    }
+}
+
+/// What a SyncManager is for (SII category 41 type byte, ESI `Sm` text).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum SmType {
+    /// Unused.
+    Unused = 0,
+    /// Mailbox out (master → slave), SM0.
+    MailboxOut = 1,
+    /// Mailbox in (slave → master), SM1.
+    MailboxIn = 2,
+    /// Process-data outputs (RxPDO), SM2.
+    Outputs = 3,
+    /// Process-data inputs (TxPDO), SM3.
+    Inputs = 4,
+}
+
+impl SmType {
+    /// From the SII type byte.
+    pub const fn from_u8(v: u8) -> Option<Self> {
+        match v {
+            0 => Some(SmType::Unused),
+            1 => Some(SmType::MailboxOut),
+            2 => Some(SmType::MailboxIn),
+            3 => Some(SmType::Outputs),
+            4 => Some(SmType::Inputs),
+            _ => None,
+        }
+    }
+    /// ESI `Sm` element text.
+    pub const fn esi(self) -> &'static str {
+        match self {
+            SmType::Unused => "",
+            SmType::MailboxOut => "MBoxOut",
+            SmType::MailboxIn => "MBoxIn",
+            SmType::Outputs => "Outputs",
+            SmType::Inputs => "Inputs",
+        }
+    }
+}
+
+/// One SyncManager of the device.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SyncManager {
+    /// Purpose.
+    pub kind: SmType,
+    /// Physical start address.
+    pub start: u16,
+    /// Default length in bytes (mailbox size; 0 for process data whose length
+    /// follows from the mapping).
+    pub default_size: u16,
+    /// Smallest length accepted (ESI `MinSize`; 0 = not stated).
+    pub min_size: u16,
+    /// Largest length accepted (ESI `MaxSize`; 0 = not stated).
+    pub max_size: u16,
+    /// Control byte (0x0804 + 8n).
+    pub control: u8,
+    /// Enabled by default.
+    pub enable: bool,
+}
+
+/// FMMU usage (SII category 40, ESI `Fmmu`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum FmmuUsage {
+    /// Unused.
+    Unused = 0,
+    /// Process-data outputs.
+    Outputs = 1,
+    /// Process-data inputs.
+    Inputs = 2,
+    /// Mailbox state (SM1 status bit polled by the master).
+    MailboxState = 3,
+}
+
+impl FmmuUsage {
+    /// From the SII byte (0xFF also means unused).
+    pub const fn from_u8(v: u8) -> Option<Self> {
+        match v {
+            0 | 0xFF => Some(FmmuUsage::Unused),
+            1 => Some(FmmuUsage::Outputs),
+            2 => Some(FmmuUsage::Inputs),
+            3 => Some(FmmuUsage::MailboxState),
+            _ => None,
+        }
+    }
+    /// ESI `Fmmu` text.
+    pub const fn esi(self) -> &'static str {
+        match self {
+            FmmuUsage::Unused => "",
+            FmmuUsage::Outputs => "Outputs",
+            FmmuUsage::Inputs => "Inputs",
+            FmmuUsage::MailboxState => "MBoxState",
+        }
+    }
+}
+
+/// CoE features (SII general byte 5, ESI `Mailbox/CoE` attributes).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CoeDetails {
+    /// SDO information service.
+    pub sdo_info: bool,
+    /// PDO assignment (0x1C12/0x1C13) writable.
+    pub pdo_assign: bool,
+    /// PDO mapping (0x16xx/0x1Axx) writable.
+    pub pdo_config: bool,
+    /// Master uploads the PDO configuration at start-up.
+    pub pdo_upload: bool,
+    /// SDO complete access.
+    pub complete_access: bool,
+}
+
+impl CoeDetails {
+    /// The general-category byte: b0 SDO, b1 SDO info, b2 PDO assign, b3 PDO config,
+    /// b4 upload at start-up, b5 complete access.
+    pub const fn bits(&self) -> u8 {
+        1 | (self.sdo_info as u8) << 1
+            | (self.pdo_assign as u8) << 2
+            | (self.pdo_config as u8) << 3
+            | (self.pdo_upload as u8) << 4
+            | (self.complete_access as u8) << 5
+    }
+}
+
+/// One DC operation mode (SII category 60 record, ESI `Dc/OpMode`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DcOpMode {
+    /// Short name ("DC", "SM").
+    pub name: &'static str,
+    /// Description ("DC-Synchron").
+    pub description: &'static str,
+    /// Value for 0x0980:0x0981 (0x0300 = SYNC-out unit + SYNC0; 0 = no DC).
+    pub assign_activate: u16,
+    /// Fixed SYNC0 cycle time in ns (0 = the master's cycle × factor).
+    pub cycle_time_sync0: u32,
+    /// SYNC0 cycle factor.
+    pub sync0_factor: i16,
+    /// SYNC0 shift time, ns.
+    pub shift_time_sync0: u32,
+    /// SYNC1 cycle factor.
+    pub sync1_factor: i16,
+    /// SYNC1 shift time, ns.
+    pub shift_time_sync1: u32,
+}
+
+/// Everything the SII image and the ESI file say about the device.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DeviceDescription {
+    /// ETG vendor ID.
+    pub vendor_id: u32,
+    /// Vendor name (ESI).
+    pub vendor_name: &'static str,
+    /// Product code (0x1018:02).
+    pub product_code: u32,
+    /// Revision (0x1018:03).
+    pub revision: u32,
+    /// Serial number (0x1018:04; 0 in the generic image).
+    pub serial: u32,
+    /// Type name (ESI `Type` text), e.g. "ECS-HS".
+    pub type_name: &'static str,
+    /// Device name (SII name string, ESI `Name`).
+    pub name: &'static str,
+    /// Group type (SII group string, ESI `GroupType`), e.g. "Drives".
+    pub group_type: &'static str,
+    /// Group display name (ESI `Groups/Group/Name`).
+    pub group_name: &'static str,
+    /// Order code (SII order string).
+    pub order_code: &'static str,
+    /// Hardware version (0x1009; SII string).
+    pub hardware_version: &'static str,
+    /// Software version (0x100A; SII string).
+    pub software_version: &'static str,
+    /// ESC the device is built with.
+    pub esc: EscFlavour,
+    /// SYNC pulse length in 10 ns units (SII word 2 → 0x0982).
+    pub sync_pulse_length: u16,
+    /// Configured station alias (SII word 4 → 0x0012).
+    pub station_alias: u16,
+    /// Mailbox protocols (SII word 0x1C); this stack: [`MBOX_COE`].
+    pub mailbox_protocols: u16,
+    /// Mailbox supports the data-link layer (counter, repeat).
+    pub mailbox_data_link_layer: bool,
+    /// CoE features.
+    pub coe: CoeDetails,
+    /// FMMUs in order.
+    pub fmmus: &'static [FmmuUsage],
+    /// SyncManagers in order (SM0 mailbox out, SM1 mailbox in, SM2 outputs, SM3 inputs).
+    pub sync_managers: &'static [SyncManager],
+    /// DC op modes (empty: no DC category).
+    pub dc_op_modes: &'static [DcOpMode],
+    /// EEPROM size in bytes (a multiple of 128).
+    pub eeprom_bytes: u16,
+    /// Physical ports, 4 bits each (port 0 = bits 3:0): 1 MII, 3 EBUS.
+    pub physical_ports: u16,
+    /// CoE profile number (low word of 0x1000), e.g. 402.
+    pub profile_no: u16,
+    /// E-bus current in mA (0: not E-bus powered).
+    pub ebus_current_ma: i16,
+}
+
+/// The standard FMMU use: outputs, inputs, mailbox state.
+pub const STANDARD_FMMUS: [FmmuUsage; 3] = [
+    FmmuUsage::Outputs,
+    FmmuUsage::Inputs,
+    FmmuUsage::MailboxState,
+];
+
+/// The standard SyncManager layout of the project: SM0 mailbox out 0x1000/128 (0x26),
+/// SM1 mailbox in 0x1080/128 (0x22), SM2 outputs 0x1100 (0x64, watchdog on),
+/// SM3 inputs 0x1400 (0x20); process data up to 64 bytes each.
+pub const STANDARD_SYNC_MANAGERS: [SyncManager; 4] = [
+    SyncManager {
+        kind: SmType::MailboxOut,
+        start: 0x1000,
+        default_size: 128,
+        min_size: 34,
+        max_size: 128,
+        control: 0x26,
+        enable: true,
+    },
+    SyncManager {
+        kind: SmType::MailboxIn,
+        start: 0x1080,
+        default_size: 128,
+        min_size: 34,
+        max_size: 128,
+        control: 0x22,
+        enable: true,
+    },
+    SyncManager {
+        kind: SmType::Outputs,
+        start: 0x1100,
+        default_size: 0,
+        min_size: 0,
+        max_size: 64,
+        control: 0x64,
+        enable: true,
+    },
+    SyncManager {
+        kind: SmType::Inputs,
+        start: 0x1400,
+        default_size: 0,
+        min_size: 0,
+        max_size: 64,
+        control: 0x20,
+        enable: true,
+    },
+];
+
+/// The standard op modes: SM-synchronous (no DC) and DC SYNC0 (AssignActivate 0x0300,
+/// SYNC0 cycle = the master's cycle).
+pub const STANDARD_DC_OP_MODES: [DcOpMode; 2] = [
+    DcOpMode {
+        name: "SM",
+        description: "SM-Synchron",
+        assign_activate: 0x0000,
+        cycle_time_sync0: 0,
+        sync0_factor: 0,
+        shift_time_sync0: 0,
+        sync1_factor: 0,
+        shift_time_sync1: 0,
+    },
+    DcOpMode {
+        name: "DC",
+        description: "DC-Synchron",
+        assign_activate: 0x0300,
+        cycle_time_sync0: 0,
+        sync0_factor: 1,
+        shift_time_sync0: 0,
+        sync1_factor: 0,
+        shift_time_sync1: 0,
+    },
+];
+
+/// The CoE features this stack implements: SDO information, PDO assignment and
+/// configuration, complete access; no PDO upload.
+pub const STANDARD_COE: CoeDetails = CoeDetails {
+    sdo_info: true,
+    pdo_assign: true,
+    pdo_config: true,
+    pdo_upload: false,
+    complete_access: true,
+};
+
+impl DeviceDescription {
+    /// The first SyncManager of `kind` and its number.
+    pub fn sync_manager(&self, kind: SmType) -> Option<(u8, &SyncManager)> {
+        self.sync_managers
+            .iter()
+            .enumerate()
+            .find(|(_, s)| s.kind == kind)
+            .map(|(i, s)| (i as u8, s))
+    }
+
+    /// Words 0-7 of the image (configuration area with its checksum), as bytes.
+    pub fn config_area(&self) -> [u8; 16] {
+        let mut b = [0u8; 16];
+        let words = [
+            self.esc.pdi_control(),
+            self.esc.pdi_config(),
+            self.sync_pulse_length,
+            self.esc.pdi_config2(),
+            self.station_alias,
+            0,
+            0,
+        ];
+        for (i, w) in words.iter().enumerate() {
+            b[2 * i..2 * i + 2].copy_from_slice(&w.to_le_bytes());
+        }
+        b[14] = crc8(&b[..14]);
+        b
+    }
+
+    /// Checks what the image and the ESI depend on: both mailbox SMs present and
+    /// inside process RAM, every SM inside process RAM, protocol bits valid, EEPROM
+    /// size a multiple of 128 bytes and at least 1 Kibit.
+    pub fn validate(&self) -> Result<(), SiiError> {
+        if self.sync_manager(SmType::MailboxOut).is_none()
+            || self.sync_manager(SmType::MailboxIn).is_none()
+        {
+            return Err(SiiError::MissingMailbox);
+        }
+        if self.sync_managers.len() > 16 || self.fmmus.len() > 16 || self.dc_op_modes.len() > 8 {
+            return Err(SiiError::InvalidDescription);
+        }
+        for sm in self.sync_managers {
+            let end = sm.start as u32 + sm.default_size.max(sm.max_size) as u32;
+            if sm.kind != SmType::Unused && (sm.start < 0x1000 || end > self.esc.ram_end()) {
+                return Err(SiiError::InvalidDescription);
+            }
+        }
+        if self.mailbox_protocols & !MBOX_VALID != 0 || self.mailbox_protocols & MBOX_COE == 0 {
+            return Err(SiiError::InvalidDescription);
+        }
+        if self.eeprom_bytes < 128 || !self.eeprom_bytes.is_multiple_of(128) {
+            return Err(SiiError::InvalidDescription);
+        }
+        Ok(())
+    }
+}
+
+/// Why an image could not be built.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SiiError {
+    /// The output buffer is too small.
+    BufferTooSmall,
+    /// The image does not fit in the declared EEPROM size.
+    EepromTooSmall,
+    /// More than 255 strings, or a string longer than 255 bytes.
+    StringTable,
+    /// SM0 / SM1 mailbox missing from the SyncManager list.
+    MissingMailbox,
+    /// Another inconsistency (see [`DeviceDescription::validate`]).
+    InvalidDescription,
+}
+
+/// Up to this many distinct strings.
+const MAX_STRINGS: usize = 40;
+
+/// The string table: distinct non-empty strings in order of first use.
+struct Strings {
+    list: [&'static str; MAX_STRINGS],
+    n: usize,
+}
+
+impl Strings {
+    fn new() -> Self {
+        Strings {
+            list: [""; MAX_STRINGS],
+            n: 0,
+        }
+    }
+    fn add(&mut self, s: &'static str) -> Result<(), SiiError> {
+        if s.is_empty() || self.list[..self.n].contains(&s) {
+            return Ok(());
+        }
+        if s.len() > 255 || self.n >= MAX_STRINGS {
+            return Err(SiiError::StringTable);
+        }
+        self.list[self.n] = s;
+        self.n += 1;
+        Ok(())
+    }
+    /// 1-based index, 0 for the empty string.
+    fn index(&self, s: &str) -> u8 {
+        self.list[..self.n]
+            .iter()
+            .position(|x| *x == s)
+            .map_or(0, |i| i as u8 + 1)
+    }
+    fn of(desc: &DeviceDescription) -> Result<Self, SiiError> {
+        let mut t = Strings::new();
+        for s in [
+            desc.name,
+            desc.order_code,
+            desc.group_type,
+            desc.hardware_version,
+            desc.software_version,
+        ] {
+            t.add(s)?;
+        }
+        for m in desc.dc_op_modes {
+            t.add(m.name)?;
+            t.add(m.description)?;
+        }
+        Ok(t)
+    }
+}
+
+/// Writes categories into a buffer, word-aligned, with bounds checks.
+struct Writer<'a> {
+    out: &'a mut [u8],
+    pos: usize,
+}
+
+impl Writer<'_> {
+    fn bytes(&mut self, b: &[u8]) -> Result<(), SiiError> {
+        let end = self.pos + b.len();
+        self.out
+            .get_mut(self.pos..end)
+            .ok_or(SiiError::BufferTooSmall)?
+            .copy_from_slice(b);
+        self.pos = end;
+        Ok(())
+    }
+    fn u16(&mut self, v: u16) -> Result<(), SiiError> {
+        self.bytes(&v.to_le_bytes())
+    }
+    fn u32(&mut self, v: u32) -> Result<(), SiiError> {
+        self.bytes(&v.to_le_bytes())
+    }
+    fn pad(&mut self) -> Result<(), SiiError> {
+        if self.pos % 2 == 1 {
+            self.bytes(&[0])?;
+        }
+        Ok(())
+    }
+    /// Starts a category; returns the position of its size word.
+    fn begin(&mut self, kind: u16) -> Result<usize, SiiError> {
+        self.u16(kind)?;
+        let at = self.pos;
+        self.u16(0)?;
+        Ok(at)
+    }
+    /// Pads the category to a word and fills in its size.
+    fn end(&mut self, size_at: usize) -> Result<(), SiiError> {
+        self.pad()?;
+        let words = ((self.pos - size_at - 2) / 2) as u16;
+        self.out[size_at..size_at + 2].copy_from_slice(&words.to_le_bytes());
+        Ok(())
+    }
+}
+
+/// Builds the SII image of `desc` into `out` and returns its length in bytes (the
+/// end marker included). The rest of the EEPROM should read 0xFF.
+pub fn build(desc: &DeviceDescription, out: &mut [u8]) -> Result<usize, SiiError> {
+    desc.validate()?;
+    let strings = Strings::of(desc)?;
+    let header_len = word::CATEGORIES * 2;
+    out.get_mut(..header_len)
+        .ok_or(SiiError::BufferTooSmall)?
+        .fill(0);
+    let mut w = Writer { out, pos: 0 };
+    w.bytes(&desc.config_area())?;
+    for v in [
+        desc.vendor_id,
+        desc.product_code,
+        desc.revision,
+        desc.serial,
+    ] {
+        w.u32(v)?;
+    }
+    // 0x10-0x13 reserved and 0x14-0x17 bootstrap mailbox: zero (no Bootstrap).
+    w.pos = word::MBX_RX_OFFSET * 2;
+    let (_, rx) = desc
+        .sync_manager(SmType::MailboxOut)
+        .ok_or(SiiError::MissingMailbox)?;
+    let (_, tx) = desc
+        .sync_manager(SmType::MailboxIn)
+        .ok_or(SiiError::MissingMailbox)?;
+    for v in [
+        rx.start,
+        rx.default_size,
+        tx.start,
+        tx.default_size,
+        desc.mailbox_protocols,
+    ] {
+        w.u16(v)?;
+    }
+    w.pos = word::SIZE * 2;
+    w.u16(desc.eeprom_bytes / 128 - 1)?;
+    w.u16(1)?;
+
+    // Strings.
+    let at = w.begin(category::STRINGS)?;
+    w.bytes(&[strings.n as u8])?;
+    for s in &strings.list[..strings.n] {
+        w.bytes(&[s.len() as u8])?;
+        w.bytes(s.as_bytes())?;
+    }
+    w.end(at)?;
+
+    // General: exactly 32 bytes.
+    let at = w.begin(category::GENERAL)?;
+    let group = strings.index(desc.group_type);
+    let mut g = [0u8; 32];
+    g[0] = group;
+    g[1] = 0; // image
+    g[2] = strings.index(desc.order_code);
+    g[3] = strings.index(desc.name);
+    g[5] = desc.coe.bits();
+    g[0x0B] = (desc.mailbox_data_link_layer as u8) << 2;
+    g[0x0C..0x0E].copy_from_slice(&desc.ebus_current_ma.to_le_bytes());
+    g[0x0E] = group;
+    g[0x10..0x12].copy_from_slice(&desc.physical_ports.to_le_bytes());
+    w.bytes(&g)?;
+    w.end(at)?;
+
+    // FMMU usage.
+    let at = w.begin(category::FMMU)?;
+    for f in desc.fmmus {
+        w.bytes(&[*f as u8])?;
+    }
+    w.end(at)?;
+
+    // SyncManagers.
+    let at = w.begin(category::SYNC_MANAGER)?;
+    for sm in desc.sync_managers {
+        w.u16(sm.start)?;
+        w.u16(sm.default_size)?;
+        w.bytes(&[sm.control, 0, sm.enable as u8, sm.kind as u8])?;
+    }
+    w.end(at)?;
+
+    // Distributed clocks.
+    if !desc.dc_op_modes.is_empty() {
+        let at = w.begin(category::DC)?;
+        for m in desc.dc_op_modes {
+            w.u32(m.cycle_time_sync0)?;
+            w.u32(m.shift_time_sync0)?;
+            w.u32(m.shift_time_sync1)?;
+            w.bytes(&m.sync1_factor.to_le_bytes())?;
+            w.u16(m.assign_activate)?;
+            w.bytes(&m.sync0_factor.to_le_bytes())?;
+            w.bytes(&[
+                strings.index(m.name),
+                strings.index(m.description),
+                0,
+                0,
+                0,
+                0,
+            ])?;
+        }
+        w.end(at)?;
+    }
+
+    w.u16(category::END)?;
+    if w.pos > desc.eeprom_bytes as usize {
+        return Err(SiiError::EepromTooSmall);
+    }
+    Ok(w.pos)
+}
+
+/// A panic-free view of an SII image (any bytes: missing parts read as `None`).
+#[derive(Debug, Clone, Copy)]
+pub struct Sii<'a> {
+    data: &'a [u8],
+}
+
+/// One category: its type and data (size × 2 bytes).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Category<'a> {
+    /// Category type.
+    pub kind: u16,
+    /// Data.
+    pub data: &'a [u8],
+}
+
+/// Iterator over the categories from word 0x40 to the end marker; stops at the end
+/// marker, at a truncated header and at a category running past the image.
+#[derive(Debug, Clone)]
+pub struct Categories<'a> {
+    data: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Iterator for Categories<'a> {
+    type Item = Category<'a>;
+    fn next(&mut self) -> Option<Category<'a>> {
+        let h = self.data.get(self.pos..self.pos.checked_add(4)?)?;
+        let kind = u16::from_le_bytes([h[0], h[1]]);
+        if kind == category::END {
+            return None;
+        }
+        let len = u16::from_le_bytes([h[2], h[3]]) as usize * 2;
+        let start = self.pos + 4;
+        let data = self.data.get(start..start + len)?;
+        self.pos = start + len;
+        Some(Category { kind, data })
+    }
+}
+
+/// The general category, decoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct General {
+    /// Group string index.
+    pub group: u8,
+    /// Image string index.
+    pub image: u8,
+    /// Order string index.
+    pub order: u8,
+    /// Name string index.
+    pub name: u8,
+    /// CoE details.
+    pub coe_details: u8,
+    /// FoE details.
+    pub foe_details: u8,
+    /// EoE details.
+    pub eoe_details: u8,
+    /// Flags byte (b2 mailbox data-link layer).
+    pub flags: u8,
+    /// E-bus current, mA.
+    pub ebus_current_ma: i16,
+    /// Group index duplicate.
+    pub group2: u8,
+    /// Physical ports.
+    pub physical_ports: u16,
+}
+
+/// One SyncManager record of category 41.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SmRecord {
+    /// Start address.
+    pub start: u16,
+    /// Length.
+    pub length: u16,
+    /// Control byte.
+    pub control: u8,
+    /// Status byte (0).
+    pub status: u8,
+    /// Enable flags (b0 enable).
+    pub enable: u8,
+    /// Type (1-4).
+    pub kind: u8,
+}
+
+/// One op-mode record of category 60.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DcRecord {
+    /// SYNC0 cycle time, ns.
+    pub cycle_time_sync0: u32,
+    /// SYNC0 shift, ns.
+    pub shift_time_sync0: u32,
+    /// SYNC1 shift, ns.
+    pub shift_time_sync1: u32,
+    /// SYNC1 cycle factor.
+    pub sync1_factor: i16,
+    /// AssignActivate.
+    pub assign_activate: u16,
+    /// SYNC0 cycle factor.
+    pub sync0_factor: i16,
+    /// Name string index.
+    pub name: u8,
+    /// Description string index.
+    pub description: u8,
+}
+
+impl<'a> Sii<'a> {
+    /// Views `data` as an SII image.
+    pub const fn new(data: &'a [u8]) -> Self {
+        Sii { data }
+    }
+    /// Word `i`.
+    pub fn word(&self, i: usize) -> Option<u16> {
+        let at = i.checked_mul(2)?;
+        let b = self.data.get(at..at.checked_add(2)?)?;
+        Some(u16::from_le_bytes([b[0], b[1]]))
+    }
+    /// Two words starting at `i` as a u32.
+    pub fn dword(&self, i: usize) -> Option<u32> {
+        Some(self.word(i)? as u32 | (self.word(i + 1)? as u32) << 16)
+    }
+    /// True when word 7's low byte is the CRC-8 of bytes 0-13.
+    pub fn checksum_ok(&self) -> bool {
+        match (self.data.get(..14), self.word(word::CHECKSUM)) {
+            (Some(b), Some(w)) => w & 0xFF == crc8(b) as u16,
+            _ => false,
+        }
+    }
+    /// Vendor ID.
+    pub fn vendor_id(&self) -> Option<u32> {
+        self.dword(word::VENDOR_ID)
+    }
+    /// Product code.
+    pub fn product_code(&self) -> Option<u32> {
+        self.dword(word::PRODUCT_CODE)
+    }
+    /// Revision.
+    pub fn revision(&self) -> Option<u32> {
+        self.dword(word::REVISION)
+    }
+    /// Serial number.
+    pub fn serial(&self) -> Option<u32> {
+        self.dword(word::SERIAL)
+    }
+    /// The categories.
+    pub fn categories(&self) -> Categories<'a> {
+        Categories {
+            data: self.data,
+            pos: word::CATEGORIES * 2,
+        }
+    }
+    /// The first category of `kind`.
+    pub fn find(&self, kind: u16) -> Option<&'a [u8]> {
+        self.categories().find(|c| c.kind == kind).map(|c| c.data)
+    }
+    /// String `index` (1-based) of the strings category; `None` for 0, a missing
+    /// string or one that is not UTF-8.
+    pub fn string(&self, index: u8) -> Option<&'a str> {
+        let d = self.find(category::STRINGS)?;
+        let count = *d.first()?;
+        if index == 0 || index > count {
+            return None;
+        }
+        let mut pos = 1usize;
+        for i in 1..=count {
+            let len = *d.get(pos)? as usize;
+            let s = d.get(pos + 1..pos + 1 + len)?;
+            if i == index {
+                return core::str::from_utf8(s).ok();
+            }
+            pos += 1 + len;
+        }
+        None
+    }
+    /// Number of strings.
+    pub fn string_count(&self) -> u8 {
+        self.find(category::STRINGS)
+            .and_then(|d| d.first().copied())
+            .unwrap_or(0)
+    }
+    /// The general category (must be 32 bytes).
+    pub fn general(&self) -> Option<General> {
+        let g = self.find(category::GENERAL)?;
+        if g.len() != 32 {
+            return None;
+        }
+        Some(General {
+            group: g[0],
+            image: g[1],
+            order: g[2],
+            name: g[3],
+            coe_details: g[5],
+            foe_details: g[6],
+            eoe_details: g[7],
+            flags: g[0x0B],
+            ebus_current_ma: i16::from_le_bytes([g[0x0C], g[0x0D]]),
+            group2: g[0x0E],
+            physical_ports: u16::from_le_bytes([g[0x10], g[0x11]]),
+        })
+    }
+    /// FMMU usage bytes (including a pad byte, if any).
+    pub fn fmmus(&self) -> &'a [u8] {
+        self.find(category::FMMU).unwrap_or(&[])
+    }
+    /// SyncManager record `n`.
+    pub fn sync_manager(&self, n: usize) -> Option<SmRecord> {
+        let d = self.find(category::SYNC_MANAGER)?;
+        let at = n.checked_mul(8)?;
+        let r = d.get(at..at.checked_add(8)?)?;
+        Some(SmRecord {
+            start: u16::from_le_bytes([r[0], r[1]]),
+            length: u16::from_le_bytes([r[2], r[3]]),
+            control: r[4],
+            status: r[5],
+            enable: r[6],
+            kind: r[7],
+        })
+    }
+    /// Number of SyncManager records.
+    pub fn sync_manager_count(&self) -> usize {
+        self.find(category::SYNC_MANAGER).map_or(0, |d| d.len() / 8)
+    }
+    /// DC op-mode record `n`.
+    pub fn dc_op_mode(&self, n: usize) -> Option<DcRecord> {
+        let d = self.find(category::DC)?;
+        let at = n.checked_mul(24)?;
+        let r = d.get(at..at.checked_add(24)?)?;
+        let u32_at = |i: usize| u32::from_le_bytes([r[i], r[i + 1], r[i + 2], r[i + 3]]);
+        Some(DcRecord {
+            cycle_time_sync0: u32_at(0),
+            shift_time_sync0: u32_at(4),
+            shift_time_sync1: u32_at(8),
+            sync1_factor: i16::from_le_bytes([r[12], r[13]]),
+            assign_activate: u16::from_le_bytes([r[14], r[15]]),
+            sync0_factor: i16::from_le_bytes([r[16], r[17]]),
+            name: r[18],
+            description: r[19],
+        })
+    }
+    /// Number of DC op-mode records.
+    pub fn dc_op_mode_count(&self) -> usize {
+        self.find(category::DC).map_or(0, |d| d.len() / 24)
+    }
+}
