@@ -647,3 +647,97 @@ fn lan9252_model_flags_protocol_errors() {
             .unwrap();
     }
 }
+
+// ------------------------------------------------------------------ driver + model + ESC simulator
+
+fn sii_image(esc: ecat_slave_stack::sii::EscFlavour) -> Vec<u8> {
+    use ecat_slave_stack::sii::{self, DeviceDescription};
+    let desc = DeviceDescription {
+        vendor_id: 0x0E5C,
+        vendor_name: "test",
+        product_code: 0x5840,
+        revision: 0x0001_0000,
+        serial: 0,
+        type_name: "ECS-HS",
+        name: "ECS-HS EtherCAT hybrid servo",
+        group_type: "Drives",
+        group_name: "Drives",
+        order_code: "ECS",
+        hardware_version: "1.0",
+        software_version: "0.1.0",
+        esc,
+        sync_pulse_length: 1000,
+        station_alias: 0x0042,
+        mailbox_protocols: sii::MBOX_COE,
+        mailbox_data_link_layer: true,
+        coe: sii::STANDARD_COE,
+        fmmus: &sii::STANDARD_FMMUS,
+        sync_managers: &sii::STANDARD_SYNC_MANAGERS,
+        dc_op_modes: &sii::STANDARD_DC_OP_MODES,
+        eeprom_bytes: 2048,
+        physical_ports: 0x0011,
+        profile_no: 402,
+        ebus_current_ma: 0,
+    };
+    let mut img = vec![0xFF; 2048];
+    sii::build(&desc, &mut img).unwrap();
+    img
+}
+
+/// Checks one driver over the simulator: identity of the chip, the configuration area
+/// loaded from our SII image, AL status written from the PDI, process RAM.
+fn exercise(d: &mut impl EscAccess, esc_type: u8, pdi_control: u16) {
+    assert_eq!(d.read_u8(0x0000).unwrap(), esc_type);
+    assert_eq!(d.read_u16(0x0012).unwrap(), 0x0042, "alias from SII word 4");
+    assert_eq!(
+        d.read_u16(0x0140).unwrap(),
+        pdi_control,
+        "PDI control from SII word 0"
+    );
+    assert_eq!(d.read_u16(0x0110).unwrap() & 1, 1, "EEPROM loaded");
+    d.write_u16(0x0130, 0x0002).unwrap();
+    assert_eq!(d.read_u16(0x0130).unwrap(), 0x0002);
+    let data: Vec<u8> = (0..37).map(|i| i as u8 ^ 0x5A).collect();
+    d.write(0x1801, &data).unwrap();
+    let mut back = vec![0u8; 37];
+    d.read(0x1801, &mut back).unwrap();
+    assert_eq!(back, data);
+    assert!(d.al_event().is_ok());
+}
+
+#[test]
+fn drivers_compose_with_the_esc_simulator() {
+    use ecat_slave_stack::sii::EscFlavour;
+    use tests_host::esc_sim::{EscSim, Flavour};
+
+    let sim = EscSim::new(Flavour::Lan9252, sii_image(EscFlavour::Lan9252));
+    let mut d = Lan9252::new(Lan9252Model::new(sim), Lan9252Config::default());
+    d.init(&mut NoDelay(0)).unwrap();
+    exercise(
+        &mut d,
+        Flavour::Lan9252.esc_type(),
+        EscFlavour::Lan9252.pdi_control(),
+    );
+    assert_eq!(d.spi_mut().esc.al_status(), 0x0002);
+    assert_eq!(d.spi_mut().esc.peek(0x1801, 2), &[0x5A, 0x5B]);
+    assert!(
+        d.spi_mut().violations.is_empty(),
+        "{:?}",
+        d.spi_mut().violations
+    );
+
+    let sim = EscSim::new(Flavour::Et1100, sii_image(EscFlavour::Et1100));
+    let mut d = Et1100::new(Et1100Model::new(sim), Et1100Config::default());
+    d.init(&mut NoDelay(0)).unwrap();
+    exercise(
+        &mut d,
+        Flavour::Et1100.esc_type(),
+        EscFlavour::Et1100.pdi_control(),
+    );
+    assert_eq!(d.spi_mut().esc.al_status(), 0x0002);
+    assert!(
+        d.spi_mut().violations.is_empty(),
+        "{:?}",
+        d.spi_mut().violations
+    );
+}
