@@ -1,7 +1,9 @@
 //! Benchmarks of the `ecat` area. Each call to [`crate::bench`] is one row of BENCHMARKS.md.
 
+mod escdrv_rows;
 mod esm_rows;
 
 pub fn run() {
     esm_rows::run();
+    escdrv_rows::run();
 }
