@@ -25,7 +25,9 @@ use core::fmt::{self, Write};
 use crate::od::{Access, DataType, DefaultValue, Entry, Object, ObjectCode, PdoMappable};
 use crate::sii::{DeviceDescription, SiiError, SmType};
 
-/// One entry of a default PDO mapping (index 0 = padding of `bits` bits).
+/// One entry of a PDO mapping (index 0 = padding of `bits` bits), decoded from the
+/// 32-bit value a mapping object holds (`index << 16 | sub << 8 | bits`, the
+/// encoding of [`crate::pdo::entry`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PdoEntry {
     /// Object index (0 for a gap).
@@ -34,6 +36,21 @@ pub struct PdoEntry {
     pub sub: u8,
     /// Length in bits.
     pub bits: u8,
+}
+
+impl PdoEntry {
+    /// Decodes a mapping-object value.
+    pub const fn decode(v: u32) -> Self {
+        PdoEntry {
+            index: (v >> 16) as u16,
+            sub: (v >> 8) as u8,
+            bits: v as u8,
+        }
+    }
+    /// The mapping-object value.
+    pub const fn encode(self) -> u32 {
+        (self.index as u32) << 16 | (self.sub as u32) << 8 | self.bits as u32
+    }
 }
 
 /// A default PDO: mapping object index (0x1600-0x17FF RxPDO, 0x1A00-0x1BFF TxPDO),
@@ -50,8 +67,9 @@ pub struct PdoMap {
     pub fixed: bool,
     /// Must always be assigned.
     pub mandatory: bool,
-    /// Entries in order.
-    pub entries: &'static [PdoEntry],
+    /// Entries in order, encoded as in the mapping objects (`index << 16 | sub << 8 |
+    /// bits`, see [`crate::pdo::entry`]).
+    pub entries: &'static [u32],
 }
 
 impl PdoMap {
@@ -63,6 +81,58 @@ impl PdoMap {
     pub const fn is_tx(&self) -> bool {
         self.index >= 0x1A00 && self.index <= 0x1BFF
     }
+}
+
+/// The default PDOs of the stack's PDO defaults (`crate::pdo::PdoDefaults`): every
+/// non-empty or assigned mapping object 0x1600-0x1603 / 0x1A00-0x1A03, named after
+/// its object in `objects`, assigned to the device's outputs / inputs SyncManager when
+/// 0x1C12 / 0x1C13 list it. Mapping objects are configurable (not fixed).
+pub fn pdo_maps(
+    desc: &DeviceDescription,
+    objects: &[Object],
+    defaults: &crate::pdo::PdoDefaults,
+) -> heapless::Vec<PdoMap, { 2 * crate::pdo::MAPS }> {
+    let mut out = heapless::Vec::new();
+    let sm_of = |kind| desc.sync_manager(kind).map(|(n, _)| n);
+    let dirs = [
+        (
+            crate::pdo::RX_MAP_BASE,
+            &defaults.rx,
+            defaults.rx_assign,
+            sm_of(SmType::Outputs),
+            "RxPDO",
+        ),
+        (
+            crate::pdo::TX_MAP_BASE,
+            &defaults.tx,
+            defaults.tx_assign,
+            sm_of(SmType::Inputs),
+            "TxPDO",
+        ),
+    ];
+    for (base, maps, assign, sm, fallback) in dirs {
+        for (i, entries) in maps.iter().enumerate() {
+            let index = base + i as u16;
+            let assigned = assign.contains(&index);
+            if entries.is_empty() && !assigned {
+                continue;
+            }
+            let name = objects
+                .binary_search_by_key(&index, |o| o.index)
+                .map_or(fallback, |k| objects[k].name);
+            let map = PdoMap {
+                index,
+                name,
+                sm: if assigned { sm } else { None },
+                fixed: false,
+                mandatory: false,
+                entries,
+            };
+            // Capacity is exactly 2 × MAPS.
+            let _ = out.push(map);
+        }
+    }
+    out
 }
 
 /// Why the ESI could not be written.
@@ -144,7 +214,7 @@ pub fn validate(
                 _ => return Err(EsiError::PdoSyncManager(p.index)),
             }
         }
-        for e in p.entries {
+        for e in p.entries.iter().map(|v| PdoEntry::decode(*v)) {
             if e.index == 0 {
                 continue;
             }
@@ -425,7 +495,7 @@ fn write_pdo<W: Write>(out: &mut W, objects: &[Object], p: &PdoMap) -> fmt::Resu
         p.index,
         Esc(p.name)
     )?;
-    for e in p.entries {
+    for e in p.entries.iter().map(|v| PdoEntry::decode(*v)) {
         match find_entry(objects, e.index, e.sub) {
             Some((o, entry)) if e.index != 0 => {
                 let name = if o.code == ObjectCode::Var {
@@ -648,23 +718,8 @@ mod tests {
             description: "",
         },
     ];
-    static RX: [PdoEntry; 1] = [PdoEntry {
-        index: 0x6040,
-        sub: 0,
-        bits: 16,
-    }];
-    static TX: [PdoEntry; 2] = [
-        PdoEntry {
-            index: 0x6041,
-            sub: 0,
-            bits: 16,
-        },
-        PdoEntry {
-            index: 0,
-            sub: 0,
-            bits: 16,
-        },
-    ];
+    static RX: [u32; 1] = [crate::pdo::entry(0x6040, 0, 16)];
+    static TX: [u32; 2] = [crate::pdo::entry(0x6041, 0, 16), 0x0000_0010];
     static PDOS: [PdoMap; 2] = [
         PdoMap {
             index: 0x1600,
@@ -871,5 +926,17 @@ mod tests {
             g.flags & 4 != 0,
             child(dev, "Mailbox").attribute("DataLinkLayer") == Some("true")
         );
+    }
+
+    #[test]
+    fn the_stacks_own_object_tables_give_a_valid_document() {
+        let mut xml = String::new();
+        write(&DESC, crate::pdo::OBJECTS, &[], &mut xml).unwrap();
+        let doc = roxmltree::Document::parse(&xml).expect("well-formed XML");
+        let n = doc
+            .descendants()
+            .filter(|d| d.has_tag_name("Object"))
+            .count();
+        assert_eq!(n, crate::pdo::OBJECTS.len());
     }
 }

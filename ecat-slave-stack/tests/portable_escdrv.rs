@@ -11,6 +11,7 @@ use ecat_slave_stack::et1100::{self, Et1100, Et1100Config};
 use ecat_slave_stack::lan9252::{self, Lan9252, Lan9252Config};
 use ecat_slave_stack::leds::{self, ErrCondition, Indicator, Pattern, StatusLeds};
 use ecat_slave_stack::od::{Access, DataType, Entry, Object, ObjectCode, PdoMappable};
+use ecat_slave_stack::pdo;
 use ecat_slave_stack::sii::{self, DeviceDescription, EscFlavour, Sii, SiiError, SmType};
 use ecat_slave_stack::{EscAccess, EscError};
 use embedded_hal::delay::DelayNs;
@@ -109,6 +110,37 @@ impl SpiDevice for StuckSpi {
                 Operation::Transfer(r, _) => r.fill(self.miso),
                 _ => {}
             }
+        }
+        Ok(())
+    }
+}
+
+/// MISO is pseudo-random noise: whatever the chip answers, the drivers must end every
+/// call with a result, bounded, without panicking.
+struct NoiseSpi {
+    seed: u32,
+    transactions: u32,
+}
+
+impl ErrorType for NoiseSpi {
+    type Error = BusErr;
+}
+
+impl SpiDevice for NoiseSpi {
+    fn transaction(&mut self, ops: &mut [Operation<'_, u8>]) -> Result<(), BusErr> {
+        self.transactions += 1;
+        for op in ops.iter_mut() {
+            let buf: &mut [u8] = match op {
+                Operation::Read(r) | Operation::TransferInPlace(r) => r,
+                Operation::Transfer(r, _) => r,
+                _ => continue,
+            };
+            for b in buf.iter_mut() {
+                *b = lcg(&mut self.seed) as u8;
+            }
+        }
+        if lcg(&mut self.seed).is_multiple_of(50) {
+            return Err(BusErr);
         }
         Ok(())
     }
@@ -219,23 +251,8 @@ static OBJECTS: [Object; 10] = [
     obj(0x607A, "Target position", ObjectCode::Var, &V607A),
 ];
 
-static RX1: [PdoEntry; 2] = [
-    PdoEntry {
-        index: 0x6040,
-        sub: 0,
-        bits: 16,
-    },
-    PdoEntry {
-        index: 0,
-        sub: 0,
-        bits: 16,
-    },
-];
-static TX1: [PdoEntry; 1] = [PdoEntry {
-    index: 0x6041,
-    sub: 0,
-    bits: 16,
-}];
+static RX1: [u32; 2] = [pdo::entry(0x6040, 0, 16), pdo::entry(0, 0, 16)];
+static TX1: [u32; 1] = [pdo::entry(0x6041, 0, 16)];
 static PDOS: [PdoMap; 2] = [
     PdoMap {
         index: 0x1600,
@@ -471,6 +488,29 @@ qemu_runner::tests! {
         assert_eq!(d.spi_mut().transactions, 0);
     }
 
+    fn drivers_survive_noise_on_miso() {
+        let mut buf = [0u8; 80];
+        let cfg = Lan9252Config { max_polls: 8, startup_polls: 3, ..Lan9252Config::default() };
+        let mut lan = Lan9252::new(NoiseSpi { seed: 1, transactions: 0 }, cfg);
+        let _ = lan.init(&mut CountDelay(0));
+        let mut et = Et1100::new(NoiseSpi { seed: 2, transactions: 0 }, Et1100Config::default());
+        let _ = et.init(&mut CountDelay(0));
+        let mut seed = 3u32;
+        for _ in 0..200 {
+            let addr = (lcg(&mut seed) % 0x3100) as u16;
+            let len = (lcg(&mut seed) % 80) as usize;
+            let before = lan.spi_mut().transactions;
+            let _ = lan.read(addr, &mut buf[..len]);
+            let _ = lan.write(addr, &buf[..len]);
+            let _ = lan.al_event();
+            // Worst case per call: every FIFO word costs a poll budget and a burst.
+            assert!(lan.spi_mut().transactions - before < 3 * (4 + 80 * 9));
+            let _ = et.read(addr, &mut buf[..len]);
+            let _ = et.write(addr, &buf[..len]);
+            let _ = et.al_event();
+        }
+    }
+
     // ------------------------------------------------------------- SII
 
     fn crc8_matches_reference_vectors() {
@@ -670,9 +710,9 @@ qemu_runner::tests! {
 
     fn esi_rejects_inconsistent_pdo_maps() {
         let mut out = Buf::<32768>::new();
-        static BAD_ENTRY: [PdoEntry; 1] = [PdoEntry { index: 0x6099, sub: 0, bits: 16 }];
-        static WRONG_DIR: [PdoEntry; 1] = [PdoEntry { index: 0x6041, sub: 0, bits: 16 }];
-        static WRONG_BITS: [PdoEntry; 1] = [PdoEntry { index: 0x6040, sub: 0, bits: 32 }];
+        static BAD_ENTRY: [u32; 1] = [PdoEntry { index: 0x6099, sub: 0, bits: 16 }.encode()];
+        static WRONG_DIR: [u32; 1] = [pdo::entry(0x6041, 0, 16)];
+        static WRONG_BITS: [u32; 1] = [pdo::entry(0x6040, 0, 32)];
         let p = |index, sm, entries| [PdoMap { index, name: "x", sm, fixed: false, mandatory: false, entries }];
         assert_eq!(esi::write(&DESC, &OBJECTS, &p(0x1600, Some(2), &BAD_ENTRY), &mut out),
             Err(EsiError::UnknownEntry { pdo: 0x1600, index: 0x6099, sub: 0 }));
@@ -703,6 +743,30 @@ qemu_runner::tests! {
             assert_eq!(b, img[i], "byte {i}");
         }
         assert_eq!(&x[start + 28..start + 41], "</ConfigData>");
+    }
+
+    fn esi_pdo_maps_from_the_stack_defaults() {
+        static RXD: [u32; 1] = [pdo::entry(0x6040, 0, 16)];
+        static TXD: [u32; 1] = [pdo::entry(0x6041, 0, 16)];
+        static RXA: [u16; 1] = [0x1600];
+        static TXA: [u16; 1] = [0x1A00];
+        let defaults = pdo::PdoDefaults {
+            rx: [&RXD, &[], &RXD, &[]],
+            tx: [&TXD, &[], &[], &[]],
+            rx_assign: &RXA,
+            tx_assign: &TXA,
+        };
+        let maps = esi::pdo_maps(&DESC, &OBJECTS, &defaults);
+        assert_eq!(maps.len(), 3);
+        assert_eq!((maps[0].index, maps[0].sm, maps[0].name), (0x1600, Some(2), "RxPDO 1"));
+        assert_eq!((maps[1].index, maps[1].sm, maps[1].name), (0x1602, None, "RxPDO"));
+        assert_eq!((maps[2].index, maps[2].sm, maps[2].name), (0x1A00, Some(3), "TxPDO 1"));
+        assert_eq!(PdoEntry::decode(maps[2].entries[0]), PdoEntry { index: 0x6041, sub: 0, bits: 16 });
+        let mut out = Buf::<32768>::new();
+        esi::write(&DESC, &OBJECTS, &maps, &mut out).unwrap();
+        let x = out.as_str();
+        assert!(x.contains("<RxPdo><Index>#x1602</Index><Name>RxPDO</Name>"));
+        assert!(x.contains("<TxPdo Sm=\"3\"><Index>#x1A00</Index>"));
     }
 
     // ------------------------------------------------------------- LEDs
