@@ -1,5 +1,6 @@
 #![no_std]
 pub mod cia402;
+pub mod sampling;
 pub mod comm;
 pub mod dip;
 pub mod fault_led;

@@ -1,0 +1,146 @@
+//! Phase currents and bus voltage: ADC1/ADC2 injected conversions triggered by TIM1
+//! TRGO2 at the PWM centre, and the current-loop interrupt.
+//!
+//! * ADC1 injected: rank 1 = I_A (IN1, PA0), rank 2 = V_BUS (IN6, PC0).
+//! * ADC2 injected: rank 1 = I_B (IN2, PA1) — converted at the same instant as I_A.
+//! * Trigger: JEXTSEL = TIM1_TRGO2, rising edge; ADC clock = SYSCLK / 4 = 42.5 MHz
+//!   (asynchronous clock from the RCC mux, at most one ADC clock of trigger jitter).
+//! * Sampling: currents 24.5 cycles, bus voltage 47.5 cycles (divider impedance).
+//!   ADC1 finishes last (two conversions, ≈ 1.5 µs after the trigger), so only its
+//!   end-of-injected-sequence (JEOS) interrupt is enabled: `ADC1_2` at priority 0,
+//!   the highest in the system — the current-loop slot.
+//!
+//! embassy-stm32's `Adc::new` powers up, calibrates (single-ended and differential)
+//! and enables each ADC; the injected sequence and trigger are programmed through the
+//! PAC afterwards.
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use embassy_stm32::adc::{Adc, AdcConfig};
+use embassy_stm32::gpio::Flex;
+use embassy_stm32::interrupt::{self, InterruptExt, Priority};
+use embassy_stm32::pac;
+use embassy_stm32::pac::adc::vals::{Exten, SampleTime};
+use embassy_stm32::peripherals::{ADC1, ADC2, PA0, PA1, PC0};
+use embassy_stm32::Peri;
+use firmware::sampling::{current_loop_hook, RawSample};
+
+use crate::board;
+
+/// Peripherals of the analog front end.
+pub struct Analog<'d> {
+    pub adc1: Peri<'d, ADC1>,
+    pub adc2: Peri<'d, ADC2>,
+    pub ia: Peri<'d, PA0>,
+    pub ib: Peri<'d, PA1>,
+    pub vbus: Peri<'d, PC0>,
+}
+
+/// Times ADC2 had not finished when ADC1's sequence ended (should stay 0).
+static ADC2_LATE: AtomicU32 = AtomicU32::new(0);
+/// Longest current-loop ISR body seen, CPU cycles (DWT CYCCNT; excludes the 12-cycle
+/// exception entry and the exit).
+static ISR_MAX_CYCLES: AtomicU32 = AtomicU32::new(0);
+
+/// Starts the DWT cycle counter used by the ISR timing measurement.
+pub fn enable_cycle_counter(
+    mut dcb: cortex_m::peripheral::DCB,
+    mut dwt: cortex_m::peripheral::DWT,
+) {
+    dcb.enable_trace();
+    dwt.enable_cycle_counter();
+}
+
+/// Longest current-loop ISR seen so far, CPU cycles (0 until the counter runs).
+pub fn isr_max_cycles() -> u32 {
+    ISR_MAX_CYCLES.load(Ordering::Relaxed)
+}
+
+/// Calibrates and arms both ADCs for the PWM-centre trigger; enables the
+/// current-loop interrupt. The PWM timers may already be running.
+pub fn init(p: Analog<'static>) {
+    let adc1 = Adc::new(p.adc1, AdcConfig::default());
+    let adc2 = Adc::new(p.adc2, AdcConfig::default());
+    let mut pins = [Flex::new(p.ia), Flex::new(p.ib), Flex::new(p.vbus)];
+    for pin in pins.iter_mut() {
+        pin.set_as_analog();
+    }
+    // Owned by the hardware from here on (dropping would reset them).
+    core::mem::forget((adc1, adc2, pins));
+
+    let a1 = pac::ADC1;
+    let a2 = pac::ADC2;
+    a1.smpr().modify(|w| {
+        w.set_smp(usize::from(board::ADC1_CH_IA), SampleTime::CYCLES24_5);
+        w.set_smp(usize::from(board::ADC1_CH_VBUS), SampleTime::CYCLES47_5);
+    });
+    a2.smpr()
+        .modify(|w| w.set_smp(usize::from(board::ADC2_CH_IB), SampleTime::CYCLES24_5));
+    a1.jsqr().write(|w| {
+        w.set_jl(1);
+        w.set_jsq(0, board::ADC1_CH_IA);
+        w.set_jsq(1, board::ADC1_CH_VBUS);
+        w.set_jextsel(board::ADC12_JEXTSEL_TIM1_TRGO2);
+        w.set_jexten(Exten::RISING_EDGE);
+    });
+    a2.jsqr().write(|w| {
+        w.set_jl(0);
+        w.set_jsq(0, board::ADC2_CH_IB);
+        w.set_jextsel(board::ADC12_JEXTSEL_TIM1_TRGO2);
+        w.set_jexten(Exten::RISING_EDGE);
+    });
+    for a in [a1, a2] {
+        a.isr().write(|w| {
+            w.set_jeos(true);
+            w.set_jeoc(true);
+            w.set_jqovf(true);
+        });
+    }
+    a1.ier().modify(|w| w.set_jeosie(true));
+    interrupt::ADC1_2.set_priority(Priority::P0);
+    // SAFETY: the handler only reads the ADC data registers and publishes a sample.
+    unsafe { interrupt::ADC1_2.enable() };
+    for a in [a1, a2] {
+        a.cr().modify(|w| w.set_jadstart(true));
+    }
+}
+
+/// Times the ADC2 result was not ready at ADC1's end of sequence.
+pub fn adc2_late_count() -> u32 {
+    ADC2_LATE.load(Ordering::Relaxed)
+}
+
+/// The current-loop interrupt: ADC1 end of injected sequence, once per PWM period.
+/// TP1 (PC1) is high while it runs, for a scope.
+#[no_mangle]
+unsafe extern "C" fn ADC1_2() {
+    let t0 = cortex_m::peripheral::DWT::cycle_count();
+    crate::hw::io::tp1_high();
+    let a1 = pac::ADC1;
+    let a2 = pac::ADC2;
+    if a1.isr().read().jeos() {
+        if !a2.isr().read().jeos() {
+            ADC2_LATE.fetch_add(1, Ordering::Relaxed);
+        }
+        let s = RawSample {
+            ia: a1.jdr(0).read().jdata(),
+            vbus: a1.jdr(1).read().jdata(),
+            ib: a2.jdr(0).read().jdata(),
+        };
+        for a in [a1, a2] {
+            a.isr().write(|w| {
+                w.set_jeos(true);
+                w.set_jeoc(true);
+            });
+        }
+        current_loop_hook(s);
+    } else {
+        // Not ours (e.g. a stray flag): clear everything injected so it cannot repeat.
+        a1.isr().write(|w| {
+            w.set_jeoc(true);
+            w.set_jqovf(true);
+        });
+    }
+    crate::hw::io::tp1_low();
+    let dt = cortex_m::peripheral::DWT::cycle_count().wrapping_sub(t0);
+    ISR_MAX_CYCLES.fetch_max(dt, Ordering::Relaxed);
+}

@@ -1,0 +1,106 @@
+//! Incremental encoder on TIM2 (32-bit): quadrature ×4 on CH1/CH2, the Z index
+//! captured on CH3 and the fast input IN1 (touch probe 1) captured on CH4.
+//!
+//! The captures are exact hardware latches of the counter at the edge — no interrupt
+//! latency in the measured position. Readers poll the capture flags
+//! ([`Encoder::index_capture`], [`Encoder::probe1_capture`]) from the control path.
+//! The counter wraps at 2³², which `foc`'s wrapping position arithmetic expects.
+use embassy_stm32::gpio::{AfType, Flex, Pull};
+use embassy_stm32::pac;
+use embassy_stm32::pac::timer::vals;
+use embassy_stm32::peripherals::{PA15, PB10, PB11, PB3, TIM2};
+use embassy_stm32::timer::qei::{Config as QeiConfig, Qei, QeiMode};
+use embassy_stm32::timer::{Ch3, Ch4, TimerPin};
+use embassy_stm32::Peri;
+
+/// Peripherals of the encoder interface.
+pub struct EncoderPins<'d> {
+    pub tim2: Peri<'d, TIM2>,
+    pub a: Peri<'d, PA15>,
+    pub b: Peri<'d, PB3>,
+    pub z: Peri<'d, PB10>,
+    pub in1: Peri<'d, PB11>,
+}
+
+/// Handle to the running encoder timer (register access only; `Copy`).
+#[derive(Clone, Copy)]
+pub struct Encoder {
+    _private: (),
+}
+
+fn capture_pin<'d, C: embassy_stm32::timer::TimerChannel, P: TimerPin<TIM2, C>>(
+    pin: Peri<'d, P>,
+) -> Flex<'d> {
+    let af = pin.af_num();
+    let mut f = Flex::new(pin);
+    f.set_as_af_unchecked(af, AfType::input(Pull::None));
+    f
+}
+
+/// Starts the encoder counter and the two captures.
+pub fn init(p: EncoderPins<'static>) -> Encoder {
+    let cfg = QeiConfig {
+        ch1_pull: Pull::Up,
+        ch2_pull: Pull::Up,
+        mode: QeiMode::Mode3,
+        ..Default::default()
+    };
+    let qei = Qei::new(p.tim2, p.a, p.b, cfg);
+    let z = capture_pin::<Ch3, _>(p.z);
+    let in1 = capture_pin::<Ch4, _>(p.in1);
+    core::mem::forget((qei, z, in1));
+
+    let t = pac::TIM2;
+    t.cr1().modify(|w| w.set_cen(false));
+    t.arr().write_value(u32::MAX);
+    // Input filter on A/B: f_DTS/2, N = 6 (≈ 70 ns) against edge ringing.
+    t.ccmr_input(0).modify(|w| {
+        w.set_icf(0, vals::FilterValue::FDTS_DIV2_N6);
+        w.set_icf(1, vals::FilterValue::FDTS_DIV2_N6);
+    });
+    // CH3 ← TI3 (Z), CH4 ← TI4 (IN1): direct mapping (CCxS = 01).
+    t.ccmr_input(1).modify(|w| {
+        w.set_ccs(0, vals::CcmrInputCcs::TI4);
+        w.set_ccs(1, vals::CcmrInputCcs::TI4);
+        w.set_icf(0, vals::FilterValue::FDTS_DIV2_N6);
+        w.set_icf(1, vals::FilterValue::FDTS_DIV2_N6);
+    });
+    t.ccer().modify(|w| {
+        w.set_cce(2, true);
+        w.set_ccp(2, false);
+        w.set_cce(3, true);
+        w.set_ccp(3, false);
+    });
+    t.cnt().write_value(0);
+    t.sr().write(|w| w.0 = 0);
+    t.cr1().modify(|w| w.set_cen(true));
+    Encoder { _private: () }
+}
+
+impl Encoder {
+    /// Counter value (4 counts per line), wrapping.
+    #[inline(always)]
+    pub fn position(&self) -> u32 {
+        pac::TIM2.cnt().read()
+    }
+
+    /// The count latched at the last Z rising edge, once per edge.
+    pub fn index_capture(&self) -> Option<u32> {
+        Self::capture(2)
+    }
+
+    /// The count latched at the last IN1 rising edge (touch probe 1), once per edge.
+    pub fn probe1_capture(&self) -> Option<u32> {
+        Self::capture(3)
+    }
+
+    fn capture(ch: usize) -> Option<u32> {
+        let t = pac::TIM2;
+        if t.sr().read().ccif(ch) {
+            // Reading CCRx clears CCxIF.
+            Some(t.ccr(ch).read())
+        } else {
+            None
+        }
+    }
+}

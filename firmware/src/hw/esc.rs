@@ -1,0 +1,183 @@
+//! The EtherCAT slave controller on SPI2 (with DMA), its IRQ and SYNC0 lines, and
+//! the ESC driver flavour chosen by cargo feature:
+//!
+//! * `esc-lan9252` → [`ecat_slave_stack::lan9252::Lan9252`] (the default board, also
+//!   chosen when neither feature is given, e.g. by a plain `cargo flash`);
+//! * `esc-et1100` (without `esc-lan9252`) → [`ecat_slave_stack::et1100::Et1100`].
+//!
+//! [`EscSpi`] is the embedded-hal 1.0 `SpiDevice` both drivers take: software chip
+//! select on PB12 around each transaction; data phases of [`DMA_MIN_LEN`] bytes or
+//! more run on DMA1 channels 1 (RX) / 2 (TX) and are driven to completion in place
+//! (the DMA interrupt is more urgent than every caller, see main.rs), shorter ones
+//! (address/command phases) are polled because setting up a DMA transfer costs more
+//! than clocking a few bytes. SPI mode 3, [`board::ESC_SPI_HZ`].
+use embassy_stm32::gpio::{Level, Output, Pull, Speed};
+use embassy_stm32::mode::Async;
+use embassy_stm32::spi::{self, mode::Master, Spi};
+use embassy_stm32::time::Hertz;
+use embedded_hal::spi::{ErrorKind, ErrorType, Operation, SpiDevice};
+
+use crate::board;
+
+/// Shortest data phase moved by DMA.
+pub const DMA_MIN_LEN: usize = 8;
+
+/// SPI device for the ESC driver (see the module docs).
+pub struct EscSpi {
+    bus: Spi<'static, Async, Master>,
+    cs: Output<'static>,
+}
+
+/// The SPI configuration of the ESC bus.
+pub fn spi_config() -> spi::Config {
+    let mut c = spi::Config::default();
+    c.mode = spi::MODE_3;
+    c.frequency = Hertz(board::ESC_SPI_HZ);
+    c.miso_pull = Pull::Up;
+    c
+}
+
+impl EscSpi {
+    /// Wraps the bus and the chip-select pin (driven high = deselected).
+    pub fn new(bus: Spi<'static, Async, Master>, cs: Output<'static>) -> Self {
+        let mut cs = cs;
+        cs.set_high();
+        EscSpi { bus, cs }
+    }
+
+    fn transfer(&mut self, read: &mut [u8], write: &[u8]) -> Result<(), spi::Error> {
+        let n = read.len().min(write.len());
+        let (r0, r1) = read.split_at_mut(n);
+        let (w0, w1) = write.split_at(n);
+        if n >= DMA_MIN_LEN {
+            embassy_futures::block_on(self.bus.transfer(r0, w0))?;
+        } else if n > 0 {
+            self.bus.blocking_transfer(r0, w0)?;
+        }
+        self.read(r1)?;
+        self.write(w1)
+    }
+
+    fn read(&mut self, buf: &mut [u8]) -> Result<(), spi::Error> {
+        if buf.len() >= DMA_MIN_LEN {
+            embassy_futures::block_on(self.bus.read(buf))
+        } else if !buf.is_empty() {
+            self.bus.blocking_read(buf)
+        } else {
+            Ok(())
+        }
+    }
+
+    fn write(&mut self, buf: &[u8]) -> Result<(), spi::Error> {
+        if buf.len() >= DMA_MIN_LEN {
+            embassy_futures::block_on(self.bus.write(buf))
+        } else if !buf.is_empty() {
+            self.bus.blocking_write(buf)
+        } else {
+            Ok(())
+        }
+    }
+
+    fn transfer_in_place(&mut self, buf: &mut [u8]) -> Result<(), spi::Error> {
+        if buf.len() >= DMA_MIN_LEN {
+            embassy_futures::block_on(self.bus.transfer_in_place(buf))
+        } else if !buf.is_empty() {
+            self.bus.blocking_transfer_in_place(buf)
+        } else {
+            Ok(())
+        }
+    }
+}
+
+impl ErrorType for EscSpi {
+    type Error = ErrorKind;
+}
+
+impl SpiDevice for EscSpi {
+    fn transaction(&mut self, operations: &mut [Operation<'_, u8>]) -> Result<(), ErrorKind> {
+        self.cs.set_low();
+        let mut result = Ok(());
+        for op in operations.iter_mut() {
+            let r = match op {
+                Operation::Read(buf) => self.read(buf),
+                Operation::Write(buf) => self.write(buf),
+                Operation::Transfer(read, write) => self.transfer(read, write),
+                Operation::TransferInPlace(buf) => self.transfer_in_place(buf),
+                Operation::DelayNs(ns) => {
+                    // 170 cycles per µs; round up.
+                    cortex_m::asm::delay(
+                        ns.saturating_mul(board::SYSCLK_HZ / 1_000_000) / 1000 + 1,
+                    );
+                    Ok(())
+                }
+            };
+            if let Err(e) = r {
+                result = Err(match e {
+                    spi::Error::Overrun => ErrorKind::Overrun,
+                    spi::Error::ModeFault => ErrorKind::ModeFault,
+                    spi::Error::Framing => ErrorKind::FrameFormat,
+                    _ => ErrorKind::Other,
+                });
+                break;
+            }
+        }
+        self.cs.set_high();
+        result
+    }
+}
+
+/// The chip-select pin, idle high.
+pub fn cs_pin(
+    pin: embassy_stm32::Peri<'static, embassy_stm32::peripherals::PB12>,
+) -> Output<'static> {
+    Output::new(pin, Level::High, Speed::VeryHigh)
+}
+
+/// The ESC driver of this build.
+#[cfg(not(all(feature = "esc-et1100", not(feature = "esc-lan9252"))))]
+pub type Esc = ecat_slave_stack::lan9252::Lan9252<EscSpi>;
+/// The ESC driver of this build.
+#[cfg(all(feature = "esc-et1100", not(feature = "esc-lan9252")))]
+pub type Esc = ecat_slave_stack::et1100::Et1100<EscSpi>;
+
+/// Name of the ESC of this build, for logs.
+pub const ESC_NAME: &str = if cfg!(all(feature = "esc-et1100", not(feature = "esc-lan9252"))) {
+    "ET1100"
+} else {
+    "LAN9252"
+};
+
+/// Builds the driver of this flavour over `spi`.
+pub fn new_esc(spi: EscSpi) -> Esc {
+    Esc::new(spi, Default::default())
+}
+
+/// Probes the chip: the driver's start-up sequence (LAN9252: BYTE_TEST, READY, reset,
+/// ID_REV; ET1100: type register and PDI-operational bit), then the ESC type and
+/// revision registers through the common `EscAccess` path. One defmt line says what
+/// answered.
+pub fn probe(esc: &mut Esc) -> Result<(), ecat_slave_stack::EscError> {
+    use ecat_slave_stack::EscAccess;
+    esc.init(&mut embassy_time::Delay)?;
+    let ty = esc.read_u8(ecat_slave_stack::registers::ESC_TYPE)?;
+    let rev = esc.read_u8(ecat_slave_stack::registers::ESC_REVISION)?;
+    let build = esc.read_u16(ecat_slave_stack::registers::ESC_BUILD)?;
+    #[cfg(not(all(feature = "esc-et1100", not(feature = "esc-lan9252"))))]
+    defmt::info!(
+        "ESC {=str}: ID_REV {=u32:#010x}, type {=u8:#04x} rev {=u8} build {=u16}",
+        ESC_NAME,
+        esc.id_rev(),
+        ty,
+        rev,
+        build
+    );
+    #[cfg(all(feature = "esc-et1100", not(feature = "esc-lan9252")))]
+    defmt::info!(
+        "ESC {=str}: type {=u8:#04x} rev {=u8} build {=u16}",
+        ESC_NAME,
+        ty,
+        rev,
+        build
+    );
+    Ok(())
+}

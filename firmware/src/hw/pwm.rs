@@ -1,0 +1,290 @@
+//! The power stage: two full H-bridges on TIM1 (phase A) and TIM8 (phase B).
+//!
+//! embassy-stm32's `ComplementaryPwm` enables the timer clocks and puts the eight
+//! output pins on their alternate functions; everything motor-control specific is
+//! then programmed through the PAC (`embassy_stm32::pac`), because the HAL has no
+//! notion of it:
+//!
+//! * centre-aligned mode 1, PSC = 0, ARR = [`board::PWM_ARR`] → 40 kHz, CCR preload;
+//! * CH1/CH2 PWM mode 1 with complementary outputs and hardware dead time
+//!   ([`board::DEAD_TIME_NS`], DTG in units of 1/170 MHz);
+//! * break input 1 (pin, active low, filtered) → the timer clears MOE in hardware and
+//!   the outputs go to their idle level (all switches off, OSSI = 1, OISx = 0);
+//!   AOE = 0, so the break is **latched** until software re-arms ([`rearm`]);
+//! * TIM1 CH4 (internal only) PWM mode 2, CCR4 = ARR − lead → OC4REF → TRGO2 → ADC
+//!   injected trigger at the PWM centre;
+//! * TIM1 TRGO = counter enable; TIM8 in trigger mode on ITR0 (= TIM1), so both
+//!   bridges count in step;
+//! * BDTR LOCK level 1 afterwards: dead time, break enable/polarity and idle levels
+//!   cannot be changed by stray writes until the next reset.
+//!
+//! The bridges stay **off** (MOE = 0) after [`init`]; [`enable_outputs`] is called by
+//! the drive logic when the power stage is to be energised.
+use core::sync::atomic::{AtomicU8, Ordering};
+
+use embassy_stm32::gpio::{AfType, Flex, OutputType, Pull};
+use embassy_stm32::interrupt::{self, InterruptExt, Priority};
+use embassy_stm32::pac;
+use embassy_stm32::pac::timer::vals;
+use embassy_stm32::peripherals::{PA6, PA7, PA8, PA9, PB0, PC10, PC11, PC6, PC7, PD2, TIM1, TIM8};
+use embassy_stm32::time::Hertz;
+use embassy_stm32::timer::complementary_pwm::{ComplementaryPwm, ComplementaryPwmPin};
+use embassy_stm32::timer::low_level::CountingMode;
+use embassy_stm32::timer::simple_pwm::PwmPin;
+use embassy_stm32::timer::{AdvancedInstance4Channel, BkIn1, BreakInputPin};
+use embassy_stm32::Peri;
+
+use crate::board;
+
+/// Peripherals of the power stage.
+pub struct PowerStage<'d> {
+    pub tim1: Peri<'d, TIM1>,
+    pub a1h: Peri<'d, PA8>,
+    pub a1l: Peri<'d, PA7>,
+    pub a2h: Peri<'d, PA9>,
+    pub a2l: Peri<'d, PB0>,
+    pub bkin_a: Peri<'d, PA6>,
+    pub tim8: Peri<'d, TIM8>,
+    pub b1h: Peri<'d, PC6>,
+    pub b1l: Peri<'d, PC10>,
+    pub b2h: Peri<'d, PC7>,
+    pub b2l: Peri<'d, PC11>,
+    pub bkin_b: Peri<'d, PD2>,
+}
+
+/// Dead-time generator value: DTG[7] = 0 → DT = DTG × t_DTS, t_DTS = 1/170 MHz.
+const DTG: u8 = {
+    let ticks = (board::DEAD_TIME_NS as u64 * board::SYSCLK_HZ as u64).div_ceil(1_000_000_000);
+    assert!(ticks < 128, "dead time needs the coarser DTG encodings");
+    ticks as u8
+};
+
+/// Bit 0: TIM1 break seen, bit 1: TIM8 break seen (latched until [`rearm`]).
+static BREAK_LATCH: AtomicU8 = AtomicU8::new(0);
+
+fn break_pin<'d, T: AdvancedInstance4Channel, P: BreakInputPin<T, BkIn1>>(
+    pin: Peri<'d, P>,
+) -> Flex<'d> {
+    let af = pin.af_num();
+    let mut f = Flex::new(pin);
+    f.set_as_af_unchecked(af, AfType::input(Pull::Up));
+    f
+}
+
+/// Configures both bridges (outputs off) and starts the counters. Call once.
+pub fn init(p: PowerStage<'static>) {
+    let pp = OutputType::PushPull;
+    let freq = Hertz(board::PWM_HZ);
+    let mode = CountingMode::CenterAlignedDownInterrupts;
+    let a = ComplementaryPwm::new(
+        p.tim1,
+        Some(PwmPin::new(p.a1h, pp)),
+        Some(ComplementaryPwmPin::new(p.a1l, pp)),
+        Some(PwmPin::new(p.a2h, pp)),
+        Some(ComplementaryPwmPin::new(p.a2l, pp)),
+        None,
+        None,
+        None,
+        None,
+        freq,
+        mode,
+    );
+    let b = ComplementaryPwm::new(
+        p.tim8,
+        Some(PwmPin::new(p.b1h, pp)),
+        Some(ComplementaryPwmPin::new(p.b1l, pp)),
+        Some(PwmPin::new(p.b2h, pp)),
+        Some(ComplementaryPwmPin::new(p.b2l, pp)),
+        None,
+        None,
+        None,
+        None,
+        freq,
+        mode,
+    );
+    let bk_a = break_pin::<TIM1, _>(p.bkin_a);
+    let bk_b = break_pin::<TIM8, _>(p.bkin_b);
+    // The timers and pins stay configured for the life of the program; the drivers
+    // are not dropped (dropping would reset the pins).
+    core::mem::forget((a, b, bk_a, bk_b));
+
+    let t1 = pac::TIM1;
+    let t8 = pac::TIM8;
+    for t in [t1, t8] {
+        configure(t);
+    }
+    // TIM1: TRGO = enable (starts TIM8), TRGO2 = OC4REF (ADC injected trigger).
+    t1.cr2().modify(|w| {
+        w.set_mms(vals::Mms::ENABLE);
+        w.set_mms2(vals::Mms2::COMPARE_OC4);
+    });
+    t1.smcr().modify(|w| w.set_msm(vals::Msm::SYNC));
+    // TIM8: start on TIM1's trigger output (ITR0).
+    t8.smcr().modify(|w| {
+        w.set_ts(vals::Ts::ITR0);
+        w.set_sms(vals::Sms::TRIGGER_MODE);
+    });
+
+    // Break interrupts: the hardware has already switched the bridge off; the ISR
+    // switches the *other* bridge off too and latches the fault.
+    for t in [t1, t8] {
+        t.sr().write(|w| w.0 = 0);
+        t.dier().modify(|w| w.set_bie(true));
+    }
+    interrupt::TIM1_BRK_TIM15.set_priority(Priority::P1);
+    interrupt::TIM8_BRK.set_priority(Priority::P1);
+    // SAFETY: the handlers below only touch the PWM registers and an atomic.
+    unsafe {
+        interrupt::TIM1_BRK_TIM15.enable();
+        interrupt::TIM8_BRK.enable();
+    }
+
+    // Go: TIM8 follows TIM1's enable.
+    t1.cr1().modify(|w| w.set_cen(true));
+}
+
+fn configure(t: pac::timer::TimAdv) {
+    t.cr1().modify(|w| w.set_cen(false));
+    t.bdtr().modify(|w| {
+        w.set_moe(false);
+        w.set_aoe(false);
+        w.set_ossi(vals::Ossi::IDLE_LEVEL);
+        w.set_ossr(vals::Ossr::IDLE_LEVEL);
+        w.set_dtg(DTG);
+        w.set_bke(0, true);
+        w.set_bkp(0, vals::Bkp::ACTIVE_LOW);
+        w.set_bkf(0, vals::FilterValue::FCK_INT_N4);
+    });
+    t.cr1().modify(|w| {
+        w.set_cms(vals::Cms::CENTER_ALIGNED1);
+        w.set_arpe(true);
+        w.set_ckd(vals::Ckd::DIV1);
+    });
+    t.psc().write_value(0);
+    t.arr().write(|w| w.set_arr(board::PWM_ARR));
+    t.rcr().write(|w| w.set_rep(0));
+    t.ccmr_output(0).modify(|w| {
+        for ch in 0..2 {
+            w.set_ocm(ch, vals::Ocm::PWM_MODE1);
+            w.set_ocpe(ch, true);
+        }
+    });
+    t.ccmr_output(1).modify(|w| {
+        w.set_ocm(0, vals::Ocm::FROZEN);
+        w.set_ocm(1, vals::Ocm::PWM_MODE2);
+        w.set_ocpe(1, true);
+    });
+    let half = board::PWM_ARR / 2;
+    t.ccr(0).write(|w| w.set_ccr(half));
+    t.ccr(1).write(|w| w.set_ccr(half));
+    t.ccr(2).write(|w| w.set_ccr(0));
+    t.ccr(3)
+        .write(|w| w.set_ccr(board::PWM_ARR - board::ADC_TRIGGER_LEAD_TICKS));
+    t.cr2().modify(|w| {
+        for ch in 0..4 {
+            w.set_ois(ch, false);
+            w.set_oisn(ch, false);
+        }
+    });
+    t.ccer().write(|w| {
+        for ch in 0..2 {
+            w.set_cce(ch, true);
+            w.set_ccne(ch, true);
+            w.set_ccp(ch, false);
+            w.set_ccnp(ch, false);
+        }
+    });
+    t.cnt().write(|w| w.set_cnt(0));
+    // Load the preloaded ARR/CCR values now.
+    t.egr().write(|w| w.set_ug(true));
+    t.sr().write(|w| w.0 = 0);
+    t.bdtr().modify(|w| w.set_lock(vals::Lock::LEVEL1));
+}
+
+/// Energises both bridges (MOE = 1) unless a break is latched. Returns whether the
+/// outputs are on.
+#[allow(dead_code)] // power-stage API for the drive logic (CiA 402 enable, fault reset, FOC output)
+pub fn enable_outputs() -> bool {
+    if BREAK_LATCH.load(Ordering::Acquire) != 0 {
+        return false;
+    }
+    for t in [pac::TIM1, pac::TIM8] {
+        t.bdtr().modify(|w| w.set_moe(true));
+    }
+    true
+}
+
+/// Switches both bridges off (outputs to idle level: all switches off). Safe to
+/// call from any context, also before [`init`].
+#[inline(always)]
+pub fn disable_outputs() {
+    for t in [pac::TIM1, pac::TIM8] {
+        t.bdtr().modify(|w| w.set_moe(false));
+    }
+}
+
+/// The latched break inputs (bit 0: bridge A / TIM1, bit 1: bridge B / TIM8).
+pub fn break_latched() -> u8 {
+    BREAK_LATCH.load(Ordering::Acquire)
+}
+
+/// Clears a latched break once both break inputs are inactive again. The outputs stay
+/// off; the drive logic enables them explicitly. Returns `false` while a break input
+/// is still active.
+#[allow(dead_code)] // power-stage API for the drive logic (CiA 402 enable, fault reset, FOC output)
+pub fn rearm() -> bool {
+    for t in [pac::TIM1, pac::TIM8] {
+        t.sr().write(|w| {
+            w.0 = !0;
+            w.set_bif(0, false);
+        });
+    }
+    let still = pac::TIM1.sr().read().bif(0) || pac::TIM8.sr().read().bif(0);
+    if still {
+        return false;
+    }
+    BREAK_LATCH.store(0, Ordering::Release);
+    for t in [pac::TIM1, pac::TIM8] {
+        t.dier().modify(|w| w.set_bie(true));
+    }
+    true
+}
+
+/// Sets the bridge voltages as fractions of the bus voltage, −1.0 ..= 1.0 (values
+/// outside are clamped). Leg 1 gets (1 + u)/2, leg 2 (1 − u)/2 duty, so u = 0 is
+/// 0 V across the winding. Takes effect at the next update event (preload).
+#[inline(always)]
+#[allow(dead_code)] // power-stage API for the drive logic (CiA 402 enable, fault reset, FOC output)
+pub fn set_bridge_voltages(ua: f32, ub: f32) {
+    let arr = f32::from(board::PWM_ARR);
+    for (t, u) in [(pac::TIM1, ua), (pac::TIM8, ub)] {
+        let u = u.clamp(-1.0, 1.0);
+        let c1 = ((1.0 + u) * 0.5 * arr) as u16;
+        let c2 = ((1.0 - u) * 0.5 * arr) as u16;
+        t.ccr(0).write(|w| w.set_ccr(c1));
+        t.ccr(1).write(|w| w.set_ccr(c2));
+    }
+}
+
+fn on_break(bit: u8, t: pac::timer::TimAdv) {
+    // The hardware has already cleared this timer's MOE; take the other bridge down too.
+    disable_outputs();
+    BREAK_LATCH.fetch_or(bit, Ordering::AcqRel);
+    // One interrupt per break event: the input may stay active; rearm() re-enables.
+    t.dier().modify(|w| w.set_bie(false));
+    t.sr().write(|w| {
+        w.0 = !0;
+        w.set_bif(0, false);
+    });
+    crate::hw::safety::raise_fault(crate::hw::safety::FAULT_OVER_CURRENT);
+}
+
+#[no_mangle]
+unsafe extern "C" fn TIM1_BRK_TIM15() {
+    on_break(1, pac::TIM1);
+}
+
+#[no_mangle]
+unsafe extern "C" fn TIM8_BRK() {
+    on_break(2, pac::TIM8);
+}

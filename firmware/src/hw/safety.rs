@@ -1,0 +1,97 @@
+//! What happens when things go wrong.
+//!
+//! * Over-current: the break inputs switch the affected bridge off in hardware
+//!   within the break filter time (≈ 24 ns + gate driver), independent of software;
+//!   the break interrupt then switches the other bridge off and latches the fault
+//!   (see `hw::pwm`).
+//! * Panic and HardFault: [`emergency_stop`] — both bridges off (MOE = 0), brake
+//!   engaged, red LED on — then one defmt line, then the core waits; the independent
+//!   watchdog (not fed any more) resets the chip, and the next start logs the reset
+//!   cause. All of it goes straight to registers, so it works whatever state the
+//!   drivers were in.
+//! * Faults found by the board code (fault 9 at start-up, over-current) are
+//!   published as the drive fault number ([`raise_fault`], [`active_fault`]); the
+//!   LED task flashes it and the drive logic picks it up.
+use core::sync::atomic::{AtomicU8, Ordering};
+
+use cortex_m_rt::{exception, ExceptionFrame};
+
+use crate::hw::{io, pwm};
+
+/// Drive fault number: over-current / phase short (red LED: 1 flash).
+pub const FAULT_OVER_CURRENT: u8 = 1;
+/// Drive fault number: phase / current-sensing fault (red LED: 9 flashes).
+pub const FAULT_CURRENT_SENSING: u8 = firmware::sampling::OffsetFault::FAULT_NUMBER;
+
+/// The most severe fault raised so far (0 = none). Lower numbers are more severe
+/// (the requirements' fault table is ordered that way).
+static ACTIVE_FAULT: AtomicU8 = AtomicU8::new(0);
+
+/// Raises drive fault `n` (1..=9); keeps the most severe one.
+pub fn raise_fault(n: u8) {
+    let _ = ACTIVE_FAULT.fetch_update(Ordering::AcqRel, Ordering::Acquire, |cur| {
+        if cur == 0 || n < cur {
+            Some(n)
+        } else {
+            None
+        }
+    });
+}
+
+/// The fault shown on the red LED (0 = none).
+pub fn active_fault() -> u8 {
+    ACTIVE_FAULT.load(Ordering::Acquire)
+}
+
+/// Bridges off, brake engaged, red LED on. Callable from any context.
+#[inline(always)]
+pub fn emergency_stop() {
+    pwm::disable_outputs();
+    io::emergency_indicators();
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    emergency_stop();
+    defmt::error!("panic: {}", defmt::Display2Format(info));
+    loop {
+        // Wait for the watchdog reset (or a debugger).
+        cortex_m::asm::nop();
+    }
+}
+
+#[exception]
+unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
+    emergency_stop();
+    defmt::error!(
+        "HardFault: pc {=u32:#010x} lr {=u32:#010x}",
+        ef.pc(),
+        ef.lr()
+    );
+    loop {
+        cortex_m::asm::nop();
+    }
+}
+
+/// Why the chip last reset, from RCC_CSR (read once at start-up, then cleared).
+pub fn take_reset_cause() -> &'static str {
+    let rcc = embassy_stm32::pac::RCC;
+    let csr = rcc.csr().read();
+    let cause = if csr.iwdgrstf() {
+        "independent watchdog"
+    } else if csr.wwdgrstf() {
+        "window watchdog"
+    } else if csr.sftrstf() {
+        "software"
+    } else if csr.borrstf() {
+        "brown-out / power-on"
+    } else if csr.pinrstf() {
+        "reset pin"
+    } else if csr.lpwrrstf() {
+        "low-power"
+    } else {
+        "unknown"
+    };
+    rcc.csr().modify(|w| w.set_rmvf(true));
+    cause
+}
