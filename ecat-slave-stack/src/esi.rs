@@ -636,11 +636,14 @@ pub fn write<W: Write>(
                 Esc(m.description),
                 m.assign_activate
             )?;
-            write!(
-                out,
-                "<CycleTimeSync0 Factor=\"{}\">{}</CycleTimeSync0><ShiftTimeSync0>{}</ShiftTimeSync0>",
-                m.sync0_factor, m.cycle_time_sync0, m.shift_time_sync0
-            )?;
+            // SYNC0 settings only for op modes that generate SYNC0 (0x0981 bit 1).
+            if m.assign_activate & 0x0200 != 0 {
+                write!(
+                    out,
+                    "<CycleTimeSync0 Factor=\"{}\">{}</CycleTimeSync0><ShiftTimeSync0>{}</ShiftTimeSync0>",
+                    m.sync0_factor, m.cycle_time_sync0, m.shift_time_sync0
+                )?;
+            }
             if m.assign_activate & 0x0400 != 0 {
                 write!(
                     out,
@@ -906,6 +909,14 @@ mod tests {
             .collect();
         assert_eq!(modes.len(), 2);
         assert_eq!(child(modes[1], "AssignActivate").text(), Some("#x300"));
+        assert_eq!(
+            child(modes[1], "CycleTimeSync0").attribute("Factor"),
+            Some("1")
+        );
+        assert_eq!(child(modes[0], "AssignActivate").text(), Some("#x0"));
+        assert!(!modes[0]
+            .children()
+            .any(|c| c.has_tag_name("CycleTimeSync0")));
         let ee = child(dev, "Eeprom");
         assert_eq!(child(ee, "ByteSize").text(), Some("2048"));
         // ConfigData = SII words 0-6 of the ET1100 flavour.
