@@ -19,6 +19,8 @@ pub const HARDWARE_VERSION: &str = "1.0";
 /// Software version (0x100A): the crate version.
 pub const SOFTWARE_VERSION: &str = env!("CARGO_PKG_VERSION");
 
+use ecat_slave_stack::sii;
+
 /// Longest device name of any variant (0x1008 is described with this maximum length).
 pub const MAX_NAME_LEN: usize = 32;
 
@@ -113,6 +115,49 @@ impl Identity {
     }
 }
 
+/// Vendor name (ESI).
+pub const VENDOR_NAME: &str = "ECS open drive firmware";
+/// SII EEPROM size in bytes (16 Kibit part).
+pub const EEPROM_BYTES: u16 = 2048;
+
+/// The device description for the SII image and the ESI file of `variant` built with
+/// `esc` (standard SyncManager/FMMU layout, DC SYNC0 and SM-synchronous op modes, two
+/// MII ports, CiA 402 profile). `serial` is 0 in the generic image.
+pub const fn device_description(
+    variant: Variant,
+    esc: sii::EscFlavour,
+    serial: u32,
+) -> sii::DeviceDescription {
+    sii::DeviceDescription {
+        vendor_id: VENDOR_ID,
+        vendor_name: VENDOR_NAME,
+        product_code: variant.product_code(),
+        revision: REVISION,
+        serial,
+        type_name: variant.type_name(),
+        name: variant.device_name(),
+        group_type: GROUP,
+        group_name: GROUP,
+        order_code: ORDER_CODE,
+        hardware_version: HARDWARE_VERSION,
+        software_version: SOFTWARE_VERSION,
+        esc,
+        // 10 µs SYNC pulse (1000 × 10 ns), the usual ESC default.
+        sync_pulse_length: 1000,
+        station_alias: 0,
+        mailbox_protocols: sii::MBOX_COE,
+        mailbox_data_link_layer: true,
+        coe: sii::STANDARD_COE,
+        fmmus: &sii::STANDARD_FMMUS,
+        sync_managers: &sii::STANDARD_SYNC_MANAGERS,
+        dc_op_modes: &sii::STANDARD_DC_OP_MODES,
+        eeprom_bytes: EEPROM_BYTES,
+        physical_ports: 0x0011,
+        profile_no: 402,
+        ebus_current_ma: 0,
+    }
+}
+
 /// A serial number derived from the 96-bit unique device ID of the MCU (CRC-32 of
 /// the 12 bytes), so every board reports a different 0x1018:04 without production data.
 pub fn serial_from_unique_id(uid: &[u8; 12]) -> u32 {
@@ -137,6 +182,24 @@ mod tests {
             assert!(v.default_loop_mode() <= v.max_loop_mode());
         }
         assert!(!SOFTWARE_VERSION.is_empty());
+    }
+
+    #[test]
+    fn device_descriptions_are_valid_sii_sources() {
+        for v in [Variant::HybridServo, Variant::OpenLoop] {
+            for esc in [sii::EscFlavour::Lan9252, sii::EscFlavour::Et1100] {
+                let d = device_description(v, esc, 0);
+                assert_eq!(d.validate(), Ok(()));
+                assert_eq!(
+                    (d.vendor_id, d.product_code, d.revision),
+                    (VENDOR_ID, v.product_code(), REVISION)
+                );
+                assert_eq!(d.profile_no as u32, v.device_type() & 0xFFFF);
+                let mut img = [0u8; EEPROM_BYTES as usize];
+                let n = sii::build(&d, &mut img).unwrap();
+                assert!(n > 0x80 && n <= img.len());
+            }
+        }
     }
 
     #[test]
