@@ -131,8 +131,10 @@ pub const PARAM_FLASH_OFFSET: u32 = 512 * 1024 - 16 * 1024;
 /// Size of the parameter record region (two 8 KiB slots).
 pub const PARAM_FLASH_SIZE: u32 = 16 * 1024;
 
-/// Independent watchdog timeout, µs.
-pub const WATCHDOG_TIMEOUT_US: u32 = 100_000;
+/// Independent watchdog timeout, µs. It must cover the longest blocking thread-mode
+/// operation: erasing one 8 KiB record slot = 4 pages × ≤ 40 ms (datasheet maximum;
+/// typically ≈ 22 ms), while the supervisor task cannot run.
+pub const WATCHDOG_TIMEOUT_US: u32 = 300_000;
 
 /// Number of DIP matrix rows and columns.
 pub const DIP_ROWS: usize = 4;

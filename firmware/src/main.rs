@@ -23,11 +23,17 @@
 //! | supervisor: offset self-check at start, watchdog feeding, status log | thread executor | thread | 100 Hz | < 100 µs per tick |
 //! | LEDs (fault flash code, green power) | thread executor | thread | 100 Hz | < 10 µs |
 //! | I/O filtering (inputs debounce, outputs, brake) | thread executor | thread | 1 kHz | < 10 µs |
-//! | mailbox / SDO server, parameter storage (flash erase ≈ 20 ms per 2 KiB page, blocking) | thread executor | thread | on demand | not time-critical; the watchdog timeout (100 ms) covers an erase |
+//! | mailbox / SDO: inside `Slave::poll` in the cyclic task (see Ownership) | interrupt executor `UART4` | 2 | on ESC IRQ | one SDO: to be measured; must stay well below the cycle time |
+//! | parameter storage: slot check at start-up; save/restore (flash erase ≈ 20 ms per page, blocking) | thread executor | thread | on demand | not time-critical; blocks the thread executor: the watchdog timeout (300 ms) covers erasing a whole 8 KiB slot (4 pages × ≤ 40 ms) |
 //!
-//! Ownership: the cyclic path (priority 2) is the only user of the ESC SPI bus; the
-//! thread-mode mailbox task gets mailbox frames from it through queues, never the
-//! bus, so no lock is needed and mailbox traffic cannot delay the cyclic path.
+//! Ownership: the cyclic path (priority 2) owns the ESC (the SPI bus and the driver).
+//! State of the wiring: today the cyclic task only reads the AL event register on
+//! each ESC IRQ / SYNC0 edge. The slave runtime (`ecat_slave_stack::slave::Slave`)
+//! goes into that task: `Slave::cycle` on SYNC0 and `Slave::poll` on the ESC IRQ.
+//! `poll` also serves the mailbox inline, so the SDO work that can take long
+//! (a 'save' erases flash, ≈ 20 ms per 2 KiB page) must be handed to the thread-mode
+//! storage task instead of running at priority 2 — to be decided when the drive
+//! application is wired.
 //!
 //! ## Watchdog
 //! The independent watchdog ([`board::WATCHDOG_TIMEOUT_US`]) is fed by the supervisor
@@ -131,6 +137,15 @@ fn clock_config() -> embassy_stm32::Config {
 async fn main(spawner: Spawner) {
     hw::stack::paint();
     let p = embassy_stm32::init(clock_config());
+    // While a debugger halts the core: PWM counters stop with the bridges forced off
+    // (as if MOE were cleared), and the watchdog pauses.
+    embassy_stm32::pac::DBGMCU.apb2fzr().modify(|w| {
+        w.set_tim1(true);
+        w.set_tim8(true);
+    });
+    embassy_stm32::pac::DBGMCU
+        .apb1lfzr()
+        .modify(|w| w.set_iwdg(true));
     if let Some(core) = cortex_m::Peripherals::take() {
         hw::adc::enable_cycle_counter(core.DCB, core.DWT);
     }
@@ -369,23 +384,49 @@ async fn offset_self_check(wdg: &mut IndependentWatchdog<'static, IWDG>) {
     }
 }
 
+/// The parameter-record store in the flash region: two slots of half the region
+/// each (offsets relative to [`ParamFlash`]).
+const PARAM_STORE: firmware::storage::Storage =
+    firmware::storage::Storage::new(0, board::PARAM_FLASH_SIZE / 2);
+
+/// Validates both record slots at start-up (magic, version, CRC) and logs what they
+/// hold. Applying the newest record to the object dictionary (`Storage::load`) needs
+/// the drive's dictionary and is wired with it.
 fn report_param_region(f: &mut ParamFlash) {
-    use embedded_storage::nor_flash::ReadNorFlash;
-    let half = board::PARAM_FLASH_SIZE / 2;
-    for slot in 0..2u32 {
-        let mut head = [0u8; 16];
-        match f.read(slot * half, &mut head) {
-            Ok(()) => {
-                let erased = head.iter().all(|&b| b == 0xFF);
-                defmt::info!(
-                    "parameter slot {=u32} at flash offset {=u32:#x}: {=str}",
-                    slot,
-                    board::PARAM_FLASH_OFFSET + slot * half,
-                    if erased { "erased" } else { "has data" }
-                );
+    use firmware::storage::SlotStatus;
+    if let Err(e) = PARAM_STORE.check(f) {
+        defmt::error!("parameter store layout: {}", defmt::Debug2Format(&e));
+        return;
+    }
+    let (slots, newest) = PARAM_STORE.scan(f);
+    for (i, s) in slots.iter().enumerate() {
+        let at = board::PARAM_FLASH_OFFSET + PARAM_STORE.slot_address(i);
+        match *s {
+            SlotStatus::Erased => {
+                defmt::info!("parameter slot {=usize} @ {=u32:#x}: erased", i, at)
             }
-            Err(e) => defmt::error!("parameter slot {=u32}: {}", slot, e),
+            SlotStatus::Valid {
+                sequence,
+                payload_len,
+            } => defmt::info!(
+                "parameter slot {=usize} @ {=u32:#x}: record {=u32}, {=u32} bytes",
+                i,
+                at,
+                sequence,
+                payload_len
+            ),
+            SlotStatus::Corrupt => {
+                defmt::warn!("parameter slot {=usize} @ {=u32:#x}: corrupt", i, at)
+            }
         }
+    }
+    match newest {
+        Some((slot, seq, _)) => defmt::info!(
+            "parameters: newest record {=u32} in slot {=usize}",
+            seq,
+            slot
+        ),
+        None => defmt::info!("parameters: no saved record, defaults apply"),
     }
 }
 

@@ -153,12 +153,22 @@ pub fn new_esc(spi: EscSpi) -> Esc {
 }
 
 /// Probes the chip: the driver's start-up sequence (LAN9252: BYTE_TEST, READY, reset,
-/// ID_REV; ET1100: type register and PDI-operational bit), then the ESC type and
+/// ID_REV, then its IRQ pin configuration; ET1100: type register and PDI-operational
+/// bit), then the ESC type and
 /// revision registers through the common `EscAccess` path. One defmt line says what
 /// answered.
 pub fn probe(esc: &mut Esc) -> Result<(), ecat_slave_stack::EscError> {
     use ecat_slave_stack::EscAccess;
     esc.init(&mut embassy_time::Delay)?;
+    // LAN9252: drive the IRQ pin (open drain, active low; the board pulls it up).
+    // The ET1100's PDI IRQ is set up by its SII configuration.
+    #[cfg(not(all(feature = "esc-et1100", not(feature = "esc-lan9252"))))]
+    esc.configure_irq(ecat_slave_stack::lan9252::IrqConfig {
+        enable: true,
+        active_high: false,
+        push_pull: false,
+        deassert_interval: 0,
+    })?;
     let ty = esc.read_u8(ecat_slave_stack::registers::ESC_TYPE)?;
     let rev = esc.read_u8(ecat_slave_stack::registers::ESC_REVISION)?;
     let build = esc.read_u16(ecat_slave_stack::registers::ESC_BUILD)?;
