@@ -2,6 +2,7 @@
 pub mod cia402;
 pub mod sampling;
 pub mod comm;
+pub mod dictionary;
 pub mod dip;
 pub mod fault_led;
 pub mod faults;

@@ -1,0 +1,132 @@
+//! The product's object dictionary: one sorted table made at compile time from the
+//! tables of the modules that own the values.
+//!
+//! | range | owner |
+//! |---|---|
+//! | 0x1000-0x10FF | [`crate::comm`] (device type, names, store/restore, identity, error settings) |
+//! | 0x1600-0x1C33 | `ecat_slave_stack::pdo` (mapping, assignment, sync manager parameters; served by the slave runtime) |
+//! | 0x2000-0x21FF | [`crate::params`] (vendor parameters) |
+//! | 0x2200 | `ecat_slave_stack::sync` (timing diagnostics; served by the slave runtime) |
+//! | 0x2400 | [`crate::faults`] (fault history) |
+//! | 0x2500 | [`crate::monitor`] (monitoring) |
+//! | 0x6000-0x6FFF | [`crate::cia402`] (drive profile) |
+//!
+//! The same table feeds the SDO server, PDO mapping rules, SDO information, the ESI,
+//! the SII and the generated reference (`cargo xtask od-doc`), so they cannot disagree.
+
+use ecat_slave_stack::od::{
+    self, Access, DataType, DefaultValue, Entry, Object, ObjectCode, PdoMappable,
+};
+
+const PLACEHOLDER_ENTRY: Entry = Entry {
+    sub: 0,
+    name: "",
+    data_type: DataType::Unsigned8,
+    bits: 8,
+    access: Access::RO,
+    pdo: PdoMappable::No,
+    min: 0,
+    max: 0,
+    default: DefaultValue::None,
+    unit: "",
+    saved: false,
+};
+const PLACEHOLDER: Object = Object {
+    index: 0,
+    name: "",
+    code: ObjectCode::Var,
+    entries: &[PLACEHOLDER_ENTRY],
+    description: "",
+};
+
+const PARTS: &[&[Object]] = &[
+    crate::comm::OBJECTS,
+    ecat_slave_stack::pdo::OBJECTS,
+    crate::params::OBJECTS,
+    ecat_slave_stack::sync::DIAG_OBJECTS,
+    crate::faults::OBJECTS,
+    crate::monitor::OBJECTS,
+    crate::cia402::objects::OBJECTS,
+];
+
+const fn total(parts: &[&[Object]]) -> usize {
+    let mut n = 0;
+    let mut i = 0;
+    while i < parts.len() {
+        n += parts[i].len();
+        i += 1;
+    }
+    n
+}
+
+/// Concatenates the parts and sorts by index (insertion sort, at compile time).
+const fn merge<const N: usize>(parts: &[&[Object]]) -> [Object; N] {
+    let mut out = [PLACEHOLDER; N];
+    let mut n = 0;
+    let mut p = 0;
+    while p < parts.len() {
+        let mut i = 0;
+        while i < parts[p].len() {
+            out[n] = parts[p][i];
+            n += 1;
+            i += 1;
+        }
+        p += 1;
+    }
+    let mut i = 1;
+    while i < N {
+        let mut j = i;
+        while j > 0 && out[j - 1].index > out[j].index {
+            let t = out[j - 1];
+            out[j - 1] = out[j];
+            out[j] = t;
+            j -= 1;
+        }
+        i += 1;
+    }
+    out
+}
+
+const fn strictly_sorted(objects: &[Object]) -> bool {
+    let mut i = 1;
+    while i < objects.len() {
+        if objects[i - 1].index >= objects[i].index {
+            return false;
+        }
+        i += 1;
+    }
+    true
+}
+
+const COUNT: usize = total(PARTS);
+static TABLE: [Object; COUNT] = merge::<COUNT>(PARTS);
+const _: () = assert!(
+    strictly_sorted(&merge::<COUNT>(PARTS)),
+    "two modules describe the same index"
+);
+
+/// Every object of the drive, sorted by index.
+pub static OBJECTS: &[Object] = &TABLE;
+
+/// True when the table is well formed (sorted objects, sorted sub-indices).
+pub fn is_well_formed() -> bool {
+    od::is_well_formed(OBJECTS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_is_sorted_and_complete() {
+        assert!(is_well_formed());
+        let total: usize = PARTS.iter().map(|p| p.len()).sum();
+        assert_eq!(OBJECTS.len(), total);
+        for index in [
+            0x1000, 0x1018, 0x1600, 0x1A00, 0x1C12, 0x1C32, 0x2000, 0x2152, 0x2200, 0x6040, 0x6041,
+            0x607A, 0x6502,
+        ] {
+            assert!(od::find(OBJECTS, index).is_some(), "{index:#06x} missing");
+        }
+    }
+}
