@@ -396,9 +396,12 @@ impl MailboxServer {
         self.size
     }
 
-    /// Changes the mailbox size (e.g. after the master configured SM0/SM1) and resets.
+    /// Changes the mailbox size (e.g. after the master configured SM0/SM1) and resets
+    /// like [`Self::reset`] (the emergency overrun counter is kept).
     pub fn set_mailbox_size(&mut self, mailbox_size: usize) {
+        let overruns = self.emcy.overruns();
         *self = Self::new(mailbox_size);
+        self.emcy.set_overruns(overruns);
     }
 
     /// A whole SM0 buffer arrived: parse, execute, keep the answer for [`Self::next_output`].
@@ -726,8 +729,13 @@ mod tests {
         let mut out = [0u8; 8];
         assert_eq!(s.next_output(&mut out, 0), 0);
         assert_eq!(s.emergencies_queued(), 1);
+        for _ in 0..9 {
+            s.emergency(1, 2, [3; 5]);
+        }
+        assert_eq!(s.emergency_overruns(), 2);
         s.set_mailbox_size(128);
         assert_eq!(s.mailbox_size(), 128);
         assert_eq!(s.emergencies_queued(), 0);
+        assert_eq!(s.emergency_overruns(), 2);
     }
 }

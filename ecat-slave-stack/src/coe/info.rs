@@ -7,7 +7,7 @@
 //! |---|---|---|
 //! | 0x01 → 0x02 get OD list | u16 list type | u16 list type, u16 indices (list 0: five u16 counts of lists 1–5) |
 //! | 0x03 → 0x04 get object description | u16 index | u16 index, u16 data type, u8 max sub-index, u8 object code, name |
-//! | 0x05 → 0x06 get entry description | u16 index, u8 sub-index, u8 value-info request | u16 index, u8 sub-index, u8 value info, u16 data type, u16 bit length, u16 access, [default] [min] [max], name |
+//! | 0x05 → 0x06 get entry description | u16 index, u8 sub-index, u8 value-info request | u16 index, u8 sub-index, u8 value info, u16 data type, u16 bit length, u16 access, (default) (min) (max), name |
 //! | — → 0x07 error | | u32 abort code |
 //!
 //! A response longer than the mailbox is sent as consecutive fragments: every fragment
