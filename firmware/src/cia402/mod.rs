@@ -151,6 +151,8 @@ pub struct DriveCommand {
     pub velocity: f32,
     /// Torque limit, per mille of rated torque (0x6072).
     pub torque_limit: u16,
+    /// Current limit, per mille of rated current (0x6073).
+    pub current_limit: u16,
     /// Release the holding brake.
     pub brake_release: bool,
 }
@@ -392,7 +394,6 @@ pub struct Cia402 {
     probe: TouchProbe,
     pending: Pending,
     error_code: u16,
-    latched_fault: u16,
     init_done: bool,
     shift: i32,
     // Measured / derived values.
@@ -452,7 +453,6 @@ impl Cia402 {
             probe: TouchProbe::default(),
             pending: Pending::None,
             error_code: 0,
-            latched_fault: 0,
             init_done: false,
             shift: 0,
             raw_position: 0,
@@ -526,16 +526,14 @@ impl Cia402 {
     pub fn on_esm_init(&mut self) {
         self.controlword = 0;
         self.prev_cw = 0;
-        self.latched_fault = 0;
         self.error_code = 0;
         self.init_done = true;
         self.enter(PdsState::SwitchOnDisabled);
     }
 
-    /// Raises a fault detected elsewhere (transition 13, 0x603F = `code`). It stays
-    /// latched until a fault reset.
+    /// Raises a fault detected elsewhere (transition 13, 0x603F = `code`); a fault
+    /// reset clears it unless [`DriveFeedback::fault`] still reports a condition.
     pub fn raise_fault(&mut self, code: u16) {
-        self.latched_fault = code;
         self.fault_detected(code);
     }
 
@@ -642,13 +640,24 @@ impl Cia402 {
                 last_target: self.actual_position,
                 ..Pp::default()
             };
-            self.hm.reset();
+            if self.hm.running() {
+                self.hm.reset();
+            }
             self.cyc = Cyclic::default();
             self.fe_time = 0.0;
             self.fe_flag = false;
         }
-        if !to.voltage_enabled() || to == PdsState::SwitchedOn {
-            self.hm.reset();
+        if from == PdsState::OperationEnabled && to != PdsState::OperationEnabled {
+            // Leaving operation enabled voids the motion tasks (PP set-points, homing,
+            // CSP segment); transition 16 starts again from standstill.
+            self.pp = Pp {
+                last_target: self.motion.position(),
+                ..Pp::default()
+            };
+            if self.hm.running() {
+                self.hm.reset();
+            }
+            self.cyc = Cyclic::default();
         }
     }
 
@@ -667,7 +676,7 @@ impl Cia402 {
             Guard::None => true,
             Guard::QuickStopStays => (5..=8).contains(&self.params.quick_stop_option),
             Guard::QuickStopEnds => !(5..=8).contains(&self.params.quick_stop_option),
-            Guard::FaultCleared => fault_now == 0 && self.latched_fault == 0,
+            Guard::FaultCleared => fault_now == 0,
         }
     }
 
@@ -807,7 +816,6 @@ impl Cia402 {
                 self.fe_time += dt;
                 if self.fe_time * 1000.0 > self.params.following_error_timeout as f32 {
                     self.fe_flag = true;
-                    self.latched_fault = ERR_FOLLOWING;
                     self.fault_detected(ERR_FOLLOWING);
                 }
             } else {
@@ -841,6 +849,7 @@ impl Cia402 {
                 }
             },
             torque_limit: self.params.max_torque,
+            current_limit: self.params.max_current,
             brake_release: drive_enabled,
         }
     }
