@@ -1,6 +1,7 @@
 #![no_std]
 pub mod cia402;
 pub mod sampling;
+pub mod flash_region;
 pub mod comm;
 pub mod dictionary;
 pub mod dip;

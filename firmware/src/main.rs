@@ -240,7 +240,7 @@ async fn main(spawner: Spawner) {
         irq.set_priority(Priority::P2);
     }
 
-    let flash = ParamFlash::new(p.FLASH);
+    let flash = hw::flash::param_flash(p.FLASH);
     if flash.is_none() {
         defmt::error!(
             "flash is not in dual-bank mode (option byte DBANK = 0): parameter storage off"
