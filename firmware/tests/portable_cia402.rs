@@ -788,6 +788,100 @@ qemu_runner::tests! {
         assert_eq!(d.touch_probe().value(0), 444);
     }
 
+    fn quick_stop_input_acts_like_controlword_bit_2() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        enable(&mut d, &mut ax, mode::PV);
+        d.params.target_velocity = 10_000;
+        steps(&mut d, &mut ax, 50);
+        let fb = DriveFeedback { position: ax.pos, quick_stop_input: true, ..Default::default() };
+        d.set_controlword(0x0F);
+        let c = d.cycle(&fb, DT);
+        ax.apply(&c);
+        assert_eq!(d.state(), PdsState::QuickStopActive);
+    }
+
+    fn start_stop_speed_jumps_from_standstill() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        enable(&mut d, &mut ax, mode::PP);
+        d.params.start_stop_speed = 5_000;
+        d.params.profile_velocity = 20_000;
+        d.params.profile_acceleration = 100_000;
+        d.params.profile_deceleration = 100_000;
+        d.params.target_position = 3_000;
+        cw(&mut d, &mut ax, 0x3F);
+        assert_eq!(d.velocity_demand(), 5_000);
+        let mut n = 0;
+        while cw(&mut d, &mut ax, 0x2F) & sw::TARGET_REACHED == 0 {
+            n += 1;
+            assert!(n < 2000);
+        }
+        step(&mut d, &mut ax);
+        assert_eq!(ax.pos, 3_000);
+    }
+
+    fn mode_switch_while_moving_is_bumpless() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        enable(&mut d, &mut ax, mode::PV);
+        d.params.target_velocity = 30_000;
+        steps(&mut d, &mut ax, 200);
+        assert_eq!(ax.vel, 30_000);
+        // PV -> PP: the new move starts from the running speed.
+        d.set_mode(mode::PP);
+        d.params.target_position = ax.pos + 20_000;
+        d.params.profile_velocity = 30_000;
+        let target = d.params.target_position;
+        let s = cw(&mut d, &mut ax, 0x3F);
+        assert_eq!(d.mode_display(), mode::PP);
+        assert!(s & sw::BIT12 != 0);
+        assert!((ax.vel - 30_000).abs() <= 1_000, "{}", ax.vel);
+        let mut n = 0;
+        while cw(&mut d, &mut ax, 0x2F) & sw::TARGET_REACHED == 0 {
+            n += 1;
+            assert!(n < 5000);
+        }
+        step(&mut d, &mut ax);
+        assert_eq!(ax.pos, target);
+    }
+
+    fn pv_and_csv_respect_software_limits() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        d.params.sw_limit_min = -10_000;
+        d.params.sw_limit_max = 10_000;
+        enable(&mut d, &mut ax, mode::PV);
+        d.params.target_velocity = 20_000;
+        steps(&mut d, &mut ax, 2000);
+        assert!(ax.pos <= 10_000 && ax.pos > 9_000, "{}", ax.pos);
+        assert_eq!(ax.vel, 0);
+        assert!(d.statusword() & sw::INTERNAL_LIMIT != 0);
+        d.set_mode(mode::CSV);
+        d.params.target_velocity = -50_000;
+        steps(&mut d, &mut ax, 1000);
+        assert_eq!(ax.pos, -10_000);
+        assert!(d.statusword() & sw::INTERNAL_LIMIT != 0);
+    }
+
+    fn warning_torque_limit_and_outputs() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        enable(&mut d, &mut ax, mode::CSP);
+        d.params.max_torque = 500;
+        let fb = DriveFeedback { torque: -600, warning: true, ..Default::default() };
+        let c = d.cycle(&fb, DT);
+        assert_eq!(c.torque_limit, 500);
+        let s = d.statusword();
+        assert!(s & sw::WARNING != 0 && s & sw::INTERNAL_LIMIT != 0);
+        let fb = DriveFeedback { torque: 100, ..Default::default() };
+        d.cycle(&fb, DT);
+        assert!(d.statusword() & (sw::WARNING | sw::INTERNAL_LIMIT) == 0);
+        d.params.digital_outputs = 0b1011;
+        d.params.digital_outputs_mask = 0b0011;
+        assert_eq!(d.digital_outputs(), 0b0011);
+    }
+
     fn homing_every_method_ends_on_its_reference() {
         // World: limits at ±20 000, home switch edge at 2 000 (or zone 2 000..6 000),
         // index pulses at 100 + k·1000.
