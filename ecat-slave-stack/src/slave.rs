@@ -360,9 +360,13 @@ impl<E: EscAccess> Slave<E> {
                 }
             },
         }
-        let id = match app.device_id() {
-            Some(id) => id,
-            None => self.esc.read_u16(reg::STATION_ALIAS)?,
+        let id = if ctl & crate::esm::al_control::ID_REQUEST != 0 {
+            match app.device_id() {
+                Some(id) => id,
+                None => self.esc.read_u16(reg::STATION_ALIAS)?,
+            }
+        } else {
+            0
         };
         self.esm.id_request(ctl, id);
         self.state_changed(app, before)
