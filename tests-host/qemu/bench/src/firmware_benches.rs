@@ -5,6 +5,7 @@ use firmware::cia402::{mode, Cia402, DriveFeedback};
 
 pub fn run() {
     cia402();
+    product();
 }
 
 /// CiA 402 rows: one control cycle of the drive profile from "outputs unpacked" to
@@ -49,4 +50,83 @@ fn cia402() {
     });
     black_box(out);
     black_box(&d);
+}
+
+/// Product rows: the per-cycle I/O and protection work (input filter + functions +
+/// 0x60FD, the three fault checks, the LED pattern and output levels), the CRC-32 of
+/// a 1 KiB record, and one 'save' of the vendor parameters to a RAM flash.
+fn product() {
+    use firmware::fault_led::FaultLed;
+    use firmware::faults::{Faults, Snapshot};
+    use firmware::identity::Variant;
+    use firmware::io::{self, Inputs, OutputStatus};
+    use firmware::params::{Params, P};
+    use firmware::storage::{crc32, RamFlash, Scope, Storage};
+
+    let params = Params::new(Variant::HybridServo);
+    let mut inputs = Inputs::new();
+    let mut faults = Faults::default();
+    let mut led = FaultLed::new();
+    faults.configure_from(&params);
+    let raw = black_box(0b0_0101u8);
+    let bus_mv = black_box(24_000u32);
+    let (ia, ib, fe) = black_box((1500i32, -1200i32, 40i32));
+    let now = black_box(1234u32);
+    let out = crate::bench("product I/O + fault checks + LED (1 cycle)", || {
+        inputs.update(raw, 1000, &params);
+        let snap = Snapshot::default();
+        faults.check_bus_voltage(bus_mv, snap, now);
+        let pwm_off = faults.check_phase_currents(ia, ib, snap, now);
+        faults.check_following_error(fe, params.get(P::FollowingErrorLimit) as u16, snap, now);
+        let red = led.update(faults.led_code(), now);
+        let st = OutputStatus {
+            alarm: faults.alarm(),
+            ready: !faults.any_active(),
+            in_position: true,
+        };
+        (
+            inputs.digital_inputs_60fd(),
+            pwm_off,
+            red,
+            io::output_levels(&params, st),
+        )
+    });
+    black_box(out);
+
+    let record = black_box([0x5Au8; 1024]);
+    black_box(crate::bench("CRC-32 of 1 KiB (nibble table)", || {
+        crc32(&record)
+    }));
+
+    struct ParamsDict(Params);
+    impl ecat_slave_stack::od::Dictionary for ParamsDict {
+        fn objects(&self) -> &'static [ecat_slave_stack::od::Object] {
+            firmware::params::OBJECTS
+        }
+        fn read(
+            &mut self,
+            i: u16,
+            s: u8,
+            b: &mut [u8],
+        ) -> Result<usize, ecat_slave_stack::od::SdoAbort> {
+            self.0.read(i, s, b)
+        }
+        fn write(
+            &mut self,
+            i: u16,
+            s: u8,
+            d: &[u8],
+            _: ecat_slave_stack::esm::EsmState,
+        ) -> Result<(), ecat_slave_stack::od::SdoAbort> {
+            self.0.write(i, s, d)
+        }
+    }
+    let mut dict = ParamsDict(params);
+    let mut flash = RamFlash::<2048>::new();
+    let store = Storage::new(0, 1024);
+    let r = crate::bench(
+        "save vendor parameters (2 x 1 KiB slots, RAM flash)",
+        || store.save(&mut flash, &mut dict, Scope::All),
+    );
+    black_box(r.is_ok());
 }
