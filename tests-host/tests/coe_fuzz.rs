@@ -474,7 +474,7 @@ fn random_and_mutated_mailboxes_get_well_formed_answers() {
     let mut answered = 0usize;
     let mut kinds = [0usize; 10];
     for (k, &size) in sizes.iter().enumerate() {
-        let mut r = Rng(0x9E37_79B9_7F4A_7C15 ^ (k as u64 + 1) * 0x1234_5678_9ABC_DEF1);
+        let mut r = Rng(0x9E37_79B9_7F4A_7C15 ^ (k as u64 + 1).wrapping_mul(0x1234_5678_9ABC_DEF1));
         let mut srv = MailboxServer::new(size);
         let mut dict = ExampleDictionary::new();
         let mut now = 0u64;
