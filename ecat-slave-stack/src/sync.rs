@@ -15,7 +15,8 @@
 //! DC activation 0x0981 bits 2:0 must be 000 (off) or 011 (SYNC0) → else 0x0030; a
 //! sync type written by the master that is unsupported or disagrees with 0x0981 →
 //! 0x0028; with SYNC0 the cycle time 0x09A0 must be a multiple of 125 µs from 125 µs
-//! to 4 ms → else 0x0035.
+//! to 4 ms and not below the product's minimum (0x1C32:05) → else 0x0035. A product
+//! whose minimum is 62.5 µs (`SlaveConfig::min_cycle_ns`) also accepts 62.5 µs.
 //!
 //! # Supervision (DC SYNC0, [`Sync0Supervisor`])
 //! Every SYNC0 event is time-stamped with the caller's clock. An interval within
@@ -106,9 +107,25 @@ impl SyncMode {
 /// DC activation bits 2:0 that mean "SYNC0 running".
 pub const DC_SYNC0_ACTIVE: u8 = 0x03;
 
+/// The 62.5 µs cycle (stretch goal), accepted only when the product allows it.
+pub const HALF_STEP_CYCLE_NS: u32 = 62_500;
+
 /// Checks a DC SYNC0 cycle time: every multiple of 125 µs from 125 µs to 4 ms.
 pub const fn check_cycle(cycle_ns: u32) -> Result<(), AlStatusCode> {
-    if cycle_ns < MIN_CYCLE_NS || cycle_ns > MAX_CYCLE_NS || !cycle_ns.is_multiple_of(CYCLE_STEP_NS)
+    check_cycle_min(cycle_ns, MIN_CYCLE_NS)
+}
+
+/// Checks a DC SYNC0 cycle time against the product's shortest cycle `min_cycle_ns`
+/// (0x1C32:05): every multiple of 125 µs from max(125 µs, minimum) to 4 ms, plus
+/// 62.5 µs when the minimum allows it → else 0x0035.
+pub const fn check_cycle_min(cycle_ns: u32, min_cycle_ns: u32) -> Result<(), AlStatusCode> {
+    if cycle_ns == HALF_STEP_CYCLE_NS && min_cycle_ns <= HALF_STEP_CYCLE_NS {
+        return Ok(());
+    }
+    if cycle_ns < MIN_CYCLE_NS
+        || cycle_ns < min_cycle_ns
+        || cycle_ns > MAX_CYCLE_NS
+        || !cycle_ns.is_multiple_of(CYCLE_STEP_NS)
     {
         Err(AlStatusCode::DcInvalidCycleTime)
     } else {
@@ -125,6 +142,7 @@ pub fn resolve_mode(
     dc_activation: u8,
     sync0_cycle_ns: u32,
     outputs: bool,
+    min_cycle_ns: u32,
 ) -> Result<SyncMode, AlStatusCode> {
     let unsupported = Err(AlStatusCode::SyncModeNotSupported);
     let act = dc_activation & 0x07;
@@ -156,7 +174,7 @@ pub fn resolve_mode(
         }
     }
     if mode == SyncMode::DcSync0 {
-        check_cycle(sync0_cycle_ns)?;
+        check_cycle_min(sync0_cycle_ns, min_cycle_ns)?;
     }
     Ok(mode)
 }
@@ -338,6 +356,8 @@ pub struct SyncState {
     pub sm2_since_sync0: bool,
     /// Measurement running (0x1C32:08).
     pub measuring: bool,
+    /// Shortest DC cycle accepted (0x1C32:05), ns.
+    pub min_cycle_ns: u32,
 }
 
 fn put(buf: &mut [u8], v: &[u8]) -> Result<usize, SdoAbort> {
@@ -355,6 +375,7 @@ impl SyncState {
         s.sm3.calc_copy_ns = calc_copy_ns.1;
         s.sm2.sync_type = 1;
         s.sm3.sync_type = 0x22;
+        s.min_cycle_ns = MIN_CYCLE_NS;
         s
     }
 
@@ -472,10 +493,18 @@ impl SyncState {
         match sub {
             0 => put(buf, &[0x20]),
             1 => put(buf, &p.sync_type.to_le_bytes()),
-            2 => put(buf, &p.cycle_ns.to_le_bytes()),
+            2 => {
+                // SM-synchronous without a written cycle: the measured master cycle.
+                let v = if p.cycle_ns == 0 && self.mode == SyncMode::SmSync {
+                    self.diag.pdi_period.saturating_mul(1000)
+                } else {
+                    p.cycle_ns
+                };
+                put(buf, &v.to_le_bytes())
+            }
             3 => put(buf, &p.shift_ns.to_le_bytes()),
             4 => put(buf, &SUPPORTED_TYPES.to_le_bytes()),
-            5 => put(buf, &MIN_CYCLE_NS.to_le_bytes()),
+            5 => put(buf, &self.min_cycle_ns.to_le_bytes()),
             6 => put(buf, &p.calc_copy_ns.to_le_bytes()),
             7 => put(buf, &0u32.to_le_bytes()),
             8 => put(buf, &(self.measuring as u16).to_le_bytes()),
@@ -676,6 +705,17 @@ mod tests {
         for bad in [0, 62_500, 124_999, 125_001, 4_125_000, 1_000_001, u32::MAX] {
             assert_eq!(check_cycle(bad), Err(AlStatusCode::DcInvalidCycleTime));
         }
+        assert_eq!(check_cycle_min(62_500, 62_500), Ok(()));
+        assert_eq!(check_cycle_min(125_000, 62_500), Ok(()));
+        assert_eq!(
+            check_cycle_min(93_750, 62_500),
+            Err(AlStatusCode::DcInvalidCycleTime)
+        );
+        assert_eq!(
+            check_cycle_min(125_000, 250_000),
+            Err(AlStatusCode::DcInvalidCycleTime)
+        );
+        assert_eq!(check_cycle_min(250_000, 250_000), Ok(()));
     }
 
     #[test]

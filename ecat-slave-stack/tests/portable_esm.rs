@@ -908,6 +908,26 @@ qemu_runner::tests! {
         }
     }
 
+    fn product_minimum_cycle_is_enforced_and_62_5us_allowed() {
+        for (min, cycle, ok) in [
+            (62_500u32, 62_500u32, true),
+            (62_500, 125_000, true),
+            (62_500, 93_750, false),
+            (250_000, 125_000, false),
+            (250_000, 250_000, true),
+        ] {
+            let mut s = Slave::new(FakeEsc::new(), SlaveConfig { min_cycle_ns: min, ..cfg() });
+            s.init().unwrap();
+            let mut app = App::new();
+            to_preop(&mut s, &mut app);
+            pd_sms(s.esc_mut(), 6, 6);
+            dc_on(s.esc_mut(), 3, cycle);
+            let expect = if ok { (0x04, 0) } else { (0x12, 0x0035) };
+            assert_eq!(request(&mut s, &mut app, 4, 0), expect, "{min} {cycle}");
+            assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C32, 5), min);
+        }
+    }
+
     fn dc_lock_then_op_then_sync0_missing_gives_0x002c() {
         let (mut s, mut app) = new_slave();
         to_preop(&mut s, &mut app);
