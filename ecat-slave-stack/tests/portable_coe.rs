@@ -508,6 +508,31 @@ qemu_runner::tests! {
         assert_eq!(o.payload().len(), 10);
     }
 
+    fn complete_access_download_segmented_on_small_mailbox() {
+        let mut h = H::new(32); // 26 bytes of mailbox data
+        let mut image = [0u8; 42];
+        image[0] = 40;
+        for i in 0..40 {
+            image[2 + i] = 200 - i as u8;
+        }
+        let mut f = [0u8; 26];
+        f[..10].copy_from_slice(&[0x00, 0x20, 0x31, 0x04, 0x20, 0x00, 42, 0, 0, 0]);
+        f[10..].copy_from_slice(&image[..16]);
+        let o = h.coe(&f);
+        assert_eq!(o.payload(), &[0x00, 0x30, 0x70, 0x04, 0x20, 0x00, 0, 0, 0, 0]);
+        assert_eq!(h.dict.writes, 0);
+        let mut s = [0u8; 26];
+        s[..3].copy_from_slice(&[0x00, 0x20, 0x00]);
+        s[3..].copy_from_slice(&image[16..39]);
+        let o = h.coe(&s);
+        assert_eq!(o.payload(), &SEG_ACK0);
+        let o = h.coe(&[0x00, 0x20, 0x19, image[39], image[40], image[41], 0, 0, 0, 0]);
+        assert_eq!(o.payload(), &SEG_ACK1);
+        assert_eq!(h.dict.writes, 40);
+        assert_eq!(h.dict.value(0x2004, 1), 200);
+        assert_eq!(h.dict.value(0x2004, 40), 161);
+    }
+
     fn complete_access_download() {
         let mut h = H::new(128);
         // 0x1600 from sub-index 0 with three entries: sub 0 is set to 0 first, so the
