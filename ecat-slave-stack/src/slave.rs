@@ -310,6 +310,10 @@ impl<E: EscAccess> Slave<E> {
     pub fn emergency(&mut self, error_code: u16, error_register: u8, data: [u8; 5]) {
         self.mbx.emergency(error_code, error_register, data);
     }
+    /// Emergencies dropped because the mailbox's emergency queue was full.
+    pub fn emergency_overruns(&self) -> u32 {
+        self.mbx.emergency_overruns()
+    }
 
     /// One pass of the runtime (module docs).
     pub fn poll<A: SlaveApplication>(&mut self, app: &mut A, now_us: u64) -> Result<(), EscError> {
