@@ -1,0 +1,401 @@
+//! Power-up measurement of phase resistance and inductance, and current-loop gains.
+//!
+//! Runs at the current-loop rate in voltage mode ([`crate::current_loop::CurrentLoop::voltage_step`]).
+//! Each phase is measured in turn while the other phase is held at 0 V (its bridge
+//! shorts the coil, which damps the rotor as it pulls into the energised phase):
+//!
+//! 1. **DC point 1**: a slow PI regulator (`Kp = kp_init` V/A, integral corner
+//!    `wi_init` rad/s, independent of the unknown motor) brings the phase current to
+//!    `I₁ = ½·I_test`; after `settle` s the applied voltage and the current are
+//!    averaged for `average` s. No current (`< 20 %` of I₁) at the end of the settle
+//!    time → [`TuneError::OpenPhase`].
+//! 2. **DC point 2** at `I₂ = I_test`, same procedure. `R = (V₂ − V₁)/(I₂ − I₁)`: the
+//!    bridge's dead-time voltage loss (same sign at both points) cancels.
+//! 3. **Toggling**: around the DC voltage of point 2 the voltage is switched by
+//!    `±V_t` every `h` samples. Over each half period of constant voltage the current
+//!    moves by `Δi = ±V_t·h·Ts/L` (the DC part cancels `R·I₂`, the triangle's
+//!    mean is I₂), so `L = V_t·h·Ts·N / Σ|Δi|`. The current samples bracketing a half
+//!    period are taken `delay` samples after the voltage command changed (one
+//!    sample of computation delay in the PWM update).
+//!
+//! All applied voltages are rounded to the modulator's resolution (`2·Vbus/period`,
+//! see [`crate::modulation::Modulator::duties`]) so the averaged command equals what
+//! the bridge produced. Gains: `Kp = L·ωc`, `Ki = R·ωc` with the means of both phases.
+//! Phases differing by more than `unbalance` (relative) → [`TuneError::Unbalanced`].
+//!
+//! Integer scaling of the reported values (drive parameters):
+//! * resistance: mΩ (`0x2020`), inductance: µH (`0x2021`);
+//! * current Kp (`0x2015`): **0.01 V/A** per unit (1000 = 10 V/A);
+//! * current Ki (`0x2016`): **10 V/(A·s)** per unit (200 = 2000 V/(A·s)).
+//!
+//! With the default ωc = 2π·2 kHz an ECN57-20 (0.4 Ω, 1.8 mH) gives Kp = 2262,
+//! Ki = 503.
+
+use crate::num;
+use core::f32::consts::PI;
+
+/// Phase being measured.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Phase {
+    /// Phase A.
+    A,
+    /// Phase B.
+    B,
+}
+
+/// Why auto-tune failed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TuneError {
+    /// No current flows in this phase (open coil, poor contact).
+    OpenPhase(Phase),
+    /// The phases' R or L differ by more than the configured ratio.
+    Unbalanced,
+    /// A result outside the physically plausible range (R ≤ 0, L ≤ 0, no ripple).
+    Implausible,
+}
+
+/// Steps of the procedure.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TuneState {
+    /// First DC point on the phase.
+    Dc1(Phase),
+    /// Second DC point.
+    Dc2(Phase),
+    /// Voltage toggling for L.
+    Toggle(Phase),
+    /// Finished.
+    Done(TuneResult),
+    /// Failed.
+    Failed(TuneError),
+}
+
+/// Auto-tune configuration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AutotuneConfig {
+    /// Sample period, s.
+    pub ts: f32,
+    /// Test current I₂, A (I₁ = I₂/2).
+    pub test_current: f32,
+    /// PWM timer period in counts (voltage resolution `2·Vbus/period`).
+    pub pwm_period: u16,
+    /// Largest voltage used, fraction of the bus voltage.
+    pub max_modulation: f32,
+    /// DC regulator proportional gain, V/A.
+    pub kp_init: f32,
+    /// DC regulator integral corner, rad/s.
+    pub wi_init: f32,
+    /// Settling time at each DC point, s.
+    pub settle: f32,
+    /// Averaging time at each DC point, s.
+    pub average: f32,
+    /// Toggle amplitude, fraction of the bus voltage.
+    pub toggle_modulation: f32,
+    /// Toggle half period, samples (≥ 2).
+    pub toggle_half: u32,
+    /// Toggling time, s.
+    pub toggle_time: f32,
+    /// Computation delay between a command and the bridge applying it, samples.
+    pub delay: u32,
+    /// Target current-loop bandwidth ωc, rad/s.
+    pub bandwidth: f32,
+    /// Largest relative difference between the phases' R and L.
+    pub unbalance: f32,
+}
+
+impl AutotuneConfig {
+    /// Defaults for a 40 kHz loop and test current `i_test` (A).
+    pub fn new(ts: f32, pwm_period: u16, i_test: f32) -> Self {
+        AutotuneConfig {
+            ts,
+            test_current: i_test,
+            pwm_period,
+            max_modulation: 0.5,
+            kp_init: 2.0,
+            wi_init: 400.0,
+            settle: 0.04,
+            average: 0.02,
+            toggle_modulation: 0.2,
+            toggle_half: 4,
+            toggle_time: 0.02,
+            delay: 1,
+            bandwidth: 2.0 * PI / (20.0 * ts),
+            unbalance: 0.2,
+        }
+    }
+}
+
+/// Measured values and computed gains.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TuneResult {
+    /// Resistance per phase (A, B), Ω.
+    pub r_phase: [f32; 2],
+    /// Inductance per phase (A, B), H.
+    pub l_phase: [f32; 2],
+    /// Mean resistance, Ω.
+    pub r: f32,
+    /// Mean inductance, H.
+    pub l: f32,
+    /// Current-loop proportional gain, V/A.
+    pub kp: f32,
+    /// Current-loop integral gain, V/(A·s).
+    pub ki: f32,
+}
+
+fn to_param(x: f32, max: u16) -> u16 {
+    if x.is_finite() && x > 0.0 {
+        (x + 0.5).min(max as f32) as u16
+    } else {
+        0
+    }
+}
+
+impl TuneResult {
+    /// Resistance in mΩ (0x2020 scaling, 1..=20000).
+    pub fn resistance_mohm(&self) -> u16 {
+        to_param(self.r * 1e3, 20000).max(1)
+    }
+    /// Inductance in µH (0x2021 scaling, 1..=6000).
+    pub fn inductance_uh(&self) -> u16 {
+        to_param(self.l * 1e6, 6000).max(1)
+    }
+    /// Kp in 0.01 V/A (0x2015 scaling, clamped to 200..=32767).
+    pub fn kp_param(&self) -> u16 {
+        to_param(self.kp * 100.0, 32767).max(200)
+    }
+    /// Ki in 10 V/(A·s) (0x2016 scaling, 0..=32767).
+    pub fn ki_param(&self) -> u16 {
+        to_param(self.ki * 0.1, 32767)
+    }
+}
+
+/// Kp (V/A) from a 0x2015 value.
+pub fn kp_from_param(p: u16) -> f32 {
+    p as f32 * 0.01
+}
+
+/// Ki (V/(A·s)) from a 0x2016 value.
+pub fn ki_from_param(p: u16) -> f32 {
+    p as f32 * 10.0
+}
+
+/// The auto-tune state machine.
+#[derive(Clone, Copy, Debug)]
+pub struct Autotune {
+    cfg: AutotuneConfig,
+    /// Present state.
+    pub state: TuneState,
+    t: u32,
+    settle_steps: u32,
+    avg_steps: u32,
+    toggle_steps: u32,
+    x: f32,
+    sum_v: f32,
+    sum_i: f32,
+    n: u32,
+    v1: f32,
+    i1: f32,
+    v_dc: f32,
+    i_mark: f32,
+    sum_di: f32,
+    n_di: u32,
+    vt: f32,
+    res: TuneResult,
+}
+
+impl Autotune {
+    /// New procedure (starts with phase A, DC point 1).
+    pub fn new(cfg: AutotuneConfig) -> Self {
+        let ts = if cfg.ts > 0.0 && cfg.ts.is_finite() {
+            cfg.ts
+        } else {
+            25e-6
+        };
+        let mut cfg = cfg;
+        cfg.ts = ts;
+        cfg.toggle_half = cfg.toggle_half.max(2);
+        cfg.pwm_period = cfg.pwm_period.max(2);
+        let steps = |t: f32| ((t.max(0.0) / ts) as u32).max(1);
+        Autotune {
+            cfg,
+            state: TuneState::Dc1(Phase::A),
+            t: 0,
+            settle_steps: steps(cfg.settle),
+            avg_steps: steps(cfg.average),
+            toggle_steps: steps(cfg.toggle_time).max(4 * cfg.toggle_half),
+            x: 0.0,
+            sum_v: 0.0,
+            sum_i: 0.0,
+            n: 0,
+            v1: 0.0,
+            i1: 0.0,
+            v_dc: 0.0,
+            i_mark: 0.0,
+            sum_di: 0.0,
+            n_di: 0,
+            vt: 0.0,
+            res: TuneResult::default(),
+        }
+    }
+
+    /// True when finished (done or failed).
+    pub fn finished(&self) -> bool {
+        matches!(self.state, TuneState::Done(_) | TuneState::Failed(_))
+    }
+
+    /// One step: measured phase currents (A) and bus voltage (V). Returns the phase
+    /// voltages `(v_A, v_B)` to apply (V).
+    pub fn step(&mut self, ia: f32, ib: f32, vbus: f32) -> (f32, f32) {
+        let q = 2.0 * num::pos(vbus) / self.cfg.pwm_period as f32;
+        let quant = |v: f32| {
+            if q > 0.0 {
+                libm::roundf(v / q) * q
+            } else {
+                0.0
+            }
+        };
+        let vmax = num::pos(self.cfg.max_modulation * vbus);
+        let (phase, i) = match self.state {
+            TuneState::Dc1(p) | TuneState::Dc2(p) | TuneState::Toggle(p) => {
+                (p, if p == Phase::A { ia } else { ib })
+            }
+            _ => return (0.0, 0.0),
+        };
+        self.t += 1;
+        let v = match self.state {
+            TuneState::Dc1(_) | TuneState::Dc2(_) => {
+                let first = matches!(self.state, TuneState::Dc1(_));
+                let target = if first {
+                    0.5 * self.cfg.test_current
+                } else {
+                    self.cfg.test_current
+                };
+                let e = target - i;
+                let ki_ts = self.cfg.kp_init * self.cfg.wi_init * self.cfg.ts;
+                let u = self.cfg.kp_init * e + self.x;
+                if u.abs() < vmax || u * e < 0.0 {
+                    self.x = num::clamp(self.x + ki_ts * e, -vmax, vmax);
+                }
+                let v = quant(num::clamp(u, -vmax, vmax));
+                if self.t == self.settle_steps
+                    && first
+                    && i.abs().partial_cmp(&(0.2 * target.abs()))
+                        != Some(core::cmp::Ordering::Greater)
+                {
+                    self.state = TuneState::Failed(TuneError::OpenPhase(phase));
+                    return (0.0, 0.0);
+                }
+                if self.t > self.settle_steps {
+                    // The voltage applied now reaches the coil one sample later;
+                    // at steady state that does not matter for the averages.
+                    self.sum_v += v;
+                    self.sum_i += i;
+                    self.n += 1;
+                }
+                if self.t >= self.settle_steps + self.avg_steps {
+                    let n = self.n.max(1) as f32;
+                    let (va, im) = (self.sum_v / n, self.sum_i / n);
+                    self.sum_v = 0.0;
+                    self.sum_i = 0.0;
+                    self.n = 0;
+                    self.t = 0;
+                    if first {
+                        self.v1 = va;
+                        self.i1 = im;
+                        self.state = TuneState::Dc2(phase);
+                    } else {
+                        let di = im - self.i1;
+                        let r = if di.abs() > 1e-6 {
+                            (va - self.v1) / di
+                        } else {
+                            0.0
+                        };
+                        self.res.r_phase[phase as usize] = r;
+                        self.v_dc = quant(va);
+                        self.vt = quant(num::pos(self.cfg.toggle_modulation * vbus));
+                        self.sum_di = 0.0;
+                        self.n_di = 0;
+                        self.state = TuneState::Toggle(phase);
+                    }
+                }
+                v
+            }
+            TuneState::Toggle(_) => {
+                // Sample k = t−1 (0-based). Half periods: the first is h/2 long so the
+                // triangle is centred on I₂, then h each.
+                let h = self.cfg.toggle_half;
+                let k = self.t - 1;
+                let h0 = h / 2;
+                let sign = if k < h0 || ((k - h0) / h) % 2 == 1 {
+                    1.0
+                } else {
+                    -1.0
+                };
+                // Marks: current samples `delay` after each command change.
+                if k >= h0 + self.cfg.delay && (k - h0 - self.cfg.delay).is_multiple_of(h) {
+                    let m = (k - h0 - self.cfg.delay) / h;
+                    if m > 0 {
+                        // The half period that just ended had index m−1.
+                        let s = if (m - 1).is_multiple_of(2) { -1.0 } else { 1.0 };
+                        self.sum_di += s * (i - self.i_mark);
+                        self.n_di += 1;
+                    }
+                    self.i_mark = i;
+                }
+                if self.t >= self.toggle_steps && (k + 1 - h0).is_multiple_of(2 * h) {
+                    self.finish_phase(phase);
+                    0.0
+                } else {
+                    self.v_dc + sign * self.vt
+                }
+            }
+            _ => 0.0,
+        };
+        match phase {
+            Phase::A => (v, 0.0),
+            Phase::B => (0.0, v),
+        }
+    }
+
+    fn finish_phase(&mut self, phase: Phase) {
+        let span = self.vt * self.cfg.toggle_half as f32 * self.cfg.ts * self.n_di as f32;
+        let l = if self.sum_di > 1e-6 {
+            span / self.sum_di
+        } else {
+            0.0
+        };
+        self.res.l_phase[phase as usize] = l;
+        self.t = 0;
+        self.x = 0.0;
+        match phase {
+            Phase::A => self.state = TuneState::Dc1(Phase::B),
+            Phase::B => self.evaluate(),
+        }
+    }
+
+    fn evaluate(&mut self) {
+        let r = self.res.r_phase;
+        let l = self.res.l_phase;
+        let ok = |x: f32| x.is_finite() && x > 0.0;
+        if !(ok(r[0]) && ok(r[1]) && ok(l[0]) && ok(l[1])) {
+            self.state = TuneState::Failed(TuneError::Implausible);
+            return;
+        }
+        let rm = 0.5 * (r[0] + r[1]);
+        let lm = 0.5 * (l[0] + l[1]);
+        let u = self.cfg.unbalance;
+        if (r[0] - r[1]).abs() > u * rm || (l[0] - l[1]).abs() > u * lm {
+            self.state = TuneState::Failed(TuneError::Unbalanced);
+            return;
+        }
+        self.res.r = rm;
+        self.res.l = lm;
+        self.res.kp = lm * self.cfg.bandwidth;
+        self.res.ki = rm * self.cfg.bandwidth;
+        self.state = TuneState::Done(self.res);
+    }
+
+    /// Partial results so far (per-phase values filled as they are measured).
+    pub fn partial(&self) -> &TuneResult {
+        &self.res
+    }
+}

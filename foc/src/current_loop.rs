@@ -1,0 +1,255 @@
+//! Field-oriented current loop for the two-phase machine.
+//!
+//! One [`CurrentLoop::step`] per PWM period (40 kHz nominal): raw ADC counts in, four
+//! compare values out.
+//!
+//! ```text
+//! i_A, i_B = (raw − offset)·A_per_count      V_bus = raw·V_per_count
+//! (i_d, i_q) = Park(i_A, i_B, θe)
+//! v_d = PI_d(i_d* − i_d) − ωe·L·i_q*                 (decoupling feed-forward)
+//! v_q = PI_q(i_q* − i_q) + ωe·L·i_d* + Ke·ωe/50      (+ back-EMF feed-forward)
+//! |v| ≤ m_max·V_bus                                  (circle, anti-windup)
+//! (v_A, v_B) = Park⁻¹(v_d, v_q, θe + 1.5·ωe·Ts)      (latency compensation)
+//! duties = ½ ± v/(2·V_bus)                           (two H-bridges)
+//! ```
+//!
+//! The feed-forward uses the current *references* (not the noisy measurements).
+//! Latency: the voltage computed from the sample at `t` is applied from `t + Ts` to
+//! `t + 2Ts` (one period of computation delay, PWM shadow registers), so on average
+//! it acts `1.5·Ts` later; the inverse Park angle is advanced by `ωe·1.5·Ts`
+//! ([`CurrentLoopConfig::latency`]) with [`rotate_small2`] instead of a second
+//! sin/cos.
+//!
+//! Design: with `Kp = L·ωc`, `Ki = R·ωc` the PI zero cancels the coil pole and the
+//! continuous loop is `ωc/(s + ωc)`. With the sample delay a practical limit is
+//! `ωc ≈ 2π·f_s/20` (`Kp·Ts/L ≈ 0.31`, ~2 % overshoot). [`CurrentLoopConfig::gains_for`]
+//! computes the gains.
+//!
+//! Cost on a Cortex-M4F: measured by the `current loop step` benchmark (see
+//! BENCHMARKS.md); everything is `f32` on the FPU, `sqrt` only when limiting.
+
+use crate::angle::Angle;
+use crate::modulation::{limit_circle, Duties, Modulator};
+use crate::num;
+use crate::pi::Pi;
+use crate::transforms::{inverse_park, park, rotate_small2, AlphaBeta, Dq};
+use crate::trig;
+
+/// One set of ADC conversions taken at the PWM centre (raw 12-bit counts).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AdcSample {
+    /// Phase A current channel.
+    pub ia: u16,
+    /// Phase B current channel.
+    pub ib: u16,
+    /// DC bus voltage channel.
+    pub vbus: u16,
+}
+
+/// ADC scaling.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sense {
+    /// Amperes per count of the phase current channels (sign included).
+    pub amps_per_count: f32,
+    /// Zero-current offset of phase A (counts, calibrated at start-up).
+    pub offset_a: f32,
+    /// Zero-current offset of phase B (counts).
+    pub offset_b: f32,
+    /// Volts per count of the bus voltage channel.
+    pub volts_per_count: f32,
+}
+
+impl Sense {
+    /// Phase currents (A) of a sample.
+    #[inline]
+    pub fn currents(&self, s: &AdcSample) -> AlphaBeta {
+        AlphaBeta {
+            alpha: (s.ia as f32 - self.offset_a) * self.amps_per_count,
+            beta: (s.ib as f32 - self.offset_b) * self.amps_per_count,
+        }
+    }
+
+    /// Bus voltage (V) of a sample.
+    #[inline]
+    pub fn vbus(&self, s: &AdcSample) -> f32 {
+        s.vbus as f32 * self.volts_per_count
+    }
+}
+
+/// Static configuration of the current loop.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CurrentLoopConfig {
+    /// Sample (PWM) period, s.
+    pub ts: f32,
+    /// Proportional gain, V/A.
+    pub kp: f32,
+    /// Integral gain, V/(A·s).
+    pub ki: f32,
+    /// Phase inductance used for decoupling, H.
+    pub inductance: f32,
+    /// Back-EMF constant Ke, V·s/rad (mechanical), peak per phase.
+    pub ke: f32,
+    /// Angle advance of the inverse Park in samples (1.5 for one sample of delay).
+    pub latency: f32,
+    /// ADC scaling.
+    pub sense: Sense,
+    /// PWM modulator (timer period, m_max).
+    pub modulator: Modulator,
+}
+
+impl CurrentLoopConfig {
+    /// Gains `(Kp, Ki)` for a first-order closed loop of bandwidth `wc` (rad/s):
+    /// `Kp = L·ωc` (V/A), `Ki = R·ωc` (V/(A·s)).
+    pub fn gains_for(r: f32, l: f32, wc: f32) -> (f32, f32) {
+        (l * wc, r * wc)
+    }
+}
+
+/// The current controller and its last measurements.
+#[derive(Clone, Debug)]
+pub struct CurrentLoop {
+    cfg: CurrentLoopConfig,
+    // Precomputed: Ke per electrical rad/s (Ke/50) and Ts·latency.
+    ke_e: f32,
+    advance: f32,
+    pi_d: Pi,
+    pi_q: Pi,
+    /// Current reference on d (A).
+    pub id_ref: f32,
+    /// Current reference on q (A).
+    pub iq_ref: f32,
+    /// Last measured phase currents (A).
+    pub i_ab: AlphaBeta,
+    /// Last measured rotor-frame currents (A).
+    pub i_dq: Dq,
+    /// Last commanded rotor-frame voltages (V, after limiting).
+    pub v_dq: Dq,
+    /// Last commanded phase voltages (V).
+    pub v_ab: AlphaBeta,
+    /// Last bus voltage (V).
+    pub vbus: f32,
+    /// The voltage vector was limited in the last step.
+    pub saturated: bool,
+}
+
+impl CurrentLoop {
+    /// New loop with zero references.
+    pub fn new(cfg: CurrentLoopConfig) -> Self {
+        CurrentLoop {
+            cfg,
+            ke_e: cfg.ke * (1.0 / crate::angle::POLE_PAIRS as f32),
+            advance: cfg.ts * cfg.latency,
+            pi_d: Pi::new(cfg.kp, cfg.ki, cfg.ts, 0.0),
+            pi_q: Pi::new(cfg.kp, cfg.ki, cfg.ts, 0.0),
+            id_ref: 0.0,
+            iq_ref: 0.0,
+            i_ab: AlphaBeta::default(),
+            i_dq: Dq::default(),
+            v_dq: Dq::default(),
+            v_ab: AlphaBeta::default(),
+            vbus: 0.0,
+            saturated: false,
+        }
+    }
+
+    /// Configuration in use.
+    pub fn config(&self) -> &CurrentLoopConfig {
+        &self.cfg
+    }
+
+    /// Changes gains (integrators kept).
+    pub fn set_gains(&mut self, kp: f32, ki: f32) {
+        self.cfg.kp = kp;
+        self.cfg.ki = ki;
+        self.pi_d.set_gains(kp, ki, self.cfg.ts);
+        self.pi_q.set_gains(kp, ki, self.cfg.ts);
+    }
+
+    /// Changes the motor constants used by the feed-forward.
+    pub fn set_motor(&mut self, inductance: f32, ke: f32) {
+        self.cfg.inductance = inductance;
+        self.cfg.ke = ke;
+        self.ke_e = ke * (1.0 / crate::angle::POLE_PAIRS as f32);
+    }
+
+    /// Changes the ADC offsets (counts).
+    pub fn set_offsets(&mut self, offset_a: f32, offset_b: f32) {
+        self.cfg.sense.offset_a = offset_a;
+        self.cfg.sense.offset_b = offset_b;
+    }
+
+    /// Clears both integrators (use when the bridges were off).
+    pub fn reset(&mut self) {
+        self.pi_d.reset();
+        self.pi_q.reset();
+    }
+
+    /// One current-loop step. `theta_e`: electrical angle at the sampling instant;
+    /// `omega_e`: electrical angular velocity (rad/s). Uses [`Self::id_ref`] and
+    /// [`Self::iq_ref`]. Returns the compare values for the next PWM period.
+    #[inline]
+    pub fn step(&mut self, adc: &AdcSample, theta_e: Angle, omega_e: f32) -> Duties {
+        let cfg = &self.cfg;
+        let i_ab = cfg.sense.currents(adc);
+        let vbus = cfg.sense.vbus(adc);
+        let (s, c) = (trig::sin(theta_e), trig::cos(theta_e));
+        let i_dq = park(i_ab, s, c);
+
+        let vmax = cfg.modulator.vmax(vbus);
+        let wl = omega_e * cfg.inductance;
+        let ff_d = -wl * self.iq_ref;
+        let ff_q = wl * self.id_ref + self.ke_e * omega_e;
+
+        let ed = self.id_ref - i_dq.d;
+        let eq = self.iq_ref - i_dq.q;
+        let ud = self.pi_d.output_unlimited(ed) + ff_d;
+        let uq = self.pi_q.output_unlimited(eq) + ff_q;
+        let (vd, vq, sat) = limit_circle(ud, uq, vmax);
+        // Conditional integration: while limited, only integrate towards the inside.
+        let dxd = self.pi_d.ki_ts * ed;
+        let dxq = self.pi_q.ki_ts * eq;
+        if !sat || dxd * ud < 0.0 {
+            self.pi_d.x = num::clamp(self.pi_d.x + dxd, -vmax, vmax);
+        }
+        if !sat || dxq * uq < 0.0 {
+            self.pi_q.x = num::clamp(self.pi_q.x + dxq, -vmax, vmax);
+        }
+
+        let (s2, c2) = rotate_small2(s, c, omega_e * self.advance);
+        let v_dq = Dq { d: vd, q: vq };
+        let v_ab = inverse_park(v_dq, s2, c2);
+        let duties = cfg.modulator.duties(v_ab.alpha, v_ab.beta, vbus);
+
+        self.i_ab = i_ab;
+        self.i_dq = i_dq;
+        self.v_dq = v_dq;
+        self.v_ab = v_ab;
+        self.vbus = vbus;
+        self.saturated = sat;
+        duties
+    }
+
+    /// Voltage mode (auto-tune, diagnostics): measures the sample and applies the
+    /// phase voltages `va`, `vb` (V, limited to the circle) without the PI
+    /// controllers. The integrators are cleared.
+    pub fn voltage_step(&mut self, adc: &AdcSample, va: f32, vb: f32) -> Duties {
+        let cfg = &self.cfg;
+        let i_ab = cfg.sense.currents(adc);
+        let vbus = cfg.sense.vbus(adc);
+        let (a, b, sat) = limit_circle(va, vb, cfg.modulator.vmax(vbus));
+        let duties = cfg.modulator.duties(a, b, vbus);
+        self.pi_d.reset();
+        self.pi_q.reset();
+        self.i_ab = i_ab;
+        self.v_ab = AlphaBeta { alpha: a, beta: b };
+        self.vbus = vbus;
+        self.saturated = sat;
+        duties
+    }
+
+    /// The last measured phase currents expressed in another frame (e.g. the encoder
+    /// frame while the loop runs on the open-loop command angle).
+    pub fn currents_in_frame(&self, theta_e: Angle) -> Dq {
+        park(self.i_ab, trig::sin(theta_e), trig::cos(theta_e))
+    }
+}

@@ -1,0 +1,38 @@
+//! Small float helpers that never panic and compile to plain compares on a
+//! Cortex-M4F (`f32::clamp` asserts its bounds, `f32::max` becomes a call to
+//! `fmaxf` there).
+
+/// `x` limited to `[lo, hi]` by two compares; NaN passes through, bad bounds never
+/// panic (the upper bound wins).
+#[inline(always)]
+pub fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
+    let y = if x < lo { lo } else { x };
+    if y > hi {
+        hi
+    } else {
+        y
+    }
+}
+
+/// `x` if positive, else 0 (NaN → 0).
+#[inline(always)]
+pub fn pos(x: f32) -> f32 {
+    if x > 0.0 {
+        x
+    } else {
+        0.0
+    }
+}
+
+/// Reciprocal square root `1/√x` for finite `x > 0`: bit-level first guess and three
+/// Newton steps (relative error < 1e-6, ~16 FPU instructions, no division, no
+/// library call; `libm::sqrtf` is a software routine on this target).
+#[inline(always)]
+pub fn rsqrt(x: f32) -> f32 {
+    let mut y = f32::from_bits(0x5f37_59df_u32.wrapping_sub(x.to_bits() >> 1));
+    let h = 0.5 * x;
+    y *= 1.5 - h * y * y;
+    y *= 1.5 - h * y * y;
+    y *= 1.5 - h * y * y;
+    y
+}

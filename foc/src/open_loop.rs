@@ -1,0 +1,273 @@
+//! Open-loop microstepping.
+//!
+//! The command position (pulses, `pulses_per_rev` per motor revolution) passes the
+//! command-smoothing filter, is turned into an electrical angle
+//! `θe = 50·pos/ppr` turn (integer reciprocal, exact to a few LSB) and a current
+//! vector of magnitude `I` is placed on that angle (`i_d* = I`, `i_q* = 0` in the
+//! frame of the command angle). The rotor follows with a load angle
+//! `asin(T_load / (Kt·I))`.
+//!
+//! Current magnitude:
+//! * soft start: after [`OpenLoop::enable`] the current ramps linearly from 0 to the
+//!   running current over `soft_start` seconds;
+//! * stand-by: when the filtered command has not changed for `standby` seconds the
+//!   current ramps down (over [`HOLD_RAMP`] s) to `holding_percent` % of the running
+//!   current; it returns to the running current at once when motion resumes.
+//!
+//! Command smoothing: a moving average over `N = filter_time/ts` steps,
+//! `H(z) = (1/N)·Σ_{k<N} z^{−k}` (delay `(N−1)·ts/2`, first zero at `1/(N·ts)` Hz),
+//! computed exactly on the integer increments (no drift, the output reaches the
+//! command exactly). `N` is limited to [`MAX_TAPS`].
+
+use crate::angle::{Angle, CountScale, POLE_PAIRS};
+use core::f32::consts::PI;
+
+/// Longest moving average (steps).
+pub const MAX_TAPS: usize = 1024;
+/// Ramp time from running to holding current, s.
+pub const HOLD_RAMP: f32 = 0.01;
+
+/// Exact integer moving average of a position command, see the module docs.
+#[derive(Clone, Debug)]
+pub struct MovingAverage {
+    taps: [i32; MAX_TAPS],
+    n: usize,
+    head: usize,
+    sum: i64,
+    rem: i64,
+    last_in: i32,
+    out: i32,
+}
+
+impl MovingAverage {
+    /// `n` taps (clamped to `1..=MAX_TAPS`), starting at position `start`.
+    pub fn new(n: usize, start: i32) -> Self {
+        MovingAverage {
+            taps: [0; MAX_TAPS],
+            n: n.clamp(1, MAX_TAPS),
+            head: 0,
+            sum: 0,
+            rem: 0,
+            last_in: start,
+            out: start,
+        }
+    }
+
+    /// Number of taps.
+    pub fn len(&self) -> usize {
+        self.n
+    }
+
+    /// Always false (there is at least one tap).
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// Restarts at `pos` with no motion in the window.
+    pub fn reset(&mut self, pos: i32) {
+        self.taps[..self.n].fill(0);
+        self.sum = 0;
+        self.rem = 0;
+        self.last_in = pos;
+        self.out = pos;
+    }
+
+    /// Feeds the command `x`; returns the filtered position.
+    #[inline]
+    pub fn step(&mut self, x: i32) -> i32 {
+        let d = x.wrapping_sub(self.last_in);
+        self.last_in = x;
+        if self.n == 1 {
+            self.out = x;
+            return x;
+        }
+        let old = self.taps[self.head];
+        self.taps[self.head] = d;
+        self.head += 1;
+        if self.head >= self.n {
+            self.head = 0;
+        }
+        self.sum += d as i64 - old as i64;
+        // Advance by sum/N, carrying the remainder exactly.
+        let acc = self.rem + self.sum;
+        // The hardware divider handles 32 bits; 64-bit division only for huge input.
+        let q = match i32::try_from(acc) {
+            Ok(a) => a.div_euclid(self.n as i32) as i64,
+            Err(_) => acc.div_euclid(self.n as i64),
+        };
+        self.rem = acc - q * self.n as i64;
+        self.out = self.out.wrapping_add(q as i32);
+        self.out
+    }
+
+    /// Last output.
+    pub fn output(&self) -> i32 {
+        self.out
+    }
+
+    /// True while the window still holds motion (output not yet at the input).
+    pub fn busy(&self) -> bool {
+        self.sum != 0 || self.rem != 0 || self.out != self.last_in
+    }
+}
+
+/// Open-loop configuration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OpenLoopConfig {
+    /// Command pulses per motor revolution (200..=51200 typical).
+    pub pulses_per_rev: u32,
+    /// Step period, s.
+    pub ts: f32,
+    /// Running current (peak vector magnitude), A.
+    pub running_current: f32,
+    /// Holding current, % of the running current (0..=100).
+    pub holding_percent: u8,
+    /// Stand-still time before holding current, s.
+    pub standby: f32,
+    /// Soft-start ramp after enable, s (0 = immediate).
+    pub soft_start: f32,
+    /// Command smoothing time constant (moving-average length), s (0 = off).
+    pub filter_time: f32,
+}
+
+/// What the current loop should do this step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct OpenLoopOutput {
+    /// Electrical angle of the current vector.
+    pub angle: Angle,
+    /// Current magnitude on that angle (i_d*), A.
+    pub current: f32,
+    /// Commanded electrical velocity, rad/s (for the back-EMF feed-forward).
+    pub omega_e: f32,
+    /// Filtered command position, pulses.
+    pub position: i32,
+    /// The holding current is active.
+    pub holding: bool,
+}
+
+/// Open-loop microstepping state.
+#[derive(Clone, Debug)]
+pub struct OpenLoop {
+    cfg: OpenLoopConfig,
+    scale: CountScale,
+    filter: MovingAverage,
+    still_steps: u32,
+    standby_steps: u32,
+    current: f32,
+    soft_rate: f32,
+    hold_rate: f32,
+    soft_starting: bool,
+    enabled: bool,
+    rad_per_pulse_e: f32,
+    angle_offset: Angle,
+}
+
+impl OpenLoop {
+    /// New (disabled) open loop at command position `start`. Out-of-range values are
+    /// clamped (ppr ≥ 1, currents ≥ 0, percent ≤ 100, times ≥ 0).
+    pub fn new(cfg: OpenLoopConfig, start: i32) -> Self {
+        let mut cfg = cfg;
+        cfg.pulses_per_rev = cfg.pulses_per_rev.max(1);
+        cfg.holding_percent = cfg.holding_percent.min(100);
+        let pos = |x: f32| if x.is_finite() { x.max(0.0) } else { 0.0 };
+        cfg.running_current = pos(cfg.running_current);
+        cfg.standby = pos(cfg.standby);
+        cfg.soft_start = pos(cfg.soft_start);
+        cfg.filter_time = pos(cfg.filter_time);
+        cfg.ts = if cfg.ts.is_finite() && cfg.ts > 0.0 {
+            cfg.ts
+        } else {
+            1e-4
+        };
+        let taps = (cfg.filter_time / cfg.ts + 0.5) as usize;
+        let per = |t: f32| cfg.running_current * cfg.ts / t.max(cfg.ts);
+        OpenLoop {
+            cfg,
+            scale: CountScale::new(cfg.pulses_per_rev, POLE_PAIRS),
+            filter: MovingAverage::new(taps, start),
+            still_steps: 0,
+            standby_steps: (cfg.standby / cfg.ts + 0.5) as u32,
+            current: 0.0,
+            soft_rate: per(cfg.soft_start),
+            hold_rate: per(HOLD_RAMP),
+            soft_starting: false,
+            enabled: false,
+            rad_per_pulse_e: 2.0 * PI * POLE_PAIRS as f32 / cfg.pulses_per_rev as f32,
+            angle_offset: Angle::ZERO,
+        }
+    }
+
+    /// Configuration in use.
+    pub fn config(&self) -> &OpenLoopConfig {
+        &self.cfg
+    }
+
+    /// Electrical angle added to the command angle (set it so that the command
+    /// position maps onto the rotor's present angle, e.g. after closed loop).
+    pub fn set_angle_offset(&mut self, offset: Angle) {
+        self.angle_offset = offset;
+    }
+
+    /// Starts driving (soft start from zero current) at command position `pos`.
+    pub fn enable(&mut self, pos: i32) {
+        self.filter.reset(pos);
+        self.current = 0.0;
+        self.still_steps = 0;
+        self.soft_starting = true;
+        self.enabled = true;
+    }
+
+    /// Stops driving (current 0).
+    pub fn disable(&mut self) {
+        self.enabled = false;
+        self.current = 0.0;
+    }
+
+    /// Electrical angle of a (filtered) command position.
+    #[inline]
+    pub fn angle_of(&self, pos: i32) -> Angle {
+        let n = pos.rem_euclid(self.cfg.pulses_per_rev as i32) as u32;
+        self.scale.angle(n).wrapping_add(self.angle_offset)
+    }
+
+    /// One step with the raw command position (pulses).
+    #[inline]
+    pub fn step(&mut self, command: i32) -> OpenLoopOutput {
+        let prev = self.filter.output();
+        let pos = self.filter.step(command);
+        let moved = pos.wrapping_sub(prev);
+        if moved != 0 {
+            self.still_steps = 0;
+        } else {
+            self.still_steps = self.still_steps.saturating_add(1);
+        }
+        let holding = self.still_steps >= self.standby_steps;
+        let run = self.cfg.running_current;
+        let target = if !self.enabled {
+            0.0
+        } else if holding {
+            run * self.cfg.holding_percent as f32 * 0.01
+        } else {
+            run
+        };
+        if self.soft_starting {
+            let up = self.current + self.soft_rate;
+            self.current = if up < target { up } else { target };
+            if self.current >= target {
+                self.soft_starting = false;
+            }
+        } else if target >= self.current {
+            self.current = target;
+        } else {
+            let down = self.current - self.hold_rate;
+            self.current = if down > target { down } else { target };
+        }
+        OpenLoopOutput {
+            angle: self.angle_of(pos),
+            current: self.current,
+            omega_e: moved as f32 * self.rad_per_pulse_e / self.cfg.ts,
+            position: pos,
+            holding,
+        }
+    }
+}

@@ -1,0 +1,103 @@
+//! PI controller with output limit and anti-windup by conditional integration.
+//!
+//! Continuous form `C(s) = Kp + Ki/s`. Discrete (forward Euler integrator, sample
+//! time `Ts`):
+//!
+//! ```text
+//! u[n]   = clamp(Kp·e[n] + x[n] + ff, lo, hi)
+//! x[n+1] = clamp(x[n] + Ki·Ts·e[n], lo, hi)   unless u is saturated and e pushes further
+//! ```
+//!
+//! Anti-windup: when the output is at a limit and the error would drive it further
+//! into the limit, the integrator is frozen (clamping / conditional integration). The
+//! integrator itself is also kept inside the output range, so leaving saturation is
+//! immediate. Transfer function while unsaturated:
+//! `U(z)/E(z) = Kp + Ki·Ts / (z − 1)`.
+//!
+//! Units are the caller's: for the current loop `e` in A, `u` in V, `Kp` in V/A and
+//! `Ki` in V/(A·s).
+
+use crate::num;
+
+/// PI controller state and gains.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pi {
+    /// Proportional gain (output unit per input unit).
+    pub kp: f32,
+    /// Integral gain times sample time, `Ki·Ts` (output unit per input unit and sample).
+    pub ki_ts: f32,
+    /// Lower output limit.
+    pub lo: f32,
+    /// Upper output limit.
+    pub hi: f32,
+    /// Integrator state (output unit).
+    pub x: f32,
+}
+
+impl Pi {
+    /// New controller from `kp`, `ki` (per second), sample time `ts` (s) and a
+    /// symmetric output limit `±limit`.
+    pub fn new(kp: f32, ki: f32, ts: f32, limit: f32) -> Self {
+        let limit = if limit.is_finite() { limit.abs() } else { 0.0 };
+        Pi {
+            kp,
+            ki_ts: ki * ts,
+            lo: -limit,
+            hi: limit,
+            x: 0.0,
+        }
+    }
+
+    /// Sets gains (the integrator state is kept: bumpless).
+    pub fn set_gains(&mut self, kp: f32, ki: f32, ts: f32) {
+        self.kp = kp;
+        self.ki_ts = ki * ts;
+    }
+
+    /// Sets a symmetric output limit and pulls the integrator inside it.
+    #[inline]
+    pub fn set_limit(&mut self, limit: f32) {
+        self.hi = limit;
+        self.lo = -limit;
+        self.x = num::clamp(self.x, self.lo, self.hi);
+    }
+
+    /// Clears the integrator.
+    pub fn reset(&mut self) {
+        self.x = 0.0;
+    }
+
+    /// Presets the integrator so the next output (with zero error) is `u` (bumpless
+    /// transfer).
+    pub fn preset(&mut self, u: f32) {
+        self.x = num::clamp(u, self.lo, self.hi);
+    }
+
+    /// One update with error `e` and feed-forward `ff`; returns the limited output.
+    #[inline]
+    pub fn update(&mut self, e: f32, ff: f32) -> f32 {
+        let u = self.kp * e + self.x + ff;
+        let (lo, hi) = (self.lo, self.hi);
+        let dx = self.ki_ts * e;
+        if u > hi {
+            if dx < 0.0 {
+                self.x += dx;
+            }
+            hi
+        } else if u < lo {
+            if dx > 0.0 {
+                self.x += dx;
+            }
+            lo
+        } else {
+            self.x = num::clamp(self.x + dx, lo, hi);
+            u
+        }
+    }
+
+    /// Output without limiting and without touching the integrator: `Kp·e + x`.
+    #[inline]
+    pub fn output_unlimited(&self, e: f32) -> f32 {
+        self.kp * e + self.x
+    }
+}

@@ -1,0 +1,341 @@
+//! The motor and power-stage model of `shared/spec/motor-model.md`.
+//!
+//! State `(i_A, i_B, θ, ω)`, per phase `L·di/dt = v − R·i − e`,
+//! `e_A = −Ke·ω·sin θe`, `e_B = +Ke·ω·cos θe`, torque
+//! `T = Kt·(−i_A·sin θe + i_B·cos θe) − Td·sin 4θe`,
+//! `J·dω/dt = T − B·ω − Tc·sgn ω − T_load` with a stick band, integrated with RK4 at
+//! PWM period / 8. The H-bridges are an average model: the bridge voltage is
+//! `(duty₁ − duty₂)·Vbus` minus a dead-time loss `V_dt·sat(i/0.05 A)`. Duties written
+//! by the controller after the sample at `t` act from `t + Ts` (one sample of delay).
+//! Current sampling: 12-bit ADC, offset 2048, seeded Gaussian noise; bus voltage
+//! 12-bit; encoder: floor of the angle in counts plus a mounting offset, as the
+//! 16-bit counter of a timer in encoder mode.
+
+use super::rng::Rng;
+use foc::current_loop::{AdcSample, Sense};
+use foc::modulation::Duties;
+use std::f64::consts::PI;
+
+/// A phase-resistance multiplier at or above this value models an open coil.
+pub const OPEN_SCALE: f64 = 1e3;
+
+/// Motor constants (SI units).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MotorParams {
+    /// Name.
+    pub name: &'static str,
+    /// Holding torque (both phases at rated current), N·m.
+    pub t_hold: f64,
+    /// Rated phase current, A.
+    pub i_rated: f64,
+    /// Phase resistance, Ω.
+    pub r: f64,
+    /// Phase inductance, H.
+    pub l: f64,
+    /// Rotor inertia, kg·m².
+    pub j: f64,
+    /// Torque constant = back-EMF constant, N·m/A = V·s/rad.
+    pub kt: f64,
+    /// Detent torque amplitude, N·m.
+    pub td: f64,
+    /// Coulomb friction, N·m.
+    pub tc: f64,
+    /// Viscous friction, N·m·s.
+    pub b: f64,
+}
+
+/// ECN57-20 (NEMA 23).
+pub const ECN57_20: MotorParams = MotorParams {
+    name: "ECN57-20",
+    t_hold: 2.0,
+    i_rated: 5.0,
+    r: 0.40,
+    l: 1.8e-3,
+    j: 480e-7,
+    kt: 0.283,
+    td: 0.05,
+    tc: 0.015,
+    b: 2e-4,
+};
+
+/// TC86-45 (NEMA 34, 1000-line encoder).
+pub const TC86_45: MotorParams = MotorParams {
+    name: "TC86-45",
+    t_hold: 4.5,
+    i_rated: 6.0,
+    r: 0.325,
+    l: 3.0e-3,
+    j: 1400e-7,
+    kt: 0.530,
+    td: 0.15,
+    tc: 0.04,
+    b: 5e-4,
+};
+
+/// Power stage, sensing and simulation settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlantConfig {
+    /// Motor.
+    pub motor: MotorParams,
+    /// Bus voltage, V.
+    pub vbus: f64,
+    /// PWM period, s.
+    pub ts: f64,
+    /// PWM timer period, counts.
+    pub pwm_period: u16,
+    /// Dead-time voltage loss, V.
+    pub dead_time_v: f64,
+    /// Current ADC full scale ±, A.
+    pub adc_full_scale: f64,
+    /// Current ADC noise, LSB (σ).
+    pub adc_noise_lsb: f64,
+    /// Bus ADC full scale, V.
+    pub vbus_full_scale: f64,
+    /// Encoder counts per revolution.
+    pub cpr: u32,
+    /// Encoder count at rotor angle 0 (mounting offset).
+    pub encoder_offset: i32,
+    /// Integration sub-steps per PWM period (RK4).
+    pub substeps: u32,
+    /// Rotor locked (current-loop tests).
+    pub locked: bool,
+    /// Speed below which the rotor may stick, rad/s.
+    pub stick_band: f64,
+    /// Noise seed.
+    pub seed: u64,
+    /// Initial rotor angle, rad.
+    pub theta0: f64,
+    /// Phase resistance multipliers (A, B) for fault studies (1.0 = healthy; a huge
+    /// value = open coil).
+    pub r_scale: [f64; 2],
+}
+
+impl PlantConfig {
+    /// Defaults: 48 V, 40 kHz, period 2125 counts (170 MHz centre-aligned), ±10 A ADC,
+    /// 1 LSB noise, 4000 counts/rev, offset 37 counts.
+    pub fn new(motor: MotorParams) -> Self {
+        PlantConfig {
+            motor,
+            vbus: 48.0,
+            ts: 25e-6,
+            pwm_period: 2125,
+            dead_time_v: 0.2,
+            adc_full_scale: 10.0,
+            adc_noise_lsb: 1.0,
+            vbus_full_scale: 60.0,
+            cpr: 4000,
+            encoder_offset: 37,
+            substeps: 8,
+            locked: false,
+            stick_band: 1e-3,
+            seed: 1,
+            r_scale: [1.0, 1.0],
+            theta0: 0.0123,
+        }
+    }
+
+    /// The controller's ADC scaling matching this plant.
+    pub fn sense(&self) -> Sense {
+        Sense {
+            amps_per_count: (2.0 * self.adc_full_scale / 4096.0) as f32,
+            offset_a: 2048.0,
+            offset_b: 2048.0,
+            volts_per_count: (self.vbus_full_scale / 4096.0) as f32,
+        }
+    }
+}
+
+/// The simulated motor + power stage.
+#[derive(Clone, Debug)]
+pub struct Plant {
+    /// Configuration.
+    pub cfg: PlantConfig,
+    /// Phase A current, A.
+    pub ia: f64,
+    /// Phase B current, A.
+    pub ib: f64,
+    /// Mechanical angle, rad (unwrapped).
+    pub theta: f64,
+    /// Mechanical speed, rad/s.
+    pub omega: f64,
+    /// Load torque (opposing positive rotation when positive), N·m.
+    pub load: f64,
+    /// Simulated time, s.
+    pub time: f64,
+    stuck: bool,
+    next: Duties,
+    now: Duties,
+    rng: Rng,
+}
+
+#[derive(Clone, Copy)]
+struct Inputs {
+    va: f64,
+    vb: f64,
+}
+
+impl Plant {
+    /// New plant at rest, angle 0, bridges at 50 %.
+    pub fn new(cfg: PlantConfig) -> Self {
+        let z = Duties::zero(cfg.pwm_period);
+        Plant {
+            cfg,
+            ia: 0.0,
+            ib: 0.0,
+            theta: cfg.theta0,
+            omega: 0.0,
+            load: 0.0,
+            time: 0.0,
+            stuck: true,
+            next: z,
+            now: z,
+            rng: Rng::new(cfg.seed),
+        }
+    }
+
+    fn adc_current(&mut self, i: f64) -> u16 {
+        let lsb = 2.0 * self.cfg.adc_full_scale / 4096.0;
+        let x = 2048.0 + i / lsb + self.cfg.adc_noise_lsb * self.rng.normal();
+        x.round().clamp(0.0, 4095.0) as u16
+    }
+
+    /// ADC conversion at the PWM centre (now).
+    pub fn sample(&mut self) -> AdcSample {
+        let (ia, ib) = (self.ia, self.ib);
+        let v = (self.cfg.vbus / self.cfg.vbus_full_scale * 4096.0).round();
+        AdcSample {
+            ia: self.adc_current(ia),
+            ib: self.adc_current(ib),
+            vbus: v.clamp(0.0, 4095.0) as u16,
+        }
+    }
+
+    /// Encoder count (unwrapped, i64).
+    pub fn encoder_count(&self) -> i64 {
+        ((self.theta * self.cfg.cpr as f64 / (2.0 * PI)).floor() as i64)
+            .wrapping_add(self.cfg.encoder_offset as i64)
+    }
+
+    /// Encoder timer counter value (16 bits).
+    pub fn encoder_raw(&self) -> u16 {
+        self.encoder_count() as u16
+    }
+
+    /// Electrical angle, rad.
+    pub fn theta_e(&self) -> f64 {
+        50.0 * self.theta
+    }
+
+    /// Rotor-frame currents `(i_d, i_q)` from the true state.
+    pub fn i_dq(&self) -> (f64, f64) {
+        let (s, c) = self.theta_e().sin_cos();
+        (self.ia * c + self.ib * s, self.ib * c - self.ia * s)
+    }
+
+    /// Motor torque (electromagnetic + detent), N·m.
+    pub fn torque(&self) -> f64 {
+        let m = &self.cfg.motor;
+        let (s, c) = self.theta_e().sin_cos();
+        let s2 = 2.0 * s * c;
+        let c2 = c * c - s * s;
+        m.kt * (-self.ia * s + self.ib * c) - m.td * 2.0 * s2 * c2
+    }
+
+    fn deriv(&self, x: [f64; 4], u: Inputs) -> [f64; 4] {
+        let m = &self.cfg.motor;
+        let [ia, ib, th, w] = x;
+        let (s, c) = (50.0 * th).sin_cos();
+        let dt = self.cfg.dead_time_v;
+        let sat = |i: f64| (i / 0.05).clamp(-1.0, 1.0);
+        let ea = -m.kt * w * s;
+        let eb = m.kt * w * c;
+        let mut dia = (u.va - dt * sat(ia) - m.r * self.cfg.r_scale[0] * ia - ea) / m.l;
+        let mut dib = (u.vb - dt * sat(ib) - m.r * self.cfg.r_scale[1] * ib - eb) / m.l;
+        // An open coil (resistance scale ≥ OPEN_SCALE) carries no current.
+        if self.cfg.r_scale[0] >= OPEN_SCALE {
+            dia = 0.0;
+        }
+        if self.cfg.r_scale[1] >= OPEN_SCALE {
+            dib = 0.0;
+        }
+        if self.stuck || self.cfg.locked {
+            return [dia, dib, 0.0, 0.0];
+        }
+        let s2 = 2.0 * s * c;
+        let c2 = c * c - s * s;
+        let t = m.kt * (-ia * s + ib * c) - m.td * 2.0 * s2 * c2;
+        let net = t - self.load;
+        let fr = if w > 0.0 {
+            m.tc
+        } else if w < 0.0 {
+            -m.tc
+        } else {
+            m.tc * net.signum()
+        };
+        [dia, dib, w, (net - m.b * w - fr) / m.j]
+    }
+
+    /// Advances one PWM period with the duties latched before, then latches `next`
+    /// for the following period.
+    pub fn advance(&mut self, next: Duties) {
+        self.now = self.next;
+        self.next = next;
+        let p = self.cfg.pwm_period.max(1) as f64;
+        let vbus = self.cfg.vbus;
+        let u = Inputs {
+            va: (self.now.a1 as f64 - self.now.a2 as f64) / p * vbus,
+            vb: (self.now.b1 as f64 - self.now.b2 as f64) / p * vbus,
+        };
+        let n = self.cfg.substeps.max(1);
+        let h = self.cfg.ts / n as f64;
+        for _ in 0..n {
+            let x = [self.ia, self.ib, self.theta, self.omega];
+            let k1 = self.deriv(x, u);
+            let add = |a: [f64; 4], k: [f64; 4], f: f64| {
+                [
+                    a[0] + f * k[0],
+                    a[1] + f * k[1],
+                    a[2] + f * k[2],
+                    a[3] + f * k[3],
+                ]
+            };
+            let k2 = self.deriv(add(x, k1, h / 2.0), u);
+            let k3 = self.deriv(add(x, k2, h / 2.0), u);
+            let k4 = self.deriv(add(x, k3, h), u);
+            let mut y = [0.0; 4];
+            for i in 0..4 {
+                y[i] = x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            }
+            self.ia = y[0];
+            self.ib = y[1];
+            if !self.cfg.locked {
+                self.update_mechanics(x[3], y[2], y[3]);
+            }
+        }
+        self.time += self.cfg.ts;
+    }
+
+    fn update_mechanics(&mut self, w_old: f64, th: f64, w: f64) {
+        let m = self.cfg.motor;
+        let net = self.torque() - self.load;
+        if self.stuck {
+            if net.abs() > m.tc {
+                self.stuck = false;
+            }
+            return;
+        }
+        self.theta = th;
+        self.omega = w;
+        let net = self.torque() - self.load;
+        let crossed = w_old * w <= 0.0 || w.abs() < self.cfg.stick_band;
+        if crossed && net.abs() <= m.tc {
+            self.stuck = true;
+            self.omega = 0.0;
+        }
+    }
+
+    /// Rotor is held by static friction.
+    pub fn is_stuck(&self) -> bool {
+        self.stuck
+    }
+}
