@@ -541,6 +541,21 @@ pub trait Dictionary {
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort>;
     /// Stores a new value (already checked for access, length and range).
     fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort>;
+    /// A write arriving through the slave runtime, which passes the objects it serves
+    /// itself (PDO mapping/assignment, sync parameters) as `runtime`. Needed where one
+    /// write acts on the whole dictionary — 0x1010 'save' must store the mapping too.
+    /// The default is a plain [`Dictionary::write`].
+    fn write_with_runtime(
+        &mut self,
+        index: u16,
+        sub: u8,
+        data: &[u8],
+        state: EsmState,
+        runtime: &mut dyn Dictionary,
+    ) -> Result<(), SdoAbort> {
+        let _ = runtime;
+        self.write(index, sub, data, state)
+    }
 }
 
 impl SdoAbort {

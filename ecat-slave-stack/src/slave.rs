@@ -164,7 +164,51 @@ impl<A: Dictionary + ?Sized> Dictionary for CommDictionary<'_, A> {
         } else if sync::is_sync_index(index) {
             self.sync.write(index, sub, data, state)
         } else {
-            self.app.write(index, sub, data, state)
+            let objects = self.app.objects();
+            let mut runtime = RuntimeObjects {
+                pdo: self.pdo,
+                sync: self.sync,
+                objects,
+            };
+            self.app
+                .write_with_runtime(index, sub, data, state, &mut runtime)
+        }
+    }
+}
+
+/// The objects the runtime serves itself (mapping, assignment, sync parameters,
+/// timing diagnostics), as a dictionary of their own; every other index answers
+/// "object does not exist". Handed to [`Dictionary::write_with_runtime`] and, at
+/// power-up, to the parameter store ([`Slave::runtime_objects`]).
+pub struct RuntimeObjects<'a> {
+    /// Mapping and assignment.
+    pub pdo: &'a mut PdoConfig,
+    /// Sync objects and timing diagnostics.
+    pub sync: &'a mut SyncState,
+    /// The whole product table (for the mappability rules).
+    pub objects: &'static [Object],
+}
+
+impl Dictionary for RuntimeObjects<'_> {
+    fn objects(&self) -> &'static [Object] {
+        self.objects
+    }
+    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        if pdo::is_pdo_index(index) {
+            self.pdo.read(index, sub, buf)
+        } else if sync::is_sync_index(index) {
+            self.sync.read(index, sub, buf)
+        } else {
+            Err(SdoAbort::ObjectDoesNotExist)
+        }
+    }
+    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        if pdo::is_pdo_index(index) {
+            self.pdo.write(index, sub, data, state, self.objects)
+        } else if sync::is_sync_index(index) {
+            self.sync.write(index, sub, data, state)
+        } else {
+            Err(SdoAbort::ObjectDoesNotExist)
         }
     }
 }
@@ -306,6 +350,16 @@ impl<E: EscAccess> Slave<E> {
             app,
         }
     }
+    /// The objects this runtime serves (mapping, assignment, sync) as a dictionary, for
+    /// the parameter store at power-up; `objects` is the whole product table.
+    pub fn runtime_objects(&mut self, objects: &'static [Object]) -> RuntimeObjects<'_> {
+        RuntimeObjects {
+            pdo: &mut self.pdo,
+            sync: &mut self.sync,
+            objects,
+        }
+    }
+
     /// Queues an emergency message (sent when SM1 is free, in Pre-Op and above).
     pub fn emergency(&mut self, error_code: u16, error_register: u8, data: [u8; 5]) {
         self.mbx.emergency(error_code, error_register, data);

@@ -37,6 +37,8 @@ use crate::identity::{Identity, Variant};
 use crate::io::{self, Inputs, OutputStatus};
 use crate::monitor::Monitor;
 use crate::params::{Params, P};
+use crate::storage::{LoadReport, SaveReport, SlotStatus, Storage, StorageError};
+use embedded_storage::nor_flash::NorFlash;
 
 /// What the motor side measured, handed to the drive before each cycle (raw,
 /// motor-side values in command units).
@@ -79,8 +81,94 @@ pub struct DriveLeds {
     pub red: bool,
 }
 
+/// Where 'save' / 'load' (0x1010 / 0x1011) go and where the power-up load comes from.
+pub trait ParameterStore {
+    /// Runs a store or restore command over the whole dictionary.
+    fn execute(
+        &mut self,
+        cmd: StoreCommand,
+        dict: &mut dyn Dictionary,
+    ) -> Result<SaveReport, StorageError>;
+    /// Power-up: applies the newest valid record to `dict`.
+    fn load(&mut self, dict: &mut dyn Dictionary) -> LoadReport;
+}
+
+/// The two-record flash store ([`Storage`]) over a [`NorFlash`].
+pub struct FlashStore<F: NorFlash> {
+    /// Layout of the two records.
+    pub storage: Storage,
+    /// The flash region.
+    pub flash: F,
+}
+
+impl<F: NorFlash> ParameterStore for FlashStore<F> {
+    fn execute(
+        &mut self,
+        cmd: StoreCommand,
+        dict: &mut dyn Dictionary,
+    ) -> Result<SaveReport, StorageError> {
+        crate::comm::execute(cmd, &self.storage, &mut self.flash, dict)
+    }
+    fn load(&mut self, dict: &mut dyn Dictionary) -> LoadReport {
+        self.storage.load(&mut self.flash, dict)
+    }
+}
+
+/// No parameter memory (tests that do not care): 'save' is refused with 0x08000020.
+#[derive(Debug, Default)]
+pub struct NoStore;
+
+impl ParameterStore for NoStore {
+    fn execute(
+        &mut self,
+        _cmd: StoreCommand,
+        _dict: &mut dyn Dictionary,
+    ) -> Result<SaveReport, StorageError> {
+        Err(StorageError::Geometry)
+    }
+    fn load(&mut self, _dict: &mut dyn Dictionary) -> LoadReport {
+        LoadReport {
+            slots: [SlotStatus::Erased; 2],
+            source: None,
+            applied: 0,
+            skipped: 0,
+        }
+    }
+}
+
+/// The whole dictionary as 'save' sees it: the drive's objects plus those the slave
+/// runtime serves (mapping, assignment, sync).
+struct WholeDictionary<'a, S: ParameterStore> {
+    drive: &'a mut Drive<S>,
+    runtime: &'a mut dyn Dictionary,
+}
+
+fn is_runtime_index(index: u16) -> bool {
+    ecat_slave_stack::pdo::is_pdo_index(index) || ecat_slave_stack::sync::is_sync_index(index)
+}
+
+impl<S: ParameterStore> Dictionary for WholeDictionary<'_, S> {
+    fn objects(&self) -> &'static [Object] {
+        dictionary::OBJECTS
+    }
+    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        if is_runtime_index(index) {
+            self.runtime.read(index, sub, buf)
+        } else {
+            self.drive.read(index, sub, buf)
+        }
+    }
+    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        if is_runtime_index(index) {
+            self.runtime.write(index, sub, data, state)
+        } else {
+            self.drive.write(index, sub, data, state)
+        }
+    }
+}
+
 /// The drive application state.
-pub struct Drive {
+pub struct Drive<S: ParameterStore = NoStore> {
     /// Product variant.
     pub variant: Variant,
     /// Vendor parameters 0x2000-0x21FF.
@@ -100,19 +188,28 @@ pub struct Drive {
     esm: EsmState,
     last_cycle_us: Option<u64>,
     now_ms: u32,
-    pending_store: Option<StoreCommand>,
     fault_led: fault_led::FaultLed,
     last_controlword: u16,
+    store: Option<S>,
+    load_report: Option<LoadReport>,
+    storage_emergency: Option<(u16, [u8; 5])>,
 }
 
 /// Error code reported when the outputs stopped arriving (process-data watchdog,
 /// sync loss) while the drive was enabled.
 pub const ERR_COMMUNICATION_LOST: u16 = 0x8700;
 
-impl Drive {
-    /// A drive at power-up defaults (before the stored parameters are loaded);
-    /// `serial` is 0x1018:04.
+impl Drive<NoStore> {
+    /// A drive at power-up defaults without parameter memory; `serial` is 0x1018:04.
     pub fn new(variant: Variant, serial: u32) -> Self {
+        Drive::with_store(variant, serial, NoStore)
+    }
+}
+
+impl<S: ParameterStore> Drive<S> {
+    /// A drive at power-up defaults (before the stored parameters are loaded) whose
+    /// 'save' / 'load' go to `store`; `serial` is 0x1018:04.
+    pub fn with_store(variant: Variant, serial: u32, store: S) -> Self {
         let params = Params::new(variant);
         let mut d = Drive {
             variant,
@@ -126,9 +223,11 @@ impl Drive {
             esm: EsmState::Init,
             last_cycle_us: None,
             now_ms: 0,
-            pending_store: None,
             fault_led: fault_led::FaultLed::new(),
             last_controlword: 0,
+            store: Some(store),
+            load_report: None,
+            storage_emergency: None,
             params,
         };
         d.apply_parameters();
@@ -152,12 +251,35 @@ impl Drive {
             .set_rated_current_ma(self.params.get(P::PeakCurrent) as u32);
     }
 
-    /// Call once at power-up after the stored record was loaded: latches the
-    /// "effective after restart" parameters and counts the power-up.
-    pub fn power_up(&mut self) {
+    /// Power-up: loads the stored parameters (drive objects and, through `runtime` —
+    /// [`ecat_slave_stack::slave::Slave::runtime_objects`] — the PDO mapping), latches
+    /// the "effective after restart" parameters and counts the power-up. A corrupt or
+    /// lost record is reported as an emergency.
+    pub fn power_up(&mut self, runtime: &mut dyn Dictionary) -> LoadReport {
+        let report = match self.store.take() {
+            Some(mut store) => {
+                let r = store.load(&mut WholeDictionary {
+                    drive: &mut *self,
+                    runtime,
+                });
+                self.store = Some(store);
+                r
+            }
+            None => NoStore.load(runtime),
+        };
+        if let Some((code, data)) = report.emergency() {
+            self.storage_emergency = Some((code, data));
+        }
+        self.load_report = Some(report);
         self.params.latch_power_up();
         self.monitor.power_up();
         self.apply_parameters();
+        report
+    }
+
+    /// What the power-up load found.
+    pub fn load_report(&self) -> Option<LoadReport> {
+        self.load_report
     }
 
     /// The motor side's measurements for the next cycle.
@@ -181,14 +303,36 @@ impl Drive {
         self.esm
     }
 
-    /// A store/restore command (0x1010/0x1011) accepted by SDO and not yet executed.
-    pub fn take_store_request(&mut self) -> Option<StoreCommand> {
-        self.pending_store.take()
+    /// Next emergency to send (fault occurrences, fault reset, parameter memory).
+    pub fn pop_emergency(&mut self) -> Option<Emergency> {
+        if let Some((code, data)) = self.storage_emergency.take() {
+            return Some(Emergency {
+                code,
+                register: self.faults.error_register() | 1,
+                data,
+            });
+        }
+        self.faults.pop_emergency()
     }
 
-    /// Next emergency to send (fault occurrences, fault reset).
-    pub fn pop_emergency(&mut self) -> Option<Emergency> {
-        self.faults.pop_emergency()
+    /// Runs a store / restore command now over the whole dictionary.
+    fn run_store(
+        &mut self,
+        cmd: StoreCommand,
+        runtime: &mut dyn Dictionary,
+    ) -> Result<(), SdoAbort> {
+        let Some(mut store) = self.store.take() else {
+            return Err(SdoAbort::DataCannotBeStored);
+        };
+        let r = store.execute(
+            cmd,
+            &mut WholeDictionary {
+                drive: &mut *self,
+                runtime,
+            },
+        );
+        self.store = Some(store);
+        r.map(|_| ()).map_err(StorageError::abort)
     }
 
     fn snapshot(&self) -> Snapshot {
@@ -294,7 +438,7 @@ impl Drive {
     }
 }
 
-impl Dictionary for Drive {
+impl<S: ParameterStore> Dictionary for Drive<S> {
     fn objects(&self) -> &'static [Object] {
         dictionary::OBJECTS
     }
@@ -318,12 +462,11 @@ impl Dictionary for Drive {
         _state: EsmState,
     ) -> Result<(), SdoAbort> {
         match index {
-            0x1000..=0x10FF => {
-                if let Some(cmd) = self.comm.write(&mut self.faults, index, sub, data)? {
-                    self.pending_store = Some(cmd);
-                }
-                Ok(())
-            }
+            0x1000..=0x10FF => match self.comm.write(&mut self.faults, index, sub, data)? {
+                // Without the runtime's objects a save would miss the PDO mapping.
+                Some(cmd) => self.run_store(cmd, &mut NoRuntime),
+                None => Ok(()),
+            },
             0x2000..=0x21FF => {
                 self.params.write(index, sub, data)?;
                 self.faults.configure_from(&self.params);
@@ -333,6 +476,44 @@ impl Dictionary for Drive {
             0x6000..=0x6FFF => self.cia402.write(index, sub, data),
             _ => Err(SdoAbort::WriteReadOnly),
         }
+    }
+
+    fn write_with_runtime(
+        &mut self,
+        index: u16,
+        sub: u8,
+        data: &[u8],
+        state: EsmState,
+        runtime: &mut dyn Dictionary,
+    ) -> Result<(), SdoAbort> {
+        if (0x1000..=0x10FF).contains(&index) {
+            if let Some(cmd) = self.comm.write(&mut self.faults, index, sub, data)? {
+                return self.run_store(cmd, runtime);
+            }
+            return Ok(());
+        }
+        self.write(index, sub, data, state)
+    }
+}
+
+/// Stand-in for the runtime's objects when a write does not come through the runtime.
+struct NoRuntime;
+
+impl Dictionary for NoRuntime {
+    fn objects(&self) -> &'static [Object] {
+        dictionary::OBJECTS
+    }
+    fn read(&mut self, _index: u16, _sub: u8, _buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        Err(SdoAbort::ObjectDoesNotExist)
+    }
+    fn write(
+        &mut self,
+        _index: u16,
+        _sub: u8,
+        _data: &[u8],
+        _state: EsmState,
+    ) -> Result<(), SdoAbort> {
+        Err(SdoAbort::ObjectDoesNotExist)
     }
 }
 
@@ -355,7 +536,7 @@ fn other_tx_entries() -> impl Iterator<Item = (u16, u8)> {
         .take(OTHER_TX_MAX)
 }
 
-impl ProcessData for Drive {
+impl<S: ParameterStore> ProcessData for Drive<S> {
     fn rx_slot(&self, index: u16, sub: u8) -> Option<u16> {
         ProcessData::rx_slot(&self.cia402, index, sub)
     }
@@ -397,7 +578,7 @@ impl ProcessData for Drive {
     }
 }
 
-impl EsmHooks for Drive {
+impl<S: ParameterStore> EsmHooks for Drive<S> {
     fn on_state_change(&mut self, from: EsmState, to: EsmState) {
         self.esm = to;
         if from == EsmState::Op && to != EsmState::Op && self.command.drive_enabled {
@@ -416,7 +597,7 @@ impl EsmHooks for Drive {
     }
 }
 
-impl SlaveApplication for Drive {
+impl<S: ParameterStore> SlaveApplication for Drive<S> {
     fn cycle(&mut self, info: &CycleInfo) {
         let dt = match self.last_cycle_us {
             Some(prev) if info.now_us > prev => {
@@ -509,18 +690,18 @@ mod tests {
     }
 
     #[test]
-    fn save_command_is_queued_for_the_owner() {
+    fn save_without_parameter_memory_is_refused() {
         let mut d = Drive::new(Variant::HybridServo, 0);
-        sdo_write(&mut d, 0x1010, 1, &crate::comm::SAVE.to_le_bytes()).expect("save");
-        assert!(matches!(
-            d.take_store_request(),
-            Some(StoreCommand::Save(_))
-        ));
+        let save = crate::comm::SAVE.to_le_bytes();
         assert_eq!(
-            sdo_write(&mut d, 0x1010, 1, &0x1234_5678u32.to_le_bytes()),
+            sdo_write(&mut d, 0x1010, 1, &save),
             Err(SdoAbort::DataCannotBeStored)
         );
-        assert!(d.take_store_request().is_none());
+        let other = 0x1234_5678u32.to_le_bytes();
+        assert_eq!(
+            sdo_write(&mut d, 0x1010, 1, &other),
+            Err(SdoAbort::DataCannotBeStored)
+        );
     }
 
     fn enable(d: &mut Drive) {
@@ -592,5 +773,108 @@ mod tests {
             d.leds(1350).red,
         ];
         assert_eq!(leds, [true, true, false, true]);
+    }
+
+    #[test]
+    fn save_then_power_cycle_restores_parameters_and_mapping() {
+        use crate::storage::RamFlash;
+        use ecat_slave_stack::pdo::PdoConfig;
+        use ecat_slave_stack::slave::RuntimeObjects;
+        use ecat_slave_stack::sync::SyncState;
+
+        let storage = Storage::new(0, 4096);
+        let mut pdo = PdoConfig::new(crate::pdo_defaults::PDO_DEFAULTS);
+        let mut sync = SyncState::new((0, 0));
+        let mut d = Drive::with_store(
+            Variant::HybridServo,
+            7,
+            FlashStore {
+                storage,
+                flash: RamFlash::<8192>::new(),
+            },
+        );
+        {
+            let mut rt = RuntimeObjects {
+                pdo: &mut pdo,
+                sync: &mut sync,
+                objects: dictionary::OBJECTS,
+            };
+            d.power_up(&mut rt);
+        }
+        sdo_write_any(&mut d, 0x2000, 0, &2100u16.to_le_bytes()).expect("peak current");
+        // Re-assign RxPDO 0x1601 through the runtime objects, then 'save' through the
+        // runtime path so the mapping is stored too.
+        {
+            let mut rt = RuntimeObjects {
+                pdo: &mut pdo,
+                sync: &mut sync,
+                objects: dictionary::OBJECTS,
+            };
+            rt.write(0x1C12, 0, &[0], EsmState::PreOp)
+                .expect("sub 0 to 0");
+            rt.write(0x1C12, 1, &0x1601u16.to_le_bytes(), EsmState::PreOp)
+                .expect("assign");
+            rt.write(0x1C12, 0, &[1], EsmState::PreOp).expect("count");
+            let save = crate::comm::SAVE.to_le_bytes();
+            d.write_with_runtime(0x1010, 1, &save, EsmState::PreOp, &mut rt)
+                .expect("save");
+        }
+        // Power cycle: a new drive and runtime over the same flash.
+        let FlashStore { flash, .. } = d.store.take().expect("store");
+        let mut d2 = Drive::with_store(Variant::HybridServo, 7, FlashStore { storage, flash });
+        let mut pdo2 = PdoConfig::new(crate::pdo_defaults::PDO_DEFAULTS);
+        let mut sync2 = SyncState::new((0, 0));
+        let report = {
+            let mut rt = RuntimeObjects {
+                pdo: &mut pdo2,
+                sync: &mut sync2,
+                objects: dictionary::OBJECTS,
+            };
+            d2.power_up(&mut rt)
+        };
+        assert!(report.source.is_some(), "{report:?}");
+        assert_eq!(sdo_read_u32_any(&mut d2, 0x2000, 0), 2100);
+        let mut b = [0u8; 4];
+        pdo2.read(0x1C12, 1, &mut b).expect("read assign");
+        assert_eq!(u16::from_le_bytes([b[0], b[1]]), 0x1601);
+        assert!(
+            d2.pop_emergency().is_none(),
+            "clean load sends no emergency"
+        );
+    }
+
+    #[test]
+    fn corrupt_flash_gives_defaults_and_an_emergency() {
+        use crate::storage::RamFlash;
+        let storage = Storage::new(0, 4096);
+        let mut flash = RamFlash::<8192>::new();
+        for (i, b) in flash.mem.iter_mut().enumerate() {
+            *b = (i as u8).wrapping_mul(37) ^ 0x5A;
+        }
+        let mut d = Drive::with_store(Variant::HybridServo, 0, FlashStore { storage, flash });
+        let report = d.power_up(&mut NoRuntime);
+        assert!(report.source.is_none());
+        assert_eq!(sdo_read_u32_any(&mut d, 0x2000, 0), 3200);
+        let e = d.pop_emergency().expect("emergency for lost parameters");
+        assert_eq!(e.code, crate::storage::EMCY_PARAMETERS_LOST);
+    }
+
+    fn sdo_write_any<S: ParameterStore>(
+        d: &mut Drive<S>,
+        index: u16,
+        sub: u8,
+        data: &[u8],
+    ) -> Result<(), SdoAbort> {
+        let e = od::find_entry(dictionary::OBJECTS, index, sub)?;
+        od::check_write(e, data, EsmState::PreOp)?;
+        d.write(index, sub, data, EsmState::PreOp)
+    }
+
+    fn sdo_read_u32_any<S: ParameterStore>(d: &mut Drive<S>, index: u16, sub: u8) -> u32 {
+        let mut b = [0u8; 8];
+        let n = d.read(index, sub, &mut b).expect("read");
+        let mut v = [0u8; 4];
+        v[..n.min(4)].copy_from_slice(&b[..n.min(4)]);
+        u32::from_le_bytes(v)
     }
 }
