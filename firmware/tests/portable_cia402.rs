@@ -882,6 +882,56 @@ qemu_runner::tests! {
         assert_eq!(d.digital_outputs(), 0b0011);
     }
 
+    fn pp_jerk_limited_profile_ends_on_target() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(7);
+        enable(&mut d, &mut ax, mode::PP);
+        d.write(0x6086, 0, &3i16.to_le_bytes()).unwrap();
+        assert!(d.write(0x6086, 0, &1i16.to_le_bytes()).is_err());
+        d.params.profile_velocity = 100_000;
+        d.params.profile_acceleration = 5_000_000; // 20 ms to full speed: 20-cycle window
+        d.params.profile_deceleration = 5_000_000;
+        d.params.target_position = 50_007;
+        cw(&mut d, &mut ax, 0x3F);
+        let mut v_prev = 0;
+        let mut max_dv = 0;
+        let mut n = 0;
+        while cw(&mut d, &mut ax, 0x2F) & sw::TARGET_REACHED == 0 {
+            max_dv = max_dv.max((ax.vel - v_prev).abs());
+            v_prev = ax.vel;
+            n += 1;
+            if n == 3 {
+                // Jerk-limited start: ≈ 1 100 counts/s after 3 cycles (trapezoid: 15 000).
+                assert!(ax.vel < 3_000, "{}", ax.vel);
+            }
+            assert!(n < 2000);
+        }
+        assert!(max_dv <= 5_000 + 1_000, "acceleration within 0x6083: {max_dv}");
+        step(&mut d, &mut ax);
+        assert_eq!(ax.pos, 50_007);
+        // Halt in the middle of a jerk-limited move: smooth stop, target reached.
+        d.params.target_position = 0;
+        cw(&mut d, &mut ax, 0x3F);
+        steps(&mut d, &mut ax, 100);
+        n = 0;
+        while cw(&mut d, &mut ax, 0x12F) & sw::TARGET_REACHED == 0 {
+            n += 1;
+            assert!(n < 500);
+        }
+        assert_eq!(ax.vel, 0);
+        // Back to the trapezoid.
+        d.write(0x6086, 0, &0i16.to_le_bytes()).unwrap();
+        d.params.target_position = 1_000;
+        cw(&mut d, &mut ax, 0x3F);
+        n = 0;
+        while cw(&mut d, &mut ax, 0x2F) & sw::TARGET_REACHED == 0 {
+            n += 1;
+            assert!(n < 2000);
+        }
+        step(&mut d, &mut ax);
+        assert_eq!(ax.pos, 1_000);
+    }
+
     fn homing_every_method_ends_on_its_reference() {
         // World: limits at ±20 000, home switch edge at 2 000 (or zone 2 000..6 000),
         // index pulses at 100 + k·1000.

@@ -26,7 +26,7 @@ use homing::{Homing, HomingInputs, HomingParams, HomingStatus};
 use pds::{Command, Event, Guard, PdsState};
 pub use probe::EdgeLatch;
 use probe::TouchProbe;
-use profile::{Motion, MoveStatus};
+use profile::{Motion, MoveStatus, Smoother};
 
 /// Mode of operation values (0x6060 / 0x6061).
 pub mod mode {
@@ -358,6 +358,10 @@ struct Pp {
     last_target: i32,
     /// The running target was clamped by the software limits.
     clamped: bool,
+    /// Trapezoid generator when the jerk-limiting filter is on (0x6086 = 3); the
+    /// filtered output is the drive's demand.
+    gen: Motion,
+    smooth: Smoother,
 }
 
 /// CSP / CSV interpolation state.
@@ -1044,7 +1048,16 @@ impl Cia402 {
         self.motion.set(demand, vel);
     }
 
-    fn run_pp(&mut self, halt: bool, pos_lim: bool, neg_lim: bool, dt: f32) {
+    /// The PP set-point handling and trapezoid on `m`; returns true when `m` stands still
+    /// after a halt or with no set-point left.
+    fn pp_generate(
+        &mut self,
+        m: &mut Motion,
+        halt: bool,
+        pos_lim: bool,
+        neg_lim: bool,
+        dt: f32,
+    ) -> bool {
         let cwv = self.controlword;
         let p = self.params;
         let rising = cwv & cw::NEW_SETPOINT != 0 && self.prev_cw & cw::NEW_SETPOINT == 0;
@@ -1058,7 +1071,7 @@ impl Cia402 {
                 .map_or(self.pp.last_target, |s| s.target);
             let target = if cwv & cw::RELATIVE != 0 {
                 let reference = match p.positioning_option & 0x3 {
-                    1 => self.motion.position(),
+                    1 => m.position(),
                     2 => self.actual_position,
                     _ => base,
                 };
@@ -1113,16 +1126,15 @@ impl Cia402 {
             self.pp.active = None;
             self.pp.buffered = None;
             let dec = p.option_decel(p.halt_option).unwrap_or(0.0);
-            let stopped = self.motion.stop(dec, dt);
-            self.pp.last_target = self.motion.position();
-            self.target_reached = stopped;
-            return;
+            let stopped = m.stop(dec, dt);
+            self.pp.last_target = m.position();
+            return stopped;
         }
         // Hardware limit in the direction of travel: abort with the quick-stop ramp.
-        let v = self.motion.velocity();
+        let v = m.velocity();
         let toward = |t: i32, pos: i32| t.wrapping_sub(pos);
         if let Some(a) = self.pp.active {
-            let d = toward(a.target, self.motion.position());
+            let d = toward(a.target, m.position());
             if (pos_lim && (d > 0 || v > 0.0)) || (neg_lim && (d < 0 || v < 0.0)) {
                 self.pp.active = None;
                 self.pp.buffered = None;
@@ -1134,7 +1146,7 @@ impl Cia402 {
         if let Some(a) = self.pp.active {
             let through = cwv & cw::CHANGE_ON_SETPOINT != 0
                 && self.pp.buffered.is_some_and(|b| {
-                    let d1 = a.target.wrapping_sub(self.motion.position());
+                    let d1 = a.target.wrapping_sub(m.position());
                     let d2 = b.target.wrapping_sub(a.target);
                     (d1 >= 0) == (d2 >= 0) && d2 != 0
                 });
@@ -1143,7 +1155,7 @@ impl Cia402 {
             } else {
                 0.0
             };
-            let st = self.motion.to_position(
+            let st = m.to_position(
                 a.target,
                 a.vel,
                 a.acc,
@@ -1162,10 +1174,48 @@ impl Cia402 {
             } else {
                 p.dec(p.profile_deceleration)
             };
-            self.motion.stop(dec, dt);
+            m.stop(dec, dt);
+        }
+        self.pp.active.is_none() && m.velocity() == 0.0
+    }
+
+    fn run_pp(&mut self, halt: bool, pos_lim: bool, neg_lim: bool, dt: f32) {
+        let p = self.params;
+        let (stopped, settled) = if p.motion_profile_type == 3 || self.pp.smooth.active() {
+            if !self.pp.smooth.active() {
+                self.pp.gen = self.motion;
+                self.pp.smooth.start(self.motion.position(), 1);
+            }
+            // Jerk phases as long as one acceleration from 0 to the profile velocity.
+            let acc = p.acc(p.profile_acceleration).max(1.0);
+            let n = ((p.profile_velocity as f32).min(p.vmax()) / acc / dt) as usize;
+            let mut g = self.pp.gen;
+            let stopped = self.pp_generate(&mut g, halt, pos_lim, neg_lim, dt);
+            self.pp.gen = g;
+            let prev = self.motion.position();
+            let y = self.pp.smooth.push(g.position(), n);
+            let settled = self.pp.smooth.settled();
+            if settled && p.motion_profile_type != 3 {
+                self.pp.smooth.stop();
+            }
+            if settled {
+                self.motion = g;
+            } else {
+                self.motion.set(y, y.wrapping_sub(prev) as f32 / dt);
+            }
+            (stopped, settled)
+        } else {
+            let mut m = self.motion;
+            let stopped = self.pp_generate(&mut m, halt, pos_lim, neg_lim, dt);
+            self.motion = m;
+            (stopped, true)
+        };
+        if halt {
+            self.target_reached = stopped && settled;
+            return;
         }
         // Target reached: no set-point left and the axis in the window for 0x6068 ms.
-        let done = self.pp.active.is_none() && self.motion.velocity() == 0.0;
+        let done = stopped && settled;
         let inwin = self
             .motion
             .position()

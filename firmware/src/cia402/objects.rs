@@ -151,8 +151,8 @@ pub const OBJECTS: &[Object] = &[
         "PP / PV deceleration and slow-down ramp, limited by 0x60C6."),
     var(0x6085, "Quick stop deceleration", &[Entry::new(0, "Quick stop deceleration", U32, RW).pdo(RX).default(2_000_000).unit("inc/s²").saved()],
         "Quick-stop ramp; also the stop ramp at a hardware limit switch."),
-    var(0x6086, "Motion profile type", &[Entry::new(0, "Motion profile type", I16, RW).range(0, 0).default(0).saved()],
-        "0 linear ramp (trapezoid); other types are not supported."),
+    var(0x6086, "Motion profile type", &[Entry::new(0, "Motion profile type", I16, RW).range(0, 3).default(0).saved()],
+        "PP profile: 0 linear ramp (trapezoid); 3 jerk-limited ramp (trapezoid through a moving average as long as one acceleration, at most 64 cycles); 1 and 2 are refused."),
     array(0x608F, "Position encoder resolution", &[
         count(2),
         Entry::new(1, "Encoder increments", U32, RO).default(4000),
@@ -403,6 +403,7 @@ impl Cia402 {
         match (index, sub) {
             (0x6060, 0) if !mode_supported(v as i8) => return Err(SdoAbort::ValueRangeExceeded),
             (0x6098, 0) if !homing::supported(v as i8) => return Err(SdoAbort::ValueRangeExceeded),
+            (0x6086, 0) if v != 0 && v != 3 => return Err(SdoAbort::ValueRangeExceeded),
             (0x60B8, 0) if !probe::function_valid(v as u16) => {
                 return Err(SdoAbort::ValueRangeExceeded)
             }

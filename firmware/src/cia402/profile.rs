@@ -181,6 +181,108 @@ impl Motion {
     }
 }
 
+/// Longest moving-average window of [`Smoother`] (cycles).
+pub const SMOOTH_MAX: usize = 64;
+
+/// Jerk limitation by a moving average over the last `n` demand positions (0x6086 = 3,
+/// "jerk-limited ramp"). A trapezoid filtered by an `n`-sample average becomes an
+/// S-curve whose jerk phases last `n` cycles (jerk = acceleration / (n·T)); the move
+/// takes `(n − 1)·T` longer and ends exactly on the same position, because the average
+/// of `n` equal samples is that sample. Positions are kept relative to a base so that
+/// the `i64` sum never overflows; one division per cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Smoother {
+    ring: [i32; SMOOTH_MAX],
+    n: usize,
+    idx: usize,
+    base: i32,
+    sum: i64,
+    same: usize,
+    last: i32,
+    active: bool,
+}
+
+impl Default for Smoother {
+    fn default() -> Self {
+        Smoother {
+            ring: [0; SMOOTH_MAX],
+            n: 1,
+            idx: 0,
+            base: 0,
+            sum: 0,
+            same: 0,
+            last: 0,
+            active: false,
+        }
+    }
+}
+
+impl Smoother {
+    /// True while filtering (from [`Smoother::start`] until settled and switched off).
+    pub fn active(&self) -> bool {
+        self.active
+    }
+
+    /// Starts filtering at the standing position `pos` with a window of `n` cycles.
+    pub fn start(&mut self, pos: i32, n: usize) {
+        let n = n.clamp(1, SMOOTH_MAX);
+        self.ring = [0; SMOOTH_MAX];
+        self.n = n;
+        self.idx = 0;
+        self.base = pos;
+        self.sum = 0;
+        self.same = n;
+        self.last = pos;
+        self.active = true;
+    }
+
+    /// Stops filtering.
+    pub fn stop(&mut self) {
+        self.active = false;
+    }
+
+    /// True when the last `n` inputs were equal (output = input).
+    pub fn settled(&self) -> bool {
+        self.same >= self.n
+    }
+
+    /// Feeds one input; returns the filtered position. When settled, a different window
+    /// `n` is taken over (never in the middle of a move).
+    pub fn push(&mut self, pos: i32, n: usize) -> i32 {
+        let n = n.clamp(1, SMOOTH_MAX);
+        if self.settled() && n != self.n {
+            self.start(self.last, n);
+        }
+        if pos == self.last {
+            self.same = self.same.saturating_add(1);
+        } else {
+            self.same = 1;
+        }
+        self.last = pos;
+        let rel = pos.wrapping_sub(self.base);
+        self.sum += rel as i64 - self.ring[self.idx] as i64;
+        self.ring[self.idx] = rel;
+        self.idx += 1;
+        if self.idx >= self.n {
+            self.idx = 0;
+        }
+        if self.settled() {
+            // Exactly the input; rebase so that the relative values stay small.
+            self.base = pos;
+            self.ring = [0; SMOOTH_MAX];
+            self.sum = 0;
+            return pos;
+        }
+        let n = self.n as i64;
+        let q = if self.sum >= 0 {
+            (self.sum + n / 2) / n
+        } else {
+            (self.sum - n / 2) / n
+        };
+        self.base.wrapping_add(q as i32)
+    }
+}
+
 /// One velocity ramp step (see [`Motion::ramp_velocity`]).
 #[inline]
 fn ramp(v: f32, target: f32, acc: f32, dec: f32, dt: f32) -> f32 {
@@ -326,6 +428,47 @@ mod tests {
         while !m.stop(50_000.0, DT) {}
         assert_eq!(m.velocity(), 0.0);
         assert!(m.stop(0.0, DT));
+    }
+
+    #[test]
+    fn smoothed_trapezoid_is_an_s_curve_ending_on_target() {
+        // 1 000 counts/cycle, 10 counts/cycle², window 20 cycles.
+        let mut m = Motion::at(100);
+        let mut f = Smoother::default();
+        f.start(100, 20);
+        let mut y_prev = 100;
+        let mut v_prev = 0i32;
+        let mut max_dv = 0;
+        let mut n = 0;
+        loop {
+            m.to_position(
+                1_000_100,
+                1_000_000.0,
+                10_000_000.0,
+                10_000_000.0,
+                0.0,
+                0.0,
+                DT,
+            );
+            let y = f.push(m.position(), 20);
+            let v = y - y_prev;
+            max_dv = max_dv.max((v - v_prev).abs());
+            y_prev = y;
+            v_prev = v;
+            n += 1;
+            if n == 10 {
+                // Jerk-limited start: v ≈ a·k²/(2·20) = 25 instead of a·k = 100.
+                assert!((15..=35).contains(&v), "{v}");
+            }
+            if f.settled() && y == 1_000_100 {
+                break;
+            }
+            assert!(n < 10_000);
+        }
+        assert!(max_dv <= 11, "{max_dv}");
+        assert_eq!(y_prev, 1_000_100);
+        // The trapezoid alone takes 1.1 s; the filter adds 19 cycles.
+        assert!((1115..=1125).contains(&n), "{n}");
     }
 
     #[test]
