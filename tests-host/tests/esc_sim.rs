@@ -542,6 +542,7 @@ fn three_buffer_consumer_gets_latest_complete_buffer() {
     );
 }
 
+#[allow(clippy::too_many_arguments)] // one argument per FMMU register field
 fn configure_fmmu(
     escs: &mut [EscSim],
     adp: u16,
@@ -1116,8 +1117,8 @@ fn fuzz_random_frames_never_panic() {
                 let cmd = rng.below(17) as u8;
                 let addr = match rng.below(4) {
                     0 => rng.next() as u32,
-                    1 => (rng.below(0x3100) as u32) << 16 | rng.below(4) as u32 * 0xFFFF,
-                    2 => (0x1000 + rng.below(3) as u32) | (rng.below(0x1000) as u32) << 16,
+                    1 => ((rng.below(0x3100) as u32) << 16) | (rng.below(4) as u32 * 0xFFFF),
+                    2 => (0x1000 + rng.below(3) as u32) | ((rng.below(0x1000) as u32) << 16),
                     _ => rng.below(64) as u32,
                 };
                 let len = match rng.below(3) {
