@@ -24,7 +24,8 @@
 //!
 //! **Latching**: a latched fault (over-current, over-voltage) survives fault reset
 //! until power is cycled, unless 0x2057 = 1. Every fault also stays until its
-//! condition is gone (under-voltage clears 0.5 V above the threshold). Fault reset
+//! condition is gone (under-voltage clears 0.5 V above the threshold; it is only
+//! detected once the bus has been above that level since power-up). Fault reset
 //! comes from the controlword bit 7 edge (CiA 402 helper) or a fault-clear input edge
 //! (I/O): both call [`Faults::fault_reset`].
 //!
@@ -203,6 +204,7 @@ pub struct Faults {
     pds_request: bool,
     emcy: Deque<Emergency, 8>,
     bus_dv: u16,
+    uv_armed: bool,
 }
 
 impl Default for Faults {
@@ -227,6 +229,7 @@ impl Faults {
             pds_request: false,
             emcy: Deque::new(),
             bus_dv: 0,
+            uv_armed: false,
         }
     }
 
@@ -320,7 +323,9 @@ impl Faults {
         self.present[kind as usize] = false;
     }
 
-    /// Checks the bus voltage (mV): over- and under-voltage.
+    /// Checks the bus voltage (mV): over- and under-voltage. Under-voltage is armed
+    /// once the bus has reached threshold + hysteresis after power-up, so the rising
+    /// supply at switch-on is not a fault.
     pub fn check_bus_voltage(&mut self, mv: u32, snap: Snapshot, now_ms: u32) {
         self.bus_dv = (mv / 100).min(u32::from(u16::MAX)) as u16;
         let snap = Snapshot {
@@ -333,8 +338,11 @@ impl Faults {
             self.condition_gone(FaultKind::OverVoltage);
         }
         if mv < self.cfg.under_voltage_mv {
-            self.raise(FaultKind::UnderVoltage, snap, now_ms);
+            if self.uv_armed {
+                self.raise(FaultKind::UnderVoltage, snap, now_ms);
+            }
         } else if mv >= self.cfg.under_voltage_mv + self.cfg.under_voltage_hysteresis_mv {
+            self.uv_armed = true;
             self.condition_gone(FaultKind::UnderVoltage);
         }
     }
@@ -659,6 +667,18 @@ mod tests {
             assert_eq!(f.pop_emergency().map(|e| e.code), Some(code));
             assert_eq!(f.count(), 2);
         }
+    }
+
+    #[test]
+    fn under_voltage_armed_after_bus_came_up() {
+        let mut f = Faults::default();
+        for mv in [0, 5_000, 11_999, 12_400] {
+            f.check_bus_voltage(mv, S, 0);
+        }
+        assert!(!f.any_active(), "rising supply at switch-on");
+        f.check_bus_voltage(12_500, S, 0);
+        f.check_bus_voltage(11_999, S, 0);
+        assert!(f.is_active(FaultKind::UnderVoltage));
     }
 
     #[test]

@@ -1,4 +1,4 @@
-//! Vendor parameters 0x2000-0x2155 (drive-requirements §3.3): the one table of their
+//! Vendor parameters 0x2000-0x2156 (drive-requirements §3.3, plus 0x2156): the one table of their
 //! access, default, range, unit and saved flag, and the values.
 //!
 //! The generic SDO checks (`od::check_write`) refuse out-of-range writes from this
@@ -19,6 +19,10 @@
 //!   [`Params::latch_power_up`] ([`ActiveConfig`]).
 //! * 0x2024 = 2 (closed loop) is refused with 0x06090031 on the open-loop variant.
 //! * 0x2155 (raw input levels) is filled by the I/O module ([`Params::set_raw_inputs`]).
+//! * 0x2156 (ours) keeps the station number entered on a single-bank DIP board (SW8
+//!   ON → SW1-SW7 → SW8 OFF, see [`crate::dip::SingleBank`]); the application sets it
+//!   with [`Params::set_internal`] and stores it with a save. It is the DIP address from
+//!   the next power-up.
 
 use ecat_slave_stack::od::{
     self, Access, DataType, DefaultValue, Entry, Object, ObjectCode, PdoMappable, SdoAbort,
@@ -366,6 +370,12 @@ pub const OBJECTS: &[Object] = &[
         &[Entry::new(0, "Input raw levels", U8, Access::RO).pdo(PdoMappable::Tx)],
         "bit n = electrical level of input n+1",
     ),
+    var(
+        0x2156,
+        "Stored DIP station number",
+        &[rws(0, "Stored DIP station number", U16, 0, 0, 127, "")],
+        "Station number entered with SW8 on single-bank boards (0 = none); effective after restart",
+    ),
 ];
 
 /// One stored vendor parameter (the ones with a value slot in [`Params`]).
@@ -415,10 +425,11 @@ pub enum P {
     In4Filter,
     In5Filter,
     InputPolarity,
+    DipStation,
 }
 
 /// (index, sub-index) of each [`P`], in the same order.
-pub const KEYS: [(u16, u8); 42] = [
+pub const KEYS: [(u16, u8); 43] = [
     (0x2000, 0),
     (0x2001, 0),
     (0x2002, 0),
@@ -461,6 +472,7 @@ pub const KEYS: [(u16, u8); 42] = [
     (0x2153, 4),
     (0x2153, 5),
     (0x2154, 0),
+    (0x2156, 0),
 ];
 
 const N: usize = KEYS.len();

@@ -546,6 +546,27 @@ qemu_runner::tests! {
         }
     }
 
+    fn single_bank_station_entry_survives_power_cycle() {
+        let mut f = Flash::new();
+        let (mut d, _) = boot(&mut f);
+        let mut sb = dip::SingleBank::new();
+        // SW8 ON, station 0x15 dialled on SW1-SW7, SW8 back OFF: store it.
+        assert_eq!(sb.update(0x80), None);
+        assert_eq!(sb.update(0x80 | 0x15), None);
+        let station = sb.update(0x15).unwrap();
+        d.params.set_internal(P::DipStation, i32::from(station));
+        ST.save(&mut f, &mut d, firmware::storage::Scope::All).unwrap();
+        let (d2, _) = boot(&mut f);
+        let stored = d2.params.get(P::DipStation) as u16;
+        let cfg = dip::power_up(Board::SingleBank, 0, 0x15, stored);
+        assert_eq!(cfg.address, 0x15);
+        let a = d2.params.active();
+        assert_eq!(dip::station_alias(a.alias_source, a.alias_value, cfg.address, 0), (0x15, AliasSource::Dip));
+        // Out-of-range entries are clamped by the internal setter (7 switches: 0..127).
+        d.params.set_internal(P::DipStation, 500);
+        assert_eq!(d.params.get(P::DipStation), 127);
+    }
+
     fn alias_from_parameters_after_restart() {
         let mut d = Drive::new();
         // (2151, 2150, DIP address, SII word 4) → alias

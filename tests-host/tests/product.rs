@@ -584,8 +584,9 @@ fn every_fault_code_emergency_led_pds_output_and_recovery() {
 #[test]
 fn latched_fault_needs_power_cycle_and_most_severe_is_shown() {
     let mut d = new_drive();
+    led_timeline(&mut d, 10, |_| GOOD);
     // Under-voltage first, then over-current: LED shows 1 flash from the next burst.
-    led_timeline(&mut d, 1000, |_| (0, 10_000, 0, 0, 0));
+    led_timeline(&mut d, 990, |_| (0, 10_000, 0, 0, 0));
     let (tl, _) = led_timeline(&mut d, 6000, |k| {
         if k < 10 {
             (0, 10_000, 20_000, 0, 0)
