@@ -676,6 +676,20 @@ qemu_runner::tests! {
             }
         }
         assert_eq!(seen, [100, 200, 300, 400, 500, 600, 700, 800, 900, 1000, 1100, 1200]);
+        // A jittering measured cycle time (0.98-1.02 ms) with 0x60C2 = 1 ms: every
+        // target is taken in its own cycle, never held for one more.
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        enable(&mut d, &mut ax, mode::CSP);
+        for k in 1..200 {
+            d.params.target_position = k * 10;
+            let fb = ax.feedback();
+            let jitter = [0.00098, 0.00102, 0.001, 0.000999][k as usize % 4];
+            let c = d.cycle(&fb, jitter);
+            ax.apply(&c);
+            assert_eq!(c.position, k * 10);
+            assert!((c.velocity - 10_000.0).abs() < 1.0, "{}", c.velocity);
+        }
     }
 
     fn csv_runs_at_target_velocity_plus_offset() {

@@ -1015,26 +1015,39 @@ impl Cia402 {
             }
         }
         let cur = self.motion.position();
-        let period = p.interpolation_period_s();
-        let period = if period > dt * 0.999 { period } else { dt };
+        let nominal = p.interpolation_period_s();
+        let ratio = nominal / dt;
         if !self.cyc.started {
+            // `elapsed` far past the period: the next cycle starts a new segment.
             self.cyc = Cyclic {
                 from: cur,
                 to: cur,
-                elapsed: period,
+                elapsed: 1.0e9,
                 started: true,
             };
         }
-        if self.cyc.elapsed >= period * 0.999 {
-            // A new interpolation segment starts at every period boundary.
+        let (seg, frac, period) = if ratio < 1.5 {
+            // One control cycle per set-point (the usual case: 0x60C2 = sync cycle). The
+            // measured cycle time may jitter, so no boundary test here; the nominal
+            // period scales the feed-forward unless 0x60C2 disagrees with the cycle.
+            let per = if ratio > 0.75 { nominal } else { dt };
             self.cyc.from = self.cyc.to;
             self.cyc.to = target;
-            self.cyc.elapsed = 0.0;
-        }
-        self.cyc.elapsed += dt;
-        let seg = self.cyc.to.wrapping_sub(self.cyc.from);
-        let frac = self.cyc.elapsed / period;
-        let frac = if frac > 0.999 { 1.0 } else { frac };
+            self.cyc.elapsed = 1.0e9;
+            (target.wrapping_sub(self.cyc.from), 1.0, per)
+        } else {
+            // Several control cycles per set-point: linear interpolation; a new segment
+            // starts at the cycle that ends nearest to the period boundary.
+            if self.cyc.elapsed + 0.5 * dt >= nominal {
+                self.cyc.from = self.cyc.to;
+                self.cyc.to = target;
+                self.cyc.elapsed = 0.0;
+            }
+            self.cyc.elapsed += dt;
+            let frac = self.cyc.elapsed / nominal;
+            let frac = if frac > 0.999 { 1.0 } else { frac };
+            (self.cyc.to.wrapping_sub(self.cyc.from), frac, nominal)
+        };
         let mut demand = self.cyc.from.wrapping_add((seg as f32 * frac) as i32);
         let mut vel = seg as f32 / period + p.velocity_offset as f32;
         let d = demand.wrapping_sub(cur);
