@@ -212,7 +212,8 @@ impl Autotune {
         };
         let mut cfg = cfg;
         cfg.ts = ts;
-        cfg.toggle_half = cfg.toggle_half.max(2);
+        cfg.toggle_half = cfg.toggle_half.clamp(2, 1000);
+        cfg.delay = cfg.delay.min(8);
         cfg.pwm_period = cfg.pwm_period.max(2);
         let steps = |t: f32| ((t.max(0.0) / ts) as u32).max(1);
         Autotune {
@@ -260,7 +261,7 @@ impl Autotune {
             }
             _ => return (0.0, 0.0),
         };
-        self.t += 1;
+        self.t = self.t.saturating_add(1);
         let v = match self.state {
             TuneState::Dc1(_) | TuneState::Dc2(_) => {
                 let first = matches!(self.state, TuneState::Dc1(_));
@@ -291,7 +292,7 @@ impl Autotune {
                     self.sum_i += i;
                     self.n += 1;
                 }
-                if self.t >= self.settle_steps + self.avg_steps {
+                if self.t >= self.settle_steps.saturating_add(self.avg_steps) {
                     let n = self.n.max(1) as f32;
                     let (va, im) = (self.sum_v / n, self.sum_i / n);
                     self.sum_v = 0.0;

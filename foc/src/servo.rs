@@ -16,9 +16,12 @@
 //!
 //! Tuning by [`ServoGains::from_bandwidth`]: with `b = Kt·cpr/(2π·J)` (counts/s² per
 //! A) the velocity loop gain `Kv = ωv/b` gives a velocity bandwidth ωv; the velocity
-//! PI zero sits at ωv/4 and the position gain is ωv/4 as well, giving a
-//! well-damped third-order loop (poles ≈ −0.5ωv ± 0.2jωv and −0.3ωv for the plant
-//! `b/s²`).
+//! PI zero sits at ωv/4 and the position gain is ωv/4 as well. For the plant `b/s²`
+//! the characteristic polynomial is `s³ + ωv·s² + ½ωv²·s + ωv³/16`, roots
+//! ≈ −0.18ωv and −0.41ωv ± 0.43jωv (ζ ≈ 0.69). The real drive adds the encoder PLL
+//! lag, the current loop and the servo period; in the plant simulation the loop stays
+//! well damped up to ωv ≈ 2π·300 Hz with a PLL of ω = 8000 rad/s (250 Hz is the
+//! scenarios' choice).
 
 use crate::angle::Angle;
 use crate::pi::Pi;
@@ -59,6 +62,32 @@ impl ServoGains {
             ki_vel: kv * wv * 0.25,
             acc_ff: 1.0 / b,
             iq_max,
+        }
+    }
+}
+
+impl ServoGains {
+    /// The drive's integer servo parameters applied to these base gains (our
+    /// definition of their scaling; 100 = the base value):
+    /// * `kp` (0x2137): position gain `kp_pos·kp/100`;
+    /// * `ki` (0x2138): position integral `ki_pos = (kp_pos_base)²/10 · ki/100`
+    ///   (at 100 its corner is a tenth of the base position bandwidth);
+    /// * `ff` (0x2139): velocity feed-forward `ff/100` (70 = 0.7);
+    /// * `kv` (0x2140): velocity loop `kv·kv/100`, `ki_vel·(kv/100)²` (scales the
+    ///   velocity bandwidth with the same damping).
+    ///
+    /// Values above 150 (the parameters' range) are clamped to 150.
+    pub fn scaled(&self, kp: u16, ki: u16, ff: u16, kv: u16) -> Self {
+        let f = |x: u16| x.min(150) as f32 * 0.01;
+        let kvs = f(kv);
+        ServoGains {
+            kp_pos: self.kp_pos * f(kp),
+            ki_pos: self.kp_pos * self.kp_pos * 0.1 * f(ki),
+            vel_ff: f(ff),
+            kv: self.kv * kvs,
+            ki_vel: self.ki_vel * kvs * kvs,
+            acc_ff: self.acc_ff,
+            iq_max: self.iq_max,
         }
     }
 }
@@ -339,8 +368,8 @@ impl Alignment {
             cfg,
             state: AlignState::Ramp,
             t: 0,
-            ramp_steps: (cfg.ramp.max(0.0) / ts) as u32 + 1,
-            settle_steps: (cfg.settle.max(0.0) / ts) as u32 + 1,
+            ramp_steps: ((cfg.ramp.max(0.0) / ts) as u32).saturating_add(1),
+            settle_steps: ((cfg.settle.max(0.0) / ts) as u32).saturating_add(1),
             cmd: Angle::ZERO,
             step_lsb: step_lsb.max(1),
             sweep_steps: sweep_steps.max(1),

@@ -403,6 +403,21 @@ qemu_runner::tests! {
         assert!(s.fault);
     }
 
+    fn servo_gain_parameters_scale_the_base() {
+        let g = ServoGains::from_bandwidth(4.8e-5, 0.283, 4000, 250.0, 7.0);
+        let same = g.scaled(100, 0, 100, 100);
+        assert!(near(same.kp_pos, g.kp_pos, 1e-3) && near(same.kv, g.kv, 1e-9));
+        assert!(same.ki_pos == 0.0 && near(same.vel_ff, 1.0, 1e-6));
+        let e5 = g.scaled(120, 50, 70, 60);
+        assert!(near(e5.kp_pos, 1.2 * g.kp_pos, 1e-3));
+        assert!(near(e5.vel_ff, 0.7, 1e-6));
+        assert!(near(e5.ki_vel, 0.36 * g.ki_vel, 1e-6 * g.ki_vel.max(1.0)));
+        assert!(e5.ki_pos > 0.0);
+        // Out-of-range values clamp to 150.
+        let hi = g.scaled(u16::MAX, u16::MAX, u16::MAX, u16::MAX);
+        assert!(near(hi.vel_ff, 1.5, 1e-6));
+    }
+
     fn interpolator_is_linear_with_one_cycle_delay() {
         let mut ip = Interpolator::new(10, 1e-4, 0);
         ip.set_target(100);
@@ -503,6 +518,35 @@ qemu_runner::tests! {
         let mut t = Autotune::new(AutotuneConfig::new(f32::NAN, 0, f32::NAN));
         for _ in 0..10 {
             let _ = t.step(f32::NAN, f32::INFINITY, -5.0);
+        }
+    }
+
+    fn state_machines_survive_extreme_configs() {
+        for x in [f32::NAN, f32::INFINITY, -1.0, 0.0, 1e30] {
+            let mut al = Alignment::new(AlignConfig {
+                ts: x,
+                current: x,
+                ramp: x,
+                settle: x,
+                wiggle: true,
+                sweep_cycles: u32::MAX,
+                sweep_speed: x,
+            });
+            for k in 0..50u32 {
+                let _ = al.step(Angle(k.wrapping_mul(0x9E37_79B9)));
+            }
+            let mut cfg = AutotuneConfig::new(TS, PERIOD, 4.0);
+            cfg.settle = x;
+            cfg.average = x;
+            cfg.toggle_time = x;
+            cfg.toggle_half = u32::MAX;
+            cfg.delay = u32::MAX;
+            cfg.max_modulation = x;
+            cfg.kp_init = x;
+            let mut t = Autotune::new(cfg);
+            for k in 0..200 {
+                let _ = t.step(k as f32 * 0.1, x, 48.0);
+            }
         }
     }
 
