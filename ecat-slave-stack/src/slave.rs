@@ -35,6 +35,9 @@ use crate::registers::{self as reg, al_event};
 use crate::sm::{self, MailboxLimits, PdDirection, RamWindow, SmRegs};
 use crate::sync::{self, SyncEvent, SyncMode, SyncState};
 
+/// Longest time between two reads of the process-data watchdog status, µs.
+pub const WD_CHECK_US: u64 = 1000;
+
 /// Largest mailbox SyncManager handled.
 pub const MAX_MAILBOX: usize = crate::mailbox::MAX_MAILBOX_SIZE;
 
@@ -242,6 +245,7 @@ pub struct Slave<E: EscAccess> {
     outputs_fresh: bool,
     outputs_seen: bool,
     wd_armed: bool,
+    last_wd_check: u64,
     pending_since: u64,
     last_status: Option<(u16, u16)>,
 }
@@ -272,6 +276,7 @@ impl<E: EscAccess> Slave<E> {
             outputs_fresh: false,
             outputs_seen: false,
             wd_armed: false,
+            last_wd_check: 0,
             pending_since: 0,
             last_status: None,
             cfg,
@@ -378,7 +383,7 @@ impl<E: EscAccess> Slave<E> {
         if ev & al_event::SM_CHANGE != 0 {
             self.handle_sm_change(app)?;
         }
-        self.supervise(app, now_us)?;
+        self.supervise(app, ev, now_us)?;
         if self.esm.state().mailbox_running() {
             if ev & al_event::sm(0) != 0 {
                 self.receive_mailbox(app, now_us)?;
@@ -634,7 +639,12 @@ impl<E: EscAccess> Slave<E> {
         self.state_changed(app, before)
     }
 
-    fn supervise<A: SlaveApplication>(&mut self, app: &mut A, now: u64) -> Result<(), EscError> {
+    fn supervise<A: SlaveApplication>(
+        &mut self,
+        app: &mut A,
+        ev: u32,
+        now: u64,
+    ) -> Result<(), EscError> {
         if let Some(to) = self.esm.pending() {
             if self.sync.sup.locked() {
                 let before = self.esm.state();
@@ -650,7 +660,18 @@ impl<E: EscAccess> Slave<E> {
         if !s.process_data_running() || self.esm.error() {
             return Ok(());
         }
-        if self.wd_armed && (s == EsmState::Op || self.outputs_seen) {
+        // The watchdog status is read at most once per WD_CHECK_US (the watchdog
+        // itself is milliseconds), at once when the ESC flags the watchdog event, and
+        // not when fresh outputs just arrived (they re-trigger it).
+        let wd_due = ev & al_event::WATCHDOG != 0
+            || now.saturating_sub(self.last_wd_check) >= WD_CHECK_US
+            || now < self.last_wd_check;
+        if self.wd_armed
+            && (s == EsmState::Op || self.outputs_seen)
+            && ev & al_event::sm(2) == 0
+            && wd_due
+        {
+            self.last_wd_check = now;
             let st = self.esc.read_u16(reg::WATCHDOG_STATUS_PD)?;
             if st & 1 == 0 {
                 return self.local_error(app, AlStatusCode::SmWatchdog);

@@ -1045,6 +1045,25 @@ qemu_runner::tests! {
         assert_eq!(s.esc_mut().al_status(), (0x14, 0x001B));
     }
 
+    fn watchdog_status_is_read_at_least_every_millisecond() {
+        let (mut s, mut app) = new_slave();
+        to_op(&mut s, &mut app);
+        s.poll(&mut app, 10_000).unwrap();
+        s.esc_mut().m[reg::WATCHDOG_STATUS_PD as usize] = 0;
+        s.poll(&mut app, 10_500).unwrap();
+        assert_eq!(s.esc_mut().al_status(), (0x08, 0));
+        s.poll(&mut app, 11_000).unwrap();
+        assert_eq!(s.esc_mut().al_status(), (0x14, 0x001B));
+        // The ESC's watchdog event is acted on at once.
+        let (mut s, mut app) = new_slave();
+        to_op(&mut s, &mut app);
+        s.poll(&mut app, 10_000).unwrap();
+        s.esc_mut().m[reg::WATCHDOG_STATUS_PD as usize] = 0;
+        s.esc_mut().set_event(1 << 6, true);
+        s.poll(&mut app, 10_001).unwrap();
+        assert_eq!(s.esc_mut().al_status(), (0x14, 0x001B));
+    }
+
     fn mailbox_answer_uses_handover_and_repeat() {
         let (mut s, mut app) = new_slave();
         to_preop(&mut s, &mut app);
