@@ -544,3 +544,92 @@ fn csp_following_error_supervision_on_lagging_axis() {
     assert_eq!(d.state(), PdsState::SwitchOnDisabled);
     assert_eq!(d.error_code(), 0);
 }
+
+#[test]
+fn random_feedback_and_raw_parameters_never_panic() {
+    let mut rng = Rng(0x1234_5678_9ABC_DEF1);
+    let mut d = Cia402::new();
+    for i in 0..100_000u32 {
+        if i % 97 == 0 {
+            // Parameters written directly (the struct is public): any bit pattern.
+            let p = &mut d.params;
+            p.quick_stop_option = rng.next() as i16;
+            p.halt_option = rng.next() as i16;
+            p.fault_reaction_option = rng.next() as i16;
+            p.shutdown_option = rng.next() as i16;
+            p.disable_op_option = rng.next() as i16;
+            p.max_profile_velocity = rng.next() as u32;
+            p.max_motor_speed = rng.next() as u32;
+            p.profile_velocity = rng.next() as u32;
+            p.profile_acceleration = rng.next() as u32;
+            p.profile_deceleration = rng.next() as u32;
+            p.quick_stop_deceleration = rng.next() as u32;
+            p.max_acceleration = rng.next() as u32;
+            p.max_deceleration = rng.next() as u32;
+            p.start_stop_speed = rng.next() as u32;
+            p.motion_profile_type = [0i16, 3, 7, -1][rng.below(4) as usize];
+            p.homing_method = rng.next() as i8;
+            p.homing_speed_switch = rng.next() as u32;
+            p.homing_speed_zero = rng.next() as u32;
+            p.homing_acceleration = rng.next() as u32;
+            p.interpolation_period = rng.next() as u8;
+            p.interpolation_index = rng.next() as i8;
+            p.sw_limit_min = rng.next() as i32;
+            p.sw_limit_max = rng.next() as i32;
+            p.polarity = rng.next() as u8;
+            p.target_position = rng.next() as i32;
+            p.target_velocity = rng.next() as i32;
+            p.position_offset = rng.next() as i32;
+            p.velocity_offset = rng.next() as i32;
+            p.following_error_window = rng.next() as u32;
+            p.positioning_option = rng.next() as u16;
+            d.set_mode([0i8, 1, 3, 6, 8, 9][rng.below(6) as usize]);
+            d.set_rx_raw(19, rng.next() as u32);
+        }
+        d.set_controlword(
+            [0x0Fu16, 0x1F, 0x3F, 0x7F, 0x21F, 0x10F, 0x06, 0x80][rng.below(8) as usize],
+        );
+        let some = |r: &mut Rng| {
+            if r.below(4) == 0 {
+                Some(r.next() as i32)
+            } else {
+                None
+            }
+        };
+        let fb = DriveFeedback {
+            position: rng.next() as i32,
+            velocity: rng.next() as i32,
+            torque: rng.next() as i16,
+            current: rng.next() as i16,
+            digital_inputs: rng.next() as u32,
+            index: some(&mut rng),
+            probe1: EdgeLatch {
+                rising: some(&mut rng),
+                falling: some(&mut rng),
+            },
+            probe2: EdgeLatch {
+                rising: some(&mut rng),
+                falling: some(&mut rng),
+            },
+            fault: if rng.below(500) == 0 {
+                rng.next() as u16
+            } else {
+                0
+            },
+            power_stage_tripped: rng.below(2) == 0,
+            warning: rng.below(2) == 0,
+            current_limited: rng.below(2) == 0,
+            quick_stop_input: rng.below(50) == 0,
+        };
+        let c = d.cycle(
+            &fb,
+            [0.001f32, 0.000125, 0.004, 1.0e-9][rng.below(4) as usize],
+        );
+        assert!(c.velocity.is_finite(), "{}", c.velocity);
+        assert_eq!(PdsState::from_statusword(d.statusword()), Some(d.state()));
+        let mut buf = [0u8; 4];
+        for &(i, s) in TX_SLOTS {
+            d.read(i, s, &mut buf).unwrap();
+        }
+    }
+}

@@ -15,6 +15,31 @@
 //! Submodules: [`pds`] (states and the transition table), [`profile`] (trajectory
 //! generator), [`homing`], [`probe`] (touch probe), [`objects`] (dictionary entries,
 //! SDO read/write, PDO slots).
+//!
+//! # Behaviour decided here (where the sources leave a choice)
+//! * Transition 1 happens in the first [`Cia402::cycle`]; [`Cia402::on_esm_init`] puts
+//!   the PDS in Switch on disabled from any state (a persisting fault condition in
+//!   [`DriveFeedback::fault`] raises the fault again in the next cycle).
+//! * Option codes 3 and 4 ("current limit", "voltage limit") of 0x605A/0x605D/0x605E
+//!   stop with the maximum deceleration 0x60C6: the drive is position controlled.
+//!   0x605A = 0 / 0x605E = 0 disable the drive function at once (transitions 11 + 12
+//!   in one cycle for 0x605A = 0).
+//! * Transitions 5 and 8 with option code 1 stay in Operation enabled while the axis
+//!   slows down (0x6084), then change state.
+//! * PP: a set-point is refused (no acknowledge, statusword bit 14 set) while 0x6081,
+//!   0x6083 or 0x6084 is 0. Halt voids the running and the buffered set-point. Bit 9
+//!   passes through the current target at min(its, the next) profile velocity only
+//!   when the buffered target continues in the same direction. Bit 15 (E5) is the
+//!   inverse of bit 12. Relative targets follow 0x60F2 bits 0-1.
+//! * Hardware limit switches (0x60FD bits 0/1, outside homing) stop motion towards
+//!   them with 0x6085 and set bits 8 and 11; motion away from them is allowed.
+//!   Software limits 0x607D apply when min < max and not both at the type limits.
+//! * Homing: at the home position the position actual value reads 0x607C (the axis
+//!   returns to the reference point found, so the final position is that point);
+//!   homing runs in user coordinates (after 0x607E).
+//! * A following error (|0x60F4| > 0x6065 for longer than 0x6066 ms in PP, HM, CSP)
+//!   sets bit 13 and raises fault 0x8611; 0x6065 = 0xFFFFFFFF switches it off.
+//! * Leaving Op while the drive function is enabled: fault 0x8100.
 
 pub mod homing;
 pub mod objects;

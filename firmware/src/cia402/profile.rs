@@ -48,9 +48,9 @@ fn sqrt(x: f32) -> f32 {
 /// `floor` for values well inside the `i32` range.
 #[inline]
 fn floor_i32(x: f32) -> i32 {
-    let t = x as i32;
+    let t = x as i32; // saturating
     if (t as f32) > x {
-        t - 1
+        t.saturating_sub(1)
     } else {
         t
     }
@@ -469,6 +469,25 @@ mod tests {
         assert_eq!(y_prev, 1_000_100);
         // The trapezoid alone takes 1.1 s; the filter adds 19 cycles.
         assert!((1115..=1125).contains(&n), "{n}");
+    }
+
+    #[test]
+    fn extreme_values_do_not_panic() {
+        let mut m = Motion::at(i32::MIN);
+        m.run_at(-1.0e12, 1.0);
+        m.run_at(f32::MAX, 1.0);
+        m.ramp_velocity(f32::MAX, f32::MAX, f32::MAX, 1.0);
+        m.to_position(i32::MAX, f32::MAX, f32::MAX, 0.0, f32::MAX, f32::MAX, 1.0);
+        m.to_position(i32::MIN, 1.0, 1.0e-30, 1.0e-30, 0.0, 0.0, 1.0e-6);
+        m.stop(0.0, 1.0);
+        assert_eq!(m.velocity(), 0.0);
+        let mut f = Smoother::default();
+        f.start(i32::MAX, 1000);
+        for p in [i32::MIN, i32::MAX, 0, i32::MIN] {
+            f.push(p, 0);
+        }
+        assert_eq!(floor_i32(-1.0e20), i32::MIN);
+        assert_eq!(floor_i32(1.0e20), i32::MAX);
     }
 
     #[test]
