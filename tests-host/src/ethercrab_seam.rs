@@ -83,8 +83,14 @@ impl<W: Wire> Future for SimNetwork<'_, W> {
                 SIM_NOW_NS.store(w.now_ns(), Ordering::Relaxed);
                 o
             };
-            if let FrameOutcome::Malformed(_) = outcome {
-                st.malformed += 1;
+            match outcome {
+                FrameOutcome::Malformed(_) => st.malformed += 1,
+                FrameOutcome::Destroyed { .. } => {
+                    // Nothing comes back: ethercrab will time the PDU out.
+                    st.rejected += 1;
+                    continue;
+                }
+                _ => {}
             }
             match this.rx.receive_frame(&this.buf) {
                 Ok(ethercrab::ReceiveAction::Processed) => st.received += 1,

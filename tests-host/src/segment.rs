@@ -289,6 +289,14 @@ impl<A: SlaveApplication> Segment<A> {
         self.poll_all();
     }
 
+    /// Advances simulated time to `t_ns` (nothing if that is not ahead), e.g. to follow
+    /// the wall clock in a real-time loop.
+    pub fn advance_to(&mut self, t_ns: u64) {
+        if t_ns > self.now_ns {
+            self.advance(t_ns - self.now_ns);
+        }
+    }
+
     /// AL status and status code of drive `i` as the master reads them.
     pub fn al_status(&self, i: usize) -> (u16, u16) {
         let e = self.drives[i].esc.borrow();

@@ -27,6 +27,9 @@ struct Report {
     op_wkc: Vec<u16>,
     echo_ok: bool,
     states_after_op: Vec<u16>,
+    device_types: Vec<u32>,
+    targets: Vec<i32>,
+    sdo_abort: Option<bool>,
 }
 
 async fn bring_up(
@@ -49,6 +52,13 @@ async fn bring_up(
         rep.identities
             .push((id.vendor_id, id.product_id, id.revision));
         rep.addresses.push(sd.configured_address());
+    }
+    // Expedited SDO traffic through the mailbox SyncManagers.
+    for (i, sd) in group.iter(&md).enumerate() {
+        rep.device_types.push(sd.sdo_read::<u32>(0x1000, 0).await?);
+        sd.sdo_write(0x607A, 0, 0x1234_0000i32 + i as i32).await?;
+        rep.targets.push(sd.sdo_read::<i32>(0x607A, 0).await?);
+        rep.sdo_abort = Some(sd.sdo_read::<u32>(0x5555, 0).await.is_err());
     }
     let group = group.into_op(&md).await?;
     {
@@ -142,6 +152,19 @@ async fn bring_up_dc(
     Ok((wkcs, pulses, cycles_to_op))
 }
 
+/// ethercrab writes a new station alias into the SII (word 4 + checksum word 7).
+async fn write_alias(md: Rc<MainDevice<'static>>) -> Result<Vec<u16>, ethercrab::error::Error> {
+    let mut group = md
+        .init_single_group::<MAX_SUBDEVICES, MAX_PDI>(sim_now_ns)
+        .await?;
+    let mut aliases = Vec::new();
+    for (i, mut sd) in group.iter_mut(&md).enumerate() {
+        sd.set_alias_address(0x0770 + i as u16).await?;
+        aliases.push(sd.alias_address());
+    }
+    Ok(aliases)
+}
+
 fn scenario(
     h: &mut MasterHarness,
     cfg: SegmentConfig,
@@ -218,6 +241,18 @@ fn ethercrab_bringup() {
             rep.op_wkc
         );
         assert!(rep.echo_ok, "{ctx}: process data echoed by every drive");
+        assert_eq!(
+            rep.device_types,
+            vec![0x0002_0192; n],
+            "{ctx}: SDO upload 0x1000"
+        );
+        let want: Vec<i32> = (0..n as i32).map(|i| 0x1234_0000 + i).collect();
+        assert_eq!(rep.targets, want, "{ctx}: SDO download + upload 0x607A");
+        assert_eq!(
+            rep.sdo_abort,
+            Some(true),
+            "{ctx}: missing object answered with an abort"
+        );
         let mut s = seg.borrow_mut();
         for i in 0..n {
             assert_eq!(
@@ -244,6 +279,33 @@ fn ethercrab_bringup() {
         );
         assert_eq!(TEST_PD_BYTES, 6);
         eprintln!("{ctx}: {} frames, {stats:?}", s.frames());
+    }
+    // Station alias written into the EEPROM by the master, loaded after a reload.
+    for flavour in [Flavour::Lan9252, Flavour::Et1100] {
+        let seg = Rc::new(RefCell::new(
+            test_segment(SegmentConfig::new(flavour), 2).expect("segment"),
+        ));
+        let (res, _) = h.run(seg.clone(), sim_timeouts(), sim_config(), write_alias);
+        assert_eq!(res.expect("alias write"), vec![0x0770, 0x0771]);
+        let s = seg.borrow();
+        for i in 0..2 {
+            let mut e = s.esc(i);
+            let sii = e.sii().to_vec();
+            assert_eq!(
+                &sii[8..10],
+                &(0x0770 + i as u16).to_le_bytes(),
+                "{flavour:?}: SII word 4"
+            );
+            assert_eq!(
+                sii[14],
+                tests_host::esc_sim::sii_crc8(&sii[..14]),
+                "{flavour:?}: checksum word 7"
+            );
+            // A reload command makes the ESC take the new alias into 0x0012.
+            assert!(e.side_write(tests_host::esc_sim::Side::Ecat, 0x0500, &[0x02]));
+            assert!(e.side_write(tests_host::esc_sim::Side::Ecat, 0x0502, &[0x00, 0x04]));
+            assert_eq!(e.peek(0x0012, 2), &(0x0770 + i as u16).to_le_bytes());
+        }
     }
     // DC SYNC0 mode, both chips, 3 drives.
     for flavour in [Flavour::Lan9252, Flavour::Et1100] {
@@ -855,4 +917,30 @@ fn station_alias_from_sii_and_garbage_frames_through_a_live_segment() {
         r.request(i, 0x11);
         assert_eq!(r.request(i, 0x11).0, 0x01, "drive {i} still answers");
     }
+}
+
+#[test]
+fn mailbox_repeat_request_resends_the_last_reply() {
+    let mut r = Raw::new(Flavour::Lan9252, 1);
+    r.enter_preop(0);
+    sdo_download(&mut r, 0, 1, 0x607A, 0, &7i32.to_le_bytes()).expect("download");
+    // The reply was consumed by sdo_download; the master lost it and asks again by
+    // toggling the repeat request bit (SM1 activate bit 1).
+    let act = r.rd(0, 0x080E, 2);
+    assert_eq!(act[1] & 0x02, 0, "no repeat acknowledged yet");
+    r.wr(0, 0x080E, &[act[0] ^ 0x02]);
+    r.seg.advance(100_000);
+    let st = r.rd(0, 0x0808, 8);
+    assert_eq!(st[5] & 0x08, 0x08, "SM1 full again");
+    assert_eq!(
+        st[7] & 0x02,
+        0x02,
+        "repeat acknowledged in PDI control bit 1"
+    );
+    let d = r
+        .seg
+        .raw(FrameBuilder::new().physical(Command::Fprd, 0x1000, 0x1080, &[0; 128]));
+    assert_eq!(d[0].wkc, 1);
+    assert_eq!(d[0].data[5] & 0x0F, 0x03, "CoE");
+    assert_eq!(d[0].data[8], 0x60, "the download response again");
 }

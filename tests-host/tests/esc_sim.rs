@@ -1200,3 +1200,40 @@ fn pdi_watchdog_and_dl_status() {
         "a PDI access restarts it"
     );
 }
+
+#[test]
+fn circulating_frames_are_marked_then_destroyed() {
+    let mut escs = chain(3, Flavour::Lan9252);
+    // Normal line: the bit stays clear.
+    let mut f = FrameBuilder::new()
+        .physical(Command::Brd, 0, 0, &[0])
+        .build();
+    let mut refs: Vec<&mut EscSim> = escs.iter_mut().collect();
+    process_frame(&mut refs, &mut f, 0, HOP);
+    assert_eq!(datagrams(&f).unwrap()[0].wkc, 3);
+    assert_eq!(f[16 + 7] & 0x40, 0);
+    // Cable to the master broken at the second ESC: it marks the frame.
+    escs[1].set_port0_loop_closed(true);
+    assert_ne!(
+        escs[1].peek(reg::DL_STATUS + 1, 1)[0] & 0x01,
+        0,
+        "port 0 loop closed in DL status"
+    );
+    let mut f = FrameBuilder::new()
+        .physical(Command::Brd, 0, 0, &[0])
+        .build();
+    let mut refs: Vec<&mut EscSim> = escs.iter_mut().collect();
+    assert!(matches!(
+        process_frame(&mut refs, &mut f, 0, HOP),
+        FrameOutcome::Processed { .. }
+    ));
+    assert_eq!(f[16 + 7] & 0x40, 0x40, "circulating bit set");
+    // The same frame coming round again is destroyed there.
+    let mut refs: Vec<&mut EscSim> = escs.iter_mut().collect();
+    assert_eq!(
+        process_frame(&mut refs, &mut f, 0, HOP),
+        FrameOutcome::Destroyed { at: 1 }
+    );
+    escs[1].set_port0_loop_closed(false);
+    assert_eq!(escs[1].peek(reg::DL_STATUS, 1)[0] & 0x10, 0x10, "link back");
+}

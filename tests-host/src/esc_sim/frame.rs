@@ -98,6 +98,12 @@ pub enum FrameOutcome {
     PassedThrough,
     /// Broken frame: passed through unchanged, nothing executed.
     Malformed(Malformed),
+    /// A circulating frame reached an ESC whose port 0 loop is closed a second time
+    /// and was destroyed: nothing comes back (the ESCs before it did process it).
+    Destroyed {
+        /// Position of the ESC that destroyed it.
+        at: usize,
+    },
 }
 
 /// Why a frame was rejected.
@@ -179,7 +185,10 @@ fn parse(frame: &[u8]) -> Result<Option<Vec<DatagramPos>>, Malformed> {
 /// the frame travels down the line and back: the ESC at index `i` sees it at
 /// `t_ns + i·hop_ns` on port 0 and, if it has a successor, gets it back on port 1 at
 /// `t_ns + (2·(n−1) − i)·hop_ns`. The first ESC sets the locally administered bit of
-/// the source MAC address, as a real port 0 does.
+/// the source MAC address, as a real port 0 does. Bit 14 of each datagram's length
+/// word (circulating) is left alone unless an ESC has its port 0 loop closed
+/// ([`EscSim::set_port0_loop_closed`]): that ESC sets it, or destroys the frame when
+/// it is already set.
 ///
 /// `escs` are anything that dereferences to an [`EscSim`]: `&mut EscSim`, a
 /// `RefMut` of a shared simulator, or the simulators themselves.
@@ -203,6 +212,18 @@ pub fn process_frame<E: DerefMut<Target = EscSim>>(
             port1_ns: (i + 1 < n).then(|| t_ns + (2 * (n - 1) - i) * hop_ns),
         };
         esc.set_frame_timing(timing);
+        if esc.port0_loop_closed() {
+            // Circulating-frame rule: an ESC with a closed port 0 marks frames passing
+            // its processing unit; a frame already marked has gone round once without
+            // reaching a master and is destroyed.
+            let circulating = dgs.iter().any(|d| frame[d.header + 7] & 0x40 != 0);
+            if circulating {
+                return FrameOutcome::Destroyed { at: i as usize };
+            }
+            for d in &dgs {
+                frame[d.header + 7] |= 0x40;
+            }
+        }
         for d in &dgs {
             process_datagram(
                 esc,

@@ -168,6 +168,7 @@ pub struct EscSim {
     pdi_last_ns: u64,
     timing: FrameTiming,
     stats: SimStats,
+    port0_closed: bool,
 }
 
 /// The SII checksum: CRC-8, polynomial 0x07, init 0xFF, MSB first (digest §7.2).
@@ -244,6 +245,7 @@ impl EscSim {
             pdi_last_ns: 0,
             timing: FrameTiming::default(),
             stats: SimStats::default(),
+            port0_closed: false,
         };
         esc.power_on();
         esc
@@ -319,6 +321,26 @@ impl EscSim {
         }
         v |= (1 << 12) | (1 << 14); // ports 2/3 closed
         put_u16(&mut self.mem, reg::DL_STATUS as usize, v | 0x0002);
+    }
+
+    /// Closes (or reopens) the loop at port 0, as when the cable towards the master
+    /// is broken: frames then reach the processing unit through the closed port 0,
+    /// which marks them as circulating (see [`frame::process_frame`]).
+    pub fn set_port0_loop_closed(&mut self, closed: bool) {
+        self.port0_closed = closed;
+        let a = reg::DL_STATUS as usize;
+        let mut v = get_u16(&self.mem, a);
+        if closed {
+            v = (v & !((1 << 4) | (1 << 9))) | (1 << 8);
+        } else {
+            v = (v & !(1 << 8)) | (1 << 4) | (1 << 9);
+        }
+        put_u16(&mut self.mem, a, v);
+    }
+
+    /// True while port 0's loop is closed.
+    pub fn port0_loop_closed(&self) -> bool {
+        self.port0_closed
     }
 
     /// Gives this ESC's local clock a different power-up instant (ns added to the
