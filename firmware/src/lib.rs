@@ -13,4 +13,5 @@ pub mod io;
 pub mod monitor;
 pub mod params;
 pub mod pdo_defaults;
+pub mod pdo_defaults;
 pub mod storage;
