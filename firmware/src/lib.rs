@@ -13,5 +13,4 @@ pub mod io;
 pub mod monitor;
 pub mod params;
 pub mod pdo_defaults;
-pub mod pdo_defaults;
 pub mod storage;
