@@ -168,6 +168,22 @@ impl Servo {
         self.iq_ref = iq_now;
     }
 
+    /// Velocity-only step (profile velocity / CSV modes): velocity demand `vel_dem`
+    /// (counts/s) with acceleration feed-forward `acc_dem` (counts/s²) against the
+    /// velocity estimate `vel`. The position integrator is cleared and the following
+    /// error is not supervised; switching back to [`Servo::step`] is bumpless for the
+    /// velocity integrator (start the position demand at the actual position).
+    #[inline]
+    pub fn step_velocity(&mut self, vel_dem: f32, acc_dem: f32, vel: f32) -> f32 {
+        self.pos_int = 0.0;
+        self.following_error = 0.0;
+        let iq = self
+            .vel_pi
+            .update(vel_dem - vel, self.gains.acc_ff * acc_dem);
+        self.iq_ref = iq;
+        iq
+    }
+
     /// One step: demand, actual position (counts) and velocity estimate (counts/s).
     /// Returns the q-current reference (A), limited to `±iq_max`.
     #[inline]

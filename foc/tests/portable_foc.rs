@@ -403,6 +403,22 @@ qemu_runner::tests! {
         assert!(s.fault);
     }
 
+    fn servo_velocity_mode_integrates_to_the_demand() {
+        // Rigid body: counts/s² = b·i_q, b from the ECN57-20.
+        let (j, kt, cpr) = (4.8e-5f32, 0.283f32, 4000u32);
+        let b = kt * cpr as f32 / (2.0 * core::f32::consts::PI * j);
+        let mut s = Servo::new(ServoGains::from_bandwidth(j, kt, cpr, 100.0, 7.0), 1e-4, 100);
+        let mut v = 0.0f32;
+        // Constant load of 0.5 A equivalent: the integrator must take it over.
+        for _ in 0..5000 {
+            let iq = s.step_velocity(20_000.0, 0.0, v);
+            v += (b * (iq - 0.5)) * 1e-4;
+        }
+        assert!(near(v, 20_000.0, 20.0), "{v}");
+        assert!(near(s.iq_ref, 0.5, 0.01), "{}", s.iq_ref);
+        assert!(!s.fault);
+    }
+
     fn servo_gain_parameters_scale_the_base() {
         let g = ServoGains::from_bandwidth(4.8e-5, 0.283, 4000, 250.0, 7.0);
         let same = g.scaled(100, 0, 100, 100);
