@@ -5,6 +5,7 @@ use firmware::cia402::{mode, Cia402, DriveFeedback};
 
 pub fn run() {
     cia402();
+    cia402_pp();
     product();
 }
 
@@ -48,6 +49,30 @@ fn cia402() {
         }
         (c.position, acc)
     });
+    black_box(out);
+    black_box(&d);
+}
+
+/// PP cycle in the middle of a move (the on-line trapezoid with its square root), for
+/// comparison with the CSP row.
+fn cia402_pp() {
+    let mut d = Cia402::new();
+    d.set_mode(mode::PP);
+    let mut fb = DriveFeedback::default();
+    for w in [0x0000u16, 0x0006, 0x0007, 0x000F] {
+        d.set_controlword(w);
+        d.cycle(&fb, 0.001);
+    }
+    d.params.target_position = 1_000_000;
+    d.set_controlword(0x003F);
+    for _ in 0..50 {
+        let c = d.cycle(&fb, 0.001);
+        fb.position = c.position;
+        fb.velocity = c.velocity as i32;
+        d.set_controlword(0x002F);
+    }
+    let fb = black_box(fb);
+    let out = crate::bench("PP cycle (CiA 402 + trapezoid)", || d.cycle(&fb, 0.001));
     black_box(out);
     black_box(&d);
 }
