@@ -725,8 +725,20 @@ impl<E: EscAccess> Slave<E> {
         if len == 0 {
             return Ok(());
         }
-        // Reading the whole buffer (last byte included) hands it back to the master.
-        self.esc.read(sm0.start, &mut self.mbx_buf[..len])?;
+        // Header first, then only the bytes it announces (clamped to the buffer), then
+        // the last byte of the buffer: reading it hands the buffer back to the master.
+        let hdr = crate::mailbox::HEADER_LEN.min(len);
+        self.esc.read(sm0.start, &mut self.mbx_buf[..hdr])?;
+        let announced = u16::from_le_bytes([self.mbx_buf[0], self.mbx_buf[1]]) as usize;
+        let total = (hdr + announced).clamp(hdr, len);
+        if total > hdr {
+            self.esc
+                .read(sm0.start + hdr as u16, &mut self.mbx_buf[hdr..total])?;
+        }
+        if total < len {
+            let mut last = [0u8; 1];
+            self.esc.read(sm0.last_byte(), &mut last)?;
+        }
         let state = self.esm.state();
         let mut dict = CommDictionary {
             pdo: &mut self.pdo,
@@ -734,7 +746,7 @@ impl<E: EscAccess> Slave<E> {
             app,
         };
         self.mbx
-            .on_request(&self.mbx_buf[..len], &mut dict, state, now);
+            .on_request(&self.mbx_buf[..total], &mut dict, state, now);
         Ok(())
     }
 

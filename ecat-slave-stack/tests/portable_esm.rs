@@ -1064,6 +1064,23 @@ qemu_runner::tests! {
         assert_eq!(s.esc_mut().al_status(), (0x14, 0x001B));
     }
 
+    fn mailbox_buffer_is_released_and_bad_lengths_are_answered() {
+        let (mut s, mut app) = new_slave();
+        to_preop(&mut s, &mut app);
+        let sm0_status = (reg::sm_register(0) + reg::sm::STATUS) as usize;
+        for announced in [0u16, 2, 10, 122, 123, 500, 0xFFFF] {
+            let mut req = [0u8; 128];
+            req[..2].copy_from_slice(&announced.to_le_bytes());
+            req[5] = 0x03;
+            s.esc_mut().ecat_write(0x1000, &req);
+            assert_ne!(s.esc_mut().m[sm0_status] & 0x08, 0);
+            s.poll(&mut app, 0).unwrap();
+            assert_eq!(s.esc_mut().m[sm0_status] & 0x08, 0, "released ({announced})");
+            let mut out = [0u8; 128];
+            assert!(s.esc_mut().read_sm1(&mut out), "answered ({announced})");
+        }
+    }
+
     fn mailbox_answer_uses_handover_and_repeat() {
         let (mut s, mut app) = new_slave();
         to_preop(&mut s, &mut app);
