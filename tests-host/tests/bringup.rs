@@ -944,3 +944,67 @@ fn mailbox_repeat_request_resends_the_last_reply() {
     assert_eq!(d[0].data[5] & 0x0F, 0x03, "CoE");
     assert_eq!(d[0].data[8], 0x60, "the download response again");
 }
+
+#[test]
+fn random_datagrams_against_live_drives_never_panic() {
+    for flavour in [Flavour::Lan9252, Flavour::Et1100] {
+        let mut r = Raw::new(flavour, 3);
+        for i in 0..3 {
+            r.enter_op(i);
+        }
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        // Registers the stack reacts to, plus anything.
+        let hot: [u16; 12] = [
+            0x0120, 0x0800, 0x0806, 0x0808, 0x080E, 0x0810, 0x0818, 0x0600, 0x0981, 0x09A0, 0x1000,
+            0x1100,
+        ];
+        for k in 0..4000 {
+            let mut fb = FrameBuilder::new();
+            for _ in 0..1 + next() % 3 {
+                let cmd = (next() % 15) as u8;
+                let ado = if next() % 2 == 0 {
+                    hot[(next() % hot.len() as u64) as usize].wrapping_add((next() % 16) as u16)
+                } else {
+                    (next() % 0x3000) as u16
+                };
+                let adp = match next() % 3 {
+                    0 => 0x1000 + (next() % 3) as u16,
+                    1 => 0u16.wrapping_sub((next() % 3) as u16),
+                    _ => next() as u16,
+                };
+                let len = (next() % 140) as usize;
+                let data: Vec<u8> = (0..len).map(|_| next() as u8).collect();
+                fb = fb.raw(cmd, adp as u32 | (ado as u32) << 16, &data);
+            }
+            r.seg.raw(fb);
+            if k % 10 == 0 {
+                r.seg.advance(next() % 3_000_000);
+            }
+        }
+        // Every drive still answers a plain Init request.
+        for i in 0..3 {
+            r.wr(i, 0x0010, &(0x1000 + i as u16).to_le_bytes());
+            let d = r.seg.raw(FrameBuilder::new().physical(
+                Command::Apwr,
+                0u16.wrapping_sub(i as u16),
+                0x0010,
+                &(0x1000 + i as u16).to_le_bytes(),
+            ));
+            assert_eq!(d[0].wkc, 1);
+            let _ = r.rd(i, 0x0120, 2);
+            r.seg.advance(1000);
+            r.request(i, 0x11);
+            assert_eq!(
+                r.request(i, 0x11).0 & 0x0F,
+                0x01,
+                "{flavour:?}: drive {i} back in Init"
+            );
+        }
+    }
+}

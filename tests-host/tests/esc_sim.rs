@@ -647,6 +647,26 @@ fn lrw_over_two_slaves_with_sync_managers() {
         .wkc,
         2
     );
+    // LRW covering only the outputs: write only (+2 each).
+    assert_eq!(
+        run(
+            &mut escs,
+            FrameBuilder::new().logical(Command::Lrw, 0x10004, &[0; 4])
+        )[0]
+        .wkc,
+        4
+    );
+    // LRW covering the inputs of slave 0 and the outputs of slave 1 only: +1 +2.
+    configure_fmmu(&mut escs, 0xFFFF, 0, 0x10002, 2, (0, 7), 0x1100, 0, 2);
+    configure_fmmu(&mut escs, 0xFFFF, 1, 0x20000, 2, (0, 7), 0x1400, 0, 1);
+    assert_eq!(
+        run(
+            &mut escs,
+            FrameBuilder::new().logical(Command::Lrw, 0x10000, &[0; 4])
+        )[0]
+        .wkc,
+        3
+    );
 }
 
 #[test]
