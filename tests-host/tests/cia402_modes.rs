@@ -6,7 +6,7 @@
 use ecat_slave_stack::od::{self, DataType, SdoAbort};
 use firmware::cia402::objects::{OBJECTS, RX_SLOTS, TX_SLOTS};
 use firmware::cia402::pds::PdsState;
-use firmware::cia402::{mode, sw, Cia402, DriveCommand, DriveFeedback, EdgeLatch};
+use firmware::cia402::{mode, sw, Cia402, DriveCommand, DriveFeedback, EdgeLatch, SetpointKind};
 
 const DT: f32 = 0.001;
 
@@ -88,8 +88,12 @@ impl Axis {
     fn apply(&mut self, c: &DriveCommand) {
         let a = self.x;
         if c.drive_enabled {
-            let k = 1.0 - (-(DT as f64) / self.tau).exp();
-            self.x += (c.position as f64 - self.x) * k;
+            if c.kind == SetpointKind::Velocity {
+                self.x += c.velocity as f64 * DT as f64;
+            } else {
+                let k = 1.0 - (-(DT as f64) / self.tau).exp();
+                self.x += (c.position as f64 - self.x) * k;
+            }
         }
         self.v = (self.x - a) / DT as f64;
         let (lo, hi) = if self.x > a { (a, self.x) } else { (self.x, a) };

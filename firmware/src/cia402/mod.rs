@@ -156,7 +156,8 @@ pub enum SetpointKind {
     /// Follow `position`, with `velocity` as feed-forward.
     #[default]
     Position,
-    /// Follow `velocity` (CSV); `position` is its integral.
+    /// Follow `velocity` (PV, CSV); `position` is the actual position plus one cycle of
+    /// that velocity (for a loop that can only follow positions, e.g. open loop).
     Velocity,
 }
 
@@ -924,6 +925,10 @@ impl Cia402 {
                 SetpointKind::Position
             }
             mode::PV => {
+                // Velocity modes: the servo follows the velocity; the position demand is
+                // re-based on the actual position (keeping its fraction) so that it shows
+                // where the axis is and a later position mode starts bumpless.
+                self.motion.rebase(self.actual_position);
                 let vmax = p.vmax();
                 let mut target = (p.target_velocity as f32).clamp(-vmax, vmax);
                 let mut dec = p.dec(p.profile_deceleration);
@@ -965,7 +970,7 @@ impl Cia402 {
                 } else {
                     reached && self.vel_window_time * 1000.0 >= p.velocity_window_time as f32
                 };
-                SetpointKind::Position
+                SetpointKind::Velocity
             }
             mode::HM => {
                 self.run_hm(halt, index, dt);
@@ -993,7 +998,9 @@ impl Cia402 {
                         self.abnormal_stop = true;
                         v = 0.0;
                     }
-                    // Direct set-point every cycle (no ramp); the position integrates it.
+                    // Direct set-point every cycle (no ramp); the position integrates it
+                    // from the actual position (see PV).
+                    self.motion.rebase(self.actual_position);
                     self.motion.run_at(v, dt);
                     self.clamp_sw_limit();
                     SetpointKind::Velocity

@@ -92,6 +92,12 @@ impl Motion {
         self.vel = vel;
     }
 
+    /// Moves the integer position to `pos`, keeping the fraction and the velocity
+    /// (velocity modes follow the actual position without losing sub-count motion).
+    pub fn rebase(&mut self, pos: i32) {
+        self.pos = pos;
+    }
+
     /// Shifts the coordinate system by `delta` (homing sets the zero).
     pub fn shift(&mut self, delta: i32) {
         self.pos = self.pos.wrapping_add(delta);
