@@ -132,6 +132,48 @@ pub fn power_up(board: Board, id_bits: u8, fn_bits: u8, stored_station: u16) -> 
     }
 }
 
+/// The motor settings in effect: from the function DIPs when 0x2025 = 0 (and the board
+/// has function switches in that position), otherwise from the parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Settings {
+    /// Peak (running) current, mA (0x2000 or the DIP table).
+    pub peak_current_ma: u16,
+    /// Holding current in % of the running current (0x2026, or 100 / 50 from SW4).
+    pub holding_percent: u8,
+    /// Direction reversed (0x2051, or SW5 / SW7 ON = CW).
+    pub direction_reversed: bool,
+    /// Command smoothing time, µs (0x2010:02 when 0x2009 = 1, or the DIP time; 0 = off).
+    pub smoothing_us: u32,
+}
+
+/// Chooses between the parameters and the DIP functions (`dip`: what
+/// [`power_up`] read; `None` when the board has none or is in station entry).
+pub fn settings(p: &crate::params::Params, dip: Option<DipFunctions>) -> Settings {
+    use crate::params::P;
+    match dip {
+        Some(f) if p.get(P::ControlMode) == 0 => Settings {
+            peak_current_ma: f.peak_current_ma,
+            holding_percent: match f.standstill {
+                Standstill::Software => p.get(P::HoldingCurrent) as u8,
+                Standstill::Full => 100,
+                Standstill::Half => 50,
+            },
+            direction_reversed: f.direction_cw,
+            smoothing_us: f.smoothing_us,
+        },
+        _ => Settings {
+            peak_current_ma: p.get(P::PeakCurrent) as u16,
+            holding_percent: p.get(P::HoldingCurrent) as u8,
+            direction_reversed: p.get(P::DirectionReversal) == 1,
+            smoothing_us: if p.get(P::CmdFilterEnable) == 1 {
+                p.get(P::CmdFilterTime) as u32
+            } else {
+                0
+            },
+        },
+    }
+}
+
 /// Station-number entry of a single bank: while SW8 is ON, SW1-SW7 (ON = 1) are the
 /// station number; when SW8 returns OFF that number is to be stored (the caller saves
 /// it in flash and uses it as the DIP address from the next power-up).
@@ -295,6 +337,47 @@ mod tests {
             }
         );
         assert_eq!(power_up(Board::TwoBanks, 0x7E, 0, 9).address, 1);
+    }
+
+    #[test]
+    fn dip_functions_only_with_control_mode_zero() {
+        use crate::identity::Variant;
+        use crate::params::{Params, P};
+        let mut p = Params::new(Variant::OpenLoop);
+        let f = est584_functions(0b0001_1000); // SW4, SW5 ON; SW1-3 OFF: 8.4 A; 25 ms
+        assert_eq!(p.get(P::ControlMode), 5);
+        let s = settings(&p, Some(f));
+        assert_eq!(
+            s,
+            Settings {
+                peak_current_ma: 3200,
+                holding_percent: 50,
+                direction_reversed: false,
+                smoothing_us: 0
+            }
+        );
+        p.set_internal(P::ControlMode, 0);
+        let s = settings(&p, Some(f));
+        assert_eq!(
+            s,
+            Settings {
+                peak_current_ma: 8400,
+                holding_percent: 100,
+                direction_reversed: true,
+                smoothing_us: 25_000
+            }
+        );
+        // SW4 OFF: the software holding current.
+        p.set_internal(P::HoldingCurrent, 30);
+        assert_eq!(settings(&p, Some(est584_functions(0))).holding_percent, 30);
+        assert_eq!(
+            settings(&p, Some(dp3cl705_functions(0))).holding_percent,
+            50
+        );
+        // No function switches (station entry, or none on the board): parameters rule.
+        p.set_internal(P::CmdFilterEnable, 1);
+        assert_eq!(settings(&p, None).smoothing_us, 1000);
+        assert_eq!(settings(&p, None).peak_current_ma, 3200);
     }
 
     #[test]

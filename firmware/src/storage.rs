@@ -404,7 +404,8 @@ impl Storage {
 
     /// Start address of slot `n` (0 or 1).
     pub fn slot_address(&self, n: usize) -> u32 {
-        self.base + self.slot_size * n as u32
+        self.base
+            .saturating_add(self.slot_size.saturating_mul(n as u32))
     }
 
     /// Checks that the layout fits `F`'s geometry.
