@@ -946,6 +946,28 @@ qemu_runner::tests! {
         assert_eq!(ax.pos, 1_000);
     }
 
+    fn acceleration_feed_forward_follows_the_ramp() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        enable(&mut d, &mut ax, mode::PV);
+        d.params.profile_acceleration = 100_000;
+        d.params.target_velocity = 50_000;
+        for _ in 0..10 {
+            let c = step(&mut d, &mut ax);
+            assert!((c.acceleration - 100_000.0).abs() < 1.0, "{}", c.acceleration);
+        }
+        d.params.polarity = 0x40;
+        let c = step(&mut d, &mut ax);
+        assert!((c.acceleration + 100_000.0).abs() < 1.0, "{}", c.acceleration);
+        d.set_controlword(0x0007);
+        let c = step(&mut d, &mut ax);
+        // Disable operation with 0x605C = 1: the 0x6084 ramp (velocity inverted by 0x607E).
+        assert!((c.acceleration - 500_000.0).abs() < 1.0, "{}", c.acceleration);
+        steps(&mut d, &mut ax, 600);
+        let c = step(&mut d, &mut ax);
+        assert!(!c.drive_enabled && c.acceleration == 0.0);
+    }
+
     fn homing_every_method_ends_on_its_reference() {
         // World: limits at ±20 000, home switch edge at 2 000 (or zone 2 000..6 000),
         // index pulses at 100 + k·1000.

@@ -175,6 +175,9 @@ pub struct DriveCommand {
     pub position: i32,
     /// Velocity demand / feed-forward (command units/s).
     pub velocity: f32,
+    /// Acceleration feed-forward (command units/s²): change of the velocity demand over
+    /// this cycle (0 while disabled).
+    pub acceleration: f32,
     /// Torque limit, per mille of rated torque (0x6072).
     pub torque_limit: u16,
     /// Current limit, per mille of rated current (0x6073).
@@ -415,6 +418,7 @@ pub struct Cia402 {
     state: PdsState,
     controlword: u16,
     prev_cw: u16,
+    prev_demand_vel: f32,
     mode_request: i8,
     mode: i8,
     motion: Motion,
@@ -474,6 +478,7 @@ impl Cia402 {
             state: PdsState::NotReadyToSwitchOn,
             controlword: 0,
             prev_cw: 0,
+            prev_demand_vel: 0.0,
             mode_request: 0,
             mode: 0,
             motion: Motion::at(0),
@@ -865,19 +870,21 @@ impl Cia402 {
         self.prev_cw = cwv;
 
         let power = self.state.voltage_enabled();
+        let v = self.motion.velocity();
+        let acc = if drive_enabled {
+            (v - self.prev_demand_vel) / dt
+        } else {
+            0.0
+        };
+        self.prev_demand_vel = if drive_enabled { v } else { 0.0 };
+        let sign = if self.vel_neg() { -1.0 } else { 1.0 };
         DriveCommand {
             power_stage: power,
             drive_enabled,
             kind,
             position: self.user_to_raw(self.motion.position()),
-            velocity: {
-                let v = self.motion.velocity();
-                if self.vel_neg() {
-                    -v
-                } else {
-                    v
-                }
-            },
+            velocity: sign * v,
+            acceleration: sign * acc,
             torque_limit: self.params.max_torque,
             current_limit: self.params.max_current,
             brake_release: drive_enabled,
