@@ -10,7 +10,8 @@
 //!   (mailbox mode, write resp. read, AL event interrupt), enabled → else 0x0016.
 //! * [`validate_process_data`] (P→S): SM2/SM3 start inside process RAM with room for
 //!   three buffers, length equal to the mapped size, buffered mode, right direction,
-//!   enabled iff the size is non-zero, no overlap with the mailboxes or each other
+//!   SM2 with the AL event interrupt (control bit 5: the runtime is driven by the SM2
+//!   event), enabled iff the size is non-zero, no overlap with the mailboxes or each other
 //!   (a 3-buffer SM occupies 3 × length) → 0x001D (outputs) / 0x001E (inputs).
 //! * [`validate_watchdog`] (P→S): 0x0420 ≠ 0 exactly when SM2's watchdog trigger
 //!   (control bit 6) is set, and an enabled watchdog at least twice the cycle time →
@@ -291,6 +292,10 @@ pub fn validate_process_data(
         return bad;
     }
     if sm.mode() != control::MODE_BUFFERED || sm.direction() != dir.dir_bits() {
+        return bad;
+    }
+    // The runtime learns about new outputs from the SM2 AL event only.
+    if dir == PdDirection::Outputs && sm.control & control::AL_EVENT_IRQ == 0 {
         return bad;
     }
     let (a, b) = sm.range();

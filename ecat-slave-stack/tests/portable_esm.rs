@@ -775,6 +775,7 @@ qemu_runner::tests! {
             (5, 0x64, true, 6, 0x20, true, 0x001D),  // length ≠ mapping
             (6, 0x66, true, 6, 0x20, true, 0x001D),  // mailbox mode
             (6, 0x60, true, 6, 0x20, true, 0x001D),  // wrong direction
+            (6, 0x44, true, 6, 0x20, true, 0x001D),  // no AL event interrupt
             (6, 0x64, false, 6, 0x20, true, 0x001D), // disabled
             (6, 0x64, true, 7, 0x20, true, 0x001E),
             (6, 0x64, true, 6, 0x24, true, 0x001E),
