@@ -637,3 +637,58 @@ fn random_feedback_and_raw_parameters_never_panic() {
         }
     }
 }
+
+#[test]
+fn homing_on_a_narrow_switch_zone_and_starts_on_the_edges() {
+    // Zone 2 000..2 300 is narrower than the stopping distance at the switch-search
+    // speed (20 000²/(2·100 000) = 2 000 counts): the engine must still end on the edge.
+    for method in (7i8..=14).chain(23..=30) {
+        for &start in &[0, 1_999, 2_000, 2_150, 2_300, 2_301, 5_000] {
+            let mut d = Cia402::new();
+            let mut ax = Axis::new(start, 0.001);
+            ax.nl = -20_000;
+            ax.pl = 20_000;
+            ax.home = HomeSw::Zone(2000, 2300);
+            let idx_up = |x: i32| ((x - 100).div_euclid(1000) + 1) * 1000 + 100;
+            let idx_dn = |x: i32| ((x - 100 - 1).div_euclid(1000)) * 1000 + 100;
+            let expect = match method {
+                7 | 14 => idx_dn(2000),
+                8 | 13 => idx_up(1999),
+                9 | 12 => idx_dn(2301),
+                10 | 11 => idx_up(2300),
+                23 | 30 => 1_999,
+                24 | 29 => 2_000,
+                25 | 28 => 2_300,
+                _ => 2_301,
+            };
+            d.params.homing_method = method;
+            d.params.homing_speed_switch = 20_000;
+            d.params.homing_speed_zero = 500;
+            d.params.homing_acceleration = 100_000;
+            d.params.position_window = 1;
+            enable(&mut d, &mut ax, mode::HM);
+            let mut n = 0;
+            while cw(&mut d, &mut ax, 0x1F) & 0x3400 != 0x1400 {
+                assert_eq!(
+                    d.statusword() & sw::BIT13,
+                    0,
+                    "method {method} start {start}"
+                );
+                n += 1;
+                assert!(
+                    n < 100_000,
+                    "method {method} start {start}: timeout at {}",
+                    ax.pos()
+                );
+            }
+            for _ in 0..20 {
+                cw(&mut d, &mut ax, 0x1F);
+            }
+            assert!(
+                (ax.pos() - expect).abs() <= 1,
+                "method {method} start {start}: ended at {} instead of {expect}",
+                ax.pos()
+            );
+        }
+    }
+}
