@@ -289,7 +289,81 @@ fn all_values_in_range(d: &mut Drive) -> bool {
     })
 }
 
+/// A flash with coarser geometry (32-byte writes, 4-byte reads, 256-byte pages) that
+/// checks every alignment rule strictly.
+struct CoarseFlash {
+    mem: [u8; 2048],
+}
+
+impl embedded_storage::nor_flash::ErrorType for CoarseFlash {
+    type Error = embedded_storage::nor_flash::NorFlashErrorKind;
+}
+
+impl embedded_storage::nor_flash::ReadNorFlash for CoarseFlash {
+    const READ_SIZE: usize = 4;
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        use embedded_storage::nor_flash::NorFlashErrorKind as K;
+        let o = offset as usize;
+        if !o.is_multiple_of(4) || !bytes.len().is_multiple_of(4) {
+            return Err(K::NotAligned);
+        }
+        bytes.copy_from_slice(self.mem.get(o..o + bytes.len()).ok_or(K::OutOfBounds)?);
+        Ok(())
+    }
+    fn capacity(&self) -> usize {
+        self.mem.len()
+    }
+}
+
+impl embedded_storage::nor_flash::NorFlash for CoarseFlash {
+    const WRITE_SIZE: usize = 32;
+    const ERASE_SIZE: usize = 256;
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+        use embedded_storage::nor_flash::NorFlashErrorKind as K;
+        let (f, t) = (from as usize, to as usize);
+        if !f.is_multiple_of(256) || !t.is_multiple_of(256) || f > t {
+            return Err(K::NotAligned);
+        }
+        self.mem.get_mut(f..t).ok_or(K::OutOfBounds)?.fill(0xFF);
+        Ok(())
+    }
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        use embedded_storage::nor_flash::NorFlashErrorKind as K;
+        let o = offset as usize;
+        if !o.is_multiple_of(32) || !bytes.len().is_multiple_of(32) {
+            return Err(K::NotAligned);
+        }
+        let dst = self.mem.get_mut(o..o + bytes.len()).ok_or(K::OutOfBounds)?;
+        if dst.iter().any(|&b| b != 0xFF) {
+            return Err(K::Other);
+        }
+        dst.copy_from_slice(bytes);
+        Ok(())
+    }
+}
+
 qemu_runner::tests! {
+    fn coarse_flash_geometry_round_trip() {
+        let mut f = CoarseFlash { mem: [0xFF; 2048] };
+        let st = Storage::new(0, 1024);
+        let mut d = Drive::new();
+        d.set_b();
+        for seq in 1..=5u32 {
+            d.params.write(0x2002, 0, &(100 + seq as u16).to_le_bytes()).unwrap();
+            let r = st.save(&mut f, &mut d, firmware::storage::Scope::All).unwrap();
+            assert_eq!(r.sequence, seq);
+            let mut fresh = Drive::new();
+            let rep = st.load(&mut f, &mut fresh);
+            assert_eq!(rep.source, Some((((seq - 1) % 2) as usize, seq)));
+            assert_eq!((rep.skipped, rep.emergency()), (0, None));
+            assert_eq!(fresh.params.get(P::StandbyTime), 100 + seq as i32);
+            assert_eq!(fresh.fingerprint()[..11], d.fingerprint()[..11]);
+        }
+        // A layout the flash cannot hold is refused, not written.
+        assert!(Storage::new(0, 512 + 32).save(&mut f, &mut d, firmware::storage::Scope::All).is_err());
+        assert!(Storage::new(128, 1024).save(&mut f, &mut d, firmware::storage::Scope::All).is_err());
+    }
+
     fn dictionary_is_sorted() {
         assert!(od::is_well_formed(&ALL));
     }
