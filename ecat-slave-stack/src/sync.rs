@@ -719,6 +719,53 @@ mod tests {
     }
 
     #[test]
+    fn resolve_mode_table() {
+        use AlStatusCode::*;
+        use SyncMode::*;
+        let ms = 1_000_000;
+        // (0x1C32:01 written, 0x1C33:01 written, 0x0981, 0x09A0, outputs, result)
+        type Case = (
+            Option<u16>,
+            Option<u16>,
+            u8,
+            u32,
+            bool,
+            Result<SyncMode, AlStatusCode>,
+        );
+        let cases: &[Case] = &[
+            (None, None, 0, 0, true, Ok(SmSync)),
+            (None, None, 0, 0, false, Ok(SmSync)),
+            (None, Some(0), 0, 0, false, Ok(FreeRun)),
+            (Some(0), None, 0, 0, true, Ok(FreeRun)),
+            (Some(0), Some(0), 0, 0, true, Ok(FreeRun)),
+            (Some(0), Some(0x22), 0, 0, true, Err(SyncModeNotSupported)),
+            (Some(1), None, 0, 0, true, Ok(SmSync)),
+            (Some(1), Some(0x22), 0, 0, true, Ok(SmSync)),
+            (None, Some(1), 0, 0, false, Ok(SmSync)),
+            (Some(1), Some(2), 0, 0, true, Err(SyncModeNotSupported)),
+            (Some(2), None, 0, ms, true, Err(SyncModeNotSupported)),
+            (Some(3), None, 0, 0, true, Err(SyncModeNotSupported)),
+            (Some(0x22), None, 0, 0, true, Err(SyncModeNotSupported)),
+            (None, None, 3, ms, true, Ok(DcSync0)),
+            (Some(2), Some(2), 3, ms, true, Ok(DcSync0)),
+            (Some(1), None, 3, ms, true, Err(SyncModeNotSupported)),
+            (None, Some(0x22), 3, ms, true, Err(SyncModeNotSupported)),
+            (None, None, 0x0B, ms, true, Ok(DcSync0)),
+            (None, None, 3, 300_000, true, Err(DcInvalidCycleTime)),
+            (None, None, 1, ms, true, Err(InvalidDcSync)),
+            (None, None, 7, ms, true, Err(InvalidDcSync)),
+            (Some(2), None, 5, ms, true, Err(InvalidDcSync)),
+        ];
+        for (i, c) in cases.iter().enumerate() {
+            assert_eq!(
+                resolve_mode(c.0, c.1, c.2, c.3, c.4, MIN_CYCLE_NS),
+                c.5,
+                "case {i}"
+            );
+        }
+    }
+
+    #[test]
     fn lock_and_loss() {
         let mut s = Sync0Supervisor::default();
         s.start(1_000_000);
