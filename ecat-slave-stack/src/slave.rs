@@ -21,6 +21,10 @@
 //! per SM2 event (SM-synchronous), per local period (free run) or per SYNC0 (DC).
 //! Outputs are handed to the application only in Op.
 //!
+//! In DC SYNC0 mode every SYNC0 must be seen on its own: call [`Slave::cycle`] from
+//! the SYNC0 interrupt, or [`Slave::poll`] at least once per SYNC0 period (coalesced
+//! SYNC0 events look like a wrong period and the slave never locks → 0x002D).
+//!
 //! Objects 0x1600-0x1C33 and 0x2200 are served by the runtime itself (its
 //! [`PdoConfig`] and [`SyncState`]); every other index goes to the application's
 //! [`Dictionary`] ([`CommDictionary`]).
