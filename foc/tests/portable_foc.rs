@@ -334,6 +334,35 @@ qemu_runner::tests! {
         assert!(ol.angle_of(-1).diff(Angle(3u32 << 30)).abs() <= 4);
     }
 
+    fn open_loop_derates_when_voltage_limited() {
+        let cfg = OpenLoopConfig {
+            pulses_per_rev: 200,
+            ts: 1e-4,
+            running_current: 4.0,
+            holding_percent: 50,
+            standby: 1.0,
+            soft_start: 0.0,
+            filter_time: 0.0,
+        };
+        let mut ol = OpenLoop::new(cfg, 0);
+        ol.enable(0);
+        let mut k = 1.0;
+        for n in 1..=1000 {
+            ol.step(n);
+            k = ol.voltage_limited(true);
+        }
+        assert!(near(k, foc::open_loop::DERATE_MIN, 1e-6));
+        assert!(near(ol.step(1001).current, 4.0 * k, 1e-4));
+        // Recovers slowly while moving without limiting...
+        ol.voltage_limited(false);
+        assert!(ol.voltage_limited(false) > k);
+        // ...and at once at standstill.
+        for _ in 0..20 {
+            ol.step(1001);
+        }
+        assert!(near(ol.step(1001).current, 4.0, 1e-4));
+    }
+
     fn open_loop_survives_garbage_config() {
         let cfg = OpenLoopConfig {
             pulses_per_rev: 0,

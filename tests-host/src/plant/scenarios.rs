@@ -421,9 +421,12 @@ fn open_loop_period(rig: &mut Rig, ol: &mut OpenLoop, cmd: i32) -> foc::open_loo
     let o = ol.step(cmd);
     rig.cl.id_ref = o.current;
     rig.cl.iq_ref = 0.0;
+    let mut limited = false;
     for _ in 0..SERVO_DIV {
         rig.tick_at(o.angle, o.omega_e);
+        limited |= rig.cl.saturated;
     }
+    ol.voltage_limited(limited);
     o
 }
 
@@ -742,20 +745,23 @@ pub fn report() -> Vec<Figure> {
         "open loop 600 rpm, 1 N·m (50 % T_hold), 5 A: lost steps",
         "none",
         format!(
-            "none: max lag {:.0}° el., end error {:+.2} full steps",
-            o.max_lag_deg, o.final_error_steps
+            "{}: max lag {:.0}° el., end error {:+.2} full steps",
+            if o.lost_nothing() { "none" } else { "LOST" },
+            o.max_lag_deg,
+            o.final_error_steps
         ),
         o.lost_nothing(),
     );
     let o = open_loop_600rpm(load, SQRT_2 * ECN57_20.i_rated);
     row(
-        "open loop 600 rpm, 1 N·m, 7.07 A (√2·I_rated)",
+        "open loop 600 rpm, 1 N·m, 7.07 A (√2·I_rated; voltage-limited, current derating)",
         "none",
-        if o.lost_nothing() {
-            format!("none: max lag {:.0}° el.", o.max_lag_deg)
-        } else {
-            "stalls: 48 V cannot drive 7.07 A with i_d > 0 at 600 rpm (voltage-limited)".into()
-        },
+        format!(
+            "{}: max lag {:.0}° el., end error {:+.2} full steps",
+            if o.lost_nothing() { "none" } else { "LOST" },
+            o.max_lag_deg,
+            o.final_error_steps
+        ),
         o.lost_nothing(),
     );
     let h = holding_current();
