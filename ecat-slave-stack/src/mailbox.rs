@@ -364,8 +364,10 @@ pub struct MailboxServer {
 }
 
 impl MailboxServer {
-    /// A server for a mailbox of `mailbox_size` bytes (the SM0/SM1 length), clamped to
-    /// [`MIN_MAILBOX_SIZE`]…[`MAX_MAILBOX_SIZE`].
+    /// A server for a mailbox of `mailbox_size` bytes (the SM1 length, or the smaller of
+    /// SM0 and SM1), clamped to [`MIN_MAILBOX_SIZE`]…[`MAX_MAILBOX_SIZE`]. The size bounds
+    /// the frames handed out by [`Self::next_output`]; requests are accepted up to
+    /// [`MAX_MAILBOX_SIZE`] bytes (SM0 may be the larger one).
     pub const fn new(mailbox_size: usize) -> Self {
         let size = if mailbox_size < MIN_MAILBOX_SIZE {
             MIN_MAILBOX_SIZE
@@ -404,7 +406,8 @@ impl MailboxServer {
         self.emcy.set_overruns(overruns);
     }
 
-    /// A whole SM0 buffer arrived: parse, execute, keep the answer for [`Self::next_output`].
+    /// A whole SM0 buffer arrived (or its header plus the bytes the header announces):
+    /// parse, execute, keep the answer for [`Self::next_output`].
     pub fn on_request(
         &mut self,
         frame: &[u8],
@@ -413,7 +416,9 @@ impl MailboxServer {
         now_us: u64,
     ) {
         let expired = self.sdo.expire(now_us);
-        let frame = match frame.get(..self.size) {
+        // The request may be as long as SM0 (which can be longer than SM1, whose size
+        // bounds the answers); only the first MAX_MAILBOX_SIZE bytes are looked at.
+        let frame = match frame.get(..MAX_MAILBOX_SIZE) {
             Some(f) => f,
             None => frame,
         };

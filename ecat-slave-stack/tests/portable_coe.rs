@@ -657,13 +657,19 @@ qemu_runner::tests! {
         h.send(4, &[0; 10]);
         let o = h.recv();
         assert_eq!(&o.buf[..10], &[4, 0, 0, 0, 0, (o.counter() << 4), 0x01, 0x00, 0x02, 0x00]);
-        // A frame larger than the mailbox is read up to the mailbox size only.
+        // A request longer than SM1 (SM0 may be larger) is still read.
         let mut big = [0u8; 200];
-        big[0] = 10;
+        big[0] = 150;
         big[5] = 0x03;
-        big[6..16].copy_from_slice(&[0x00, 0x20, 0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]);
+        big[6..16].copy_from_slice(&[0x00, 0x20, 0x21, 0x02, 0x20, 0x00, 140, 0, 0, 0]);
+        big[16..156].fill(b'x');
         h.raw(&big);
-        assert_eq!(h.recv().payload()[2], 0x43);
+        assert_eq!(h.recv().payload(), &[0x00, 0x30, 0x60, 0x02, 0x20, 0x00, 0, 0, 0, 0]);
+        assert_eq!(h.dict.long_text(), &[b'x'; 140][..]);
+        // ... but its length field must still fit the buffer.
+        big[0] = 195;
+        h.raw(&big);
+        h.expect_mbx_error(0x08);
     }
 
     fn counters_wrap_and_repeats_are_not_executed_twice() {
