@@ -666,3 +666,67 @@ fn ecat_and_power_up_faults() {
     assert_eq!(d.emergencies(), vec![(0xA001, 0x11, [6, 240, 0, 4, 0x1B])]);
     assert_eq!(d.sdo_upload(0x1001, 0), Ok(0x11));
 }
+
+// ---- the composed drive (firmware::drive) -------------------------------------------
+
+#[test]
+fn composed_drive_fault_reaches_pds_emergency_led_outputs_and_0x603f() {
+    use firmware::drive::{AxisState, Drive as AppDrive};
+    let mut d = AppDrive::new(Variant::HybridServo, 1);
+    let ok = AxisState {
+        bus_mv: 24_000,
+        ..AxisState::default()
+    };
+    let mut now = 0u32;
+    let mut run = |d: &mut AppDrive, a: AxisState, raw: u8, ms: u32| -> Vec<(bool, u32, u32)> {
+        let mut tl: Vec<(bool, u32, u32)> = Vec::new();
+        for _ in 0..ms {
+            now += 1;
+            d.set_axis(a);
+            d.tick(1, raw);
+            d.run_cycle(0.001);
+            let red = d.leds(now).red;
+            match tl.last_mut() {
+                Some(l) if l.0 == red => l.2 = now + 1,
+                _ => tl.push((red, now, now + 1)),
+            }
+        }
+        tl
+    };
+    run(&mut d, ok, 0, 20);
+    assert!(d.pop_emergency().is_none());
+    assert_eq!(d.outputs().0, 0b11);
+    // Over-voltage for 3 s: one emergency, PDS Fault, 603F, 2 flashes, alarm output.
+    let tl = run(
+        &mut d,
+        AxisState {
+            bus_mv: 56_000,
+            ..ok
+        },
+        0,
+        3000,
+    );
+    assert_eq!(tl.iter().filter(|i| i.0).count(), 2);
+    assert_eq!(tl[0].2 - tl[0].1, 150);
+    let e = d.pop_emergency().expect("emergency");
+    assert_eq!((e.code, e.register & 0x05), (0x3210, 0x05));
+    assert!(d.pop_emergency().is_none(), "one emergency per occurrence");
+    assert_eq!(d.cia402.statusword() & 0x0008, 0x0008, "PDS in Fault");
+    let mut b = [0u8; 4];
+    assert_eq!(d.read(0x603F, 0, &mut b), Ok(2));
+    assert_eq!(u16::from_le_bytes([b[0], b[1]]), 0x3210);
+    assert_eq!(d.outputs().0, 0b00, "alarm outputs active (low)");
+    // Voltage back, fault-clear input: latched (0x2057 = 0), stays.
+    run(&mut d, ok, 0, 5);
+    run(&mut d, ok, 0b1000, 5);
+    run(&mut d, ok, 0, 5);
+    assert!(d.faults.is_active(FaultKind::OverVoltage));
+    // 0x2057 = 1 and the input again: cleared, error-reset emergency, LED dark.
+    assert_eq!(d.write(0x2057, 0, &[1], EsmState::PreOp), Ok(()));
+    run(&mut d, ok, 0b1000, 5);
+    let tl = run(&mut d, ok, 0, 3000);
+    assert!(!d.faults.any_active());
+    assert_eq!(tl.iter().filter(|i| i.0).count(), 0);
+    assert_eq!(d.pop_emergency().map(|e| e.code), Some(0x0000));
+    assert_eq!(d.outputs().0, 0b11);
+}
