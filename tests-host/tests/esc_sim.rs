@@ -1257,3 +1257,29 @@ fn circulating_frames_are_marked_then_destroyed() {
     escs[1].set_port0_loop_closed(false);
     assert_eq!(escs[1].peek(reg::DL_STATUS, 1)[0] & 0x10, 0x10, "link back");
 }
+
+#[test]
+fn vlan_tagged_frames_are_processed() {
+    let mut escs = chain(2, Flavour::Lan9252);
+    let plain = FrameBuilder::new()
+        .physical(Command::Brd, 0, 0, &[0; 2])
+        .build();
+    let mut f = plain[..12].to_vec();
+    f.extend_from_slice(&[0x81, 0x00, 0x00, 0x05]);
+    f.extend_from_slice(&plain[12..]);
+    let mut refs: Vec<&mut EscSim> = escs.iter_mut().collect();
+    assert_eq!(
+        process_frame(&mut refs, &mut f, 0, HOP),
+        FrameOutcome::Processed { datagrams: 1 }
+    );
+    let d = datagrams(&f).unwrap();
+    assert_eq!(d[0].wkc, 2);
+    assert_eq!(d[0].data[0], Flavour::Lan9252.esc_type());
+    // A tag with nothing behind it.
+    let mut short = f[..15].to_vec();
+    let mut refs: Vec<&mut EscSim> = escs.iter_mut().collect();
+    assert!(matches!(
+        process_frame(&mut refs, &mut short, 0, HOP),
+        FrameOutcome::Malformed(_)
+    ));
+}

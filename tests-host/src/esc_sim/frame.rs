@@ -1,6 +1,7 @@
 //! EtherCAT frames on the wire and their processing by a chain of [`EscSim`]s.
 //!
-//! Layout (ETG.1000.4): Ethernet header (destination, source, EtherType 0x88A4), the
+//! Layout (ETG.1000.4): Ethernet header (destination, source, optionally one 802.1Q
+//! VLAN tag, EtherType 0x88A4), the
 //! 2-byte EtherCAT header (bits 10:0 length of the datagrams, bits 15:12 type, 1 =
 //! datagrams), then datagrams: 10-byte header (command, index, address (ADP/ADO or
 //! 32-bit logical), length word with bits 10:0 data length, bit 14 circulating, bit 15
@@ -19,6 +20,8 @@ use core::ops::DerefMut;
 pub const ETHERTYPE_ETHERCAT: u16 = 0x88A4;
 /// Ethernet header length (no VLAN tag).
 pub const ETH_HEADER_LEN: usize = 14;
+/// EtherType of an IEEE 802.1Q VLAN tag (4 bytes before the real EtherType).
+pub const ETHERTYPE_VLAN: u16 = 0x8100;
 /// Datagram header length.
 pub const DATAGRAM_HEADER_LEN: usize = 10;
 /// Largest number of datagrams a frame may carry here (a 1500-byte payload holds at
@@ -133,14 +136,23 @@ fn parse(frame: &[u8]) -> Result<Option<Vec<DatagramPos>>, Malformed> {
     if frame.len() < ETH_HEADER_LEN {
         return Err(Malformed::TooShort);
     }
-    let ethertype = u16::from_be_bytes([frame[12], frame[13]]);
+    // One IEEE 802.1Q tag may precede the EtherType.
+    let mut eth = ETH_HEADER_LEN;
+    let mut ethertype = u16::from_be_bytes([frame[12], frame[13]]);
+    if ethertype == ETHERTYPE_VLAN {
+        if frame.len() < ETH_HEADER_LEN + 4 {
+            return Err(Malformed::TooShort);
+        }
+        ethertype = u16::from_be_bytes([frame[16], frame[17]]);
+        eth += 4;
+    }
     if ethertype != ETHERTYPE_ETHERCAT {
         return Ok(None);
     }
-    if frame.len() < ETH_HEADER_LEN + 2 {
+    if frame.len() < eth + 2 {
         return Err(Malformed::TooShort);
     }
-    let hdr = u16::from_le_bytes([frame[14], frame[15]]);
+    let hdr = u16::from_le_bytes([frame[eth], frame[eth + 1]]);
     let len = (hdr & 0x07FF) as usize;
     let typ = hdr >> 12;
     if typ != 1 {
@@ -149,7 +161,7 @@ fn parse(frame: &[u8]) -> Result<Option<Vec<DatagramPos>>, Malformed> {
     if len == 0 {
         return Err(Malformed::Empty);
     }
-    let base = ETH_HEADER_LEN + 2;
+    let base = eth + 2;
     if base + len > frame.len() {
         return Err(Malformed::LengthBeyondFrame);
     }
