@@ -3,7 +3,8 @@
 //! the achieved numbers into BENCHMARKS.md. ECN57-20 at 48 V unless noted.
 
 use foc::autotune::{Phase, TuneError, TuneState};
-use tests_host::plant::motor::{ECN57_20, TC86_45};
+use std::f64::consts::PI;
+use tests_host::plant::motor::{PlantConfig, ECN57_20, TC86_45};
 use tests_host::plant::scenarios::*;
 
 #[test]
@@ -69,6 +70,23 @@ fn autotune_both_motors_within_tolerance_and_time() {
         assert!((r.resistance_mohm() as f64 - m.r * 1e3).abs() <= 0.05 * m.r * 1e3);
         assert!((r.inductance_uh() as f64 - m.l * 1e6).abs() <= 0.1 * m.l * 1e6);
         assert!(r.kp_param() > 200 && r.ki_param() > 0);
+    }
+}
+
+#[test]
+fn autotune_is_robust_to_rotor_angle_and_noise() {
+    // Rotor at phase A's unstable equilibrium (θe = π), between the phases, and 4 LSB
+    // of ADC noise.
+    for (theta0, noise) in [(PI / 50.0, 1.0), (0.5 * PI / 50.0, 4.0), (0.77, 4.0)] {
+        let mut c = PlantConfig::new(TC86_45);
+        c.theta0 = theta0;
+        c.adc_noise_lsb = noise;
+        let a = autotune_on(c);
+        assert!(matches!(a.state, TuneState::Done(_)), "{a:?}");
+        assert!(
+            a.r_err_pct.abs() <= 5.0 && a.l_err_pct.abs() <= 10.0,
+            "{a:?}"
+        );
     }
 }
 

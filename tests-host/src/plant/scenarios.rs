@@ -371,6 +371,12 @@ pub struct Tune {
 pub fn autotune(motor: MotorParams, r_scale: [f64; 2]) -> Tune {
     let mut cfg = PlantConfig::new(motor);
     cfg.r_scale = r_scale;
+    autotune_on(cfg)
+}
+
+/// [`autotune`] on any plant configuration (initial angle, noise, seed...).
+pub fn autotune_on(cfg: PlantConfig) -> Tune {
+    let motor = cfg.motor;
     let mut rig = Rig::new(cfg);
     let mut tune = Autotune::new(AutotuneConfig::new(
         TS,
