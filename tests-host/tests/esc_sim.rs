@@ -776,8 +776,20 @@ fn sii_eeprom_interface() {
         one(&mut escs, Command::Fprd, 0x1000, reg::SII_CONTROL, &[0, 0]);
         let st = one(&mut escs, Command::Fprd, 0x1000, reg::SII_CONTROL, &[0, 0]);
         assert_ne!(u16::from_le_bytes([st.data[0], st.data[1]]) & 0x2000, 0);
-        // Assigned to the PDI: the master's commands are ignored.
+        // Offered to the PDI but not taken: the master keeps access.
         one(&mut escs, Command::Fpwr, 0x1000, reg::SII_CONFIG, &[1]);
+        let before = escs[0].stats().sii_commands;
+        one(
+            &mut escs,
+            Command::Fpwr,
+            0x1000,
+            reg::SII_CONTROL,
+            &[0x00, 0x01, 0, 0, 0, 0],
+        );
+        assert_eq!(escs[0].stats().sii_commands, before + 1);
+        one(&mut escs, Command::Fprd, 0x1000, reg::SII_CONTROL, &[0, 0]);
+        // Taken by the PDI (0x0501 bit 0): the master's commands are ignored.
+        escs[0].write_u8(reg::SII_PDI_ACCESS, 1).unwrap();
         let before = escs[0].stats().sii_commands;
         one(
             &mut escs,
@@ -1282,4 +1294,32 @@ fn vlan_tagged_frames_are_processed() {
         process_frame(&mut refs, &mut short, 0, HOP),
         FrameOutcome::Malformed(_)
     ));
+}
+
+#[test]
+fn sii_forced_back_to_the_master() {
+    let mut escs = chain(1, Flavour::Et1100);
+    one(&mut escs, Command::Apwr, 0, reg::SII_CONFIG, &[1]);
+    escs[0].write_u8(reg::SII_PDI_ACCESS, 1).unwrap();
+    let before = escs[0].stats().sii_commands;
+    one(
+        &mut escs,
+        Command::Apwr,
+        0,
+        reg::SII_CONTROL,
+        &[0x00, 0x01, 0, 0, 0, 0],
+    );
+    assert_eq!(escs[0].stats().sii_commands, before, "PDI holds the EEPROM");
+    // Bit 1 forces master access: resets 0x0501 bit 0.
+    one(&mut escs, Command::Apwr, 0, reg::SII_CONFIG, &[2]);
+    assert_eq!(escs[0].peek(reg::SII_PDI_ACCESS, 1), &[0]);
+    one(&mut escs, Command::Apwr, 0, reg::SII_CONFIG, &[0]);
+    one(
+        &mut escs,
+        Command::Apwr,
+        0,
+        reg::SII_CONTROL,
+        &[0x00, 0x01, 0, 0, 0, 0],
+    );
+    assert_eq!(escs[0].stats().sii_commands, before + 1);
 }

@@ -582,8 +582,12 @@ impl EscSim {
         }
     }
 
+    /// Who may drive the EEPROM interface: the PDI once the master has offered it
+    /// (0x0500 bit 0) and the PDI has taken it (0x0501 bit 0); the master otherwise.
     fn sii_owner(&self) -> Side {
-        if self.mem[reg::SII_CONFIG as usize] & 0x01 != 0 {
+        let offered = self.mem[reg::SII_CONFIG as usize] & 0x01 != 0;
+        let taken = self.mem[reg::SII_PDI_ACCESS as usize] & 0x01 != 0;
+        if offered && taken {
             Side::Pdi
         } else {
             Side::Ecat
