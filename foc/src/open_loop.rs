@@ -12,7 +12,9 @@
 //!   running current over `soft_start` seconds;
 //! * stand-by: when the filtered command has not changed for `standby` seconds the
 //!   current ramps down (over [`HOLD_RAMP`] s) to `holding_percent` % of the running
-//!   current; it returns to the running current at once when motion resumes.
+//!   current; it returns to the running current at once when motion resumes;
+//! * voltage headroom: while the current loop reports voltage limiting the current
+//!   is derated (down to 50 %) and recovers afterwards ([`OpenLoop::voltage_limited`]).
 //!
 //! Command smoothing: a moving average over `N = filter_time/ts` steps,
 //! `H(z) = (1/N)·Σ_{k<N} z^{−k}` (delay `(N−1)·ts/2`, first zero at `1/(N·ts)` Hz),
