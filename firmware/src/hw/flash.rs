@@ -9,7 +9,9 @@
 //!
 //! The STM32G474RE is run in dual-bank mode (option byte DBANK = 1, the factory
 //! setting): 2 KiB pages, 8-byte (double-word) programming; the region lies in bank 2,
-//! so erasing it does not stall code running from bank 1. embassy-stm32 panics when the
+//! so erasing it does not stall code running from bank 1 (read-while-write), and the
+//! whole-flash driver used here erases and programs without a critical section: the
+//! current-loop interrupt keeps running during a save. embassy-stm32 panics when the
 //! option byte disagrees with its `dual-bank` feature, so [`param_flash`] checks DBANK
 //! first and returns `None` instead.
 use embassy_stm32::flash::{Blocking, Flash};
