@@ -11,6 +11,7 @@ pub mod faults;
 pub mod identity;
 pub mod io;
 pub mod monitor;
+pub mod motion;
 pub mod params;
 pub mod pdo_defaults;
 pub mod storage;

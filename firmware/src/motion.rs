@@ -1,0 +1,845 @@
+//! The motion layer: what the board's servo interrupt runs at 10 kHz between the
+//! CiA 402 cycle ([`DriveCommand`], once per EtherCAT cycle) and the FOC current loop
+//! (40 kHz, `foc::current_loop`).
+//!
+//! ```text
+//!  DriveCommand (cycle) ─▶ set_command ─▶ interpolation (command units → counts)
+//!                                              │ every servo period
+//!  encoder (counts, PLL velocity) ─▶ step ─────┤ closed loop: foc::servo (i_d = 0, i_q)
+//!                                              │ open loop:  foc::open_loop (angle, |i|)
+//!                                              ▼
+//!                                   CurrentReference ─▶ current loop
+//!  AxisState fields (position/velocity in command units, following error in counts,
+//!  current limited) ◀─ fill_axis_state
+//! ```
+//!
+//! # Units and conventions
+//! * Command units: 0x2001 pulses per revolution (`U`); encoder counts: 0x2029 × 4
+//!   per revolution (`C`). A command position `p` is the count position `p·C/U`
+//!   (exact: integer part by 64-bit division once per cycle, fraction as `f32`). A
+//!   count position `n` is reported as `round(n·U/C)` command units, so a reported
+//!   position converted back lies within ½ unit of the count (`p → n` never moves by a
+//!   count at enable).
+//! * Direction (0x2051 = 1): the *axis* runs opposite to the motor. All loops work in
+//!   axis counts (`dir · motor counts`); the q current is multiplied by `dir`, the
+//!   open-loop command by `dir`.
+//! * Interpolation: the position set-point of a cycle is reached at the end of the
+//!   next cycle (linear, `n = cycle/ts` servo steps; one cycle of delay, as CSP
+//!   expects), the slope is the velocity feed-forward; the acceleration feed-forward is
+//!   the command's acceleration through a first-order filter per cycle (weight ¼).
+//!   Without a new set-point the demand rests at the last one.
+//!
+//! # Gains (0x2137-0x2140 → [`ServoGains`])
+//! Base gains are [`ServoGains::from_bandwidth`] for the motor's inertia and torque
+//! constant ([`MotorConstants`]) at [`BASE_BANDWIDTH_HZ`] and the peak current 0x2000;
+//! the parameters apply [`ServoGains::scaled`]: 0x2137 scales the position gain
+//! (100 % = ¼ of the base velocity bandwidth), 0x2138 the position integral
+//! (`Kp_base²/10 · x/100`), 0x2139 is the velocity feed-forward in %, 0x2140 scales the
+//! velocity loop (its bandwidth is `BASE_BANDWIDTH_HZ · x/100`). With the defaults
+//! (120 / 50 / 70 / 60) the velocity bandwidth is 240 Hz and the position gain half of
+//! it (ζ ≈ 0.5). 0x2140 = 0 is taken as 1 (the velocity loop cannot be switched off).
+//!
+//! # Enable, disable, switching
+//! * Disabled (`drive_enabled` false): zero current, bridges off; the demand tracks the
+//!   actual position.
+//! * Enable: integrators cleared, the demand starts at the actual position (no jump);
+//!   the closed loop's current limit and the open loop's current ramp up over the soft
+//!   start 0x2058 (× 50 µs).
+//! * Open → closed ([`Motion::configure`] with another loop mode while enabled): the
+//!   open-loop current vector is expressed in the encoder frame
+//!   ([`foc::servo::handover_currents`]), the servo's velocity integrator is preset to
+//!   its q part and the d part ramps to 0 in [`D_RAMP_S`]: the current vector does not
+//!   jump. The demand starts at the actual position.
+//! * Closed → open: the open loop starts on the rotor's electrical angle (encoder) at
+//!   the actual position, so the rotor is held where it is (soft start from zero).
+//!
+//! Following error: reported in encoder counts (demand − actual); the drive's fault
+//! module compares it with 0x2030 (the servo's own latch is not used).
+//!
+//! Nothing here panics on any parameter value: ratios are guarded, divisions are by
+//! values ≥ 1, non-finite inputs fall back to zero.
+
+use crate::cia402::{DriveCommand, SetpointKind};
+use crate::drive::AxisState;
+use crate::identity::Variant;
+use crate::params::{Params, P};
+use foc::angle::{Angle, CountScale, POLE_PAIRS};
+use foc::open_loop::{OpenLoop, OpenLoopConfig};
+use foc::servo::{handover_currents, Demand, Servo, ServoGains};
+
+/// Velocity bandwidth of the base gains (0x2140 = 100), Hz.
+pub const BASE_BANDWIDTH_HZ: f32 = 400.0;
+/// Time in which the d current left over from an open → closed handover ramps to 0, s.
+pub const D_RAMP_S: f32 = 0.01;
+/// Servo period of the board, s (10 kHz).
+pub const SERVO_TS: f32 = 1e-4;
+
+/// Mechanical constants the base gains need (not among the vendor parameters: the
+/// board knows its motor).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotorConstants {
+    /// Rotor (+ load) inertia, kg·m².
+    pub inertia: f32,
+    /// Torque constant, N·m/A (FOC peak current).
+    pub kt: f32,
+}
+
+/// ECN57-20 (NEMA 23): 480 g·cm², 0.283 N·m/A.
+pub const ECN57_20: MotorConstants = MotorConstants {
+    inertia: 480e-7,
+    kt: 0.283,
+};
+/// TC86-45 (NEMA 34): 1400 g·cm², 0.530 N·m/A.
+pub const TC86_45: MotorConstants = MotorConstants {
+    inertia: 1400e-7,
+    kt: 0.530,
+};
+
+/// Configuration of [`Motion`] (from the parameters: [`MotionConfig::from_params`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotionConfig {
+    /// Servo period, s.
+    pub ts: f32,
+    /// Command units per revolution (0x2001, active copy).
+    pub pulses_per_rev: u32,
+    /// Encoder counts per revolution (0x2029 × 4; 0 = no encoder).
+    pub counts_per_rev: u32,
+    /// Closed loop (0x2024 = 2 and an encoder).
+    pub closed_loop: bool,
+    /// Peak current 0x2000, A.
+    pub peak_current: f32,
+    /// Holding current 0x2026, % (open loop).
+    pub holding_percent: u8,
+    /// Stand-still time before the holding current 0x2002, s.
+    pub standby_s: f32,
+    /// Soft start 0x2058, s.
+    pub soft_start_s: f32,
+    /// Command smoothing (0x2009 on: 0x2010:2), s; 0 = off.
+    pub filter_s: f32,
+    /// Direction reversal 0x2051.
+    pub reverse: bool,
+    /// Following-error limit 0x2030, counts.
+    pub following_error_limit: u32,
+    /// Servo gains (physical units, after the parameter scaling).
+    pub gains: ServoGains,
+}
+
+fn finite_pos(x: f32) -> f32 {
+    if x.is_finite() && x > 0.0 {
+        x
+    } else {
+        0.0
+    }
+}
+
+fn clampf(x: f32, lo: f32, hi: f32) -> f32 {
+    let y = if x < lo { lo } else { x };
+    if y > hi {
+        hi
+    } else {
+        y
+    }
+}
+
+impl MotionConfig {
+    /// The configuration the parameters describe for a motor with `motor` constants and
+    /// servo period `ts` (see the module docs for the gain scaling).
+    pub fn from_params(p: &Params, variant: Variant, motor: &MotorConstants, ts: f32) -> Self {
+        let ts = if ts.is_finite() && ts > 0.0 {
+            ts
+        } else {
+            SERVO_TS
+        };
+        let counts = if variant.has_encoder() {
+            (p.get(P::EncoderResolution).clamp(1, 1 << 20) as u32) * 4
+        } else {
+            0
+        };
+        let ppr = match p.active().pulses_per_rev {
+            0 => p.get(P::PulsesPerRev),
+            n => n as i32,
+        }
+        .clamp(1, 1 << 24) as u32;
+        let peak = p.get(P::PeakCurrent).clamp(0, 20_000) as f32 * 1e-3;
+        let g = |x: P| p.get(x).clamp(0, 150) as u16;
+        let base = ServoGains::from_bandwidth(
+            finite_pos(motor.inertia).max(1e-9),
+            finite_pos(motor.kt).max(1e-6),
+            counts.max(4),
+            BASE_BANDWIDTH_HZ,
+            peak,
+        );
+        let gains = base.scaled(g(P::PosKp), g(P::PosKi), g(P::VelFf), g(P::SpeedKp).max(1));
+        let filter_s = if p.get(P::CmdFilterEnable) != 0 {
+            p.get(P::CmdFilterTime).clamp(0, 1_000_000) as f32 * 1e-6
+        } else {
+            0.0
+        };
+        MotionConfig {
+            ts,
+            pulses_per_rev: ppr,
+            counts_per_rev: counts,
+            closed_loop: counts > 0 && p.get(P::LoopMode) == 2,
+            peak_current: peak,
+            holding_percent: p.get(P::HoldingCurrent).clamp(0, 100) as u8,
+            standby_s: p.get(P::StandbyTime).clamp(0, 100_000) as f32 * 1e-3,
+            soft_start_s: p.get(P::SoftStart).clamp(0, 100_000) as f32 * 50e-6,
+            filter_s,
+            reverse: p.get(P::DirectionReversal) != 0,
+            following_error_limit: p.get(P::FollowingErrorLimit).clamp(1, 1 << 24) as u32,
+            gains,
+        }
+    }
+
+    fn open_loop_config(&self) -> OpenLoopConfig {
+        OpenLoopConfig {
+            pulses_per_rev: self.pulses_per_rev.max(1),
+            ts: self.ts,
+            running_current: self.peak_current,
+            holding_percent: self.holding_percent,
+            standby: self.standby_s,
+            soft_start: self.soft_start_s,
+            filter_time: self.filter_s,
+        }
+    }
+}
+
+/// What the encoder measured at the start of this servo period.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Feedback {
+    /// Multi-turn position, motor counts (`foc::encoder::Encoder::position`).
+    pub position: i32,
+    /// Velocity estimate, motor counts/s.
+    pub velocity: f32,
+    /// Electrical angle of the rotor (alignment offset included).
+    pub electrical_angle: Angle,
+    /// The current loop limited its voltage vector in the last period.
+    pub voltage_limited: bool,
+}
+
+/// Which angle the current loop works on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Frame {
+    /// The encoder's electrical angle and velocity (closed loop).
+    Encoder,
+    /// A commanded angle and electrical velocity, rad/s (open loop).
+    Command {
+        /// Electrical angle of the d axis.
+        angle: Angle,
+        /// Electrical angular velocity (back-EMF / decoupling feed-forward), rad/s.
+        omega_e: f32,
+    },
+}
+
+/// The current loop's reference for the next servo period.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CurrentReference {
+    /// Bridges on (false: all outputs off, current 0).
+    pub power: bool,
+    /// Clear the current loop's integrators (first period after enable).
+    pub reset: bool,
+    /// Frame of `id`/`iq`.
+    pub frame: Frame,
+    /// d current, A.
+    pub id: f32,
+    /// q current, A.
+    pub iq: f32,
+}
+
+impl CurrentReference {
+    /// No current, bridges off.
+    pub const OFF: CurrentReference = CurrentReference {
+        power: false,
+        reset: false,
+        frame: Frame::Encoder,
+        id: 0.0,
+        iq: 0.0,
+    };
+}
+
+/// Exact scaling between command units and encoder counts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Scale {
+    units: i64,
+    counts: i64,
+}
+
+impl Scale {
+    fn new(units: u32, counts: u32) -> Self {
+        Scale {
+            units: i64::from(units.max(1)),
+            counts: i64::from(counts.max(1)),
+        }
+    }
+    /// Command units → counts: integer part and fraction in [0, 1).
+    fn to_counts(self, p: i32) -> (i32, f32) {
+        let n = i64::from(p) * self.counts;
+        let q = n.div_euclid(self.units);
+        let r = n.rem_euclid(self.units);
+        (q as i32, r as f32 / self.units as f32)
+    }
+    /// Counts → command units, rounded to nearest.
+    fn to_units(self, n: i32) -> i32 {
+        let x = 2 * i64::from(n) * self.units + self.counts;
+        x.div_euclid(2 * self.counts) as i32
+    }
+    fn counts_per_unit(self) -> f32 {
+        self.counts as f32 / self.units as f32
+    }
+    fn units_per_count(self) -> f32 {
+        self.units as f32 / self.counts as f32
+    }
+}
+
+/// Linear interpolation of the cycle's set-points in counts (integer + fraction).
+#[derive(Debug, Clone, Copy)]
+struct Interp {
+    from_w: i32,
+    from_f: f32,
+    to_w: i32,
+    to_f: f32,
+    delta: f32,
+    k: u32,
+    n: u32,
+    inv_n: f32,
+    vel: f32,
+}
+
+impl Interp {
+    fn at(w: i32, f: f32) -> Self {
+        Interp {
+            from_w: w,
+            from_f: f,
+            to_w: w,
+            to_f: f,
+            delta: 0.0,
+            k: 1,
+            n: 1,
+            inv_n: 1.0,
+            vel: 0.0,
+        }
+    }
+    fn target(&mut self, w: i32, f: f32, n: u32, cycle_s: f32) {
+        self.from_w = self.to_w;
+        self.from_f = self.to_f;
+        self.to_w = w;
+        self.to_f = f;
+        self.delta = w.wrapping_sub(self.from_w) as f32 + (f - self.from_f);
+        self.n = n.max(1);
+        self.inv_n = 1.0 / self.n as f32;
+        self.k = 0;
+        self.vel = if cycle_s > 0.0 {
+            self.delta / cycle_s
+        } else {
+            0.0
+        };
+    }
+    /// Demand of the next step and whether the demand is still moving.
+    fn step(&mut self) -> (i32, f32, bool) {
+        if self.k < self.n {
+            self.k += 1;
+        }
+        let moving = self.k < self.n || self.delta != 0.0;
+        if self.k >= self.n {
+            // At the target: exact, no rounding of delta·k/n.
+            self.delta = 0.0;
+            self.from_w = self.to_w;
+            self.from_f = self.to_f;
+            return (self.to_w, self.to_f, moving);
+        }
+        let d = self.from_f + self.delta * (self.k as f32 * self.inv_n);
+        let whole = libm::floorf(d);
+        (self.from_w.wrapping_add(whole as i32), d - whole, moving)
+    }
+}
+
+/// The motion layer's state (see the module docs).
+pub struct Motion {
+    cfg: MotionConfig,
+    scale: Scale,
+    dir: i32,
+    servo: Servo,
+    open: OpenLoop,
+    elec: CountScale,
+    open_offset: Angle,
+    interp: Interp,
+    // Latest command.
+    cmd: DriveCommand,
+    cycle_steps: u32,
+    acc_ff: f32,
+    // Closed-loop command smoothing (moving average in command units).
+    smooth: Option<foc::open_loop::MovingAverage>,
+    smooth_prev: i32,
+    enabled: bool,
+    reset_pending: bool,
+    soft_k: f32,
+    soft_step: f32,
+    iq_limit: f32,
+    iq_limit_set: f32,
+    id_handover: f32,
+    id_ramp: f32,
+    // Last values for the report.
+    last_fb: Feedback,
+    last_ref: CurrentReference,
+    demand: (i32, f32),
+    following_error: f32,
+    open_pos_units: i32,
+    open_vel_units: f32,
+    current_limited: bool,
+}
+
+impl Motion {
+    /// A disabled motion layer at position 0.
+    pub fn new(cfg: MotionConfig) -> Self {
+        let mut cfg = cfg;
+        cfg.ts = if cfg.ts.is_finite() && cfg.ts > 0.0 {
+            cfg.ts
+        } else {
+            SERVO_TS
+        };
+        if cfg.counts_per_rev == 0 {
+            cfg.closed_loop = false;
+        }
+        let scale = Scale::new(cfg.pulses_per_rev, cfg.counts_per_rev);
+        Motion {
+            cfg,
+            scale,
+            dir: if cfg.reverse { -1 } else { 1 },
+            servo: Servo::new(cfg.gains, cfg.ts, cfg.following_error_limit),
+            open: OpenLoop::new(cfg.open_loop_config(), 0),
+            elec: CountScale::new(cfg.pulses_per_rev.max(1), POLE_PAIRS),
+            open_offset: Angle::ZERO,
+            interp: Interp::at(0, 0.0),
+            cmd: DriveCommand::default(),
+            cycle_steps: 10,
+            acc_ff: 0.0,
+            smooth: Self::smoother(&cfg),
+            smooth_prev: 0,
+            enabled: false,
+            reset_pending: false,
+            soft_k: 1.0,
+            soft_step: 1.0,
+            iq_limit: cfg.gains.iq_max,
+            iq_limit_set: cfg.gains.iq_max,
+            id_handover: 0.0,
+            id_ramp: 0.0,
+            last_fb: Feedback::default(),
+            last_ref: CurrentReference::OFF,
+            demand: (0, 0.0),
+            following_error: 0.0,
+            open_pos_units: 0,
+            open_vel_units: 0.0,
+            current_limited: false,
+        }
+    }
+
+    fn smoother(cfg: &MotionConfig) -> Option<foc::open_loop::MovingAverage> {
+        let taps = (cfg.filter_s / cfg.ts + 0.5) as usize;
+        (cfg.closed_loop && taps > 1).then(|| foc::open_loop::MovingAverage::new(taps, 0))
+    }
+
+    /// Configuration in use.
+    pub fn config(&self) -> &MotionConfig {
+        &self.cfg
+    }
+
+    /// True while the drive function is enabled (current flows).
+    pub fn enabled(&self) -> bool {
+        self.enabled
+    }
+
+    /// Closed loop in use.
+    pub fn closed_loop(&self) -> bool {
+        self.cfg.closed_loop
+    }
+
+    /// Applies a new configuration (parameter change). Gains, limits and filters change
+    /// at once; a change of the loop mode while enabled is the bumpless handover of the
+    /// module docs. The command scaling (0x2001, 0x2029) and direction keep their
+    /// values until the drive is disabled.
+    pub fn configure(&mut self, cfg: MotionConfig) {
+        let mut cfg = cfg;
+        cfg.ts = self.cfg.ts;
+        if self.enabled {
+            cfg.pulses_per_rev = self.cfg.pulses_per_rev;
+            cfg.counts_per_rev = self.cfg.counts_per_rev;
+            cfg.reverse = self.cfg.reverse;
+        }
+        if cfg.counts_per_rev == 0 {
+            cfg.closed_loop = false;
+        }
+        let was_closed = self.cfg.closed_loop;
+        let old = self.cfg;
+        self.cfg = cfg;
+        self.servo.set_gains(cfg.gains);
+        self.servo
+            .set_following_error_limit(cfg.following_error_limit);
+        self.iq_limit_set = cfg.gains.iq_max;
+        if !self.enabled {
+            self.scale = Scale::new(cfg.pulses_per_rev, cfg.counts_per_rev);
+            self.dir = if cfg.reverse { -1 } else { 1 };
+            self.elec = CountScale::new(cfg.pulses_per_rev.max(1), POLE_PAIRS);
+        }
+        if old.open_loop_config() != cfg.open_loop_config() {
+            let pos = self.open_pos_units;
+            let enabled_open = self.enabled && !was_closed;
+            self.open = OpenLoop::new(cfg.open_loop_config(), self.dir * pos);
+            self.open.set_angle_offset(self.open_offset);
+            if enabled_open {
+                self.open.enable(self.dir * pos);
+            }
+        }
+        if old.filter_s != cfg.filter_s || old.closed_loop != cfg.closed_loop {
+            self.smooth = Self::smoother(&cfg);
+        }
+        if self.enabled && was_closed != cfg.closed_loop {
+            if cfg.closed_loop {
+                self.handover_to_closed();
+            } else {
+                self.handover_to_open();
+            }
+        }
+    }
+
+    /// The latest set-points of the drive cycle; `cycle_s` is the cycle period (the
+    /// interpolation spreads the move over it).
+    pub fn set_command(&mut self, cmd: &DriveCommand, cycle_s: f32) {
+        let cycle_s = if cycle_s.is_finite() {
+            clampf(cycle_s, self.cfg.ts, 0.1)
+        } else {
+            self.cfg.ts
+        };
+        let n = (cycle_s / self.cfg.ts + 0.5) as u32;
+        self.cycle_steps = n.max(1);
+        self.cmd = *cmd;
+        if !self.enabled {
+            return;
+        }
+        let c = self.scale.counts_per_unit();
+        let a = if cmd.acceleration.is_finite() {
+            cmd.acceleration * c
+        } else {
+            0.0
+        };
+        self.acc_ff += 0.25 * (a - self.acc_ff);
+        if cmd.kind == SetpointKind::Position && self.cfg.closed_loop && self.smooth.is_none() {
+            let (w, f) = self.scale.to_counts(cmd.position);
+            self.interp.target(w, f, self.cycle_steps, cycle_s);
+        } else {
+            // Open loop and smoothing interpolate in command units (whole units).
+            self.interp
+                .target(cmd.position, 0.0, self.cycle_steps, cycle_s);
+        }
+    }
+
+    fn actual_axis_counts(&self, fb: &Feedback) -> i32 {
+        self.dir.wrapping_mul(fb.position)
+    }
+
+    fn enable(&mut self, fb: &Feedback) {
+        self.enabled = true;
+        self.reset_pending = true;
+        self.acc_ff = 0.0;
+        self.id_handover = 0.0;
+        self.soft_k = 0.0;
+        self.soft_step = if self.cfg.soft_start_s > self.cfg.ts {
+            self.cfg.ts / self.cfg.soft_start_s
+        } else {
+            1.0
+        };
+        if self.cfg.closed_loop {
+            self.start_closed_at_actual(fb, 0.0);
+        } else {
+            self.start_open(fb);
+        }
+    }
+
+    fn start_closed_at_actual(&mut self, fb: &Feedback, iq: f32) {
+        let n = self.actual_axis_counts(fb);
+        self.interp = if self.smooth.is_some() {
+            Interp::at(self.scale.to_units(n), 0.0)
+        } else {
+            Interp::at(n, 0.0)
+        };
+        if let Some(s) = self.smooth.as_mut() {
+            let u = self.scale.to_units(n);
+            s.reset(u);
+            self.smooth_prev = u;
+        }
+        self.demand = (n, 0.0);
+        self.servo.bumpless_start(iq);
+        self.servo.clear_fault();
+    }
+
+    fn start_open(&mut self, fb: &Feedback) {
+        let pos = if self.cfg.counts_per_rev > 0 {
+            self.scale.to_units(self.actual_axis_counts(fb))
+        } else {
+            self.open_pos_units
+        };
+        self.open_pos_units = pos;
+        let motor_pos = self.dir.wrapping_mul(pos);
+        // Place the command angle of `pos` on the rotor (needs the encoder).
+        if self.cfg.counts_per_rev > 0 {
+            let n = motor_pos.rem_euclid(self.cfg.pulses_per_rev.max(1) as i32) as u32;
+            self.open_offset = fb.electrical_angle.wrapping_sub(self.elec.angle(n));
+            self.open.set_angle_offset(self.open_offset);
+        }
+        self.open.enable(motor_pos);
+        self.interp = Interp::at(pos, 0.0);
+    }
+
+    fn handover_to_closed(&mut self) {
+        let fb = self.last_fb;
+        let (angle, current) = match self.last_ref.frame {
+            Frame::Command { angle, .. } => (angle, self.last_ref.id),
+            Frame::Encoder => (fb.electrical_angle, 0.0),
+        };
+        let (id, iq) = handover_currents(angle, current, fb.electrical_angle);
+        self.start_closed_at_actual(&fb, self.dir as f32 * iq);
+        self.id_handover = id;
+        self.id_ramp = finite_pos(self.cfg.peak_current) * self.cfg.ts / D_RAMP_S;
+        self.soft_k = 1.0;
+    }
+
+    fn handover_to_open(&mut self) {
+        let fb = self.last_fb;
+        self.start_open(&fb);
+        self.soft_k = 1.0;
+    }
+
+    /// One servo period with the encoder's measurement; returns the current reference
+    /// for the current loop until the next call.
+    pub fn step(&mut self, fb: &Feedback) -> CurrentReference {
+        let fb_ok = Feedback {
+            velocity: if fb.velocity.is_finite() {
+                fb.velocity
+            } else {
+                0.0
+            },
+            ..*fb
+        };
+        self.last_fb = fb_ok;
+        if !self.cmd.drive_enabled {
+            if self.enabled {
+                self.enabled = false;
+                self.open.disable();
+            }
+            self.track_disabled(&fb_ok);
+            self.last_ref = CurrentReference::OFF;
+            return self.last_ref;
+        }
+        if !self.enabled {
+            self.enable(&fb_ok);
+        }
+        if self.soft_k < 1.0 {
+            self.soft_k = clampf(self.soft_k + self.soft_step, 0.0, 1.0);
+        }
+        let r = if self.cfg.closed_loop {
+            self.step_closed(&fb_ok)
+        } else {
+            self.step_open(&fb_ok)
+        };
+        let r = CurrentReference {
+            reset: core::mem::take(&mut self.reset_pending),
+            ..r
+        };
+        self.last_ref = r;
+        r
+    }
+
+    fn track_disabled(&mut self, fb: &Feedback) {
+        self.current_limited = false;
+        self.following_error = 0.0;
+        self.acc_ff = 0.0;
+        if self.cfg.counts_per_rev > 0 {
+            let n = self.actual_axis_counts(fb);
+            self.demand = (n, 0.0);
+            self.open_pos_units = self.scale.to_units(n);
+        }
+        self.open_vel_units = 0.0;
+    }
+
+    fn step_closed(&mut self, fb: &Feedback) -> CurrentReference {
+        let pos = self.actual_axis_counts(fb);
+        let vel = self.dir as f32 * fb.velocity;
+        // Current limit: 0x6072 / 0x6073 (per mille of the rated = peak current), soft start.
+        let lim_pm = self.cmd.torque_limit.min(self.cmd.current_limit);
+        let lim = self.iq_limit_set * f32::from(lim_pm.min(3000)) * 1e-3 * self.soft_k;
+        if lim != self.iq_limit {
+            self.iq_limit = lim;
+            let mut g = self.cfg.gains;
+            g.iq_max = lim;
+            self.servo.set_gains(g);
+        }
+        let iq = match self.cmd.kind {
+            SetpointKind::Velocity => {
+                let c = self.scale.counts_per_unit();
+                let v = if self.cmd.velocity.is_finite() {
+                    self.cmd.velocity * c
+                } else {
+                    0.0
+                };
+                // Keep the position demand on the actual position: bumpless return.
+                self.interp = Interp::at(
+                    if self.smooth.is_some() {
+                        self.scale.to_units(pos)
+                    } else {
+                        pos
+                    },
+                    0.0,
+                );
+                if let Some(s) = self.smooth.as_mut() {
+                    let u = self.scale.to_units(pos);
+                    s.reset(u);
+                    self.smooth_prev = u;
+                }
+                self.demand = (pos, 0.0);
+                self.following_error = 0.0;
+                self.servo.step_velocity(v, self.acc_ff, vel)
+            }
+            SetpointKind::Position => {
+                let d = self.next_demand();
+                self.demand = (d.pos, d.frac);
+                let iq = self.servo.step(&d, pos, vel);
+                self.following_error = self.servo.following_error;
+                iq
+            }
+        };
+        self.current_limited = lim <= 0.0 || libm::fabsf(iq) >= lim * 0.999;
+        let mut id = 0.0;
+        if self.id_handover != 0.0 {
+            let s = self.id_ramp;
+            self.id_handover = if self.id_handover > s {
+                self.id_handover - s
+            } else if self.id_handover < -s {
+                self.id_handover + s
+            } else {
+                0.0
+            };
+            id = self.id_handover;
+        }
+        CurrentReference {
+            power: true,
+            reset: false,
+            frame: Frame::Encoder,
+            id,
+            iq: self.dir as f32 * iq,
+        }
+    }
+
+    fn next_demand(&mut self) -> Demand {
+        let (w, f, moving) = self.interp.step();
+        let vel_ff = if moving { self.interp.vel } else { 0.0 };
+        let acc = if moving { self.acc_ff } else { 0.0 };
+        match self.smooth.as_mut() {
+            None => Demand {
+                pos: w,
+                frac: f,
+                vel: vel_ff,
+                acc,
+            },
+            Some(s) => {
+                let u = s.step(w);
+                let du = u.wrapping_sub(self.smooth_prev);
+                self.smooth_prev = u;
+                let (cw, cf) = self.scale.to_counts(u);
+                Demand {
+                    pos: cw,
+                    frac: cf,
+                    vel: du as f32 * self.scale.counts_per_unit() / self.cfg.ts,
+                    acc: 0.0,
+                }
+            }
+        }
+    }
+
+    fn step_open(&mut self, fb: &Feedback) -> CurrentReference {
+        let (p, _, _) = self.interp.step();
+        let motor_cmd = self.dir.wrapping_mul(p);
+        self.open.voltage_limited(fb.voltage_limited);
+        let o = self.open.step(motor_cmd);
+        let pos = self.dir.wrapping_mul(o.position);
+        self.open_vel_units = pos.wrapping_sub(self.open_pos_units) as f32 / self.cfg.ts;
+        self.open_pos_units = pos;
+        let (cw, cf) = self.scale.to_counts(pos);
+        self.demand = (cw, cf);
+        self.following_error = if self.cfg.counts_per_rev > 0 {
+            cw.wrapping_sub(self.actual_axis_counts(fb)) as f32 + cf
+        } else {
+            0.0
+        };
+        self.current_limited = false;
+        CurrentReference {
+            power: true,
+            reset: false,
+            frame: Frame::Command {
+                angle: o.angle,
+                omega_e: o.omega_e,
+            },
+            id: o.current,
+            iq: 0.0,
+        }
+    }
+
+    /// Actual position in command units (encoder; the smoothed command without one).
+    pub fn position_units(&self) -> i32 {
+        if self.cfg.counts_per_rev > 0 {
+            self.scale.to_units(self.actual_axis_counts(&self.last_fb))
+        } else {
+            self.open_pos_units
+        }
+    }
+
+    /// Actual velocity in command units/s.
+    pub fn velocity_units(&self) -> f32 {
+        if self.cfg.counts_per_rev > 0 {
+            self.dir as f32 * self.last_fb.velocity * self.scale.units_per_count()
+        } else {
+            self.open_vel_units
+        }
+    }
+
+    /// Servo demand (axis counts, integer + fraction) of the last step.
+    pub fn demand_counts(&self) -> (i32, f32) {
+        self.demand
+    }
+
+    /// Following error of the last step, counts (demand − actual).
+    pub fn following_error(&self) -> f32 {
+        self.following_error
+    }
+
+    /// The servo is at its current limit.
+    pub fn current_limited(&self) -> bool {
+        self.current_limited
+    }
+
+    /// The last current reference.
+    pub fn last_reference(&self) -> &CurrentReference {
+        &self.last_ref
+    }
+
+    /// Writes what the motion layer knows into the drive's [`AxisState`]: position and
+    /// velocity (command units), servo following error (counts, rounded), current
+    /// limited, torque current (per mille of the peak current). Currents, angle and bus
+    /// voltage are the board's.
+    pub fn fill_axis_state(&self, a: &mut AxisState) {
+        a.position = self.position_units();
+        let v = self.velocity_units();
+        a.velocity = if v.is_finite() { v as i32 } else { 0 };
+        let fe = libm::roundf(self.following_error);
+        a.servo_following_error = if fe.is_finite() { fe as i32 } else { 0 };
+        a.current_limited = self.current_limited;
+        let peak = self.cfg.peak_current;
+        let i = match self.last_ref.frame {
+            Frame::Encoder => self.dir as f32 * self.last_ref.iq,
+            Frame::Command { .. } => 0.0,
+        };
+        a.current_permille = if peak > 0.0 {
+            clampf(i / peak * 1000.0, -32000.0, 32000.0) as i16
+        } else {
+            0
+        };
+    }
+}
