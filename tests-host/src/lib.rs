@@ -1,6 +1,14 @@
-//! placeholder
+//! Host-side simulators and tools: the ESC simulator and virtual segment, SPI-level
+//! chip models, the motor plant, the simulated drive (firmware library + ESC + axis),
+//! the raw-socket transport of `virtual-drive`, and the ethercrab seam for in-process
+//! integration tests.
 pub mod esc_sim;
-pub mod plant;
+
 pub mod ethercrab_seam;
-pub mod spi_models;
+pub mod file_flash;
+pub mod plant;
+pub mod raw_socket;
 pub mod segment;
+pub mod sim_axis;
+pub mod sim_drive;
+pub mod spi_models;

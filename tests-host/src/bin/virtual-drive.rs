@@ -1,0 +1,180 @@
+//! `virtual-drive`: N simulated drives (firmware library + ESC simulator + motor plant)
+//! on a Linux network interface, so real EtherCAT masters (SOEM, IgH, TwinCAT,
+//! ethercrab) on the other end of a cable or veth pair see real drives.
+//!
+//! ```text
+//! virtual-drive --iface NAME [--drives N] [--motor ECN57-20|TC86-45]
+//!               [--esc lan9252|et1100] [--flash FILE]
+//! ```
+//!
+//! Runs in real time: simulated time follows the wall clock. Prints one line
+//! containing `ready` once it listens; SIGINT/SIGTERM close it cleanly.
+
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use tests_host::esc_sim::Flavour;
+use tests_host::raw_socket::RawSocket;
+use tests_host::sim_drive::{self, Motor, SimDriveConfig};
+
+static STOP: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn on_signal(_: libc::c_int) {
+    STOP.store(true, Ordering::SeqCst);
+}
+
+struct Options {
+    iface: String,
+    drives: usize,
+    motor: Motor,
+    flavour: Flavour,
+    flash: Option<String>,
+}
+
+const USAGE: &str = "usage: virtual-drive --iface NAME [--drives N] [--motor ECN57-20|TC86-45] [--esc lan9252|et1100] [--flash FILE]";
+
+fn parse(args: &[String]) -> Result<Options, String> {
+    let mut o = Options {
+        iface: String::new(),
+        drives: 1,
+        motor: Motor::Ecn57_20,
+        flavour: Flavour::Lan9252,
+        flash: None,
+    };
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        let mut value = |name: &str| {
+            it.next()
+                .cloned()
+                .ok_or_else(|| format!("{name} needs a value"))
+        };
+        match a.as_str() {
+            "--iface" => o.iface = value("--iface")?,
+            "--drives" => {
+                o.drives = value("--drives")?
+                    .parse()
+                    .map_err(|_| "--drives needs a number".to_string())?;
+                if !(1..=256).contains(&o.drives) {
+                    return Err("--drives must be 1..256".into());
+                }
+            }
+            "--motor" => {
+                o.motor = match value("--motor")?.to_ascii_uppercase().as_str() {
+                    "ECN57-20" => Motor::Ecn57_20,
+                    "TC86-45" => Motor::Tc86_45,
+                    m => return Err(format!("unknown motor '{m}' (ECN57-20 or TC86-45)")),
+                }
+            }
+            "--esc" => {
+                o.flavour = match value("--esc")?.to_ascii_lowercase().as_str() {
+                    "lan9252" => Flavour::Lan9252,
+                    "et1100" => Flavour::Et1100,
+                    e => return Err(format!("unknown ESC '{e}' (lan9252 or et1100)")),
+                }
+            }
+            "--flash" => o.flash = Some(value("--flash")?),
+            "-h" | "--help" => return Err(USAGE.into()),
+            other => return Err(format!("unknown argument '{other}'\n{USAGE}")),
+        }
+    }
+    if o.iface.is_empty() {
+        return Err(format!("--iface is required\n{USAGE}"));
+    }
+    Ok(o)
+}
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let opts = match parse(&args) {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("virtual-drive: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let sock = match RawSocket::open(&opts.iface) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("virtual-drive: {e}");
+            return ExitCode::from(1);
+        }
+    };
+    let cfg = SimDriveConfig {
+        motor: opts.motor,
+        flavour: opts.flavour,
+        flash_file: opts.flash.clone().map(Into::into),
+    };
+    let mut seg = match sim_drive::segment(&cfg, opts.drives) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("virtual-drive: cannot start the simulated drives: {e}");
+            return ExitCode::from(1);
+        }
+    };
+    // SAFETY: installing a handler that only stores to an atomic.
+    unsafe {
+        libc::signal(libc::SIGINT, on_signal as *const () as libc::sighandler_t);
+        libc::signal(libc::SIGTERM, on_signal as *const () as libc::sighandler_t);
+    }
+    println!(
+        "virtual-drive: {} drive(s), {:?} ESC, motor {:?}, parameter flash {} — ready on {}",
+        opts.drives,
+        opts.flavour,
+        opts.motor,
+        opts.flash.as_deref().unwrap_or("in RAM"),
+        opts.iface
+    );
+
+    let start = Instant::now();
+    let mut buf = vec![0u8; 2048];
+    let (mut frames, mut send_errors) = (0u64, 0u64);
+    let mut last_report = Instant::now();
+    while !STOP.load(Ordering::SeqCst) {
+        // Real time: simulated time catches up with the wall clock.
+        let wall_ns = start.elapsed().as_nanos() as u64;
+        if wall_ns > seg.now_ns() {
+            let dt = wall_ns - seg.now_ns();
+            sim_drive::advance(&mut seg, dt);
+        }
+        match sock.wait_readable(1_000) {
+            Ok(true) => {}
+            Ok(false) => continue,
+            Err(e) => {
+                eprintln!("virtual-drive: poll: {e}");
+                break;
+            }
+        }
+        loop {
+            match sock.recv(&mut buf) {
+                Ok(Some(n)) => {
+                    let frame = &mut buf[..n];
+                    sim_drive::process(&mut seg, frame);
+                    frames += 1;
+                    if sock.send(frame).is_err() {
+                        send_errors += 1;
+                    }
+                }
+                Ok(None) => break,
+                Err(e) => {
+                    eprintln!("virtual-drive: receive: {e}");
+                    STOP.store(true, Ordering::SeqCst);
+                    break;
+                }
+            }
+        }
+        if last_report.elapsed() > Duration::from_secs(10) {
+            last_report = Instant::now();
+            let states: Vec<String> = (0..seg.len())
+                .map(|i| format!("{:#04x}", seg.al_status(i).0))
+                .collect();
+            println!(
+                "virtual-drive: {frames} frames, AL status [{}]",
+                states.join(" ")
+            );
+        }
+    }
+    sim_drive::shutdown(&mut seg);
+    println!("virtual-drive: stopped after {frames} frames ({send_errors} send errors)");
+    ExitCode::SUCCESS
+}

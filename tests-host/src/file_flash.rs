@@ -1,0 +1,115 @@
+//! A NOR flash in host memory with the STM32G4's geometry (8-byte double-word writes,
+//! 2 KiB pages), optionally mirrored to a file so a 'save' survives a restart of the
+//! program — as on a real drive (`virtual-drive --flash FILE`).
+
+use embedded_storage::nor_flash::{ErrorType, NorFlash, NorFlashErrorKind, ReadNorFlash};
+use std::path::PathBuf;
+
+/// Size of the parameter region (two 8 KiB record slots, as in `memory.x`).
+pub const SIZE: usize = 16 * 1024;
+/// Record slot size used with this flash.
+pub const SLOT_SIZE: u32 = (SIZE / 2) as u32;
+
+/// Flash contents in memory, mirrored to `file` after every change when set.
+pub struct FileFlash {
+    mem: Vec<u8>,
+    file: Option<PathBuf>,
+    /// Errors writing the mirror file (the in-memory copy stays valid).
+    pub file_errors: u32,
+}
+
+impl FileFlash {
+    /// Erased flash, not mirrored.
+    pub fn in_memory() -> Self {
+        FileFlash {
+            mem: vec![0xFF; SIZE],
+            file: None,
+            file_errors: 0,
+        }
+    }
+
+    /// Flash mirrored to `path`: loads it when it exists (a file of another size is
+    /// treated as erased flash), creates it on the first write.
+    pub fn open(path: PathBuf) -> Self {
+        let mut mem = vec![0xFF; SIZE];
+        if let Ok(bytes) = std::fs::read(&path) {
+            if bytes.len() == SIZE {
+                mem.copy_from_slice(&bytes);
+            }
+        }
+        FileFlash {
+            mem,
+            file: Some(path),
+            file_errors: 0,
+        }
+    }
+
+    /// The contents.
+    pub fn bytes(&self) -> &[u8] {
+        &self.mem
+    }
+
+    fn persist(&mut self) {
+        if let Some(path) = &self.file {
+            let tmp = path.with_extension("tmp");
+            let ok = std::fs::write(&tmp, &self.mem).is_ok() && std::fs::rename(&tmp, path).is_ok();
+            if !ok {
+                self.file_errors += 1;
+            }
+        }
+    }
+}
+
+impl ErrorType for FileFlash {
+    type Error = NorFlashErrorKind;
+}
+
+impl ReadNorFlash for FileFlash {
+    const READ_SIZE: usize = 1;
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        let start = offset as usize;
+        let src = self
+            .mem
+            .get(start..start + bytes.len())
+            .ok_or(NorFlashErrorKind::OutOfBounds)?;
+        bytes.copy_from_slice(src);
+        Ok(())
+    }
+    fn capacity(&self) -> usize {
+        SIZE
+    }
+}
+
+impl NorFlash for FileFlash {
+    const WRITE_SIZE: usize = 8;
+    const ERASE_SIZE: usize = 2048;
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+        let (from, to) = (from as usize, to as usize);
+        if from > to || to > SIZE {
+            return Err(NorFlashErrorKind::OutOfBounds);
+        }
+        if from % Self::ERASE_SIZE != 0 || to % Self::ERASE_SIZE != 0 {
+            return Err(NorFlashErrorKind::NotAligned);
+        }
+        self.mem[from..to].fill(0xFF);
+        self.persist();
+        Ok(())
+    }
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        let start = offset as usize;
+        if start % Self::WRITE_SIZE != 0 || bytes.len() % Self::WRITE_SIZE != 0 {
+            return Err(NorFlashErrorKind::NotAligned);
+        }
+        let dst = self
+            .mem
+            .get_mut(start..start + bytes.len())
+            .ok_or(NorFlashErrorKind::OutOfBounds)?;
+        if dst.iter().any(|&b| b != 0xFF) {
+            // Programming a double word twice is an error on the STM32G4.
+            return Err(NorFlashErrorKind::Other);
+        }
+        dst.copy_from_slice(bytes);
+        self.persist();
+        Ok(())
+    }
+}

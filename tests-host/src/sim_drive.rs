@@ -1,0 +1,257 @@
+//! A complete simulated drive: the firmware's drive application
+//! ([`firmware::drive::Drive`]) with its parameter flash, behind the slave runtime and
+//! the ESC simulator of a [`Segment`], driving a simulated axis.
+//!
+//! [`SimDrive`] is the [`SlaveApplication`] of each segment position: in every
+//! application cycle it advances its [`Axis`] to the cycle's time, hands the measured
+//! state to the drive, runs the drive cycle and gives the drive's set-points back to
+//! the axis. The helpers [`advance`] / [`process`] move the segment on and also do
+//! what the board's main loop does: the 1 ms housekeeping tick and forwarding the
+//! drive's emergencies to the mailbox.
+
+use std::path::PathBuf;
+
+use ecat_slave_stack::al_status::AlStatusCode;
+use ecat_slave_stack::esm::{EsmHooks, EsmState};
+use ecat_slave_stack::od::{Dictionary, Object, SdoAbort};
+use ecat_slave_stack::pdo::ProcessData;
+use ecat_slave_stack::sii::EscFlavour;
+use ecat_slave_stack::slave::{CycleInfo, SlaveApplication, SlaveConfig};
+use firmware::cia402::DriveCommand;
+use firmware::drive::{AxisState, Drive, FlashStore};
+use firmware::identity::{self, Variant};
+use firmware::storage::Storage;
+
+use crate::esc_sim::frame::FrameOutcome;
+use crate::esc_sim::Flavour;
+use crate::file_flash::{self, FileFlash};
+use crate::segment::{sii_image, Segment, SegmentConfig};
+
+/// The motor model of the simulated axis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Motor {
+    /// NEMA 23, 2.0 N·m, 5 A.
+    Ecn57_20,
+    /// NEMA 34, 4.5 N·m, 6 A, 1000-line encoder.
+    Tc86_45,
+}
+
+/// What the drive's motor side looks like to the application.
+pub trait Axis {
+    /// Moves simulated time on by `dt_s` with the drive's latest set-points.
+    fn advance(&mut self, dt_s: f64, cmd: &DriveCommand);
+    /// Measurements for the next cycle.
+    fn state(&mut self) -> AxisState;
+    /// Input pin levels (bit n = IN n+1).
+    fn raw_inputs(&self) -> u8;
+}
+
+/// Settings of the simulated drives.
+#[derive(Debug, Clone)]
+pub struct SimDriveConfig {
+    /// Motor model.
+    pub motor: Motor,
+    /// ESC chip.
+    pub flavour: Flavour,
+    /// Parameter flash mirrored to this file (one file per drive: `FILE`, `FILE.2`, …).
+    pub flash_file: Option<PathBuf>,
+}
+
+/// The drive's parameter flash.
+pub type SimStore = FlashStore<FileFlash>;
+
+/// One simulated drive: firmware drive application + axis.
+pub struct SimDrive {
+    /// The firmware's drive application.
+    pub drive: Drive<SimStore>,
+    /// The motor side.
+    pub axis: Box<dyn Axis>,
+    /// Simulated time the axis has reached, µs.
+    axis_us: u64,
+    /// Simulated time of the last 1 ms tick, µs.
+    tick_us: u64,
+}
+
+impl SimDrive {
+    /// A drive with parameter flash `flash` and motor side `axis`.
+    pub fn new(serial: u32, flash: FileFlash, axis: Box<dyn Axis>) -> Self {
+        let store = FlashStore {
+            storage: Storage::new(0, file_flash::SLOT_SIZE),
+            flash,
+        };
+        SimDrive {
+            drive: Drive::with_store(Variant::HybridServo, serial, store),
+            axis,
+            axis_us: 0,
+            tick_us: 0,
+        }
+    }
+
+    /// Brings the axis and the 1 ms housekeeping up to `now_us`.
+    pub fn catch_up(&mut self, now_us: u64) {
+        if now_us > self.axis_us {
+            let dt = (now_us - self.axis_us) as f64 * 1e-6;
+            let cmd = *self.drive.command();
+            self.axis.advance(dt, &cmd);
+            self.axis_us = now_us;
+        }
+        while self.tick_us + 1000 <= now_us {
+            self.tick_us += 1000;
+            let raw = self.axis.raw_inputs();
+            let state = self.axis.state();
+            self.drive.set_axis(state);
+            self.drive.tick(1, raw);
+        }
+    }
+}
+
+impl Dictionary for SimDrive {
+    fn objects(&self) -> &'static [Object] {
+        self.drive.objects()
+    }
+    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        self.drive.read(index, sub, buf)
+    }
+    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        self.drive.write(index, sub, data, state)
+    }
+    fn write_with_runtime(
+        &mut self,
+        index: u16,
+        sub: u8,
+        data: &[u8],
+        state: EsmState,
+        runtime: &mut dyn Dictionary,
+    ) -> Result<(), SdoAbort> {
+        self.drive
+            .write_with_runtime(index, sub, data, state, runtime)
+    }
+}
+
+impl ProcessData for SimDrive {
+    fn rx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+        self.drive.rx_slot(index, sub)
+    }
+    fn tx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+        self.drive.tx_slot(index, sub)
+    }
+    fn set_rx(&mut self, slot: u16, raw: u64) {
+        self.drive.set_rx(slot, raw)
+    }
+    fn get_tx(&self, slot: u16) -> u64 {
+        self.drive.get_tx(slot)
+    }
+}
+
+impl EsmHooks for SimDrive {
+    fn on_state_change(&mut self, from: EsmState, to: EsmState) {
+        self.drive.on_state_change(from, to)
+    }
+}
+
+impl SlaveApplication for SimDrive {
+    fn cycle(&mut self, info: &CycleInfo) {
+        self.catch_up(info.now_us);
+        let state = self.axis.state();
+        self.drive.set_axis(state);
+        self.drive.cycle(info);
+    }
+    fn on_outputs_lost(&mut self, code: AlStatusCode) {
+        self.drive.on_outputs_lost(code)
+    }
+    fn sync_error_limit(&self) -> u16 {
+        self.drive.sync_error_limit()
+    }
+}
+
+/// The ESC flavour of the SII for a simulator flavour.
+pub fn esc_flavour(f: Flavour) -> EscFlavour {
+    match f {
+        Flavour::Lan9252 => EscFlavour::Lan9252,
+        Flavour::Et1100 => EscFlavour::Et1100,
+    }
+}
+
+/// The runtime configuration of the product.
+pub fn slave_config() -> SlaveConfig {
+    SlaveConfig {
+        pdo_defaults: firmware::pdo_defaults::PDO_DEFAULTS,
+        ..SlaveConfig::default()
+    }
+}
+
+/// The axis model used for `motor` (see [`crate::sim_axis`]).
+pub fn make_axis(motor: Motor) -> Box<dyn Axis> {
+    crate::sim_axis::boxed(motor)
+}
+
+/// A powered-up segment of `n` simulated drives: SII from the product identity, the
+/// product's default PDO maps, parameters loaded from each drive's flash.
+pub fn segment(cfg: &SimDriveConfig, n: usize) -> Result<Segment<SimDrive>, String> {
+    let desc = identity::device_description(Variant::HybridServo, esc_flavour(cfg.flavour), 0);
+    let sii = sii_image(&desc).map_err(|e| format!("SII image: {e:?}"))?;
+    let apps: Vec<SimDrive> = (0..n)
+        .map(|i| {
+            let flash = match &cfg.flash_file {
+                Some(p) if i == 0 => FileFlash::open(p.clone()),
+                Some(p) => FileFlash::open(PathBuf::from(format!("{}.{}", p.display(), i + 1))),
+                None => FileFlash::in_memory(),
+            };
+            SimDrive::new(0x1000 + i as u32, flash, make_axis(cfg.motor))
+        })
+        .collect();
+    let mut seg = Segment::new(
+        SegmentConfig::new(cfg.flavour),
+        &sii,
+        apps,
+        slave_config(),
+        None,
+    )
+    .map_err(|e| format!("ESC start-up: {e:?}"))?;
+    for d in seg.drives_mut() {
+        let mut runtime = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
+        d.app.drive.power_up(&mut runtime);
+    }
+    forward_emergencies(&mut seg);
+    Ok(seg)
+}
+
+/// Sends every drive's pending emergencies through its mailbox.
+pub fn forward_emergencies(seg: &mut Segment<SimDrive>) {
+    for d in seg.drives_mut() {
+        while let Some(e) = d.app.drive.pop_emergency() {
+            d.slave.emergency(e.code, e.register, e.data);
+        }
+    }
+}
+
+/// Advances the segment by `dt_ns` of simulated time (in ≤ 100 µs steps so the
+/// housekeeping and axis stay close to the ESC time).
+pub fn advance(seg: &mut Segment<SimDrive>, dt_ns: u64) {
+    let mut left = dt_ns;
+    while left > 0 {
+        let step = left.min(100_000);
+        seg.advance(step);
+        let now_us = seg.now_ns() / 1000;
+        for d in seg.drives_mut() {
+            d.app.catch_up(now_us);
+        }
+        forward_emergencies(seg);
+        left -= step;
+    }
+}
+
+/// Frame in → frame out through the segment.
+pub fn process(seg: &mut Segment<SimDrive>, frame: &mut [u8]) -> FrameOutcome {
+    let out = seg.process(frame);
+    forward_emergencies(seg);
+    out
+}
+
+/// Orderly stop: disables every drive's power stage (nothing else to flush: the
+/// parameter flash is written through on every change).
+pub fn shutdown(seg: &mut Segment<SimDrive>) {
+    for d in seg.drives_mut() {
+        d.app.axis.advance(0.0, &DriveCommand::default());
+    }
+}
