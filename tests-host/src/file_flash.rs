@@ -88,7 +88,7 @@ impl NorFlash for FileFlash {
         if from > to || to > SIZE {
             return Err(NorFlashErrorKind::OutOfBounds);
         }
-        if from % Self::ERASE_SIZE != 0 || to % Self::ERASE_SIZE != 0 {
+        if !from.is_multiple_of(Self::ERASE_SIZE) || !to.is_multiple_of(Self::ERASE_SIZE) {
             return Err(NorFlashErrorKind::NotAligned);
         }
         self.mem[from..to].fill(0xFF);
@@ -97,7 +97,8 @@ impl NorFlash for FileFlash {
     }
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
         let start = offset as usize;
-        if start % Self::WRITE_SIZE != 0 || bytes.len() % Self::WRITE_SIZE != 0 {
+        if !start.is_multiple_of(Self::WRITE_SIZE) || !bytes.len().is_multiple_of(Self::WRITE_SIZE)
+        {
             return Err(NorFlashErrorKind::NotAligned);
         }
         let dst = self

@@ -7,6 +7,7 @@ pub mod esc_sim;
 pub mod ethercrab_seam;
 pub mod file_flash;
 pub mod plant;
+pub mod plot;
 pub mod raw_socket;
 pub mod segment;
 pub mod sim_axis;

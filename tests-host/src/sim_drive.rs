@@ -44,6 +44,15 @@ pub trait Axis {
     fn state(&mut self) -> AxisState;
     /// Input pin levels (bit n = IN n+1).
     fn raw_inputs(&self) -> u8;
+    /// A new set-point from this cycle (`cycle_s` = the cycle period), before
+    /// [`Axis::advance`] runs with it. Default: nothing to do.
+    fn command(&mut self, cmd: &DriveCommand, cycle_s: f64) {
+        let _ = (cmd, cycle_s);
+    }
+    /// The drive's parameters (gains, resolution, currents). Default: not used.
+    fn parameters(&mut self, p: &firmware::params::Params) {
+        let _ = p;
+    }
 }
 
 /// Settings of the simulated drives.
