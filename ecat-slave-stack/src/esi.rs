@@ -535,29 +535,86 @@ fn physics(ports: u16) -> [u8; 4] {
     p
 }
 
-/// Writes the ESI document.
+/// One device of an ESI document: its description, object table and default PDOs.
+#[derive(Debug, Clone, Copy)]
+pub struct EsiDevice<'a> {
+    /// Identity, names, SyncManagers, mailbox, DC, EEPROM.
+    pub desc: &'a DeviceDescription,
+    /// The device's object table (sorted).
+    pub objects: &'a [Object],
+    /// The default PDOs.
+    pub pdos: &'a [PdoMap],
+}
+
+/// Writes the ESI document of one device.
 pub fn write<W: Write>(
     desc: &DeviceDescription,
     objects: &[Object],
     pdos: &[PdoMap],
     out: &mut W,
 ) -> Result<(), EsiError> {
-    validate(desc, objects, pdos)?;
+    write_devices(
+        &[EsiDevice {
+            desc,
+            objects,
+            pdos,
+        }],
+        out,
+    )
+}
+
+/// Writes one ESI document holding several devices of one vendor (e.g. the variants
+/// of a product), each validated as in [`write`]: one `Group` per distinct group type,
+/// then the `Device` elements in the order given. An empty list, or devices of
+/// different vendor ID or vendor name, is refused with
+/// `EsiError::Description(SiiError::InvalidDescription)`.
+pub fn write_devices<W: Write>(devices: &[EsiDevice<'_>], out: &mut W) -> Result<(), EsiError> {
+    let first = devices
+        .first()
+        .ok_or(EsiError::Description(SiiError::InvalidDescription))?
+        .desc;
+    for d in devices {
+        validate(d.desc, d.objects, d.pdos)?;
+        if d.desc.vendor_id != first.vendor_id || d.desc.vendor_name != first.vendor_name {
+            return Err(EsiError::Description(SiiError::InvalidDescription));
+        }
+    }
     out.write_str("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<EtherCATInfo Version=\"1.6\">\n")?;
     writeln!(
         out,
         "<Vendor><Id>#x{:08X}</Id><Name>{}</Name></Vendor>",
-        desc.vendor_id,
-        Esc(desc.vendor_name)
+        first.vendor_id,
+        Esc(first.vendor_name)
     )?;
     out.write_str("<Descriptions>\n<Groups>\n")?;
-    writeln!(
-        out,
-        "<Group><Type>{}</Type><Name LcId=\"1033\">{}</Name></Group>",
-        Esc(desc.group_type),
-        Esc(desc.group_name)
-    )?;
-    out.write_str("</Groups>\n<Devices>\n<Device")?;
+    for (i, d) in devices.iter().enumerate() {
+        let g = d.desc.group_type;
+        if devices[..i].iter().any(|p| p.desc.group_type == g) {
+            continue;
+        }
+        writeln!(
+            out,
+            "<Group><Type>{}</Type><Name LcId=\"1033\">{}</Name></Group>",
+            Esc(g),
+            Esc(d.desc.group_name)
+        )?;
+    }
+    out.write_str("</Groups>\n<Devices>\n")?;
+    for d in devices {
+        write_device(d.desc, d.objects, d.pdos, out)?;
+    }
+    out.write_str("</Devices>\n</Descriptions>\n</EtherCATInfo>\n")?;
+    Ok(())
+}
+
+/// One `Device` element.
+fn write_device<W: Write>(
+    desc: &DeviceDescription,
+    objects: &[Object],
+    pdos: &[PdoMap],
+    out: &mut W,
+) -> fmt::Result {
+    out.write_str("<Device")?;
     let ph = physics(desc.physical_ports);
     let n = ph.iter().position(|c| *c == 0).unwrap_or(4);
     if n > 0 {
@@ -662,8 +719,7 @@ pub fn write<W: Write>(
         desc.eeprom_bytes,
         Hex(&cfg[..14])
     )?;
-    out.write_str("</Device>\n</Devices>\n</Descriptions>\n</EtherCATInfo>\n")?;
-    Ok(())
+    out.write_str("</Device>\n")
 }
 
 #[cfg(test)]

@@ -714,6 +714,8 @@ pub fn write_reference(objects: &[Object], w: &mut impl core::fmt::Write) -> cor
             }
             match e.default {
                 DefaultValue::None => write!(w, "-")?,
+                // Codes, identities and mapping words also in hex.
+                DefaultValue::Int(v) if shows_hex(e, v) => write!(w, "{} (0x{:X})", v, v)?,
                 DefaultValue::Int(v) => write!(w, "{}", v)?,
                 DefaultValue::Text(t) => {
                     write!(w, "\"")?;
@@ -731,6 +733,16 @@ pub fn write_reference(objects: &[Object], w: &mut impl core::fmt::Write) -> cor
         }
     }
     Ok(())
+}
+
+/// True for a default worth showing in hex too: an unsigned entry of 16 bits or
+/// more without a unit (a code, an identity or a mapping word) of at least 0x100.
+fn shows_hex(e: &Entry, v: i64) -> bool {
+    matches!(
+        e.data_type,
+        DataType::Unsigned16 | DataType::Unsigned32 | DataType::Unsigned64
+    ) && e.unit.is_empty()
+        && v >= 0x100
 }
 
 fn object_code_name(c: ObjectCode) -> &'static str {
@@ -831,7 +843,7 @@ mod reference_tests {
         assert!(s.contains("| 1 | Kp | UINT | 16 | rPSO wP | Rx | 0 | 65535 | - | mA | yes |"));
         assert!(s.contains("| 2 | Label | STRING | 64 | rPSO | - | - | - | \"abc\" | - | no |"));
         assert!(s.contains(
-            "| 0 | Device type | UDINT | 32 | rPSO | - | 0 | 4294967295 | 131474 | - | no |"
+            "| 0 | Device type | UDINT | 32 | rPSO | - | 0 | 4294967295 | 131474 (0x20192) | - | no |"
         ));
     }
 
