@@ -940,3 +940,114 @@ fn committed_esi_files_are_up_to_date() {
         "docs/esi holds exactly the generated files: {hint}"
     );
 }
+
+/// The drive's dictionary with the mapping objects the slave runtime serves.
+struct WholeDrive {
+    drive: Drive,
+    pdo: PdoConfig,
+}
+
+impl Dictionary for WholeDrive {
+    fn objects(&self) -> &'static [Object] {
+        OBJECTS
+    }
+    fn read(
+        &mut self,
+        index: u16,
+        sub: u8,
+        buf: &mut [u8],
+    ) -> Result<usize, ecat_slave_stack::od::SdoAbort> {
+        match index {
+            0x1600..=0x1C13 => self.pdo.read(index, sub, buf),
+            _ => self.drive.read(index, sub, buf),
+        }
+    }
+    fn write(
+        &mut self,
+        index: u16,
+        sub: u8,
+        data: &[u8],
+        state: EsmState,
+    ) -> Result<(), ecat_slave_stack::od::SdoAbort> {
+        match index {
+            0x1600..=0x1C13 => self.pdo.write(index, sub, data, state, OBJECTS),
+            _ => self.drive.write(index, sub, data, state),
+        }
+    }
+}
+
+/// One mailbox exchange in Pre-Op: `body` after the 6-byte mailbox header (CoE).
+fn exchange(
+    srv: &mut ecat_slave_stack::mailbox::MailboxServer,
+    d: &mut WholeDrive,
+    counter: u8,
+    body: &[u8],
+) -> Vec<u8> {
+    let mut f = vec![0u8; 6];
+    f[0..2].copy_from_slice(&(body.len() as u16).to_le_bytes());
+    f[5] = 0x03 | counter << 4;
+    f.extend_from_slice(body);
+    srv.on_request(&f, d, EsmState::PreOp, 0);
+    let mut out = [0u8; 128];
+    let n = srv.next_output(&mut out, 0);
+    assert!(n >= 8, "no answer");
+    out[..n].to_vec()
+}
+
+#[test]
+fn coe_details_match_what_the_mailbox_server_implements() {
+    let desc = identity::device_description(Variant::HybridServo, EscFlavour::Lan9252, 0);
+    let c = desc.coe;
+    let mut d = WholeDrive {
+        drive: Drive::new(Variant::HybridServo, 0),
+        pdo: PdoConfig::new(PDO_DEFAULTS),
+    };
+    let mut srv = ecat_slave_stack::mailbox::MailboxServer::new(128);
+    let service = |out: &[u8]| u16::from_le_bytes([out[6], out[7]]) >> 12;
+    // SDO information: get OD list (opcode 1), all objects (list type 1).
+    let out = exchange(
+        &mut srv,
+        &mut d,
+        1,
+        &[0x00, 0x80, 0x01, 0x00, 0x00, 0x00, 0x01, 0x00],
+    );
+    assert_eq!(service(&out), 8);
+    assert_eq!(
+        out[8] & 0x7F == 0x02,
+        c.sdo_info,
+        "SDO information answers an OD list"
+    );
+    // Complete access upload of 0x1018 from sub-index 0.
+    let out = exchange(
+        &mut srv,
+        &mut d,
+        2,
+        &[0x00, 0x20, 0x50, 0x18, 0x10, 0x00, 0, 0, 0, 0],
+    );
+    assert_eq!(service(&out), 3, "SDO response, not an abort");
+    assert_eq!(
+        out[8] & 0xE0 == 0x40 && out[8] & 0x10 != 0,
+        c.complete_access,
+        "complete access upload answered as such ({:#04x})",
+        out[8]
+    );
+    // PDO assignment and configuration writable in Pre-Op.
+    let mut download = |counter: u8, index: u16, sub: u8, data: &[u8]| {
+        let mut b = vec![0x00, 0x20, 0x23 | ((4 - data.len() as u8) << 2)];
+        b.extend_from_slice(&index.to_le_bytes());
+        b.push(sub);
+        let mut v = [0u8; 4];
+        v[..data.len()].copy_from_slice(data);
+        b.extend_from_slice(&v);
+        let out = exchange(&mut srv, &mut d, counter, &b);
+        service(&out) == 3 && out[8] == 0x60
+    };
+    assert_eq!(download(3, 0x1C12, 0, &[0]), c.pdo_assign, "0x1C12:00 = 0");
+    assert_eq!(
+        download(4, 0x1C12, 1, &0x1601u16.to_le_bytes()),
+        c.pdo_assign
+    );
+    assert_eq!(download(5, 0x1C12, 0, &[1]), c.pdo_assign);
+    assert_eq!(download(6, 0x1601, 0, &[0]), c.pdo_config, "0x1601:00 = 0");
+    assert_eq!(download(7, 0x1601, 0, &[6]), c.pdo_config);
+}
