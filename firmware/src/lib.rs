@@ -1,17 +1,17 @@
 #![no_std]
 pub mod cia402;
-pub mod sampling;
-pub mod flash_region;
 pub mod comm;
 pub mod dictionary;
-pub mod drive;
 pub mod dip;
+pub mod drive;
 pub mod fault_led;
 pub mod faults;
+pub mod flash_region;
 pub mod identity;
 pub mod io;
 pub mod monitor;
 pub mod motion;
 pub mod params;
 pub mod pdo_defaults;
+pub mod sampling;
 pub mod storage;

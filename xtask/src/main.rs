@@ -7,7 +7,7 @@
 //! * `bench`  — instruction counts of the hot paths under QEMU (TCG plugin) and the
 //!   control-quality figures of the plant simulation → `BENCHMARKS.md`.
 //! * `demo`   — the simulated-drive commissioning demo (no hardware).
-//! * `esi`    — writes the ESI XML and the SII image into `target/esi/`.
+//! * `esi`    — writes the ESI XML files and the SII images into `docs/esi/`.
 //! * `od-doc` — writes the object dictionary reference (`docs/object-dictionary.md`).
 //! * `size`   — builds the board firmware and prints its flash/RAM use.
 //! * `flash`  — builds and flashes the board firmware with probe-rs (needs a probe).
@@ -38,9 +38,40 @@ fn main() -> ExitCode {
     let ok = match args.first().map(String::as_str) {
         Some("test") => test(),
         Some("bench") => bench(),
-        Some("demo") => run_status(&mut cargo(&["run", "-p", "tests-host", "--release", "--bin", "demo", "--"]).args(*rest)),
-        Some("esi") => run_status(&mut cargo(&["run", "-p", "tests-host", "--release", "--bin", "drive-docs", "--", "esi", "target/esi"])),
-        Some("od-doc") => run_status(&mut cargo(&["run", "-p", "tests-host", "--release", "--bin", "drive-docs", "--", "od-doc", "docs/object-dictionary.md"])),
+        Some("demo") => run_status(
+            &mut cargo(&[
+                "run",
+                "-p",
+                "tests-host",
+                "--release",
+                "--bin",
+                "demo",
+                "--",
+            ])
+            .args(*rest),
+        ),
+        Some("esi") => run_status(&mut cargo(&[
+            "run",
+            "-p",
+            "tests-host",
+            "--release",
+            "--bin",
+            "drive-docs",
+            "--",
+            "esi",
+            "docs/esi",
+        ])),
+        Some("od-doc") => run_status(&mut cargo(&[
+            "run",
+            "-p",
+            "tests-host",
+            "--release",
+            "--bin",
+            "drive-docs",
+            "--",
+            "od-doc",
+            "docs/object-dictionary.md",
+        ])),
         Some("size") => size_report().is_ok(),
         Some("flash") => run_status(&mut cargo(&["flash"])),
         _ => {
@@ -56,7 +87,10 @@ fn main() -> ExitCode {
 }
 
 fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("workspace root").to_path_buf()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("workspace root")
+        .to_path_buf()
 }
 
 fn cargo(args: &[&str]) -> Command {
@@ -110,14 +144,19 @@ fn run_capture(cmd: &mut Command) -> (bool, String) {
         let _ = h.join();
     }
     let text: Vec<String> = rx.into_iter().collect();
-    (status.map(|s| s.success()).unwrap_or(false), text.join("\n"))
+    (
+        status.map(|s| s.success()).unwrap_or(false),
+        text.join("\n"),
+    )
 }
 
 /// Sums libtest-style `test result: ... N passed; M failed` lines.
 fn count_results(text: &str) -> (u64, u64) {
     let (mut passed, mut failed) = (0, 0);
     for line in text.lines() {
-        let Some(pos) = line.find("test result:") else { continue };
+        let Some(pos) = line.find("test result:") else {
+            continue;
+        };
         let rest = &line[pos..];
         passed += number_before(rest, " passed").unwrap_or(0);
         failed += number_before(rest, " failed").unwrap_or(0);
@@ -127,7 +166,9 @@ fn count_results(text: &str) -> (u64, u64) {
 
 fn number_before(s: &str, word: &str) -> Option<u64> {
     let end = s.find(word)?;
-    let start = s[..end].rfind(|c: char| !c.is_ascii_digit()).map_or(0, |i| i + 1);
+    let start = s[..end]
+        .rfind(|c: char| !c.is_ascii_digit())
+        .map_or(0, |i| i + 1);
     s[start..end].parse().ok()
 }
 
@@ -165,52 +206,109 @@ impl Tally {
 }
 
 fn ensure_tools() -> Result<(), String> {
-    let installed = Command::new("rustup").args(["target", "list", "--installed"]).output();
+    let installed = Command::new("rustup")
+        .args(["target", "list", "--installed"])
+        .output();
     let has_target = installed
         .as_ref()
-        .map(|o| String::from_utf8_lossy(&o.stdout).lines().any(|l| l.trim() == THUMB))
+        .map(|o| {
+            String::from_utf8_lossy(&o.stdout)
+                .lines()
+                .any(|l| l.trim() == THUMB)
+        })
         .unwrap_or(false);
     if !has_target && !run_status(Command::new("rustup").args(["target", "add", THUMB])) {
         return Err(format!("could not install the rustup target {THUMB}"));
     }
-    let has_qemu = Command::new("qemu-system-arm").arg("--version").output().is_ok_and(|o| o.status.success());
+    let has_qemu = Command::new("qemu-system-arm")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
     if !has_qemu {
-        let root = Command::new("id").arg("-u").output().map(|o| String::from_utf8_lossy(&o.stdout).trim() == "0");
+        let root = Command::new("id")
+            .arg("-u")
+            .output()
+            .map(|o| String::from_utf8_lossy(&o.stdout).trim() == "0");
         if root.unwrap_or(false) {
             let ok = run_status(Command::new("apt-get").args(["update", "-q"]))
-                && run_status(Command::new("apt-get").args(["install", "-y", "-q", "qemu-system-arm"]).env("DEBIAN_FRONTEND", "noninteractive"));
+                && run_status(
+                    Command::new("apt-get")
+                        .args(["install", "-y", "-q", "qemu-system-arm"])
+                        .env("DEBIAN_FRONTEND", "noninteractive"),
+                );
             if !ok {
                 return Err("apt-get install qemu-system-arm failed".into());
             }
         } else {
-            return Err("qemu-system-arm is missing: run `sudo apt-get install -y qemu-system-arm`".into());
+            return Err(
+                "qemu-system-arm is missing: run `sudo apt-get install -y qemu-system-arm`".into(),
+            );
         }
     }
     Ok(())
 }
 
 fn test() -> bool {
-    let mut t = Tally { passed: 0, failed: 0, failed_steps: Vec::new() };
+    let mut t = Tally {
+        passed: 0,
+        failed: 0,
+        failed_steps: Vec::new(),
+    };
     if let Err(e) = ensure_tools() {
         eprintln!("error: {e}");
         t.step("install tools", false);
         return summary(&t);
     }
 
-    t.step("cargo fmt --check", run_status(&mut cargo(&["fmt", "--all", "--check"])));
+    t.step(
+        "cargo fmt --check",
+        run_status(&mut cargo(&["fmt", "--all", "--check"])),
+    );
     t.step(
         "clippy (host crates)",
-        run_status(&mut cargo(&["clippy", "--all-targets", "--", "-D", "warnings"])),
+        run_status(&mut cargo(&[
+            "clippy",
+            "--all-targets",
+            "--",
+            "-D",
+            "warnings",
+        ])),
     );
     t.step(
         "clippy (bare-metal libraries)",
-        run_status(&mut cargo(&["clippy", "-p", "foc", "-p", "ecat-slave-stack", "-p", "firmware", "-p", "qemu-bench", "--target", THUMB, "--", "-D", "warnings"])),
+        run_status(&mut cargo(&[
+            "clippy",
+            "-p",
+            "foc",
+            "-p",
+            "ecat-slave-stack",
+            "-p",
+            "firmware",
+            "-p",
+            "qemu-bench",
+            "--target",
+            THUMB,
+            "--",
+            "-D",
+            "warnings",
+        ])),
     );
     for flavour in FIRMWARE_FLAVOURS {
         let features = format!("board,{flavour}");
         t.step(
             &format!("clippy (board firmware, {flavour})"),
-            run_status(&mut cargo(&["clippy", "-p", "firmware", "--features", &features, "--target", THUMB, "--", "-D", "warnings"])),
+            run_status(&mut cargo(&[
+                "clippy",
+                "-p",
+                "firmware",
+                "--features",
+                &features,
+                "--target",
+                THUMB,
+                "--",
+                "-D",
+                "warnings",
+            ])),
         );
     }
 
@@ -225,13 +323,30 @@ fn test() -> bool {
             cmd.args(["--target", target]);
         }
         let (ok, text) = run_capture(&mut cmd);
-        let detected = !ok && text.contains("deliberately_failing ... FAILED") && text.contains("test result: FAILED");
-        eprintln!("harness self-test ({label}): failing test {}", if detected { "detected as expected" } else { "NOT detected" });
+        let detected = !ok
+            && text.contains("deliberately_failing ... FAILED")
+            && text.contains("test result: FAILED");
+        eprintln!(
+            "harness self-test ({label}): failing test {}",
+            if detected {
+                "detected as expected"
+            } else {
+                "NOT detected"
+            }
+        );
         t.step(&format!("harness self-test ({label})"), detected);
     }
 
     for krate in PORTABLE_CRATES {
-        let (ok, text) = run_capture(&mut cargo(&["test", "-p", krate, "--target", THUMB, "--test", "portable*"]));
+        let (ok, text) = run_capture(&mut cargo(&[
+            "test",
+            "-p",
+            krate,
+            "--target",
+            THUMB,
+            "--test",
+            "portable*",
+        ]));
         let (p, _) = count_results(&text);
         eprintln!("QEMU: {krate}: {p} tests passed");
         t.tests(&format!("QEMU tests of {krate}"), ok && p > 0, &text);
@@ -266,7 +381,18 @@ fn size_report() -> Result<bool, String> {
     for flavour in FIRMWARE_FLAVOURS {
         let features = format!("board,{flavour}");
         let target_dir = format!("target/firmware-{flavour}");
-        if !run_status(&mut cargo(&["build", "-p", "firmware", "--release", "--features", &features, "--target", THUMB, "--target-dir", &target_dir])) {
+        if !run_status(&mut cargo(&[
+            "build",
+            "-p",
+            "firmware",
+            "--release",
+            "--features",
+            &features,
+            "--target",
+            THUMB,
+            "--target-dir",
+            &target_dir,
+        ])) {
             return Err(format!("firmware build ({flavour}) failed"));
         }
         let elf = format!("{target_dir}/{THUMB}/release/firmware");
@@ -288,7 +414,10 @@ fn size_report() -> Result<bool, String> {
 /// Flash = sections loaded into flash (.vector_table, .text, .rodata, .data image);
 /// RAM = .data + .bss + .uninit (static RAM; the stack takes the rest).
 fn elf_usage(elf: &str) -> Result<(u64, u64), String> {
-    let out = Command::new("size").args(["-A", "-d", elf]).output().map_err(|e| format!("size: {e}"))?;
+    let out = Command::new("size")
+        .args(["-A", "-d", elf])
+        .output()
+        .map_err(|e| format!("size: {e}"))?;
     if !out.status.success() {
         return Err(format!("size -A {elf} failed"));
     }
@@ -298,7 +427,10 @@ fn elf_usage(elf: &str) -> Result<(u64, u64), String> {
         if cols.len() < 3 {
             continue;
         }
-        let (name, Ok(size), Ok(addr)) = (cols[0], cols[1].parse::<u64>(), cols[2].parse::<u64>()) else { continue };
+        let (name, Ok(size), Ok(addr)) = (cols[0], cols[1].parse::<u64>(), cols[2].parse::<u64>())
+        else {
+            continue;
+        };
         match name {
             ".vector_table" | ".text" | ".rodata" | ".gnu.sgstubs" => flash += size,
             ".data" => {
@@ -306,7 +438,12 @@ fn elf_usage(elf: &str) -> Result<(u64, u64), String> {
                 ram += size;
             }
             ".bss" | ".uninit" => ram += size,
-            _ if (0x0800_0000..0x0810_0000).contains(&addr) && size > 0 && !name.starts_with(".defmt") => flash += size,
+            _ if (0x0800_0000..0x0810_0000).contains(&addr)
+                && size > 0
+                && !name.starts_with(".defmt") =>
+            {
+                flash += size
+            }
             _ => {}
         }
     }
@@ -318,10 +455,7 @@ fn elf_usage(elf: &str) -> Result<(u64, u64), String> {
 // ---------------------------------------------------------------------------------------
 
 /// Goals from the issues, by benchmark name.
-const GOALS: &[(&str, &str)] = &[
-    ("current loop step", "≤ 300"),
-    ("CSP cycle", "≤ 1500"),
-];
+const GOALS: &[(&str, &str)] = &[("current loop step", "≤ 300"), ("CSP cycle", "≤ 1500")];
 
 fn bench() -> bool {
     if let Err(e) = ensure_tools() {
@@ -329,16 +463,35 @@ fn bench() -> bool {
         return false;
     }
     let target_dir = "target/bench";
-    if !run_status(&mut cargo(&["build", "-p", "qemu-bench", "--target", THUMB, "--profile", "bench-qemu", "--target-dir", target_dir])) {
+    if !run_status(&mut cargo(&[
+        "build",
+        "-p",
+        "qemu-bench",
+        "--target",
+        THUMB,
+        "--profile",
+        "bench-qemu",
+        "--target-dir",
+        target_dir,
+    ])) {
         return false;
     }
     let elf = format!("{target_dir}/{THUMB}/bench-qemu/qemu-bench");
     let plugin = format!("{target_dir}/libinsn_count.so");
-    if !run_status(Command::new("gcc").args(["-O2", "-shared", "-fPIC", "-Wall", "-o", &plugin, "xtask/qemu-plugin/insn_count.c"])) {
+    if !run_status(Command::new("gcc").args([
+        "-O2",
+        "-shared",
+        "-fPIC",
+        "-Wall",
+        "-o",
+        &plugin,
+        "xtask/qemu-plugin/insn_count.c",
+    ])) {
         eprintln!("error: building the QEMU plugin needs gcc");
         return false;
     }
-    let (Some(start), Some(stop)) = (symbol(&elf, "bench_start"), symbol(&elf, "bench_stop")) else {
+    let (Some(start), Some(stop)) = (symbol(&elf, "bench_start"), symbol(&elf, "bench_stop"))
+    else {
         eprintln!("error: marker symbols not found in {elf}");
         return false;
     };
@@ -357,9 +510,15 @@ fn bench() -> bool {
         }
     };
     let repeat = first == second;
-    eprintln!("instruction counts of two runs {}", if repeat { "are identical" } else { "DIFFER" });
+    eprintln!(
+        "instruction counts of two runs {}",
+        if repeat { "are identical" } else { "DIFFER" }
+    );
 
-    let overhead = first.iter().find(|(n, _)| n == "(marker overhead)").map_or(0, |(_, c)| *c);
+    let overhead = first
+        .iter()
+        .find(|(n, _)| n == "(marker overhead)")
+        .map_or(0, |(_, c)| *c);
     let mut md = String::new();
     md.push_str("# Benchmarks\n\nGenerated by `cargo xtask bench`; do not edit by hand.\n\n");
     md.push_str("## Executed instructions under QEMU (Cortex-M4F, mps2-an386)\n\n");
@@ -376,13 +535,31 @@ fn bench() -> bool {
         if name == "(marker overhead)" {
             continue;
         }
-        let goal = GOALS.iter().find(|(g, _)| name.starts_with(g)).map_or("—", |(_, g)| g);
-        let _ = writeln!(md, "| {name} | {goal} | {} |", count.saturating_sub(overhead));
+        let goal = GOALS
+            .iter()
+            .find(|(g, _)| name.starts_with(g))
+            .map_or("—", |(_, g)| g);
+        let _ = writeln!(
+            md,
+            "| {name} | {goal} | {} |",
+            count.saturating_sub(overhead)
+        );
     }
 
     md.push_str("\n## Control quality (plant simulation)\n\n");
     if Path::new("tests-host/src/bin/control-report.rs").exists() {
-        let (ok, text) = run_capture(&mut cargo(&["run", "-q", "-p", "tests-host", "--release", "--bin", "control-report", "--", "--plots", "target/plots"]));
+        let (ok, text) = run_capture(&mut cargo(&[
+            "run",
+            "-q",
+            "-p",
+            "tests-host",
+            "--release",
+            "--bin",
+            "control-report",
+            "--",
+            "--plots",
+            "target/plots",
+        ]));
         if !ok {
             eprintln!("error: control-report failed");
             return false;
@@ -400,7 +577,10 @@ fn bench() -> bool {
         eprintln!("error: cannot write BENCHMARKS.md");
         return false;
     }
-    println!("wrote BENCHMARKS.md ({} benchmarks)", first.len().saturating_sub(1));
+    println!(
+        "wrote BENCHMARKS.md ({} benchmarks)",
+        first.len().saturating_sub(1)
+    );
     repeat
 }
 
@@ -408,30 +588,68 @@ fn symbol(elf: &str, name: &str) -> Option<u64> {
     let out = Command::new("readelf").args(["-sW", elf]).output().ok()?;
     String::from_utf8_lossy(&out.stdout).lines().find_map(|l| {
         let cols: Vec<&str> = l.split_whitespace().collect();
-        (cols.len() >= 8 && cols[7] == name).then(|| u64::from_str_radix(cols[1], 16).ok()).flatten()
+        (cols.len() >= 8 && cols[7] == name)
+            .then(|| u64::from_str_radix(cols[1], 16).ok())
+            .flatten()
     })
 }
 
 /// Runs the benchmark image once; returns (name, instructions) in order.
-fn run_bench_image(elf: &str, plugin: &str, start: u64, stop: u64) -> Result<Vec<(String, u64)>, String> {
+fn run_bench_image(
+    elf: &str,
+    plugin: &str,
+    start: u64,
+    stop: u64,
+) -> Result<Vec<(String, u64)>, String> {
     let log = format!("{elf}.plugin.log");
     let _ = fs::remove_file(&log);
     let plugin_arg = format!("{plugin},start={start:#x},stop={stop:#x}");
     let out = Command::new("qemu-system-arm")
-        .args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-nographic", "-monitor", "none", "-serial", "none"])
-        .args(["-semihosting-config", "enable=on,target=native", "-d", "plugin", "-D", &log])
+        .args([
+            "-machine",
+            "mps2-an386",
+            "-cpu",
+            "cortex-m4",
+            "-nographic",
+            "-monitor",
+            "none",
+            "-serial",
+            "none",
+        ])
+        .args([
+            "-semihosting-config",
+            "enable=on,target=native",
+            "-d",
+            "plugin",
+            "-D",
+            &log,
+        ])
         .args(["-plugin", &plugin_arg, "-kernel", elf])
         .output()
         .map_err(|e| format!("qemu-system-arm: {e}"))?;
     let stdout = String::from_utf8_lossy(&out.stdout);
     if !out.status.success() {
-        return Err(format!("benchmark image failed:\n{stdout}{}", String::from_utf8_lossy(&out.stderr)));
+        return Err(format!(
+            "benchmark image failed:\n{stdout}{}",
+            String::from_utf8_lossy(&out.stderr)
+        ));
     }
-    let names: Vec<String> = stdout.lines().filter_map(|l| l.strip_prefix("BENCH ")).map(str::to_string).collect();
+    let names: Vec<String> = stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("BENCH "))
+        .map(str::to_string)
+        .collect();
     let log_text = fs::read_to_string(&log).map_err(|e| format!("plugin log: {e}"))?;
-    let counts: Vec<u64> = log_text.lines().filter_map(|l| l.strip_prefix("count ")?.trim().parse().ok()).collect();
+    let counts: Vec<u64> = log_text
+        .lines()
+        .filter_map(|l| l.strip_prefix("count ")?.trim().parse().ok())
+        .collect();
     if names.len() != counts.len() || !stdout.contains("BENCH-END") {
-        return Err(format!("{} benchmark names but {} counts", names.len(), counts.len()));
+        return Err(format!(
+            "{} benchmark names but {} counts",
+            names.len(),
+            counts.len()
+        ));
     }
     Ok(names.into_iter().zip(counts).collect())
 }

@@ -135,7 +135,11 @@ static PASSED: AtomicUsize = AtomicUsize::new(0);
 /// Runs all tests in order and exits QEMU: 0 if all passed. A failure never returns
 /// here (the panic handler exits with 101).
 pub fn run(module: &str, tests: &'static [TestFn]) -> ! {
-    let _ = writeln!(Console, "\nrunning {} tests ({module}, qemu cortex-m4f)", tests.len());
+    let _ = writeln!(
+        Console,
+        "\nrunning {} tests ({module}, qemu cortex-m4f)",
+        tests.len()
+    );
     for t in tests {
         CURRENT.store(t as *const TestFn as *mut TestFn, Ordering::SeqCst);
         (t.1)();
