@@ -17,9 +17,7 @@ use crate::sim_drive::{Axis, Motor};
 use firmware::cia402::{DriveCommand, SetpointKind};
 use firmware::drive::AxisState;
 use firmware::identity::Variant;
-use firmware::motion::{
-    CurrentReference, Feedback, Frame, Motion, MotionConfig, MotorConstants,
-};
+use firmware::motion::{CurrentReference, Feedback, Frame, Motion, MotionConfig, MotorConstants};
 use firmware::params::Params;
 use foc::modulation::Duties;
 use foc::transforms::{inverse_park, Dq};
@@ -168,6 +166,10 @@ impl Axis for KinematicAxis {
         }
     }
 
+    fn true_position(&self) -> Option<f64> {
+        Some(self.pos)
+    }
+
     fn raw_inputs(&self) -> u8 {
         // Default input functions (0x2152): IN1 home, IN2 limit−, IN3 limit+.
         let s = &self.switches;
@@ -188,4 +190,252 @@ impl Axis for KinematicAxis {
 /// The axis model used by `virtual-drive` and the demo.
 pub fn boxed(motor: Motor) -> Box<dyn Axis> {
     Box::new(KinematicAxis::new(motor))
+}
+
+/// Which axis model a simulated drive uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum AxisModel {
+    /// [`PlantAxis`] for small segments, [`KinematicAxis`] for large ones (see
+    /// [`AxisModel::resolve`]).
+    #[default]
+    Auto,
+    /// The electrical plant with the firmware's motion layer and the FOC current loop.
+    Plant,
+    /// The cheap kinematic model.
+    Kinematic,
+}
+
+/// Largest segment that [`AxisModel::Auto`] simulates with [`PlantAxis`].
+///
+/// Measured with `cargo test [--release] -p tests-host --test drive_e2e
+/// plant_axis_real_time_factor -- --nocapture` (ECN57-20, holding position): one
+/// `PlantAxis` simulates ≈ 27 s per wall second in a release build and ≈ 5.6 s in the
+/// test profile (opt-level 1) on the project machine. Four drives therefore stay well
+/// inside real time in release (≈ 15 % of a core) and still just inside it in the test
+/// profile; larger segments (up to the 64+ drives of `virtual-drive`) use
+/// [`KinematicAxis`].
+pub const PLANT_MAX_DRIVES: usize = 4;
+
+impl AxisModel {
+    /// The model used for a segment of `n` drives: `Auto` is `Plant` for
+    /// `n ≤ PLANT_MAX_DRIVES`, else `Kinematic`.
+    pub fn resolve(self, n: usize) -> AxisModel {
+        match self {
+            AxisModel::Auto if n <= PLANT_MAX_DRIVES => AxisModel::Plant,
+            AxisModel::Auto => AxisModel::Kinematic,
+            m => m,
+        }
+    }
+}
+
+/// The axis model `model` (resolved for a segment of `n` drives) for `motor`.
+pub fn boxed_model(motor: Motor, model: AxisModel, n: usize) -> Box<dyn Axis> {
+    match model.resolve(n) {
+        AxisModel::Plant => Box::new(PlantAxis::new(motor)),
+        _ => Box::new(KinematicAxis::new(motor)),
+    }
+}
+
+/// The full electrical axis: the motor and power-stage plant
+/// ([`crate::plant::motor::Plant`], 48 V) with the `foc` current loop and encoder at
+/// 40 kHz ([`Rig`]) and the firmware's motion layer ([`firmware::motion::Motion`]) at
+/// 10 kHz, configured from the drive's vendor parameters. Switches and the index pulse
+/// are those of [`KinematicAxis`] (true shaft position; the index latches at the
+/// encoder count `index_phase` within each revolution). Positions count from the
+/// shaft angle at construction. With the bridges off the current loop outputs 50 %
+/// on all legs (the coils are shorted through the bridge: a mild back-EMF brake).
+pub struct PlantAxis {
+    /// Plant + current loop + encoder.
+    pub rig: Rig,
+    /// The firmware's motion layer.
+    pub motion: Motion,
+    /// Switch positions (command units) and index phase.
+    pub switches: Switches,
+    motor: MotorConstants,
+    reference: CurrentReference,
+    cmd: DriveCommand,
+    seen_cmd: DriveCommand,
+    t_left: f64,
+    theta0: f64,
+    last_count: i64,
+    index: Option<i32>,
+}
+
+impl PlantAxis {
+    /// An axis of `motor` at rest, default vendor parameters.
+    pub fn new(motor: Motor) -> Self {
+        let (params, consts) = match motor {
+            Motor::Ecn57_20 => (ECN57_20, firmware::motion::ECN57_20),
+            Motor::Tc86_45 => (TC86_45, firmware::motion::TC86_45),
+        };
+        let rig = Rig::new(PlantConfig::new(params));
+        let p = Params::new(Variant::HybridServo);
+        let cfg = MotionConfig::from_params(&p, Variant::HybridServo, &consts, TS_SERVO);
+        let theta0 = rig.plant.theta;
+        let last = i64::from(rig.enc.position());
+        PlantAxis {
+            rig,
+            motion: Motion::new(cfg),
+            switches: Switches::default(),
+            motor: consts,
+            reference: CurrentReference::OFF,
+            cmd: DriveCommand::default(),
+            seen_cmd: DriveCommand::default(),
+            t_left: 0.0,
+            theta0,
+            last_count: last,
+            index: None,
+        }
+    }
+
+    /// Load torque opposing positive rotation, N·m.
+    pub fn set_load(&mut self, torque: f64) {
+        self.rig.plant.load = torque;
+    }
+
+    /// True shaft position in command units (axis direction).
+    pub fn true_position(&self) -> f64 {
+        let dir = if self.motion.config().reverse {
+            -1.0
+        } else {
+            1.0
+        };
+        dir * (self.rig.plant.theta - self.theta0) / (2.0 * std::f64::consts::PI)
+            * f64::from(self.motion.config().pulses_per_rev)
+    }
+
+    fn feedback(&self) -> Feedback {
+        Feedback {
+            position: self.rig.enc.position(),
+            velocity: self.rig.enc.velocity(),
+            electrical_angle: self.rig.enc.electrical_angle(),
+            voltage_limited: self.rig.cl.saturated,
+        }
+    }
+
+    fn units_of_count(&self, n: i64) -> i32 {
+        let c = self.motion.config();
+        let (u, k) = (
+            i64::from(c.pulses_per_rev.max(1)),
+            i64::from(c.counts_per_rev.max(1)),
+        );
+        (2 * n * u + k).div_euclid(2 * k) as i32
+    }
+
+    /// One PWM period (25 µs); the motion layer runs every [`SERVO_DIV`]-th.
+    fn tick(&mut self) {
+        if self.rig.k.is_multiple_of(SERVO_DIV) {
+            let fb = self.feedback();
+            self.reference = self.motion.step(&fb);
+            if self.reference.reset {
+                self.rig.cl.reset();
+            }
+            self.rig.cl.id_ref = self.reference.id;
+            self.rig.cl.iq_ref = self.reference.iq;
+        }
+        let r = self.reference;
+        let period = self.rig.plant.cfg.pwm_period;
+        self.rig.tick_with(|cl, enc, adc| {
+            if !r.power {
+                cl.id_ref = 0.0;
+                cl.iq_ref = 0.0;
+                // Measures the currents, applies 0 V (50 % on every leg), clears the PIs.
+                let _ = cl.voltage_step(adc, 0.0, 0.0);
+                return Duties::zero(period);
+            }
+            match r.frame {
+                Frame::Encoder => cl.step(adc, enc.electrical_angle(), enc.omega_e()),
+                Frame::Command { angle, omega_e } => cl.step(adc, angle, omega_e),
+            }
+        });
+        // Index pulse: axis count ≡ phase (mod counts per revolution).
+        let c = self.motion.config();
+        let cpr = i64::from(c.counts_per_rev.max(1));
+        let dir = if c.reverse { -1 } else { 1 };
+        let phase = (self.switches.index_phase * cpr as f64 / f64::from(c.pulses_per_rev.max(1)))
+            .round() as i64;
+        let now = dir * i64::from(self.rig.enc.position());
+        let prev = self.last_count;
+        if now != prev {
+            let rev = |n: i64| (n - phase).div_euclid(cpr);
+            if rev(now) != rev(prev) {
+                let k = rev(now).max(rev(prev));
+                self.index = Some(self.units_of_count(k * cpr + phase));
+            }
+            self.last_count = now;
+        }
+    }
+}
+
+impl Axis for PlantAxis {
+    fn advance(&mut self, dt_s: f64, cmd: &DriveCommand) {
+        if *cmd != self.seen_cmd {
+            // A command that did not come through `command` (e.g. shutdown).
+            self.seen_cmd = *cmd;
+            self.cmd = *cmd;
+            self.motion.set_command(cmd, 1e-3);
+        }
+        self.t_left += dt_s;
+        let ts = f64::from(TS);
+        while self.t_left >= ts * 0.999 {
+            self.t_left -= ts;
+            self.tick();
+        }
+    }
+
+    fn command(&mut self, cmd: &DriveCommand, cycle_s: f64) {
+        self.seen_cmd = *cmd;
+        self.cmd = *cmd;
+        self.motion.set_command(cmd, cycle_s as f32);
+    }
+
+    fn parameters(&mut self, p: &Params) {
+        let cfg = MotionConfig::from_params(p, Variant::HybridServo, &self.motor, TS_SERVO);
+        if cfg != *self.motion.config() {
+            self.motion.configure(cfg);
+        }
+    }
+
+    fn state(&mut self) -> AxisState {
+        let cl = &self.rig.cl;
+        let (angle, id, iq) = match self.reference.frame {
+            Frame::Encoder => (self.rig.enc.electrical_angle(), cl.id_ref, cl.iq_ref),
+            Frame::Command { angle, .. } => (angle, cl.id_ref, cl.iq_ref),
+        };
+        let (s, c) = (foc::trig::sin(angle), foc::trig::cos(angle));
+        let set = inverse_park(Dq { d: id, q: iq }, s, c);
+        let ma = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
+        let mut a = AxisState {
+            ia_ma: ma(cl.i_ab.alpha),
+            ib_ma: ma(cl.i_ab.beta),
+            ia_set_ma: ma(set.alpha),
+            ib_set_ma: ma(set.beta),
+            electrical_angle: (self.rig.enc.electrical_angle().0 >> 16) as u16,
+            bus_mv: (self.rig.plant.cfg.vbus * 1000.0) as u32,
+            index: self.index.take(),
+            ..AxisState::default()
+        };
+        self.motion.fill_axis_state(&mut a);
+        a
+    }
+
+    fn true_position(&self) -> Option<f64> {
+        Some(PlantAxis::true_position(self))
+    }
+
+    fn raw_inputs(&self) -> u8 {
+        let s = &self.switches;
+        let pos = PlantAxis::true_position(self);
+        let mut raw = 0u8;
+        if (s.home.0..=s.home.1).contains(&pos) {
+            raw |= 1;
+        }
+        if pos <= s.limit_neg {
+            raw |= 2;
+        }
+        if pos >= s.limit_pos {
+            raw |= 4;
+        }
+        raw
+    }
 }

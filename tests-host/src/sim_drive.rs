@@ -26,6 +26,7 @@ use crate::esc_sim::frame::FrameOutcome;
 use crate::esc_sim::Flavour;
 use crate::file_flash::{self, FileFlash};
 use crate::segment::{sii_image, Segment, SegmentConfig};
+pub use crate::sim_axis::AxisModel;
 
 /// The motor model of the simulated axis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -53,6 +54,10 @@ pub trait Axis {
     fn parameters(&mut self, p: &firmware::params::Params) {
         let _ = p;
     }
+    /// True shaft position in command units, for tests (None: not modelled).
+    fn true_position(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// Settings of the simulated drives.
@@ -79,6 +84,10 @@ pub struct SimDrive {
     axis_us: u64,
     /// Simulated time of the last 1 ms tick, µs.
     tick_us: u64,
+    /// Simulated time of the last application cycle, µs.
+    cycle_us: Option<u64>,
+    /// Index position read by a housekeeping tick, kept for the next cycle.
+    pending_index: Option<i32>,
 }
 
 impl SimDrive {
@@ -93,6 +102,8 @@ impl SimDrive {
             axis,
             axis_us: 0,
             tick_us: 0,
+            cycle_us: None,
+            pending_index: None,
         }
     }
 
@@ -108,6 +119,10 @@ impl SimDrive {
             self.tick_us += 1000;
             let raw = self.axis.raw_inputs();
             let state = self.axis.state();
+            // The index latch belongs to the next application cycle.
+            if state.index.is_some() {
+                self.pending_index = state.index;
+            }
             self.drive.set_axis(state);
             self.drive.tick(1, raw);
         }
@@ -122,7 +137,9 @@ impl Dictionary for SimDrive {
         self.drive.read(index, sub, buf)
     }
     fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
-        self.drive.write(index, sub, data, state)
+        self.drive.write(index, sub, data, state)?;
+        self.axis.parameters(&self.drive.params);
+        Ok(())
     }
     fn write_with_runtime(
         &mut self,
@@ -133,7 +150,9 @@ impl Dictionary for SimDrive {
         runtime: &mut dyn Dictionary,
     ) -> Result<(), SdoAbort> {
         self.drive
-            .write_with_runtime(index, sub, data, state, runtime)
+            .write_with_runtime(index, sub, data, state, runtime)?;
+        self.axis.parameters(&self.drive.params);
+        Ok(())
     }
 }
 
@@ -161,9 +180,18 @@ impl EsmHooks for SimDrive {
 impl SlaveApplication for SimDrive {
     fn cycle(&mut self, info: &CycleInfo) {
         self.catch_up(info.now_us);
-        let state = self.axis.state();
+        let mut state = self.axis.state();
+        let pending = self.pending_index.take();
+        state.index = state.index.or(pending);
         self.drive.set_axis(state);
         self.drive.cycle(info);
+        let cycle_s = match self.cycle_us {
+            Some(prev) if info.now_us > prev => (info.now_us - prev) as f64 * 1e-6,
+            _ => 1e-3,
+        };
+        self.cycle_us = Some(info.now_us);
+        let cmd = *self.drive.command();
+        self.axis.command(&cmd, cycle_s);
     }
     fn on_outputs_lost(&mut self, code: AlStatusCode) {
         self.drive.on_outputs_lost(code)
@@ -195,8 +223,19 @@ pub fn make_axis(motor: Motor) -> Box<dyn Axis> {
 }
 
 /// A powered-up segment of `n` simulated drives: SII from the product identity, the
-/// product's default PDO maps, parameters loaded from each drive's flash.
+/// product's default PDO maps, parameters loaded from each drive's flash. The axes
+/// follow [`AxisModel::Auto`]: the electrical plant ([`crate::sim_axis::PlantAxis`])
+/// for up to [`crate::sim_axis::PLANT_MAX_DRIVES`] drives, the kinematic model beyond.
 pub fn segment(cfg: &SimDriveConfig, n: usize) -> Result<Segment<SimDrive>, String> {
+    segment_with(cfg, n, AxisModel::Auto)
+}
+
+/// [`segment`] with an explicit axis model.
+pub fn segment_with(
+    cfg: &SimDriveConfig,
+    n: usize,
+    model: AxisModel,
+) -> Result<Segment<SimDrive>, String> {
     let desc = identity::device_description(Variant::HybridServo, esc_flavour(cfg.flavour), 0);
     let sii = sii_image(&desc).map_err(|e| format!("SII image: {e:?}"))?;
     let apps: Vec<SimDrive> = (0..n)
@@ -206,7 +245,8 @@ pub fn segment(cfg: &SimDriveConfig, n: usize) -> Result<Segment<SimDrive>, Stri
                 Some(p) => FileFlash::open(PathBuf::from(format!("{}.{}", p.display(), i + 1))),
                 None => FileFlash::in_memory(),
             };
-            SimDrive::new(0x1000 + i as u32, flash, make_axis(cfg.motor))
+            let axis = crate::sim_axis::boxed_model(cfg.motor, model, n);
+            SimDrive::new(0x1000 + i as u32, flash, axis)
         })
         .collect();
     let mut seg = Segment::new(
@@ -220,6 +260,7 @@ pub fn segment(cfg: &SimDriveConfig, n: usize) -> Result<Segment<SimDrive>, Stri
     for d in seg.drives_mut() {
         let mut runtime = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
         d.app.drive.power_up(&mut runtime);
+        d.app.axis.parameters(&d.app.drive.params);
     }
     forward_emergencies(&mut seg);
     Ok(seg)
