@@ -273,9 +273,25 @@ impl Scale {
     }
     /// Command units → counts: integer part and fraction in [0, 1).
     fn to_counts(self, p: i32) -> (i32, f32) {
+        if self.units * self.counts < (1 << 31) {
+            // p = a·U + b, 0 ≤ b < U: counts = a·C + (b·C)/U with 32-bit hardware
+            // divisions only (b·C < U·C < 2^31).
+            let (u, c) = (self.units as i32, self.counts as i32);
+            let a = p.div_euclid(u);
+            let b = p.rem_euclid(u);
+            let t = b * c;
+            let q = t / u;
+            let r = t - q * u;
+            return (a.wrapping_mul(c).wrapping_add(q), r as f32 / u as f32);
+        }
+        self.to_counts_wide(p)
+    }
+    /// [`Scale::to_counts`] in 64 bits (any U·C).
+    fn to_counts_wide(self, p: i32) -> (i32, f32) {
         let n = i64::from(p) * self.counts;
+        // One 64-bit division (a library call on the M4); the remainder from it.
         let q = n.div_euclid(self.units);
-        let r = n.rem_euclid(self.units);
+        let r = n - q * self.units;
         (q as i32, r as f32 / self.units as f32)
     }
     /// Counts → command units, rounded to nearest.
@@ -841,5 +857,47 @@ impl Motion {
         } else {
             0
         };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Scale;
+
+    #[test]
+    fn narrow_and_wide_unit_conversion_agree() {
+        let mut x = 0x1234_5678u32;
+        for (u, c) in [
+            (50_000u32, 4000u32),
+            (200, 4000),
+            (51_200, 240_000),
+            (3, 7),
+            (1, 1),
+        ] {
+            let s = Scale::new(u, c);
+            for k in 0..20_000 {
+                x ^= x << 13;
+                x ^= x >> 17;
+                x ^= x << 5;
+                let p = if k < 10 {
+                    [0, 1, -1, i32::MAX, i32::MIN, 49_999, -50_000, 12, -13, 7][k]
+                } else {
+                    x as i32
+                };
+                let (w1, f1) = s.to_counts(p);
+                let (w2, f2) = s.to_counts_wide(p);
+                assert_eq!(w1, w2, "{u}/{c} p {p}");
+                assert!((f1 - f2).abs() < 1e-6, "{u}/{c} p {p}");
+                assert!((0.0..1.0).contains(&f1));
+                // Round trip within half a unit.
+                let back = s.to_units(w1);
+                if s.units >= s.counts && p.unsigned_abs() < (1 << 28) {
+                    assert!(
+                        (i64::from(back) - i64::from(p)).abs() * s.counts <= s.units,
+                        "{u}/{c} p {p} back {back}"
+                    );
+                }
+            }
+        }
     }
 }

@@ -7,6 +7,7 @@ pub fn run() {
     cia402();
     cia402_pp();
     product();
+    motion();
 }
 
 /// CiA 402 rows: one control cycle of the drive profile from "outputs unpacked" to
@@ -154,4 +155,58 @@ fn product() {
         || store.save(&mut flash, &mut dict, Scope::All),
     );
     black_box(r.is_ok());
+}
+
+/// Motion layer rows (`firmware::motion`): one closed-loop servo step in the middle of
+/// a CSP cycle's interpolation (interpolation + position/velocity cascade + limits),
+/// and the once-per-cycle hand-over of the CiA 402 set-point (units → counts).
+fn motion() {
+    use firmware::cia402::{DriveCommand, SetpointKind};
+    use firmware::identity::Variant;
+    use firmware::motion::{Feedback, Motion, MotionConfig, ECN57_20, SERVO_TS};
+    use firmware::params::Params;
+    use foc::angle::Angle;
+
+    let p = Params::new(Variant::HybridServo);
+    let cfg = MotionConfig::from_params(&p, Variant::HybridServo, &ECN57_20, SERVO_TS);
+    let mut m = Motion::new(cfg);
+    let mut cmd = DriveCommand {
+        power_stage: true,
+        drive_enabled: true,
+        kind: SetpointKind::Position,
+        position: 0,
+        velocity: 50_000.0,
+        acceleration: 0.0,
+        torque_limit: 1000,
+        current_limit: 1000,
+        brake_release: true,
+    };
+    let mut fb = Feedback {
+        position: 0,
+        velocity: 0.0,
+        electrical_angle: Angle::ZERO,
+        voltage_limited: false,
+    };
+    // Running at one revolution per second: 50 units (4 counts) per 1 ms cycle.
+    for k in 0..20 {
+        cmd.position = 50 * k;
+        m.set_command(&cmd, 0.001);
+        for _ in 0..10 {
+            let (d, f) = m.demand_counts();
+            fb.position = d;
+            fb.velocity = 4000.0 + f;
+            m.step(&fb);
+        }
+    }
+    cmd.position += 50;
+    let c = black_box(cmd);
+    crate::bench("motion set_command (per cycle, units -> counts)", || {
+        m.set_command(&c, 0.001)
+    });
+    for _ in 0..4 {
+        m.step(&fb);
+    }
+    let fb = black_box(fb);
+    let out = crate::bench("servo step (motion layer)", || m.step(&fb));
+    black_box(out);
 }
