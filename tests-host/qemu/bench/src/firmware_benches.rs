@@ -8,6 +8,7 @@ pub fn run() {
     cia402_pp();
     product();
     motion();
+    csp_cycle();
 }
 
 /// CiA 402 rows: one control cycle of the drive profile from "outputs unpacked" to
@@ -209,4 +210,92 @@ fn motion() {
     let fb = black_box(fb);
     let out = crate::bench("servo step (motion layer)", || m.step(&fb));
     black_box(out);
+}
+
+/// The composed CSP cycle of issue 7 with the product's default maps (0x1600 / 0x1A00):
+/// the RxPDO image unpacked into the [`firmware::drive::Drive`] through the compiled
+/// copy plan, the drive cycle (PDS, CSP mode, supervision), the per-cycle motion
+/// hand-over (units → counts, interpolation start) and one closed-loop servo step of
+/// `firmware::motion::Motion`, and the TxPDO image packed. Drive enabled in Op, CSP,
+/// moving at one revolution per second.
+fn csp_cycle() {
+    use ecat_slave_stack::esm::{EsmHooks, EsmState};
+    use ecat_slave_stack::pdo::{self, PdoConfig};
+    use firmware::drive::{AxisState, Drive};
+    use firmware::identity::Variant;
+    use firmware::motion::{Feedback, Motion, MotionConfig, ECN57_20, SERVO_TS};
+    use foc::angle::Angle;
+
+    let mut d = Drive::new(Variant::HybridServo, 1);
+    let cfg = PdoConfig::new(firmware::pdo_defaults::PDO_DEFAULTS);
+    let Ok(plan) = cfg.compile(&d, firmware::dictionary::OBJECTS) else {
+        return;
+    };
+    for (from, to) in [
+        (EsmState::Init, EsmState::PreOp),
+        (EsmState::PreOp, EsmState::SafeOp),
+        (EsmState::SafeOp, EsmState::Op),
+    ] {
+        d.on_state_change(from, to);
+    }
+    d.cia402.set_mode(mode::CSP);
+    let mcfg = MotionConfig::from_params(&d.params, Variant::HybridServo, &ECN57_20, SERVO_TS);
+    let mut m = Motion::new(mcfg);
+    // RxPDO 0x1600: 6040 (2 B), 607A (4 B), 60B0 (4 B), 60B8 (2 B).
+    let image = |cw: u16, target: i32| {
+        let mut b = [0u8; 12];
+        b[0..2].copy_from_slice(&cw.to_le_bytes());
+        b[2..6].copy_from_slice(&target.to_le_bytes());
+        b
+    };
+    let mut inputs = [0u8; 64];
+    let tx_len = (plan.tx.bytes() as usize).min(inputs.len());
+    let mut fb = Feedback {
+        position: 0,
+        velocity: 0.0,
+        electrical_angle: Angle::ZERO,
+        voltage_limited: false,
+    };
+    let mut target = 0i32;
+    let mut one_cycle = |d: &mut Drive, m: &mut Motion, fb: &mut Feedback, out: &[u8; 12]| {
+        pdo::unpack(&plan.rx, out, d);
+        let cmd = d.run_cycle(0.001);
+        m.set_command(&cmd, 0.001);
+        let r = m.step(fb);
+        pdo::pack(&plan.tx, d, &mut inputs[..tx_len]);
+        r
+    };
+    for cw in [0x0000u16, 0x0006, 0x0007, 0x000F, 0x000F] {
+        one_cycle(&mut d, &mut m, &mut fb, &image(cw, target));
+    }
+    // Steady motion: the axis follows the demand (50 units per 1 ms cycle).
+    for _ in 0..20 {
+        target += 50;
+        one_cycle(&mut d, &mut m, &mut fb, &image(0x000F, target));
+        let (pos, vel) = m.demand_counts();
+        fb.position = pos;
+        fb.velocity = 4000.0 + vel;
+        d.set_axis(AxisState {
+            position: target,
+            ..AxisState::default()
+        });
+    }
+    target += 50;
+    let out = black_box(image(0x000F, target));
+    let fb = black_box(fb);
+    let r = crate::bench(
+        "CSP cycle (unpack → Drive cycle → motion servo step → pack)",
+        || {
+            pdo::unpack(&plan.rx, &out, &mut d);
+            let cmd = d.run_cycle(0.001);
+            m.set_command(&cmd, 0.001);
+            let r = m.step(&fb);
+            pdo::pack(&plan.tx, &d, &mut inputs[..tx_len]);
+            r
+        },
+    );
+    black_box(r);
+    black_box(inputs);
+    // The drive is enabled (statusword "operation enabled") in the measured cycle.
+    black_box(d.cia402.statusword() & 0x6F == 0x27);
 }
