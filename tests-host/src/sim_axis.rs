@@ -209,11 +209,10 @@ pub enum AxisModel {
 ///
 /// Measured with `cargo test [--release] -p tests-host --test drive_e2e
 /// plant_axis_real_time_factor -- --nocapture` (ECN57-20, holding position): one
-/// `PlantAxis` simulates ≈ 27 s per wall second in a release build and ≈ 5.6 s in the
-/// test profile (opt-level 1) on the project machine. Four drives therefore stay well
-/// inside real time in release (≈ 15 % of a core) and still just inside it in the test
-/// profile; larger segments (up to the 64+ drives of `virtual-drive`) use
-/// [`KinematicAxis`].
+/// `PlantAxis` simulates ≈ 26 s per wall second, in a release build and in the test
+/// profile alike (≈ 6 s while parallel builds load the 2-core machine). Four drives
+/// therefore need about 15 % of a core and stay in real time even on a loaded machine;
+/// larger segments (up to the 64+ drives of `virtual-drive`) use [`KinematicAxis`].
 pub const PLANT_MAX_DRIVES: usize = 4;
 
 impl AxisModel {

@@ -706,3 +706,80 @@ fn plant_axis_holds_against_load_and_is_dead_when_disabled() {
     assert!(s.ia_ma.abs() < 100 && s.ib_ma.abs() < 100, "{s:?}");
     assert_eq!((s.ia_set_ma, s.ib_set_ma), (0, 0));
 }
+
+/// On the plant: closed loop → open loop (0x2024 = 1 through the parameter hook) while
+/// enabled and holding, an open-loop move of a quarter revolution, back to closed loop;
+/// the shaft never jumps and every phase current stays bounded.
+#[test]
+fn plant_axis_open_closed_switching_and_open_loop_move() {
+    use firmware::identity::Variant;
+    use firmware::params::Params;
+    let mut ax = PlantAxis::new(Motor::Ecn57_20);
+    let mut p = Params::new(Variant::HybridServo);
+    ax.parameters(&p);
+    let mut c = DriveCommand {
+        power_stage: true,
+        drive_enabled: true,
+        torque_limit: 1000,
+        current_limit: 1000,
+        ..DriveCommand::default()
+    };
+    let mut run = |ax: &mut PlantAxis, c: &DriveCommand, ms: usize| -> (f64, i16) {
+        let mut worst = 0.0f64;
+        let mut imax = 0i16;
+        let p0 = ax.true_position();
+        for _ in 0..ms {
+            ax.command(c, 1e-3);
+            ax.advance(1e-3, c);
+            let s = ax.state();
+            imax = imax.max(s.ia_ma.abs()).max(s.ib_ma.abs());
+            worst = worst.max((ax.true_position() - p0).abs());
+        }
+        (worst, imax)
+    };
+    let (w, _) = run(&mut ax, &c, 50);
+    assert!(w <= UNITS_PER_COUNT, "closed-loop hold moved {w}");
+    // To open loop: the vector goes onto the rotor, the shaft stays.
+    p.write(0x2024, 0, &[1]).unwrap();
+    ax.parameters(&p);
+    assert!(!ax.motion.closed_loop());
+    let (w, imax) = run(&mut ax, &c, 100);
+    assert!(
+        w <= 3.0 * UNITS_PER_COUNT,
+        "switch to open loop moved the shaft {w}"
+    );
+    assert!(imax <= 3400, "{imax} mA");
+    // Open-loop move: a quarter revolution in 250 ms.
+    let start = ax.state().position;
+    for k in 1..=250 {
+        c.position = start + k * 50;
+        ax.command(&c, 1e-3);
+        ax.advance(1e-3, &c);
+    }
+    let (_, imax) = run(&mut ax, &c, 100);
+    assert!(imax <= 3400, "{imax} mA");
+    let moved = ax.state().position - start;
+    // The rotor follows the vector (load angle of a few counts, detent).
+    assert!((moved - 12_500).abs() <= 40, "open loop moved {moved}");
+    // Back to closed loop: bumpless, and the axis then holds the commanded position.
+    p.write(0x2024, 0, &[2]).unwrap();
+    ax.parameters(&p);
+    assert!(ax.motion.closed_loop());
+    let (w, imax) = run(&mut ax, &c, 200);
+    assert!(
+        w <= 3.0 * UNITS_PER_COUNT,
+        "switch to closed loop moved the shaft {w}"
+    );
+    assert!(imax <= 3400, "{imax} mA");
+    let s = ax.state();
+    assert!(
+        (s.position - c.position).abs() <= 13,
+        "{s:?} vs {}",
+        c.position
+    );
+    println!(
+        "plant open/closed: open-loop move {moved} units (12 500 commanded), after closing \
+         the loop {} (target {}), largest shaft motion at the switch {w:.1} units",
+        s.position, c.position
+    );
+}
