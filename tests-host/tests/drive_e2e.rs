@@ -724,7 +724,7 @@ fn plant_axis_open_closed_switching_and_open_loop_move() {
         current_limit: 1000,
         ..DriveCommand::default()
     };
-    let mut run = |ax: &mut PlantAxis, c: &DriveCommand, ms: usize| -> (f64, i16) {
+    let run = |ax: &mut PlantAxis, c: &DriveCommand, ms: usize| -> (f64, i16) {
         let mut worst = 0.0f64;
         let mut imax = 0i16;
         let p0 = ax.true_position();
