@@ -7,7 +7,7 @@
 //! without it the plots are drawn without text.
 
 use plotters::prelude::*;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use tests_host::plant::motor::ECN57_20;
 use tests_host::plant::scenarios;
 use tests_host::plot::{load_font, plot};
