@@ -73,6 +73,10 @@ pub const BASE_BANDWIDTH_HZ: f32 = 400.0;
 pub const D_RAMP_S: f32 = 0.01;
 /// Servo period of the board, s (10 kHz).
 pub const SERVO_TS: f32 = 1e-4;
+/// Time constant of the first-order filter on the reported velocity (0x606C), s: the
+/// encoder PLL's estimate carries the count quantisation (±5 % at 2 rev/s with 4000
+/// counts/rev); the loops use the unfiltered estimate.
+pub const VELOCITY_REPORT_TAU: f32 = 0.005;
 
 /// Mechanical constants the base gains need (not among the vendor parameters: the
 /// board knows its motor).
@@ -401,6 +405,7 @@ pub struct Motion {
     following_error: f32,
     open_pos_units: i32,
     open_vel_units: f32,
+    vel_report: f32,
     current_limited: bool,
 }
 
@@ -445,6 +450,7 @@ impl Motion {
             following_error: 0.0,
             open_pos_units: 0,
             open_vel_units: 0.0,
+            vel_report: 0.0,
             current_limited: false,
         }
     }
@@ -642,6 +648,7 @@ impl Motion {
                 self.open.disable();
             }
             self.track_disabled(&fb_ok);
+            self.filter_velocity();
             self.last_ref = CurrentReference::OFF;
             return self.last_ref;
         }
@@ -660,6 +667,7 @@ impl Motion {
             reset: core::mem::take(&mut self.reset_pending),
             ..r
         };
+        self.filter_velocity();
         self.last_ref = r;
         r
     }
@@ -809,10 +817,26 @@ impl Motion {
 
     /// Actual velocity in command units/s.
     pub fn velocity_units(&self) -> f32 {
+        self.vel_report
+    }
+
+    /// Unfiltered velocity of this step, command units/s.
+    fn velocity_now(&self) -> f32 {
         if self.cfg.counts_per_rev > 0 {
             self.dir as f32 * self.last_fb.velocity * self.scale.units_per_count()
         } else {
             self.open_vel_units
+        }
+    }
+
+    fn filter_velocity(&mut self) {
+        let k = self.cfg.ts / (VELOCITY_REPORT_TAU + self.cfg.ts);
+        let v = self.velocity_now();
+        if v.is_finite() {
+            self.vel_report += k * (v - self.vel_report);
+        }
+        if !self.vel_report.is_finite() {
+            self.vel_report = 0.0;
         }
     }
 

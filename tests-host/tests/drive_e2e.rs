@@ -373,7 +373,51 @@ async fn plant_csp(md: Rc<MainDevice<'static>>, w: Wired) -> Result<Vec<String>,
     // 2 (default) Switch on disabled once at rest.
     let qso: i16 = g.sdo_read(md, 0x605A, 0).await?;
     assert_eq!(qso, 2);
-    let base = home + UPR;
+    // PV on the plant (velocity set-point to the motion layer's velocity loop): 0x60FF
+    // over SDO, velocity reached (bit 10) at 2 rev/s, then speed zero (bit 12) at 0.
+    set_mode(md, &g, &w, 3, 0x000F, home + UPR).await?;
+    g.sdo_write(md, 0x6083, 0, 1_000_000u32).await?;
+    g.sdo_write(md, 0x6084, 0, 1_000_000u32).await?;
+    // Velocity window 2 % (one count is 12.5 units: the default 100 units/s is finer
+    // than a 4000-count encoder resolves in a few ms).
+    g.sdo_write(md, 0x606D, 0, 2_000u16).await?;
+    g.sdo_write(md, 0x60FF, 0, 100_000i32).await?;
+    let seen = run_until(md, &g, &w, 0x000F, 0, 1000, |t| {
+        t.sw & 0x0400 != 0 && t.sw & 0x1000 == 0
+    })
+    .await?;
+    let n_up = seen.len();
+    assert!(n_up < 1000, "velocity never reached");
+    for _ in 0..50 {
+        cycle(md, &g, &w, 0x000F, 0).await?;
+    }
+    let v: i32 = g.sdo_read(md, 0x606C, 0).await?;
+    assert!((v - 100_000).abs() <= 2_000, "PV actual velocity {v}");
+    g.sdo_write(md, 0x60FF, 0, 0i32).await?;
+    let seen = run_until(md, &g, &w, 0x000F, 0, 1000, |t| t.sw & 0x1400 == 0x1400).await?;
+    assert_eq!(
+        seen.last().map(|t| t.sw & 0x1400),
+        Some(0x1400),
+        "PV did not stop"
+    );
+    assert!(seen.iter().all(|t| st(t.sw) == St::Enabled));
+    let v0: i32 = g.sdo_read(md, 0x606C, 0).await?;
+    notes.push(format!(
+        "PV on the plant: 2 rev/s reached after {n_up} cycles, 0x606C {v} at speed, {v0} after the stop ({} cycles)",
+        seen.len()
+    ));
+    // Back to CSP at the actual position (bumpless).
+    let here = seen.last().map_or(0, |t| t.pos);
+    set_mode(md, &g, &w, 8, 0x000F, here).await?;
+    let base = cycle(md, &g, &w, 0x000F, here).await?.pos;
+    let p_csp = true_pos(&w);
+    for _ in 0..20 {
+        cycle(md, &g, &w, 0x000F, base).await?;
+    }
+    assert!(
+        (true_pos(&w) - p_csp).abs() <= 2.0 * UNITS_PER_COUNT,
+        "PV -> CSP jumped"
+    );
     let mut last = base;
     for k in 1..=100 {
         last = base + (k as f64 * 1e-3 * 100_000.0) as i32; // 2 rev/s
