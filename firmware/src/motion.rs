@@ -262,17 +262,23 @@ impl CurrentReference {
 }
 
 /// Exact scaling between command units and encoder counts.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct Scale {
     units: i64,
     counts: i64,
+    // Precomputed ratios (i64 → f32 conversions are library calls on the M4).
+    cpu: f32,
+    upc: f32,
 }
 
 impl Scale {
     fn new(units: u32, counts: u32) -> Self {
+        let (u, c) = (units.max(1), counts.max(1));
         Scale {
-            units: i64::from(units.max(1)),
-            counts: i64::from(counts.max(1)),
+            units: i64::from(u),
+            counts: i64::from(c),
+            cpu: (f64::from(c) / f64::from(u)) as f32,
+            upc: (f64::from(u) / f64::from(c)) as f32,
         }
     }
     /// Command units → counts: integer part and fraction in [0, 1).
@@ -304,10 +310,10 @@ impl Scale {
         x.div_euclid(2 * self.counts) as i32
     }
     fn counts_per_unit(self) -> f32 {
-        self.counts as f32 / self.units as f32
+        self.cpu
     }
     fn units_per_count(self) -> f32 {
-        self.units as f32 / self.counts as f32
+        self.upc
     }
 }
 
@@ -368,8 +374,12 @@ impl Interp {
             return (self.to_w, self.to_f, moving);
         }
         let d = self.from_f + self.delta * (self.k as f32 * self.inv_n);
-        let whole = libm::floorf(d);
-        (self.from_w.wrapping_add(whole as i32), d - whole, moving)
+        // floor without the library call (`as` saturates, NaN → 0).
+        let mut whole = d as i32;
+        if (whole as f32) > d {
+            whole -= 1;
+        }
+        (self.from_w.wrapping_add(whole), d - whole as f32, moving)
     }
 }
 
@@ -406,6 +416,7 @@ pub struct Motion {
     open_pos_units: i32,
     open_vel_units: f32,
     vel_report: f32,
+    vel_k: f32,
     current_limited: bool,
 }
 
@@ -451,6 +462,7 @@ impl Motion {
             open_pos_units: 0,
             open_vel_units: 0.0,
             vel_report: 0.0,
+            vel_k: cfg.ts / (VELOCITY_REPORT_TAU + cfg.ts),
             current_limited: false,
         }
     }
@@ -830,7 +842,7 @@ impl Motion {
     }
 
     fn filter_velocity(&mut self) {
-        let k = self.cfg.ts / (VELOCITY_REPORT_TAU + self.cfg.ts);
+        let k = self.vel_k;
         let v = self.velocity_now();
         if v.is_finite() {
             self.vel_report += k * (v - self.vel_report);
