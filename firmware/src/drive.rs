@@ -68,7 +68,8 @@ pub struct AxisState {
     pub overcurrent_trip: bool,
     /// The servo is at its current limit.
     pub current_limited: bool,
-    /// Following error between servo demand and encoder, command units (closed loop).
+    /// Following error between servo demand and encoder, encoder counts (closed loop;
+    /// compared with 0x2030).
     pub servo_following_error: i32,
 }
 
@@ -277,6 +278,12 @@ impl<S: ParameterStore> Drive<S> {
         report
     }
 
+    /// The parameter store (the board takes a finished staged record out of it to
+    /// program the flash outside its lock).
+    pub fn store_mut(&mut self) -> Option<&mut S> {
+        self.store.as_mut()
+    }
+
     /// What the power-up load found.
     pub fn load_report(&self) -> Option<LoadReport> {
         self.load_report
@@ -429,6 +436,9 @@ impl<S: ParameterStore> Drive<S> {
                 snap,
                 self.now_ms,
             );
+        } else {
+            // Not servoing: there is no following error, so a fault reset may clear it.
+            self.faults.condition_gone(FaultKind::FollowingError);
         }
         // A fault reset accepted by the PDS (controlword bit 7) clears the faults.
         if self.faults.take_pds_fault_request() {
@@ -751,6 +761,32 @@ mod tests {
             d.run_cycle(0.001);
         }
         assert_eq!(d.cia402.state(), PdsState::SwitchOnDisabled);
+    }
+
+    #[test]
+    fn following_error_fault_resets_once_the_drive_is_disabled() {
+        let mut d = Drive::new(Variant::HybridServo, 0);
+        enable(&mut d);
+        d.set_axis(AxisState {
+            bus_mv: 48_000,
+            servo_following_error: 5000,
+            ..AxisState::default()
+        });
+        d.run_cycle(0.001);
+        assert_eq!(d.faults.error_code(), 0x8611);
+        for _ in 0..20 {
+            d.run_cycle(0.001);
+        }
+        assert_eq!(d.cia402.state(), PdsState::Fault);
+        // The servo is off now; its stale error must not block the reset.
+        d.cia402.set_controlword(0x00);
+        d.run_cycle(0.001);
+        d.cia402.set_controlword(0x80);
+        for _ in 0..3 {
+            d.run_cycle(0.001);
+        }
+        assert_eq!(d.cia402.state(), PdsState::SwitchOnDisabled);
+        assert_eq!(d.faults.error_code(), 0);
     }
 
     #[test]

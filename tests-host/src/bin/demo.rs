@@ -18,7 +18,7 @@ use plotters::style::RGBColor;
 use tests_host::esc_sim::frame::{datagrams, FrameOutcome, Wire};
 use tests_host::esc_sim::Flavour;
 use tests_host::ethercrab_seam::{sim_config, sim_now_ns, sim_timeouts, MasterHarness};
-use tests_host::plot::{load_font, plot};
+use tests_host::plot::{load_font, plot, Series};
 use tests_host::segment::Segment;
 use tests_host::sim_drive::{self, Motor, SimDrive, SimDriveConfig};
 
@@ -325,10 +325,12 @@ async fn commission(
         wire: wire.clone(),
         t0: sim_now_ns(),
     };
-    let sd = group.subdevice(&md, 0)?;
-    let seg_in = sd.inputs_raw().len();
-    let seg_out = sd.outputs_raw_mut().len();
-    drop(sd);
+    let (seg_in, seg_out) = {
+        let sd = group.subdevice(&md, 0)?;
+        let i = sd.inputs_raw().len();
+        let o = sd.outputs_raw_mut().len();
+        (i, o)
+    };
     println!("\n4. Operational: {seg_out} bytes of outputs and {seg_in} bytes of inputs exchanged every 1 ms (LRW).");
 
     // --- enable ---------------------------------------------------------------------
@@ -548,7 +550,12 @@ async fn commission(
             .collect();
         table(
             "10. Emergency messages the master read from the mailbox",
-            &["time", "error code", "error register", "manufacturer bytes"],
+            &[
+                "read by the master at",
+                "error code",
+                "error register",
+                "manufacturer bytes",
+            ],
             &rows,
         );
     }
@@ -644,7 +651,7 @@ fn main() {
     println!();
     for (file, title, x, y, series) in plots {
         let path = out.join(file);
-        let s: Vec<(&str, &[(f64, f64)], RGBColor)> = series
+        let s: Vec<Series> = series
             .iter()
             .map(|(n, d, c)| (*n, d.as_slice(), *c))
             .collect();
