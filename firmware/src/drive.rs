@@ -429,13 +429,16 @@ impl<S: ParameterStore> Drive<S> {
             && self.variant.has_encoder()
             && self.params.get(P::LoopMode) == 2
         {
-            let snap = self.snapshot();
-            self.faults.check_following_error(
-                self.axis.servo_following_error,
-                self.params.get(P::FollowingErrorLimit) as u16,
-                snap,
-                self.now_ms,
-            );
+            let err = self.axis.servo_following_error;
+            let limit = self.params.get(P::FollowingErrorLimit) as u16;
+            if err.unsigned_abs() > u32::from(limit) {
+                // The snapshot is only taken when there is something to record.
+                let snap = self.snapshot();
+                self.faults
+                    .check_following_error(err, limit, snap, self.now_ms);
+            } else {
+                self.faults.condition_gone(FaultKind::FollowingError);
+            }
         } else {
             // Not servoing: there is no following error, so a fault reset may clear it.
             self.faults.condition_gone(FaultKind::FollowingError);
