@@ -287,6 +287,14 @@ impl<E: EscAccess> Slave<E> {
         }
     }
 
+    /// Sets the station alias [`Slave::init`] writes into 0x0012 (`None`: keep the
+    /// value the ESC loaded from the SII). For products whose alias comes from stored
+    /// parameters, which are loaded through [`Slave::runtime_objects`] after
+    /// [`Slave::new`].
+    pub fn set_station_alias(&mut self, alias: Option<u16>) {
+        self.cfg.station_alias = alias;
+    }
+
     /// Reads the ESC information, writes the alias (if configured), the AL event mask
     /// and AL status Init without error.
     pub fn init(&mut self) -> Result<EscInfo, EscError> {

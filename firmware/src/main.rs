@@ -12,43 +12,61 @@
 //!
 //! | what | runs in | priority | rate | worst-case budget |
 //! |---|---|---|---|---|
-//! | current loop: ADC1 JEOS → read I_A, I_B, V_BUS → `firmware::sampling::current_loop_hook` (→ FOC current loop when wired) | `ADC1_2` ISR | 0 | 40 kHz (PWM centre) | ≤ 12.5 µs (half a PWM period) ; today's hook: to be measured, expected < 1 µs |
+//! | current loop: ADC1 JEOS → I_A, I_B, V_BUS → encoder update → `foc::current_loop::CurrentLoop::step` → TIM1/TIM8 compare (`hw::control`) | `ADC1_2` ISR | 0 | 40 kHz (PWM centre) | ≤ 12.5 µs (half a PWM period); current step ≈ 290 instructions (QEMU count) ≈ 2-3 µs; to be measured (`ISR max` in the status line) |
+//! | motion layer: `firmware::motion::Motion::step` (interpolation, servo / open loop → current reference), feedback published | same ISR, every 4th period | 0 | 10 kHz | together with the current step ≤ 12.5 µs; to be measured |
 //! | over-current: break input → TIM1/TIM8 MOE off | hardware | — | event | break filter ≈ 24 ns + gate driver |
-//! | break bookkeeping: other bridge off, latch fault 1 | `TIM1_BRK_TIM15`, `TIM8_BRK` ISRs | 1 | event | < 1 µs, to be measured |
+//! | break bookkeeping: other bridge off, latch | `TIM1_BRK_TIM15`, `TIM8_BRK` ISRs | 1 | event | < 1 µs, to be measured |
 //! | SPI DMA completion (ESC transfers) | `DMA1_CHANNEL1/2` ISRs (embassy) | 1 | per transfer | < 1 µs, to be measured |
-//! | cyclic path: ESC IRQ / SYNC0 → AL event → (SM2 read, CiA 402 + servo, SM3 write when the slave runtime is wired) | interrupt executor on `UART4` (vector unused: its pins carry TIM8) | 2 | sync rate (≥ 250 µs cycle) | ≤ 50 % of the cycle time; SPI alone ≈ 0.4 µs/byte at 21.25 MHz; to be measured |
+//! | cyclic path: SYNC0 → `Slave::cycle` (SM2 read, `Drive` = CiA 402 cycle, SM3 write) → set-points to the ISR | interrupt executor on `UART4` (vector unused: its pins carry TIM8) | 2 | DC sync rate (≥ 125 µs cycle) | ≤ 50 % of the cycle; SPI ≈ 0.4 µs/byte at 21.25 MHz + CSP cycle (≈ 1.5 k instructions); to be measured |
 //! | touch probe 2 (IN2 edge → encoder count) | interrupt executor `UART4` | 2 | event | < 2 µs latency, to be measured |
 //! | EXTI1/2/3 wakers (IN2, ESC IRQ, SYNC0) | `EXTI1..3` ISRs (embassy) | 2 | event | < 1 µs |
 //! | embassy time driver | `TIM5` ISR | 3 | alarms | < 2 µs |
-//! | supervisor: offset self-check at start, watchdog feeding, status log | thread executor | thread | 100 Hz | < 100 µs per tick |
-//! | LEDs (fault flash code, green power) | thread executor | thread | 100 Hz | < 10 µs |
-//! | I/O filtering (inputs debounce, outputs, brake) | thread executor | thread | 1 kHz | < 10 µs |
-//! | mailbox / SDO: inside `Slave::poll` in the cyclic task (see Ownership) | interrupt executor `UART4` | 2 | on ESC IRQ | one SDO: to be measured; must stay well below the cycle time |
-//! | parameter storage: slot check at start-up; save/restore (flash erase ≈ 20 ms per page, blocking) | thread executor | thread | on demand | not time-critical; blocks the thread executor: the watchdog timeout (300 ms) covers erasing a whole 8 KiB slot (4 pages × ≤ 40 ms) |
+//! | EtherCAT: ESC IRQ (or every 1 ms) → `Slave::poll` (AL control, ESM, mailbox/SDO, watchdog supervision; the cycle in SM-synchronous / free-run mode), emergencies forwarded | thread executor, holding the priority-ceiling lock | thread (ceiling 2) | ESC IRQ, ≥ 1 kHz | one SDO ≈ 2 × 128-byte SPI transfers + dictionary access; a 'save' adds the record serialisation (≈ 1.7 KiB of dictionary reads); delays the cyclic path by at most this; to be measured |
+//! | parameter storage: staged record → flash (erase ≈ 20 ms per 2 KiB page, ≤ 40 ms max; program ≈ 85 µs per 8 bytes) | thread executor, after `poll`, **no lock** | thread | on 'save' / 'load' | ≤ 4 × 40 ms + 20 ms; the cyclic path and the ISRs keep running (bank 2 read-while-write); the thread tasks pause — the watchdog (300 ms) covers it |
+//! | 1 ms tick: raw inputs → `Drive::tick` (filter, protections, fault 1 / 9 from the board), outputs + brake from `Drive::outputs`, LEDs (`Drive::leds`, RUN/ERR from the ESM state and AL status code) | thread executor (lock held for the drive part) | thread | 1 kHz | < 20 µs, to be measured |
+//! | supervisor: offset self-check at start, watchdog feeding, status line | thread executor | thread | 100 Hz | < 100 µs per tick |
 //!
-//! Ownership: the cyclic path (priority 2) owns the ESC (the SPI bus and the driver).
-//! State of the wiring: today the cyclic task only reads the AL event register on
-//! each ESC IRQ / SYNC0 edge. The slave runtime (`ecat_slave_stack::slave::Slave`)
-//! goes into that task: `Slave::cycle` on SYNC0 and `Slave::poll` on the ESC IRQ.
-//! `poll` also serves the mailbox inline, so the SDO work that can take long
-//! (a 'save' erases flash, ≈ 20 ms per 2 KiB page) must be handed to the thread-mode
-//! storage task instead of running at priority 2 — to be decided when the drive
-//! application is wired.
+//! ## Who owns what
+//! * The **drive state** — `Slave<Esc>` (the ESC and its SPI bus) and `Drive` (the
+//!   application: dictionary, CiA 402, faults, parameter store) — is one
+//!   [`Shared`] value in a blocking `Mutex<CyclicCeiling, RefCell<..>>`
+//!   ([`hw::lock`]): locking raises BASEPRI to the cyclic priority, so the thread-mode
+//!   tasks exclude the cyclic path while they hold it, and the current loop
+//!   (priority 0) and the DMA / break interrupts (priority 1) are never delayed by it.
+//!   We did not split Slave and Drive: `poll` and `cycle` both need both.
+//! * `Slave::poll` runs in **thread mode** (task `ecat`), `Slave::cycle` on the
+//!   **interrupt executor** (task `cyclic`, SYNC0). A 'save' (0x1010) arrives as an SDO
+//!   inside `poll`; the parameter store is `FlashStore<hw::flash::StagedFlash>`: the
+//!   record is serialised into a 2 KiB RAM image inside `poll` (the SDO answer reports
+//!   the serialisation's result) and the `ecat` task programs it into the flash *after*
+//!   releasing the lock ([`hw::flash::commit`]: erase, payload, header last — the
+//!   storage's power-loss order). So no flash erase ever runs under the lock and the
+//!   cyclic path keeps its timing during a save; a flash error at commit time is
+//!   logged and sent as an emergency (0x5530). A second 'save' while one is being
+//!   programmed cannot happen (the same task does both in turn).
+//! * The **motor control state** (`CurrentLoop`, `foc::encoder::Encoder`, `Motion`) is
+//!   owned by the ADC interrupt ([`hw::control`]). It talks to the drive through two
+//!   lock-free double buffers: set-points / permission / configuration / offsets in,
+//!   measurements (`AxisState`) out.
 //!
 //! ## Watchdog
 //! The independent watchdog ([`board::WATCHDOG_TIMEOUT_US`]) is fed by the supervisor
 //! only while the current-loop ISR keeps producing samples (its sample counter
-//! advanced since the last feed). A stuck PWM/ADC chain, a hung interrupt or a
-//! starved thread executor all end in a reset; the next start logs the cause.
+//! advanced since the last feed) and the control state is installed. A stuck PWM/ADC
+//! chain, a hung interrupt or a starved thread executor all end in a reset; the next
+//! start logs the cause.
 #![no_std]
 #![no_main]
 
 mod board;
 mod hw;
 
-use core::sync::atomic::{AtomicU32, AtomicU8, Ordering};
+use core::cell::RefCell;
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use defmt_rtt as _;
+use ecat_slave_stack::leds::{ErrCondition, StatusLeds};
+use ecat_slave_stack::slave::{Slave, SlaveConfig};
 use embassy_executor::{InterruptExecutor, Spawner};
 use embassy_futures::select::{select, Either};
 use embassy_stm32::exti::{self, ExtiInput};
@@ -60,10 +78,20 @@ use embassy_stm32::spi::Spi;
 use embassy_stm32::time::Hertz;
 use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{bind_interrupts, dma, peripherals, rcc};
+use embassy_sync::blocking_mutex::Mutex;
 use embassy_time::{Duration, Instant, Ticker, Timer};
+use firmware::drive::{Drive, FlashStore};
+use firmware::faults::{FaultKind, Snapshot};
+use firmware::identity::Variant;
+use firmware::motion::{MotionConfig, SERVO_TS};
 use firmware::sampling::{OffsetCalibrator, CURRENT_SAMPLES};
 
-use hw::{encoder::Encoder, esc::Esc, flash::ParamFlash, io};
+use hw::control::{ControlCommand, COMMAND, FEEDBACK};
+use hw::encoder::Encoder;
+use hw::esc::Esc;
+use hw::flash::{ParamFlash, Stage, StagedFlash};
+use hw::io;
+use hw::lock::{CyclicCeiling, CYCLIC_PRIORITY};
 
 bind_interrupts!(struct Irqs {
     EXTI1 => exti::InterruptHandler<interrupt::typelevel::EXTI1>;
@@ -82,20 +110,63 @@ unsafe extern "C" fn UART4() {
     unsafe { EXECUTOR_CYCLIC.on_interrupt() }
 }
 
-/// Latest AL event request register value read by the cyclic path.
-static AL_EVENT: AtomicU32 = AtomicU32::new(0);
-/// ESC IRQ edges / SYNC0 edges / ESC access errors seen by the cyclic path.
-static ESC_IRQS: AtomicU32 = AtomicU32::new(0);
+/// The product variant this board runs (hybrid servo: encoder on TIM2).
+const VARIANT: Variant = Variant::HybridServo;
+
+/// The drive with its parameter store of this board.
+type BoardDrive = Drive<FlashStore<StagedFlash>>;
+
+/// The drive state shared by the cyclic path and the thread-mode tasks (see the
+/// module docs, "Who owns what").
+struct Shared {
+    drive: BoardDrive,
+    /// `None` when the ESC did not answer at start-up (the drive still runs locally).
+    slave: Option<Slave<Esc>>,
+    /// The last command published to the current-loop interrupt.
+    ctl: ControlCommand,
+    /// `Slave::sync().last_cycle` when the last command was published.
+    last_cycle: Option<u64>,
+    /// The break latch was reported to the drive as an over-current (fault 1).
+    oc_reported: bool,
+    /// The start-up offset self-check failed (fault 9, kept until restart).
+    offset_fault: bool,
+}
+
+/// The lock holds a reference to [`SHARED_MEM`] (a `None` reference is all zeros, so
+/// the lock lives in .bss; an `Option<Shared>` would put a 5 KiB image into flash).
+static SHARED: Mutex<CyclicCeiling, RefCell<Option<&'static mut Shared>>> =
+    Mutex::new(RefCell::new(None));
+/// RAM image of a parameter record being saved (see `hw::flash::StagedFlash`).
+static mut STAGE_MEM: Stage = Stage::new();
+static mut SHARED_MEM: core::mem::MaybeUninit<Shared> = core::mem::MaybeUninit::uninit();
+
+/// Runs `f` on the drive state under the priority-ceiling lock; `None` before the
+/// state exists.
+fn with_shared<R>(f: impl FnOnce(&mut Shared) -> R) -> Option<R> {
+    SHARED.lock(|c| match c.try_borrow_mut() {
+        Ok(mut g) => g.as_deref_mut().map(f),
+        Err(_) => None,
+    })
+}
+
+/// SYNC0 edges / ESC IRQ wake-ups / ESC access errors / flash commit errors.
 static SYNC0S: AtomicU32 = AtomicU32::new(0);
+static ESC_IRQS: AtomicU32 = AtomicU32::new(0);
 static ESC_ERRORS: AtomicU32 = AtomicU32::new(0);
-/// Debounced inputs IN1..IN5 (bits 0..4) and requested outputs OUT1..OUT3 (bits 0..2).
-static INPUTS: AtomicU8 = AtomicU8::new(0);
-static OUTPUTS: AtomicU8 = AtomicU8::new(0);
+static FLASH_ERRORS: AtomicU32 = AtomicU32::new(0);
 /// Encoder count latched at the last IN2 edge (touch probe 2) and the edge count.
 static PROBE2_POS: AtomicU32 = AtomicU32::new(0);
 static PROBE2_EDGES: AtomicU32 = AtomicU32::new(0);
 
 defmt::timestamp!("{=u64:us}", Instant::now().as_micros());
+
+fn now_us() -> u64 {
+    Instant::now().as_micros()
+}
+
+fn now_ms() -> u32 {
+    Instant::now().as_millis() as u32
+}
 
 fn clock_config() -> embassy_stm32::Config {
     use rcc::{Hse, HseMode, Pll, PllMul, PllPreDiv, PllRDiv, PllSource, Sysclk};
@@ -131,6 +202,24 @@ fn clock_config() -> embassy_stm32::Config {
     // DMA completion must preempt the cyclic path that waits for it.
     c.bdma_interrupt_priority = Priority::P1;
     c
+}
+
+/// The parameter-record store in the flash region: two slots of half the region
+/// each (offsets relative to the region).
+const PARAM_STORE: firmware::storage::Storage =
+    firmware::storage::Storage::new(0, board::PARAM_FLASH_SIZE / 2);
+
+/// The motor the current-loop gains and the servo's base gains are computed for
+/// (board constants: the vendor parameters 0x2020/0x2021 take over once auto-tune or
+/// the user has set a plausible inductance).
+const MOTOR: firmware::motion::MotorConstants = firmware::motion::ECN57_20;
+/// Phase resistance / inductance of [`MOTOR`] used while 0x2021 holds no plausible
+/// value (datasheet class values of a NEMA 23 hybrid stepper; to be measured).
+const MOTOR_R_OHM: f32 = 0.5;
+const MOTOR_L_H: f32 = 1.6e-3;
+
+fn motion_config(d: &BoardDrive) -> MotionConfig {
+    MotionConfig::from_params(&d.params, d.variant, &MOTOR, SERVO_TS)
 }
 
 #[embassy_executor::main]
@@ -173,13 +262,6 @@ async fn main(spawner: Spawner) {
         b2l: p.PC11,
         bkin_b: p.PD2,
     });
-    hw::adc::init(hw::adc::Analog {
-        adc1: p.ADC1,
-        adc2: p.ADC2,
-        ia: p.PA0,
-        ib: p.PA1,
-        vbus: p.PC0,
-    });
     let enc = hw::encoder::init(hw::encoder::EncoderPins {
         tim2: p.TIM2,
         a: p.PA15,
@@ -204,9 +286,12 @@ async fn main(spawner: Spawner) {
         tp1: p.PC1,
     });
     let dips = dip.read();
+    let dip_cfg =
+        firmware::dip::power_up(firmware::dip::Board::TwoBanks, dips.id, dips.function, 0);
     defmt::info!(
-        "DIP banks: ID {=u8:#010b}, function {=u8:#010b}",
+        "DIP banks: ID {=u8:#010b} (station address {=u16}), function {=u8:#010b}",
         dips.id,
+        dip_cfg.address,
         dips.function
     );
 
@@ -237,23 +322,123 @@ async fn main(spawner: Spawner) {
     let sync0 = ExtiInput::new(p.PC3, p.EXTI3, Pull::None, Irqs);
     let in2 = ExtiInput::new(p.PB1, p.EXTI1, Pull::None, Irqs);
     for irq in [interrupt::EXTI1, interrupt::EXTI2, interrupt::EXTI3] {
-        irq.set_priority(Priority::P2);
+        irq.set_priority(CYCLIC_PRIORITY);
     }
 
+    // Parameter storage: reads straight from the region, saves staged in RAM.
     let flash = hw::flash::param_flash(p.FLASH);
     if flash.is_none() {
         defmt::error!(
             "flash is not in dual-bank mode (option byte DBANK = 0): parameter storage off"
         );
     }
+    // SAFETY: main runs once and is the only place that takes this reference.
+    let stage: &'static mut Stage = unsafe { &mut *core::ptr::addr_of_mut!(STAGE_MEM) };
+    let staged = StagedFlash::new(stage, flash.is_some());
+    let mut flash = flash;
+    if let Some(f) = flash.as_mut() {
+        report_param_region(f);
+    }
+
+    // The drive and the slave runtime; stored parameters (drive objects and the PDO
+    // mapping) are loaded before the ESC leaves Init.
+    let serial = firmware::identity::serial_from_unique_id(&embassy_stm32::uid::uid());
+    let mut drive: BoardDrive = Drive::with_store(
+        VARIANT,
+        serial,
+        FlashStore {
+            storage: PARAM_STORE,
+            flash: staged,
+        },
+    );
+    let mut slave = esc_ok.then(|| {
+        Slave::new(
+            esc,
+            SlaveConfig {
+                pdo_defaults: firmware::pdo_defaults::PDO_DEFAULTS,
+                ..SlaveConfig::default()
+            },
+        )
+    });
+    let report = match slave.as_mut() {
+        Some(s) => drive.power_up(&mut s.runtime_objects(firmware::dictionary::OBJECTS)),
+        None => drive.power_up(&mut NoRuntime),
+    };
+    defmt::info!(
+        "parameters: {=u16} applied, {=u16} skipped, from slot {}",
+        report.applied,
+        report.skipped,
+        report.source.map(|(slot, seq)| (slot as u8, seq))
+    );
+    let active = drive.params.active();
+    let (alias, source) =
+        firmware::dip::station_alias(active.alias_source, active.alias_value, dip_cfg.address, 0);
+    if let Some(s) = slave.as_mut() {
+        // SII source: keep what the ESC loaded from SII word 4.
+        s.set_station_alias((source != firmware::dip::AliasSource::Sii).then_some(alias));
+        match s.init() {
+            Ok(info) => defmt::info!(
+                "slave runtime: ESC type {=u8:#04x}, {=u8} SMs, {=u8} KiB RAM, alias {=u16} ({})",
+                info.esc_type,
+                info.sync_managers,
+                info.ram_kib,
+                alias,
+                defmt::Debug2Format(&source)
+            ),
+            Err(e) => {
+                ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
+                defmt::error!("slave init: {}", defmt::Debug2Format(&e));
+            }
+        }
+    }
+
+    // Motor control in the current-loop interrupt, then the ADCs (which enable it).
+    let mcfg = motion_config(&drive);
+    let (r, l) = motor_rl(&drive);
+    hw::control::init(mcfg, mcfg.counts_per_rev / 4, r, l, MOTOR.kt);
+    let ctl = ControlCommand {
+        cycle: 0,
+        command: *drive.command(),
+        cycle_s: 1e-3,
+        power_allowed: false,
+        config: 0,
+        motion: mcfg,
+        offsets: None,
+    };
+    COMMAND.write(Some(ctl));
+    let has_slave = slave.is_some();
+    // SAFETY: main runs once and is the only user of SHARED_MEM; from here on the
+    // value is reached only through the lock.
+    let shared: &'static mut Shared = unsafe {
+        (*core::ptr::addr_of_mut!(SHARED_MEM)).write(Shared {
+            drive,
+            slave,
+            ctl,
+            last_cycle: None,
+            oc_reported: false,
+            offset_fault: false,
+        })
+    };
+    SHARED.lock(|c| *c.borrow_mut() = Some(shared));
+    hw::adc::init(hw::adc::Analog {
+        adc1: p.ADC1,
+        adc2: p.ADC2,
+        ia: p.PA0,
+        ib: p.PA1,
+        vbus: p.PC0,
+    });
 
     // Cyclic path on the interrupt executor.
-    interrupt::UART4.set_priority(Priority::P2);
+    interrupt::UART4.set_priority(CYCLIC_PRIORITY);
     let cyclic_spawner = EXECUTOR_CYCLIC.start(interrupt::UART4);
-    if esc_ok {
-        match cyclic(esc, esc_irq, sync0) {
+    if has_slave {
+        match cyclic(sync0) {
             Ok(t) => cyclic_spawner.spawn(t),
             Err(e) => defmt::error!("spawn cyclic: {}", e),
+        }
+        match ecat(esc_irq, flash) {
+            Ok(t) => spawner.spawn(t),
+            Err(e) => defmt::error!("spawn ecat: {}", e),
         }
     }
     match touch_probe2(in2, enc) {
@@ -264,40 +449,169 @@ async fn main(spawner: Spawner) {
     // Thread-mode tasks.
     let mut wdg = IndependentWatchdog::new(p.IWDG, board::WATCHDOG_TIMEOUT_US);
     wdg.unleash();
-    match led_task(leds) {
+    match tick(leds, ports) {
         Ok(t) => spawner.spawn(t),
-        Err(e) => defmt::error!("spawn leds: {}", e),
+        Err(e) => defmt::error!("spawn tick: {}", e),
     }
-    match io_task(ports) {
-        Ok(t) => spawner.spawn(t),
-        Err(e) => defmt::error!("spawn io: {}", e),
-    }
-    match supervisor(wdg, flash, enc) {
+    match supervisor(wdg, enc) {
         Ok(t) => spawner.spawn(t),
         Err(e) => defmt::error!("spawn supervisor: {}", e),
     }
 }
 
-/// The cyclic path: woken by the ESC's PDI interrupt or SYNC0. Reads the AL event
-/// request register; the slave runtime (SM2/SM3 exchange, ESM, mailbox hand-off)
-/// plugs in here.
+/// Resistance and inductance for the current loop: the parameters 0x2020 / 0x2021
+/// once 0x2021 holds a plausible inductance (≥ 100 µH), else the board's motor.
+fn motor_rl(d: &BoardDrive) -> (f32, f32) {
+    use firmware::params::P;
+    let l_uh = d.params.get(P::MotorInductance);
+    if l_uh >= 100 {
+        let r = d.params.get(P::MotorResistance).max(1) as f32 * 1e-3;
+        (r, l_uh as f32 * 1e-6)
+    } else {
+        (MOTOR_R_OHM, MOTOR_L_H)
+    }
+}
+
+/// Stand-in for the runtime's objects when the ESC is absent (power-up load only).
+struct NoRuntime;
+
+impl ecat_slave_stack::od::Dictionary for NoRuntime {
+    fn objects(&self) -> &'static [ecat_slave_stack::od::Object] {
+        firmware::dictionary::OBJECTS
+    }
+    fn read(
+        &mut self,
+        _: u16,
+        _: u8,
+        _: &mut [u8],
+    ) -> Result<usize, ecat_slave_stack::od::SdoAbort> {
+        Err(ecat_slave_stack::od::SdoAbort::ObjectDoesNotExist)
+    }
+    fn write(
+        &mut self,
+        _: u16,
+        _: u8,
+        _: &[u8],
+        _: ecat_slave_stack::esm::EsmState,
+    ) -> Result<(), ecat_slave_stack::od::SdoAbort> {
+        Err(ecat_slave_stack::od::SdoAbort::ObjectDoesNotExist)
+    }
+}
+
+/// Hands the interrupt's latest measurements to the drive (before a cycle / tick).
+fn update_axis(s: &mut Shared) {
+    if let Some((_, fb)) = FEEDBACK.read() {
+        let mut axis = fb.axis;
+        axis.overcurrent_trip = hw::pwm::break_latched() != 0;
+        s.drive.set_axis(axis);
+    }
+}
+
+/// Publishes the drive's set-points to the current-loop interrupt; a new drive cycle
+/// (the runtime's `last_cycle` moved) starts a new interpolation segment.
+fn publish_command(s: &mut Shared) {
+    if let Some(slave) = s.slave.as_ref() {
+        let sync = slave.sync();
+        if sync.last_cycle != s.last_cycle {
+            s.last_cycle = sync.last_cycle;
+            s.ctl.cycle = s.ctl.cycle.wrapping_add(1);
+            s.ctl.command = *s.drive.command();
+            let period_us = sync.diag.pdi_period;
+            s.ctl.cycle_s = if period_us > 0 {
+                period_us as f32 * 1e-6
+            } else {
+                1e-3
+            };
+        }
+    }
+    s.ctl.power_allowed = s.drive.command().power_stage && !s.drive.faults.any_active();
+    if !s.ctl.power_allowed {
+        s.ctl.command.drive_enabled = false;
+    }
+    COMMAND.write(Some(s.ctl));
+}
+
+/// The cyclic path (DC mode): one `Slave::cycle` per SYNC0 falling edge.
 #[embassy_executor::task]
-async fn cyclic(
-    mut esc: Esc,
-    mut irq: ExtiInput<'static, Async>,
-    mut sync0: ExtiInput<'static, Async>,
-) {
-    use ecat_slave_stack::EscAccess;
+async fn cyclic(mut sync0: ExtiInput<'static, Async>) {
     loop {
-        match select(irq.wait_for_falling_edge(), sync0.wait_for_falling_edge()).await {
-            Either::First(()) => ESC_IRQS.fetch_add(1, Ordering::Relaxed),
-            Either::Second(()) => SYNC0S.fetch_add(1, Ordering::Relaxed),
-        };
-        match esc.al_event() {
-            Ok(ev) => AL_EVENT.store(ev, Ordering::Relaxed),
-            Err(_) => {
+        sync0.wait_for_falling_edge().await;
+        SYNC0S.fetch_add(1, Ordering::Relaxed);
+        let now = now_us();
+        with_shared(|s| {
+            update_axis(s);
+            if let Some(slave) = s.slave.as_mut() {
+                if slave.cycle(&mut s.drive, now).is_err() {
+                    ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+            publish_command(s);
+        });
+    }
+}
+
+/// EtherCAT in thread mode: `Slave::poll` on each ESC IRQ edge and at least every
+/// millisecond (process-data watchdog supervision, missed edges); emergencies of the
+/// drive are forwarded first; a staged parameter record is programmed into the
+/// flash after the lock is released.
+#[embassy_executor::task]
+async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>) {
+    loop {
+        if irq.is_high() {
+            if let Either::First(()) = select(
+                irq.wait_for_falling_edge(),
+                Timer::after(Duration::from_millis(1)),
+            )
+            .await
+            {
+                ESC_IRQS.fetch_add(1, Ordering::Relaxed);
+            }
+        } else {
+            // The IRQ line is still asserted: events are pending; let the other
+            // thread tasks run once, then poll again.
+            embassy_futures::yield_now().await;
+        }
+        let now = now_us();
+        let staged = with_shared(|s| {
+            update_axis(s);
+            let slave = s.slave.as_mut()?;
+            while let Some(e) = s.drive.pop_emergency() {
+                slave.emergency(e.code, e.register, e.data);
+            }
+            if slave.poll(&mut s.drive, now).is_err() {
                 ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
             }
+            publish_command(s);
+            s.drive.store_mut().and_then(|st| st.flash.take_ready())
+        })
+        .flatten();
+        if let Some(stage) = staged {
+            let result = match flash.as_mut() {
+                Some(f) => hw::flash::commit(f, stage),
+                None => Ok(()),
+            };
+            let failed = result.is_err();
+            match result {
+                Ok(()) => defmt::info!("parameters: record programmed"),
+                Err(e) => {
+                    FLASH_ERRORS.fetch_add(1, Ordering::Relaxed);
+                    defmt::error!(
+                        "parameters: programming failed: {}",
+                        defmt::Debug2Format(&e)
+                    );
+                }
+            }
+            with_shared(|s| {
+                if failed {
+                    let reg = s.drive.faults.error_register() | 1;
+                    if let Some(slave) = s.slave.as_mut() {
+                        slave.emergency(firmware::storage::EMCY_RECORD_CORRUPT, reg, [0; 5]);
+                    }
+                }
+                if let Some(st) = s.drive.store_mut() {
+                    st.flash.give_back(stage);
+                }
+            });
         }
     }
 }
@@ -314,18 +628,88 @@ async fn touch_probe2(mut in2: ExtiInput<'static, Async>, enc: Encoder) {
     }
 }
 
+/// The 1 ms tick: board faults → drive, `Drive::tick` with the raw inputs (the drive
+/// filters them), outputs and brake from the drive, LEDs, parameter changes → motion
+/// configuration of the interrupt.
+#[embassy_executor::task]
+async fn tick(mut leds: io::Leds<'static>, mut ports: io::Ports<'static>) {
+    let mut ticker = Ticker::every(Duration::from_millis(1));
+    let mut status = StatusLeds::new();
+    let mut n: u32 = 0;
+    loop {
+        ticker.next().await;
+        n = n.wrapping_add(1);
+        let raw = ports.read_inputs();
+        let now = now_ms();
+        let out = with_shared(|s| {
+            over_current(s);
+            if s.offset_fault {
+                s.drive
+                    .faults
+                    .raise(FaultKind::PhaseSensing, Snapshot::default(), now);
+            }
+            update_axis(s);
+            s.drive.tick(1, raw);
+            // Parameter writes that change the motion layer (every 10 ms).
+            if n.is_multiple_of(10) {
+                let m = motion_config(&s.drive);
+                if m != s.ctl.motion {
+                    s.ctl.motion = m;
+                    s.ctl.config = s.ctl.config.wrapping_add(1);
+                }
+            }
+            publish_command(s);
+            let (state, err) = match s.slave.as_ref() {
+                Some(sl) => (
+                    sl.state(),
+                    ErrCondition::from_al_status(sl.esm().status_word(), sl.esm().code()),
+                ),
+                None => (
+                    ecat_slave_stack::esm::EsmState::Init,
+                    ErrCondition::BootingError,
+                ),
+            };
+            status.update(state, err, now);
+            (s.drive.leds(now), s.drive.outputs())
+        });
+        let Some((drive_leds, (outputs, brake))) = out else {
+            continue;
+        };
+        ports.write_outputs(outputs);
+        ports.set_brake_released(brake && hw::pwm::break_latched() == 0);
+        let (run, err) = status.levels(now);
+        leds.green.set_level(drive_leds.green.into());
+        leds.red.set_level(drive_leds.red.into());
+        leds.run.set_level(run.into());
+        leds.err.set_level(err.into());
+    }
+}
+
+/// Break latch (hardware over-current) ↔ drive fault 1: a latch is reported to the
+/// drive (AxisState.overcurrent_trip → FaultKind::OverCurrent, latched there); once
+/// the break inputs are inactive again the latch is re-armed and the condition is
+/// reported gone, so a fault reset (controlword bit 7, input, 0x2057) clears the drive
+/// fault. The bridges stay off meanwhile: the drive's fault withdraws the power
+/// permission before the latch is re-armed.
+fn over_current(s: &mut Shared) {
+    let latched = hw::pwm::break_latched() != 0;
+    if latched && s.oc_reported && s.drive.faults.is_active(FaultKind::OverCurrent) {
+        // Permission withdrawn before re-arming (the ISR reads COMMAND).
+        publish_command(s);
+        if hw::pwm::rearm() {
+            s.drive.faults.condition_gone(FaultKind::OverCurrent);
+            s.oc_reported = false;
+        }
+    } else if latched {
+        s.oc_reported = true;
+    }
+}
+
 /// Start-up current-sensor check (bridges off, so the currents are zero), then the
 /// watchdog policy and a status line every second.
 #[embassy_executor::task]
-async fn supervisor(
-    mut wdg: IndependentWatchdog<'static, IWDG>,
-    flash: Option<ParamFlash>,
-    enc: Encoder,
-) {
+async fn supervisor(mut wdg: IndependentWatchdog<'static, IWDG>, enc: Encoder) {
     offset_self_check(&mut wdg).await;
-    if let Some(mut f) = flash {
-        report_param_region(&mut f);
-    }
 
     let mut ticker = Ticker::every(Duration::from_millis(10));
     let mut last_samples = CURRENT_SAMPLES.count();
@@ -333,7 +717,7 @@ async fn supervisor(
     loop {
         ticker.next().await;
         let n = CURRENT_SAMPLES.count();
-        if n != last_samples {
+        if n != last_samples && hw::control::ready() {
             wdg.pet();
             last_samples = n;
         }
@@ -368,14 +752,21 @@ async fn offset_self_check(wdg: &mut IndependentWatchdog<'static, IWDG>) {
         wdg.pet();
     }
     match cal.finish(&board::ANALOG) {
-        Ok(o) => defmt::info!(
-            "current-sensor offsets: A {=f32} B {=f32} counts ({=u32} samples)",
-            o.ia,
-            o.ib,
-            cal.count()
-        ),
+        Ok(o) => {
+            defmt::info!(
+                "current-sensor offsets: A {=f32} B {=f32} counts ({=u32} samples)",
+                o.ia,
+                o.ib,
+                cal.count()
+            );
+            with_shared(|s| {
+                s.ctl.offsets = Some((o.ia, o.ib));
+                publish_command(s);
+            });
+        }
         Err(e) => {
             hw::safety::raise_fault(hw::safety::FAULT_CURRENT_SENSING);
+            with_shared(|s| s.offset_fault = true);
             defmt::error!(
                 "fault 9, current-sensor self-check: {}",
                 defmt::Debug2Format(&e)
@@ -384,14 +775,8 @@ async fn offset_self_check(wdg: &mut IndependentWatchdog<'static, IWDG>) {
     }
 }
 
-/// The parameter-record store in the flash region: two slots of half the region
-/// each (offsets relative to [`ParamFlash`]).
-const PARAM_STORE: firmware::storage::Storage =
-    firmware::storage::Storage::new(0, board::PARAM_FLASH_SIZE / 2);
-
 /// Validates both record slots at start-up (magic, version, CRC) and logs what they
-/// hold. Applying the newest record to the object dictionary (`Storage::load`) needs
-/// the drive's dictionary and is wired with it.
+/// hold (the drive's power-up load applies the newest).
 fn report_param_region(f: &mut ParamFlash) {
     use firmware::storage::SlotStatus;
     if let Err(e) = PARAM_STORE.check(f) {
@@ -420,34 +805,39 @@ fn report_param_region(f: &mut ParamFlash) {
             }
         }
     }
-    match newest {
-        Some((slot, seq, _)) => defmt::info!(
-            "parameters: newest record {=u32} in slot {=usize}",
-            seq,
-            slot
-        ),
-        None => defmt::info!("parameters: no saved record, defaults apply"),
+    if newest.is_none() {
+        defmt::info!("parameters: no saved record, defaults apply");
     }
 }
 
 fn status_line(enc: &Encoder) {
     let (used, avail) = hw::stack::high_water();
+    let (al, code, bridges) = with_shared(|s| {
+        let (st, code) = s
+            .slave
+            .as_ref()
+            .map_or((0, 0), |sl| (sl.esm().status_word(), sl.esm().code()));
+        (st, code, FEEDBACK.read().is_some_and(|(_, f)| f.bridges_on))
+    })
+    .unwrap_or((0, 0, false));
     match CURRENT_SAMPLES.latest() {
         Some((n, s)) => defmt::info!(
-            "samples {=u32}: I_A {=u16} I_B {=u16} V_BUS {=f32} V | enc {=u32} | AL event {=u32:#x} irq {=u32} sync0 {=u32} err {=u32} | in {=u8:#07b} | fault {=u8} break {=u8} adc2-late {=u32} | ISR max {=u32} cycles | stack {=usize}/{=usize} B",
+            "samples {=u32}: I_A {=u16} I_B {=u16} V_BUS {=f32} V | enc {=u32} | AL status {=u16:#x} code {=u16:#x} irq {=u32} sync0 {=u32} err {=u32} | bridges {=bool} break {=u8} hw-fault {=u8} adc2-late {=u32} flash-err {=u32} | ISR max {=u32} cycles | stack {=usize}/{=usize} B",
             n,
             s.ia,
             s.ib,
             board::ANALOG.volts(s.vbus),
             enc.position(),
-            AL_EVENT.load(Ordering::Relaxed),
+            al,
+            code,
             ESC_IRQS.load(Ordering::Relaxed),
             SYNC0S.load(Ordering::Relaxed),
             ESC_ERRORS.load(Ordering::Relaxed),
-            INPUTS.load(Ordering::Relaxed),
-            hw::safety::active_fault(),
+            bridges,
             hw::pwm::break_latched(),
+            hw::safety::active_fault(),
             hw::adc::adc2_late_count(),
+            FLASH_ERRORS.load(Ordering::Relaxed),
             hw::adc::isr_max_cycles(),
             used,
             avail
@@ -461,44 +851,5 @@ fn status_line(enc: &Encoder) {
             probes,
             PROBE2_POS.load(Ordering::Relaxed)
         );
-    }
-}
-
-/// Green: on while powered. Red: the active fault number as a flash code
-/// (`firmware::fault_led`: N pulses of 150 ms, repeating every 3 s). RUN/ERR follow
-/// the EtherCAT state machine (ETG.1300) once the slave runtime is wired; off until then.
-#[embassy_executor::task]
-async fn led_task(mut leds: io::Leds<'static>) {
-    leds.green.set_high();
-    leds.run.set_low();
-    leds.err.set_low();
-    let mut red = firmware::fault_led::FaultLed::new();
-    let mut ticker = Ticker::every(Duration::from_millis(10));
-    loop {
-        ticker.next().await;
-        let now_ms = Instant::now().as_millis() as u32;
-        let code = hw::safety::active_fault();
-        leds.red.set_level(red.update(Some(code), now_ms).into());
-    }
-}
-
-/// Inputs sampled every millisecond, accepted after 3 equal samples; outputs and the
-/// brake written from the requested state (brake engaged while a fault is active).
-#[embassy_executor::task]
-async fn io_task(mut ports: io::Ports<'static>) {
-    let mut ticker = Ticker::every(Duration::from_millis(1));
-    let mut history = [0u8; 3];
-    let mut i = 0usize;
-    loop {
-        ticker.next().await;
-        history[i] = ports.read_inputs();
-        i = (i + 1) % history.len();
-        if history.iter().all(|&h| h == history[0]) {
-            INPUTS.store(history[0], Ordering::Relaxed);
-        }
-        ports.write_outputs(OUTPUTS.load(Ordering::Relaxed));
-        if hw::safety::active_fault() != 0 {
-            ports.set_brake_released(false);
-        }
     }
 }

@@ -22,7 +22,7 @@ use embassy_stm32::pac;
 use embassy_stm32::pac::adc::vals::{Exten, SampleTime};
 use embassy_stm32::peripherals::{ADC1, ADC2, PA0, PA1, PC0};
 use embassy_stm32::Peri;
-use firmware::sampling::{current_loop_hook, RawSample};
+use firmware::sampling::RawSample;
 
 use crate::board;
 
@@ -132,7 +132,7 @@ unsafe extern "C" fn ADC1_2() {
                 w.set_jeoc(true);
             });
         }
-        current_loop_hook(s);
+        crate::hw::control::on_sample(s);
     } else {
         // Not ours (e.g. a stray flag): clear everything injected so it cannot repeat.
         a1.isr().write(|w| {

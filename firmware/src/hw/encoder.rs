@@ -77,6 +77,12 @@ pub fn init(p: EncoderPins<'static>) -> Encoder {
     Encoder { _private: () }
 }
 
+/// The raw counter, for the current-loop interrupt (no handle needed).
+#[inline(always)]
+pub fn raw_count() -> u32 {
+    pac::TIM2.cnt().read()
+}
+
 impl Encoder {
     /// Counter value (4 counts per line), wrapping.
     #[inline(always)]

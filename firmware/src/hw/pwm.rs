@@ -203,7 +203,6 @@ fn configure(t: pac::timer::TimAdv) {
 
 /// Energises both bridges (MOE = 1) unless a break is latched. Returns whether the
 /// outputs are on.
-#[allow(dead_code)] // power-stage API for the drive logic (CiA 402 enable, fault reset, FOC output)
 pub fn enable_outputs() -> bool {
     if BREAK_LATCH.load(Ordering::Acquire) != 0 {
         return false;
@@ -231,7 +230,6 @@ pub fn break_latched() -> u8 {
 /// Clears a latched break once both break inputs are inactive again. The outputs stay
 /// off; the drive logic enables them explicitly. Returns `false` while a break input
 /// is still active.
-#[allow(dead_code)] // power-stage API for the drive logic (CiA 402 enable, fault reset, FOC output)
 pub fn rearm() -> bool {
     for t in [pac::TIM1, pac::TIM8] {
         t.sr().write(|w| {
@@ -264,6 +262,17 @@ pub fn set_bridge_voltages(ua: f32, ub: f32) {
         t.ccr(0).write(|w| w.set_ccr(c1));
         t.ccr(1).write(|w| w.set_ccr(c2));
     }
+}
+
+/// Writes the four compare values (TIM1 CH1/CH2 = bridge A legs 1/2, TIM8 CH1/CH2 =
+/// bridge B legs 1/2), as `foc::modulation::Duties` gives them. Takes effect at the
+/// next update event (preload).
+#[inline(always)]
+pub fn set_compare(a1: u16, a2: u16, b1: u16, b2: u16) {
+    pac::TIM1.ccr(0).write(|w| w.set_ccr(a1));
+    pac::TIM1.ccr(1).write(|w| w.set_ccr(a2));
+    pac::TIM8.ccr(0).write(|w| w.set_ccr(b1));
+    pac::TIM8.ccr(1).write(|w| w.set_ccr(b2));
 }
 
 fn on_break(bit: u8, t: pac::timer::TimAdv) {

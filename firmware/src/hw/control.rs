@@ -1,0 +1,322 @@
+//! The motor-control path inside the current-loop interrupt (`ADC1_2`, priority 0)
+//! and the lock-free exchange with the cyclic path.
+//!
+//! Every PWM period (40 kHz) [`on_sample`] runs, in this order:
+//! 1. the raw sample is published ([`firmware::sampling::current_loop_hook`]: offset
+//!    self-check, status line, watchdog sign of life);
+//! 2. the encoder counter (TIM2) → `foc::encoder::Encoder::update` (position, PLL
+//!    velocity, electrical angle);
+//! 3. every 4th period (10 kHz = `firmware::motion::SERVO_TS`): the newest
+//!    [`ControlCommand`] is taken (new cycle → `Motion::set_command`, new parameters →
+//!    `Motion::configure`), `Motion::step` → current reference, and the measurements
+//!    for the drive ([`Feedback`]) are published;
+//! 4. `foc::current_loop::CurrentLoop::step` → duties → TIM1/TIM8 compare registers,
+//!    or the bridges off.
+//!
+//! Motion runs in the same interrupt (not a lower-priority one) because its step is
+//! short (≈ 1-2 k instructions, to be measured: `ISR max` in the status line is the
+//! worst period, which is a servo period) and the current reference must be in place
+//! before the next current step; splitting would need a third exchange cell.
+//!
+//! The bridges are on only while all of these hold: the drive asks for the power
+//! stage (`DriveCommand::power_stage`) and has no active fault (decided by the cyclic
+//! path, [`ControlCommand::power_allowed`]), the current-sensor offsets passed the
+//! start-up check ([`ControlCommand::offsets`]), no break (over-current) is latched,
+//! and the motion layer wants current (`CurrentReference::power`).
+//!
+//! # Exchange (no locks in the interrupt)
+//! [`Exchange<T>`] is a double buffer with a sequence number: the writer fills the
+//! buffer the reader is not pointed at and then publishes it with one atomic store.
+//! * cyclic path → interrupt ([`COMMAND`]): the interrupt preempts the writer but is
+//!   never preempted by it, so it always reads a complete buffer.
+//! * interrupt → cyclic path ([`FEEDBACK`]): a reader preempted by two publications
+//!   could see a buffer being rewritten; it re-reads the sequence number afterwards
+//!   and retries (a seqlock), so it never uses a torn value.
+//!
+//! Writers of [`COMMAND`] run under the drive's lock (thread mode and the cyclic
+//! executor), so there is one writer at a time.
+use core::cell::UnsafeCell;
+use core::mem::MaybeUninit;
+use core::sync::atomic::{compiler_fence, AtomicBool, AtomicU32, Ordering};
+
+use firmware::cia402::DriveCommand;
+use firmware::motion::{CurrentReference, Frame, Motion, MotionConfig};
+use firmware::sampling::RawSample;
+use foc::current_loop::{AdcSample, CurrentLoop, CurrentLoopConfig, Sense};
+use foc::encoder::{Encoder, EncoderConfig};
+use foc::modulation::Modulator;
+
+use crate::board;
+use crate::hw::pwm;
+
+/// Latest-value double buffer (see the module docs).
+pub struct Exchange<T: Copy> {
+    seq: AtomicU32,
+    bufs: [UnsafeCell<T>; 2],
+}
+
+// SAFETY: access follows the protocol of the module docs (one writer at a time; the
+// reader either cannot be preempted by the writer or validates the sequence).
+unsafe impl<T: Copy + Send> Sync for Exchange<T> {}
+
+impl<T: Copy> Exchange<T> {
+    /// A cell holding `v` in both buffers (sequence 0).
+    pub const fn new(v: T) -> Self {
+        Exchange {
+            seq: AtomicU32::new(0),
+            bufs: [UnsafeCell::new(v), UnsafeCell::new(v)],
+        }
+    }
+
+    /// Publishes `v` (one writer at a time).
+    pub fn write(&self, v: T) {
+        let next = self.seq.load(Ordering::Relaxed).wrapping_add(1);
+        // SAFETY: buffer `next & 1` is not the published one; a reader that still
+        // holds it validates the sequence afterwards (module docs).
+        unsafe { core::ptr::write_volatile(self.bufs[(next & 1) as usize].get(), v) };
+        compiler_fence(Ordering::Release);
+        self.seq.store(next, Ordering::Release);
+    }
+
+    /// The latest value and its sequence number; `None` only when the writer kept
+    /// publishing during four attempts.
+    pub fn read(&self) -> Option<(u32, T)> {
+        for _ in 0..4 {
+            let s = self.seq.load(Ordering::Acquire);
+            compiler_fence(Ordering::Acquire);
+            // SAFETY: see the module docs; validated below.
+            let v = unsafe { core::ptr::read_volatile(self.bufs[(s & 1) as usize].get()) };
+            compiler_fence(Ordering::Acquire);
+            // One more publication went to the other buffer: ours is intact.
+            if self.seq.load(Ordering::Acquire).wrapping_sub(s) < 2 {
+                return Some((s, v));
+            }
+        }
+        None
+    }
+}
+
+/// What the cyclic path tells the interrupt.
+#[derive(Clone, Copy)]
+pub struct ControlCommand {
+    /// Incremented once per drive cycle (a new set-point for the interpolation).
+    pub cycle: u32,
+    /// The drive's set-points of that cycle.
+    pub command: DriveCommand,
+    /// Length of the drive cycle, s.
+    pub cycle_s: f32,
+    /// Power stage requested and no drive fault active.
+    pub power_allowed: bool,
+    /// Incremented when [`Self::motion`] changed (parameter write, power-up load).
+    pub config: u32,
+    /// Motion configuration from the parameters.
+    pub motion: MotionConfig,
+    /// Current-sensor offsets (counts) once the start-up check passed.
+    pub offsets: Option<(f32, f32)>,
+}
+
+/// What the interrupt measured (published at the servo rate).
+#[derive(Clone, Copy, Default)]
+pub struct Feedback {
+    /// Position / velocity / following error / current limit / torque current, as
+    /// `Motion::fill_axis_state` writes them.
+    pub axis: firmware::drive::AxisState,
+    /// The bridges are switched on.
+    pub bridges_on: bool,
+}
+
+/// Cyclic path → interrupt (set-points, configuration, permission).
+pub static COMMAND: Exchange<Option<ControlCommand>> = Exchange::new(None);
+/// Interrupt → cyclic path (measurements).
+pub static FEEDBACK: Exchange<Feedback> = Exchange::new(Feedback {
+    axis: firmware::drive::AxisState {
+        position: 0,
+        velocity: 0,
+        ia_ma: 0,
+        ib_ma: 0,
+        ia_set_ma: 0,
+        ib_set_ma: 0,
+        current_permille: 0,
+        electrical_angle: 0,
+        bus_mv: 0,
+        index: None,
+        overcurrent_trip: false,
+        current_limited: false,
+        servo_following_error: 0,
+    },
+    bridges_on: false,
+});
+
+/// Current-loop bandwidth, rad/s (2π·f_PWM/20, the design limit of `foc::current_loop`).
+const WC: f32 = 2.0 * core::f32::consts::PI * board::PWM_HZ as f32 / 20.0;
+/// Encoder PLL natural frequency, rad/s.
+const PLL_OMEGA: f32 = 8000.0;
+/// Current-loop periods per servo period.
+const SERVO_DIVIDER: u8 = 4;
+
+/// State owned by the interrupt.
+struct Control {
+    cl: CurrentLoop,
+    enc: Encoder,
+    motion: Motion,
+    reference: CurrentReference,
+    divider: u8,
+    seen_cycle: u32,
+    seen_config: u32,
+    bridges_on: bool,
+}
+
+struct IsrOwned(UnsafeCell<MaybeUninit<Control>>);
+// SAFETY: written once by `init` before the interrupt is enabled, then only touched
+// by the interrupt (READY tells it the value is there).
+unsafe impl Sync for IsrOwned {}
+/// Uninitialised until `init` (kept in .bss, not .data: an `Option` would need an
+/// initialised image of the whole state in flash).
+static CONTROL: IsrOwned = IsrOwned(UnsafeCell::new(MaybeUninit::uninit()));
+static READY: AtomicBool = AtomicBool::new(false);
+
+/// Builds the control state. Call once, before the current-loop interrupt is
+/// enabled. `r_ohm`, `l_h`, `ke`: motor constants for the current-loop gains and
+/// feed-forward.
+pub fn init(motion: MotionConfig, encoder_lines: u32, r_ohm: f32, l_h: f32, ke: f32) {
+    let ts = 1.0 / board::PWM_HZ as f32;
+    let (kp, ki) = CurrentLoopConfig::gains_for(r_ohm, l_h, WC);
+    let cl = CurrentLoop::new(CurrentLoopConfig {
+        ts,
+        kp,
+        ki,
+        inductance: l_h,
+        ke,
+        latency: 1.5,
+        sense: Sense {
+            amps_per_count: board::ANALOG.amps_per_count,
+            offset_a: f32::from(board::ANALOG.offset_nominal),
+            offset_b: f32::from(board::ANALOG.offset_nominal),
+            volts_per_count: board::ANALOG.volts_per_count,
+        },
+        modulator: Modulator::new(board::PWM_ARR),
+    });
+    let enc = Encoder::new(
+        EncoderConfig {
+            lines: encoder_lines.max(1),
+            ts,
+            pll_omega: PLL_OMEGA,
+        },
+        crate::hw::encoder::raw_count() as u16,
+    );
+    let c = Control {
+        cl,
+        enc,
+        motion: Motion::new(motion),
+        reference: CurrentReference::OFF,
+        divider: 0,
+        seen_cycle: 0,
+        seen_config: 0,
+        bridges_on: false,
+    };
+    if READY.load(Ordering::Acquire) {
+        return;
+    }
+    // SAFETY: the interrupt does not read CONTROL before READY is set (and `init`
+    // runs once: checked above).
+    unsafe { (*CONTROL.0.get()).write(c) };
+    READY.store(true, Ordering::Release);
+}
+
+/// The control state is installed (the interrupt runs the loops).
+pub fn ready() -> bool {
+    READY.load(Ordering::Acquire)
+}
+
+/// One PWM period (called by the `ADC1_2` interrupt with the fresh sample).
+#[inline(always)]
+pub fn on_sample(s: RawSample) {
+    firmware::sampling::current_loop_hook(s);
+    if !READY.load(Ordering::Acquire) {
+        pwm::disable_outputs();
+        return;
+    }
+    // SAFETY: initialised (READY), and only this interrupt touches it from then on.
+    let c = unsafe { (*CONTROL.0.get()).assume_init_mut() };
+    c.enc.update(crate::hw::encoder::raw_count() as u16);
+    let cmd = COMMAND.read().and_then(|(_, v)| v);
+
+    c.divider += 1;
+    if c.divider >= SERVO_DIVIDER {
+        c.divider = 0;
+        servo_step(c, cmd.as_ref());
+    }
+
+    let allowed = cmd.is_some_and(|k| k.power_allowed && k.offsets.is_some())
+        && pwm::break_latched() == 0
+        && c.reference.power;
+    let adc = AdcSample {
+        ia: s.ia,
+        ib: s.ib,
+        vbus: s.vbus,
+    };
+    if allowed {
+        if !c.bridges_on {
+            c.cl.reset();
+            c.bridges_on = pwm::enable_outputs();
+        }
+        if c.reference.reset {
+            c.cl.reset();
+            c.reference.reset = false;
+        }
+        c.cl.id_ref = c.reference.id;
+        c.cl.iq_ref = c.reference.iq;
+        let (theta, omega) = match c.reference.frame {
+            Frame::Encoder => (c.enc.electrical_angle(), c.enc.omega_e()),
+            Frame::Command { angle, omega_e } => (angle, omega_e),
+        };
+        let d = c.cl.step(&adc, theta, omega);
+        pwm::set_compare(d.a1, d.a2, d.b1, d.b2);
+    } else {
+        if c.bridges_on {
+            pwm::disable_outputs();
+            c.bridges_on = false;
+        }
+        // Keep the measurements fresh for the drive.
+        c.cl.voltage_step(&adc, 0.0, 0.0);
+    }
+}
+
+fn servo_step(c: &mut Control, cmd: Option<&ControlCommand>) {
+    if let Some(k) = cmd {
+        if k.config != c.seen_config {
+            c.seen_config = k.config;
+            c.motion.configure(k.motion);
+        }
+        if let Some((a, b)) = k.offsets {
+            let cfg = c.cl.config().sense;
+            if cfg.offset_a != a || cfg.offset_b != b {
+                c.cl.set_offsets(a, b);
+            }
+        }
+        if k.cycle != c.seen_cycle {
+            c.seen_cycle = k.cycle;
+            let mut command = k.command;
+            command.drive_enabled &= k.power_allowed;
+            c.motion.set_command(&command, k.cycle_s);
+        }
+    }
+    let fb = firmware::motion::Feedback {
+        position: c.enc.position(),
+        velocity: c.enc.velocity(),
+        electrical_angle: c.enc.electrical_angle(),
+        voltage_limited: c.cl.saturated,
+    };
+    c.reference = c.motion.step(&fb);
+    let mut axis = firmware::drive::AxisState::default();
+    c.motion.fill_axis_state(&mut axis);
+    let ma = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
+    axis.ia_ma = ma(c.cl.i_ab.alpha);
+    axis.ib_ma = ma(c.cl.i_ab.beta);
+    axis.bus_mv = (c.cl.vbus * 1000.0).clamp(0.0, 1.0e6) as u32;
+    axis.electrical_angle = (c.enc.electrical_angle().0 >> 16) as u16;
+    FEEDBACK.write(Feedback {
+        axis,
+        bridges_on: c.bridges_on,
+    });
+}
