@@ -7,16 +7,20 @@
 //! 2. the encoder counter (TIM2) → `foc::encoder::Encoder::update` (position, PLL
 //!    velocity, electrical angle);
 //! 3. every 4th period (10 kHz = `firmware::motion::SERVO_TS`): the newest
-//!    [`ControlCommand`] is taken (new cycle → `Motion::set_command`, new parameters →
-//!    `Motion::configure`), `Motion::step` → current reference, and the measurements
-//!    for the drive ([`Feedback`]) are published;
+//!    [`ControlCommand`] is read (power permission, offsets; new cycle →
+//!    `Motion::set_command`, new parameters → `Motion::configure`), `Motion::step` →
+//!    current reference, and the measurements for the drive ([`Feedback`]) are
+//!    published;
 //! 4. `foc::current_loop::CurrentLoop::step` → duties → TIM1/TIM8 compare registers,
 //!    or the bridges off.
 //!
 //! Motion runs in the same interrupt (not a lower-priority one) because its step is
-//! short (≈ 1-2 k instructions, to be measured: `ISR max` in the status line is the
-//! worst period, which is a servo period) and the current reference must be in place
-//! before the next current step; splitting would need a third exchange cell.
+//! short — 255 instructions for `Motion::step`, 146 for `set_command` once per cycle,
+//! 290 for the current step (QEMU instruction counts, BENCHMARKS.md), so a servo
+//! period is ≈ 0.8 k instructions ≈ 5 µs at 170 MHz before memory wait states, to be
+//! measured (`ISR max` in the status line is the worst period, which is a servo
+//! period) — and the current reference must be in place before the next current
+//! step; splitting would need another exchange cell and a fourth priority level.
 //!
 //! The bridges are on only while all of these hold: the drive asks for the power
 //! stage (`DriveCommand::power_stage`) and has no active fault (decided by the cyclic
@@ -164,6 +168,8 @@ struct Control {
     seen_cycle: u32,
     seen_config: u32,
     bridges_on: bool,
+    /// Power permission of the last command (read at the servo rate).
+    permitted: bool,
 }
 
 struct IsrOwned(UnsafeCell<MaybeUninit<Control>>);
@@ -213,6 +219,7 @@ pub fn init(motion: MotionConfig, encoder_lines: u32, r_ohm: f32, l_h: f32, ke: 
         seen_cycle: 0,
         seen_config: 0,
         bridges_on: false,
+        permitted: false,
     };
     if READY.load(Ordering::Acquire) {
         return;
@@ -239,17 +246,18 @@ pub fn on_sample(s: RawSample) {
     // SAFETY: initialised (READY), and only this interrupt touches it from then on.
     let c = unsafe { (*CONTROL.0.get()).assume_init_mut() };
     c.enc.update(crate::hw::encoder::raw_count() as u16);
-    let cmd = COMMAND.read().and_then(|(_, v)| v);
 
     c.divider += 1;
     if c.divider >= SERVO_DIVIDER {
         c.divider = 0;
+        // The command is read at the servo rate: a withdrawn permission switches the
+        // bridges off within 100 µs (an over-current does so in hardware at once).
+        let cmd = COMMAND.read().and_then(|(_, v)| v);
+        c.permitted = cmd.is_some_and(|k| k.power_allowed && k.offsets.is_some());
         servo_step(c, cmd.as_ref());
     }
 
-    let allowed = cmd.is_some_and(|k| k.power_allowed && k.offsets.is_some())
-        && pwm::break_latched() == 0
-        && c.reference.power;
+    let allowed = c.permitted && pwm::break_latched() == 0 && c.reference.power;
     let adc = AdcSample {
         ia: s.ia,
         ib: s.ib,
