@@ -130,6 +130,9 @@ struct Shared {
     oc_reported: bool,
     /// The start-up offset self-check failed (fault 9, kept until restart).
     offset_fault: bool,
+    /// Index pulses seen (`Feedback::index_seq`) and one not yet given to a cycle.
+    index_seen: u32,
+    pending_index: Option<i32>,
 }
 
 /// The lock holds a reference to [`SHARED_MEM`] (a `None` reference is all zeros, so
@@ -417,6 +420,8 @@ async fn main(spawner: Spawner) {
             last_cycle: None,
             oc_reported: false,
             offset_fault: false,
+            index_seen: 0,
+            pending_index: None,
         })
     };
     SHARED.lock(|c| *c.borrow_mut() = Some(shared));
@@ -503,6 +508,12 @@ fn update_axis(s: &mut Shared) {
     if let Some((_, fb)) = FEEDBACK.read() {
         let mut axis = fb.axis;
         axis.overcurrent_trip = hw::pwm::break_latched() != 0;
+        if fb.index_seq != s.index_seen {
+            s.index_seen = fb.index_seq;
+            s.pending_index = Some(fb.index_units);
+        }
+        // Kept until a drive cycle has seen it (cleared in `publish_command`).
+        axis.index = s.pending_index;
         s.drive.set_axis(axis);
     }
 }
@@ -514,6 +525,7 @@ fn publish_command(s: &mut Shared) {
         let sync = slave.sync();
         if sync.last_cycle != s.last_cycle {
             s.last_cycle = sync.last_cycle;
+            s.pending_index = None;
             s.ctl.cycle = s.ctl.cycle.wrapping_add(1);
             s.ctl.command = *s.drive.command();
             let period_us = sync.diag.pdi_period;
@@ -720,9 +732,6 @@ async fn supervisor(mut wdg: IndependentWatchdog<'static, IWDG>, enc: Encoder) {
         if n != last_samples && hw::control::ready() {
             wdg.pet();
             last_samples = n;
-        }
-        if let Some(z) = enc.index_capture() {
-            defmt::info!("encoder index at count {=u32}", z);
         }
         if let Some(pos) = enc.probe1_capture() {
             defmt::info!("touch probe 1 at count {=u32}", pos);

@@ -127,6 +127,11 @@ pub struct Feedback {
     pub axis: firmware::drive::AxisState,
     /// The bridges are switched on.
     pub bridges_on: bool,
+    /// Incremented at each encoder index pulse.
+    pub index_seq: u32,
+    /// Axis position at the last index pulse, command units (hardware-latched count
+    /// converted with the motion layer's scaling).
+    pub index_units: i32,
 }
 
 /// Cyclic path → interrupt (set-points, configuration, permission).
@@ -149,6 +154,8 @@ pub static FEEDBACK: Exchange<Feedback> = Exchange::new(Feedback {
         servo_following_error: 0,
     },
     bridges_on: false,
+    index_seq: 0,
+    index_units: 0,
 });
 
 /// Current-loop bandwidth, rad/s (2π·f_PWM/20, the design limit of `foc::current_loop`).
@@ -170,6 +177,10 @@ struct Control {
     bridges_on: bool,
     /// Power permission of the last command (read at the servo rate).
     permitted: bool,
+    /// TIM2 count at the last encoder update.
+    raw: u32,
+    index_seq: u32,
+    index_units: i32,
 }
 
 struct IsrOwned(UnsafeCell<MaybeUninit<Control>>);
@@ -220,6 +231,9 @@ pub fn init(motion: MotionConfig, encoder_lines: u32, r_ohm: f32, l_h: f32, ke: 
         seen_config: 0,
         bridges_on: false,
         permitted: false,
+        raw: crate::hw::encoder::raw_count(),
+        index_seq: 0,
+        index_units: 0,
     };
     if READY.load(Ordering::Acquire) {
         return;
@@ -245,7 +259,8 @@ pub fn on_sample(s: RawSample) {
     }
     // SAFETY: initialised (READY), and only this interrupt touches it from then on.
     let c = unsafe { (*CONTROL.0.get()).assume_init_mut() };
-    c.enc.update(crate::hw::encoder::raw_count() as u16);
+    c.raw = crate::hw::encoder::raw_count();
+    c.enc.update(c.raw as u16);
 
     c.divider += 1;
     if c.divider >= SERVO_DIVIDER {
@@ -316,6 +331,9 @@ fn servo_step(c: &mut Control, cmd: Option<&ControlCommand>) {
         voltage_limited: c.cl.saturated,
     };
     c.reference = c.motion.step(&fb);
+    if let Some(z) = crate::hw::encoder::take_index_capture() {
+        index_pulse(c, z);
+    }
     let mut axis = firmware::drive::AxisState::default();
     c.motion.fill_axis_state(&mut axis);
     let ma = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
@@ -326,5 +344,28 @@ fn servo_step(c: &mut Control, cmd: Option<&ControlCommand>) {
     FEEDBACK.write(Feedback {
         axis,
         bridges_on: c.bridges_on,
+        index_seq: c.index_seq,
+        index_units: c.index_units,
     });
+}
+
+/// An index pulse latched count `z` (TIM2 CH3): the axis position at that instant
+/// is the present position minus the counts moved since, in command units.
+fn index_pulse(c: &mut Control, z: u32) {
+    c.enc.on_index(z as u16);
+    let cfg = c.motion.config();
+    if cfg.counts_per_rev == 0 {
+        return;
+    }
+    let moved = c.raw.wrapping_sub(z) as i32;
+    let dir = if cfg.reverse { -1.0 } else { 1.0 };
+    let back =
+        libm::roundf(dir * moved as f32 * cfg.pulses_per_rev as f32 / cfg.counts_per_rev as f32);
+    let back = if back.is_finite() {
+        back.clamp(i32::MIN as f32, i32::MAX as f32) as i32
+    } else {
+        0
+    };
+    c.index_units = c.motion.position_units().wrapping_sub(back);
+    c.index_seq = c.index_seq.wrapping_add(1);
 }

@@ -83,16 +83,18 @@ pub fn raw_count() -> u32 {
     pac::TIM2.cnt().read()
 }
 
+/// The count latched at the last Z rising edge, once per edge (for the current-loop
+/// interrupt, which owns the index capture; see `hw::control`).
+#[inline(always)]
+pub fn take_index_capture() -> Option<u32> {
+    Encoder::capture(2)
+}
+
 impl Encoder {
     /// Counter value (4 counts per line), wrapping.
     #[inline(always)]
     pub fn position(&self) -> u32 {
         pac::TIM2.cnt().read()
-    }
-
-    /// The count latched at the last Z rising edge, once per edge.
-    pub fn index_capture(&self) -> Option<u32> {
-        Self::capture(2)
     }
 
     /// The count latched at the last IN1 rising edge (touch probe 1), once per edge.
