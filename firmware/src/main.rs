@@ -35,7 +35,8 @@
 //!   (priority 0) and the DMA / break interrupts (priority 1) are never delayed by it.
 //!   We did not split Slave and Drive: `poll` and `cycle` both need both.
 //! * `Slave::poll` runs in **thread mode** (task `ecat`), `Slave::cycle` on the
-//!   **interrupt executor** (task `cyclic`, SYNC0). A 'save' (0x1010) arrives as an SDO
+//!   **interrupt executor** (task `cyclic`, SYNC0; each SYNC0 is run once, by
+//!   whichever of the two sees it first, see `cyclic`). A 'save' (0x1010) arrives as an SDO
 //!   inside `poll`; the parameter store is `FlashStore<hw::flash::StagedFlash>`: the
 //!   record is serialised into a 2 KiB RAM image inside `poll` (the SDO answer reports
 //!   the serialisation's result) and the `ecat` task programs it into the flash *after*
@@ -544,8 +545,16 @@ fn publish_command(s: &mut Shared) {
 }
 
 /// The cyclic path (DC mode): one `Slave::cycle` per SYNC0 falling edge.
+///
+/// In DC mode the ESC IRQ also signals SYNC0 (the runtime puts it in the event
+/// mask), so a thread-mode `poll` that read the AL event register just after a SYNC0
+/// edge, while this task waited for the lock, has already run that cycle (the
+/// runtime's `last_cycle` moved since this task's last call): the edge is then
+/// skipped, so every SYNC0 is handled exactly once. Outside DC mode (SM-synchronous,
+/// free run) SYNC0 edges are ignored and `poll` runs the cycles.
 #[embassy_executor::task]
 async fn cyclic(mut sync0: ExtiInput<'static, Async>) {
+    let mut mine: Option<u64> = None;
     loop {
         sync0.wait_for_falling_edge().await;
         SYNC0S.fetch_add(1, Ordering::Relaxed);
@@ -553,9 +562,13 @@ async fn cyclic(mut sync0: ExtiInput<'static, Async>) {
         with_shared(|s| {
             update_axis(s);
             if let Some(slave) = s.slave.as_mut() {
-                if slave.cycle(&mut s.drive, now).is_err() {
+                let sync = slave.sync();
+                let dc = sync.mode == ecat_slave_stack::sync::SyncMode::DcSync0;
+                let taken_by_poll = sync.last_cycle != mine;
+                if dc && !taken_by_poll && slave.cycle(&mut s.drive, now).is_err() {
                     ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
                 }
+                mine = slave.sync().last_cycle;
             }
             publish_command(s);
         });
