@@ -259,6 +259,11 @@ impl Entry {
             saved: false,
         }
     }
+    /// Sub-index 0 of an ARRAY or RECORD: "Number of entries", UINT8, read-only, with
+    /// default `n` and the natural range of UINT8.
+    pub const fn count(n: u8) -> Self {
+        Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(n as i64)
+    }
     /// A visible string of at most `max_len` bytes (read-only).
     pub const fn text(sub: u8, name: &'static str, max_len: u16, value: &'static str) -> Self {
         Entry {
@@ -357,6 +362,49 @@ pub struct Object {
 }
 
 impl Object {
+    /// An object with the given object code.
+    pub const fn new(
+        index: u16,
+        name: &'static str,
+        code: ObjectCode,
+        entries: &'static [Entry],
+        description: &'static str,
+    ) -> Self {
+        Object {
+            index,
+            name,
+            code,
+            entries,
+            description,
+        }
+    }
+    /// A VAR object (its single entry has sub-index 0).
+    pub const fn var(
+        index: u16,
+        name: &'static str,
+        entries: &'static [Entry],
+        description: &'static str,
+    ) -> Self {
+        Self::new(index, name, ObjectCode::Var, entries, description)
+    }
+    /// An ARRAY object (sub-index 0 is the count, see [`Entry::count`]).
+    pub const fn array(
+        index: u16,
+        name: &'static str,
+        entries: &'static [Entry],
+        description: &'static str,
+    ) -> Self {
+        Self::new(index, name, ObjectCode::Array, entries, description)
+    }
+    /// A RECORD object (sub-index 0 is the count, see [`Entry::count`]).
+    pub const fn record(
+        index: u16,
+        name: &'static str,
+        entries: &'static [Entry],
+        description: &'static str,
+    ) -> Self {
+        Self::new(index, name, ObjectCode::Record, entries, description)
+    }
     /// The entry with sub-index `sub`.
     pub fn entry(&self, sub: u8) -> Option<&'static Entry> {
         self.entries.iter().find(|e| e.sub == sub)
@@ -859,5 +907,28 @@ mod reference_tests {
         }
         assert!(SdoAbort::ALL.windows(2).all(|w| w[0].code() < w[1].code()));
         assert_eq!(SdoAbort::from_code(0x0504_0002), None);
+    }
+
+    #[test]
+    fn constructors_fill_the_object_code_and_the_count_entry() {
+        const E: &[Entry] = &[Entry::count(3)];
+        let v = Object::var(0x1000, "V", E, "d");
+        let a = Object::array(0x1001, "A", E, "d");
+        let r = Object::record(0x1002, "R", E, "d");
+        assert_eq!(
+            (v.code, a.code, r.code),
+            (ObjectCode::Var, ObjectCode::Array, ObjectCode::Record)
+        );
+        assert_eq!((r.index, r.name, r.description), (0x1002, "R", "d"));
+        let c = E[0];
+        assert_eq!(
+            (c.sub, c.name, c.data_type, c.access),
+            (0, "Number of entries", DataType::Unsigned8, Access::RO)
+        );
+        assert_eq!(
+            (c.bits, c.min, c.max, c.default),
+            (8, 0, 255, DefaultValue::Int(3))
+        );
+        assert!(!c.saved && c.pdo == PdoMappable::No && c.unit.is_empty());
     }
 }

@@ -21,7 +21,7 @@
 //! kind (bits 16-23) of the n-th newest fault.
 
 use ecat_slave_stack::od::{
-    self, Access, DataType, Dictionary, Entry, Object, ObjectCode, PdoMappable, SdoAbort,
+    self, Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort,
 };
 use embedded_storage::nor_flash::NorFlash;
 
@@ -56,26 +56,6 @@ pub fn execute<F: NorFlash, D: Dictionary + ?Sized>(
     }
 }
 
-const fn rec(
-    index: u16,
-    name: &'static str,
-    code: ObjectCode,
-    entries: &'static [Entry],
-    description: &'static str,
-) -> Object {
-    Object {
-        index,
-        name,
-        code,
-        entries,
-        description,
-    }
-}
-
-const fn count(n: i64) -> Entry {
-    Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(n)
-}
-
 const fn cmd(sub: u8, name: &'static str) -> Entry {
     Entry::new(sub, name, DataType::Unsigned32, Access::RW).default(1)
 }
@@ -88,17 +68,15 @@ const NAME_BITS: u16 = identity::MAX_NAME_LEN as u16;
 
 /// The communication objects of the product, sorted.
 pub const OBJECTS: &[Object] = &[
-    rec(
+    Object::var(
         0x1000,
         "Device type",
-        ObjectCode::Var,
         &[ro32(0, "Device type").default(0x0002_0192)],
         "CiA 402 drive: 0x00020192 hybrid servo, 0x00040192 stepper",
     ),
-    rec(
+    Object::var(
         0x1001,
         "Error register",
-        ObjectCode::Var,
         &[
             Entry::new(0, "Error register", DataType::Unsigned8, Access::RO)
                 .pdo(PdoMappable::Tx)
@@ -106,10 +84,9 @@ pub const OBJECTS: &[Object] = &[
         ],
         "b0 generic, b1 current, b2 voltage, b4 communication, b5 profile",
     ),
-    rec(
+    Object::array(
         0x1003,
         "Pre-defined error field",
-        ObjectCode::Array,
         &[
             Entry::new(0, "Number of errors", DataType::Unsigned8, Access::RW).default(0),
             ro32(1, "Standard error field 1"),
@@ -121,10 +98,9 @@ pub const OBJECTS: &[Object] = &[
         ],
         "Newest fault first: bits 0-15 error code, bits 16-23 fault kind; write 0 to sub 0 clears",
     ),
-    rec(
+    Object::var(
         0x1008,
         "Device name",
-        ObjectCode::Var,
         &[Entry::text(
             0,
             "Device name",
@@ -133,10 +109,9 @@ pub const OBJECTS: &[Object] = &[
         )],
         "Device name",
     ),
-    rec(
+    Object::var(
         0x1009,
         "Hardware version",
-        ObjectCode::Var,
         &[Entry::text(
             0,
             "Hardware version",
@@ -145,10 +120,9 @@ pub const OBJECTS: &[Object] = &[
         )],
         "Hardware version",
     ),
-    rec(
+    Object::var(
         0x100A,
         "Software version",
-        ObjectCode::Var,
         &[Entry::text(
             0,
             "Software version",
@@ -157,12 +131,11 @@ pub const OBJECTS: &[Object] = &[
         )],
         "Software version",
     ),
-    rec(
+    Object::array(
         0x1010,
         "Store parameters",
-        ObjectCode::Array,
         &[
-            count(4),
+            Entry::count(4),
             cmd(1, "Save all parameters"),
             cmd(2, "Save communication parameters"),
             cmd(3, "Save application parameters"),
@@ -170,12 +143,11 @@ pub const OBJECTS: &[Object] = &[
         ],
         "Write 'save' (0x65766173); 'load' to sub 4 restores defaults",
     ),
-    rec(
+    Object::array(
         0x1011,
         "Restore default parameters",
-        ObjectCode::Array,
         &[
-            count(4),
+            Entry::count(4),
             cmd(1, "Restore all defaults"),
             cmd(2, "Restore communication defaults"),
             cmd(3, "Restore application defaults"),
@@ -183,12 +155,11 @@ pub const OBJECTS: &[Object] = &[
         ],
         "Write 'load' (0x64616F6C); effective after restart",
     ),
-    rec(
+    Object::record(
         0x1018,
         "Identity",
-        ObjectCode::Record,
         &[
-            count(4),
+            Entry::count(4),
             ro32(1, "Vendor ID").default(identity::VENDOR_ID as i64),
             ro32(2, "Product code").default(0x5840),
             ro32(3, "Revision").default(identity::REVISION as i64),
@@ -196,12 +167,11 @@ pub const OBJECTS: &[Object] = &[
         ],
         "Identity (equals the SII)",
     ),
-    rec(
+    Object::record(
         0x10F1,
         "Error settings",
-        ObjectCode::Record,
         &[
-            count(2),
+            Entry::count(2),
             Entry::new(1, "Local error reaction", DataType::Unsigned32, Access::RW)
                 .default(1)
                 .saved(),

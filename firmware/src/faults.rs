@@ -36,7 +36,7 @@
 //! clears the last active fault, the CiA 301 "error reset" emergency (code 0x0000) is
 //! sent.
 
-use ecat_slave_stack::od::{Access, DataType, Entry, Object, ObjectCode, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{Access, DataType, Entry, Object, PdoMappable, SdoAbort};
 use heapless::Deque;
 
 /// The kinds of fault, most severe first.
@@ -537,13 +537,8 @@ const fn ro(sub: u8, name: &'static str, t: DataType, unit: &'static str) -> Ent
     Entry::new(sub, name, t, Access::RO).unit(unit)
 }
 
-const COUNT8: Entry =
-    Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(8);
-const COUNT7: Entry =
-    Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(7);
-
 const SNAPSHOT: &[Entry] = &[
-    COUNT7,
+    Entry::count(7),
     ro(1, "Error code", DataType::Unsigned16, ""),
     ro(2, "Phase A current", DataType::Integer16, "mA"),
     ro(3, "Phase B current", DataType::Integer16, "mA"),
@@ -554,24 +549,22 @@ const SNAPSHOT: &[Entry] = &[
 ];
 
 const fn snap_obj(index: u16, name: &'static str) -> Object {
-    Object {
+    Object::record(
         index,
         name,
-        code: ObjectCode::Record,
-        entries: SNAPSHOT,
-        description: "Values captured when the fault occurred (zeros when empty)",
-    }
+        SNAPSHOT,
+        "Values captured when the fault occurred (zeros when empty)",
+    )
 }
 
 /// Fault history objects (the Xinje U1 group): 0x2400 summary, 0x2401 newest fault's
 /// snapshot … 0x2406 sixth newest.
 pub const OBJECTS: &[Object] = &[
-    Object {
-        index: 0x2400,
-        name: "Fault history",
-        code: ObjectCode::Record,
-        entries: &[
-            COUNT8,
+    Object::record(
+        0x2400,
+        "Fault history",
+        &[
+            Entry::count(8),
             ro(1, "Faults since power-up", DataType::Unsigned16, ""),
             ro(2, "Fault code 1 (newest)", DataType::Unsigned16, ""),
             ro(3, "Fault code 2", DataType::Unsigned16, ""),
@@ -581,8 +574,8 @@ pub const OBJECTS: &[Object] = &[
             ro(7, "Fault code 6 (oldest)", DataType::Unsigned16, ""),
             Entry::new(8, "Active faults", DataType::Unsigned16, Access::RO).pdo(PdoMappable::Tx),
         ],
-        description: "Last six faults, newest first; sub 8: bit n = fault kind n active",
-    },
+        "Last six faults, newest first; sub 8: bit n = fault kind n active",
+    ),
     snap_obj(0x2401, "Fault 1 snapshot"),
     snap_obj(0x2402, "Fault 2 snapshot"),
     snap_obj(0x2403, "Fault 3 snapshot"),

@@ -9,9 +9,7 @@
 //! power-up. They are thus exact up to the last save (the board may also save on a
 //! power-fail warning).
 
-use ecat_slave_stack::od::{
-    self, Access, DataType, Entry, Object, ObjectCode, PdoMappable, SdoAbort,
-};
+use ecat_slave_stack::od::{self, Access, DataType, Entry, Object, PdoMappable, SdoAbort};
 
 const fn tx(name: &'static str, t: DataType, unit: &'static str) -> Entry {
     Entry::new(0, name, t, Access::RO)
@@ -19,60 +17,45 @@ const fn tx(name: &'static str, t: DataType, unit: &'static str) -> Entry {
         .unit(unit)
 }
 
-const fn var(
-    index: u16,
-    name: &'static str,
-    entry: &'static [Entry],
-    description: &'static str,
-) -> Object {
-    Object {
-        index,
-        name,
-        code: ObjectCode::Var,
-        entries: entry,
-        description,
-    }
-}
-
 /// Monitoring objects, sorted.
 pub const OBJECTS: &[Object] = &[
-    var(
+    Object::var(
         0x2300,
         "Electrical angle",
         &[tx("Electrical angle", DataType::Unsigned16, "1/65536 turn")],
         "Electrical angle used by the current loop",
     ),
-    var(
+    Object::var(
         0x2301,
         "Phase A current set",
         &[tx("Phase A current set", DataType::Integer16, "mA")],
         "Phase A current set-point",
     ),
-    var(
+    Object::var(
         0x2302,
         "Phase B current set",
         &[tx("Phase B current set", DataType::Integer16, "mA")],
         "Phase B current set-point",
     ),
-    var(
+    Object::var(
         0x2303,
         "Phase A current",
         &[tx("Phase A current", DataType::Integer16, "mA")],
         "Measured phase A current",
     ),
-    var(
+    Object::var(
         0x2304,
         "Phase B current",
         &[tx("Phase B current", DataType::Integer16, "mA")],
         "Measured phase B current",
     ),
-    var(
+    Object::var(
         0x2305,
         "Bus voltage",
         &[tx("Bus voltage", DataType::Unsigned16, "10mV")],
         "Measured DC bus voltage",
     ),
-    var(
+    Object::var(
         0x2306,
         "Power-on count",
         &[
@@ -82,7 +65,7 @@ pub const OBJECTS: &[Object] = &[
         ],
         "Number of power-ups (as of the last save)",
     ),
-    var(
+    Object::var(
         0x2307,
         "Running time",
         &[
@@ -93,7 +76,7 @@ pub const OBJECTS: &[Object] = &[
         ],
         "Accumulated powered time (as of the last save)",
     ),
-    var(
+    Object::var(
         0x2308,
         "Time since power-up",
         &[tx("Time since power-up", DataType::Unsigned32, "ms")],

@@ -46,51 +46,17 @@ const fn rws(
         .saved()
 }
 
-const fn count(n: i64) -> Entry {
-    Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(n)
-}
-
-const fn var(
-    index: u16,
-    name: &'static str,
-    entry: &'static [Entry],
-    description: &'static str,
-) -> Object {
-    Object {
-        index,
-        name,
-        code: ObjectCode::Var,
-        entries: entry,
-        description,
-    }
-}
-
-const fn arr(
-    index: u16,
-    name: &'static str,
-    entries: &'static [Entry],
-    description: &'static str,
-) -> Object {
-    Object {
-        index,
-        name,
-        code: ObjectCode::Array,
-        entries,
-        description,
-    }
-}
-
 use DataType::{Unsigned16 as U16, Unsigned32 as U32, Unsigned8 as U8};
 
 /// The vendor parameter objects, sorted by index.
 pub const OBJECTS: &[Object] = &[
-    var(
+    Object::var(
         0x2000,
         "Peak current",
         &[rws(0, "Peak current", U16, 3200, 1, 8400, "mA")],
         "Peak phase current while running",
     ),
-    var(
+    Object::var(
         0x2001,
         "Pulses per revolution",
         &[rws(
@@ -104,63 +70,62 @@ pub const OBJECTS: &[Object] = &[
         )],
         "Command units per motor revolution; effective after restart",
     ),
-    var(
+    Object::var(
         0x2002,
         "Stand-by time",
         &[rws(0, "Stand-by time", U16, 500, 100, 10000, "ms")],
         "Time without motion before the holding current applies",
     ),
-    arr(
+    Object::array(
         0x2005,
         "Output function",
         &[
-            count(2),
+            Entry::count(2),
             rws(1, "Output 1 function", U16, 1, 1, 4, ""),
             rws(2, "Output 2 function", U16, 1, 1, 4, ""),
         ],
         "bit0 alarm, bit1 ready, bit2 in-position",
     ),
-    var(
+    Object::var(
         0x2008,
         "Output level",
         &[rws(0, "Output level", U8, 0, 0, 3, "")],
         "bit n = 1: output n+1 is active-high",
     ),
-    var(
+    Object::var(
         0x2009,
         "Command filter enable",
         &[rws(0, "Command filter enable", U8, 0, 0, 1, "")],
         "Command smoothing filter on/off",
     ),
-    Object {
-        index: 0x2010,
-        name: "Command filter",
-        code: ObjectCode::Record,
-        entries: &[
-            count(2),
+    Object::record(
+        0x2010,
+        "Command filter",
+        &[
+            Entry::count(2),
             rws(2, "Command filter time", U16, 1000, 50, 25600, "us"),
         ],
-        description: "Command smoothing filter time (sub-index 1 is not used)",
-    },
-    var(
+        "Command smoothing filter time (sub-index 1 is not used)",
+    ),
+    Object::var(
         0x2013,
         "Current loop auto-tune",
         &[rws(0, "Current loop auto-tune", U8, 1, 0, 1, "")],
         "Measure R and L and compute the current gains at power-up",
     ),
-    var(
+    Object::var(
         0x2015,
         "Current Kp",
         &[rws(0, "Current Kp", U16, 1000, 200, 32767, "")],
         "Current loop proportional gain; read-only while 0x2013 = 1",
     ),
-    var(
+    Object::var(
         0x2016,
         "Current Ki",
         &[rws(0, "Current Ki", U16, 200, 0, 32767, "")],
         "Current loop integral gain; read-only while 0x2013 = 1",
     ),
-    var(
+    Object::var(
         0x2017,
         "Current Kc",
         &[Entry::new(0, "Current Kc", U16, Access::RO)
@@ -168,37 +133,37 @@ pub const OBJECTS: &[Object] = &[
             .default(100)],
         "Current loop anti-windup gain (read-only)",
     ),
-    var(
+    Object::var(
         0x2020,
         "Motor resistance",
         &[rws(0, "Motor resistance", U16, 1000, 1, 20000, "mOhm")],
         "Phase resistance (auto-tune fills it)",
     ),
-    var(
+    Object::var(
         0x2021,
         "Motor inductance",
         &[rws(0, "Motor inductance", U16, 1, 1, 6000, "uH")],
         "Phase inductance (auto-tune fills it)",
     ),
-    var(
+    Object::var(
         0x2024,
         "Loop mode",
         &[rws(0, "Loop mode", U8, 2, 1, 2, "")],
         "1 open loop, 2 closed loop",
     ),
-    var(
+    Object::var(
         0x2025,
         "Control mode",
         &[rws(0, "Control mode", U8, 5, 0, 5, "")],
         "0 DIP, 1 lead, 2 PM, 3 FOC, 4 self-test, 5 closed loop",
     ),
-    var(
+    Object::var(
         0x2026,
         "Holding current",
         &[rws(0, "Holding current", U8, 50, 0, 100, "%")],
         "Stand-still current in % of peak (open loop)",
     ),
-    var(
+    Object::var(
         0x2029,
         "Encoder resolution",
         &[rws(
@@ -212,13 +177,13 @@ pub const OBJECTS: &[Object] = &[
         )],
         "Encoder lines per revolution",
     ),
-    var(
+    Object::var(
         0x2030,
         "Following error limit",
         &[rws(0, "Following error limit", U16, 1000, 1, 60000, "inc")],
         "Position following error limit in encoder counts (fault, 7 flashes)",
     ),
-    var(
+    Object::var(
         0x2039,
         "Command pulses high",
         &[Entry::new(0, "Command pulses high", U16, Access::RO)
@@ -226,7 +191,7 @@ pub const OBJECTS: &[Object] = &[
             .default(0)],
         "Received command pulses, bits 16-31",
     ),
-    var(
+    Object::var(
         0x2040,
         "Command pulses low",
         &[Entry::new(0, "Command pulses low", U16, Access::RW)
@@ -235,7 +200,7 @@ pub const OBJECTS: &[Object] = &[
             .default(0)],
         "Received command pulses, bits 0-15; write 1 clears the counter",
     ),
-    var(
+    Object::var(
         0x2041,
         "Encoder counts high",
         &[Entry::new(0, "Encoder counts high", U16, Access::RO)
@@ -243,7 +208,7 @@ pub const OBJECTS: &[Object] = &[
             .default(0)],
         "Encoder feedback counts, bits 16-31",
     ),
-    var(
+    Object::var(
         0x2042,
         "Encoder counts low",
         &[Entry::new(0, "Encoder counts low", U16, Access::RW)
@@ -252,43 +217,43 @@ pub const OBJECTS: &[Object] = &[
             .default(0)],
         "Encoder feedback counts, bits 0-15; write 1 clears the counter",
     ),
-    var(
+    Object::var(
         0x2051,
         "Direction reversal",
         &[rws(0, "Direction reversal", U8, 0, 0, 1, "")],
         "1 reverses the motor direction",
     ),
-    var(
+    Object::var(
         0x2053,
         "In-position output level",
         &[rws(0, "In-position output level", U8, 0, 0, 1, "")],
         "1: an in-position output is active-high",
     ),
-    var(
+    Object::var(
         0x2056,
         "Fault detection mask",
         &[rws(0, "Fault detection mask", U16, 0x00C3, 0, 0xFFFF, "")],
         "bit = 1 enables the detection (see faults module)",
     ),
-    var(
+    Object::var(
         0x2057,
         "Fault clear allowed",
         &[rws(0, "Fault clear allowed", U8, 0, 0, 1, "")],
         "1: latched faults may be cleared without a power cycle",
     ),
-    var(
+    Object::var(
         0x2058,
         "Current soft-start",
         &[rws(0, "Current soft-start", U16, 1, 0, 10000, "50us")],
         "Current ramp on enable",
     ),
-    var(
+    Object::var(
         0x2083,
         "Power-up wiggle",
         &[rws(0, "Power-up wiggle", U8, 0, 0, 1, "")],
         "Angle alignment by a small shaft movement at power-up",
     ),
-    var(
+    Object::var(
         0x2093,
         "Fault clear record",
         &[Entry::new(0, "Fault clear record", U8, Access::RW)
@@ -296,47 +261,47 @@ pub const OBJECTS: &[Object] = &[
             .default(0)],
         "Write 1: clear the fault history",
     ),
-    var(
+    Object::var(
         0x2137,
         "Position loop Kp",
         &[rws(0, "Position loop Kp", U16, 120, 0, 150, "")],
         "Position loop proportional gain",
     ),
-    var(
+    Object::var(
         0x2138,
         "Position loop Ki",
         &[rws(0, "Position loop Ki", U16, 50, 0, 150, "")],
         "Position loop integral gain",
     ),
-    var(
+    Object::var(
         0x2139,
         "Velocity feed-forward",
         &[rws(0, "Velocity feed-forward", U16, 70, 0, 150, "")],
         "Velocity feed-forward gain",
     ),
-    var(
+    Object::var(
         0x2140,
         "Speed loop Kp",
         &[rws(0, "Speed loop Kp", U16, 60, 0, 150, "")],
         "Speed loop proportional gain",
     ),
-    var(
+    Object::var(
         0x2150,
         "Station alias",
         &[rws(0, "Station alias", U16, 1, 1, 65535, "")],
         "Station alias used when 0x2151 = 1; effective after restart",
     ),
-    var(
+    Object::var(
         0x2151,
         "Alias source",
         &[rws(0, "Alias source", U8, 0, 0, 1, "")],
         "0 DIP (DIP 0: SII word 4), 1 object 0x2150; effective after restart",
     ),
-    arr(
+    Object::array(
         0x2152,
         "Input function",
         &[
-            count(5),
+            Entry::count(5),
             rws(1, "Input 1 function", U16, 1, 0, 0xFFFF, ""),
             rws(2, "Input 2 function", U16, 2, 0, 0xFFFF, ""),
             rws(3, "Input 3 function", U16, 4, 0, 0xFFFF, ""),
@@ -345,11 +310,11 @@ pub const OBJECTS: &[Object] = &[
         ],
         "1 home, 2 limit-, 4 limit+, 8 fault clear, 16 quick stop, 32 probe",
     ),
-    arr(
+    Object::array(
         0x2153,
         "Input filter",
         &[
-            count(5),
+            Entry::count(5),
             rws(1, "Input 1 filter", U16, 20, 1, 60000, "50us"),
             rws(2, "Input 2 filter", U16, 20, 1, 60000, "50us"),
             rws(3, "Input 3 filter", U16, 20, 1, 60000, "50us"),
@@ -358,19 +323,19 @@ pub const OBJECTS: &[Object] = &[
         ],
         "Digital input filter time",
     ),
-    var(
+    Object::var(
         0x2154,
         "Input polarity",
         &[rws(0, "Input polarity", U8, 0, 0, 0x1F, "")],
         "bit n inverts input n+1",
     ),
-    var(
+    Object::var(
         0x2155,
         "Input raw levels",
         &[Entry::new(0, "Input raw levels", U8, Access::RO).pdo(PdoMappable::Tx)],
         "bit n = electrical level of input n+1",
     ),
-    var(
+    Object::var(
         0x2156,
         "Stored DIP station number",
         &[rws(0, "Stored DIP station number", U16, 0, 0, 127, "")],
