@@ -14,4 +14,5 @@ pub mod motion;
 pub mod params;
 pub mod pdo_defaults;
 pub mod sampling;
+pub mod staged_flash;
 pub mod storage;

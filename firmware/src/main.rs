@@ -338,7 +338,7 @@ async fn main(spawner: Spawner) {
     }
     // SAFETY: main runs once and is the only place that takes this reference.
     let stage: &'static mut Stage = unsafe { &mut *core::ptr::addr_of_mut!(STAGE_MEM) };
-    let staged = StagedFlash::new(stage, flash.is_some());
+    let staged = StagedFlash::new(hw::flash::MappedRegion, stage, flash.is_some());
     let mut flash = flash;
     if let Some(f) = flash.as_mut() {
         report_param_region(f);

@@ -47,121 +47,37 @@ pub fn param_flash(p: Peri<'static, FLASH>) -> Option<ParamFlash> {
 /// is refused (the SDO 'save' answers "data cannot be stored"), never truncated.
 pub const STAGE_LEN: usize = 2048;
 
+/// Erase unit of the region (dual-bank page).
+const PAGE: usize = 2048;
+
 /// Absolute address of the region's first byte in the memory map.
 const REGION_ADDR: u32 = 0x0800_0000 + board::PARAM_FLASH_OFFSET;
-/// Program granularity of the G4 (double word).
-const WRITE_UNIT: usize = 8;
 
-/// Error of the staging [`StagedFlash`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
-pub enum StageError {
-    /// Outside the region, or the record does not fit [`STAGE_LEN`].
-    OutOfBounds,
-    /// Not aligned to the write / erase unit.
-    NotAligned,
-    /// Parameter storage is off (DBANK = 0) or a staged record is still being
-    /// committed.
-    Unavailable,
+/// The RAM image of a record being saved.
+pub type Stage = firmware::staged_flash::Stage<STAGE_LEN>;
+
+/// The parameter store's view of the flash (`drive::FlashStore<StagedFlash>`): reads
+/// from the memory-mapped region, erases and writes into a [`Stage`], programmed by
+/// [`commit`] in thread mode outside the drive's lock (see
+/// `firmware::staged_flash` and main.rs, "Who owns what").
+pub type StagedFlash = firmware::staged_flash::StagedFlash<'static, MappedRegion, STAGE_LEN, PAGE>;
+
+/// Read-only view of the parameter region through the memory map (no driver needed,
+/// so the staged view can read while the driver is owned by the thread that
+/// programs).
+pub struct MappedRegion;
+
+impl embedded_storage::nor_flash::ErrorType for MappedRegion {
+    type Error = embedded_storage::nor_flash::NorFlashErrorKind;
 }
 
-impl embedded_storage::nor_flash::NorFlashError for StageError {
-    fn kind(&self) -> embedded_storage::nor_flash::NorFlashErrorKind {
-        use embedded_storage::nor_flash::NorFlashErrorKind as K;
-        match self {
-            StageError::OutOfBounds => K::OutOfBounds,
-            StageError::NotAligned => K::NotAligned,
-            StageError::Unavailable => K::Other,
-        }
-    }
-}
-
-/// A record image waiting for the flash: the erased range and the bytes programmed
-/// into it, relative to the region.
-pub struct Stage {
-    /// Erased range `[from, to)`; writes must fall inside it.
-    erase: Option<(u32, u32)>,
-    /// Highest offset written + 1 (relative to `erase.0`).
-    written: usize,
-    /// Image of `[erase.0, erase.0 + STAGE_LEN)`, 0xFF = erased.
-    bytes: [u8; STAGE_LEN],
-}
-
-impl Stage {
-    /// An empty stage (all zeros, so a `static` of it lives in .bss; an erase fills
-    /// the image with 0xFF before it is used).
-    pub const fn new() -> Self {
-        Stage {
-            erase: None,
-            written: 0,
-            bytes: [0; STAGE_LEN],
-        }
-    }
-}
-
-/// The parameter store's view of the flash during a save (`drive::FlashStore<StagedFlash>`):
-/// reads come straight from the memory-mapped region (what is committed), erases and
-/// writes only fill a RAM image ([`Stage`]). The image is programmed into the real
-/// flash afterwards by [`commit`], in thread mode and outside the drive's lock, so an
-/// SDO 'save' answered inside `Slave::poll` costs the serialisation only (≈ 2 KiB of
-/// dictionary reads), never a flash erase: the cyclic path keeps its timing.
-///
-/// The commit keeps the storage's power-loss order: erase, payload, header last.
-pub struct StagedFlash {
-    enabled: bool,
-    stage: Option<&'static mut Stage>,
-    ready: bool,
-}
-
-impl StagedFlash {
-    /// Staging over the region; `enabled` false (DBANK = 0): reads see an erased
-    /// region and every save is refused.
-    pub fn new(stage: &'static mut Stage, enabled: bool) -> Self {
-        StagedFlash {
-            enabled,
-            stage: Some(stage),
-            ready: false,
-        }
-    }
-
-    /// Takes a finished record image for [`commit`] (at most once per save).
-    pub fn take_ready(&mut self) -> Option<&'static mut Stage> {
-        if !self.ready {
-            return None;
-        }
-        self.ready = false;
-        self.stage.take()
-    }
-
-    /// Gives the image back after [`commit`].
-    pub fn give_back(&mut self, stage: &'static mut Stage) {
-        stage.erase = None;
-        stage.written = 0;
-        self.stage = Some(stage);
-    }
-
-    fn span(offset: u32, len: usize) -> Result<(), StageError> {
-        let end = (offset as usize)
-            .checked_add(len)
-            .ok_or(StageError::OutOfBounds)?;
-        if end > board::PARAM_FLASH_SIZE as usize {
-            return Err(StageError::OutOfBounds);
-        }
-        Ok(())
-    }
-}
-
-impl embedded_storage::nor_flash::ErrorType for StagedFlash {
-    type Error = StageError;
-}
-
-impl embedded_storage::nor_flash::ReadNorFlash for StagedFlash {
+impl embedded_storage::nor_flash::ReadNorFlash for MappedRegion {
     const READ_SIZE: usize = 1;
 
-    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), StageError> {
-        Self::span(offset, bytes.len())?;
-        if !self.enabled {
-            bytes.fill(0xFF);
-            return Ok(());
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        let end = (offset as usize).checked_add(bytes.len());
+        if end.is_none_or(|e| e > board::PARAM_FLASH_SIZE as usize) {
+            return Err(embedded_storage::nor_flash::NorFlashErrorKind::OutOfBounds);
         }
         // SAFETY: the span lies inside the parameter region of the internal flash,
         // which is always mapped and readable.
@@ -169,17 +85,6 @@ impl embedded_storage::nor_flash::ReadNorFlash for StagedFlash {
             core::slice::from_raw_parts((REGION_ADDR + offset) as *const u8, bytes.len())
         };
         bytes.copy_from_slice(src);
-        // A staged (not yet committed) image overrides what it covers.
-        if let (true, Some(st)) = (self.ready, self.stage.as_deref()) {
-            if let Some((from, to)) = st.erase {
-                for (i, b) in bytes.iter_mut().enumerate() {
-                    let a = offset + i as u32;
-                    if a >= from && a < to {
-                        *b = st.bytes.get((a - from) as usize).copied().unwrap_or(0xFF);
-                    }
-                }
-            }
-        }
         Ok(())
     }
 
@@ -188,85 +93,13 @@ impl embedded_storage::nor_flash::ReadNorFlash for StagedFlash {
     }
 }
 
-impl embedded_storage::nor_flash::NorFlash for StagedFlash {
-    const WRITE_SIZE: usize = WRITE_UNIT;
-    const ERASE_SIZE: usize = 2048;
-
-    fn erase(&mut self, from: u32, to: u32) -> Result<(), StageError> {
-        if !self.enabled || self.ready {
-            return Err(StageError::Unavailable);
-        }
-        let st = self.stage.as_deref_mut().ok_or(StageError::Unavailable)?;
-        if to < from {
-            return Err(StageError::OutOfBounds);
-        }
-        Self::span(from, (to - from) as usize)?;
-        let es = Self::ERASE_SIZE as u32;
-        if !from.is_multiple_of(es) || !to.is_multiple_of(es) {
-            return Err(StageError::NotAligned);
-        }
-        st.erase = Some((from, to));
-        st.written = 0;
-        st.bytes.fill(0xFF);
-        Ok(())
-    }
-
-    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), StageError> {
-        if !self.enabled || self.ready {
-            return Err(StageError::Unavailable);
-        }
-        let st = self.stage.as_deref_mut().ok_or(StageError::Unavailable)?;
-        Self::span(offset, bytes.len())?;
-        if !(offset as usize).is_multiple_of(WRITE_UNIT) || !bytes.len().is_multiple_of(WRITE_UNIT)
-        {
-            return Err(StageError::NotAligned);
-        }
-        let (from, to) = st.erase.ok_or(StageError::OutOfBounds)?;
-        let end = offset as usize + bytes.len();
-        if offset < from || end > to as usize {
-            return Err(StageError::OutOfBounds);
-        }
-        let rel = (offset - from) as usize;
-        let dst = st
-            .bytes
-            .get_mut(rel..rel + bytes.len())
-            .ok_or(StageError::OutOfBounds)?;
-        dst.copy_from_slice(bytes);
-        st.written = st.written.max(rel + bytes.len());
-        // The storage writes the header (offset 0 of the slot) last: that is the
-        // end of the record, so the image is complete.
-        if rel == 0 {
-            self.ready = true;
-        }
-        Ok(())
-    }
-}
-
-/// Programs a staged record into the flash: erase the range, write the payload
-/// (everything after the header), then the header. Blocking (erase ≈ 20 ms per
-/// 2 KiB page, program ≈ 85 µs per double word); runs in thread mode without any
-/// lock (bank 2, read-while-write: the interrupts keep running from bank 1).
-pub fn commit(flash: &mut ParamFlash, st: &Stage) -> Result<(), RegionErrorOf> {
-    use embedded_storage::nor_flash::NorFlash;
-    let Some((from, to)) = st.erase else {
-        return Ok(());
-    };
-    flash.erase(from, to)?;
-    let head = HEADER.min(st.written);
-    let body = &st.bytes[head..st.written.div_ceil(WRITE_UNIT) * WRITE_UNIT];
-    for (i, chunk) in body.chunks(WRITE_UNIT).enumerate() {
-        if chunk.iter().any(|&b| b != 0xFF) {
-            flash.write(from + (head + i * WRITE_UNIT) as u32, chunk)?;
-        }
-    }
-    if head > 0 {
-        flash.write(from, &st.bytes[..head])?;
-    }
-    Ok(())
-}
-
-/// Header length of a record: written last by [`commit`].
-const HEADER: usize = firmware::storage::HEADER_LEN;
-
 /// Error of the real region.
 pub type RegionErrorOf = firmware::flash_region::RegionError<embassy_stm32::flash::Error>;
+
+/// Programs a staged record into the flash (`firmware::staged_flash::commit`: erase,
+/// payload, header last). Blocking (erase ≈ 20 ms per 2 KiB page, program ≈ 85 µs
+/// per double word); runs in thread mode without any lock (bank 2, read-while-write:
+/// the interrupts keep running from bank 1).
+pub fn commit(flash: &mut ParamFlash, st: &Stage) -> Result<(), RegionErrorOf> {
+    firmware::staged_flash::commit(flash, st, firmware::storage::HEADER_LEN)
+}
