@@ -9,9 +9,10 @@
 //!   watchdog (not fed any more) resets the chip, and the next start logs the reset
 //!   cause. All of it goes straight to registers, so it works whatever state the
 //!   drivers were in.
-//! * Faults found by the board code (fault 9 at start-up, over-current) are
-//!   published as the drive fault number ([`raise_fault`], [`active_fault`]); the
-//!   LED task flashes it and the drive logic picks it up.
+//! * Faults found by the board code (fault 9 at start-up, over-current) go to the
+//!   drive's fault module (main.rs: `over_current`, `offset_self_check`), which
+//!   drives the PDS fault, the emergency and the red LED. [`raise_fault`] /
+//!   [`active_fault`] keep the most severe such fault since reset (status line).
 use core::sync::atomic::{AtomicU8, Ordering};
 
 use cortex_m_rt::{exception, ExceptionFrame};
