@@ -1,7 +1,7 @@
 //! Board firmware: the drive on the STM32G474RE reference board (see [`board`] for
 //! the pinout). Built only with `--features board,esc-lan9252` (or `esc-et1100`)
 //! `--target thumbv7em-none-eabihf`; flashed with probe-rs (`cargo flash`, see
-//! `firmware/README-board.md`).
+//! README.md, section "The board firmware").
 //!
 //! ## Tasks, interrupts and priorities
 //!
