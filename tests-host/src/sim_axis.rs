@@ -250,6 +250,11 @@ pub struct PlantAxis {
     pub motion: Motion,
     /// Switch positions (command units) and index phase.
     pub switches: Switches,
+    /// Trip level of the power stage's over-current comparator (the board's break
+    /// input), A, on the true phase current. Default: the drive's over-current limit
+    /// (`firmware::faults::FaultConfig::default().over_current_ma`).
+    pub trip_amps: f64,
+    tripped: bool,
     motor: MotorConstants,
     reference: CurrentReference,
     cmd: DriveCommand,
@@ -276,6 +281,8 @@ impl PlantAxis {
             rig,
             motion: Motion::new(cfg),
             switches: Switches::default(),
+            trip_amps: f64::from(firmware::faults::FaultConfig::default().over_current_ma) / 1000.0,
+            tripped: false,
             motor: consts,
             reference: CurrentReference::OFF,
             cmd: DriveCommand::default(),
@@ -290,6 +297,51 @@ impl PlantAxis {
     /// Load torque opposing positive rotation, N·m.
     pub fn set_load(&mut self, torque: f64) {
         self.rig.plant.load = torque;
+    }
+
+    /// Fault injection: DC bus voltage of the plant, V (measured by the bus ADC and
+    /// reported in [`AxisState::bus_mv`]; also the bridges' supply).
+    pub fn set_bus_voltage(&mut self, volts: f64) {
+        self.rig.plant.cfg.vbus = volts;
+    }
+
+    /// Fault injection: short circuit across the terminals of phase `phase` (0 = A,
+    /// 1 = B) on or off (see [`crate::plant::motor::Plant::short`]).
+    pub fn inject_phase_short(&mut self, phase: usize, on: bool) {
+        if let Some(s) = self.rig.plant.short.get_mut(phase) {
+            *s = on;
+        }
+    }
+
+    /// Fault injection: phase `phase` (0 = A, 1 = B) open (no current) or connected.
+    /// Opening interrupts the phase current at once.
+    pub fn open_phase(&mut self, phase: usize, open: bool) {
+        if open {
+            match phase {
+                0 => self.rig.plant.ia = 0.0,
+                1 => self.rig.plant.ib = 0.0,
+                _ => {}
+            }
+        }
+        if let Some(r) = self.rig.plant.cfg.r_scale.get_mut(phase) {
+            *r = if open {
+                crate::plant::motor::OPEN_SCALE
+            } else {
+                1.0
+            };
+        }
+    }
+
+    /// Fault injection: zero-current error of the current sensors (A, B), ADC counts.
+    pub fn set_adc_offset_error(&mut self, counts: [f64; 2]) {
+        self.rig.plant.adc_offset_error = counts;
+    }
+
+    /// The over-current comparator tripped and the bridges are off (the break latch;
+    /// re-armed once the drive has withdrawn the power permission and the currents are
+    /// below the trip level, as the board's `over_current` does).
+    pub fn tripped(&self) -> bool {
+        self.tripped
     }
 
     /// True shaft position in command units (axis direction).
@@ -347,6 +399,16 @@ impl PlantAxis {
                 Frame::Command { angle, omega_e } => cl.step(adc, angle, omega_e),
             }
         });
+        // Over-current comparator → break input: every switch off at once (the board's
+        // timer break acts within the PWM period); re-armed when the drive no longer
+        // asks for power and the currents are below the trip level.
+        let peak = self.rig.plant.ia.abs().max(self.rig.plant.ib.abs());
+        if peak > self.trip_amps {
+            self.tripped = true;
+        } else if self.tripped && !r.power {
+            self.tripped = false;
+        }
+        self.rig.plant.bridges_off = self.tripped;
         // Index pulse: axis count ≡ phase (mod counts per revolution).
         let c = self.motion.config();
         let cpr = i64::from(c.counts_per_rev.max(1));
@@ -412,6 +474,7 @@ impl Axis for PlantAxis {
             electrical_angle: (self.rig.enc.electrical_angle().0 >> 16) as u16,
             bus_mv: (self.rig.plant.cfg.vbus * 1000.0) as u32,
             index: self.index.take(),
+            overcurrent_trip: self.tripped,
             ..AxisState::default()
         };
         self.motion.fill_axis_state(&mut a);

@@ -18,6 +18,10 @@ use std::f64::consts::PI;
 
 /// A phase-resistance multiplier at or above this value models an open coil.
 pub const OPEN_SCALE: f64 = 1e3;
+/// Resistance of a short across a phase's motor terminals (wiring + contact), Ω.
+pub const SHORT_OHMS: f64 = 0.02;
+/// Inductance of that short (the motor leads), H.
+pub const SHORT_HENRY: f64 = 2e-6;
 
 /// Motor constants (SI units).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -162,6 +166,16 @@ pub struct Plant {
     pub load: f64,
     /// Simulated time, s.
     pub time: f64,
+    /// Fault injection: phase (A, B) short-circuited at the motor terminals. The
+    /// bridge then drives the short ([`SHORT_OHMS`], [`SHORT_HENRY`]) instead of the
+    /// winding: no back-EMF, no torque from that phase.
+    pub short: [bool; 2],
+    /// Break input: every bridge switch off. A phase current then freewheels through
+    /// the diodes against the bus (`v = −Vbus·sgn i`) until it reaches zero and stays
+    /// there (the back-EMF of these motors stays below the bus).
+    pub bridges_off: bool,
+    /// Fault injection: zero-current error of the current sensors (A, B), ADC counts.
+    pub adc_offset_error: [f64; 2],
     stuck: bool,
     next: Duties,
     now: Duties,
@@ -172,6 +186,9 @@ pub struct Plant {
 struct Inputs {
     va: f64,
     vb: f64,
+    /// Bridges off: sign of each phase current at the start of the sub-step (the
+    /// diodes that conduct; 0 = none).
+    free: [f64; 2],
 }
 
 impl Plant {
@@ -186,6 +203,9 @@ impl Plant {
             omega: 0.0,
             load: 0.0,
             time: 0.0,
+            short: [false; 2],
+            bridges_off: false,
+            adc_offset_error: [0.0; 2],
             stuck: true,
             next: z,
             now: z,
@@ -193,9 +213,9 @@ impl Plant {
         }
     }
 
-    fn adc_current(&mut self, i: f64) -> u16 {
+    fn adc_current(&mut self, i: f64, offset_error: f64) -> u16 {
         let lsb = 2.0 * self.cfg.adc_full_scale / 4096.0;
-        let x = 2048.0 + i / lsb + self.cfg.adc_noise_lsb * self.rng.normal();
+        let x = 2048.0 + offset_error + i / lsb + self.cfg.adc_noise_lsb * self.rng.normal();
         x.round().clamp(0.0, 4095.0) as u16
     }
 
@@ -204,8 +224,8 @@ impl Plant {
         let (ia, ib) = (self.ia, self.ib);
         let v = (self.cfg.vbus / self.cfg.vbus_full_scale * 4096.0).round();
         AdcSample {
-            ia: self.adc_current(ia),
-            ib: self.adc_current(ib),
+            ia: self.adc_current(ia, self.adc_offset_error[0]),
+            ib: self.adc_current(ib, self.adc_offset_error[1]),
             vbus: v.clamp(0.0, 4095.0) as u16,
         }
     }
@@ -238,7 +258,9 @@ impl Plant {
         let (s, c) = self.theta_e().sin_cos();
         let s2 = 2.0 * s * c;
         let c2 = c * c - s * s;
-        m.kt * (-self.ia * s + self.ib * c) - m.td * 2.0 * s2 * c2
+        let ia = if self.short[0] { 0.0 } else { self.ia };
+        let ib = if self.short[1] { 0.0 } else { self.ib };
+        m.kt * (-ia * s + ib * c) - m.td * 2.0 * s2 * c2
     }
 
     fn deriv(&self, x: [f64; 4], u: Inputs) -> [f64; 4] {
@@ -251,6 +273,29 @@ impl Plant {
         let eb = m.kt * w * c;
         let mut dia = (u.va - dt * sat(ia) - m.r * self.cfg.r_scale[0] * ia - ea) / m.l;
         let mut dib = (u.vb - dt * sat(ib) - m.r * self.cfg.r_scale[1] * ib - eb) / m.l;
+        if self.short != [false; 2] || self.bridges_off {
+            let vbus = self.cfg.vbus;
+            let phase = |p: usize, i: f64, v: f64, e: f64, d: f64| -> f64 {
+                let (v, e) = if self.bridges_off {
+                    // Diodes: the current returns to the bus, none starts.
+                    if u.free[p] == 0.0 {
+                        return 0.0;
+                    }
+                    (-vbus * u.free[p], e)
+                } else {
+                    (v - dt * sat(i), e)
+                };
+                if self.short[p] {
+                    (v - SHORT_OHMS * i) / SHORT_HENRY
+                } else if self.bridges_off {
+                    (v - m.r * self.cfg.r_scale[p] * i - e) / m.l
+                } else {
+                    d
+                }
+            };
+            dia = phase(0, ia, u.va, ea, dia);
+            dib = phase(1, ib, u.vb, eb, dib);
+        }
         // An open coil (resistance scale ≥ OPEN_SCALE) carries no current.
         if self.cfg.r_scale[0] >= OPEN_SCALE {
             dia = 0.0;
@@ -263,7 +308,11 @@ impl Plant {
         }
         let s2 = 2.0 * s * c;
         let c2 = c * c - s * s;
-        let t = m.kt * (-ia * s + ib * c) - m.td * 2.0 * s2 * c2;
+        let (ta, tb) = (
+            if self.short[0] { 0.0 } else { ia },
+            if self.short[1] { 0.0 } else { ib },
+        );
+        let t = m.kt * (-ta * s + tb * c) - m.td * 2.0 * s2 * c2;
         let net = t - self.load;
         let fr = if w > 0.0 {
             m.tc
@@ -282,14 +331,17 @@ impl Plant {
         self.next = next;
         let p = self.cfg.pwm_period.max(1) as f64;
         let vbus = self.cfg.vbus;
-        let u = Inputs {
+        let mut u = Inputs {
             va: (self.now.a1 as f64 - self.now.a2 as f64) / p * vbus,
             vb: (self.now.b1 as f64 - self.now.b2 as f64) / p * vbus,
+            free: [0.0; 2],
         };
         let n = self.cfg.substeps.max(1);
         let h = self.cfg.ts / n as f64;
         for _ in 0..n {
             let x = [self.ia, self.ib, self.theta, self.omega];
+            let sgn = |i: f64| if i == 0.0 { 0.0 } else { i.signum() };
+            u.free = [sgn(x[0]), sgn(x[1])];
             let k1 = self.deriv(x, u);
             let add = |a: [f64; 4], k: [f64; 4], f: f64| {
                 [
@@ -305,6 +357,15 @@ impl Plant {
             let mut y = [0.0; 4];
             for i in 0..4 {
                 y[i] = x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            }
+            if self.bridges_off {
+                // The freewheeling current stops at zero.
+                if y[0] * x[0] <= 0.0 {
+                    y[0] = 0.0;
+                }
+                if y[1] * x[1] <= 0.0 {
+                    y[1] = 0.0;
+                }
             }
             self.ia = y[0];
             self.ib = y[1];
