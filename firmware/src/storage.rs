@@ -777,6 +777,58 @@ impl Dictionary for NoDict {
     }
 }
 
+/// The bytes a read of `len` bytes at `offset` covers in a flash of `capacity` bytes
+/// (the range check shared by the NOR flashes held in memory: [`RamFlash`] and the
+/// host's file-backed flash).
+pub fn read_range(
+    capacity: usize,
+    offset: u32,
+    len: usize,
+) -> Result<core::ops::Range<usize>, NorFlashErrorKind> {
+    let start = offset as usize;
+    match start.checked_add(len) {
+        Some(end) if end <= capacity => Ok(start..end),
+        _ => Err(NorFlashErrorKind::OutOfBounds),
+    }
+}
+
+/// The bytes an erase of `from..to` covers: within `capacity`, on `erase_size`
+/// boundaries.
+pub fn erase_range(
+    capacity: usize,
+    erase_size: usize,
+    from: u32,
+    to: u32,
+) -> Result<core::ops::Range<usize>, NorFlashErrorKind> {
+    let (from, to) = (from as usize, to as usize);
+    if from > to || to > capacity {
+        return Err(NorFlashErrorKind::OutOfBounds);
+    }
+    if !from.is_multiple_of(erase_size) || !to.is_multiple_of(erase_size) {
+        return Err(NorFlashErrorKind::NotAligned);
+    }
+    Ok(from..to)
+}
+
+/// The bytes a write of `len` bytes at `offset` into `mem` covers: offset and length
+/// multiples of `write_size`, within `mem`, and every byte still erased (0xFF) —
+/// programming a double word twice is an error on the STM32G4 (`Other`).
+pub fn write_range(
+    mem: &[u8],
+    write_size: usize,
+    offset: u32,
+    len: usize,
+) -> Result<core::ops::Range<usize>, NorFlashErrorKind> {
+    if !(offset as usize).is_multiple_of(write_size) || !len.is_multiple_of(write_size) {
+        return Err(NorFlashErrorKind::NotAligned);
+    }
+    let range = read_range(mem.len(), offset, len)?;
+    if mem[range.clone()].iter().any(|&b| b != 0xFF) {
+        return Err(NorFlashErrorKind::Other);
+    }
+    Ok(range)
+}
+
 /// A RAM [`NorFlash`] for simulation and tests: `N` bytes, 32-byte pages, 8-byte write
 /// units (like the STM32G4's double words). Writing a byte that is not erased fails,
 /// as on the chip. It can lose power after a given number of byte operations (erase or
@@ -848,12 +900,8 @@ impl<const N: usize> embedded_storage::nor_flash::ReadNorFlash for RamFlash<N> {
         if self.dead {
             return Err(NorFlashErrorKind::Other);
         }
-        let start = offset as usize;
-        let src = self
-            .mem
-            .get(start..start + bytes.len())
-            .ok_or(NorFlashErrorKind::OutOfBounds)?;
-        bytes.copy_from_slice(src);
+        let range = read_range(N, offset, bytes.len())?;
+        bytes.copy_from_slice(&self.mem[range]);
         Ok(())
     }
     fn capacity(&self) -> usize {
@@ -865,37 +913,17 @@ impl<const N: usize> NorFlash for RamFlash<N> {
     const WRITE_SIZE: usize = 8;
     const ERASE_SIZE: usize = 32;
     fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-        let (from, to) = (from as usize, to as usize);
-        if from > to || to > N {
-            return Err(NorFlashErrorKind::OutOfBounds);
-        }
-        if !from.is_multiple_of(Self::ERASE_SIZE) || !to.is_multiple_of(Self::ERASE_SIZE) {
-            return Err(NorFlashErrorKind::NotAligned);
-        }
-        for i in from..to {
+        for i in erase_range(N, Self::ERASE_SIZE, from, to)? {
             self.step()?;
             self.mem[i] = 0xFF;
         }
         Ok(())
     }
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
-        let start = offset as usize;
-        if !start.is_multiple_of(Self::WRITE_SIZE) || !bytes.len().is_multiple_of(Self::WRITE_SIZE)
-        {
-            return Err(NorFlashErrorKind::NotAligned);
-        }
-        if start + bytes.len() > N {
-            return Err(NorFlashErrorKind::OutOfBounds);
-        }
-        if self.mem[start..start + bytes.len()]
-            .iter()
-            .any(|&b| b != 0xFF)
-        {
-            return Err(NorFlashErrorKind::Other);
-        }
-        for (i, &b) in bytes.iter().enumerate() {
+        let range = write_range(&self.mem, Self::WRITE_SIZE, offset, bytes.len())?;
+        for (i, &b) in range.zip(bytes) {
             self.step()?;
-            self.mem[start + i] = b;
+            self.mem[i] = b;
         }
         Ok(())
     }
@@ -904,6 +932,29 @@ impl<const N: usize> NorFlash for RamFlash<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn memory_flash_range_checks() {
+        use NorFlashErrorKind::{NotAligned, Other, OutOfBounds};
+        assert_eq!(read_range(64, 60, 4), Ok(60..64));
+        assert_eq!(read_range(64, 61, 4), Err(OutOfBounds));
+        assert_eq!(read_range(64, u32::MAX, usize::MAX), Err(OutOfBounds));
+        assert_eq!(erase_range(64, 32, 0, 64), Ok(0..64));
+        assert_eq!(erase_range(64, 32, 32, 0), Err(OutOfBounds));
+        assert_eq!(erase_range(64, 32, 0, 96), Err(OutOfBounds));
+        assert_eq!(erase_range(64, 32, 8, 32), Err(NotAligned));
+        let mut mem = [0xFFu8; 32];
+        mem[20] = 0;
+        assert_eq!(write_range(&mem, 8, 8, 8), Ok(8..16));
+        assert_eq!(write_range(&mem, 8, 4, 8), Err(NotAligned));
+        assert_eq!(write_range(&mem, 8, 8, 4), Err(NotAligned));
+        assert_eq!(write_range(&mem, 8, 32, 8), Err(OutOfBounds));
+        assert_eq!(write_range(&mem, 8, 16, 8), Err(Other));
+        assert_eq!(
+            write_range(&mem, 8, u32::MAX - 7, usize::MAX - 7),
+            Err(OutOfBounds)
+        );
+    }
 
     #[test]
     fn crc32_known_values() {

@@ -3,6 +3,7 @@
 //! program — as on a real drive (`virtual-drive --flash FILE`).
 
 use embedded_storage::nor_flash::{ErrorType, NorFlash, NorFlashErrorKind, ReadNorFlash};
+use firmware::storage;
 use std::path::PathBuf;
 
 /// Size of the parameter region (two 8 KiB record slots, as in `memory.x`).
@@ -67,12 +68,8 @@ impl ErrorType for FileFlash {
 impl ReadNorFlash for FileFlash {
     const READ_SIZE: usize = 1;
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
-        let start = offset as usize;
-        let src = self
-            .mem
-            .get(start..start + bytes.len())
-            .ok_or(NorFlashErrorKind::OutOfBounds)?;
-        bytes.copy_from_slice(src);
+        let range = storage::read_range(SIZE, offset, bytes.len())?;
+        bytes.copy_from_slice(&self.mem[range]);
         Ok(())
     }
     fn capacity(&self) -> usize {
@@ -84,32 +81,14 @@ impl NorFlash for FileFlash {
     const WRITE_SIZE: usize = 8;
     const ERASE_SIZE: usize = 2048;
     fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-        let (from, to) = (from as usize, to as usize);
-        if from > to || to > SIZE {
-            return Err(NorFlashErrorKind::OutOfBounds);
-        }
-        if !from.is_multiple_of(Self::ERASE_SIZE) || !to.is_multiple_of(Self::ERASE_SIZE) {
-            return Err(NorFlashErrorKind::NotAligned);
-        }
-        self.mem[from..to].fill(0xFF);
+        let range = storage::erase_range(SIZE, Self::ERASE_SIZE, from, to)?;
+        self.mem[range].fill(0xFF);
         self.persist();
         Ok(())
     }
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
-        let start = offset as usize;
-        if !start.is_multiple_of(Self::WRITE_SIZE) || !bytes.len().is_multiple_of(Self::WRITE_SIZE)
-        {
-            return Err(NorFlashErrorKind::NotAligned);
-        }
-        let dst = self
-            .mem
-            .get_mut(start..start + bytes.len())
-            .ok_or(NorFlashErrorKind::OutOfBounds)?;
-        if dst.iter().any(|&b| b != 0xFF) {
-            // Programming a double word twice is an error on the STM32G4.
-            return Err(NorFlashErrorKind::Other);
-        }
-        dst.copy_from_slice(bytes);
+        let range = storage::write_range(&self.mem, Self::WRITE_SIZE, offset, bytes.len())?;
+        self.mem[range].copy_from_slice(bytes);
         self.persist();
         Ok(())
     }
