@@ -584,6 +584,33 @@ fn bench() -> bool {
             return false;
         }
     }
+    // Cycle time budget: SPI traffic from the chip models + this run's instruction
+    // counts, written into docs/benchmarks-notes.md (appended below).
+    if Path::new("tests-host/src/bin/cycle-budget.rs").exists() {
+        let counts_file = format!("{target_dir}/instructions.tsv");
+        let tsv: String = first.iter().map(|(n, c)| format!("{n}\t{c}\n")).collect();
+        if fs::write(&counts_file, tsv).is_err() {
+            eprintln!("error: cannot write {counts_file}");
+            return false;
+        }
+        let (ok, _) = run_capture(&mut cargo(&[
+            "run",
+            "-q",
+            "-p",
+            "tests-host",
+            "--release",
+            "--bin",
+            "cycle-budget",
+            "--",
+            "--counts",
+            &counts_file,
+            "docs/benchmarks-notes.md",
+        ]));
+        if !ok {
+            eprintln!("error: cycle-budget failed");
+            return false;
+        }
+    }
     if let Ok(extra) = fs::read_to_string("docs/benchmarks-notes.md") {
         md.push('\n');
         md.push_str(&extra);

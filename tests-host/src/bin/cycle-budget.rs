@@ -1,0 +1,746 @@
+//! Cycle time budget (issue 5 acceptance): the SPI traffic of one process-data cycle
+//! on the LAN9252 and the ET1100, measured byte by byte on the SPI chip models, plus
+//! the CPU time of the cyclic path from the QEMU instruction counts, and from both the
+//! shortest cycle time the firmware supports at 170 MHz.
+//!
+//! One simulated drive (the firmware's `Drive` behind the slave runtime) is brought to
+//! Op through raw datagrams with its PDI on the real chip driver over the SPI model
+//! (`PdiPath::Spi`). Each measured cycle: the master writes the outputs into SM2 (the
+//! ESC raises the SM2 event), then one `Slave::poll` runs — exactly what the board's
+//! ESC interrupt task does — and every SPI transaction it causes is taken from the
+//! model's log. Done with the product's default maps (0x1600 + 0x1A00) and with 32 +
+//! 32 byte maps.
+//!
+//! Usage: `cycle-budget [--counts FILE] [OUT.md]`. `--counts` is the tab-separated
+//! `name<TAB>instructions` list of a QEMU bench run including the `(marker overhead)`
+//! row (`cargo xtask bench` writes `target/bench/instructions.tsv`); without it the
+//! counts are read from the table in `BENCHMARKS.md`. With `OUT.md` the Markdown
+//! section "Cycle time budget" of that file is replaced (or appended); the report is
+//! printed either way. Fails (exit 1) when a count is missing or the drive does not
+//! reach Op / run its cycle.
+
+use std::fmt::Write as _;
+
+use ecat_slave_stack::esm::EsmState;
+use ecat_slave_stack::od::{self, Dictionary};
+use ecat_slave_stack::pdo::entry;
+use firmware::identity::{self, Variant};
+use tests_host::esc_sim::frame::{datagrams, process_frame, Command, FrameBuilder};
+use tests_host::esc_sim::{EscSim, Flavour};
+use tests_host::file_flash::FileFlash;
+use tests_host::segment::{sii_image, Pdi, PdiPath, Segment, SegmentConfig};
+use tests_host::sim_drive::{self, AxisModel, Motor, SimDrive};
+use tests_host::spi_models::Transaction;
+
+const SECTION: &str = "## Cycle time budget";
+
+/// CPU clock of the STM32G474, Hz.
+const F_CPU: f64 = 170e6;
+/// Assumed cycles per executed instruction on the Cortex-M4 at 170 MHz (flash with 8
+/// wait states behind the ART accelerator, FPU and single-cycle ALU ops; loads and
+/// taken branches cost more). An assumption, not a measurement.
+const CPI: f64 = 1.5;
+/// Assumed fixed cost per SPI transaction besides the clocked bytes (chip select,
+/// DMA start, completion interrupt), s.
+const T_TRANSACTION: f64 = 0.5e-6;
+/// Current-loop (PWM) rate and servo rate of the board, Hz.
+const F_PWM: f64 = 40_000.0;
+const F_SERVO: f64 = 10_000.0;
+/// Cycle times the firmware accepts: 62.5 µs (stretch goal) and every multiple of
+/// 125 µs up to 4 ms.
+const CYCLES_US: &[f64] = &[62.5, 125.0, 250.0, 375.0, 500.0, 1000.0];
+/// Largest share of a cycle the cycle path may take: the rest is left for the mailbox
+/// task, housekeeping and interrupt jitter (a design margin, chosen here).
+const MAX_SHARE: f64 = 0.8;
+
+/// One ESC chip: its SPI clock limit and the clock a 170 MHz G474 can make for it.
+struct Chip {
+    flavour: Flavour,
+    name: &'static str,
+    /// Highest SPI clock of the chip for the commands the driver uses, Hz.
+    f_max: f64,
+    /// Where the figure comes from.
+    source: &'static str,
+}
+
+const CHIPS: [Chip; 2] = [
+    Chip {
+        flavour: Flavour::Lan9252,
+        name: "LAN9252",
+        f_max: 80e6,
+        source: "Microchip LAN9252 data sheet, SPI/SQI slave: 80 MHz for the fast read \
+                 (0x0B, one dummy byte) and writes; the plain read 0x03 is limited to 30 MHz. \
+                 The driver uses the fast read",
+    },
+    Chip {
+        flavour: Flavour::Et1100,
+        name: "ET1100",
+        f_max: 30e6,
+        source: "Beckhoff ET1100 data sheet (section III), SPI PDI: SPI_CLK up to 30 MHz; \
+                 reads use the wait-state byte (command 0b011)",
+    },
+];
+
+/// The SPI clock a G474 at 170 MHz can generate below `f_max`: PCLK / 2^n (the SPI
+/// baud-rate prescaler), capped at 75 MHz (assumed G474 SPI master limit).
+fn g474_clock(f_max: f64) -> f64 {
+    let mut f = F_CPU / 2.0;
+    while f > f_max || f > 75e6 {
+        f /= 2.0;
+    }
+    f
+}
+
+/// Maps filled to exactly 32 bytes: real entries from `candidates` while they fit
+/// (16 entries at most), the rest padding.
+fn map_32(candidates: &[(u16, u8)]) -> Vec<u32> {
+    let mut out = Vec::new();
+    let mut bits = 0u32;
+    for &(index, sub) in candidates {
+        let Ok(e) = od::find_entry(firmware::dictionary::OBJECTS, index, sub) else {
+            continue;
+        };
+        let b = u32::from(e.bits);
+        if bits + b > 256 || out.len() >= 14 {
+            continue;
+        }
+        out.push(entry(index, sub, e.bits as u8));
+        bits += b;
+    }
+    while bits < 256 {
+        let pad = (256 - bits).min(32);
+        out.push(entry(0, 0, pad as u8));
+        bits += pad;
+    }
+    out
+}
+
+const RX32: &[(u16, u8)] = &[
+    (0x6040, 0),
+    (0x607A, 0),
+    (0x60B0, 0),
+    (0x60B8, 0),
+    (0x60FF, 0),
+    (0x6081, 0),
+    (0x6083, 0),
+    (0x6084, 0),
+    (0x6060, 0),
+    (0x6071, 0),
+    (0x60B1, 0),
+    (0x60B2, 0),
+];
+const TX32: &[(u16, u8)] = &[
+    (0x603F, 0),
+    (0x6041, 0),
+    (0x6061, 0),
+    (0x6064, 0),
+    (0x60B9, 0),
+    (0x60BA, 0),
+    (0x60FD, 0),
+    (0x606C, 0),
+    (0x60F4, 0),
+    (0x6077, 0),
+    (0x60BB, 0),
+    (0x60BC, 0),
+];
+
+/// One simulated drive on `flavour` with its PDI through driver + SPI model.
+fn spi_segment(flavour: Flavour) -> Result<Segment<SimDrive>, String> {
+    let desc =
+        identity::device_description(Variant::HybridServo, sim_drive::esc_flavour(flavour), 0);
+    let sii = sii_image(&desc).map_err(|e| format!("SII image: {e:?}"))?;
+    let axis = tests_host::sim_axis::boxed_model(Motor::Ecn57_20, AxisModel::Kinematic, 1);
+    let app = SimDrive::new(0x1000, FileFlash::in_memory(), axis);
+    let mut seg = Segment::new(
+        SegmentConfig::new(flavour).with_pdi(PdiPath::Spi),
+        &sii,
+        vec![app],
+        sim_drive::slave_config(),
+        None,
+    )
+    .map_err(|e| format!("ESC start-up: {e:?}"))?;
+    for d in seg.drives_mut() {
+        let mut runtime = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
+        d.app.drive.power_up(&mut runtime);
+        d.app.axis.parameters(&d.app.drive.params);
+    }
+    Ok(seg)
+}
+
+fn fpwr(seg: &mut Segment<SimDrive>, ado: u16, data: &[u8]) -> u16 {
+    let d = seg.raw(FrameBuilder::new().physical(Command::Fpwr, 0x1000, ado, data));
+    d.first().map_or(0, |d| d.wkc)
+}
+
+fn al_request(seg: &mut Segment<SimDrive>, state: u16) -> (u16, u16) {
+    fpwr(seg, 0x0120, &state.to_le_bytes());
+    sim_drive::advance(seg, 1_000);
+    seg.al_status(0)
+}
+
+fn sm(seg: &mut Segment<SimDrive>, n: u16, start: u16, len: u16, control: u8) {
+    let mut b = [0u8; 8];
+    b[0..2].copy_from_slice(&start.to_le_bytes());
+    b[2..4].copy_from_slice(&len.to_le_bytes());
+    b[4] = control;
+    b[6] = 1;
+    fpwr(seg, 0x0806 + 8 * n, &[0]);
+    fpwr(seg, 0x0800 + 8 * n, &b);
+}
+
+/// Writes a map (sub 0 = 0, entries, sub 0 = n) through the runtime's objects.
+fn write_map(seg: &mut Segment<SimDrive>, index: u16, entries: &[u32]) -> Result<(), String> {
+    let d = seg.drive_mut(0);
+    let mut rt = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
+    let e = |r: Result<(), od::SdoAbort>| r.map_err(|a| format!("{index:#06x}: {a:?}"));
+    e(rt.write(index, 0, &[0], EsmState::PreOp))?;
+    for (k, v) in entries.iter().enumerate() {
+        e(rt.write(index, k as u8 + 1, &v.to_le_bytes(), EsmState::PreOp))?;
+    }
+    e(rt.write(index, 0, &[entries.len() as u8], EsmState::PreOp))
+}
+
+fn spi_log(pdi: &mut Pdi) -> Option<&mut Vec<Transaction>> {
+    match pdi {
+        Pdi::Lan9252(d) => Some(&mut d.spi_mut().log),
+        Pdi::Et1100(d) => Some(&mut d.spi_mut().log),
+        Pdi::Direct(_) => None,
+    }
+}
+
+/// What one transaction does, from its MOSI header.
+fn describe(flavour: Flavour, t: &Transaction) -> String {
+    let m = &t.mosi;
+    match flavour {
+        Flavour::Lan9252 => {
+            if m.len() < 3 {
+                return format!("{m:02x?}");
+            }
+            let addr = (u16::from(m[1]) << 8 | u16::from(m[2])) & 0x3FFF;
+            let op = match m[0] {
+                0x02 => "write",
+                0x03 => "read",
+                0x0B => "fast read",
+                _ => "?",
+            };
+            let name = match addr {
+                0x000..=0x01F => "PRAM read FIFO",
+                0x020..=0x03F => "PRAM write FIFO",
+                0x058 => "INT_STS",
+                0x300 => "ECAT_CSR_DATA",
+                0x304 => "ECAT_CSR_CMD",
+                0x308 => "PRAM_RD_ADDR_LEN",
+                0x30C => "PRAM_RD_CMD",
+                0x310 => "PRAM_WR_ADDR_LEN",
+                0x314 => "PRAM_WR_CMD",
+                _ => "",
+            };
+            format!("{op} {addr:#05x} {name}")
+        }
+        Flavour::Et1100 => {
+            if m.len() < 2 {
+                return format!("{m:02x?}");
+            }
+            let mut addr = u16::from(m[0]) << 5 | u16::from(m[1]) >> 3;
+            let mut cmd = m[1] & 7;
+            if cmd == 0b110 && m.len() >= 3 {
+                addr |= u16::from(m[2] >> 5) << 13;
+                cmd = (m[2] >> 2) & 7;
+            }
+            let op = match cmd {
+                0b000 => "NOP (AL event)",
+                0b010 => "read",
+                0b011 => "read (wait state)",
+                0b100 => "write",
+                _ => "?",
+            };
+            format!("{op} {addr:#06x}")
+        }
+    }
+}
+
+/// True for the transaction that writes the inputs (SM3 at 0x1400).
+fn writes_inputs(flavour: Flavour, t: &Transaction) -> bool {
+    let d = describe(flavour, t);
+    match flavour {
+        Flavour::Lan9252 => d.contains("PRAM_WR_ADDR_LEN"),
+        Flavour::Et1100 => d == "write 0x1400",
+    }
+}
+
+/// SPI traffic of one process-data cycle.
+struct CycleTraffic {
+    transactions: Vec<Transaction>,
+    idle: Vec<Transaction>,
+    rx_bytes: usize,
+    /// Polls from the SM2 write to the inputs written.
+    polls: u32,
+}
+
+impl CycleTraffic {
+    fn bytes(&self) -> usize {
+        self.transactions.iter().map(|t| t.mosi.len()).sum()
+    }
+}
+
+/// Brings the drive to Op with the given maps (None: defaults) and measures one
+/// steady-state SM2 cycle.
+fn measure(chip: &Chip, maps: Option<(&[u32], &[u32])>) -> Result<CycleTraffic, String> {
+    let mut seg = spi_segment(chip.flavour)?;
+    let d =
+        seg.raw(FrameBuilder::new().physical(Command::Apwr, 0, 0x0010, &0x1000u16.to_le_bytes()));
+    if d.first().map(|d| d.wkc) != Some(1) {
+        return Err("station address not written".into());
+    }
+    sm(&mut seg, 0, 0x1000, 128, 0x26);
+    sm(&mut seg, 1, 0x1080, 128, 0x22);
+    if al_request(&mut seg, 2) != (2, 0) {
+        return Err(format!("Pre-Op refused: {:?}", seg.al_status(0)));
+    }
+    let (rx_bytes, tx_bytes) = match maps {
+        None => (12usize, 19usize),
+        Some((rx, tx)) => {
+            write_map(&mut seg, 0x1600, rx)?;
+            write_map(&mut seg, 0x1A00, tx)?;
+            (32, 32)
+        }
+    };
+    sm(&mut seg, 2, 0x1100, rx_bytes as u16, 0x64);
+    sm(&mut seg, 3, 0x1400, tx_bytes as u16, 0x20);
+    if al_request(&mut seg, 4) != (4, 0) {
+        return Err(format!("Safe-Op refused: {:?}", seg.al_status(0)));
+    }
+    let outputs = |k: u32| {
+        let mut o = vec![0u8; rx_bytes];
+        o[0..2].copy_from_slice(&0x000Fu16.to_le_bytes());
+        o[2..6].copy_from_slice(&(50 * k as i32).to_le_bytes());
+        o
+    };
+    fpwr(&mut seg, 0x1100, &outputs(0));
+    if al_request(&mut seg, 8) != (8, 0) {
+        return Err(format!("Op refused: {:?}", seg.al_status(0)));
+    }
+    let mut last = None;
+    for k in 1..=5u32 {
+        // Move to the next 1 ms cycle, then the master's frame and one poll.
+        let to_next = 1_000_000 - seg.now_ns() % 1_000_000;
+        sim_drive::advance(&mut seg, to_next);
+        let mut frame = FrameBuilder::new()
+            .physical(Command::Fpwr, 0x1000, 0x1100, &outputs(k))
+            .physical(Command::Fprd, 0x1000, 0x1400, &vec![0; tx_bytes])
+            .build();
+        let now_ns = seg.now_ns();
+        let hop = seg.config().hop_ns;
+        {
+            let escs: Vec<_> = seg.drives_mut().iter().map(|d| d.esc.clone()).collect();
+            let mut refs: Vec<std::cell::RefMut<'_, EscSim>> =
+                escs.iter().map(|e| e.borrow_mut()).collect();
+            process_frame(&mut refs, &mut frame, now_ns, hop);
+        }
+        let wkc: Vec<u16> = datagrams(&frame)
+            .unwrap_or_default()
+            .iter()
+            .map(|d| d.wkc)
+            .collect();
+        if wkc != [1, 1] {
+            return Err(format!("cycle {k}: working counters {wkc:?}"));
+        }
+        // Polls until the inputs are written (the ET1100 driver may answer the first
+        // poll with the AL event bytes of its previous access, see the notes).
+        let d = seg.drive_mut(0);
+        if let Some(l) = spi_log(d.slave.esc_mut()) {
+            l.clear();
+        }
+        let mut cycle = Vec::new();
+        let mut polls = 0;
+        while polls < 4 && !cycle.iter().any(|t| writes_inputs(chip.flavour, t)) {
+            d.slave
+                .poll(&mut d.app, now_ns / 1000)
+                .map_err(|e| format!("poll: {e:?}"))?;
+            polls += 1;
+            cycle.extend(
+                spi_log(d.slave.esc_mut())
+                    .map(std::mem::take)
+                    .unwrap_or_default(),
+            );
+        }
+        // A poll without any event (what the runtime does between cycles).
+        d.slave
+            .poll(&mut d.app, now_ns / 1000 + 1)
+            .map_err(|e| format!("poll: {e:?}"))?;
+        let idle = spi_log(d.slave.esc_mut())
+            .map(std::mem::take)
+            .unwrap_or_default();
+        last = Some((cycle, idle, polls));
+        if seg.al_status(0) != (8, 0) {
+            return Err(format!("left Op: {:?}", seg.al_status(0)));
+        }
+    }
+    let (transactions, idle, polls) = last.ok_or("no cycle measured")?;
+    // The cycle ran: the inputs were written.
+    if !transactions.iter().any(|t| writes_inputs(chip.flavour, t)) {
+        return Err(format!("inputs not written after {polls} polls"));
+    }
+    let violations = seg.drive_mut(0).slave.esc_mut().spi_violations();
+    if !violations.is_empty() {
+        return Err(format!("SPI protocol violations: {violations:?}"));
+    }
+    Ok(CycleTraffic {
+        transactions,
+        idle,
+        rx_bytes,
+        polls,
+    })
+}
+
+/// Instruction counts: `--counts FILE` (raw, with the overhead row) or BENCHMARKS.md.
+fn load_counts(file: Option<&str>) -> Result<Vec<(String, u64)>, String> {
+    if let Some(f) = file {
+        let text = std::fs::read_to_string(f).map_err(|e| format!("{f}: {e}"))?;
+        let rows: Vec<(String, u64)> = text
+            .lines()
+            .filter_map(|l| {
+                let (n, c) = l.rsplit_once('\t')?;
+                Some((n.to_string(), c.trim().parse().ok()?))
+            })
+            .collect();
+        let overhead = rows
+            .iter()
+            .find(|(n, _)| n == "(marker overhead)")
+            .map_or(0, |r| r.1);
+        return Ok(rows
+            .into_iter()
+            .map(|(n, c)| (n, c.saturating_sub(overhead)))
+            .collect());
+    }
+    let text =
+        std::fs::read_to_string("BENCHMARKS.md").map_err(|e| format!("BENCHMARKS.md: {e}"))?;
+    Ok(text
+        .lines()
+        .filter_map(|l| {
+            let cols: Vec<&str> = l.trim().trim_matches('|').split('|').collect();
+            (cols.len() == 3)
+                .then(|| Some((cols[0].trim().to_string(), cols[2].trim().parse().ok()?)))
+                .flatten()
+        })
+        .collect())
+}
+
+fn count(rows: &[(String, u64)], name: &str) -> Result<u64, String> {
+    rows.iter()
+        .find(|(n, _)| n == name)
+        .map(|r| r.1)
+        .ok_or_else(|| format!("no instruction count for \"{name}\" (run cargo xtask bench)"))
+}
+
+fn us(s: f64) -> String {
+    format!("{:.1}", s * 1e6)
+}
+
+fn report(counts: &[(String, u64)]) -> Result<String, String> {
+    let csp = count(
+        counts,
+        "CSP cycle (unpack → Drive cycle → motion servo step → pack)",
+    )?;
+    let runtime = count(counts, "process data cycle (idle, default maps)")?;
+    let lan_event = count(
+        counts,
+        "LAN9252 driver: read AL event via CSR (SPI stubbed)",
+    )?;
+    let lan_read = count(counts, "LAN9252 driver: read 8 B process RAM (SPI stubbed)")?;
+    let et_event = count(
+        counts,
+        "ET1100 driver: AL event from the last address phase",
+    )?;
+    let et_read = count(counts, "ET1100 driver: read 8 B process RAM (SPI stubbed)")?;
+    let cur = count(counts, "current loop step")?;
+    let enc = count(counts, "encoder update (count + PLL)")?;
+    let servo = count(counts, "servo step (motion layer)")?;
+
+    let rx32 = map_32(RX32);
+    let tx32 = map_32(TX32);
+    let mut md = String::new();
+    let w = &mut md;
+    let _ = writeln!(w, "{SECTION}\n");
+    let _ = writeln!(
+        w,
+        "Generated by `cargo run -p tests-host --release --bin cycle-budget -- docs/benchmarks-notes.md` \
+         (run by `cargo xtask bench` with that run's instruction counts). One simulated drive — the \
+         firmware `Drive` behind the slave runtime — runs with its PDI through the real chip driver \
+         and the SPI chip model (`PdiPath::Spi`); the master writes the outputs into SM2, then one \
+         `Slave::poll` runs as the board's ESC interrupt task does, and every SPI transaction it \
+         causes is taken from the model's byte log. SM-synchronous mode (SM2 event); in DC mode \
+         `Slave::cycle` adds one 1-byte read of the SYNC0 status (0x098E).\n"
+    );
+    let _ = writeln!(w, "### SPI traffic per process-data cycle\n");
+    let mut bus = Vec::new();
+    for chip in &CHIPS {
+        for (label, maps) in [
+            ("default maps (0x1600 12 B out, 0x1A00 19 B in)", None),
+            (
+                "32 + 32 byte maps",
+                Some((rx32.as_slice(), tx32.as_slice())),
+            ),
+        ] {
+            let t = measure(chip, maps).map_err(|e| format!("{} {label}: {e}", chip.name))?;
+            let _ = writeln!(
+                w,
+                "**{}, {label}** — {} transactions, {} bytes in {} poll(s) (idle poll between \
+                 cycles: {} transactions, {} bytes):\n",
+                chip.name,
+                t.transactions.len(),
+                t.bytes(),
+                t.polls,
+                t.idle.len(),
+                t.idle.iter().map(|t| t.mosi.len()).sum::<usize>()
+            );
+            let _ = writeln!(w, "| # | transaction | bytes |\n|---|---|---|");
+            for (i, tr) in t.transactions.iter().enumerate() {
+                let _ = writeln!(
+                    w,
+                    "| {} | {} | {} |",
+                    i + 1,
+                    describe(chip.flavour, tr),
+                    tr.mosi.len()
+                );
+            }
+            let _ = writeln!(w);
+            bus.push((chip, label, t));
+        }
+    }
+    let _ = writeln!(
+        w,
+        "The 32 + 32 byte maps: 0x1600 = {}; 0x1A00 = {} (index:sub/bits, 0000 = padding).\n",
+        fmt_map(&rx32),
+        fmt_map(&tx32)
+    );
+
+    let _ = writeln!(w, "### Bus time\n");
+    for chip in &CHIPS {
+        let _ = writeln!(
+            w,
+            "- {}: maximum SPI clock {:.0} MHz ({}). A G474 at 170 MHz makes PCLK/2^n: {:.2} MHz \
+             is the fastest clock not above that{}.",
+            chip.name,
+            chip.f_max / 1e6,
+            chip.source,
+            g474_clock(chip.f_max) / 1e6,
+            if chip.f_max > 75e6 {
+                " and the G474's SPI master limit (assumed 75 MHz)"
+            } else {
+                ""
+            }
+        );
+    }
+    let _ = writeln!(
+        w,
+        "- Per transaction {:.1} µs more is assumed for chip select, DMA start and the completion \
+         interrupt.\n",
+        T_TRANSACTION * 1e6
+    );
+    let _ = writeln!(
+        w,
+        "| chip | maps | transactions | bytes | bus time at chip max (µs) | bus time at G474 clock (µs) |\n|---|---|---|---|---|---|"
+    );
+    let bus_time =
+        |bytes: usize, n: usize, f: f64| bytes as f64 * 8.0 / f + n as f64 * T_TRANSACTION;
+    for (chip, label, t) in &bus {
+        let _ = writeln!(
+            w,
+            "| {} | {} | {} | {} | {} = {}·8/{:.0} MHz + {}·{:.1} | {} = {}·8/{:.2} MHz + {}·{:.1} |",
+            chip.name,
+            label,
+            t.transactions.len(),
+            t.bytes(),
+            us(bus_time(t.bytes(), t.transactions.len(), chip.f_max)),
+            t.bytes(),
+            chip.f_max / 1e6,
+            t.transactions.len(),
+            T_TRANSACTION * 1e6,
+            us(bus_time(t.bytes(), t.transactions.len(), g474_clock(chip.f_max))),
+            t.bytes(),
+            g474_clock(chip.f_max) / 1e6,
+            t.transactions.len(),
+            T_TRANSACTION * 1e6,
+        );
+    }
+
+    let _ = writeln!(w, "\n### CPU time\n");
+    let _ = writeln!(
+        w,
+        "Executed instructions from the QEMU bench run (see the table above); **assumed {CPI} \
+         cycles per instruction** on the Cortex-M4 at 170 MHz (flash wait states behind the ART \
+         accelerator; not measured — QEMU has no timing model).\n"
+    );
+    let _ = writeln!(
+        w,
+        "| part | instructions |\n|---|---|\n\
+         | CSP cycle (unpack → Drive cycle → motion servo step → pack) | {csp} |\n\
+         | slave runtime poll with an SM2 event (process data cycle row, includes its own small unpack/pack) | {runtime} |\n\
+         | LAN9252 driver: AL event via CSR + 2 × process RAM access | {} |\n\
+         | ET1100 driver: AL event + 2 × process RAM access | {} |\n\
+         | interrupt load: current loop step {cur} + encoder update {enc} at {:.0} kHz, servo step {servo} at {:.0} kHz | {:.1} % of the CPU |\n",
+        lan_event + 2 * lan_read,
+        et_event + 2 * et_read,
+        F_PWM / 1e3,
+        F_SERVO / 1e3,
+        100.0 * irq_load(cur + enc, servo),
+    );
+    let load = irq_load(cur + enc, servo);
+    let _ = writeln!(w, "### Shortest cycle time\n");
+    let _ = writeln!(
+        w,
+        "Cycle path = SPI bus time (the reads and writes are sequential with the computation: \
+         outputs in → cycle → inputs out) + CPU time of the cycle path stretched by the interrupt \
+         load: t = t_bus + N·{CPI}/170 MHz / (1 − {:.3}). Supported cycle times: 62.5 µs (stretch), \
+         then multiples of 125 µs; the answer is the shortest one of which t takes at most \
+         {:.0} % (the rest is left for the mailbox task, housekeeping and jitter); 'cycle share' \
+         is t / that cycle.\n",
+        load,
+        MAX_SHARE * 100.0
+    );
+    let _ = writeln!(
+        w,
+        "| chip | maps | SPI clock | t_bus (µs) | N (instructions) | t_cpu (µs) | t (µs) | shortest cycle | cycle share |\n|---|---|---|---|---|---|---|---|---|"
+    );
+    let mut best_default = Vec::new();
+    for (chip, label, t) in &bus {
+        let drv = match chip.flavour {
+            Flavour::Lan9252 => lan_event + 2 * lan_read,
+            Flavour::Et1100 => et_event + 2 * et_read,
+        };
+        // The CSP row is measured with the default maps; for 32 + 32 bytes the copy
+        // plans grow: add the difference of the 32-byte unpack/pack rows over the
+        // default-size share (conservatively: the whole 32-byte rows).
+        let extra = if t.rx_bytes == 32 {
+            count(counts, "unpack 32 B outputs")? + count(counts, "pack 32 B inputs")?
+        } else {
+            0
+        };
+        let n = csp + runtime + drv + extra;
+        let t_cpu = n as f64 * CPI / F_CPU / (1.0 - load);
+        for (clock_label, f) in [("chip max", chip.f_max), ("G474", g474_clock(chip.f_max))] {
+            let t_bus = bus_time(t.bytes(), t.transactions.len(), f);
+            let total = t_bus + t_cpu;
+            let cycle = CYCLES_US
+                .iter()
+                .copied()
+                .find(|c| c * 1e-6 * MAX_SHARE >= total)
+                .unwrap_or(4000.0);
+            let _ = writeln!(
+                w,
+                "| {} | {} | {clock_label} {:.2} MHz | {} | {n} | {} | {} | **{} µs** | {:.0} % |",
+                chip.name,
+                label,
+                f / 1e6,
+                us(t_bus),
+                us(t_cpu),
+                us(total),
+                cycle,
+                100.0 * total / (cycle * 1e-6),
+            );
+            if t.rx_bytes != 32 && clock_label == "G474" {
+                best_default.push((chip.name, cycle, total));
+            }
+        }
+    }
+    let _ = writeln!(w);
+    for (name, cycle, total) in &best_default {
+        let _ = writeln!(
+            w,
+            "- **{name}, default maps, SPI clock a 170 MHz G474 can make: {} µs of work per cycle → \
+             shortest supported cycle {cycle} µs** (goal 62.5 µs; the reference drives stop at 250 µs).",
+            us(*total)
+        );
+    }
+    let _ = writeln!(
+        w,
+        "- ET1100: the driver returns the AL event bytes clocked out by its previous access \
+         when there was one since the last `al_event()`; the poll right after the master's frame \
+         therefore still saw the event state of the previous poll, and the SM2 event was taken \
+         by the next poll (the table's poll count). On the board the ESC interrupt stays \
+         asserted until the event is served, so the task polls again; it costs one poll of \
+         latency, no bytes."
+    );
+    let _ = writeln!(
+        w,
+        "- Instructions of the composed CSP cycle: {csp} (issue 7 goal ≤ 1500{}).",
+        if csp <= 1500 {
+            ", met"
+        } else {
+            ", not yet met"
+        }
+    );
+    Ok(md)
+}
+
+/// Fraction of the CPU taken by the interrupts (current loop + encoder at the PWM
+/// rate, servo step at the servo rate).
+fn irq_load(per_pwm: u64, per_servo: u64) -> f64 {
+    (per_pwm as f64 * F_PWM + per_servo as f64 * F_SERVO) * CPI / F_CPU
+}
+
+fn fmt_map(m: &[u32]) -> String {
+    m.iter()
+        .map(|e| format!("{:04X}:{:02X}/{}", e >> 16, (e >> 8) & 0xFF, e & 0xFF))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Replaces the section starting at `heading` (up to the next `## ` heading) in the
+/// Markdown file `path`, or appends it.
+pub fn replace_section(path: &str, heading: &str, body: &str) -> std::io::Result<()> {
+    let old = std::fs::read_to_string(path).unwrap_or_default();
+    let mut out = String::new();
+    let mut lines = old.lines().peekable();
+    let mut done = false;
+    while let Some(l) = lines.next() {
+        if l.trim_end() == heading {
+            out.push_str(body.trim_end());
+            out.push_str("\n\n");
+            while lines.peek().is_some_and(|n| !n.starts_with("## ")) {
+                lines.next();
+            }
+            done = true;
+            continue;
+        }
+        out.push_str(l);
+        out.push('\n');
+    }
+    if !done {
+        if !out.is_empty() && !out.ends_with("\n\n") {
+            out.push('\n');
+        }
+        out.push_str(body.trim_end());
+        out.push('\n');
+    }
+    std::fs::write(path, out.trim_end().to_string() + "\n")
+}
+
+fn main() {
+    let mut counts_file = None;
+    let mut out = None;
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        if a == "--counts" {
+            counts_file = args.next();
+        } else {
+            out = Some(a);
+        }
+    }
+    let md = load_counts(counts_file.as_deref()).and_then(|c| report(&c));
+    let md = match md {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("cycle-budget: {e}");
+            std::process::exit(1);
+        }
+    };
+    print!("{md}");
+    if let Some(path) = out {
+        if let Err(e) = replace_section(&path, SECTION, &md) {
+            eprintln!("cycle-budget: cannot write {path}: {e}");
+            std::process::exit(1);
+        }
+    }
+}
