@@ -43,7 +43,7 @@ fn main() -> ExitCode {
         Some("test") => test(),
         Some("bench") => bench(),
         Some("demo") => run_status(
-            &mut cargo(&[
+            cargo(&[
                 "run",
                 "-p",
                 "tests-host",
