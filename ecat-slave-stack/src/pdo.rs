@@ -710,50 +710,41 @@ const fn map_object(index: u16, name: &'static str) -> Object {
     }
 }
 
-const RX_ASSIGN_ENTRIES: &[Entry] = &[
-    Entry::new(
+/// Entries of an assignment object (0x1C12 / 0x1C13): the count, then one UINT16 per
+/// assignable map, limited to the maps `base..base + MAPS`.
+const fn assign_entries(base: u16) -> [Entry; MAPS + 1] {
+    const NAMES: [&str; MAPS] = [
+        "Assigned PDO 1",
+        "Assigned PDO 2",
+        "Assigned PDO 3",
+        "Assigned PDO 4",
+    ];
+    let count = Entry::new(
         0,
         "Number of assigned PDOs",
         DataType::Unsigned8,
         Access::RW_PREOP,
     )
     .range(0, MAPS as i64)
-    .saved(),
-    Entry::new(1, "Assigned PDO 1", DataType::Unsigned16, Access::RW_PREOP)
-        .range(0x1600, 0x1603)
-        .saved(),
-    Entry::new(2, "Assigned PDO 2", DataType::Unsigned16, Access::RW_PREOP)
-        .range(0x1600, 0x1603)
-        .saved(),
-    Entry::new(3, "Assigned PDO 3", DataType::Unsigned16, Access::RW_PREOP)
-        .range(0x1600, 0x1603)
-        .saved(),
-    Entry::new(4, "Assigned PDO 4", DataType::Unsigned16, Access::RW_PREOP)
-        .range(0x1600, 0x1603)
-        .saved(),
-];
-const TX_ASSIGN_ENTRIES: &[Entry] = &[
-    Entry::new(
-        0,
-        "Number of assigned PDOs",
-        DataType::Unsigned8,
-        Access::RW_PREOP,
-    )
-    .range(0, MAPS as i64)
-    .saved(),
-    Entry::new(1, "Assigned PDO 1", DataType::Unsigned16, Access::RW_PREOP)
-        .range(0x1A00, 0x1A03)
-        .saved(),
-    Entry::new(2, "Assigned PDO 2", DataType::Unsigned16, Access::RW_PREOP)
-        .range(0x1A00, 0x1A03)
-        .saved(),
-    Entry::new(3, "Assigned PDO 3", DataType::Unsigned16, Access::RW_PREOP)
-        .range(0x1A00, 0x1A03)
-        .saved(),
-    Entry::new(4, "Assigned PDO 4", DataType::Unsigned16, Access::RW_PREOP)
-        .range(0x1A00, 0x1A03)
-        .saved(),
-];
+    .saved();
+    let mut out = [count; MAPS + 1];
+    let mut i = 0;
+    while i < MAPS {
+        out[i + 1] = Entry::new(
+            (i + 1) as u8,
+            NAMES[i],
+            DataType::Unsigned16,
+            Access::RW_PREOP,
+        )
+        .range(base as i64, base as i64 + MAPS as i64 - 1)
+        .saved();
+        i += 1;
+    }
+    out
+}
+
+const RX_ASSIGN_ENTRIES: &[Entry] = &assign_entries(RX_MAP_BASE);
+const TX_ASSIGN_ENTRIES: &[Entry] = &assign_entries(TX_MAP_BASE);
 const SM_TYPE_ENTRIES: &[Entry] = &[
     Entry::new(
         0,
