@@ -330,7 +330,7 @@ fn write_flags<W: Write>(out: &mut W, e: &Entry) -> fmt::Result {
 }
 
 fn write_default<W: Write>(out: &mut W, e: &Entry) -> fmt::Result {
-    match e.default {
+    match e.default_value() {
         DefaultValue::None => Ok(()),
         DefaultValue::Text(t) => write!(out, "<DefaultString>{}</DefaultString>", Esc(t)),
         DefaultValue::Int(v) => {
@@ -741,41 +741,11 @@ mod tests {
     static NAME: [Entry; 1] = [Entry::text(0, "Device name", 12, "A \"quoted\" <name>")];
     static FLAG: [Entry; 1] = [Entry::new(0, "Flag", DataType::Boolean, Access::RW).default(1)];
     static OBJECTS: [Object; 5] = [
-        Object {
-            index: 0x1008,
-            name: "Device name",
-            code: ObjectCode::Var,
-            entries: &NAME,
-            description: "",
-        },
-        Object {
-            index: 0x1018,
-            name: "Identity",
-            code: ObjectCode::Record,
-            entries: &ID,
-            description: "",
-        },
-        Object {
-            index: 0x2001,
-            name: "Flag 'x'",
-            code: ObjectCode::Var,
-            entries: &FLAG,
-            description: "",
-        },
-        Object {
-            index: 0x6040,
-            name: "Controlword",
-            code: ObjectCode::Var,
-            entries: &CW,
-            description: "",
-        },
-        Object {
-            index: 0x6041,
-            name: "Statusword",
-            code: ObjectCode::Var,
-            entries: &SW,
-            description: "",
-        },
+        Object::new(0x1008, "Device name", ObjectCode::Var, &NAME, ""),
+        Object::new(0x1018, "Identity", ObjectCode::Record, &ID, ""),
+        Object::new(0x2001, "Flag 'x'", ObjectCode::Var, &FLAG, ""),
+        Object::new(0x6040, "Controlword", ObjectCode::Var, &CW, ""),
+        Object::new(0x6041, "Statusword", ObjectCode::Var, &SW, ""),
     ];
     static RX: [u32; 1] = [crate::pdo::entry(0x6040, 0, 16)];
     static TX: [u32; 2] = [crate::pdo::entry(0x6041, 0, 16), 0x0000_0010];

@@ -215,36 +215,106 @@ pub enum ObjectCode {
 }
 
 /// The static description of one entry (sub-index) of an object.
+///
+/// Kept compact (36 bytes on the target: the dictionary has several hundred entries):
+/// limits and the default are stored as 32-bit patterns read back through the data
+/// type, the unit as an index into [`UNITS`]. Use [`Entry::min`], [`Entry::max`],
+/// [`Entry::default_value`] and [`Entry::unit_text`] to read them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Entry {
-    /// Sub-index.
-    pub sub: u8,
     /// Name (SDO information, ESI, documentation).
     pub name: &'static str,
+    spec: Spec,
     /// Data type.
     pub data_type: DataType,
     /// Length in bits (for strings: the maximum length).
     pub bits: u16,
+    /// Sub-index.
+    pub sub: u8,
     /// Access per ESM state.
     pub access: Access,
     /// PDO mappability.
     pub pdo: PdoMappable,
-    /// Smallest accepted value on write (numeric types).
-    pub min: i64,
-    /// Largest accepted value on write (numeric types).
-    pub max: i64,
-    /// Default value.
-    pub default: DefaultValue,
-    /// Unit text ("mA", "ms", "inc", …); empty when dimensionless.
-    pub unit: &'static str,
     /// Stored in flash by 'save' (0x1010).
     pub saved: bool,
+    unit: u8,
+}
+
+/// Value part of an [`Entry`]: a numeric range and default (32-bit patterns, read
+/// through the data type) or a text default.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Spec {
+    Num {
+        lo: i32,
+        hi: i32,
+        def: i32,
+        /// The range is the data type's own (the only possibility for 64-bit types).
+        natural: bool,
+        has_default: bool,
+    },
+    Text(&'static str),
+}
+
+/// Unit texts an entry can carry ([`Entry::unit`]); index 0 is "no unit".
+pub const UNITS: &[&str] = &[
+    "", "inc", "inc/s", "inc/s²", "inc/rev", "lines/rev", "1/65536 turn", "ns", "us", "ms",
+    "s", "h", "min", "50us", "mA", "A", "mV", "10mV", "0.1V", "V", "mOhm", "uH", "%", "0.1 %",
+    "rpm", "Hz", "kHz", "°C",
+];
+
+const fn str_eq(a: &str, b: &str) -> bool {
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    if a.len() != b.len() {
+        return false;
+    }
+    let mut i = 0;
+    while i < a.len() {
+        if a[i] != b[i] {
+            return false;
+        }
+        i += 1;
+    }
+    true
+}
+
+/// Whether 32-bit patterns of `t` are read as unsigned (`u32`) rather than signed.
+const fn unsigned_pattern(t: DataType) -> bool {
+    !matches!(
+        t,
+        DataType::Integer8 | DataType::Integer16 | DataType::Integer32 | DataType::Integer64
+    )
+}
+
+/// A value of `t` as a 32-bit pattern; a compile-time error for a table value that
+/// does not fit (64-bit objects take their natural range and small defaults only).
+const fn pattern(t: DataType, v: i64) -> i32 {
+    if unsigned_pattern(t) {
+        assert!(
+            v >= 0 && v <= u32::MAX as i64,
+            "unsigned entry value outside 0..=u32::MAX"
+        );
+        v as u32 as i32
+    } else {
+        assert!(
+            v >= i32::MIN as i64 && v <= i32::MAX as i64,
+            "signed entry value outside i32"
+        );
+        v as i32
+    }
+}
+
+const fn unpattern(t: DataType, p: i32) -> i64 {
+    if unsigned_pattern(t) {
+        p as u32 as i64
+    } else {
+        p as i64
+    }
 }
 
 impl Entry {
     /// A numeric entry with the natural range of its type, no default, not saved.
     pub const fn new(sub: u8, name: &'static str, data_type: DataType, access: Access) -> Self {
-        let (bits, min, max) = type_range(data_type);
+        let (bits, _, _) = type_range(data_type);
         Entry {
             sub,
             name,
@@ -252,10 +322,14 @@ impl Entry {
             bits,
             access,
             pdo: PdoMappable::No,
-            min,
-            max,
-            default: DefaultValue::None,
-            unit: "",
+            spec: Spec::Num {
+                lo: 0,
+                hi: 0,
+                def: 0,
+                natural: true,
+                has_default: false,
+            },
+            unit: 0,
             saved: false,
         }
     }
@@ -273,38 +347,127 @@ impl Entry {
             bits: max_len * 8,
             access: Access::RO,
             pdo: PdoMappable::No,
-            min: 0,
-            max: 0,
-            default: DefaultValue::Text(value),
-            unit: "",
+            spec: Spec::Text(value),
+            unit: 0,
             saved: false,
         }
     }
-    /// Sets the accepted range.
+    /// Sets the accepted range (must fit the 32-bit pattern of the type: checked at
+    /// compile time for the constant tables).
     pub const fn range(mut self, min: i64, max: i64) -> Self {
-        self.min = min;
-        self.max = max;
+        let t = self.data_type;
+        if let Spec::Num {
+            lo, hi, natural, ..
+        } = &mut self.spec
+        {
+            *lo = pattern(t, min);
+            *hi = pattern(t, max);
+            *natural = false;
+        }
         self
     }
     /// Sets the default value.
     pub const fn default(mut self, v: i64) -> Self {
-        self.default = DefaultValue::Int(v);
+        let t = self.data_type;
+        if let Spec::Num {
+            def, has_default, ..
+        } = &mut self.spec
+        {
+            *def = pattern(t, v);
+            *has_default = true;
+        }
         self
     }
-    /// Sets the unit.
+    /// Replaces the default (documentation generators that describe a variant).
+    pub const fn with_default_value(mut self, d: DefaultValue) -> Self {
+        match d {
+            DefaultValue::Int(v) => {
+                if matches!(self.spec, Spec::Text(_)) {
+                    self.spec = Spec::Num {
+                        lo: 0,
+                        hi: 0,
+                        def: 0,
+                        natural: true,
+                        has_default: false,
+                    };
+                }
+                self.default(v)
+            }
+            DefaultValue::Text(t) => {
+                self.spec = Spec::Text(t);
+                self
+            }
+            DefaultValue::None => {
+                if let Spec::Num { has_default, .. } = &mut self.spec {
+                    *has_default = false;
+                }
+                self
+            }
+        }
+    }
+    /// Sets the unit (one of [`UNITS`]; an unknown unit is a compile-time error for
+    /// the constant tables).
     pub const fn unit(mut self, unit: &'static str) -> Self {
-        self.unit = unit;
-        self
+        let mut i = 0;
+        while i < UNITS.len() {
+            if str_eq(UNITS[i], unit) {
+                self.unit = i as u8;
+                return self;
+            }
+            i += 1;
+        }
+        panic!("unit not in od::UNITS");
     }
     /// Marks the entry as stored by 'save'.
     pub const fn saved(mut self) -> Self {
         self.saved = true;
         self
     }
+    /// Sets the access rights (e.g. a writable text).
+    pub const fn with_access(mut self, access: Access) -> Self {
+        self.access = access;
+        self
+    }
     /// Sets PDO mappability.
     pub const fn pdo(mut self, pdo: PdoMappable) -> Self {
         self.pdo = pdo;
         self
+    }
+    /// Smallest accepted value on write (numeric types).
+    pub const fn min(&self) -> i64 {
+        match self.spec {
+            Spec::Num {
+                natural: false, lo, ..
+            } => unpattern(self.data_type, lo),
+            Spec::Num { .. } => type_range(self.data_type).1,
+            Spec::Text(_) => 0,
+        }
+    }
+    /// Largest accepted value on write (numeric types).
+    pub const fn max(&self) -> i64 {
+        match self.spec {
+            Spec::Num {
+                natural: false, hi, ..
+            } => unpattern(self.data_type, hi),
+            Spec::Num { .. } => type_range(self.data_type).2,
+            Spec::Text(_) => 0,
+        }
+    }
+    /// Default value (also the ESI `DefaultData`).
+    pub const fn default_value(&self) -> DefaultValue {
+        match self.spec {
+            Spec::Num {
+                has_default: true,
+                def,
+                ..
+            } => DefaultValue::Int(unpattern(self.data_type, def)),
+            Spec::Num { .. } => DefaultValue::None,
+            Spec::Text(s) => DefaultValue::Text(s),
+        }
+    }
+    /// Unit text ("mA", "ms", "inc", …); empty when dimensionless.
+    pub const fn unit_text(&self) -> &'static str {
+        UNITS[self.unit as usize]
     }
     /// Size in bytes on the wire (rounded up).
     pub const fn byte_len(&self) -> usize {
@@ -357,8 +520,11 @@ pub struct Object {
     /// Entries sorted by sub-index. A VAR has exactly one entry (sub-index 0); an
     /// ARRAY or RECORD has its sub-index 0 (UINT8 count) first.
     pub entries: &'static [Entry],
-    /// What the object means (dictionary reference, ESI comment).
-    pub description: &'static str,
+    /// What the object means (dictionary reference). Only kept with the
+    /// `descriptions` feature (documentation generators); the target build leaves the
+    /// texts out of flash.
+    #[cfg(feature = "descriptions")]
+    description: &'static str,
 }
 
 impl Object {
@@ -370,13 +536,28 @@ impl Object {
         entries: &'static [Entry],
         description: &'static str,
     ) -> Self {
+        #[cfg(not(feature = "descriptions"))]
+        let _ = description;
         Object {
             index,
             name,
             code,
             entries,
+            #[cfg(feature = "descriptions")]
             description,
         }
+    }
+    /// The same object with other entries (documentation generators).
+    pub const fn with_entries(mut self, entries: &'static [Entry]) -> Self {
+        self.entries = entries;
+        self
+    }
+    /// What the object means; empty without the `descriptions` feature.
+    pub const fn description(&self) -> &'static str {
+        #[cfg(feature = "descriptions")]
+        return self.description;
+        #[cfg(not(feature = "descriptions"))]
+        return "";
     }
     /// A VAR object (its single entry has sub-index 0).
     pub const fn var(
@@ -482,10 +663,10 @@ pub fn check_write(entry: &Entry, data: &[u8], state: EsmState) -> Result<(), Sd
         return Err(SdoAbort::LengthTooLow);
     }
     if let Some(v) = decode_int(entry.data_type, data) {
-        if v > entry.max {
+        if v > entry.max() {
             return Err(SdoAbort::ValueTooHigh);
         }
-        if v < entry.min {
+        if v < entry.min() {
             return Err(SdoAbort::ValueTooLow);
         }
     }
@@ -734,8 +915,8 @@ pub fn write_reference(objects: &[Object], w: &mut impl core::fmt::Write) -> cor
         write!(w, "\n## 0x{:04X} ", o.index)?;
         write_md(w, o.name)?;
         writeln!(w, " ({})\n", object_code_name(o.code))?;
-        if !o.description.is_empty() {
-            write_md(w, o.description)?;
+        if !o.description().is_empty() {
+            write_md(w, o.description())?;
             writeln!(w, "\n")?;
         }
         writeln!(
@@ -756,11 +937,11 @@ pub fn write_reference(objects: &[Object], w: &mut impl core::fmt::Write) -> cor
             };
             write!(w, " | {} | ", pdo)?;
             if has_numeric_range(e.data_type) {
-                write!(w, "{} | {} | ", e.min, e.max)?;
+                write!(w, "{} | {} | ", e.min(), e.max())?;
             } else {
                 write!(w, "- | - | ")?;
             }
-            match e.default {
+            match e.default_value() {
                 DefaultValue::None => write!(w, "-")?,
                 // Codes, identities and mapping words also in hex.
                 DefaultValue::Int(v) if shows_hex(e, v) => write!(w, "{} (0x{:X})", v, v)?,
@@ -772,10 +953,10 @@ pub fn write_reference(objects: &[Object], w: &mut impl core::fmt::Write) -> cor
                 }
             }
             write!(w, " | ")?;
-            if e.unit.is_empty() {
+            if e.unit_text().is_empty() {
                 write!(w, "-")?;
             } else {
-                write_md(w, e.unit)?;
+                write_md(w, e.unit_text())?;
             }
             writeln!(w, " | {} |", if e.saved { "yes" } else { "no" })?;
         }
@@ -789,7 +970,7 @@ fn shows_hex(e: &Entry, v: i64) -> bool {
     matches!(
         e.data_type,
         DataType::Unsigned16 | DataType::Unsigned32 | DataType::Unsigned64
-    ) && e.unit.is_empty()
+    ) && e.unit_text().is_empty()
         && v >= 0x100
 }
 
@@ -856,20 +1037,16 @@ mod reference_tests {
     use super::*;
 
     static OBJS: &[Object] = &[
-        Object {
-            index: 0x1000,
-            name: "Device type",
-            code: ObjectCode::Var,
-            entries: &[
-                Entry::new(0, "Device type", DataType::Unsigned32, Access::RO).default(0x0002_0192),
-            ],
-            description: "Profile | type",
-        },
-        Object {
-            index: 0x2000,
-            name: "Gains",
-            code: ObjectCode::Record,
-            entries: &[
+        Object::var(
+            0x1000,
+            "Device type",
+            &[Entry::new(0, "Device type", DataType::Unsigned32, Access::RO).default(0x0002_0192)],
+            "Profile | type",
+        ),
+        Object::record(
+            0x2000,
+            "Gains",
+            &[
                 Entry::new(0, "Count", DataType::Unsigned8, Access::RO),
                 Entry::new(1, "Kp", DataType::Unsigned16, Access::RW_PREOP)
                     .unit("mA")
@@ -877,8 +1054,8 @@ mod reference_tests {
                     .pdo(PdoMappable::Rx),
                 Entry::text(2, "Label", 8, "abc"),
             ],
-            description: "",
-        },
+            "",
+        ),
     ];
 
     #[test]
@@ -887,7 +1064,8 @@ mod reference_tests {
         write_reference(OBJS, &mut s).unwrap();
         assert!(s.contains("| 0x1000 | Device type | VAR | 1 |"));
         assert!(s.contains("## 0x2000 Gains (RECORD)"));
-        assert!(s.contains("Profile \\| type"));
+        // The description text is only kept with the `descriptions` feature.
+        assert_eq!(s.contains("Profile \\| type"), cfg!(feature = "descriptions"));
         assert!(s.contains("| 1 | Kp | UINT | 16 | rPSO wP | Rx | 0 | 65535 | - | mA | yes |"));
         assert!(s.contains("| 2 | Label | STRING | 64 | rPSO | - | - | - | \"abc\" | - | no |"));
         assert!(s.contains(
@@ -919,16 +1097,21 @@ mod reference_tests {
             (v.code, a.code, r.code),
             (ObjectCode::Var, ObjectCode::Array, ObjectCode::Record)
         );
-        assert_eq!((r.index, r.name, r.description), (0x1002, "R", "d"));
+        let d = if cfg!(feature = "descriptions") {
+            "d"
+        } else {
+            ""
+        };
+        assert_eq!((r.index, r.name, r.description()), (0x1002, "R", d));
         let c = E[0];
         assert_eq!(
             (c.sub, c.name, c.data_type, c.access),
             (0, "Number of entries", DataType::Unsigned8, Access::RO)
         );
         assert_eq!(
-            (c.bits, c.min, c.max, c.default),
+            (c.bits, c.min(), c.max(), c.default_value()),
             (8, 0, 255, DefaultValue::Int(3))
         );
-        assert!(!c.saved && c.pdo == PdoMappable::No && c.unit.is_empty());
+        assert!(!c.saved && c.pdo == PdoMappable::No && c.unit_text().is_empty());
     }
 }

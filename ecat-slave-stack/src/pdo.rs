@@ -32,7 +32,7 @@
 
 use crate::al_status::AlStatusCode;
 use crate::esm::EsmState;
-use crate::od::{self, Access, DataType, Entry, Object, ObjectCode, SdoAbort};
+use crate::od::{self, Access, DataType, Entry, Object, SdoAbort};
 
 /// Entries per mapping object.
 pub const MAX_ENTRIES: usize = 16;
@@ -701,13 +701,12 @@ macro_rules! map_entries {
 const MAP_ENTRIES: &[Entry] = map_entries!(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16);
 
 const fn map_object(index: u16, name: &'static str) -> Object {
-    Object {
+    Object::record(
         index,
         name,
-        code: ObjectCode::Record,
-        entries: MAP_ENTRIES,
-        description: "PDO mapping: sub-index 0 = number of entries, then index<<16 | sub<<8 | bit length; Pre-Op only, sub-index 0 to 0 first",
-    }
+        MAP_ENTRIES,
+        "PDO mapping: sub-index 0 = number of entries, then index<<16 | sub<<8 | bit length; Pre-Op only, sub-index 0 to 0 first",
+    )
 }
 
 /// Entries of an assignment object (0x1C12 / 0x1C13): the count, then one UINT16 per
@@ -770,27 +769,24 @@ pub const OBJECTS: &[Object] = &[
     map_object(0x1A01, "TxPDO mapping 2"),
     map_object(0x1A02, "TxPDO mapping 3"),
     map_object(0x1A03, "TxPDO mapping 4"),
-    Object {
-        index: SM_COMM_TYPE,
-        name: "Sync manager communication type",
-        code: ObjectCode::Array,
-        entries: SM_TYPE_ENTRIES,
-        description: "1 mailbox out, 2 mailbox in, 3 process data outputs, 4 process data inputs",
-    },
-    Object {
-        index: RX_ASSIGN,
-        name: "RxPDO assign",
-        code: ObjectCode::Array,
-        entries: RX_ASSIGN_ENTRIES,
-        description: "RxPDO mapping objects carried by SM2 (outputs)",
-    },
-    Object {
-        index: TX_ASSIGN,
-        name: "TxPDO assign",
-        code: ObjectCode::Array,
-        entries: TX_ASSIGN_ENTRIES,
-        description: "TxPDO mapping objects carried by SM3 (inputs)",
-    },
+    Object::array(
+        SM_COMM_TYPE,
+        "Sync manager communication type",
+        SM_TYPE_ENTRIES,
+        "1 mailbox out, 2 mailbox in, 3 process data outputs, 4 process data inputs",
+    ),
+    Object::array(
+        RX_ASSIGN,
+        "RxPDO assign",
+        RX_ASSIGN_ENTRIES,
+        "RxPDO mapping objects carried by SM2 (outputs)",
+    ),
+    Object::array(
+        TX_ASSIGN,
+        "TxPDO assign",
+        TX_ASSIGN_ENTRIES,
+        "TxPDO mapping objects carried by SM3 (inputs)",
+    ),
     crate::sync::SM2_SYNC_OBJECT,
     crate::sync::SM3_SYNC_OBJECT,
 ];

@@ -42,7 +42,7 @@
 
 use crate::al_status::AlStatusCode;
 use crate::esm::EsmState;
-use crate::od::{Access, DataType, Entry, Object, ObjectCode, SdoAbort};
+use crate::od::{Access, DataType, Entry, Object, SdoAbort};
 
 /// SM2 (outputs) sync parameters.
 pub const SM2_SYNC: u16 = 0x1C32;
@@ -656,23 +656,15 @@ const SM2_SYNC_ENTRIES: &[Entry] = sync_entries!("outputs");
 const SM3_SYNC_ENTRIES: &[Entry] = sync_entries!("inputs");
 
 /// Description of 0x1C32.
-pub const SM2_SYNC_OBJECT: Object = Object {
-    index: SM2_SYNC,
-    name: "SM output parameter",
-    code: ObjectCode::Record,
-    entries: SM2_SYNC_ENTRIES,
-    description:
-        "Synchronisation of the outputs (SM2): sync type 0 free run, 1 SM2 event, 2 DC SYNC0",
-};
+pub const SM2_SYNC_OBJECT: Object = Object::record(
+    SM2_SYNC,
+    "SM output parameter",
+    SM2_SYNC_ENTRIES,
+    "Synchronisation of the outputs (SM2): sync type 0 free run, 1 SM2 event, 2 DC SYNC0",
+);
 
 /// Description of 0x1C33.
-pub const SM3_SYNC_OBJECT: Object = Object {
-    index: SM3_SYNC,
-    name: "SM input parameter",
-    code: ObjectCode::Record,
-    entries: SM3_SYNC_ENTRIES,
-    description: "Synchronisation of the inputs (SM3): sync type 0 free run, 0x22 SM2 event, 1 SM3 event, 2 DC SYNC0",
-};
+pub const SM3_SYNC_OBJECT: Object = Object::record(SM3_SYNC, "SM input parameter", SM3_SYNC_ENTRIES, "Synchronisation of the inputs (SM3): sync type 0 free run, 0x22 SM2 event, 1 SM3 event, 2 DC SYNC0");
 
 const DIAG_ENTRIES: &[Entry] = &[
     Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(6),
@@ -685,13 +677,7 @@ const DIAG_ENTRIES: &[Entry] = &[
 ];
 
 /// The timing diagnostics object 0x2200 (to be listed in the product's 0x2000 range).
-pub const DIAG_OBJECTS: &[Object] = &[Object {
-    index: TIMING_DIAG,
-    name: "Timing diagnostics",
-    code: ObjectCode::Record,
-    entries: DIAG_ENTRIES,
-    description: "Measured periods and times of the cyclic path in µs; reset on Pre-Op→Safe-Op and by 0x1C32:08 = 1",
-}];
+pub const DIAG_OBJECTS: &[Object] = &[Object::record(TIMING_DIAG, "Timing diagnostics", DIAG_ENTRIES, "Measured periods and times of the cyclic path in µs; reset on Pre-Op→Safe-Op and by 0x1C32:08 = 1")];
 
 #[cfg(test)]
 mod tests {

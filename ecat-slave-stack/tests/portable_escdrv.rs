@@ -229,13 +229,7 @@ const fn obj(
     code: ObjectCode,
     entries: &'static [Entry],
 ) -> Object {
-    Object {
-        index,
-        name,
-        code,
-        entries,
-        description: "",
-    }
+    Object::new(index, name, code, entries, "")
 }
 
 static OBJECTS: [Object; 10] = [

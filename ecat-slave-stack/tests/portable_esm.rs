@@ -8,7 +8,7 @@ use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esc::{EscAccess, EscError};
 use ecat_slave_stack::esm::{self, Decision, EsmHooks, EsmState};
 use ecat_slave_stack::od::{
-    Access, DataType, Dictionary, Entry, Object, ObjectCode, PdoMappable, SdoAbort,
+    Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort,
 };
 use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
 use ecat_slave_stack::registers as reg;
@@ -165,13 +165,7 @@ const fn var(
     entries: &'static [Entry],
 ) -> Object {
     let _ = (t, pdo);
-    Object {
-        index,
-        name,
-        code: ObjectCode::Var,
-        entries,
-        description: "",
-    }
+    Object::var(index, name, entries, "")
 }
 const E_6040: &[Entry] =
     &[Entry::new(0, "cw", DataType::Unsigned16, Access::RW).pdo(PdoMappable::Rx)];
@@ -233,13 +227,7 @@ static OBJECTS: &[Object] = &[
         PdoMappable::Rx,
         E_607A,
     ),
-    Object {
-        index: 0x60FE,
-        name: "outputs",
-        code: ObjectCode::Array,
-        entries: E_60FE,
-        description: "",
-    },
+    Object::array(0x60FE, "outputs", E_60FE, ""),
 ];
 
 const RX1: &[u32] = &[entry(0x6040, 0, 16), entry(0x607A, 0, 32)];

@@ -15,29 +15,11 @@
 //! the SII and the generated reference (`cargo xtask od-doc`), so they cannot disagree.
 
 use ecat_slave_stack::od::{
-    self, Access, DataType, DefaultValue, Entry, Object, ObjectCode, PdoMappable,
+    self, Access, DataType, Entry, Object,
 };
 
-const PLACEHOLDER_ENTRY: Entry = Entry {
-    sub: 0,
-    name: "",
-    data_type: DataType::Unsigned8,
-    bits: 8,
-    access: Access::RO,
-    pdo: PdoMappable::No,
-    min: 0,
-    max: 0,
-    default: DefaultValue::None,
-    unit: "",
-    saved: false,
-};
-const PLACEHOLDER: Object = Object {
-    index: 0,
-    name: "",
-    code: ObjectCode::Var,
-    entries: &[PLACEHOLDER_ENTRY],
-    description: "",
-};
+const PLACEHOLDER_ENTRY: Entry = Entry::new(0, "", DataType::Unsigned8, Access::RO);
+const PLACEHOLDER: Object = Object::var(0, "", &[PLACEHOLDER_ENTRY], "");
 
 const PARTS: &[&[Object]] = &[
     crate::comm::OBJECTS,

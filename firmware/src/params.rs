@@ -532,7 +532,7 @@ impl Params {
     pub fn set_internal(&mut self, p: P, value: i32) {
         let (index, sub) = KEYS[p as usize];
         let v = match od::find_entry(OBJECTS, index, sub) {
-            Ok(e) => i64::from(value).clamp(e.min, e.max) as i32,
+            Ok(e) => i64::from(value).clamp(e.min(), e.max()) as i32,
             Err(_) => value,
         };
         self.values[p as usize] = v;
@@ -620,10 +620,10 @@ impl Params {
             return Err(SdoAbort::LengthTooLow);
         }
         let v = od::decode_int(entry.data_type, data).ok_or(SdoAbort::TypeMismatch)?;
-        if v > entry.max {
+        if v > entry.max() {
             return Err(SdoAbort::ValueTooHigh);
         }
-        if v < entry.min {
+        if v < entry.min() {
             return Err(SdoAbort::ValueTooLow);
         }
         match (index, sub) {
@@ -660,11 +660,8 @@ impl Params {
 }
 
 fn default_of(index: u16, sub: u8) -> i32 {
-    match od::find_entry(OBJECTS, index, sub) {
-        Ok(Entry {
-            default: DefaultValue::Int(v),
-            ..
-        }) => *v as i32,
+    match od::find_entry(OBJECTS, index, sub).map(Entry::default_value) {
+        Ok(DefaultValue::Int(v)) => v as i32,
         _ => 0,
     }
 }
@@ -721,7 +718,7 @@ mod tests {
             let e = od::find_entry(OBJECTS, index, sub).unwrap();
             let mut p = Params::new(Variant::HybridServo);
             p.set_internal(P::AutoTune, 0);
-            let DefaultValue::Int(def) = e.default else {
+            let DefaultValue::Int(def) = e.default_value() else {
                 panic!("{index:x} no default")
             };
             if index != 0x2013 {
@@ -731,37 +728,37 @@ mod tests {
                 assert_eq!(w(&mut p, index, sub, def), Err(SdoAbort::WriteReadOnly));
                 continue;
             }
-            assert_eq!(w(&mut p, index, sub, e.min), Ok(()), "{index:x} min");
-            assert_eq!(r(&p, index, sub), e.min);
-            assert_eq!(w(&mut p, index, sub, e.max), Ok(()), "{index:x} max");
-            assert_eq!(r(&p, index, sub), e.max);
+            assert_eq!(w(&mut p, index, sub, e.min()), Ok(()), "{index:x} min");
+            assert_eq!(r(&p, index, sub), e.min());
+            assert_eq!(w(&mut p, index, sub, e.max()), Ok(()), "{index:x} max");
+            assert_eq!(r(&p, index, sub), e.max());
             let (_, tmin, tmax) = od::type_range(e.data_type);
-            if e.max < tmax {
+            if e.max() < tmax {
                 assert_eq!(
-                    w(&mut p, index, sub, e.max + 1),
+                    w(&mut p, index, sub, e.max() + 1),
                     Err(SdoAbort::ValueTooHigh)
                 );
                 assert_eq!(
                     p.write(
                         index,
                         sub,
-                        &((e.max + 1) as u64).to_le_bytes()[..e.byte_len()]
+                        &((e.max() + 1) as u64).to_le_bytes()[..e.byte_len()]
                     ),
                     Err(SdoAbort::ValueTooHigh)
                 );
-                assert_eq!(r(&p, index, sub), e.max, "unchanged");
+                assert_eq!(r(&p, index, sub), e.max(), "unchanged");
             }
-            if e.min > tmin {
-                assert_eq!(w(&mut p, index, sub, e.min - 1), Err(SdoAbort::ValueTooLow));
+            if e.min() > tmin {
+                assert_eq!(w(&mut p, index, sub, e.min() - 1), Err(SdoAbort::ValueTooLow));
                 assert_eq!(
                     p.write(
                         index,
                         sub,
-                        &((e.min - 1) as u64).to_le_bytes()[..e.byte_len()]
+                        &((e.min() - 1) as u64).to_le_bytes()[..e.byte_len()]
                     ),
                     Err(SdoAbort::ValueTooLow)
                 );
-                assert_eq!(r(&p, index, sub), e.max, "unchanged");
+                assert_eq!(r(&p, index, sub), e.max(), "unchanged");
             }
         }
     }
@@ -807,7 +804,7 @@ mod tests {
         for &(i, s, d, lo, hi) in expect {
             let e = od::find_entry(OBJECTS, i, s).unwrap();
             assert_eq!(
-                (e.default, e.min, e.max),
+                (e.default_value(), e.min(), e.max()),
                 (DefaultValue::Int(d), lo, hi),
                 "{i:x}:{s}"
             );

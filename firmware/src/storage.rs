@@ -738,7 +738,7 @@ fn apply<D: Dictionary + ?Sized>(
                 data.len() == e.byte_len()
             };
             let range_ok = match od::decode_int(e.data_type, data) {
-                Some(v) => v >= e.min && v <= e.max,
+                Some(v) => v >= e.min() && v <= e.max(),
                 None => true,
             };
             len_ok

@@ -45,10 +45,10 @@ qemu_runner::tests! {
         let mut d = Drive::new(Variant::HybridServo, 1);
         let mut above_checked = 0;
         for o in OBJECTS.iter().filter(|o| (0x2000..=0x21FF).contains(&o.index)) {
-            for e in o.entries.iter().filter(|e| e.access.writable() && e.byte_len() <= 4 && e.max > e.min) {
+            for e in o.entries.iter().filter(|e| e.access.writable() && e.byte_len() <= 4 && e.max() > e.min()) {
                 let n = e.byte_len();
-                let lo = (e.min as i32).to_le_bytes();
-                let hi = (e.max as u32).to_le_bytes();
+                let lo = (e.min() as i32).to_le_bytes();
+                let hi = (e.max() as u32).to_le_bytes();
                 // Edges accepted unless the product forbids the write in this state.
                 let r_lo = write(&mut d, o.index, e.sub, &lo[..n]);
                 let r_hi = write(&mut d, o.index, e.sub, &hi[..n]);
@@ -56,8 +56,8 @@ qemu_runner::tests! {
                     assert!(r.is_ok() || r == Err(SdoAbort::LocalControl) || r == Err(SdoAbort::WriteReadOnly),
                         "{:#06x}:{} edge refused: {:?}", o.index, e.sub, r);
                 }
-                if e.max < i64::from(u32::MAX) && n == 4 || (n < 4 && e.max < (1i64 << (8 * n)) - 1) {
-                    let above = ((e.max + 1) as u32).to_le_bytes();
+                if e.max() < i64::from(u32::MAX) && n == 4 || (n < 4 && e.max() < (1i64 << (8 * n)) - 1) {
+                    let above = ((e.max() + 1) as u32).to_le_bytes();
                     assert_eq!(write(&mut d, o.index, e.sub, &above[..n]), Err(SdoAbort::ValueTooHigh),
                         "{:#06x}:{} above max", o.index, e.sub);
                     above_checked += 1;

@@ -7,7 +7,7 @@
 
 use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::od::{
-    self, Access, DataType, Dictionary, Entry, Object, ObjectCode, SdoAbort,
+    self, Access, DataType, Dictionary, Entry, Object, SdoAbort,
 };
 use firmware::comm::{self, Comm, StoreCommand, LOAD, SAVE};
 use firmware::dip::{self, AliasSource, Board};
@@ -27,11 +27,7 @@ const fn map_entry(sub: u8) -> Entry {
 }
 
 const MAPPING: &[Object] = &[
-    Object {
-        index: 0x1600,
-        name: "RxPDO1 mapping",
-        code: ObjectCode::Record,
-        entries: &[
+    Object::record(0x1600, "RxPDO1 mapping", &[
             Entry::new(
                 0,
                 "Number of entries",
@@ -44,14 +40,8 @@ const MAPPING: &[Object] = &[
             map_entry(2),
             map_entry(3),
             map_entry(4),
-        ],
-        description: "",
-    },
-    Object {
-        index: 0x1C12,
-        name: "RxPDO assign",
-        code: ObjectCode::Array,
-        entries: &[
+        ], ""),
+    Object::array(0x1C12, "RxPDO assign", &[
             Entry::new(
                 0,
                 "Number of entries",
@@ -63,9 +53,7 @@ const MAPPING: &[Object] = &[
             Entry::new(1, "Assigned PDO", DataType::Unsigned16, Access::RW_PREOP)
                 .range(0x1600, 0x1603)
                 .saved(),
-        ],
-        description: "",
-    },
+        ], ""),
 ];
 
 const PARTS: &[&[Object]] = &[
@@ -282,7 +270,7 @@ fn all_values_in_range(d: &mut Drive) -> bool {
             .filter(|e| e.saved)
             .all(|e| match d.read(o.index, e.sub, &mut buf) {
                 Ok(n) => {
-                    od::decode_int(e.data_type, &buf[..n]).is_none_or(|v| v >= e.min && v <= e.max)
+                    od::decode_int(e.data_type, &buf[..n]).is_none_or(|v| v >= e.min() && v <= e.max())
                 }
                 Err(_) => false,
             })

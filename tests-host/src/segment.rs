@@ -27,7 +27,7 @@ use ecat_slave_stack::esm::{EsmHooks, EsmState};
 use ecat_slave_stack::et1100::{Et1100, Et1100Config};
 use ecat_slave_stack::lan9252::{Lan9252, Lan9252Config};
 use ecat_slave_stack::od::{
-    Access, DataType, Dictionary, Entry, Object, ObjectCode, PdoMappable, SdoAbort,
+    Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort,
 };
 use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
 use ecat_slave_stack::sii::{self, DeviceDescription};
@@ -316,13 +316,7 @@ impl<A: SlaveApplication> Wire for Segment<A> {
 // ---- a minimal test application ------------------------------------------------------
 
 const fn var(index: u16, name: &'static str, entries: &'static [Entry]) -> Object {
-    Object {
-        index,
-        name,
-        code: ObjectCode::Var,
-        entries,
-        description: "",
-    }
+    Object::var(index, name, entries, "")
 }
 
 const E_1000: &[Entry] = &[Entry::new(

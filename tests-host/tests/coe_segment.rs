@@ -13,7 +13,7 @@
 use ecat_slave_stack::coe::example::{self, ExampleDictionary, DEVICE_NAME};
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
 use ecat_slave_stack::od::{
-    self, Access, DataType, Dictionary, Entry, Object, ObjectCode, PdoMappable, SdoAbort,
+    self, Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort,
 };
 use ecat_slave_stack::pdo::{self, ProcessData};
 use ecat_slave_stack::slave::SlaveApplication;
@@ -62,13 +62,7 @@ static OBJECTS: &[Object] = &[
     example::OBJECTS[12], // 0x2FFF
     example::OBJECTS[13], // 0x6040
     example::OBJECTS[14], // 0x6041
-    Object {
-        index: 0x6064,
-        name: "Position actual value",
-        code: ObjectCode::Var,
-        entries: E_6064,
-        description: "",
-    },
+    Object::var(0x6064, "Position actual value", E_6064, ""),
     example::OBJECTS[15], // 0x607A
 ];
 

@@ -283,7 +283,7 @@ fn check_flags(flags: Node, e: &Entry, what: &str) {
 fn check_default(info: Node, index: u16, e: &Entry, variant: Variant, what: &str) {
     let data = opt_child(info, "DefaultData").and_then(|n| n.text());
     let string = opt_child(info, "DefaultString").and_then(|n| n.text());
-    match e.default {
+    match e.default_value() {
         DefaultValue::None => {
             assert_eq!((data, string), (None, None), "{what}: no default expected");
         }
@@ -370,9 +370,9 @@ fn variant_descriptions_differ_from_the_table_only_in_defaults() {
                         x.bits,
                         x.access,
                         x.pdo,
-                        x.min,
-                        x.max,
-                        x.unit,
+                        x.min(),
+                        x.max(),
+                        x.unit_text(),
                         x.saved
                     ),
                     (
@@ -382,16 +382,16 @@ fn variant_descriptions_differ_from_the_table_only_in_defaults() {
                         y.bits,
                         y.access,
                         y.pdo,
-                        y.min,
-                        y.max,
-                        y.unit,
+                        y.min(),
+                        y.max(),
+                        y.unit_text(),
                         y.saved
                     ),
                     "{:#06x}:{}",
                     a.index,
                     x.sub
                 );
-                if !drive_docs::same_default(x.default, y.default) {
+                if !drive_docs::same_default(x.default_value(), y.default_value()) {
                     changed.push((a.index, x.sub));
                 }
             }

@@ -271,7 +271,7 @@ fn every_vendor_parameter_default_and_range_edges_over_sdo() {
     for o in params::OBJECTS {
         for e in o.entries {
             let len = e.byte_len();
-            if let od::DefaultValue::Int(def) = e.default {
+            if let od::DefaultValue::Int(def) = e.default_value() {
                 let expect = if (o.index, e.sub) == (0x2013, 0) {
                     0
                 } else {
@@ -295,7 +295,7 @@ fn every_vendor_parameter_default_and_range_edges_over_sdo() {
             if matches!((o.index, e.sub), (0x2040 | 0x2042 | 0x2093, 0)) {
                 continue; // commands, covered below
             }
-            for v in [e.min, e.max] {
+            for v in [e.min(), e.max()] {
                 assert_eq!(
                     d.sdo_download(o.index, e.sub, &le(v, len)),
                     Ok(()),
@@ -306,23 +306,23 @@ fn every_vendor_parameter_default_and_range_edges_over_sdo() {
                 assert_eq!(d.sdo_upload(o.index, e.sub), Ok(v as u32));
             }
             let (_, tmin, tmax) = od::type_range(e.data_type);
-            if e.max < tmax {
+            if e.max() < tmax {
                 assert_eq!(
-                    d.sdo_download(o.index, e.sub, &le(e.max + 1, len)),
+                    d.sdo_download(o.index, e.sub, &le(e.max() + 1, len)),
                     Err(0x0609_0031),
                     "{:#x}",
                     o.index
                 );
-                assert_eq!(d.sdo_upload(o.index, e.sub), Ok(e.max as u32), "unchanged");
+                assert_eq!(d.sdo_upload(o.index, e.sub), Ok(e.max() as u32), "unchanged");
             }
-            if e.min > tmin {
+            if e.min() > tmin {
                 assert_eq!(
-                    d.sdo_download(o.index, e.sub, &le(e.min - 1, len)),
+                    d.sdo_download(o.index, e.sub, &le(e.min() - 1, len)),
                     Err(0x0609_0032),
                     "{:#x}",
                     o.index
                 );
-                assert_eq!(d.sdo_upload(o.index, e.sub), Ok(e.max as u32), "unchanged");
+                assert_eq!(d.sdo_upload(o.index, e.sub), Ok(e.max() as u32), "unchanged");
             }
             // One byte too many.
             if len < 4 {

@@ -6,7 +6,7 @@
 use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
 use ecat_slave_stack::od::{
-    Access, DataType, Dictionary, Entry, Object, ObjectCode, PdoMappable, SdoAbort,
+    Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort,
 };
 use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
 use ecat_slave_stack::registers as reg;
@@ -23,13 +23,7 @@ const E_607A: &[Entry] =
     &[Entry::new(0, "target", DataType::Integer32, Access::RW).pdo(PdoMappable::Rx)];
 
 const fn var(index: u16, entries: &'static [Entry]) -> Object {
-    Object {
-        index,
-        name: "",
-        code: ObjectCode::Var,
-        entries,
-        description: "",
-    }
+    Object::var(index, "", entries, "")
 }
 
 static OBJECTS: &[Object] = &[

@@ -10,8 +10,7 @@
 
 use crate::esm::EsmState;
 use crate::od::{
-    self, Access, DataType, DefaultValue, Dictionary, Entry, Object, ObjectCode, PdoMappable,
-    SdoAbort,
+    self, Access, DataType, DefaultValue, Dictionary, Entry, Object, PdoMappable, SdoAbort,
 };
 
 const U8: DataType = DataType::Unsigned8;
@@ -25,45 +24,40 @@ pub const DEVICE_NAME: &str = "CoE example device";
 
 /// The objects, sorted.
 pub static OBJECTS: &[Object] = &[
-    Object {
-        index: 0x1000,
-        name: "Device type",
-        code: ObjectCode::Var,
-        entries: &[Entry::new(0, "Device type", U32, Access::RO).default(0x0002_0192)],
-        description: "CiA 402 servo drive.",
-    },
-    Object {
-        index: 0x1001,
-        name: "Error register",
-        code: ObjectCode::Var,
-        entries: &[Entry::new(0, "Error register", U8, Access::RO).pdo(PdoMappable::Tx)],
-        description: "",
-    },
-    Object {
-        index: 0x1008,
-        name: "Manufacturer device name",
-        code: ObjectCode::Var,
-        entries: &[Entry::text(0, "Manufacturer device name", 32, DEVICE_NAME)],
-        description: "",
-    },
-    Object {
-        index: 0x1018,
-        name: "Identity",
-        code: ObjectCode::Record,
-        entries: &[
+    Object::var(
+        0x1000,
+        "Device type",
+        &[Entry::new(0, "Device type", U32, Access::RO).default(0x0002_0192)],
+        "CiA 402 servo drive.",
+    ),
+    Object::var(
+        0x1001,
+        "Error register",
+        &[Entry::new(0, "Error register", U8, Access::RO).pdo(PdoMappable::Tx)],
+        "",
+    ),
+    Object::var(
+        0x1008,
+        "Manufacturer device name",
+        &[Entry::text(0, "Manufacturer device name", 32, DEVICE_NAME)],
+        "",
+    ),
+    Object::record(
+        0x1018,
+        "Identity",
+        &[
             Entry::new(0, "Number of entries", U8, Access::RO).default(4),
             Entry::new(1, "Vendor ID", U32, Access::RO).default(0x0E5C),
             Entry::new(2, "Product code", U32, Access::RO).default(0x5840),
             Entry::new(3, "Revision", U32, Access::RO).default(0x0001_0000),
             Entry::new(4, "Serial number", U32, Access::RO).default(0x1234_5678),
         ],
-        description: "",
-    },
-    Object {
-        index: 0x1600,
-        name: "RxPDO mapping",
-        code: ObjectCode::Array,
-        entries: &[
+        "",
+    ),
+    Object::array(
+        0x1600,
+        "RxPDO mapping",
+        &[
             Entry::new(0, "Number of entries", U8, Access::RW_PREOP)
                 .range(0, 4)
                 .default(2),
@@ -72,26 +66,24 @@ pub static OBJECTS: &[Object] = &[
             Entry::new(3, "Entry 3", U32, Access::RW_PREOP),
             Entry::new(4, "Entry 4", U32, Access::RW_PREOP),
         ],
-        description: "Sub-index 0 must be 0 while entries are written.",
-    },
-    Object {
-        index: 0x1C12,
-        name: "RxPDO assign",
-        code: ObjectCode::Array,
-        entries: &[
+        "Sub-index 0 must be 0 while entries are written.",
+    ),
+    Object::array(
+        0x1C12,
+        "RxPDO assign",
+        &[
             Entry::new(0, "Number of entries", U8, Access::RW_PREOP)
                 .range(0, 2)
                 .default(1),
             Entry::new(1, "PDO 1", U16, Access::RW_PREOP).default(0x1600),
             Entry::new(2, "PDO 2", U16, Access::RW_PREOP),
         ],
-        description: "",
-    },
-    Object {
-        index: 0x2000,
-        name: "Current limit",
-        code: ObjectCode::Var,
-        entries: &[
+        "",
+    ),
+    Object::var(
+        0x2000,
+        "Current limit",
+        &[
             Entry::new(0, "Current limit", DataType::Integer32, Access::RW)
                 .range(-1000, 1000)
                 .default(100)
@@ -99,30 +91,24 @@ pub static OBJECTS: &[Object] = &[
                 .saved()
                 .pdo(PdoMappable::RxTx),
         ],
-        description: "",
-    },
-    Object {
-        index: 0x2001,
-        name: "Command",
-        code: ObjectCode::Var,
-        entries: &[Entry::new(0, "Command", U16, Access::WO)],
-        description: "Write-only.",
-    },
-    Object {
-        index: 0x2002,
-        name: "Long text",
-        code: ObjectCode::Var,
-        entries: &[Entry {
-            access: Access::RW,
-            ..Entry::text(0, "Long text", LONG_TEXT_MAX as u16, "")
-        }],
-        description: "",
-    },
-    Object {
-        index: 0x2003,
-        name: "Mixed record",
-        code: ObjectCode::Record,
-        entries: &[
+        "",
+    ),
+    Object::var(
+        0x2001,
+        "Command",
+        &[Entry::new(0, "Command", U16, Access::WO)],
+        "Write-only.",
+    ),
+    Object::var(
+        0x2002,
+        "Long text",
+        &[Entry::text(0, "Long text", LONG_TEXT_MAX as u16, "").with_access(Access::RW)],
+        "",
+    ),
+    Object::record(
+        0x2003,
+        "Mixed record",
+        &[
             Entry::new(0, "Number of entries", U8, Access::RO).default(5),
             Entry::new(1, "Flag A", DataType::Boolean, Access::RW),
             Entry::new(2, "Field B", DataType::Bit2, Access::RW),
@@ -132,13 +118,12 @@ pub static OBJECTS: &[Object] = &[
             Entry::new(4, "Word D", DataType::Integer16, Access::RO).default(-2),
             Entry::new(5, "Secret E", U32, Access::WO),
         ],
-        description: "Bit-sized, read-only, write-only and Pre-Op-only entries.",
-    },
-    Object {
-        index: 0x2004,
-        name: "Byte table",
-        code: ObjectCode::Array,
-        entries: &[
+        "Bit-sized, read-only, write-only and Pre-Op-only entries.",
+    ),
+    Object::array(
+        0x2004,
+        "Byte table",
+        &[
             Entry::new(0, "Number of entries", U8, Access::RO).default(40),
             Entry::new(1, "B1", U8, Access::RW),
             Entry::new(2, "B2", U8, Access::RW),
@@ -181,52 +166,47 @@ pub static OBJECTS: &[Object] = &[
             Entry::new(39, "B39", U8, Access::RW),
             Entry::new(40, "B40", U8, Access::RW),
         ],
-        description: "",
-    },
-    Object {
-        index: 0x2005,
-        name: "Record with text",
-        code: ObjectCode::Record,
-        entries: &[
+        "",
+    ),
+    Object::record(
+        0x2005,
+        "Record with text",
+        &[
             Entry::new(0, "Number of entries", U8, Access::RO).default(2),
             Entry::new(1, "Value", U16, Access::RW),
             Entry::text(2, "Label", 8, "label"),
         ],
-        description: "Complete access is refused (variable length).",
-    },
-    Object {
-        index: 0x2FFF,
-        name: "Abort injector",
-        code: ObjectCode::Var,
-        entries: &[Entry::new(0, "Abort injector", U32, Access::RW)],
-        description: "A write answers with the abort code written (0: accepted).",
-    },
-    Object {
-        index: 0x6040,
-        name: "Controlword",
-        code: ObjectCode::Var,
-        entries: &[Entry::new(0, "Controlword", U16, Access::RW).pdo(PdoMappable::Rx)],
-        description: "",
-    },
-    Object {
-        index: 0x6041,
-        name: "Statusword",
-        code: ObjectCode::Var,
-        entries: &[Entry::new(0, "Statusword", U16, Access::RO).pdo(PdoMappable::Tx)],
-        description: "",
-    },
-    Object {
-        index: 0x607A,
-        name: "Target position",
-        code: ObjectCode::Var,
-        entries: &[
+        "Complete access is refused (variable length).",
+    ),
+    Object::var(
+        0x2FFF,
+        "Abort injector",
+        &[Entry::new(0, "Abort injector", U32, Access::RW)],
+        "A write answers with the abort code written (0: accepted).",
+    ),
+    Object::var(
+        0x6040,
+        "Controlword",
+        &[Entry::new(0, "Controlword", U16, Access::RW).pdo(PdoMappable::Rx)],
+        "",
+    ),
+    Object::var(
+        0x6041,
+        "Statusword",
+        &[Entry::new(0, "Statusword", U16, Access::RO).pdo(PdoMappable::Tx)],
+        "",
+    ),
+    Object::var(
+        0x607A,
+        "Target position",
+        &[
             Entry::new(0, "Target position", DataType::Integer32, Access::RW)
                 .unit("inc")
                 .pdo(PdoMappable::Rx)
                 .saved(),
         ],
-        description: "",
-    },
+        "",
+    ),
 ];
 
 const SLOTS: usize = 80;
@@ -270,7 +250,7 @@ impl ExampleDictionary {
         };
         for o in OBJECTS {
             for e in o.entries {
-                if let (DefaultValue::Int(v), Some(s)) = (e.default, slot(o.index, e.sub)) {
+                if let (DefaultValue::Int(v), Some(s)) = (e.default_value(), slot(o.index, e.sub)) {
                     d.values[s] = v as u64;
                 }
             }
@@ -303,7 +283,7 @@ impl Dictionary for ExampleDictionary {
 
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
         let e = od::find_entry(OBJECTS, index, sub)?;
-        let src: &[u8] = match (index, e.default) {
+        let src: &[u8] = match (index, e.default_value()) {
             (0x2002, _) => &self.text[..self.text_len],
             (_, DefaultValue::Text(t)) => t.as_bytes(),
             _ => {

@@ -395,14 +395,14 @@ fn entry_body(index: u16, e: &'static Entry, request: u8) -> Body {
     let n = e.byte_len();
     let numeric = od::has_numeric_range(e.data_type) && (1..=8).contains(&n);
     if numeric {
-        let default = match e.default {
+        let default = match e.default_value() {
             DefaultValue::Int(v) => Some(v),
             _ => None,
         };
         let fields = [
             (value_info::DEFAULT, default),
-            (value_info::MINIMUM, Some(e.min)),
-            (value_info::MAXIMUM, Some(e.max)),
+            (value_info::MINIMUM, Some(e.min())),
+            (value_info::MAXIMUM, Some(e.max())),
         ];
         for (flag, v) in fields {
             if let (true, Some(v)) = (request & flag != 0, v) {
@@ -413,10 +413,10 @@ fn entry_body(index: u16, e: &'static Entry, request: u8) -> Body {
         }
     }
     head[3] = vi;
-    let tail: [&'static [u8]; 4] = if e.unit.is_empty() {
+    let tail: [&'static [u8]; 4] = if e.unit_text().is_empty() {
         [e.name.as_bytes(), &[], &[], &[]]
     } else {
-        [e.name.as_bytes(), b" [", e.unit.as_bytes(), b"]"]
+        [e.name.as_bytes(), b" [", e.unit_text().as_bytes(), b"]"]
     };
     Body::Bytes {
         head,

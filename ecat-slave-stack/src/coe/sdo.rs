@@ -959,7 +959,7 @@ fn ca_download(
     // Pass 2: the writes, in the PDO-mapping edit order.
     let index = obj.index;
     let si0_written = sub == 0 && e0.access.writable_in(state);
-    if si0_written && e0.min <= 0 {
+    if si0_written && e0.min() <= 0 {
         dict.write(index, 0, &[0], state)?;
     }
     ca_walk(obj, count, first_bit, stop, |e, start| {

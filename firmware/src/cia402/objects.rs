@@ -537,10 +537,10 @@ mod tests {
             for e in o.entries {
                 let v = d.value(o.index, e.sub);
                 assert!(v.is_some(), "{:#06x}:{}", o.index, e.sub);
-                if let DefaultValue::Int(def) = e.default {
+                if let DefaultValue::Int(def) = e.default_value() {
                     assert_eq!(v, Some(def), "default of {:#06x}:{}", o.index, e.sub);
                     assert!(
-                        def >= e.min && def <= e.max,
+                        def >= e.min() && def <= e.max(),
                         "default range {:#06x}:{}",
                         o.index,
                         e.sub
@@ -593,7 +593,7 @@ mod tests {
                 (0x6098, 0) => 17,
                 (0x60B8, 0) => 0x0011,
                 (0x6072, 0) => 800,
-                _ => e.max.min(12_345),
+                _ => e.max().min(12_345),
             };
             let mut d = Cia402::new();
             d.set_rx(i as u8, &(val as u32).to_le_bytes()[..e.byte_len()]);

@@ -160,9 +160,9 @@ pub fn same_default(a: DefaultValue, b: DefaultValue) -> bool {
 /// default otherwise.
 pub fn variant_default(variant: Variant, index: u16, entry: &Entry) -> DefaultValue {
     let live = || power_up_value(variant, index, entry);
-    match (source_of(index), entry.default) {
-        (Some(Source::Pdo), _) => live().unwrap_or(entry.default),
-        (Some(_), DefaultValue::None) | (None, _) => entry.default,
+    match (source_of(index), entry.default_value()) {
+        (Some(Source::Pdo), _) => live().unwrap_or(entry.default_value()),
+        (Some(_), DefaultValue::None) | (None, _) => entry.default_value(),
         (Some(_), d) => live().unwrap_or(d),
     }
 }
@@ -182,15 +182,9 @@ pub fn variant_objects(variant: Variant) -> &'static [Object] {
                 let entries: Vec<Entry> = o
                     .entries
                     .iter()
-                    .map(|e| Entry {
-                        default: variant_default(variant, o.index, e),
-                        ..*e
-                    })
+                    .map(|e| e.with_default_value(variant_default(variant, o.index, e)))
                     .collect();
-                Object {
-                    entries: Box::leak(entries.into_boxed_slice()),
-                    ..*o
-                }
+                o.with_entries(Box::leak(entries.into_boxed_slice()))
             })
             .collect();
         Box::leak(objects.into_boxed_slice())
@@ -215,7 +209,7 @@ pub fn differences(a: Variant, b: Variant) -> Vec<Difference> {
         .zip(ob)
         .flat_map(|(x, y)| {
             x.entries.iter().zip(y.entries).filter_map(move |(ea, eb)| {
-                (!same_default(ea.default, eb.default)).then_some(Difference {
+                (!same_default(ea.default_value(), eb.default_value())).then_some(Difference {
                     index: x.index,
                     a: ea,
                     b: eb,
@@ -371,8 +365,8 @@ pub fn od_reference() -> String {
             d.index,
             d.a.sub,
             d.a.name,
-            show(d.a.default),
-            show(d.b.default)
+            show(d.a.default_value()),
+            show(d.b.default_value())
         );
     }
     let _ = writeln!(

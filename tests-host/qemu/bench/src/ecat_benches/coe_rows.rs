@@ -11,18 +11,12 @@ use core::hint::black_box;
 use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::mailbox::MailboxServer;
 use ecat_slave_stack::od::{
-    self, Access, DataType, Dictionary, Entry, Object, ObjectCode, PdoMappable, SdoAbort,
+    self, Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort,
 };
 
 macro_rules! objects {
     ($( $idx:literal $t:ident ),* $(,)?) => {
-        &[$(Object {
-            index: $idx,
-            name: "",
-            code: ObjectCode::Var,
-            entries: &[Entry::new(0, "", DataType::$t, Access::RW).pdo(PdoMappable::RxTx)],
-            description: "",
-        }),*]
+        &[$(Object::var($idx, "", &[Entry::new(0, "", DataType::$t, Access::RW).pdo(PdoMappable::RxTx)], "")),*]
     };
 }
 

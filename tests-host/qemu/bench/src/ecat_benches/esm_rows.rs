@@ -10,7 +10,7 @@ use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esc::{EscAccess, EscError};
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
 use ecat_slave_stack::od::{
-    Access, DataType, Dictionary, Entry, Object, ObjectCode, PdoMappable, SdoAbort,
+    Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort,
 };
 use ecat_slave_stack::pdo::{self, entry, PdoConfig, PdoDefaults, ProcessData};
 use ecat_slave_stack::registers as reg;
@@ -80,13 +80,7 @@ impl RamEsc {
 
 macro_rules! objects {
     ($( $idx:literal $t:ident $dir:ident ),* $(,)?) => {
-        &[$(Object {
-            index: $idx,
-            name: "",
-            code: ObjectCode::Var,
-            entries: &[Entry::new(0, "", DataType::$t, Access::RW).pdo(PdoMappable::$dir)],
-            description: "",
-        }),*]
+        &[$(Object::var($idx, "", &[Entry::new(0, "", DataType::$t, Access::RW).pdo(PdoMappable::$dir)], "")),*]
     };
 }
 
