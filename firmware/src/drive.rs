@@ -64,6 +64,11 @@ pub struct AxisState {
     pub bus_mv: u32,
     /// Position latched at an encoder index pulse since the previous cycle.
     pub index: Option<i32>,
+    /// Positions latched at the edges of input 1 since the previous cycle (touch probe
+    /// 1; logical edges, 0x2154 applied: see [`crate::latch`]).
+    pub probe1: crate::cia402::EdgeLatch,
+    /// Positions latched at the edges of input 2 since the previous cycle (touch probe 2).
+    pub probe2: crate::cia402::EdgeLatch,
     /// The power stage tripped (hardware over-current / break input).
     pub overcurrent_trip: bool,
     /// The servo is at its current limit.
@@ -416,12 +421,13 @@ impl<S: ParameterStore> Drive<S> {
             current: self.axis.current_permille,
             digital_inputs: self.inputs.digital_inputs_60fd(),
             index: self.axis.index,
+            probe1: self.axis.probe1,
+            probe2: self.axis.probe2,
             fault: self.faults.error_code(),
             power_stage_tripped: self.faults.is_active(FaultKind::OverCurrent),
             warning: false,
             current_limited: self.axis.current_limited,
             quick_stop_input: self.inputs.quick_stop(),
-            ..DriveFeedback::default()
         };
         self.command = self.cia402.cycle(&fb, dt);
         // Following-error supervision of the closed loop (0x2030, encoder counts).

@@ -1,6 +1,7 @@
 #![no_std]
 pub mod cia402;
 pub mod comm;
+pub mod commutation;
 pub mod dictionary;
 pub mod dip;
 pub mod drive;
@@ -9,6 +10,7 @@ pub mod faults;
 pub mod flash_region;
 pub mod identity;
 pub mod io;
+pub mod latch;
 pub mod monitor;
 pub mod motion;
 pub mod params;

@@ -87,7 +87,8 @@ use firmware::identity::Variant;
 use firmware::motion::{MotionConfig, SERVO_TS};
 use firmware::sampling::{OffsetCalibrator, CURRENT_SAMPLES};
 
-use hw::control::{ControlCommand, COMMAND, FEEDBACK};
+use firmware::latch::{Edges, ProbeInput};
+use hw::control::{ControlCommand, COMMAND, FEEDBACK, PROBE2_RAW};
 use hw::encoder::Encoder;
 use hw::esc::Esc;
 use hw::flash::{ParamFlash, Stage, StagedFlash};
@@ -134,6 +135,11 @@ struct Shared {
     /// Index pulses seen (`Feedback::index_seq`) and one not yet given to a cycle.
     index_seen: u32,
     pending_index: Option<i32>,
+    /// Touch-probe edges (`Feedback::probe1/2`) not yet given to a cycle.
+    probe1: ProbeInput,
+    probe2: ProbeInput,
+    /// Failed commutation alignments already reported (`Feedback::align_failures`).
+    align_failures: u32,
 }
 
 /// The lock holds a reference to [`SHARED_MEM`] (a `None` reference is all zeros, so
@@ -158,9 +164,6 @@ static SYNC0S: AtomicU32 = AtomicU32::new(0);
 static ESC_IRQS: AtomicU32 = AtomicU32::new(0);
 static ESC_ERRORS: AtomicU32 = AtomicU32::new(0);
 static FLASH_ERRORS: AtomicU32 = AtomicU32::new(0);
-/// Encoder count latched at the last IN2 edge (touch probe 2) and the edge count.
-static PROBE2_POS: AtomicU32 = AtomicU32::new(0);
-static PROBE2_EDGES: AtomicU32 = AtomicU32::new(0);
 
 defmt::timestamp!("{=u64:us}", Instant::now().as_micros());
 
@@ -398,8 +401,9 @@ async fn main(spawner: Spawner) {
 
     // Motor control in the current-loop interrupt, then the ADCs (which enable it).
     let mcfg = motion_config(&drive);
+    let wiggle = align_wiggle(&drive);
     let (r, l) = motor_rl(&drive);
-    hw::control::init(mcfg, mcfg.counts_per_rev / 4, r, l, MOTOR.kt);
+    hw::control::init(mcfg, wiggle, mcfg.counts_per_rev / 4, r, l, MOTOR.kt);
     let ctl = ControlCommand {
         cycle: 0,
         command: *drive.command(),
@@ -407,6 +411,7 @@ async fn main(spawner: Spawner) {
         power_allowed: false,
         config: 0,
         motion: mcfg,
+        align_wiggle: wiggle,
         offsets: None,
     };
     COMMAND.write(Some(ctl));
@@ -423,6 +428,9 @@ async fn main(spawner: Spawner) {
             offset_fault: false,
             index_seen: 0,
             pending_index: None,
+            probe1: ProbeInput::default(),
+            probe2: ProbeInput::default(),
+            align_failures: 0,
         })
     };
     SHARED.lock(|c| *c.borrow_mut() = Some(shared));
@@ -463,6 +471,11 @@ async fn main(spawner: Spawner) {
         Ok(t) => spawner.spawn(t),
         Err(e) => defmt::error!("spawn supervisor: {}", e),
     }
+}
+
+/// 0x2083: the power-up alignment sweeps the field (wiggle) and checks the encoder.
+fn align_wiggle(d: &BoardDrive) -> bool {
+    d.params.get(firmware::params::P::PowerUpWiggle) != 0
 }
 
 /// Resistance and inductance for the current loop: the parameters 0x2020 / 0x2021
@@ -515,6 +528,23 @@ fn update_axis(s: &mut Shared) {
         }
         // Kept until a drive cycle has seen it (cleared in `publish_command`).
         axis.index = s.pending_index;
+        // Touch probes: electrical edges → rising/falling per 0x2154 (bits 0, 1).
+        let inverted = s.drive.params.get(firmware::params::P::InputPolarity);
+        axis.probe1 = s.probe1.update(&fb.probe1, inverted & 1 != 0);
+        axis.probe2 = s.probe2.update(&fb.probe2, inverted & 2 != 0);
+        if fb.align_failures != s.align_failures {
+            // The encoder did not follow the alignment sweep: following-error fault.
+            s.align_failures = fb.align_failures;
+            let snap = Snapshot {
+                ia_ma: axis.ia_ma,
+                ib_ma: axis.ib_ma,
+                bus_dv: (axis.bus_mv / 100).min(u32::from(u16::MAX)) as u16,
+                ..Snapshot::default()
+            };
+            s.drive
+                .faults
+                .raise(FaultKind::FollowingError, snap, now_ms());
+        }
         s.drive.set_axis(axis);
     }
 }
@@ -527,6 +557,8 @@ fn publish_command(s: &mut Shared) {
         if sync.last_cycle != s.last_cycle {
             s.last_cycle = sync.last_cycle;
             s.pending_index = None;
+            s.probe1.consumed();
+            s.probe2.consumed();
             s.ctl.cycle = s.ctl.cycle.wrapping_add(1);
             s.ctl.command = *s.drive.command();
             let period_us = sync.diag.pdi_period;
@@ -642,14 +674,20 @@ async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>)
 }
 
 /// Touch probe 2: latches the encoder count at each IN2 edge (software latch; the
-/// EXTI-to-task latency is the error, to be measured on the board). Touch probe 1
-/// (IN1) is latched by TIM2 CH4 in hardware.
+/// EXTI-to-task latency is the error, to be measured on the board) with the edge's
+/// direction (the pin level after the wake-up: an IN2 pulse must outlast that
+/// latency), and hands it to the current-loop interrupt ([`PROBE2_RAW`]), which
+/// converts it to command units for the drive's touch probe. Touch probe 1 (IN1) is
+/// latched by TIM2 CH4 in hardware (`hw::control`).
 #[embassy_executor::task]
 async fn touch_probe2(mut in2: ExtiInput<'static, Async>, enc: Encoder) {
+    let mut edges: Edges<u32> = Edges::default();
     loop {
         in2.wait_for_any_edge().await;
-        PROBE2_POS.store(enc.position(), Ordering::Relaxed);
-        PROBE2_EDGES.fetch_add(1, Ordering::Relaxed);
+        let count = enc.position();
+        // Opto input: active while the pin is low.
+        edges.record(in2.is_low(), count);
+        PROBE2_RAW.write(edges);
     }
 }
 
@@ -678,8 +716,10 @@ async fn tick(mut leds: io::Leds<'static>, mut ports: io::Ports<'static>) {
             // Parameter writes that change the motion layer (every 10 ms).
             if n.is_multiple_of(10) {
                 let m = motion_config(&s.drive);
-                if m != s.ctl.motion {
+                let w = align_wiggle(&s.drive);
+                if m != s.ctl.motion || w != s.ctl.align_wiggle {
                     s.ctl.motion = m;
+                    s.ctl.align_wiggle = w;
                     s.ctl.config = s.ctl.config.wrapping_add(1);
                 }
             }
@@ -745,9 +785,6 @@ async fn supervisor(mut wdg: IndependentWatchdog<'static, IWDG>, enc: Encoder) {
         if n != last_samples && hw::control::ready() {
             wdg.pet();
             last_samples = n;
-        }
-        if let Some(pos) = enc.probe1_capture() {
-            defmt::info!("touch probe 1 at count {=u32}", pos);
         }
         ticks = ticks.wrapping_add(1);
         if ticks.is_multiple_of(100) {
@@ -866,12 +903,20 @@ fn status_line(enc: &Encoder) {
         ),
         None => defmt::warn!("no current samples (PWM/ADC chain not running)"),
     }
-    let probes = PROBE2_EDGES.load(Ordering::Relaxed);
-    if probes != 0 {
+    if let Some((_, f)) = FEEDBACK.read() {
+        let (p1, p2) = (f.probe1, f.probe2);
         defmt::info!(
-            "touch probe 2: {=u32} edges, last at {=u32}",
-            probes,
-            PROBE2_POS.load(Ordering::Relaxed)
+            "commutation aligned {=bool}, failed {=u32} | probe edges (active/inactive, last units): IN1 {=u32}/{=u32} {=i32}/{=i32}, IN2 {=u32}/{=u32} {=i32}/{=i32}",
+            f.aligned,
+            f.align_failures,
+            p1.active_seq,
+            p1.inactive_seq,
+            p1.active,
+            p1.inactive,
+            p2.active_seq,
+            p2.inactive_seq,
+            p2.active,
+            p2.inactive
         );
     }
 }

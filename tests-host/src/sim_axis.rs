@@ -159,6 +159,8 @@ impl Axis for KinematicAxis {
             electrical_angle: ((self.pos / UNITS_PER_REV * 50.0).fract() * 65536.0) as u16,
             bus_mv: self.bus_mv,
             index: self.index.take(),
+            probe1: Default::default(),
+            probe2: Default::default(),
             overcurrent_trip: false,
             current_limited: self.accel.abs() >= self.acc_max,
             servo_following_error: ((self.demand - self.pos) / UNITS_PER_REV * COUNTS_PER_REV)

@@ -8,11 +8,25 @@
 //!    velocity, electrical angle);
 //! 3. every 4th period (10 kHz = `firmware::motion::SERVO_TS`): the newest
 //!    [`ControlCommand`] is read (power permission, offsets; new cycle →
-//!    `Motion::set_command`, new parameters → `Motion::configure`), `Motion::step` →
-//!    current reference, and the measurements for the drive ([`Feedback`]) are
-//!    published;
+//!    `set_command`, new parameters → `configure`), the motion layer steps
+//!    (`firmware::commutation::CommutatedMotion`: `Motion::step`, preceded at the first
+//!    closed-loop enable after power-up by the commutation alignment, whose offset goes
+//!    into the encoder) → current reference; the index and touch-probe latches are
+//!    converted to axis positions (`firmware::latch`), and the measurements for the
+//!    drive ([`Feedback`]) are published;
 //! 4. `foc::current_loop::CurrentLoop::step` → duties → TIM1/TIM8 compare registers,
 //!    or the bridges off.
+//!
+//! Touch probes: probe 1 (IN1) is latched by TIM2 CH4 on both edges in hardware
+//! ([`crate::hw::encoder::take_probe1_capture`]: the pin level read with the capture
+//! tells the edge); probe 2 (IN2) is latched in software by the `touch_probe2` task
+//! (EXTI, both edges) and handed over in [`PROBE2_RAW`]. Both become
+//! `firmware::latch::Edges` in command units in [`Feedback`]; the drive side maps them
+//! to rising/falling with 0x2154 and feeds the CiA 402 touch probe.
+//!
+//! A failed alignment (0x2083 = 1: the encoder did not follow the sweep) is counted in
+//! [`Feedback::align_failures`]; the drive side raises the following-error fault
+//! (0x8611) for it.
 //!
 //! Motion runs in the same interrupt (not a lower-priority one) because its step is
 //! short — 255 instructions for `Motion::step`, 146 for `set_command` once per cycle,
@@ -44,7 +58,9 @@ use core::mem::MaybeUninit;
 use core::sync::atomic::{compiler_fence, AtomicBool, AtomicU32, Ordering};
 
 use firmware::cia402::DriveCommand;
-use firmware::motion::{CurrentReference, Frame, Motion, MotionConfig};
+use firmware::commutation::{CommutatedMotion, Commutation};
+use firmware::latch::{units_at_count, Edges, Seen};
+use firmware::motion::{CurrentReference, Frame, MotionConfig};
 use firmware::sampling::RawSample;
 use foc::current_loop::{AdcSample, CurrentLoop, CurrentLoopConfig, Sense};
 use foc::encoder::{Encoder, EncoderConfig};
@@ -115,6 +131,8 @@ pub struct ControlCommand {
     pub config: u32,
     /// Motion configuration from the parameters.
     pub motion: MotionConfig,
+    /// Alignment with the wiggle (0x2083 = 1); applied with [`Self::motion`].
+    pub align_wiggle: bool,
     /// Current-sensor offsets (counts) once the start-up check passed.
     pub offsets: Option<(f32, f32)>,
 }
@@ -132,6 +150,15 @@ pub struct Feedback {
     /// Axis position at the last index pulse, command units (hardware-latched count
     /// converted with the motion layer's scaling).
     pub index_units: i32,
+    /// Touch probe 1 (IN1, TIM2 CH4 capture): positions at the electrical edges,
+    /// command units.
+    pub probe1: Edges<i32>,
+    /// Touch probe 2 (IN2, EXTI software latch): positions at the electrical edges.
+    pub probe2: Edges<i32>,
+    /// The commutation offset is known (closed loop available).
+    pub aligned: bool,
+    /// Failed commutation alignments since start (wrapping).
+    pub align_failures: u32,
 }
 
 /// Cyclic path → interrupt (set-points, configuration, permission).
@@ -149,6 +176,14 @@ pub static FEEDBACK: Exchange<Feedback> = Exchange::new(Feedback {
         electrical_angle: 0,
         bus_mv: 0,
         index: None,
+        probe1: firmware::cia402::EdgeLatch {
+            rising: None,
+            falling: None,
+        },
+        probe2: firmware::cia402::EdgeLatch {
+            rising: None,
+            falling: None,
+        },
         overcurrent_trip: false,
         current_limited: false,
         servo_following_error: 0,
@@ -156,6 +191,26 @@ pub static FEEDBACK: Exchange<Feedback> = Exchange::new(Feedback {
     bridges_on: false,
     index_seq: 0,
     index_units: 0,
+    probe1: NO_EDGES,
+    probe2: NO_EDGES,
+    aligned: false,
+    align_failures: 0,
+});
+
+const NO_EDGES: Edges<i32> = Edges {
+    active_seq: 0,
+    active: 0,
+    inactive_seq: 0,
+    inactive: 0,
+};
+
+/// `touch_probe2` task → interrupt: encoder counts (TIM2) latched at the IN2 edges.
+/// One writer (that task, priority 2); the interrupt preempts it, never the reverse.
+pub static PROBE2_RAW: Exchange<Edges<u32>> = Exchange::new(Edges {
+    active_seq: 0,
+    active: 0,
+    inactive_seq: 0,
+    inactive: 0,
 });
 
 /// Current-loop bandwidth, rad/s (2π·f_PWM/20, the design limit of `foc::current_loop`).
@@ -169,7 +224,7 @@ const SERVO_DIVIDER: u8 = 4;
 struct Control {
     cl: CurrentLoop,
     enc: Encoder,
-    motion: Motion,
+    motion: CommutatedMotion,
     reference: CurrentReference,
     divider: u8,
     seen_cycle: u32,
@@ -181,6 +236,10 @@ struct Control {
     raw: u32,
     index_seq: u32,
     index_units: i32,
+    probe1: Edges<i32>,
+    probe2: Edges<i32>,
+    /// Probe-2 latches already converted.
+    probe2_seen: Seen,
 }
 
 struct IsrOwned(UnsafeCell<MaybeUninit<Control>>);
@@ -194,8 +253,8 @@ static READY: AtomicBool = AtomicBool::new(false);
 
 /// Builds the control state. Call once, before the current-loop interrupt is
 /// enabled. `r_ohm`, `l_h`, `ke`: motor constants for the current-loop gains and
-/// feed-forward.
-pub fn init(motion: MotionConfig, encoder_lines: u32, r_ohm: f32, l_h: f32, ke: f32) {
+/// feed-forward; `wiggle`: 0x2083.
+pub fn init(motion: MotionConfig, wiggle: bool, encoder_lines: u32, r_ohm: f32, l_h: f32, ke: f32) {
     let ts = 1.0 / board::PWM_HZ as f32;
     let (kp, ki) = CurrentLoopConfig::gains_for(r_ohm, l_h, WC);
     let cl = CurrentLoop::new(CurrentLoopConfig {
@@ -224,7 +283,7 @@ pub fn init(motion: MotionConfig, encoder_lines: u32, r_ohm: f32, l_h: f32, ke: 
     let c = Control {
         cl,
         enc,
-        motion: Motion::new(motion),
+        motion: CommutatedMotion::new(motion, wiggle),
         reference: CurrentReference::OFF,
         divider: 0,
         seen_cycle: 0,
@@ -234,6 +293,9 @@ pub fn init(motion: MotionConfig, encoder_lines: u32, r_ohm: f32, l_h: f32, ke: 
         raw: crate::hw::encoder::raw_count(),
         index_seq: 0,
         index_units: 0,
+        probe1: NO_EDGES,
+        probe2: NO_EDGES,
+        probe2_seen: Seen::default(),
     };
     if READY.load(Ordering::Acquire) {
         return;
@@ -309,7 +371,7 @@ fn servo_step(c: &mut Control, cmd: Option<&ControlCommand>) {
     if let Some(k) = cmd {
         if k.config != c.seen_config {
             c.seen_config = k.config;
-            c.motion.configure(k.motion);
+            c.motion.configure(k.motion, k.align_wiggle);
         }
         if let Some((a, b)) = k.offsets {
             let cfg = c.cl.config().sense;
@@ -330,12 +392,17 @@ fn servo_step(c: &mut Control, cmd: Option<&ControlCommand>) {
         electrical_angle: c.enc.electrical_angle(),
         voltage_limited: c.cl.saturated,
     };
-    c.reference = c.motion.step(&fb);
+    let step = c.motion.step(&fb, c.enc.raw_electrical_angle());
+    c.reference = step.reference;
+    if let Some(offset) = step.offset {
+        c.enc.set_electrical_offset(offset);
+    }
     if let Some(z) = crate::hw::encoder::take_index_capture() {
         index_pulse(c, z);
     }
+    probe_latches(c);
     let mut axis = firmware::drive::AxisState::default();
-    c.motion.fill_axis_state(&mut axis);
+    c.motion.motion().fill_axis_state(&mut axis);
     let ma = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
     axis.ia_ma = ma(c.cl.i_ab.alpha);
     axis.ib_ma = ma(c.cl.i_ab.beta);
@@ -346,26 +413,49 @@ fn servo_step(c: &mut Control, cmd: Option<&ControlCommand>) {
         bridges_on: c.bridges_on,
         index_seq: c.index_seq,
         index_units: c.index_units,
+        probe1: c.probe1,
+        probe2: c.probe2,
+        aligned: c.motion.state() == Commutation::Aligned,
+        align_failures: c.motion.failures(),
     });
+}
+
+/// Axis position (command units) at a latched TIM2 count.
+fn units_at(c: &Control, latched: u32) -> i32 {
+    let m = c.motion.motion();
+    units_at_count(
+        m.config(),
+        m.position_units(),
+        c.raw.wrapping_sub(latched) as i32,
+    )
+}
+
+/// Touch-probe latches of this servo period → command units.
+fn probe_latches(c: &mut Control) {
+    if let Some((count, to_active)) = crate::hw::encoder::take_probe1_capture() {
+        let u = units_at(c, count);
+        c.probe1.record(to_active, u);
+    }
+    if let Some((_, raw)) = PROBE2_RAW.read() {
+        let (to_active, to_inactive) = raw.take_new(&mut c.probe2_seen);
+        if let Some(n) = to_active {
+            let u = units_at(c, n);
+            c.probe2.record(true, u);
+        }
+        if let Some(n) = to_inactive {
+            let u = units_at(c, n);
+            c.probe2.record(false, u);
+        }
+    }
 }
 
 /// An index pulse latched count `z` (TIM2 CH3): the axis position at that instant
 /// is the present position minus the counts moved since, in command units.
 fn index_pulse(c: &mut Control, z: u32) {
     c.enc.on_index(z as u16);
-    let cfg = c.motion.config();
-    if cfg.counts_per_rev == 0 {
+    if c.motion.motion().config().counts_per_rev == 0 {
         return;
     }
-    let moved = c.raw.wrapping_sub(z) as i32;
-    let dir = if cfg.reverse { -1.0 } else { 1.0 };
-    let back =
-        libm::roundf(dir * moved as f32 * cfg.pulses_per_rev as f32 / cfg.counts_per_rev as f32);
-    let back = if back.is_finite() {
-        back.clamp(i32::MIN as f32, i32::MAX as f32) as i32
-    } else {
-        0
-    };
-    c.index_units = c.motion.position_units().wrapping_sub(back);
+    c.index_units = units_at(c, z);
     c.index_seq = c.index_seq.wrapping_add(1);
 }

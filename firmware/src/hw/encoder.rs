@@ -1,10 +1,14 @@
 //! Incremental encoder on TIM2 (32-bit): quadrature ×4 on CH1/CH2, the Z index
-//! captured on CH3 and the fast input IN1 (touch probe 1) captured on CH4.
+//! captured on CH3 (rising edge) and the fast input IN1 (touch probe 1) captured on
+//! CH4 (both edges).
 //!
 //! The captures are exact hardware latches of the counter at the edge — no interrupt
-//! latency in the measured position. Readers poll the capture flags
-//! ([`Encoder::index_capture`], [`Encoder::probe1_capture`]) from the control path.
-//! The counter wraps at 2³², which `foc`'s wrapping position arithmetic expects.
+//! latency in the measured position. The current-loop interrupt polls the capture
+//! flags ([`take_index_capture`], [`take_probe1_capture`]) at the servo rate; IN1's
+//! edge direction is the pin level read with the capture (an opto input pulls its
+//! pin low while active), so an IN1 pulse must last longer than one servo period
+//! (100 µs) for its edge to be told right. The counter wraps at 2³², which `foc`'s
+//! wrapping position arithmetic expects.
 use embassy_stm32::gpio::{AfType, Flex, Pull};
 use embassy_stm32::pac;
 use embassy_stm32::pac::timer::vals;
@@ -65,11 +69,14 @@ pub fn init(p: EncoderPins<'static>) -> Encoder {
         w.set_icf(0, vals::FilterValue::FDTS_DIV2_N6);
         w.set_icf(1, vals::FilterValue::FDTS_DIV2_N6);
     });
+    // CH3: rising edges of Z; CH4: both edges of IN1 (CC4P = CC4NP = 1).
     t.ccer().modify(|w| {
         w.set_cce(2, true);
         w.set_ccp(2, false);
+        w.set_ccnp(2, false);
         w.set_cce(3, true);
-        w.set_ccp(3, false);
+        w.set_ccp(3, true);
+        w.set_ccnp(3, true);
     });
     t.cnt().write_value(0);
     t.sr().write(|w| w.0 = 0);
@@ -90,16 +97,41 @@ pub fn take_index_capture() -> Option<u32> {
     Encoder::capture(2)
 }
 
+/// IN1 (PB11) is at its active level (pin low).
+#[inline(always)]
+fn in1_active() -> bool {
+    pac::GPIOB.idr().read().idr(11) == pac::gpio::vals::Idr::LOW
+}
+
+/// The count latched at the last IN1 edge (touch probe 1) and whether the input
+/// became active there (pin low), once per edge (for the current-loop interrupt,
+/// which owns this capture). When another edge came while reading, the newer one is
+/// taken (at most three tries; of several edges within one servo period only the last
+/// is seen).
+#[inline(always)]
+pub fn take_probe1_capture() -> Option<(u32, bool)> {
+    let mut count = Encoder::capture(3)?;
+    let mut active = in1_active();
+    for _ in 0..2 {
+        // A capture after the level was read: its level is the one that counts.
+        match Encoder::capture(3) {
+            Some(n) => {
+                count = n;
+                active = in1_active();
+            }
+            None => break,
+        }
+    }
+    // An over-capture flag (edges lost in between) is left alone: clearing it by a
+    // read-modify-write of SR could also clear a Z capture flag set meanwhile.
+    Some((count, active))
+}
+
 impl Encoder {
     /// Counter value (4 counts per line), wrapping.
     #[inline(always)]
     pub fn position(&self) -> u32 {
         pac::TIM2.cnt().read()
-    }
-
-    /// The count latched at the last IN1 rising edge (touch probe 1), once per edge.
-    pub fn probe1_capture(&self) -> Option<u32> {
-        Self::capture(3)
     }
 
     fn capture(ch: usize) -> Option<u32> {
