@@ -264,6 +264,23 @@ impl CommutatedMotion {
         out
     }
 
+    /// One servo period while the current loop belongs to the power-up auto-tune
+    /// ([`crate::current_supervisor::CurrentSupervisor::tuning`]): no current
+    /// reference, the motion layer held ([`Motion::step_held`]); an alignment in
+    /// progress starts again at the next enabled step.
+    pub fn step_held(&mut self, fb: &Feedback) -> Step {
+        if self.state == Commutation::Aligning {
+            self.state = Commutation::Unaligned;
+            self.pass_command();
+        }
+        self.motion.step_held(fb);
+        Step {
+            reference: CurrentReference::OFF,
+            offset: None,
+            failed: false,
+        }
+    }
+
     fn align_current(&self) -> f32 {
         align_config(&self.requested, self.wiggle).current
     }

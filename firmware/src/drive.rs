@@ -30,6 +30,7 @@ use ecat_slave_stack::slave::{CycleInfo, SlaveApplication};
 
 use crate::cia402::{Cia402, DriveCommand, DriveFeedback};
 use crate::comm::{Comm, StoreCommand};
+use crate::current_supervisor::{CurrentReport, TuneStatus};
 use crate::dictionary;
 use crate::fault_led;
 use crate::faults::{Emergency, FaultKind, Faults, Snapshot};
@@ -199,6 +200,9 @@ pub struct Drive<S: ParameterStore = NoStore> {
     store: Option<S>,
     load_report: Option<LoadReport>,
     storage_emergency: Option<(u16, [u8; 5])>,
+    seen_tune_seq: u8,
+    seen_follow_seq: u8,
+    power_up_tune_over: bool,
 }
 
 /// Error code reported when the outputs stopped arriving (process-data watchdog,
@@ -234,6 +238,9 @@ impl<S: ParameterStore> Drive<S> {
             store: Some(store),
             load_report: None,
             storage_emergency: None,
+            seen_tune_seq: 0,
+            seen_follow_seq: 0,
+            power_up_tune_over: false,
             params,
         };
         d.apply_parameters();
@@ -371,6 +378,16 @@ impl<S: ParameterStore> Drive<S> {
         if self.axis.bus_mv > 0 {
             self.faults.check_bus_voltage(self.axis.bus_mv, snap, now);
         }
+        // Over-current: the measured phase currents against the limit (software check)
+        // and the power stage's break latch. The condition is gone once the currents
+        // are below the limit and the latch is re-armed; then a fault reset (with
+        // 0x2057 = 1, the fault being latched) clears it.
+        self.faults.check_phase_currents(
+            i32::from(self.axis.ia_ma),
+            i32::from(self.axis.ib_ma),
+            snap,
+            now,
+        );
         if self.axis.overcurrent_trip {
             self.faults.raise(FaultKind::OverCurrent, snap, now);
         }
@@ -379,6 +396,78 @@ impl<S: ParameterStore> Drive<S> {
         }
         if self.params.take_fault_history_clear() {
             self.faults.clear_history();
+        }
+    }
+
+    /// Permission for the power-up current-loop auto-tune
+    /// ([`crate::current_supervisor`]): the bus voltage is inside the under/over-voltage
+    /// window and no fault is active. The control path also needs the current-sensor
+    /// offsets to have passed their start-up check.
+    pub fn tune_permitted(&self) -> bool {
+        let c = self.faults.config();
+        let bus = self.axis.bus_mv;
+        bus >= c
+            .under_voltage_mv
+            .saturating_add(c.under_voltage_hysteresis_mv)
+            && bus <= c.over_voltage_mv
+            && !self.faults.any_active()
+    }
+
+    /// The current-loop supervisor's report (control path → drive; call every tick,
+    /// before [`Drive::tick`]). A finished tune writes 0x2020 (mΩ), 0x2021 (µH), 0x2015
+    /// and 0x2016 (the gains the loop now uses); a failed one raises motor open
+    /// 0x7120; a "current does not follow" detection raises 0x5210. Both are events:
+    /// the condition is reported gone at once, so a fault reset clears them (see the
+    /// module docs of [`crate::current_supervisor`] for the retry).
+    ///
+    /// Until the first tune since power-up has finished (with 0x2013 = 1) the power-up
+    /// self-test is running: the PDS stays in Not ready to switch on.
+    pub fn current_report(&mut self, r: &CurrentReport) {
+        if !self.power_up_tune_over {
+            let running = self.params.get(P::AutoTune) == 1
+                && r.tune_seq == 0
+                && matches!(r.tune, TuneStatus::Pending | TuneStatus::Running);
+            self.power_up_tune_over = !running;
+            self.cia402.set_self_test(running);
+        }
+        if r.tune_seq != self.seen_tune_seq {
+            self.seen_tune_seq = r.tune_seq;
+            match r.tune {
+                TuneStatus::Done => {
+                    let t = r.tuned;
+                    self.params
+                        .set_internal(P::MotorResistance, i32::from(t.r_mohm));
+                    self.params
+                        .set_internal(P::MotorInductance, i32::from(t.l_uh));
+                    self.params.set_internal(P::CurrentKp, i32::from(t.kp));
+                    self.params.set_internal(P::CurrentKi, i32::from(t.ki));
+                }
+                TuneStatus::Failed(e) => {
+                    use foc::autotune::{Phase, TuneError};
+                    let detail = match e {
+                        TuneError::OpenPhase(Phase::A) => [1, 0],
+                        TuneError::OpenPhase(Phase::B) => [1, 1],
+                        TuneError::Unbalanced => [2, 0],
+                        TuneError::Implausible => [3, 0],
+                    };
+                    let snap = self.snapshot();
+                    self.faults
+                        .raise_detail(FaultKind::MotorOpen, detail, snap, self.now_ms);
+                    self.faults.condition_gone(FaultKind::MotorOpen);
+                }
+                _ => {}
+            }
+        }
+        if r.follow_seq != self.seen_follow_seq {
+            self.seen_follow_seq = r.follow_seq;
+            let snap = self.snapshot();
+            self.faults.raise_detail(
+                FaultKind::PhaseSensing,
+                r.follow_ref_ma.to_le_bytes(),
+                snap,
+                self.now_ms,
+            );
+            self.faults.condition_gone(FaultKind::PhaseSensing);
         }
     }
 
@@ -818,6 +907,156 @@ mod tests {
             d.leds(1350).red,
         ];
         assert_eq!(leds, [true, true, false, true]);
+    }
+
+    #[test]
+    fn over_current_trip_clears_by_reset_once_re_armed_with_0x2057() {
+        let mut d = Drive::new(Variant::HybridServo, 0);
+        enable(&mut d);
+        let trip = AxisState {
+            bus_mv: 48_000,
+            overcurrent_trip: true,
+            ..AxisState::default()
+        };
+        d.set_axis(trip);
+        d.tick(1, 0);
+        assert_eq!(d.faults.error_code(), 0x2310);
+        assert!(d.pop_emergency().is_some());
+        // Still tripped: no reset even with 0x2057 = 1.
+        sdo_write(&mut d, 0x2057, 0, &[1]).expect("2057");
+        assert!(!d.faults.fault_reset());
+        // Re-armed, but a measured current above the limit is the condition too.
+        d.set_axis(AxisState {
+            bus_mv: 48_000,
+            ia_ma: -11_000,
+            ..AxisState::default()
+        });
+        d.tick(1, 0);
+        assert!(!d.faults.fault_reset());
+        d.set_axis(AxisState {
+            bus_mv: 48_000,
+            ..AxisState::default()
+        });
+        d.tick(1, 0);
+        assert!(d.faults.fault_reset(), "gone and 0x2057 = 1");
+        assert_eq!(d.faults.error_code(), 0);
+    }
+
+    #[test]
+    fn power_up_tune_keeps_the_pds_not_ready_to_switch_on() {
+        use crate::current_supervisor::CurrentReport;
+        let mut d = Drive::new(Variant::HybridServo, 0);
+        d.set_axis(AxisState {
+            bus_mv: 48_000,
+            ..AxisState::default()
+        });
+        d.run_cycle(0.001);
+        assert_eq!(d.cia402.state(), PdsState::SwitchOnDisabled);
+        for tune in [TuneStatus::Pending, TuneStatus::Running] {
+            d.current_report(&CurrentReport {
+                tune,
+                ..CurrentReport::default()
+            });
+            d.cia402.set_controlword(0x06);
+            for _ in 0..3 {
+                d.run_cycle(0.001);
+            }
+            assert_eq!(d.cia402.state(), PdsState::NotReadyToSwitchOn);
+            assert_eq!(d.cia402.statusword() & 0x6F, 0);
+        }
+        d.current_report(&CurrentReport {
+            tune: TuneStatus::Done,
+            tune_seq: 1,
+            ..CurrentReport::default()
+        });
+        d.cia402.set_controlword(0x00);
+        d.run_cycle(0.001);
+        assert_eq!(d.cia402.state(), PdsState::SwitchOnDisabled);
+        // Once over, a later tune (retry after a fault) does not hold the PDS.
+        d.current_report(&CurrentReport {
+            tune: TuneStatus::Running,
+            tune_seq: 1,
+            ..CurrentReport::default()
+        });
+        d.cia402.set_controlword(0x06);
+        for _ in 0..3 {
+            d.run_cycle(0.001);
+        }
+        assert_eq!(d.cia402.state(), PdsState::ReadyToSwitchOn);
+        // 0x2013 = 0: no hold at all.
+        let mut d = Drive::new(Variant::HybridServo, 0);
+        sdo_write(&mut d, 0x2013, 0, &[0]).expect("2013");
+        d.current_report(&CurrentReport {
+            tune: TuneStatus::Pending,
+            ..CurrentReport::default()
+        });
+        d.run_cycle(0.001);
+        assert_eq!(d.cia402.state(), PdsState::SwitchOnDisabled);
+    }
+
+    #[test]
+    fn current_report_writes_tune_results_and_raises_its_faults() {
+        use crate::current_supervisor::{CurrentReport, TunedValues};
+        use foc::autotune::{Phase, TuneError};
+        let mut d = Drive::new(Variant::HybridServo, 0);
+        d.set_axis(AxisState {
+            bus_mv: 11_000,
+            ..AxisState::default()
+        });
+        assert!(!d.tune_permitted(), "bus below the under-voltage window");
+        d.set_axis(AxisState {
+            bus_mv: 48_000,
+            ..AxisState::default()
+        });
+        d.tick(1, 0);
+        assert!(d.tune_permitted());
+        let done = CurrentReport {
+            tune: TuneStatus::Done,
+            tuned: TunedValues {
+                r_mohm: 402,
+                l_uh: 1795,
+                kp: 2256,
+                ki: 505,
+            },
+            tune_seq: 1,
+            ..CurrentReport::default()
+        };
+        d.current_report(&done);
+        assert_eq!(sdo_read_u32(&mut d, 0x2020, 0), 402);
+        assert_eq!(sdo_read_u32(&mut d, 0x2021, 0), 1795);
+        assert_eq!(sdo_read_u32(&mut d, 0x2015, 0), 2256);
+        assert_eq!(sdo_read_u32(&mut d, 0x2016, 0), 505);
+        // Default mask 0x00C3: motor open and current sensing are off.
+        let failed = CurrentReport {
+            tune: TuneStatus::Failed(TuneError::OpenPhase(Phase::B)),
+            tune_seq: 2,
+            follow_seq: 1,
+            follow_ref_ma: 2500,
+            ..CurrentReport::default()
+        };
+        d.current_report(&failed);
+        assert!(!d.faults.any_active());
+        assert!(d.pop_emergency().is_none());
+        sdo_write(&mut d, 0x2056, 0, &0x00CFu16.to_le_bytes()).expect("mask");
+        let failed = CurrentReport {
+            tune_seq: 3,
+            follow_seq: 2,
+            ..failed
+        };
+        d.current_report(&failed);
+        d.current_report(&failed);
+        let e = d.pop_emergency().expect("motor open");
+        assert_eq!((e.code, e.data[0], e.data[3], e.data[4]), (0x7120, 3, 1, 1));
+        let e = d.pop_emergency().expect("current does not follow");
+        assert_eq!(e.code, 0x5210);
+        assert_eq!(u16::from_le_bytes([e.data[3], e.data[4]]), 2500);
+        assert!(d.pop_emergency().is_none(), "one each");
+        assert!(!d.tune_permitted(), "a fault withdraws the permission");
+        assert_eq!(d.faults.error_code(), 0x5210, "most severe");
+        assert_eq!(d.faults.led_code(), Some(9));
+        // Events: a fault reset clears both.
+        assert!(d.faults.fault_reset());
+        assert!(d.tune_permitted());
     }
 
     #[test]

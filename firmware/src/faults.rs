@@ -31,10 +31,19 @@
 //!
 //! **Emergencies**: one per occurrence (a fault that is already active does not send
 //! again). Manufacturer data: byte 0 the [`FaultKind`] number, bytes 1-2 the bus
-//! voltage in 0.1 V, bytes 3-4 a detail (phase current in mA, following error in
-//! counts saturated to i16, or the caller's EtherCAT diagnosis). When a fault reset
-//! clears the last active fault, the CiA 301 "error reset" emergency (code 0x0000) is
-//! sent.
+//! voltage in 0.1 V, bytes 3-4 a detail: the caller's EtherCAT diagnosis; for motor
+//! open (failed power-up tune) the reason (1 open phase, 2 unbalanced phases,
+//! 3 implausible result) and the phase (0 A, 1 B); for "current does not follow"
+//! (0x5210 while running) the reference current magnitude in mA (u16); 0 otherwise.
+//! When a fault reset clears the last active fault, the CiA 301 "error reset"
+//! emergency (code 0x0000) is sent.
+//!
+//! **Over-current recovery**: `Drive::tick` checks the measured phase currents
+//! ([`Faults::check_phase_currents`]) and the power stage's break latch
+//! (`AxisState::overcurrent_trip`); the condition is gone once both are clear (latch
+//! re-armed), so a fault reset with 0x2057 = 1 clears the fault. Motor open (failed
+//! power-up tune) and "current does not follow" are events (`Drive::current_report`,
+//! [`crate::current_supervisor`]): a fault reset clears them.
 
 use ecat_slave_stack::od::{Access, DataType, Entry, Object, PdoMappable, SdoAbort};
 use heapless::Deque;
@@ -263,6 +272,18 @@ impl Faults {
     /// PDS fault request is set).
     pub fn raise(&mut self, kind: FaultKind, snap: Snapshot, now_ms: u32) -> bool {
         self.raise_with(kind, kind.code(), [0, 0], snap, now_ms)
+    }
+
+    /// [`Faults::raise`] with the two detail bytes of the emergency (bytes 3-4 of the
+    /// manufacturer data).
+    pub fn raise_detail(
+        &mut self,
+        kind: FaultKind,
+        detail: [u8; 2],
+        snap: Snapshot,
+        now_ms: u32,
+    ) -> bool {
+        self.raise_with(kind, kind.code(), detail, snap, now_ms)
     }
 
     /// An EtherCAT fault with its code (0x8700 sync, 0xA000/0xA001 ESM transition,

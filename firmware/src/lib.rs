@@ -2,6 +2,7 @@
 pub mod cia402;
 pub mod comm;
 pub mod commutation;
+pub mod current_supervisor;
 pub mod dictionary;
 pub mod dip;
 pub mod drive;

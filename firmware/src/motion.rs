@@ -655,14 +655,7 @@ impl Motion {
         };
         self.last_fb = fb_ok;
         if !self.cmd.drive_enabled {
-            if self.enabled {
-                self.enabled = false;
-                self.open.disable();
-            }
-            self.track_disabled(&fb_ok);
-            self.filter_velocity();
-            self.last_ref = CurrentReference::OFF;
-            return self.last_ref;
+            return self.hold(&fb_ok);
         }
         if !self.enabled {
             self.enable(&fb_ok);
@@ -682,6 +675,35 @@ impl Motion {
         self.filter_velocity();
         self.last_ref = r;
         r
+    }
+
+    /// One servo period while the current loop is busy with something else (the
+    /// power-up auto-tune, [`crate::current_supervisor`]): behaves as disabled — no
+    /// current reference, the demand tracks the actual position — whatever the
+    /// command says; the next [`Motion::step`] with the drive enabled starts at the
+    /// actual position with the soft start, as after an enable.
+    pub fn step_held(&mut self, fb: &Feedback) -> CurrentReference {
+        let fb_ok = Feedback {
+            velocity: if fb.velocity.is_finite() {
+                fb.velocity
+            } else {
+                0.0
+            },
+            ..*fb
+        };
+        self.last_fb = fb_ok;
+        self.hold(&fb_ok)
+    }
+
+    fn hold(&mut self, fb: &Feedback) -> CurrentReference {
+        if self.enabled {
+            self.enabled = false;
+            self.open.disable();
+        }
+        self.track_disabled(fb);
+        self.filter_velocity();
+        self.last_ref = CurrentReference::OFF;
+        self.last_ref
     }
 
     fn track_disabled(&mut self, fb: &Feedback) {

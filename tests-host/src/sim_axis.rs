@@ -15,6 +15,7 @@ use crate::plant::motor::{PlantConfig, ECN57_20, TC86_45};
 use crate::plant::rig::{Rig, SERVO_DIV, TS, TS_SERVO};
 use crate::sim_drive::{Axis, Motor};
 use firmware::cia402::{DriveCommand, SetpointKind};
+use firmware::current_supervisor::{CurrentReport, CurrentSupervisor, SupervisorConfig};
 use firmware::drive::AxisState;
 use firmware::identity::Variant;
 use firmware::motion::{CurrentReference, Feedback, Frame, Motion, MotionConfig, MotorConstants};
@@ -245,11 +246,20 @@ pub fn boxed_model(motor: Motor, model: AxisModel, n: usize) -> Box<dyn Axis> {
 /// encoder count `index_phase` within each revolution). Positions count from the
 /// shaft angle at construction. With the bridges off the current loop outputs 50 %
 /// on all legs (the coils are shorted through the bridge: a mild back-EMF brake).
+///
+/// The current loop runs under the firmware's [`CurrentSupervisor`] as on the board:
+/// with 0x2013 = 1 the power-up auto-tune runs once the drive permits it
+/// ([`Axis::current_control`], from `Drive::tune_permitted`, i.e. within the first
+/// millisecond of a [`crate::sim_drive::SimDrive`]; a bare `PlantAxis` never gets the
+/// permission and keeps the gains from the true R and L), holding the motion layer
+/// meanwhile; the "current does not follow" check runs in every PWM period.
 pub struct PlantAxis {
     /// Plant + current loop + encoder.
     pub rig: Rig,
     /// The firmware's motion layer.
     pub motion: Motion,
+    /// The firmware's current-loop supervisor (power-up tune, follow check).
+    pub supervisor: CurrentSupervisor,
     /// Switch positions (command units) and index phase.
     pub switches: Switches,
     /// Trip level of the power stage's over-current comparator (the board's break
@@ -279,9 +289,11 @@ impl PlantAxis {
         let cfg = MotionConfig::from_params(&p, Variant::HybridServo, &consts, TS_SERVO);
         let theta0 = rig.plant.theta;
         let last = i64::from(rig.enc.position());
+        let sup = SupervisorConfig::from_params(&p, TS, rig.plant.cfg.pwm_period);
         PlantAxis {
             rig,
             motion: Motion::new(cfg),
+            supervisor: CurrentSupervisor::new(sup),
             switches: Switches::default(),
             trip_amps: f64::from(firmware::faults::FaultConfig::default().over_current_ma) / 1000.0,
             tripped: false,
@@ -379,7 +391,11 @@ impl PlantAxis {
     fn tick(&mut self) {
         if self.rig.k.is_multiple_of(SERVO_DIV) {
             let fb = self.feedback();
-            self.reference = self.motion.step(&fb);
+            self.reference = if self.supervisor.tuning() {
+                self.motion.step_held(&fb)
+            } else {
+                self.motion.step(&fb)
+            };
             if self.reference.reset {
                 self.rig.cl.reset();
             }
@@ -388,8 +404,14 @@ impl PlantAxis {
         }
         let r = self.reference;
         let period = self.rig.plant.cfg.pwm_period;
+        let sup = &mut self.supervisor;
+        let tuning = sup.tuning();
         self.rig.tick_with(|cl, enc, adc| {
+            if tuning {
+                return sup.tune_step(cl, adc);
+            }
             if !r.power {
+                sup.idle();
                 cl.id_ref = 0.0;
                 cl.iq_ref = 0.0;
                 // Measures the currents, applies 0 V (50 % on every leg), clears the PIs.
@@ -397,8 +419,8 @@ impl PlantAxis {
                 return Duties::zero(period);
             }
             match r.frame {
-                Frame::Encoder => cl.step(adc, enc.electrical_angle(), enc.omega_e()),
-                Frame::Command { angle, omega_e } => cl.step(adc, angle, omega_e),
+                Frame::Encoder => sup.run_step(cl, adc, enc.electrical_angle(), enc.omega_e()),
+                Frame::Command { angle, omega_e } => sup.run_step(cl, adc, angle, omega_e),
             }
         });
         // Over-current comparator → break input: every switch off at once (the board's
@@ -457,6 +479,15 @@ impl Axis for PlantAxis {
         if cfg != *self.motion.config() {
             self.motion.configure(cfg);
         }
+        let sup = SupervisorConfig::from_params(p, TS, self.rig.plant.cfg.pwm_period);
+        if sup != *self.supervisor.config() {
+            self.supervisor.configure(sup);
+        }
+    }
+
+    fn current_control(&mut self, tune_permitted: bool) -> CurrentReport {
+        self.supervisor.permit_tune(tune_permitted);
+        self.supervisor.report()
     }
 
     fn state(&mut self) -> AxisState {

@@ -54,6 +54,16 @@ pub trait Axis {
     fn parameters(&mut self, p: &firmware::params::Params) {
         let _ = p;
     }
+    /// The current-loop supervisor: takes the drive's permission for the power-up
+    /// auto-tune and returns its report (as the board's control interrupt does through
+    /// its exchange). Default: no supervisor, nothing to report.
+    fn current_control(
+        &mut self,
+        tune_permitted: bool,
+    ) -> firmware::current_supervisor::CurrentReport {
+        let _ = tune_permitted;
+        firmware::current_supervisor::CurrentReport::default()
+    }
     /// True shaft position in command units, for tests (None: not modelled).
     fn true_position(&self) -> Option<f64> {
         None
@@ -124,6 +134,8 @@ impl SimDrive {
                 self.pending_index = state.index;
             }
             self.drive.set_axis(state);
+            let report = self.axis.current_control(self.drive.tune_permitted());
+            self.drive.current_report(&report);
             self.drive.tick(1, raw);
         }
     }

@@ -323,7 +323,19 @@ async fn plant_csp(md: Rc<MainDevice<'static>>, w: Wired) -> Result<Vec<String>,
     let md = &*md;
     let mut notes = Vec::new();
     let g = to_op(md).await?;
-    let tx = cycle(md, &g, &w, 0, 0).await?;
+    // The power-up self-test (current-loop auto-tune, 0x2013 = 1) keeps the drive in
+    // Not ready to switch on for ≈ 0.3 s after power-up: wait for Switch on disabled,
+    // as a master does before the enable sequence.
+    let mut tx = cycle(md, &g, &w, 0, 0).await?;
+    let mut waited = 0;
+    while st(tx.sw) == St::NotReady && waited < 1000 {
+        tx = cycle(md, &g, &w, 0, 0).await?;
+        waited += 1;
+    }
+    assert_eq!(st(tx.sw), St::SwitchOnDisabled, "{:#06x}", tx.sw);
+    notes.push(format!(
+        "power-up self-test (auto-tune): Not ready to switch on for {waited} more cycles in Op"
+    ));
     let home = tx.pos;
     set_mode(md, &g, &w, 8, 0, home).await?;
     enable(md, &g, &w, home).await?;

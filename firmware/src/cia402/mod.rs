@@ -429,6 +429,7 @@ pub struct Cia402 {
     pending: Pending,
     error_code: u16,
     init_done: bool,
+    self_test: bool,
     shift: i32,
     // Measured / derived values.
     raw_position: i32,
@@ -489,6 +490,7 @@ impl Cia402 {
             pending: Pending::None,
             error_code: 0,
             init_done: false,
+            self_test: false,
             shift: 0,
             raw_position: 0,
             actual_position: 0,
@@ -562,8 +564,24 @@ impl Cia402 {
         self.controlword = 0;
         self.prev_cw = 0;
         self.error_code = 0;
-        self.init_done = true;
-        self.enter(PdsState::SwitchOnDisabled);
+        self.init_done = !self.self_test;
+        self.enter(if self.self_test {
+            PdsState::NotReadyToSwitchOn
+        } else {
+            PdsState::SwitchOnDisabled
+        });
+    }
+
+    /// The power-up self-test (the current-loop auto-tune, `Drive::current_report`) is
+    /// running: the PDS stays in (or, from Switch on disabled, returns to) Not ready to
+    /// switch on, and transition 1 waits until it is over (IEC 61800-7-201: "drive
+    /// initialisation or self-test running").
+    pub fn set_self_test(&mut self, running: bool) {
+        self.self_test = running;
+        if running && self.state == PdsState::SwitchOnDisabled {
+            self.init_done = false;
+            self.enter(PdsState::NotReadyToSwitchOn);
+        }
     }
 
     /// Raises a fault detected elsewhere (transition 13, 0x603F = `code`); a fault
@@ -742,7 +760,7 @@ impl Cia402 {
         }
 
         // 2. PDS transitions.
-        if !self.init_done {
+        if !self.init_done && !self.self_test {
             self.init_done = true;
             self.fire(Event::InitDone, fb.fault);
         }

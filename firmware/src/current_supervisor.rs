@@ -1,0 +1,663 @@
+//! Supervision of the current loop, at the current-loop (PWM) rate: the power-up
+//! auto-tune of the current loop (0x2013) and the running "current does not follow"
+//! check (fault 0x5210). Chip-independent, no allocation, no formatting: the board's
+//! current-loop interrupt and the simulator's `tests_host::sim_axis::PlantAxis` call
+//! the same code.
+//!
+//! # Power-up auto-tune (0x2013 = 1)
+//! **When:** once per power cycle, as soon as the drive permits it
+//! ([`CurrentSupervisor::permit_tune`], from `Drive::tune_permitted`: current-sensor
+//! offsets passed, the bus voltage is inside the under/over-voltage window and no
+//! fault is active) — that is, during the start-up self-test, before an EtherCAT
+//! master can normally have taken the slave to Op and enabled it (the ESM alone takes
+//! longer than the ≈ 0.3 s the measurement needs). This is what the E5 parameter
+//! describes ("auto tuning when power up") and what stepper drives of this class do:
+//! the coils get a test current with the holding brake still applied (a locked rotor
+//! is the best condition for measuring R and L), and the first enable already runs
+//! with tuned gains. Measuring at the first enable instead would delay the first
+//! motion by the tune and move the shaft (up to ¼ electrical period while each phase
+//! is energised) after the master has taken the position as the CSP start.
+//! Should the master enable while the tune runs, the motion layer is held
+//! (`Motion::step_held`: no current reference, the demand tracks the actual position)
+//! and starts with its soft start at the actual position when the tune is done.
+//!
+//! **How:** [`foc::autotune`] in voltage mode at the current-loop rate with the test
+//! current [`TEST_CURRENT_FRACTION`] × 0x2000. On success the loop's gains and the
+//! decoupling inductance are set at once (in the interrupt, no round trip) to the
+//! values the parameters will report: `Kp = 0x2015 × 0.01 V/A`, `Ki = 0x2016 × 10
+//! V/(A·s)`, `L = 0x2021 µH`; the drive writes 0x2020/0x2021/0x2015/0x2016 from the
+//! [`CurrentReport`].
+//!
+//! **Failure:** [`TuneError::OpenPhase`] (no current in a phase), `Unbalanced` (the
+//! phases differ, poor contact) and `Implausible` are all the motor-open / poor-contact
+//! fault 0x7120 (LED 4, 0x2056 bit 2, not latched). The drive reports the condition
+//! gone at once, so a **fault reset clears it**; the fault withdraws the permission and
+//! its return (after the reset) starts the tune again, which raises the fault again if
+//! the motor is still open. A failed tune while bit 2 is off is not retried (the
+//! permission does not drop) and the loop keeps its start-up gains. A tune
+//! interrupted by a withdrawn permission (another fault) restarts from the beginning
+//! when the permission returns.
+//!
+//! 0x2013 = 0: no tune; the loop keeps the gains the board configured.
+//!
+//! # "Current does not follow" (fault 0x5210, 0x2056 bit 3)
+//! While the bridges are on and the closed current loop runs, every PWM period that
+//! ends with the voltage vector **saturated** is examined (an unsaturated period costs
+//! one branch). It counts when both hold:
+//! * the current error is large: `|i*−i| > max(FOLLOW_MIN_ERROR_A, FOLLOW_REL_ERROR·|i*|)`
+//!   (dq vectors), and
+//! * the motor model says the reference is reachable: the steady-state voltage the
+//!   reference needs, `v = R·i* + ωe·L·J·i* + Ke·ω` (J = rotation by 90°), is below
+//!   [`FOLLOW_HEADROOM`] of the voltage limit. This keeps high speed (back-EMF near the
+//!   bus voltage) and low bus voltage, where the loop legitimately cannot reach its
+//!   reference, out of the check.
+//!
+//! [`FOLLOW_TIME_S`] of uninterrupted counting is one detection (reported once until
+//! the bridges have been off). Thresholds, from the motor model
+//! (`/work/shared/spec/motor-model.md`): the longest legitimate saturation is a
+//! current reversal at the lowest bus voltage — ECN57-20 (1.8 mH, 0.4 Ω) from −8.4 A
+//! to +8.4 A at 12 V (11.4 V usable): `L·ΔI/(V − R·I) ≈ 3.8 ms`; TC86-45 (3 mH): ≈ 6.3 ms.
+//! 20 ms is three times the worst case. 0.3 A is above the sensors' noise (±0.25 A
+//! peak-to-peak at the start-up check) and half of the reference means "far"; the
+//! 80 % headroom leaves room for the dead-time loss and the `L·di/dt` of transients.
+//! What it catches: an open phase or a dead / disconnected current sensor while
+//! current is demanded. A sensor *offset* or moderate gain error is regulated away by
+//! the loop (the measured current follows) and is the start-up check's job.
+//! With no current demanded (servo holding without load) nothing can be detected.
+
+use crate::params::{Params, P};
+use foc::angle::Angle;
+use foc::autotune::{ki_from_param, kp_from_param, Autotune, AutotuneConfig, TuneError, TuneState};
+use foc::current_loop::{AdcSample, CurrentLoop};
+use foc::modulation::Duties;
+
+/// Test current of the auto-tune, fraction of the peak current 0x2000.
+pub const TEST_CURRENT_FRACTION: f32 = 0.8;
+/// Time the current must stay far from its reference while saturated, s.
+pub const FOLLOW_TIME_S: f32 = 0.02;
+/// Smallest current error counted, A.
+pub const FOLLOW_MIN_ERROR_A: f32 = 0.3;
+/// Current error counted relative to the reference magnitude.
+pub const FOLLOW_REL_ERROR: f32 = 0.5;
+/// The reference counts as reachable when it needs less than this fraction of the
+/// voltage limit.
+pub const FOLLOW_HEADROOM: f32 = 0.8;
+
+/// Configuration (from the parameters: [`SupervisorConfig::from_params`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SupervisorConfig {
+    /// Current-loop period, s.
+    pub ts: f32,
+    /// PWM timer period, counts (voltage resolution of the tune).
+    pub pwm_period: u16,
+    /// 0x2013 = 1.
+    pub auto_tune: bool,
+    /// Auto-tune test current, A.
+    pub test_current: f32,
+    /// Periods of [`FOLLOW_TIME_S`].
+    pub follow_periods: u32,
+}
+
+impl SupervisorConfig {
+    /// From 0x2013 and 0x2000 for a loop of period `ts` and PWM period `pwm_period`.
+    pub fn from_params(p: &Params, ts: f32, pwm_period: u16) -> Self {
+        let ts = if ts.is_finite() && ts > 0.0 {
+            ts
+        } else {
+            25e-6
+        };
+        let peak = p.get(P::PeakCurrent).clamp(100, 20_000) as f32 * 1e-3;
+        SupervisorConfig {
+            ts,
+            pwm_period: pwm_period.max(2),
+            auto_tune: p.get(P::AutoTune) == 1,
+            test_current: TEST_CURRENT_FRACTION * peak,
+            follow_periods: ((FOLLOW_TIME_S / ts) as u32).max(1),
+        }
+    }
+}
+
+/// State of the power-up tune.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TuneStatus {
+    /// Not wanted (0x2013 = 0).
+    #[default]
+    Off,
+    /// Wanted, waiting for the permission.
+    Pending,
+    /// Measuring.
+    Running,
+    /// Finished; the loop uses the tuned gains.
+    Done,
+    /// Failed (motor open / poor contact).
+    Failed(TuneError),
+}
+
+/// Tune results in the parameters' integer units.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct TunedValues {
+    /// 0x2020, mΩ.
+    pub r_mohm: u16,
+    /// 0x2021, µH.
+    pub l_uh: u16,
+    /// 0x2015, 0.01 V/A.
+    pub kp: u16,
+    /// 0x2016, 10 V/(A·s).
+    pub ki: u16,
+}
+
+/// What the control path tells the drive (copy it across to the cyclic side; the
+/// drive reacts to changed sequence numbers in `Drive::current_report`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct CurrentReport {
+    /// State of the power-up tune.
+    pub tune: TuneStatus,
+    /// The results (valid once a tune finished with `Done`).
+    pub tuned: TunedValues,
+    /// Incremented (wrapping) each time a tune finishes, done or failed.
+    pub tune_seq: u8,
+    /// Incremented (wrapping) at each "current does not follow" detection.
+    pub follow_seq: u8,
+    /// Reference current magnitude at the last detection, mA.
+    pub follow_ref_ma: u16,
+}
+
+/// The supervisor (one per axis, owned by the current-loop interrupt).
+#[derive(Debug, Clone)]
+pub struct CurrentSupervisor {
+    cfg: SupervisorConfig,
+    tune: Option<Autotune>,
+    status: TuneStatus,
+    tuned: TunedValues,
+    tune_seq: u8,
+    permitted: bool,
+    follow_n: u32,
+    follow_armed: bool,
+    follow_seq: u8,
+    follow_ref_ma: u16,
+}
+
+impl CurrentSupervisor {
+    /// New supervisor: the tune is pending when 0x2013 = 1.
+    pub fn new(cfg: SupervisorConfig) -> Self {
+        CurrentSupervisor {
+            cfg,
+            tune: None,
+            status: if cfg.auto_tune {
+                TuneStatus::Pending
+            } else {
+                TuneStatus::Off
+            },
+            tuned: TunedValues::default(),
+            tune_seq: 0,
+            permitted: false,
+            follow_n: 0,
+            follow_armed: true,
+            follow_seq: 0,
+            follow_ref_ma: 0,
+        }
+    }
+
+    /// New parameters. Switching 0x2013 on makes a tune pending unless one already
+    /// succeeded since power-up; switching it off aborts a running tune.
+    pub fn configure(&mut self, cfg: SupervisorConfig) {
+        let was = self.cfg.auto_tune;
+        self.cfg = cfg;
+        if cfg.auto_tune && !was && self.status == TuneStatus::Off {
+            self.status = TuneStatus::Pending;
+        } else if !cfg.auto_tune && matches!(self.status, TuneStatus::Pending | TuneStatus::Running)
+        {
+            self.tune = None;
+            self.status = TuneStatus::Off;
+        }
+    }
+
+    /// The configuration in use.
+    pub fn config(&self) -> &SupervisorConfig {
+        &self.cfg
+    }
+
+    /// Permission for the tune (the drive's `tune_permitted`, passed on at the servo
+    /// rate). Withdrawn during a tune: the tune stops (restarts later). Given again
+    /// after a failed tune: the tune is retried.
+    pub fn permit_tune(&mut self, yes: bool) {
+        if !yes && self.status == TuneStatus::Running {
+            self.tune = None;
+            self.status = TuneStatus::Pending;
+        }
+        if yes && !self.permitted && matches!(self.status, TuneStatus::Failed(_)) {
+            self.status = TuneStatus::Pending;
+        }
+        self.permitted = yes;
+    }
+
+    /// True while the tune owns the bridges: switch them on and call
+    /// [`Self::tune_step`] instead of the current loop, and hold the motion layer
+    /// (`Motion::step_held`).
+    #[inline]
+    pub fn tuning(&self) -> bool {
+        self.permitted && matches!(self.status, TuneStatus::Pending | TuneStatus::Running)
+    }
+
+    /// One PWM period of the tune (voltage mode). Returns the duties to apply.
+    pub fn tune_step(&mut self, cl: &mut CurrentLoop, adc: &AdcSample) -> Duties {
+        if !self.tuning() {
+            return cl.voltage_step(adc, 0.0, 0.0);
+        }
+        let cfg = self.cfg;
+        let t = self.tune.get_or_insert_with(|| {
+            Autotune::new(AutotuneConfig::new(
+                cfg.ts,
+                cfg.pwm_period,
+                cfg.test_current,
+            ))
+        });
+        self.status = TuneStatus::Running;
+        let sense = cl.config().sense;
+        let i = sense.currents(adc);
+        let (va, vb) = t.step(i.alpha, i.beta, sense.vbus(adc));
+        let state = t.state;
+        let d = cl.voltage_step(adc, va, vb);
+        match state {
+            TuneState::Done(r) => {
+                self.tuned = TunedValues {
+                    r_mohm: r.resistance_mohm(),
+                    l_uh: r.inductance_uh(),
+                    kp: r.kp_param(),
+                    ki: r.ki_param(),
+                };
+                let ke = cl.config().ke;
+                cl.set_gains(kp_from_param(self.tuned.kp), ki_from_param(self.tuned.ki));
+                cl.set_motor(f32::from(self.tuned.l_uh) * 1e-6, ke);
+                cl.reset();
+                self.finish(TuneStatus::Done);
+            }
+            TuneState::Failed(e) => self.finish(TuneStatus::Failed(e)),
+            _ => {}
+        }
+        d
+    }
+
+    fn finish(&mut self, s: TuneStatus) {
+        self.tune = None;
+        self.status = s;
+        self.tune_seq = self.tune_seq.wrapping_add(1);
+    }
+
+    /// One PWM period of the closed current loop with the bridges on: the loop's
+    /// step plus the "current does not follow" check (one branch when unsaturated).
+    #[inline]
+    pub fn run_step(
+        &mut self,
+        cl: &mut CurrentLoop,
+        adc: &AdcSample,
+        theta_e: Angle,
+        omega_e: f32,
+    ) -> Duties {
+        let d = cl.step(adc, theta_e, omega_e);
+        if cl.saturated {
+            self.check_follow(cl, omega_e);
+        } else {
+            self.follow_n = 0;
+        }
+        d
+    }
+
+    /// One PWM period with the bridges off (re-arms the check).
+    #[inline]
+    pub fn idle(&mut self) {
+        self.follow_n = 0;
+        self.follow_armed = true;
+    }
+
+    #[inline(never)]
+    fn check_follow(&mut self, cl: &CurrentLoop, omega_e: f32) {
+        let (id, iq) = (cl.id_ref, cl.iq_ref);
+        let ed = id - cl.i_dq.d;
+        let eq = iq - cl.i_dq.q;
+        let e2 = ed * ed + eq * eq;
+        let r2 = id * id + iq * iq;
+        let floor = FOLLOW_MIN_ERROR_A * FOLLOW_MIN_ERROR_A;
+        let rel = FOLLOW_REL_ERROR * FOLLOW_REL_ERROR * r2;
+        let big = e2 > if rel > floor { rel } else { floor };
+        let c = cl.config();
+        // R from the gains (Kp = L·ωc, Ki = R·ωc).
+        let r = if c.kp > 0.0 {
+            c.ki * c.inductance / c.kp
+        } else {
+            0.0
+        };
+        let wl = omega_e * c.inductance;
+        let vd = r * id - wl * iq;
+        let vq = r * iq + wl * id + c.ke * (1.0 / foc::angle::POLE_PAIRS as f32) * omega_e;
+        let vmax = c.modulator.vmax(cl.vbus) * FOLLOW_HEADROOM;
+        let reachable = vd * vd + vq * vq < vmax * vmax;
+        if !(big && reachable && self.follow_armed) {
+            self.follow_n = 0;
+            return;
+        }
+        self.follow_n += 1;
+        if self.follow_n >= self.cfg.follow_periods {
+            self.follow_n = 0;
+            self.follow_armed = false;
+            self.follow_seq = self.follow_seq.wrapping_add(1);
+            self.follow_ref_ma = (libm::sqrtf(r2) * 1000.0).clamp(0.0, 65535.0) as u16;
+        }
+    }
+
+    /// The state for the drive.
+    pub fn report(&self) -> CurrentReport {
+        CurrentReport {
+            tune: self.status,
+            tuned: self.tuned,
+            tune_seq: self.tune_seq,
+            follow_seq: self.follow_seq,
+            follow_ref_ma: self.follow_ref_ma,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::identity::Variant;
+    use foc::autotune::Phase;
+    use foc::current_loop::{CurrentLoopConfig, Sense};
+    use foc::modulation::Modulator;
+
+    const TS: f32 = 25e-6;
+    const PERIOD: u16 = 2125;
+    const APC: f32 = 20.0 / 4096.0;
+
+    /// Two RL coils (no rotor), ADC with a sensor gain per phase.
+    struct Coils {
+        r: [f32; 2],
+        l: f32,
+        i: [f32; 2],
+        gain: [f32; 2],
+        vbus: f32,
+        /// Duties computed in the previous period (one period of computation delay).
+        pending: Duties,
+    }
+
+    impl Coils {
+        fn new() -> Self {
+            Coils {
+                r: [0.4, 0.4],
+                l: 1.8e-3,
+                i: [0.0; 2],
+                gain: [1.0; 2],
+                vbus: 48.0,
+                pending: Duties::zero(PERIOD),
+            }
+        }
+        fn adc(&self) -> AdcSample {
+            let c = |k: usize| (2048.0 + self.gain[k] * self.i[k] / APC).round() as u16;
+            AdcSample {
+                ia: c(0),
+                ib: c(1),
+                vbus: (self.vbus / (60.0 / 4096.0)).round() as u16,
+            }
+        }
+        fn apply(&mut self, d: &Duties) {
+            let m = Modulator::new(PERIOD);
+            let (va, vb) = m.voltages(&self.pending, self.vbus);
+            self.pending = *d;
+            for (k, v) in [va, vb].into_iter().enumerate() {
+                if self.r[k] > 100.0 {
+                    self.i[k] = 0.0;
+                    continue;
+                }
+                // Exact RL step over one period.
+                let a = libm::expf(-self.r[k] / self.l * TS);
+                let inf = v / self.r[k];
+                self.i[k] = inf + (self.i[k] - inf) * a;
+            }
+        }
+    }
+
+    fn current_loop() -> CurrentLoop {
+        let (kp, ki) =
+            CurrentLoopConfig::gains_for(0.4, 1.8e-3, 2.0 * core::f32::consts::PI / (20.0 * TS));
+        CurrentLoop::new(CurrentLoopConfig {
+            ts: TS,
+            kp: kp * 0.5,
+            ki: ki * 0.5,
+            inductance: 1.0e-3,
+            ke: 0.283,
+            latency: 1.5,
+            sense: Sense {
+                amps_per_count: APC,
+                offset_a: 2048.0,
+                offset_b: 2048.0,
+                volts_per_count: 60.0 / 4096.0,
+            },
+            modulator: Modulator::new(PERIOD),
+        })
+    }
+
+    fn cfg(auto_tune: bool) -> SupervisorConfig {
+        let mut p = Params::new(Variant::HybridServo);
+        p.set_internal(P::AutoTune, i32::from(auto_tune));
+        SupervisorConfig::from_params(&p, TS, PERIOD)
+    }
+
+    /// Runs the tune to its end (at most 1 s).
+    fn run_tune(s: &mut CurrentSupervisor, cl: &mut CurrentLoop, m: &mut Coils) -> u32 {
+        let mut n = 0;
+        while s.tuning() && n < 40_000 {
+            let d = s.tune_step(cl, &m.adc());
+            m.apply(&d);
+            n += 1;
+        }
+        n
+    }
+
+    #[test]
+    fn held_motion_gives_no_current_and_restarts_an_alignment() {
+        use crate::cia402::DriveCommand;
+        use crate::commutation::{CommutatedMotion, Commutation};
+        use crate::motion::{Feedback, MotionConfig, ECN57_20, SERVO_TS};
+        let p = Params::new(Variant::HybridServo);
+        let mut c = MotionConfig::from_params(&p, Variant::HybridServo, &ECN57_20, SERVO_TS);
+        c.closed_loop = true;
+        let mut m = CommutatedMotion::new(c, false);
+        let cmd = DriveCommand {
+            power_stage: true,
+            drive_enabled: true,
+            torque_limit: 1000,
+            current_limit: 1000,
+            ..DriveCommand::default()
+        };
+        m.set_command(&cmd, 1e-3);
+        let fb = Feedback::default();
+        let s = m.step(&fb, Angle(0));
+        assert!(s.reference.power);
+        assert_eq!(m.state(), Commutation::Aligning);
+        let s = m.step_held(&fb);
+        assert!(!s.reference.power && !s.failed && s.offset.is_none());
+        assert_eq!(m.state(), Commutation::Unaligned);
+        assert!(!m.motion().enabled());
+        // Released: the alignment starts again.
+        let s = m.step(&fb, Angle(0));
+        assert!(s.reference.power);
+        assert_eq!(m.state(), Commutation::Aligning);
+    }
+
+    #[test]
+    fn config_from_parameters() {
+        let c = cfg(true);
+        assert!(c.auto_tune);
+        assert!((c.test_current - 0.8 * 3.2).abs() < 1e-4);
+        assert_eq!(c.follow_periods, 800);
+        let mut p = Params::new(Variant::HybridServo);
+        p.set_internal(P::AutoTune, 0);
+        let c = SupervisorConfig::from_params(&p, f32::NAN, 0);
+        assert!(!c.auto_tune);
+        assert_eq!((c.ts, c.pwm_period), (25e-6, 2));
+    }
+
+    #[test]
+    fn tune_waits_for_permission_then_sets_the_loop_gains() {
+        let mut s = CurrentSupervisor::new(cfg(true));
+        let mut cl = current_loop();
+        let mut m = Coils::new();
+        assert_eq!(s.report().tune, TuneStatus::Pending);
+        assert!(!s.tuning(), "not before the permission");
+        s.permit_tune(true);
+        assert!(s.tuning());
+        let n = run_tune(&mut s, &mut cl, &mut m);
+        let rep = s.report();
+        assert_eq!(rep.tune, TuneStatus::Done, "{rep:?}");
+        assert_eq!(rep.tune_seq, 1);
+        assert!(n < 12_000, "about 0.3 s: {n} periods");
+        let t = rep.tuned;
+        assert!(t.r_mohm.abs_diff(400) <= 40, "{t:?}");
+        assert!(t.l_uh.abs_diff(1800) <= 180, "{t:?}");
+        // The loop uses what 0x2015 / 0x2016 / 0x2021 will report.
+        let c = cl.config();
+        assert!((c.kp - kp_from_param(t.kp)).abs() < 1e-6);
+        assert!((c.ki - ki_from_param(t.ki)).abs() < 1e-3);
+        assert!((c.inductance - f32::from(t.l_uh) * 1e-6).abs() < 1e-9);
+        assert!(!s.tuning());
+        // Once per power cycle: neither a new permission nor a reconfiguration re-tunes.
+        s.permit_tune(false);
+        s.permit_tune(true);
+        s.configure(cfg(true));
+        assert!(!s.tuning());
+        assert_eq!(s.report().tune_seq, 1);
+    }
+
+    #[test]
+    fn open_phase_fails_and_is_retried_on_a_new_permission() {
+        let mut s = CurrentSupervisor::new(cfg(true));
+        let mut cl = current_loop();
+        let mut m = Coils::new();
+        m.r[1] = 1e6;
+        s.permit_tune(true);
+        run_tune(&mut s, &mut cl, &mut m);
+        assert_eq!(
+            s.report().tune,
+            TuneStatus::Failed(TuneError::OpenPhase(Phase::B))
+        );
+        assert_eq!(s.report().tune_seq, 1);
+        assert!(!s.tuning(), "no retry while the permission stays");
+        // The fault withdraws the permission; after the reset it comes back: retry.
+        s.permit_tune(false);
+        m.r[1] = 0.4;
+        s.permit_tune(true);
+        assert!(s.tuning());
+        run_tune(&mut s, &mut cl, &mut m);
+        assert_eq!(s.report().tune, TuneStatus::Done);
+        assert_eq!(s.report().tune_seq, 2);
+    }
+
+    #[test]
+    fn withdrawn_permission_stops_the_tune_and_off_means_no_tune() {
+        let mut s = CurrentSupervisor::new(cfg(true));
+        let mut cl = current_loop();
+        let adc = Coils::new().adc();
+        s.permit_tune(true);
+        for _ in 0..100 {
+            s.tune_step(&mut cl, &adc);
+        }
+        assert_eq!(s.report().tune, TuneStatus::Running);
+        s.permit_tune(false);
+        assert_eq!(s.report().tune, TuneStatus::Pending);
+        assert!(!s.tuning());
+        // Not tuning: a stray call applies 0 V.
+        let d = s.tune_step(&mut cl, &adc);
+        assert_eq!(d, Duties::zero(PERIOD));
+        s.configure(cfg(false));
+        s.permit_tune(true);
+        assert_eq!(s.report().tune, TuneStatus::Off);
+        assert!(!s.tuning());
+        let s2 = CurrentSupervisor::new(cfg(false));
+        assert_eq!(s2.report(), CurrentReport::default());
+    }
+
+    /// Runs the closed loop at a fixed reference for `periods`.
+    fn run_loop(
+        s: &mut CurrentSupervisor,
+        cl: &mut CurrentLoop,
+        m: &mut Coils,
+        iq: f32,
+        omega_e: f32,
+        periods: u32,
+    ) {
+        cl.id_ref = 0.0;
+        cl.iq_ref = iq;
+        for _ in 0..periods {
+            // Rotor at θe = 0: q is phase B, d is phase A.
+            let d = s.run_step(cl, &m.adc(), Angle(0), omega_e);
+            m.apply(&d);
+        }
+    }
+
+    #[test]
+    fn dead_current_sensor_is_detected_once_after_20_ms() {
+        let mut s = CurrentSupervisor::new(cfg(false));
+        let mut cl = current_loop();
+        let mut m = Coils::new();
+        run_loop(&mut s, &mut cl, &mut m, 3.0, 0.0, 4000);
+        assert_eq!(s.report().follow_seq, 0, "healthy: follows");
+        // Phase B (q at θe = 0) sensor reads nothing: the loop saturates.
+        m.gain[1] = 0.0;
+        // The integrator needs a few ms to reach the voltage limit.
+        let mut k = 0;
+        while !cl.saturated && k < 2000 {
+            run_loop(&mut s, &mut cl, &mut m, 3.0, 0.0, 1);
+            k += 1;
+        }
+        assert!(cl.saturated && k < 2000, "{k}");
+        run_loop(&mut s, &mut cl, &mut m, 3.0, 0.0, 790);
+        assert_eq!(s.report().follow_seq, 0, "not before 20 ms");
+        run_loop(&mut s, &mut cl, &mut m, 3.0, 0.0, 60);
+        assert_eq!(s.report().follow_seq, 1);
+        assert_eq!(s.report().follow_ref_ma, 3000);
+        run_loop(&mut s, &mut cl, &mut m, 3.0, 0.0, 2000);
+        assert_eq!(s.report().follow_seq, 1, "once until the bridges were off");
+        s.idle();
+        run_loop(&mut s, &mut cl, &mut m, 3.0, 0.0, 900);
+        assert_eq!(s.report().follow_seq, 2);
+    }
+
+    #[test]
+    fn open_phase_while_running_is_detected() {
+        let mut s = CurrentSupervisor::new(cfg(false));
+        let mut cl = current_loop();
+        let mut m = Coils::new();
+        run_loop(&mut s, &mut cl, &mut m, 2.0, 0.0, 400);
+        m.r[1] = 1e6;
+        run_loop(&mut s, &mut cl, &mut m, 2.0, 0.0, 2000);
+        assert_eq!(s.report().follow_seq, 1);
+    }
+
+    #[test]
+    fn saturation_explained_by_the_motor_model_is_not_a_fault() {
+        let mut s = CurrentSupervisor::new(cfg(false));
+        let mut cl = current_loop();
+        let mut m = Coils::new();
+        m.gain[1] = 0.0;
+        // Back-EMF feed-forward of 0.283/50·ωe ≥ 0.8·vmax: the reference is not
+        // reachable at this speed, so the saturation says nothing.
+        let omega_e = 0.9 * 0.95 * 48.0 / (0.283 / 50.0);
+        run_loop(&mut s, &mut cl, &mut m, 3.0, omega_e, 4000);
+        assert_eq!(s.report().follow_seq, 0);
+        // Short saturation (a current step) is not counted either.
+        let mut s = CurrentSupervisor::new(cfg(false));
+        let mut m = Coils::new();
+        let mut cl = current_loop();
+        for k in 0..40 {
+            let i = if k % 2 == 0 { 6.0 } else { -6.0 };
+            run_loop(&mut s, &mut cl, &mut m, i, 0.0, 200);
+        }
+        assert_eq!(s.report().follow_seq, 0);
+        // Errors under 0.3 A are not counted even when saturated (dead sensor,
+        // reference 0.2 A).
+        m.gain[1] = 0.0;
+        run_loop(&mut s, &mut cl, &mut m, 0.2, 0.0, 4000);
+        assert!(cl.saturated);
+        assert_eq!(s.report().follow_seq, 0);
+    }
+}
