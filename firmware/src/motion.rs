@@ -277,8 +277,11 @@ impl Scale {
         Scale {
             units: i64::from(u),
             counts: i64::from(c),
-            cpu: (f64::from(c) / f64::from(u)) as f32,
-            upc: (f64::from(u) / f64::from(c)) as f32,
+            // Both are below 2^24 (pulses per revolution ≤ 51 200, encoder counts per
+            // revolution ≤ 240 000), so they are exact in f32 and the quotient is
+            // correctly rounded without pulling f64 soft-float into the image.
+            cpu: c as f32 / u as f32,
+            upc: u as f32 / c as f32,
         }
     }
     /// Command units → counts: integer part and fraction in [0, 1).

@@ -54,7 +54,13 @@ pub fn emergency_stop() {
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
     emergency_stop();
-    defmt::error!("panic: {}", defmt::Display2Format(info));
+    // Location and the message when it is a plain text: formatting the message's
+    // arguments would pull `core::fmt` into the image for this one path.
+    let (file, line) = info.location().map_or(("?", 0), |l| (l.file(), l.line()));
+    match info.message().as_str() {
+        Some(msg) => defmt::error!("panic at {=str}:{=u32}: {=str}", file, line, msg),
+        None => defmt::error!("panic at {=str}:{=u32}", file, line),
+    }
     loop {
         // Wait for the watchdog reset (or a debugger).
         cortex_m::asm::nop();
