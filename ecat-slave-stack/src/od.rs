@@ -13,8 +13,10 @@
 use crate::esm::EsmState;
 
 /// CoE data type codes (ETG.1000.6), as used by SDO information, the SII and the ESI.
+/// The codes used here all fit a byte (`as u16` gives the 16-bit wire code), which
+/// keeps [`Entry`] at 32 bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u16)]
+#[repr(u8)]
 pub enum DataType {
     /// BOOL (1 bit).
     Boolean = 0x0001,
@@ -216,7 +218,7 @@ pub enum ObjectCode {
 
 /// The static description of one entry (sub-index) of an object.
 ///
-/// Kept compact (36 bytes on the target: the dictionary has several hundred entries):
+/// Kept compact (32 bytes on the target: the dictionary has several hundred entries):
 /// limits and the default are stored as 32-bit patterns read back through the data
 /// type, the unit as an index into [`UNITS`]. Use [`Entry::min`], [`Entry::max`],
 /// [`Entry::default_value`] and [`Entry::unit_text`] to read them.
@@ -239,6 +241,9 @@ pub struct Entry {
     pub saved: bool,
     unit: u8,
 }
+
+#[cfg(target_pointer_width = "32")]
+const _: () = assert!(core::mem::size_of::<Entry>() == 32);
 
 /// Value part of an [`Entry`]: a numeric range and default (32-bit patterns, read
 /// through the data type) or a text default.
