@@ -286,7 +286,7 @@ impl CurrentSupervisor {
 
     /// One PWM period of the closed current loop with the bridges on: the loop's
     /// step plus the "current does not follow" check (one branch when unsaturated).
-    #[inline]
+    #[inline(always)]
     pub fn run_step(
         &mut self,
         cl: &mut CurrentLoop,

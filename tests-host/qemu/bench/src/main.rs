@@ -5,6 +5,7 @@
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 mod ecat_benches;
+mod faults_benches;
 mod firmware_benches;
 mod foc_benches;
 
@@ -26,6 +27,7 @@ fn run_all() {
     foc_benches::run();
     ecat_benches::run();
     firmware_benches::run();
+    faults_benches::run();
 }
 
 #[cfg(target_os = "none")]
