@@ -860,6 +860,8 @@ fn current_sensing_check_does_not_false_trip_in_motion() {
         b.run_ms(5);
         b.enable();
         let p0 = b.d.drive.cia402.position_actual();
+        // PWM periods that ended with the voltage vector limited.
+        let mut saturated = 0u32;
         // Trapezoid: 2 revolutions back and forth, acceleration 200 rev/s².
         let acc = 200.0 * 50_000.0;
         let v = rev_s * 50_000.0;
@@ -871,7 +873,7 @@ fn current_sensing_check_does_not_false_trip_in_motion() {
                 let base = if dir > 0.0 { 0.0 } else { 100_000.0 };
                 let target = p0 + (base + p) as i32;
                 b.sdo_write(0x607A, 0, &target.to_le_bytes()).unwrap();
-                b.run_ms(1);
+                b.run(1000, 25, |a| saturated += u32::from(a.rig.cl.saturated));
             }
             // Load step while holding at the end.
             b.axis.borrow_mut().set_load(0.5);
@@ -879,6 +881,8 @@ fn current_sensing_check_does_not_false_trip_in_motion() {
             b.axis.borrow_mut().set_load(0.0);
             b.run_ms(100);
         }
+        println!("{volts} V, {rev_s} rev/s: {saturated} saturated PWM periods");
+        assert!(saturated > 0, "{volts} V: the moves reach the voltage limit");
         assert_eq!(
             b.axis.borrow().supervisor.report().follow_seq,
             0,
