@@ -882,7 +882,10 @@ fn current_sensing_check_does_not_false_trip_in_motion() {
             b.run_ms(100);
         }
         println!("{volts} V, {rev_s} rev/s: {saturated} saturated PWM periods");
-        assert!(saturated > 0, "{volts} V: the moves reach the voltage limit");
+        assert!(
+            saturated > 0,
+            "{volts} V: the moves reach the voltage limit"
+        );
         assert_eq!(
             b.axis.borrow().supervisor.report().follow_seq,
             0,
