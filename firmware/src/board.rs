@@ -33,7 +33,7 @@
 //! | encoder A, TIM2_CH1 | PA15 | AF1 | TIM2 32-bit encoder mode (×4) |
 //! | encoder B, TIM2_CH2 | PB3 | AF1 | (SWO is not used: defmt goes over RTT) |
 //! | encoder Z, TIM2_CH3 | PB10 | AF1 | input capture latches the count at the index |
-//! | IN1 (fast, touch probe 1), TIM2_CH4 | PB11 | AF1 | input capture latches the encoder count |
+//! | IN1 (fast, touch probe 1), TIM2_CH4 | PB11 | AF1 | input capture (both edges) latches the encoder count |
 //! | IN2 (fast, touch probe 2) | PB1 | EXTI1, both edges | software latch |
 //! | IN3 | PC13 | input | opto, filtered in software |
 //! | IN4 | PC14 | input | (LSE not used) |
@@ -74,7 +74,7 @@
 //! * TIM1 CH4 (no pin) in PWM mode 2 with CCR4 = ARR − [`ADC_TRIGGER_LEAD_TICKS`]:
 //!   OC4REF rises just before the counter peak → TRGO2 → injected conversions of ADC1
 //!   and ADC2 at the PWM centre (the middle of the low-side conduction interval).
-//! * TIM2: 32-bit quadrature encoder (×4), CH3 capture of Z, CH4 capture of IN1.
+//! * TIM2: 32-bit quadrature encoder (×4), CH3 capture of Z, CH4 capture of IN1 (both edges).
 //! * TIM5: embassy time driver. TIM15 is left alone because its vector is shared
 //!   with TIM1's break interrupt.
 #![allow(dead_code)] // a board description: not every constant is consumed yet

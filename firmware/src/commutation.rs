@@ -221,9 +221,11 @@ impl CommutatedMotion {
             }
             _ => {}
         }
+        // One call site (the step is large; the interrupt inlines it): while aligning
+        // the motion layer only tracks the position (its enable is held back).
+        let r = self.motion.step(fb);
         if self.state != Commutation::Aligning {
             // Disabled (tracking) or running; OFF while a failed alignment waits.
-            let r = self.motion.step(fb);
             out.reference = if self.gated() {
                 CurrentReference::OFF
             } else {
@@ -231,8 +233,6 @@ impl CommutatedMotion {
             };
             return out;
         }
-        // Aligning: the motion layer tracks the position with the enable held back.
-        self.motion.step(fb);
         let (angle, current) = self.align.step(raw_elec);
         out.reference = CurrentReference {
             power: true,

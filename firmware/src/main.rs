@@ -13,17 +13,17 @@
 //! | what | runs in | priority | rate | worst-case budget |
 //! |---|---|---|---|---|
 //! | current loop: ADC1 JEOS → I_A, I_B, V_BUS → encoder update → `foc::current_loop::CurrentLoop::step` → TIM1/TIM8 compare (`hw::control`) | `ADC1_2` ISR | 0 | 40 kHz (PWM centre) | ≤ 12.5 µs (half a PWM period); current step ≈ 290 instructions (QEMU count) ≈ 2-3 µs; to be measured (`ISR max` in the status line) |
-//! | motion layer: `firmware::motion::Motion::step` (interpolation, servo / open loop → current reference), feedback published | same ISR, every 4th period | 0 | 10 kHz | together with the current step ≤ 12.5 µs; to be measured |
+//! | motion layer: `firmware::commutation::CommutatedMotion::step` — at the first closed-loop enable after power-up the commutation alignment (`foc::servo::Alignment`, 0.25 s, 0.65 s with the 0x2083 wiggle; offset → encoder), then `firmware::motion::Motion::step` (interpolation, servo / open loop → current reference); index, touch probe 1 (TIM2 CH4 capture) and touch probe 2 (from the task below) → positions (`firmware::latch`); feedback published | same ISR, every 4th period | 0 | 10 kHz | together with the current step ≤ 12.5 µs; to be measured |
 //! | over-current: break input → TIM1/TIM8 MOE off | hardware | — | event | break filter ≈ 24 ns + gate driver |
 //! | break bookkeeping: other bridge off, latch | `TIM1_BRK_TIM15`, `TIM8_BRK` ISRs | 1 | event | < 1 µs, to be measured |
 //! | SPI DMA completion (ESC transfers) | `DMA1_CHANNEL1/2` ISRs (embassy) | 1 | per transfer | < 1 µs, to be measured |
 //! | cyclic path: SYNC0 → `Slave::cycle` (SM2 read, `Drive` = CiA 402 cycle, SM3 write) → set-points to the ISR | interrupt executor on `UART4` (vector unused: its pins carry TIM8) | 2 | DC sync rate (≥ 125 µs cycle) | ≤ 50 % of the cycle; SPI ≈ 0.4 µs/byte at 21.25 MHz + CSP cycle (≈ 1.5 k instructions); to be measured |
-//! | touch probe 2 (IN2 edge → encoder count) | interrupt executor `UART4` | 2 | event | < 2 µs latency, to be measured |
+//! | touch probe 2 (IN2 edge → encoder count + edge direction → `hw::control::PROBE2_RAW`) | interrupt executor `UART4` | 2 | event | < 2 µs latency (the latch error), to be measured |
 //! | EXTI1/2/3 wakers (IN2, ESC IRQ, SYNC0) | `EXTI1..3` ISRs (embassy) | 2 | event | < 1 µs |
 //! | embassy time driver | `TIM5` ISR | 3 | alarms | < 2 µs |
 //! | EtherCAT: ESC IRQ (or every 1 ms) → `Slave::poll` (AL control, ESM, mailbox/SDO, watchdog supervision; the cycle in SM-synchronous / free-run mode), emergencies forwarded | thread executor, holding the priority-ceiling lock | thread (ceiling 2) | ESC IRQ, ≥ 1 kHz | one SDO ≈ 2 × 128-byte SPI transfers + dictionary access; a 'save' adds the record serialisation (≈ 1.7 KiB of dictionary reads); delays the cyclic path by at most this; to be measured |
 //! | parameter storage: staged record → flash (erase ≈ 20 ms per 2 KiB page, ≤ 40 ms max; program ≈ 85 µs per 8 bytes) | thread executor, after `poll`, **no lock** | thread | on 'save' / 'load' | ≤ 4 × 40 ms + 20 ms; the cyclic path and the ISRs keep running (bank 2 read-while-write); the thread tasks pause — the watchdog (300 ms) covers it |
-//! | 1 ms tick: raw inputs → `Drive::tick` (filter, protections, fault 1 / 9 from the board), outputs + brake from `Drive::outputs`, LEDs (`Drive::leds`, RUN/ERR from the ESM state and AL status code) | thread executor (lock held for the drive part) | thread | 1 kHz | < 20 µs, to be measured |
+//! | 1 ms tick: raw inputs → `Drive::tick` (filter, protections, fault 1 / 9 from the board, a failed commutation alignment → following error 0x8611), outputs + brake from `Drive::outputs`, LEDs (`Drive::leds`, RUN/ERR from the ESM state and AL status code) | thread executor (lock held for the drive part) | thread | 1 kHz | < 20 µs, to be measured |
 //! | supervisor: offset self-check at start, watchdog feeding, status line | thread executor | thread | 100 Hz | < 100 µs per tick |
 //!
 //! ## Who owns what
@@ -45,10 +45,17 @@
 //!   cyclic path keeps its timing during a save; a flash error at commit time is
 //!   logged and sent as an emergency (0x5530). A second 'save' while one is being
 //!   programmed cannot happen (the same task does both in turn).
-//! * The **motor control state** (`CurrentLoop`, `foc::encoder::Encoder`, `Motion`) is
-//!   owned by the ADC interrupt ([`hw::control`]). It talks to the drive through two
-//!   lock-free double buffers: set-points / permission / configuration / offsets in,
-//!   measurements (`AxisState`) out.
+//! * The **motor control state** (`CurrentLoop`, `foc::encoder::Encoder`,
+//!   `CommutatedMotion` = `Motion` + the commutation alignment) is owned by the ADC
+//!   interrupt ([`hw::control`]). It talks to the drive through two lock-free double
+//!   buffers: set-points / permission / configuration / offsets in, measurements
+//!   (`AxisState` fields, index and touch-probe latches, alignment failures) out.
+//! * **Touch probes** (0x60B8-0x60BD): the interrupt publishes the axis position at
+//!   each electrical edge of IN1 / IN2 with a sequence number
+//!   (`firmware::latch::Edges`); whoever updates the drive (`update_axis`) turns new
+//!   ones into rising/falling edges per 0x2154 (`firmware::latch::ProbeInput`) and
+//!   hands them to the drive in `AxisState::probe1/probe2` until a drive cycle has
+//!   run (`publish_command` clears them), exactly as the index pulse.
 //!
 //! ## Watchdog
 //! The independent watchdog ([`board::WATCHDOG_TIMEOUT_US`]) is fed by the supervisor
@@ -138,8 +145,10 @@ struct Shared {
     /// Touch-probe edges (`Feedback::probe1/2`) not yet given to a cycle.
     probe1: ProbeInput,
     probe2: ProbeInput,
-    /// Failed commutation alignments already reported (`Feedback::align_failures`).
+    /// Failed commutation alignments already seen (`Feedback::align_failures`), and
+    /// one not yet raised as a fault (by `tick`).
     align_failures: u32,
+    align_fault: bool,
 }
 
 /// The lock holds a reference to [`SHARED_MEM`] (a `None` reference is all zeros, so
@@ -431,6 +440,7 @@ async fn main(spawner: Spawner) {
             probe1: ProbeInput::default(),
             probe2: ProbeInput::default(),
             align_failures: 0,
+            align_fault: false,
         })
     };
     SHARED.lock(|c| *c.borrow_mut() = Some(shared));
@@ -533,17 +543,8 @@ fn update_axis(s: &mut Shared) {
         axis.probe1 = s.probe1.update(&fb.probe1, inverted & 1 != 0);
         axis.probe2 = s.probe2.update(&fb.probe2, inverted & 2 != 0);
         if fb.align_failures != s.align_failures {
-            // The encoder did not follow the alignment sweep: following-error fault.
             s.align_failures = fb.align_failures;
-            let snap = Snapshot {
-                ia_ma: axis.ia_ma,
-                ib_ma: axis.ib_ma,
-                bus_dv: (axis.bus_mv / 100).min(u32::from(u16::MAX)) as u16,
-                ..Snapshot::default()
-            };
-            s.drive
-                .faults
-                .raise(FaultKind::FollowingError, snap, now_ms());
+            s.align_fault = true;
         }
         s.drive.set_axis(axis);
     }
@@ -706,10 +707,17 @@ async fn tick(mut leds: io::Leds<'static>, mut ports: io::Ports<'static>) {
         let now = now_ms();
         let out = with_shared(|s| {
             over_current(s);
-            if s.offset_fault {
-                s.drive
-                    .faults
-                    .raise(FaultKind::PhaseSensing, Snapshot::default(), now);
+            // Board faults: the start-up offset check failed (fault 9, kept until
+            // restart); the encoder did not follow the commutation alignment's sweep
+            // (following error, once per failed alignment).
+            let align = core::mem::take(&mut s.align_fault);
+            for (present, kind) in [
+                (s.offset_fault, FaultKind::PhaseSensing),
+                (align, FaultKind::FollowingError),
+            ] {
+                if present {
+                    s.drive.faults.raise(kind, Snapshot::default(), now);
+                }
             }
             update_axis(s);
             s.drive.tick(1, raw);

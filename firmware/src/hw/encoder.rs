@@ -6,8 +6,9 @@
 //! latency in the measured position. The current-loop interrupt polls the capture
 //! flags ([`take_index_capture`], [`take_probe1_capture`]) at the servo rate; IN1's
 //! edge direction is the pin level read with the capture (an opto input pulls its
-//! pin low while active), so an IN1 pulse must last longer than one servo period
-//! (100 µs) for its edge to be told right. The counter wraps at 2³², which `foc`'s
+//! pin low while active): the capture register and the pin both hold the state after
+//! the latest edge, so of two edges within one servo period (100 µs) the later one is
+//! reported, with its right direction. The counter wraps at 2³², which `foc`'s
 //! wrapping position arithmetic expects.
 use embassy_stm32::gpio::{AfType, Flex, Pull};
 use embassy_stm32::pac;
