@@ -171,7 +171,7 @@ impl CommutatedMotion {
 
     /// The motion layer is held disabled for (or after) an alignment.
     fn gated(&self) -> bool {
-        self.requested.closed_loop && self.state != Commutation::Aligned && !self.motion.enabled()
+        self.state != Commutation::Aligned && self.requested.closed_loop && !self.motion.enabled()
     }
 
     fn pass_command(&mut self) {
@@ -200,6 +200,14 @@ impl CommutatedMotion {
     /// One servo period. `raw_elec`: the encoder's electrical angle without offset
     /// (`foc::encoder::Encoder::raw_electrical_angle`).
     pub fn step(&mut self, fb: &Feedback, raw_elec: Angle) -> Step {
+        if self.state == Commutation::Aligned {
+            // The running drive: the motion layer alone.
+            return Step {
+                reference: self.motion.step(fb),
+                offset: None,
+                failed: false,
+            };
+        }
         let enable = self.cmd.drive_enabled;
         let mut out = Step {
             reference: CurrentReference::OFF,
@@ -221,11 +229,12 @@ impl CommutatedMotion {
             }
             _ => {}
         }
-        // One call site (the step is large; the interrupt inlines it): while aligning
-        // the motion layer only tracks the position (its enable is held back).
+        // While aligning the motion layer only tracks the position (its enable is held
+        // back).
         let r = self.motion.step(fb);
         if self.state != Commutation::Aligning {
-            // Disabled (tracking) or running; OFF while a failed alignment waits.
+            // Disabled (tracking), just aligned (its enable comes with the next
+            // command), or running; OFF while a failed alignment waits.
             out.reference = if self.gated() {
                 CurrentReference::OFF
             } else {

@@ -4,6 +4,7 @@
 //! On the host the same binary runs the benchmarks natively (a smoke test, no counts).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
+mod board_benches;
 mod ecat_benches;
 mod faults_benches;
 mod firmware_benches;
@@ -28,6 +29,7 @@ fn run_all() {
     ecat_benches::run();
     firmware_benches::run();
     faults_benches::run();
+    board_benches::run();
 }
 
 #[cfg(target_os = "none")]

@@ -1,0 +1,83 @@
+//! Board control-path rows of issue 10 (`firmware::commutation`, `firmware::latch`):
+//! the servo step through the commutation wrapper once aligned (to compare with the
+//! bare "servo step (motion layer)" row), one step of the power-up alignment in its
+//! sweep, and the conversion of a latched encoder count into command units (each
+//! touch-probe / index edge in the current-loop interrupt).
+use core::hint::black_box;
+
+use firmware::cia402::{DriveCommand, SetpointKind};
+use firmware::commutation::{CommutatedMotion, Commutation};
+use firmware::identity::Variant;
+use firmware::latch::units_at_count;
+use firmware::motion::{Feedback, MotionConfig, ECN57_20, SERVO_TS};
+use firmware::params::Params;
+use foc::angle::Angle;
+
+pub fn run() {
+    let p = Params::new(Variant::HybridServo);
+    let cfg = MotionConfig::from_params(&p, Variant::HybridServo, &ECN57_20, SERVO_TS);
+    let mut cmd = DriveCommand {
+        power_stage: true,
+        drive_enabled: true,
+        kind: SetpointKind::Position,
+        position: 0,
+        velocity: 50_000.0,
+        acceleration: 0.0,
+        torque_limit: 1000,
+        current_limit: 1000,
+        brake_release: true,
+    };
+    let mut fb = Feedback {
+        position: 0,
+        velocity: 0.0,
+        electrical_angle: Angle::ZERO,
+        voltage_limited: false,
+    };
+
+    // Aligned, running at one revolution per second (as the motion-layer row).
+    let mut m = CommutatedMotion::new_aligned(cfg, true);
+    for k in 0..20 {
+        cmd.position = 50 * k;
+        m.set_command(&cmd, 0.001);
+        for _ in 0..10 {
+            let (d, f) = m.motion().demand_counts();
+            fb.position = d;
+            fb.velocity = 4000.0 + f;
+            m.step(&fb, Angle::ZERO);
+        }
+    }
+    cmd.position += 50;
+    m.set_command(&cmd, 0.001);
+    for _ in 0..4 {
+        m.step(&fb, Angle::ZERO);
+    }
+    let fbb = black_box(fb);
+    let out = crate::bench("servo step (commutated motion layer, aligned)", || {
+        m.step(&fbb, Angle::ZERO)
+    });
+    black_box(out);
+
+    // Alignment with the wiggle, in its forward sweep (the encoder follows).
+    let mut a = CommutatedMotion::new(cfg, true);
+    a.set_command(&cmd, 0.001);
+    let mut raw = Angle::ZERO;
+    let mut n = 0u32;
+    // Ramp (0.05 s) + settle (0.2 s) + a little of the sweep.
+    while n < 2600 && a.state() != Commutation::Failed {
+        let s = a.step(&fb, raw);
+        if let firmware::motion::Frame::Command { angle, .. } = s.reference.frame {
+            raw = angle;
+        }
+        n += 1;
+    }
+    let r = black_box(raw);
+    let out = crate::bench("commutation alignment step (sweep)", || a.step(&fbb, r));
+    black_box(out);
+
+    // A touch-probe latch 37 counts back → command units.
+    let c = black_box(cfg);
+    let out = crate::bench("latched count -> units (probe / index edge)", || {
+        units_at_count(&c, black_box(123_456), black_box(37))
+    });
+    black_box(out);
+}
