@@ -162,6 +162,22 @@ pub struct CurrentReport {
     pub follow_ref_ma: u16,
 }
 
+impl CurrentReport {
+    /// Nothing measured or detected yet (for statics built at compile time).
+    pub const NONE: CurrentReport = CurrentReport {
+        tune: TuneStatus::Off,
+        tuned: TunedValues {
+            r_mohm: 0,
+            l_uh: 0,
+            kp: 0,
+            ki: 0,
+        },
+        tune_seq: 0,
+        follow_seq: 0,
+        follow_ref_ma: 0,
+    };
+}
+
 /// The supervisor (one per axis, owned by the current-loop interrupt).
 #[derive(Debug, Clone)]
 pub struct CurrentSupervisor {

@@ -205,6 +205,7 @@ impl SingleBank {
 
 /// Which value becomes the station alias.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "board", derive(defmt::Format))]
 pub enum AliasSource {
     /// The DIP address.
     Dip,

@@ -88,6 +88,7 @@ use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{bind_interrupts, dma, peripherals, rcc};
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_time::{Duration, Instant, Ticker, Timer};
+use firmware::current_supervisor::SupervisorConfig;
 use firmware::drive::{Drive, FlashStore};
 use firmware::faults::{FaultKind, Snapshot};
 use firmware::identity::Variant;
@@ -238,6 +239,48 @@ fn motion_config(d: &BoardDrive) -> MotionConfig {
     MotionConfig::from_params(&d.params, d.variant, &MOTOR, SERVO_TS)
 }
 
+/// Log text of an ESC access error (no `core::fmt` in the image: `Debug2Format` would
+/// pull it in).
+fn esc_error(e: ecat_slave_stack::EscError) -> &'static str {
+    use ecat_slave_stack::EscError as E;
+    match e {
+        E::Bus => "SPI bus error",
+        E::NotDetected => "chip not detected",
+        E::Timeout => "timeout",
+        E::OutOfRange => "address out of range",
+    }
+}
+
+/// Log text of a parameter-region flash error.
+fn region_error(e: &hw::flash::RegionErrorOf) -> &'static str {
+    use firmware::flash_region::RegionError as E;
+    match e {
+        E::OutOfBounds => "outside the parameter region",
+        E::NotAligned => "not aligned to the flash granularity",
+        E::Flash(embassy_stm32::flash::Error::Prog) => "flash: programming error",
+        E::Flash(embassy_stm32::flash::Error::Size) => "flash: size error",
+        E::Flash(embassy_stm32::flash::Error::Miss) => "flash: fast programming data miss",
+        E::Flash(embassy_stm32::flash::Error::Seq) => "flash: sequence error",
+        E::Flash(embassy_stm32::flash::Error::Protected) => "flash: write protected",
+        E::Flash(_) => "flash: driver error",
+    }
+}
+
+/// Log text of a parameter-store error.
+fn storage_error(e: firmware::storage::StorageError) -> &'static str {
+    use firmware::storage::StorageError as E;
+    match e {
+        E::Flash(_) => "flash driver error",
+        E::Geometry => "flash geometry does not fit the record layout",
+        E::RecordTooLarge => "record larger than a slot",
+    }
+}
+
+/// Current-loop supervision (power-up auto-tune 0x2013, its test current from 0x2000).
+fn supervisor_config(d: &BoardDrive) -> SupervisorConfig {
+    SupervisorConfig::from_params(&d.params, 1.0 / board::PWM_HZ as f32, board::PWM_ARR)
+}
+
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
     hw::stack::paint();
@@ -327,9 +370,9 @@ async fn main(spawner: Spawner) {
         Ok(()) => true,
         Err(e) => {
             defmt::error!(
-                "ESC {=str} not answering: {}",
+                "ESC {=str} not answering: {=str}",
                 hw::esc::ESC_NAME,
-                defmt::Debug2Format(&e)
+                esc_error(e)
             );
             false
         }
@@ -399,11 +442,11 @@ async fn main(spawner: Spawner) {
                 info.sync_managers,
                 info.ram_kib,
                 alias,
-                defmt::Debug2Format(&source)
+                source
             ),
             Err(e) => {
                 ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
-                defmt::error!("slave init: {}", defmt::Debug2Format(&e));
+                defmt::error!("slave init: {=str}", esc_error(e));
             }
         }
     }
@@ -411,8 +454,9 @@ async fn main(spawner: Spawner) {
     // Motor control in the current-loop interrupt, then the ADCs (which enable it).
     let mcfg = motion_config(&drive);
     let wiggle = align_wiggle(&drive);
+    let scfg = supervisor_config(&drive);
     let (r, l) = motor_rl(&drive);
-    hw::control::init(mcfg, wiggle, mcfg.counts_per_rev / 4, r, l, MOTOR.kt);
+    hw::control::init(mcfg, wiggle, scfg, mcfg.counts_per_rev / 4, r, l, MOTOR.kt);
     let ctl = ControlCommand {
         cycle: 0,
         command: *drive.command(),
@@ -422,6 +466,8 @@ async fn main(spawner: Spawner) {
         motion: mcfg,
         align_wiggle: wiggle,
         offsets: None,
+        supervisor: scfg,
+        tune_allowed: false,
     };
     COMMAND.write(Some(ctl));
     let has_slave = slave.is_some();
@@ -529,7 +575,13 @@ impl ecat_slave_stack::od::Dictionary for NoRuntime {
 
 /// Hands the interrupt's latest measurements to the drive (before a cycle / tick).
 fn update_axis(s: &mut Shared) {
-    if let Some((_, fb)) = FEEDBACK.read() {
+    if let Some((seq, fb)) = FEEDBACK.read() {
+        // Auto-tune results / motor open, "current does not follow" — once the
+        // interrupt has published (the initial report would end the drive's
+        // power-up self-test before the tune could start).
+        if seq != 0 {
+            s.drive.current_report(&fb.current);
+        }
         let mut axis = fb.axis;
         axis.overcurrent_trip = hw::pwm::break_latched() != 0;
         if fb.index_seq != s.index_seen {
@@ -571,6 +623,7 @@ fn publish_command(s: &mut Shared) {
         }
     }
     s.ctl.power_allowed = s.drive.command().power_stage && !s.drive.faults.any_active();
+    s.ctl.tune_allowed = s.drive.tune_permitted() && s.ctl.offsets.is_some();
     if !s.ctl.power_allowed {
         s.ctl.command.drive_enabled = false;
     }
@@ -653,10 +706,7 @@ async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>)
                 Ok(()) => defmt::info!("parameters: record programmed"),
                 Err(e) => {
                     FLASH_ERRORS.fetch_add(1, Ordering::Relaxed);
-                    defmt::error!(
-                        "parameters: programming failed: {}",
-                        defmt::Debug2Format(&e)
-                    );
+                    defmt::error!("parameters: programming failed: {=str}", region_error(&e));
                 }
             }
             with_shared(|s| {
@@ -725,9 +775,11 @@ async fn tick(mut leds: io::Leds<'static>, mut ports: io::Ports<'static>) {
             if n.is_multiple_of(10) {
                 let m = motion_config(&s.drive);
                 let w = align_wiggle(&s.drive);
-                if m != s.ctl.motion || w != s.ctl.align_wiggle {
+                let sc = supervisor_config(&s.drive);
+                if m != s.ctl.motion || w != s.ctl.align_wiggle || sc != s.ctl.supervisor {
                     s.ctl.motion = m;
                     s.ctl.align_wiggle = w;
+                    s.ctl.supervisor = sc;
                     s.ctl.config = s.ctl.config.wrapping_add(1);
                 }
             }
@@ -834,10 +886,7 @@ async fn offset_self_check(wdg: &mut IndependentWatchdog<'static, IWDG>) {
         Err(e) => {
             hw::safety::raise_fault(hw::safety::FAULT_CURRENT_SENSING);
             with_shared(|s| s.offset_fault = true);
-            defmt::error!(
-                "fault 9, current-sensor self-check: {}",
-                defmt::Debug2Format(&e)
-            );
+            defmt::error!("fault 9, current-sensor self-check: {}", e);
         }
     }
 }
@@ -847,7 +896,7 @@ async fn offset_self_check(wdg: &mut IndependentWatchdog<'static, IWDG>) {
 fn report_param_region(f: &mut ParamFlash) {
     use firmware::storage::SlotStatus;
     if let Err(e) = PARAM_STORE.check(f) {
-        defmt::error!("parameter store layout: {}", defmt::Debug2Format(&e));
+        defmt::error!("parameter store layout: {=str}", storage_error(e));
         return;
     }
     let (slots, newest) = PARAM_STORE.scan(f);

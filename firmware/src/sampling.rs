@@ -70,6 +70,7 @@ pub struct Offsets {
 
 /// Which current sensor failed the start-up check.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "board", derive(defmt::Format))]
 pub enum Phase {
     /// Phase A.
     A,
@@ -79,6 +80,7 @@ pub enum Phase {
 
 /// Why the current-sensor offset check failed. Every variant is drive fault 9.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "board", derive(defmt::Format))]
 pub enum OffsetFault {
     /// Fewer samples than the calibration asked for arrived (no ADC trigger: PWM
     /// timer or ADC not running).

@@ -14,8 +14,14 @@
 //!    into the encoder) → current reference; the index and touch-probe latches are
 //!    converted to axis positions (`firmware::latch`), and the measurements for the
 //!    drive ([`Feedback`]) are published;
-//! 4. `foc::current_loop::CurrentLoop::step` → duties → TIM1/TIM8 compare registers,
-//!    or the bridges off.
+//! 4. the current loop through `firmware::current_supervisor::CurrentSupervisor`
+//!    (`run_step`: `foc::current_loop::CurrentLoop::step` plus the "current does not
+//!    follow" check, fault 0x5210) → duties → TIM1/TIM8 compare registers, or the
+//!    bridges off. While the power-up auto-tune runs (0x2013 = 1, permitted by the
+//!    drive: offsets passed, bus voltage in range, no fault) the supervisor drives the
+//!    bridges in voltage mode instead (`tune_step`) and the motion layer is held
+//!    (`step_held`); the results and a failure (motor open 0x7120) reach the drive in
+//!    [`Feedback::current`].
 //!
 //! Touch probes: probe 1 (IN1) is latched by TIM2 CH4 on both edges in hardware
 //! ([`crate::hw::encoder::take_probe1_capture`]: the pin level read with the capture
@@ -59,6 +65,7 @@ use core::sync::atomic::{compiler_fence, AtomicBool, AtomicU32, Ordering};
 
 use firmware::cia402::DriveCommand;
 use firmware::commutation::{CommutatedMotion, Commutation};
+use firmware::current_supervisor::{CurrentReport, CurrentSupervisor, SupervisorConfig};
 use firmware::latch::{units_at_count, Edges, Seen};
 use firmware::motion::{CurrentReference, Frame, MotionConfig};
 use firmware::sampling::RawSample;
@@ -135,6 +142,12 @@ pub struct ControlCommand {
     pub align_wiggle: bool,
     /// Current-sensor offsets (counts) once the start-up check passed.
     pub offsets: Option<(f32, f32)>,
+    /// Current-loop supervision (auto-tune 0x2013, test current); applied with
+    /// [`Self::motion`].
+    pub supervisor: SupervisorConfig,
+    /// The drive permits the power-up auto-tune (`Drive::tune_permitted`) and the
+    /// offsets passed.
+    pub tune_allowed: bool,
 }
 
 /// What the interrupt measured (published at the servo rate).
@@ -159,6 +172,9 @@ pub struct Feedback {
     pub aligned: bool,
     /// Failed commutation alignments since start (wrapping).
     pub align_failures: u32,
+    /// The current-loop supervisor's report (auto-tune results and failures, "current
+    /// does not follow" detections) for `Drive::current_report`.
+    pub current: CurrentReport,
 }
 
 /// Cyclic path → interrupt (set-points, configuration, permission).
@@ -195,6 +211,7 @@ pub static FEEDBACK: Exchange<Feedback> = Exchange::new(Feedback {
     probe2: NO_EDGES,
     aligned: false,
     align_failures: 0,
+    current: CurrentReport::NONE,
 });
 
 const NO_EDGES: Edges<i32> = Edges {
@@ -225,6 +242,7 @@ struct Control {
     cl: CurrentLoop,
     enc: Encoder,
     motion: CommutatedMotion,
+    sup: CurrentSupervisor,
     reference: CurrentReference,
     divider: u8,
     seen_cycle: u32,
@@ -253,8 +271,16 @@ static READY: AtomicBool = AtomicBool::new(false);
 
 /// Builds the control state. Call once, before the current-loop interrupt is
 /// enabled. `r_ohm`, `l_h`, `ke`: motor constants for the current-loop gains and
-/// feed-forward; `wiggle`: 0x2083.
-pub fn init(motion: MotionConfig, wiggle: bool, encoder_lines: u32, r_ohm: f32, l_h: f32, ke: f32) {
+/// feed-forward (until an auto-tune replaces them); `wiggle`: 0x2083.
+pub fn init(
+    motion: MotionConfig,
+    wiggle: bool,
+    supervisor: SupervisorConfig,
+    encoder_lines: u32,
+    r_ohm: f32,
+    l_h: f32,
+    ke: f32,
+) {
     let ts = 1.0 / board::PWM_HZ as f32;
     let (kp, ki) = CurrentLoopConfig::gains_for(r_ohm, l_h, WC);
     let cl = CurrentLoop::new(CurrentLoopConfig {
@@ -284,6 +310,7 @@ pub fn init(motion: MotionConfig, wiggle: bool, encoder_lines: u32, r_ohm: f32, 
         cl,
         enc,
         motion: CommutatedMotion::new(motion, wiggle),
+        sup: CurrentSupervisor::new(supervisor),
         reference: CurrentReference::OFF,
         divider: 0,
         seen_cycle: 0,
@@ -334,44 +361,56 @@ pub fn on_sample(s: RawSample) {
         servo_step(c, cmd.as_ref());
     }
 
-    let allowed = c.permitted && pwm::break_latched() == 0 && c.reference.power;
+    let no_break = pwm::break_latched() == 0;
+    let tuning = c.sup.tuning() && no_break;
+    let allowed = c.permitted && no_break && c.reference.power;
     let adc = AdcSample {
         ia: s.ia,
         ib: s.ib,
         vbus: s.vbus,
     };
-    if allowed {
+    if tuning || allowed {
         if !c.bridges_on {
             c.cl.reset();
             c.bridges_on = pwm::enable_outputs();
         }
-        if c.reference.reset {
-            c.cl.reset();
-            c.reference.reset = false;
-        }
-        c.cl.id_ref = c.reference.id;
-        c.cl.iq_ref = c.reference.iq;
-        let (theta, omega) = match c.reference.frame {
-            Frame::Encoder => (c.enc.electrical_angle(), c.enc.omega_e()),
-            Frame::Command { angle, omega_e } => (angle, omega_e),
+        let d = if tuning {
+            // Power-up auto-tune: voltage mode, the motion layer is held.
+            c.sup.tune_step(&mut c.cl, &adc)
+        } else {
+            if c.reference.reset {
+                c.cl.reset();
+                c.reference.reset = false;
+            }
+            c.cl.id_ref = c.reference.id;
+            c.cl.iq_ref = c.reference.iq;
+            let (theta, omega) = match c.reference.frame {
+                Frame::Encoder => (c.enc.electrical_angle(), c.enc.omega_e()),
+                Frame::Command { angle, omega_e } => (angle, omega_e),
+            };
+            c.sup.run_step(&mut c.cl, &adc, theta, omega)
         };
-        let d = c.cl.step(&adc, theta, omega);
         pwm::set_compare(d.a1, d.a2, d.b1, d.b2);
     } else {
         if c.bridges_on {
             pwm::disable_outputs();
             c.bridges_on = false;
         }
+        c.sup.idle();
         // Keep the measurements fresh for the drive.
         c.cl.voltage_step(&adc, 0.0, 0.0);
     }
 }
 
 fn servo_step(c: &mut Control, cmd: Option<&ControlCommand>) {
+    c.sup.permit_tune(cmd.is_some_and(|k| k.tune_allowed));
     if let Some(k) = cmd {
         if k.config != c.seen_config {
             c.seen_config = k.config;
             c.motion.configure(k.motion, k.align_wiggle);
+            if k.supervisor != *c.sup.config() {
+                c.sup.configure(k.supervisor);
+            }
         }
         if let Some((a, b)) = k.offsets {
             let cfg = c.cl.config().sense;
@@ -392,7 +431,11 @@ fn servo_step(c: &mut Control, cmd: Option<&ControlCommand>) {
         electrical_angle: c.enc.electrical_angle(),
         voltage_limited: c.cl.saturated,
     };
-    let step = c.motion.step(&fb, c.enc.raw_electrical_angle());
+    let step = if c.sup.tuning() {
+        c.motion.step_held(&fb)
+    } else {
+        c.motion.step(&fb, c.enc.raw_electrical_angle())
+    };
     c.reference = step.reference;
     if let Some(offset) = step.offset {
         c.enc.set_electrical_offset(offset);
@@ -417,6 +460,7 @@ fn servo_step(c: &mut Control, cmd: Option<&ControlCommand>) {
         probe2: c.probe2,
         aligned: c.motion.state() == Commutation::Aligned,
         align_failures: c.motion.failures(),
+        current: c.sup.report(),
     });
 }
 
