@@ -262,9 +262,34 @@ enum Spec {
 
 /// Unit texts an entry can carry ([`Entry::unit`]); index 0 is "no unit".
 pub const UNITS: &[&str] = &[
-    "", "inc", "inc/s", "inc/s²", "inc/rev", "lines/rev", "1/65536 turn", "ns", "us", "ms",
-    "s", "h", "min", "50us", "mA", "A", "mV", "10mV", "0.1V", "V", "mOhm", "uH", "%", "0.1 %",
-    "rpm", "Hz", "kHz", "°C",
+    "",
+    "inc",
+    "inc/s",
+    "inc/s²",
+    "inc/rev",
+    "lines/rev",
+    "1/65536 turn",
+    "ns",
+    "us",
+    "ms",
+    "s",
+    "h",
+    "min",
+    "50us",
+    "mA",
+    "A",
+    "mV",
+    "10mV",
+    "0.1V",
+    "V",
+    "mOhm",
+    "uH",
+    "%",
+    "0.1 %",
+    "rpm",
+    "Hz",
+    "kHz",
+    "°C",
 ];
 
 const fn str_eq(a: &str, b: &str) -> bool {
@@ -1070,7 +1095,10 @@ mod reference_tests {
         assert!(s.contains("| 0x1000 | Device type | VAR | 1 |"));
         assert!(s.contains("## 0x2000 Gains (RECORD)"));
         // The description text is only kept with the `descriptions` feature.
-        assert_eq!(s.contains("Profile \\| type"), cfg!(feature = "descriptions"));
+        assert_eq!(
+            s.contains("Profile \\| type"),
+            cfg!(feature = "descriptions")
+        );
         assert!(s.contains("| 1 | Kp | UINT | 16 | rPSO wP | Rx | 0 | 65535 | - | mA | yes |"));
         assert!(s.contains("| 2 | Label | STRING | 64 | rPSO | - | - | - | \"abc\" | - | no |"));
         assert!(s.contains(

@@ -6,9 +6,7 @@
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 use ecat_slave_stack::esm::EsmState;
-use ecat_slave_stack::od::{
-    self, Access, DataType, Dictionary, Entry, Object, SdoAbort,
-};
+use ecat_slave_stack::od::{self, Access, DataType, Dictionary, Entry, Object, SdoAbort};
 use firmware::comm::{self, Comm, StoreCommand, LOAD, SAVE};
 use firmware::dip::{self, AliasSource, Board};
 use firmware::faults::{self, Faults};
@@ -27,7 +25,10 @@ const fn map_entry(sub: u8) -> Entry {
 }
 
 const MAPPING: &[Object] = &[
-    Object::record(0x1600, "RxPDO1 mapping", &[
+    Object::record(
+        0x1600,
+        "RxPDO1 mapping",
+        &[
             Entry::new(
                 0,
                 "Number of entries",
@@ -40,8 +41,13 @@ const MAPPING: &[Object] = &[
             map_entry(2),
             map_entry(3),
             map_entry(4),
-        ], ""),
-    Object::array(0x1C12, "RxPDO assign", &[
+        ],
+        "",
+    ),
+    Object::array(
+        0x1C12,
+        "RxPDO assign",
+        &[
             Entry::new(
                 0,
                 "Number of entries",
@@ -53,7 +59,9 @@ const MAPPING: &[Object] = &[
             Entry::new(1, "Assigned PDO", DataType::Unsigned16, Access::RW_PREOP)
                 .range(0x1600, 0x1603)
                 .saved(),
-        ], ""),
+        ],
+        "",
+    ),
 ];
 
 const PARTS: &[&[Object]] = &[
@@ -269,9 +277,8 @@ fn all_values_in_range(d: &mut Drive) -> bool {
             .iter()
             .filter(|e| e.saved)
             .all(|e| match d.read(o.index, e.sub, &mut buf) {
-                Ok(n) => {
-                    od::decode_int(e.data_type, &buf[..n]).is_none_or(|v| v >= e.min() && v <= e.max())
-                }
+                Ok(n) => od::decode_int(e.data_type, &buf[..n])
+                    .is_none_or(|v| v >= e.min() && v <= e.max()),
                 Err(_) => false,
             })
     })

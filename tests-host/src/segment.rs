@@ -26,9 +26,7 @@ use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
 use ecat_slave_stack::et1100::{Et1100, Et1100Config};
 use ecat_slave_stack::lan9252::{Lan9252, Lan9252Config};
-use ecat_slave_stack::od::{
-    Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort,
-};
+use ecat_slave_stack::od::{Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort};
 use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
 use ecat_slave_stack::sii::{self, DeviceDescription};
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};

@@ -313,7 +313,11 @@ fn every_vendor_parameter_default_and_range_edges_over_sdo() {
                     "{:#x}",
                     o.index
                 );
-                assert_eq!(d.sdo_upload(o.index, e.sub), Ok(e.max() as u32), "unchanged");
+                assert_eq!(
+                    d.sdo_upload(o.index, e.sub),
+                    Ok(e.max() as u32),
+                    "unchanged"
+                );
             }
             if e.min() > tmin {
                 assert_eq!(
@@ -322,7 +326,11 @@ fn every_vendor_parameter_default_and_range_edges_over_sdo() {
                     "{:#x}",
                     o.index
                 );
-                assert_eq!(d.sdo_upload(o.index, e.sub), Ok(e.max() as u32), "unchanged");
+                assert_eq!(
+                    d.sdo_upload(o.index, e.sub),
+                    Ok(e.max() as u32),
+                    "unchanged"
+                );
             }
             // One byte too many.
             if len < 4 {
