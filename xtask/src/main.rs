@@ -504,7 +504,7 @@ fn bench() -> bool {
         eprintln!("error: marker symbols not found in {elf}");
         return false;
     };
-    let first = match run_bench_image(&elf, &plugin, start, stop) {
+    let (first, stacks) = match run_bench_image_full(&elf, &plugin, start, stop) {
         Ok(r) => r,
         Err(e) => {
             eprintln!("error: {e}");
@@ -554,6 +554,45 @@ fn bench() -> bool {
             count.saturating_sub(overhead)
         );
     }
+
+    md.push_str("\n## Stack depth of the library paths (painted, QEMU)\n\n");
+    md.push_str(
+        "Bytes of stack each path used, measured in the same image by painting the stack \
+         below the caller and finding the deepest overwritten word \
+         (`tests-host/qemu/bench/src/stack_benches.rs`; deepest of repeated runs).\n\n",
+    );
+    md.push_str("| path | context on the board | bytes |\n|---|---|---|\n");
+    let context = |name: &str| {
+        if name.starts_with("current-loop") {
+            "ADC1_2 interrupt (priority 0)"
+        } else if name.starts_with("CSP") {
+            "cyclic executor (priority 2) / 1 ms tick"
+        } else {
+            "thread mode (mailbox, storage tasks)"
+        }
+    };
+    let mut worst = [0u64; 3];
+    for (name, bytes) in &stacks {
+        let _ = writeln!(md, "| {name} | {} | {bytes} |", context(name));
+        let k = match context(name) {
+            c if c.starts_with("ADC") => 0,
+            c if c.starts_with("cyclic") => 1,
+            _ => 2,
+        };
+        worst[k] = worst[k].max(*bytes);
+    }
+    // Worst nesting: a thread-mode path, preempted by the cyclic path, preempted by the
+    // current loop; each preemption stacks an exception frame with the FPU context
+    // (26 words = 104 bytes).
+    let nested = worst.iter().sum::<u64>() + 2 * 104;
+    let _ = writeln!(
+        md,
+        "\nWorst nesting of these paths (thread {} + cyclic {} + interrupt {} bytes, plus two \
+         exception frames with FPU context, 2 × 104 bytes): **{nested} bytes** of library \
+         stack. The board's task bodies and start-up come on top; the board paints its \
+         stack and reports the peak at run time (README \"Stack\").",
+        worst[2], worst[1], worst[0]
+    );
 
     md.push_str("\n## Control quality (plant simulation)\n\n");
     let report = cargo(&[
@@ -646,6 +685,36 @@ fn run_bench_image(
     start: u64,
     stop: u64,
 ) -> Result<Vec<(String, u64)>, String> {
+    run_bench_image_full(elf, plugin, start, stop).map(|(c, _)| c)
+}
+
+/// Stack depths printed by the image (`STACK <name> <bytes>`): the deepest of the
+/// runs of each name, in order of first appearance.
+fn stack_lines(stdout: &str) -> Vec<(String, u64)> {
+    let mut v: Vec<(String, u64)> = Vec::new();
+    for l in stdout.lines().filter_map(|l| l.strip_prefix("STACK ")) {
+        let Some((name, bytes)) = l.rsplit_once(' ') else {
+            continue;
+        };
+        let Ok(b) = bytes.parse::<u64>() else {
+            continue;
+        };
+        match v.iter_mut().find(|(n, _)| n == name) {
+            Some((_, m)) => *m = (*m).max(b),
+            None => v.push((name.to_string(), b)),
+        }
+    }
+    v
+}
+
+/// [`run_bench_image`] plus the stack depths of that run.
+#[allow(clippy::type_complexity)]
+fn run_bench_image_full(
+    elf: &str,
+    plugin: &str,
+    start: u64,
+    stop: u64,
+) -> Result<(Vec<(String, u64)>, Vec<(String, u64)>), String> {
     let log = format!("{elf}.plugin.log");
     let _ = fs::remove_file(&log);
     let plugin_arg = format!("{plugin},start={start:#x},stop={stop:#x}");
@@ -696,5 +765,6 @@ fn run_bench_image(
             counts.len()
         ));
     }
-    Ok(names.into_iter().zip(counts).collect())
+    let stacks = stack_lines(&stdout);
+    Ok((names.into_iter().zip(counts).collect(), stacks))
 }

@@ -9,6 +9,7 @@ mod ecat_benches;
 mod faults_benches;
 mod firmware_benches;
 mod foc_benches;
+mod stack_benches;
 
 /// Prints the benchmark name, then runs `f` once between the markers.
 pub fn bench<R>(name: &str, f: impl FnOnce() -> R) -> R {
@@ -30,6 +31,8 @@ fn run_all() {
     firmware_benches::run();
     faults_benches::run();
     board_benches::run();
+    // Stack depths last: they print STACK lines, no instruction counts.
+    stack_benches::run();
 }
 
 #[cfg(target_os = "none")]
