@@ -20,9 +20,7 @@
 //! else is refused with 0x06090030); sub-index n = error code (bits 0-15) and fault
 //! kind (bits 16-23) of the n-th newest fault.
 
-use ecat_slave_stack::od::{
-    self, Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort,
-};
+use ecat_slave_stack::od::{Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort};
 use embedded_storage::nor_flash::NorFlash;
 
 use crate::faults::{Faults, HISTORY};
@@ -229,7 +227,7 @@ impl Comm {
         sub: u8,
         buf: &mut [u8],
     ) -> Result<usize, SdoAbort> {
-        let entry = od::find_entry(OBJECTS, index, sub)?;
+        let entry = crate::dictionary::find_entry_in(crate::dictionary::COMM, index, sub)?;
         let text = match index {
             0x1008 => Some(self.identity.device_name()),
             0x1009 => Some(identity::HARDWARE_VERSION),
@@ -274,7 +272,7 @@ impl Comm {
         sub: u8,
         data: &[u8],
     ) -> Result<Option<StoreCommand>, SdoAbort> {
-        let entry = od::find_entry(OBJECTS, index, sub)?;
+        let entry = crate::dictionary::find_entry_in(crate::dictionary::COMM, index, sub)?;
         if !entry.access.writable() {
             return Err(SdoAbort::WriteReadOnly);
         }
@@ -336,6 +334,7 @@ mod tests {
     use crate::faults::{FaultKind, Snapshot};
     use crate::identity::Variant;
     use ecat_slave_stack::esm::EsmState;
+    use ecat_slave_stack::od;
 
     fn sdo_write(
         c: &mut Comm,

@@ -357,7 +357,7 @@ impl CurrentSupervisor {
             self.follow_n = 0;
             self.follow_armed = false;
             self.follow_seq = self.follow_seq.wrapping_add(1);
-            self.follow_ref_ma = (libm::sqrtf(r2) * 1000.0).clamp(0.0, 65535.0) as u16;
+            self.follow_ref_ma = (foc::num::sqrtf(r2) * 1000.0).clamp(0.0, 65535.0) as u16;
         }
     }
 

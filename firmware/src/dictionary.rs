@@ -14,9 +14,7 @@
 //! The same table feeds the SDO server, PDO mapping rules, SDO information, the ESI,
 //! the SII and the generated reference (`cargo xtask od-doc`), so they cannot disagree.
 
-use ecat_slave_stack::od::{
-    self, Access, DataType, Entry, Object,
-};
+use ecat_slave_stack::od::{self, Access, DataType, Entry, Object, SdoAbort};
 
 const PLACEHOLDER_ENTRY: Entry = Entry::new(0, "", DataType::Unsigned8, Access::RO);
 const PLACEHOLDER: Object = Object::var(0, "", &[PLACEHOLDER_ENTRY], "");
@@ -95,9 +93,79 @@ pub fn is_well_formed() -> bool {
     od::is_well_formed(OBJECTS)
 }
 
+/// Index ranges of the modules that look their entries up here: every object of
+/// [`OBJECTS`] inside a range is one of that module's (tested below).
+pub(crate) const COMM: (u16, u16) = (0x1000, 0x10FF);
+pub(crate) const PARAMS: (u16, u16) = (0x2000, 0x21FF);
+pub(crate) const MONITOR: (u16, u16) = (0x2300, 0x23FF);
+pub(crate) const FAULTS: (u16, u16) = (0x2400, 0x24FF);
+pub(crate) const CIA402: (u16, u16) = (0x6000, 0x6FFF);
+
+/// Object `index` of a module owning `range`: the same answer as
+/// `od::find(module::OBJECTS, index)`, without a second copy of the module's table in
+/// flash (a module's `const OBJECTS` used at run time is its own array beside
+/// [`TABLE`]).
+pub(crate) fn find_in(range: (u16, u16), index: u16) -> Option<&'static Object> {
+    if index < range.0 || index > range.1 {
+        return None;
+    }
+    od::find(OBJECTS, index)
+}
+
+/// Entry `index:sub` of a module owning `range` (as `od::find_entry(module::OBJECTS,
+/// ..)`: no object → `ObjectDoesNotExist`, no sub-index → `SubindexDoesNotExist`).
+pub(crate) fn find_entry_in(
+    range: (u16, u16),
+    index: u16,
+    sub: u8,
+) -> Result<&'static Entry, SdoAbort> {
+    let obj = find_in(range, index).ok_or(SdoAbort::ObjectDoesNotExist)?;
+    obj.entry(sub).ok_or(SdoAbort::SubindexDoesNotExist)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn module_ranges_hold_exactly_the_module_tables() {
+        let modules: [(&[Object], (u16, u16)); 5] = [
+            (crate::comm::OBJECTS, COMM),
+            (crate::params::OBJECTS, PARAMS),
+            (crate::monitor::OBJECTS, MONITOR),
+            (crate::faults::OBJECTS, FAULTS),
+            (crate::cia402::objects::OBJECTS, CIA402),
+        ];
+        for (own, range) in modules {
+            for o in own {
+                assert!((range.0..=range.1).contains(&o.index), "{:#06x}", o.index);
+            }
+            for index in 0..=u16::MAX {
+                let mine = od::find(own, index);
+                let found = find_in(range, index);
+                assert_eq!(mine.is_some(), found.is_some(), "{index:#06x}");
+                if let (Some(a), Some(b)) = (mine, found) {
+                    assert_eq!(a.name, b.name);
+                    assert_eq!(a.entries.len(), b.entries.len());
+                    for sub in 0..=u8::MAX {
+                        assert_eq!(
+                            od::find_entry(own, index, sub).map(|e| (e.sub, e.name)),
+                            find_entry_in(range, index, sub).map(|e| (e.sub, e.name)),
+                            "{index:#06x}:{sub}"
+                        );
+                    }
+                }
+                if mine.is_none() {
+                    for sub in [0, 1, 255] {
+                        assert_eq!(
+                            find_entry_in(range, index, sub).err(),
+                            Some(SdoAbort::ObjectDoesNotExist)
+                        );
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn table_is_sorted_and_complete() {

@@ -208,7 +208,10 @@ pub struct Faults {
     active: [bool; KINDS],
     present: [bool; KINDS],
     ecat_code: u16,
+    /// A ring: `history[newest]` is the newest entry, older ones follow (a new fault
+    /// moves `newest` back one slot instead of shifting the records).
     history: [Option<FaultRecord>; HISTORY],
+    newest: u8,
     count: u16,
     pds_request: bool,
     emcy: Deque<Emergency, 8>,
@@ -234,6 +237,7 @@ impl Faults {
             present: [false; KINDS],
             ecat_code: 0,
             history: [None; HISTORY],
+            newest: 0,
             count: 0,
             pds_request: false,
             emcy: Deque::new(),
@@ -316,8 +320,9 @@ impl Faults {
         if kind == FaultKind::Ecat {
             self.ecat_code = code;
         }
-        self.history.rotate_right(1);
-        self.history[0] = Some(FaultRecord {
+        let slot = (usize::from(self.newest) + HISTORY - 1) % HISTORY;
+        self.newest = slot as u8;
+        self.history[slot] = Some(FaultRecord {
             kind,
             code,
             snapshot: snap,
@@ -500,7 +505,10 @@ impl Faults {
 
     /// History entry `n` (0 = newest).
     pub fn history(&self, n: usize) -> Option<&FaultRecord> {
-        self.history.get(n).and_then(|r| r.as_ref())
+        if n >= HISTORY {
+            return None;
+        }
+        self.history[(usize::from(self.newest) + n) % HISTORY].as_ref()
     }
 
     /// Faults since power-up.
@@ -520,7 +528,7 @@ impl Faults {
 
     /// SDO read of 0x2400-0x2406.
     pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        let entry = ecat_slave_stack::od::find_entry(OBJECTS, index, sub)?;
+        let entry = crate::dictionary::find_entry_in(crate::dictionary::FAULTS, index, sub)?;
         let v: u32 = match (index, sub) {
             (0x2400, 0) => 8,
             (0x2400, 1) => u32::from(self.count),
@@ -764,6 +772,38 @@ mod tests {
         assert!(f.take_pds_fault_request());
         f.condition_gone(FaultKind::Ecat);
         assert!(f.fault_reset());
+    }
+
+    #[test]
+    fn history_order_after_wrapping_and_clearing() {
+        let mut f = all_enabled();
+        let raise = |f: &mut Faults, t: u32| {
+            assert!(f.raise(FaultKind::FollowingError, Snapshot::default(), t));
+            f.condition_gone(FaultKind::FollowingError);
+            f.fault_reset();
+        };
+        for t in 0..(HISTORY as u32 * 2 + 3) {
+            raise(&mut f, t);
+            let newest = t;
+            for n in 0..HISTORY {
+                let want = newest.checked_sub(n as u32);
+                assert_eq!(
+                    f.history(n).map(|r| r.time_ms),
+                    want,
+                    "after {t}, entry {n}"
+                );
+            }
+            assert_eq!(f.history(HISTORY), None);
+            assert_eq!(f.history(usize::MAX), None);
+        }
+        f.clear_history();
+        assert_eq!(f.history_len(), 0);
+        raise(&mut f, 100);
+        raise(&mut f, 101);
+        assert_eq!(f.history_len(), 2);
+        assert_eq!(f.history(0).map(|r| r.time_ms), Some(101));
+        assert_eq!(f.history(1).map(|r| r.time_ms), Some(100));
+        assert_eq!(f.history(2), None);
     }
 
     #[test]

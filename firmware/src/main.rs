@@ -469,7 +469,7 @@ async fn main(spawner: Spawner) {
         supervisor: scfg,
         tune_allowed: false,
     };
-    COMMAND.write(Some(ctl));
+    send_command(&ctl);
     let has_slave = slave.is_some();
     // SAFETY: main runs once and is the only user of SHARED_MEM; from here on the
     // value is reached only through the lock.
@@ -573,9 +573,16 @@ impl ecat_slave_stack::od::Dictionary for NoRuntime {
     }
 }
 
+/// The interrupt's latest measurements: one out-of-line copy of the (volatile,
+/// word-by-word) read for the thread-mode users instead of one per call site.
+#[inline(never)]
+fn feedback() -> Option<(u32, hw::control::Feedback)> {
+    FEEDBACK.read()
+}
+
 /// Hands the interrupt's latest measurements to the drive (before a cycle / tick).
 fn update_axis(s: &mut Shared) {
-    if let Some((seq, fb)) = FEEDBACK.read() {
+    if let Some((seq, fb)) = feedback() {
         // Auto-tune results / motor open, "current does not follow" — once the
         // interrupt has published (the initial report would end the drive's
         // power-up self-test before the tune could start).
@@ -600,6 +607,13 @@ fn update_axis(s: &mut Shared) {
         }
         s.drive.set_axis(axis);
     }
+}
+
+/// Publishes a command to the current-loop interrupt (one out-of-line copy of the
+/// volatile write).
+#[inline(never)]
+fn send_command(c: &ControlCommand) {
+    COMMAND.write(Some(*c));
 }
 
 /// Publishes the drive's set-points to the current-loop interrupt; a new drive cycle
@@ -627,7 +641,7 @@ fn publish_command(s: &mut Shared) {
     if !s.ctl.power_allowed {
         s.ctl.command.drive_enabled = false;
     }
-    COMMAND.write(Some(s.ctl));
+    send_command(&s.ctl);
 }
 
 /// The cyclic path (DC mode): one `Slave::cycle` per SYNC0 falling edge.
@@ -933,7 +947,7 @@ fn status_line(enc: &Encoder) {
             .slave
             .as_ref()
             .map_or((0, 0), |sl| (sl.esm().status_word(), sl.esm().code()));
-        (st, code, FEEDBACK.read().is_some_and(|(_, f)| f.bridges_on))
+        (st, code, feedback().is_some_and(|(_, f)| f.bridges_on))
     })
     .unwrap_or((0, 0, false));
     match CURRENT_SAMPLES.latest() {
@@ -960,7 +974,7 @@ fn status_line(enc: &Encoder) {
         ),
         None => defmt::warn!("no current samples (PWM/ADC chain not running)"),
     }
-    if let Some((_, f)) = FEEDBACK.read() {
+    if let Some((_, f)) = feedback() {
         let (p1, p2) = (f.probe1, f.probe2);
         defmt::info!(
             "commutation aligned {=bool}, failed {=u32} | probe edges (active/inactive, last units): IN1 {=u32}/{=u32} {=i32}/{=i32}, IN2 {=u32}/{=u32} {=i32}/{=i32}",

@@ -9,7 +9,7 @@
 //! power-up. They are thus exact up to the last save (the board may also save on a
 //! power-fail warning).
 
-use ecat_slave_stack::od::{self, Access, DataType, Entry, Object, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{Access, DataType, Entry, Object, PdoMappable, SdoAbort};
 
 const fn tx(name: &'static str, t: DataType, unit: &'static str) -> Entry {
     Entry::new(0, name, t, Access::RO)
@@ -145,7 +145,7 @@ impl Monitor {
 
     /// SDO / PDO read.
     pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        let entry = od::find_entry(OBJECTS, index, sub)?;
+        let entry = crate::dictionary::find_entry_in(crate::dictionary::MONITOR, index, sub)?;
         let v: u32 = match index {
             0x2300 => u32::from(self.m.electrical_angle),
             0x2301 => self.m.ia_set_ma as u16 as u32,
@@ -166,7 +166,7 @@ impl Monitor {
     /// Write: only the storage restore of the two saved counters reaches here (SDO
     /// writes are refused by the generic read-only check before).
     pub fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
-        od::find_entry(OBJECTS, index, sub)?;
+        crate::dictionary::find_entry_in(crate::dictionary::MONITOR, index, sub)?;
         let b: [u8; 4] = data.try_into().map_err(|_| {
             if data.len() > 4 {
                 SdoAbort::LengthTooHigh
@@ -190,6 +190,7 @@ impl Monitor {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use ecat_slave_stack::od;
 
     #[test]
     fn objects_and_values() {

@@ -531,8 +531,10 @@ impl Params {
     /// to the table range. Not subject to the SDO rules (auto-tune lock).
     pub fn set_internal(&mut self, p: P, value: i32) {
         let (index, sub) = KEYS[p as usize];
-        let v = match od::find_entry(OBJECTS, index, sub) {
-            Ok(e) => i64::from(value).clamp(e.min(), e.max()) as i32,
+        let v = match crate::dictionary::find_entry_in(crate::dictionary::PARAMS, index, sub) {
+            // max/min rather than clamp: clamp's min > max panic would bring
+            // core::fmt's integer formatting into the image (the table keeps min ≤ max).
+            Ok(e) => i64::from(value).max(e.min()).min(e.max()) as i32,
             Err(_) => value,
         };
         self.values[p as usize] = v;
@@ -584,11 +586,15 @@ impl Params {
 
     /// SDO read of a vendor parameter: little-endian value into `buf`, returns its length.
     pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        let entry = od::find_entry(OBJECTS, index, sub)?;
-        let is_count =
-            sub == 0 && od::find(OBJECTS, index).is_some_and(|o| o.code != ObjectCode::Var);
+        let entry = crate::dictionary::find_entry_in(crate::dictionary::PARAMS, index, sub)?;
+        let is_count = sub == 0
+            && crate::dictionary::find_in(crate::dictionary::PARAMS, index)
+                .is_some_and(|o| o.code != ObjectCode::Var);
         let value: u32 = match (index, sub) {
-            _ if is_count => u32::from(od::find(OBJECTS, index).map_or(0, |o| o.max_sub())),
+            _ if is_count => u32::from(
+                crate::dictionary::find_in(crate::dictionary::PARAMS, index)
+                    .map_or(0, |o| o.max_sub()),
+            ),
             (0x2039, 0) => self.command_pulses >> 16,
             (0x2040, 0) => self.command_pulses & 0xFFFF,
             (0x2041, 0) => self.encoder_counts >> 16,
@@ -608,7 +614,7 @@ impl Params {
 
     /// SDO write of a vendor parameter (after the generic checks; repeated here).
     pub fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
-        let entry = od::find_entry(OBJECTS, index, sub)?;
+        let entry = crate::dictionary::find_entry_in(crate::dictionary::PARAMS, index, sub)?;
         if !entry.access.writable() {
             return Err(SdoAbort::WriteReadOnly);
         }
@@ -660,7 +666,9 @@ impl Params {
 }
 
 fn default_of(index: u16, sub: u8) -> i32 {
-    match od::find_entry(OBJECTS, index, sub).map(Entry::default_value) {
+    match crate::dictionary::find_entry_in(crate::dictionary::PARAMS, index, sub)
+        .map(Entry::default_value)
+    {
         Ok(DefaultValue::Int(v)) => v as i32,
         _ => 0,
     }
@@ -749,7 +757,10 @@ mod tests {
                 assert_eq!(r(&p, index, sub), e.max(), "unchanged");
             }
             if e.min() > tmin {
-                assert_eq!(w(&mut p, index, sub, e.min() - 1), Err(SdoAbort::ValueTooLow));
+                assert_eq!(
+                    w(&mut p, index, sub, e.min() - 1),
+                    Err(SdoAbort::ValueTooLow)
+                );
                 assert_eq!(
                     p.write(
                         index,

@@ -25,7 +25,7 @@ pub mod autotune;
 pub mod current_loop;
 pub mod encoder;
 pub mod modulation;
-mod num;
+pub mod num;
 pub mod open_loop;
 pub mod pi;
 pub mod servo;

@@ -36,3 +36,33 @@ pub fn rsqrt(x: f32) -> f32 {
     y *= 1.5 - h * y * y;
     y
 }
+
+/// Square root, correctly rounded (IEEE 754, bit-identical to `libm::sqrtf`): the
+/// FPU's `vsqrt.f32` on hard-float Arm targets (one instruction instead of libm's
+/// software routine and its 256-byte table in flash), `libm::sqrtf` elsewhere.
+/// Negative input gives NaN, like libm.
+#[inline(always)]
+pub fn sqrtf(x: f32) -> f32 {
+    #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+    {
+        let r: u32;
+        // SAFETY: moves the value into s0, takes its root there and moves it back;
+        // s0 is declared clobbered; no memory, no stack.
+        unsafe {
+            core::arch::asm!(
+                "vmov s0, {x}",
+                "vsqrt.f32 s0, s0",
+                "vmov {r}, s0",
+                x = in(reg) x.to_bits(),
+                r = lateout(reg) r,
+                out("s0") _,
+                options(pure, nomem, nostack)
+            );
+        }
+        f32::from_bits(r)
+    }
+    #[cfg(not(all(target_arch = "arm", target_abi = "eabihf")))]
+    {
+        libm::sqrtf(x)
+    }
+}

@@ -609,4 +609,35 @@ qemu_runner::tests! {
         assert_eq!(z.kp_param(), 32767);
         assert_eq!(z.ki_param(), 0);
     }
+    fn sqrtf_matches_libm_bit_for_bit() {
+        let specials = [
+            0.0f32,
+            -0.0,
+            1.0,
+            2.0,
+            0.25,
+            f32::MIN_POSITIVE,
+            f32::from_bits(1),
+            f32::from_bits(0x007F_FFFF),
+            f32::MAX,
+            f32::INFINITY,
+            1e-30,
+            3.0e38,
+            123_456.79,
+        ];
+        for x in specials {
+            assert_eq!(foc::num::sqrtf(x).to_bits(), libm::sqrtf(x).to_bits(), "{}", x);
+        }
+        for x in [-1.0f32, -0.5, f32::NEG_INFINITY, f32::NAN, -f32::MIN_POSITIVE] {
+            assert!(foc::num::sqrtf(x).is_nan());
+            assert!(libm::sqrtf(x).is_nan());
+        }
+        // A spread of bit patterns over the whole positive range.
+        let mut bits: u32 = 1;
+        while bits < 0x7F80_0000 {
+            let x = f32::from_bits(bits);
+            assert_eq!(foc::num::sqrtf(x).to_bits(), libm::sqrtf(x).to_bits(), "{}", bits);
+            bits += 0x0001_2345;
+        }
+    }
 }

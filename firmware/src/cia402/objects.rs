@@ -330,7 +330,7 @@ impl Cia402 {
 
     /// SDO read of a 0x6xxx entry: little-endian value into `buf`, returns its length.
     pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        let e = od::find_entry(OBJECTS, index, sub)?;
+        let e = crate::dictionary::find_entry_in(crate::dictionary::CIA402, index, sub)?;
         if !e.access.readable() {
             return Err(SdoAbort::ReadWriteOnly);
         }
@@ -347,7 +347,7 @@ impl Cia402 {
     /// as the stack's `check_write`, so a direct call is safe too) and the object's own
     /// rules, then stores the value.
     pub fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
-        let e = od::find_entry(OBJECTS, index, sub)?;
+        let e = crate::dictionary::find_entry_in(crate::dictionary::CIA402, index, sub)?;
         od::check_write(e, data, ecat_slave_stack::esm::EsmState::PreOp)?;
         let v = od::decode_int(e.data_type, data).ok_or(SdoAbort::TypeMismatch)?;
         match (index, sub) {

@@ -39,10 +39,11 @@ pub struct Motion {
     vel: f32,
 }
 
-/// Square root for the braking curve (`libm`, exact to the last bit).
+/// Square root for the braking curve (exact to the last bit: the FPU's `vsqrt` on the
+/// target, libm on the host).
 #[inline]
 fn sqrt(x: f32) -> f32 {
-    libm::sqrtf(x)
+    foc::num::sqrtf(x)
 }
 
 /// `floor` for values well inside the `i32` range.
