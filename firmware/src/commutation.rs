@@ -30,6 +30,14 @@
 //! * The enable withdrawn or the closed loop deselected during the alignment: it is
 //!   abandoned (no offset) and runs again at the next closed-loop enable.
 //!
+//! # Reported to CiA 402
+//! [`CommutatedMotion::enable_pending`] (closed loop requested, offset not known) is
+//! what the motor side reports as `crate::drive::AxisState::commutation_pending`: the
+//! PDS then stays in Switched on while the enable it passes down runs the alignment,
+//! and enters Operation enabled once the motion layer holds the actual position in
+//! closed loop (see `crate::cia402`, "transition 4 waits for the power stage"). A
+//! failed alignment keeps it pending; the fault it raises ends the wait.
+//!
 //! Until the offset is known the motion layer is configured with the open loop (the
 //! requested closed loop is masked), so a switch of 0x2024 to closed loop while
 //! enabled in open loop takes effect at the next enable (with the alignment first).
@@ -152,6 +160,13 @@ impl CommutatedMotion {
     /// Failed alignments since start (wrapping).
     pub fn failures(&self) -> u32 {
         self.failures
+    }
+
+    /// The closed loop is requested and the offset is not known: an enable first runs
+    /// the alignment (0.25 s, 0.65 s with the wiggle) before the motion layer follows
+    /// set-points. False in open loop, without encoder and once aligned.
+    pub fn enable_pending(&self) -> bool {
+        self.requested.closed_loop && self.state != Commutation::Aligned
     }
 
     /// No closed loop without an encoder (as [`Motion`] itself decides).

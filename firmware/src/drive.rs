@@ -77,6 +77,12 @@ pub struct AxisState {
     /// Following error between servo demand and encoder, encoder counts (closed loop;
     /// compared with 0x2030).
     pub servo_following_error: i32,
+    /// The motor side cannot follow set-points at an enable yet: closed loop requested
+    /// and the commutation alignment not done (`crate::commutation::CommutatedMotion::
+    /// enable_pending`). CiA 402 transition 4 waits for it to clear while the motor side
+    /// aligns ([`crate::cia402::DriveFeedback::enable_pending`]). False (the default):
+    /// open loop, no encoder, aligned — no wait.
+    pub commutation_pending: bool,
 }
 
 /// LED levels of the drive (RUN/ERR come from the slave runtime's indicators).
@@ -317,6 +323,13 @@ impl<S: ParameterStore> Drive<S> {
         &self.command
     }
 
+    /// The last cycle enabled the drive function (Operation enabled and the stopping
+    /// states) — not just the motor side while CiA 402 transition 4 waits for the
+    /// commutation alignment ([`Cia402::enable_waiting`]).
+    pub fn drive_function_enabled(&self) -> bool {
+        self.command.drive_enabled && !self.cia402.enable_waiting()
+    }
+
     /// ESM state last reported by the runtime.
     pub fn esm_state(&self) -> EsmState {
         self.esm
@@ -517,6 +530,7 @@ impl<S: ParameterStore> Drive<S> {
             warning: false,
             current_limited: self.axis.current_limited,
             quick_stop_input: self.inputs.quick_stop(),
+            enable_pending: self.axis.commutation_pending,
         };
         self.command = self.cia402.cycle(&fb, dt);
         // Following-error supervision of the closed loop (0x2030, encoder counts).
@@ -689,7 +703,11 @@ impl<S: ParameterStore> ProcessData for Drive<S> {
 impl<S: ParameterStore> EsmHooks for Drive<S> {
     fn on_state_change(&mut self, from: EsmState, to: EsmState) {
         self.esm = to;
-        if from == EsmState::Op && to != EsmState::Op && self.command.drive_enabled {
+        if from == EsmState::Op && to != EsmState::Op && self.cia402.enable_waiting() {
+            // Leaving Op while the motor side aligns for transition 4: the PDS drops
+            // to Switch on disabled (the alignment stops); no drive function, no fault.
+            self.cia402.on_esm_left_op_while_enabled();
+        } else if from == EsmState::Op && to != EsmState::Op && self.command.drive_enabled {
             // Leaving Op while enabled: the PDS goes to Fault and the motor follows the
             // fault reaction (drive-requirements §2.1); a PDS change never moves the ESM.
             self.cia402.on_esm_left_op_while_enabled();
@@ -726,7 +744,10 @@ impl<S: ParameterStore> SlaveApplication for Drive<S> {
     }
 
     fn on_outputs_lost(&mut self, code: AlStatusCode) {
-        if self.command.drive_enabled {
+        if self.cia402.enable_waiting() {
+            // Waiting for the alignment (Switched on): Switch on disabled, no fault.
+            self.cia402.on_esm_left_op_while_enabled();
+        } else if self.command.drive_enabled {
             self.cia402.on_esm_left_op_while_enabled();
             self.faults.raise_ecat(
                 ERR_COMMUNICATION_LOST,

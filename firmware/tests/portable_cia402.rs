@@ -34,6 +34,8 @@ struct Axis {
     fault: u16,
     extra_inputs: u32,
     probe1: EdgeLatch,
+    /// The motor side is not ready to follow (commutation alignment pending).
+    enable_pending: bool,
 }
 
 impl Axis {
@@ -51,6 +53,7 @@ impl Axis {
             fault: 0,
             extra_inputs: 0,
             probe1: EdgeLatch::default(),
+            enable_pending: false,
         }
     }
     fn inputs(&self) -> u32 {
@@ -81,6 +84,7 @@ impl Axis {
             index: self.index.take(),
             probe1: core::mem::take(&mut self.probe1),
             fault: self.fault,
+            enable_pending: self.enable_pending,
             ..Default::default()
         }
     }
@@ -131,6 +135,12 @@ fn cw(d: &mut Cia402, ax: &mut Axis, word: u16) -> u16 {
     d.set_controlword(word);
     step(d, ax);
     d.statusword()
+}
+
+/// Writes the controlword, runs one cycle, returns its command.
+fn step_cw(d: &mut Cia402, ax: &mut Axis, word: u16) -> DriveCommand {
+    d.set_controlword(word);
+    step(d, ax)
 }
 
 fn enable(d: &mut Cia402, ax: &mut Axis, m: i8) {
@@ -1068,5 +1078,139 @@ qemu_runner::tests! {
             cw(&mut d, &mut ax, 0x000F);
         }
         assert_eq!(d.statusword() & 0x3400, 0x0400);
+    }
+    fn transition_4_waits_for_the_power_stage_then_starts_at_the_actual_position() {
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(1_000);
+        ax.enable_pending = true;
+        d.set_mode(mode::CSP);
+        d.params.target_position = 1_000;
+        for w in [0x0000, 0x0006, 0x0007] {
+            cw(&mut d, &mut ax, w);
+        }
+        assert_eq!(d.state(), PdsState::SwitchedOn);
+        // Before "enable operation" nothing is asked of the motor side.
+        assert!(!d.enable_waiting());
+        // Enable operation while the alignment is pending: Switched on (with voltage),
+        // the motor side enabled at the actual position, which moves (the alignment
+        // pulls the rotor onto its vector) and is followed by the demand. The master
+        // (CSP) copies 0x6064 into 0x607A until it sees Operation enabled.
+        d.set_controlword(0x000F);
+        for k in 0..270 {
+            ax.pos = 1_000 + k.min(250) * 2;
+            d.params.target_position = d.position_actual();
+            let c = step(&mut d, &mut ax);
+            assert_eq!(d.state(), PdsState::SwitchedOn, "cycle {k}");
+            assert_eq!(d.statusword() & 0x7F, 0x33, "cycle {k}");
+            assert!(d.enable_waiting());
+            assert!(c.power_stage && c.drive_enabled && c.brake_release);
+            assert_eq!(c.position, 1_000 + k.min(250) * 2);
+            assert_eq!((c.velocity, c.acceleration), (0.0, 0.0));
+            assert_eq!(d.position_demand(), d.position_actual());
+            assert_eq!(d.following_error(), 0);
+            assert_eq!(d.error_code(), 0);
+        }
+        // Aligned (the rotor at rest on 1500): the next cycle enters Operation enabled
+        // with 0x6062 = 0x6064 = 0x607A — no jump.
+        ax.enable_pending = false;
+        d.params.target_position = d.position_actual();
+        let c = step(&mut d, &mut ax);
+        assert_eq!(d.state(), PdsState::OperationEnabled);
+        assert!(!d.enable_waiting());
+        assert_eq!(d.statusword() & 0x6F, 0x27);
+        assert_eq!(d.position_actual(), 1_500);
+        assert_eq!(d.position_demand(), 1_500);
+        assert_eq!((c.position, c.drive_enabled), (1_500, true));
+        for k in 1..=500 {
+            d.params.target_position = 1_500 + k * 20;
+            step(&mut d, &mut ax);
+            assert!(d.following_error().abs() <= 20, "{}", d.following_error());
+        }
+        assert_eq!(d.state(), PdsState::OperationEnabled);
+        assert_eq!(ax.pos, 11_500);
+        // A later pending report (a re-alignment) does not drop Operation enabled.
+        ax.enable_pending = true;
+        steps(&mut d, &mut ax, 5);
+        assert_eq!(d.state(), PdsState::OperationEnabled);
+        assert!(!d.enable_waiting());
+    }
+
+    fn the_wait_ends_with_other_commands_a_fault_or_the_esm() {
+        for end in 0..5 {
+            let mut d = Cia402::new();
+            let mut ax = Axis::new(-300);
+            ax.enable_pending = true;
+            d.set_mode(mode::CSP);
+            for w in [0x0000, 0x0006, 0x000F] {
+                cw(&mut d, &mut ax, w);
+            }
+            // 0x0F from Ready to switch on: transition 3, then the wait.
+            assert_eq!(d.state(), PdsState::SwitchedOn);
+            assert!(d.enable_waiting());
+            steps(&mut d, &mut ax, 20);
+            let c = match end {
+                0 => {
+                    let c = step_cw(&mut d, &mut ax, 0x0007);
+                    assert_eq!(d.state(), PdsState::SwitchedOn);
+                    c
+                }
+                1 => {
+                    let c = step_cw(&mut d, &mut ax, 0x0006);
+                    assert_eq!(d.state(), PdsState::ReadyToSwitchOn);
+                    c
+                }
+                2 => {
+                    let c = step_cw(&mut d, &mut ax, 0x0002);
+                    assert_eq!(d.state(), PdsState::SwitchOnDisabled);
+                    c
+                }
+                3 => {
+                    // The failed alignment: following error raised by the motor side.
+                    ax.fault = ERR_FOLLOWING;
+                    for _ in 0..50 {
+                        step(&mut d, &mut ax);
+                        assert_ne!(d.state(), PdsState::OperationEnabled);
+                    }
+                    assert_eq!(d.state(), PdsState::Fault);
+                    assert_eq!(d.error_code(), ERR_FOLLOWING);
+                    // Still pending and still commanded: never Operation enabled.
+                    let c = step(&mut d, &mut ax);
+                    assert_eq!(d.state(), PdsState::Fault);
+                    c
+                }
+                _ => {
+                    d.on_esm_left_op_while_enabled();
+                    assert_eq!(d.state(), PdsState::SwitchOnDisabled);
+                    assert_eq!(d.error_code(), 0);
+                    step_cw(&mut d, &mut ax, 0x000F)
+                }
+            };
+            assert!(!d.enable_waiting(), "end {end}");
+            assert!(!c.drive_enabled && !c.brake_release, "end {end}");
+        }
+    }
+
+    fn no_wait_without_pending_and_transition_16_does_not_wait() {
+        // Nothing pending (open loop, aligned): transition 4 at once, as always.
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        enable(&mut d, &mut ax, mode::PP);
+        assert!(!d.enable_waiting());
+        // Quick stop that stays (0x605A = 6), then enable operation again
+        // (transition 16) with the motor side reporting pending: no wait, the drive
+        // function never left.
+        let (mut d, mut ax) = reach(PdsState::QuickStopActive);
+        ax.enable_pending = true;
+        steps(&mut d, &mut ax, 50);
+        assert_eq!(d.state(), PdsState::QuickStopActive);
+        cw(&mut d, &mut ax, 0x000F);
+        assert_eq!(d.state(), PdsState::OperationEnabled);
+        assert!(!d.enable_waiting());
+        // Switch on disabled with 0x0F and pending: no transition, no enable.
+        let (mut d, mut ax) = reach(PdsState::SwitchOnDisabled);
+        ax.enable_pending = true;
+        let c = step_cw(&mut d, &mut ax, 0x000F);
+        assert_eq!(d.state(), PdsState::SwitchOnDisabled);
+        assert!(!c.drive_enabled && !d.enable_waiting());
     }
 }

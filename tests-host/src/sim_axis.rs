@@ -8,17 +8,19 @@
 //!
 //! [`PlantAxis`] is the full electrical axis: the plant of [`crate::plant`] with the
 //! `foc` current loop and encoder at 40 kHz and the firmware's motion layer
-//! ([`firmware::motion`]) at 10 kHz. [`AxisModel`] chooses between them; the rule for
+//! ([`firmware::motion`], behind the board's commutation wrapper
+//! [`firmware::commutation`]) at 10 kHz. [`AxisModel`] chooses between them; the rule for
 //! [`AxisModel::Auto`] is [`PLANT_MAX_DRIVES`].
 
 use crate::plant::motor::{PlantConfig, ECN57_20, TC86_45};
 use crate::plant::rig::{Rig, SERVO_DIV, TS, TS_SERVO};
 use crate::sim_drive::{Axis, Motor};
 use firmware::cia402::{DriveCommand, SetpointKind};
+use firmware::commutation::{CommutatedMotion, Commutation};
 use firmware::current_supervisor::{CurrentReport, CurrentSupervisor, SupervisorConfig};
 use firmware::drive::AxisState;
 use firmware::identity::Variant;
-use firmware::motion::{CurrentReference, Feedback, Frame, Motion, MotionConfig, MotorConstants};
+use firmware::motion::{CurrentReference, Feedback, Frame, MotionConfig, MotorConstants};
 use firmware::params::Params;
 use foc::modulation::Duties;
 use foc::transforms::{inverse_park, Dq};
@@ -166,6 +168,7 @@ impl Axis for KinematicAxis {
             current_limited: self.accel.abs() >= self.acc_max,
             servo_following_error: ((self.demand - self.pos) / UNITS_PER_REV * COUNTS_PER_REV)
                 .round() as i32,
+            commutation_pending: false,
         }
     }
 
@@ -241,7 +244,8 @@ pub fn boxed_model(motor: Motor, model: AxisModel, n: usize) -> Box<dyn Axis> {
 /// The full electrical axis: the motor and power-stage plant
 /// ([`crate::plant::motor::Plant`], 48 V) with the `foc` current loop and encoder at
 /// 40 kHz ([`Rig`]) and the firmware's motion layer ([`firmware::motion::Motion`]) at
-/// 10 kHz, configured from the drive's vendor parameters. Switches and the index pulse
+/// 10 kHz inside the board's [`CommutatedMotion`], configured from the drive's vendor
+/// parameters (0x2083 included). Switches and the index pulse
 /// are those of [`KinematicAxis`] (true shaft position; the index latches at the
 /// encoder count `index_phase` within each revolution). Positions count from the
 /// shaft angle at construction. With the bridges off the current loop outputs 50 %
@@ -253,11 +257,20 @@ pub fn boxed_model(motor: Motor, model: AxisModel, n: usize) -> Box<dyn Axis> {
 /// millisecond of a [`crate::sim_drive::SimDrive`]; a bare `PlantAxis` never gets the
 /// permission and keeps the gains from the true R and L), holding the motion layer
 /// meanwhile; the "current does not follow" check runs in every PWM period.
+///
+/// Commutation: [`PlantAxis::new`] starts with the encoder's electrical offset known
+/// (the rig's true offset, the motion layer aligned: the drive can be enabled at once);
+/// [`PlantAxis::new_unaligned`] / [`PlantAxis::with_plant`] start as the board does
+/// after power-up — offset unknown, the first closed-loop enable runs the commutation
+/// alignment ([`firmware::commutation`]) whose offset goes into the rig's encoder;
+/// until it is done [`AxisState::commutation_pending`] is reported and CiA 402 waits in
+/// Switched on. Failed alignments are counted in [`Axis::commutation_failures`] (the
+/// board's 1 ms tick raises 0x8611 for them; [`crate::sim_drive::SimDrive`] does too).
 pub struct PlantAxis {
     /// Plant + current loop + encoder.
     pub rig: Rig,
-    /// The firmware's motion layer.
-    pub motion: Motion,
+    /// The firmware's motion layer with the commutation alignment (as on the board).
+    pub motion: CommutatedMotion,
     /// The firmware's current-loop supervisor (power-up tune, follow check).
     pub supervisor: CurrentSupervisor,
     /// Switch positions (command units) and index phase.
@@ -268,6 +281,7 @@ pub struct PlantAxis {
     pub trip_amps: f64,
     tripped: bool,
     motor: MotorConstants,
+    wiggle: bool,
     reference: CurrentReference,
     cmd: DriveCommand,
     seen_cmd: DriveCommand,
@@ -278,21 +292,48 @@ pub struct PlantAxis {
 }
 
 impl PlantAxis {
-    /// An axis of `motor` at rest, default vendor parameters.
+    /// An axis of `motor` at rest, default vendor parameters, commutation aligned.
     pub fn new(motor: Motor) -> Self {
+        Self::with_plant(motor, true, |_| {})
+    }
+
+    /// An axis of `motor` at rest, default vendor parameters, the encoder's electrical
+    /// offset unknown ([`Rig::new_unaligned`]): the first closed-loop enable runs the
+    /// power-up alignment.
+    pub fn new_unaligned(motor: Motor) -> Self {
+        Self::with_plant(motor, false, |_| {})
+    }
+
+    /// An axis of `motor` whose plant configuration `plant` may change (rotor angle
+    /// `theta0`, a locked rotor, …) before the rig is built; `aligned`: as
+    /// [`PlantAxis::new`] (offset known) or [`PlantAxis::new_unaligned`].
+    pub fn with_plant(motor: Motor, aligned: bool, plant: impl FnOnce(&mut PlantConfig)) -> Self {
         let (params, consts) = match motor {
             Motor::Ecn57_20 => (ECN57_20, firmware::motion::ECN57_20),
             Motor::Tc86_45 => (TC86_45, firmware::motion::TC86_45),
         };
-        let rig = Rig::new(PlantConfig::new(params));
+        let mut pc = PlantConfig::new(params);
+        plant(&mut pc);
+        let rig = if aligned {
+            Rig::new(pc)
+        } else {
+            Rig::new_unaligned(pc)
+        };
         let p = Params::new(Variant::HybridServo);
         let cfg = MotionConfig::from_params(&p, Variant::HybridServo, &consts, TS_SERVO);
+        let wiggle = Self::wiggle(&p);
+        let motion = if aligned {
+            CommutatedMotion::new_aligned(cfg, wiggle)
+        } else {
+            CommutatedMotion::new(cfg, wiggle)
+        };
         let theta0 = rig.plant.theta;
         let last = i64::from(rig.enc.position());
         let sup = SupervisorConfig::from_params(&p, TS, rig.plant.cfg.pwm_period);
         PlantAxis {
             rig,
-            motion: Motion::new(cfg),
+            motion,
+            wiggle,
             supervisor: CurrentSupervisor::new(sup),
             switches: Switches::default(),
             trip_amps: f64::from(firmware::faults::FaultConfig::default().over_current_ma) / 1000.0,
@@ -306,6 +347,17 @@ impl PlantAxis {
             last_count: last,
             index: None,
         }
+    }
+
+    /// 0x2083: the alignment sweeps the field and checks the encoder (as the board's
+    /// `align_wiggle`).
+    fn wiggle(p: &Params) -> bool {
+        p.get(firmware::params::P::PowerUpWiggle) != 0
+    }
+
+    /// Where the commutation stands.
+    pub fn commutation(&self) -> Commutation {
+        self.motion.state()
     }
 
     /// Load torque opposing positive rotation, N·m.
@@ -391,11 +443,15 @@ impl PlantAxis {
     fn tick(&mut self) {
         if self.rig.k.is_multiple_of(SERVO_DIV) {
             let fb = self.feedback();
-            self.reference = if self.supervisor.tuning() {
+            let step = if self.supervisor.tuning() {
                 self.motion.step_held(&fb)
             } else {
-                self.motion.step(&fb)
+                self.motion.step(&fb, self.rig.enc.raw_electrical_angle())
             };
+            if let Some(offset) = step.offset {
+                self.rig.enc.set_electrical_offset(offset);
+            }
+            self.reference = step.reference;
             if self.reference.reset {
                 self.rig.cl.reset();
             }
@@ -476,8 +532,10 @@ impl Axis for PlantAxis {
 
     fn parameters(&mut self, p: &Params) {
         let cfg = MotionConfig::from_params(p, Variant::HybridServo, &self.motor, TS_SERVO);
-        if cfg != *self.motion.config() {
-            self.motion.configure(cfg);
+        let wiggle = Self::wiggle(p);
+        if cfg != *self.motion.config() || wiggle != self.wiggle {
+            self.wiggle = wiggle;
+            self.motion.configure(cfg, wiggle);
         }
         let sup = SupervisorConfig::from_params(p, TS, self.rig.plant.cfg.pwm_period);
         if sup != *self.supervisor.config() {
@@ -510,8 +568,13 @@ impl Axis for PlantAxis {
             overcurrent_trip: self.tripped,
             ..AxisState::default()
         };
-        self.motion.fill_axis_state(&mut a);
+        self.motion.motion().fill_axis_state(&mut a);
+        a.commutation_pending = self.motion.enable_pending();
         a
+    }
+
+    fn commutation_failures(&self) -> u32 {
+        self.motion.failures()
     }
 
     fn true_position(&self) -> Option<f64> {

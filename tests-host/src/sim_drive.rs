@@ -6,8 +6,10 @@
 //! application cycle it advances its [`Axis`] to the cycle's time, hands the measured
 //! state to the drive, runs the drive cycle and gives the drive's set-points back to
 //! the axis. The helpers [`advance`] / [`process`] move the segment on and also do
-//! what the board's main loop does: the 1 ms housekeeping tick and forwarding the
-//! drive's emergencies to the mailbox.
+//! what the board's main loop does: the 1 ms housekeeping tick (with the board's glue:
+//! a failed commutation alignment, [`Axis::commutation_failures`], raises the
+//! following-error fault 0x8611 as `firmware/src/main.rs` `tick` does) and forwarding
+//! the drive's emergencies to the mailbox.
 
 use std::path::PathBuf;
 
@@ -68,6 +70,11 @@ pub trait Axis {
     fn true_position(&self) -> Option<f64> {
         None
     }
+    /// Failed commutation alignments since start (wrapping; the board's
+    /// `Feedback::align_failures`). Default: the model has no alignment.
+    fn commutation_failures(&self) -> u32 {
+        0
+    }
 }
 
 /// Settings of the simulated drives.
@@ -98,6 +105,8 @@ pub struct SimDrive {
     cycle_us: Option<u64>,
     /// Index position read by a housekeeping tick, kept for the next cycle.
     pending_index: Option<i32>,
+    /// Failed commutation alignments already raised as faults.
+    align_failures: u32,
 }
 
 impl SimDrive {
@@ -114,6 +123,7 @@ impl SimDrive {
             tick_us: 0,
             cycle_us: None,
             pending_index: None,
+            align_failures: 0,
         }
     }
 
@@ -127,6 +137,18 @@ impl SimDrive {
         }
         while self.tick_us + 1000 <= now_us {
             self.tick_us += 1000;
+            // Board glue (main.rs `tick`): one following-error fault per failed
+            // commutation alignment.
+            let failures = self.axis.commutation_failures();
+            if failures != self.align_failures {
+                self.align_failures = failures;
+                let now = (self.tick_us / 1000) as u32;
+                self.drive.faults.raise(
+                    firmware::faults::FaultKind::FollowingError,
+                    firmware::faults::Snapshot::default(),
+                    now,
+                );
+            }
             let raw = self.axis.raw_inputs();
             let state = self.axis.state();
             // The index latch belongs to the next application cycle.

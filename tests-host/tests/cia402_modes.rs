@@ -624,6 +624,7 @@ fn random_feedback_and_raw_parameters_never_panic() {
             warning: rng.below(2) == 0,
             current_limited: rng.below(2) == 0,
             quick_stop_input: rng.below(50) == 0,
+            enable_pending: rng.below(4) == 0,
         };
         let c = d.cycle(
             &fb,

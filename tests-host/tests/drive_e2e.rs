@@ -798,7 +798,7 @@ fn plant_axis_open_closed_switching_and_open_loop_move() {
     // To open loop: the vector goes onto the rotor, the shaft stays.
     p.write(0x2024, 0, &[1]).unwrap();
     ax.parameters(&p);
-    assert!(!ax.motion.closed_loop());
+    assert!(!ax.motion.motion().closed_loop());
     let (w, imax) = run(&mut ax, &c, 100);
     assert!(
         w <= 3.0 * UNITS_PER_COUNT,
@@ -820,7 +820,7 @@ fn plant_axis_open_closed_switching_and_open_loop_move() {
     // Back to closed loop: bumpless, and the axis then holds the commanded position.
     p.write(0x2024, 0, &[2]).unwrap();
     ax.parameters(&p);
-    assert!(ax.motion.closed_loop());
+    assert!(ax.motion.motion().closed_loop());
     let (w, imax) = run(&mut ax, &c, 200);
     assert!(
         w <= 3.0 * UNITS_PER_COUNT,

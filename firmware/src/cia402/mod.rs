@@ -40,6 +40,25 @@
 //! * A following error (|0x60F4| > 0x6065 for longer than 0x6066 ms in PP, HM, CSP)
 //!   sets bit 13 and raises fault 0x8611; 0x6065 = 0xFFFFFFFF switches it off.
 //! * Leaving Op while the drive function is enabled: fault 0x8100.
+//! * Transition 4 waits for the power stage ([`DriveFeedback::enable_pending`]; guard
+//!   [`pds::Guard::ReadyToFollow`]). A hybrid servo in closed loop cannot follow
+//!   set-points before its commutation alignment has run (the encoder's electrical
+//!   offset is unknown after power-up; `crate::commutation`), and the alignment needs
+//!   current in the motor. So while "enable operation" is commanded in Switched on and
+//!   the feedback reports the enable pending, the PDS stays in Switched on (statusword
+//!   0x0233 with voltage) but the command asks the motor side to get ready:
+//!   [`DriveCommand::drive_enabled`] (and the brake release) is set with the position
+//!   demand at the actual position and no velocity — the motion layer holds it back
+//!   while it aligns, then holds the actual position in closed loop. The first cycle
+//!   whose feedback no longer reports it pending performs transition 4, which starts
+//!   the internal set-points at the actual position: 0x6064 = 0x6062 at the moment
+//!   the statusword first shows Operation enabled, so a CSP master that copies 0x6064
+//!   into 0x607A then gets no jump. [`Cia402::enable_waiting`] tells the application
+//!   that the enable of this cycle is such a request (no drive function yet: leaving
+//!   Op is not a fault). The wait has no time-out of its own: a failed alignment is a
+//!   fault of the motor side (following error 0x8611), which ends it in Fault; any
+//!   other command (shutdown, disable voltage, quick stop) ends it at once. Open loop
+//!   and drives without encoder never report it (no wait).
 
 pub mod homing;
 pub mod objects;
@@ -148,6 +167,9 @@ pub struct DriveFeedback {
     pub current_limited: bool,
     /// A quick-stop input function is active (acts like controlword bit 2 = 0).
     pub quick_stop_input: bool,
+    /// The power stage cannot follow set-points yet (the closed loop's commutation
+    /// alignment has not run): transition 4 waits (see the module docs).
+    pub enable_pending: bool,
 }
 
 /// Which set-point the servo loops should follow.
@@ -167,7 +189,10 @@ pub struct DriveCommand {
     /// Power stage on (high voltage applied): Switched on, Operation enabled, Quick stop
     /// active, Fault reaction active.
     pub power_stage: bool,
-    /// Drive function enabled: the loops must control the motor.
+    /// Drive function enabled: the loops must control the motor. Also set in Switched
+    /// on while transition 4 waits for [`DriveFeedback::enable_pending`] (position =
+    /// actual position, velocity 0: the motor side aligns, then holds; see
+    /// [`Cia402::enable_waiting`] and the module docs).
     pub drive_enabled: bool,
     /// Which set-point is primary.
     pub kind: SetpointKind,
@@ -449,6 +474,10 @@ pub struct Cia402 {
     internal_limit: bool,
     abnormal_stop: bool,
     halted: bool,
+    /// The motor side reported the enable pending (last feedback).
+    enable_pending: bool,
+    /// Transition 4 is waiting for it (the command enables the motor side).
+    enable_waiting: bool,
     // Configuration from the application.
     has_index: bool,
     assigned_inputs: u32,
@@ -508,6 +537,8 @@ impl Cia402 {
             internal_limit: false,
             abnormal_stop: false,
             halted: false,
+            enable_pending: false,
+            enable_waiting: false,
             has_index: true,
             assigned_inputs: homing::DI_NEG_LIMIT | homing::DI_POS_LIMIT | homing::DI_HOME,
             rated_current_ma: 3200,
@@ -595,6 +626,12 @@ impl Cia402 {
     /// PDS state.
     pub fn state(&self) -> PdsState {
         self.state
+    }
+    /// The last cycle's command enables the motor side only so that it can get ready
+    /// (Switched on, "enable operation" commanded, [`DriveFeedback::enable_pending`]):
+    /// the drive function is not enabled yet.
+    pub fn enable_waiting(&self) -> bool {
+        self.enable_waiting
     }
     /// 0x6041 as computed in the last cycle.
     pub fn statusword(&self) -> u16 {
@@ -686,6 +723,7 @@ impl Cia402 {
         let from = self.state;
         self.state = to;
         self.pending = Pending::None;
+        self.enable_waiting = false;
         if to == PdsState::OperationEnabled && from != PdsState::QuickStopActive {
             // Transition 4: clear internal set-points, start from where the axis is.
             self.motion.reset(self.actual_position);
@@ -730,6 +768,7 @@ impl Cia402 {
             Guard::QuickStopStays => (5..=8).contains(&self.params.quick_stop_option),
             Guard::QuickStopEnds => !(5..=8).contains(&self.params.quick_stop_option),
             Guard::FaultCleared => fault_now == 0,
+            Guard::ReadyToFollow => !self.enable_pending,
         }
     }
 
@@ -750,6 +789,7 @@ impl Cia402 {
         self.actual_torque = fb.torque;
         self.actual_current = fb.current;
         self.digital_inputs = fb.digital_inputs;
+        self.enable_pending = fb.enable_pending;
         let index = if self.has_index { fb.index } else { None };
         {
             let neg = self.pos_neg();
@@ -860,6 +900,11 @@ impl Cia402 {
         if !drive_enabled {
             self.motion.reset(self.actual_position);
         }
+        // Transition 4 waiting for the power stage: the motor side gets the enable (at
+        // the actual position) so that it can get ready.
+        self.enable_waiting = self.state == PdsState::SwitchedOn
+            && self.enable_pending
+            && cmd == Command::EnableOperation;
 
         // 5. Supervision.
         self.following_error = self.motion.position().wrapping_sub(self.actual_position);
@@ -896,16 +941,17 @@ impl Cia402 {
         };
         self.prev_demand_vel = if drive_enabled { v } else { 0.0 };
         let sign = if self.vel_neg() { -1.0 } else { 1.0 };
+        let motor_enabled = drive_enabled || self.enable_waiting;
         DriveCommand {
             power_stage: power,
-            drive_enabled,
+            drive_enabled: motor_enabled,
             kind,
             position: self.user_to_raw(self.motion.position()),
             velocity: sign * v,
             acceleration: sign * acc,
             torque_limit: self.params.max_torque,
             current_limit: self.params.max_current,
-            brake_release: drive_enabled,
+            brake_release: motor_enabled,
         }
     }
 

@@ -166,6 +166,9 @@ pub enum Guard {
     QuickStopEnds,
     /// The fault condition is gone: transition 15.
     FaultCleared,
+    /// The power stage can follow set-points (no commutation alignment pending,
+    /// [`super::DriveFeedback::enable_pending`]): transition 4.
+    ReadyToFollow,
 }
 
 /// One row of the transition table.
@@ -243,7 +246,7 @@ pub const TRANSITIONS: &[Transition] = &[
         number: 4,
         from: states(&[S::SwitchedOn]),
         trigger: events(&[E::Cmd(C::EnableOperation)]),
-        guard: Guard::None,
+        guard: Guard::ReadyToFollow,
         to: S::OperationEnabled,
     },
     Transition {
@@ -404,6 +407,22 @@ mod tests {
         for s in PdsState::ALL {
             let sw = s.statusword_bits() | 0x0200 | (0x0010 * s.voltage_enabled() as u16);
             assert_eq!(PdsState::from_statusword(sw), Some(s));
+        }
+    }
+
+    #[test]
+    fn transition_4_waits_for_the_power_stage_and_nothing_else_does() {
+        let t = |ok: bool| {
+            find(
+                PdsState::SwitchedOn,
+                Event::Cmd(Command::EnableOperation),
+                |g| g != Guard::ReadyToFollow || ok,
+            )
+        };
+        assert_eq!(t(true).map(|t| t.number), Some(4));
+        assert_eq!(t(false), None);
+        for row in TRANSITIONS {
+            assert_eq!(row.guard == Guard::ReadyToFollow, row.number == 4);
         }
     }
 

@@ -32,7 +32,10 @@
 //!
 //! A failed alignment (0x2083 = 1: the encoder did not follow the sweep) is counted in
 //! [`Feedback::align_failures`]; the drive side raises the following-error fault
-//! (0x8611) for it.
+//! (0x8611) for it. Until the alignment is done (closed loop) the published
+//! `AxisState::commutation_pending` keeps CiA 402 in Switched on: the drive's enable
+//! then only runs the alignment, and Operation enabled follows once the motion layer
+//! holds the actual position (`firmware::cia402`, transition 4).
 //!
 //! Motion runs in the same interrupt (not a lower-priority one) because its step is
 //! short — 255 instructions for `Motion::step`, 146 for `set_command` once per cycle,
@@ -203,6 +206,8 @@ pub static FEEDBACK: Exchange<Feedback> = Exchange::new(Feedback {
         overcurrent_trip: false,
         current_limited: false,
         servo_following_error: 0,
+        // Nothing published yet: the motor side is not known to be ready.
+        commutation_pending: true,
     },
     bridges_on: false,
     index_seq: 0,
@@ -446,6 +451,8 @@ fn servo_step(c: &mut Control, cmd: Option<&ControlCommand>) {
     probe_latches(c);
     let mut axis = firmware::drive::AxisState::default();
     c.motion.motion().fill_axis_state(&mut axis);
+    // CiA 402 transition 4 waits while the closed loop still needs its alignment.
+    axis.commutation_pending = c.motion.enable_pending();
     let ma = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
     axis.ia_ma = ma(c.cl.i_ab.alpha);
     axis.ib_ma = ma(c.cl.i_ab.beta);
