@@ -393,10 +393,9 @@ async fn main(spawner: Spawner) {
     }
     // SAFETY: main runs once and is the only place that takes this reference.
     let stage: &'static mut Stage = unsafe { &mut *core::ptr::addr_of_mut!(STAGE_MEM) };
-    let staged = StagedFlash::new(hw::flash::MappedRegion, stage, flash.is_some());
-    let mut flash = flash;
-    if let Some(f) = flash.as_mut() {
-        report_param_region(f);
+    let mut staged = StagedFlash::new(hw::flash::MappedRegion, stage, flash.is_some());
+    if flash.is_some() {
+        report_param_region(&mut staged);
     }
 
     // The drive and the slave runtime; stored parameters (drive objects and the PDO
@@ -907,7 +906,10 @@ async fn offset_self_check(wdg: &mut IndependentWatchdog<'static, IWDG>) {
 
 /// Validates both record slots at start-up (magic, version, CRC) and logs what they
 /// hold (the drive's power-up load applies the newest).
-fn report_param_region(f: &mut ParamFlash) {
+///
+/// Reads through the drive's own view of the region (the same bytes as the flash
+/// driver's: no second instance of the storage code for the driver type).
+fn report_param_region(f: &mut StagedFlash) {
     use firmware::storage::SlotStatus;
     if let Err(e) = PARAM_STORE.check(f) {
         defmt::error!("parameter store layout: {=str}", storage_error(e));
