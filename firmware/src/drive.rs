@@ -857,6 +857,65 @@ mod tests {
     }
 
     #[test]
+    fn pending_commutation_holds_switched_on_and_leaving_op_then_is_no_fault() {
+        for lost in [false, true] {
+            let mut d = Drive::new(Variant::HybridServo, 0);
+            d.on_state_change(EsmState::SafeOp, EsmState::Op);
+            let pending = AxisState {
+                bus_mv: 48_000,
+                position: 777,
+                commutation_pending: true,
+                ..AxisState::default()
+            };
+            d.set_axis(pending);
+            for cw in [0x06u16, 0x07, 0x0F] {
+                d.cia402.set_controlword(cw);
+                for _ in 0..3 {
+                    d.run_cycle(0.001);
+                }
+            }
+            assert_eq!(d.cia402.state(), PdsState::SwitchedOn);
+            // The motor side is enabled (and the brake released) at the actual
+            // position; the drive function is not.
+            assert!(d.command().drive_enabled && d.command().power_stage);
+            assert_eq!(d.command().position, 777);
+            assert!(d.outputs().1);
+            assert!(!d.drive_function_enabled());
+            if lost {
+                d.on_outputs_lost(AlStatusCode::SmWatchdog);
+            } else {
+                d.on_state_change(EsmState::Op, EsmState::SafeOp);
+            }
+            d.run_cycle(0.001);
+            assert_eq!(d.cia402.state(), PdsState::SwitchOnDisabled);
+            assert!(!d.command().drive_enabled);
+            assert!(!d.faults.any_active());
+            assert!(d.pop_emergency().is_none());
+        }
+        // Ready: the next cycle enables the drive function.
+        let mut d = Drive::new(Variant::HybridServo, 0);
+        d.set_axis(AxisState {
+            bus_mv: 48_000,
+            commutation_pending: true,
+            ..AxisState::default()
+        });
+        for cw in [0x06u16, 0x07, 0x0F] {
+            d.cia402.set_controlword(cw);
+            for _ in 0..3 {
+                d.run_cycle(0.001);
+            }
+        }
+        assert_eq!(d.cia402.state(), PdsState::SwitchedOn);
+        d.set_axis(AxisState {
+            bus_mv: 48_000,
+            ..AxisState::default()
+        });
+        d.run_cycle(0.001);
+        assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
+        assert!(d.drive_function_enabled());
+    }
+
+    #[test]
     fn leaving_op_while_enabled_faults_the_pds_and_sends_one_emergency() {
         let mut d = Drive::new(Variant::HybridServo, 0);
         d.on_state_change(EsmState::SafeOp, EsmState::Op);
