@@ -98,6 +98,32 @@ impl<T: Copy> Exchange<T> {
         }
     }
 
+    /// A cell of zero bytes (sequence 0): a static of it lives in .bss instead of
+    /// holding an initialised image in flash. The compiler rejects a `T` for which
+    /// zero bytes are not a valid value (const evaluation of the static), so an early
+    /// read sees zeros, never an invalid value; [`Exchange::reset`] gives the cell
+    /// its start value.
+    pub const fn zeroed() -> Self {
+        // SAFETY: evaluated at compile time, where a zero `T` that is not a valid
+        // value is an error.
+        let v: T = unsafe { core::mem::zeroed() };
+        Self::new(v)
+    }
+
+    /// Sets both buffers to `v` and the sequence to 0 (as [`Exchange::new`]).
+    ///
+    /// # Safety
+    /// Nothing may read or write the cell meanwhile (start-up, before the interrupt
+    /// and the tasks that use it run).
+    pub unsafe fn reset(&self, v: T) {
+        // SAFETY: exclusive access (the caller's contract).
+        unsafe {
+            *self.bufs[0].get() = v;
+            *self.bufs[1].get() = v;
+        }
+        self.seq.store(0, Ordering::Release);
+    }
+
     /// Publishes `v` (one writer at a time).
     pub fn write(&self, v: T) {
         let next = self.seq.load(Ordering::Relaxed).wrapping_add(1);
@@ -180,10 +206,15 @@ pub struct Feedback {
     pub current: CurrentReport,
 }
 
-/// Cyclic path → interrupt (set-points, configuration, permission).
-pub static COMMAND: Exchange<Option<ControlCommand>> = Exchange::new(None);
-/// Interrupt → cyclic path (measurements).
-pub static FEEDBACK: Exchange<Feedback> = Exchange::new(Feedback {
+/// Cyclic path → interrupt (set-points, configuration, permission). `None` from
+/// [`init`] on (zero bytes before: .bss, not an image in flash).
+pub static COMMAND: Exchange<Option<ControlCommand>> = Exchange::zeroed();
+/// Interrupt → cyclic path (measurements). [`FEEDBACK_START`] from [`init`] on (zero
+/// bytes before: .bss, not an image in flash).
+pub static FEEDBACK: Exchange<Feedback> = Exchange::zeroed();
+
+/// What [`FEEDBACK`] holds until the interrupt publishes.
+const FEEDBACK_START: Feedback = Feedback {
     axis: firmware::drive::AxisState {
         position: 0,
         velocity: 0,
@@ -217,7 +248,7 @@ pub static FEEDBACK: Exchange<Feedback> = Exchange::new(Feedback {
     aligned: false,
     align_failures: 0,
     current: CurrentReport::NONE,
-});
+};
 
 const NO_EDGES: Edges<i32> = Edges {
     active_seq: 0,
@@ -331,6 +362,12 @@ pub fn init(
     };
     if READY.load(Ordering::Acquire) {
         return;
+    }
+    // SAFETY: once (checked above), at start-up: the interrupt is not enabled yet and
+    // main spawns the tasks that use the cells after `init`.
+    unsafe {
+        COMMAND.reset(None);
+        FEEDBACK.reset(FEEDBACK_START);
     }
     // SAFETY: the interrupt does not read CONTROL before READY is set (and `init`
     // runs once: checked above).
