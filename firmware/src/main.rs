@@ -240,39 +240,44 @@ fn motion_config(d: &BoardDrive) -> MotionConfig {
 }
 
 /// Log text of an ESC access error (no `core::fmt` in the image: `Debug2Format` would
-/// pull it in).
-fn esc_error(e: ecat_slave_stack::EscError) -> &'static str {
+/// pull it in). The log texts are interned by defmt (`{=istr}`): they stay in the ELF's
+/// .defmt section for the host decoder, not in flash.
+fn esc_error(e: ecat_slave_stack::EscError) -> defmt::Str {
     use ecat_slave_stack::EscError as E;
     match e {
-        E::Bus => "SPI bus error",
-        E::NotDetected => "chip not detected",
-        E::Timeout => "timeout",
-        E::OutOfRange => "address out of range",
+        E::Bus => defmt::intern!("SPI bus error"),
+        E::NotDetected => defmt::intern!("chip not detected"),
+        E::Timeout => defmt::intern!("timeout"),
+        E::OutOfRange => defmt::intern!("address out of range"),
     }
 }
 
 /// Log text of a parameter-region flash error.
-fn region_error(e: &hw::flash::RegionErrorOf) -> &'static str {
+fn region_error(e: &hw::flash::RegionErrorOf) -> defmt::Str {
     use firmware::flash_region::RegionError as E;
     match e {
-        E::OutOfBounds => "outside the parameter region",
-        E::NotAligned => "not aligned to the flash granularity",
-        E::Flash(embassy_stm32::flash::Error::Prog) => "flash: programming error",
-        E::Flash(embassy_stm32::flash::Error::Size) => "flash: size error",
-        E::Flash(embassy_stm32::flash::Error::Miss) => "flash: fast programming data miss",
-        E::Flash(embassy_stm32::flash::Error::Seq) => "flash: sequence error",
-        E::Flash(embassy_stm32::flash::Error::Protected) => "flash: write protected",
-        E::Flash(_) => "flash: driver error",
+        E::OutOfBounds => defmt::intern!("outside the parameter region"),
+        E::NotAligned => defmt::intern!("not aligned to the flash granularity"),
+        E::Flash(embassy_stm32::flash::Error::Prog) => defmt::intern!("flash: programming error"),
+        E::Flash(embassy_stm32::flash::Error::Size) => defmt::intern!("flash: size error"),
+        E::Flash(embassy_stm32::flash::Error::Miss) => {
+            defmt::intern!("flash: fast programming data miss")
+        }
+        E::Flash(embassy_stm32::flash::Error::Seq) => defmt::intern!("flash: sequence error"),
+        E::Flash(embassy_stm32::flash::Error::Protected) => {
+            defmt::intern!("flash: write protected")
+        }
+        E::Flash(_) => defmt::intern!("flash: driver error"),
     }
 }
 
 /// Log text of a parameter-store error.
-fn storage_error(e: firmware::storage::StorageError) -> &'static str {
+fn storage_error(e: firmware::storage::StorageError) -> defmt::Str {
     use firmware::storage::StorageError as E;
     match e {
-        E::Flash(_) => "flash driver error",
-        E::Geometry => "flash geometry does not fit the record layout",
-        E::RecordTooLarge => "record larger than a slot",
+        E::Flash(_) => defmt::intern!("flash driver error"),
+        E::Geometry => defmt::intern!("flash geometry does not fit the record layout"),
+        E::RecordTooLarge => defmt::intern!("record larger than a slot"),
     }
 }
 
@@ -300,7 +305,7 @@ async fn main(spawner: Spawner) {
     // The time driver defaults to priority 0; keep it below the control path.
     interrupt::TIM5.set_priority(Priority::P3);
     defmt::info!(
-        "ECS drive firmware {=str} ({=str}), reset cause: {=str}",
+        "ECS drive firmware {=str} ({=str}), reset cause: {=istr}",
         env!("CARGO_PKG_VERSION"),
         hw::esc::ESC_NAME,
         hw::safety::take_reset_cause()
@@ -370,7 +375,7 @@ async fn main(spawner: Spawner) {
         Ok(()) => true,
         Err(e) => {
             defmt::error!(
-                "ESC {=str} not answering: {=str}",
+                "ESC {=str} not answering: {=istr}",
                 hw::esc::ESC_NAME,
                 esc_error(e)
             );
@@ -445,7 +450,7 @@ async fn main(spawner: Spawner) {
             ),
             Err(e) => {
                 ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
-                defmt::error!("slave init: {=str}", esc_error(e));
+                defmt::error!("slave init: {=istr}", esc_error(e));
             }
         }
     }
@@ -719,7 +724,7 @@ async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>)
                 Ok(()) => defmt::info!("parameters: record programmed"),
                 Err(e) => {
                     FLASH_ERRORS.fetch_add(1, Ordering::Relaxed);
-                    defmt::error!("parameters: programming failed: {=str}", region_error(&e));
+                    defmt::error!("parameters: programming failed: {=istr}", region_error(&e));
                 }
             }
             with_shared(|s| {
@@ -912,7 +917,7 @@ async fn offset_self_check(wdg: &mut IndependentWatchdog<'static, IWDG>) {
 fn report_param_region(f: &mut StagedFlash) {
     use firmware::storage::SlotStatus;
     if let Err(e) = PARAM_STORE.check(f) {
-        defmt::error!("parameter store layout: {=str}", storage_error(e));
+        defmt::error!("parameter store layout: {=istr}", storage_error(e));
         return;
     }
     let (slots, newest) = PARAM_STORE.scan(f);

@@ -80,24 +80,27 @@ unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
     }
 }
 
-/// Why the chip last reset, from RCC_CSR (read once at start-up, then cleared).
-pub fn take_reset_cause() -> &'static str {
+/// Why the chip last reset, from RCC_CSR (read once at start-up, then cleared). The
+/// text is interned by defmt (`{=istr}`: in the ELF for the decoder, not in flash).
+// The `intern!` expansions look alike to clippy; the texts differ.
+#[allow(clippy::if_same_then_else)]
+pub fn take_reset_cause() -> defmt::Str {
     let rcc = embassy_stm32::pac::RCC;
     let csr = rcc.csr().read();
     let cause = if csr.iwdgrstf() {
-        "independent watchdog"
+        defmt::intern!("independent watchdog")
     } else if csr.wwdgrstf() {
-        "window watchdog"
+        defmt::intern!("window watchdog")
     } else if csr.sftrstf() {
-        "software"
+        defmt::intern!("software")
     } else if csr.borrstf() {
-        "brown-out / power-on"
+        defmt::intern!("brown-out / power-on")
     } else if csr.pinrstf() {
-        "reset pin"
+        defmt::intern!("reset pin")
     } else if csr.lpwrrstf() {
-        "low-power"
+        defmt::intern!("low-power")
     } else {
-        "unknown"
+        defmt::intern!("unknown")
     };
     rcc.csr().modify(|w| w.set_rmvf(true));
     cause
