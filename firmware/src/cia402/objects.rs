@@ -249,81 +249,82 @@ impl Cia402 {
     /// not one of [`OBJECTS`].
     pub fn value(&self, index: u16, sub: u8) -> Option<i64> {
         let p = &self.params;
+        // Sub-index 0 first (every VAR and the record counts): one switch on the index
+        // instead of a sub-index test in every arm.
+        if sub == 0 {
+            return Some(match index {
+                0x603F => self.error_code as i64,
+                0x6040 => self.controlword as i64,
+                0x6041 => self.statusword as i64,
+                0x605A => p.quick_stop_option as i64,
+                0x605B => p.shutdown_option as i64,
+                0x605C => p.disable_op_option as i64,
+                0x605D => p.halt_option as i64,
+                0x605E => p.fault_reaction_option as i64,
+                0x6060 => self.mode_request as i64,
+                0x6061 => self.mode as i64,
+                0x6062 => self.position_demand() as i64,
+                0x6063 => self.raw_position as i64,
+                0x6064 => self.actual_position as i64,
+                0x6065 => p.following_error_window as i64,
+                0x6066 => p.following_error_timeout as i64,
+                0x6067 => p.position_window as i64,
+                0x6068 => p.position_window_time as i64,
+                0x606B => self.velocity_demand() as i64,
+                0x606C => self.actual_velocity as i64,
+                0x606D => p.velocity_window as i64,
+                0x606E => p.velocity_window_time as i64,
+                0x606F => p.velocity_threshold as i64,
+                0x6072 => p.max_torque as i64,
+                0x6073 => p.max_current as i64,
+                0x6075 => self.rated_current_ma as i64,
+                0x6077 => self.actual_torque as i64,
+                0x6078 => self.actual_current as i64,
+                0x607A => p.target_position as i64,
+                0x607C => p.home_offset as i64,
+                0x607D | 0x608F | 0x6091 | 0x6092 | 0x6099 | 0x60C2 | 0x60FE => 2,
+                0x607E => p.polarity as i64,
+                0x607F => p.max_profile_velocity as i64,
+                0x6080 => p.max_motor_speed as i64,
+                0x6081 => p.profile_velocity as i64,
+                0x6082 => p.start_stop_speed as i64,
+                0x6083 => p.profile_acceleration as i64,
+                0x6084 => p.profile_deceleration as i64,
+                0x6085 => p.quick_stop_deceleration as i64,
+                0x6086 => p.motion_profile_type as i64,
+                0x6098 => p.homing_method as i64,
+                0x609A => p.homing_acceleration as i64,
+                0x60B0 => p.position_offset as i64,
+                0x60B1 => p.velocity_offset as i64,
+                0x60B8 => self.probe.function() as i64,
+                0x60B9 => self.probe.status() as i64,
+                0x60BA => self.probe.value(0) as i64,
+                0x60BB => self.probe.value(1) as i64,
+                0x60BC => self.probe.value(2) as i64,
+                0x60BD => self.probe.value(3) as i64,
+                0x60C5 => p.max_acceleration as i64,
+                0x60C6 => p.max_deceleration as i64,
+                0x60F2 => p.positioning_option as i64,
+                0x60F4 => self.following_error as i64,
+                0x60FC => self.position_demand_internal() as i64,
+                0x60FD => self.digital_inputs as i64,
+                0x60FF => p.target_velocity as i64,
+                0x6502 => SUPPORTED_MODES as i64,
+                _ => return None,
+            });
+        }
         Some(match (index, sub) {
-            (0x603F, 0) => self.error_code as i64,
-            (0x6040, 0) => self.controlword as i64,
-            (0x6041, 0) => self.statusword as i64,
-            (0x605A, 0) => p.quick_stop_option as i64,
-            (0x605B, 0) => p.shutdown_option as i64,
-            (0x605C, 0) => p.disable_op_option as i64,
-            (0x605D, 0) => p.halt_option as i64,
-            (0x605E, 0) => p.fault_reaction_option as i64,
-            (0x6060, 0) => self.mode_request as i64,
-            (0x6061, 0) => self.mode as i64,
-            (0x6062, 0) => self.position_demand() as i64,
-            (0x6063, 0) => self.raw_position as i64,
-            (0x6064, 0) => self.actual_position as i64,
-            (0x6065, 0) => p.following_error_window as i64,
-            (0x6066, 0) => p.following_error_timeout as i64,
-            (0x6067, 0) => p.position_window as i64,
-            (0x6068, 0) => p.position_window_time as i64,
-            (0x606B, 0) => self.velocity_demand() as i64,
-            (0x606C, 0) => self.actual_velocity as i64,
-            (0x606D, 0) => p.velocity_window as i64,
-            (0x606E, 0) => p.velocity_window_time as i64,
-            (0x606F, 0) => p.velocity_threshold as i64,
-            (0x6072, 0) => p.max_torque as i64,
-            (0x6073, 0) => p.max_current as i64,
-            (0x6075, 0) => self.rated_current_ma as i64,
-            (0x6077, 0) => self.actual_torque as i64,
-            (0x6078, 0) => self.actual_current as i64,
-            (0x607A, 0) => p.target_position as i64,
-            (0x607C, 0) => p.home_offset as i64,
-            (0x607D, 0)
-            | (0x608F, 0)
-            | (0x6091, 0)
-            | (0x6092, 0)
-            | (0x6099, 0)
-            | (0x60C2, 0)
-            | (0x60FE, 0) => 2,
             (0x607D, 1) => p.sw_limit_min as i64,
             (0x607D, 2) => p.sw_limit_max as i64,
-            (0x607E, 0) => p.polarity as i64,
-            (0x607F, 0) => p.max_profile_velocity as i64,
-            (0x6080, 0) => p.max_motor_speed as i64,
-            (0x6081, 0) => p.profile_velocity as i64,
-            (0x6082, 0) => p.start_stop_speed as i64,
-            (0x6083, 0) => p.profile_acceleration as i64,
-            (0x6084, 0) => p.profile_deceleration as i64,
-            (0x6085, 0) => p.quick_stop_deceleration as i64,
-            (0x6086, 0) => p.motion_profile_type as i64,
             (0x608F, 1) => self.encoder_increments as i64,
             (0x608F, 2) | (0x6091, 1) | (0x6091, 2) | (0x6092, 2) => 1,
             (0x6092, 1) => self.units_per_rev as i64,
-            (0x6098, 0) => p.homing_method as i64,
             (0x6099, 1) => p.homing_speed_switch as i64,
             (0x6099, 2) => p.homing_speed_zero as i64,
-            (0x609A, 0) => p.homing_acceleration as i64,
-            (0x60B0, 0) => p.position_offset as i64,
-            (0x60B1, 0) => p.velocity_offset as i64,
-            (0x60B8, 0) => self.probe.function() as i64,
-            (0x60B9, 0) => self.probe.status() as i64,
-            (0x60BA, 0) => self.probe.value(0) as i64,
-            (0x60BB, 0) => self.probe.value(1) as i64,
-            (0x60BC, 0) => self.probe.value(2) as i64,
-            (0x60BD, 0) => self.probe.value(3) as i64,
             (0x60C2, 1) => p.interpolation_period as i64,
             (0x60C2, 2) => p.interpolation_index as i64,
-            (0x60C5, 0) => p.max_acceleration as i64,
-            (0x60C6, 0) => p.max_deceleration as i64,
-            (0x60F2, 0) => p.positioning_option as i64,
-            (0x60F4, 0) => self.following_error as i64,
-            (0x60FC, 0) => self.position_demand_internal() as i64,
-            (0x60FD, 0) => self.digital_inputs as i64,
             (0x60FE, 1) => p.digital_outputs as i64,
             (0x60FE, 2) => p.digital_outputs_mask as i64,
-            (0x60FF, 0) => p.target_velocity as i64,
-            (0x6502, 0) => SUPPORTED_MODES as i64,
             _ => return None,
         })
     }
@@ -374,51 +375,57 @@ impl Cia402 {
     /// Stores an already validated value (shared by SDO and PDO paths).
     fn store(&mut self, index: u16, sub: u8, v: i64) {
         let p = &mut self.params;
+        if sub == 0 {
+            match index {
+                0x6040 => self.controlword = v as u16,
+                0x605A => p.quick_stop_option = v as i16,
+                0x605B => p.shutdown_option = v as i16,
+                0x605C => p.disable_op_option = v as i16,
+                0x605D => p.halt_option = v as i16,
+                0x605E => p.fault_reaction_option = v as i16,
+                0x6060 => self.set_mode(v as i8),
+                0x6065 => p.following_error_window = v as u32,
+                0x6066 => p.following_error_timeout = v as u16,
+                0x6067 => p.position_window = v as u32,
+                0x6068 => p.position_window_time = v as u16,
+                0x606D => p.velocity_window = v as u16,
+                0x606E => p.velocity_window_time = v as u16,
+                0x606F => p.velocity_threshold = v as u16,
+                0x6072 => p.max_torque = v as u16,
+                0x6073 => p.max_current = v as u16,
+                0x607A => p.target_position = v as i32,
+                0x607C => p.home_offset = v as i32,
+                0x607E => p.polarity = v as u8 & 0xC0,
+                0x607F => p.max_profile_velocity = v as u32,
+                0x6080 => p.max_motor_speed = v as u32,
+                0x6081 => p.profile_velocity = v as u32,
+                0x6082 => p.start_stop_speed = v as u32,
+                0x6083 => p.profile_acceleration = v as u32,
+                0x6084 => p.profile_deceleration = v as u32,
+                0x6085 => p.quick_stop_deceleration = v as u32,
+                0x6086 => p.motion_profile_type = v as i16,
+                0x6098 => p.homing_method = v as i8,
+                0x609A => p.homing_acceleration = v as u32,
+                0x60B0 => p.position_offset = v as i32,
+                0x60B1 => p.velocity_offset = v as i32,
+                0x60B8 => self.probe.set_function(v as u16),
+                0x60C5 => p.max_acceleration = v as u32,
+                0x60C6 => p.max_deceleration = v as u32,
+                0x60F2 => p.positioning_option = v as u16,
+                0x60FF => p.target_velocity = v as i32,
+                _ => {}
+            }
+            return;
+        }
         match (index, sub) {
-            (0x6040, 0) => self.controlword = v as u16,
-            (0x605A, 0) => p.quick_stop_option = v as i16,
-            (0x605B, 0) => p.shutdown_option = v as i16,
-            (0x605C, 0) => p.disable_op_option = v as i16,
-            (0x605D, 0) => p.halt_option = v as i16,
-            (0x605E, 0) => p.fault_reaction_option = v as i16,
-            (0x6060, 0) => self.set_mode(v as i8),
-            (0x6065, 0) => p.following_error_window = v as u32,
-            (0x6066, 0) => p.following_error_timeout = v as u16,
-            (0x6067, 0) => p.position_window = v as u32,
-            (0x6068, 0) => p.position_window_time = v as u16,
-            (0x606D, 0) => p.velocity_window = v as u16,
-            (0x606E, 0) => p.velocity_window_time = v as u16,
-            (0x606F, 0) => p.velocity_threshold = v as u16,
-            (0x6072, 0) => p.max_torque = v as u16,
-            (0x6073, 0) => p.max_current = v as u16,
-            (0x607A, 0) => p.target_position = v as i32,
-            (0x607C, 0) => p.home_offset = v as i32,
             (0x607D, 1) => p.sw_limit_min = v as i32,
             (0x607D, 2) => p.sw_limit_max = v as i32,
-            (0x607E, 0) => p.polarity = v as u8 & 0xC0,
-            (0x607F, 0) => p.max_profile_velocity = v as u32,
-            (0x6080, 0) => p.max_motor_speed = v as u32,
-            (0x6081, 0) => p.profile_velocity = v as u32,
-            (0x6082, 0) => p.start_stop_speed = v as u32,
-            (0x6083, 0) => p.profile_acceleration = v as u32,
-            (0x6084, 0) => p.profile_deceleration = v as u32,
-            (0x6085, 0) => p.quick_stop_deceleration = v as u32,
-            (0x6086, 0) => p.motion_profile_type = v as i16,
-            (0x6098, 0) => p.homing_method = v as i8,
             (0x6099, 1) => p.homing_speed_switch = v as u32,
             (0x6099, 2) => p.homing_speed_zero = v as u32,
-            (0x609A, 0) => p.homing_acceleration = v as u32,
-            (0x60B0, 0) => p.position_offset = v as i32,
-            (0x60B1, 0) => p.velocity_offset = v as i32,
-            (0x60B8, 0) => self.probe.set_function(v as u16),
             (0x60C2, 1) => p.interpolation_period = v as u8,
             (0x60C2, 2) => p.interpolation_index = v as i8,
-            (0x60C5, 0) => p.max_acceleration = v as u32,
-            (0x60C6, 0) => p.max_deceleration = v as u32,
-            (0x60F2, 0) => p.positioning_option = v as u16,
             (0x60FE, 1) => p.digital_outputs = v as u32,
             (0x60FE, 2) => p.digital_outputs_mask = v as u32,
-            (0x60FF, 0) => p.target_velocity = v as i32,
             _ => {}
         }
     }
@@ -579,6 +586,31 @@ mod tests {
                     o.index,
                     e.sub
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn every_writable_entry_reads_back_what_sdo_wrote() {
+        for o in OBJECTS {
+            for e in o.entries.iter().filter(|e| e.access.writable()) {
+                let (idx, sub) = (o.index, e.sub);
+                let val: i64 = match (idx, sub) {
+                    (0x6060, 0) => 3,
+                    (0x6098, 0) => 17,
+                    (0x60B8, 0) => 0x0011,
+                    (0x6086, 0) => 3,
+                    (0x607E, 0) => 0x80,
+                    _ => e.max().min(12_345),
+                };
+                let mut d = Cia402::new();
+                let bytes = (val as u64).to_le_bytes();
+                assert_eq!(
+                    d.write(idx, sub, &bytes[..e.byte_len()]),
+                    Ok(()),
+                    "{idx:#06x}:{sub}"
+                );
+                assert_eq!(d.value(idx, sub), Some(val), "{idx:#06x}:{sub}");
             }
         }
     }
