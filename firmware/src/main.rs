@@ -578,10 +578,10 @@ impl ecat_slave_stack::od::Dictionary for NoRuntime {
 }
 
 /// The interrupt's latest measurements: one out-of-line copy of the (volatile,
-/// word-by-word) read for the thread-mode users instead of one per call site.
+/// word-by-word, looped) read for the thread-mode users instead of one per call site.
 #[inline(never)]
 fn feedback() -> Option<(u32, hw::control::Feedback)> {
-    FEEDBACK.read()
+    FEEDBACK.read_looped()
 }
 
 /// Hands the interrupt's latest measurements to the drive (before a cycle / tick).

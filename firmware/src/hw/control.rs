@@ -134,6 +134,34 @@ impl<T: Copy> Exchange<T> {
         self.seq.store(next, Ordering::Release);
     }
 
+    /// As [`Exchange::read`], but the copy is a loop over 32-bit words instead of an
+    /// unrolled copy of the whole value: a few instructions of flash for the thread-mode
+    /// readers of a large `T`, where the speed does not matter.
+    pub fn read_looped(&self) -> Option<(u32, T)> {
+        const {
+            assert!(size_of::<T>().is_multiple_of(4) && align_of::<T>() >= 4);
+        }
+        for _ in 0..4 {
+            let s = self.seq.load(Ordering::Acquire);
+            compiler_fence(Ordering::Acquire);
+            let mut v = MaybeUninit::<T>::uninit();
+            let src = self.bufs[(s & 1) as usize].get() as *const MaybeUninit<u32>;
+            let dst = v.as_mut_ptr() as *mut MaybeUninit<u32>;
+            for i in 0..size_of::<T>() / 4 {
+                // SAFETY: both point to a `T`, whose size is a multiple of 4 and whose
+                // alignment is at least 4 (checked above); words of `MaybeUninit` may
+                // hold the padding bytes.
+                unsafe { dst.add(i).write(src.add(i).read_volatile()) };
+            }
+            compiler_fence(Ordering::Acquire);
+            if self.seq.load(Ordering::Acquire).wrapping_sub(s) < 2 {
+                // SAFETY: every byte of a `T` that was not being rewritten (see `read`).
+                return Some((s, unsafe { v.assume_init() }));
+            }
+        }
+        None
+    }
+
     /// The latest value and its sequence number; `None` only when the writer kept
     /// publishing during four attempts.
     pub fn read(&self) -> Option<(u32, T)> {
