@@ -335,8 +335,17 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
         Ok(u32::from_le_bytes(b))
     }
 
-    /// Writes a 32-bit system register (serial write, 7 bytes).
+    /// Writes a 32-bit system register (serial write, 7 bytes). Out of line: one copy
+    /// for the register accesses of set-up and mailbox paths (the process-RAM paths use
+    /// [`Self::write_reg_inline`]).
+    #[inline(never)]
     pub fn write_reg(&mut self, addr: u16, v: u32) -> Result<(), EscError> {
+        self.write_reg_inline(addr, v)
+    }
+
+    /// [`Self::write_reg`] inlined into the cyclic process-RAM transfers.
+    #[inline(always)]
+    fn write_reg_inline(&mut self, addr: u16, v: u32) -> Result<(), EscError> {
         let a = addr_bytes(addr);
         let d = v.to_le_bytes();
         let frame = [cmd::SERIAL_WRITE, a[0], a[1], d[0], d[1], d[2], d[3]];
@@ -437,11 +446,11 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
             self.pram_abort(reg::PRAM_RD_CMD)?;
         }
         self.rd_dirty = true;
-        self.write_reg(
+        self.write_reg_inline(
             reg::PRAM_RD_ADDR_LEN,
             ((buf.len() as u32) << 16) | addr as u32,
         )?;
-        self.write_reg(reg::PRAM_RD_CMD, PRAM_BUSY)?;
+        self.write_reg_inline(reg::PRAM_RD_CMD, PRAM_BUSY)?;
         let lead = (addr & 3) as usize;
         let total_words = (lead + buf.len()).div_ceil(4);
         let mut word = 0;
@@ -468,11 +477,11 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
             self.pram_abort(reg::PRAM_WR_CMD)?;
         }
         self.wr_dirty = true;
-        self.write_reg(
+        self.write_reg_inline(
             reg::PRAM_WR_ADDR_LEN,
             ((data.len() as u32) << 16) | addr as u32,
         )?;
-        self.write_reg(reg::PRAM_WR_CMD, PRAM_BUSY)?;
+        self.write_reg_inline(reg::PRAM_WR_CMD, PRAM_BUSY)?;
         let lead = (addr & 3) as usize;
         let total_words = (lead + data.len()).div_ceil(4);
         let mut word = 0;
