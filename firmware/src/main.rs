@@ -406,23 +406,8 @@ async fn main(spawner: Spawner) {
     // The drive and the slave runtime; stored parameters (drive objects and the PDO
     // mapping) are loaded before the ESC leaves Init.
     let serial = firmware::identity::serial_from_unique_id(&embassy_stm32::uid::uid());
-    let mut drive: BoardDrive = Drive::with_store(
-        VARIANT,
-        serial,
-        FlashStore {
-            storage: PARAM_STORE,
-            flash: staged,
-        },
-    );
-    let mut slave = esc_ok.then(|| {
-        Slave::new(
-            esc,
-            SlaveConfig {
-                pdo_defaults: firmware::pdo_defaults::PDO_DEFAULTS,
-                ..SlaveConfig::default()
-            },
-        )
-    });
+    let mut drive = new_drive(serial, staged);
+    let mut slave = esc_ok.then(|| new_slave(esc));
     let report = match slave.as_mut() {
         Some(s) => drive.power_up(&mut s.runtime_objects(firmware::dictionary::OBJECTS)),
         None => drive.power_up(&mut NoRuntime),
@@ -531,6 +516,33 @@ async fn main(spawner: Spawner) {
         Ok(t) => spawner.spawn(t),
         Err(e) => defmt::error!("spawn supervisor: {}", e),
     }
+}
+
+/// The drive at its power-up defaults with the board's parameter store (out of line:
+/// start-up code, not worth inlining into `main`).
+#[inline(never)]
+fn new_drive(serial: u32, staged: StagedFlash) -> BoardDrive {
+    Drive::with_store(
+        VARIANT,
+        serial,
+        FlashStore {
+            storage: PARAM_STORE,
+            flash: staged,
+        },
+    )
+}
+
+/// The slave runtime over the ESC with the product's default PDO mapping (out of
+/// line, as [`new_drive`]).
+#[inline(never)]
+fn new_slave(esc: Esc) -> Slave<Esc> {
+    Slave::new(
+        esc,
+        SlaveConfig {
+            pdo_defaults: firmware::pdo_defaults::PDO_DEFAULTS,
+            ..SlaveConfig::default()
+        },
+    )
 }
 
 /// 0x2083: the power-up alignment sweeps the field (wiggle) and checks the encoder.

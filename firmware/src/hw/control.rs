@@ -336,6 +336,7 @@ static READY: AtomicBool = AtomicBool::new(false);
 /// Builds the control state. Call once, before the current-loop interrupt is
 /// enabled. `r_ohm`, `l_h`, `ke`: motor constants for the current-loop gains and
 /// feed-forward (until an auto-tune replaces them); `wiggle`: 0x2083.
+#[inline(never)]
 pub fn init(
     motion: MotionConfig,
     wiggle: bool,
