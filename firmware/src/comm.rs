@@ -257,10 +257,7 @@ impl Comm {
             (0x10F1, _) => u32::from(self.sync_error_limit),
             _ => return Err(SdoAbort::ObjectDoesNotExist),
         };
-        let len = entry.byte_len();
-        let out = buf.get_mut(..len).ok_or(SdoAbort::ExceedsMailbox)?;
-        out.copy_from_slice(&v.to_le_bytes()[..len]);
-        Ok(len)
+        crate::dictionary::put_le(entry, u64::from(v), buf)
     }
 
     /// SDO write (after the generic checks). A store / restore command is returned for

@@ -112,6 +112,18 @@ pub(crate) fn find_in(range: (u16, u16), index: u16) -> Option<&'static Object> 
     od::find(OBJECTS, index)
 }
 
+/// The answer of a module's SDO read: the low `entry.byte_len()` bytes of `v`
+/// (little-endian) into `buf`; "exceeds mailbox" when they do not fit. One copy for
+/// every module's read instead of one inlined per module.
+#[inline(never)]
+pub(crate) fn put_le(entry: &Entry, v: u64, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+    let len = entry.byte_len();
+    let out = buf.get_mut(..len).ok_or(SdoAbort::ExceedsMailbox)?;
+    let n = len.min(8);
+    out[..n].copy_from_slice(&v.to_le_bytes()[..n]);
+    Ok(len)
+}
+
 /// Entry `index:sub` of a module owning `range` (as `od::find_entry(module::OBJECTS,
 /// ..)`: no object → `ObjectDoesNotExist`, no sub-index → `SubindexDoesNotExist`).
 pub(crate) fn find_entry_in(

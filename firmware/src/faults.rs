@@ -551,10 +551,7 @@ impl Faults {
             },
             _ => return Err(SdoAbort::ObjectDoesNotExist),
         };
-        let len = entry.byte_len();
-        let out = buf.get_mut(..len).ok_or(SdoAbort::ExceedsMailbox)?;
-        out.copy_from_slice(&v.to_le_bytes()[..len]);
-        Ok(len)
+        crate::dictionary::put_le(entry, u64::from(v), buf)
     }
 }
 

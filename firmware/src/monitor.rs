@@ -157,10 +157,7 @@ impl Monitor {
             0x2307 => self.running_time_s(),
             _ => self.since_power_up_ms(),
         };
-        let len = entry.byte_len();
-        let out = buf.get_mut(..len).ok_or(SdoAbort::ExceedsMailbox)?;
-        out.copy_from_slice(&v.to_le_bytes()[..len]);
-        Ok(len)
+        crate::dictionary::put_le(entry, u64::from(v), buf)
     }
 
     /// Write: only the storage restore of the two saved counters reaches here (SDO

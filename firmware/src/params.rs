@@ -606,10 +606,7 @@ impl Params {
                 None => return Err(SdoAbort::SubindexDoesNotExist),
             },
         };
-        let len = entry.byte_len();
-        let out = buf.get_mut(..len).ok_or(SdoAbort::ExceedsMailbox)?;
-        out.copy_from_slice(&value.to_le_bytes()[..len]);
-        Ok(len)
+        crate::dictionary::put_le(entry, u64::from(value), buf)
     }
 
     /// SDO write of a vendor parameter (after the generic checks; repeated here).

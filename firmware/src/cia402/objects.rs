@@ -338,10 +338,7 @@ impl Cia402 {
         let v = self
             .value(index, sub)
             .ok_or(SdoAbort::SubindexDoesNotExist)?;
-        let n = e.byte_len();
-        let out = buf.get_mut(..n).ok_or(SdoAbort::ExceedsMailbox)?;
-        out.copy_from_slice(&(v as u64).to_le_bytes()[..n]);
-        Ok(n)
+        crate::dictionary::put_le(e, v as u64, buf)
     }
 
     /// SDO write of a 0x6xxx entry: checks access, length and range (the same checks
