@@ -7,7 +7,8 @@
 //!
 //! [`EscSpi`] is the embedded-hal 1.0 `SpiDevice` both drivers take: software chip
 //! select on PB12 around each transaction; data phases of [`DMA_MIN_LEN`] bytes or
-//! more run on DMA1 channels 1 (RX) / 2 (TX) and are driven to completion in place
+//! more (of the operation kinds the build's driver uses, see `DMA_READ`) run on DMA1
+//! channels 1 (RX) / 2 (TX) and are driven to completion in place
 //! (the DMA interrupt is more urgent than every caller, see main.rs), shorter ones
 //! (address/command phases) are polled because setting up a DMA transfer costs more
 //! than clocking a few bytes. SPI mode 3, [`board::ESC_SPI_HZ`].
@@ -21,6 +22,17 @@ use crate::board;
 
 /// Shortest data phase moved by DMA.
 pub const DMA_MIN_LEN: usize = 8;
+
+/// The ESC driver of this build is the ET1100 one (see [`Esc`]).
+const ET1100: bool = cfg!(all(feature = "esc-et1100", not(feature = "esc-lan9252")));
+/// Operation kinds whose long data phases go by DMA in this build: the ones its ESC
+/// driver issues with [`DMA_MIN_LEN`] bytes or more (LAN9252: `Read` and `Write`;
+/// ET1100: `Write` and `TransferInPlace`; neither sends a long `Transfer`, only
+/// address phases). Other kinds still work, polled; leaving their DMA code out saves
+/// flash.
+const DMA_READ: bool = !ET1100;
+const DMA_TRANSFER_IN_PLACE: bool = ET1100;
+const DMA_TRANSFER: bool = false;
 
 /// SPI device for the ESC driver (see the module docs).
 pub struct EscSpi {
@@ -49,7 +61,7 @@ impl EscSpi {
         let n = read.len().min(write.len());
         let (r0, r1) = read.split_at_mut(n);
         let (w0, w1) = write.split_at(n);
-        if n >= DMA_MIN_LEN {
+        if DMA_TRANSFER && n >= DMA_MIN_LEN {
             embassy_futures::block_on(self.bus.transfer(r0, w0))?;
         } else if n > 0 {
             self.bus.blocking_transfer(r0, w0)?;
@@ -59,7 +71,7 @@ impl EscSpi {
     }
 
     fn read(&mut self, buf: &mut [u8]) -> Result<(), spi::Error> {
-        if buf.len() >= DMA_MIN_LEN {
+        if DMA_READ && buf.len() >= DMA_MIN_LEN {
             embassy_futures::block_on(self.bus.read(buf))
         } else if !buf.is_empty() {
             self.bus.blocking_read(buf)
@@ -79,7 +91,7 @@ impl EscSpi {
     }
 
     fn transfer_in_place(&mut self, buf: &mut [u8]) -> Result<(), spi::Error> {
-        if buf.len() >= DMA_MIN_LEN {
+        if DMA_TRANSFER_IN_PLACE && buf.len() >= DMA_MIN_LEN {
             embassy_futures::block_on(self.bus.transfer_in_place(buf))
         } else if !buf.is_empty() {
             self.bus.blocking_transfer_in_place(buf)
