@@ -165,6 +165,24 @@ impl Op<'_> {
     fn t_ms(&self) -> f64 {
         (sim_now_ns() - self.t0) as f64 * 1e-6
     }
+    /// Runs cycles with controlword `cw` (target `hold`, then the actual position) until the
+    /// statusword shows `state` (`statusword & 0x6F`), as a master's CiA 402 state
+    /// machine does, at most `max_ms` cycles. Returns the last inputs and the cycles.
+    async fn until_state(
+        &self,
+        cw: u16,
+        state: u16,
+        max_ms: u32,
+        hold: i32,
+    ) -> Result<(Tx, u32), ethercrab::error::Error> {
+        let mut tx = self.cycle(cw, hold).await?;
+        let mut n = 1;
+        while tx.status & 0x6F != state && n < max_ms {
+            tx = self.cycle(cw, tx.position).await?;
+            n += 1;
+        }
+        Ok((tx, n))
+    }
     /// Writes 0x6060 and runs cycles (controlword 0x000F, holding `hold`) until 0x6061
     /// shows the new mode.
     async fn set_mode(&self, mode: i8, hold: i32) -> Result<Tx, ethercrab::error::Error> {
@@ -189,6 +207,8 @@ impl Op<'_> {
 }
 
 struct Traces {
+    /// What did not go as a commissioning engineer expects (the demo then fails).
+    problems: Vec<String>,
     homing: Vec<(f64, f64)>,
     homing_switch: Vec<(f64, f64)>,
     csp_error: Vec<(f64, f64)>,
@@ -333,29 +353,61 @@ async fn commission(
     };
     println!("\n4. Operational: {seg_out} bytes of outputs and {seg_in} bytes of inputs exchanged every 1 ms (LRW).");
 
-    // --- enable ---------------------------------------------------------------------
-    let mut rows = Vec::new();
-    let mut tx = op.cycle(0, 0).await?;
-    let mut hold = tx.position;
-    for (cw, what) in [
-        (0x0006u16, "shutdown"),
-        (0x0007, "switch on"),
-        (0x000F, "enable operation"),
-    ] {
-        for _ in 0..3 {
-            tx = op.cycle(cw, hold).await?;
+    let mut problems: Vec<String> = Vec::new();
+    let mut expect = |ok: bool, what: &str| {
+        if !ok {
+            problems.push(what.to_string());
         }
-        hold = tx.position;
+    };
+    // --- power-up self-test and enable ---------------------------------------------
+    // The drive stays in Not ready to switch on while it auto-tunes its current loop
+    // (0x2013 = 1); like a real master, wait for Switch on disabled first, then step
+    // through the states, each until the statusword shows it.
+    let mut rows = Vec::new();
+    let (mut tx, waited) = op.until_state(0x0000, 0x40, 3000, 0).await?;
+    expect(
+        tx.status & 0x6F == 0x40,
+        "Switch on disabled after the power-up self-test",
+    );
+    rows.push(vec![
+        format!("0x0000 (power-up self-test: {waited} ms)"),
+        format!("{:#06x}", tx.status),
+        pds_state(tx.status).into(),
+    ]);
+    for (cw, what, state) in [
+        (0x0006u16, "shutdown", 0x21u16),
+        (0x0007, "switch on", 0x23),
+        (0x000F, "enable operation", 0x27),
+    ] {
+        let (t, n) = op.until_state(cw, state, 2000, tx.position).await?;
+        tx = t;
+        expect(tx.status & 0x6F == state, what);
         rows.push(vec![
-            format!("{cw:#06x} {what}"),
+            format!("{cw:#06x} {what} ({n} cycles)"),
             format!("{:#06x}", tx.status),
             pds_state(tx.status).into(),
         ]);
     }
+    let hold = tx.position;
     table(
         "5. Enable through the CiA 402 power drive system",
         &["controlword", "statusword", "state"],
         &rows,
+    );
+    let mut tuned = Vec::new();
+    for (i, what) in [
+        (0x2020u16, "phase resistance (mΩ)"),
+        (0x2021, "phase inductance (µH)"),
+        (0x2015, "current Kp (0.01 V/A)"),
+        (0x2016, "current Ki (10 V/(A·s))"),
+    ] {
+        let v: u16 = op.group.subdevice(op.md, 0)?.sdo_read(i, 0).await?;
+        tuned.push(vec![format!("{i:#06X}:00"), what.into(), v.to_string()]);
+    }
+    table(
+        "   The power-up auto-tune's results (0x2013 = 1), read by SDO",
+        &["object", "meaning", "value"],
+        &tuned,
     );
 
     // --- homing -------------------------------------------------------------------
@@ -384,6 +436,7 @@ async fn commission(
         }
     }
     tx = op.cycle(0x000F, 0).await?;
+    expect(attained.is_some(), "homing attained");
     table(
         "6. Homing, method 19 (home switch, positive side) on the simulated axis",
         &["0x6061", "result", "time", "position (units)", "statusword"],
@@ -420,6 +473,7 @@ async fn commission(
             break;
         }
     }
+    expect(reached_at.is_some(), "PP target reached");
     table(
         "7. Profile position move: 2 revolutions at 2 rev/s, 10 rev/s² (PP, set-point handshake)",
         &[
@@ -470,6 +524,7 @@ async fn commission(
             csp_target.push((k as f64, target as f64 / UNITS_PER_REV));
         }
     }
+    expect(max_err < 500.0, "CSP tracking error below 500 counts");
     table(
         "8. CSP: 5 revolutions as an S-curve (cycloidal) in 1.5 s, target every 1 ms cycle",
         &[
@@ -497,6 +552,7 @@ async fn commission(
     for _ in 0..20 {
         tx = op.cycle(0x000F, jump).await?;
     }
+    expect(tx.error == 0x8611, "following-error fault 0x8611");
     rows.push(vec![
         "target jumps by one revolution (following error window 500 units, 5 ms)".into(),
         format!("{:#06x}", tx.status),
@@ -514,11 +570,13 @@ async fn commission(
         pds_state(tx.status).into(),
         format!("{:#06x}", tx.error),
     ]);
-    for cw in [0x0006u16, 0x0007, 0x000F] {
-        for _ in 0..3 {
-            tx = op.cycle(cw, tx.position).await?;
-        }
+    for (cw, state) in [(0x0006u16, 0x21u16), (0x0007, 0x23), (0x000F, 0x27)] {
+        tx = op.until_state(cw, state, 2000, tx.position).await?.0;
     }
+    expect(
+        tx.status & 0x6F == 0x27,
+        "Operation enabled again after the reset",
+    );
     rows.push(vec![
         "enable again".into(),
         format!("{:#06x}", tx.status),
@@ -564,6 +622,7 @@ async fn commission(
     let _ = group.into_init(&md).await?;
     println!("\nBack to Init.");
     Ok(Traces {
+        problems,
         homing,
         homing_switch,
         csp_error,
@@ -617,6 +676,10 @@ fn main() {
         stats.received,
         sim_now_ns() as f64 * 1e-9
     );
+    if !traces.problems.is_empty() {
+        eprintln!("demo: not as expected: {}", traces.problems.join("; "));
+        std::process::exit(1);
+    }
 
     // --- plots ------------------------------------------------------------------------
     if let Err(e) = std::fs::create_dir_all(&out) {
