@@ -205,7 +205,8 @@ pub struct Faults {
     cfg: FaultConfig,
     mask: u16,
     clear_allowed: bool,
-    active: [bool; KINDS],
+    /// Bit n: [`FaultKind`] n active (one word: the drive cycle reads it every time).
+    active: u8,
     present: [bool; KINDS],
     ecat_code: u16,
     /// A ring: `history[newest]` is the newest entry, older ones follow (a new fault
@@ -233,7 +234,7 @@ impl Faults {
             cfg,
             mask: 0x00C3,
             clear_allowed: false,
-            active: [false; KINDS],
+            active: 0,
             present: [false; KINDS],
             ecat_code: 0,
             history: [None; HISTORY],
@@ -313,10 +314,10 @@ impl Faults {
         }
         let k = kind as usize;
         self.present[k] = true;
-        if self.active[k] {
+        if self.active & (1 << k) != 0 {
             return false;
         }
-        self.active[k] = true;
+        self.active |= 1 << k;
         if kind == FaultKind::Ecat {
             self.ecat_code = code;
         }
@@ -419,8 +420,11 @@ impl Faults {
         let had = self.any_active();
         for k in FaultKind::ALL {
             let i = k as usize;
-            if self.active[i] && !self.present[i] && (!k.latched() || self.clear_allowed) {
-                self.active[i] = false;
+            if self.active & (1 << i) != 0
+                && !self.present[i]
+                && (!k.latched() || self.clear_allowed)
+            {
+                self.active &= !(1 << i);
             }
         }
         let clear = !self.any_active();
@@ -439,12 +443,12 @@ impl Faults {
 
     /// True while `kind` is active.
     pub fn is_active(&self, kind: FaultKind) -> bool {
-        self.active[kind as usize]
+        self.active & (1 << kind as u8) != 0
     }
 
     /// True while any fault is active (alarm output, PDS stays in Fault).
     pub fn any_active(&self) -> bool {
-        self.active.iter().any(|&a| a)
+        self.active != 0
     }
 
     /// Alarm output function (0x2005 bit 0).
@@ -454,9 +458,10 @@ impl Faults {
 
     /// The most severe active fault.
     pub fn most_severe(&self) -> Option<FaultKind> {
-        FaultKind::ALL
-            .into_iter()
-            .find(|&k| self.active[k as usize])
+        if self.active == 0 {
+            return None;
+        }
+        FaultKind::ALL.into_iter().find(|&k| self.is_active(k))
     }
 
     /// 0x603F: code of the most severe active fault, 0 when none.
@@ -472,23 +477,20 @@ impl Faults {
     pub fn error_register(&self) -> u8 {
         FaultKind::ALL
             .iter()
-            .filter(|&&k| self.active[k as usize])
+            .filter(|&&k| self.is_active(k))
             .fold(0, |r, &k| r | k.error_register())
     }
 
     /// Bit n set: [`FaultKind`] n active (0x2400:08).
     pub fn active_mask(&self) -> u16 {
-        FaultKind::ALL
-            .iter()
-            .filter(|&&k| self.active[k as usize])
-            .fold(0, |r, &k| r | (1 << k as u16))
+        u16::from(self.active)
     }
 
     /// Flash count of the most severe active fault with a red LED code.
     pub fn led_code(&self) -> Option<u8> {
         FaultKind::ALL
             .into_iter()
-            .filter(|&k| self.active[k as usize])
+            .filter(|&k| self.is_active(k))
             .find_map(|k| k.flashes())
     }
 
