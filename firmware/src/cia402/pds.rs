@@ -349,6 +349,25 @@ pub const TRANSITIONS: &[Transition] = &[
     },
 ];
 
+/// Per state (index = `PdsState` discriminant): the events some transition leaving it
+/// reacts to. Lets [`find`] answer the every-cycle case (a controlword that asks for the
+/// state the drive is already in) without walking the table.
+const EVENTS_FROM: [u16; 8] = {
+    let mut m = [0u16; 8];
+    let mut t = 0;
+    while t < TRANSITIONS.len() {
+        let mut s = 0;
+        while s < 8 {
+            if TRANSITIONS[t].from & (1 << s) != 0 {
+                m[s] |= TRANSITIONS[t].trigger;
+            }
+            s += 1;
+        }
+        t += 1;
+    }
+    m
+};
+
 /// Finds the transition that fires for `event` in `state`; `guard_ok` decides guards.
 pub fn find(
     state: PdsState,
@@ -357,6 +376,9 @@ pub fn find(
 ) -> Option<&'static Transition> {
     let sb = state.bit();
     let eb = event.bit();
+    if EVENTS_FROM[state as usize & 7] & eb == 0 {
+        return None;
+    }
     TRANSITIONS
         .iter()
         .find(|t| t.from & sb != 0 && t.trigger & eb != 0 && guard_ok(t.guard))
@@ -365,6 +387,38 @@ pub fn find(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn find_shortcut_agrees_with_the_table() {
+        use Command as C;
+        let events = [
+            Event::Cmd(C::Shutdown),
+            Event::Cmd(C::SwitchOn),
+            Event::Cmd(C::EnableOperation),
+            Event::Cmd(C::DisableVoltage),
+            Event::Cmd(C::QuickStop),
+            Event::Cmd(C::FaultReset),
+            Event::InitDone,
+            Event::FaultDetected,
+            Event::FaultReactionDone,
+            Event::QuickStopDone,
+            Event::FaultResetEdge,
+        ];
+        for st in PdsState::ALL {
+            for ev in events {
+                for guard_result in [true, false] {
+                    let naive = TRANSITIONS.iter().find(|t| {
+                        t.from & st.bit() != 0 && t.trigger & ev.bit() != 0 && guard_result
+                    });
+                    assert_eq!(
+                        find(st, ev, |_| guard_result).map(|t| t.number),
+                        naive.map(|t| t.number),
+                        "{st:?} {ev:?}"
+                    );
+                }
+            }
+        }
+    }
 
     #[test]
     fn decode_typical_controlwords() {
