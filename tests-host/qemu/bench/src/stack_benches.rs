@@ -101,10 +101,54 @@ fn enabled_drive() -> Drive {
 }
 
 pub fn run() {
+    start_up();
     mailbox();
     storage();
     csp_cycle();
     current_interrupt();
+}
+
+/// An ESC that answers nothing (the constructors do not touch it).
+struct NoEsc;
+
+impl ecat_slave_stack::EscAccess for NoEsc {
+    fn read(&mut self, _: u16, _: &mut [u8]) -> Result<(), ecat_slave_stack::EscError> {
+        Err(ecat_slave_stack::EscError::Bus)
+    }
+    fn write(&mut self, _: u16, _: &[u8]) -> Result<(), ecat_slave_stack::EscError> {
+        Err(ecat_slave_stack::EscError::Bus)
+    }
+}
+
+/// The board's start-up builds the drive and the slave runtime by value and moves
+/// them into their static slots: the temporaries are on the stack at that moment.
+fn start_up() {
+    use core::mem::MaybeUninit;
+    use ecat_slave_stack::slave::{Slave, SlaveConfig};
+    static mut DRIVE: MaybeUninit<Drive> = MaybeUninit::uninit();
+    static mut SLAVE: MaybeUninit<Slave<NoEsc>> = MaybeUninit::uninit();
+    stack(
+        "start-up: Drive built and moved into its static slot",
+        || {
+            let d = Drive::new(Variant::HybridServo, 1);
+            // SAFETY: written once here, never read concurrently (single-threaded image).
+            unsafe { (*core::ptr::addr_of_mut!(DRIVE)).write(d) };
+        },
+    );
+    stack(
+        "start-up: slave runtime built and moved into its static slot",
+        || {
+            let s = Slave::new(
+                NoEsc,
+                SlaveConfig {
+                    pdo_defaults: firmware::pdo_defaults::PDO_DEFAULTS,
+                    ..SlaveConfig::default()
+                },
+            );
+            // SAFETY: as above.
+            unsafe { (*core::ptr::addr_of_mut!(SLAVE)).write(s) };
+        },
+    );
 }
 
 fn mailbox() {
