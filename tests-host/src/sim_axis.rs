@@ -597,3 +597,34 @@ impl Axis for PlantAxis {
         raw
     }
 }
+
+/// A [`PlantAxis`] shared between a [`crate::sim_drive::SimDrive`] (as its
+/// `Box<dyn Axis>`) and a test that injects faults into the plant or reads it.
+pub struct SharedPlant(pub std::rc::Rc<std::cell::RefCell<PlantAxis>>);
+
+impl Axis for SharedPlant {
+    fn advance(&mut self, dt_s: f64, cmd: &DriveCommand) {
+        self.0.borrow_mut().advance(dt_s, cmd)
+    }
+    fn state(&mut self) -> AxisState {
+        self.0.borrow_mut().state()
+    }
+    fn raw_inputs(&self) -> u8 {
+        self.0.borrow().raw_inputs()
+    }
+    fn command(&mut self, cmd: &DriveCommand, cycle_s: f64) {
+        self.0.borrow_mut().command(cmd, cycle_s)
+    }
+    fn parameters(&mut self, p: &Params) {
+        self.0.borrow_mut().parameters(p)
+    }
+    fn true_position(&self) -> Option<f64> {
+        Axis::true_position(&*self.0.borrow())
+    }
+    fn current_control(&mut self, tune_permitted: bool) -> CurrentReport {
+        self.0.borrow_mut().current_control(tune_permitted)
+    }
+    fn commutation_failures(&self) -> u32 {
+        self.0.borrow().commutation_failures()
+    }
+}

@@ -339,3 +339,19 @@ pub fn shutdown(seg: &mut Segment<SimDrive>) {
         d.app.axis.advance(0.0, &DriveCommand::default());
     }
 }
+
+/// A runtime dictionary without objects: for tests that power up a [`SimDrive`]'s
+/// drive without the slave runtime's PDO objects (`Drive::power_up(&mut NoRuntime)`).
+pub struct NoRuntime;
+
+impl Dictionary for NoRuntime {
+    fn objects(&self) -> &'static [Object] {
+        &[]
+    }
+    fn read(&mut self, _: u16, _: u8, _: &mut [u8]) -> Result<usize, SdoAbort> {
+        Err(SdoAbort::ObjectDoesNotExist)
+    }
+    fn write(&mut self, _: u16, _: u8, _: &[u8], _: EsmState) -> Result<(), SdoAbort> {
+        Err(SdoAbort::ObjectDoesNotExist)
+    }
+}

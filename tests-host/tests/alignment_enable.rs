@@ -18,67 +18,19 @@ use std::cell::RefCell;
 use std::rc::Rc;
 
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
-use ecat_slave_stack::od::{Dictionary, Object, SdoAbort};
+use ecat_slave_stack::od::Dictionary;
 use ecat_slave_stack::slave::{CycleInfo, SlaveApplication};
 use ecat_slave_stack::sync::SyncMode;
 use firmware::cia402::pds::PdsState;
-use firmware::cia402::DriveCommand;
 use firmware::commutation::Commutation;
-use firmware::current_supervisor::{CurrentReport, TuneStatus};
-use firmware::drive::AxisState;
+use firmware::current_supervisor::TuneStatus;
 use firmware::faults::Emergency;
-use firmware::params::Params;
 use tests_host::file_flash::FileFlash;
-use tests_host::sim_axis::PlantAxis;
-use tests_host::sim_drive::{Axis, Motor, SimDrive};
+use tests_host::sim_axis::{PlantAxis, SharedPlant};
+use tests_host::sim_drive::{Axis, Motor, NoRuntime, SimDrive};
 
 /// Command units per encoder count (50 000 units, 4 000 counts per revolution).
 const UNITS_PER_COUNT: f64 = 12.5;
-
-/// The plant axis shared between the drive (its `Box<dyn Axis>`) and the test.
-struct Shared(Rc<RefCell<PlantAxis>>);
-
-impl Axis for Shared {
-    fn advance(&mut self, dt_s: f64, cmd: &DriveCommand) {
-        self.0.borrow_mut().advance(dt_s, cmd)
-    }
-    fn state(&mut self) -> AxisState {
-        self.0.borrow_mut().state()
-    }
-    fn raw_inputs(&self) -> u8 {
-        self.0.borrow().raw_inputs()
-    }
-    fn command(&mut self, cmd: &DriveCommand, cycle_s: f64) {
-        self.0.borrow_mut().command(cmd, cycle_s)
-    }
-    fn parameters(&mut self, p: &Params) {
-        self.0.borrow_mut().parameters(p)
-    }
-    fn true_position(&self) -> Option<f64> {
-        Axis::true_position(&*self.0.borrow())
-    }
-    fn current_control(&mut self, tune_permitted: bool) -> CurrentReport {
-        self.0.borrow_mut().current_control(tune_permitted)
-    }
-    fn commutation_failures(&self) -> u32 {
-        self.0.borrow().commutation_failures()
-    }
-}
-
-/// The slave runtime's objects are not part of these tests.
-struct NoRuntime;
-
-impl Dictionary for NoRuntime {
-    fn objects(&self) -> &'static [Object] {
-        &[]
-    }
-    fn read(&mut self, _: u16, _: u8, _: &mut [u8]) -> Result<usize, SdoAbort> {
-        Err(SdoAbort::ObjectDoesNotExist)
-    }
-    fn write(&mut self, _: u16, _: u8, _: &[u8], _: EsmState) -> Result<(), SdoAbort> {
-        Err(SdoAbort::ObjectDoesNotExist)
-    }
-}
 
 /// One millisecond as the master sees it.
 #[derive(Debug, Clone, Copy)]
@@ -112,7 +64,7 @@ impl Bench {
         let mut d = SimDrive::new(
             0x1234,
             FileFlash::in_memory(),
-            Box::new(Shared(axis.clone())),
+            Box::new(SharedPlant(axis.clone())),
         );
         d.drive.power_up(&mut NoRuntime);
         d.axis.parameters(&d.drive.params);
