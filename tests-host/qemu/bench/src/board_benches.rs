@@ -5,34 +5,17 @@
 //! touch-probe / index edge in the current-loop interrupt).
 use core::hint::black_box;
 
-use firmware::cia402::{DriveCommand, SetpointKind};
 use firmware::commutation::{CommutatedMotion, Commutation};
 use firmware::identity::Variant;
 use firmware::latch::units_at_count;
-use firmware::motion::{Feedback, MotionConfig, ECN57_20, SERVO_TS};
 use firmware::params::Params;
 use foc::angle::Angle;
 
 pub fn run() {
     let p = Params::new(Variant::HybridServo);
-    let cfg = MotionConfig::from_params(&p, Variant::HybridServo, &ECN57_20, SERVO_TS);
-    let mut cmd = DriveCommand {
-        power_stage: true,
-        drive_enabled: true,
-        kind: SetpointKind::Position,
-        position: 0,
-        velocity: 50_000.0,
-        acceleration: 0.0,
-        torque_limit: 1000,
-        current_limit: 1000,
-        brake_release: true,
-    };
-    let mut fb = Feedback {
-        position: 0,
-        velocity: 0.0,
-        electrical_angle: Angle::ZERO,
-        voltage_limited: false,
-    };
+    let cfg = crate::setup::servo_config(&p);
+    let mut cmd = crate::setup::moving_command();
+    let mut fb = crate::setup::AT_REST;
 
     // Aligned, running at one revolution per second (as the motion-layer row).
     let mut m = CommutatedMotion::new_aligned(cfg, true);

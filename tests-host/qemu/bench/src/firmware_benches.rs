@@ -162,32 +162,15 @@ fn product() {
 /// a CSP cycle's interpolation (interpolation + position/velocity cascade + limits),
 /// and the once-per-cycle hand-over of the CiA 402 set-point (units → counts).
 fn motion() {
-    use firmware::cia402::{DriveCommand, SetpointKind};
     use firmware::identity::Variant;
-    use firmware::motion::{Feedback, Motion, MotionConfig, ECN57_20, SERVO_TS};
+    use firmware::motion::Motion;
     use firmware::params::Params;
-    use foc::angle::Angle;
 
     let p = Params::new(Variant::HybridServo);
-    let cfg = MotionConfig::from_params(&p, Variant::HybridServo, &ECN57_20, SERVO_TS);
+    let cfg = crate::setup::servo_config(&p);
     let mut m = Motion::new(cfg);
-    let mut cmd = DriveCommand {
-        power_stage: true,
-        drive_enabled: true,
-        kind: SetpointKind::Position,
-        position: 0,
-        velocity: 50_000.0,
-        acceleration: 0.0,
-        torque_limit: 1000,
-        current_limit: 1000,
-        brake_release: true,
-    };
-    let mut fb = Feedback {
-        position: 0,
-        velocity: 0.0,
-        electrical_angle: Angle::ZERO,
-        voltage_limited: false,
-    };
+    let mut cmd = crate::setup::moving_command();
+    let mut fb = crate::setup::AT_REST;
     // Running at one revolution per second: 50 units (4 counts) per 1 ms cycle.
     for k in 0..20 {
         cmd.position = 50 * k;
@@ -223,8 +206,7 @@ fn csp_cycle() {
     use ecat_slave_stack::pdo::{self, PdoConfig};
     use firmware::drive::{AxisState, Drive};
     use firmware::identity::Variant;
-    use firmware::motion::{Feedback, Motion, MotionConfig, ECN57_20, SERVO_TS};
-    use foc::angle::Angle;
+    use firmware::motion::{Feedback, Motion};
 
     let mut d = Drive::new(Variant::HybridServo, 1);
     let cfg = PdoConfig::new(firmware::pdo_defaults::PDO_DEFAULTS);
@@ -239,7 +221,7 @@ fn csp_cycle() {
         d.on_state_change(from, to);
     }
     d.cia402.set_mode(mode::CSP);
-    let mcfg = MotionConfig::from_params(&d.params, Variant::HybridServo, &ECN57_20, SERVO_TS);
+    let mcfg = crate::setup::servo_config(&d.params);
     let mut m = Motion::new(mcfg);
     // RxPDO 0x1600: 6040 (2 B), 607A (4 B), 60B0 (4 B), 60B8 (2 B).
     let image = |cw: u16, target: i32| {
@@ -250,12 +232,7 @@ fn csp_cycle() {
     };
     let mut inputs = [0u8; 64];
     let tx_len = (plan.tx.bytes() as usize).min(inputs.len());
-    let mut fb = Feedback {
-        position: 0,
-        velocity: 0.0,
-        electrical_angle: Angle::ZERO,
-        voltage_limited: false,
-    };
+    let mut fb = crate::setup::AT_REST;
     let mut target = 0i32;
     let mut one_cycle = |d: &mut Drive, m: &mut Motion, fb: &mut Feedback, out: &[u8; 12]| {
         pdo::unpack(&plan.rx, out, d);

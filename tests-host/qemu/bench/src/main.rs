@@ -20,6 +20,44 @@ pub fn bench<R>(name: &str, f: impl FnOnce() -> R) -> R {
     qemu_runner::bench::measure(f)
 }
 
+/// Set-up shared by the motion-layer rows (built outside the measured closures).
+pub mod setup {
+    use firmware::cia402::{DriveCommand, SetpointKind};
+    use firmware::identity::Variant;
+    use firmware::motion::{Feedback, MotionConfig, ECN57_20, SERVO_TS};
+    use firmware::params::Params;
+    use foc::angle::Angle;
+
+    /// The motion configuration of a hybrid servo with its default parameters.
+    pub fn servo_config(p: &Params) -> MotionConfig {
+        MotionConfig::from_params(p, Variant::HybridServo, &ECN57_20, SERVO_TS)
+    }
+
+    /// An enabled position command moving at 50 000 units/s (one revolution per
+    /// second), from position 0.
+    pub fn moving_command() -> DriveCommand {
+        DriveCommand {
+            power_stage: true,
+            drive_enabled: true,
+            kind: SetpointKind::Position,
+            position: 0,
+            velocity: 50_000.0,
+            acceleration: 0.0,
+            torque_limit: 1000,
+            current_limit: 1000,
+            brake_release: true,
+        }
+    }
+
+    /// Feedback of an axis at rest at position 0.
+    pub const AT_REST: Feedback = Feedback {
+        position: 0,
+        velocity: 0.0,
+        electrical_angle: Angle::ZERO,
+        voltage_limited: false,
+    };
+}
+
 /// Name of the calibration row: an empty closure between the markers. Its count (the
 /// cost of the markers themselves) is subtracted from every other row.
 pub const OVERHEAD: &str = "(marker overhead)";

@@ -21,7 +21,7 @@ use firmware::cia402::mode;
 use firmware::current_supervisor::{CurrentSupervisor, SupervisorConfig};
 use firmware::drive::{AxisState, Drive};
 use firmware::identity::Variant;
-use firmware::motion::{Feedback, Motion, MotionConfig, ECN57_20, SERVO_TS};
+use firmware::motion::Motion;
 use firmware::storage::{RamFlash, Scope, Storage};
 use foc::angle::Angle;
 use foc::current_loop::{AdcSample, CurrentLoop, CurrentLoopConfig, Sense};
@@ -231,16 +231,11 @@ fn csp_cycle() {
         return;
     };
     d.cia402.set_mode(mode::CSP);
-    let mcfg = MotionConfig::from_params(&d.params, Variant::HybridServo, &ECN57_20, SERVO_TS);
+    let mcfg = crate::setup::servo_config(&d.params);
     let mut m = Motion::new(mcfg);
     let mut inputs = [0u8; 64];
     let tx_len = (plan.tx.bytes() as usize).min(inputs.len());
-    let fb = Feedback {
-        position: 0,
-        velocity: 0.0,
-        electrical_angle: Angle::ZERO,
-        voltage_limited: false,
-    };
+    let fb = crate::setup::AT_REST;
     let mut target = 0i32;
     for cw in [0x0000u16, 0x0006, 0x0007, 0x000F, 0x000F, 0x000F] {
         let mut out = [0u8; 12];
@@ -287,14 +282,9 @@ fn current_interrupt() {
     let p = firmware::params::Params::new(Variant::HybridServo);
     let mut sup = CurrentSupervisor::new(SupervisorConfig::from_params(&p, TS, 2125));
     let d = Drive::new(Variant::HybridServo, 1);
-    let mcfg = MotionConfig::from_params(&d.params, Variant::HybridServo, &ECN57_20, SERVO_TS);
+    let mcfg = crate::setup::servo_config(&d.params);
     let mut m = Motion::new(mcfg);
-    let fb = Feedback {
-        position: 0,
-        velocity: 0.0,
-        electrical_angle: Angle::ZERO,
-        voltage_limited: false,
-    };
+    let fb = crate::setup::AT_REST;
     let adc = black_box(AdcSample {
         ia: 2100,
         ib: 1990,
