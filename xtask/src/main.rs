@@ -386,7 +386,9 @@ fn size_report() -> Result<bool, String> {
     let mut within = true;
     for flavour in FIRMWARE_FLAVOURS {
         let features = format!("board,{flavour}");
-        let target_dir = format!("target/firmware-{flavour}");
+        // One target directory for both flavours: the dependencies built without the
+        // flavour feature are shared, the final ELF is copied out per flavour.
+        let target_dir = "target/firmware";
         if !run_status(&mut cargo(&[
             "build",
             "-p",
@@ -397,11 +399,13 @@ fn size_report() -> Result<bool, String> {
             "--target",
             THUMB,
             "--target-dir",
-            &target_dir,
+            target_dir,
         ])) {
             return Err(format!("firmware build ({flavour}) failed"));
         }
-        let elf = format!("{target_dir}/{THUMB}/release/firmware");
+        let elf = format!("{target_dir}/firmware-{flavour}.elf");
+        std::fs::copy(format!("{target_dir}/{THUMB}/release/firmware"), &elf)
+            .map_err(|e| format!("copy firmware ELF: {e}"))?;
         let (flash, ram) = elf_usage(&elf)?;
         let in_budget = flash <= FLASH_BUDGET && ram <= RAM_BUDGET;
         within &= flash <= FLASH_CHIP && ram <= RAM_CHIP;
