@@ -48,9 +48,10 @@ pub fn execute<F: NorFlash, D: Dictionary + ?Sized>(
     flash: &mut F,
     dict: &mut D,
 ) -> Result<SaveReport, StorageError> {
+    // One instance of the record writer for both commands.
     match cmd {
-        StoreCommand::Save(scope) => storage.save(flash, dict, scope),
-        StoreCommand::RestoreDefaults(scope) => storage.restore_defaults(flash, scope),
+        StoreCommand::Save(scope) => storage.write_record(flash, Some(dict), scope),
+        StoreCommand::RestoreDefaults(scope) => storage.write_record::<F, D>(flash, None, scope),
     }
 }
 

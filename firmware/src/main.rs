@@ -405,9 +405,24 @@ async fn main(spawner: Spawner) {
 
     // The drive and the slave runtime; stored parameters (drive objects and the PDO
     // mapping) are loaded before the ESC leaves Init.
+    // Built in place in their static slot: the drive state is ≈ 5 KiB, and building it
+    // in `main`'s frame and moving it in would add that (twice) to the stack peak.
     let serial = firmware::identity::serial_from_unique_id(&embassy_stm32::uid::uid());
-    let mut drive = new_drive(serial, staged);
-    let mut slave = esc_ok.then(|| new_slave(esc));
+    let sp = core::ptr::addr_of_mut!(SHARED_MEM).cast::<Shared>();
+    // SAFETY: main runs once and is the only user of SHARED_MEM until the lock gets
+    // the finished value below; `drive` and `slave` are written here before the
+    // references to them are made, and those references are not used after the
+    // whole value is taken.
+    let (drive, slave) = unsafe {
+        let d = core::ptr::addr_of_mut!((*sp).drive);
+        new_drive(d, serial, staged);
+        let s = core::ptr::addr_of_mut!((*sp).slave);
+        s.write(None);
+        if esc_ok {
+            new_slave(s, esc);
+        }
+        (&mut *d, &mut *s)
+    };
     let report = match slave.as_mut() {
         Some(s) => drive.power_up(&mut s.runtime_objects(firmware::dictionary::OBJECTS)),
         None => drive.power_up(&mut NoRuntime),
@@ -441,10 +456,10 @@ async fn main(spawner: Spawner) {
     }
 
     // Motor control in the current-loop interrupt, then the ADCs (which enable it).
-    let mcfg = motion_config(&drive);
-    let wiggle = align_wiggle(&drive);
-    let scfg = supervisor_config(&drive);
-    let (r, l) = motor_rl(&drive);
+    let mcfg = motion_config(drive);
+    let wiggle = align_wiggle(drive);
+    let scfg = supervisor_config(drive);
+    let (r, l) = motor_rl(drive);
     hw::control::init(mcfg, wiggle, scfg, mcfg.counts_per_rev / 4, r, l, MOTOR.kt);
     let ctl = ControlCommand {
         cycle: 0,
@@ -460,23 +475,20 @@ async fn main(spawner: Spawner) {
     };
     send_command(&ctl);
     let has_slave = slave.is_some();
-    // SAFETY: main runs once and is the only user of SHARED_MEM; from here on the
-    // value is reached only through the lock.
+    // SAFETY: as above; every other field is written here, so the value is whole; from
+    // here on it is reached only through the lock.
     let shared: &'static mut Shared = unsafe {
-        (*core::ptr::addr_of_mut!(SHARED_MEM)).write(Shared {
-            drive,
-            slave,
-            ctl,
-            last_cycle: None,
-            oc_reported: false,
-            offset_fault: false,
-            index_seen: 0,
-            pending_index: None,
-            probe1: ProbeInput::default(),
-            probe2: ProbeInput::default(),
-            align_failures: 0,
-            align_fault: false,
-        })
+        core::ptr::addr_of_mut!((*sp).ctl).write(ctl);
+        core::ptr::addr_of_mut!((*sp).last_cycle).write(None);
+        core::ptr::addr_of_mut!((*sp).oc_reported).write(false);
+        core::ptr::addr_of_mut!((*sp).offset_fault).write(false);
+        core::ptr::addr_of_mut!((*sp).index_seen).write(0);
+        core::ptr::addr_of_mut!((*sp).pending_index).write(None);
+        core::ptr::addr_of_mut!((*sp).probe1).write(ProbeInput::default());
+        core::ptr::addr_of_mut!((*sp).probe2).write(ProbeInput::default());
+        core::ptr::addr_of_mut!((*sp).align_failures).write(0);
+        core::ptr::addr_of_mut!((*sp).align_fault).write(false);
+        &mut *sp
     };
     SHARED.lock(|c| *c.borrow_mut() = Some(shared));
     hw::adc::init(hw::adc::Analog {
@@ -520,29 +532,39 @@ async fn main(spawner: Spawner) {
 
 /// The drive at its power-up defaults with the board's parameter store (out of line:
 /// start-up code, not worth inlining into `main`).
+///
+/// # Safety
+/// `out` must be valid for writes (it is overwritten without dropping).
 #[inline(never)]
-fn new_drive(serial: u32, staged: StagedFlash) -> BoardDrive {
-    Drive::with_store(
+unsafe fn new_drive(out: *mut BoardDrive, serial: u32, staged: StagedFlash) {
+    let d = Drive::with_store(
         VARIANT,
         serial,
         FlashStore {
             storage: PARAM_STORE,
             flash: staged,
         },
-    )
+    );
+    // SAFETY: the caller's promise.
+    unsafe { out.write(d) }
 }
 
 /// The slave runtime over the ESC with the product's default PDO mapping (out of
 /// line, as [`new_drive`]).
+///
+/// # Safety
+/// `out` must be valid for writes (it is overwritten without dropping).
 #[inline(never)]
-fn new_slave(esc: Esc) -> Slave<Esc> {
-    Slave::new(
+unsafe fn new_slave(out: *mut Option<Slave<Esc>>, esc: Esc) {
+    let s = Slave::new(
         esc,
         SlaveConfig {
             pdo_defaults: firmware::pdo_defaults::PDO_DEFAULTS,
             ..SlaveConfig::default()
         },
-    )
+    );
+    // SAFETY: the caller's promise.
+    unsafe { out.write(Some(s)) }
 }
 
 /// 0x2083: the power-up alignment sweeps the field (wiggle) and checks the encoder.

@@ -400,8 +400,10 @@ pub struct Motion {
     cmd: DriveCommand,
     cycle_steps: u32,
     acc_ff: f32,
-    // Closed-loop command smoothing (moving average in command units).
-    smooth: Option<foc::open_loop::MovingAverage>,
+    // Closed-loop command smoothing (moving average in command units), in use when
+    // `smooth_on`. Always present so that reconfiguring re-initialises it in place.
+    smooth: foc::open_loop::MovingAverage,
+    smooth_on: bool,
     smooth_prev: i32,
     enabled: bool,
     reset_pending: bool,
@@ -448,7 +450,8 @@ impl Motion {
             cmd: DriveCommand::default(),
             cycle_steps: 10,
             acc_ff: 0.0,
-            smooth: Self::smoother(&cfg),
+            smooth: foc::open_loop::MovingAverage::new(Self::smooth_taps(&cfg).unwrap_or(1), 0),
+            smooth_on: Self::smooth_taps(&cfg).is_some(),
             smooth_prev: 0,
             enabled: false,
             reset_pending: false,
@@ -470,9 +473,10 @@ impl Motion {
         }
     }
 
-    fn smoother(cfg: &MotionConfig) -> Option<foc::open_loop::MovingAverage> {
+    /// Taps of the closed-loop smoothing window; `None` when smoothing is off.
+    fn smooth_taps(cfg: &MotionConfig) -> Option<usize> {
         let taps = (cfg.filter_s / cfg.ts + 0.5) as usize;
-        (cfg.closed_loop && taps > 1).then(|| foc::open_loop::MovingAverage::new(taps, 0))
+        (cfg.closed_loop && taps > 1).then_some(taps)
     }
 
     /// Configuration in use.
@@ -520,14 +524,19 @@ impl Motion {
         if old.open_loop_config() != cfg.open_loop_config() {
             let pos = self.open_pos_units;
             let enabled_open = self.enabled && !was_closed;
-            self.open = OpenLoop::new(cfg.open_loop_config(), self.dir * pos);
+            self.open
+                .reconfigure(cfg.open_loop_config(), self.dir * pos);
             self.open.set_angle_offset(self.open_offset);
             if enabled_open {
                 self.open.enable(self.dir * pos);
             }
         }
         if old.filter_s != cfg.filter_s || old.closed_loop != cfg.closed_loop {
-            self.smooth = Self::smoother(&cfg);
+            let taps = Self::smooth_taps(&cfg);
+            self.smooth_on = taps.is_some();
+            if let Some(n) = taps {
+                self.smooth.reinit(n, 0);
+            }
         }
         if self.enabled && was_closed != cfg.closed_loop {
             if cfg.closed_loop {
@@ -559,7 +568,7 @@ impl Motion {
             0.0
         };
         self.acc_ff += 0.25 * (a - self.acc_ff);
-        if cmd.kind == SetpointKind::Position && self.cfg.closed_loop && self.smooth.is_none() {
+        if cmd.kind == SetpointKind::Position && self.cfg.closed_loop && !self.smooth_on {
             let (w, f) = self.scale.to_counts(cmd.position);
             self.interp.target(w, f, self.cycle_steps, cycle_s);
         } else {
@@ -593,14 +602,14 @@ impl Motion {
 
     fn start_closed_at_actual(&mut self, fb: &Feedback, iq: f32) {
         let n = self.actual_axis_counts(fb);
-        self.interp = if self.smooth.is_some() {
+        self.interp = if self.smooth_on {
             Interp::at(self.scale.to_units(n), 0.0)
         } else {
             Interp::at(n, 0.0)
         };
-        if let Some(s) = self.smooth.as_mut() {
+        if self.smooth_on {
             let u = self.scale.to_units(n);
-            s.reset(u);
+            self.smooth.reset(u);
             self.smooth_prev = u;
         }
         self.demand = (n, 0.0);
@@ -743,16 +752,16 @@ impl Motion {
                 };
                 // Keep the position demand on the actual position: bumpless return.
                 self.interp = Interp::at(
-                    if self.smooth.is_some() {
+                    if self.smooth_on {
                         self.scale.to_units(pos)
                     } else {
                         pos
                     },
                     0.0,
                 );
-                if let Some(s) = self.smooth.as_mut() {
+                if self.smooth_on {
                     let u = self.scale.to_units(pos);
-                    s.reset(u);
+                    self.smooth.reset(u);
                     self.smooth_prev = u;
                 }
                 self.demand = (pos, 0.0);
@@ -793,25 +802,23 @@ impl Motion {
         let (w, f, moving) = self.interp.step();
         let vel_ff = if moving { self.interp.vel } else { 0.0 };
         let acc = if moving { self.acc_ff } else { 0.0 };
-        match self.smooth.as_mut() {
-            None => Demand {
+        if !self.smooth_on {
+            return Demand {
                 pos: w,
                 frac: f,
                 vel: vel_ff,
                 acc,
-            },
-            Some(s) => {
-                let u = s.step(w);
-                let du = u.wrapping_sub(self.smooth_prev);
-                self.smooth_prev = u;
-                let (cw, cf) = self.scale.to_counts(u);
-                Demand {
-                    pos: cw,
-                    frac: cf,
-                    vel: du as f32 * self.scale.counts_per_unit() / self.cfg.ts,
-                    acc: 0.0,
-                }
-            }
+            };
+        }
+        let u = self.smooth.step(w);
+        let du = u.wrapping_sub(self.smooth_prev);
+        self.smooth_prev = u;
+        let (cw, cf) = self.scale.to_counts(u);
+        Demand {
+            pos: cw,
+            frac: cf,
+            vel: du as f32 * self.scale.counts_per_unit() / self.cfg.ts,
+            acc: 0.0,
         }
     }
 

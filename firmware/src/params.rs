@@ -612,23 +612,10 @@ impl Params {
     /// SDO write of a vendor parameter (after the generic checks; repeated here).
     pub fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
         let entry = crate::dictionary::find_entry_in(crate::dictionary::PARAMS, index, sub)?;
-        if !entry.access.writable() {
-            return Err(SdoAbort::WriteReadOnly);
-        }
-        let len = entry.byte_len();
-        if data.len() > len {
-            return Err(SdoAbort::LengthTooHigh);
-        }
-        if data.len() < len {
-            return Err(SdoAbort::LengthTooLow);
-        }
+        // The stack's checks (access, length, range; every entry here is RW or RO and
+        // an integer, so the state argument changes nothing).
+        od::check_write(entry, data, ecat_slave_stack::esm::EsmState::PreOp)?;
         let v = od::decode_int(entry.data_type, data).ok_or(SdoAbort::TypeMismatch)?;
-        if v > entry.max() {
-            return Err(SdoAbort::ValueTooHigh);
-        }
-        if v < entry.min() {
-            return Err(SdoAbort::ValueTooLow);
-        }
         match (index, sub) {
             (0x2040, 0) => {
                 if v == 1 {

@@ -615,10 +615,12 @@ impl Storage {
         flash: &mut F,
         scope: Scope,
     ) -> Result<SaveReport, StorageError> {
-        self.write_record::<F, NoDict>(flash, None, scope)
+        self.write_record::<F, dyn Dictionary>(flash, None, scope)
     }
 
-    fn write_record<F: NorFlash, D: Dictionary + ?Sized>(
+    /// [`Storage::save`] (`dict` given) or [`Storage::restore_defaults`] (`None`): one
+    /// code path for both commands.
+    pub(crate) fn write_record<F: NorFlash, D: Dictionary + ?Sized>(
         &self,
         flash: &mut F,
         dict: Option<&mut D>,
@@ -762,9 +764,11 @@ fn apply<D: Dictionary + ?Sized>(
     }
 }
 
-/// Placeholder dictionary type for [`Storage::restore_defaults`] (never called).
+/// An empty dictionary (tests).
+#[cfg(test)]
 struct NoDict;
 
+#[cfg(test)]
 impl Dictionary for NoDict {
     fn objects(&self) -> &'static [od::Object] {
         &[]

@@ -24,8 +24,10 @@
 use crate::angle::{Angle, CountScale, POLE_PAIRS};
 use core::f32::consts::PI;
 
-/// Longest moving average (steps).
-pub const MAX_TAPS: usize = 1024;
+/// Longest moving average (steps): 25.6 ms at a 10 kHz step rate, the longest
+/// smoothing time the drive's parameters (0x2010:2) and DIP tables ask for. Each
+/// window holds this many words, so it sets the filter's RAM (1 KiB).
+pub const MAX_TAPS: usize = 256;
 /// Current reduction per step while the current loop is voltage-limited.
 pub const DERATE_DOWN: f32 = 0.005;
 /// Current recovery per step without voltage limiting.
@@ -62,6 +64,14 @@ impl MovingAverage {
             last_in: start,
             out: start,
         }
+    }
+
+    /// Re-initialises in place: the same state as `new(n, start)`, without a
+    /// `MAX_TAPS`-word value on the stack (for reconfiguration inside an interrupt).
+    pub fn reinit(&mut self, n: usize, start: i32) {
+        self.n = n.clamp(1, MAX_TAPS);
+        self.head = 0;
+        self.reset(start);
     }
 
     /// Number of taps.
@@ -178,6 +188,29 @@ impl OpenLoop {
     /// New (disabled) open loop at command position `start`. Out-of-range values are
     /// clamped (ppr ≥ 1, currents ≥ 0, percent ≤ 100, times ≥ 0).
     pub fn new(cfg: OpenLoopConfig, start: i32) -> Self {
+        let mut o = OpenLoop {
+            cfg,
+            scale: CountScale::new(1, POLE_PAIRS),
+            filter: MovingAverage::new(1, start),
+            still_steps: 0,
+            standby_steps: 0,
+            current: 0.0,
+            soft_rate: 0.0,
+            hold_rate: 0.0,
+            soft_starting: false,
+            enabled: false,
+            rad_per_pulse_e: 0.0,
+            angle_offset: Angle::ZERO,
+            derate: 1.0,
+        };
+        o.reconfigure(cfg, start);
+        o
+    }
+
+    /// Starts over with a new configuration, in place: the same state as
+    /// `new(cfg, start)` (disabled, no angle offset), without building a whole
+    /// `OpenLoop` — with its smoothing window — on the stack.
+    pub fn reconfigure(&mut self, cfg: OpenLoopConfig, start: i32) {
         let mut cfg = cfg;
         cfg.pulses_per_rev = cfg.pulses_per_rev.max(1);
         cfg.holding_percent = cfg.holding_percent.min(100);
@@ -193,21 +226,19 @@ impl OpenLoop {
         };
         let taps = (cfg.filter_time / cfg.ts + 0.5) as usize;
         let per = |t: f32| cfg.running_current * cfg.ts / t.max(cfg.ts);
-        OpenLoop {
-            cfg,
-            scale: CountScale::new(cfg.pulses_per_rev, POLE_PAIRS),
-            filter: MovingAverage::new(taps, start),
-            still_steps: 0,
-            standby_steps: (cfg.standby / cfg.ts + 0.5) as u32,
-            current: 0.0,
-            soft_rate: per(cfg.soft_start),
-            hold_rate: per(HOLD_RAMP),
-            soft_starting: false,
-            enabled: false,
-            rad_per_pulse_e: 2.0 * PI * POLE_PAIRS as f32 / cfg.pulses_per_rev as f32,
-            angle_offset: Angle::ZERO,
-            derate: 1.0,
-        }
+        self.cfg = cfg;
+        self.scale = CountScale::new(cfg.pulses_per_rev, POLE_PAIRS);
+        self.filter.reinit(taps, start);
+        self.still_steps = 0;
+        self.standby_steps = (cfg.standby / cfg.ts + 0.5) as u32;
+        self.current = 0.0;
+        self.soft_rate = per(cfg.soft_start);
+        self.hold_rate = per(HOLD_RAMP);
+        self.soft_starting = false;
+        self.enabled = false;
+        self.rad_per_pulse_e = 2.0 * PI * POLE_PAIRS as f32 / cfg.pulses_per_rev as f32;
+        self.angle_offset = Angle::ZERO;
+        self.derate = 1.0;
     }
 
     /// Configuration in use.

@@ -381,6 +381,59 @@ qemu_runner::tests! {
         }
     }
 
+    fn reconfigure_in_place_matches_a_fresh_open_loop() {
+        let first = OpenLoopConfig {
+            pulses_per_rev: 200,
+            ts: 1e-4,
+            running_current: 4.0,
+            holding_percent: 50,
+            standby: 0.1,
+            soft_start: 0.01,
+            filter_time: 0.02,
+        };
+        let second = OpenLoopConfig {
+            pulses_per_rev: 51_200,
+            ts: 1e-4,
+            running_current: 2.5,
+            holding_percent: 30,
+            standby: 0.05,
+            soft_start: 0.0,
+            filter_time: 0.005,
+        };
+        // A used open loop (enabled, window full of motion, offset set) reconfigured
+        // behaves exactly like a new one, step for step.
+        let mut used = OpenLoop::new(first, 0);
+        used.enable(0);
+        used.set_angle_offset(foc::angle::Angle::from_radians(1.0));
+        for k in 0..300 {
+            used.step(k * 37);
+        }
+        used.reconfigure(second, 5000);
+        let mut fresh = OpenLoop::new(second, 5000);
+        for ol in [&mut used, &mut fresh] {
+            ol.enable(5000);
+        }
+        for k in 0..400 {
+            let x = 5000 + if k < 200 { k * 91 } else { 200 * 91 };
+            assert_eq!(used.step(x), fresh.step(x), "step {k}");
+        }
+        // The same for the window alone, also when it grows.
+        let mut m = MovingAverage::new(3, 0);
+        for k in 0..10 {
+            m.step(k * 1000);
+        }
+        m.reinit(200, -7);
+        let mut n = MovingAverage::new(200, -7);
+        for k in 0..500 {
+            let x = -7 + (k % 97) * 13;
+            assert_eq!(m.step(x), n.step(x));
+        }
+        assert_eq!(m.len(), 200);
+        // Longer than the maximum: clamped like `new`.
+        m.reinit(usize::MAX, 0);
+        assert_eq!(m.len(), foc::open_loop::MAX_TAPS);
+    }
+
     fn moving_average_is_exact_and_smooth() {
         let mut f = MovingAverage::new(10, 0);
         let mut last = 0;

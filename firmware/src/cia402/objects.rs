@@ -244,88 +244,235 @@ fn le(data: &[u8]) -> u32 {
     u32::from_le_bytes(b)
 }
 
+/// Integer type of a field of [`Cia402`] served straight from memory.
+#[derive(Debug, Clone, Copy)]
+enum Int {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+}
+
+impl Int {
+    /// Reads the field at byte offset `off` of `base`, sign- or zero-extended.
+    ///
+    /// # Safety
+    /// `base + off` must be an initialised, aligned field of this type.
+    unsafe fn load(self, base: *const u8, off: u16) -> i64 {
+        // SAFETY: the caller's contract.
+        unsafe {
+            let p = base.add(usize::from(off));
+            match self {
+                Int::I8 => i64::from(p.cast::<i8>().read()),
+                Int::U8 => i64::from(p.read()),
+                Int::I16 => i64::from(p.cast::<i16>().read()),
+                Int::U16 => i64::from(p.cast::<u16>().read()),
+                Int::I32 => i64::from(p.cast::<i32>().read()),
+                Int::U32 => i64::from(p.cast::<u32>().read()),
+            }
+        }
+    }
+
+    /// Writes `v` (truncated to the type, as `as` does) to the field at byte offset
+    /// `off` of `base`.
+    ///
+    /// # Safety
+    /// `base + off` must be an aligned field of this type that nothing else borrows.
+    unsafe fn store(self, base: *mut u8, off: u16, v: i64) {
+        // SAFETY: the caller's contract.
+        unsafe {
+            let p = base.add(usize::from(off));
+            match self {
+                Int::I8 | Int::U8 => p.write(v as u8),
+                Int::I16 | Int::U16 => p.cast::<u16>().write(v as u16),
+                Int::I32 | Int::U32 => p.cast::<u32>().write(v as u32),
+            }
+        }
+    }
+}
+
+/// How the value of an entry is found.
+#[derive(Debug, Clone, Copy)]
+enum Kind {
+    /// A field of [`Cia402`] of this type at byte offset `arg`.
+    Int(Int),
+    /// The constant `arg` (counts, fixed ratios, supported modes).
+    Const,
+    PositionDemand,
+    VelocityDemand,
+    PositionDemandInternal,
+    ProbeFunction,
+    ProbeStatus,
+    /// Latched probe value number `arg`.
+    ProbeValue,
+}
+
+/// One entry of [`FIELDS`].
+#[derive(Debug, Clone, Copy)]
+struct Field {
+    index: u16,
+    sub: u8,
+    kind: Kind,
+    arg: u16,
+}
+
+/// An entry held in a field of [`Cia402`]: the field's type is checked against `$t`
+/// (a mismatch does not compile), its offset is taken by `offset_of!`.
+macro_rules! field {
+    ($index:expr, $sub:expr, $t:ident, $($f:ident).+) => {{
+        const _: fn(&Cia402) -> &$t = |c| &c.$($f).+;
+        Field {
+            index: $index,
+            sub: $sub,
+            kind: Kind::Int(int_of!($t)),
+            arg: core::mem::offset_of!(Cia402, $($f).+) as u16,
+        }
+    }};
+}
+
+macro_rules! int_of {
+    (i8) => {
+        Int::I8
+    };
+    (u8) => {
+        Int::U8
+    };
+    (i16) => {
+        Int::I16
+    };
+    (u16) => {
+        Int::U16
+    };
+    (i32) => {
+        Int::I32
+    };
+    (u32) => {
+        Int::U32
+    };
+}
+
+const fn computed(index: u16, sub: u8, kind: Kind, arg: u16) -> Field {
+    Field {
+        index,
+        sub,
+        kind,
+        arg,
+    }
+}
+
+/// Where every entry of [`OBJECTS`] gets its value (one table instead of a read and a
+/// write dispatch; `tests::every_entry_has_a_field` keeps it complete).
+const FIELDS: &[Field] = &[
+    field!(0x603F, 0, u16, error_code),
+    field!(0x6040, 0, u16, controlword),
+    field!(0x6041, 0, u16, statusword),
+    field!(0x605A, 0, i16, params.quick_stop_option),
+    field!(0x605B, 0, i16, params.shutdown_option),
+    field!(0x605C, 0, i16, params.disable_op_option),
+    field!(0x605D, 0, i16, params.halt_option),
+    field!(0x605E, 0, i16, params.fault_reaction_option),
+    field!(0x6060, 0, i8, mode_request),
+    field!(0x6061, 0, i8, mode),
+    computed(0x6062, 0, Kind::PositionDemand, 0),
+    field!(0x6063, 0, i32, raw_position),
+    field!(0x6064, 0, i32, actual_position),
+    field!(0x6065, 0, u32, params.following_error_window),
+    field!(0x6066, 0, u16, params.following_error_timeout),
+    field!(0x6067, 0, u32, params.position_window),
+    field!(0x6068, 0, u16, params.position_window_time),
+    computed(0x606B, 0, Kind::VelocityDemand, 0),
+    field!(0x606C, 0, i32, actual_velocity),
+    field!(0x606D, 0, u16, params.velocity_window),
+    field!(0x606E, 0, u16, params.velocity_window_time),
+    field!(0x606F, 0, u16, params.velocity_threshold),
+    field!(0x6072, 0, u16, params.max_torque),
+    field!(0x6073, 0, u16, params.max_current),
+    field!(0x6075, 0, u32, rated_current_ma),
+    field!(0x6077, 0, i16, actual_torque),
+    field!(0x6078, 0, i16, actual_current),
+    field!(0x607A, 0, i32, params.target_position),
+    field!(0x607C, 0, i32, params.home_offset),
+    computed(0x607D, 0, Kind::Const, 2),
+    field!(0x607D, 1, i32, params.sw_limit_min),
+    field!(0x607D, 2, i32, params.sw_limit_max),
+    field!(0x607E, 0, u8, params.polarity),
+    field!(0x607F, 0, u32, params.max_profile_velocity),
+    field!(0x6080, 0, u32, params.max_motor_speed),
+    field!(0x6081, 0, u32, params.profile_velocity),
+    field!(0x6082, 0, u32, params.start_stop_speed),
+    field!(0x6083, 0, u32, params.profile_acceleration),
+    field!(0x6084, 0, u32, params.profile_deceleration),
+    field!(0x6085, 0, u32, params.quick_stop_deceleration),
+    field!(0x6086, 0, i16, params.motion_profile_type),
+    computed(0x608F, 0, Kind::Const, 2),
+    field!(0x608F, 1, u32, encoder_increments),
+    computed(0x608F, 2, Kind::Const, 1),
+    computed(0x6091, 0, Kind::Const, 2),
+    computed(0x6091, 1, Kind::Const, 1),
+    computed(0x6091, 2, Kind::Const, 1),
+    computed(0x6092, 0, Kind::Const, 2),
+    field!(0x6092, 1, u32, units_per_rev),
+    computed(0x6092, 2, Kind::Const, 1),
+    field!(0x6098, 0, i8, params.homing_method),
+    computed(0x6099, 0, Kind::Const, 2),
+    field!(0x6099, 1, u32, params.homing_speed_switch),
+    field!(0x6099, 2, u32, params.homing_speed_zero),
+    field!(0x609A, 0, u32, params.homing_acceleration),
+    field!(0x60B0, 0, i32, params.position_offset),
+    field!(0x60B1, 0, i32, params.velocity_offset),
+    computed(0x60B8, 0, Kind::ProbeFunction, 0),
+    computed(0x60B9, 0, Kind::ProbeStatus, 0),
+    computed(0x60BA, 0, Kind::ProbeValue, 0),
+    computed(0x60BB, 0, Kind::ProbeValue, 1),
+    computed(0x60BC, 0, Kind::ProbeValue, 2),
+    computed(0x60BD, 0, Kind::ProbeValue, 3),
+    computed(0x60C2, 0, Kind::Const, 2),
+    field!(0x60C2, 1, u8, params.interpolation_period),
+    field!(0x60C2, 2, i8, params.interpolation_index),
+    field!(0x60C5, 0, u32, params.max_acceleration),
+    field!(0x60C6, 0, u32, params.max_deceleration),
+    field!(0x60F2, 0, u16, params.positioning_option),
+    field!(0x60F4, 0, i32, following_error),
+    computed(0x60FC, 0, Kind::PositionDemandInternal, 0),
+    field!(0x60FD, 0, u32, digital_inputs),
+    computed(0x60FE, 0, Kind::Const, 2),
+    field!(0x60FE, 1, u32, params.digital_outputs),
+    field!(0x60FE, 2, u32, params.digital_outputs_mask),
+    field!(0x60FF, 0, i32, params.target_velocity),
+    computed(0x6502, 0, Kind::Const, SUPPORTED_MODES as u16),
+];
+
+const _: () = assert!(SUPPORTED_MODES <= u16::MAX as u32);
+const _: () = assert!(core::mem::size_of::<Cia402>() <= u16::MAX as usize);
+
+/// The [`FIELDS`] entry of `(index, sub)`.
+fn field(index: u16, sub: u8) -> Option<Field> {
+    FIELDS
+        .iter()
+        .find(|f| f.index == index && f.sub == sub)
+        .copied()
+}
+
 impl Cia402 {
     /// Current value of an entry (sign-extended), `None` if the object/sub-index is
     /// not one of [`OBJECTS`].
     pub fn value(&self, index: u16, sub: u8) -> Option<i64> {
-        let p = &self.params;
-        // Sub-index 0 first (every VAR and the record counts): one switch on the index
-        // instead of a sub-index test in every arm.
-        if sub == 0 {
-            return Some(match index {
-                0x603F => self.error_code as i64,
-                0x6040 => self.controlword as i64,
-                0x6041 => self.statusword as i64,
-                0x605A => p.quick_stop_option as i64,
-                0x605B => p.shutdown_option as i64,
-                0x605C => p.disable_op_option as i64,
-                0x605D => p.halt_option as i64,
-                0x605E => p.fault_reaction_option as i64,
-                0x6060 => self.mode_request as i64,
-                0x6061 => self.mode as i64,
-                0x6062 => self.position_demand() as i64,
-                0x6063 => self.raw_position as i64,
-                0x6064 => self.actual_position as i64,
-                0x6065 => p.following_error_window as i64,
-                0x6066 => p.following_error_timeout as i64,
-                0x6067 => p.position_window as i64,
-                0x6068 => p.position_window_time as i64,
-                0x606B => self.velocity_demand() as i64,
-                0x606C => self.actual_velocity as i64,
-                0x606D => p.velocity_window as i64,
-                0x606E => p.velocity_window_time as i64,
-                0x606F => p.velocity_threshold as i64,
-                0x6072 => p.max_torque as i64,
-                0x6073 => p.max_current as i64,
-                0x6075 => self.rated_current_ma as i64,
-                0x6077 => self.actual_torque as i64,
-                0x6078 => self.actual_current as i64,
-                0x607A => p.target_position as i64,
-                0x607C => p.home_offset as i64,
-                0x607D | 0x608F | 0x6091 | 0x6092 | 0x6099 | 0x60C2 | 0x60FE => 2,
-                0x607E => p.polarity as i64,
-                0x607F => p.max_profile_velocity as i64,
-                0x6080 => p.max_motor_speed as i64,
-                0x6081 => p.profile_velocity as i64,
-                0x6082 => p.start_stop_speed as i64,
-                0x6083 => p.profile_acceleration as i64,
-                0x6084 => p.profile_deceleration as i64,
-                0x6085 => p.quick_stop_deceleration as i64,
-                0x6086 => p.motion_profile_type as i64,
-                0x6098 => p.homing_method as i64,
-                0x609A => p.homing_acceleration as i64,
-                0x60B0 => p.position_offset as i64,
-                0x60B1 => p.velocity_offset as i64,
-                0x60B8 => self.probe.function() as i64,
-                0x60B9 => self.probe.status() as i64,
-                0x60BA => self.probe.value(0) as i64,
-                0x60BB => self.probe.value(1) as i64,
-                0x60BC => self.probe.value(2) as i64,
-                0x60BD => self.probe.value(3) as i64,
-                0x60C5 => p.max_acceleration as i64,
-                0x60C6 => p.max_deceleration as i64,
-                0x60F2 => p.positioning_option as i64,
-                0x60F4 => self.following_error as i64,
-                0x60FC => self.position_demand_internal() as i64,
-                0x60FD => self.digital_inputs as i64,
-                0x60FF => p.target_velocity as i64,
-                0x6502 => SUPPORTED_MODES as i64,
-                _ => return None,
-            });
-        }
-        Some(match (index, sub) {
-            (0x607D, 1) => p.sw_limit_min as i64,
-            (0x607D, 2) => p.sw_limit_max as i64,
-            (0x608F, 1) => self.encoder_increments as i64,
-            (0x608F, 2) | (0x6091, 1) | (0x6091, 2) | (0x6092, 2) => 1,
-            (0x6092, 1) => self.units_per_rev as i64,
-            (0x6099, 1) => p.homing_speed_switch as i64,
-            (0x6099, 2) => p.homing_speed_zero as i64,
-            (0x60C2, 1) => p.interpolation_period as i64,
-            (0x60C2, 2) => p.interpolation_index as i64,
-            (0x60FE, 1) => p.digital_outputs as i64,
-            (0x60FE, 2) => p.digital_outputs_mask as i64,
-            _ => return None,
+        let f = field(index, sub)?;
+        Some(match f.kind {
+            Kind::Int(t) => {
+                // SAFETY: `f` comes from `FIELDS`, whose `field!` entries hold the
+                // offset of an integer field of `Cia402` of type `t` (checked there).
+                unsafe { t.load(core::ptr::from_ref(self).cast::<u8>(), f.arg) }
+            }
+            Kind::Const => i64::from(f.arg),
+            Kind::PositionDemand => i64::from(self.position_demand()),
+            Kind::VelocityDemand => i64::from(self.velocity_demand()),
+            Kind::PositionDemandInternal => i64::from(self.position_demand_internal()),
+            Kind::ProbeFunction => i64::from(self.probe.function()),
+            Kind::ProbeStatus => i64::from(self.probe.status()),
+            Kind::ProbeValue => i64::from(self.probe.value(usize::from(f.arg))),
         })
     }
 
@@ -369,61 +516,25 @@ impl Cia402 {
         Ok(())
     }
 
-    /// Stores an already validated value (shared by SDO and PDO paths).
+    /// Stores an already validated value (SDO path; the PDO path is
+    /// [`Cia402::set_rx_raw`]).
     fn store(&mut self, index: u16, sub: u8, v: i64) {
-        let p = &mut self.params;
-        if sub == 0 {
-            match index {
-                0x6040 => self.controlword = v as u16,
-                0x605A => p.quick_stop_option = v as i16,
-                0x605B => p.shutdown_option = v as i16,
-                0x605C => p.disable_op_option = v as i16,
-                0x605D => p.halt_option = v as i16,
-                0x605E => p.fault_reaction_option = v as i16,
-                0x6060 => self.set_mode(v as i8),
-                0x6065 => p.following_error_window = v as u32,
-                0x6066 => p.following_error_timeout = v as u16,
-                0x6067 => p.position_window = v as u32,
-                0x6068 => p.position_window_time = v as u16,
-                0x606D => p.velocity_window = v as u16,
-                0x606E => p.velocity_window_time = v as u16,
-                0x606F => p.velocity_threshold = v as u16,
-                0x6072 => p.max_torque = v as u16,
-                0x6073 => p.max_current = v as u16,
-                0x607A => p.target_position = v as i32,
-                0x607C => p.home_offset = v as i32,
-                0x607E => p.polarity = v as u8 & 0xC0,
-                0x607F => p.max_profile_velocity = v as u32,
-                0x6080 => p.max_motor_speed = v as u32,
-                0x6081 => p.profile_velocity = v as u32,
-                0x6082 => p.start_stop_speed = v as u32,
-                0x6083 => p.profile_acceleration = v as u32,
-                0x6084 => p.profile_deceleration = v as u32,
-                0x6085 => p.quick_stop_deceleration = v as u32,
-                0x6086 => p.motion_profile_type = v as i16,
-                0x6098 => p.homing_method = v as i8,
-                0x609A => p.homing_acceleration = v as u32,
-                0x60B0 => p.position_offset = v as i32,
-                0x60B1 => p.velocity_offset = v as i32,
-                0x60B8 => self.probe.set_function(v as u16),
-                0x60C5 => p.max_acceleration = v as u32,
-                0x60C6 => p.max_deceleration = v as u32,
-                0x60F2 => p.positioning_option = v as u16,
-                0x60FF => p.target_velocity = v as i32,
-                _ => {}
-            }
-            return;
-        }
         match (index, sub) {
-            (0x607D, 1) => p.sw_limit_min = v as i32,
-            (0x607D, 2) => p.sw_limit_max = v as i32,
-            (0x6099, 1) => p.homing_speed_switch = v as u32,
-            (0x6099, 2) => p.homing_speed_zero = v as u32,
-            (0x60C2, 1) => p.interpolation_period = v as u8,
-            (0x60C2, 2) => p.interpolation_index = v as i8,
-            (0x60FE, 1) => p.digital_outputs = v as u32,
-            (0x60FE, 2) => p.digital_outputs_mask = v as u32,
-            _ => {}
+            (0x6060, 0) => self.set_mode(v as i8),
+            (0x607E, 0) => self.params.polarity = v as u8 & 0xC0,
+            (0x60B8, 0) => self.probe.set_function(v as u16),
+            _ => {
+                if let Some(Field {
+                    kind: Kind::Int(t),
+                    arg,
+                    ..
+                }) = field(index, sub)
+                {
+                    // SAFETY: as in `value`: `arg` is the offset of an integer field of
+                    // type `t`; `&mut self` makes the write exclusive.
+                    unsafe { t.store(core::ptr::from_mut(self).cast::<u8>(), arg, v) }
+                }
+            }
         }
     }
 
@@ -525,6 +636,7 @@ impl ecat_slave_stack::pdo::ProcessData for Cia402 {
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
     use ecat_slave_stack::od::DefaultValue;
 
@@ -583,6 +695,70 @@ mod tests {
                     o.index,
                     e.sub
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn fields_cover_exactly_the_entries() {
+        // Every entry of OBJECTS has one FIELDS row and every row is an entry.
+        let mut n = 0;
+        for o in OBJECTS {
+            for e in o.entries {
+                let rows = FIELDS
+                    .iter()
+                    .filter(|f| f.index == o.index && f.sub == e.sub)
+                    .count();
+                assert_eq!(rows, 1, "{:#06x}:{}", o.index, e.sub);
+                n += 1;
+            }
+        }
+        assert_eq!(n, FIELDS.len());
+        let d = Cia402::new();
+        assert_eq!(d.value(0x6040, 1), None);
+        assert_eq!(d.value(0x607D, 3), None);
+        assert_eq!(d.value(0x6000, 0), None);
+        assert_eq!(d.value(0x6FFF, 0), None);
+    }
+
+    #[test]
+    fn sdo_write_changes_only_its_entry() {
+        // Each writable entry at its most negative (or largest) value: the value reads
+        // back sign-extended and no other entry changes (the field widths are right).
+        let all = |d: &Cia402| -> std::vec::Vec<(u16, u8, Option<i64>)> {
+            OBJECTS
+                .iter()
+                .flat_map(|o| o.entries.iter().map(move |e| (o.index, e.sub)))
+                .map(|(i, s)| (i, s, d.value(i, s)))
+                .collect()
+        };
+        for o in OBJECTS {
+            for e in o.entries.iter().filter(|e| e.access.writable()) {
+                let (idx, sub) = (o.index, e.sub);
+                let val: i64 = match (idx, sub) {
+                    (0x6060, 0) => 6,
+                    (0x6098, 0) => 1,
+                    (0x60B8, 0) => 0x0011,
+                    (0x6086, 0) => 3,
+                    (0x607E, 0) => 0xC0,
+                    _ if e.min() < 0 => e.min(),
+                    _ => e.max(),
+                };
+                let mut d = Cia402::new();
+                let before = all(&d);
+                let bytes = (val as u64).to_le_bytes();
+                assert_eq!(
+                    d.write(idx, sub, &bytes[..e.byte_len()]),
+                    Ok(()),
+                    "{idx:#06x}:{sub}"
+                );
+                assert_eq!(d.value(idx, sub), Some(val), "{idx:#06x}:{sub}");
+                for ((i, s, v0), (_, _, v1)) in before.iter().zip(all(&d).iter()) {
+                    // The probe function also sets the probe status (enabled bits).
+                    if (*i, *s) != (idx, sub) && !(idx == 0x60B8 && *i == 0x60B9) {
+                        assert_eq!(v0, v1, "{idx:#06x}:{sub} changed {i:#06x}:{s}");
+                    }
+                }
             }
         }
     }

@@ -371,24 +371,6 @@ pub fn init(
         },
         crate::hw::encoder::raw_count() as u16,
     );
-    let c = Control {
-        cl,
-        enc,
-        motion: CommutatedMotion::new(motion, wiggle),
-        sup: CurrentSupervisor::new(supervisor),
-        reference: CurrentReference::OFF,
-        divider: 0,
-        seen_cycle: 0,
-        seen_config: 0,
-        bridges_on: false,
-        permitted: false,
-        raw: crate::hw::encoder::raw_count(),
-        index_seq: 0,
-        index_units: 0,
-        probe1: NO_EDGES,
-        probe2: NO_EDGES,
-        probe2_seen: Seen::default(),
-    };
     if READY.load(Ordering::Acquire) {
         return;
     }
@@ -398,9 +380,31 @@ pub fn init(
         COMMAND.reset(None);
         FEEDBACK.reset(FEEDBACK_START);
     }
-    // SAFETY: the interrupt does not read CONTROL before READY is set (and `init`
-    // runs once: checked above).
-    unsafe { (*CONTROL.0.get()).write(c) };
+    // Written field by field into the static: the state is ≈ 9 KiB (the motion
+    // layer's smoothing buffers), so a whole `Control` built on the stack and moved
+    // in would put that, twice, on the start-up stack peak; each constructor's result
+    // goes straight to its slot.
+    let p = CONTROL.0.get().cast::<Control>();
+    // SAFETY: the interrupt does not read CONTROL before READY is set, `init` runs
+    // once (checked above), and every field is written before READY.
+    unsafe {
+        core::ptr::addr_of_mut!((*p).cl).write(cl);
+        core::ptr::addr_of_mut!((*p).enc).write(enc);
+        core::ptr::addr_of_mut!((*p).motion).write(CommutatedMotion::new(motion, wiggle));
+        core::ptr::addr_of_mut!((*p).sup).write(CurrentSupervisor::new(supervisor));
+        core::ptr::addr_of_mut!((*p).reference).write(CurrentReference::OFF);
+        core::ptr::addr_of_mut!((*p).divider).write(0);
+        core::ptr::addr_of_mut!((*p).seen_cycle).write(0);
+        core::ptr::addr_of_mut!((*p).seen_config).write(0);
+        core::ptr::addr_of_mut!((*p).bridges_on).write(false);
+        core::ptr::addr_of_mut!((*p).permitted).write(false);
+        core::ptr::addr_of_mut!((*p).raw).write(crate::hw::encoder::raw_count());
+        core::ptr::addr_of_mut!((*p).index_seq).write(0);
+        core::ptr::addr_of_mut!((*p).index_units).write(0);
+        core::ptr::addr_of_mut!((*p).probe1).write(NO_EDGES);
+        core::ptr::addr_of_mut!((*p).probe2).write(NO_EDGES);
+        core::ptr::addr_of_mut!((*p).probe2_seen).write(Seen::default());
+    }
     READY.store(true, Ordering::Release);
 }
 
