@@ -119,7 +119,7 @@ pub fn pdo_maps(
             }
             let name = objects
                 .binary_search_by_key(&index, |o| o.index)
-                .map_or(fallback, |k| objects[k].name);
+                .map_or(fallback, |k| objects[k].name());
             let map = PdoMap {
                 index,
                 name,
@@ -225,9 +225,9 @@ pub fn validate(
                 sub,
             })?;
             let ok = if p.is_rx() {
-                entry.pdo.rx()
+                entry.pdo_mappable().rx()
             } else {
-                entry.pdo.tx()
+                entry.pdo_mappable().tx()
             };
             if !ok {
                 return Err(EsiError::NotMappable { pdo, index, sub });
@@ -323,7 +323,7 @@ fn write_access<W: Write>(out: &mut W, a: Access) -> fmt::Result {
 fn write_flags<W: Write>(out: &mut W, e: &Entry) -> fmt::Result {
     out.write_str("<Flags>")?;
     write_access(out, e.access)?;
-    if let Some(p) = pdo_flag(e.pdo) {
+    if let Some(p) = pdo_flag(e.pdo_mappable()) {
         write!(out, "<PdoMapping>{p}</PdoMapping>")?;
     }
     out.write_str("</Flags>")
@@ -347,10 +347,10 @@ fn bit_offsets(
     mut f: impl FnMut(&Entry, u32) -> fmt::Result,
 ) -> Result<u32, fmt::Error> {
     let mut off = 0u32;
-    for (i, e) in o.entries.iter().enumerate() {
+    for (i, e) in o.entries().iter().enumerate() {
         f(e, off)?;
         off += e.bits as u32;
-        if i == 0 && o.entries.len() > 1 {
+        if i == 0 && o.entries().len() > 1 {
             off = off.max(16);
         }
     }
@@ -382,7 +382,7 @@ const BASE_TYPES: [DataType; 20] = [
 
 fn write_data_types<W: Write>(out: &mut W, objects: &[Object]) -> fmt::Result {
     out.write_str("<DataTypes>\n")?;
-    let all = || objects.iter().flat_map(|o| o.entries.iter());
+    let all = || objects.iter().flat_map(|o| o.entries().iter());
     // Fixed-size base types, each once.
     for t in BASE_TYPES {
         if t.is_variable_length() || !all().any(|e| e.data_type == t) {
@@ -414,7 +414,7 @@ fn write_data_types<W: Write>(out: &mut W, objects: &[Object]) -> fmt::Result {
         )?;
     }
     // Records and arrays.
-    for o in objects.iter().filter(|o| o.code != ObjectCode::Var) {
+    for o in objects.iter().filter(|o| o.code() != ObjectCode::Var) {
         write!(out, "<DataType><Name>DT{:04X}</Name>", o.index)?;
         let total = bit_offsets(o, |_, _| Ok(()))?;
         writeln!(out, "<BitSize>{total}</BitSize>")?;
@@ -423,7 +423,7 @@ fn write_data_types<W: Write>(out: &mut W, objects: &[Object]) -> fmt::Result {
                 out,
                 "<SubItem><SubIdx>{}</SubIdx><Name>{}</Name><Type>{}</Type><BitSize>{}</BitSize><BitOffs>{off}</BitOffs>",
                 e.sub,
-                Esc(e.name),
+                Esc(e.name()),
                 TypeName(e),
                 e.bits
             )?;
@@ -442,9 +442,9 @@ fn write_objects<W: Write>(out: &mut W, objects: &[Object]) -> fmt::Result {
             out,
             "<Object><Index>#x{:04X}</Index><Name>{}</Name>",
             o.index,
-            Esc(o.name)
+            Esc(o.name())
         )?;
-        match (o.code, o.entries.first()) {
+        match (o.code(), o.entries().first()) {
             (ObjectCode::Var, Some(e)) => {
                 write!(
                     out,
@@ -464,8 +464,8 @@ fn write_objects<W: Write>(out: &mut W, objects: &[Object]) -> fmt::Result {
                     "<Type>DT{:04X}</Type><BitSize>{total}</BitSize><Info>",
                     o.index
                 )?;
-                for e in o.entries {
-                    write!(out, "<SubItem><Name>{}</Name><Info>", Esc(e.name))?;
+                for e in o.entries() {
+                    write!(out, "<SubItem><Name>{}</Name><Info>", Esc(e.name()))?;
                     write_default(out, e)?;
                     out.write_str("</Info></SubItem>")?;
                 }
@@ -498,10 +498,10 @@ fn write_pdo<W: Write>(out: &mut W, objects: &[Object], p: &PdoMap) -> fmt::Resu
     for e in p.entries.iter().map(|v| PdoEntry::decode(*v)) {
         match find_entry(objects, e.index, e.sub) {
             Some((o, entry)) if e.index != 0 => {
-                let name = if o.code == ObjectCode::Var {
-                    o.name
+                let name = if o.code() == ObjectCode::Var {
+                    o.name()
                 } else {
-                    entry.name
+                    entry.name()
                 };
                 writeln!(
                     out,
@@ -860,7 +860,7 @@ mod tests {
                 child(*x, "Index").text().unwrap(),
                 format!("#x{:04X}", o.index)
             );
-            assert_eq!(child(*x, "Name").text(), Some(o.name));
+            assert_eq!(child(*x, "Name").text(), Some(o.name()));
             // every Type is defined in DataTypes
             let t = child(*x, "Type").text().unwrap();
             let dts = child(dict, "DataTypes");

@@ -14,7 +14,7 @@ use crate::esm::EsmState;
 
 /// CoE data type codes (ETG.1000.6), as used by SDO information, the SII and the ESI.
 /// The codes used here all fit a byte (`as u16` gives the 16-bit wire code), which
-/// keeps [`Entry`] at 32 bytes.
+/// keeps [`Entry`] at 24 bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u8)]
 pub enum DataType {
@@ -171,15 +171,16 @@ impl Access {
 
 /// Whether an entry may be mapped into process data, and in which direction.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
 pub enum PdoMappable {
     /// Not mappable.
-    No,
+    No = 0,
     /// Mappable into an RxPDO (outputs of the master).
-    Rx,
+    Rx = 1,
     /// Mappable into a TxPDO (inputs of the master).
-    Tx,
+    Tx = 2,
     /// Mappable in both directions.
-    RxTx,
+    RxTx = 3,
 }
 
 impl PdoMappable {
@@ -218,14 +219,16 @@ pub enum ObjectCode {
 
 /// The static description of one entry (sub-index) of an object.
 ///
-/// Kept compact (32 bytes on the target: the dictionary has several hundred entries):
+/// Kept compact (24 bytes on the target: the dictionary has several hundred entries):
+/// the name is a thin pointer and a one-byte length (read it with [`Entry::name`]),
 /// limits and the default are stored as 32-bit patterns read back through the data
-/// type, the unit as an index into [`UNITS`]. Use [`Entry::min`], [`Entry::max`],
-/// [`Entry::default_value`] and [`Entry::unit_text`] to read them.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// type, the unit as an index into [`UNITS`], the flags in one byte. Use
+/// [`Entry::min`], [`Entry::max`], [`Entry::default_value`], [`Entry::unit_text`] and
+/// [`Entry::is_saved`] to read them.
+#[derive(Clone, Copy)]
 pub struct Entry {
-    /// Name (SDO information, ESI, documentation).
-    pub name: &'static str,
+    /// First byte of the name (see [`Entry::name`]).
+    name_ptr: *const u8,
     spec: Spec,
     /// Data type.
     pub data_type: DataType,
@@ -235,29 +238,65 @@ pub struct Entry {
     pub sub: u8,
     /// Access per ESM state.
     pub access: Access,
-    /// PDO mappability.
-    pub pdo: PdoMappable,
-    /// Stored in flash by 'save' (0x1010).
-    pub saved: bool,
     unit: u8,
+    name_len: u8,
+    /// [`FLAG_SAVED`], [`FLAG_TEXT`], [`FLAG_NATURAL`], [`FLAG_HAS_DEFAULT`] and the
+    /// [`PdoMappable`] code at [`PDO_SHIFT`].
+    flags: u8,
 }
 
 #[cfg(target_pointer_width = "32")]
-const _: () = assert!(core::mem::size_of::<Entry>() == 32);
+const _: () = assert!(core::mem::size_of::<Entry>() == 24);
 
-/// Value part of an [`Entry`]: a numeric range and default (32-bit patterns, read
-/// through the data type) or a text default.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Spec {
-    Num {
-        lo: i32,
-        hi: i32,
-        def: i32,
-        /// The range is the data type's own (the only possibility for 64-bit types).
-        natural: bool,
-        has_default: bool,
-    },
-    Text(&'static str),
+// SAFETY: the only non-`Sync`/`Send` field is `name_ptr`, which always points into the
+// bytes of a `&'static str` (immutable, never freed): sharing or sending an `Entry` is
+// sharing that `&'static str`, which is `Sync` and `Send`.
+unsafe impl Sync for Entry {}
+// SAFETY: see the `Sync` impl above.
+unsafe impl Send for Entry {}
+
+/// Stored in flash by 'save' (0x1010).
+const FLAG_SAVED: u8 = 1 << 0;
+/// [`Spec::text`] holds the default (otherwise [`Spec::num`]).
+const FLAG_TEXT: u8 = 1 << 1;
+/// The range is the data type's own (the only possibility for 64-bit types).
+const FLAG_NATURAL: u8 = 1 << 2;
+/// [`Spec::num`]'s default is meaningful.
+const FLAG_HAS_DEFAULT: u8 = 1 << 3;
+/// Position of the two [`PdoMappable`] bits in the flags.
+const PDO_SHIFT: u32 = 4;
+/// The two [`PdoMappable`] bits.
+const FLAG_PDO: u8 = 3 << PDO_SHIFT;
+
+/// Value part of an [`Entry`]: a numeric range and default (32-bit patterns `[lo, hi,
+/// def]`, read through the data type) or a text default; which one is written is
+/// [`FLAG_TEXT`] of the entry's flags (no tag of its own: that keeps `Entry` at 24
+/// bytes).
+#[derive(Clone, Copy)]
+union Spec {
+    num: [i32; 3],
+    text: &'static str,
+}
+
+/// Splits a name into the thin pointer and the one-byte length [`Entry`] and [`Object`]
+/// keep; a name longer than 255 bytes is a compile-time error for the constant tables.
+const fn short_name(name: &'static str) -> (*const u8, u8) {
+    assert!(
+        name.len() <= u8::MAX as usize,
+        "od name longer than 255 bytes"
+    );
+    (name.as_ptr(), name.len() as u8)
+}
+
+/// The name [`short_name`] split.
+///
+/// # Safety
+/// `ptr` and `len` must come from one [`short_name`] call.
+const unsafe fn long_name(ptr: *const u8, len: u8) -> &'static str {
+    // SAFETY: `short_name` took both from one `&'static str` whose length fits `u8`
+    // (checked there), so they describe `len` bytes of valid UTF-8 that live for
+    // `'static` and are never mutated.
+    unsafe { core::str::from_utf8_unchecked(core::slice::from_raw_parts(ptr, len as usize)) }
 }
 
 /// Unit texts an entry can carry ([`Entry::unit`]); index 0 is "no unit".
@@ -345,22 +384,17 @@ impl Entry {
     /// A numeric entry with the natural range of its type, no default, not saved.
     pub const fn new(sub: u8, name: &'static str, data_type: DataType, access: Access) -> Self {
         let (bits, _, _) = type_range(data_type);
+        let (name_ptr, name_len) = short_name(name);
         Entry {
             sub,
-            name,
+            name_ptr,
+            name_len,
             data_type,
             bits,
             access,
-            pdo: PdoMappable::No,
-            spec: Spec::Num {
-                lo: 0,
-                hi: 0,
-                def: 0,
-                natural: true,
-                has_default: false,
-            },
+            spec: Spec { num: [0; 3] },
             unit: 0,
-            saved: false,
+            flags: FLAG_NATURAL,
         }
     }
     /// Sub-index 0 of an ARRAY or RECORD: "Number of entries", UINT8, read-only, with
@@ -370,41 +404,76 @@ impl Entry {
     }
     /// A visible string of at most `max_len` bytes (read-only).
     pub const fn text(sub: u8, name: &'static str, max_len: u16, value: &'static str) -> Self {
+        let (name_ptr, name_len) = short_name(name);
         Entry {
             sub,
-            name,
+            name_ptr,
+            name_len,
             data_type: DataType::VisibleString,
             bits: max_len * 8,
             access: Access::RO,
-            pdo: PdoMappable::No,
-            spec: Spec::Text(value),
+            spec: Spec { text: value },
             unit: 0,
-            saved: false,
+            flags: FLAG_TEXT,
         }
+    }
+    /// Name (SDO information, ESI, documentation).
+    pub const fn name(&self) -> &'static str {
+        // SAFETY: `name_ptr` and `name_len` are private and only set by `new`/`text`,
+        // from one `short_name` call.
+        unsafe { long_name(self.name_ptr, self.name_len) }
+    }
+    /// Stored in flash by 'save' (0x1010).
+    pub const fn is_saved(&self) -> bool {
+        self.flags & FLAG_SAVED != 0
+    }
+    /// PDO mappability.
+    pub const fn pdo_mappable(&self) -> PdoMappable {
+        match (self.flags & FLAG_PDO) >> PDO_SHIFT {
+            0 => PdoMappable::No,
+            1 => PdoMappable::Rx,
+            2 => PdoMappable::Tx,
+            _ => PdoMappable::RxTx,
+        }
+    }
+    /// The numeric patterns `[lo, hi, def]` (zeros for a text entry).
+    const fn num(&self) -> [i32; 3] {
+        if self.flags & FLAG_TEXT != 0 {
+            return [0; 3];
+        }
+        // SAFETY: every writer of `spec` sets or clears `FLAG_TEXT` with it: the flag
+        // is clear, so `num` is the field last written.
+        unsafe { self.spec.num }
+    }
+    /// The text default, if the entry has one.
+    const fn text_default(&self) -> Option<&'static str> {
+        if self.flags & FLAG_TEXT == 0 {
+            return None;
+        }
+        // SAFETY: as in `num`: the flag is set, so `text` is the field last written.
+        Some(unsafe { self.spec.text })
     }
     /// Sets the accepted range (must fit the 32-bit pattern of the type: checked at
     /// compile time for the constant tables).
     pub const fn range(mut self, min: i64, max: i64) -> Self {
-        let t = self.data_type;
-        if let Spec::Num {
-            lo, hi, natural, ..
-        } = &mut self.spec
-        {
-            *lo = pattern(t, min);
-            *hi = pattern(t, max);
-            *natural = false;
+        if self.flags & FLAG_TEXT == 0 {
+            let [_, _, def] = self.num();
+            let t = self.data_type;
+            self.spec = Spec {
+                num: [pattern(t, min), pattern(t, max), def],
+            };
+            self.flags &= !FLAG_NATURAL;
         }
         self
     }
     /// Sets the default value.
     pub const fn default(mut self, v: i64) -> Self {
-        let t = self.data_type;
-        if let Spec::Num {
-            def, has_default, ..
-        } = &mut self.spec
-        {
-            *def = pattern(t, v);
-            *has_default = true;
+        if self.flags & FLAG_TEXT == 0 {
+            let [lo, hi, _] = self.num();
+            self.spec = Spec {
+                num: [lo, hi, pattern(self.data_type, v)],
+            };
+            self.flags |= FLAG_HAS_DEFAULT;
         }
         self
     }
@@ -412,25 +481,19 @@ impl Entry {
     pub const fn with_default_value(mut self, d: DefaultValue) -> Self {
         match d {
             DefaultValue::Int(v) => {
-                if matches!(self.spec, Spec::Text(_)) {
-                    self.spec = Spec::Num {
-                        lo: 0,
-                        hi: 0,
-                        def: 0,
-                        natural: true,
-                        has_default: false,
-                    };
+                if self.flags & FLAG_TEXT != 0 {
+                    self.spec = Spec { num: [0; 3] };
+                    self.flags = (self.flags & (FLAG_SAVED | FLAG_PDO)) | FLAG_NATURAL;
                 }
                 self.default(v)
             }
             DefaultValue::Text(t) => {
-                self.spec = Spec::Text(t);
+                self.spec = Spec { text: t };
+                self.flags = (self.flags & (FLAG_SAVED | FLAG_PDO)) | FLAG_TEXT;
                 self
             }
             DefaultValue::None => {
-                if let Spec::Num { has_default, .. } = &mut self.spec {
-                    *has_default = false;
-                }
+                self.flags &= !FLAG_HAS_DEFAULT;
                 self
             }
         }
@@ -448,9 +511,9 @@ impl Entry {
         }
         panic!("unit not in od::UNITS");
     }
-    /// Marks the entry as stored by 'save'.
+    /// Marks the entry as stored by 'save' (read back with [`Entry::is_saved`]).
     pub const fn saved(mut self) -> Self {
-        self.saved = true;
+        self.flags |= FLAG_SAVED;
         self
     }
     /// Sets the access rights (e.g. a writable text).
@@ -458,41 +521,39 @@ impl Entry {
         self.access = access;
         self
     }
-    /// Sets PDO mappability.
+    /// Sets PDO mappability (read back with [`Entry::pdo_mappable`]).
     pub const fn pdo(mut self, pdo: PdoMappable) -> Self {
-        self.pdo = pdo;
+        self.flags = (self.flags & !FLAG_PDO) | ((pdo as u8) << PDO_SHIFT);
         self
     }
     /// Smallest accepted value on write (numeric types).
     pub const fn min(&self) -> i64 {
-        match self.spec {
-            Spec::Num {
-                natural: false, lo, ..
-            } => unpattern(self.data_type, lo),
-            Spec::Num { .. } => type_range(self.data_type).1,
-            Spec::Text(_) => 0,
+        if self.flags & FLAG_TEXT != 0 {
+            0
+        } else if self.flags & FLAG_NATURAL != 0 {
+            type_range(self.data_type).1
+        } else {
+            unpattern(self.data_type, self.num()[0])
         }
     }
     /// Largest accepted value on write (numeric types).
     pub const fn max(&self) -> i64 {
-        match self.spec {
-            Spec::Num {
-                natural: false, hi, ..
-            } => unpattern(self.data_type, hi),
-            Spec::Num { .. } => type_range(self.data_type).2,
-            Spec::Text(_) => 0,
+        if self.flags & FLAG_TEXT != 0 {
+            0
+        } else if self.flags & FLAG_NATURAL != 0 {
+            type_range(self.data_type).2
+        } else {
+            unpattern(self.data_type, self.num()[1])
         }
     }
     /// Default value (also the ESI `DefaultData`).
     pub const fn default_value(&self) -> DefaultValue {
-        match self.spec {
-            Spec::Num {
-                has_default: true,
-                def,
-                ..
-            } => DefaultValue::Int(unpattern(self.data_type, def)),
-            Spec::Num { .. } => DefaultValue::None,
-            Spec::Text(s) => DefaultValue::Text(s),
+        if let Some(t) = self.text_default() {
+            DefaultValue::Text(t)
+        } else if self.flags & FLAG_HAS_DEFAULT != 0 {
+            DefaultValue::Int(unpattern(self.data_type, self.num()[2]))
+        } else {
+            DefaultValue::None
         }
     }
     /// Unit text ("mA", "ms", "inc", …); empty when dimensionless.
@@ -507,8 +568,46 @@ impl Entry {
     /// [`Access::bits`], bit 6 RxPDO mappable, bit 7 TxPDO mappable.
     pub const fn sdo_info_access(&self) -> u16 {
         self.access.bits()
-            | if self.pdo.rx() { 1 << 6 } else { 0 }
-            | if self.pdo.tx() { 1 << 7 } else { 0 }
+            | if self.pdo_mappable().rx() { 1 << 6 } else { 0 }
+            | if self.pdo_mappable().tx() { 1 << 7 } else { 0 }
+    }
+}
+
+/// Two entries are equal when they describe the same thing (same name, type, length,
+/// sub-index, access, mapping, range, default, unit and 'save' flag).
+impl PartialEq for Entry {
+    fn eq(&self, other: &Self) -> bool {
+        self.name() == other.name()
+            && self.data_type == other.data_type
+            && self.bits == other.bits
+            && self.sub == other.sub
+            && self.access == other.access
+            && self.pdo_mappable() == other.pdo_mappable()
+            && self.unit == other.unit
+            && self.is_saved() == other.is_saved()
+            && self.min() == other.min()
+            && self.max() == other.max()
+            && self.default_value() == other.default_value()
+    }
+}
+
+impl Eq for Entry {}
+
+impl core::fmt::Debug for Entry {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Entry")
+            .field("sub", &self.sub)
+            .field("name", &self.name())
+            .field("data_type", &self.data_type)
+            .field("bits", &self.bits)
+            .field("access", &self.access)
+            .field("pdo", &self.pdo_mappable())
+            .field("saved", &self.is_saved())
+            .field("min", &self.min())
+            .field("max", &self.max())
+            .field("default", &self.default_value())
+            .field("unit", &self.unit_text())
+            .finish()
     }
 }
 
@@ -539,22 +638,54 @@ pub const fn type_range(t: DataType) -> (u16, i64, i64) {
 }
 
 /// The static description of one object.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+///
+/// Kept compact (12 bytes on the target): the name and the entries are thin pointers
+/// with one-byte lengths, the object code shares a byte with the name length; read
+/// them with [`Object::name`], [`Object::entries`] and [`Object::code`].
+#[derive(Clone, Copy)]
 pub struct Object {
     /// Index.
     pub index: u16,
-    /// Name.
-    pub name: &'static str,
-    /// VAR, ARRAY or RECORD.
-    pub code: ObjectCode,
-    /// Entries sorted by sub-index. A VAR has exactly one entry (sub-index 0); an
-    /// ARRAY or RECORD has its sub-index 0 (UINT8 count) first.
-    pub entries: &'static [Entry],
+    /// Bits 0-5: length of the name (at most [`MAX_OBJECT_NAME`]); bits 6-7: the
+    /// object code minus 7 (VAR 0, ARRAY 1, RECORD 2).
+    name_code: u8,
+    /// First byte of the name (see [`Object::name`]).
+    name_ptr: *const u8,
+    /// First entry (see [`Object::entries`]).
+    entries_ptr: *const Entry,
+    entries_len: u8,
     /// What the object means (dictionary reference). Only kept with the
     /// `descriptions` feature (documentation generators); the target build leaves the
     /// texts out of flash.
     #[cfg(feature = "descriptions")]
     description: &'static str,
+}
+
+#[cfg(all(target_pointer_width = "32", not(feature = "descriptions")))]
+const _: () = assert!(core::mem::size_of::<Object>() == 12);
+
+/// Longest object name in bytes (6 bits of [`Object`]; entry names may have 255).
+pub const MAX_OBJECT_NAME: usize = 63;
+/// The bits of `Object::name_code` that hold the name length.
+const NAME_LEN_MASK: u8 = MAX_OBJECT_NAME as u8;
+/// Position of the object code in `Object::name_code`.
+const CODE_SHIFT: u32 = 6;
+
+// SAFETY: the only non-`Sync`/`Send` fields are `name_ptr` and `entries_ptr`, which
+// always point into a `&'static str` and a `&'static [Entry]` (immutable, never freed;
+// `Entry` is `Sync`): sharing or sending an `Object` is sharing those references.
+unsafe impl Sync for Object {}
+// SAFETY: see the `Sync` impl above.
+unsafe impl Send for Object {}
+
+/// Splits an entry table into the thin pointer and the one-byte count [`Object`]
+/// keeps; more than 255 entries is a compile-time error for the constant tables.
+const fn short_entries(entries: &'static [Entry]) -> (*const Entry, u8) {
+    assert!(
+        entries.len() <= u8::MAX as usize,
+        "od object with more than 255 entries"
+    );
+    (entries.as_ptr(), entries.len() as u8)
 }
 
 impl Object {
@@ -568,18 +699,50 @@ impl Object {
     ) -> Self {
         #[cfg(not(feature = "descriptions"))]
         let _ = description;
+        assert!(
+            name.len() <= MAX_OBJECT_NAME,
+            "od object name longer than MAX_OBJECT_NAME"
+        );
+        let (name_ptr, name_len) = short_name(name);
+        let (entries_ptr, entries_len) = short_entries(entries);
         Object {
             index,
-            name,
-            code,
-            entries,
+            name_ptr,
+            name_code: name_len | ((code as u8 - ObjectCode::Var as u8) << CODE_SHIFT),
+            entries_ptr,
+            entries_len,
             #[cfg(feature = "descriptions")]
             description,
         }
     }
+    /// Name.
+    pub const fn name(&self) -> &'static str {
+        // SAFETY: `name_ptr` and the length bits of `name_code` are private and only
+        // set by `new`, from one `short_name` call (the length fits the bits: checked
+        // there).
+        unsafe { long_name(self.name_ptr, self.name_code & NAME_LEN_MASK) }
+    }
+    /// VAR, ARRAY or RECORD.
+    pub const fn code(&self) -> ObjectCode {
+        match self.name_code >> CODE_SHIFT {
+            0 => ObjectCode::Var,
+            1 => ObjectCode::Array,
+            _ => ObjectCode::Record,
+        }
+    }
+    /// Entries sorted by sub-index. A VAR has exactly one entry (sub-index 0); an
+    /// ARRAY or RECORD has its sub-index 0 (UINT8 count) first.
+    pub const fn entries(&self) -> &'static [Entry] {
+        // SAFETY: `entries_ptr` and `entries_len` are private and only set by `new` and
+        // `with_entries`, from one `short_entries` call: they are the start and the
+        // length of one `&'static [Entry]`, immutable and never freed.
+        unsafe { core::slice::from_raw_parts(self.entries_ptr, self.entries_len as usize) }
+    }
     /// The same object with other entries (documentation generators).
     pub const fn with_entries(mut self, entries: &'static [Entry]) -> Self {
-        self.entries = entries;
+        let (entries_ptr, entries_len) = short_entries(entries);
+        self.entries_ptr = entries_ptr;
+        self.entries_len = entries_len;
         self
     }
     /// What the object means; empty without the `descriptions` feature.
@@ -618,11 +781,36 @@ impl Object {
     }
     /// The entry with sub-index `sub`.
     pub fn entry(&self, sub: u8) -> Option<&'static Entry> {
-        self.entries.iter().find(|e| e.sub == sub)
+        self.entries().iter().find(|e| e.sub == sub)
     }
     /// Highest sub-index described.
     pub fn max_sub(&self) -> u8 {
-        self.entries.last().map_or(0, |e| e.sub)
+        self.entries().last().map_or(0, |e| e.sub)
+    }
+}
+
+/// Two objects are equal when they describe the same thing (same index, name, object
+/// code, entries and description).
+impl PartialEq for Object {
+    fn eq(&self, other: &Self) -> bool {
+        self.index == other.index
+            && self.name() == other.name()
+            && self.code() == other.code()
+            && self.entries() == other.entries()
+            && self.description() == other.description()
+    }
+}
+
+impl Eq for Object {}
+
+impl core::fmt::Debug for Object {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Object")
+            .field("index", &self.index)
+            .field("name", &self.name())
+            .field("code", &self.code())
+            .field("entries", &self.entries())
+            .finish()
     }
 }
 
@@ -650,7 +838,7 @@ pub fn is_well_formed(objects: &[Object]) -> bool {
     objects.windows(2).all(|w| w[0].index < w[1].index)
         && objects
             .iter()
-            .all(|o| !o.entries.is_empty() && o.entries.windows(2).all(|w| w[0].sub < w[1].sub))
+            .all(|o| !o.entries().is_empty() && o.entries().windows(2).all(|w| w[0].sub < w[1].sub))
 }
 
 /// Decodes a little-endian numeric value of `t` from `data` (sign-extended).
@@ -912,9 +1100,9 @@ impl OdListType {
         match self {
             Self::Counts => false,
             Self::All => true,
-            Self::RxPdoMappable => obj.entries.iter().any(|e| e.pdo.rx()),
-            Self::TxPdoMappable => obj.entries.iter().any(|e| e.pdo.tx()),
-            Self::Backup | Self::Settings => obj.entries.iter().any(|e| e.saved),
+            Self::RxPdoMappable => obj.entries().iter().any(|e| e.pdo_mappable().rx()),
+            Self::TxPdoMappable => obj.entries().iter().any(|e| e.pdo_mappable().tx()),
+            Self::Backup | Self::Settings => obj.entries().iter().any(|e| e.is_saved()),
         }
     }
 
@@ -938,13 +1126,18 @@ pub fn write_reference(objects: &[Object], w: &mut impl core::fmt::Write) -> cor
     writeln!(w, "|---|---|---|---|")?;
     for o in objects {
         write!(w, "| 0x{:04X} | ", o.index)?;
-        write_md(w, o.name)?;
-        writeln!(w, " | {} | {} |", object_code_name(o.code), o.entries.len())?;
+        write_md(w, o.name())?;
+        writeln!(
+            w,
+            " | {} | {} |",
+            object_code_name(o.code()),
+            o.entries().len()
+        )?;
     }
     for o in objects {
         write!(w, "\n## 0x{:04X} ", o.index)?;
-        write_md(w, o.name)?;
-        writeln!(w, " ({})\n", object_code_name(o.code))?;
+        write_md(w, o.name())?;
+        writeln!(w, " ({})\n", object_code_name(o.code()))?;
         if !o.description().is_empty() {
             write_md(w, o.description())?;
             writeln!(w, "\n")?;
@@ -954,12 +1147,12 @@ pub fn write_reference(objects: &[Object], w: &mut impl core::fmt::Write) -> cor
             "| Sub | Name | Type | Bits | Access | PDO | Min | Max | Default | Unit | Saved |"
         )?;
         writeln!(w, "|---|---|---|---|---|---|---|---|---|---|---|")?;
-        for e in o.entries {
+        for e in o.entries() {
             write!(w, "| {} | ", e.sub)?;
-            write_md(w, e.name)?;
+            write_md(w, e.name())?;
             write!(w, " | {} | {} | ", e.data_type.esi_name(), e.bits)?;
             write_access(w, e.access)?;
-            let pdo = match e.pdo {
+            let pdo = match e.pdo_mappable() {
                 PdoMappable::No => "-",
                 PdoMappable::Rx => "Rx",
                 PdoMappable::Tx => "Tx",
@@ -988,7 +1181,7 @@ pub fn write_reference(objects: &[Object], w: &mut impl core::fmt::Write) -> cor
             } else {
                 write_md(w, e.unit_text())?;
             }
-            writeln!(w, " | {} |", if e.saved { "yes" } else { "no" })?;
+            writeln!(w, " | {} |", if e.is_saved() { "yes" } else { "no" })?;
         }
     }
     Ok(())
@@ -1127,7 +1320,7 @@ mod reference_tests {
         let a = Object::array(0x1001, "A", E, "d");
         let r = Object::record(0x1002, "R", E, "d");
         assert_eq!(
-            (v.code, a.code, r.code),
+            (v.code(), a.code(), r.code()),
             (ObjectCode::Var, ObjectCode::Array, ObjectCode::Record)
         );
         let d = if cfg!(feature = "descriptions") {
@@ -1135,16 +1328,178 @@ mod reference_tests {
         } else {
             ""
         };
-        assert_eq!((r.index, r.name, r.description()), (0x1002, "R", d));
+        assert_eq!((r.index, r.name(), r.description()), (0x1002, "R", d));
         let c = E[0];
         assert_eq!(
-            (c.sub, c.name, c.data_type, c.access),
+            (c.sub, c.name(), c.data_type, c.access),
             (0, "Number of entries", DataType::Unsigned8, Access::RO)
         );
         assert_eq!(
             (c.bits, c.min(), c.max(), c.default_value()),
             (8, 0, 255, DefaultValue::Int(3))
         );
-        assert!(!c.saved && c.pdo == PdoMappable::No && c.unit_text().is_empty());
+        assert!(!c.is_saved() && c.pdo_mappable() == PdoMappable::No && c.unit_text().is_empty());
+    }
+
+    /// The packed layout reads back every field it was given (names, entries, code,
+    /// mapping, flags, range, default), whatever the order of the builder calls.
+    #[test]
+    fn packed_fields_read_back() {
+        const LONGEST_OBJECT_NAME: &str =
+            "abcdefghijklmnopqrstuvwxyzabcdefghijklmnopqrstuvwxyzabcdefghijk";
+        const LONGEST_ENTRY_NAME: &str = concat!(
+            "0123456789012345678901234567890123456789012345678901234567890123456789",
+            "0123456789012345678901234567890123456789012345678901234567890123456789",
+            "0123456789012345678901234567890123456789012345678901234567890123456789",
+            "012345678901234567890123456789012345678901234"
+        );
+        const ENTRIES: &[Entry] = &[
+            Entry::count(2),
+            Entry::new(1, LONGEST_ENTRY_NAME, DataType::Integer16, Access::RW)
+                .pdo(PdoMappable::RxTx)
+                .saved()
+                .range(-5, 7)
+                .default(-3)
+                .unit("°C"),
+            Entry::new(2, "", DataType::Integer32, Access::RO)
+                .default(-1)
+                .pdo(PdoMappable::Tx)
+                .range(i32::MIN as i64, -2),
+        ];
+        static O: Object = Object::record(0x2001, LONGEST_OBJECT_NAME, ENTRIES, "");
+        assert_eq!(LONGEST_OBJECT_NAME.len(), MAX_OBJECT_NAME);
+        assert_eq!(LONGEST_ENTRY_NAME.len(), 255);
+        assert_eq!(O.name(), LONGEST_OBJECT_NAME);
+        assert_eq!(O.code(), ObjectCode::Record);
+        assert_eq!(O.entries().as_ptr(), ENTRIES.as_ptr());
+        assert_eq!(O.entries().len(), 3);
+        let e = O.entries()[1];
+        assert_eq!(e.name(), LONGEST_ENTRY_NAME);
+        assert_eq!(
+            (e.sub, e.data_type, e.bits, e.access),
+            (1, DataType::Integer16, 16, Access::RW)
+        );
+        assert_eq!(e.pdo_mappable(), PdoMappable::RxTx);
+        assert!(e.is_saved());
+        assert_eq!(
+            (e.min(), e.max(), e.default_value()),
+            (-5, 7, DefaultValue::Int(-3))
+        );
+        assert_eq!(e.unit_text(), "°C");
+        assert_eq!(e.sdo_info_access(), 0x3F | 0xC0);
+        let f = O.entries()[2];
+        assert_eq!(f.name(), "");
+        assert_eq!(f.pdo_mappable(), PdoMappable::Tx);
+        assert!(!f.is_saved());
+        assert_eq!(
+            (f.min(), f.max(), f.default_value()),
+            (i32::MIN as i64, -2, DefaultValue::Int(-1))
+        );
+        for p in [
+            PdoMappable::No,
+            PdoMappable::Rx,
+            PdoMappable::Tx,
+            PdoMappable::RxTx,
+        ] {
+            let e = Entry::new(0, "x", DataType::Unsigned8, Access::RO).pdo(p);
+            assert_eq!(e.pdo_mappable(), p);
+            assert_eq!(e.pdo(PdoMappable::No).pdo_mappable(), PdoMappable::No);
+        }
+        for code in [ObjectCode::Var, ObjectCode::Array, ObjectCode::Record] {
+            let o = Object::new(0x3000, "n", code, ENTRIES, "");
+            assert_eq!((o.code(), o.name()), (code, "n"));
+        }
+        let o = O.with_entries(&ENTRIES[..1]);
+        assert_eq!(
+            (o.entries().len(), o.name(), o.code()),
+            (1, O.name(), O.code())
+        );
+        assert_ne!(o, O);
+        assert_eq!(O, O.with_entries(ENTRIES));
+    }
+
+    /// Replacing the default keeps the name, mapping, 'save' flag and unit, and moves
+    /// between a text and a numeric default as before the packing.
+    #[test]
+    fn replaced_defaults_keep_the_other_fields() {
+        let n = Entry::new(3, "Gain", DataType::Unsigned16, Access::RW)
+            .range(1, 100)
+            .pdo(PdoMappable::Rx)
+            .saved()
+            .unit("mA");
+        assert_eq!(n.default_value(), DefaultValue::None);
+        let d = n.with_default_value(DefaultValue::Int(42));
+        assert_eq!(
+            (d.min(), d.max(), d.default_value()),
+            (1, 100, DefaultValue::Int(42))
+        );
+        let none = d.with_default_value(DefaultValue::None);
+        assert_eq!(
+            (none.min(), none.max(), none.default_value()),
+            (1, 100, DefaultValue::None)
+        );
+        let t = d.with_default_value(DefaultValue::Text("seven"));
+        assert_eq!(
+            (t.min(), t.max(), t.default_value()),
+            (0, 0, DefaultValue::Text("seven"))
+        );
+        for x in [d, none, t] {
+            assert_eq!((x.name(), x.sub, x.unit_text()), ("Gain", 3, "mA"));
+            assert_eq!(x.pdo_mappable(), PdoMappable::Rx);
+            assert!(x.is_saved());
+        }
+        // A text entry: range and numeric default do not apply; an Int default turns
+        // it numeric with the natural range.
+        let s = Entry::text(0, "Label", 8, "abc");
+        assert_eq!(s.range(1, 2).default(5), s);
+        assert_eq!(
+            s.with_default_value(DefaultValue::None).default_value(),
+            DefaultValue::Text("abc")
+        );
+        let i = s.with_default_value(DefaultValue::Int(9));
+        assert_eq!(
+            (i.min(), i.max(), i.default_value()),
+            (0, 0, DefaultValue::Int(9))
+        );
+        assert_eq!((i.bits, i.name()), (64, "Label"));
+        // Equality is by content, not by where the name is stored.
+        let owned = std::string::String::from("Gain");
+        let same = Entry::new(
+            3,
+            std::boxed::Box::leak(owned.into_boxed_str()),
+            DataType::Unsigned16,
+            Access::RW,
+        )
+        .range(1, 100)
+        .pdo(PdoMappable::Rx)
+        .saved()
+        .unit("mA");
+        assert_eq!(same, n);
+        assert_ne!(same.pdo(PdoMappable::Tx), n);
+        assert!(std::format!("{n:?}").contains("\"Gain\""));
+    }
+
+    #[test]
+    #[should_panic(expected = "longer than MAX_OBJECT_NAME")]
+    fn object_name_over_the_limit_is_refused() {
+        let name = std::string::String::from_utf8(std::vec![b'a'; MAX_OBJECT_NAME + 1]).unwrap();
+        let _ = Object::var(
+            0x2000,
+            std::boxed::Box::leak(name.into_boxed_str()),
+            &[],
+            "",
+        );
+    }
+
+    #[test]
+    #[should_panic(expected = "longer than 255 bytes")]
+    fn entry_name_over_the_limit_is_refused() {
+        let name = std::string::String::from_utf8(std::vec![b'a'; 256]).unwrap();
+        let _ = Entry::new(
+            0,
+            std::boxed::Box::leak(name.into_boxed_str()),
+            DataType::Unsigned8,
+            Access::RO,
+        );
     }
 }

@@ -186,8 +186,8 @@ fn check_entry(value: u32, dir: Dir, objects: &'static [Object]) -> Result<(), S
     }
     let e = od::find_entry(objects, index, sub).map_err(|_| SdoAbort::NotMappable)?;
     let ok = match dir {
-        Dir::Rx => e.pdo.rx(),
-        Dir::Tx => e.pdo.tx(),
+        Dir::Rx => e.pdo_mappable().rx(),
+        Dir::Tx => e.pdo_mappable().tx(),
     };
     if !ok || e.bits == 0 || e.bits > 64 {
         return Err(SdoAbort::NotMappable);

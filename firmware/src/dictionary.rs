@@ -157,12 +157,12 @@ mod tests {
                 let found = find_in(range, index);
                 assert_eq!(mine.is_some(), found.is_some(), "{index:#06x}");
                 if let (Some(a), Some(b)) = (mine, found) {
-                    assert_eq!(a.name, b.name);
-                    assert_eq!(a.entries.len(), b.entries.len());
+                    assert_eq!(a.name(), b.name());
+                    assert_eq!(a.entries().len(), b.entries().len());
                     for sub in 0..=u8::MAX {
                         assert_eq!(
-                            od::find_entry(own, index, sub).map(|e| (e.sub, e.name)),
-                            find_entry_in(range, index, sub).map(|e| (e.sub, e.name)),
+                            od::find_entry(own, index, sub).map(|e| (e.sub, e.name())),
+                            find_entry_in(range, index, sub).map(|e| (e.sub, e.name())),
                             "{index:#06x}:{sub}"
                         );
                     }

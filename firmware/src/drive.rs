@@ -650,9 +650,9 @@ fn other_tx_entries() -> impl Iterator<Item = (u16, u8)> {
         .iter()
         .filter(|o| !(0x6000..=0x6FFF).contains(&o.index))
         .flat_map(|o| {
-            o.entries
+            o.entries()
                 .iter()
-                .filter(|e| e.pdo.tx())
+                .filter(|e| e.pdo_mappable().tx())
                 .map(move |e| (o.index, e.sub))
         })
         .take(OTHER_TX_MAX)
@@ -766,7 +766,7 @@ impl<S: ParameterStore> SlaveApplication for Drive<S> {
 /// True when `index` is stored by 'save' somewhere in the dictionary (for tests and
 /// the storage layout documentation).
 pub fn is_saved(index: u16, sub: u8) -> bool {
-    od::find_entry(dictionary::OBJECTS, index, sub).is_ok_and(|e| e.saved)
+    od::find_entry(dictionary::OBJECTS, index, sub).is_ok_and(|e| e.is_saved())
 }
 
 #[cfg(test)]

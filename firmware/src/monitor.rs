@@ -235,7 +235,7 @@ mod tests {
         assert_eq!(m.read(0x2306, 0, &mut small), Err(SdoAbort::ExceedsMailbox));
         // Every entry is read-only for the SDO server.
         for o in OBJECTS {
-            assert!(!o.entries[0].access.writable());
+            assert!(!o.entries()[0].access.writable());
         }
     }
 }

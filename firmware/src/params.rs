@@ -589,7 +589,7 @@ impl Params {
         let entry = crate::dictionary::find_entry_in(crate::dictionary::PARAMS, index, sub)?;
         let is_count = sub == 0
             && crate::dictionary::find_in(crate::dictionary::PARAMS, index)
-                .is_some_and(|o| o.code != ObjectCode::Var);
+                .is_some_and(|o| o.code() != ObjectCode::Var);
         let value: u32 = match (index, sub) {
             _ if is_count => u32::from(
                 crate::dictionary::find_in(crate::dictionary::PARAMS, index)
@@ -688,9 +688,9 @@ mod tests {
         let saved: std::vec::Vec<(u16, u8)> = OBJECTS
             .iter()
             .flat_map(|o| {
-                o.entries
+                o.entries()
                     .iter()
-                    .filter(|e| e.saved)
+                    .filter(|e| e.is_saved())
                     .map(move |e| (o.index, e.sub))
             })
             .collect();
@@ -899,7 +899,7 @@ mod tests {
         let mut p = Params::new(Variant::HybridServo);
         let before = p.values;
         for o in OBJECTS {
-            for e in o.entries {
+            for e in o.entries() {
                 for len in 0..6 {
                     let data = [0xFFu8; 6];
                     let res = p.write(o.index, e.sub, &data[..len]);

@@ -108,7 +108,11 @@ mod tests {
                     .unwrap_or_else(|_| panic!("{index:#06x}:{sub} not in the dictionary"));
                 assert_eq!(e.bits, bits, "{index:#06x}:{sub} length");
                 assert!(
-                    if rx { e.pdo.rx() } else { e.pdo.tx() },
+                    if rx {
+                        e.pdo_mappable().rx()
+                    } else {
+                        e.pdo_mappable().tx()
+                    },
                     "{index:#06x}:{sub} not mappable in this direction"
                 );
             }

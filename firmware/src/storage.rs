@@ -685,9 +685,9 @@ impl Storage {
                     None
                 };
                 for e in obj
-                    .entries
+                    .entries()
                     .iter()
-                    .filter(|e| e.saved && limit.is_none_or(|n| e.sub <= n))
+                    .filter(|e| e.is_saved() && limit.is_none_or(|n| e.sub <= n))
                 {
                     match dict.read(obj.index, e.sub, &mut value) {
                         Ok(n) if n <= MAX_VALUE_LEN => {
@@ -720,9 +720,10 @@ fn count_first<D: Dictionary + ?Sized>(dict: &D, index: u16) -> bool {
 }
 
 fn has_count_first(o: &od::Object) -> bool {
-    o.code != ObjectCode::Var
-        && o.entries.len() > 1
-        && o.entry(0).is_some_and(|e| e.saved && e.access.writable())
+    o.code() != ObjectCode::Var
+        && o.entries().len() > 1
+        && o.entry(0)
+            .is_some_and(|e| e.is_saved() && e.access.writable())
 }
 
 fn apply<D: Dictionary + ?Sized>(
@@ -733,7 +734,7 @@ fn apply<D: Dictionary + ?Sized>(
     report: &mut LoadReport,
 ) {
     let ok = match od::find_entry(dict.objects(), index, sub) {
-        Ok(e) if e.saved => {
+        Ok(e) if e.is_saved() => {
             let len_ok = if e.data_type.is_variable_length() {
                 data.len() <= e.byte_len()
             } else {

@@ -29,7 +29,7 @@ qemu_runner::tests! {
             if (0x1600..=0x1C33).contains(&o.index) || o.index == 0x2200 {
                 continue;
             }
-            for e in o.entries {
+            for e in o.entries() {
                 if e.access.readable() {
                     let n = d.read(o.index, e.sub, &mut buf);
                     assert!(n.is_ok(), "{:#06x}:{} read failed: {:?}", o.index, e.sub, n);
@@ -45,7 +45,7 @@ qemu_runner::tests! {
         let mut d = Drive::new(Variant::HybridServo, 1);
         let mut above_checked = 0;
         for o in OBJECTS.iter().filter(|o| (0x2000..=0x21FF).contains(&o.index)) {
-            for e in o.entries.iter().filter(|e| e.access.writable() && e.byte_len() <= 4 && e.max() > e.min()) {
+            for e in o.entries().iter().filter(|e| e.access.writable() && e.byte_len() <= 4 && e.max() > e.min()) {
                 let n = e.byte_len();
                 let lo = (e.min() as i32).to_le_bytes();
                 let hi = (e.max() as u32).to_le_bytes();

@@ -273,14 +273,13 @@ impl XorShift {
 fn all_values_in_range(d: &mut Drive) -> bool {
     let mut buf = [0u8; 64];
     ALL.iter().all(|o| {
-        o.entries
-            .iter()
-            .filter(|e| e.saved)
-            .all(|e| match d.read(o.index, e.sub, &mut buf) {
+        o.entries().iter().filter(|e| e.is_saved()).all(|e| {
+            match d.read(o.index, e.sub, &mut buf) {
                 Ok(n) => od::decode_int(e.data_type, &buf[..n])
                     .is_none_or(|v| v >= e.min() && v <= e.max()),
                 Err(_) => false,
-            })
+            }
+        })
     })
 }
 

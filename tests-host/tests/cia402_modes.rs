@@ -426,7 +426,7 @@ fn touch_probe_on_a_moving_axis() {
 fn dictionary_types_lengths_and_access() {
     let mut d = Cia402::new();
     for o in OBJECTS {
-        for e in o.entries {
+        for e in o.entries() {
             let mut buf = [0u8; 8];
             let n = d.read(o.index, e.sub, &mut buf).unwrap();
             assert_eq!(n, e.byte_len(), "{:#06x}:{}", o.index, e.sub);
@@ -438,13 +438,13 @@ fn dictionary_types_lengths_and_access() {
                     d.write(o.index, e.sub, &buf[..n]),
                     Err(SdoAbort::WriteReadOnly)
                 );
-            } else if e.sub != 0 || o.entries.len() == 1 {
+            } else if e.sub != 0 || o.entries().len() == 1 {
                 // Writing back the value read is accepted (except when a rule forbids it).
                 let r = d.write(o.index, e.sub, &buf[..n]);
                 assert!(r.is_ok(), "{:#06x}:{} {:?}", o.index, e.sub, r);
             }
             assert!(
-                !e.pdo.rx() || e.access.writable(),
+                !e.pdo_mappable().rx() || e.access.writable(),
                 "Rx-mappable must be writable"
             );
         }
@@ -476,7 +476,7 @@ fn random_garbage_never_panics_and_states_stay_consistent() {
             }
             1 => {
                 let o = &OBJECTS[rng.below(OBJECTS.len() as u64) as usize];
-                let e = &o.entries[rng.below(o.entries.len() as u64) as usize];
+                let e = &o.entries()[rng.below(o.entries().len() as u64) as usize];
                 let v = rng.next().to_le_bytes();
                 let len = rng.below(6) as usize;
                 let _ = d.write(o.index, e.sub, &v[..len]);

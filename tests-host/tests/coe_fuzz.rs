@@ -102,7 +102,7 @@ fn coe_template(r: &mut Rng, size: usize, out: &mut Vec<u8>) -> Sent {
         r.next() as u16
     };
     let sub = if r.chance(85) {
-        obj.entries[r.below(obj.entries.len())].sub
+        obj.entries()[r.below(obj.entries().len())].sub
     } else if r.chance(50) {
         r.below(3) as u8
     } else {

@@ -268,7 +268,7 @@ fn check_flags(flags: Node, e: &Entry, what: &str) {
         "{what}: write restrictions"
     );
     let pdo = opt_child(flags, "PdoMapping").and_then(|p| p.text());
-    let want = match e.pdo {
+    let want = match e.pdo_mappable() {
         PdoMappable::No => None,
         PdoMappable::Rx => Some("R"),
         PdoMappable::Tx => Some("T"),
@@ -358,34 +358,34 @@ fn variant_descriptions_differ_from_the_table_only_in_defaults() {
         let mut changed = Vec::new();
         for (a, b) in OBJECTS.iter().zip(objs) {
             assert_eq!(
-                (a.index, a.name, a.code, a.entries.len()),
-                (b.index, b.name, b.code, b.entries.len())
+                (a.index, a.name(), a.code(), a.entries().len()),
+                (b.index, b.name(), b.code(), b.entries().len())
             );
-            for (x, y) in a.entries.iter().zip(b.entries) {
+            for (x, y) in a.entries().iter().zip(b.entries()) {
                 assert_eq!(
                     (
                         x.sub,
-                        x.name,
+                        x.name(),
                         x.data_type,
                         x.bits,
                         x.access,
-                        x.pdo,
+                        x.pdo_mappable(),
                         x.min(),
                         x.max(),
                         x.unit_text(),
-                        x.saved
+                        x.is_saved()
                     ),
                     (
                         y.sub,
-                        y.name,
+                        y.name(),
                         y.data_type,
                         y.bits,
                         y.access,
-                        y.pdo,
+                        y.pdo_mappable(),
                         y.min(),
                         y.max(),
                         y.unit_text(),
-                        y.saved
+                        y.is_saved()
                     ),
                     "{:#06x}:{}",
                     a.index,
@@ -438,10 +438,10 @@ fn esi_dictionary_is_exactly_the_drive_dictionary() {
             for (o, x) in objs.iter().zip(&xs) {
                 let what = format!("{esc:?} {v:?} {:#06x}", o.index);
                 assert_eq!(num(text(*x, "Index")), u64::from(o.index), "{what}");
-                assert_eq!(text(*x, "Name"), o.name, "{what}");
+                assert_eq!(text(*x, "Name"), o.name(), "{what}");
                 let info = child(*x, "Info");
-                if o.code == ObjectCode::Var {
-                    let e = &o.entries[0];
+                if o.code() == ObjectCode::Var {
+                    let e = &o.entries()[0];
                     assert_eq!(text(*x, "Type"), type_name(e), "{what}: type");
                     assert!(
                         types.contains_key(text(*x, "Type")),
@@ -456,12 +456,12 @@ fn esi_dictionary_is_exactly_the_drive_dictionary() {
                 assert_eq!(text(*x, "Type"), dt_name, "{what}");
                 let dt = types[dt_name.as_str()];
                 let subs = children(dt, "SubItem");
-                assert_eq!(subs.len(), o.entries.len(), "{what}: sub-items");
+                assert_eq!(subs.len(), o.entries().len(), "{what}: sub-items");
                 let mut off = 0u64;
-                for (i, (e, s)) in o.entries.iter().zip(&subs).enumerate() {
+                for (i, (e, s)) in o.entries().iter().zip(&subs).enumerate() {
                     let what = format!("{what}:{}", e.sub);
                     assert_eq!(num(text(*s, "SubIdx")), u64::from(e.sub), "{what}");
-                    assert_eq!(text(*s, "Name"), e.name, "{what}");
+                    assert_eq!(text(*s, "Name"), e.name(), "{what}");
                     assert_eq!(text(*s, "Type"), type_name(e), "{what}: type");
                     assert_eq!(num(text(*s, "BitSize")), u64::from(e.bits), "{what}: bits");
                     assert_eq!(num(text(*s, "BitOffs")), off, "{what}: offset");
@@ -474,9 +474,13 @@ fn esi_dictionary_is_exactly_the_drive_dictionary() {
                 assert_eq!(num(text(dt, "BitSize")), off, "{what}: record size");
                 assert_eq!(num(text(*x, "BitSize")), off, "{what}: object size");
                 let defaults = children(info, "SubItem");
-                assert_eq!(defaults.len(), o.entries.len(), "{what}: default sub-items");
-                for (e, s) in o.entries.iter().zip(&defaults) {
-                    assert_eq!(text(*s, "Name"), e.name);
+                assert_eq!(
+                    defaults.len(),
+                    o.entries().len(),
+                    "{what}: default sub-items"
+                );
+                for (e, s) in o.entries().iter().zip(&defaults) {
+                    assert_eq!(text(*s, "Name"), e.name());
                     check_default(
                         child(*s, "Info"),
                         o.index,
@@ -692,9 +696,9 @@ fn esi_pdos_equal_the_default_maps_read_through_the_mapping_objects() {
                         );
                         assert_eq!(entry.bits, u16::from(bits));
                         assert!(if tag == "RxPdo" {
-                            entry.pdo.rx()
+                            entry.pdo_mappable().rx()
                         } else {
-                            entry.pdo.tx()
+                            entry.pdo_mappable().tx()
                         });
                         if is_assigned {
                             assigned_bits += u32::from(bits);

@@ -515,11 +515,11 @@ fn every_mappable_entry_of_the_product_has_a_slot() {
     let d = firmware::drive::Drive::new(Variant::HybridServo, 1);
     let mut missing = Vec::new();
     for o in firmware::dictionary::OBJECTS {
-        for e in o.entries {
-            if e.pdo.rx() && d.rx_slot(o.index, e.sub).is_none() {
+        for e in o.entries() {
+            if e.pdo_mappable().rx() && d.rx_slot(o.index, e.sub).is_none() {
                 missing.push(("rx", o.index, e.sub));
             }
-            if e.pdo.tx() && d.tx_slot(o.index, e.sub).is_none() {
+            if e.pdo_mappable().tx() && d.tx_slot(o.index, e.sub).is_none() {
                 missing.push(("tx", o.index, e.sub));
             }
         }

@@ -269,7 +269,7 @@ fn every_vendor_parameter_default_and_range_edges_over_sdo() {
     let mut d = new_drive();
     d.sdo_download(0x2013, 0, &[0]).unwrap(); // unlock 0x2015/0x2016
     for o in params::OBJECTS {
-        for e in o.entries {
+        for e in o.entries() {
             let len = e.byte_len();
             if let od::DefaultValue::Int(def) = e.default_value() {
                 let expect = if (o.index, e.sub) == (0x2013, 0) {

@@ -229,7 +229,7 @@ impl Default for ExampleDictionary {
 fn slot(index: u16, sub: u8) -> Option<usize> {
     let mut n = 0;
     for o in OBJECTS {
-        for e in o.entries {
+        for e in o.entries() {
             if o.index == index && e.sub == sub {
                 return (n < SLOTS).then_some(n);
             }
@@ -249,7 +249,7 @@ impl ExampleDictionary {
             writes: 0,
         };
         for o in OBJECTS {
-            for e in o.entries {
+            for e in o.entries() {
                 if let (DefaultValue::Int(v), Some(s)) = (e.default_value(), slot(o.index, e.sub)) {
                     d.values[s] = v as u64;
                 }
@@ -349,7 +349,7 @@ mod tests {
     #[test]
     fn example_dictionary_is_well_formed() {
         assert!(od::is_well_formed(OBJECTS));
-        let n: usize = OBJECTS.iter().map(|o| o.entries.len()).sum();
+        let n: usize = OBJECTS.iter().map(|o| o.entries().len()).sum();
         assert!(n <= SLOTS);
         let mut d = ExampleDictionary::new();
         let mut b = [0u8; 64];

@@ -295,19 +295,19 @@ impl InfoJob {
 
 /// Data type code of an object for its description.
 pub fn object_data_type(obj: &Object) -> u16 {
-    match obj.code {
+    match obj.code() {
         ObjectCode::Record => RECORD_TYPE,
         ObjectCode::Array => obj
             .entry(1)
-            .or(obj.entries.first())
+            .or(obj.entries().first())
             .map_or(0, |e| e.data_type.code()),
-        ObjectCode::Var => obj.entries.first().map_or(0, |e| e.data_type.code()),
+        ObjectCode::Var => obj.entries().first().map_or(0, |e| e.data_type.code()),
     }
 }
 
 /// Access word of the entry description (bits 8 and 9 for saved entries).
 pub const fn entry_access_word(e: &Entry) -> u16 {
-    e.sdo_info_access() | if e.saved { (1 << 8) | (1 << 9) } else { 0 }
+    e.sdo_info_access() | if e.is_saved() { (1 << 8) | (1 << 9) } else { 0 }
 }
 
 /// Executes one SDO information request (`body` after the CoE header). `out` is the
@@ -352,11 +352,11 @@ pub fn on_request(
             head[0..2].copy_from_slice(&index.to_le_bytes());
             head[2..4].copy_from_slice(&object_data_type(obj).to_le_bytes());
             head[4] = obj.max_sub();
-            head[5] = obj.code as u8;
+            head[5] = obj.code() as u8;
             let body = Body::Bytes {
                 head,
                 head_len: 6,
-                tail: [obj.name.as_bytes(), &[], &[], &[]],
+                tail: [obj.name().as_bytes(), &[], &[], &[]],
             };
             Ok(Answer::Series(InfoJob::new(
                 opcode::OBJECT_DESCRIPTION_RESPONSE,
@@ -414,9 +414,9 @@ fn entry_body(index: u16, e: &'static Entry, request: u8) -> Body {
     }
     head[3] = vi;
     let tail: [&'static [u8]; 4] = if e.unit_text().is_empty() {
-        [e.name.as_bytes(), &[], &[], &[]]
+        [e.name().as_bytes(), &[], &[], &[]]
     } else {
-        [e.name.as_bytes(), b" [", e.unit_text().as_bytes(), b"]"]
+        [e.name().as_bytes(), b" [", e.unit_text().as_bytes(), b"]"]
     };
     Body::Bytes {
         head,

@@ -576,7 +576,7 @@ impl SdoServer {
         // Refuse early what can never succeed, before a segmented transfer starts.
         if ca {
             let obj = od::find(objects, index).ok_or(SdoAbort::ObjectDoesNotExist)?;
-            if obj.code == ObjectCode::Var || sub > 1 {
+            if obj.code() == ObjectCode::Var || sub > 1 {
                 return Err(SdoAbort::UnsupportedAccess);
             }
             if total > TRANSFER_MAX {
@@ -806,14 +806,14 @@ fn ca_start(e: &Entry, bit: usize) -> usize {
 }
 
 fn ca_checks(obj: &Object, sub: u8) -> Result<&'static Entry, SdoAbort> {
-    if obj.code == ObjectCode::Var || sub > 1 {
+    if obj.code() == ObjectCode::Var || sub > 1 {
         return Err(SdoAbort::UnsupportedAccess);
     }
     obj.entry(0).ok_or(SdoAbort::SubindexDoesNotExist)
 }
 
 fn ca_entries(obj: &Object, count: u8) -> impl Iterator<Item = &'static Entry> {
-    let entries: &'static [Entry] = obj.entries;
+    let entries: &'static [Entry] = obj.entries();
     entries.iter().filter(move |e| e.sub >= 1 && e.sub <= count)
 }
 

@@ -650,7 +650,7 @@ mod tests {
     fn every_entry_has_a_value_and_defaults_match() {
         let d = Cia402::new();
         for o in OBJECTS {
-            for e in o.entries {
+            for e in o.entries() {
                 let v = d.value(o.index, e.sub);
                 assert!(v.is_some(), "{:#06x}:{}", o.index, e.sub);
                 if let DefaultValue::Int(def) = e.default_value() {
@@ -670,26 +670,26 @@ mod tests {
     fn slots_match_the_table() {
         for (i, &(idx, sub)) in RX_SLOTS.iter().enumerate() {
             let e = od::find_entry(OBJECTS, idx, sub).unwrap();
-            assert!(e.pdo.rx(), "{idx:#06x}");
+            assert!(e.pdo_mappable().rx(), "{idx:#06x}");
             assert_eq!(rx_slot(idx, sub), Some(i as u8));
         }
         for (i, &(idx, sub)) in TX_SLOTS.iter().enumerate() {
             let e = od::find_entry(OBJECTS, idx, sub).unwrap();
-            assert!(e.pdo.tx(), "{idx:#06x}");
+            assert!(e.pdo_mappable().tx(), "{idx:#06x}");
             assert_eq!(tx_slot(idx, sub), Some(i as u8));
         }
         // Every mappable entry has a slot.
         for o in OBJECTS {
-            for e in o.entries {
+            for e in o.entries() {
                 assert_eq!(
-                    e.pdo.rx(),
+                    e.pdo_mappable().rx(),
                     rx_slot(o.index, e.sub).is_some(),
                     "{:#06x}:{}",
                     o.index,
                     e.sub
                 );
                 assert_eq!(
-                    e.pdo.tx(),
+                    e.pdo_mappable().tx(),
                     tx_slot(o.index, e.sub).is_some(),
                     "{:#06x}:{}",
                     o.index,
@@ -704,7 +704,7 @@ mod tests {
         // Every entry of OBJECTS has one FIELDS row and every row is an entry.
         let mut n = 0;
         for o in OBJECTS {
-            for e in o.entries {
+            for e in o.entries() {
                 let rows = FIELDS
                     .iter()
                     .filter(|f| f.index == o.index && f.sub == e.sub)
@@ -728,12 +728,12 @@ mod tests {
         let all = |d: &Cia402| -> std::vec::Vec<(u16, u8, Option<i64>)> {
             OBJECTS
                 .iter()
-                .flat_map(|o| o.entries.iter().map(move |e| (o.index, e.sub)))
+                .flat_map(|o| o.entries().iter().map(move |e| (o.index, e.sub)))
                 .map(|(i, s)| (i, s, d.value(i, s)))
                 .collect()
         };
         for o in OBJECTS {
-            for e in o.entries.iter().filter(|e| e.access.writable()) {
+            for e in o.entries().iter().filter(|e| e.access.writable()) {
                 let (idx, sub) = (o.index, e.sub);
                 let val: i64 = match (idx, sub) {
                     (0x6060, 0) => 6,
@@ -766,7 +766,7 @@ mod tests {
     #[test]
     fn every_writable_entry_reads_back_what_sdo_wrote() {
         for o in OBJECTS {
-            for e in o.entries.iter().filter(|e| e.access.writable()) {
+            for e in o.entries().iter().filter(|e| e.access.writable()) {
                 let (idx, sub) = (o.index, e.sub);
                 let val: i64 = match (idx, sub) {
                     (0x6060, 0) => 3,
@@ -913,7 +913,7 @@ mod tests {
         let mut d = Cia402::new();
         let mut x: u32 = 0x1234_5678;
         for o in OBJECTS {
-            for e in o.entries {
+            for e in o.entries() {
                 for len in 0..6 {
                     for _ in 0..20 {
                         x ^= x << 13;

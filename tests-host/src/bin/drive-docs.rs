@@ -180,7 +180,7 @@ pub fn variant_objects(variant: Variant) -> &'static [Object] {
             .iter()
             .map(|o| {
                 let entries: Vec<Entry> = o
-                    .entries
+                    .entries()
                     .iter()
                     .map(|e| e.with_default_value(variant_default(variant, o.index, e)))
                     .collect();
@@ -208,13 +208,16 @@ pub fn differences(a: Variant, b: Variant) -> Vec<Difference> {
     oa.iter()
         .zip(ob)
         .flat_map(|(x, y)| {
-            x.entries.iter().zip(y.entries).filter_map(move |(ea, eb)| {
-                (!same_default(ea.default_value(), eb.default_value())).then_some(Difference {
-                    index: x.index,
-                    a: ea,
-                    b: eb,
+            x.entries()
+                .iter()
+                .zip(y.entries())
+                .filter_map(move |(ea, eb)| {
+                    (!same_default(ea.default_value(), eb.default_value())).then_some(Difference {
+                        index: x.index,
+                        a: ea,
+                        b: eb,
+                    })
                 })
-            })
         })
         .collect()
 }
@@ -364,7 +367,7 @@ pub fn od_reference() -> String {
             "| 0x{:04X} | {} | {} | {} | {} |",
             d.index,
             d.a.sub,
-            d.a.name,
+            d.a.name(),
             show(d.a.default_value()),
             show(d.b.default_value())
         );
