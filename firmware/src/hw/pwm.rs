@@ -1,9 +1,9 @@
 //! The power stage: two full H-bridges on TIM1 (phase A) and TIM8 (phase B).
 //!
-//! embassy-stm32's `ComplementaryPwm` enables the timer clocks and puts the eight
-//! output pins on their alternate functions; everything motor-control specific is
-//! then programmed through the PAC (`embassy_stm32::pac`), because the HAL has no
-//! notion of it:
+//! embassy-stm32 enables the timer clocks (`timer::low_level::Timer`) and puts the
+//! eight output pins on their alternate functions (`PwmPin`, `ComplementaryPwmPin`);
+//! the timers themselves are programmed through the PAC (`embassy_stm32::pac`),
+//! because the HAL has no notion of motor control:
 //!
 //! * centre-aligned mode 1, PSC = 0, ARR = [`board::PWM_ARR`] → 40 kHz, CCR preload;
 //! * CH1/CH2 PWM mode 1 with complementary outputs and hardware dead time
@@ -27,11 +27,10 @@ use embassy_stm32::interrupt::{self, InterruptExt, Priority};
 use embassy_stm32::pac;
 use embassy_stm32::pac::timer::vals;
 use embassy_stm32::peripherals::{PA6, PA7, PA8, PA9, PB0, PC10, PC11, PC6, PC7, PD2, TIM1, TIM8};
-use embassy_stm32::time::Hertz;
-use embassy_stm32::timer::complementary_pwm::{ComplementaryPwm, ComplementaryPwmPin};
-use embassy_stm32::timer::low_level::CountingMode;
+use embassy_stm32::timer::complementary_pwm::ComplementaryPwmPin;
+use embassy_stm32::timer::low_level::Timer;
 use embassy_stm32::timer::simple_pwm::PwmPin;
-use embassy_stm32::timer::{AdvancedInstance4Channel, BkIn1, BreakInputPin};
+use embassy_stm32::timer::{AdvancedInstance4Channel, BkIn1, BreakInputPin, Ch1, Ch2};
 use embassy_stm32::Peri;
 
 use crate::board;
@@ -74,39 +73,29 @@ fn break_pin<'d, T: AdvancedInstance4Channel, P: BreakInputPin<T, BkIn1>>(
 /// Configures both bridges (outputs off) and starts the counters. Call once.
 pub fn init(p: PowerStage<'static>) {
     let pp = OutputType::PushPull;
-    let freq = Hertz(board::PWM_HZ);
-    let mode = CountingMode::CenterAlignedDownInterrupts;
-    let a = ComplementaryPwm::new(
-        p.tim1,
-        Some(PwmPin::new(p.a1h, pp)),
-        Some(ComplementaryPwmPin::new(p.a1l, pp)),
-        Some(PwmPin::new(p.a2h, pp)),
-        Some(ComplementaryPwmPin::new(p.a2l, pp)),
-        None,
-        None,
-        None,
-        None,
-        freq,
-        mode,
+    // Output pins first (driven low, then on their alternate function), then the
+    // timer clocks (enabled and reset). `configure` programs every timer register the
+    // HAL's `ComplementaryPwm` would set (its PSC/ARR computation, a 64-bit division,
+    // is not needed: PSC = 0, ARR = PWM_ARR), and leaves MOE off throughout.
+    let pins_a = (
+        PwmPin::<TIM1, Ch1>::new(p.a1h, pp),
+        ComplementaryPwmPin::<TIM1, Ch1>::new(p.a1l, pp),
+        PwmPin::<TIM1, Ch2>::new(p.a2h, pp),
+        ComplementaryPwmPin::<TIM1, Ch2>::new(p.a2l, pp),
     );
-    let b = ComplementaryPwm::new(
-        p.tim8,
-        Some(PwmPin::new(p.b1h, pp)),
-        Some(ComplementaryPwmPin::new(p.b1l, pp)),
-        Some(PwmPin::new(p.b2h, pp)),
-        Some(ComplementaryPwmPin::new(p.b2l, pp)),
-        None,
-        None,
-        None,
-        None,
-        freq,
-        mode,
+    let pins_b = (
+        PwmPin::<TIM8, Ch1>::new(p.b1h, pp),
+        ComplementaryPwmPin::<TIM8, Ch1>::new(p.b1l, pp),
+        PwmPin::<TIM8, Ch2>::new(p.b2h, pp),
+        ComplementaryPwmPin::<TIM8, Ch2>::new(p.b2l, pp),
     );
+    let tim_a = Timer::new(p.tim1);
+    let tim_b = Timer::new(p.tim8);
     let bk_a = break_pin::<TIM1, _>(p.bkin_a);
     let bk_b = break_pin::<TIM8, _>(p.bkin_b);
     // The timers and pins stay configured for the life of the program; the drivers
-    // are not dropped (dropping would reset the pins).
-    core::mem::forget((a, b, bk_a, bk_b));
+    // are not dropped (dropping would reset the pins and stop the timer clocks).
+    core::mem::forget((pins_a, pins_b, tim_a, tim_b, bk_a, bk_b));
 
     let t1 = pac::TIM1;
     let t8 = pac::TIM8;
@@ -171,6 +160,7 @@ fn configure(t: pac::timer::TimAdv) {
     });
     t.ccmr_output(1).modify(|w| {
         w.set_ocm(0, vals::Ocm::FROZEN);
+        w.set_ocpe(0, true);
         w.set_ocm(1, vals::Ocm::PWM_MODE2);
         w.set_ocpe(1, true);
     });
