@@ -259,7 +259,9 @@ unsafe impl Send for Entry {}
 const FLAG_SAVED: u8 = 1 << 0;
 /// [`Spec::text`] holds the default (otherwise [`Spec::num`]).
 const FLAG_TEXT: u8 = 1 << 1;
-/// The range is the data type's own (the only possibility for 64-bit types).
+/// The range is the data type's own and does not fit 32-bit patterns (64-bit types
+/// without [`Entry::range`]); the natural range of the other types is stored in
+/// [`Spec::num`] like any other, so [`Entry::min`]/[`Entry::max`] need no table of types.
 const FLAG_NATURAL: u8 = 1 << 2;
 /// [`Spec::num`]'s default is meaningful.
 const FLAG_HAS_DEFAULT: u8 = 1 << 3;
@@ -380,6 +382,26 @@ const fn unpattern(t: DataType, p: i32) -> i64 {
     }
 }
 
+/// [`FLAG_NATURAL`] for the types whose range does not fit 32-bit patterns, else 0.
+const fn natural_flag(t: DataType) -> u8 {
+    if type_range(t).0 == 64 {
+        FLAG_NATURAL
+    } else {
+        0
+    }
+}
+
+/// `[lo, hi, def]` of an entry of `t` with the natural range and no default (zeros for
+/// the 64-bit types, see [`natural_flag`]).
+const fn natural_patterns(t: DataType) -> [i32; 3] {
+    let (bits, lo, hi) = type_range(t);
+    if bits == 64 {
+        [0; 3]
+    } else {
+        [pattern(t, lo), pattern(t, hi), 0]
+    }
+}
+
 impl Entry {
     /// A numeric entry with the natural range of its type, no default, not saved.
     pub const fn new(sub: u8, name: &'static str, data_type: DataType, access: Access) -> Self {
@@ -392,9 +414,11 @@ impl Entry {
             data_type,
             bits,
             access,
-            spec: Spec { num: [0; 3] },
+            spec: Spec {
+                num: natural_patterns(data_type),
+            },
             unit: 0,
-            flags: FLAG_NATURAL,
+            flags: natural_flag(data_type),
         }
     }
     /// Sub-index 0 of an ARRAY or RECORD: "Number of entries", UINT8, read-only, with
@@ -482,8 +506,11 @@ impl Entry {
         match d {
             DefaultValue::Int(v) => {
                 if self.flags & FLAG_TEXT != 0 {
-                    self.spec = Spec { num: [0; 3] };
-                    self.flags = (self.flags & (FLAG_SAVED | FLAG_PDO)) | FLAG_NATURAL;
+                    self.spec = Spec {
+                        num: natural_patterns(self.data_type),
+                    };
+                    self.flags =
+                        (self.flags & (FLAG_SAVED | FLAG_PDO)) | natural_flag(self.data_type);
                 }
                 self.default(v)
             }
@@ -531,7 +558,12 @@ impl Entry {
         if self.flags & FLAG_TEXT != 0 {
             0
         } else if self.flags & FLAG_NATURAL != 0 {
-            type_range(self.data_type).1
+            // 64-bit types only (see `natural_flag`).
+            if self.data_type.is_signed() {
+                i64::MIN
+            } else {
+                0
+            }
         } else {
             unpattern(self.data_type, self.num()[0])
         }
@@ -541,7 +573,8 @@ impl Entry {
         if self.flags & FLAG_TEXT != 0 {
             0
         } else if self.flags & FLAG_NATURAL != 0 {
-            type_range(self.data_type).2
+            // 64-bit types only; u64 values above i64::MAX are not range-checked.
+            i64::MAX
         } else {
             unpattern(self.data_type, self.num()[1])
         }
@@ -1477,6 +1510,47 @@ mod reference_tests {
         assert_eq!(same, n);
         assert_ne!(same.pdo(PdoMappable::Tx), n);
         assert!(std::format!("{n:?}").contains("\"Gain\""));
+    }
+
+    /// The natural range stored as 32-bit patterns (and the 64-bit types' flag) reads
+    /// back as the type's range, for every type, also after a text default is replaced.
+    #[test]
+    fn natural_range_of_every_type() {
+        const ALL: [DataType; 20] = [
+            DataType::Boolean,
+            DataType::Integer8,
+            DataType::Integer16,
+            DataType::Integer32,
+            DataType::Unsigned8,
+            DataType::Unsigned16,
+            DataType::Unsigned32,
+            DataType::Real32,
+            DataType::VisibleString,
+            DataType::OctetString,
+            DataType::Integer64,
+            DataType::Unsigned64,
+            DataType::Bit1,
+            DataType::Bit2,
+            DataType::Bit3,
+            DataType::Bit4,
+            DataType::Bit5,
+            DataType::Bit6,
+            DataType::Bit7,
+            DataType::Bit8,
+        ];
+        for t in ALL {
+            let (bits, lo, hi) = type_range(t);
+            let e = Entry::new(1, "x", t, Access::RW);
+            assert_eq!((e.bits, e.min(), e.max()), (bits, lo, hi), "{t:?}");
+            assert_eq!(e.default_value(), DefaultValue::None, "{t:?}");
+            let d = e
+                .with_default_value(DefaultValue::Text("t"))
+                .with_default_value(DefaultValue::Int(0));
+            assert_eq!((d.min(), d.max()), (lo, hi), "{t:?}");
+            assert_eq!(d.default_value(), DefaultValue::Int(0), "{t:?}");
+        }
+        let l = Entry::new(1, "x", DataType::Integer64, Access::RW).range(-7, 7);
+        assert_eq!((l.min(), l.max()), (-7, 7));
     }
 
     #[test]
