@@ -591,7 +591,14 @@ impl Entry {
     }
     /// Unit text ("mA", "ms", "inc", …); empty when dimensionless.
     pub const fn unit_text(&self) -> &'static str {
-        UNITS[self.unit as usize]
+        // `unit` is only set by `Entry::unit`, to an index of `UNITS`; the fallback
+        // keeps a bounds-check panic out of the image.
+        let i = self.unit as usize;
+        if i < UNITS.len() {
+            UNITS[i]
+        } else {
+            ""
+        }
     }
     /// Size in bytes on the wire (rounded up).
     pub const fn byte_len(&self) -> usize {
