@@ -10,18 +10,18 @@
 //!   end-of-injected-sequence (JEOS) interrupt is enabled: `ADC1_2` at priority 0,
 //!   the highest in the system — the current-loop slot.
 //!
-//! embassy-stm32's `Adc::new` powers up, calibrates (single-ended and differential)
-//! and enables each ADC; the injected sequence and trigger are programmed through the
-//! PAC afterwards.
+//! Power-up, calibration (single-ended and differential) and enabling follow
+//! embassy-stm32's `Adc::new` register by register (`power_up`); the injected
+//! sequence and trigger are programmed through the PAC afterwards.
 use core::sync::atomic::{AtomicU32, Ordering};
 
-use embassy_stm32::adc::{Adc, AdcConfig};
 use embassy_stm32::gpio::Flex;
 use embassy_stm32::interrupt::{self, InterruptExt, Priority};
 use embassy_stm32::pac;
-use embassy_stm32::pac::adc::vals::{Exten, SampleTime};
+use embassy_stm32::pac::adc::vals::{Adcaldif, Difsel, Exten, SampleTime};
+use embassy_stm32::pac::adccommon::vals::Presc;
 use embassy_stm32::peripherals::{ADC1, ADC2, PA0, PA1, PC0};
-use embassy_stm32::Peri;
+use embassy_stm32::{rcc, Peri};
 use firmware::sampling::RawSample;
 
 use crate::board;
@@ -58,14 +58,22 @@ pub fn isr_max_cycles() -> u32 {
 /// Calibrates and arms both ADCs for the PWM-centre trigger; enables the
 /// current-loop interrupt. The PWM timers may already be running.
 pub fn init(p: Analog<'static>) {
-    let adc1 = Adc::new(p.adc1, AdcConfig::default());
-    let adc2 = Adc::new(p.adc2, AdcConfig::default());
+    // The clock (shared by ADC1/ADC2: enabled and reset once) and the prescaler, then
+    // each ADC in turn, as the HAL's `Adc::new` would (see `power_up`).
+    let Analog { adc1, adc2, .. } = p;
+    let _ = (adc1, adc2); // the peripherals are programmed through the PAC below
+    rcc::enable_and_reset::<ADC1>();
+    pac::ADC12_COMMON.ccr().modify(|w| w.set_presc(ADC_PRESC));
+    power_up(pac::ADC1);
+    rcc::enable_and_reset::<ADC2>();
+    pac::ADC12_COMMON.ccr().modify(|w| w.set_presc(ADC_PRESC));
+    power_up(pac::ADC2);
     let mut pins = [Flex::new(p.ia), Flex::new(p.ib), Flex::new(p.vbus)];
     for pin in pins.iter_mut() {
         pin.set_as_analog();
     }
     // Owned by the hardware from here on (dropping would reset them).
-    core::mem::forget((adc1, adc2, pins));
+    core::mem::forget(pins);
 
     let a1 = pac::ADC1;
     let a2 = pac::ADC2;
@@ -102,6 +110,47 @@ pub fn init(p: Analog<'static>) {
     for a in [a1, a2] {
         a.cr().modify(|w| w.set_jadstart(true));
     }
+}
+
+/// ADC prescaler: the ADC1/2 kernel clock is SYSCLK (main.rs, `clock_config`); the
+/// HAL's rule — the smallest division keeping it at most 60 MHz — gives 4 (42.5 MHz).
+const ADC_PRESC: Presc = Presc::DIV4;
+const _: () = assert!((board::SYSCLK_HZ - 1) / 60_000_000 == 2);
+
+/// Powers up, calibrates (single-ended, then differential) and enables one ADC with
+/// single conversions and no regular trigger: the register sequence of
+/// embassy-stm32's `Adc::new` for the G4 with the default `AdcConfig`, written once
+/// for both ADCs (the HAL's is generic: a copy per ADC, plus its clock arithmetic).
+#[inline(never)]
+fn power_up(a: pac::adc::Adc) {
+    // 20 µs (regulator start-up, between the calibrations and before enabling).
+    let wait = || cortex_m::asm::delay(board::SYSCLK_HZ / 1_000_000 * 20);
+    a.cr().modify(|w| {
+        w.set_deeppwd(false);
+        w.set_advregen(true);
+    });
+    wait();
+    a.difsel().modify(|w| {
+        for n in 0..18 {
+            w.set_difsel(n, Difsel::SINGLE_ENDED);
+        }
+    });
+    for dif in [Adcaldif::SINGLE_ENDED, Adcaldif::DIFFERENTIAL] {
+        a.cr().modify(|w| w.set_adcaldif(dif));
+        a.cr().modify(|w| w.set_adcal(true));
+        while a.cr().read().adcal() {}
+        wait();
+    }
+    while a.cr().read().addis() {}
+    if !a.cr().read().aden() {
+        a.isr().modify(|w| w.set_adrdy(true));
+        a.cr().modify(|w| w.set_aden(true));
+        while !a.isr().read().adrdy() {}
+    }
+    a.cfgr().modify(|w| {
+        w.set_cont(false);
+        w.set_exten(Exten::DISABLED);
+    });
 }
 
 /// Times the ADC2 result was not ready at ADC1's end of sequence.
