@@ -81,10 +81,8 @@ use embassy_stm32::exti::{self, ExtiInput};
 use embassy_stm32::gpio::Pull;
 use embassy_stm32::interrupt::{self, InterruptExt, Priority};
 use embassy_stm32::mode::Async;
-use embassy_stm32::peripherals::IWDG;
 use embassy_stm32::spi::Spi;
 use embassy_stm32::time::Hertz;
-use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{bind_interrupts, dma, peripherals, rcc};
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_time::{Duration, Instant, Ticker, Timer};
@@ -518,7 +516,7 @@ async fn main(spawner: Spawner) {
     }
 
     // Thread-mode tasks.
-    let mut wdg = IndependentWatchdog::new(p.IWDG, board::WATCHDOG_TIMEOUT_US);
+    let mut wdg = hw::safety::Watchdog::new(p.IWDG);
     wdg.unleash();
     match tick(leds, ports) {
         Ok(t) => spawner.spawn(t),
@@ -885,7 +883,7 @@ fn over_current(s: &mut Shared) {
 /// Start-up current-sensor check (bridges off, so the currents are zero), then the
 /// watchdog policy and a status line every second.
 #[embassy_executor::task]
-async fn supervisor(mut wdg: IndependentWatchdog<'static, IWDG>, enc: Encoder) {
+async fn supervisor(mut wdg: hw::safety::Watchdog, enc: Encoder) {
     offset_self_check(&mut wdg).await;
 
     let mut ticker = Ticker::every(Duration::from_millis(10));
@@ -905,7 +903,7 @@ async fn supervisor(mut wdg: IndependentWatchdog<'static, IWDG>, enc: Encoder) {
     }
 }
 
-async fn offset_self_check(wdg: &mut IndependentWatchdog<'static, IWDG>) {
+async fn offset_self_check(wdg: &mut hw::safety::Watchdog) {
     let mut cal = OffsetCalibrator::new(board::OFFSET_SAMPLES);
     let mut last = CURRENT_SAMPLES.count();
     let mut idle = 0u32;

@@ -17,7 +17,63 @@ use core::sync::atomic::{AtomicU8, Ordering};
 
 use cortex_m_rt::{exception, ExceptionFrame};
 
+use embassy_stm32::pac;
+use embassy_stm32::pac::iwdg::vals::{Key, Pr};
+use embassy_stm32::peripherals::IWDG;
+use embassy_stm32::Peri;
+
+use crate::board;
 use crate::hw::{io, pwm};
+
+/// The independent watchdog (IWDG, clocked by the 32 kHz LSI): prescaler and reload
+/// for [`board::WATCHDOG_TIMEOUT_US`] worked out at compile time with the rule of
+/// embassy-stm32's `IndependentWatchdog::new` (the smallest prescaler 4..256 whose
+/// longest period covers the timeout), so the registers get the same values without
+/// its run-time arithmetic.
+pub struct Watchdog {
+    _iwdg: Peri<'static, IWDG>,
+}
+
+const LSI_HZ: u32 = 32_000;
+
+/// (PR, RL) for a timeout in µs.
+const fn iwdg_setting(timeout_us: u32) -> (u8, u16) {
+    let mut power = 2;
+    while power <= 8 {
+        let psc = 1u32 << power;
+        // Longest period at this prescaler (reload 0xFFF), µs.
+        if timeout_us <= 1_000_000 * 4096 / (LSI_HZ / psc) {
+            let rl = (timeout_us / psc * LSI_HZ / 1_000_000) as u16 - 1;
+            return ((power - 2) as u8, rl);
+        }
+        power += 1;
+    }
+    panic!("watchdog timeout longer than the IWDG allows");
+}
+
+/// 300 ms: PR = 0 (÷ 4), RL = 2399.
+const IWDG_SETTING: (u8, u16) = iwdg_setting(board::WATCHDOG_TIMEOUT_US);
+
+impl Watchdog {
+    /// Programs prescaler and reload (the watchdog does not run yet: [`Watchdog::unleash`]).
+    pub fn new(iwdg: Peri<'static, IWDG>) -> Self {
+        let r = pac::IWDG;
+        r.kr().write(|w| w.set_key(Key::ENABLE));
+        r.pr().write(|w| w.set_pr(Pr::from_bits(IWDG_SETTING.0)));
+        r.rlr().write(|w| w.set_rl(IWDG_SETTING.1));
+        Watchdog { _iwdg: iwdg }
+    }
+
+    /// Starts the watchdog (it cannot be stopped again).
+    pub fn unleash(&mut self) {
+        pac::IWDG.kr().write(|w| w.set_key(Key::START));
+    }
+
+    /// Reloads the counter.
+    pub fn pet(&mut self) {
+        pac::IWDG.kr().write(|w| w.set_key(Key::RESET));
+    }
+}
 
 /// Drive fault number: over-current / phase short (red LED: 1 flash).
 pub const FAULT_OVER_CURRENT: u8 = 1;
