@@ -587,20 +587,21 @@ impl Params {
     /// SDO read of a vendor parameter: little-endian value into `buf`, returns its length.
     pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
         let entry = crate::dictionary::find_entry_in(crate::dictionary::PARAMS, index, sub)?;
-        let is_count = sub == 0
-            && crate::dictionary::find_in(crate::dictionary::PARAMS, index)
-                .is_some_and(|o| o.code() != ObjectCode::Var);
-        let value: u32 = match (index, sub) {
-            _ if is_count => u32::from(
-                crate::dictionary::find_in(crate::dictionary::PARAMS, index)
-                    .map_or(0, |o| o.max_sub()),
-            ),
-            (0x2039, 0) => self.command_pulses >> 16,
-            (0x2040, 0) => self.command_pulses & 0xFFFF,
-            (0x2041, 0) => self.encoder_counts >> 16,
-            (0x2042, 0) => self.encoder_counts & 0xFFFF,
-            (0x2093, 0) => u32::from(self.fault_history_clear),
-            (0x2155, 0) => u32::from(self.raw_inputs),
+        // Sub-index 0 of an array / record is its count (one object look-up).
+        let count = match sub {
+            0 => crate::dictionary::find_in(crate::dictionary::PARAMS, index)
+                .filter(|o| o.code() != ObjectCode::Var)
+                .map(|o| o.max_sub()),
+            _ => None,
+        };
+        let value: u32 = match (count, index, sub) {
+            (Some(n), _, _) => u32::from(n),
+            (None, 0x2039, 0) => self.command_pulses >> 16,
+            (None, 0x2040, 0) => self.command_pulses & 0xFFFF,
+            (None, 0x2041, 0) => self.encoder_counts >> 16,
+            (None, 0x2042, 0) => self.encoder_counts & 0xFFFF,
+            (None, 0x2093, 0) => u32::from(self.fault_history_clear),
+            (None, 0x2155, 0) => u32::from(self.raw_inputs),
             _ => match slot_of(index, sub) {
                 Some(slot) => self.values[slot] as u32,
                 None => return Err(SdoAbort::SubindexDoesNotExist),
