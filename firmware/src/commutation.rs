@@ -100,16 +100,19 @@ pub struct Step {
 }
 
 /// [`Motion`] with the power-up commutation alignment (see the module docs).
+// In declaration order, the motion layer (with its smoothing windows at its end) last,
+// for short field offsets (see `Motion`).
+#[repr(C)]
 pub struct CommutatedMotion {
-    motion: Motion,
     requested: MotionConfig,
-    wiggle: bool,
     state: Commutation,
     align: Alignment,
-    first: bool,
     cmd: DriveCommand,
     cycle_s: f32,
     failures: u32,
+    wiggle: bool,
+    first: bool,
+    motion: Motion,
 }
 
 impl CommutatedMotion {

@@ -387,12 +387,15 @@ impl Interp {
 }
 
 /// The motion layer's state (see the module docs).
+// In declaration order, the two smoothing windows (inside `open` and `smooth`, 1 KiB
+// each) last: the per-step fields stay within the short load/store offsets of Thumb-2
+// and the FPU (VLDR reaches 1020 bytes), which the CSP cycle's instruction count shows.
+#[repr(C)]
 pub struct Motion {
     cfg: MotionConfig,
     scale: Scale,
     dir: i32,
     servo: Servo,
-    open: OpenLoop,
     elec: CountScale,
     open_offset: Angle,
     interp: Interp,
@@ -400,13 +403,7 @@ pub struct Motion {
     cmd: DriveCommand,
     cycle_steps: u32,
     acc_ff: f32,
-    // Closed-loop command smoothing (moving average in command units), in use when
-    // `smooth_on`. Always present so that reconfiguring re-initialises it in place.
-    smooth: foc::open_loop::MovingAverage,
-    smooth_on: bool,
     smooth_prev: i32,
-    enabled: bool,
-    reset_pending: bool,
     soft_k: f32,
     soft_step: f32,
     iq_limit: f32,
@@ -422,7 +419,14 @@ pub struct Motion {
     open_vel_units: f32,
     vel_report: f32,
     vel_k: f32,
+    smooth_on: bool,
+    enabled: bool,
+    reset_pending: bool,
     current_limited: bool,
+    open: OpenLoop,
+    // Closed-loop command smoothing (moving average in command units), in use when
+    // `smooth_on`. Always present so that reconfiguring re-initialises it in place.
+    smooth: foc::open_loop::MovingAverage,
 }
 
 impl Motion {

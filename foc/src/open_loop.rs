@@ -42,14 +42,15 @@ pub const HOLD_RAMP: f32 = 0.01;
 
 /// Exact integer moving average of a position command, see the module docs.
 #[derive(Clone, Debug)]
+#[repr(C)]
 pub struct MovingAverage {
-    taps: [i32; MAX_TAPS],
     n: usize,
     head: usize,
-    sum: i64,
-    rem: i64,
     last_in: i32,
     out: i32,
+    sum: i64,
+    rem: i64,
+    taps: [i32; MAX_TAPS],
 }
 
 impl MovingAverage {
@@ -168,20 +169,23 @@ pub struct OpenLoopOutput {
 
 /// Open-loop microstepping state.
 #[derive(Clone, Debug)]
+// In declaration order, the smoothing window last: the per-step fields stay within
+// the short load/store offsets of Thumb-2 and the FPU (VLDR reaches 1020 bytes).
+#[repr(C)]
 pub struct OpenLoop {
     cfg: OpenLoopConfig,
     scale: CountScale,
-    filter: MovingAverage,
     still_steps: u32,
     standby_steps: u32,
     current: f32,
     soft_rate: f32,
     hold_rate: f32,
-    soft_starting: bool,
-    enabled: bool,
     rad_per_pulse_e: f32,
     angle_offset: Angle,
     derate: f32,
+    soft_starting: bool,
+    enabled: bool,
+    filter: MovingAverage,
 }
 
 impl OpenLoop {
