@@ -91,7 +91,6 @@ impl Crc32 {
         Crc32(0xFFFF_FFFF)
     }
     /// Adds bytes.
-    #[inline(never)] // one copy for the four callers (load, save, header, check)
     pub fn update(&mut self, data: &[u8]) {
         let mut c = self.0;
         for &b in data {
