@@ -535,7 +535,10 @@ async fn main(spawner: Spawner) {
 /// `out` must be valid for writes (it is overwritten without dropping).
 #[inline(never)]
 unsafe fn new_drive(out: *mut BoardDrive, serial: u32, staged: StagedFlash) {
-    let d = Drive::with_store(
+    // SAFETY: the caller's promise; `MaybeUninit` has the layout of its content.
+    let slot = unsafe { &mut *out.cast::<core::mem::MaybeUninit<BoardDrive>>() };
+    Drive::init_in(
+        slot,
         VARIANT,
         serial,
         FlashStore {
@@ -543,8 +546,6 @@ unsafe fn new_drive(out: *mut BoardDrive, serial: u32, staged: StagedFlash) {
             flash: staged,
         },
     );
-    // SAFETY: the caller's promise.
-    unsafe { out.write(d) }
 }
 
 /// The slave runtime over the ESC with the product's default PDO mapping (out of
