@@ -506,6 +506,7 @@ impl MailboxServer {
         self.last_answer = LastAnswer::None;
     }
 
+    #[inline(never)]
     fn answer_error(&mut self, detail: ErrorDetail) {
         self.reply_len = emit_error(&mut self.reply, detail);
         self.reply_pending = true;

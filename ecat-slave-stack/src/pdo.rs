@@ -210,7 +210,8 @@ fn write_le(buf: &mut [u8], v: &[u8]) -> Result<usize, SdoAbort> {
     Ok(v.len())
 }
 
-fn exact<const N: usize>(data: &[u8]) -> Result<[u8; N], SdoAbort> {
+/// `data` as exactly `N` bytes, else the length-too-high/too-low abort.
+pub(crate) fn exact<const N: usize>(data: &[u8]) -> Result<[u8; N], SdoAbort> {
     if data.len() > N {
         return Err(SdoAbort::LengthTooHigh);
     }
@@ -294,34 +295,30 @@ impl PdoConfig {
 
     /// Reads one entry of 0x1600-0x1603, 0x1A00-0x1A03, 0x1C00, 0x1C12, 0x1C13.
     pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        if let Some((dir, i)) = map_slot(index) {
-            let m = &self.maps(dir)[i];
-            return match sub {
-                0 => write_u8(buf, m.n),
-                1..=16 => write_le(buf, &m.e[sub as usize - 1].to_le_bytes()),
-                _ => Err(SdoAbort::SubindexDoesNotExist),
-            };
-        }
-        match index {
-            SM_COMM_TYPE => match sub {
-                0 => write_u8(buf, 4),
-                1..=4 => write_u8(buf, sub),
-                _ => Err(SdoAbort::SubindexDoesNotExist),
-            },
-            RX_ASSIGN | TX_ASSIGN => {
-                let a = if index == RX_ASSIGN {
-                    &self.rx_assign
-                } else {
-                    &self.tx_assign
-                };
-                match sub {
-                    0 => write_u8(buf, a.n),
-                    1..=4 => write_le(buf, &a.e[sub as usize - 1].to_le_bytes()),
-                    _ => Err(SdoAbort::SubindexDoesNotExist),
+        // (sub-index 0, entry length in bytes, entry `sub`): one answer path for all.
+        let i = sub.wrapping_sub(1) as usize;
+        let (n, len, v) = if let Some((dir, m)) = map_slot(index) {
+            let m = &self.maps(dir)[m];
+            (m.n, 4, m.e.get(i).copied())
+        } else {
+            match index {
+                SM_COMM_TYPE => (4, 1, (1..=4).contains(&sub).then_some(sub as u32)),
+                RX_ASSIGN | TX_ASSIGN => {
+                    let a = if index == RX_ASSIGN {
+                        &self.rx_assign
+                    } else {
+                        &self.tx_assign
+                    };
+                    (a.n, 2, a.e.get(i).map(|v| *v as u32))
                 }
+                _ => return Err(SdoAbort::ObjectDoesNotExist),
             }
-            _ => Err(SdoAbort::ObjectDoesNotExist),
+        };
+        if sub == 0 {
+            return write_u8(buf, n);
         }
+        let v = v.ok_or(SdoAbort::SubindexDoesNotExist)?;
+        write_le(buf, &v.to_le_bytes()[..len])
     }
 
     /// Writes one entry (rules in the module docs). `objects` is the full product
@@ -794,6 +791,57 @@ pub const OBJECTS: &[Object] = &[
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn read_every_sub_index_and_the_errors() {
+        const RX0: &[u32] = &[entry(0x6040, 0, 16), entry(0x607A, 0, 32)];
+        const TX3: &[u32] = &[entry(0x6041, 0, 16)];
+        let c = PdoConfig::new(PdoDefaults {
+            rx: [RX0, &[], &[], &[]],
+            tx: [&[], &[], &[], TX3],
+            rx_assign: &[0x1600],
+            tx_assign: &[0x1A03, 0x1A01],
+        });
+        let rd = |index: u16, sub: u8| {
+            let mut b = [0xEEu8; 8];
+            c.read(index, sub, &mut b).map(|n| b[..n].to_vec())
+        };
+        assert_eq!(rd(0x1600, 0), Ok(vec![2]));
+        assert_eq!(rd(0x1600, 1), Ok(0x6040_0010u32.to_le_bytes().to_vec()));
+        assert_eq!(rd(0x1600, 2), Ok(0x607A_0020u32.to_le_bytes().to_vec()));
+        // Entries behind the count still read (their stored value), up to 16.
+        assert_eq!(rd(0x1600, 16), Ok(vec![0; 4]));
+        assert_eq!(rd(0x1A03, 0), Ok(vec![1]));
+        assert_eq!(rd(0x1A03, 1), Ok(0x6041_0010u32.to_le_bytes().to_vec()));
+        for sub in [17, 0x80, 0xFF] {
+            assert_eq!(rd(0x1603, sub), Err(SdoAbort::SubindexDoesNotExist));
+        }
+        assert_eq!(rd(SM_COMM_TYPE, 0), Ok(vec![4]));
+        for sub in 1..=4 {
+            assert_eq!(rd(SM_COMM_TYPE, sub), Ok(vec![sub]));
+        }
+        assert_eq!(rd(RX_ASSIGN, 0), Ok(vec![1]));
+        assert_eq!(rd(RX_ASSIGN, 1), Ok(vec![0x00, 0x16]));
+        assert_eq!(rd(TX_ASSIGN, 0), Ok(vec![2]));
+        assert_eq!(rd(TX_ASSIGN, 2), Ok(vec![0x01, 0x1A]));
+        assert_eq!(rd(TX_ASSIGN, 4), Ok(vec![0, 0]));
+        for index in [SM_COMM_TYPE, RX_ASSIGN, TX_ASSIGN] {
+            for sub in [5, 0xFF] {
+                assert_eq!(rd(index, sub), Err(SdoAbort::SubindexDoesNotExist));
+            }
+        }
+        for index in [0x1604, 0x15FF, 0x1A04, 0x1C11, 0x1C14, 0x0000, 0xFFFF] {
+            assert_eq!(rd(index, 0), Err(SdoAbort::ObjectDoesNotExist));
+        }
+        // A buffer too short for the value: the mailbox-size abort, nothing panics.
+        let mut short = [0u8; 3];
+        assert_eq!(c.read(0x1600, 1, &mut short), Err(SdoAbort::ExceedsMailbox));
+        assert_eq!(c.read(RX_ASSIGN, 0, &mut []), Err(SdoAbort::ExceedsMailbox));
+        assert_eq!(
+            c.read(TX_ASSIGN, 1, &mut short[..1]),
+            Err(SdoAbort::ExceedsMailbox)
+        );
+    }
 
     #[test]
     fn objects_are_well_formed() {

@@ -156,31 +156,42 @@ impl<A: Dictionary + ?Sized> Dictionary for CommDictionary<'_, A> {
         self.app.objects()
     }
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        if pdo::is_pdo_index(index) {
-            self.pdo.read(index, sub, buf)
-        } else if sync::is_sync_index(index) {
-            self.sync.read(index, sub, buf)
+        if is_runtime_index(index) {
+            self.runtime().read(index, sub, buf)
         } else {
             self.app.read(index, sub, buf)
         }
     }
     fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
-        if pdo::is_pdo_index(index) {
-            let objects = self.app.objects();
-            self.pdo.write(index, sub, data, state, objects)
-        } else if sync::is_sync_index(index) {
-            self.sync.write(index, sub, data, state)
+        if is_runtime_index(index) {
+            self.runtime().write(index, sub, data, state)
         } else {
-            let objects = self.app.objects();
             let mut runtime = RuntimeObjects {
                 pdo: self.pdo,
                 sync: self.sync,
-                objects,
+                objects: self.app.objects(),
             };
             self.app
                 .write_with_runtime(index, sub, data, state, &mut runtime)
         }
     }
+}
+
+impl<A: Dictionary + ?Sized> CommDictionary<'_, A> {
+    /// The runtime's own objects, with the application's table for the mappability
+    /// rules.
+    fn runtime(&mut self) -> RuntimeObjects<'_> {
+        RuntimeObjects {
+            pdo: self.pdo,
+            sync: self.sync,
+            objects: self.app.objects(),
+        }
+    }
+}
+
+/// True for the indices the runtime serves itself (mapping, assignment, sync).
+fn is_runtime_index(index: u16) -> bool {
+    pdo::is_pdo_index(index) || sync::is_sync_index(index)
 }
 
 /// The objects the runtime serves itself (mapping, assignment, sync parameters,
@@ -200,6 +211,7 @@ impl Dictionary for RuntimeObjects<'_> {
     fn objects(&self) -> &'static [Object] {
         self.objects
     }
+    #[inline(never)]
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
         if pdo::is_pdo_index(index) {
             self.pdo.read(index, sub, buf)
@@ -209,6 +221,7 @@ impl Dictionary for RuntimeObjects<'_> {
             Err(SdoAbort::ObjectDoesNotExist)
         }
     }
+    #[inline(never)]
     fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
         if pdo::is_pdo_index(index) {
             self.pdo.write(index, sub, data, state, self.objects)

@@ -43,6 +43,7 @@
 use crate::al_status::AlStatusCode;
 use crate::esm::EsmState;
 use crate::od::{Access, DataType, Entry, Object, SdoAbort};
+use crate::pdo;
 
 /// SM2 (outputs) sync parameters.
 pub const SM2_SYNC: u16 = 0x1C32;
@@ -490,9 +491,10 @@ impl SyncState {
             SM3_SYNC => &self.sm3,
             _ => return Err(SdoAbort::ObjectDoesNotExist),
         };
-        match sub {
-            0 => put(buf, &[0x20]),
-            1 => put(buf, &p.sync_type.to_le_bytes()),
+        // (value, length in bytes): one `put` for every sub-index.
+        let (v, n): (u32, usize) = match sub {
+            0 => (0x20, 1),
+            1 => (p.sync_type as u32, 2),
             2 => {
                 // SM-synchronous without a written cycle: the measured master cycle.
                 let v = if p.cycle_ns == 0 && self.mode == SyncMode::SmSync {
@@ -500,22 +502,23 @@ impl SyncState {
                 } else {
                     p.cycle_ns
                 };
-                put(buf, &v.to_le_bytes())
+                (v, 4)
             }
-            3 => put(buf, &p.shift_ns.to_le_bytes()),
-            4 => put(buf, &SUPPORTED_TYPES.to_le_bytes()),
-            5 => put(buf, &self.min_cycle_ns.to_le_bytes()),
-            6 => put(buf, &p.calc_copy_ns.to_le_bytes()),
-            7 => put(buf, &0u32.to_le_bytes()),
-            8 => put(buf, &(self.measuring as u16).to_le_bytes()),
-            9 => put(buf, &p.delay_ns.to_le_bytes()),
-            0x0A => put(buf, &p.sync0_cycle_ns.to_le_bytes()),
-            0x0B => put(buf, &p.sm_event_missed.to_le_bytes()),
-            0x0C => put(buf, &p.cycle_too_small.to_le_bytes()),
-            0x0D | 0x0E => put(buf, &0u16.to_le_bytes()),
-            0x20 => put(buf, &[p.sync_error as u8]),
-            _ => Err(SdoAbort::SubindexDoesNotExist),
-        }
+            3 => (p.shift_ns, 4),
+            4 => (SUPPORTED_TYPES as u32, 2),
+            5 => (self.min_cycle_ns, 4),
+            6 => (p.calc_copy_ns, 4),
+            7 => (0, 4),
+            8 => (self.measuring as u32, 2),
+            9 => (p.delay_ns, 4),
+            0x0A => (p.sync0_cycle_ns, 4),
+            0x0B => (p.sm_event_missed as u32, 2),
+            0x0C => (p.cycle_too_small as u32, 2),
+            0x0D | 0x0E => (0, 2),
+            0x20 => (p.sync_error as u32, 1),
+            _ => return Err(SdoAbort::SubindexDoesNotExist),
+        };
+        put(buf, &v.to_le_bytes()[..n])
     }
 
     /// Writes 0x1C32 / 0x1C33 (SI1 and SI2 in Pre-Op, SI8 always) and refuses the
@@ -539,22 +542,12 @@ impl SyncState {
             SM3_SYNC => false,
             _ => return Err(SdoAbort::ObjectDoesNotExist),
         };
-        let len_ok = |n: usize| -> Result<(), SdoAbort> {
-            if data.len() > n {
-                Err(SdoAbort::LengthTooHigh)
-            } else if data.len() < n {
-                Err(SdoAbort::LengthTooLow)
-            } else {
-                Ok(())
-            }
-        };
         match sub {
             1 => {
-                len_ok(2)?;
+                let v = u16::from_le_bytes(pdo::exact(data)?);
                 if state != EsmState::PreOp {
                     return Err(SdoAbort::StateConflict);
                 }
-                let v = u16::from_le_bytes([data[0], data[1]]);
                 if !matches!(v, 0 | 1 | 2 | 3 | 0x22) {
                     return Err(SdoAbort::ValueRangeExceeded);
                 }
@@ -564,11 +557,10 @@ impl SyncState {
                 Ok(())
             }
             2 => {
-                len_ok(4)?;
+                let v = u32::from_le_bytes(pdo::exact(data)?);
                 if state != EsmState::PreOp {
                     return Err(SdoAbort::StateConflict);
                 }
-                let v = u32::from_le_bytes([data[0], data[1], data[2], data[3]]);
                 if sm2 {
                     self.sm2.cycle_ns = v;
                 } else {
@@ -577,8 +569,7 @@ impl SyncState {
                 Ok(())
             }
             8 => {
-                len_ok(2)?;
-                match u16::from_le_bytes([data[0], data[1]]) {
+                match u16::from_le_bytes(pdo::exact(data)?) {
                     0 => self.measuring = false,
                     1 => {
                         self.measuring = true;
@@ -682,6 +673,51 @@ pub const DIAG_OBJECTS: &[Object] = &[Object::record(TIMING_DIAG, "Timing diagno
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn read_lengths_of_every_sub_index() {
+        let mut s = SyncState::new((11, 22));
+        s.sm2.sync_type = 2;
+        s.sm2.cycle_ns = 1_000_000;
+        s.sm3.sm_event_missed = 7;
+        s.sm3.sync_error = true;
+        s.measuring = true;
+        let rd = |s: &SyncState, index: u16, sub: u8| {
+            let mut b = [0xEEu8; 8];
+            s.read(index, sub, &mut b).map(|n| b[..n].to_vec())
+        };
+        let len = [1, 2, 4, 4, 2, 4, 4, 4, 2, 4, 4, 2, 2, 2, 2];
+        for index in [SM2_SYNC, SM3_SYNC] {
+            for (sub, n) in len.iter().enumerate() {
+                assert_eq!(rd(&s, index, sub as u8).map(|v| v.len()), Ok(*n));
+            }
+            assert_eq!(rd(&s, index, 0x20).map(|v| v.len()), Ok(1));
+            for sub in [0x0F, 0x1F, 0x21, 0xFF] {
+                assert_eq!(rd(&s, index, sub), Err(SdoAbort::SubindexDoesNotExist));
+            }
+        }
+        assert_eq!(rd(&s, SM2_SYNC, 0), Ok(vec![0x20]));
+        assert_eq!(rd(&s, SM2_SYNC, 1), Ok(vec![2, 0]));
+        assert_eq!(rd(&s, SM2_SYNC, 2), Ok(1_000_000u32.to_le_bytes().to_vec()));
+        assert_eq!(
+            rd(&s, SM2_SYNC, 4),
+            Ok(SUPPORTED_TYPES.to_le_bytes().to_vec())
+        );
+        assert_eq!(rd(&s, SM2_SYNC, 5), Ok(MIN_CYCLE_NS.to_le_bytes().to_vec()));
+        assert_eq!(rd(&s, SM2_SYNC, 6), Ok(11u32.to_le_bytes().to_vec()));
+        assert_eq!(rd(&s, SM3_SYNC, 6), Ok(22u32.to_le_bytes().to_vec()));
+        assert_eq!(rd(&s, SM3_SYNC, 8), Ok(vec![1, 0]));
+        assert_eq!(rd(&s, SM3_SYNC, 0x0B), Ok(vec![7, 0]));
+        assert_eq!(rd(&s, SM3_SYNC, 0x20), Ok(vec![1]));
+        assert_eq!(rd(&s, SM2_SYNC, 0x20), Ok(vec![0]));
+        assert_eq!(rd(&s, 0x1C31, 0), Err(SdoAbort::ObjectDoesNotExist));
+        let mut short = [0u8; 3];
+        assert_eq!(
+            s.read(SM2_SYNC, 2, &mut short),
+            Err(SdoAbort::ExceedsMailbox)
+        );
+        assert_eq!(s.read(SM2_SYNC, 0, &mut []), Err(SdoAbort::ExceedsMailbox));
+    }
 
     #[test]
     fn cycle_times() {

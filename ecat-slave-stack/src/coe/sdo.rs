@@ -305,6 +305,7 @@ fn emit_head(out: &mut [u8], service: Service, command: u8, index: u16, sub: u8)
 
 /// Writes an abort (CoE service 2, command 0x80) into `out` (the CoE payload area, at
 /// least 10 bytes); returns 10, or 0 if `out` is too short.
+#[inline(never)]
 pub fn emit_abort(out: &mut [u8], index: u16, sub: u8, abort: SdoAbort) -> usize {
     let Some(b) = out.get_mut(..INITIATE_LEN) else {
         return 0;
