@@ -222,11 +222,41 @@ impl Drive<NoStore> {
     }
 }
 
+/// The drive's fields at power-up, before [`Drive::apply_parameters`]: one list for
+/// [`Drive::with_store`] and [`Drive::init_in`], each building it where its value goes.
+macro_rules! power_up_fields {
+    ($variant:ident, $serial:ident, $store:ident, $params:ident) => {
+        Drive {
+            variant: $variant,
+            comm: Comm::new(Identity::new($variant, $serial)),
+            cia402: Cia402::new(),
+            faults: Faults::default(),
+            monitor: Monitor::new(),
+            inputs: Inputs::default(),
+            axis: AxisState::default(),
+            command: DriveCommand::default(),
+            esm: EsmState::Init,
+            last_cycle_us: None,
+            now_ms: 0,
+            fault_led: fault_led::FaultLed::new(),
+            last_controlword: 0,
+            store: Some($store),
+            load_report: None,
+            storage_emergency: None,
+            seen_tune_seq: 0,
+            seen_follow_seq: 0,
+            power_up_tune_over: false,
+            params: $params,
+        }
+    };
+}
+
 impl<S: ParameterStore> Drive<S> {
     /// A drive at power-up defaults (before the stored parameters are loaded) whose
     /// 'save' / 'load' go to `store`; `serial` is 0x1018:04.
     pub fn with_store(variant: Variant, serial: u32, store: S) -> Self {
-        let mut d = Self::defaults(variant, serial, store);
+        let params = Params::new(variant);
+        let mut d = power_up_fields!(variant, serial, store, params);
         d.apply_parameters();
         d
     }
@@ -240,37 +270,10 @@ impl<S: ParameterStore> Drive<S> {
         serial: u32,
         store: S,
     ) -> &mut Self {
-        let d = slot.write(Self::defaults(variant, serial, store));
+        let params = Params::new(variant);
+        let d = slot.write(power_up_fields!(variant, serial, store, params));
         d.apply_parameters();
         d
-    }
-
-    /// The fields at power-up, before [`Drive::apply_parameters`].
-    #[inline(always)]
-    fn defaults(variant: Variant, serial: u32, store: S) -> Self {
-        let params = Params::new(variant);
-        Drive {
-            variant,
-            comm: Comm::new(Identity::new(variant, serial)),
-            cia402: Cia402::new(),
-            faults: Faults::default(),
-            monitor: Monitor::new(),
-            inputs: Inputs::default(),
-            axis: AxisState::default(),
-            command: DriveCommand::default(),
-            esm: EsmState::Init,
-            last_cycle_us: None,
-            now_ms: 0,
-            fault_led: fault_led::FaultLed::new(),
-            last_controlword: 0,
-            store: Some(store),
-            load_report: None,
-            storage_emergency: None,
-            seen_tune_seq: 0,
-            seen_follow_seq: 0,
-            power_up_tune_over: false,
-            params,
-        }
     }
 
     /// Applies the parameters that configure the other modules (call at power-up after
