@@ -290,12 +290,16 @@ impl Repr {
             counter: frame.counter(),
         })
     }
-    /// Writes the header into a frame whose buffer holds at least [`HEADER_LEN`] bytes.
+    /// Writes the header into a frame whose buffer holds at least [`HEADER_LEN`] bytes
+    /// (a shorter buffer is left as it is).
     pub fn emit<T: AsRef<[u8]> + AsMut<[u8]>>(&self, frame: &mut Frame<T>) {
-        frame.set_length(self.length);
-        frame.set_address(self.address);
-        frame.set_channel_priority(self.channel, self.priority);
-        frame.set_type_counter(self.mailbox_type, self.counter);
+        let [l0, l1] = self.length.to_le_bytes();
+        let [a0, a1] = self.address.to_le_bytes();
+        let cp = (self.channel & 0x3F) | ((self.priority & 3) << 6);
+        let tc = self.mailbox_type.bits() | ((self.counter & 7) << 4);
+        if let Some(b) = frame.buffer.as_mut().get_mut(..HEADER_LEN) {
+            b.copy_from_slice(&[l0, l1, a0, a1, cp, tc]);
+        }
     }
 }
 
@@ -687,6 +691,28 @@ mod tests {
         let mut out = [0u8; 6];
         r.emit(&mut Frame::new_unchecked(&mut out[..]));
         assert_eq!(out, bytes[..6]);
+        // Out-of-range fields are masked like the setters do; a short buffer is untouched.
+        let wide = Repr {
+            length: 0xBEEF,
+            address: 0xCAFE,
+            channel: 0xFF,
+            priority: 0xFF,
+            mailbox_type: MailboxType::Error,
+            counter: 0xFF,
+        };
+        let mut by_setters = [0u8; 8];
+        let mut f = Frame::new_unchecked(&mut by_setters[..]);
+        f.set_length(wide.length);
+        f.set_address(wide.address);
+        f.set_channel_priority(wide.channel, wide.priority);
+        f.set_type_counter(wide.mailbox_type, wide.counter);
+        let mut by_emit = [0u8; 8];
+        wide.emit(&mut Frame::new_unchecked(&mut by_emit[..]));
+        assert_eq!(by_emit, by_setters);
+        assert_eq!(by_emit[..6], [0xEF, 0xBE, 0xFE, 0xCA, 0xFF, 0x70]);
+        let mut short = [0x55u8; 5];
+        wide.emit(&mut Frame::new_unchecked(&mut short[..]));
+        assert_eq!(short, [0x55; 5]);
         let mut f = Frame::new_unchecked(&mut out[..]);
         f.set_counter(7);
         assert_eq!(f.counter(), 7);

@@ -296,53 +296,67 @@ impl<'a> Request<'a> {
     }
 }
 
-fn emit_head(out: &mut [u8], service: Service, command: u8, index: u16, sub: u8) {
-    Header::of(service).emit(out);
-    out[2] = command;
-    out[3..5].copy_from_slice(&index.to_le_bytes());
-    out[5] = sub;
+/// Writes a 10-byte initiate-style frame (CoE header, command, index, sub-index, 4 data
+/// bytes) into `out`; returns 10, or 0 if `out` is too short. Every 10-byte answer is
+/// built here.
+#[inline(never)]
+fn emit_initiate(
+    out: &mut [u8],
+    service: Service,
+    command: u8,
+    index: u16,
+    sub: u8,
+    data: [u8; 4],
+) -> usize {
+    let Some(b) = out.get_mut(..INITIATE_LEN) else {
+        return 0;
+    };
+    let [h0, h1] = Header::of(service).to_u16().to_le_bytes();
+    let [i0, i1] = index.to_le_bytes();
+    let [d0, d1, d2, d3] = data;
+    b.copy_from_slice(&[h0, h1, command, i0, i1, sub, d0, d1, d2, d3]);
+    INITIATE_LEN
 }
 
 /// Writes an abort (CoE service 2, command 0x80) into `out` (the CoE payload area, at
 /// least 10 bytes); returns 10, or 0 if `out` is too short.
-#[inline(never)]
 pub fn emit_abort(out: &mut [u8], index: u16, sub: u8, abort: SdoAbort) -> usize {
-    let Some(b) = out.get_mut(..INITIATE_LEN) else {
-        return 0;
-    };
-    emit_head(b, Service::SdoRequest, cmd::ABORT, index, sub);
-    b[6..10].copy_from_slice(&abort.code().to_le_bytes());
-    INITIATE_LEN
+    emit_initiate(
+        out,
+        Service::SdoRequest,
+        cmd::ABORT,
+        index,
+        sub,
+        abort.code().to_le_bytes(),
+    )
 }
 
 /// Download response (0x60, complete access 0x70).
 fn emit_download_response(out: &mut [u8], index: u16, sub: u8, ca: bool) -> usize {
     let c = cmd::DOWNLOAD_RESPONSE | if ca { cmd::COMPLETE_ACCESS } else { 0 };
-    emit_head(out, Service::SdoResponse, c, index, sub);
-    out[6..10].fill(0);
-    INITIATE_LEN
+    emit_initiate(out, Service::SdoResponse, c, index, sub, [0; 4])
 }
 
 /// Download segment response (0x20 | toggle, 7 reserved bytes).
 fn emit_download_segment_response(out: &mut [u8], toggle: bool) -> usize {
-    Header::of(Service::SdoResponse).emit(out);
-    out[2] = cmd::DOWNLOAD_SEGMENT_RESPONSE | if toggle { cmd::TOGGLE } else { 0 };
-    out[3..10].fill(0);
-    INITIATE_LEN
+    let c = cmd::DOWNLOAD_SEGMENT_RESPONSE | if toggle { cmd::TOGGLE } else { 0 };
+    emit_initiate(out, Service::SdoResponse, c, 0, 0, [0; 4])
 }
 
 /// Segment frame (upload segment response): command, data padded to 7 bytes.
 fn emit_segment(out: &mut [u8], toggle: bool, last: bool, data: &[u8]) -> usize {
-    Header::of(Service::SdoResponse).emit(out);
-    let n = if data.len() < 7 {
-        (7 - data.len()) as u8
-    } else {
-        0
-    };
-    out[2] = (if toggle { cmd::TOGGLE } else { 0 }) | (n << 1) | if last { cmd::LAST } else { 0 };
-    out[3..3 + data.len()].copy_from_slice(data);
     let len = data.len().max(7);
-    out[3 + data.len()..3 + len].fill(0);
+    let Some(b) = out.get_mut(..COE_HEADER_LEN + 1 + len) else {
+        return 0;
+    };
+    let (head, rest) = b.split_at_mut(COE_HEADER_LEN + 1);
+    Header::of(Service::SdoResponse).emit(head);
+    let n = (7 - data.len().min(7)) as u8;
+    head[COE_HEADER_LEN] =
+        (if toggle { cmd::TOGGLE } else { 0 }) | (n << 1) | if last { cmd::LAST } else { 0 };
+    let (d, pad) = rest.split_at_mut(data.len());
+    d.copy_from_slice(data);
+    pad.fill(0);
     COE_HEADER_LEN + 1 + len
 }
 
@@ -678,21 +692,20 @@ impl SdoServer {
                 | cmd::EXPEDITED
                 | cmd::SIZE_INDICATED
                 | (((4 - len) as u8) << 2);
-            emit_head(out, Service::SdoResponse, c, index, sub);
-            out[6..10].fill(0);
-            out[6..6 + len].copy_from_slice(&self.buf[..len]);
-            return INITIATE_LEN;
+            let mut d = [0u8; 4];
+            d[..len].copy_from_slice(&self.buf[..len]);
+            return emit_initiate(out, Service::SdoResponse, c, index, sub, d);
         }
         let room = out.len() - INITIATE_LEN;
         let first = len.min(room);
-        emit_head(
+        emit_initiate(
             out,
             Service::SdoResponse,
             cmd::UPLOAD_RESPONSE | cmd::SIZE_INDICATED | ca_bit,
             index,
             sub,
+            (len as u32).to_le_bytes(),
         );
-        out[6..10].copy_from_slice(&(len as u32).to_le_bytes());
         out[INITIATE_LEN..INITIATE_LEN + first].copy_from_slice(&self.buf[..first]);
         if first < len {
             self.len = len;
@@ -1102,6 +1115,11 @@ mod tests {
         assert_eq!(emit_abort(&mut out[..9], 0, 0, SdoAbort::Timeout), 0);
         assert_eq!(emit_segment(&mut out, true, true, &[9, 8]), 10);
         assert_eq!(out[..10], [0x00, 0x30, 0x1B, 9, 8, 0, 0, 0, 0, 0]);
+        assert_eq!(emit_segment(&mut out[..9], false, false, &[1]), 0);
+        assert_eq!(emit_download_response(&mut out, 0x1C12, 2, true), 10);
+        assert_eq!(out[..10], [0x00, 0x30, 0x70, 0x12, 0x1C, 2, 0, 0, 0, 0]);
+        assert_eq!(emit_download_segment_response(&mut out, true), 10);
+        assert_eq!(out[..10], [0x00, 0x30, 0x30, 0, 0, 0, 0, 0, 0, 0]);
     }
 
     #[test]
