@@ -250,9 +250,11 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> Frame<T> {
         self.buffer.as_mut()[field::TYPE_COUNTER] = t.bits() | ((counter & 7) << 4);
     }
     /// Sets only the counter, keeping the type.
+    /// (No-op on a buffer shorter than a header.)
     pub fn set_counter(&mut self, counter: u8) {
-        let b = &mut self.buffer.as_mut()[field::TYPE_COUNTER];
-        *b = (*b & 0x8F) | ((counter & 7) << 4);
+        if let Some(b) = self.buffer.as_mut().get_mut(field::TYPE_COUNTER) {
+            *b = (*b & 0x8F) | ((counter & 7) << 4);
+        }
     }
     /// The mailbox data area (everything after the header).
     pub fn payload_mut(&mut self) -> &mut [u8] {

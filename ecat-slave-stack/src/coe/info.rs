@@ -125,11 +125,14 @@ impl<T: AsRef<[u8]>> Frame<T> {
 }
 
 /// Writes the CoE + information header into `out[..6]`.
+/// (A shorter `out` is left as it is.)
 fn emit_prefix(out: &mut [u8], op: u8, incomplete: bool, fragments_left: u16) {
-    Header::of(Service::SdoInformation).emit(out);
-    out[2] = op | if incomplete { opcode::INCOMPLETE } else { 0 };
-    out[3] = 0;
-    out[4..6].copy_from_slice(&fragments_left.to_le_bytes());
+    let [h0, h1] = Header::of(Service::SdoInformation).to_u16().to_le_bytes();
+    let op = op | if incomplete { opcode::INCOMPLETE } else { 0 };
+    let [f0, f1] = fragments_left.to_le_bytes();
+    if let Some(b) = out.get_mut(..PREFIX_LEN) {
+        b.copy_from_slice(&[h0, h1, op, 0, f0, f1]);
+    }
 }
 
 /// Writes an SDO information error (10 bytes) into `out`; 0 if `out` is too short.

@@ -877,7 +877,9 @@ fn ca_upload(
             buf[start / 8..end / 8].copy_from_slice(&val[..nbits / 8]);
         } else {
             if bit.is_multiple_of(8) {
-                buf[bit / 8] = 0;
+                if let Some(b) = buf.get_mut(bit / 8) {
+                    *b = 0;
+                }
             }
             put_bits(buf, start, u64::from_le_bytes(val), nbits);
         }
@@ -885,8 +887,9 @@ fn ca_upload(
     }
     // Clear the unused high bits of a last partial byte.
     if !bit.is_multiple_of(8) {
-        let last = bit / 8;
-        buf[last] &= (1u8 << (bit % 8)) - 1;
+        if let Some(b) = buf.get_mut(bit / 8) {
+            *b &= (1u8 << (bit % 8)) - 1;
+        }
     }
     Ok(bit.div_ceil(8))
 }
@@ -905,14 +908,19 @@ fn ca_value(data: &[u8], e: &Entry, start: usize) -> [u8; 8] {
     }
 }
 
-/// Walks the entries of a complete-access download image. Calls `f(entry, start bit)`
-/// for each entry inside the image and returns the end bit.
+/// Walks the entries of a complete-access download image and returns the end bit:
+/// checks every writable entry's value (`write` false) or writes it (`write` true).
+/// One walk for both passes of [`ca_download`].
+#[allow(clippy::too_many_arguments)]
 fn ca_walk(
     obj: &Object,
+    dict: &mut impl Dictionary,
+    state: EsmState,
+    data: &[u8],
     count: u8,
     first_bit: usize,
     stop_at_data_end: Option<usize>,
-    mut f: impl FnMut(&'static Entry, usize) -> Result<(), SdoAbort>,
+    write: bool,
 ) -> Result<usize, SdoAbort> {
     let mut bit = first_bit;
     for e in ca_entries(obj, count) {
@@ -929,7 +937,15 @@ fn ca_walk(
                 break;
             }
         }
-        f(e, start)?;
+        if e.access.writable() {
+            let v = ca_value(data, e, start);
+            let v = &v[..e.byte_len().min(8)];
+            if write {
+                dict.write(obj.index, e.sub, v, state)?;
+            } else {
+                od::check_write(e, v, state)?;
+            }
+        }
         bit = start + nbits;
     }
     Ok(bit)
@@ -960,13 +976,7 @@ fn ca_download(
         (obj.max_sub(), 0, Some(data_bits))
     };
     // Pass 1: layout and checks, nothing written.
-    let end = ca_walk(obj, count, first_bit, stop, |e, start| {
-        if e.access.writable() {
-            let v = ca_value(data, e, start);
-            od::check_write(e, &v[..e.byte_len().min(8)], state)?;
-        }
-        Ok(())
-    })?;
+    let end = ca_walk(obj, dict, state, data, count, first_bit, stop, false)?;
     if end.div_ceil(8) != data.len() {
         return Err(SdoAbort::TypeMismatch);
     }
@@ -976,13 +986,7 @@ fn ca_download(
     if si0_written && e0.min() <= 0 {
         dict.write(index, 0, &[0], state)?;
     }
-    ca_walk(obj, count, first_bit, stop, |e, start| {
-        if e.access.writable() {
-            let v = ca_value(data, e, start);
-            dict.write(index, e.sub, &v[..e.byte_len().min(8)], state)?;
-        }
-        Ok(())
-    })?;
+    ca_walk(obj, dict, state, data, count, first_bit, stop, true)?;
     if si0_written {
         dict.write(index, 0, &[count], state)?;
     }
