@@ -327,6 +327,12 @@ pub fn emit_error(out: &mut [u8], detail: ErrorDetail) -> usize {
     HEADER_LEN + 4
 }
 
+/// The mailbox data area of an answer buffer for a mailbox of `size` bytes (`size` is
+/// always within the buffer; empty otherwise).
+fn reply_area(reply: &mut [u8], size: usize) -> &mut [u8] {
+    reply.get_mut(HEADER_LEN..size).unwrap_or_default()
+}
+
 /// Next outgoing counter after `c`: 1…7, wrapping 7 → 1.
 pub const fn next_counter(c: u8) -> u8 {
     if c >= 7 || c == 0 {
@@ -482,7 +488,7 @@ impl MailboxServer {
         let cap = self.size - HEADER_LEN;
         match hdr.service {
             coe::Service::SdoRequest => {
-                let out = &mut self.reply[HEADER_LEN..HEADER_LEN + cap];
+                let out = reply_area(&mut self.reply, self.size);
                 match self.sdo.on_request(body, out, dict, state, now_us, expired) {
                     Ok(0) => self.answer_none(),
                     Ok(n) => self.answer_coe(n),
@@ -490,7 +496,7 @@ impl MailboxServer {
                 }
             }
             coe::Service::SdoInformation => {
-                let out = &mut self.reply[HEADER_LEN..HEADER_LEN + cap];
+                let out = reply_area(&mut self.reply, self.size);
                 match coe::info::on_request(body, out, dict, cap) {
                     Ok(coe::info::Answer::Frame(n)) => self.answer_coe(n),
                     Ok(coe::info::Answer::Series(job)) => {
@@ -589,8 +595,14 @@ impl MailboxServer {
         }
         self.out_counter = next_counter(self.out_counter);
         Frame::new_unchecked(&mut out[..]).set_counter(self.out_counter);
-        self.sent[..n].copy_from_slice(&out[..n]);
-        self.sent_len = n;
+        // Kept for a repeat request (n is never longer than either buffer).
+        self.sent_len = match (self.sent.get_mut(..n), out.get(..n)) {
+            (Some(s), Some(o)) => {
+                s.copy_from_slice(o);
+                n
+            }
+            _ => 0,
+        };
         n
     }
 
@@ -612,9 +624,8 @@ impl MailboxServer {
     /// queued as the answer).
     pub fn tick(&mut self, now_us: u64) {
         if let Some((index, sub)) = self.sdo.expire(now_us) {
-            let cap = self.size - HEADER_LEN;
             let n = coe::sdo::emit_abort(
-                &mut self.reply[HEADER_LEN..HEADER_LEN + cap],
+                reply_area(&mut self.reply, self.size),
                 index,
                 sub,
                 crate::od::SdoAbort::Timeout,
