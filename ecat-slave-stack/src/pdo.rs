@@ -494,7 +494,9 @@ impl PdoConfig {
     }
 }
 
-/// (direction, 0-3) of a mapping object index.
+/// (direction, 0-3) of a mapping object index. Out of line: the SDO and P→S paths
+/// call it in many places (never the cyclic copy).
+#[inline(never)]
 pub const fn map_slot(index: u16) -> Option<(Dir, usize)> {
     if index >= RX_MAP_BASE && index < RX_MAP_BASE + MAPS as u16 {
         Some((Dir::Rx, (index - RX_MAP_BASE) as usize))
