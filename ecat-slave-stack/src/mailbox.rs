@@ -412,6 +412,7 @@ impl MailboxServer {
 
     /// Changes the mailbox size (e.g. after the master configured SM0/SM1) and resets
     /// like [`Self::reset`] (the emergency overrun counter is kept).
+    #[inline(never)]
     pub fn set_mailbox_size(&mut self, mailbox_size: usize) {
         let overruns = self.emcy.overruns();
         *self = Self::new(mailbox_size);
@@ -638,10 +639,7 @@ impl MailboxServer {
     /// emergencies (the mailbox is off), restarts both counters. The emergency overrun
     /// counter is kept.
     pub fn reset(&mut self) {
-        let size = self.size;
-        let overruns = self.emcy.overruns();
-        *self = Self::new(size);
-        self.emcy.set_overruns(overruns);
+        self.set_mailbox_size(self.size);
     }
 
     /// Queues an emergency message (CoE service 1): error code, error register (0x1001)
