@@ -731,7 +731,8 @@ impl SdoServer {
         let room = out.len() - COE_HEADER_LEN - 1;
         let end = (pos + room).min(self.len);
         let last = end == self.len;
-        let n = emit_segment(out, toggle, last, &self.buf[pos.min(end)..end]);
+        let data = self.buf.get(pos.min(end)..end).unwrap_or_default();
+        let n = emit_segment(out, toggle, last, data);
         self.t = if last {
             Transfer::Idle
         } else {
