@@ -9,8 +9,11 @@
 //! * `demo`   — the simulated-drive commissioning demo (no hardware).
 //! * `esi`    — writes the ESI XML files and the SII images into `docs/esi/`.
 //! * `od-doc` — writes the object dictionary reference (`docs/object-dictionary.md`).
-//! * `size`   — builds the board firmware and prints its flash/RAM use.
+//! * `size`   — builds the board firmware and prints its flash/RAM use and its static
+//!   worst-case stack (`stack.rs`); `stack <ELF>` prints that analysis for one ELF.
 //! * `flash`  — builds and flashes the board firmware with probe-rs (needs a probe).
+
+mod stack;
 
 use std::env;
 use std::fmt::Write as _;
@@ -77,6 +80,21 @@ fn main() -> ExitCode {
             "docs/object-dictionary.md",
         ])),
         Some("size") => size_report().is_ok(),
+        // The static stack analysis of a given ELF (no build).
+        Some("stack") => match rest.first().map(|p| stack::analyse(Path::new(p))) {
+            Some(Ok(report)) => {
+                print!("{}", report.text);
+                true
+            }
+            Some(Err(e)) => {
+                eprintln!("stack: {e}");
+                false
+            }
+            None => {
+                eprintln!("usage: cargo xtask stack <firmware ELF>");
+                false
+            }
+        },
         Some("flash") => run_status(&mut cargo(&["flash"])),
         _ => {
             eprintln!("usage: cargo xtask <test|bench|demo|esi|od-doc|size|flash>");
@@ -417,6 +435,29 @@ fn size_report() -> Result<bool, String> {
             RAM_BUDGET / 1024,
             if in_budget { "within budget" } else { "OVER THE PRODUCT BUDGET (fits the chip)" }
         );
+        // Static worst-case stack: RAM = static RAM + stack.
+        match stack::analyse(Path::new(&elf)) {
+            Ok(report) => {
+                print!("{}", report.text);
+                let total = ram + report.worst;
+                within &= !report.bounded || total <= RAM_CHIP;
+                println!(
+                    "  RAM with the worst-case stack: static {ram} + stack {}{} = {total} B ({:.1} KiB) of the {} KiB budget — {}",
+                    report.worst,
+                    if report.bounded { "" } else { " (+ recursion)" },
+                    total as f64 / 1024.0,
+                    RAM_BUDGET / 1024,
+                    if !report.bounded {
+                        "UNBOUNDED (recursion)"
+                    } else if total <= RAM_BUDGET {
+                        "within budget"
+                    } else {
+                        "OVER THE PRODUCT BUDGET"
+                    }
+                );
+            }
+            Err(e) => println!("  stack analysis of {elf} failed: {e}"),
+        }
     }
     Ok(within)
 }
