@@ -225,7 +225,7 @@ impl Elf {
                 && addr >= s.addr
                 && u64::from(addr) + u64::from(len) <= u64::from(s.addr) + u64::from(s.size)
         })?;
-        let o = (s.offset + (addr - s.addr)) as usize;
+        let o = s.offset as usize + (addr - s.addr) as usize;
         self.bytes.get(o..o + len as usize)
     }
 }
@@ -449,7 +449,7 @@ pub fn scan(
     let mut regs: [Option<u32>; 16] = [None; 16];
     let mut i = 0usize;
     while i + 2 <= code.len() {
-        let pc = addr + i as u32;
+        let pc = addr.wrapping_add(i as u32);
         if is_data(pc) {
             i += 2;
             continue;
@@ -811,7 +811,8 @@ pub fn analyse_elf(elf: &Elf) -> Result<StackReport, String> {
         funcs.iter().enumerate().map(|(i, f)| (f.addr, i)).collect();
     let containing = |a: u32| -> Option<usize> {
         let i = funcs.partition_point(|f| f.addr <= a);
-        (i > 0 && a < funcs[i - 1].addr + funcs[i - 1].size).then(|| i - 1)
+        (i > 0 && u64::from(a) < u64::from(funcs[i - 1].addr) + u64::from(funcs[i - 1].size))
+            .then(|| i - 1)
     };
 
     // Edges.
@@ -829,7 +830,7 @@ pub fn analyse_elf(elf: &Elf) -> Result<StackReport, String> {
             }
         }
         for &t in &f.branches {
-            if t >= f.addr && t < f.addr + f.size {
+            if t >= f.addr && u64::from(t) < u64::from(f.addr) + u64::from(f.size) {
                 continue;
             }
             match start_of
@@ -1108,6 +1109,24 @@ pub fn analyse_elf(elf: &Elf) -> Result<StackReport, String> {
             " + RECURSION (unbounded)"
         }
     );
+    // For information: once the start-up (`main` task) has finished, the thread level
+    // is the deepest other thread task. The figure above keeps the start-up, since the
+    // interrupts already run during it.
+    if let Some(steady) = task_results
+        .iter()
+        .filter(|r| r.level.is_none() && !r.label.contains("__embassy_main"))
+        .max_by_key(|r| r.depth.bytes)
+    {
+        if steady.depth.bytes < thread.depth.bytes {
+            let _ = writeln!(
+                text,
+                "  after start-up (the main task done; thread = {} {} B): {} B",
+                steady.label,
+                steady.depth.bytes,
+                worst - thread.depth.bytes + steady.depth.bytes
+            );
+        }
+    }
     let level_name = |l: Option<i32>| match l {
         None => "thread".to_string(),
         Some(p) => format!("P{p}"),
@@ -1465,6 +1484,125 @@ mod tests {
         h[0x2E..0x30].copy_from_slice(&40u16.to_le_bytes());
         h[0x30..0x32].copy_from_slice(&3u16.to_le_bytes());
         assert!(Elf::parse(h).is_err());
+    }
+
+    /// A minimal ELF32: sections (name, type, address, bytes, link), section 0 = null.
+    fn build_elf(sections: &[(&str, u32, u32, Vec<u8>, u32)]) -> Vec<u8> {
+        let mut shstr = vec![0u8];
+        let mut names = Vec::new();
+        for (n, ..) in sections {
+            names.push(shstr.len() as u32);
+            shstr.extend_from_slice(n.as_bytes());
+            shstr.push(0);
+        }
+        let shstr_name = shstr.len() as u32;
+        shstr.extend_from_slice(b".shstrtab\0");
+        let mut out = vec![0u8; 52];
+        let mut headers = vec![0u8; 40]; // null section
+        let all: Vec<(u32, u32, u32, &[u8], u32)> = sections
+            .iter()
+            .zip(&names)
+            .map(|((_, k, a, d, l), n)| (*n, *k, *a, d.as_slice(), *l))
+            .chain(std::iter::once((shstr_name, 3, 0, shstr.as_slice(), 0)))
+            .collect();
+        for (name, kind, addr, data, link) in &all {
+            let offset = out.len() as u32;
+            out.extend_from_slice(data);
+            for v in [
+                *name,
+                *kind,
+                0,
+                *addr,
+                offset,
+                data.len() as u32,
+                *link,
+                0,
+                4,
+                0,
+            ] {
+                headers.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        let shoff = out.len() as u32;
+        out.extend_from_slice(&headers);
+        out[..6].copy_from_slice(b"\x7fELF\x01\x01");
+        out[0x20..0x24].copy_from_slice(&shoff.to_le_bytes());
+        out[0x2E..0x30].copy_from_slice(&40u16.to_le_bytes());
+        out[0x30..0x32].copy_from_slice(&(all.len() as u16 + 1).to_le_bytes());
+        out[0x32..0x34].copy_from_slice(&(all.len() as u16).to_le_bytes());
+        out
+    }
+
+    fn halfwords(h: &[u16]) -> Vec<u8> {
+        h.iter().flat_map(|w| w.to_le_bytes()).collect()
+    }
+
+    #[test]
+    fn whole_analysis_of_a_synthetic_image() {
+        // 0x0800_0100 Reset: push {r7, lr}; bl f; b .
+        // 0x0800_0108 f:     push {r4-r7, lr}; sub sp, #16; blx r3; pop {r4-r7, pc}
+        // 0x0800_0110 ADC1_2: push {r7, lr}; bl g; pop {r7, pc}
+        // 0x0800_0118 g:     push {r7, lr}; sub sp, #8; pop {r7, pc}; nop
+        let text = halfwords(&[
+            0xB580, 0xF000, 0xF801, 0xE7FE, // Reset
+            0xB5F0, 0xB084, 0x4798, 0xBDF0, // f
+            0xB580, 0xF000, 0xF801, 0xBD80, // ADC1_2
+            0xB580, 0xB082, 0xBD80, 0xBF00, // g
+        ]);
+        // Vector table: SP, Reset, NMI, HardFault, … ADC1_2 is IRQ 18 (vector 34).
+        let mut vt = [0u32; 35];
+        vt[0] = 0x2000_8000;
+        vt[1] = 0x0800_0101;
+        vt[34] = 0x0800_0111;
+        let vt: Vec<u8> = vt.iter().flat_map(|w| w.to_le_bytes()).collect();
+        let mut strtab = vec![0u8];
+        let mut symtab = vec![0u8; 16];
+        for (name, value, size, kind) in [
+            ("Reset", 0x0800_0101u32, 8u32, STT_FUNC),
+            ("f", 0x0800_0109, 8, STT_FUNC),
+            ("ADC1_2", 0x0800_0111, 8, STT_FUNC),
+            ("g", 0x0800_0119, 8, STT_FUNC),
+            ("$t", 0x0800_0100, 0, 0),
+        ] {
+            symtab.extend_from_slice(&(strtab.len() as u32).to_le_bytes());
+            symtab.extend_from_slice(&value.to_le_bytes());
+            symtab.extend_from_slice(&size.to_le_bytes());
+            symtab.extend_from_slice(&[kind, 0, 1, 0]);
+            strtab.extend_from_slice(name.as_bytes());
+            strtab.push(0);
+        }
+        let bytes = build_elf(&[
+            (".vector_table", 1, 0x0800_0000, vt, 0),
+            (".text", 1, 0x0800_0100, text, 0),
+            (".symtab", SHT_SYMTAB, 0, symtab, 4),
+            (".strtab", 3, 0, strtab, 0),
+        ]);
+        let elf = Elf::parse(bytes.clone()).unwrap();
+        let r = analyse_elf(&elf).unwrap();
+        // thread: Reset 8 + f 36; P0: ADC1_2 8 + g 16; one exception frame.
+        assert_eq!(r.worst, 44 + 24 + EXCEPTION_FRAME, "{}", r.text);
+        assert!(r.bounded);
+        assert!(r.text.contains("f (1)"), "{}", r.text);
+        // Truncated images give an error or a report, never a panic.
+        for cut in (0..bytes.len()).step_by(7) {
+            if let Ok(elf) = Elf::parse(bytes[..cut].to_vec()) {
+                let _ = analyse_elf(&elf);
+            }
+        }
+        // Garbage in every byte of the code and the table: no panic.
+        for seed in 1..40u32 {
+            let mut noisy = bytes.clone();
+            let mut x = seed;
+            for b in noisy.iter_mut().skip(52) {
+                x = x.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+                if x >> 28 == 0 {
+                    *b = (x >> 16) as u8;
+                }
+            }
+            if let Ok(elf) = Elf::parse(noisy) {
+                let _ = analyse_elf(&elf);
+            }
+        }
     }
 
     #[test]
