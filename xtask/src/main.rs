@@ -455,6 +455,12 @@ fn size_report() -> Result<bool, String> {
                         "OVER THE PRODUCT BUDGET"
                     }
                 );
+                let coarse = ram + report.with_indirect;
+                println!(
+                    "  (coarse bound, unresolved indirect calls to every function no direct call reaches: {ram} + {} = {coarse} B, {})",
+                    report.with_indirect,
+                    if coarse <= RAM_BUDGET { "within budget" } else { "over the budget" }
+                );
             }
             Err(e) => println!("  stack analysis of {elf} failed: {e}"),
         }

@@ -739,6 +739,9 @@ pub struct StackReport {
     /// Worst-case stack bytes (a recursion counted once when `bounded` is false).
     pub worst: u64,
     pub bounded: bool,
+    /// The same with every unresolved indirect call assumed to reach every function no
+    /// direct call reaches (a coarse bound).
+    pub with_indirect: u64,
     /// Lines to print (indented).
     pub text: String,
 }
@@ -1048,6 +1051,64 @@ pub fn analyse_elf(elf: &Elf) -> Result<StackReport, String> {
     let level_results: Vec<Result1> = roots.iter().map(&mut eval).collect();
     let task_results: Vec<Result1> = task_roots.iter().map(&mut eval).collect();
 
+    // What an unresolved indirect call could add: the functions no direct call reaches
+    // (their address is taken somewhere) and their depth.
+    let mut called = vec![false; funcs.len()];
+    for e in &edges {
+        for &c in e {
+            called[c] = true;
+        }
+    }
+    for r in &roots {
+        called[r.func] = true;
+    }
+    for &p in &polls {
+        called[p] = true;
+    }
+    let mut s0 = Solver::new(&frame, &edges, HashMap::new());
+    let mut orphans: Vec<(u64, usize)> = (0..funcs.len())
+        .filter(|&f| !called[f])
+        .map(|f| (s0.depth(f).bytes, f))
+        .collect();
+    orphans.sort_by_key(|&(d, _)| std::cmp::Reverse(d));
+    // The same nesting with every unresolved indirect call resolved to every orphan
+    // (a coarse bound for what the indirect calls can add).
+    let orphan_ids: Vec<usize> = orphans.iter().map(|&(_, f)| f).collect();
+    let alt_depths: Vec<(Option<i32>, u64)> = roots
+        .iter()
+        .map(|r| {
+            let mut extra = r.extra.clone();
+            for (f, func) in funcs.iter().enumerate() {
+                if func.indirect > 0 && !extra.contains_key(&f) {
+                    extra.insert(f, orphan_ids.clone());
+                }
+            }
+            let mut s = Solver::new(&frame, &edges, extra);
+            (r.level, s.depth(r.func).bytes)
+        })
+        .collect();
+    let alt_thread = alt_depths
+        .iter()
+        .filter(|(l, _)| l.is_none())
+        .map(|&(_, d)| d)
+        .max()
+        .unwrap_or(0);
+    let mut alt_worst = alt_thread;
+    {
+        let mut ls: Vec<i32> = alt_depths.iter().filter_map(|&(l, _)| l).collect();
+        ls.sort_unstable();
+        ls.dedup();
+        for l in ls {
+            let top = alt_depths
+                .iter()
+                .filter(|(x, _)| *x == Some(l))
+                .map(|&(_, d)| d)
+                .max()
+                .unwrap_or(0);
+            alt_worst += top + EXCEPTION_FRAME;
+        }
+    }
+
     // Nesting: thread + per priority level the deepest handler + one frame per level.
     let thread = level_results
         .iter()
@@ -1179,6 +1240,47 @@ pub fn analyse_elf(elf: &Elf) -> Result<StackReport, String> {
             indirect.join(", ")
         );
     }
+    // Indirect calls anywhere else the roots reach (the task polls included).
+    let mut seen = vec![false; funcs.len()];
+    let mut todo: Vec<usize> = roots
+        .iter()
+        .map(|r| r.func)
+        .chain(polls.iter().copied())
+        .collect();
+    while let Some(f) = todo.pop() {
+        if !std::mem::replace(&mut seen[f], true) {
+            todo.extend(edges[f].iter().copied());
+        }
+    }
+    let elsewhere: Vec<String> = (0..funcs.len())
+        .filter(|&f| {
+            seen[f]
+                && funcs[f].indirect > 0
+                && !dispatch_all.contains(&f)
+                && !on_chains.contains(&f)
+        })
+        .map(|f| format!("{} ({})", display(f), funcs[f].indirect))
+        .collect();
+    if !elsewhere.is_empty() {
+        let _ = writeln!(
+            text,
+            "  caveat: other reachable functions with indirect calls not followed: {}",
+            elsewhere.join(", ")
+        );
+    }
+    if !orphans.is_empty() {
+        let top: Vec<String> = orphans
+            .iter()
+            .take(5)
+            .map(|&(d, f)| format!("{} {d} B", display(f)))
+            .collect();
+        let _ = writeln!(
+            text,
+            "  caveat: {} functions are reached by no direct call (indirect-call targets, not counted above); deepest: {}; with every unresolved indirect call assumed to reach each of them: worst case {alt_worst} B",
+            orphans.len(),
+            top.join(", ")
+        );
+    }
     let dynamic: Vec<String> = funcs
         .iter()
         .filter(|f| f.sp_by_register)
@@ -1238,6 +1340,7 @@ pub fn analyse_elf(elf: &Elf) -> Result<StackReport, String> {
     Ok(StackReport {
         worst,
         bounded,
+        with_indirect: alt_worst,
         text,
     })
 }
@@ -1548,6 +1651,7 @@ mod tests {
             0xB5F0, 0xB084, 0x4798, 0xBDF0, // f
             0xB580, 0xF000, 0xF801, 0xBD80, // ADC1_2
             0xB580, 0xB082, 0xBD80, 0xBF00, // g
+            0xB580, 0xBD80, // h: called by no one (an indirect-call target)
         ]);
         // Vector table: SP, Reset, NMI, HardFault, … ADC1_2 is IRQ 18 (vector 34).
         let mut vt = [0u32; 35];
@@ -1562,6 +1666,7 @@ mod tests {
             ("f", 0x0800_0109, 8, STT_FUNC),
             ("ADC1_2", 0x0800_0111, 8, STT_FUNC),
             ("g", 0x0800_0119, 8, STT_FUNC),
+            ("h", 0x0800_0121, 4, STT_FUNC),
             ("$t", 0x0800_0100, 0, 0),
         ] {
             symtab.extend_from_slice(&(strtab.len() as u32).to_le_bytes());
@@ -1583,6 +1688,13 @@ mod tests {
         assert_eq!(r.worst, 44 + 24 + EXCEPTION_FRAME, "{}", r.text);
         assert!(r.bounded);
         assert!(r.text.contains("f (1)"), "{}", r.text);
+        // The coarse bound lets f's BLX reach h (frame 8).
+        assert!(
+            r.text.contains("1 functions are reached by no direct call"),
+            "{}",
+            r.text
+        );
+        assert_eq!(r.with_indirect, r.worst + 8);
         // Truncated images give an error or a report, never a panic.
         for cut in (0..bytes.len()).step_by(7) {
             if let Ok(elf) = Elf::parse(bytes[..cut].to_vec()) {
