@@ -375,21 +375,25 @@ pub struct MailboxServer {
     emcy: EmergencyQueue,
 }
 
+/// The mailbox size clamped to [`MIN_MAILBOX_SIZE`]…[`MAX_MAILBOX_SIZE`].
+const fn clamp_size(mailbox_size: usize) -> usize {
+    if mailbox_size < MIN_MAILBOX_SIZE {
+        MIN_MAILBOX_SIZE
+    } else if mailbox_size > MAX_MAILBOX_SIZE {
+        MAX_MAILBOX_SIZE
+    } else {
+        mailbox_size
+    }
+}
+
 impl MailboxServer {
     /// A server for a mailbox of `mailbox_size` bytes (the SM1 length, or the smaller of
     /// SM0 and SM1), clamped to [`MIN_MAILBOX_SIZE`]…[`MAX_MAILBOX_SIZE`]. The size bounds
     /// the frames handed out by [`Self::next_output`]; requests are accepted up to
     /// [`MAX_MAILBOX_SIZE`] bytes (SM0 may be the larger one).
     pub const fn new(mailbox_size: usize) -> Self {
-        let size = if mailbox_size < MIN_MAILBOX_SIZE {
-            MIN_MAILBOX_SIZE
-        } else if mailbox_size > MAX_MAILBOX_SIZE {
-            MAX_MAILBOX_SIZE
-        } else {
-            mailbox_size
-        };
         MailboxServer {
-            size,
+            size: clamp_size(mailbox_size),
             reply: [0; MAX_MAILBOX_SIZE],
             reply_len: 0,
             reply_pending: false,
@@ -412,11 +416,24 @@ impl MailboxServer {
 
     /// Changes the mailbox size (e.g. after the master configured SM0/SM1) and resets
     /// like [`Self::reset`] (the emergency overrun counter is kept).
+    ///
+    /// In place (the same state as [`Self::new`] with the counter kept): the
+    /// slave runtime calls this from the cyclic path on a state change, where a new
+    /// server built on the stack would cost its size (≈ 1.1 KiB) of stack. The reply
+    /// and repeat buffers keep stale bytes, which their zero lengths hide.
     #[inline(never)]
     pub fn set_mailbox_size(&mut self, mailbox_size: usize) {
-        let overruns = self.emcy.overruns();
-        *self = Self::new(mailbox_size);
-        self.emcy.set_overruns(overruns);
+        self.size = clamp_size(mailbox_size);
+        self.reply_len = 0;
+        self.reply_pending = false;
+        self.last_answer = LastAnswer::None;
+        self.info = None;
+        self.info_orig = None;
+        self.sent_len = 0;
+        self.out_counter = 0;
+        self.in_counter = None;
+        self.sdo.reset();
+        self.emcy.clear();
     }
 
     /// A whole SM0 buffer arrived (or its header plus the bytes the header announces):

@@ -333,6 +333,51 @@ qemu_runner::tests! {
         assert!(!h.srv.transfer_active());
     }
 
+    fn resizing_mid_transfer_starts_over_like_a_new_server() {
+        // A server in the middle of a segmented upload, with a reply and an emergency
+        // waiting, is resized (what a state change does): from then on it answers
+        // exactly as a new server of that size, and keeps only its overrun counter.
+        let mut used = H::new(256);
+        long_download(&mut used, 300);
+        used.upload(0x2002, 0);
+        assert!(used.srv.transfer_active());
+        used.send(3, &[0x00, 0x20, 0x40, 0x00, 0x10, 0, 0, 0, 0, 0]);
+        for _ in 0..12 {
+            used.srv.emergency(0x5210, 0x01, [1, 2, 3, 4, 5]);
+        }
+        let overruns = used.srv.emergency_overruns();
+        assert!(overruns > 0);
+        used.srv.set_mailbox_size(128);
+        used.size = 128;
+        used.cnt = 0;
+        assert!(!used.srv.transfer_active());
+        assert_eq!(used.srv.mailbox_size(), 128);
+        assert_eq!(used.srv.emergencies_queued(), 0);
+        assert_eq!(used.srv.emergency_overruns(), overruns);
+        used.none();
+        let mut b = [0u8; MAX];
+        assert_eq!(used.srv.repeat_last(&mut b), 0);
+        let mut fresh = H::new(128);
+        // Segment request without a transfer, a long upload, its segments.
+        for h in [&mut used, &mut fresh] {
+            long_download(h, 150);
+        }
+        let mut answers = [[[0u8; MAX]; 4]; 2];
+        for (k, h) in [&mut used, &mut fresh].into_iter().enumerate() {
+            let steps: [&[u8]; 4] = [
+                &[0x00, 0x20, 0x60, 0, 0, 0, 0, 0, 0, 0],
+                &[0x00, 0x20, 0x40, 0x02, 0x20, 0x00, 0, 0, 0, 0],
+                &[0x00, 0x20, 0x60, 0, 0, 0, 0, 0, 0, 0],
+                &[0x00, 0x20, 0x70, 0, 0, 0, 0, 0, 0, 0],
+            ];
+            for (j, req) in steps.iter().enumerate() {
+                let o = h.coe(req);
+                answers[k][j][..o.len].copy_from_slice(&o.buf[..o.len]);
+            }
+        }
+        assert!(answers[0] == answers[1]);
+    }
+
     fn short_last_segments_are_padded() {
         let mut h = H::new(128);
         long_download(&mut h, 115); // last segment 3 bytes, n = 4

@@ -1308,7 +1308,7 @@ pub fn analyse_elf(elf: &Elf) -> Result<StackReport, String> {
             .collect();
         let _ = writeln!(
             text,
-            "  caveat: recursion through the panic handler, counted once (a panic while the panic's logging runs re-enters it without bound): {}",
+            "  caveat: recursion through the panic handler, counted once (a panic inside the panic's own log line re-enters the handler once; the firmware logs only the first panic, hw::safety PANICKED): {}",
             list.join("; ")
         );
     }

@@ -87,8 +87,9 @@ impl EmergencyQueue {
     pub fn overruns(&self) -> u32 {
         self.overruns
     }
-    pub(crate) fn set_overruns(&mut self, v: u32) {
-        self.overruns = v;
+    /// Drops every waiting message (the overrun counter is kept).
+    pub(crate) fn clear(&mut self) {
+        self.q.clear();
     }
     /// Messages waiting.
     pub fn len(&self) -> usize {

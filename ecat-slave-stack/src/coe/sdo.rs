@@ -403,6 +403,15 @@ impl SdoServer {
         }
     }
 
+    /// Back to idle, in place: the state of [`Self::new`] without building a new
+    /// server (and its transfer buffer) on the stack. The buffer keeps stale bytes,
+    /// which no idle server reads.
+    pub fn reset(&mut self) {
+        self.t = Transfer::Idle;
+        self.len = 0;
+        self.last_us = 0;
+    }
+
     /// True while a segmented transfer is in progress.
     pub fn active(&self) -> bool {
         self.t != Transfer::Idle

@@ -13,7 +13,7 @@
 //!   drive's fault module (main.rs: `over_current`, `offset_self_check`), which
 //!   drives the PDS fault, the emergency and the red LED. [`raise_fault`] /
 //!   [`active_fault`] keep the most severe such fault since reset (status line).
-use core::sync::atomic::{AtomicU8, Ordering};
+use core::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 
 use cortex_m_rt::{exception, ExceptionFrame};
 
@@ -107,15 +107,22 @@ pub fn emergency_stop() {
     io::emergency_indicators();
 }
 
+/// Set by the first panic: a panic inside the panic's own log line (defmt-rtt panics
+/// on a nested log) must not log again, or the handler would re-enter itself until
+/// the stack runs out (the static stack report, `cargo xtask size`, found that loop).
+static PANICKED: AtomicBool = AtomicBool::new(false);
+
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
     emergency_stop();
-    // Location and the message when it is a plain text: formatting the message's
-    // arguments would pull `core::fmt` into the image for this one path.
-    let (file, line) = info.location().map_or(("?", 0), |l| (l.file(), l.line()));
-    match info.message().as_str() {
-        Some(msg) => defmt::error!("panic at {=str}:{=u32}: {=str}", file, line, msg),
-        None => defmt::error!("panic at {=str}:{=u32}", file, line),
+    if !PANICKED.swap(true, Ordering::Relaxed) {
+        // Location and the message when it is a plain text: formatting the message's
+        // arguments would pull `core::fmt` into the image for this one path.
+        let (file, line) = info.location().map_or(("?", 0), |l| (l.file(), l.line()));
+        match info.message().as_str() {
+            Some(msg) => defmt::error!("panic at {=str}:{=u32}: {=str}", file, line, msg),
+            None => defmt::error!("panic at {=str}:{=u32}", file, line),
+        }
     }
     loop {
         // Wait for the watchdog reset (or a debugger).
