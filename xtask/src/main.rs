@@ -644,8 +644,9 @@ fn bench() -> bool {
         "\nWorst nesting of these paths (thread {} + cyclic {} + interrupt {} bytes, plus two \
          exception frames with FPU context, 2 × 104 bytes): **{nested} bytes** of library \
          stack. Start-up, before the interrupts run, needs {} bytes on its own. The board's \
-         task bodies come on top; the board paints its stack and reports the peak at run \
-         time (README \"Stack\").",
+         task bodies come on top: `cargo xtask size` adds them up from the firmware ELF \
+         (static worst case, README \"Static stack report\"), and the board paints its \
+         stack and reports the peak at run time (README \"Stack\").",
         worst[2], worst[1], worst[0], worst[3]
     );
 
