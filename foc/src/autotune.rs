@@ -141,30 +141,36 @@ pub struct TuneResult {
     pub ki: f32,
 }
 
-fn to_param(x: f32, max: u16) -> u16 {
-    if x.is_finite() && x > 0.0 {
+/// `x·scale` rounded to a parameter value in `min..=max` (`min` for a non-finite or
+/// non-positive product). One out-of-line copy for the four scalings (cold code: once
+/// per auto-tune).
+#[inline(never)]
+fn to_param(x: f32, scale: f32, min: u16, max: u16) -> u16 {
+    let x = x * scale;
+    let p = if x.is_finite() && x > 0.0 {
         (x + 0.5).min(max as f32) as u16
     } else {
         0
-    }
+    };
+    p.max(min)
 }
 
 impl TuneResult {
     /// Resistance in mΩ (0x2020 scaling, 1..=20000).
     pub fn resistance_mohm(&self) -> u16 {
-        to_param(self.r * 1e3, 20000).max(1)
+        to_param(self.r, 1e3, 1, 20000)
     }
     /// Inductance in µH (0x2021 scaling, 1..=6000).
     pub fn inductance_uh(&self) -> u16 {
-        to_param(self.l * 1e6, 6000).max(1)
+        to_param(self.l, 1e6, 1, 6000)
     }
     /// Kp in 0.01 V/A (0x2015 scaling, clamped to 200..=32767).
     pub fn kp_param(&self) -> u16 {
-        to_param(self.kp * 100.0, 32767).max(200)
+        to_param(self.kp, 100.0, 200, 32767)
     }
     /// Ki in 10 V/(A·s) (0x2016 scaling, 0..=32767).
     pub fn ki_param(&self) -> u16 {
-        to_param(self.ki * 0.1, 32767)
+        to_param(self.ki, 0.1, 0, 32767)
     }
 }
 
