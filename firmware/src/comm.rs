@@ -281,8 +281,11 @@ impl Comm {
                 SdoAbort::LengthTooLow
             });
         }
+        // Writable entries here are 1 to 4 bytes (no bounds-check panic for longer).
         let mut b = [0u8; 4];
-        b[..data.len()].copy_from_slice(data);
+        for (d, s) in b.iter_mut().zip(data) {
+            *d = *s;
+        }
         let v = u32::from_le_bytes(b);
         match (index, sub) {
             (0x1003, 0) => {

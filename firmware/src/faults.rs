@@ -505,7 +505,9 @@ impl Faults {
         self.emcy.pop_front()
     }
 
-    /// History entry `n` (0 = newest).
+    /// History entry `n` (0 = newest). Out of line: the SDO reads of 0x1003 and
+    /// 0x2400-0x2406 call it from several places.
+    #[inline(never)]
     pub fn history(&self, n: usize) -> Option<&FaultRecord> {
         if n >= HISTORY {
             return None;

@@ -602,8 +602,8 @@ impl Params {
             (None, 0x2042, 0) => self.encoder_counts & 0xFFFF,
             (None, 0x2093, 0) => u32::from(self.fault_history_clear),
             (None, 0x2155, 0) => u32::from(self.raw_inputs),
-            _ => match slot_of(index, sub) {
-                Some(slot) => self.values[slot] as u32,
+            _ => match slot_of(index, sub).and_then(|slot| self.values.get(slot)) {
+                Some(&v) => v as u32,
                 None => return Err(SdoAbort::SubindexDoesNotExist),
             },
         };
@@ -644,8 +644,10 @@ impl Params {
             }
             _ => {}
         }
-        let slot = slot_of(index, sub).ok_or(SdoAbort::SubindexDoesNotExist)?;
-        self.values[slot] = v as i32;
+        let slot = slot_of(index, sub)
+            .and_then(|slot| self.values.get_mut(slot))
+            .ok_or(SdoAbort::SubindexDoesNotExist)?;
+        *slot = v as i32;
         Ok(())
     }
 }
