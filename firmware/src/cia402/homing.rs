@@ -73,8 +73,17 @@ pub struct Method {
 }
 
 impl Method {
-    /// The description of `method`, `None` if unsupported.
+    /// The description of `method`, `None` if unsupported: [`Method::spec`], looked up
+    /// in a one-byte-per-method table built from it at compile time ([`PACKED`]).
     pub const fn describe(method: i8) -> Option<Method> {
+        if method < 0 || method as usize >= PACKED.len() {
+            return None;
+        }
+        Method::unpack(PACKED[method as usize])
+    }
+
+    /// The methods as written in the standard (compile time only: [`PACKED`]).
+    const fn spec(method: i8) -> Option<Method> {
         use Kind::*;
         let (kind, final_dir, index) = match method {
             1 => (
@@ -313,6 +322,60 @@ impl Method {
         })
     }
 
+    /// One byte for [`PACKED`]: 0 = unsupported; else bit 7 set, bits 0-1 the kind
+    /// (edge, zone, index, here), bit 2 `final_dir` > 0, bit 3 `index`; an edge's signal
+    /// in bits 4-5 (negative, positive, home) and its level in bit 6; a zone's `upper` in
+    /// bit 4 and `init_dir` > 0 in bit 5.
+    const fn pack(m: Option<Method>) -> u8 {
+        let Some(m) = m else {
+            return 0;
+        };
+        let kind = match m.kind {
+            Kind::Edge { sig, level } => {
+                let s = match sig {
+                    Sig::Neg => 0,
+                    Sig::Pos => 1,
+                    Sig::Home => 2,
+                };
+                (s << 4) | ((level as u8) << 6)
+            }
+            Kind::Zone { upper, init_dir } => {
+                1 | ((upper as u8) << 4) | (((init_dir > 0) as u8) << 5)
+            }
+            Kind::Index => 2,
+            Kind::Here => 3,
+        };
+        0x80 | kind | (((m.final_dir > 0) as u8) << 2) | ((m.index as u8) << 3)
+    }
+
+    /// The inverse of [`Method::pack`].
+    const fn unpack(b: u8) -> Option<Method> {
+        if b == 0 {
+            return None;
+        }
+        let kind = match b & 3 {
+            0 => Kind::Edge {
+                sig: match (b >> 4) & 3 {
+                    0 => Sig::Neg,
+                    1 => Sig::Pos,
+                    _ => Sig::Home,
+                },
+                level: b & 0x40 != 0,
+            },
+            1 => Kind::Zone {
+                upper: b & 0x10 != 0,
+                init_dir: ((b >> 5) & 1) as i8 * 2 - 1,
+            },
+            2 => Kind::Index,
+            _ => Kind::Here,
+        };
+        Some(Method {
+            kind,
+            final_dir: ((b >> 2) & 1) as i8 * 2 - 1,
+            index: b & 0x08 != 0,
+        })
+    }
+
     /// True if the method needs the encoder index pulse.
     pub const fn needs_index(&self) -> bool {
         self.index
@@ -337,8 +400,19 @@ impl Method {
 
 /// True if `method` is supported (0x6098 values accepted).
 pub const fn supported(method: i8) -> bool {
-    Method::describe(method).is_some()
+    method >= 0 && (method as usize) < PACKED.len() && PACKED[method as usize] != 0
 }
+
+/// [`Method::spec`] of the methods 0-37, one byte each ([`Method::pack`]).
+const PACKED: [u8; 38] = {
+    let mut t = [0u8; 38];
+    let mut i = 0;
+    while i < t.len() {
+        t[i] = Method::pack(Method::spec(i as i8));
+        i += 1;
+    }
+    t
+};
 
 /// Where the axis is relative to a home-switch zone.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -638,16 +712,15 @@ impl Homing {
         let fast = p.fast;
         let slow = p.slow;
         let acc = p.acc;
+        // Velocity this cycle moves towards with the homing acceleration (0 = stop).
+        let mut target = 0.0;
         match self.step {
-            Step::Idle | Step::Done | Step::Error => {
-                motion.stop(acc, dt);
-            }
+            Step::Idle | Step::Done | Step::Error => {}
             Step::Locate { dir } => {
                 if side.is_some() {
                     self.step = Step::Stopping {
                         then: After::Replan,
                     };
-                    motion.stop(acc, dt);
                 } else if limit_hit {
                     let reversing =
                         matches!(m.kind, Kind::Zone { init_dir, .. } if init_dir == dir);
@@ -663,9 +736,8 @@ impl Homing {
                     } else {
                         self.step = Step::Stopping { then: After::Error };
                     }
-                    motion.stop(acc, dt);
                 } else {
-                    motion.ramp_velocity(dir as f32 * fast, acc, acc, dt);
+                    target = dir as f32 * fast;
                 }
             }
             Step::Seek { dir, fast: f, to_p } => {
@@ -676,13 +748,10 @@ impl Homing {
                         After::SeekP { fast: false }
                     };
                     self.step = Step::Stopping { then };
-                    motion.stop(acc, dt);
                 } else if limit_hit {
                     self.step = Step::Stopping { then: After::Error };
-                    motion.stop(acc, dt);
                 } else {
-                    let speed = if f { fast } else { slow };
-                    motion.ramp_velocity(dir as f32 * speed, acc, acc, dt);
+                    target = dir as f32 * if f { fast } else { slow };
                 }
             }
             Step::Fine => {
@@ -690,13 +759,12 @@ impl Homing {
                     self.edge = Some(inp.actual);
                     if m.index {
                         self.step = Step::IndexSearch;
-                        motion.ramp_velocity(m.final_dir as f32 * slow, acc, acc, dt);
+                        target = m.final_dir as f32 * slow;
                     } else {
                         self.home = inp.actual;
                         self.step = Step::Stopping {
                             then: After::Return,
                         };
-                        motion.stop(acc, dt);
                     }
                 } else if side == Some(false) {
                     // Pushed over the edge before the approach started: approach again.
@@ -705,12 +773,10 @@ impl Homing {
                         fast: false,
                         to_p: true,
                     };
-                    motion.stop(acc, dt);
                 } else if limit_hit {
                     self.step = Step::Stopping { then: After::Error };
-                    motion.stop(acc, dt);
                 } else {
-                    motion.ramp_velocity(m.final_dir as f32 * slow, acc, acc, dt);
+                    target = m.final_dir as f32 * slow;
                 }
             }
             Step::IndexSearch => {
@@ -723,12 +789,10 @@ impl Homing {
                     self.step = Step::Stopping {
                         then: After::Return,
                     };
-                    motion.stop(acc, dt);
                 } else if limit_hit {
                     self.step = Step::Stopping { then: After::Error };
-                    motion.stop(acc, dt);
                 } else {
-                    motion.ramp_velocity(m.final_dir as f32 * slow, acc, acc, dt);
+                    target = m.final_dir as f32 * slow;
                 }
             }
             Step::Stopping { then } => {
@@ -747,6 +811,7 @@ impl Homing {
                         After::Error => self.fail_now(),
                     }
                 }
+                return None;
             }
             Step::Return => {
                 if motion.to_position(self.home, slow, acc, acc, 0.0, 0.0, dt)
@@ -756,8 +821,31 @@ impl Homing {
                     self.status = HomingStatus::Attained;
                     return Some(p.offset.wrapping_sub(self.home));
                 }
+                return None;
             }
         }
+        // A stop is the ramp to 0: with the target 0 the speed only falls, so the
+        // acceleration argument is not used (same as `Motion::stop(acc, dt)`).
+        motion.ramp_velocity(target, acc, acc, dt);
         None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn packed_table_is_the_spec_for_every_method_value() {
+        let mut n = 0;
+        for m in i8::MIN..=i8::MAX {
+            let spec = Method::spec(m);
+            assert_eq!(Method::describe(m), spec, "method {m}");
+            assert_eq!(supported(m), spec.is_some(), "method {m}");
+            n += usize::from(spec.is_some());
+        }
+        // 1-14, 17-30, 33, 34, 35, 37.
+        assert_eq!(n, 32);
+        assert_eq!(Method::unpack(0), None);
     }
 }

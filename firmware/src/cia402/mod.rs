@@ -354,7 +354,9 @@ impl Params {
         a.min(self.max_deceleration) as f32
     }
     /// Deceleration of a stop option (1 slow-down, 2 quick-stop, 3/4 limit); `None` =
-    /// disable the drive function at once.
+    /// disable the drive function at once. Out of line: the stop paths of several
+    /// states and modes share it.
+    #[inline(never)]
     fn option_decel(&self, code: i16) -> Option<f32> {
         match code {
             1 | 5 => Some(self.dec(self.profile_deceleration)),
@@ -980,7 +982,7 @@ impl Cia402 {
     fn run_mode(&mut self, index: Option<i32>, dt: f32) -> SetpointKind {
         let cwv = self.controlword;
         let halt = cwv & cw::HALT != 0;
-        let p = self.params;
+        let p = &self.params;
         let di = self.digital_inputs;
         let homing = self.mode == mode::HM;
         // Hardware limits (not while homing: homing uses them as references).
@@ -1106,7 +1108,7 @@ impl Cia402 {
     }
 
     fn run_csp(&mut self, pos_lim: bool, neg_lim: bool, dt: f32) {
-        let p = self.params;
+        let p = &self.params;
         let mut target = p.target_position.wrapping_add(p.position_offset);
         if let Some((lo, hi)) = p.sw_limits() {
             if target > hi {
@@ -1175,7 +1177,7 @@ impl Cia402 {
         dt: f32,
     ) -> bool {
         let cwv = self.controlword;
-        let p = self.params;
+        let p = &self.params;
         let rising = cwv & cw::NEW_SETPOINT != 0 && self.prev_cw & cw::NEW_SETPOINT == 0;
         let params_ok =
             p.profile_velocity != 0 && p.profile_acceleration != 0 && p.profile_deceleration != 0;
@@ -1296,7 +1298,7 @@ impl Cia402 {
     }
 
     fn run_pp(&mut self, halt: bool, pos_lim: bool, neg_lim: bool, dt: f32) {
-        let p = self.params;
+        let p = &self.params;
         let (stopped, settled) = if p.motion_profile_type == 3 || self.pp.smooth.active() {
             if !self.pp.smooth.active() {
                 self.pp.gen = self.motion;
@@ -1311,7 +1313,7 @@ impl Cia402 {
             let prev = self.motion.position();
             let y = self.pp.smooth.push(g.position(), n);
             let settled = self.pp.smooth.settled();
-            if settled && p.motion_profile_type != 3 {
+            if settled && self.params.motion_profile_type != 3 {
                 self.pp.smooth.stop();
             }
             if settled {
@@ -1337,19 +1339,19 @@ impl Cia402 {
             .position()
             .wrapping_sub(self.actual_position)
             .unsigned_abs()
-            <= p.position_window;
+            <= self.params.position_window;
         self.window_time = if done && inwin {
             self.window_time + dt
         } else {
             0.0
         };
         self.target_reached =
-            done && inwin && self.window_time * 1000.0 >= p.position_window_time as f32;
+            done && inwin && self.window_time * 1000.0 >= self.params.position_window_time as f32;
     }
 
     fn run_hm(&mut self, halt: bool, index: Option<i32>, dt: f32) {
         let cwv = self.controlword;
-        let p = self.params;
+        let p = &self.params;
         let inp = HomingInputs {
             digital_inputs: self.digital_inputs,
             actual: self.actual_position,
