@@ -24,6 +24,14 @@
 use crate::angle::{Angle, CountScale, POLE_PAIRS};
 use core::f32::consts::PI;
 
+/// `n` reduced into `[0, cpr)` (`n.rem_euclid(cpr as i32)`; `cpr` is 4..=2^24 here,
+/// the checked form only keeps the impossible zero / overflow cases off the panic
+/// path: they give 0).
+#[inline(always)]
+fn wrap(n: i32, cpr: u32) -> i32 {
+    n.checked_rem_euclid(cpr as i32).unwrap_or(0)
+}
+
 /// Encoder configuration.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EncoderConfig {
@@ -122,7 +130,7 @@ impl Encoder {
         // Keep the count within the revolution in [0, cpr).
         let mut n = self.in_rev as i32 + delta;
         if n < 0 || n >= self.cpr as i32 {
-            n = n.rem_euclid(self.cpr as i32);
+            n = wrap(n, self.cpr);
         }
         self.in_rev = n as u32;
         // PLL.
@@ -141,7 +149,7 @@ impl Encoder {
     pub fn on_index(&mut self, raw_at_index: u16) {
         let back = self.last_raw.wrapping_sub(raw_at_index) as i16 as i32;
         let pos = self.position.wrapping_sub(back);
-        let n = (self.in_rev as i32 - back).rem_euclid(self.cpr as i32) as u32;
+        let n = wrap(self.in_rev as i32 - back, self.cpr) as u32;
         if !self.index.seen {
             self.index.seen = true;
             self.index.reference = n;
@@ -159,7 +167,7 @@ impl Encoder {
                 self.index.error_count = self.index.error_count.saturating_add(1);
                 // Correct the revolution count (the multi-turn position keeps its
                 // history, the angle is resynchronised).
-                self.in_rev = (self.in_rev as i32 - dev).rem_euclid(self.cpr as i32) as u32;
+                self.in_rev = wrap(self.in_rev as i32 - dev, self.cpr) as u32;
             }
         }
         self.index.last_position = pos;

@@ -103,8 +103,11 @@ impl MovingAverage {
             self.out = x;
             return x;
         }
-        let old = self.taps[self.head];
-        self.taps[self.head] = d;
+        // head < n ≤ MAX_TAPS (a power of two): the mask changes nothing and drops
+        // the bounds check.
+        let slot = &mut self.taps[self.head % MAX_TAPS];
+        let old = *slot;
+        *slot = d;
         self.head += 1;
         if self.head >= self.n {
             self.head = 0;
@@ -274,7 +277,12 @@ impl OpenLoop {
     /// Electrical angle of a (filtered) command position.
     #[inline]
     pub fn angle_of(&self, pos: i32) -> Angle {
-        let n = pos.rem_euclid(self.cfg.pulses_per_rev as i32) as u32;
+        // Equal to `rem_euclid` for every divisor but 0 (impossible: clamped to ≥ 1) and
+        // for the one overflow (pulses_per_rev = u32::MAX at i32::MIN, whose exact
+        // remainder is 0): neither panics.
+        let n = pos
+            .checked_rem_euclid(self.cfg.pulses_per_rev as i32)
+            .unwrap_or(0) as u32;
         self.scale.angle(n).wrapping_add(self.angle_offset)
     }
 

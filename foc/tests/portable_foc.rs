@@ -693,4 +693,57 @@ qemu_runner::tests! {
             bits += 0x0001_2345;
         }
     }
+
+    fn count_wrapping_matches_rem_euclid_on_edges() {
+        // Encoder: the count within the revolution follows rem_euclid of the moved
+        // counts for every cpr the constructor allows (4 up to 2^24).
+        for lines in [1u32, 2500, 1 << 22] {
+            let mut e = Encoder::new(EncoderConfig { lines, ..Default::default() }, 0);
+            let cpr = e.cpr() as i64;
+            let mut moved: i64 = 0;
+            for step in [32767i32, -32768, 1, -1, 30000, -30001, 0, 12345] {
+                let raw = (moved as i32).wrapping_add(step) as u16;
+                moved += i64::from(e.update(raw));
+                assert_eq!(i64::from(e.count_in_rev()), moved.rem_euclid(cpr));
+            }
+            e.on_index(e.count_in_rev() as u16);
+            assert!(i64::from(e.count_in_rev()) < cpr);
+        }
+        // Open loop: the angle of a position is the angle of its count within the
+        // revolution, for extreme positions and pulse counts; the one case rem_euclid
+        // itself would overflow on (i32::MIN, u32::MAX pulses) gives the exact
+        // remainder 0 instead of a panic.
+        for ppr in [1u32, 200, 51_200, i32::MAX as u32, u32::MAX] {
+            let cfg = OpenLoopConfig {
+                pulses_per_rev: ppr,
+                ts: 1e-4,
+                running_current: 1.0,
+                holding_percent: 50,
+                standby: 0.1,
+                soft_start: 0.01,
+                filter_time: 0.0,
+            };
+            let ol = OpenLoop::new(cfg, 0);
+            for pos in [i32::MIN, i32::MIN + 1, -1, 0, 1, 199, 200, i32::MAX] {
+                let n = if ppr == u32::MAX && pos == i32::MIN {
+                    0
+                } else {
+                    pos.rem_euclid(ppr as i32)
+                };
+                assert_eq!(ol.angle_of(pos), ol.angle_of(n), "{} {}", ppr, pos);
+            }
+        }
+        // Moving average at its largest window: the ring index wraps inside the taps.
+        let mut m = MovingAverage::new(1000, 0);
+        assert_eq!(m.len(), 256);
+        let mut x = 0i32;
+        for k in 0..600 {
+            x = x.wrapping_add(if k < 300 { 256 } else { -256 });
+            let _ = m.step(x);
+        }
+        for _ in 0..256 {
+            let _ = m.step(x);
+        }
+        assert_eq!(m.step(x), x);
+    }
 }
