@@ -336,7 +336,11 @@ impl Reader {
                 self.buf_at = at;
                 self.buf_len = n;
             }
-            *b = self.buf[(self.pos - self.buf_at) as usize];
+            // pos - buf_at < buf_len ≤ CHUNK here: `get` only drops the bounds check.
+            let Some(&v) = self.buf.get((self.pos - self.buf_at) as usize) else {
+                return Ok(false);
+            };
+            *b = v;
             self.pos += 1;
         }
         Ok(true)
@@ -359,7 +363,11 @@ impl Writer {
             if self.flushed + self.fill as u32 >= self.limit {
                 return Err(StorageError::RecordTooLarge);
             }
-            self.buf[self.fill] = b;
+            // fill < CHUNK (flushed when full): `get_mut` only drops the bounds check.
+            let Some(slot) = self.buf.get_mut(self.fill) else {
+                return Err(StorageError::RecordTooLarge);
+            };
+            *slot = b;
             self.fill += 1;
             if self.fill == CHUNK {
                 self.flush(flash)?;
@@ -372,13 +380,14 @@ impl Writer {
         if self.fill == 0 {
             return Ok(());
         }
-        let padded = self.fill.div_ceil(HEADER_LEN) * HEADER_LEN;
-        for b in &mut self.buf[self.fill..padded] {
+        // fill ≤ CHUNK, a multiple of HEADER_LEN: the `min` and `skip` only let the
+        // compiler drop the bounds checks.
+        let padded = (self.fill.div_ceil(HEADER_LEN) * HEADER_LEN).min(CHUNK);
+        let data = &mut self.buf[..padded];
+        for b in data.iter_mut().skip(self.fill) {
             *b = 0xFF;
         }
-        flash
-            .write(self.start + self.flushed, &self.buf[..padded])
-            .map_err(fe)?;
+        flash.write(self.start + self.flushed, data).map_err(fe)?;
         self.flushed += self.fill as u32;
         self.fill = 0;
         Ok(())
@@ -462,7 +471,9 @@ impl Storage {
         while done < payload_len {
             let n = (payload_len - done).min(CHUNK as u32);
             // Reads stay aligned: whole 32-byte units, within the slot.
-            let rn = (n as usize).div_ceil(HEADER_LEN) * HEADER_LEN;
+            // (n ≤ CHUNK, a multiple of HEADER_LEN: the `min` only lets the compiler
+            // drop the bounds check.)
+            let rn = ((n as usize).div_ceil(HEADER_LEN) * HEADER_LEN).min(CHUNK);
             flash.read(start + done, &mut buf[..rn]).map_err(fe)?;
             crc.update(&buf[..n as usize]);
             done += n;
