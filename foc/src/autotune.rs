@@ -184,6 +184,17 @@ pub fn ki_from_param(p: u16) -> f32 {
     p as f32 * 10.0
 }
 
+/// `v` rounded to a multiple of the voltage step `q` (0 without a step). One
+/// out-of-line copy for the three uses in [`Autotune::step`].
+#[inline(never)]
+fn quantize(v: f32, q: f32) -> f32 {
+    if q > 0.0 {
+        libm::roundf(v / q) * q
+    } else {
+        0.0
+    }
+}
+
 /// The auto-tune state machine.
 #[derive(Clone, Copy, Debug)]
 pub struct Autotune {
@@ -253,13 +264,7 @@ impl Autotune {
     /// voltages `(v_A, v_B)` to apply (V).
     pub fn step(&mut self, ia: f32, ib: f32, vbus: f32) -> (f32, f32) {
         let q = 2.0 * num::pos(vbus) / self.cfg.pwm_period as f32;
-        let quant = |v: f32| {
-            if q > 0.0 {
-                libm::roundf(v / q) * q
-            } else {
-                0.0
-            }
-        };
+        let quant = |v: f32| quantize(v, q);
         let vmax = num::pos(self.cfg.max_modulation * vbus);
         let (phase, i) = match self.state {
             TuneState::Dc1(p) | TuneState::Dc2(p) | TuneState::Toggle(p) => {
