@@ -334,7 +334,8 @@ impl Autotune {
             TuneState::Toggle(_) => {
                 // Sample k = t−1 (0-based). Half periods: the first is h/2 long so the
                 // triangle is centred on I₂, then h each.
-                let h = self.cfg.toggle_half;
+                // (2..=1000 since `new`; the `max` tells the compiler it is not 0.)
+                let h = self.cfg.toggle_half.max(1);
                 let k = self.t - 1;
                 let h0 = h / 2;
                 let sign = if k < h0 || ((k - h0) / h) % 2 == 1 {
