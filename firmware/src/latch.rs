@@ -38,7 +38,9 @@ pub fn units_at_count(cfg: &MotionConfig, now_units: i32, counts_since: i32) -> 
     // saturating only for U beyond what the parameters allow).
     let c = i64::from(cfg.counts_per_rev);
     let x = (dir * i64::from(counts_since)).saturating_mul(i64::from(cfg.pulses_per_rev));
-    let back = x.saturating_mul(2).saturating_add(c).div_euclid(2 * c);
+    // `div_euclid` by the positive 2·C as one unsigned division (no overflow checks).
+    let two_c = core::num::NonZeroU64::new(2 * c as u64).unwrap_or(core::num::NonZeroU64::MIN);
+    let back = crate::motion::floor_div_i64(x.saturating_mul(2).saturating_add(c), two_c);
     let back = back.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
     now_units.wrapping_sub(back)
 }

@@ -63,6 +63,7 @@ use crate::cia402::{DriveCommand, SetpointKind};
 use crate::drive::AxisState;
 use crate::identity::Variant;
 use crate::params::{Params, P};
+use core::num::{NonZeroU32, NonZeroU64};
 use foc::angle::{Angle, CountScale, POLE_PAIRS};
 use foc::open_loop::{OpenLoop, OpenLoopConfig};
 use foc::servo::{handover_currents, Demand, Servo, ServoGains};
@@ -264,19 +265,35 @@ impl CurrentReference {
 /// Exact scaling between command units and encoder counts.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Scale {
-    units: i64,
-    counts: i64,
+    // Both ≥ 1 (no division checks) and below 2^24.
+    units: NonZeroU32,
+    counts: NonZeroU32,
     // Precomputed ratios (i64 → f32 conversions are library calls on the M4).
     cpu: f32,
     upc: f32,
+}
+
+/// `x.div_euclid(d)` for `d > 0` by one unsigned division: for `x < 0`,
+/// `floor(x / d) = !((!x) / d)` with `!x = −x − 1 ≥ 0` (no overflow or zero checks).
+#[inline]
+fn floor_div_i32(x: i32, d: NonZeroU32) -> i32 {
+    let m = x >> 31;
+    (((x ^ m) as u32) / d) as i32 ^ m
+}
+
+/// [`floor_div_i32`] in 64 bits.
+#[inline]
+pub(crate) fn floor_div_i64(x: i64, d: NonZeroU64) -> i64 {
+    let m = x >> 63;
+    (((x ^ m) as u64) / d) as i64 ^ m
 }
 
 impl Scale {
     fn new(units: u32, counts: u32) -> Self {
         let (u, c) = (units.max(1), counts.max(1));
         Scale {
-            units: i64::from(u),
-            counts: i64::from(c),
+            units: NonZeroU32::new(u).unwrap_or(NonZeroU32::MIN),
+            counts: NonZeroU32::new(c).unwrap_or(NonZeroU32::MIN),
             // Both are below 2^24 (pulses per revolution ≤ 51 200, encoder counts per
             // revolution ≤ 240 000), so they are exact in f32 and the quotient is
             // correctly rounded without pulling f64 soft-float into the image.
@@ -285,32 +302,40 @@ impl Scale {
         }
     }
     /// Command units → counts: integer part and fraction in [0, 1).
+    #[inline(never)]
     fn to_counts(self, p: i32) -> (i32, f32) {
-        if self.units * self.counts < (1 << 31) {
+        let (u, c) = (self.units.get(), self.counts.get());
+        if u64::from(u) * u64::from(c) < (1 << 31) {
             // p = a·U + b, 0 ≤ b < U: counts = a·C + (b·C)/U with 32-bit hardware
             // divisions only (b·C < U·C < 2^31).
-            let (u, c) = (self.units as i32, self.counts as i32);
-            let a = p.div_euclid(u);
-            let b = p.rem_euclid(u);
+            let a = floor_div_i32(p, self.units);
+            let b = p.wrapping_sub(a.wrapping_mul(u as i32)) as u32;
             let t = b * c;
-            let q = t / u;
+            let q = t / self.units;
             let r = t - q * u;
-            return (a.wrapping_mul(c).wrapping_add(q), r as f32 / u as f32);
+            return (
+                a.wrapping_mul(c as i32).wrapping_add(q as i32),
+                r as f32 / u as f32,
+            );
         }
         self.to_counts_wide(p)
     }
     /// [`Scale::to_counts`] in 64 bits (any U·C).
     fn to_counts_wide(self, p: i32) -> (i32, f32) {
-        let n = i64::from(p) * self.counts;
+        let units = i64::from(self.units.get());
+        let n = i64::from(p) * i64::from(self.counts.get());
         // One 64-bit division (a library call on the M4); the remainder from it.
-        let q = n.div_euclid(self.units);
-        let r = n - q * self.units;
-        (q as i32, r as f32 / self.units as f32)
+        let q = floor_div_i64(n, NonZeroU64::from(self.units));
+        let r = n - q * units;
+        (q as i32, r as f32 / units as f32)
     }
     /// Counts → command units, rounded to nearest.
+    #[inline(never)]
     fn to_units(self, n: i32) -> i32 {
-        let x = 2 * i64::from(n) * self.units + self.counts;
-        x.div_euclid(2 * self.counts) as i32
+        let c = u64::from(self.counts.get());
+        let x = 2 * i64::from(n) * i64::from(self.units.get()) + c as i64;
+        // 2·C ≥ 2.
+        floor_div_i64(x, NonZeroU64::new(2 * c).unwrap_or(NonZeroU64::MIN)) as i32
     }
     fn counts_per_unit(self) -> f32 {
         self.cpu
@@ -606,19 +631,24 @@ impl Motion {
 
     fn start_closed_at_actual(&mut self, fb: &Feedback, iq: f32) {
         let n = self.actual_axis_counts(fb);
-        self.interp = if self.smooth_on {
-            Interp::at(self.scale.to_units(n), 0.0)
-        } else {
-            Interp::at(n, 0.0)
-        };
-        if self.smooth_on {
-            let u = self.scale.to_units(n);
-            self.smooth.reset(u);
-            self.smooth_prev = u;
-        }
-        self.demand = (n, 0.0);
+        self.rest_at(n);
         self.servo.bumpless_start(iq);
         self.servo.clear_fault();
+    }
+
+    /// Closed loop: the demand (interpolation, smoothing window) rests at the actual
+    /// axis count `n`.
+    #[inline(never)]
+    fn rest_at(&mut self, n: i32) {
+        if self.smooth_on {
+            let u = self.scale.to_units(n);
+            self.interp = Interp::at(u, 0.0);
+            self.smooth.reset(u);
+            self.smooth_prev = u;
+        } else {
+            self.interp = Interp::at(n, 0.0);
+        }
+        self.demand = (n, 0.0);
     }
 
     fn start_open(&mut self, fb: &Feedback) {
@@ -755,20 +785,7 @@ impl Motion {
                     0.0
                 };
                 // Keep the position demand on the actual position: bumpless return.
-                self.interp = Interp::at(
-                    if self.smooth_on {
-                        self.scale.to_units(pos)
-                    } else {
-                        pos
-                    },
-                    0.0,
-                );
-                if self.smooth_on {
-                    let u = self.scale.to_units(pos);
-                    self.smooth.reset(u);
-                    self.smooth_prev = u;
-                }
-                self.demand = (pos, 0.0);
+                self.rest_at(pos);
                 self.following_error = 0.0;
                 self.servo.step_velocity(v, self.acc_ff, vel)
             }
@@ -934,7 +951,41 @@ impl Motion {
 
 #[cfg(test)]
 mod tests {
-    use super::Scale;
+    use super::{floor_div_i32, floor_div_i64, Scale};
+    use core::num::{NonZeroU32, NonZeroU64};
+
+    #[test]
+    fn unsigned_floor_division_is_div_euclid() {
+        let xs = [
+            0,
+            1,
+            -1,
+            2,
+            -2,
+            49_999,
+            -50_000,
+            -50_001,
+            i32::MAX,
+            i32::MIN,
+            i32::MIN + 1,
+        ];
+        for d in [1u32, 2, 3, 7, 4000, 50_000, 240_000, 1 << 24] {
+            let nz = NonZeroU32::new(d).unwrap();
+            for &x in &xs {
+                assert_eq!(floor_div_i32(x, nz), x.div_euclid(d as i32), "{x} / {d}");
+                let w = i64::from(x) * i64::from(d) - 1;
+                let nz64 = NonZeroU64::new(u64::from(d) * 2).unwrap();
+                assert_eq!(
+                    floor_div_i64(w, nz64),
+                    w.div_euclid(i64::from(d) * 2),
+                    "{w}"
+                );
+            }
+        }
+        let one = NonZeroU64::new(1).unwrap();
+        assert_eq!(floor_div_i64(i64::MIN, one), i64::MIN);
+        assert_eq!(floor_div_i64(i64::MAX, one), i64::MAX);
+    }
 
     #[test]
     fn narrow_and_wide_unit_conversion_agree() {
@@ -963,9 +1014,10 @@ mod tests {
                 assert!((0.0..1.0).contains(&f1));
                 // Round trip within half a unit.
                 let back = s.to_units(w1);
-                if s.units >= s.counts && p.unsigned_abs() < (1 << 28) {
+                let (su, sc) = (i64::from(s.units.get()), i64::from(s.counts.get()));
+                if su >= sc && p.unsigned_abs() < (1 << 28) {
                     assert!(
-                        (i64::from(back) - i64::from(p)).abs() * s.counts <= s.units,
+                        (i64::from(back) - i64::from(p)).abs() * sc <= su,
                         "{u}/{c} p {p} back {back}"
                     );
                 }

@@ -190,6 +190,7 @@ impl Motion {
 
 /// Longest moving-average window of [`Smoother`] (cycles).
 pub const SMOOTH_MAX: usize = 64;
+const _: () = assert!(SMOOTH_MAX.is_power_of_two());
 
 /// Jerk limitation by a moving average over the last `n` demand positions (0x6086 = 3,
 /// "jerk-limited ramp"). A trapezoid filtered by an `n`-sample average becomes an
@@ -267,8 +268,10 @@ impl Smoother {
         }
         self.last = pos;
         let rel = pos.wrapping_sub(self.base);
-        self.sum += rel as i64 - self.ring[self.idx] as i64;
-        self.ring[self.idx] = rel;
+        // `idx < n ≤ SMOOTH_MAX` (a power of two): the mask only drops the bounds check.
+        let slot = &mut self.ring[self.idx % SMOOTH_MAX];
+        self.sum += rel as i64 - *slot as i64;
+        *slot = rel;
         self.idx += 1;
         if self.idx >= self.n {
             self.idx = 0;
@@ -280,12 +283,11 @@ impl Smoother {
             self.sum = 0;
             return pos;
         }
-        let n = self.n as i64;
-        let q = if self.sum >= 0 {
-            (self.sum + n / 2) / n
-        } else {
-            (self.sum - n / 2) / n
-        };
+        // Rounded half away from zero: |sum| ≤ 64·2^32, one unsigned division by n ≥ 1.
+        let n = self.n as u64;
+        let q = (self.sum.unsigned_abs() + n / 2)
+            / core::num::NonZeroU64::new(n).unwrap_or(core::num::NonZeroU64::MIN);
+        let q = if self.sum >= 0 { q as i64 } else { -(q as i64) };
         self.base.wrapping_add(q as i32)
     }
 }
