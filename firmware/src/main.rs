@@ -619,14 +619,15 @@ fn feedback() -> Option<(u32, hw::control::Feedback)> {
 
 /// Hands the interrupt's latest measurements to the drive (before a cycle / tick).
 fn update_axis(s: &mut Shared) {
-    if let Some((seq, fb)) = feedback() {
+    if let Some((seq, mut fb)) = feedback() {
         // Auto-tune results / motor open, "current does not follow" — once the
         // interrupt has published (the initial report would end the drive's
         // power-up self-test before the tune could start).
         if seq != 0 {
             s.drive.current_report(&fb.current);
         }
-        let mut axis = fb.axis;
+        // The axis state is completed in place in the feedback copy (no second copy).
+        let axis = &mut fb.axis;
         axis.overcurrent_trip = hw::pwm::break_latched() != 0;
         if fb.index_seq != s.index_seen {
             s.index_seen = fb.index_seq;
@@ -642,7 +643,7 @@ fn update_axis(s: &mut Shared) {
             s.align_failures = fb.align_failures;
             s.align_fault = true;
         }
-        s.drive.set_axis(axis);
+        s.drive.set_axis(fb.axis);
     }
 }
 
