@@ -735,22 +735,31 @@ impl<S: ParameterStore> ProcessData for Drive<S> {
     }
 }
 
+impl<S: ParameterStore> Drive<S> {
+    /// The master's commands stopped (the ESM left Op, or the outputs were lost).
+    /// While the motor side aligns for transition 4 the PDS drops to Switch on disabled
+    /// (the alignment stops; no drive function, no fault). With the drive function
+    /// enabled the PDS goes to Fault and the motor follows the fault reaction
+    /// (drive-requirements §2.1; a PDS change never moves the ESM): EtherCAT fault
+    /// `code` with `diag`, an event, not a lasting condition (a fault reset may clear it).
+    #[inline(never)]
+    fn left_op(&mut self, code: u16, diag: [u8; 2]) {
+        if self.cia402.enable_waiting() {
+            self.cia402.on_esm_left_op_while_enabled();
+        } else if self.command.drive_enabled {
+            self.cia402.on_esm_left_op_while_enabled();
+            self.faults.raise_ecat(code, diag, self.now_ms);
+            self.faults.condition_gone(FaultKind::Ecat);
+        }
+    }
+}
+
 impl<S: ParameterStore> EsmHooks for Drive<S> {
     fn on_state_change(&mut self, from: EsmState, to: EsmState) {
         self.esm = to;
-        if from == EsmState::Op && to != EsmState::Op && self.cia402.enable_waiting() {
-            // Leaving Op while the motor side aligns for transition 4: the PDS drops
-            // to Switch on disabled (the alignment stops); no drive function, no fault.
-            self.cia402.on_esm_left_op_while_enabled();
-        } else if from == EsmState::Op && to != EsmState::Op && self.command.drive_enabled {
-            // Leaving Op while enabled: the PDS goes to Fault and the motor follows the
-            // fault reaction (drive-requirements §2.1); a PDS change never moves the ESM.
-            self.cia402.on_esm_left_op_while_enabled();
+        if from == EsmState::Op && to != EsmState::Op {
             let code = if to == EsmState::Init { 0xA000 } else { 0xA001 };
-            self.faults
-                .raise_ecat(code, [from.bits(), to.bits()], self.now_ms);
-            // An event, not a lasting condition: a fault reset may clear it.
-            self.faults.condition_gone(FaultKind::Ecat);
+            self.left_op(code, [from.bits(), to.bits()]);
         }
         if to == EsmState::Init {
             self.cia402.on_esm_init();
@@ -779,18 +788,7 @@ impl<S: ParameterStore> SlaveApplication for Drive<S> {
     }
 
     fn on_outputs_lost(&mut self, code: AlStatusCode) {
-        if self.cia402.enable_waiting() {
-            // Waiting for the alignment (Switched on): Switch on disabled, no fault.
-            self.cia402.on_esm_left_op_while_enabled();
-        } else if self.command.drive_enabled {
-            self.cia402.on_esm_left_op_while_enabled();
-            self.faults.raise_ecat(
-                ERR_COMMUNICATION_LOST,
-                code.code().to_le_bytes(),
-                self.now_ms,
-            );
-            self.faults.condition_gone(FaultKind::Ecat);
-        }
+        self.left_op(ERR_COMMUNICATION_LOST, code.code().to_le_bytes());
     }
 
     fn sync_error_limit(&self) -> u16 {
