@@ -272,9 +272,8 @@ impl CurrentSupervisor {
         let sense = cl.config().sense;
         let i = sense.currents(adc);
         let (va, vb) = t.step(i.alpha, i.beta, sense.vbus(adc));
-        let state = t.state;
         let d = cl.voltage_step(adc, va, vb);
-        match state {
+        match t.state {
             TuneState::Done(r) => {
                 self.tuned = TunedValues {
                     r_mohm: r.resistance_mohm(),
