@@ -589,14 +589,7 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
     }
 
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        match index {
-            0x1000..=0x10FF => self.comm.read(&self.faults, index, sub, buf),
-            0x2000..=0x21FF => self.params.read(index, sub, buf),
-            0x2300..=0x23FF => self.monitor.read(index, sub, buf),
-            0x2400..=0x24FF => self.faults.read(index, sub, buf),
-            0x6000..=0x6FFF => self.cia402.read(index, sub, buf),
-            _ => Err(SdoAbort::ObjectDoesNotExist),
-        }
+        self.read_entry(index, sub, buf)
     }
 
     fn write(
@@ -721,14 +714,8 @@ impl<S: ParameterStore> ProcessData for Drive<S> {
             return 0;
         };
         let mut buf = [0u8; 8];
-        let n = match index {
-            0x1000..=0x10FF => self.comm.read(&self.faults, index, sub, &mut buf),
-            0x2000..=0x21FF => self.params.read(index, sub, &mut buf),
-            0x2300..=0x23FF => self.monitor.read(index, sub, &mut buf),
-            0x2400..=0x24FF => self.faults.read(index, sub, &mut buf),
-            _ => Err(SdoAbort::ObjectDoesNotExist),
-        };
-        match n {
+        // (`other_tx_entry` never names a 0x6xxx entry.)
+        match self.read_entry(index, sub, &mut buf) {
             Ok(_) => u64::from_le_bytes(buf),
             Err(_) => 0,
         }
@@ -736,6 +723,20 @@ impl<S: ParameterStore> ProcessData for Drive<S> {
 }
 
 impl<S: ParameterStore> Drive<S> {
+    /// SDO read of a product entry, dispatched on the index range (the dictionary
+    /// read and the TxPDO entries outside 0x6xxx share it).
+    #[inline(never)]
+    fn read_entry(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        match index {
+            0x1000..=0x10FF => self.comm.read(&self.faults, index, sub, buf),
+            0x2000..=0x21FF => self.params.read(index, sub, buf),
+            0x2300..=0x23FF => self.monitor.read(index, sub, buf),
+            0x2400..=0x24FF => self.faults.read(index, sub, buf),
+            0x6000..=0x6FFF => self.cia402.read(index, sub, buf),
+            _ => Err(SdoAbort::ObjectDoesNotExist),
+        }
+    }
+
     /// The master's commands stopped (the ESM left Op, or the outputs were lost).
     /// While the motor side aligns for transition 4 the PDS drops to Switch on disabled
     /// (the alignment stops; no drive function, no fault). With the drive function
