@@ -357,34 +357,11 @@ fn bit_offsets(
     Ok(off)
 }
 
-const BASE_TYPES: [DataType; 20] = [
-    DataType::Boolean,
-    DataType::Integer8,
-    DataType::Integer16,
-    DataType::Integer32,
-    DataType::Integer64,
-    DataType::Unsigned8,
-    DataType::Unsigned16,
-    DataType::Unsigned32,
-    DataType::Unsigned64,
-    DataType::Real32,
-    DataType::Bit1,
-    DataType::Bit2,
-    DataType::Bit3,
-    DataType::Bit4,
-    DataType::Bit5,
-    DataType::Bit6,
-    DataType::Bit7,
-    DataType::Bit8,
-    DataType::VisibleString,
-    DataType::OctetString,
-];
-
 fn write_data_types<W: Write>(out: &mut W, objects: &[Object]) -> fmt::Result {
     out.write_str("<DataTypes>\n")?;
     let all = || objects.iter().flat_map(|o| o.entries().iter());
     // Fixed-size base types, each once.
-    for t in BASE_TYPES {
+    for t in DataType::ALL {
         if t.is_variable_length() || !all().any(|e| e.data_type == t) {
             continue;
         }

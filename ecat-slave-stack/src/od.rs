@@ -61,6 +61,29 @@ pub enum DataType {
 }
 
 impl DataType {
+    /// Every data type, in the order the ESI lists its base types.
+    pub const ALL: [DataType; 20] = [
+        DataType::Boolean,
+        DataType::Integer8,
+        DataType::Integer16,
+        DataType::Integer32,
+        DataType::Integer64,
+        DataType::Unsigned8,
+        DataType::Unsigned16,
+        DataType::Unsigned32,
+        DataType::Unsigned64,
+        DataType::Real32,
+        DataType::Bit1,
+        DataType::Bit2,
+        DataType::Bit3,
+        DataType::Bit4,
+        DataType::Bit5,
+        DataType::Bit6,
+        DataType::Bit7,
+        DataType::Bit8,
+        DataType::VisibleString,
+        DataType::OctetString,
+    ];
     /// The raw code.
     pub const fn code(self) -> u16 {
         self as u16
@@ -1523,29 +1546,7 @@ mod reference_tests {
     /// back as the type's range, for every type, also after a text default is replaced.
     #[test]
     fn natural_range_of_every_type() {
-        const ALL: [DataType; 20] = [
-            DataType::Boolean,
-            DataType::Integer8,
-            DataType::Integer16,
-            DataType::Integer32,
-            DataType::Unsigned8,
-            DataType::Unsigned16,
-            DataType::Unsigned32,
-            DataType::Real32,
-            DataType::VisibleString,
-            DataType::OctetString,
-            DataType::Integer64,
-            DataType::Unsigned64,
-            DataType::Bit1,
-            DataType::Bit2,
-            DataType::Bit3,
-            DataType::Bit4,
-            DataType::Bit5,
-            DataType::Bit6,
-            DataType::Bit7,
-            DataType::Bit8,
-        ];
-        for t in ALL {
+        for t in DataType::ALL {
             let (bits, lo, hi) = type_range(t);
             let e = Entry::new(1, "x", t, Access::RW);
             assert_eq!((e.bits, e.min(), e.max()), (bits, lo, hi), "{t:?}");

@@ -744,15 +744,8 @@ mod tests {
                     _ if e.min() < 0 => e.min(),
                     _ => e.max(),
                 };
-                let mut d = Cia402::new();
-                let before = all(&d);
-                let bytes = (val as u64).to_le_bytes();
-                assert_eq!(
-                    d.write(idx, sub, &bytes[..e.byte_len()]),
-                    Ok(()),
-                    "{idx:#06x}:{sub}"
-                );
-                assert_eq!(d.value(idx, sub), Some(val), "{idx:#06x}:{sub}");
+                let before = all(&Cia402::new());
+                let d = written_and_read_back(e, idx, sub, val);
                 for ((i, s, v0), (_, _, v1)) in before.iter().zip(all(&d).iter()) {
                     // The probe function also sets the probe status (enabled bits).
                     if (*i, *s) != (idx, sub) && !(idx == 0x60B8 && *i == 0x60B9) {
@@ -776,16 +769,23 @@ mod tests {
                     (0x607E, 0) => 0x80,
                     _ => e.max().min(12_345),
                 };
-                let mut d = Cia402::new();
-                let bytes = (val as u64).to_le_bytes();
-                assert_eq!(
-                    d.write(idx, sub, &bytes[..e.byte_len()]),
-                    Ok(()),
-                    "{idx:#06x}:{sub}"
-                );
-                assert_eq!(d.value(idx, sub), Some(val), "{idx:#06x}:{sub}");
+                written_and_read_back(e, idx, sub, val);
             }
         }
+    }
+
+    /// A new `Cia402` after an SDO write of `val` to `idx:sub`, checked to accept it and
+    /// to read it back.
+    fn written_and_read_back(e: &Entry, idx: u16, sub: u8, val: i64) -> Cia402 {
+        let mut d = Cia402::new();
+        let bytes = (val as u64).to_le_bytes();
+        assert_eq!(
+            d.write(idx, sub, &bytes[..e.byte_len()]),
+            Ok(()),
+            "{idx:#06x}:{sub}"
+        );
+        assert_eq!(d.value(idx, sub), Some(val), "{idx:#06x}:{sub}");
+        d
     }
 
     #[test]
