@@ -22,7 +22,7 @@
 
 use core::fmt::{self, Write};
 
-use crate::od::{Access, DataType, DefaultValue, Entry, Object, ObjectCode, PdoMappable};
+use crate::od::{Access, DataType, DefaultValue, Entry, Name, Object, ObjectCode, PdoMappable};
 use crate::sii::{DeviceDescription, SiiError, SmType};
 
 /// One entry of a PDO mapping (index 0 = padding of `bits` bits), decoded from the
@@ -60,7 +60,7 @@ pub struct PdoMap {
     /// Mapping object index.
     pub index: u16,
     /// Name.
-    pub name: &'static str,
+    pub name: Name,
     /// SyncManager it is assigned to by default (None: selectable, not assigned).
     pub sm: Option<u8>,
     /// The mapping cannot be changed.
@@ -119,7 +119,7 @@ pub fn pdo_maps(
             }
             let name = objects
                 .binary_search_by_key(&index, |o| o.index)
-                .map_or(fallback, |k| objects[k].name());
+                .map_or(Name::plain(fallback), |k| objects[k].name());
             let map = PdoMap {
                 index,
                 name,
@@ -259,12 +259,22 @@ pub fn escape<W: Write>(out: &mut W, s: &str) -> fmt::Result {
     out.write_str(&s[start..])
 }
 
-/// Text wrapper that escapes on display.
-struct Esc<'a>(&'a str);
+/// Text wrapper that escapes on display (a `&str`, a [`crate::od::Name`], anything
+/// displayable).
+struct Esc<T>(T);
 
-impl fmt::Display for Esc<'_> {
+impl<T: fmt::Display> fmt::Display for Esc<T> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        escape(f, self.0)
+        write!(Escaping(f), "{}", self.0)
+    }
+}
+
+/// A writer that XML-escapes what goes through it.
+struct Escaping<'a, W>(&'a mut W);
+
+impl<W: Write> Write for Escaping<'_, W> {
+    fn write_str(&mut self, s: &str) -> fmt::Result {
+        escape(self.0, s)
     }
 }
 
@@ -729,7 +739,7 @@ mod tests {
     static PDOS: [PdoMap; 2] = [
         PdoMap {
             index: 0x1600,
-            name: "Outputs",
+            name: Name::plain("Outputs"),
             sm: Some(2),
             fixed: false,
             mandatory: true,
@@ -737,7 +747,7 @@ mod tests {
         },
         PdoMap {
             index: 0x1A00,
-            name: "Inputs",
+            name: Name::plain("Inputs"),
             sm: Some(3),
             fixed: true,
             mandatory: false,
@@ -837,7 +847,10 @@ mod tests {
                 child(*x, "Index").text().unwrap(),
                 format!("#x{:04X}", o.index)
             );
-            assert_eq!(child(*x, "Name").text(), Some(o.name()));
+            assert_eq!(
+                child(*x, "Name").text().map(String::from),
+                Some(o.name().to_string())
+            );
             // every Type is defined in DataTypes
             let t = child(*x, "Type").text().unwrap();
             let dts = child(dict, "DataTypes");

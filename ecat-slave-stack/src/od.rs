@@ -12,6 +12,11 @@
 
 use crate::esm::EsmState;
 
+mod name;
+pub mod pack;
+
+pub use name::{pack_into, packed_len, Name, NameBytes};
+
 /// CoE data type codes (ETG.1000.6), as used by SDO information, the SII and the ESI.
 /// The codes used here all fit a byte (`as u16` gives the 16-bit wire code), which
 /// keeps [`Entry`] at 24 bytes.
@@ -292,6 +297,8 @@ const FLAG_HAS_DEFAULT: u8 = 1 << 3;
 const PDO_SHIFT: u32 = 4;
 /// The two [`PdoMappable`] bits.
 const FLAG_PDO: u8 = 3 << PDO_SHIFT;
+/// The name is packed ([`Name`]; set by [`pack`]).
+const FLAG_PACKED: u8 = 1 << 6;
 
 /// Value part of an [`Entry`]: a numeric range and default (32-bit patterns `[lo, hi,
 /// def]`, read through the data type) or a text default; which one is written is
@@ -465,10 +472,30 @@ impl Entry {
         }
     }
     /// Name (SDO information, ESI, documentation).
-    pub const fn name(&self) -> &'static str {
-        // SAFETY: `name_ptr` and `name_len` are private and only set by `new`/`text`,
-        // from one `short_name` call.
-        unsafe { long_name(self.name_ptr, self.name_len) }
+    pub const fn name(&self) -> Name {
+        if self.flags & FLAG_PACKED != 0 {
+            // SAFETY: with the flag set, `name_ptr` and `name_len` were set together by
+            // `with_packed_name` from one `&'static [u8]`.
+            Name::packed(unsafe {
+                core::slice::from_raw_parts(self.name_ptr, self.name_len as usize)
+            })
+        } else {
+            // SAFETY: `name_ptr` and `name_len` are private and only set by `new`/`text`,
+            // from one `short_name` call.
+            Name::plain(unsafe { long_name(self.name_ptr, self.name_len) })
+        }
+    }
+    /// The same entry with its name replaced by packed bytes ([`pack`]); longer than
+    /// 255 bytes is a compile-time error for the constant tables.
+    pub(crate) const fn with_packed_name(mut self, packed: &'static [u8]) -> Self {
+        assert!(
+            packed.len() <= u8::MAX as usize,
+            "packed od name over 255 bytes"
+        );
+        self.name_ptr = packed.as_ptr();
+        self.name_len = packed.len() as u8;
+        self.flags |= FLAG_PACKED;
+        self
     }
     /// Stored in flash by 'save' (0x1010).
     pub const fn is_saved(&self) -> bool {
@@ -532,14 +559,14 @@ impl Entry {
                     self.spec = Spec {
                         num: natural_patterns(self.data_type),
                     };
-                    self.flags =
-                        (self.flags & (FLAG_SAVED | FLAG_PDO)) | natural_flag(self.data_type);
+                    self.flags = (self.flags & (FLAG_SAVED | FLAG_PDO | FLAG_PACKED))
+                        | natural_flag(self.data_type);
                 }
                 self.default(v)
             }
             DefaultValue::Text(t) => {
                 self.spec = Spec { text: t };
-                self.flags = (self.flags & (FLAG_SAVED | FLAG_PDO)) | FLAG_TEXT;
+                self.flags = (self.flags & (FLAG_SAVED | FLAG_PDO | FLAG_PACKED)) | FLAG_TEXT;
                 self
             }
             DefaultValue::None => {
@@ -636,6 +663,36 @@ impl Entry {
     }
 }
 
+/// An entry to fill arrays with before they are written (compile-time table builders).
+pub(crate) const PLACEHOLDER_ENTRY: Entry = Entry::new(0, "", DataType::Unsigned8, Access::RO);
+/// An object to fill arrays with before they are written.
+pub(crate) const PLACEHOLDER_OBJECT: Object = Object::var(0, "", &[PLACEHOLDER_ENTRY], "");
+
+/// [`PartialEq`] for entries at compile time: the same text of the name, the same
+/// fields, flags and value part.
+pub(crate) const fn same_entry(a: &Entry, b: &Entry) -> bool {
+    let names = match (a.name().as_plain(), b.name().as_plain()) {
+        (Some(x), Some(y)) => str_eq(x, y),
+        _ => false,
+    };
+    let values = match (a.text_default(), b.text_default()) {
+        (Some(x), Some(y)) => str_eq(x, y),
+        (None, None) => {
+            let (x, y) = (a.num(), b.num());
+            x[0] == y[0] && x[1] == y[1] && x[2] == y[2]
+        }
+        _ => false,
+    };
+    names
+        && values
+        && a.data_type as u8 == b.data_type as u8
+        && a.bits == b.bits
+        && a.sub == b.sub
+        && a.access.0 == b.access.0
+        && a.unit == b.unit
+        && a.flags == b.flags
+}
+
 /// Two entries are equal when they describe the same thing (same name, type, length,
 /// sub-index, access, mapping, range, default, unit and 'save' flag).
 impl PartialEq for Entry {
@@ -716,6 +773,8 @@ pub struct Object {
     name_ptr: *const u8,
     /// First entry (see [`Object::entries`]).
     entries_ptr: *const Entry,
+    /// Bits 0-6: number of entries (at most [`MAX_ENTRIES`]); bit 7: the name is packed
+    /// ([`Name`]; set by [`pack`]).
     entries_len: u8,
     /// What the object means (dictionary reference). Only kept with the
     /// `descriptions` feature (documentation generators); the target build leaves the
@@ -729,6 +788,10 @@ const _: () = assert!(core::mem::size_of::<Object>() == 12);
 
 /// Longest object name in bytes (6 bits of [`Object`]; entry names may have 255).
 pub const MAX_OBJECT_NAME: usize = 63;
+/// Most entries of one object (7 bits of [`Object`]).
+pub const MAX_ENTRIES: usize = 127;
+/// `Object::entries_len`: the name is packed.
+const OBJECT_NAME_PACKED: u8 = 1 << 7;
 /// The bits of `Object::name_code` that hold the name length.
 const NAME_LEN_MASK: u8 = MAX_OBJECT_NAME as u8;
 /// Position of the object code in `Object::name_code`.
@@ -745,8 +808,8 @@ unsafe impl Send for Object {}
 /// keeps; more than 255 entries is a compile-time error for the constant tables.
 const fn short_entries(entries: &'static [Entry]) -> (*const Entry, u8) {
     assert!(
-        entries.len() <= u8::MAX as usize,
-        "od object with more than 255 entries"
+        entries.len() <= MAX_ENTRIES,
+        "od object with more than MAX_ENTRIES entries"
     );
     (entries.as_ptr(), entries.len() as u8)
 }
@@ -779,11 +842,30 @@ impl Object {
         }
     }
     /// Name.
-    pub const fn name(&self) -> &'static str {
-        // SAFETY: `name_ptr` and the length bits of `name_code` are private and only
-        // set by `new`, from one `short_name` call (the length fits the bits: checked
-        // there).
-        unsafe { long_name(self.name_ptr, self.name_code & NAME_LEN_MASK) }
+    pub const fn name(&self) -> Name {
+        let len = self.name_code & NAME_LEN_MASK;
+        if self.entries_len & OBJECT_NAME_PACKED != 0 {
+            // SAFETY: with the flag set, `name_ptr` and the length bits were set
+            // together by `with_packed_name` from one `&'static [u8]`.
+            Name::packed(unsafe { core::slice::from_raw_parts(self.name_ptr, len as usize) })
+        } else {
+            // SAFETY: `name_ptr` and the length bits of `name_code` are private and
+            // only set by `new`, from one `short_name` call (the length fits the bits:
+            // checked there).
+            Name::plain(unsafe { long_name(self.name_ptr, len) })
+        }
+    }
+    /// The same object with its name replaced by packed bytes ([`pack`]); longer than
+    /// [`MAX_OBJECT_NAME`] is a compile-time error for the constant tables.
+    pub(crate) const fn with_packed_name(mut self, packed: &'static [u8]) -> Self {
+        assert!(
+            packed.len() <= MAX_OBJECT_NAME,
+            "packed od object name too long"
+        );
+        self.name_ptr = packed.as_ptr();
+        self.name_code = (self.name_code & !NAME_LEN_MASK) | packed.len() as u8;
+        self.entries_len |= OBJECT_NAME_PACKED;
+        self
     }
     /// VAR, ARRAY or RECORD.
     pub const fn code(&self) -> ObjectCode {
@@ -799,13 +881,18 @@ impl Object {
         // SAFETY: `entries_ptr` and `entries_len` are private and only set by `new` and
         // `with_entries`, from one `short_entries` call: they are the start and the
         // length of one `&'static [Entry]`, immutable and never freed.
-        unsafe { core::slice::from_raw_parts(self.entries_ptr, self.entries_len as usize) }
+        unsafe {
+            core::slice::from_raw_parts(
+                self.entries_ptr,
+                (self.entries_len & !OBJECT_NAME_PACKED) as usize,
+            )
+        }
     }
     /// The same object with other entries (documentation generators).
     pub const fn with_entries(mut self, entries: &'static [Entry]) -> Self {
         let (entries_ptr, entries_len) = short_entries(entries);
         self.entries_ptr = entries_ptr;
-        self.entries_len = entries_len;
+        self.entries_len = (self.entries_len & OBJECT_NAME_PACKED) | entries_len;
         self
     }
     /// What the object means; empty without the `descriptions` feature.
@@ -1189,7 +1276,7 @@ pub fn write_reference(objects: &[Object], w: &mut impl core::fmt::Write) -> cor
     writeln!(w, "|---|---|---|---|")?;
     for o in objects {
         write!(w, "| 0x{:04X} | ", o.index)?;
-        write_md(w, o.name())?;
+        write_md(w, o.name().chars())?;
         writeln!(
             w,
             " | {} | {} |",
@@ -1199,10 +1286,10 @@ pub fn write_reference(objects: &[Object], w: &mut impl core::fmt::Write) -> cor
     }
     for o in objects {
         write!(w, "\n## 0x{:04X} ", o.index)?;
-        write_md(w, o.name())?;
+        write_md(w, o.name().chars())?;
         writeln!(w, " ({})\n", object_code_name(o.code()))?;
         if !o.description().is_empty() {
-            write_md(w, o.description())?;
+            write_md(w, o.description().chars())?;
             writeln!(w, "\n")?;
         }
         writeln!(
@@ -1212,7 +1299,7 @@ pub fn write_reference(objects: &[Object], w: &mut impl core::fmt::Write) -> cor
         writeln!(w, "|---|---|---|---|---|---|---|---|---|---|---|")?;
         for e in o.entries() {
             write!(w, "| {} | ", e.sub)?;
-            write_md(w, e.name())?;
+            write_md(w, e.name().chars())?;
             write!(w, " | {} | {} | ", e.data_type.esi_name(), e.bits)?;
             write_access(w, e.access)?;
             let pdo = match e.pdo_mappable() {
@@ -1234,7 +1321,7 @@ pub fn write_reference(objects: &[Object], w: &mut impl core::fmt::Write) -> cor
                 DefaultValue::Int(v) => write!(w, "{}", v)?,
                 DefaultValue::Text(t) => {
                     write!(w, "\"")?;
-                    write_md(w, t)?;
+                    write_md(w, t.chars())?;
                     write!(w, "\"")?;
                 }
             }
@@ -1242,7 +1329,7 @@ pub fn write_reference(objects: &[Object], w: &mut impl core::fmt::Write) -> cor
             if e.unit_text().is_empty() {
                 write!(w, "-")?;
             } else {
-                write_md(w, e.unit_text())?;
+                write_md(w, e.unit_text().chars())?;
             }
             writeln!(w, " | {} |", if e.is_saved() { "yes" } else { "no" })?;
         }
@@ -1307,8 +1394,8 @@ fn write_access(w: &mut impl core::fmt::Write, a: Access) -> core::fmt::Result {
 }
 
 /// Writes text into a Markdown table cell: `|` escaped, line breaks as spaces.
-fn write_md(w: &mut impl core::fmt::Write, s: &str) -> core::fmt::Result {
-    for c in s.chars() {
+fn write_md(w: &mut impl core::fmt::Write, s: impl IntoIterator<Item = char>) -> core::fmt::Result {
+    for c in s {
         match c {
             '|' => w.write_str("\\|")?,
             '\n' | '\r' => w.write_char(' ')?,
@@ -1391,10 +1478,13 @@ mod reference_tests {
         } else {
             ""
         };
-        assert_eq!((r.index, r.name(), r.description()), (0x1002, "R", d));
+        assert_eq!(
+            (r.index, r.name().as_plain().unwrap(), r.description()),
+            (0x1002, "R", d)
+        );
         let c = E[0];
         assert_eq!(
-            (c.sub, c.name(), c.data_type, c.access),
+            (c.sub, c.name().as_plain().unwrap(), c.data_type, c.access),
             (0, "Number of entries", DataType::Unsigned8, Access::RO)
         );
         assert_eq!(
@@ -1470,7 +1560,7 @@ mod reference_tests {
         }
         for code in [ObjectCode::Var, ObjectCode::Array, ObjectCode::Record] {
             let o = Object::new(0x3000, "n", code, ENTRIES, "");
-            assert_eq!((o.code(), o.name()), (code, "n"));
+            assert_eq!((o.code(), o.name().as_plain().unwrap()), (code, "n"));
         }
         let o = O.with_entries(&ENTRIES[..1]);
         assert_eq!(
@@ -1507,7 +1597,10 @@ mod reference_tests {
             (0, 0, DefaultValue::Text("seven"))
         );
         for x in [d, none, t] {
-            assert_eq!((x.name(), x.sub, x.unit_text()), ("Gain", 3, "mA"));
+            assert_eq!(
+                (x.name().as_plain().unwrap(), x.sub, x.unit_text()),
+                ("Gain", 3, "mA")
+            );
             assert_eq!(x.pdo_mappable(), PdoMappable::Rx);
             assert!(x.is_saved());
         }
@@ -1524,7 +1617,7 @@ mod reference_tests {
             (i.min(), i.max(), i.default_value()),
             (0, 0, DefaultValue::Int(9))
         );
-        assert_eq!((i.bits, i.name()), (64, "Label"));
+        assert_eq!((i.bits, i.name().as_plain().unwrap()), (64, "Label"));
         // Equality is by content, not by where the name is stored.
         let owned = std::string::String::from("Gain");
         let same = Entry::new(

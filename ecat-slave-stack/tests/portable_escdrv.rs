@@ -10,7 +10,7 @@ use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::et1100::{self, Et1100, Et1100Config};
 use ecat_slave_stack::lan9252::{self, Lan9252, Lan9252Config};
 use ecat_slave_stack::leds::{self, ErrCondition, Indicator, Pattern, StatusLeds};
-use ecat_slave_stack::od::{Access, DataType, Entry, Object, ObjectCode, PdoMappable};
+use ecat_slave_stack::od::{Access, DataType, Entry, Name, Object, ObjectCode, PdoMappable};
 use ecat_slave_stack::pdo;
 use ecat_slave_stack::sii::{self, DeviceDescription, EscFlavour, Sii, SiiError, SmType};
 use ecat_slave_stack::{EscAccess, EscError};
@@ -250,7 +250,7 @@ static TX1: [u32; 1] = [pdo::entry(0x6041, 0, 16)];
 static PDOS: [PdoMap; 2] = [
     PdoMap {
         index: 0x1600,
-        name: "RxPDO 1",
+        name: Name::plain("RxPDO 1"),
         sm: Some(2),
         fixed: false,
         mandatory: false,
@@ -258,7 +258,7 @@ static PDOS: [PdoMap; 2] = [
     },
     PdoMap {
         index: 0x1A00,
-        name: "TxPDO 1",
+        name: Name::plain("TxPDO 1"),
         sm: Some(3),
         fixed: false,
         mandatory: false,
@@ -707,7 +707,7 @@ qemu_runner::tests! {
         static BAD_ENTRY: [u32; 1] = [PdoEntry { index: 0x6099, sub: 0, bits: 16 }.encode()];
         static WRONG_DIR: [u32; 1] = [pdo::entry(0x6041, 0, 16)];
         static WRONG_BITS: [u32; 1] = [pdo::entry(0x6040, 0, 32)];
-        let p = |index, sm, entries| [PdoMap { index, name: "x", sm, fixed: false, mandatory: false, entries }];
+        let p = |index, sm, entries| [PdoMap { index, name: Name::plain("x"), sm, fixed: false, mandatory: false, entries }];
         assert_eq!(esi::write(&DESC, &OBJECTS, &p(0x1600, Some(2), &BAD_ENTRY), &mut out),
             Err(EsiError::UnknownEntry { pdo: 0x1600, index: 0x6099, sub: 0 }));
         assert_eq!(esi::write(&DESC, &OBJECTS, &p(0x1600, Some(2), &WRONG_DIR), &mut out),
@@ -752,9 +752,12 @@ qemu_runner::tests! {
         };
         let maps = esi::pdo_maps(&DESC, &OBJECTS, &defaults);
         assert_eq!(maps.len(), 3);
-        assert_eq!((maps[0].index, maps[0].sm, maps[0].name), (0x1600, Some(2), "RxPDO 1"));
-        assert_eq!((maps[1].index, maps[1].sm, maps[1].name), (0x1602, None, "RxPDO"));
-        assert_eq!((maps[2].index, maps[2].sm, maps[2].name), (0x1A00, Some(3), "TxPDO 1"));
+        assert_eq!((maps[0].index, maps[0].sm), (0x1600, Some(2)));
+        assert_eq!(maps[0].name, "RxPDO 1");
+        assert_eq!((maps[1].index, maps[1].sm), (0x1602, None));
+        assert_eq!(maps[1].name, "RxPDO");
+        assert_eq!((maps[2].index, maps[2].sm), (0x1A00, Some(3)));
+        assert_eq!(maps[2].name, "TxPDO 1");
         assert_eq!(PdoEntry::decode(maps[2].entries[0]), PdoEntry { index: 0x6041, sub: 0, bits: 16 });
         let mut out = Buf::<32768>::new();
         esi::write(&DESC, &OBJECTS, &maps, &mut out).unwrap();

@@ -14,10 +14,7 @@
 //! The same table feeds the SDO server, PDO mapping rules, SDO information, the ESI,
 //! the SII and the generated reference (`cargo xtask od-doc`), so they cannot disagree.
 
-use ecat_slave_stack::od::{self, Access, DataType, Entry, Object, SdoAbort};
-
-const PLACEHOLDER_ENTRY: Entry = Entry::new(0, "", DataType::Unsigned8, Access::RO);
-const PLACEHOLDER: Object = Object::var(0, "", &[PLACEHOLDER_ENTRY], "");
+use ecat_slave_stack::od::{self, Entry, Object, SdoAbort};
 
 const PARTS: &[&[Object]] = &[
     crate::comm::OBJECTS,
@@ -29,64 +26,10 @@ const PARTS: &[&[Object]] = &[
     crate::cia402::objects::OBJECTS,
 ];
 
-const fn total(parts: &[&[Object]]) -> usize {
-    let mut n = 0;
-    let mut i = 0;
-    while i < parts.len() {
-        n += parts[i].len();
-        i += 1;
-    }
-    n
-}
-
-/// Concatenates the parts and sorts by index (insertion sort, at compile time).
-const fn merge<const N: usize>(parts: &[&[Object]]) -> [Object; N] {
-    let mut out = [PLACEHOLDER; N];
-    let mut n = 0;
-    let mut p = 0;
-    while p < parts.len() {
-        let mut i = 0;
-        while i < parts[p].len() {
-            out[n] = parts[p][i];
-            n += 1;
-            i += 1;
-        }
-        p += 1;
-    }
-    let mut i = 1;
-    while i < N {
-        let mut j = i;
-        while j > 0 && out[j - 1].index > out[j].index {
-            let t = out[j - 1];
-            out[j - 1] = out[j];
-            out[j] = t;
-            j -= 1;
-        }
-        i += 1;
-    }
-    out
-}
-
-const fn strictly_sorted(objects: &[Object]) -> bool {
-    let mut i = 1;
-    while i < objects.len() {
-        if objects[i - 1].index >= objects[i].index {
-            return false;
-        }
-        i += 1;
-    }
-    true
-}
-
-const COUNT: usize = total(PARTS);
-static TABLE: [Object; COUNT] = merge::<COUNT>(PARTS);
-const _: () = assert!(
-    strictly_sorted(&merge::<COUNT>(PARTS)),
-    "two modules describe the same index"
-);
-
-/// Every object of the drive, sorted by index.
-pub static OBJECTS: &[Object] = &TABLE;
+/// Every object of the drive, sorted by index: the module tables merged at compile
+/// time, names packed and stored once, identical entry tables once
+/// (`ecat_slave_stack::od::pack`; two modules describing one index do not compile).
+pub static OBJECTS: &[Object] = ecat_slave_stack::packed_dictionary!(PARTS);
 
 /// True when the table is well formed (sorted objects, sorted sub-indices).
 pub fn is_well_formed() -> bool {
@@ -104,7 +47,7 @@ pub(crate) const CIA402: (u16, u16) = (0x6000, 0x6FFF);
 /// Object `index` of a module owning `range`: the same answer as
 /// `od::find(module::OBJECTS, index)`, without a second copy of the module's table in
 /// flash (a module's `const OBJECTS` used at run time is its own array beside
-/// [`TABLE`]).
+/// [`OBJECTS`]).
 pub(crate) fn find_in(range: (u16, u16), index: u16) -> Option<&'static Object> {
     if index < range.0 || index > range.1 {
         return None;
@@ -137,7 +80,9 @@ pub(crate) fn find_entry_in(
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
+    use std::string::ToString;
 
     #[test]
     fn module_ranges_hold_exactly_the_module_tables() {
@@ -177,6 +122,26 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn packed_table_describes_the_module_tables() {
+        let mut n = 0;
+        for part in PARTS {
+            for src in part.iter() {
+                let packed = od::find(OBJECTS, src.index).expect("object in the table");
+                assert_eq!(packed, src, "{:#06x}", src.index);
+                assert_eq!(packed.name().to_string(), src.name().to_string());
+                for (p, s) in packed.entries().iter().zip(src.entries()) {
+                    assert_eq!(p, s, "{:#06x}:{}", src.index, s.sub);
+                    assert_eq!(p.name().to_string(), s.name().to_string());
+                    assert_eq!(p.name().len(), s.name().len());
+                    assert!(p.name().as_plain().is_none(), "packed");
+                }
+                n += 1;
+            }
+        }
+        assert_eq!(n, OBJECTS.len());
     }
 
     #[test]

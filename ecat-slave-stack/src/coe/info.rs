@@ -31,7 +31,9 @@
 
 use super::{Header, Service, HEADER_LEN as COE_HEADER_LEN};
 use crate::mailbox::ErrorDetail;
-use crate::od::{self, DefaultValue, Dictionary, Entry, Object, ObjectCode, OdListType, SdoAbort};
+use crate::od::{
+    self, DefaultValue, Dictionary, Entry, Name, Object, ObjectCode, OdListType, SdoAbort,
+};
 
 /// Size of the SDO information header (opcode, reserved, fragments left).
 pub const INFO_HEADER_LEN: usize = 4;
@@ -162,10 +164,13 @@ enum Body {
         list: OdListType,
         objects: &'static [Object],
     },
+    /// `head`, then the name (expanded from its packed form while the fragments are
+    /// written), then `tail`.
     Bytes {
         head: [u8; HEAD_MAX],
         head_len: u8,
-        tail: [&'static [u8]; 4],
+        name: Name,
+        tail: [&'static [u8]; 3],
     },
 }
 
@@ -206,9 +211,12 @@ impl InfoJob {
                 ..
             } => 2 + 2 * OdListType::LISTS.len(),
             Body::OdList { list, objects } => 2 + 2 * list.count(objects),
-            Body::Bytes { head_len, tail, .. } => {
-                head_len as usize + tail.iter().map(|t| t.len()).sum::<usize>()
-            }
+            Body::Bytes {
+                head_len,
+                name,
+                tail,
+                ..
+            } => head_len as usize + name.len() + tail.iter().map(|t| t.len()).sum::<usize>(),
         }
     }
 
@@ -275,21 +283,18 @@ impl InfoJob {
             Body::Bytes {
                 head,
                 head_len,
+                name,
                 tail,
             } => {
-                let mut pos = 0usize; // position in the whole payload
-                let mut w = 0usize; // written into dst
-                let parts =
-                    core::iter::once(&head[..head_len as usize]).chain(tail.iter().copied());
-                for part in parts {
-                    let (p0, p1) = (pos, pos + part.len());
-                    pos = p1;
-                    let a = (start + w).max(p0);
-                    let b = (start + dst.len()).min(p1);
-                    if a < b {
-                        dst[w..w + (b - a)].copy_from_slice(&part[a - p0..b - p0]);
-                        w += b - a;
-                    }
+                // The payload is head, name, tail; `start` is where `dst` begins in it.
+                let head = head.get(..head_len as usize).unwrap_or(&[]);
+                let bytes = head
+                    .iter()
+                    .copied()
+                    .chain(name.bytes())
+                    .chain(tail.iter().flat_map(|t| t.iter().copied()));
+                for (d, b) in dst.iter_mut().zip(bytes.skip(start)) {
+                    *d = b;
                 }
             }
         }
@@ -359,7 +364,8 @@ pub fn on_request(
             let body = Body::Bytes {
                 head,
                 head_len: 6,
-                tail: [obj.name().as_bytes(), &[], &[], &[]],
+                name: obj.name(),
+                tail: [&[], &[], &[]],
             };
             Ok(Answer::Series(InfoJob::new(
                 opcode::OBJECT_DESCRIPTION_RESPONSE,
@@ -416,14 +422,15 @@ fn entry_body(index: u16, e: &'static Entry, request: u8) -> Body {
         }
     }
     head[3] = vi;
-    let tail: [&'static [u8]; 4] = if e.unit_text().is_empty() {
-        [e.name().as_bytes(), &[], &[], &[]]
+    let tail: [&'static [u8]; 3] = if e.unit_text().is_empty() {
+        [&[], &[], &[]]
     } else {
-        [e.name().as_bytes(), b" [", e.unit_text().as_bytes(), b"]"]
+        [b" [", e.unit_text().as_bytes(), b"]"]
     };
     Body::Bytes {
         head,
         head_len: len as u8,
+        name: e.name(),
         tail,
     }
 }
@@ -456,35 +463,52 @@ mod tests {
     #[test]
     fn fragments_cover_the_payload_exactly() {
         static NAME: &str = "A rather long object name that needs several fragments";
+        // The same kind of text packed: words of the vocabulary expand while the
+        // fragments are written, also where a fragment ends inside one.
+        static PACKED_TEXT: &str =
+            "Touch probe 1 positive edge counts Mapping entry 12 of the Fault 3 snapshot";
+        static PACKED: [u8; od::packed_len(PACKED_TEXT)] = {
+            let mut b = [0u8; od::packed_len(PACKED_TEXT)];
+            od::pack_into(PACKED_TEXT, &mut b, 0);
+            b
+        };
+        assert!(PACKED.len() < PACKED_TEXT.len() / 2);
         let mut head = [0u8; HEAD_MAX];
         head[..6].copy_from_slice(&[1, 2, 3, 4, 5, 6]);
-        for cap in 10..80 {
-            let body = Body::Bytes {
-                head,
-                head_len: 6,
-                tail: [NAME.as_bytes(), b" [", b"mm", b"]"],
-            };
-            let mut job = InfoJob::new(opcode::OBJECT_DESCRIPTION_RESPONSE, body, cap);
-            let total = 6 + NAME.len() + 5;
-            assert_eq!(job.payload_len(), total);
-            let mut all = [0u8; 128];
-            let mut n = 0;
-            let mut out = [0u8; 80];
-            for k in 0..job.fragments() {
-                let (len, last) = job.next_fragment(&mut out[..cap]);
-                assert!(len <= cap && len > PREFIX_LEN);
-                assert_eq!(last, k + 1 == job.fragments());
-                assert_eq!(
-                    u16::from_le_bytes([out[4], out[5]]),
-                    job.fragments() - 1 - k
-                );
-                all[n..n + len - PREFIX_LEN].copy_from_slice(&out[PREFIX_LEN..len]);
-                n += len - PREFIX_LEN;
+        for (name, text) in [
+            (Name::plain(NAME), NAME),
+            (Name::packed(&PACKED), PACKED_TEXT),
+        ] {
+            for cap in 10..80 {
+                let body = Body::Bytes {
+                    head,
+                    head_len: 6,
+                    name,
+                    tail: [b" [", b"mm", b"]"],
+                };
+                let mut job = InfoJob::new(opcode::OBJECT_DESCRIPTION_RESPONSE, body, cap);
+                let total = 6 + text.len() + 5;
+                assert_eq!(job.payload_len(), total);
+                let mut all = [0u8; 128];
+                let mut n = 0;
+                let mut out = [0u8; 80];
+                for k in 0..job.fragments() {
+                    let (len, last) = job.next_fragment(&mut out[..cap]);
+                    assert!(len <= cap && len > PREFIX_LEN);
+                    assert_eq!(last, k + 1 == job.fragments());
+                    assert_eq!(
+                        u16::from_le_bytes([out[4], out[5]]),
+                        job.fragments() - 1 - k
+                    );
+                    all[n..n + len - PREFIX_LEN].copy_from_slice(&out[PREFIX_LEN..len]);
+                    n += len - PREFIX_LEN;
+                }
+                assert_eq!(job.next_fragment(&mut out[..cap]), (0, true));
+                assert_eq!(n, total);
+                assert_eq!(&all[..6], &[1, 2, 3, 4, 5, 6]);
+                assert_eq!(&all[6..6 + text.len()], text.as_bytes());
+                assert_eq!(&all[6 + text.len()..n], b" [mm]");
             }
-            assert_eq!(job.next_fragment(&mut out[..cap]), (0, true));
-            assert_eq!(n, total);
-            assert_eq!(&all[6..6 + NAME.len()], NAME.as_bytes());
-            assert_eq!(&all[6 + NAME.len()..n], b" [mm]");
         }
     }
 }
