@@ -287,15 +287,17 @@ impl InfoJob {
                 tail,
             } => {
                 // The payload is head, name, tail; `start` is where `dst` begins in it.
+                let mut pos = 0usize;
+                let mut put = |b: u8| {
+                    if let Some(d) = pos.checked_sub(start).and_then(|i| dst.get_mut(i)) {
+                        *d = b;
+                    }
+                    pos += 1;
+                };
                 let head = head.get(..head_len as usize).unwrap_or(&[]);
-                let bytes = head
-                    .iter()
-                    .copied()
-                    .chain(name.bytes())
-                    .chain(tail.iter().flat_map(|t| t.iter().copied()));
-                for (d, b) in dst.iter_mut().zip(bytes.skip(start)) {
-                    *d = b;
-                }
+                head.iter().for_each(|&b| put(b));
+                name.bytes().for_each(&mut put);
+                tail.iter().copied().flatten().for_each(|&b| put(b));
             }
         }
     }
