@@ -363,6 +363,10 @@ pub const UNITS: &[&str] = &[
     "°C",
 ];
 
+/// [`UNITS`] as length-prefixed texts: what [`Entry::unit_text`] reads (one byte per
+/// unit instead of a pointer and a length).
+static UNIT_TEXT: [u8; name::prefixed_len(UNITS)] = name::prefixed_list(UNITS);
+
 const fn str_eq(a: &str, b: &str) -> bool {
     let (a, b) = (a.as_bytes(), b.as_bytes());
     if a.len() != b.len() {
@@ -640,15 +644,11 @@ impl Entry {
         }
     }
     /// Unit text ("mA", "ms", "inc", …); empty when dimensionless.
-    pub const fn unit_text(&self) -> &'static str {
-        // `unit` is only set by `Entry::unit`, to an index of `UNITS`; the fallback
-        // keeps a bounds-check panic out of the image.
-        let i = self.unit as usize;
-        if i < UNITS.len() {
-            UNITS[i]
-        } else {
-            ""
-        }
+    pub fn unit_text(&self) -> &'static str {
+        let text = name::prefixed(&UNIT_TEXT, self.unit);
+        // SAFETY: `UNIT_TEXT` holds the whole texts of `UNITS`, each after its length
+        // byte; `prefixed` returns one of them (or nothing): valid UTF-8.
+        unsafe { core::str::from_utf8_unchecked(text) }
     }
     /// Size in bytes on the wire (rounded up).
     pub const fn byte_len(&self) -> usize {
@@ -1496,6 +1496,21 @@ mod reference_tests {
 
     /// The packed layout reads back every field it was given (names, entries, code,
     /// mapping, flags, range, default), whatever the order of the builder calls.
+    #[test]
+    fn every_unit_text_reads_back() {
+        for (i, u) in UNITS.iter().enumerate() {
+            let e = Entry::new(1, "x", DataType::Unsigned16, Access::RO);
+            let e = if i == 0 { e } else { e.unit(u) };
+            assert_eq!(e.unit_text(), *u, "unit {i}");
+        }
+        // An index past the table (never set by `Entry::unit`) reads as no unit.
+        let mut e = Entry::new(1, "x", DataType::Unsigned16, Access::RO);
+        for i in [UNITS.len(), 200, 255] {
+            e.unit = i as u8;
+            assert_eq!(e.unit_text(), "");
+        }
+    }
+
     #[test]
     fn packed_fields_read_back() {
         const LONGEST_OBJECT_NAME: &str =

@@ -125,34 +125,28 @@ const VOCABULARY: [&str; 102] = [
 /// First byte value that stands for a vocabulary word.
 const WORD: u8 = 0x80;
 
-const fn words_len() -> usize {
-    assert!(VOCABULARY.len() <= 128, "od name vocabulary over 128 words");
+/// Bytes of `list` stored as length-prefixed texts ([`prefixed_list`]).
+pub(crate) const fn prefixed_len(list: &[&str]) -> usize {
     let mut n = 0;
     let mut i = 0;
-    while i < VOCABULARY.len() {
-        let w = VOCABULARY[i].as_bytes();
-        assert!(!w.is_empty() && w.len() <= 255, "od vocabulary word length");
-        let mut j = 0;
-        while j < w.len() {
-            assert!(w[j] < WORD, "od vocabulary words are ASCII");
-            j += 1;
-        }
-        n += 1 + w.len();
+    while i < list.len() {
+        assert!(
+            list[i].len() <= 255,
+            "od: text in a length-prefixed list over 255 bytes"
+        );
+        n += 1 + list[i].len();
         i += 1;
     }
     n
 }
 
-const WORDS_LEN: usize = words_len();
-
-/// The vocabulary as length-prefixed words: what decoding reads (the `&str` table
-/// itself is only used at compile time).
-static WORDS: [u8; WORDS_LEN] = {
-    let mut out = [0u8; WORDS_LEN];
+/// `list` as length-prefixed texts: one byte of length, then the bytes, for each.
+pub(crate) const fn prefixed_list<const N: usize>(list: &[&str]) -> [u8; N] {
+    let mut out = [0u8; N];
     let mut at = 0;
     let mut i = 0;
-    while i < VOCABULARY.len() {
-        let w = VOCABULARY[i].as_bytes();
+    while i < list.len() {
+        let w = list[i].as_bytes();
         out[at] = w.len() as u8;
         let mut j = 0;
         while j < w.len() {
@@ -163,20 +157,47 @@ static WORDS: [u8; WORDS_LEN] = {
         i += 1;
     }
     out
-};
+}
 
-/// Word `k` of the vocabulary (empty for an unknown `k`: never produced by
-/// [`pack_into`]).
-fn word(k: u8) -> &'static [u8] {
+/// Text `k` of a [`prefixed_list`] (empty past its end).
+pub(crate) fn prefixed(list: &'static [u8], k: u8) -> &'static [u8] {
     let mut at = 0usize;
     for _ in 0..k {
-        match WORDS.get(at) {
+        match list.get(at) {
             Some(&len) => at += 1 + len as usize,
             None => return &[],
         }
     }
-    let len = WORDS.get(at).map_or(0, |&l| l as usize);
-    WORDS.get(at + 1..at + 1 + len).unwrap_or(&[])
+    let len = list.get(at).map_or(0, |&l| l as usize);
+    list.get(at + 1..at + 1 + len).unwrap_or(&[])
+}
+
+const fn vocabulary_checked() -> usize {
+    assert!(VOCABULARY.len() <= 128, "od name vocabulary over 128 words");
+    let mut i = 0;
+    while i < VOCABULARY.len() {
+        let w = VOCABULARY[i].as_bytes();
+        assert!(!w.is_empty(), "od vocabulary word empty");
+        let mut j = 0;
+        while j < w.len() {
+            assert!(w[j] < WORD, "od vocabulary words are ASCII");
+            j += 1;
+        }
+        i += 1;
+    }
+    prefixed_len(&VOCABULARY)
+}
+
+const WORDS_LEN: usize = vocabulary_checked();
+
+/// The vocabulary as length-prefixed words: what decoding reads (the `&str` table
+/// itself is only used at compile time).
+static WORDS: [u8; WORDS_LEN] = prefixed_list(&VOCABULARY);
+
+/// Word `k` of the vocabulary (empty for an unknown `k`: never produced by
+/// [`pack_into`]).
+fn word(k: u8) -> &'static [u8] {
+    prefixed(&WORDS, k)
 }
 
 /// The vocabulary word that `s` has at `i` (a word start), longest first.
