@@ -75,7 +75,7 @@ use core::sync::atomic::{AtomicU32, Ordering};
 use defmt_rtt as _;
 use ecat_slave_stack::leds::{ErrCondition, StatusLeds};
 use ecat_slave_stack::slave::{Slave, SlaveConfig};
-use embassy_executor::{InterruptExecutor, Spawner};
+use embassy_executor::{InterruptExecutor, SendSpawner, SpawnError, SpawnToken, Spawner};
 use embassy_futures::select::{select, Either};
 use embassy_stm32::exti::{self, ExtiInput};
 use embassy_stm32::gpio::Pull;
@@ -497,34 +497,40 @@ async fn main(spawner: Spawner) {
         vbus: p.PC0,
     });
 
+    let thread_spawner = spawner.make_send();
     // Cyclic path on the interrupt executor.
     interrupt::UART4.set_priority(CYCLIC_PRIORITY);
     let cyclic_spawner = EXECUTOR_CYCLIC.start(interrupt::UART4);
     if has_slave {
-        match cyclic(sync0) {
-            Ok(t) => cyclic_spawner.spawn(t),
-            Err(e) => defmt::error!("spawn cyclic: {}", e),
-        }
-        match ecat(esc_irq, flash) {
-            Ok(t) => spawner.spawn(t),
-            Err(e) => defmt::error!("spawn ecat: {}", e),
-        }
+        spawn(cyclic_spawner, cyclic(sync0), defmt::intern!("cyclic"));
+        spawn(thread_spawner, ecat(esc_irq, flash), defmt::intern!("ecat"));
     }
-    match touch_probe2(in2, enc) {
-        Ok(t) => cyclic_spawner.spawn(t),
-        Err(e) => defmt::error!("spawn touch_probe2: {}", e),
-    }
+    spawn(
+        cyclic_spawner,
+        touch_probe2(in2, enc),
+        defmt::intern!("touch_probe2"),
+    );
 
     // Thread-mode tasks.
     let mut wdg = hw::safety::Watchdog::new(p.IWDG);
     wdg.unleash();
-    match tick(leds, ports) {
+    spawn(thread_spawner, tick(leds, ports), defmt::intern!("tick"));
+    spawn(
+        thread_spawner,
+        supervisor(wdg, enc),
+        defmt::intern!("supervisor"),
+    );
+}
+
+/// Spawns a task, or logs why it could not. Out of line: the token's type parameter
+/// only names the task, so the copies are identical machine code and the linker keeps
+/// one (`--icf=all`). The thread executor's tasks go through its `SendSpawner` too
+/// (the same enqueue as `Spawner::spawn`).
+#[inline(never)]
+fn spawn<S: Send>(spawner: SendSpawner, task: Result<SpawnToken<S>, SpawnError>, name: defmt::Str) {
+    match task {
         Ok(t) => spawner.spawn(t),
-        Err(e) => defmt::error!("spawn tick: {}", e),
-    }
-    match supervisor(wdg, enc) {
-        Ok(t) => spawner.spawn(t),
-        Err(e) => defmt::error!("spawn supervisor: {}", e),
+        Err(e) => defmt::error!("spawn {=istr}: {}", name, e),
     }
 }
 
