@@ -280,6 +280,8 @@ fn storage_error(e: firmware::storage::StorageError) -> defmt::Str {
 }
 
 /// Current-loop supervision (power-up auto-tune 0x2013, its test current from 0x2000).
+/// Out of line: start-up and the 10 ms parameter check share it.
+#[inline(never)]
 fn supervisor_config(d: &BoardDrive) -> SupervisorConfig {
     SupervisorConfig::from_params(&d.params, 1.0 / board::PWM_HZ as f32, board::PWM_ARR)
 }
@@ -573,6 +575,7 @@ unsafe fn new_slave(out: *mut Option<Slave<Esc>>, esc: Esc) {
 }
 
 /// 0x2083: the power-up alignment sweeps the field (wiggle) and checks the encoder.
+#[inline(never)]
 fn align_wiggle(d: &BoardDrive) -> bool {
     d.params.get(firmware::params::P::PowerUpWiggle) != 0
 }
