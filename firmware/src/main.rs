@@ -864,10 +864,10 @@ async fn tick(mut leds: io::Leds<'static>, mut ports: io::Ports<'static>) {
         ports.write_outputs(outputs);
         ports.set_brake_released(brake && hw::pwm::break_latched() == 0);
         let (run, err) = status.levels(now);
-        leds.green.set_level(drive_leds.green.into());
-        leds.red.set_level(drive_leds.red.into());
-        leds.run.set_level(run.into());
-        leds.err.set_level(err.into());
+        io::set_output(&mut leds.green, drive_leds.green);
+        io::set_output(&mut leds.red, drive_leds.red);
+        io::set_output(&mut leds.run, run);
+        io::set_output(&mut leds.err, err);
     }
 }
 
