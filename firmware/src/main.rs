@@ -286,8 +286,28 @@ fn supervisor_config(d: &BoardDrive) -> SupervisorConfig {
     SupervisorConfig::from_params(&d.params, 1.0 / board::PWM_HZ as f32, board::PWM_ARR)
 }
 
-#[embassy_executor::main]
-async fn main(spawner: Spawner) {
+/// Entry: the thread executor with the start-up task [`__embassy_main`] — what
+/// `#[embassy_executor::main]` expands to, except that a failed spawn of the start-up
+/// task (it cannot fail: one task, spawned once) panics with a plain text instead of
+/// `Result::unwrap`'s formatted `SpawnError` (which kept the error's `core::fmt`
+/// impls and its 104-byte text in flash).
+#[cortex_m_rt::entry]
+fn main() -> ! {
+    let mut executor = embassy_executor::Executor::new();
+    // SAFETY: `run` never returns, so this frame, and `executor` in it, lives for the
+    // rest of the program (the macro's `__make_static` does the same).
+    let executor: &'static mut embassy_executor::Executor =
+        unsafe { &mut *core::ptr::addr_of_mut!(executor) };
+    executor.run(|spawner| match __embassy_main(spawner) {
+        Ok(task) => spawner.spawn(task),
+        Err(_) => panic!("start-up task not spawned"),
+    })
+}
+
+/// The start-up task (named as `#[embassy_executor::main]` names it: the static stack
+/// report, `xtask/src/stack.rs`, finds it by that name).
+#[embassy_executor::task]
+async fn __embassy_main(spawner: Spawner) {
     hw::stack::paint();
     let p = embassy_stm32::init(clock_config());
     // While a debugger halts the core: PWM counters stop with the bridges forced off
