@@ -179,6 +179,13 @@ fn now_us() -> u64 {
     Instant::now().as_micros()
 }
 
+/// `Ticker::every` for the 1 ms tick and the supervisor, one out-of-line copy (each
+/// inlined copy reads the time driver's clock of its own).
+#[inline(never)]
+fn ticker(period: Duration) -> Ticker {
+    Ticker::every(period)
+}
+
 fn now_ms() -> u32 {
     Instant::now().as_millis() as u32
 }
@@ -828,7 +835,7 @@ async fn touch_probe2(mut in2: ExtiInput<'static, Async>, enc: Encoder) {
 /// configuration of the interrupt.
 #[embassy_executor::task]
 async fn tick(mut leds: io::Leds<'static>, mut ports: io::Ports<'static>) {
-    let mut ticker = Ticker::every(Duration::from_millis(1));
+    let mut ticker = ticker(Duration::from_millis(1));
     let mut status = StatusLeds::new();
     let mut n: u32 = 0;
     loop {
@@ -917,7 +924,7 @@ fn over_current(s: &mut Shared) {
 async fn supervisor(mut wdg: hw::safety::Watchdog, enc: Encoder) {
     offset_self_check(&mut wdg).await;
 
-    let mut ticker = Ticker::every(Duration::from_millis(10));
+    let mut ticker = ticker(Duration::from_millis(10));
     let mut last_samples = CURRENT_SAMPLES.count();
     let mut ticks: u32 = 0;
     loop {
