@@ -75,7 +75,7 @@ use core::sync::atomic::{AtomicU32, Ordering};
 use defmt_rtt as _;
 use ecat_slave_stack::leds::{ErrCondition, StatusLeds};
 use ecat_slave_stack::slave::{Slave, SlaveConfig};
-use embassy_executor::{InterruptExecutor, Spawner};
+use embassy_executor::{InterruptExecutor, SendSpawner, SpawnError, SpawnToken, Spawner};
 use embassy_futures::select::{select, Either};
 use embassy_stm32::exti::{self, ExtiInput};
 use embassy_stm32::gpio::Pull;
@@ -179,6 +179,13 @@ fn now_us() -> u64 {
     Instant::now().as_micros()
 }
 
+/// `Ticker::every` for the 1 ms tick and the supervisor, one out-of-line copy (each
+/// inlined copy reads the time driver's clock of its own).
+#[inline(never)]
+fn ticker(period: Duration) -> Ticker {
+    Ticker::every(period)
+}
+
 fn now_ms() -> u32 {
     Instant::now().as_millis() as u32
 }
@@ -280,12 +287,34 @@ fn storage_error(e: firmware::storage::StorageError) -> defmt::Str {
 }
 
 /// Current-loop supervision (power-up auto-tune 0x2013, its test current from 0x2000).
+/// Out of line: start-up and the 10 ms parameter check share it.
+#[inline(never)]
 fn supervisor_config(d: &BoardDrive) -> SupervisorConfig {
     SupervisorConfig::from_params(&d.params, 1.0 / board::PWM_HZ as f32, board::PWM_ARR)
 }
 
-#[embassy_executor::main]
-async fn main(spawner: Spawner) {
+/// Entry: the thread executor with the start-up task [`__embassy_main`] — what
+/// `#[embassy_executor::main]` expands to, except that a failed spawn of the start-up
+/// task (it cannot fail: one task, spawned once) panics with a plain text instead of
+/// `Result::unwrap`'s formatted `SpawnError` (which kept the error's `core::fmt`
+/// impls and its 104-byte text in flash).
+#[cortex_m_rt::entry]
+fn main() -> ! {
+    let mut executor = embassy_executor::Executor::new();
+    // SAFETY: `run` never returns, so this frame, and `executor` in it, lives for the
+    // rest of the program (the macro's `__make_static` does the same).
+    let executor: &'static mut embassy_executor::Executor =
+        unsafe { &mut *core::ptr::addr_of_mut!(executor) };
+    executor.run(|spawner| match __embassy_main(spawner) {
+        Ok(task) => spawner.spawn(task),
+        Err(_) => panic!("start-up task not spawned"),
+    })
+}
+
+/// The start-up task (named as `#[embassy_executor::main]` names it: the static stack
+/// report, `xtask/src/stack.rs`, finds it by that name).
+#[embassy_executor::task]
+async fn __embassy_main(spawner: Spawner) {
     hw::stack::paint();
     let p = embassy_stm32::init(clock_config());
     // While a debugger halts the core: PWM counters stop with the bridges forced off
@@ -497,34 +526,40 @@ async fn main(spawner: Spawner) {
         vbus: p.PC0,
     });
 
+    let thread_spawner = spawner.make_send();
     // Cyclic path on the interrupt executor.
     interrupt::UART4.set_priority(CYCLIC_PRIORITY);
     let cyclic_spawner = EXECUTOR_CYCLIC.start(interrupt::UART4);
     if has_slave {
-        match cyclic(sync0) {
-            Ok(t) => cyclic_spawner.spawn(t),
-            Err(e) => defmt::error!("spawn cyclic: {}", e),
-        }
-        match ecat(esc_irq, flash) {
-            Ok(t) => spawner.spawn(t),
-            Err(e) => defmt::error!("spawn ecat: {}", e),
-        }
+        spawn(cyclic_spawner, cyclic(sync0), defmt::intern!("cyclic"));
+        spawn(thread_spawner, ecat(esc_irq, flash), defmt::intern!("ecat"));
     }
-    match touch_probe2(in2, enc) {
-        Ok(t) => cyclic_spawner.spawn(t),
-        Err(e) => defmt::error!("spawn touch_probe2: {}", e),
-    }
+    spawn(
+        cyclic_spawner,
+        touch_probe2(in2, enc),
+        defmt::intern!("touch_probe2"),
+    );
 
     // Thread-mode tasks.
     let mut wdg = hw::safety::Watchdog::new(p.IWDG);
     wdg.unleash();
-    match tick(leds, ports) {
+    spawn(thread_spawner, tick(leds, ports), defmt::intern!("tick"));
+    spawn(
+        thread_spawner,
+        supervisor(wdg, enc),
+        defmt::intern!("supervisor"),
+    );
+}
+
+/// Spawns a task, or logs why it could not. Out of line: the token's type parameter
+/// only names the task, so the copies are identical machine code and the linker keeps
+/// one (`--icf=all`). The thread executor's tasks go through its `SendSpawner` too
+/// (the same enqueue as `Spawner::spawn`).
+#[inline(never)]
+fn spawn<S: Send>(spawner: SendSpawner, task: Result<SpawnToken<S>, SpawnError>, name: defmt::Str) {
+    match task {
         Ok(t) => spawner.spawn(t),
-        Err(e) => defmt::error!("spawn tick: {}", e),
-    }
-    match supervisor(wdg, enc) {
-        Ok(t) => spawner.spawn(t),
-        Err(e) => defmt::error!("spawn supervisor: {}", e),
+        Err(e) => defmt::error!("spawn {=istr}: {}", name, e),
     }
 }
 
@@ -567,6 +602,7 @@ unsafe fn new_slave(out: *mut Option<Slave<Esc>>, esc: Esc) {
 }
 
 /// 0x2083: the power-up alignment sweeps the field (wiggle) and checks the encoder.
+#[inline(never)]
 fn align_wiggle(d: &BoardDrive) -> bool {
     d.params.get(firmware::params::P::PowerUpWiggle) != 0
 }
@@ -799,7 +835,7 @@ async fn touch_probe2(mut in2: ExtiInput<'static, Async>, enc: Encoder) {
 /// configuration of the interrupt.
 #[embassy_executor::task]
 async fn tick(mut leds: io::Leds<'static>, mut ports: io::Ports<'static>) {
-    let mut ticker = Ticker::every(Duration::from_millis(1));
+    let mut ticker = ticker(Duration::from_millis(1));
     let mut status = StatusLeds::new();
     let mut n: u32 = 0;
     loop {
@@ -855,10 +891,10 @@ async fn tick(mut leds: io::Leds<'static>, mut ports: io::Ports<'static>) {
         ports.write_outputs(outputs);
         ports.set_brake_released(brake && hw::pwm::break_latched() == 0);
         let (run, err) = status.levels(now);
-        leds.green.set_level(drive_leds.green.into());
-        leds.red.set_level(drive_leds.red.into());
-        leds.run.set_level(run.into());
-        leds.err.set_level(err.into());
+        io::set_output(&mut leds.green, drive_leds.green);
+        io::set_output(&mut leds.red, drive_leds.red);
+        io::set_output(&mut leds.run, run);
+        io::set_output(&mut leds.err, err);
     }
 }
 
@@ -888,7 +924,7 @@ fn over_current(s: &mut Shared) {
 async fn supervisor(mut wdg: hw::safety::Watchdog, enc: Encoder) {
     offset_self_check(&mut wdg).await;
 
-    let mut ticker = Ticker::every(Duration::from_millis(10));
+    let mut ticker = ticker(Duration::from_millis(10));
     let mut last_samples = CURRENT_SAMPLES.count();
     let mut ticks: u32 = 0;
     loop {

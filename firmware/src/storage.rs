@@ -404,6 +404,14 @@ struct PendingCount {
     len: usize,
 }
 
+impl PendingCount {
+    /// The value's bytes (`len` ≤ 8 by construction; `min` keeps the slice checked
+    /// without a panic path).
+    fn bytes(&self) -> &[u8] {
+        &self.value[..self.len.min(8)]
+    }
+}
+
 impl Storage {
     /// A store using two slots of `slot_size` bytes from `base` (checked against the
     /// flash geometry by [`Storage::check`] on every operation).
@@ -585,7 +593,7 @@ impl Storage {
             }
             if pending.as_ref().is_some_and(|p| p.index != index) {
                 if let Some(p) = pending.take() {
-                    apply(dict, p.index, 0, &p.value[..p.len], &mut report);
+                    apply(dict, p.index, 0, p.bytes(), &mut report);
                 }
             }
             if sub == 0 && n <= 8 && count_first(dict, index) {
@@ -603,7 +611,7 @@ impl Storage {
             apply(dict, index, sub, &value[..n], &mut report);
         }
         if let Some(p) = pending.take() {
-            apply(dict, p.index, 0, &p.value[..p.len], &mut report);
+            apply(dict, p.index, 0, p.bytes(), &mut report);
         }
         report
     }

@@ -124,6 +124,25 @@ impl<T: Copy> Exchange<T> {
         self.seq.store(0, Ordering::Release);
     }
 
+    /// As [`Exchange::reset`] with `v` = the zero value changed by `set`, written in
+    /// place (a large constant `v` would be an image in flash, copied twice). As for
+    /// [`Exchange::zeroed`], the compiler rejects a `T` for which zero bytes are not a
+    /// valid value.
+    ///
+    /// # Safety
+    /// As [`Exchange::reset`].
+    pub unsafe fn reset_then(&self, set: impl Fn(&mut T)) {
+        for b in &self.bufs {
+            // SAFETY: exclusive access (the caller's contract); a zero `T` that is not
+            // a valid value is a compile-time error (const evaluation).
+            unsafe {
+                b.get().write(const { core::mem::zeroed() });
+                set(&mut *b.get());
+            }
+        }
+        self.seq.store(0, Ordering::Release);
+    }
+
     /// Publishes `v` (one writer at a time).
     pub fn write(&self, v: T) {
         let next = self.seq.load(Ordering::Relaxed).wrapping_add(1);
@@ -237,46 +256,25 @@ pub struct Feedback {
 /// Cyclic path → interrupt (set-points, configuration, permission). `None` from
 /// [`init`] on (zero bytes before: .bss, not an image in flash).
 pub static COMMAND: Exchange<Option<ControlCommand>> = Exchange::zeroed();
-/// Interrupt → cyclic path (measurements). [`FEEDBACK_START`] from [`init`] on (zero
+/// Interrupt → cyclic path (measurements). [`feedback_start`] from [`init`] on (zero
 /// bytes before: .bss, not an image in flash).
 pub static FEEDBACK: Exchange<Feedback> = Exchange::zeroed();
 
-/// What [`FEEDBACK`] holds until the interrupt publishes.
-const FEEDBACK_START: Feedback = Feedback {
-    axis: firmware::drive::AxisState {
-        position: 0,
-        velocity: 0,
-        ia_ma: 0,
-        ib_ma: 0,
-        ia_set_ma: 0,
-        ib_set_ma: 0,
-        current_permille: 0,
-        electrical_angle: 0,
-        bus_mv: 0,
-        index: None,
-        probe1: firmware::cia402::EdgeLatch {
-            rising: None,
-            falling: None,
-        },
-        probe2: firmware::cia402::EdgeLatch {
-            rising: None,
-            falling: None,
-        },
-        overcurrent_trip: false,
-        current_limited: false,
-        servo_following_error: 0,
-        // Nothing published yet: the motor side is not known to be ready.
-        commutation_pending: true,
-    },
-    bridges_on: false,
-    index_seq: 0,
-    index_units: 0,
-    probe1: NO_EDGES,
-    probe2: NO_EDGES,
-    aligned: false,
-    align_failures: 0,
-    current: CurrentReport::NONE,
-};
+/// What [`FEEDBACK`] holds until the interrupt publishes, set on the zero value (the
+/// numbers 0, the flags `false`; see [`Exchange::reset_then`]): no latches, no tune
+/// report, and the motor side not known to be ready.
+fn feedback_start(f: &mut Feedback) {
+    let no_latch = firmware::cia402::EdgeLatch {
+        rising: None,
+        falling: None,
+    };
+    f.axis.index = None;
+    f.axis.probe1 = no_latch;
+    f.axis.probe2 = no_latch;
+    // Nothing published yet: the motor side is not known to be ready.
+    f.axis.commutation_pending = true;
+    f.current = CurrentReport::NONE;
+}
 
 const NO_EDGES: Edges<i32> = Edges {
     active_seq: 0,
@@ -378,7 +376,7 @@ pub fn init(
     // main spawns the tasks that use the cells after `init`.
     unsafe {
         COMMAND.reset(None);
-        FEEDBACK.reset(FEEDBACK_START);
+        FEEDBACK.reset_then(feedback_start);
     }
     // Written field by field into the static: the state is ≈ 9 KiB (the motion
     // layer's smoothing buffers), so a whole `Control` built on the stack and moved

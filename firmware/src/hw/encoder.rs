@@ -10,7 +10,7 @@
 //! the latest edge, so of two edges within one servo period (100 µs) the later one is
 //! reported, with its right direction. The counter wraps at 2³², which `foc`'s
 //! wrapping position arithmetic expects.
-use embassy_stm32::gpio::{AfType, Flex, Pull};
+use embassy_stm32::gpio::{AfType, Pull};
 use embassy_stm32::pac;
 use embassy_stm32::pac::timer::vals;
 use embassy_stm32::peripherals::{PA15, PB10, PB11, PB3, TIM2};
@@ -33,13 +33,9 @@ pub struct Encoder {
     _private: (),
 }
 
-fn capture_pin<'d, C: embassy_stm32::timer::TimerChannel, P: TimerPin<TIM2, C>>(
-    pin: Peri<'d, P>,
-) -> Flex<'d> {
+fn capture_pin<C: embassy_stm32::timer::TimerChannel, P: TimerPin<TIM2, C>>(pin: Peri<'static, P>) {
     let af = pin.af_num();
-    let mut f = Flex::new(pin);
-    f.set_as_af_unchecked(af, AfType::input(Pull::None));
-    f
+    crate::hw::pwm::af_pin(pin.into(), af, AfType::input(Pull::None), false);
 }
 
 /// Starts the encoder counter and the two captures.
@@ -51,9 +47,9 @@ pub fn init(p: EncoderPins<'static>) -> Encoder {
         ..Default::default()
     };
     let qei = Qei::new(p.tim2, p.a, p.b, cfg);
-    let z = capture_pin::<Ch3, _>(p.z);
-    let in1 = capture_pin::<Ch4, _>(p.in1);
-    core::mem::forget((qei, z, in1));
+    capture_pin::<Ch3, _>(p.z);
+    capture_pin::<Ch4, _>(p.in1);
+    core::mem::forget(qei);
 
     let t = pac::TIM2;
     t.cr1().modify(|w| w.set_cen(false));

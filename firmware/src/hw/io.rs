@@ -100,6 +100,13 @@ pub fn init(p: IoPins<'static>) -> (Leds<'static>, Ports<'static>, Dip<'static>)
     (leds, ports, dip)
 }
 
+/// Drives an output high (`true`) or low: one out-of-line copy for the 1 ms tick's
+/// LEDs, outputs and brake (`Output::set_level` inlined is a BSRR write per level).
+#[inline(never)]
+pub fn set_output(pin: &mut Output<'_>, high: bool) {
+    pin.set_level(Level::from(high));
+}
+
 impl Ports<'_> {
     /// IN1..IN5 as bits 0..4, 1 = input active (opto conducting pulls the pin low).
     pub fn read_inputs(&self) -> u8 {
@@ -115,13 +122,13 @@ impl Ports<'_> {
     /// Sets OUT1..OUT3 from bits 0..2.
     pub fn write_outputs(&mut self, bits: u8) {
         for (i, pin) in self.outputs.iter_mut().enumerate() {
-            pin.set_level(Level::from(bits & (1 << i) != 0));
+            set_output(pin, bits & (1 << i) != 0);
         }
     }
 
     /// Releases (true) or engages (false) the holding brake.
     pub fn set_brake_released(&mut self, released: bool) {
-        self.brake.set_level(Level::from(released));
+        set_output(&mut self.brake, released);
     }
 }
 

@@ -1,8 +1,9 @@
 //! The power stage: two full H-bridges on TIM1 (phase A) and TIM8 (phase B).
 //!
-//! embassy-stm32 enables the timer clocks (`timer::low_level::Timer`) and puts the
-//! eight output pins on their alternate functions (`PwmPin`, `ComplementaryPwmPin`);
-//! the timers themselves are programmed through the PAC (`embassy_stm32::pac`),
+//! embassy-stm32 enables the timer clocks (`timer::low_level::Timer`); the eight
+//! output pins go on their alternate functions as its `PwmPin` / `ComplementaryPwmPin`
+//! would put them (latch low, then push-pull, very high speed; the channel's AF number
+//! from the same pin traits), through one out-of-line [`af_pin`]; the timers themselves are programmed through the PAC (`embassy_stm32::pac`),
 //! because the HAL has no notion of motor control:
 //!
 //! * centre-aligned mode 1, PSC = 0, ARR = [`board::PWM_ARR`] → 40 kHz, CCR preload;
@@ -22,15 +23,16 @@
 //! the drive logic when the power stage is to be energised.
 use core::sync::atomic::{AtomicU8, Ordering};
 
-use embassy_stm32::gpio::{AfType, Flex, OutputType, Pull};
+use embassy_stm32::gpio::{AfType, AnyPin, Flex, OutputType, Pull, Speed};
 use embassy_stm32::interrupt::{self, InterruptExt, Priority};
 use embassy_stm32::pac;
 use embassy_stm32::pac::timer::vals;
 use embassy_stm32::peripherals::{PA6, PA7, PA8, PA9, PB0, PC10, PC11, PC6, PC7, PD2, TIM1, TIM8};
-use embassy_stm32::timer::complementary_pwm::ComplementaryPwmPin;
 use embassy_stm32::timer::low_level::Timer;
-use embassy_stm32::timer::simple_pwm::PwmPin;
-use embassy_stm32::timer::{AdvancedInstance4Channel, BkIn1, BreakInputPin, Ch1, Ch2};
+use embassy_stm32::timer::{
+    AdvancedInstance4Channel, BkIn1, BreakInputPin, Ch1, Ch2, TimerChannel, TimerComplementaryPin,
+    TimerPin,
+};
 use embassy_stm32::Peri;
 
 use crate::board;
@@ -61,41 +63,67 @@ const DTG: u8 = {
 /// Bit 0: TIM1 break seen, bit 1: TIM8 break seen (latched until [`rearm`]).
 static BREAK_LATCH: AtomicU8 = AtomicU8::new(0);
 
-fn break_pin<'d, T: AdvancedInstance4Channel, P: BreakInputPin<T, BkIn1>>(
-    pin: Peri<'d, P>,
-) -> Flex<'d> {
-    let af = pin.af_num();
+/// A pin on alternate function `af` for the rest of the program (the driver is not
+/// dropped: dropping would reset the pin). `low_first`: the output latch is set low
+/// first, in the same critical section (what embassy-stm32's `PwmPin::new` and
+/// `ComplementaryPwmPin::new` do). One out-of-line copy for every pin of the power
+/// stage and the encoder (`hw::encoder`).
+#[inline(never)]
+pub(crate) fn af_pin(pin: Peri<'static, AnyPin>, af: u8, ty: AfType, low_first: bool) {
     let mut f = Flex::new(pin);
-    f.set_as_af_unchecked(af, AfType::input(Pull::Up));
-    f
+    cortex_m::interrupt::free(|_| {
+        if low_first {
+            f.set_low();
+        }
+        f.set_as_af_unchecked(af, ty);
+    });
+    core::mem::forget(f);
+}
+
+/// A bridge output on its timer channel (as `PwmPin::new`: low, then alternate
+/// function, push-pull, very high speed).
+fn pwm_pin<T: AdvancedInstance4Channel, C: TimerChannel>(pin: Peri<'static, impl TimerPin<T, C>>) {
+    let af = pin.af_num();
+    af_pin(pin.into(), af, PWM_OUT, true);
+}
+
+/// A complementary bridge output (as `ComplementaryPwmPin::new`).
+fn pwm_pin_n<T: AdvancedInstance4Channel, C: TimerChannel>(
+    pin: Peri<'static, impl TimerComplementaryPin<T, C>>,
+) {
+    let af = pin.af_num();
+    af_pin(pin.into(), af, PWM_OUT, true);
+}
+
+/// Output type of the bridge outputs.
+const PWM_OUT: AfType = AfType::output(OutputType::PushPull, Speed::VeryHigh);
+
+fn break_pin<T: AdvancedInstance4Channel, P: BreakInputPin<T, BkIn1>>(pin: Peri<'static, P>) {
+    let af = pin.af_num();
+    af_pin(pin.into(), af, AfType::input(Pull::Up), false);
 }
 
 /// Configures both bridges (outputs off) and starts the counters. Call once.
 pub fn init(p: PowerStage<'static>) {
-    let pp = OutputType::PushPull;
     // Output pins first (driven low, then on their alternate function), then the
     // timer clocks (enabled and reset). `configure` programs every timer register the
     // HAL's `ComplementaryPwm` would set (its PSC/ARR computation, a 64-bit division,
     // is not needed: PSC = 0, ARR = PWM_ARR), and leaves MOE off throughout.
-    let pins_a = (
-        PwmPin::<TIM1, Ch1>::new(p.a1h, pp),
-        ComplementaryPwmPin::<TIM1, Ch1>::new(p.a1l, pp),
-        PwmPin::<TIM1, Ch2>::new(p.a2h, pp),
-        ComplementaryPwmPin::<TIM1, Ch2>::new(p.a2l, pp),
-    );
-    let pins_b = (
-        PwmPin::<TIM8, Ch1>::new(p.b1h, pp),
-        ComplementaryPwmPin::<TIM8, Ch1>::new(p.b1l, pp),
-        PwmPin::<TIM8, Ch2>::new(p.b2h, pp),
-        ComplementaryPwmPin::<TIM8, Ch2>::new(p.b2l, pp),
-    );
+    pwm_pin::<TIM1, Ch1>(p.a1h);
+    pwm_pin_n::<TIM1, Ch1>(p.a1l);
+    pwm_pin::<TIM1, Ch2>(p.a2h);
+    pwm_pin_n::<TIM1, Ch2>(p.a2l);
+    pwm_pin::<TIM8, Ch1>(p.b1h);
+    pwm_pin_n::<TIM8, Ch1>(p.b1l);
+    pwm_pin::<TIM8, Ch2>(p.b2h);
+    pwm_pin_n::<TIM8, Ch2>(p.b2l);
     let tim_a = Timer::new(p.tim1);
     let tim_b = Timer::new(p.tim8);
-    let bk_a = break_pin::<TIM1, _>(p.bkin_a);
-    let bk_b = break_pin::<TIM8, _>(p.bkin_b);
+    break_pin::<TIM1, _>(p.bkin_a);
+    break_pin::<TIM8, _>(p.bkin_b);
     // The timers and pins stay configured for the life of the program; the drivers
     // are not dropped (dropping would reset the pins and stop the timer clocks).
-    core::mem::forget((pins_a, pins_b, tim_a, tim_b, bk_a, bk_b));
+    core::mem::forget((tim_a, tim_b));
 
     let t1 = pac::TIM1;
     let t8 = pac::TIM8;
