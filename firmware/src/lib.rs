@@ -12,6 +12,7 @@ pub mod flash_region;
 pub mod identity;
 pub mod io;
 pub mod latch;
+pub mod mem;
 pub mod monitor;
 pub mod motion;
 pub mod params;
