@@ -33,12 +33,12 @@ macro_rules! packed_dictionary {
         use $crate::od::{pack as p, Entry, Object};
         const OD_PACK_PARTS: &[&[Object]] = $parts;
         const O: usize = p::object_count(OD_PACK_PARTS);
-        const NE: usize = p::entry_count(OD_PACK_PARTS);
+        const NE: usize = p::entry_count::<O>(OD_PACK_PARTS);
         const S: usize = O + NE;
-        const LIST: [&str; S] = p::name_list(OD_PACK_PARTS);
+        const LIST: [&str; S] = p::name_list::<O, NE, S>(OD_PACK_PARTS);
         const NAME_AT: [u16; S] = p::name_offsets(&LIST);
         const B: usize = p::name_bytes(&LIST, &NAME_AT);
-        const SRC: [Entry; NE] = p::entry_list(OD_PACK_PARTS);
+        const SRC: [Entry; NE] = p::entry_list::<O, NE>(OD_PACK_PARTS);
         const RUN_AT: [u16; O] = p::run_offsets(OD_PACK_PARTS, &SRC);
         const E: usize = p::run_total(OD_PACK_PARTS, &RUN_AT);
         static NAMES: [u8; B] = p::names(&LIST, &NAME_AT);
@@ -62,16 +62,13 @@ pub const fn object_count(parts: &[&[Object]]) -> usize {
 }
 
 /// Number of entries of all parts (before identical tables are merged).
-pub const fn entry_count(parts: &[&[Object]]) -> usize {
+pub const fn entry_count<const O: usize>(parts: &[&[Object]]) -> usize {
+    let objs = flat::<O>(parts);
     let mut n = 0;
-    let mut p = 0;
-    while p < parts.len() {
-        let mut i = 0;
-        while i < parts[p].len() {
-            n += parts[p][i].entries().len();
-            i += 1;
-        }
-        p += 1;
+    let mut i = 0;
+    while i < O {
+        n += objs[i].entries().len();
+        i += 1;
     }
     n
 }
@@ -84,35 +81,22 @@ const fn plain(o: super::Name) -> &'static str {
 }
 
 /// Every name: first the objects' (in the order of the parts), then the entries'.
-pub const fn name_list<const S: usize>(parts: &[&[Object]]) -> [&'static str; S] {
+pub const fn name_list<const O: usize, const NE: usize, const S: usize>(
+    parts: &[&[Object]],
+) -> [&'static str; S] {
+    assert!(O + NE == S, "od::pack: name count");
+    let objs = flat::<O>(parts);
+    let entries = entry_list::<O, NE>(parts);
     let mut out = [""; S];
     let mut k = 0;
-    let mut p = 0;
-    while p < parts.len() {
-        let mut i = 0;
-        while i < parts[p].len() {
-            out[k] = plain(parts[p][i].name());
-            k += 1;
-            i += 1;
-        }
-        p += 1;
+    while k < O {
+        out[k] = plain(objs[k].name());
+        k += 1;
     }
-    let mut p = 0;
-    while p < parts.len() {
-        let mut i = 0;
-        while i < parts[p].len() {
-            let entries = parts[p][i].entries();
-            let mut j = 0;
-            while j < entries.len() {
-                out[k] = plain(entries[j].name());
-                k += 1;
-                j += 1;
-            }
-            i += 1;
-        }
-        p += 1;
+    while k < S {
+        out[k] = plain(entries[k - O].name());
+        k += 1;
     }
-    assert!(k == S, "od::pack: name count");
     out
 }
 
@@ -178,23 +162,20 @@ pub const fn names<const S: usize, const B: usize>(
 }
 
 /// Every entry of the parts, object after object.
-pub const fn entry_list<const NE: usize>(parts: &[&[Object]]) -> [Entry; NE] {
+pub const fn entry_list<const O: usize, const NE: usize>(parts: &[&[Object]]) -> [Entry; NE] {
+    let objs = flat::<O>(parts);
     let mut out = [super::PLACEHOLDER_ENTRY; NE];
     let mut k = 0;
-    let mut p = 0;
-    while p < parts.len() {
-        let mut i = 0;
-        while i < parts[p].len() {
-            let entries = parts[p][i].entries();
-            let mut j = 0;
-            while j < entries.len() {
-                out[k] = entries[j];
-                k += 1;
-                j += 1;
-            }
-            i += 1;
+    let mut i = 0;
+    while i < O {
+        let entries = objs[i].entries();
+        let mut j = 0;
+        while j < entries.len() {
+            out[k] = entries[j];
+            k += 1;
+            j += 1;
         }
-        p += 1;
+        i += 1;
     }
     out
 }
@@ -364,4 +345,77 @@ pub const fn objects<const O: usize, const E: usize, const S: usize, const B: us
         i += 1;
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::od::{self, Access, DataType, Entry, Object};
+
+    const TWIN: &[Entry] = &[
+        Entry::count(2),
+        Entry::new(1, "Fault code 1", DataType::Unsigned16, Access::RO),
+        Entry::new(2, "Fault code 2", DataType::Unsigned16, Access::RO).default(7),
+    ];
+    const LOCAL: &[Object] = &[
+        Object::record(0x3001, "Fault history copy", TWIN, ""),
+        Object::var(
+            0x3000,
+            "Position actual value",
+            &[Entry::new(
+                0,
+                "Position actual value",
+                DataType::Integer32,
+                Access::RO,
+            )],
+            "",
+        ),
+        Object::record(0x3002, "Fault history copy", TWIN, ""),
+        Object::var(
+            0x3003,
+            "Device name",
+            &[Entry::text(0, "Device name", 16, "ECS drive")],
+            "",
+        ),
+    ];
+    const PARTS: &[&[Object]] = &[crate::pdo::OBJECTS, LOCAL, crate::sync::DIAG_OBJECTS];
+    static PACKED: &[Object] = crate::packed_dictionary!(PARTS);
+
+    #[test]
+    fn packed_table_describes_the_sources() {
+        assert!(od::is_well_formed(PACKED));
+        let n: usize = PARTS.iter().map(|p| p.len()).sum();
+        assert_eq!(PACKED.len(), n);
+        for part in PARTS {
+            for src in part.iter() {
+                let p = od::find(PACKED, src.index).expect("packed object");
+                assert_eq!(p, src, "{:#06x}", src.index);
+                assert!(p.name().as_plain().is_none());
+                assert_eq!(p.name(), src.name().as_plain().unwrap());
+                for (pe, se) in p.entries().iter().zip(src.entries()) {
+                    assert_eq!(pe, se, "{:#06x}:{}", src.index, se.sub);
+                    assert_eq!(pe.name(), se.name().as_plain().unwrap());
+                    assert_eq!(pe.default_value(), se.default_value());
+                    assert_eq!((pe.min(), pe.max()), (se.min(), se.max()));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn equal_tables_and_names_are_stored_once() {
+        let a = od::find(PACKED, 0x3001).unwrap();
+        let b = od::find(PACKED, 0x3002).unwrap();
+        assert_eq!(a.entries().as_ptr(), b.entries().as_ptr());
+        // A VAR's entry carries its object's name (packed once, read by both).
+        let v = od::find(PACKED, 0x3000).unwrap();
+        assert_eq!(v.name().bytes().count(), v.entries()[0].name().len());
+        assert_eq!(v.name(), v.entries()[0].name());
+        // Tables that differ stay apart.
+        let t = od::find(PACKED, 0x3003).unwrap();
+        assert_ne!(t.entries().as_ptr(), v.entries().as_ptr());
+        assert_eq!(
+            t.entries()[0].default_value(),
+            od::DefaultValue::Text("ECS drive")
+        );
+    }
 }
