@@ -805,7 +805,7 @@ unsafe impl Sync for Object {}
 unsafe impl Send for Object {}
 
 /// Splits an entry table into the thin pointer and the one-byte count [`Object`]
-/// keeps; more than 255 entries is a compile-time error for the constant tables.
+/// keeps; more than [`MAX_ENTRIES`] is a compile-time error for the constant tables.
 const fn short_entries(entries: &'static [Entry]) -> (*const Entry, u8) {
     assert!(
         entries.len() <= MAX_ENTRIES,
