@@ -386,31 +386,31 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
         Err(EscError::Timeout)
     }
 
-    fn csr_read(&mut self, mut addr: u16, buf: &mut [u8]) -> Result<(), EscError> {
+    /// CSR-window access of `data` at ESC register `addr`, split into naturally
+    /// aligned 1-, 2- and 4-byte commands. One out-of-line copy for reads and writes:
+    /// a write puts each chunk into ECAT_CSR_DATA before its command, a read takes it
+    /// from there once the command is done.
+    #[inline(never)]
+    fn csr(&mut self, mut addr: u16, mut data: Data<'_>) -> Result<(), EscError> {
+        let len = data.len();
         let mut done = 0;
-        while done < buf.len() {
-            let size = csr_chunk(addr, buf.len() - done);
-            let command = CSR_BUSY | CSR_READ | ((size as u32) << CSR_SIZE_SHIFT) | addr as u32;
+        while done < len {
+            let size = csr_chunk(addr, len - done);
+            let mut command = CSR_BUSY | ((size as u32) << CSR_SIZE_SHIFT) | addr as u32;
+            match &data {
+                Data::Write(d) => {
+                    let mut v = [0u8; 4];
+                    v[..size].copy_from_slice(&d[done..done + size]);
+                    self.write_reg(reg::ECAT_CSR_DATA, u32::from_le_bytes(v))?;
+                }
+                Data::Read(_) => command |= CSR_READ,
+            }
             self.write_reg(reg::ECAT_CSR_CMD, command)?;
             self.wait_csr()?;
-            let v = self.read_reg(reg::ECAT_CSR_DATA)?.to_le_bytes();
-            buf[done..done + size].copy_from_slice(&v[..size]);
-            done += size;
-            addr = addr.wrapping_add(size as u16);
-        }
-        Ok(())
-    }
-
-    fn csr_write(&mut self, mut addr: u16, data: &[u8]) -> Result<(), EscError> {
-        let mut done = 0;
-        while done < data.len() {
-            let size = csr_chunk(addr, data.len() - done);
-            let mut v = [0u8; 4];
-            v[..size].copy_from_slice(&data[done..done + size]);
-            self.write_reg(reg::ECAT_CSR_DATA, u32::from_le_bytes(v))?;
-            let command = CSR_BUSY | ((size as u32) << CSR_SIZE_SHIFT) | addr as u32;
-            self.write_reg(reg::ECAT_CSR_CMD, command)?;
-            self.wait_csr()?;
+            if let Data::Read(b) = &mut data {
+                let v = self.read_reg(reg::ECAT_CSR_DATA)?.to_le_bytes();
+                b[done..done + size].copy_from_slice(&v[..size]);
+            }
             done += size;
             addr = addr.wrapping_add(size as u16);
         }
@@ -441,68 +441,84 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
         Err(EscError::Timeout)
     }
 
-    fn pram_read(&mut self, addr: u16, buf: &mut [u8]) -> Result<(), EscError> {
-        if self.rd_dirty {
-            self.pram_abort(reg::PRAM_RD_CMD)?;
+    /// Process-RAM access of `data` at ESC address `addr` through the read or the
+    /// write FIFO. One out-of-line copy for both directions: the same start sequence
+    /// (abort of a transfer left unfinished, address and length, start) on the
+    /// direction's registers, then bursts of as many words as the FIFO reports.
+    #[inline(never)]
+    fn pram(&mut self, addr: u16, mut data: Data<'_>) -> Result<(), EscError> {
+        let write = matches!(data, Data::Write(_));
+        let cmd_reg = if write {
+            reg::PRAM_WR_CMD
+        } else {
+            reg::PRAM_RD_CMD
+        };
+        // PRAM_*_ADDR_LEN sits right below its command register.
+        let addr_len_reg = cmd_reg - 4;
+        let dirty = if write { self.wr_dirty } else { self.rd_dirty };
+        if dirty {
+            self.pram_abort(cmd_reg)?;
         }
-        self.rd_dirty = true;
-        self.write_reg_inline(
-            reg::PRAM_RD_ADDR_LEN,
-            ((buf.len() as u32) << 16) | addr as u32,
-        )?;
-        self.write_reg_inline(reg::PRAM_RD_CMD, PRAM_BUSY)?;
+        self.set_dirty(write, true);
+        let len = data.len();
+        self.write_reg_inline(addr_len_reg, ((len as u32) << 16) | addr as u32)?;
+        self.write_reg_inline(cmd_reg, PRAM_BUSY)?;
         let lead = (addr & 3) as usize;
-        let total_words = (lead + buf.len()).div_ceil(4);
+        let total_words = (lead + len).div_ceil(4);
         let mut word = 0;
         let mut chunk = [0u8; FIFO_WORDS * 4];
         while word < total_words {
-            let n = self
-                .pram_wait_fifo(reg::PRAM_RD_CMD)?
-                .min(total_words - word);
-            self.read_burst(reg::PRAM_RD_FIFO, &mut chunk[..n * 4])?;
-            for (k, b) in chunk[..n * 4].iter().enumerate() {
-                let stream = word * 4 + k;
-                if stream >= lead && stream - lead < buf.len() {
-                    buf[stream - lead] = *b;
+            let n = self.pram_wait_fifo(cmd_reg)?.min(total_words - word);
+            let bytes = &mut chunk[..n * 4];
+            match &mut data {
+                Data::Read(buf) => {
+                    self.read_burst(reg::PRAM_RD_FIFO, bytes)?;
+                    for (k, b) in bytes.iter().enumerate() {
+                        let stream = word * 4 + k;
+                        if stream >= lead && stream - lead < buf.len() {
+                            buf[stream - lead] = *b;
+                        }
+                    }
+                }
+                Data::Write(src) => {
+                    for (k, b) in bytes.iter_mut().enumerate() {
+                        let stream = word * 4 + k;
+                        *b = if stream >= lead && stream - lead < src.len() {
+                            src[stream - lead]
+                        } else {
+                            0
+                        };
+                    }
+                    self.write_burst(reg::PRAM_WR_FIFO, bytes)?;
                 }
             }
             word += n;
         }
-        self.rd_dirty = false;
+        self.set_dirty(write, false);
         Ok(())
     }
 
-    fn pram_write(&mut self, addr: u16, data: &[u8]) -> Result<(), EscError> {
-        if self.wr_dirty {
-            self.pram_abort(reg::PRAM_WR_CMD)?;
+    fn set_dirty(&mut self, write: bool, dirty: bool) {
+        if write {
+            self.wr_dirty = dirty;
+        } else {
+            self.rd_dirty = dirty;
         }
-        self.wr_dirty = true;
-        self.write_reg_inline(
-            reg::PRAM_WR_ADDR_LEN,
-            ((data.len() as u32) << 16) | addr as u32,
-        )?;
-        self.write_reg_inline(reg::PRAM_WR_CMD, PRAM_BUSY)?;
-        let lead = (addr & 3) as usize;
-        let total_words = (lead + data.len()).div_ceil(4);
-        let mut word = 0;
-        let mut chunk = [0u8; FIFO_WORDS * 4];
-        while word < total_words {
-            let n = self
-                .pram_wait_fifo(reg::PRAM_WR_CMD)?
-                .min(total_words - word);
-            for (k, b) in chunk[..n * 4].iter_mut().enumerate() {
-                let stream = word * 4 + k;
-                *b = if stream >= lead && stream - lead < data.len() {
-                    data[stream - lead]
-                } else {
-                    0
-                };
-            }
-            self.write_burst(reg::PRAM_WR_FIFO, &chunk[..n * 4])?;
-            word += n;
+    }
+}
+
+/// The data of one ESC access: the buffer a read fills or the bytes a write sends.
+enum Data<'a> {
+    Read(&'a mut [u8]),
+    Write(&'a [u8]),
+}
+
+impl Data<'_> {
+    fn len(&self) -> usize {
+        match self {
+            Data::Read(b) => b.len(),
+            Data::Write(d) => d.len(),
         }
-        self.wr_dirty = false;
-        Ok(())
     }
 }
 
@@ -541,10 +557,10 @@ impl<SPI: SpiDevice> EscAccess for Lan9252<SPI> {
         let regs = split(addr, buf.len())?;
         let (r, p) = buf.split_at_mut(regs);
         if !r.is_empty() {
-            self.csr_read(addr, r)?;
+            self.csr(addr, Data::Read(r))?;
         }
         if !p.is_empty() {
-            self.pram_read(addr + regs as u16, p)?;
+            self.pram(addr + regs as u16, Data::Read(p))?;
         }
         Ok(())
     }
@@ -553,10 +569,10 @@ impl<SPI: SpiDevice> EscAccess for Lan9252<SPI> {
         let regs = split(addr, data.len())?;
         let (r, p) = data.split_at(regs);
         if !r.is_empty() {
-            self.csr_write(addr, r)?;
+            self.csr(addr, Data::Write(r))?;
         }
         if !p.is_empty() {
-            self.pram_write(addr + regs as u16, p)?;
+            self.pram(addr + regs as u16, Data::Write(p))?;
         }
         Ok(())
     }
