@@ -58,6 +58,13 @@ impl EscSpi {
     }
 
     fn transfer(&mut self, read: &mut [u8], write: &[u8]) -> Result<(), spi::Error> {
+        if !DMA_TRANSFER {
+            // All polled: embassy's blocking transfer clocks max(read, write) bytes,
+            // pads `write` with zeros and drops what comes after `read` is full —
+            // the same bytes on the wire as the split below (whose reads clock out
+            // zeros), in one loop.
+            return self.bus.blocking_transfer(read, write);
+        }
         let n = read.len().min(write.len());
         let (r0, r1) = read.split_at_mut(n);
         let (w0, w1) = write.split_at(n);
