@@ -350,14 +350,17 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
     /// One read transaction of `buf.len()` bytes starting at system address `addr`.
     fn read_burst(&mut self, addr: u16, buf: &mut [u8]) -> Result<(), EscError> {
         let a = addr_bytes(addr);
-        let fast = [cmd::FAST_READ, a[0], a[1], FAST_READ_DUMMY];
-        let serial = [cmd::SERIAL_READ, a[0], a[1]];
-        let header: &[u8] = match self.cfg.read_command {
-            ReadCommand::Fast => &fast,
-            ReadCommand::Serial => &serial,
+        // Fast read: instruction, address, dummy byte; serial read: the first three.
+        let (instruction, header_len) = match self.cfg.read_command {
+            ReadCommand::Fast => (cmd::FAST_READ, 4),
+            ReadCommand::Serial => (cmd::SERIAL_READ, 3),
         };
+        let header = [instruction, a[0], a[1], FAST_READ_DUMMY];
         self.spi
-            .transaction(&mut [Operation::Write(header), Operation::Read(buf)])
+            .transaction(&mut [
+                Operation::Write(&header[..header_len]),
+                Operation::Read(buf),
+            ])
             .map_err(|_| EscError::Bus)
     }
 
@@ -370,9 +373,13 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
             .map_err(|_| EscError::Bus)
     }
 
-    fn wait_csr(&mut self) -> Result<(), EscError> {
+    /// Polls command register `cmd_reg` (ECAT_CSR_CMD or ECAT_PRAM_*_CMD) until its
+    /// busy bit reads 0. One out-of-line copy for the CSR commands and the PRAM aborts.
+    #[inline(never)]
+    fn wait_idle(&mut self, cmd_reg: u16) -> Result<(), EscError> {
+        const { assert!(CSR_BUSY == PRAM_BUSY) };
         for _ in 0..self.cfg.max_polls.max(1) {
-            if self.read_reg(reg::ECAT_CSR_CMD)? & CSR_BUSY == 0 {
+            if self.read_reg(cmd_reg)? & CSR_BUSY == 0 {
                 return Ok(());
             }
         }
@@ -403,7 +410,7 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
                 Data::Read(_) => command |= CSR_READ,
             }
             self.write_reg(reg::ECAT_CSR_CMD, command)?;
-            self.wait_csr()?;
+            self.wait_idle(reg::ECAT_CSR_CMD)?;
             if let Data::Read(b) = &mut data {
                 let v = self.read_reg(reg::ECAT_CSR_DATA)?.to_le_bytes();
                 if let Some(dst) = b.get_mut(done..done + size) {
@@ -419,12 +426,7 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
     /// Aborts a PRAM transfer left unfinished and waits until the unit is idle.
     fn pram_abort(&mut self, cmd_reg: u16) -> Result<(), EscError> {
         self.write_reg(cmd_reg, PRAM_ABORT)?;
-        for _ in 0..self.cfg.max_polls.max(1) {
-            if self.read_reg(cmd_reg)? & PRAM_BUSY == 0 {
-                return Ok(());
-            }
-        }
-        Err(EscError::Timeout)
+        self.wait_idle(cmd_reg)
     }
 
     /// Polls a PRAM command register until the FIFO reports words (read: data, write:
