@@ -336,16 +336,9 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
     }
 
     /// Writes a 32-bit system register (serial write, 7 bytes). Out of line: one copy
-    /// for the register accesses of set-up and mailbox paths (the process-RAM paths use
-    /// [`Self::write_reg_inline`]).
+    /// for every register write (set-up, CSR window, process-RAM start).
     #[inline(never)]
     pub fn write_reg(&mut self, addr: u16, v: u32) -> Result<(), EscError> {
-        self.write_reg_inline(addr, v)
-    }
-
-    /// [`Self::write_reg`] inlined into the cyclic process-RAM transfers.
-    #[inline(always)]
-    fn write_reg_inline(&mut self, addr: u16, v: u32) -> Result<(), EscError> {
         let a = addr_bytes(addr);
         let d = v.to_le_bytes();
         let frame = [cmd::SERIAL_WRITE, a[0], a[1], d[0], d[1], d[2], d[3]];
@@ -357,14 +350,17 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
     /// One read transaction of `buf.len()` bytes starting at system address `addr`.
     fn read_burst(&mut self, addr: u16, buf: &mut [u8]) -> Result<(), EscError> {
         let a = addr_bytes(addr);
-        let fast = [cmd::FAST_READ, a[0], a[1], FAST_READ_DUMMY];
-        let serial = [cmd::SERIAL_READ, a[0], a[1]];
-        let header: &[u8] = match self.cfg.read_command {
-            ReadCommand::Fast => &fast,
-            ReadCommand::Serial => &serial,
+        // Fast read: instruction, address, dummy byte; serial read: the first three.
+        let (instruction, header_len) = match self.cfg.read_command {
+            ReadCommand::Fast => (cmd::FAST_READ, 4),
+            ReadCommand::Serial => (cmd::SERIAL_READ, 3),
         };
+        let header = [instruction, a[0], a[1], FAST_READ_DUMMY];
         self.spi
-            .transaction(&mut [Operation::Write(header), Operation::Read(buf)])
+            .transaction(&mut [
+                Operation::Write(&header[..header_len]),
+                Operation::Read(buf),
+            ])
             .map_err(|_| EscError::Bus)
     }
 
@@ -377,40 +373,50 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
             .map_err(|_| EscError::Bus)
     }
 
-    fn wait_csr(&mut self) -> Result<(), EscError> {
+    /// Polls command register `cmd_reg` (ECAT_CSR_CMD or ECAT_PRAM_*_CMD) until its
+    /// busy bit reads 0. One out-of-line copy for the CSR commands and the PRAM aborts.
+    #[inline(never)]
+    fn wait_idle(&mut self, cmd_reg: u16) -> Result<(), EscError> {
+        const { assert!(CSR_BUSY == PRAM_BUSY) };
         for _ in 0..self.cfg.max_polls.max(1) {
-            if self.read_reg(reg::ECAT_CSR_CMD)? & CSR_BUSY == 0 {
+            if self.read_reg(cmd_reg)? & CSR_BUSY == 0 {
                 return Ok(());
             }
         }
         Err(EscError::Timeout)
     }
 
-    fn csr_read(&mut self, mut addr: u16, buf: &mut [u8]) -> Result<(), EscError> {
+    /// CSR-window access of `data` at ESC register `addr`, split into naturally
+    /// aligned 1-, 2- and 4-byte commands. One out-of-line copy for reads and writes:
+    /// a write puts each chunk into ECAT_CSR_DATA before its command, a read takes it
+    /// from there once the command is done.
+    #[inline(never)]
+    fn csr(&mut self, mut addr: u16, mut data: Data<'_>) -> Result<(), EscError> {
+        let len = data.len();
         let mut done = 0;
-        while done < buf.len() {
-            let size = csr_chunk(addr, buf.len() - done);
-            let command = CSR_BUSY | CSR_READ | ((size as u32) << CSR_SIZE_SHIFT) | addr as u32;
+        while done < len {
+            let size = csr_chunk(addr, len - done);
+            let mut command = CSR_BUSY | ((size as u32) << CSR_SIZE_SHIFT) | addr as u32;
+            match &data {
+                Data::Write(d) => {
+                    // `done + size <= len` (csr_chunk): `get` only spares the
+                    // compiler a slice-index panic path it cannot rule out.
+                    let mut v = [0u8; 4];
+                    if let Some(src) = d.get(done..done + size) {
+                        v[..size].copy_from_slice(src);
+                    }
+                    self.write_reg(reg::ECAT_CSR_DATA, u32::from_le_bytes(v))?;
+                }
+                Data::Read(_) => command |= CSR_READ,
+            }
             self.write_reg(reg::ECAT_CSR_CMD, command)?;
-            self.wait_csr()?;
-            let v = self.read_reg(reg::ECAT_CSR_DATA)?.to_le_bytes();
-            buf[done..done + size].copy_from_slice(&v[..size]);
-            done += size;
-            addr = addr.wrapping_add(size as u16);
-        }
-        Ok(())
-    }
-
-    fn csr_write(&mut self, mut addr: u16, data: &[u8]) -> Result<(), EscError> {
-        let mut done = 0;
-        while done < data.len() {
-            let size = csr_chunk(addr, data.len() - done);
-            let mut v = [0u8; 4];
-            v[..size].copy_from_slice(&data[done..done + size]);
-            self.write_reg(reg::ECAT_CSR_DATA, u32::from_le_bytes(v))?;
-            let command = CSR_BUSY | ((size as u32) << CSR_SIZE_SHIFT) | addr as u32;
-            self.write_reg(reg::ECAT_CSR_CMD, command)?;
-            self.wait_csr()?;
+            self.wait_idle(reg::ECAT_CSR_CMD)?;
+            if let Data::Read(b) = &mut data {
+                let v = self.read_reg(reg::ECAT_CSR_DATA)?.to_le_bytes();
+                if let Some(dst) = b.get_mut(done..done + size) {
+                    dst.copy_from_slice(&v[..size]);
+                }
+            }
             done += size;
             addr = addr.wrapping_add(size as u16);
         }
@@ -420,12 +426,7 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
     /// Aborts a PRAM transfer left unfinished and waits until the unit is idle.
     fn pram_abort(&mut self, cmd_reg: u16) -> Result<(), EscError> {
         self.write_reg(cmd_reg, PRAM_ABORT)?;
-        for _ in 0..self.cfg.max_polls.max(1) {
-            if self.read_reg(cmd_reg)? & PRAM_BUSY == 0 {
-                return Ok(());
-            }
-        }
-        Err(EscError::Timeout)
+        self.wait_idle(cmd_reg)
     }
 
     /// Polls a PRAM command register until the FIFO reports words (read: data, write:
@@ -441,68 +442,114 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
         Err(EscError::Timeout)
     }
 
-    fn pram_read(&mut self, addr: u16, buf: &mut [u8]) -> Result<(), EscError> {
-        if self.rd_dirty {
-            self.pram_abort(reg::PRAM_RD_CMD)?;
+    /// Process-RAM access of `data` at ESC address `addr` through the read or the
+    /// write FIFO. One out-of-line copy for both directions: the same start sequence
+    /// (abort of a transfer left unfinished, address and length, start) on the
+    /// direction's registers, then bursts of as many words as the FIFO reports.
+    #[inline(never)]
+    fn pram(&mut self, addr: u16, mut data: Data<'_>) -> Result<(), EscError> {
+        let write = matches!(data, Data::Write(_));
+        let cmd_reg = if write {
+            reg::PRAM_WR_CMD
+        } else {
+            reg::PRAM_RD_CMD
+        };
+        // PRAM_*_ADDR_LEN sits right below its command register.
+        let addr_len_reg = cmd_reg - 4;
+        let dirty = if write { self.wr_dirty } else { self.rd_dirty };
+        if dirty {
+            self.pram_abort(cmd_reg)?;
         }
-        self.rd_dirty = true;
-        self.write_reg_inline(
-            reg::PRAM_RD_ADDR_LEN,
-            ((buf.len() as u32) << 16) | addr as u32,
-        )?;
-        self.write_reg_inline(reg::PRAM_RD_CMD, PRAM_BUSY)?;
+        self.set_dirty(write, true);
+        let len = data.len();
+        self.write_reg(addr_len_reg, ((len as u32) << 16) | addr as u32)?;
+        self.write_reg(cmd_reg, PRAM_BUSY)?;
         let lead = (addr & 3) as usize;
-        let total_words = (lead + buf.len()).div_ceil(4);
+        let total_words = (lead + len).div_ceil(4);
         let mut word = 0;
         let mut chunk = [0u8; FIFO_WORDS * 4];
         while word < total_words {
-            let n = self
-                .pram_wait_fifo(reg::PRAM_RD_CMD)?
-                .min(total_words - word);
-            self.read_burst(reg::PRAM_RD_FIFO, &mut chunk[..n * 4])?;
-            for (k, b) in chunk[..n * 4].iter().enumerate() {
-                let stream = word * 4 + k;
-                if stream >= lead && stream - lead < buf.len() {
-                    buf[stream - lead] = *b;
+            let n = self.pram_wait_fifo(cmd_reg)?.min(total_words - word);
+            let bytes = &mut chunk[..n * 4];
+            match &mut data {
+                Data::Read(buf) => {
+                    self.read_burst(reg::PRAM_RD_FIFO, bytes)?;
+                    for (k, b) in bytes.iter().enumerate() {
+                        let stream = word * 4 + k;
+                        if stream >= lead && stream - lead < buf.len() {
+                            buf[stream - lead] = *b;
+                        }
+                    }
+                }
+                Data::Write(src) => {
+                    for (k, b) in bytes.iter_mut().enumerate() {
+                        let stream = word * 4 + k;
+                        *b = if stream >= lead && stream - lead < src.len() {
+                            src[stream - lead]
+                        } else {
+                            0
+                        };
+                    }
+                    self.write_burst(reg::PRAM_WR_FIFO, bytes)?;
                 }
             }
             word += n;
         }
-        self.rd_dirty = false;
+        self.set_dirty(write, false);
         Ok(())
     }
 
-    fn pram_write(&mut self, addr: u16, data: &[u8]) -> Result<(), EscError> {
-        if self.wr_dirty {
-            self.pram_abort(reg::PRAM_WR_CMD)?;
+    /// An ESC access in either direction: the register part (below 0x1000) through
+    /// the CSR window, the rest through the process-RAM FIFOs. One out-of-line copy
+    /// for [`EscAccess::read`] and [`EscAccess::write`].
+    #[inline(never)]
+    fn access(&mut self, addr: u16, data: Data<'_>) -> Result<(), EscError> {
+        let regs = split(addr, data.len())?;
+        let (r, p) = data.split_at(regs);
+        if r.len() != 0 {
+            self.csr(addr, r)?;
         }
-        self.wr_dirty = true;
-        self.write_reg_inline(
-            reg::PRAM_WR_ADDR_LEN,
-            ((data.len() as u32) << 16) | addr as u32,
-        )?;
-        self.write_reg_inline(reg::PRAM_WR_CMD, PRAM_BUSY)?;
-        let lead = (addr & 3) as usize;
-        let total_words = (lead + data.len()).div_ceil(4);
-        let mut word = 0;
-        let mut chunk = [0u8; FIFO_WORDS * 4];
-        while word < total_words {
-            let n = self
-                .pram_wait_fifo(reg::PRAM_WR_CMD)?
-                .min(total_words - word);
-            for (k, b) in chunk[..n * 4].iter_mut().enumerate() {
-                let stream = word * 4 + k;
-                *b = if stream >= lead && stream - lead < data.len() {
-                    data[stream - lead]
-                } else {
-                    0
-                };
-            }
-            self.write_burst(reg::PRAM_WR_FIFO, &chunk[..n * 4])?;
-            word += n;
+        if p.len() != 0 {
+            self.pram(addr + regs as u16, p)?;
         }
-        self.wr_dirty = false;
         Ok(())
+    }
+
+    fn set_dirty(&mut self, write: bool, dirty: bool) {
+        if write {
+            self.wr_dirty = dirty;
+        } else {
+            self.rd_dirty = dirty;
+        }
+    }
+}
+
+/// The data of one ESC access: the buffer a read fills or the bytes a write sends.
+enum Data<'a> {
+    Read(&'a mut [u8]),
+    Write(&'a [u8]),
+}
+
+impl<'a> Data<'a> {
+    fn len(&self) -> usize {
+        match self {
+            Data::Read(b) => b.len(),
+            Data::Write(d) => d.len(),
+        }
+    }
+
+    /// The first `mid` bytes and the rest (`mid` ≤ [`Self::len`]).
+    fn split_at(self, mid: usize) -> (Data<'a>, Data<'a>) {
+        match self {
+            Data::Read(b) => {
+                let (x, y) = b.split_at_mut(mid);
+                (Data::Read(x), Data::Read(y))
+            }
+            Data::Write(d) => {
+                let (x, y) = d.split_at(mid);
+                (Data::Write(x), Data::Write(y))
+            }
+        }
     }
 }
 
@@ -537,27 +584,13 @@ fn split(addr: u16, len: usize) -> Result<usize, EscError> {
 }
 
 impl<SPI: SpiDevice> EscAccess for Lan9252<SPI> {
+    #[inline(never)]
     fn read(&mut self, addr: u16, buf: &mut [u8]) -> Result<(), EscError> {
-        let regs = split(addr, buf.len())?;
-        let (r, p) = buf.split_at_mut(regs);
-        if !r.is_empty() {
-            self.csr_read(addr, r)?;
-        }
-        if !p.is_empty() {
-            self.pram_read(addr + regs as u16, p)?;
-        }
-        Ok(())
+        self.access(addr, Data::Read(buf))
     }
 
+    #[inline(never)]
     fn write(&mut self, addr: u16, data: &[u8]) -> Result<(), EscError> {
-        let regs = split(addr, data.len())?;
-        let (r, p) = data.split_at(regs);
-        if !r.is_empty() {
-            self.csr_write(addr, r)?;
-        }
-        if !p.is_empty() {
-            self.pram_write(addr + regs as u16, p)?;
-        }
-        Ok(())
+        self.access(addr, Data::Write(data))
     }
 }

@@ -58,6 +58,11 @@ impl EscSpi {
     }
 
     fn transfer(&mut self, read: &mut [u8], write: &[u8]) -> Result<(), spi::Error> {
+        if !DMA_TRANSFER {
+            // All polled: the same bytes on the wire as the split below (whose reads
+            // clock out zeros), in one loop.
+            return self.polled_transfer(read, write);
+        }
         let n = read.len().min(write.len());
         let (r0, r1) = read.split_at_mut(n);
         let (w0, w1) = write.split_at(n);
@@ -70,13 +75,24 @@ impl EscSpi {
         self.write(w1)
     }
 
+    /// Polled transfer of max(`read`, `write`) bytes: embassy's blocking transfer pads
+    /// `write` with zeros and drops what comes after `read` is full, so with an empty
+    /// `write` it is exactly its blocking read (same register accesses, zeros
+    /// clocked out). Nothing for two empty buffers. One out-of-line copy for the
+    /// polled reads and transfers.
+    #[inline(never)]
+    fn polled_transfer(&mut self, read: &mut [u8], write: &[u8]) -> Result<(), spi::Error> {
+        if read.is_empty() && write.is_empty() {
+            return Ok(());
+        }
+        self.bus.blocking_transfer(read, write)
+    }
+
     fn read(&mut self, buf: &mut [u8]) -> Result<(), spi::Error> {
         if DMA_READ && buf.len() >= DMA_MIN_LEN {
             embassy_futures::block_on(self.bus.read(buf))
-        } else if !buf.is_empty() {
-            self.bus.blocking_read(buf)
         } else {
-            Ok(())
+            self.polled_transfer(buf, &[])
         }
     }
 
