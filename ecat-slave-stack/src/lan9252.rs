@@ -336,9 +336,16 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
     }
 
     /// Writes a 32-bit system register (serial write, 7 bytes). Out of line: one copy
-    /// for every register write (set-up, CSR window, process-RAM start).
+    /// for the register accesses of set-up and mailbox paths (the process-RAM paths use
+    /// [`Self::write_reg_inline`]).
     #[inline(never)]
     pub fn write_reg(&mut self, addr: u16, v: u32) -> Result<(), EscError> {
+        self.write_reg_inline(addr, v)
+    }
+
+    /// [`Self::write_reg`] inlined into the cyclic process-RAM transfers.
+    #[inline(always)]
+    fn write_reg_inline(&mut self, addr: u16, v: u32) -> Result<(), EscError> {
         let a = addr_bytes(addr);
         let d = v.to_le_bytes();
         let frame = [cmd::SERIAL_WRITE, a[0], a[1], d[0], d[1], d[2], d[3]];
@@ -462,8 +469,8 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
         }
         self.set_dirty(write, true);
         let len = data.len();
-        self.write_reg(addr_len_reg, ((len as u32) << 16) | addr as u32)?;
-        self.write_reg(cmd_reg, PRAM_BUSY)?;
+        self.write_reg_inline(addr_len_reg, ((len as u32) << 16) | addr as u32)?;
+        self.write_reg_inline(cmd_reg, PRAM_BUSY)?;
         let lead = (addr & 3) as usize;
         let total_words = (lead + len).div_ceil(4);
         let mut word = 0;
