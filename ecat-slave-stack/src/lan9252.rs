@@ -506,22 +506,6 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
         Ok(())
     }
 
-    /// An ESC access in either direction: the register part (below 0x1000) through
-    /// the CSR window, the rest through the process-RAM FIFOs. One out-of-line copy
-    /// for [`EscAccess::read`] and [`EscAccess::write`].
-    #[inline(never)]
-    fn access(&mut self, addr: u16, data: Data<'_>) -> Result<(), EscError> {
-        let regs = split(addr, data.len())?;
-        let (r, p) = data.split_at(regs);
-        if r.len() != 0 {
-            self.csr(addr, r)?;
-        }
-        if p.len() != 0 {
-            self.pram(addr + regs as u16, p)?;
-        }
-        Ok(())
-    }
-
     fn set_dirty(&mut self, write: bool, dirty: bool) {
         if write {
             self.wr_dirty = dirty;
@@ -537,25 +521,11 @@ enum Data<'a> {
     Write(&'a [u8]),
 }
 
-impl<'a> Data<'a> {
+impl Data<'_> {
     fn len(&self) -> usize {
         match self {
             Data::Read(b) => b.len(),
             Data::Write(d) => d.len(),
-        }
-    }
-
-    /// The first `mid` bytes and the rest (`mid` ≤ [`Self::len`]).
-    fn split_at(self, mid: usize) -> (Data<'a>, Data<'a>) {
-        match self {
-            Data::Read(b) => {
-                let (x, y) = b.split_at_mut(mid);
-                (Data::Read(x), Data::Read(y))
-            }
-            Data::Write(d) => {
-                let (x, y) = d.split_at(mid);
-                (Data::Write(x), Data::Write(y))
-            }
         }
     }
 }
@@ -591,13 +561,27 @@ fn split(addr: u16, len: usize) -> Result<usize, EscError> {
 }
 
 impl<SPI: SpiDevice> EscAccess for Lan9252<SPI> {
-    #[inline(never)]
     fn read(&mut self, addr: u16, buf: &mut [u8]) -> Result<(), EscError> {
-        self.access(addr, Data::Read(buf))
+        let regs = split(addr, buf.len())?;
+        let (r, p) = buf.split_at_mut(regs);
+        if !r.is_empty() {
+            self.csr(addr, Data::Read(r))?;
+        }
+        if !p.is_empty() {
+            self.pram(addr + regs as u16, Data::Read(p))?;
+        }
+        Ok(())
     }
 
-    #[inline(never)]
     fn write(&mut self, addr: u16, data: &[u8]) -> Result<(), EscError> {
-        self.access(addr, Data::Write(data))
+        let regs = split(addr, data.len())?;
+        let (r, p) = data.split_at(regs);
+        if !r.is_empty() {
+            self.csr(addr, Data::Write(r))?;
+        }
+        if !p.is_empty() {
+            self.pram(addr + regs as u16, Data::Write(p))?;
+        }
+        Ok(())
     }
 }
