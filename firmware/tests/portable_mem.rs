@@ -17,23 +17,35 @@ fn pattern() -> [u8; N + 8] {
     p
 }
 
+/// A word-aligned buffer of guard bytes; `op` writes `n` bytes at `4 + d_off`, which
+/// must then hold `want(k)` for byte `k` while every other byte is still the guard.
+fn check(d_off: usize, n: usize, op: impl FnOnce(*mut u8), want: impl Fn(usize) -> u8) {
+    #[repr(align(8))]
+    struct Buf([u8; N + 16]);
+    let mut dst = Buf([GUARD; N + 16]);
+    let at = 4 + d_off;
+    assert!(at + n + 4 <= dst.0.len());
+    // SAFETY: `at + n <= dst.len()` (checked above).
+    op(unsafe { dst.0.as_mut_ptr().add(at) });
+    for (i, &b) in dst.0.iter().enumerate() {
+        let w = if (at..at + n).contains(&i) {
+            want(i - at)
+        } else {
+            GUARD
+        };
+        assert_eq!(b, w, "dst+{d_off} n {n} byte {i}");
+    }
+}
+
 qemu_runner::tests! {
     fn copy_every_alignment_and_length() {
         let src = pattern();
         for so in 0..4 {
             for d_off in 0..4 {
                 for n in 0..=N {
-                    #[repr(align(8))]
-                    struct Buf([u8; N + 16]);
-                    let mut dst = Buf([GUARD; N + 16]);
-                    let at = 4 + d_off;
-                    // SAFETY: `n + so <= src.len()` and `at + n + 4 <= dst.len()`; the
-                    // buffers are distinct.
-                    unsafe { copy(dst.0.as_mut_ptr().add(at), src.as_ptr().add(so), n) };
-                    for (i, &b) in dst.0.iter().enumerate() {
-                        let want = if (at..at + n).contains(&i) { src[so + i - at] } else { GUARD };
-                        assert_eq!(b, want, "src+{so} dst+{d_off} n {n} byte {i}");
-                    }
+                    // SAFETY: `so + n <= src.len()`; `check` gives `n` writable bytes
+                    // of another buffer.
+                    check(d_off, n, |d| unsafe { copy(d, src.as_ptr().add(so), n) }, |k| src[so + k]);
                 }
             }
         }
@@ -43,16 +55,8 @@ qemu_runner::tests! {
         for value in [0u8, 0x01, 0x7F, 0x80, 0xFF] {
             for d_off in 0..4 {
                 for n in 0..=N {
-                    #[repr(align(8))]
-                    struct Buf([u8; N + 16]);
-                    let mut dst = Buf([GUARD; N + 16]);
-                    let at = 4 + d_off;
-                    // SAFETY: `at + n + 4 <= dst.len()`.
-                    unsafe { fill(dst.0.as_mut_ptr().add(at), value, n) };
-                    for (i, &b) in dst.0.iter().enumerate() {
-                        let want = if (at..at + n).contains(&i) { value } else { GUARD };
-                        assert_eq!(b, want, "value {value:#x} dst+{d_off} n {n} byte {i}");
-                    }
+                    // SAFETY: `check` gives `n` writable bytes.
+                    check(d_off, n, |d| unsafe { fill(d, value, n) }, |_| value);
                 }
             }
         }
