@@ -22,8 +22,12 @@ pub const LONG_TEXT_MAX: usize = 300;
 /// Initial value of 0x1008.
 pub const DEVICE_NAME: &str = "CoE example device";
 
-/// The objects, sorted.
-pub static OBJECTS: &[Object] = &[
+/// The objects, sorted: [`SOURCE`] packed as an application's dictionary is
+/// (`od::pack`), so every CoE test and the mailbox fuzz read packed names.
+pub static OBJECTS: &[Object] = crate::packed_dictionary!(&[SOURCE]);
+
+/// The objects as written (plain names, one entry table per object).
+pub const SOURCE: &[Object] = &[
     Object::var(
         0x1000,
         "Device type",
