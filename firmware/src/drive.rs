@@ -6,19 +6,26 @@
 //! runtime's [`SlaveApplication`]: the dictionary ([`Dictionary`]), the cyclic data
 //! ([`ProcessData`]), the ESM hooks (CiA 402 coupling) and the application cycle.
 //!
-//! Data flow of one cycle (called by the runtime between unpacking the outputs and
-//! packing the inputs):
+//! # Two clocks, one drive
+//!
+//! The drive steps on **its own clock**: [`Drive::tick`] runs every millisecond on
+//! the board (in every ESM state and sync mode, with or without frames) and, unless
+//! the master's cycle stepped the drive within the last [`TICK_STEP_AFTER_US`], runs
+//! a control step ([`Drive::step`]): the CiA 402 power drive system, the fault
+//! reactions and stop ramps, the profile and homing generators, the brake. The
+//! master's cycle ([`SlaveApplication::cycle`]) only brings set-points and takes
+//! actual values; it steps the drive too, so that its set-points take effect in the
+//! cycle that brought them. When the master's commands stop (SM watchdog, Op left,
+//! SYNC0 lost) 0x6007 decides the reaction, and the ticks carry it out.
 //!
 //! ```text
 //! board / simulator ──set_axis(AxisState)──▶ Drive ──▶ faults, I/O functions
 //!                                              │
-//!                                      Cia402::cycle (PDS, modes, homing, probe)
+//!              tick (local clock) / cycle ──▶ Cia402::step (PDS, modes, homing, probe)
 //!                                              │
 //! board / simulator ◀──command()── DriveCommand (position/velocity set-point, power)
 //! ```
 //!
-//! Slow work (input filtering, LED timing, monitoring, fault reactions that do not
-//! need the cycle) runs in [`Drive::tick`], called every millisecond by the main loop.
 //! Emergencies produced by faults are collected here and forwarded by the owner to
 //! the mailbox with [`Drive::pop_emergency`].
 
@@ -28,7 +35,7 @@ use ecat_slave_stack::od::{self, Dictionary, Object, SdoAbort};
 use ecat_slave_stack::pdo::ProcessData;
 use ecat_slave_stack::slave::{CycleInfo, SlaveApplication};
 
-use crate::cia402::{Cia402, DriveCommand, DriveFeedback};
+use crate::cia402::{AbortConnection, Cia402, DriveCommand, DriveFeedback, SetpointArrival};
 use crate::comm::{Comm, StoreCommand};
 use crate::current_supervisor::{CurrentReport, TuneStatus};
 use crate::dictionary;
@@ -199,7 +206,12 @@ pub struct Drive<S: ParameterStore = NoStore> {
     axis: AxisState,
     command: DriveCommand,
     esm: EsmState,
-    last_cycle_us: Option<u64>,
+    /// Local clock of the last control step ([`Drive::step`]) and of the last tick, µs.
+    last_step_us: Option<u64>,
+    last_tick_us: Option<u64>,
+    /// Control steps so far (wrapping) and the length of the last one, s.
+    steps: u32,
+    step_dt: f32,
     now_ms: u32,
     fault_led: fault_led::FaultLed,
     last_controlword: u16,
@@ -214,6 +226,14 @@ pub struct Drive<S: ParameterStore = NoStore> {
 /// Error code reported when the outputs stopped arriving (process-data watchdog,
 /// sync loss) while the drive was enabled.
 pub const ERR_COMMUNICATION_LOST: u16 = 0x8700;
+
+/// Period of the supervision tick ([`Drive::tick`]) on the board, µs.
+pub const TICK_US: u64 = 1000;
+
+/// A tick runs a control step when none has run for this long (µs): with the
+/// master's cycle at 1 ms or faster the cycles do the steps, with slower cycles or
+/// none at all the tick fills in, so the drive steps at least every [`TICK_US`].
+pub const TICK_STEP_AFTER_US: u64 = 900;
 
 impl Drive<NoStore> {
     /// A drive at power-up defaults without parameter memory; `serial` is 0x1018:04.
@@ -236,7 +256,10 @@ macro_rules! power_up_fields {
             axis: AxisState::default(),
             command: DriveCommand::default(),
             esm: EsmState::Init,
-            last_cycle_us: None,
+            last_step_us: None,
+            last_tick_us: None,
+            steps: 0,
+            step_dt: 0.0,
             now_ms: 0,
             fault_led: fault_led::FaultLed::new(),
             last_controlword: 0,
@@ -400,10 +423,24 @@ impl<S: ParameterStore> Drive<S> {
         }
     }
 
-    /// Slow housekeeping, every `dt_ms` (1 ms on the board): input filter and
-    /// functions, protections from measured values, fault reset by input, monitoring,
-    /// LEDs. `raw_inputs`: bit n = level of IN n+1.
-    pub fn tick(&mut self, dt_ms: u32, raw_inputs: u8) {
+    /// The supervision tick, on the drive's own clock (`now_us`, µs; every
+    /// [`TICK_US`] on the board, in every ESM state and sync mode): input filter and
+    /// functions, protections from the measured values, fault reset by input,
+    /// monitoring, then — unless the master's cycle did one within
+    /// [`TICK_STEP_AFTER_US`] — a control step ([`Drive::step`]): the power drive
+    /// system, the fault reactions and stop ramps, the profile and homing generators
+    /// and the brake advance whether or not frames arrive. A fault this tick detects
+    /// starts its reaction in the same tick. `raw_inputs`: bit n = level of IN n+1.
+    pub fn tick(&mut self, now_us: u64, raw_inputs: u8) {
+        let dt_ms = match self.last_tick_us {
+            Some(prev) if now_us > prev => {
+                let ms = (now_us / 1000).saturating_sub(prev / 1000);
+                ms.min(u64::from(u32::MAX)) as u32
+            }
+            Some(_) => 0,
+            None => (TICK_US / 1000) as u32,
+        };
+        self.last_tick_us = Some(now_us);
         self.now_ms = self.now_ms.wrapping_add(dt_ms);
         self.monitor.tick_ms(dt_ms);
         self.inputs
@@ -433,6 +470,45 @@ impl<S: ParameterStore> Drive<S> {
         if self.params.take_fault_history_clear() {
             self.faults.clear_history();
         }
+        let due = self
+            .last_step_us
+            .is_none_or(|t| now_us.saturating_sub(t) >= TICK_STEP_AFTER_US || now_us < t);
+        if due {
+            self.step(now_us, SetpointArrival::Stale);
+        }
+    }
+
+    /// One control step at `now_us` on the drive's clock: [`Drive::run_cycle`] over the
+    /// time since the previous step. Called by the supervision tick and by the
+    /// master's cycle (`setpoint`: whether that cycle brought new outputs).
+    pub fn step(&mut self, now_us: u64, setpoint: SetpointArrival) -> DriveCommand {
+        let dt = match self.last_step_us {
+            Some(prev) if now_us > prev => ((now_us - prev) as f32 * 1e-6).min(0.01),
+            Some(_) => 1e-6,
+            None => (TICK_US as f32 * 1e-6).min(0.01),
+        };
+        self.last_step_us = Some(now_us);
+        self.step_dt = dt;
+        self.steps = self.steps.wrapping_add(1);
+        self.control_step(dt, setpoint)
+    }
+
+    /// Control steps so far (wrapping): a new value means new set-points in
+    /// [`Drive::command`], for the motion layer to start a new segment with.
+    pub fn steps(&self) -> u32 {
+        self.steps
+    }
+
+    /// Length of the last control step, s (the motion layer's segment time).
+    pub fn step_dt(&self) -> f32 {
+        self.step_dt
+    }
+
+    /// The power stage may be on: the last step's command wants it and no fault that
+    /// cuts the power ([`FaultKind::cuts_power`]) is active. What the board's power
+    /// stage and the simulated one obey.
+    pub fn power_permission(&self) -> bool {
+        self.command.power_stage && !self.faults.power_cut()
     }
 
     /// Permission for the power-up current-loop auto-tune
@@ -529,9 +605,14 @@ impl<S: ParameterStore> Drive<S> {
         )
     }
 
-    /// Runs one application cycle with the latest axis state (also used directly by
-    /// tests and by the board's SYNC0 path through the runtime).
+    /// One control step of `dt` seconds with set-points of unknown age
+    /// ([`SetpointArrival::PerCycle`]), outside the drive's clock: for tests and
+    /// benchmarks that step the drive once per simulated master cycle.
     pub fn run_cycle(&mut self, dt: f32) -> DriveCommand {
+        self.control_step(dt, SetpointArrival::PerCycle)
+    }
+
+    fn control_step(&mut self, dt: f32, setpoint: SetpointArrival) -> DriveCommand {
         // Fault reset (controlword bit 7 rising edge) clears the protections first, so
         // the PDS sees no active fault and accepts the reset; latched faults stay.
         let cw = self.cia402.controlword();
@@ -549,13 +630,13 @@ impl<S: ParameterStore> Drive<S> {
             probe1: self.axis.probe1,
             probe2: self.axis.probe2,
             fault: self.faults.error_code(),
-            power_stage_tripped: self.faults.is_active(FaultKind::OverCurrent),
+            power_stage_tripped: self.faults.power_cut(),
             warning: false,
             current_limited: self.axis.current_limited,
             quick_stop_input: self.inputs.quick_stop(),
             enable_pending: self.axis.commutation_pending,
         };
-        self.command = self.cia402.cycle(&fb, dt);
+        self.command = self.cia402.step(&fb, dt, setpoint);
         // Following-error supervision of the closed loop (0x2030, encoder counts).
         if self.command.drive_enabled
             && self.variant.has_encoder()
@@ -578,6 +659,11 @@ impl<S: ParameterStore> Drive<S> {
         // A fault reset accepted by the PDS (controlword bit 7) clears the faults.
         if self.faults.take_pds_fault_request() {
             self.cia402.raise_fault(self.faults.error_code());
+        }
+        if self.faults.power_cut() {
+            self.command.power_stage = false;
+            self.command.drive_enabled = false;
+            self.command.brake_release = false;
         }
         self.command
     }
@@ -737,20 +823,28 @@ impl<S: ParameterStore> Drive<S> {
         }
     }
 
-    /// The master's commands stopped (the ESM left Op, or the outputs were lost).
-    /// While the motor side aligns for transition 4 the PDS drops to Switch on disabled
-    /// (the alignment stops; no drive function, no fault). With the drive function
-    /// enabled the PDS goes to Fault and the motor follows the fault reaction
-    /// (drive-requirements §2.1; a PDS change never moves the ESM): EtherCAT fault
-    /// `code` with `diag`, an event, not a lasting condition (a fault reset may clear it).
+    /// The master's commands stopped: the ESM left Op (requested or forced), the
+    /// outputs were lost (SM watchdog) or SYNC0 stopped. Applies 0x6007
+    /// ([`Cia402::on_connection_lost`]); the reaction then runs on the drive's own
+    /// clock (every [`Drive::tick`]). While the motor side aligns for transition 4 the
+    /// PDS drops to Switch on disabled (no drive function yet: no fault). With the
+    /// drive function enabled, 0x6007 = 1 raises the EtherCAT fault `code` with `diag`
+    /// (emergency, history; an event, so a fault reset may clear it); 2 and 3 send the
+    /// emergency `code` without a fault; 0 does nothing.
     #[inline(never)]
     fn left_op(&mut self, code: u16, diag: [u8; 2]) {
-        if self.cia402.enable_waiting() {
-            self.cia402.on_esm_left_op_while_enabled();
-        } else if self.command.drive_enabled {
-            self.cia402.on_esm_left_op_while_enabled();
-            self.faults.raise_ecat(code, diag, self.now_ms);
-            self.faults.condition_gone(FaultKind::Ecat);
+        let waiting = self.cia402.enable_waiting();
+        let enabled = self.command.drive_enabled && !waiting;
+        match self.cia402.on_connection_lost() {
+            AbortConnection::NoAction => {}
+            AbortConnection::Fault if enabled => {
+                self.faults.raise_ecat(code, diag, self.now_ms);
+                self.faults.condition_gone(FaultKind::Ecat);
+            }
+            AbortConnection::DisableVoltage | AbortConnection::QuickStop if enabled => {
+                self.faults.notify(code, diag);
+            }
+            _ => {}
         }
     }
 }
@@ -769,23 +863,15 @@ impl<S: ParameterStore> EsmHooks for Drive<S> {
 }
 
 impl<S: ParameterStore> SlaveApplication for Drive<S> {
+    /// The master's cycle: the set-points it brought take effect in a control step
+    /// now (the supervision tick steps the drive as well, on its own clock).
     fn cycle(&mut self, info: &CycleInfo) {
-        let dt = match self.last_cycle_us {
-            Some(prev) if info.now_us > prev => {
-                ((info.now_us - prev) as f32 * 1e-6).clamp(62.5e-6, 0.01)
-            }
-            _ => self
-                .cia402
-                .params
-                .interpolation_period_s()
-                .clamp(62.5e-6, 0.01),
+        let arrival = if info.outputs_fresh {
+            SetpointArrival::Fresh
+        } else {
+            SetpointArrival::Stale
         };
-        self.last_cycle_us = Some(info.now_us);
-        if info.state == EsmState::Op && !info.outputs_fresh && self.command.drive_enabled {
-            // No fresh outputs in Op: keep the last set-points (SM-synchronous cycles
-            // without a frame) — the watchdog catches a stopped master.
-        }
-        self.run_cycle(dt);
+        self.step(info.now_us, arrival);
     }
 
     fn on_outputs_lost(&mut self, code: AlStatusCode) {
@@ -1038,7 +1124,7 @@ mod tests {
             bus_mv: 60_000,
             ..AxisState::default()
         });
-        d.tick(1, 0);
+        d.tick(1000, 0);
         d.run_cycle(0.001);
         assert_eq!(d.faults.error_code(), 0x3210);
         assert!(!d.command().drive_enabled || d.cia402.state() != PdsState::OperationEnabled);
@@ -1062,7 +1148,7 @@ mod tests {
             ..AxisState::default()
         };
         d.set_axis(trip);
-        d.tick(1, 0);
+        d.tick(1000, 0);
         assert_eq!(d.faults.error_code(), 0x2310);
         assert!(d.pop_emergency().is_some());
         // Still tripped: no reset even with 0x2057 = 1.
@@ -1074,13 +1160,13 @@ mod tests {
             ia_ma: -11_000,
             ..AxisState::default()
         });
-        d.tick(1, 0);
+        d.tick(2000, 0);
         assert!(!d.faults.fault_reset());
         d.set_axis(AxisState {
             bus_mv: 48_000,
             ..AxisState::default()
         });
-        d.tick(1, 0);
+        d.tick(3000, 0);
         assert!(d.faults.fault_reset(), "gone and 0x2057 = 1");
         assert_eq!(d.faults.error_code(), 0);
     }
@@ -1151,7 +1237,7 @@ mod tests {
             bus_mv: 48_000,
             ..AxisState::default()
         });
-        d.tick(1, 0);
+        d.tick(1000, 0);
         assert!(d.tune_permitted());
         let done = CurrentReport {
             tune: TuneStatus::Done,

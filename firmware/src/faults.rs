@@ -3,15 +3,20 @@
 //! the PDS fault request, the alarm output, latching (0x2057), masking (0x2056), and
 //! the history of the last six faults with a snapshot (objects 0x2400-0x2406).
 //!
-//! | fault | 603F | 1001 bits | red LED | latched | 0x2056 bit |
-//! |---|---|---|---|---|---|
-//! | over-current / phase short | 0x2310 | 0, 1 (current) | 1 | yes | 0 (always on, see below) |
-//! | over-voltage (> 55 V) | 0x3210 | 0, 2 (voltage) | 2 | yes | 1 |
-//! | phase / current-sensing | 0x5210 | 0, 1 (current) | 9 | no | 3 |
-//! | motor open / poor contact | 0x7120 | 0, 5 (profile) | 4 | no | 2 |
-//! | under-voltage (< 12 V) | 0x3220 | 0, 2 (voltage) | 3 | no | 6 |
-//! | position following error | 0x8611 | 0, 5 (profile) | 7 | no | 7 |
-//! | EtherCAT (watchdog, sync, ESM, PDO length) | caller's code (0x8700, 0xA000, 0xA001, 0x8210, 0x8220) | 0, 4 (communication) | — (ERR LED) | no | — |
+//! | fault | 603F | 1001 bits | red LED | latched | 0x2056 bit | reaction |
+//! |---|---|---|---|---|---|---|
+//! | over-current / phase short | 0x2310 | 0, 1 (current) | 1 | yes | 0 (always on, see below) | power off at once |
+//! | over-voltage (> 55 V) | 0x3210 | 0, 2 (voltage) | 2 | yes | 1 | power off at once |
+//! | phase / current-sensing | 0x5210 | 0, 1 (current) | 9 | no | 3 | power off at once |
+//! | motor open / poor contact | 0x7120 | 0, 5 (profile) | 4 | no | 2 | power off at once |
+//! | under-voltage (< 12 V) | 0x3220 | 0, 2 (voltage) | 3 | no | 6 | 0x605E ramp |
+//! | position following error | 0x8611 | 0, 5 (profile) | 7 | no | 7 | 0x605E ramp |
+//! | EtherCAT (watchdog, sync, ESM, PDO length) | caller's code (0x8700, 0xA000, 0xA001, 0x8210, 0x8220) | 0, 4 (communication) | — (ERR LED) | no | — | 0x605E ramp (0x6007 = 1) |
+//!
+//! **Reaction** ([`FaultKind::cuts_power`]): "power off at once" withdraws the power
+//! stage in the same supervision tick (the motor coasts, the brake engages); the
+//! others run the CiA 402 fault reaction 0x605E on the drive's clock, with the power
+//! stage on until the motor stands, then Fault.
 //!
 //! The rows are in order of severity (the red LED shows the most severe active fault;
 //! 0x603F reports the most severe active fault's code, 0 when none).
@@ -114,6 +119,16 @@ impl FaultKind {
             Self::PhaseSensing => Some(9),
             Self::Ecat => None,
         }
+    }
+    /// The power stage goes off at once (the bridges cannot, or must not, drive the
+    /// motor any more): over-current, over-voltage (braking would pump the bus
+    /// higher), current sensing and motor open (the current is not under control).
+    /// The other faults stop the motor with the fault reaction 0x605E first.
+    pub const fn cuts_power(self) -> bool {
+        matches!(
+            self,
+            Self::OverCurrent | Self::OverVoltage | Self::PhaseSensing | Self::MotorOpen
+        )
     }
     /// Needs a power cycle (or 0x2057 = 1) to clear.
     pub const fn latched(self) -> bool {
@@ -444,6 +459,31 @@ impl Faults {
     /// True while `kind` is active.
     pub fn is_active(&self, kind: FaultKind) -> bool {
         self.active & (1 << kind as u8) != 0
+    }
+
+    /// True while a fault is active whose reaction is "power stage off at once"
+    /// ([`FaultKind::cuts_power`]).
+    pub fn power_cut(&self) -> bool {
+        FaultKind::ALL
+            .into_iter()
+            .any(|k| k.cuts_power() && self.is_active(k))
+    }
+
+    /// Queues an emergency that reports an event without a fault (0x6007 = 2 or 3: the
+    /// drive stopped on its own when the master's commands stopped): `code`, the
+    /// error register of the active faults plus the communication bit, the diagnosis
+    /// bytes as for [`Faults::raise_ecat`]. No history entry, no PDS fault.
+    pub fn notify(&mut self, code: u16, diag: [u8; 2]) {
+        let v = self.bus_dv.to_le_bytes();
+        let e = Emergency {
+            code,
+            register: self.error_register() | FaultKind::Ecat.error_register(),
+            data: [FaultKind::Ecat as u8, v[0], v[1], diag[0], diag[1]],
+        };
+        if self.emcy.is_full() {
+            self.emcy.pop_front();
+        }
+        let _ = self.emcy.push_back(e);
     }
 
     /// True while any fault is active (alarm output, PDS stays in Fault).

@@ -23,7 +23,7 @@
 //! | embassy time driver | `TIM5` ISR | 3 | alarms | < 2 µs |
 //! | EtherCAT: ESC IRQ (or every 1 ms) → `Slave::poll` (AL control, ESM, mailbox/SDO, watchdog supervision; the cycle in SM-synchronous / free-run mode), emergencies forwarded | thread executor, holding the priority-ceiling lock | thread (ceiling 2) | ESC IRQ, ≥ 1 kHz | one SDO ≈ 2 × 128-byte SPI transfers + dictionary access; a 'save' adds the record serialisation (≈ 1.7 KiB of dictionary reads); delays the cyclic path by at most this; to be measured |
 //! | parameter storage: staged record → flash (erase ≈ 20 ms per 2 KiB page, ≤ 40 ms max; program ≈ 85 µs per 8 bytes) | thread executor, after `poll`, **no lock** | thread | on 'save' / 'load' | ≤ 4 × 40 ms + 20 ms; the cyclic path and the ISRs keep running (bank 2 read-while-write); the thread tasks pause — the watchdog (300 ms) covers it |
-//! | 1 ms tick: raw inputs → `Drive::tick` (filter, protections, fault 1 / 9 from the board, a failed commutation alignment → following error 0x8611), outputs + brake from `Drive::outputs`, LEDs (`Drive::leds`, RUN/ERR from the ESM state and AL status code) | thread executor (lock held for the drive part) | thread | 1 kHz | < 20 µs, to be measured |
+//! | 1 ms supervision tick, the drive's own clock: raw inputs → `Drive::tick` (filter, protections, fault 1 / 9 from the board, a failed commutation alignment → following error 0x8611, and — unless a cycle just did it — the control step: PDS, fault reactions, ramps, generators, brake, in every ESM state), outputs + brake from `Drive::outputs`, LEDs (`Drive::leds`, RUN/ERR from the ESM state and AL status code) | thread executor (lock held for the drive part) | thread | 1 kHz | < 20 µs, to be measured |
 //! | supervisor: offset self-check at start, watchdog feeding, status line | thread executor | thread | 100 Hz | < 100 µs per tick |
 //!
 //! ## Who owns what
@@ -132,8 +132,8 @@ struct Shared {
     slave: Option<Slave<Esc>>,
     /// The last command published to the current-loop interrupt.
     ctl: ControlCommand,
-    /// `Slave::sync().last_cycle` when the last command was published.
-    last_cycle: Option<u64>,
+    /// `Drive::steps` when the last command was published.
+    seen_steps: u32,
     /// The break latch was reported to the drive as an over-current (fault 1).
     oc_reported: bool,
     /// The start-up offset self-check failed (fault 9, kept until restart).
@@ -506,7 +506,7 @@ async fn __embassy_main(spawner: Spawner) {
     // here on it is reached only through the lock.
     let shared: &'static mut Shared = unsafe {
         core::ptr::addr_of_mut!((*sp).ctl).write(ctl);
-        core::ptr::addr_of_mut!((*sp).last_cycle).write(None);
+        core::ptr::addr_of_mut!((*sp).seen_steps).write(0);
         core::ptr::addr_of_mut!((*sp).oc_reported).write(false);
         core::ptr::addr_of_mut!((*sp).offset_fault).write(false);
         core::ptr::addr_of_mut!((*sp).index_seen).write(0);
@@ -690,27 +690,20 @@ fn send_command(c: &ControlCommand) {
     COMMAND.write(Some(*c));
 }
 
-/// Publishes the drive's set-points to the current-loop interrupt; a new drive cycle
-/// (the runtime's `last_cycle` moved) starts a new interpolation segment.
+/// Publishes the drive's set-points to the current-loop interrupt; a new control step
+/// of the drive (tick or cycle: `Drive::steps` moved) starts a new interpolation
+/// segment of its length.
 fn publish_command(s: &mut Shared) {
-    if let Some(slave) = s.slave.as_ref() {
-        let sync = slave.sync();
-        if sync.last_cycle != s.last_cycle {
-            s.last_cycle = sync.last_cycle;
-            s.pending_index = None;
-            s.probe1.consumed();
-            s.probe2.consumed();
-            s.ctl.cycle = s.ctl.cycle.wrapping_add(1);
-            s.ctl.command = *s.drive.command();
-            let period_us = sync.diag.pdi_period;
-            s.ctl.cycle_s = if period_us > 0 {
-                period_us as f32 * 1e-6
-            } else {
-                1e-3
-            };
-        }
+    if s.drive.steps() != s.seen_steps {
+        s.seen_steps = s.drive.steps();
+        s.pending_index = None;
+        s.probe1.consumed();
+        s.probe2.consumed();
+        s.ctl.cycle = s.ctl.cycle.wrapping_add(1);
+        s.ctl.command = *s.drive.command();
+        s.ctl.cycle_s = s.drive.step_dt();
     }
-    s.ctl.power_allowed = s.drive.command().power_stage && !s.drive.faults.any_active();
+    s.ctl.power_allowed = s.drive.power_permission();
     s.ctl.tune_allowed = s.drive.tune_permitted() && s.ctl.offsets.is_some();
     if !s.ctl.power_allowed {
         s.ctl.command.drive_enabled = false;
@@ -858,7 +851,7 @@ async fn tick(mut leds: io::Leds<'static>, mut ports: io::Ports<'static>) {
                 }
             }
             update_axis(s);
-            s.drive.tick(1, raw);
+            s.drive.tick(now_us(), raw);
             // Parameter writes that change the motion layer (every 10 ms).
             if n.is_multiple_of(10) {
                 let m = motion_config(&s.drive);

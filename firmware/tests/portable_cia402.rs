@@ -4,7 +4,8 @@
 //! servo). Runs on the host and under QEMU.
 use firmware::cia402::pds::{PdsState, TRANSITIONS};
 use firmware::cia402::{
-    mode, sw, Cia402, DriveCommand, DriveFeedback, EdgeLatch, ERR_COMMUNICATION, ERR_FOLLOWING,
+    mode, sw, AbortConnection, Cia402, DriveCommand, DriveFeedback, EdgeLatch, SetpointArrival,
+    ERR_COMMUNICATION, ERR_FOLLOWING,
 };
 
 const DT: f32 = 0.001;
@@ -409,18 +410,192 @@ qemu_runner::tests! {
 
     fn esm_coupling() {
         let (mut d, mut ax) = reach(PdsState::OperationEnabled);
-        d.on_esm_left_op_while_enabled();
+        assert_eq!(d.on_connection_lost(), AbortConnection::Fault);
         steps(&mut d, &mut ax, 5);
         assert_eq!(d.state(), PdsState::Fault);
         assert_eq!(d.error_code(), ERR_COMMUNICATION);
+        // Init keeps the fault (0x603F tells what happened); a fault reset clears it.
         d.on_esm_init();
+        assert_eq!(d.state(), PdsState::Fault);
+        assert_eq!(d.error_code(), ERR_COMMUNICATION);
+        cw(&mut d, &mut ax, 0x0080);
         assert_eq!(d.state(), PdsState::SwitchOnDisabled);
         step(&mut d, &mut ax);
         assert_eq!(d.statusword() & 0x4F, 0x40);
         let (mut d, mut ax) = reach(PdsState::SwitchedOn);
-        d.on_esm_left_op_while_enabled();
+        d.on_connection_lost();
         step(&mut d, &mut ax);
         assert_eq!(d.state(), PdsState::SwitchOnDisabled);
+        // Init from Switched on: Switch on disabled, controlword cleared.
+        let (mut d, mut ax) = reach(PdsState::SwitchedOn);
+        d.on_esm_init();
+        assert_eq!(d.state(), PdsState::SwitchOnDisabled);
+        assert_eq!(d.controlword(), 0);
+        step(&mut d, &mut ax);
+        assert_eq!(d.state(), PdsState::SwitchOnDisabled);
+    }
+
+    fn abort_connection_options_in_pv() {
+        // Moving in PV at 100 000 inc/s; each 0x6007 option, then 2 s of steps with
+        // no further command from the master.
+        for option in 0..=3i16 {
+            let (mut d, mut ax) = reach(PdsState::OperationEnabled);
+            d.params.abort_connection_option = option;
+            d.params.quick_stop_option = 2;
+            d.params.target_velocity = 100_000;
+            d.params.quick_stop_deceleration = 1_000_000;
+            d.params.profile_acceleration = 10_000_000;
+            steps(&mut d, &mut ax, 100);
+            assert_eq!(ax.vel, 100_000);
+            let got = d.on_connection_lost();
+            assert_eq!(got as i16, option);
+            let mut stop_ms = None;
+            for k in 0..2000 {
+                let c = step(&mut d, &mut ax);
+                if stop_ms.is_none() && !c.drive_enabled {
+                    stop_ms = Some(k + 1);
+                }
+            }
+            match got {
+                AbortConnection::NoAction => {
+                    // The drive goes on with its last set-points.
+                    assert_eq!(d.state(), PdsState::OperationEnabled);
+                    assert_eq!(ax.vel, 100_000);
+                    assert_eq!(stop_ms, None);
+                }
+                AbortConnection::Fault => {
+                    // 0x605E = 2 (default): quick-stop ramp 0.1 s, then Fault.
+                    assert_eq!(d.state(), PdsState::Fault);
+                    assert_eq!(d.error_code(), ERR_COMMUNICATION);
+                    let t = stop_ms.expect("stopped");
+                    assert!((100..=102).contains(&t), "ramp took {t} ms");
+                }
+                AbortConnection::DisableVoltage => {
+                    assert_eq!(d.state(), PdsState::SwitchOnDisabled);
+                    assert_eq!(stop_ms, Some(1), "power off at once");
+                }
+                AbortConnection::QuickStop => {
+                    // 0x605A = 2: quick-stop ramp, then Switch on disabled.
+                    assert_eq!(d.state(), PdsState::SwitchOnDisabled);
+                    assert_eq!(d.controlword(), 0x0002);
+                    let t = stop_ms.expect("stopped");
+                    assert!((100..=102).contains(&t), "ramp took {t} ms");
+                }
+            }
+            if got != AbortConnection::NoAction {
+                assert_eq!(ax.vel, 0);
+                // Nothing moves afterwards: no enable without a new command sequence.
+                let at = ax.pos;
+                let c = step(&mut d, &mut ax);
+                assert!(!c.drive_enabled && !c.brake_release && !c.power_stage);
+                assert_eq!(ax.pos, at);
+            }
+        }
+    }
+
+    fn quick_stop_reaction_that_stays_holds_in_quick_stop_active() {
+        let (mut d, mut ax) = reach(PdsState::OperationEnabled);
+        d.params.abort_connection_option = 3;
+        d.params.quick_stop_option = 6;
+        d.params.target_velocity = 50_000;
+        steps(&mut d, &mut ax, 200);
+        d.on_connection_lost();
+        steps(&mut d, &mut ax, 500);
+        assert_eq!(d.state(), PdsState::QuickStopActive);
+        let at = ax.pos;
+        for _ in 0..2000 {
+            let c = step(&mut d, &mut ax);
+            assert!(c.drive_enabled && c.power_stage, "holding with power");
+        }
+        assert_eq!(ax.pos, at);
+        assert_eq!(ax.vel, 0);
+    }
+
+    fn init_does_not_cut_a_running_fault_reaction_short() {
+        let (mut d, mut ax) = reach(PdsState::OperationEnabled);
+        d.params.target_velocity = 100_000;
+        d.params.profile_acceleration = 10_000_000;
+        d.params.quick_stop_deceleration = 1_000_000;
+        steps(&mut d, &mut ax, 100);
+        d.on_connection_lost();
+        d.on_esm_init();
+        let c = step(&mut d, &mut ax);
+        assert_eq!(d.state(), PdsState::FaultReactionActive);
+        assert!(c.drive_enabled && ax.vel > 0 && ax.vel < 100_000, "ramping");
+        steps(&mut d, &mut ax, 200);
+        assert_eq!(d.state(), PdsState::Fault);
+        assert_eq!(ax.vel, 0);
+    }
+
+    fn csp_runs_on_for_one_period_without_set_points_then_holds() {
+        // Direct CSP at 1 ms: 100 inc per set-point. The master stops after 50.
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        enable(&mut d, &mut ax, mode::CSP);
+        let mut target = 0;
+        for _ in 0..50 {
+            target += 100;
+            d.params.target_position = target;
+            let fb = ax.feedback();
+            let c = d.step(&fb, DT, SetpointArrival::Fresh);
+            ax.apply(&c);
+            assert_eq!(c.position, target);
+            assert!((c.velocity - 100_000.0).abs() < 1.0, "{}", c.velocity);
+        }
+        // Steps of the drive's own clock, half a period each: the demand runs on at
+        // 100 inc/ms for one period, then holds.
+        let mut seen = [0i32; 6];
+        for v in seen.iter_mut() {
+            let fb = ax.feedback();
+            let c = d.step(&fb, DT / 2.0, SetpointArrival::Stale);
+            ax.apply(&c);
+            *v = c.position;
+        }
+        assert_eq!(seen, [target + 50, target + 100, target + 100, target + 100, target + 100, target + 100]);
+        let fb = ax.feedback();
+        let c = d.step(&fb, DT, SetpointArrival::Stale);
+        assert_eq!(c.velocity, 0.0, "held");
+        // The master comes back 5 ms after its last set-point: the next one is
+        // followed at once, with the mean velocity over the gap as feed-forward.
+        d.params.target_position = target + 200;
+        let fb = ax.feedback();
+        let c = d.step(&fb, DT, SetpointArrival::Fresh);
+        assert_eq!(c.position, target + 200);
+        assert!((c.velocity - 40_000.0).abs() < 1.0, "{}", c.velocity);
+    }
+
+    fn csp_interpolates_a_slow_cycle_between_supervision_steps() {
+        // 4 ms set-points (0x60C2 = 4 ms), steps every 1 ms: linear, one period behind;
+        // after the last set-point, one period of run-on, then hold.
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(0);
+        d.params.interpolation_period = 4;
+        enable(&mut d, &mut ax, mode::CSP);
+        let mut demands = [0i32; 18];
+        let mut n = 0;
+        for k in 1..=3 {
+            d.params.target_position = k * 400;
+            for j in 0..4 {
+                let arrival = if j == 0 { SetpointArrival::Fresh } else { SetpointArrival::Stale };
+                let fb = ax.feedback();
+                let c = d.step(&fb, DT, arrival);
+                ax.apply(&c);
+                demands[n] = c.position;
+                n += 1;
+            }
+        }
+        for _ in 0..6 {
+            let fb = ax.feedback();
+            let c = d.step(&fb, DT, SetpointArrival::Stale);
+            ax.apply(&c);
+            demands[n] = c.position;
+            n += 1;
+        }
+        assert_eq!(n, demands.len());
+        assert_eq!(
+            demands,
+            [0, 100, 200, 300, 400, 500, 600, 700, 800, 900, 1000, 1100, 1200, 1300, 1400, 1500, 1600, 1600]
+        );
     }
 
     fn mode_display_follows_after_the_switch() {
@@ -1179,7 +1354,7 @@ qemu_runner::tests! {
                     c
                 }
                 _ => {
-                    d.on_esm_left_op_while_enabled();
+                    d.on_connection_lost();
                     assert_eq!(d.state(), PdsState::SwitchOnDisabled);
                     assert_eq!(d.error_code(), 0);
                     step_cw(&mut d, &mut ax, 0x000F)

@@ -6,7 +6,8 @@
 //! application cycle it advances its [`Axis`] to the cycle's time, hands the measured
 //! state to the drive, runs the drive cycle and gives the drive's set-points back to
 //! the axis. The helpers [`advance`] / [`process`] move the segment on and also do
-//! what the board's main loop does: the 1 ms housekeeping tick (with the board's glue:
+//! what the board's main loop does: the 1 ms supervision tick on the drive's own
+//! clock, which steps the drive whether or not frames arrive (with the board's glue:
 //! a failed commutation alignment, [`Axis::commutation_failures`], raises the
 //! following-error fault 0x8611 as `firmware/src/main.rs` `tick` does) and forwarding
 //! the drive's emergencies to the mailbox.
@@ -101,8 +102,8 @@ pub struct SimDrive {
     axis_us: u64,
     /// Simulated time of the last 1 ms tick, µs.
     tick_us: u64,
-    /// Simulated time of the last application cycle, µs.
-    cycle_us: Option<u64>,
+    /// The drive's control steps the axis has taken the set-points of.
+    seen_steps: u32,
     /// Index position read by a housekeeping tick, kept for the next cycle.
     pending_index: Option<i32>,
     /// Failed commutation alignments already raised as faults.
@@ -121,7 +122,7 @@ impl SimDrive {
             axis,
             axis_us: 0,
             tick_us: 0,
-            cycle_us: None,
+            seen_steps: 0,
             pending_index: None,
             align_failures: 0,
         }
@@ -158,7 +159,18 @@ impl SimDrive {
             self.drive.set_axis(state);
             let report = self.axis.current_control(self.drive.tune_permitted());
             self.drive.current_report(&report);
-            self.drive.tick(1, raw);
+            self.drive.tick(self.tick_us, raw);
+            self.publish();
+        }
+    }
+
+    /// Hands the set-points of a new control step (tick or cycle) to the axis, as the
+    /// board's `publish_command` does for the current-loop interrupt.
+    fn publish(&mut self) {
+        if self.drive.steps() != self.seen_steps {
+            self.seen_steps = self.drive.steps();
+            let cmd = *self.drive.command();
+            self.axis.command(&cmd, f64::from(self.drive.step_dt()));
         }
     }
 }
@@ -219,13 +231,7 @@ impl SlaveApplication for SimDrive {
         state.index = state.index.or(pending);
         self.drive.set_axis(state);
         self.drive.cycle(info);
-        let cycle_s = match self.cycle_us {
-            Some(prev) if info.now_us > prev => (info.now_us - prev) as f64 * 1e-6,
-            _ => 1e-3,
-        };
-        self.cycle_us = Some(info.now_us);
-        let cmd = *self.drive.command();
-        self.axis.command(&cmd, cycle_s);
+        self.publish();
     }
     fn on_outputs_lost(&mut self, code: AlStatusCode) {
         self.drive.on_outputs_lost(code)

@@ -691,7 +691,7 @@ fn composed_drive_fault_reaches_pds_emergency_led_outputs_and_0x603f() {
         for _ in 0..ms {
             now += 1;
             d.set_axis(a);
-            d.tick(1, raw);
+            d.tick(u64::from(now) * 1000, raw);
             d.run_cycle(0.001);
             let red = d.leds(now).red;
             match tl.last_mut() {

@@ -96,6 +96,34 @@ pub const fn mode_supported(m: i8) -> bool {
     m == 0 || (m >= 1 && m <= 32 && SUPPORTED_MODES & (1 << (m - 1)) != 0)
 }
 
+/// 0x6007 abort connection option code: what the drive does when the master's
+/// commands stop ([`Cia402::on_connection_lost`]). Stored by 'save'.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(i16)]
+pub enum AbortConnection {
+    /// 0: no action; the drive keeps its state and its last set-points.
+    NoAction = 0,
+    /// 1 (default): fault 0x8100, the fault reaction 0x605E, then Fault.
+    Fault = 1,
+    /// 2: disable voltage (power off at once, brake engaged).
+    DisableVoltage = 2,
+    /// 3: quick stop on the 0x605A ramp.
+    QuickStop = 3,
+}
+
+impl AbortConnection {
+    /// The option of a 0x6007 value (the object's range is 0-3; anything else is
+    /// taken as the default, fault).
+    pub const fn from_code(code: i16) -> AbortConnection {
+        match code {
+            0 => AbortConnection::NoAction,
+            2 => AbortConnection::DisableVoltage,
+            3 => AbortConnection::QuickStop,
+            _ => AbortConnection::Fault,
+        }
+    }
+}
+
 /// Error code (0x603F) of a following error.
 pub const ERR_FOLLOWING: u16 = 0x8611;
 /// Error code used when the ESM leaves Op while the drive function is enabled.
@@ -214,6 +242,8 @@ pub struct DriveCommand {
 /// The writable CiA 402 parameters (values of the RW objects).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Params {
+    /// 0x6007 abort connection option code ([`AbortConnection`]).
+    pub abort_connection_option: i16,
     /// 0x605A quick stop option code.
     pub quick_stop_option: i16,
     /// 0x605B shutdown option code.
@@ -301,6 +331,7 @@ pub struct Params {
 impl Params {
     /// The defaults (same values as the `default` of the dictionary entries).
     pub const DEFAULT: Params = Params {
+        abort_connection_option: AbortConnection::Fault as i16,
         quick_stop_option: 2,
         shutdown_option: 0,
         disable_op_option: 1,
@@ -420,14 +451,78 @@ struct Pp {
     smooth: Smoother,
 }
 
-/// CSP / CSV interpolation state.
+/// CSP set-point segment: the demand goes from `from` towards `to` (see
+/// [`Cia402::step`] for the timing rules).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 struct Cyclic {
     from: i32,
     to: i32,
+    /// Time since the segment started, s.
     elapsed: f32,
+    /// Time since the last set-point, s, and that time at the last set-point.
+    since_fresh: f32,
+    last_gap: f32,
+    /// Set-point period of the segment, s.
+    period: f32,
+    /// The segment interpolates over its period (several steps per set-point) instead
+    /// of reaching `to` at once.
+    interpolate: bool,
+    /// The caller tells which steps bring set-points ([`SetpointArrival::Fresh`] /
+    /// [`SetpointArrival::Stale`]): the demand may run on for one period past `to`.
+    extrapolate: bool,
     started: bool,
 }
+
+impl Cyclic {
+    /// The segment's demand at its `elapsed` time and the velocity feed-forward
+    /// (`offset` is 0x60B1). In periods from the segment's start, an interpolated
+    /// segment reaches `to` after one, a direct one at once; with run-on the demand
+    /// goes on for one more period, then holds with velocity 0.
+    fn demand(&self, offset: f32) -> (i32, f32) {
+        let period = if self.period > 0.0 {
+            self.period
+        } else {
+            1.0e-3
+        };
+        let seg = self.to.wrapping_sub(self.from);
+        let start = if self.interpolate { 0.0 } else { 1.0 };
+        let end = if self.extrapolate { 2.0 } else { 1.0 };
+        let mut frac = start + self.elapsed / period;
+        if (0.999..=1.001).contains(&frac) {
+            frac = 1.0;
+        }
+        let held = self.extrapolate && frac >= end;
+        let pos = self.from.wrapping_add((seg as f32 * frac.min(end)) as i32);
+        let vel = if held {
+            0.0
+        } else {
+            seg as f32 / period + offset
+        };
+        (pos, vel)
+    }
+}
+
+/// Whether a step brings new cyclic set-points (CSP's 0x607A, CSV's 0x60FF).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SetpointArrival {
+    /// The caller does not tell: every step is a cycle of the master, and when the
+    /// steps are shorter than 0x60C2 a new set-point is taken every 0x60C2 period.
+    PerCycle,
+    /// The master's cycle delivered new outputs for this step.
+    Fresh,
+    /// No new outputs since the last step (the drive's own supervision tick, or a
+    /// cycle without a frame).
+    Stale,
+}
+
+/// The drive steps at least this often (its supervision tick): a set-point period of
+/// 1.5 steps or more is interpolated over several steps.
+pub const STEP_PERIOD_S: f32 = 1.0e-3;
+
+/// The acceleration feed-forward is the change of the velocity demand over at least
+/// this time, so that a short step (the supervision tick and the master's cycle
+/// landing close together) does not make a spike of it.
+pub const ACCELERATION_MIN_DT_S: f32 = 250.0e-6;
 
 /// A stop in Operation enabled that is not a PDS state of its own.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -573,30 +668,66 @@ impl Cia402 {
 
     // ----- ESM coupling -----
 
-    /// The ESM left Op (Op → Safe-Op / Pre-Op / Init, watchdog). With the drive function
-    /// enabled (Operation enabled, Quick stop active) this is a fault (0x8100, reaction
-    /// 0x605E); Switched on / Ready to switch on fall to Switch on disabled. The
-    /// controlword is cleared (no master commands outside Op).
-    pub fn on_esm_left_op_while_enabled(&mut self) {
-        self.controlword = 0;
-        self.prev_cw = 0;
-        match self.state {
-            PdsState::OperationEnabled | PdsState::QuickStopActive => {
+    /// The master's commands stopped: the process-data watchdog, the SYNC0 or sync
+    /// supervision, or the ESM leaving Op (requested or forced). Applies 0x6007
+    /// ([`AbortConnection`]) and returns it. Except with 0x6007 = 0 the controlword is
+    /// replaced by the command the reaction needs (no master commands arrive any more;
+    /// a master that comes back must enable again):
+    /// * 1 fault: Operation enabled / Quick stop active → Fault reaction active
+    ///   (0x603F = [`ERR_COMMUNICATION`], reaction 0x605E, then Fault);
+    /// * 2 disable voltage: → Switch on disabled at once (power off, brake engaged);
+    /// * 3 quick stop: Operation enabled → Quick stop active (ramp 0x605A); the
+    ///   controlword holds "quick stop", so the stop runs to its end;
+    /// * with 1-3, Switched on / Ready to switch on fall to Switch on disabled.
+    ///
+    /// The reaction then runs on the drive's own clock ([`Cia402::step`] from the
+    /// supervision tick): no frame is needed to finish it.
+    pub fn on_connection_lost(&mut self) -> AbortConnection {
+        let option = AbortConnection::from_code(self.params.abort_connection_option);
+        let cmd = match option {
+            AbortConnection::NoAction => return option,
+            AbortConnection::Fault | AbortConnection::DisableVoltage => 0,
+            AbortConnection::QuickStop => pds::QUICK_STOP_COMMAND,
+        };
+        self.controlword = cmd;
+        self.prev_cw = cmd;
+        match (self.state, option) {
+            (PdsState::OperationEnabled | PdsState::QuickStopActive, AbortConnection::Fault) => {
                 self.fault_detected(ERR_COMMUNICATION)
             }
-            PdsState::SwitchedOn | PdsState::ReadyToSwitchOn => {
-                self.enter(PdsState::SwitchOnDisabled);
+            (PdsState::OperationEnabled, AbortConnection::QuickStop) => {
+                self.enter(PdsState::QuickStopActive)
             }
+            (PdsState::QuickStopActive, AbortConnection::QuickStop) => {}
+            (
+                PdsState::OperationEnabled
+                | PdsState::QuickStopActive
+                | PdsState::SwitchedOn
+                | PdsState::ReadyToSwitchOn,
+                _,
+            ) => self.enter(PdsState::SwitchOnDisabled),
             _ => {}
         }
+        option
     }
 
-    /// The ESM went to Init: the PDS goes to Switch on disabled (from any state; a fault
-    /// whose condition persists is raised again by the next cycle).
+    /// The ESM went to Init. A stop that is running (fault reaction, quick stop) and,
+    /// with 0x6007 = 0, Operation enabled are left alone: they go on on the drive's own
+    /// clock. A fault stays until a fault reset (0x603F keeps telling what happened).
+    /// Every other state goes to Switch on disabled (Not ready to switch on while the
+    /// power-up self-test runs) with the controlword cleared.
     pub fn on_esm_init(&mut self) {
+        if matches!(
+            self.state,
+            PdsState::OperationEnabled
+                | PdsState::QuickStopActive
+                | PdsState::FaultReactionActive
+                | PdsState::Fault
+        ) {
+            return;
+        }
         self.controlword = 0;
         self.prev_cw = 0;
-        self.error_code = 0;
         self.init_done = !self.self_test;
         self.enter(if self.self_test {
             PdsState::NotReadyToSwitchOn
@@ -781,8 +912,30 @@ impl Cia402 {
         Some(t.number)
     }
 
-    /// One control cycle (`dt` in seconds).
+    /// One control step of `dt` seconds whose set-points are of unknown age
+    /// ([`SetpointArrival::PerCycle`]): the step of a caller that runs one step per master
+    /// cycle (tests, benchmarks).
     pub fn cycle(&mut self, fb: &DriveFeedback, dt: f32) -> DriveCommand {
+        self.step(fb, dt, SetpointArrival::PerCycle)
+    }
+
+    /// One control step of `dt` seconds: PDS, the stop ramps and reactions, the
+    /// active mode's generator, supervision, statusword. The drive calls it from its
+    /// own clock (every supervision tick) and from the master's cycle; `setpoint`
+    /// says whether that cycle brought new outputs.
+    ///
+    /// **CSP** takes a new 0x607A at each [`SetpointArrival::Fresh`] step. Its set-point
+    /// period is 0x60C2, or the measured time between set-points when that differs
+    /// from 0x60C2 by more than a quarter. A period shorter than 1.5 steps
+    /// ([`STEP_PERIOD_S`]) is followed directly (the demand is the target, with the
+    /// segment's velocity as feed-forward); a longer one is interpolated linearly, one
+    /// period behind. Without a new set-point the demand runs on with the last
+    /// segment's velocity for **at most one period** (the lost or late frame of a
+    /// master at constant speed costs nothing), then **holds** (velocity 0) until the
+    /// next set-point. With [`SetpointArrival::PerCycle`] there is no run-on: the demand
+    /// stops at the target. **CSV** keeps the last 0x60FF: a velocity set-point holds
+    /// by being a velocity; a lost master is stopped by 0x6007.
+    pub fn step(&mut self, fb: &DriveFeedback, dt: f32, setpoint: SetpointArrival) -> DriveCommand {
         let dt = if dt > 0.0 && dt < 1.0 { dt } else { 0.001 };
         // 1. Measured values in user units.
         self.raw_position = fb.position;
@@ -864,7 +1017,7 @@ impl Cia402 {
                         drive_enabled = false;
                     }
                 } else {
-                    kind = self.run_mode(index, dt);
+                    kind = self.run_mode(index, dt, setpoint);
                 }
             }
             PdsState::QuickStopActive => {
@@ -937,7 +1090,7 @@ impl Cia402 {
         let power = self.state.voltage_enabled();
         let v = self.motion.velocity();
         let acc = if drive_enabled {
-            (v - self.prev_demand_vel) / dt
+            (v - self.prev_demand_vel) / dt.max(ACCELERATION_MIN_DT_S)
         } else {
             0.0
         };
@@ -979,7 +1132,7 @@ impl Cia402 {
     }
 
     /// Runs the active mode in Operation enabled; returns the set-point kind.
-    fn run_mode(&mut self, index: Option<i32>, dt: f32) -> SetpointKind {
+    fn run_mode(&mut self, index: Option<i32>, dt: f32, setpoint: SetpointArrival) -> SetpointKind {
         let cwv = self.controlword;
         let halt = cwv & cw::HALT != 0;
         let p = &self.params;
@@ -1078,7 +1231,7 @@ impl Cia402 {
                     self.clamp_sw_limit();
                     SetpointKind::Velocity
                 } else {
-                    self.run_csp(pos_lim, neg_lim, dt);
+                    self.run_csp(pos_lim, neg_lim, dt, setpoint);
                     SetpointKind::Position
                 }
             }
@@ -1107,7 +1260,7 @@ impl Cia402 {
         false
     }
 
-    fn run_csp(&mut self, pos_lim: bool, neg_lim: bool, dt: f32) {
+    fn run_csp(&mut self, pos_lim: bool, neg_lim: bool, dt: f32, setpoint: SetpointArrival) {
         let p = &self.params;
         let mut target = p.target_position.wrapping_add(p.position_offset);
         if let Some((lo, hi)) = p.sw_limits() {
@@ -1119,42 +1272,100 @@ impl Cia402 {
                 self.internal_limit = true;
             }
         }
+        let velocity_offset = p.velocity_offset as f32;
         let cur = self.motion.position();
         let nominal = p.interpolation_period_s();
-        let ratio = nominal / dt;
         if !self.cyc.started {
-            // `elapsed` far past the period: the next cycle starts a new segment.
+            // No segment yet: stand at the demand; the first set-point starts one. The
+            // time since the "last" set-point starts at one nominal period, so the
+            // first segment gets the nominal period.
             self.cyc = Cyclic {
                 from: cur,
                 to: cur,
                 elapsed: 1.0e9,
+                since_fresh: nominal,
+                last_gap: nominal,
+                period: nominal,
+                interpolate: false,
+                extrapolate: false,
                 started: true,
             };
         }
-        let (seg, frac, period) = if ratio < 1.5 {
-            // One control cycle per set-point (the usual case: 0x60C2 = sync cycle). The
-            // measured cycle time may jitter, so no boundary test here; the nominal
-            // period scales the feed-forward unless 0x60C2 disagrees with the cycle.
-            let per = if ratio > 0.75 { nominal } else { dt };
-            self.cyc.from = self.cyc.to;
-            self.cyc.to = target;
-            self.cyc.elapsed = 1.0e9;
-            (target.wrapping_sub(self.cyc.from), 1.0, per)
-        } else {
-            // Several control cycles per set-point: linear interpolation; a new segment
-            // starts at the cycle that ends nearest to the period boundary.
-            if self.cyc.elapsed + 0.5 * dt >= nominal {
-                self.cyc.from = self.cyc.to;
-                self.cyc.to = target;
-                self.cyc.elapsed = 0.0;
+        self.cyc.since_fresh += dt;
+        self.cyc.elapsed += dt;
+        let new_segment = match setpoint {
+            SetpointArrival::PerCycle => {
+                // One step per master cycle: a new set-point every step, or every
+                // 0x60C2 period (at the step that ends nearest to its boundary) when
+                // the steps are shorter.
+                let ratio = nominal / dt;
+                let interpolate = ratio >= 1.5;
+                let due = !interpolate || self.cyc.elapsed - 0.5 * dt >= nominal;
+                if due {
+                    self.cyc.interpolate = interpolate;
+                    self.cyc.period = if interpolate || ratio > 0.75 {
+                        nominal
+                    } else {
+                        dt
+                    };
+                    self.cyc.since_fresh = 0.0;
+                }
+                self.cyc.extrapolate = false;
+                due
             }
-            self.cyc.elapsed += dt;
-            let frac = self.cyc.elapsed / nominal;
-            let frac = if frac > 0.999 { 1.0 } else { frac };
-            (self.cyc.to.wrapping_sub(self.cyc.from), frac, nominal)
+            SetpointArrival::Fresh => {
+                // The master's period: 0x60C2, unless the time since the last set-point
+                // differs from it by more than a quarter and agrees with the time
+                // before (a master whose cycle is not 0x60C2); a one-off gap (lost
+                // frames, a master coming back) keeps 0x60C2.
+                let gap = self.cyc.since_fresh;
+                let near = |a: f32, b: f32| a >= 0.75 * b && a <= 1.33 * b;
+                let steady = if !near(gap, nominal) && near(gap, self.cyc.last_gap) {
+                    gap
+                } else if nominal > 0.0 {
+                    nominal
+                } else {
+                    gap
+                };
+                let interpolate = steady >= 1.5 * STEP_PERIOD_S;
+                // A direct segment's velocity is the set-points' difference over the
+                // time between them (0x60C2 while that is within a quarter of it).
+                let period = if interpolate || near(gap, nominal) {
+                    steady
+                } else {
+                    gap
+                };
+                self.cyc.last_gap = gap;
+                self.cyc.since_fresh = 0.0;
+                self.cyc.period = period;
+                self.cyc.interpolate = interpolate;
+                true
+            }
+            SetpointArrival::Stale => false,
         };
-        let mut demand = self.cyc.from.wrapping_add((seg as f32 * frac) as i32);
-        let mut vel = seg as f32 / period + p.velocity_offset as f32;
+        if new_segment {
+            // An interpolated segment starts where the last one's demand is now (on
+            // time that is its target; early or after a run-on, no step); a direct one
+            // from the last target (its velocity is the set-points' difference).
+            let (at_now, _) = self.cyc.demand(0.0);
+            let interpolate_from = setpoint == SetpointArrival::Fresh && self.cyc.interpolate;
+            self.cyc.from = if interpolate_from {
+                at_now
+            } else {
+                self.cyc.to
+            };
+            self.cyc.to = target;
+            self.cyc.extrapolate = setpoint == SetpointArrival::Fresh;
+            self.cyc.elapsed = match (setpoint, self.cyc.interpolate) {
+                // The boundary step itself is the segment's first step.
+                (SetpointArrival::PerCycle, true) => dt,
+                // Every step is a boundary: the next one that is not is a new segment.
+                (SetpointArrival::PerCycle, false) => 1.0e9,
+                _ => 0.0,
+            };
+        }
+        let (mut demand, moving) = self.cyc.demand(velocity_offset);
+        let mut vel = moving;
         let d = demand.wrapping_sub(cur);
         if (pos_lim && d > 0) || (neg_lim && d < 0) {
             self.abnormal_stop = true;

@@ -22,6 +22,8 @@ const TX: PdoMappable = PdoMappable::Tx;
 
 /// The CiA 402 objects, sorted by index.
 pub const OBJECTS: &[Object] = &[
+    Object::var(0x6007, "Abort connection option code", &[Entry::new(0, "Abort connection option code", I16, RW).range(0, 3).default(1).saved()],
+        "Reaction when the master's commands stop (SM watchdog, Op left, SYNC0 missing): 0 none (the last set-points stay), 1 fault (reaction 0x605E), 2 disable voltage, 3 quick stop (0x605A)."),
     Object::var(0x603F, "Error code", &[Entry::new(0, "Error code", U16, RO).pdo(TX).default(0)],
         "Code of the last fault (CiA 402 / CiA 301 error codes); 0 after a fault reset."),
     Object::var(0x6040, "Controlword", &[Entry::new(0, "Controlword", U16, RW).pdo(RX).default(0)],
@@ -365,6 +367,7 @@ const fn computed(index: u16, sub: u8, kind: Kind, arg: u16) -> Field {
 /// Where every entry of [`OBJECTS`] gets its value (one table instead of a read and a
 /// write dispatch; `tests::every_entry_has_a_field` keeps it complete).
 const FIELDS: &[Field] = &[
+    field!(0x6007, 0, i16, params.abort_connection_option),
     field!(0x603F, 0, u16, error_code),
     field!(0x6040, 0, u16, controlword),
     field!(0x6041, 0, u16, statusword),

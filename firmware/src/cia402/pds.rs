@@ -85,6 +85,10 @@ impl PdsState {
     }
 }
 
+/// The controlword "quick stop" (`0000 0010`: enable voltage, quick stop active):
+/// what the drive keeps in 0x6040 while a quick stop it started itself runs (0x6007 = 3).
+pub const QUICK_STOP_COMMAND: u16 = 0x0002;
+
 /// A controlword command (bits 0-3 and 7, decoded with the standard masks).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Command {

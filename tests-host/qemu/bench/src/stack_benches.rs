@@ -237,7 +237,9 @@ fn csp_cycle() {
     let tx_len = (plan.tx.bytes() as usize).min(inputs.len());
     let fb = crate::setup::AT_REST;
     let mut target = 0i32;
+    let mut now_us = 0u64;
     for cw in [0x0000u16, 0x0006, 0x0007, 0x000F, 0x000F, 0x000F] {
+        now_us += 1000;
         let mut out = [0u8; 12];
         out[0..2].copy_from_slice(&cw.to_le_bytes());
         target += 50;
@@ -253,7 +255,7 @@ fn csp_cycle() {
                 position: target,
                 ..AxisState::default()
             });
-            d.tick(1, 0);
+            d.tick(now_us, 0);
             r
         });
     }
