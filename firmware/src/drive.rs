@@ -209,9 +209,11 @@ pub struct Drive<S: ParameterStore = NoStore> {
     /// Local clock of the last control step ([`Drive::step`]) and of the last tick, µs.
     last_step_us: Option<u64>,
     last_tick_us: Option<u64>,
-    /// Control steps so far (wrapping) and the length of the last one, s.
+    /// Control steps so far (wrapping).
     steps: u32,
-    step_dt: f32,
+    /// Local clock of the last master cycle and the time between the last two, µs.
+    last_cycle_us: Option<u64>,
+    cycle_period_us: u64,
     now_ms: u32,
     fault_led: fault_led::FaultLed,
     last_controlword: u16,
@@ -230,9 +232,10 @@ pub const ERR_COMMUNICATION_LOST: u16 = 0x8700;
 /// Period of the supervision tick ([`Drive::tick`]) on the board, µs.
 pub const TICK_US: u64 = 1000;
 
-/// A tick runs a control step when none has run for this long (µs): with the
-/// master's cycle at 1 ms or faster the cycles do the steps, with slower cycles or
-/// none at all the tick fills in, so the drive steps at least every [`TICK_US`].
+/// A tick runs a control step when none has run for this long (µs), or for 1.5
+/// cycles while the master's cycles of 1 ms or less run: then the cycles do the
+/// steps; with slower cycles or none at all the tick fills in, so the drive steps at
+/// least every [`TICK_US`] (once the cycles stop, after at most two).
 pub const TICK_STEP_AFTER_US: u64 = 900;
 
 impl Drive<NoStore> {
@@ -259,7 +262,8 @@ macro_rules! power_up_fields {
             last_step_us: None,
             last_tick_us: None,
             steps: 0,
-            step_dt: 0.0,
+            last_cycle_us: None,
+            cycle_period_us: 0,
             now_ms: 0,
             fault_led: fault_led::FaultLed::new(),
             last_controlword: 0,
@@ -470,9 +474,13 @@ impl<S: ParameterStore> Drive<S> {
         if self.params.take_fault_history_clear() {
             self.faults.clear_history();
         }
+        let after = match self.cycles_running(now_us) {
+            Some(p) => TICK_STEP_AFTER_US.max(p + p / 2),
+            None => TICK_STEP_AFTER_US,
+        };
         let due = self
             .last_step_us
-            .is_none_or(|t| now_us.saturating_sub(t) >= TICK_STEP_AFTER_US || now_us < t);
+            .is_none_or(|t| now_us.saturating_sub(t) >= after || now_us < t);
         if due {
             self.step(now_us, SetpointArrival::Stale);
         }
@@ -488,20 +496,34 @@ impl<S: ParameterStore> Drive<S> {
             None => (TICK_US as f32 * 1e-6).min(0.01),
         };
         self.last_step_us = Some(now_us);
-        self.step_dt = dt;
         self.steps = self.steps.wrapping_add(1);
         self.control_step(dt, setpoint)
+    }
+
+    /// The period of the master's cycles (µs) while they run at 1 ms or faster (the
+    /// last one less than two periods ago).
+    fn cycles_running(&self, now_us: u64) -> Option<u64> {
+        let p = self.cycle_period_us;
+        let t = self.last_cycle_us?;
+        (p > 0 && p <= TICK_US && now_us.saturating_sub(t) < 2 * p).then_some(p)
+    }
+
+    /// How long the motion layer takes to reach a new step's set-points, s: the
+    /// master's cycle while it runs at 1 ms or faster (the steps come with it), else
+    /// the tick period. Not the length of the last step: the tick and the cycle may
+    /// land close together, and the motion layer must not rush to the second one.
+    pub fn segment_s(&self) -> f32 {
+        let us = self
+            .last_step_us
+            .and_then(|t| self.cycles_running(t))
+            .unwrap_or(TICK_US);
+        us as f32 * 1e-6
     }
 
     /// Control steps so far (wrapping): a new value means new set-points in
     /// [`Drive::command`], for the motion layer to start a new segment with.
     pub fn steps(&self) -> u32 {
         self.steps
-    }
-
-    /// Length of the last control step, s (the motion layer's segment time).
-    pub fn step_dt(&self) -> f32 {
-        self.step_dt
     }
 
     /// The power stage may be on: the last step's command wants it and no fault that
@@ -866,6 +888,10 @@ impl<S: ParameterStore> SlaveApplication for Drive<S> {
     /// The master's cycle: the set-points it brought take effect in a control step
     /// now (the supervision tick steps the drive as well, on its own clock).
     fn cycle(&mut self, info: &CycleInfo) {
+        if let Some(t) = self.last_cycle_us {
+            self.cycle_period_us = info.now_us.saturating_sub(t);
+        }
+        self.last_cycle_us = Some(info.now_us);
         let arrival = if info.outputs_fresh {
             SetpointArrival::Fresh
         } else {

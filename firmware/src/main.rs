@@ -701,7 +701,7 @@ fn publish_command(s: &mut Shared) {
         s.probe2.consumed();
         s.ctl.cycle = s.ctl.cycle.wrapping_add(1);
         s.ctl.command = *s.drive.command();
-        s.ctl.cycle_s = s.drive.step_dt();
+        s.ctl.cycle_s = s.drive.segment_s();
     }
     s.ctl.power_allowed = s.drive.power_permission();
     s.ctl.tune_allowed = s.drive.tune_permitted() && s.ctl.offsets.is_some();

@@ -170,7 +170,7 @@ impl SimDrive {
         if self.drive.steps() != self.seen_steps {
             self.seen_steps = self.drive.steps();
             let cmd = *self.drive.command();
-            self.axis.command(&cmd, f64::from(self.drive.step_dt()));
+            self.axis.command(&cmd, f64::from(self.drive.segment_s()));
         }
     }
 }

@@ -489,7 +489,10 @@ fn random_garbage_never_panics_and_states_stay_consistent() {
                 d.params.quick_stop_option = rng.below(9) as i16;
                 d.set_mode([0i8, 1, 3, 6, 8, 9][rng.below(6) as usize]);
             }
-            3 if rng.below(100) == 0 => d.on_connection_lost(),
+            3 if rng.below(100) == 0 => {
+                d.params.abort_connection_option = rng.below(4) as i16;
+                d.on_connection_lost();
+            }
             4 if rng.below(100) == 0 => d.on_esm_init(),
             _ => {}
         }

@@ -871,6 +871,20 @@ impl Cia402 {
             self.fe_time = 0.0;
             self.fe_flag = false;
         }
+        if to == PdsState::FaultReactionActive {
+            // A fault: the demand may be what went wrong (a jump of the master's
+            // target, a load the motor cannot hold). The reaction ramp starts from the
+            // demand position at the lower of the demand and the actual speed (none
+            // when they point in opposite directions).
+            let vd = self.motion.velocity();
+            let va = self.actual_velocity as f32;
+            let v = if vd * va > 0.0 {
+                vd.signum() * vd.abs().min(va.abs())
+            } else {
+                0.0
+            };
+            self.motion.set(self.motion.position(), v);
+        }
         if from == PdsState::OperationEnabled && to != PdsState::OperationEnabled {
             // Leaving operation enabled voids the motion tasks (PP set-points, homing,
             // CSP segment); transition 16 starts again from standstill.
@@ -1355,7 +1369,10 @@ impl Cia402 {
                 self.cyc.to
             };
             self.cyc.to = target;
-            self.cyc.extrapolate = setpoint == SetpointArrival::Fresh;
+            // Run-on only for a segment the axis can follow (not a jump of the target).
+            let speed = (target.wrapping_sub(self.cyc.from) as f32 / self.cyc.period).abs();
+            self.cyc.extrapolate =
+                setpoint == SetpointArrival::Fresh && speed <= self.params.vmax();
             self.cyc.elapsed = match (setpoint, self.cyc.interpolate) {
                 // The boundary step itself is the segment's first step.
                 (SetpointArrival::PerCycle, true) => dt,
