@@ -855,18 +855,27 @@ impl<S: ParameterStore> Drive<S> {
     /// emergency `code` without a fault; 0 does nothing.
     #[inline(never)]
     fn left_op(&mut self, code: u16, diag: [u8; 2]) {
-        let waiting = self.cia402.enable_waiting();
-        let enabled = self.command.drive_enabled && !waiting;
-        match self.cia402.on_connection_lost() {
+        use crate::cia402::pds::PdsState;
+        let before = self.cia402.state();
+        let had_function = matches!(
+            before,
+            PdsState::OperationEnabled | PdsState::QuickStopActive
+        ) && !self.cia402.enable_waiting();
+        let option = self.cia402.on_connection_lost();
+        // Reported once: a second report of the same loss (the outputs lost, then the
+        // ESM change) finds the reaction already running.
+        if !had_function || self.cia402.state() == before {
+            return;
+        }
+        match option {
             AbortConnection::NoAction => {}
-            AbortConnection::Fault if enabled => {
+            AbortConnection::Fault => {
                 self.faults.raise_ecat(code, diag, self.now_ms);
                 self.faults.condition_gone(FaultKind::Ecat);
             }
-            AbortConnection::DisableVoltage | AbortConnection::QuickStop if enabled => {
+            AbortConnection::DisableVoltage | AbortConnection::QuickStop => {
                 self.faults.notify(code, diag);
             }
-            _ => {}
         }
     }
 }

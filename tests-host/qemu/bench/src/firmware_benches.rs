@@ -9,6 +9,7 @@ pub fn run() {
     product();
     motion();
     csp_cycle();
+    supervision_tick();
 }
 
 /// CiA 402 rows: one control cycle of the drive profile from "outputs unpacked" to
@@ -204,6 +205,8 @@ fn motion() {
 fn csp_cycle() {
     use ecat_slave_stack::esm::{EsmHooks, EsmState};
     use ecat_slave_stack::pdo::{self, PdoConfig};
+    use ecat_slave_stack::slave::{CycleInfo, SlaveApplication};
+    use ecat_slave_stack::sync::SyncMode;
     use firmware::drive::{AxisState, Drive};
     use firmware::identity::Variant;
     use firmware::motion::{Feedback, Motion};
@@ -234,9 +237,20 @@ fn csp_cycle() {
     let tx_len = (plan.tx.bytes() as usize).min(inputs.len());
     let mut fb = crate::setup::AT_REST;
     let mut target = 0i32;
+    let mut now_us = 0u64;
+    let mut info = move || {
+        now_us += 1000;
+        CycleInfo {
+            state: EsmState::Op,
+            outputs_fresh: true,
+            mode: SyncMode::DcSync0,
+            now_us,
+        }
+    };
     let mut one_cycle = |d: &mut Drive, m: &mut Motion, fb: &mut Feedback, out: &[u8; 12]| {
         pdo::unpack(&plan.rx, out, d);
-        let cmd = d.run_cycle(0.001);
+        d.cycle(&info());
+        let cmd = *d.command();
         m.set_command(&cmd, 0.001);
         let r = m.step(fb);
         pdo::pack(&plan.tx, d, &mut inputs[..tx_len]);
@@ -260,11 +274,13 @@ fn csp_cycle() {
     target += 50;
     let out = black_box(image(0x000F, target));
     let fb = black_box(fb);
+    let last = black_box(info());
     let r = crate::bench(
         "CSP cycle (unpack → Drive cycle → motion servo step → pack)",
         || {
             pdo::unpack(&plan.rx, &out, &mut d);
-            let cmd = d.run_cycle(0.001);
+            d.cycle(&last);
+            let cmd = *d.command();
             m.set_command(&cmd, 0.001);
             let r = m.step(&fb);
             pdo::pack(&plan.tx, &d, &mut inputs[..tx_len]);
@@ -275,4 +291,64 @@ fn csp_cycle() {
     black_box(inputs);
     // The drive is enabled (statusword "operation enabled") in the measured cycle.
     black_box(d.cia402.statusword() & 0x6F == 0x27);
+}
+
+/// The supervision tick of the drive's own clock (`Drive::tick`: input filter,
+/// protections, monitoring and, with no master cycle in the last 900 µs, the control
+/// step: PDS, stop ramps, generators), in Op with the master silent: idle (Operation
+/// enabled in PV at standstill) and during the fault reaction after the master's
+/// commands stopped (0x6007 = 1: the quick-stop ramp from 1 rev/s).
+fn supervision_tick() {
+    use ecat_slave_stack::al_status::AlStatusCode;
+    use ecat_slave_stack::esm::{EsmHooks, EsmState};
+    use ecat_slave_stack::slave::SlaveApplication;
+    use firmware::cia402::pds::PdsState;
+    use firmware::drive::{AxisState, Drive};
+    use firmware::identity::Variant;
+
+    let mut d = Drive::new(Variant::HybridServo, 1);
+    for (from, to) in [
+        (EsmState::Init, EsmState::PreOp),
+        (EsmState::PreOp, EsmState::SafeOp),
+        (EsmState::SafeOp, EsmState::Op),
+    ] {
+        d.on_state_change(from, to);
+    }
+    let axis = AxisState {
+        bus_mv: 48_000,
+        ..AxisState::default()
+    };
+    d.set_axis(axis);
+    d.cia402.set_mode(mode::PV);
+    let mut now_us = 0u64;
+    for cw in [0x0000u16, 0x0006, 0x0007, 0x000F, 0x000F] {
+        d.cia402.set_controlword(cw);
+        now_us += 1000;
+        d.tick(now_us, 0);
+    }
+    now_us += 1000;
+    let now = black_box(now_us);
+    crate::bench("supervision tick (Op, enabled, idle, control step)", || {
+        d.tick(now, 0)
+    });
+    black_box(d.cia402.state() == PdsState::OperationEnabled);
+    // Moving at 1 rev/s (50 000 units/s), then the SM watchdog: the fault reaction.
+    d.cia402.params.target_velocity = 50_000;
+    for _ in 0..200 {
+        now_us += 1000;
+        d.set_axis(AxisState {
+            velocity: d.command().velocity as i32,
+            ..axis
+        });
+        d.tick(now_us, 0);
+    }
+    d.on_outputs_lost(AlStatusCode::SmWatchdog);
+    for _ in 0..3 {
+        now_us += 1000;
+        d.tick(now_us, 0);
+    }
+    now_us += 1000;
+    let now = black_box(now_us);
+    crate::bench("supervision tick (fault reaction ramp)", || d.tick(now, 0));
+    black_box(d.cia402.state() == PdsState::FaultReactionActive);
 }
