@@ -17,9 +17,10 @@
 //! SDO read/write, PDO slots).
 //!
 //! # Behaviour decided here (where the sources leave a choice)
-//! * Transition 1 happens in the first [`Cia402::cycle`]; [`Cia402::on_esm_init`] puts
-//!   the PDS in Switch on disabled from any state (a persisting fault condition in
-//!   [`DriveFeedback::fault`] raises the fault again in the next cycle).
+//! * The drive steps the profile on its own clock ([`Cia402::step`] from its
+//!   supervision tick, in every ESM state) and in the master's cycles. Transition 1
+//!   happens in the first step; [`Cia402::on_esm_init`] puts the PDS in Switch on
+//!   disabled unless a stop is running or a fault is latched (those finish / stay).
 //! * Option codes 3 and 4 ("current limit", "voltage limit") of 0x605A/0x605D/0x605E
 //!   stop with the maximum deceleration 0x60C6: the drive is position controlled.
 //!   0x605A = 0 / 0x605E = 0 disable the drive function at once (transitions 11 + 12
@@ -39,7 +40,12 @@
 //!   homing runs in user coordinates (after 0x607E).
 //! * A following error (|0x60F4| > 0x6065 for longer than 0x6066 ms in PP, HM, CSP)
 //!   sets bit 13 and raises fault 0x8611; 0x6065 = 0xFFFFFFFF switches it off.
-//! * Leaving Op while the drive function is enabled: fault 0x8100.
+//! * The master's commands stop (SM watchdog, Op left, SYNC0 lost): 0x6007
+//!   ([`AbortConnection`], [`Cia402::on_connection_lost`]); with 1, the default,
+//!   fault 0x8100 and the reaction 0x605E.
+//! * Fault reaction: the ramp starts at the demand position with the lower of the
+//!   demand and the actual speed (a jump of the target or a dragged shaft is not
+//!   ramped down from an absurd demand speed).
 //! * Transition 4 waits for the power stage ([`DriveFeedback::enable_pending`]; guard
 //!   [`pds::Guard::ReadyToFollow`]). A hybrid servo in closed loop cannot follow
 //!   set-points before its commutation alignment has run (the encoder's electrical
