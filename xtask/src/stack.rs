@@ -57,9 +57,9 @@ pub const IRQ_PRIORITIES: &[(&str, i32)] = &[
 ];
 
 /// The interrupt executor: its vector and the tasks it polls (`firmware/src/main.rs`:
-/// `EXECUTOR_CYCLIC.start(interrupt::UART4)`, `cyclic_spawner.spawn` of `cyclic` and
-/// `touch_probe2`). Every other task runs on the thread executor.
-pub const INTERRUPT_EXECUTOR: (&str, &[&str]) = ("UART4", &["cyclic", "touch_probe2"]);
+/// `EXECUTOR_CYCLIC.start(interrupt::UART4)`, `cyclic_spawner` spawns of `cyclic`,
+/// `touch_probe2` and `tick`). Every other task runs on the thread executor.
+pub const INTERRUPT_EXECUTOR: (&str, &[&str]) = ("UART4", &["cyclic", "touch_probe2", "tick"]);
 
 /// Functions whose indirect call is the executor calling a task's poll function (the
 /// thread executor's run loop inlines `SyncExecutor::poll`; the interrupt executor's
