@@ -96,6 +96,10 @@ pub struct SupervisorConfig {
     pub test_current: f32,
     /// Periods of [`FOLLOW_TIME_S`].
     pub follow_periods: u32,
+    /// Fast protection: a phase current above this trips the bridges, A.
+    pub trip_current_a: f32,
+    /// Fast protection: a bus voltage above this trips the bridges, V.
+    pub trip_bus_v: f32,
 }
 
 impl SupervisorConfig {
@@ -113,8 +117,25 @@ impl SupervisorConfig {
             auto_tune: p.get(P::AutoTune) == 1,
             test_current: TEST_CURRENT_FRACTION * peak,
             follow_periods: ((FOLLOW_TIME_S / ts) as u32).max(1),
+            trip_current_a: FAULT_LIMITS.over_current_ma as f32 * 1e-3,
+            trip_bus_v: FAULT_LIMITS.over_voltage_mv as f32 * 1e-3,
         }
     }
+}
+
+/// The protections' thresholds (the same the drive's 1 ms checks use).
+const FAULT_LIMITS: crate::faults::FaultConfig = crate::faults::FaultConfig::DEFAULT;
+
+/// What the fast protection tripped on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Trip {
+    /// Nothing yet.
+    #[default]
+    None,
+    /// A phase current above [`SupervisorConfig::trip_current_a`].
+    OverCurrent,
+    /// The bus voltage above [`SupervisorConfig::trip_bus_v`].
+    OverVoltage,
 }
 
 /// State of the power-up tune.
@@ -160,6 +181,16 @@ pub struct CurrentReport {
     pub follow_seq: u8,
     /// Reference current magnitude at the last detection, mA.
     pub follow_ref_ma: u16,
+    /// Incremented (wrapping) at each trip of the fast protection.
+    pub trip_seq: u8,
+    /// What the last trip was.
+    pub trip: Trip,
+    /// Phase A current of the period the last trip happened in, mA.
+    pub trip_ia_ma: i16,
+    /// Phase B current of that period, mA.
+    pub trip_ib_ma: i16,
+    /// Bus voltage of that period, 0.1 V.
+    pub trip_bus_dv: u16,
 }
 
 impl CurrentReport {
@@ -175,6 +206,11 @@ impl CurrentReport {
         tune_seq: 0,
         follow_seq: 0,
         follow_ref_ma: 0,
+        trip_seq: 0,
+        trip: Trip::None,
+        trip_ia_ma: 0,
+        trip_ib_ma: 0,
+        trip_bus_dv: 0,
     };
 }
 
@@ -191,6 +227,10 @@ pub struct CurrentSupervisor {
     follow_armed: bool,
     follow_seq: u8,
     follow_ref_ma: u16,
+    tripped: bool,
+    trip: Trip,
+    trip_seq: u8,
+    trip_sample: (i16, i16, u16),
 }
 
 impl CurrentSupervisor {
@@ -211,6 +251,10 @@ impl CurrentSupervisor {
             follow_armed: true,
             follow_seq: 0,
             follow_ref_ma: 0,
+            tripped: false,
+            trip: Trip::None,
+            trip_seq: 0,
+            trip_sample: (0, 0, 0),
         }
     }
 
@@ -252,7 +296,9 @@ impl CurrentSupervisor {
     /// (`Motion::step_held`).
     #[inline]
     pub fn tuning(&self) -> bool {
-        self.permitted && matches!(self.status, TuneStatus::Pending | TuneStatus::Running)
+        self.permitted
+            && !self.tripped
+            && matches!(self.status, TuneStatus::Pending | TuneStatus::Running)
     }
 
     /// One PWM period of the tune (voltage mode). Returns the duties to apply.
@@ -360,6 +406,58 @@ impl CurrentSupervisor {
         }
     }
 
+    /// The fast protections, every PWM period after the loop's step (bridges on or
+    /// off: the step measured `cl.i_ab` and `cl.vbus`): a phase current above
+    /// [`SupervisorConfig::trip_current_a`] or a bus voltage above
+    /// [`SupervisorConfig::trip_bus_v`] trips. Returns true while tripped: the caller
+    /// switches the bridges off in this very period. The trip holds until
+    /// [`Self::rearm`], which the caller does once the drive has withdrawn the power
+    /// permission (the drive raised the fault from [`CurrentReport::trip_seq`] by
+    /// then), so the bridges never come back on by themselves. This is the software
+    /// twin of the timer break input, at the current-loop rate: it keeps working
+    /// whatever thread mode is doing (a flash commit, a long SDO).
+    #[inline(always)]
+    pub fn protect(&mut self, cl: &CurrentLoop) -> bool {
+        let (ia, ib) = (cl.i_ab.alpha, cl.i_ab.beta);
+        let lim = self.cfg.trip_current_a;
+        let over_current = ia > lim || ia < -lim || ib > lim || ib < -lim;
+        if !self.tripped && (over_current || cl.vbus > self.cfg.trip_bus_v) {
+            self.trip_now(cl, over_current);
+        }
+        self.tripped
+    }
+
+    #[inline(never)]
+    fn trip_now(&mut self, cl: &CurrentLoop, over_current: bool) {
+        let ma = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
+        self.tripped = true;
+        self.trip = if over_current {
+            Trip::OverCurrent
+        } else {
+            Trip::OverVoltage
+        };
+        self.trip_seq = self.trip_seq.wrapping_add(1);
+        self.trip_sample = (
+            ma(cl.i_ab.alpha),
+            ma(cl.i_ab.beta),
+            (cl.vbus * 10.0).clamp(0.0, 65535.0) as u16,
+        );
+        self.tune = None;
+        if self.status == TuneStatus::Running {
+            self.status = TuneStatus::Pending;
+        }
+    }
+
+    /// True while a trip holds the bridges off.
+    pub fn tripped(&self) -> bool {
+        self.tripped
+    }
+
+    /// Ends a trip (call when the drive's power permission is withdrawn).
+    pub fn rearm(&mut self) {
+        self.tripped = false;
+    }
+
     /// The state for the drive.
     pub fn report(&self) -> CurrentReport {
         CurrentReport {
@@ -368,6 +466,11 @@ impl CurrentSupervisor {
             tune_seq: self.tune_seq,
             follow_seq: self.follow_seq,
             follow_ref_ma: self.follow_ref_ma,
+            trip_seq: self.trip_seq,
+            trip: self.trip,
+            trip_ia_ma: self.trip_sample.0,
+            trip_ib_ma: self.trip_sample.1,
+            trip_bus_dv: self.trip_sample.2,
         }
     }
 }
@@ -607,6 +710,52 @@ mod tests {
             let d = s.run_step(cl, &m.adc(), Angle(0), omega_e);
             m.apply(&d);
         }
+    }
+
+    #[test]
+    fn fast_protection_trips_in_the_period_and_holds_until_rearmed() {
+        // These coils' sensors read ±10 A: an 8 A trip level for the test.
+        let c = SupervisorConfig {
+            trip_current_a: 8.0,
+            ..cfg(false)
+        };
+        assert!(
+            (cfg(false).trip_current_a - 10.5).abs() < 1e-3,
+            "the product's level"
+        );
+        let mut s = CurrentSupervisor::new(c);
+        let mut cl = current_loop();
+        let mut m = Coils::new();
+        run_loop(&mut s, &mut cl, &mut m, 3.0, 0.0, 400);
+        assert!(!s.protect(&cl), "healthy");
+        // Bus above 55 V (braking energy): the period that measures it trips.
+        m.vbus = 56.0;
+        let _ = s.run_step(&mut cl, &m.adc(), Angle(0), 0.0);
+        assert!(s.protect(&cl));
+        let r = s.report();
+        assert_eq!((r.trip_seq, r.trip), (1, Trip::OverVoltage));
+        assert!((559..=561).contains(&r.trip_bus_dv), "{}", r.trip_bus_dv);
+        // The bus is back: still tripped (no re-enable by itself), counted once.
+        m.vbus = 48.0;
+        for _ in 0..100 {
+            let _ = cl.voltage_step(&m.adc(), 0.0, 0.0);
+            assert!(s.protect(&cl));
+        }
+        assert_eq!(s.report().trip_seq, 1);
+        assert!(!s.tuning(), "no tune while tripped");
+        s.rearm();
+        assert!(!s.protect(&cl));
+        // A phase current above the level (a short the break comparator missed).
+        m.i = [0.0, -9.0];
+        let _ = cl.voltage_step(&m.adc(), 0.0, 0.0);
+        assert!(s.protect(&cl));
+        let r = s.report();
+        assert_eq!((r.trip_seq, r.trip), (2, Trip::OverCurrent));
+        assert!(
+            (-9_010..=-8_990).contains(&r.trip_ib_ma),
+            "{}",
+            r.trip_ib_ma
+        );
     }
 
     #[test]

@@ -222,6 +222,7 @@ pub struct Drive<S: ParameterStore = NoStore> {
     storage_emergency: Option<(u16, [u8; 5])>,
     seen_tune_seq: u8,
     seen_follow_seq: u8,
+    seen_trip_seq: u8,
     power_up_tune_over: bool,
 }
 
@@ -272,6 +273,7 @@ macro_rules! power_up_fields {
             storage_emergency: None,
             seen_tune_seq: 0,
             seen_follow_seq: 0,
+            seen_trip_seq: 0,
             power_up_tune_over: false,
             params: $params,
         }
@@ -481,7 +483,14 @@ impl<S: ParameterStore> Drive<S> {
         let due = self
             .last_step_us
             .is_none_or(|t| now_us.saturating_sub(t) >= after || now_us < t);
-        if due {
+        // A fault the PDS has not taken yet starts its reaction in this tick.
+        let fault_news = self.faults.any_active()
+            && !matches!(
+                self.cia402.state(),
+                crate::cia402::pds::PdsState::Fault
+                    | crate::cia402::pds::PdsState::FaultReactionActive
+            );
+        if due || fault_news {
             self.step(now_us, SetpointArrival::Stale);
         }
     }
@@ -550,7 +559,8 @@ impl<S: ParameterStore> Drive<S> {
     /// The current-loop supervisor's report (control path → drive; call every tick,
     /// before [`Drive::tick`]). A finished tune writes 0x2020 (mΩ), 0x2021 (µH), 0x2015
     /// and 0x2016 (the gains the loop now uses); a failed one raises motor open
-    /// 0x7120; a "current does not follow" detection raises 0x5210. Both are events:
+    /// 0x7120; a "current does not follow" detection raises 0x5210; a trip of the fast
+    /// protection raises over-current 0x2310 or over-voltage 0x3210. Both are events:
     /// the condition is reported gone at once, so a fault reset clears them (see the
     /// module docs of [`crate::current_supervisor`] for the retry).
     ///
@@ -590,6 +600,26 @@ impl<S: ParameterStore> Drive<S> {
                     self.faults.condition_gone(FaultKind::MotorOpen);
                 }
                 _ => {}
+            }
+        }
+        if r.trip_seq != self.seen_trip_seq {
+            // The current loop's fast protection switched the bridges off: the fault
+            // with the sample it tripped on (the tick's checks then follow the
+            // condition until it is gone).
+            self.seen_trip_seq = r.trip_seq;
+            let kind = match r.trip {
+                crate::current_supervisor::Trip::OverVoltage => Some(FaultKind::OverVoltage),
+                crate::current_supervisor::Trip::OverCurrent => Some(FaultKind::OverCurrent),
+                crate::current_supervisor::Trip::None => None,
+            };
+            if let Some(kind) = kind {
+                let snap = Snapshot {
+                    ia_ma: r.trip_ia_ma,
+                    ib_ma: r.trip_ib_ma,
+                    bus_dv: r.trip_bus_dv,
+                    ..self.snapshot()
+                };
+                self.faults.raise(kind, snap, self.now_ms);
             }
         }
         if r.follow_seq != self.seen_follow_seq {

@@ -200,14 +200,19 @@ pub struct FaultConfig {
     pub over_current_ma: u32,
 }
 
+impl FaultConfig {
+    /// The product's thresholds.
+    pub const DEFAULT: FaultConfig = FaultConfig {
+        over_voltage_mv: 55_000,
+        under_voltage_mv: 12_000,
+        under_voltage_hysteresis_mv: 500,
+        over_current_ma: 10_500,
+    };
+}
+
 impl Default for FaultConfig {
     fn default() -> Self {
-        FaultConfig {
-            over_voltage_mv: 55_000,
-            under_voltage_mv: 12_000,
-            under_voltage_hysteresis_mv: 500,
-            over_current_ma: 10_500,
-        }
+        Self::DEFAULT
     }
 }
 

@@ -13,6 +13,7 @@ use ecat_slave_stack::slave::{CycleInfo, SlaveApplication};
 use ecat_slave_stack::sync::SyncMode;
 use firmware::cia402::pds::PdsState;
 use firmware::cia402::{mode, ERR_COMMUNICATION};
+use firmware::current_supervisor::{CurrentReport, Trip};
 use firmware::drive::{AxisState, Drive, ERR_COMMUNICATION_LOST};
 use firmware::faults::Emergency;
 use firmware::identity::Variant;
@@ -289,6 +290,27 @@ qemu_runner::tests! {
         assert_eq!(r.vel, 0);
         assert_eq!(r.d.cia402.state(), PdsState::Fault);
         assert_eq!(r.d.cia402.error_code(), 0x2310);
+
+        // The current loop's fast protection tripped (the bridges are already off):
+        // the drive raises the fault with the sample from the report.
+        let mut r = Rig::enabled(mode::PV, 1);
+        r.d.cia402.params.target_velocity = SPEED;
+        for _ in 0..50 {
+            r.cycle();
+        }
+        let _ = r.emergencies();
+        r.d.current_report(&CurrentReport {
+            trip_seq: 1,
+            trip: Trip::OverCurrent,
+            trip_ia_ma: 11_200,
+            trip_bus_dv: 480,
+            ..CurrentReport::NONE
+        });
+        r.tick();
+        assert!(!r.d.power_permission());
+        assert_eq!(r.d.cia402.state(), PdsState::Fault);
+        assert_eq!(r.d.faults.history(0).map(|h| h.snapshot.ia_ma), Some(11_200));
+        assert_eq!(r.emergencies()[0].code, 0x2310);
 
         // Following error while holding (closed loop): the 0x605E ramp, then Fault.
         let mut r = Rig::enabled(mode::CSP, 1);

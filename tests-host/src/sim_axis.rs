@@ -461,22 +461,33 @@ impl PlantAxis {
         let r = self.reference;
         let period = self.rig.plant.cfg.pwm_period;
         let sup = &mut self.supervisor;
+        if !r.power {
+            // The drive no longer asks for power: a trip of the fast protection ends.
+            sup.rearm();
+        }
         let tuning = sup.tuning();
         self.rig.tick_with(|cl, enc, adc| {
-            if tuning {
-                return sup.tune_step(cl, adc);
-            }
-            if !r.power {
+            let d = if tuning {
+                sup.tune_step(cl, adc)
+            } else if !r.power || sup.tripped() {
                 sup.idle();
                 cl.id_ref = 0.0;
                 cl.iq_ref = 0.0;
                 // Measures the currents, applies 0 V (50 % on every leg), clears the PIs.
                 let _ = cl.voltage_step(adc, 0.0, 0.0);
-                return Duties::zero(period);
-            }
-            match r.frame {
-                Frame::Encoder => sup.run_step(cl, adc, enc.electrical_angle(), enc.omega_e()),
-                Frame::Command { angle, omega_e } => sup.run_step(cl, adc, angle, omega_e),
+                Duties::zero(period)
+            } else {
+                match r.frame {
+                    Frame::Encoder => sup.run_step(cl, adc, enc.electrical_angle(), enc.omega_e()),
+                    Frame::Command { angle, omega_e } => sup.run_step(cl, adc, angle, omega_e),
+                }
+            };
+            // The fast protection (as the board's current-loop interrupt): bridges
+            // off in this period.
+            if sup.protect(cl) {
+                Duties::zero(period)
+            } else {
+                d
             }
         });
         // Over-current comparator → break input: every switch off at once (the board's
@@ -488,7 +499,7 @@ impl PlantAxis {
         } else if self.tripped && !r.power {
             self.tripped = false;
         }
-        self.rig.plant.bridges_off = self.tripped;
+        self.rig.plant.bridges_off = self.tripped || self.supervisor.tripped();
         // Index pulse: axis count ≡ phase (mod counts per revolution).
         let c = self.motion.config();
         let cpr = i64::from(c.counts_per_rev.max(1));
