@@ -3,8 +3,13 @@
 //! ethercrab as the master on the other end bringing both drives to Op with cyclic
 //! exchange and the expected working counter.
 //!
-//! Needs root (network namespaces, raw sockets) and iproute2; otherwise the test says
-//! it skipped and passes.
+//! A second test stops the master in the middle of a PV move and checks over SDO that
+//! the drive reacted on its own clock (issue 15).
+//!
+//! Needs root (network namespaces, raw sockets) and iproute2. CI runs as root, so the
+//! tests are plain `#[test]`s: without root they fail and say how to run them
+//! (`sudo -E cargo test -p tests-host --test virtual_drive_veth`); as root a failed
+//! namespace or veth setup is a failure too, never a skip.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
@@ -15,18 +20,22 @@ use ethercrab::std::{ethercat_now, tx_rx_task};
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
 
 static PDU_STORAGE: PduStorage<16, { PduStorage::element_size(1100) }> = PduStorage::new();
+static PDU_STORAGE_PV: PduStorage<16, { PduStorage::element_size(1100) }> = PduStorage::new();
 
 struct Netns {
     ns: String,
     host_if: String,
+    drive_if: String,
 }
 
 impl Netns {
-    fn create() -> Option<Netns> {
+    /// A namespace with one end of a new veth pair; `tag` keeps the names of tests
+    /// running in parallel apart.
+    fn create(tag: char) -> Option<Netns> {
         let id = std::process::id() % 100_000;
-        let ns = format!("ecsvd{id}");
-        let host_if = format!("vd{id}a");
-        let drive_if = format!("vd{id}b");
+        let ns = format!("ecsvd{id}{tag}");
+        let host_if = format!("vd{id}{tag}h");
+        let drive_if = format!("vd{id}{tag}d");
         let ok = |args: &[&str]| {
             Command::new("ip")
                 .args(args)
@@ -39,6 +48,7 @@ impl Netns {
         let n = Netns {
             ns: ns.clone(),
             host_if: host_if.clone(),
+            drive_if: drive_if.clone(),
         };
         let steps: [&[&str]; 5] = [
             &[
@@ -55,9 +65,6 @@ impl Netns {
             }
         }
         Some(n)
-    }
-    fn drive_if(&self) -> String {
-        self.host_if.replace('a', "b")
     }
 }
 
@@ -88,17 +95,25 @@ impl Drop for Killed {
     }
 }
 
-#[test]
-fn ethercrab_brings_virtual_drive_to_op_over_a_veth_pair() {
-    // SAFETY: getuid has no preconditions.
-    if unsafe { libc::getuid() } != 0 {
-        eprintln!("skipped: the veth test needs root (network namespaces and raw sockets)");
-        return;
-    }
-    let Some(net) = Netns::create() else {
-        eprintln!("skipped: could not create a network namespace and veth pair (iproute2 / kernel support)");
-        return;
-    };
+/// Fails unless running as root (what the veth tests need), with how to run them.
+fn require_root() {
+    // SAFETY: geteuid has no preconditions.
+    let euid = unsafe { libc::geteuid() };
+    assert_eq!(
+        euid, 0,
+        "the veth tests need root (network namespaces and raw sockets): run them as root, \
+         e.g. `sudo -E env PATH=$PATH cargo test -p tests-host --test virtual_drive_veth` \
+         (CI runs as root)"
+    );
+}
+
+/// A namespace + veth pair with `virtual-drive --drives N` listening in it, ready.
+fn start_virtual_drive(tag: char, drives: usize) -> (Netns, Killed) {
+    require_root();
+    let net = Netns::create(tag).expect(
+        "running as root, but the network namespace / veth pair could not be created \
+         (iproute2 installed? kernel veth and netns support?)",
+    );
     let child = Command::new("ip")
         .args([
             "netns",
@@ -106,9 +121,9 @@ fn ethercrab_brings_virtual_drive_to_op_over_a_veth_pair() {
             &net.ns,
             env!("CARGO_BIN_EXE_virtual-drive"),
             "--iface",
-            &net.drive_if(),
+            &net.drive_if,
             "--drives",
-            "2",
+            &drives.to_string(),
         ])
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())
@@ -126,7 +141,12 @@ fn ethercrab_brings_virtual_drive_to_op_over_a_veth_pair() {
         .recv_timeout(Duration::from_secs(30))
         .expect("virtual-drive printed nothing");
     assert!(ready.contains("ready"), "first line: {ready}");
+    (net, child)
+}
 
+#[test]
+fn ethercrab_brings_virtual_drive_to_op_over_a_veth_pair() {
+    let (net, child) = start_virtual_drive('o', 2);
     let (pdu_tx, pdu_rx, pdu_loop) = PDU_STORAGE.try_split().expect("split once");
     let task = tx_rx_task(&net.host_if, pdu_tx, pdu_rx).expect("raw socket on the host end");
     std::thread::spawn(move || {
@@ -177,5 +197,119 @@ fn ethercrab_brings_virtual_drive_to_op_over_a_veth_pair() {
     );
     // LRW over two drives: read+write on each = 3 per drive.
     assert!(wkcs.iter().all(|&w| w == 6), "working counters {wkcs:?}");
+    drop(child);
+}
+
+/// `virtual-drive` (1 drive) in PV at 50 000 inc/s, Operation enabled, with ethercrab
+/// over the veth pair; then the master stops sending for good (no process data). The
+/// drive must react on its own clock: the SM2 watchdog (100 ms) and the 0x6007 = 1
+/// fault reaction on the 0x6085 ramp (2 000 000 inc/s², 25 ms from 50 000 inc/s). Read
+/// afterwards over SDO (mailbox traffic only): the statusword has left Operation
+/// enabled 100 ms + one ramp after the last frame (plus a 10 ms allowance for the host
+/// scheduler), and 0x6064 no longer changes (two reads 200 ms apart).
+#[test]
+fn silent_master_stops_virtual_drive_in_pv_over_a_veth_pair() {
+    let (net, child) = start_virtual_drive('p', 1);
+    let (pdu_tx, pdu_rx, pdu_loop) = PDU_STORAGE_PV.try_split().expect("split once");
+    let task = tx_rx_task(&net.host_if, pdu_tx, pdu_rx).expect("raw socket on the host end");
+    std::thread::spawn(move || {
+        let _ = async_io::block_on(task);
+    });
+    let md = MainDevice::new(
+        pdu_loop,
+        Timeouts {
+            wait_loop_delay: Duration::from_millis(2),
+            mailbox_response: Duration::from_millis(2000),
+            ..Timeouts::default()
+        },
+        MainDeviceConfig {
+            dc_static_sync_iterations: 100,
+            ..MainDeviceConfig::default()
+        },
+    );
+    type Found = (u16, u16, u16, i32, i32, Duration);
+    let result: Result<Found, (&str, ethercrab::error::Error)> = async_io::block_on(async {
+        let group = md
+            .init_single_group::<4, 128>(ethercat_now)
+            .await
+            .map_err(|e| ("init", e))?;
+        {
+            let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
+            sd.sdo_write(0x6060, 0, 3i8)
+                .await
+                .map_err(|e| ("0x6060", e))?;
+            sd.sdo_write(0x60FF, 0, 50_000i32)
+                .await
+                .map_err(|e| ("0x60FF", e))?;
+        }
+        let group = group.into_op(&md).await.map_err(|e| ("into_op", e))?;
+        // TxPDO1: 603F, 6041, ...; RxPDO1: 6040, 607A, 60B0, 60B8.
+        let mut statusword = 0u16;
+        let cycle = |cw: u16| {
+            let sd = group.subdevice(&md, 0).expect("drive 0");
+            sd.outputs_raw_mut()[0..2].copy_from_slice(&cw.to_le_bytes());
+        };
+        let mut enabled_at = None;
+        for k in 0..3000u32 {
+            // State-driven enable: shutdown from Switch on disabled, switch on from
+            // Ready to switch on, enable operation from Switched on.
+            let cw = match statusword & 0x6F {
+                0x21 => 0x0007,
+                0x23 | 0x27 => 0x000F,
+                _ if statusword & 0x4F == 0x40 => 0x0006,
+                _ => 0x0000,
+            };
+            cycle(cw);
+            if let Err(e) = group.tx_rx(&md).await {
+                eprintln!("tx_rx failed in cycle {k} (statusword {statusword:#06x})");
+                return Err(("tx_rx", e));
+            }
+            let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
+            let i = sd.inputs_raw();
+            statusword = u16::from_le_bytes([i[2], i[3]]);
+            if statusword & 0x6F == 0x27 && enabled_at.is_none() {
+                enabled_at = Some(k);
+            }
+            // Moving for 300 cycles after the enable, then stop.
+            if enabled_at.is_some_and(|e| k >= e + 300) {
+                break;
+            }
+            async_io::Timer::after(Duration::from_millis(1)).await;
+        }
+        assert!(
+            statusword & 0x6F == 0x27,
+            "Operation enabled in PV before the pause: statusword {statusword:#06x}"
+        );
+        let last_frame = Instant::now();
+        // The master stops: no frame at all for 100 ms + one ramp + 10 ms.
+        std::thread::sleep(Duration::from_millis(135));
+        let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
+        let sw: u16 = sd.sdo_read(0x6041, 0).await.map_err(|e| ("0x6041", e))?;
+        let read_after = last_frame.elapsed();
+        let err: u16 = sd.sdo_read(0x603F, 0).await.map_err(|e| ("0x603F", e))?;
+        let p1: i32 = sd.sdo_read(0x6064, 0).await.map_err(|e| ("0x6064", e))?;
+        async_io::Timer::after(Duration::from_millis(200)).await;
+        let p2: i32 = sd.sdo_read(0x6064, 0).await.map_err(|e| ("0x6064", e))?;
+        Ok((statusword, sw, err, p1, p2, read_after))
+    });
+    let (before, sw, err, p1, p2, read_after) =
+        result.expect("ethercrab over the veth pair (PV, then silent)");
+    eprintln!(
+        "veth PV: statusword {before:#06x} in Op, {sw:#06x} read {} ms after the last frame, \
+         0x603F {err:#06x}, 0x6064 {p1} → {p2}",
+        read_after.as_millis()
+    );
+    assert_ne!(
+        sw & 0x6F,
+        0x27,
+        "statusword {sw:#06x} still Operation enabled 135 ms after the master stopped"
+    );
+    assert_eq!(
+        sw & 0x4F,
+        0x08,
+        "0x6007 = 1 (default): Fault, statusword {sw:#06x}"
+    );
+    assert_eq!(err, 0x8100, "0x603F after the fault reaction");
+    assert_eq!(p1, p2, "0x6064 stopped changing (two reads 200 ms apart)");
     drop(child);
 }
