@@ -214,6 +214,8 @@ pub struct Drive<S: ParameterStore = NoStore> {
     /// Local clock of the last master cycle and the time between the last two, µs.
     last_cycle_us: Option<u64>,
     cycle_period_us: u64,
+    /// The master's commands stopped: the next tick steps whatever the timing.
+    react_now: bool,
     now_ms: u32,
     fault_led: fault_led::FaultLed,
     last_controlword: u16,
@@ -265,6 +267,7 @@ macro_rules! power_up_fields {
             steps: 0,
             last_cycle_us: None,
             cycle_period_us: 0,
+            react_now: false,
             now_ms: 0,
             fault_led: fault_led::FaultLed::new(),
             last_controlword: 0,
@@ -490,7 +493,7 @@ impl<S: ParameterStore> Drive<S> {
                 crate::cia402::pds::PdsState::Fault
                     | crate::cia402::pds::PdsState::FaultReactionActive
             );
-        if due || fault_news {
+        if due || fault_news || core::mem::take(&mut self.react_now) {
             self.step(now_us, SetpointArrival::Stale);
         }
     }
@@ -535,11 +538,16 @@ impl<S: ParameterStore> Drive<S> {
         self.steps
     }
 
-    /// The power stage may be on: the last step's command wants it and no fault that
-    /// cuts the power ([`FaultKind::cuts_power`]) is active. What the board's power
+    /// The power stage may be on: the last step's command wants it, the PDS state has
+    /// the voltage enabled, and no fault that cuts the power
+    /// ([`FaultKind::cuts_power`]) is active. What the board's power
     /// stage and the simulated one obey.
     pub fn power_permission(&self) -> bool {
-        self.command.power_stage && !self.faults.power_cut()
+        // The PDS state as well as the last step's command: a disable voltage that
+        // did not come from a step (0x6007 = 2) takes effect at once.
+        self.command.power_stage
+            && self.cia402.state().voltage_enabled()
+            && !self.faults.power_cut()
     }
 
     /// Permission for the power-up current-loop auto-tune
@@ -892,6 +900,14 @@ impl<S: ParameterStore> Drive<S> {
             PdsState::OperationEnabled | PdsState::QuickStopActive
         ) && !self.cia402.enable_waiting();
         let option = self.cia402.on_connection_lost();
+        // The master's cycles are over: the reaction starts at the next tick. A PDS
+        // that lost its voltage here (0x6007 = 2) shows it at once (statusword, power
+        // off, brake engaged): a step of no length.
+        self.last_cycle_us = None;
+        self.react_now = option != AbortConnection::NoAction;
+        if self.cia402.state() != before && !self.cia402.state().voltage_enabled() {
+            self.control_step(1e-6, SetpointArrival::Stale);
+        }
         // Reported once: a second report of the same loss (the outputs lost, then the
         // ESM change) finds the reaction already running.
         if !had_function || self.cia402.state() == before {

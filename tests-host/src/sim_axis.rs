@@ -112,9 +112,11 @@ impl Axis for KinematicAxis {
         let steps = (dt_s / 50e-6).ceil().max(1.0) as usize;
         let h = dt_s / steps as f64;
         if !self.enabled {
-            // Motor not controlled: friction brings it to rest.
+            // Motor not controlled: friction brings it to rest, the holding brake
+            // (engaged unless the drive releases it) within a few milliseconds.
+            let tau = if cmd.brake_release { 0.05 } else { 0.005 };
             for _ in 0..steps {
-                self.vel *= (-h / 0.05).exp();
+                self.vel *= (-h / tau).exp();
                 self.pos += self.vel * h;
             }
             self.demand = self.pos;

@@ -310,6 +310,11 @@ fn silent_master_stops_virtual_drive_in_pv_over_a_veth_pair() {
         "0x6007 = 1 (default): Fault, statusword {sw:#06x}"
     );
     assert_eq!(err, 0x8100, "0x603F after the fault reaction");
-    assert_eq!(p1, p2, "0x6064 stopped changing (two reads 200 ms apart)");
+    // Power off: the unpowered rotor of the plant may still settle into its detent by
+    // up to one encoder count (12.5 units); it must not move beyond that.
+    assert!(
+        p1.abs_diff(p2) <= 13,
+        "0x6064 stopped changing (two reads 200 ms apart): {p1} → {p2}"
+    );
     drop(child);
 }
