@@ -293,28 +293,11 @@ fn supervisor_config(d: &BoardDrive) -> SupervisorConfig {
     SupervisorConfig::from_params(&d.params, 1.0 / board::PWM_HZ as f32, board::PWM_ARR)
 }
 
-/// Entry: the thread executor with the start-up task [`__embassy_main`] — what
-/// `#[embassy_executor::main]` expands to, except that a failed spawn of the start-up
-/// task (it cannot fail: one task, spawned once) panics with a plain text instead of
-/// `Result::unwrap`'s formatted `SpawnError` (which kept the error's `core::fmt`
-/// impls and its 104-byte text in flash).
-#[cortex_m_rt::entry]
-fn main() -> ! {
-    let mut executor = embassy_executor::Executor::new();
-    // SAFETY: `run` never returns, so this frame, and `executor` in it, lives for the
-    // rest of the program (the macro's `__make_static` does the same).
-    let executor: &'static mut embassy_executor::Executor =
-        unsafe { &mut *core::ptr::addr_of_mut!(executor) };
-    executor.run(|spawner| match __embassy_main(spawner) {
-        Ok(task) => spawner.spawn(task),
-        Err(_) => panic!("start-up task not spawned"),
-    })
-}
-
-/// The start-up task (named as `#[embassy_executor::main]` names it: the static stack
-/// report, `xtask/src/stack.rs`, finds it by that name).
-#[embassy_executor::task]
-async fn __embassy_main(spawner: Spawner) {
+/// Start-up: the thread executor's first task (`#[embassy_executor::main]` provides
+/// the entry point, the executor and the spawn of this task). It sets up every
+/// peripheral, builds the drive state in place and spawns the other tasks.
+#[embassy_executor::main]
+async fn main(spawner: Spawner) {
     hw::stack::paint();
     let p = embassy_stm32::init(clock_config());
     // While a debugger halts the core: PWM counters stop with the bridges forced off
@@ -551,11 +534,8 @@ async fn __embassy_main(spawner: Spawner) {
     );
 }
 
-/// Spawns a task, or logs why it could not. Out of line: the token's type parameter
-/// only names the task, so the copies are identical machine code and the linker keeps
-/// one (`--icf=all`). The thread executor's tasks go through its `SendSpawner` too
-/// (the same enqueue as `Spawner::spawn`).
-#[inline(never)]
+/// Spawns a task, or logs why it could not. The thread executor's tasks go through
+/// its `SendSpawner` too (the same enqueue as `Spawner::spawn`).
 fn spawn<S: Send>(spawner: SendSpawner, task: Result<SpawnToken<S>, SpawnError>, name: defmt::Str) {
     match task {
         Ok(t) => spawner.spawn(t),
