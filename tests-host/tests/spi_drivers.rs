@@ -260,7 +260,7 @@ fn lan9252_stuck_pram_write_is_a_timeout_without_touching_addr_len() {
 #[test]
 fn lan9252_model_refuses_what_the_chip_would_not_do() {
     let mut m = Lan9252Model::new(RamEsc::new());
-    let mut run = |m: &mut Lan9252Model<RamEsc>, bytes: Vec<u8>| {
+    let run = |m: &mut Lan9252Model<RamEsc>, bytes: Vec<u8>| {
         m.transaction(&mut [Operation::Write(&bytes)]).unwrap();
     };
     // A one-word write, its word pushed: the unit is still busy.

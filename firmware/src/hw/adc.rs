@@ -6,7 +6,7 @@
 //! * Trigger: JEXTSEL = TIM1_TRGO2, rising edge; ADC clock = SYSCLK / 4 = 42.5 MHz
 //!   (asynchronous clock from the RCC mux, at most one ADC clock of trigger jitter).
 //! * Sampling: currents 24.5 cycles, bus voltage 47.5 cycles (divider impedance).
-//!   ADC1 finishes last (two conversions, ≈ 1.5 µs after the trigger), so only its
+//!   ADC1 finishes last (two conversions, ≈ 2.3 µs after the trigger, [`TIMING`]), so only its
 //!   end-of-injected-sequence (JEOS) interrupt is enabled: `ADC1_2` at priority 0,
 //!   the highest in the system — the current-loop slot.
 //!
