@@ -53,7 +53,10 @@
 //! polls ([`Lan9252Config`]); a chip that never answers gives
 //! [`EscError::NotDetected`] (BYTE_TEST never right) or [`EscError::Timeout`], never a
 //! hang and never a panic. A PRAM transfer cut short by an error is aborted
-//! (`ECAT_PRAM_*_CMD` abort bit) before the next one starts.
+//! (`ECAT_PRAM_*_CMD` abort bit) before the next one starts; before every other
+//! transfer the driver waits until the unit's busy bit is clear, and only then writes
+//! ECAT_PRAM_*_ADDR_LEN (it must not change while busy: a write may still be moving
+//! its FIFO into process RAM after the last word was pushed).
 
 use embedded_hal::delay::DelayNs;
 use embedded_hal::spi::{Operation, SpiDevice};
@@ -464,8 +467,13 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
         // PRAM_*_ADDR_LEN sits right below its command register.
         let addr_len_reg = cmd_reg - 4;
         let dirty = if write { self.wr_dirty } else { self.rd_dirty };
+        // ADDR_LEN must not change while the unit is busy: a transfer cut short is
+        // aborted first; otherwise the previous one may still be running (a write's
+        // data still moving from the FIFO into the RAM), so wait until busy clears.
         if dirty {
             self.pram_abort(cmd_reg)?;
+        } else {
+            self.wait_idle(cmd_reg)?;
         }
         self.set_dirty(write, true);
         let len = data.len();

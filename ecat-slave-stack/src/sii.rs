@@ -27,9 +27,12 @@
 //!   push-pull active low, SPI_SEL active low, normal data-out sampling.
 //!
 //! Both: 0x0141 = 0x0C (device emulation off — the µC runs the ESM —, no enhanced link
-//! detection, DC SYNC-out and latch-in units on); 0x0151 = 0x0E (SYNC0 pin is an
-//! output, push-pull active high, and is mapped to AL event bit 2; SYNC1/LATCH1 pin
-//! as latch input); SYNC pulse length 1000 × 10 ns = 10 µs unless described otherwise.
+//! detection, DC SYNC-out and latch-in units on); 0x0151 = [`SYNC_LATCH_CONFIG`]
+//! (0x0E: SYNC0 pin is an output, driven with [`SYNC0_DRIVE`] = push-pull active high,
+//! and is mapped to AL event bit 2; SYNC1/LATCH1 pin as latch input); SYNC pulse length
+//! 1000 × 10 ns = 10 µs unless described otherwise. [`SYNC0_DRIVE`] is the one
+//! definition of the SYNC0 polarity: the board firmware waits for the edge it names
+//! (`firmware::identity::SYNC0_ACTIVE_EDGE`).
 
 /// Mailbox protocol bit of SII word 0x1C: CoE.
 pub const MBOX_COE: u16 = 0x0004;
@@ -136,12 +139,14 @@ impl EscFlavour {
             EscFlavour::Et1100 => 0x0C05,
         }
     }
-    /// SII word 1: PDI configuration (0x0150) and SYNC/latch configuration (0x0151).
+    /// SII word 1: PDI configuration (0x0150) and SYNC/latch configuration (0x0151,
+    /// [`SYNC_LATCH_CONFIG`], the same for both flavours).
     pub const fn pdi_config(self) -> u16 {
-        match self {
-            EscFlavour::Lan9252 => 0x0E00,
-            EscFlavour::Et1100 => 0x0E03,
-        }
+        let pdi: u16 = match self {
+            EscFlavour::Lan9252 => 0x00,
+            EscFlavour::Et1100 => 0x03,
+        };
+        (SYNC_LATCH_CONFIG as u16) << 8 | pdi
     }
     /// SII word 3: extended PDI configuration (0x0152:0x0153); unused for both.
     pub const fn pdi_config2(self) -> u16 {
@@ -155,6 +160,67 @@ impl EscFlavour {
         }
     }
 }
+
+/// How the ESC drives a SYNC output pin: bits 1:0 (SYNC0) or 5:4 (SYNC1) of the
+/// SYNC/latch PDI configuration register 0x0151.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SyncDrive {
+    /// Push-pull, idle high, pulse low (code 0b00).
+    PushPullActiveLow,
+    /// Open drain, pulse low (code 0b01).
+    OpenDrainActiveLow,
+    /// Push-pull, idle low, pulse high (code 0b10).
+    PushPullActiveHigh,
+    /// Open source, pulse high (code 0b11).
+    OpenSourceActiveHigh,
+}
+
+impl SyncDrive {
+    /// The two-bit code of the register field.
+    pub const fn code(self) -> u8 {
+        match self {
+            SyncDrive::PushPullActiveLow => 0b00,
+            SyncDrive::OpenDrainActiveLow => 0b01,
+            SyncDrive::PushPullActiveHigh => 0b10,
+            SyncDrive::OpenSourceActiveHigh => 0b11,
+        }
+    }
+    /// The drive a two-bit field code stands for (only the low two bits are used).
+    pub const fn from_code(code: u8) -> Self {
+        match code & 0b11 {
+            0b00 => SyncDrive::PushPullActiveLow,
+            0b01 => SyncDrive::OpenDrainActiveLow,
+            0b10 => SyncDrive::PushPullActiveHigh,
+            _ => SyncDrive::OpenSourceActiveHigh,
+        }
+    }
+    /// The pulse is high (its leading edge rises).
+    pub const fn active_high(self) -> bool {
+        matches!(
+            self,
+            SyncDrive::PushPullActiveHigh | SyncDrive::OpenSourceActiveHigh
+        )
+    }
+}
+
+/// SYNC0 pin drive of this product (both ESC flavours): the one definition of the
+/// SYNC0 polarity, used for the SII's 0x0151 value and by the board firmware.
+pub const SYNC0_DRIVE: SyncDrive = SyncDrive::PushPullActiveHigh;
+
+/// Bits of register 0x0151 (SYNC/latch PDI configuration) besides the drive fields.
+pub mod sync_latch {
+    /// Bit 2: the SYNC0/LATCH0 pin is the SYNC0 output (0: LATCH0 input).
+    pub const SYNC0_OUTPUT: u8 = 1 << 2;
+    /// Bit 3: SYNC0 is mapped to the AL event request register (0x0220 bit 2).
+    pub const SYNC0_AL_EVENT: u8 = 1 << 3;
+    /// Bit 6: the SYNC1/LATCH1 pin is the SYNC1 output (0: LATCH1 input).
+    pub const SYNC1_OUTPUT: u8 = 1 << 6;
+}
+
+/// Value of 0x0151 in SII word 1 (high byte): SYNC0 output with [`SYNC0_DRIVE`],
+/// mapped to the AL event; SYNC1/LATCH1 as latch input.
+pub const SYNC_LATCH_CONFIG: u8 =
+    SYNC0_DRIVE.code() | sync_latch::SYNC0_OUTPUT | sync_latch::SYNC0_AL_EVENT;
 
 /// What a SyncManager is for (SII category 41 type byte, ESI `Sm` text).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

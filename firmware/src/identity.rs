@@ -158,6 +158,47 @@ pub const fn device_description(
     }
 }
 
+/// The pin edge that starts a pulse.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PulseEdge {
+    /// Low → high.
+    Rising,
+    /// High → low.
+    Falling,
+}
+
+/// The edge of the SYNC0 pin at which a SYNC0 event starts, decoded from the value
+/// of register 0x0151 (`sync_latch_config`, the high byte of SII word 1) that the ESC
+/// loads from the SII: the leading edge of the pulse its SYNC0 drive field describes.
+/// `None` when that value does not make the pin a SYNC0 output mapped to the AL
+/// event (the board could not use it).
+pub const fn sync0_active_edge(sync_latch_config: u8) -> Option<PulseEdge> {
+    use sii::sync_latch::{SYNC0_AL_EVENT, SYNC0_OUTPUT};
+    if sync_latch_config & (SYNC0_OUTPUT | SYNC0_AL_EVENT) != SYNC0_OUTPUT | SYNC0_AL_EVENT {
+        return None;
+    }
+    Some(
+        if sii::SyncDrive::from_code(sync_latch_config).active_high() {
+            PulseEdge::Rising
+        } else {
+            PulseEdge::Falling
+        },
+    )
+}
+
+/// The edge the board's SYNC0 input waits for: derived from the SII image's 0x0151
+/// value, which [`sii::SYNC0_DRIVE`] defines (the same for both ESC flavours; checked
+/// at compile time and in `tests/portable_board_glue.rs`).
+pub const SYNC0_ACTIVE_EDGE: PulseEdge = {
+    let lan = sync0_active_edge((sii::EscFlavour::Lan9252.pdi_config() >> 8) as u8);
+    let et = sync0_active_edge((sii::EscFlavour::Et1100.pdi_config() >> 8) as u8);
+    match (lan, et) {
+        (Some(PulseEdge::Rising), Some(PulseEdge::Rising)) => PulseEdge::Rising,
+        (Some(PulseEdge::Falling), Some(PulseEdge::Falling)) => PulseEdge::Falling,
+        _ => panic!("the SII does not configure SYNC0 as an output the board can use"),
+    }
+};
+
 /// A serial number derived from the 96-bit unique device ID of the MCU (CRC-32 of
 /// the 12 bytes), so every board reports a different 0x1018:04 without production data.
 pub fn serial_from_unique_id(uid: &[u8; 12]) -> u32 {

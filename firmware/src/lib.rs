@@ -17,6 +17,7 @@ pub mod monitor;
 pub mod motion;
 pub mod params;
 pub mod pdo_defaults;
+pub mod power_gate;
 pub mod sampling;
 pub mod staged_flash;
 pub mod storage;

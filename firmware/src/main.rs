@@ -70,6 +70,7 @@ mod board;
 mod hw;
 
 use core::cell::RefCell;
+use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use defmt_rtt as _;
@@ -79,7 +80,8 @@ use embassy_executor::{InterruptExecutor, SendSpawner, SpawnError, SpawnToken, S
 use embassy_futures::select::{select, Either};
 use embassy_stm32::exti::{self, ExtiInput};
 use embassy_stm32::gpio::Pull;
-use embassy_stm32::interrupt::{self, InterruptExt, Priority};
+use embassy_stm32::interrupt;
+use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::mode::Async;
 use embassy_stm32::spi::Spi;
 use embassy_stm32::time::Hertz;
@@ -89,7 +91,7 @@ use embassy_time::{Duration, Instant, Ticker, Timer};
 use firmware::current_supervisor::SupervisorConfig;
 use firmware::drive::{Drive, FlashStore};
 use firmware::faults::{FaultKind, Snapshot};
-use firmware::identity::Variant;
+use firmware::identity::{PulseEdge, Variant};
 use firmware::motion::{MotionConfig, SERVO_TS};
 use firmware::sampling::{OffsetCalibrator, CURRENT_SAMPLES};
 
@@ -112,8 +114,10 @@ bind_interrupts!(struct Irqs {
 /// The interrupt executor of the cyclic path (vector `UART4`, priority 2).
 static EXECUTOR_CYCLIC: InterruptExecutor = InterruptExecutor::new();
 
-#[no_mangle]
-unsafe extern "C" fn UART4() {
+/// `#[interrupt]` (cortex-m-rt's, re-exported by embassy-stm32) checks the name
+/// against the device's interrupt enum: a misspelt vector does not compile.
+#[interrupt]
+fn UART4() {
     // SAFETY: the vector is used for nothing else (UART4's pins carry TIM8).
     unsafe { EXECUTOR_CYCLIC.on_interrupt() }
 }
@@ -126,10 +130,15 @@ type BoardDrive = Drive<FlashStore<StagedFlash>>;
 
 /// The drive state shared by the cyclic path and the thread-mode tasks (see the
 /// module docs, "Who owns what").
+///
+/// Built with one struct literal at start-up (a field added here and not given a
+/// value there does not compile). The two large parts live in static slots of their
+/// own, each written whole by its constructor ([`new_drive`]: `Drive::init_in`;
+/// [`new_slave`]), so no 5 KiB value is built on the stack and moved.
 struct Shared {
-    drive: BoardDrive,
+    drive: Placed<BoardDrive>,
     /// `None` when the ESC did not answer at start-up (the drive still runs locally).
-    slave: Option<Slave<Esc>>,
+    slave: Option<Placed<Slave<Esc>>>,
     /// The last command published to the current-loop interrupt.
     ctl: ControlCommand,
     /// `Drive::steps` when the last command was published.
@@ -150,13 +159,34 @@ struct Shared {
     align_fault: bool,
 }
 
+/// A value built in its own static slot (the one reference to it): the drive state
+/// reaches it as if it were a field.
+struct Placed<T: 'static>(&'static mut T);
+
+impl<T> core::ops::Deref for Placed<T> {
+    type Target = T;
+    fn deref(&self) -> &T {
+        self.0
+    }
+}
+
+impl<T> core::ops::DerefMut for Placed<T> {
+    fn deref_mut(&mut self) -> &mut T {
+        self.0
+    }
+}
+
 /// The lock holds a reference to [`SHARED_MEM`] (a `None` reference is all zeros, so
-/// the lock lives in .bss; an `Option<Shared>` would put a 5 KiB image into flash).
+/// the lock lives in .bss).
 static SHARED: Mutex<CyclicCeiling, RefCell<Option<&'static mut Shared>>> =
     Mutex::new(RefCell::new(None));
 /// RAM image of a parameter record being saved (see `hw::flash::StagedFlash`).
 static mut STAGE_MEM: Stage = Stage::new();
-static mut SHARED_MEM: core::mem::MaybeUninit<Shared> = core::mem::MaybeUninit::uninit();
+static mut SHARED_MEM: MaybeUninit<Shared> = MaybeUninit::uninit();
+/// The drive application's slot (written whole by `Drive::init_in`).
+static mut DRIVE_MEM: MaybeUninit<BoardDrive> = MaybeUninit::uninit();
+/// The slave runtime's slot (written whole by [`new_slave`] when the ESC answered).
+static mut SLAVE_MEM: MaybeUninit<Slave<Esc>> = MaybeUninit::uninit();
 
 /// Runs `f` on the drive state under the priority-ceiling lock; `None` before the
 /// state exists.
@@ -293,28 +323,13 @@ fn supervisor_config(d: &BoardDrive) -> SupervisorConfig {
     SupervisorConfig::from_params(&d.params, 1.0 / board::PWM_HZ as f32, board::PWM_ARR)
 }
 
-/// Entry: the thread executor with the start-up task [`__embassy_main`] — what
-/// `#[embassy_executor::main]` expands to, except that a failed spawn of the start-up
-/// task (it cannot fail: one task, spawned once) panics with a plain text instead of
-/// `Result::unwrap`'s formatted `SpawnError` (which kept the error's `core::fmt`
-/// impls and its 104-byte text in flash).
-#[cortex_m_rt::entry]
-fn main() -> ! {
-    let mut executor = embassy_executor::Executor::new();
-    // SAFETY: `run` never returns, so this frame, and `executor` in it, lives for the
-    // rest of the program (the macro's `__make_static` does the same).
-    let executor: &'static mut embassy_executor::Executor =
-        unsafe { &mut *core::ptr::addr_of_mut!(executor) };
-    executor.run(|spawner| match __embassy_main(spawner) {
-        Ok(task) => spawner.spawn(task),
-        Err(_) => panic!("start-up task not spawned"),
-    })
-}
-
-/// The start-up task (named as `#[embassy_executor::main]` names it: the static stack
-/// report, `xtask/src/stack.rs`, finds it by that name).
-#[embassy_executor::task]
-async fn __embassy_main(spawner: Spawner) {
+/// Start-up: the thread executor's first task (`#[embassy_executor::main]` provides
+/// the entry point, the executor and the spawn of this task). It sets up every
+/// peripheral, builds the drive state in place and spawns the other tasks.
+#[embassy_executor::main]
+async fn main(spawner: Spawner) {
+    // Gate pins driven low before anything else (`hw::pwm`, "Defined gate levels").
+    hw::pwm::hold_gates_low();
     hw::stack::paint();
     let p = embassy_stm32::init(clock_config());
     // While a debugger halts the core: PWM counters stop with the bridges forced off
@@ -410,7 +425,13 @@ async fn __embassy_main(spawner: Spawner) {
         }
     };
     let esc_irq = ExtiInput::new(p.PC2, p.EXTI2, Pull::Up, Irqs);
-    let sync0 = ExtiInput::new(p.PC3, p.EXTI3, Pull::None, Irqs);
+    // SYNC0 is pushed-pulled by the ESC once it has loaded the SII; until then the pull
+    // holds it at its idle level (low for an active-high pulse).
+    let sync0_idle = match firmware::identity::SYNC0_ACTIVE_EDGE {
+        PulseEdge::Rising => Pull::Down,
+        PulseEdge::Falling => Pull::Up,
+    };
+    let sync0 = ExtiInput::new(p.PC3, p.EXTI3, sync0_idle, Irqs);
     let in2 = ExtiInput::new(p.PB1, p.EXTI1, Pull::None, Irqs);
     for irq in [interrupt::EXTI1, interrupt::EXTI2, interrupt::EXTI3] {
         irq.set_priority(CYCLIC_PRIORITY);
@@ -432,24 +453,18 @@ async fn __embassy_main(spawner: Spawner) {
 
     // The drive and the slave runtime; stored parameters (drive objects and the PDO
     // mapping) are loaded before the ESC leaves Init.
-    // Built in place in their static slot: the drive state is ≈ 5 KiB, and building it
-    // in `main`'s frame and moving it in would add that (twice) to the stack peak.
+    // Built in place in their static slots: the drive state is ≈ 5 KiB, and building
+    // it in `main`'s frame and moving it in would add that (twice) to the stack peak.
     let serial = firmware::identity::serial_from_unique_id(&embassy_stm32::uid::uid());
-    let sp = core::ptr::addr_of_mut!(SHARED_MEM).cast::<Shared>();
-    // SAFETY: main runs once and is the only user of SHARED_MEM until the lock gets
-    // the finished value below; `drive` and `slave` are written here before the
-    // references to them are made, and those references are not used after the
-    // whole value is taken.
-    let (drive, slave) = unsafe {
-        let d = core::ptr::addr_of_mut!((*sp).drive);
-        new_drive(d, serial, staged);
-        let s = core::ptr::addr_of_mut!((*sp).slave);
-        s.write(None);
-        if esc_ok {
-            new_slave(s, esc);
-        }
-        (&mut *d, &mut *s)
+    // SAFETY: main runs once and is the only place that takes these references.
+    let (drive_slot, slave_slot) = unsafe {
+        (
+            &mut *core::ptr::addr_of_mut!(DRIVE_MEM),
+            &mut *core::ptr::addr_of_mut!(SLAVE_MEM),
+        )
     };
+    let drive = new_drive(drive_slot, serial, staged);
+    let mut slave = esc_ok.then(|| new_slave(slave_slot, esc));
     let report = match slave.as_mut() {
         Some(s) => drive.power_up(&mut s.runtime_objects(firmware::dictionary::OBJECTS)),
         None => drive.power_up(&mut NoRuntime),
@@ -502,21 +517,23 @@ async fn __embassy_main(spawner: Spawner) {
     };
     send_command(&ctl);
     let has_slave = slave.is_some();
-    // SAFETY: as above; every other field is written here, so the value is whole; from
-    // here on it is reached only through the lock.
-    let shared: &'static mut Shared = unsafe {
-        core::ptr::addr_of_mut!((*sp).ctl).write(ctl);
-        core::ptr::addr_of_mut!((*sp).seen_steps).write(0);
-        core::ptr::addr_of_mut!((*sp).oc_reported).write(false);
-        core::ptr::addr_of_mut!((*sp).offset_fault).write(false);
-        core::ptr::addr_of_mut!((*sp).index_seen).write(0);
-        core::ptr::addr_of_mut!((*sp).pending_index).write(None);
-        core::ptr::addr_of_mut!((*sp).probe1).write(ProbeInput::default());
-        core::ptr::addr_of_mut!((*sp).probe2).write(ProbeInput::default());
-        core::ptr::addr_of_mut!((*sp).align_failures).write(0);
-        core::ptr::addr_of_mut!((*sp).align_fault).write(false);
-        &mut *sp
-    };
+    // SAFETY: main runs once and is the only place that takes this reference; from
+    // here on the value is reached only through the lock.
+    let shared_slot = unsafe { &mut *core::ptr::addr_of_mut!(SHARED_MEM) };
+    let shared: &'static mut Shared = shared_slot.write(Shared {
+        drive: Placed(drive),
+        slave: slave.map(Placed),
+        ctl,
+        seen_steps: 0,
+        oc_reported: false,
+        offset_fault: false,
+        index_seen: 0,
+        pending_index: None,
+        probe1: ProbeInput::default(),
+        probe2: ProbeInput::default(),
+        align_failures: 0,
+        align_fault: false,
+    });
     SHARED.lock(|c| *c.borrow_mut() = Some(shared));
     hw::adc::init(hw::adc::Analog {
         adc1: p.ADC1,
@@ -553,11 +570,8 @@ async fn __embassy_main(spawner: Spawner) {
     );
 }
 
-/// Spawns a task, or logs why it could not. Out of line: the token's type parameter
-/// only names the task, so the copies are identical machine code and the linker keeps
-/// one (`--icf=all`). The thread executor's tasks go through its `SendSpawner` too
-/// (the same enqueue as `Spawner::spawn`).
-#[inline(never)]
+/// Spawns a task, or logs why it could not. The thread executor's tasks go through
+/// its `SendSpawner` too (the same enqueue as `Spawner::spawn`).
 fn spawn<S: Send>(spawner: SendSpawner, task: Result<SpawnToken<S>, SpawnError>, name: defmt::Str) {
     match task {
         Ok(t) => spawner.spawn(t),
@@ -565,15 +579,14 @@ fn spawn<S: Send>(spawner: SendSpawner, task: Result<SpawnToken<S>, SpawnError>,
     }
 }
 
-/// The drive at its power-up defaults with the board's parameter store (out of line:
-/// start-up code, not worth inlining into `main`).
-///
-/// # Safety
-/// `out` must be valid for writes (it is overwritten without dropping).
+/// The drive at its power-up defaults with the board's parameter store, written whole
+/// into `slot` (out of line: start-up code, not worth inlining into `main`).
 #[inline(never)]
-unsafe fn new_drive(out: *mut BoardDrive, serial: u32, staged: StagedFlash) {
-    // SAFETY: the caller's promise; `MaybeUninit` has the layout of its content.
-    let slot = unsafe { &mut *out.cast::<core::mem::MaybeUninit<BoardDrive>>() };
+fn new_drive(
+    slot: &'static mut MaybeUninit<BoardDrive>,
+    serial: u32,
+    staged: StagedFlash,
+) -> &'static mut BoardDrive {
     Drive::init_in(
         slot,
         VARIANT,
@@ -582,25 +595,20 @@ unsafe fn new_drive(out: *mut BoardDrive, serial: u32, staged: StagedFlash) {
             storage: PARAM_STORE,
             flash: staged,
         },
-    );
+    )
 }
 
-/// The slave runtime over the ESC with the product's default PDO mapping (out of
-/// line, as [`new_drive`]).
-///
-/// # Safety
-/// `out` must be valid for writes (it is overwritten without dropping).
+/// The slave runtime over the ESC with the product's default PDO mapping, written
+/// whole into `slot` (out of line, as [`new_drive`]).
 #[inline(never)]
-unsafe fn new_slave(out: *mut Option<Slave<Esc>>, esc: Esc) {
-    let s = Slave::new(
+fn new_slave(slot: &'static mut MaybeUninit<Slave<Esc>>, esc: Esc) -> &'static mut Slave<Esc> {
+    slot.write(Slave::new(
         esc,
         SlaveConfig {
             pdo_defaults: firmware::pdo_defaults::PDO_DEFAULTS,
             ..SlaveConfig::default()
         },
-    );
-    // SAFETY: the caller's promise.
-    unsafe { out.write(Some(s)) }
+    ))
 }
 
 /// 0x2083: the power-up alignment sweeps the field (wiggle) and checks the encoder.
@@ -713,7 +721,18 @@ fn publish_command(s: &mut Shared) {
     send_command(&s.ctl);
 }
 
-/// The cyclic path (DC mode): one `Slave::cycle` per SYNC0 falling edge.
+/// Waits for the leading edge of the next SYNC0 pulse: the edge
+/// [`firmware::identity::SYNC0_ACTIVE_EDGE`] derives from the SII's 0x0151 value (the
+/// one definition of the polarity, `ecat_slave_stack::sii::SYNC0_DRIVE`).
+async fn sync0_edge(pin: &mut ExtiInput<'static, Async>) {
+    match firmware::identity::SYNC0_ACTIVE_EDGE {
+        PulseEdge::Rising => pin.wait_for_rising_edge().await,
+        PulseEdge::Falling => pin.wait_for_falling_edge().await,
+    }
+}
+
+/// The cyclic path (DC mode): one `Slave::cycle` per SYNC0 pulse (its leading edge,
+/// [`sync0_edge`]).
 ///
 /// In DC mode the ESC IRQ also signals SYNC0 (the runtime puts it in the event
 /// mask), so a thread-mode `poll` that read the AL event register just after a SYNC0
@@ -725,7 +744,7 @@ fn publish_command(s: &mut Shared) {
 async fn cyclic(mut sync0: ExtiInput<'static, Async>) {
     let mut mine: Option<u64> = None;
     loop {
-        sync0.wait_for_falling_edge().await;
+        sync0_edge(&mut sync0).await;
         SYNC0S.fetch_add(1, Ordering::Relaxed);
         let now = now_us();
         with_shared(|s| {
@@ -734,7 +753,7 @@ async fn cyclic(mut sync0: ExtiInput<'static, Async>) {
                 let sync = slave.sync();
                 let dc = sync.mode == ecat_slave_stack::sync::SyncMode::DcSync0;
                 let taken_by_poll = sync.last_cycle != mine;
-                if dc && !taken_by_poll && slave.cycle(&mut s.drive, now).is_err() {
+                if dc && !taken_by_poll && slave.cycle(&mut *s.drive, now).is_err() {
                     ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
                 }
                 mine = slave.sync().last_cycle;
@@ -772,7 +791,7 @@ async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>)
             while let Some(e) = s.drive.pop_emergency() {
                 slave.emergency(e.code, e.register, e.data);
             }
-            if slave.poll(&mut s.drive, now).is_err() {
+            if slave.poll(&mut *s.drive, now).is_err() {
                 ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
             }
             publish_command(s);

@@ -180,12 +180,125 @@ fn lan9252_pram_read_unaligned_through_fifo() {
         &[pattern(0x1101), pattern(0x1102), pattern(0x1103)]
     );
     assert!(m.violations.is_empty(), "{:?}", m.violations);
-    // The next read needs no abort.
+    // The next read needs no abort, only the busy check before ADDR_LEN.
     let from = m.log.len();
     let mut one = [0u8; 1];
     d.read(0x1000, &mut one).unwrap();
     assert_eq!(one[0], pattern(0x1000));
-    assert_eq!(d.spi_mut().mosi_since(from)[0], wr(0x308, 0x0001_1000));
+    let m = d.spi_mut();
+    assert_eq!(m.mosi_since(from)[..2], [rd(0x30C), wr(0x308, 0x0001_1000)]);
+    assert_eq!(&m.log[from].miso[4..8], &[0, 0, 0, 0], "read unit idle");
+}
+
+/// Bit 31 (busy) of a 32-bit register read's MISO bytes.
+fn busy_bit(miso: &[u8]) -> bool {
+    miso.get(7).is_some_and(|b| b & 0x80 != 0)
+}
+
+#[test]
+fn lan9252_pram_write_waits_until_the_previous_one_is_done() {
+    let mut d = lan_default();
+    d.spi_mut().faults.pram_write_busy_reads = 3;
+    d.write(0x1400, &[1, 2, 3, 4, 5]).unwrap();
+    let from = d.spi_mut().log.len();
+    d.write(0x1408, &[6, 7]).unwrap();
+    let m = d.spi_mut();
+    assert!(m.violations.is_empty(), "{:?}", m.violations);
+    assert_eq!(&m.esc.mem[0x1400..0x1405], &[1, 2, 3, 4, 5]);
+    assert_eq!(&m.esc.mem[0x1408..0x140A], &[6, 7]);
+    // The second write polls ECAT_PRAM_WR_CMD while the first one's data is still
+    // being moved (3 busy reads), then one idle read, and only then sets ADDR_LEN.
+    let mosi = m.mosi_since(from);
+    assert_eq!(
+        mosi[..5],
+        [
+            rd(0x314),
+            rd(0x314),
+            rd(0x314),
+            rd(0x314),
+            wr(0x310, 0x0002_1408)
+        ]
+    );
+    let busy: Vec<bool> = m.log[from..from + 4]
+        .iter()
+        .map(|t| busy_bit(&t.miso))
+        .collect();
+    assert_eq!(busy, vec![true, true, true, false]);
+}
+
+#[test]
+fn lan9252_stuck_pram_write_is_a_timeout_without_touching_addr_len() {
+    let mut d = lan(Lan9252Config {
+        reset: ResetKind::None,
+        max_polls: 8,
+        ..Lan9252Config::default()
+    });
+    d.spi_mut().faults.pram_write_stuck_busy = true;
+    d.write(0x1500, &[9; 4]).unwrap();
+    let from = d.spi_mut().log.len();
+    assert_eq!(d.write(0x1504, &[8; 4]), Err(EscError::Timeout));
+    let m = d.spi_mut();
+    // Bounded polling of the busy bit, nothing else: the model saw no ADDR_LEN write
+    // while busy.
+    assert_eq!(m.mosi_since(from), vec![rd(0x314); 8]);
+    assert!(m.violations.is_empty(), "{:?}", m.violations);
+    assert_eq!(
+        &m.esc.mem[0x1504..0x1508],
+        &[
+            pattern(0x1504),
+            pattern(0x1505),
+            pattern(0x1506),
+            pattern(0x1507)
+        ]
+    );
+    // Reads use the other unit and still work.
+    let mut b = [0u8; 4];
+    d.read(0x1500, &mut b).unwrap();
+    assert_eq!(b, [9; 4]);
+}
+
+#[test]
+fn lan9252_model_refuses_what_the_chip_would_not_do() {
+    let mut m = Lan9252Model::new(RamEsc::new());
+    let run = |m: &mut Lan9252Model<RamEsc>, bytes: Vec<u8>| {
+        m.transaction(&mut [Operation::Write(&bytes)]).unwrap();
+    };
+    // A one-word write, its word pushed: the unit is still busy.
+    run(&mut m, wr(0x310, 0x0004_1000));
+    run(&mut m, wr(0x314, 0x8000_0000));
+    run(&mut m, wr(0x020, 0x1122_3344));
+    assert!(m.violations.is_empty(), "{:?}", m.violations);
+    run(&mut m, wr(0x310, 0x0004_1004));
+    run(&mut m, wr(0x314, 0x8000_0000));
+    assert_eq!(m.violations.len(), 2, "{:?}", m.violations);
+    assert!(m.violations[0].contains("ADDR_LEN written while the write is busy"));
+    assert!(m.violations[1].contains("started while the write is busy"));
+    // The abort is always accepted and leaves the unit idle.
+    run(&mut m, wr(0x314, 0x4000_0000));
+    let mut r = [0u8; 4];
+    m.transaction(&mut [
+        Operation::Write(&[0x03, 0x03, 0x14]),
+        Operation::Read(&mut r),
+    ])
+    .unwrap();
+    assert_eq!(r[3] & 0x80, 0);
+    // A read unit reprogrammed in the middle of a transfer.
+    run(&mut m, wr(0x308, 0x0008_1000));
+    run(&mut m, wr(0x30C, 0x8000_0000));
+    run(&mut m, wr(0x308, 0x0008_1000));
+    assert!(m.violations[2].contains("ADDR_LEN written while the read is busy"));
+    // Two register words in one transaction outside the FIFO ports: no address
+    // auto-increment is assumed there.
+    let mut two = [0u8; 8];
+    m.transaction(&mut [
+        Operation::Write(&[0x03, 0x00, 0x64]),
+        Operation::Read(&mut two),
+    ])
+    .unwrap();
+    assert_eq!(&two[..4], &0x8765_4321u32.to_le_bytes());
+    assert_eq!(&two[4..], &[0; 4]);
+    assert_eq!(m.violations.len(), 4, "{:?}", m.violations);
+    assert!(m.violations[3].contains("more than one register word"));
 }
 
 #[test]

@@ -23,6 +23,13 @@
 //!    [`IRQ_PRIORITIES`]). Worst case = thread + for each priority level the deepest
 //!    handler of that level (levels nest, equal levels do not) + one exception frame
 //!    per nesting level.
+//!
+//! Tasks are told apart by code, not by their names: a poll function belongs to the
+//! task whose `POOL` static the spawn code addresses just before it, and the start-up
+//! task is the one spawned by code that the reset handler reaches through direct calls
+//! (the entry `#[embassy_executor::main]` generates). Only the placement on the
+//! interrupt executor is declared ([`INTERRUPT_EXECUTOR`]), and a declared task that
+//! is not found is an error.
 
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -867,14 +874,19 @@ pub fn analyse_elf(elf: &Elf) -> Result<StackReport, String> {
         .filter(|&i| funcs[i].name.starts_with(TASK_POLL))
         .collect();
     let mut task_of: HashMap<usize, String> = HashMap::new();
-    for f in &funcs {
+    // The functions that store each poll function's address (spawn code).
+    let mut spawned_by: HashMap<usize, Vec<usize>> = HashMap::new();
+    for (fi, f) in funcs.iter().enumerate() {
         let mut last_pool: Option<&str> = None;
         for &c in &f.constants {
             if let Some((_, _, t)) = pools.iter().find(|(a, s, _)| c >= *a && c < a + s) {
                 last_pool = Some(t);
-            } else if let (Some(&p), Some(t)) = (start_of.get(&(c & !1)), last_pool) {
+            } else if let Some(&p) = start_of.get(&(c & !1)) {
                 if c & 1 == 1 && polls.contains(&p) {
-                    task_of.entry(p).or_insert_with(|| t.to_string());
+                    spawned_by.entry(p).or_default().push(fi);
+                    if let Some(t) = last_pool {
+                        task_of.entry(p).or_insert_with(|| t.to_string());
+                    }
                 }
             }
         }
@@ -994,13 +1006,50 @@ pub fn analyse_elf(elf: &Elf) -> Result<StackReport, String> {
         .map(|r| r.func)
         .ok_or("no Reset handler in the vector table")?;
 
+    // Every task the interrupt executor is said to run must exist: a renamed task
+    // would otherwise be counted on the thread executor only (an image without tasks
+    // has nothing to check).
+    for t in cyclic_tasks.iter().filter(|_| !polls.is_empty()) {
+        if !task_of.values().any(|n| n == t) {
+            return Err(format!(
+                "task `{t}` of the interrupt executor {irq_executor} not found (no `{t}::POOL` \
+                 beside a task poll): update INTERRUPT_EXECUTOR in xtask/src/stack.rs"
+            ));
+        }
+    }
+    // The start-up task(s): spawned by code the reset handler reaches through direct
+    // calls alone (the entry's `executor.run` closure), not by another task — found
+    // from the code, whatever the task is called.
+    let from_reset = {
+        let mut seen = vec![false; funcs.len()];
+        let mut todo = vec![reset];
+        while let Some(f) = todo.pop() {
+            if !std::mem::replace(&mut seen[f], true) {
+                todo.extend(edges[f].iter().copied());
+            }
+        }
+        seen
+    };
+    let startup: Vec<usize> = polls
+        .iter()
+        .copied()
+        .filter(|p| {
+            spawned_by
+                .get(p)
+                .is_some_and(|by| by.iter().any(|&f| from_reset[f]))
+        })
+        .collect();
+
     // Per-task roots: the executor's path to the dispatch + that task's poll.
     let mut task_roots: Vec<Root> = Vec::new();
     for &p in &polls {
-        let name = task_of
+        let mut name = task_of
             .get(&p)
             .cloned()
             .unwrap_or_else(|| format!("{:#010x}", funcs[p].addr));
+        if startup.contains(&p) {
+            name.push_str(", start-up");
+        }
         let on_irq = task_of
             .get(&p)
             .is_some_and(|t| cyclic_tasks.contains(&t.as_str()));
@@ -1175,7 +1224,11 @@ pub fn analyse_elf(elf: &Elf) -> Result<StackReport, String> {
     // interrupts already run during it.
     if let Some(steady) = task_results
         .iter()
-        .filter(|r| r.level.is_none() && !r.label.contains("__embassy_main"))
+        .zip(&task_roots)
+        .filter(|(r, root)| {
+            r.level.is_none() && !root.extra.values().flatten().any(|p| startup.contains(p))
+        })
+        .map(|(r, _)| r)
         .max_by_key(|r| r.depth.bytes)
     {
         if steady.depth.bytes < thread.depth.bytes {

@@ -6,17 +6,43 @@
 //! * Trigger: JEXTSEL = TIM1_TRGO2, rising edge; ADC clock = SYSCLK / 4 = 42.5 MHz
 //!   (asynchronous clock from the RCC mux, at most one ADC clock of trigger jitter).
 //! * Sampling: currents 24.5 cycles, bus voltage 47.5 cycles (divider impedance).
-//!   ADC1 finishes last (two conversions, ≈ 1.5 µs after the trigger), so only its
+//!   ADC1 finishes last (two conversions, ≈ 2.3 µs after the trigger, [`TIMING`]), so only its
 //!   end-of-injected-sequence (JEOS) interrupt is enabled: `ADC1_2` at priority 0,
 //!   the highest in the system — the current-loop slot.
 //!
 //! Power-up, calibration (single-ended and differential) and enabling follow
 //! embassy-stm32's `Adc::new` register by register (`power_up`); the injected
 //! sequence and trigger are programmed through the PAC afterwards.
+//!
+//! Order (RM0440, ADC chapter, "ADC common control register (ADCx_CCR)": the clock
+//! fields PRESC / CKMODE may be written only while every ADC of the pair is disabled
+//! — ADEN = 0 and no calibration or conversion running): the ADC12 clock on (ADC1 and
+//! ADC2 share it and its reset), then the common register written **once**, and only
+//! then ADC1 and ADC2 powered up, calibrated and enabled. Until issue 16 the prescaler
+//! was written a second time after ADC1 had been enabled.
+//!
+//! # Sampling instant against the PWM period
+//! One PWM period is 2 × ARR = 4250 timer ticks = 25 µs (centre-aligned: the counter
+//! peak, at 12.5 µs, is the PWM centre). Figures from the constants ([`TIMING`]):
+//!
+//! | event | time after the PWM centre |
+//! |---|---|
+//! | trigger (OC4REF rises at CNT = ARR − `ADC_TRIGGER_LEAD_TICKS` counting up) | −5.9 ns (1 tick early) |
+//! | I_A (ADC1) and I_B (ADC2) sampling window, 24.5 ADC cycles at 42.5 MHz | ≈ 0 … 0.58 µs (+ trigger latency) |
+//! | middle of that window: the instant the currents stand for | ≈ 0.28 µs (1.1 % of the period) |
+//! | V_BUS window (ADC1 rank 2, after I_A's 12.5-cycle conversion) | ≈ 0.87 … 1.99 µs |
+//! | ADC1 end of sequence → `ADC1_2` interrupt | ≈ 2.28 µs |
+//!
+//! The trigger latency of the asynchronous ADC clock (a few ADC cycles, RM0440 ADC
+//! chapter, trigger latency) comes on top; TP1 on a scope shows the whole chain
+//! (README, "Measuring interrupt timing"). The window lies at the centre of the
+//! period, where the in-line phase current passes its period average (symmetric
+//! ripple), and the conversions end far inside the half period (asserted below).
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use embassy_stm32::gpio::Flex;
-use embassy_stm32::interrupt::{self, InterruptExt, Priority};
+use embassy_stm32::interrupt;
+use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::pac;
 use embassy_stm32::pac::adc::vals::{Adcaldif, Difsel, Exten, SampleTime};
 use embassy_stm32::pac::adccommon::vals::Presc;
@@ -62,11 +88,13 @@ pub fn init(p: Analog<'static>) {
     // each ADC in turn, as the HAL's `Adc::new` would (see `power_up`).
     let Analog { adc1, adc2, .. } = p;
     let _ = (adc1, adc2); // the peripherals are programmed through the PAC below
+                          // Clock of both ADCs (one shared enable and reset; embassy counts the users), then
+                          // the common register while both are still disabled (module docs), then each ADC.
     rcc::enable_and_reset::<ADC1>();
+    rcc::enable_and_reset::<ADC2>();
+    debug_assert!(!pac::ADC1.cr().read().aden() && !pac::ADC2.cr().read().aden());
     pac::ADC12_COMMON.ccr().modify(|w| w.set_presc(ADC_PRESC));
     power_up(pac::ADC1);
-    rcc::enable_and_reset::<ADC2>();
-    pac::ADC12_COMMON.ccr().modify(|w| w.set_presc(ADC_PRESC));
     power_up(pac::ADC2);
     let mut pins = [Flex::new(p.ia), Flex::new(p.ib), Flex::new(p.vbus)];
     for pin in pins.iter_mut() {
@@ -77,6 +105,7 @@ pub fn init(p: Analog<'static>) {
 
     let a1 = pac::ADC1;
     let a2 = pac::ADC2;
+    // Sample times: keep in step with SAMPLE_I_HALF / SAMPLE_VBUS_HALF (TIMING).
     a1.smpr().modify(|w| {
         w.set_smp(usize::from(board::ADC1_CH_IA), SampleTime::CYCLES24_5);
         w.set_smp(usize::from(board::ADC1_CH_VBUS), SampleTime::CYCLES47_5);
@@ -116,6 +145,50 @@ pub fn init(p: Analog<'static>) {
 /// HAL's rule — the smallest division keeping it at most 60 MHz — gives 4 (42.5 MHz).
 const ADC_PRESC: Presc = Presc::DIV4;
 const _: () = assert!((board::SYSCLK_HZ - 1) / 60_000_000 == 2);
+
+/// Timing of the injected conversions against the PWM period (module docs), in ns
+/// after the PWM centre (negative: before).
+pub struct Timing {
+    pub trigger: i32,
+    pub current_window: (i32, i32),
+    pub vbus_window: (i32, i32),
+    pub end_of_sequence: i32,
+}
+
+/// ADC clock, Hz (SYSCLK / 4).
+const ADC_HZ: u32 = board::SYSCLK_HZ / 4;
+/// Time of `half_cycles` / 2 ADC clock cycles, ns (sample times end in .5 cycles).
+const fn adc_half_cycles_ns(half_cycles: u32) -> i32 {
+    (half_cycles as u64 * 1_000_000_000 / (2 * ADC_HZ as u64)) as i32
+}
+/// Sampling (24.5 / 47.5 cycles) and conversion (12.5 cycles, 12 bits) in half cycles.
+const SAMPLE_I_HALF: u32 = 49;
+const SAMPLE_VBUS_HALF: u32 = 95;
+const CONVERT_HALF: u32 = 25;
+
+/// The sampling instants of this configuration (without the trigger latency).
+pub const TIMING: Timing = {
+    let trigger =
+        -((board::ADC_TRIGGER_LEAD_TICKS as u64 * 1_000_000_000 / board::SYSCLK_HZ as u64) as i32);
+    let i_end = trigger + adc_half_cycles_ns(SAMPLE_I_HALF);
+    let v_start = i_end + adc_half_cycles_ns(CONVERT_HALF);
+    let v_end = v_start + adc_half_cycles_ns(SAMPLE_VBUS_HALF);
+    Timing {
+        trigger,
+        current_window: (trigger, i_end),
+        vbus_window: (v_start, v_end),
+        end_of_sequence: v_end + adc_half_cycles_ns(CONVERT_HALF),
+    }
+};
+/// Half a PWM period, ns.
+const HALF_PERIOD_NS: i32 = (500_000_000 / board::PWM_HZ) as i32;
+// The whole ADC1 sequence ends within a fifth of the half period after the centre
+// (the current-loop ISR then has the rest of the period), and the currents are
+// sampled within 0.6 µs of the centre.
+const _: () = assert!(TIMING.end_of_sequence < HALF_PERIOD_NS / 5);
+const _: () = assert!(TIMING.current_window.1 < 600 && TIMING.trigger <= 0);
+const _: () = assert!(TIMING.trigger > -100);
+const _: () = assert!(TIMING.vbus_window.0 > TIMING.current_window.1);
 
 /// Powers up, calibrates (single-ended, then differential) and enables one ADC with
 /// single conversions and no regular trigger: the register sequence of
@@ -159,9 +232,10 @@ pub fn adc2_late_count() -> u32 {
 }
 
 /// The current-loop interrupt: ADC1 end of injected sequence, once per PWM period.
-/// TP1 (PC1) is high while it runs, for a scope.
-#[no_mangle]
-unsafe extern "C" fn ADC1_2() {
+/// TP1 (PC1) is high while it runs, for a scope. The vector name is checked by
+/// `#[interrupt]` against the device's interrupt enum.
+#[interrupt]
+fn ADC1_2() {
     let t0 = cortex_m::peripheral::DWT::cycle_count();
     crate::hw::io::tp1_high();
     let a1 = pac::ADC1;

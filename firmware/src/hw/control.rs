@@ -45,11 +45,17 @@
 //! period) — and the current reference must be in place before the next current
 //! step; splitting would need another exchange cell and a fourth priority level.
 //!
-//! The bridges are on only while all of these hold: the drive asks for the power
-//! stage (`DriveCommand::power_stage`) and has no active fault (decided by the cyclic
-//! path, [`ControlCommand::power_allowed`]), the current-sensor offsets passed the
-//! start-up check ([`ControlCommand::offsets`]), no break (over-current) is latched,
-//! and the motion layer wants current (`CurrentReference::power`).
+//! The bridges are on only while all of these hold (decided by
+//! `firmware::power_gate::bridge_mode`): the drive is not halted by a panic or
+//! HardFault (`hw::safety::HALT`, sticky until reset), the drive asks for the power
+//! stage (`Drive::power_permission`: the PDS has the voltage enabled and no fault
+//! that cuts the power is active, [`ControlCommand::power_allowed`]), the
+//! current-sensor offsets passed the start-up check ([`ControlCommand::offsets`]), no
+//! break (over-current) is latched, the fast protection has not tripped
+//! (`CurrentSupervisor::protect`: a phase current above 10.5 A or a bus above 55 V in
+//! any PWM period switches the bridges off in that period, until the drive has
+//! withdrawn the permission), and the motion layer wants current
+//! (`CurrentReference::power`).
 //!
 //! # Exchange (no locks in the interrupt)
 //! [`Exchange<T>`] is a double buffer with a sequence number: the writer fills the
@@ -71,6 +77,7 @@ use firmware::commutation::{CommutatedMotion, Commutation};
 use firmware::current_supervisor::{CurrentReport, CurrentSupervisor, SupervisorConfig};
 use firmware::latch::{units_at_count, Edges, Seen};
 use firmware::motion::{CurrentReference, Frame, MotionConfig};
+use firmware::power_gate::{bridge_mode, BridgeMode, GateInputs};
 use firmware::sampling::RawSample;
 use foc::current_loop::{AdcSample, CurrentLoop, CurrentLoopConfig, Sense};
 use foc::encoder::{Encoder, EncoderConfig};
@@ -378,31 +385,29 @@ pub fn init(
         COMMAND.reset(None);
         FEEDBACK.reset_then(feedback_start);
     }
-    // Written field by field into the static: the state is ≈ 9 KiB (the motion
-    // layer's smoothing buffers), so a whole `Control` built on the stack and moved
-    // in would put that, twice, on the start-up stack peak; each constructor's result
-    // goes straight to its slot.
-    let p = CONTROL.0.get().cast::<Control>();
-    // SAFETY: the interrupt does not read CONTROL before READY is set, `init` runs
-    // once (checked above), and every field is written before READY.
-    unsafe {
-        core::ptr::addr_of_mut!((*p).cl).write(cl);
-        core::ptr::addr_of_mut!((*p).enc).write(enc);
-        core::ptr::addr_of_mut!((*p).motion).write(CommutatedMotion::new(motion, wiggle));
-        core::ptr::addr_of_mut!((*p).sup).write(CurrentSupervisor::new(supervisor));
-        core::ptr::addr_of_mut!((*p).reference).write(CurrentReference::OFF);
-        core::ptr::addr_of_mut!((*p).divider).write(0);
-        core::ptr::addr_of_mut!((*p).seen_cycle).write(0);
-        core::ptr::addr_of_mut!((*p).seen_config).write(0);
-        core::ptr::addr_of_mut!((*p).bridges_on).write(false);
-        core::ptr::addr_of_mut!((*p).permitted).write(false);
-        core::ptr::addr_of_mut!((*p).raw).write(crate::hw::encoder::raw_count());
-        core::ptr::addr_of_mut!((*p).index_seq).write(0);
-        core::ptr::addr_of_mut!((*p).index_units).write(0);
-        core::ptr::addr_of_mut!((*p).probe1).write(NO_EDGES);
-        core::ptr::addr_of_mut!((*p).probe2).write(NO_EDGES);
-        core::ptr::addr_of_mut!((*p).probe2_seen).write(Seen::default());
-    }
+    // One whole-struct write (a struct literal: a field added to `Control` and not
+    // given a value here does not compile).
+    // SAFETY: the interrupt does not read CONTROL before READY is set, and `init` runs
+    // once (checked above), so nothing else references the cell.
+    let slot = unsafe { &mut *CONTROL.0.get() };
+    slot.write(Control {
+        cl,
+        enc,
+        motion: CommutatedMotion::new(motion, wiggle),
+        sup: CurrentSupervisor::new(supervisor),
+        reference: CurrentReference::OFF,
+        divider: 0,
+        seen_cycle: 0,
+        seen_config: 0,
+        bridges_on: false,
+        permitted: false,
+        raw: crate::hw::encoder::raw_count(),
+        index_seq: 0,
+        index_units: 0,
+        probe1: NO_EDGES,
+        probe2: NO_EDGES,
+        probe2_seen: Seen::default(),
+    });
     READY.store(true, Ordering::Release);
 }
 
@@ -431,23 +436,34 @@ pub fn on_sample(s: RawSample) {
         // bridges off within 100 µs (an over-current does so in hardware at once).
         let cmd = COMMAND.read().and_then(|(_, v)| v);
         c.permitted = cmd.is_some_and(|k| k.power_allowed && k.offsets.is_some());
+        if !c.permitted {
+            // The drive has withdrawn the power (it took the trip's fault): re-armed.
+            c.sup.rearm();
+        }
         servo_step(c, cmd.as_ref());
     }
 
-    let no_break = pwm::break_latched() == 0;
-    let tuning = c.sup.tuning() && no_break;
-    let allowed = c.permitted && no_break && c.reference.power;
+    // The bridge decision is the library's (`firmware::power_gate`): never on while
+    // halted (panic / HardFault) or with a latched break.
+    let mode = bridge_mode(GateInputs {
+        halted: crate::hw::safety::HALT.is_halted(),
+        break_latched: pwm::break_latched() != 0,
+        tripped: c.sup.tripped(),
+        tuning: c.sup.tuning(),
+        permitted: c.permitted,
+        power_wanted: c.reference.power,
+    });
     let adc = AdcSample {
         ia: s.ia,
         ib: s.ib,
         vbus: s.vbus,
     };
-    if tuning || allowed {
+    if mode != BridgeMode::Off {
         if !c.bridges_on {
             c.cl.reset();
             c.bridges_on = pwm::enable_outputs();
         }
-        let d = if tuning {
+        let d = if mode == BridgeMode::Tune {
             // Power-up auto-tune: voltage mode, the motion layer is held.
             c.sup.tune_step(&mut c.cl, &adc)
         } else {
@@ -463,15 +479,22 @@ pub fn on_sample(s: RawSample) {
             };
             c.sup.run_step(&mut c.cl, &adc, theta, omega)
         };
-        pwm::set_compare(d.a1, d.a2, d.b1, d.b2);
+        if c.sup.protect(&c.cl) {
+            // The fast protection (`CurrentSupervisor::protect`): off in this period.
+            pwm::disable_outputs();
+            c.bridges_on = false;
+        } else {
+            pwm::set_compare(d.a1, d.a2, d.b1, d.b2);
+        }
     } else {
         if c.bridges_on {
             pwm::disable_outputs();
             c.bridges_on = false;
         }
         c.sup.idle();
-        // Keep the measurements fresh for the drive.
+        // Keep the measurements fresh for the drive (and the protection watching).
         c.cl.voltage_step(&adc, 0.0, 0.0);
+        c.sup.protect(&c.cl);
     }
 }
 

@@ -21,10 +21,38 @@
 //!
 //! The bridges stay **off** (MOE = 0) after [`init`]; [`enable_outputs`] is called by
 //! the drive logic when the power stage is to be energised.
+//!
+//! # Defined gate levels from the first instruction (RM0440, advanced-control timers
+//! # TIM1/TIM8/TIM20: "Complementary outputs and dead-time insertion", "Using the
+//! # break function", and the table "Output control bits for complementary tim_ocx and
+//! # tim_ocxn channels with break feature", Table 265 in Rev 4)
+//! 1. [`hold_gates_low`], the start-up task's first statement: the eight gate pins as
+//!    GPIO push-pull outputs driven low (all switches off). From reset until then the
+//!    pins are floating inputs: the gate-driver inputs need their pull-downs on the
+//!    board for those few microseconds.
+//! 2. [`init`]: the timers are clocked and fully configured — MOE = 0, OSSI = 1
+//!    (idle: the timer keeps driving the outputs at their idle level), OSSR = 1,
+//!    OISx = OISxN = 0 (idle level low), CCxE = CCxNE = 1 — *before* the pins are
+//!    switched from GPIO-low to the timer's alternate function, so a gate pin is
+//!    driven low at every moment: first by the GPIO, then by the timer's off state.
+//!    (With OSSI = 0, MOE = 0 releases the outputs to Hi-Z; the old order, pins to AF
+//!    first, left them floating until the timer was configured.) The break pins are
+//!    on their alternate function before the break is enabled (BKE), so an unconnected
+//!    BKIN cannot fire a break at start.
+//!
+//! # Zero volts at every enable
+//! CCR1/CCR2 are preloaded (loaded at the next update event). [`disable_outputs`]
+//! writes the centred duty (ARR/2 on both legs: 0 V across the winding) after
+//! clearing MOE, and [`enable_outputs`] writes it straight into the active compare
+//! registers (preload off for the write, RM0440 "Output compare mode" / OCxPE: with
+//! preload off a CCR write takes effect at once) before it sets MOE: the first PWM
+//! period after an enable is 0 V whatever duties were left from before, and the
+//! current loop's first duty takes over at the next update event.
 use core::sync::atomic::{AtomicU8, Ordering};
 
 use embassy_stm32::gpio::{AfType, AnyPin, Flex, OutputType, Pull, Speed};
-use embassy_stm32::interrupt::{self, InterruptExt, Priority};
+use embassy_stm32::interrupt;
+use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::pac;
 use embassy_stm32::pac::timer::vals;
 use embassy_stm32::peripherals::{PA6, PA7, PA8, PA9, PB0, PC10, PC11, PC6, PC7, PD2, TIM1, TIM8};
@@ -103,20 +131,54 @@ fn break_pin<T: AdvancedInstance4Channel, P: BreakInputPin<T, BkIn1>>(pin: Peri<
     af_pin(pin.into(), af, AfType::input(Pull::Up), false);
 }
 
-/// Configures both bridges (outputs off) and starts the counters. Call once.
+/// The gate pins of both bridges (board pinout, [`board`]): (port, pin numbers).
+const GATE_PINS: [(pac::gpio::Gpio, &[usize]); 3] = [
+    (pac::GPIOA, &[7, 8, 9]),
+    (pac::GPIOB, &[0]),
+    (pac::GPIOC, &[6, 7, 10, 11]),
+];
+
+/// Drives the eight gate pins low as GPIO outputs (see the module docs, step 1).
+/// Register access through the PAC: it runs before `embassy_stm32::init` hands out
+/// the pins (embassy's GPIO set-up only enables the port clocks, it does not touch
+/// the pins). Idempotent.
+pub fn hold_gates_low() {
+    use pac::gpio::vals::{Moder, Ot};
+    pac::RCC.ahb2enr().modify(|w| {
+        w.set_gpioaen(true);
+        w.set_gpioben(true);
+        w.set_gpiocen(true);
+    });
+    for (port, pins) in GATE_PINS {
+        // Output latch low first, then push-pull, then output mode.
+        port.bsrr().write(|w| {
+            for &n in pins {
+                w.set_br(n, true);
+            }
+        });
+        port.otyper().modify(|w| {
+            for &n in pins {
+                w.set_ot(n, Ot::PUSH_PULL);
+            }
+        });
+        port.moder().modify(|w| {
+            for &n in pins {
+                w.set_moder(n, Moder::OUTPUT);
+            }
+        });
+    }
+}
+
+/// Configures both bridges (outputs off) and starts the counters. Call once, after
+/// [`hold_gates_low`].
 pub fn init(p: PowerStage<'static>) {
-    // Output pins first (driven low, then on their alternate function), then the
-    // timer clocks (enabled and reset). `configure` programs every timer register the
-    // HAL's `ComplementaryPwm` would set (its PSC/ARR computation, a 64-bit division,
-    // is not needed: PSC = 0, ARR = PWM_ARR), and leaves MOE off throughout.
-    pwm_pin::<TIM1, Ch1>(p.a1h);
-    pwm_pin_n::<TIM1, Ch1>(p.a1l);
-    pwm_pin::<TIM1, Ch2>(p.a2h);
-    pwm_pin_n::<TIM1, Ch2>(p.a2l);
-    pwm_pin::<TIM8, Ch1>(p.b1h);
-    pwm_pin_n::<TIM8, Ch1>(p.b1l);
-    pwm_pin::<TIM8, Ch2>(p.b2h);
-    pwm_pin_n::<TIM8, Ch2>(p.b2l);
+    // Timer clocks (enabled and reset) and the break pins first, then every timer
+    // register (`configure`: the off state with defined idle levels, MOE = 0), and
+    // only then the gate pins from GPIO-low to their alternate function (module docs).
+    // `configure` programs every timer register the HAL's `ComplementaryPwm` would
+    // set (its PSC/ARR computation, a 64-bit division, is not needed: PSC = 0, ARR =
+    // PWM_ARR), and leaves MOE off throughout.
+    hold_gates_low();
     let tim_a = Timer::new(p.tim1);
     let tim_b = Timer::new(p.tim8);
     break_pin::<TIM1, _>(p.bkin_a);
@@ -130,6 +192,14 @@ pub fn init(p: PowerStage<'static>) {
     for t in [t1, t8] {
         configure(t);
     }
+    pwm_pin::<TIM1, Ch1>(p.a1h);
+    pwm_pin_n::<TIM1, Ch1>(p.a1l);
+    pwm_pin::<TIM1, Ch2>(p.a2h);
+    pwm_pin_n::<TIM1, Ch2>(p.a2l);
+    pwm_pin::<TIM8, Ch1>(p.b1h);
+    pwm_pin_n::<TIM8, Ch1>(p.b1l);
+    pwm_pin::<TIM8, Ch2>(p.b2h);
+    pwm_pin_n::<TIM8, Ch2>(p.b2l);
     // TIM1: TRGO = enable (starts TIM8), TRGO2 = OC4REF (ADC injected trigger).
     t1.cr2().modify(|w| {
         w.set_mms(vals::Mms::ENABLE);
@@ -219,24 +289,48 @@ fn configure(t: pac::timer::TimAdv) {
     t.bdtr().modify(|w| w.set_lock(vals::Lock::LEVEL1));
 }
 
-/// Energises both bridges (MOE = 1) unless a break is latched. Returns whether the
-/// outputs are on.
+/// Energises both bridges (MOE = 1) at zero volts (duties centred in the active
+/// compare registers first, module docs), unless a break is latched or the drive is
+/// halted (`hw::safety::HALT`: a panic or HardFault). Returns whether the outputs are
+/// on. Called only by the current-loop interrupt.
 pub fn enable_outputs() -> bool {
-    if BREAK_LATCH.load(Ordering::Acquire) != 0 {
+    if BREAK_LATCH.load(Ordering::Acquire) != 0 || crate::hw::safety::HALT.is_halted() {
         return false;
     }
+    let half = board::PWM_ARR / 2;
+    for t in [pac::TIM1, pac::TIM8] {
+        // MOE is 0 here, so writing the active registers cannot glitch an output.
+        t.ccmr_output(0).modify(|w| {
+            w.set_ocpe(0, false);
+            w.set_ocpe(1, false);
+        });
+        t.ccr(0).write(|w| w.set_ccr(half));
+        t.ccr(1).write(|w| w.set_ccr(half));
+        t.ccmr_output(0).modify(|w| {
+            w.set_ocpe(0, true);
+            w.set_ocpe(1, true);
+        });
+    }
+    // A HardFault between the check above and here never returns to us: its handler
+    // sets the halted state and clears MOE, so MOE is not set after a halt.
     for t in [pac::TIM1, pac::TIM8] {
         t.bdtr().modify(|w| w.set_moe(true));
     }
     true
 }
 
-/// Switches both bridges off (outputs to idle level: all switches off). Safe to
-/// call from any context, also before [`init`].
+/// Switches both bridges off (outputs to idle level: all switches off), then centres
+/// the preloaded duties (0 V for whatever enables next). Safe to call from any
+/// context, also before [`init`] (writes to an unclocked timer are ignored).
 #[inline(always)]
 pub fn disable_outputs() {
     for t in [pac::TIM1, pac::TIM8] {
         t.bdtr().modify(|w| w.set_moe(false));
+    }
+    let half = board::PWM_ARR / 2;
+    for t in [pac::TIM1, pac::TIM8] {
+        t.ccr(0).write(|w| w.set_ccr(half));
+        t.ccr(1).write(|w| w.set_ccr(half));
     }
 }
 
@@ -306,12 +400,13 @@ fn on_break(bit: u8, t: pac::timer::TimAdv) {
     crate::hw::safety::raise_fault(crate::hw::safety::FAULT_OVER_CURRENT);
 }
 
-#[no_mangle]
-unsafe extern "C" fn TIM1_BRK_TIM15() {
+// Vector names checked by `#[interrupt]` against the device's interrupt enum.
+#[interrupt]
+fn TIM1_BRK_TIM15() {
     on_break(1, pac::TIM1);
 }
 
-#[no_mangle]
-unsafe extern "C" fn TIM8_BRK() {
+#[interrupt]
+fn TIM8_BRK() {
     on_break(2, pac::TIM8);
 }

@@ -4,9 +4,13 @@
 //!   within the break filter time (≈ 24 ns + gate driver), independent of software;
 //!   the break interrupt then switches the other bridge off and latches the fault
 //!   (see `hw::pwm`).
-//! * Panic and HardFault: [`emergency_stop`] — both bridges off (MOE = 0), brake
-//!   engaged, red LED on — then one defmt line, then the core waits; the independent
-//!   watchdog (not fed any more) resets the chip, and the next start logs the reset
+//! * Panic and HardFault ([`fatal_stop`]): interrupts masked (PRIMASK) and the
+//!   current-loop interrupt disabled in the NVIC, the sticky halted state entered
+//!   ([`HALT`], `firmware::power_gate::Halt`: `hw::pwm::enable_outputs` refuses MOE
+//!   from then on), [`emergency_stop`] — both bridges off (MOE = 0, duties centred),
+//!   brake engaged, red LED on — then one defmt line; then the independent watchdog
+//!   (not fed any more) resets the chip, or, when the fault came before the watchdog
+//!   was started, a system reset is requested at once. The next start logs the reset
 //!   cause. All of it goes straight to registers, so it works whatever state the
 //!   drivers were in.
 //! * Faults found by the board code (fault 9 at start-up, over-current) go to the
@@ -22,8 +26,16 @@ use embassy_stm32::pac::iwdg::vals::{Key, Pr};
 use embassy_stm32::peripherals::IWDG;
 use embassy_stm32::Peri;
 
+use embassy_stm32::interrupt;
+use embassy_stm32::interrupt::InterruptExt;
+use firmware::power_gate::{Halt, HaltExit};
+
 use crate::board;
 use crate::hw::{io, pwm};
+
+/// The drive's halted state (see the module docs): set by a panic or HardFault,
+/// cleared only by a reset.
+pub static HALT: Halt = Halt::new();
 
 /// The independent watchdog (IWDG, clocked by the 32 kHz LSI): prescaler and reload
 /// for [`board::WATCHDOG_TIMEOUT_US`] worked out at compile time with the rule of
@@ -67,6 +79,7 @@ impl Watchdog {
     /// Starts the watchdog (it cannot be stopped again).
     pub fn unleash(&mut self) {
         pac::IWDG.kr().write(|w| w.set_key(Key::START));
+        HALT.watchdog_started();
     }
 
     /// Reloads the counter.
@@ -107,6 +120,31 @@ pub fn emergency_stop() {
     io::emergency_indicators();
 }
 
+/// The first steps of a panic or HardFault: nothing may run or switch the bridges on
+/// again. Interrupts masked (PRIMASK: every configurable priority, so the
+/// current-loop interrupt too; defmt's critical sections restore the masked state),
+/// the current-loop interrupt also disabled in the NVIC, the halted state entered
+/// before the bridges go off (an enable racing with us sees it), the bridges off.
+#[inline(always)]
+fn fatal_stop() -> HaltExit {
+    cortex_m::interrupt::disable();
+    let exit = HALT.halt();
+    emergency_stop();
+    interrupt::ADC1_2.disable();
+    exit
+}
+
+/// The end of a panic or HardFault: wait for the watchdog reset (or a debugger), or
+/// reset now when no watchdog runs.
+fn fatal_end(exit: HaltExit) -> ! {
+    match exit {
+        HaltExit::AwaitWatchdog => loop {
+            cortex_m::asm::nop();
+        },
+        HaltExit::ResetNow => cortex_m::peripheral::SCB::sys_reset(),
+    }
+}
+
 /// Set by the first panic: a panic inside the panic's own log line (defmt-rtt panics
 /// on a nested log) must not log again, or the handler would re-enter itself until
 /// the stack runs out (the static stack report, `cargo xtask size`, found that loop).
@@ -114,7 +152,7 @@ static PANICKED: AtomicBool = AtomicBool::new(false);
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
-    emergency_stop();
+    let exit = fatal_stop();
     if !PANICKED.swap(true, Ordering::Relaxed) {
         // Location and the message when it is a plain text: formatting the message's
         // arguments would pull `core::fmt` into the image for this one path.
@@ -124,23 +162,18 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
             None => defmt::error!("panic at {=str}:{=u32}", file, line),
         }
     }
-    loop {
-        // Wait for the watchdog reset (or a debugger).
-        cortex_m::asm::nop();
-    }
+    fatal_end(exit)
 }
 
 #[exception]
 unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
-    emergency_stop();
+    let exit = fatal_stop();
     defmt::error!(
         "HardFault: pc {=u32:#010x} lr {=u32:#010x}",
         ef.pc(),
         ef.lr()
     );
-    loop {
-        cortex_m::asm::nop();
-    }
+    fatal_end(exit)
 }
 
 /// Why the chip last reset, from RCC_CSR (read once at start-up, then cleared). The

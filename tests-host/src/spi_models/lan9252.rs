@@ -16,6 +16,19 @@
 //! `faults.reset_busy_reads` register reads return 0 (chip not yet accessible); the
 //! read FIFO is refilled from process RAM whenever it is polled or popped, up to
 //! `faults.fifo_words` words.
+//!
+//! *Write completion*: after the last word of a PRAM write has been pushed, the write
+//! unit stays busy (ECAT_PRAM_WR_CMD bit 31) for `faults.pram_write_busy_reads`
+//! further reads of ECAT_PRAM_WR_CMD (default 2: the chip still moves the FIFO into
+//! process RAM; its real duration is not published, so the model counts the polls
+//! instead of time, and a driver must poll for it), or for ever with
+//! `faults.pram_write_stuck_busy`.
+//!
+//! *Refused* (recorded as violations), because no reference driver relies on them:
+//! writing ECAT_PRAM_RD/WR_ADDR_LEN or starting a transfer while that unit is busy
+//! (the abort bit is always accepted), and a register access of more than one 32-bit
+//! word outside the FIFO ports (the model does not assume that the address
+//! auto-increments there).
 
 use std::collections::VecDeque;
 
@@ -47,6 +60,10 @@ pub struct Lan9252Faults {
     pub fifo_words: usize,
     /// Register reads returning 0 after a digital reset.
     pub reset_busy_reads: u32,
+    /// Reads of ECAT_PRAM_WR_CMD that still show busy after the last word of a write.
+    pub pram_write_busy_reads: u32,
+    /// The write unit never finishes (busy stays set after the last word).
+    pub pram_write_stuck_busy: bool,
     /// The next transaction fails with a bus error (cleared when used).
     pub fail_next: bool,
 }
@@ -62,6 +79,8 @@ impl Default for Lan9252Faults {
             fifo_never_ready: false,
             fifo_words: chip::FIFO_WORDS,
             reset_busy_reads: 2,
+            pram_write_busy_reads: 2,
+            pram_write_stuck_busy: false,
             fail_next: false,
         }
     }
@@ -86,6 +105,8 @@ struct Pram {
     total_words: usize,
     moved: usize,
     fifo: VecDeque<u32>,
+    /// Write unit: status reads left that still show busy after the last word.
+    settling: u32,
 }
 
 impl Pram {
@@ -229,9 +250,18 @@ impl<B: EscAccess> Lan9252Model<B> {
         }
     }
 
+    /// The write unit is busy: a transfer running or its data still being moved.
+    fn wr_busy(&self) -> bool {
+        self.wr.active || self.wr.settling > 0
+    }
+
     fn pram_status(&mut self, write: bool) -> u32 {
         let busy = if write {
-            self.wr.active
+            let b = self.wr_busy();
+            if !self.wr.active && self.wr.settling > 0 && !self.faults.pram_write_stuck_busy {
+                self.wr.settling -= 1;
+            }
+            b
         } else {
             self.rd.active
         };
@@ -362,6 +392,11 @@ impl<B: EscAccess> Lan9252Model<B> {
                 self.wr.moved += 1;
                 if self.wr.moved == self.wr.total_words {
                     self.wr.active = false;
+                    self.wr.settling = if self.faults.pram_write_stuck_busy {
+                        1
+                    } else {
+                        self.faults.pram_write_busy_reads
+                    };
                 }
             }
             reg::IRQ_CFG => self.irq_cfg = v,
@@ -387,12 +422,25 @@ impl<B: EscAccess> Lan9252Model<B> {
                 self.csr_data = v;
             }
             reg::ECAT_CSR_CMD => self.csr_command(v),
-            reg::PRAM_RD_ADDR_LEN => self.rd_addr_len = v,
-            reg::PRAM_WR_ADDR_LEN => self.wr_addr_len = v,
+            reg::PRAM_RD_ADDR_LEN => {
+                if self.rd.active {
+                    self.violation("ECAT_PRAM_RD_ADDR_LEN written while the read is busy".into());
+                }
+                self.rd_addr_len = v
+            }
+            reg::PRAM_WR_ADDR_LEN => {
+                if self.wr_busy() {
+                    self.violation("ECAT_PRAM_WR_ADDR_LEN written while the write is busy".into());
+                }
+                self.wr_addr_len = v
+            }
             reg::PRAM_RD_CMD => {
                 if v & chip::PRAM_ABORT != 0 {
                     self.rd = Pram::default();
                 } else if v & chip::PRAM_BUSY != 0 {
+                    if self.rd.active {
+                        self.violation("PRAM read started while the read is busy".into());
+                    }
                     if let Err(e) = self.rd.start(self.rd_addr_len) {
                         self.violation(e);
                     }
@@ -402,6 +450,9 @@ impl<B: EscAccess> Lan9252Model<B> {
                 if v & chip::PRAM_ABORT != 0 {
                     self.wr = Pram::default();
                 } else if v & chip::PRAM_BUSY != 0 {
+                    if self.wr_busy() {
+                        self.violation("PRAM write started while the write is busy".into());
+                    }
                     if let Err(e) = self.wr.start(self.wr_addr_len) {
                         self.violation(e);
                     }
@@ -411,14 +462,16 @@ impl<B: EscAccess> Lan9252Model<B> {
         }
     }
 
-    /// (word address, lane) of data byte `i` of the current transaction.
-    fn locate(&self, i: usize) -> (u16, usize, bool) {
+    /// (word address, lane) of data byte `i` of the current transaction; `None` for a
+    /// byte beyond the first register word outside the FIFO ports (refused: no
+    /// address auto-increment is assumed there).
+    fn locate(&self, i: usize) -> Option<(u16, usize, bool)> {
         let fifo = self.addr < 0x040;
         if fifo {
-            (self.addr & !3, i % 4, true)
+            Some((self.addr & !3, i % 4, true))
         } else {
             let a = self.addr.wrapping_add(i as u16) & 0x3FFF;
-            (a & !3, (a & 3) as usize, false)
+            (a & !3 == self.addr & !3).then_some((a & !3, (a & 3) as usize, false))
         }
     }
 }
@@ -470,7 +523,14 @@ impl<B: EscAccess> ByteDevice for Lan9252Model<B> {
             Phase::Data => {
                 let i = self.index;
                 self.index += 1;
-                let (word, lane, fifo) = self.locate(i);
+                let Some((word, lane, fifo)) = self.locate(i) else {
+                    self.violation(format!(
+                        "access of more than one register word at {:#05x} (outside the FIFO ports)",
+                        self.addr
+                    ));
+                    self.phase = Phase::Ignore;
+                    return 0;
+                };
                 if self.instr == chip::cmd::SERIAL_WRITE {
                     if lane != self.acc_n {
                         self.violation(format!("write to {word:#05x} does not start at byte 0"));
