@@ -342,6 +342,8 @@ fn write_flags<W: Write>(out: &mut W, e: &Entry) -> fmt::Result {
 fn write_default<W: Write>(out: &mut W, e: &Entry) -> fmt::Result {
     match e.default_value() {
         DefaultValue::None => Ok(()),
+        // An entry whose value the application supplies (0x10F3 messages): none.
+        DefaultValue::Text("") => Ok(()),
         DefaultValue::Text(t) => write!(out, "<DefaultString>{}</DefaultString>", Esc(t)),
         DefaultValue::Int(v) => {
             let bytes = v.to_le_bytes();
@@ -351,13 +353,17 @@ fn write_default<W: Write>(out: &mut W, e: &Entry) -> fmt::Result {
     }
 }
 
-/// Bit offsets of a record's entries: sub 0 at 0, the next at 16, then packed.
+/// Bit offsets of a record's entries: sub 0 at 0, the next at 16, then packed, an
+/// entry of a byte or more starting on a byte (0x10F3: BOOL at 40, UINT at 48).
 fn bit_offsets(
     o: &Object,
     mut f: impl FnMut(&Entry, u32) -> fmt::Result,
 ) -> Result<u32, fmt::Error> {
     let mut off = 0u32;
     for (i, e) in o.entries().iter().enumerate() {
+        if e.bits >= 8 {
+            off = off.next_multiple_of(8);
+        }
         f(e, off)?;
         off += e.bits as u32;
         if i == 0 && o.entries().len() > 1 {

@@ -10,6 +10,7 @@
 
 pub mod al_status;
 pub mod coe;
+pub mod diag;
 pub mod esc;
 pub mod esi;
 pub mod esm;

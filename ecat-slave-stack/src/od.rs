@@ -475,6 +475,13 @@ impl Entry {
             flags: FLAG_TEXT,
         }
     }
+    /// An octet string of `len` bytes (read-only) whose value the application
+    /// supplies (e.g. an ETG.1020 diagnosis message, 0x10F3:06 and up).
+    pub const fn octets(sub: u8, name: &'static str, len: u16) -> Self {
+        let mut e = Entry::text(sub, name, len, "");
+        e.data_type = DataType::OctetString;
+        e
+    }
     /// Name (SDO information, ESI, documentation).
     pub const fn name(&self) -> Name {
         if self.flags & FLAG_PACKED != 0 {

@@ -23,9 +23,11 @@
 use ecat_slave_stack::od::{Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort};
 use embedded_storage::nor_flash::NorFlash;
 
+use crate::diagnosis::HISTORY_LEN;
 use crate::faults::{Faults, HISTORY};
 use crate::identity::{self, Identity};
 use crate::storage::{SaveReport, Scope, Storage, StorageError};
+use ecat_slave_stack::diag;
 
 /// 'save' signature.
 pub const SAVE: u32 = 0x6576_6173;
@@ -185,7 +187,44 @@ pub const OBJECTS: &[Object] = &[
         ],
         "Sync error counter limit used by the sync supervision",
     ),
+    Object::record(
+        0x10F3,
+        "Diagnosis history",
+        &[
+            Entry::count(diag::FIRST_MESSAGE_SUB - 1 + HISTORY_LEN as u8),
+            Entry::new(1, "Maximum messages", DataType::Unsigned8, Access::RO)
+                .default(HISTORY_LEN as i64),
+            Entry::new(2, "Newest message", DataType::Unsigned8, Access::RO).default(0),
+            Entry::new(3, "Newest acknowledged message", DataType::Unsigned8, Access::RW)
+                .default(0),
+            Entry::new(4, "New messages available", DataType::Boolean, Access::RO).default(0),
+            Entry::new(5, "Flags", DataType::Unsigned16, Access::RW).default(0),
+            msg(6, "Diagnosis message 001"),
+            msg(7, "Diagnosis message 002"),
+            msg(8, "Diagnosis message 003"),
+            msg(9, "Diagnosis message 004"),
+            msg(10, "Diagnosis message 005"),
+            msg(11, "Diagnosis message 006"),
+            msg(12, "Diagnosis message 007"),
+            msg(13, "Diagnosis message 008"),
+            msg(14, "Diagnosis message 009"),
+            msg(15, "Diagnosis message 010"),
+            msg(16, "Diagnosis message 011"),
+            msg(17, "Diagnosis message 012"),
+            msg(18, "Diagnosis message 013"),
+            msg(19, "Diagnosis message 014"),
+            msg(20, "Diagnosis message 015"),
+            msg(21, "Diagnosis message 016"),
+        ],
+        "ETG.1020 diagnosis history: one message per fault, emergency and notable event (ring of 16; SI3 = 0 clears, SI3 = n acknowledges)",
+    ),
 ];
+
+const fn msg(sub: u8, name: &'static str) -> Entry {
+    Entry::octets(sub, name, diag::MESSAGE_LEN as u16)
+}
+
+const _: () = assert!(HISTORY_LEN == 16, "one 0x10F3 entry per message");
 
 /// State of the communication objects.
 #[derive(Debug, Clone)]
@@ -239,6 +278,9 @@ impl Comm {
             let out = buf.get_mut(..t.len()).ok_or(SdoAbort::ExceedsMailbox)?;
             out.copy_from_slice(t.as_bytes());
             return Ok(t.len());
+        }
+        if index == 0x10F3 {
+            return faults.diagnosis().peek(sub, buf);
         }
         let v: u32 = match (index, sub) {
             (0x1000, _) => self.identity.variant.device_type(),
@@ -310,6 +352,7 @@ impl Comm {
                     _ => Err(SdoAbort::DataCannotBeStored),
                 }
             }
+            (0x10F3, s) => faults.diagnosis_mut().write(s, data).map(|()| None),
             (0x10F1, 1) => {
                 self.local_error_reaction = v;
                 Ok(None)

@@ -343,6 +343,13 @@ impl<S: ParameterStore> Drive<S> {
         };
         if let Some((code, data)) = report.emergency() {
             self.storage_emergency = Some((code, data));
+            self.faults
+                .diagnosis_mut()
+                .push(crate::diagnosis::parameter_message(
+                    false,
+                    code,
+                    self.now_ms,
+                ));
         }
         self.load_report = Some(report);
         self.params.latch_power_up();
@@ -419,6 +426,11 @@ impl<S: ParameterStore> Drive<S> {
             },
         );
         self.store = Some(store);
+        if r.is_ok() && matches!(cmd, StoreCommand::RestoreDefaults(_)) {
+            self.faults
+                .diagnosis_mut()
+                .push(crate::diagnosis::parameter_message(true, 0, self.now_ms));
+        }
         r.map(|_| ()).map_err(StorageError::abort)
     }
 
@@ -451,6 +463,7 @@ impl<S: ParameterStore> Drive<S> {
         };
         self.last_tick_us = Some(now_us);
         self.now_ms = self.now_ms.wrapping_add(dt_ms);
+        self.faults.set_clock(self.now_ms);
         self.monitor.tick_ms(dt_ms);
         self.inputs
             .update(raw_inputs, dt_ms.saturating_mul(1000), &self.params);
@@ -735,6 +748,11 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
     }
 
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        if index == 0x10F3 {
+            // Reading the newest diagnosis message clears "new messages available".
+            crate::dictionary::find_entry_in(crate::dictionary::COMM, index, sub)?;
+            return self.faults.diagnosis_mut().read(sub, buf);
+        }
         self.read_entry(index, sub, buf)
     }
 

@@ -238,6 +238,8 @@ pub struct Faults {
     emcy: Deque<Emergency, 8>,
     bus_dv: u16,
     uv_armed: bool,
+    diag: crate::diagnosis::History,
+    clock_ms: u32,
 }
 
 impl Default for Faults {
@@ -264,6 +266,8 @@ impl Faults {
             emcy: Deque::new(),
             bus_dv: 0,
             uv_armed: false,
+            diag: crate::diagnosis::History::new(),
+            clock_ms: 0,
         }
     }
 
@@ -357,11 +361,35 @@ impl Faults {
             register: self.error_register(),
             data: [kind as u8, v[0], v[1], detail[0], detail[1]],
         };
+        self.send(e, true, now_ms);
+        true
+    }
+
+    /// Queues an emergency and records it in the diagnosis history (0x10F3).
+    fn send(&mut self, e: Emergency, fault: bool, now_ms: u32) {
+        self.clock_ms = now_ms;
+        self.diag
+            .push(crate::diagnosis::message_for_emergency(&e, fault, now_ms));
         if self.emcy.is_full() {
             self.emcy.pop_front();
         }
         let _ = self.emcy.push_back(e);
-        true
+    }
+
+    /// The drive's clock for the messages that come without a time (ms since
+    /// power-up; `Drive::tick` sets it).
+    pub fn set_clock(&mut self, now_ms: u32) {
+        self.clock_ms = now_ms;
+    }
+
+    /// The diagnosis history 0x10F3.
+    pub fn diagnosis(&self) -> &crate::diagnosis::History {
+        &self.diag
+    }
+
+    /// The diagnosis history 0x10F3, for SDO access and events of the drive.
+    pub fn diagnosis_mut(&mut self) -> &mut crate::diagnosis::History {
+        &mut self.diag
     }
 
     /// Reports that the condition of `kind` is gone (the fault itself stays until a
@@ -449,14 +477,12 @@ impl Faults {
         }
         let clear = !self.any_active();
         if had && clear {
-            if self.emcy.is_full() {
-                self.emcy.pop_front();
-            }
-            let _ = self.emcy.push_back(Emergency {
+            let e = Emergency {
                 code: 0,
                 register: 0,
                 data: [0; 5],
-            });
+            };
+            self.send(e, false, self.clock_ms);
         }
         clear
     }
@@ -485,10 +511,7 @@ impl Faults {
             register: self.error_register() | FaultKind::Ecat.error_register(),
             data: [FaultKind::Ecat as u8, v[0], v[1], diag[0], diag[1]],
         };
-        if self.emcy.is_full() {
-            self.emcy.pop_front();
-        }
-        let _ = self.emcy.push_back(e);
+        self.send(e, false, self.clock_ms);
     }
 
     /// True while any fault is active (alarm output, PDS stays in Fault).

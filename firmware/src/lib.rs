@@ -3,6 +3,7 @@ pub mod cia402;
 pub mod comm;
 pub mod commutation;
 pub mod current_supervisor;
+pub mod diagnosis;
 pub mod dictionary;
 pub mod dip;
 pub mod drive;

@@ -1,0 +1,191 @@
+//! The product's ETG.1020 diagnosis messages (0x10F3, [`ecat_slave_stack::diag`]):
+//! one description per message — text ID, type and text — from which the history
+//! entries are made and the ESI's `<DiagMessages>` can be written.
+//!
+//! Every emergency the drive sends is also a diagnosis message
+//! ([`message_for_emergency`]): diagnosis code 0xE800 with the emergency's error code
+//! in bits 16-31, the text of the fault kind (manufacturer byte 0), and two
+//! parameters: the bus voltage (0.1 V, bytes 1-2) and the detail (bytes 3-4, see
+//! [`crate::faults`]). Notable events without an emergency of their own (parameters
+//! restored, a corrupt record) have their own code and text. Time stamps are local:
+//! milliseconds since power-up, in ns.
+
+use crate::faults::{Emergency, FaultKind, KINDS};
+use ecat_slave_stack::diag::{emergency_code, DiagMessage, Param, Severity};
+
+/// Messages the history holds (0x10F3:01).
+pub const HISTORY_LEN: usize = 16;
+
+/// The diagnosis history of the product.
+pub type History = ecat_slave_stack::diag::DiagHistory<HISTORY_LEN>;
+
+/// One message text of the ESI.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Text {
+    /// Text ID (message bytes 6-7).
+    pub id: u16,
+    /// Type.
+    pub severity: Severity,
+    /// English text; `%d` are the parameters in order.
+    pub text: &'static str,
+}
+
+/// Text ID of fault kind `k` (0x0101 + its number).
+pub const fn fault_text_id(k: FaultKind) -> u16 {
+    0x0101 + k as u16
+}
+/// Text ID of "the drive stopped on its own, the master's commands stopped" (0x6007
+/// = 2 or 3, no fault).
+pub const TEXT_COMMUNICATION_STOP: u16 = 0x0110;
+/// Text ID of the CiA 301 "error reset" (every fault cleared).
+pub const TEXT_ERROR_RESET: u16 = 0x0120;
+/// Text ID of "stored parameters not loaded" (corrupt or lost record).
+pub const TEXT_PARAMETERS_LOST: u16 = 0x0130;
+/// Text ID of "parameters restored to defaults" (0x1011).
+pub const TEXT_PARAMETERS_RESTORED: u16 = 0x0131;
+
+/// Every text, by ID.
+pub const TEXTS: &[Text] = &[
+    Text {
+        id: fault_text_id(FaultKind::OverCurrent),
+        severity: Severity::Error,
+        text: "Over-current or phase short (bus %d x 0.1 V, detail %d)",
+    },
+    Text {
+        id: fault_text_id(FaultKind::OverVoltage),
+        severity: Severity::Error,
+        text: "Bus over-voltage (bus %d x 0.1 V, detail %d)",
+    },
+    Text {
+        id: fault_text_id(FaultKind::PhaseSensing),
+        severity: Severity::Error,
+        text: "Phase or current-sensing fault (bus %d x 0.1 V, reference %d mA)",
+    },
+    Text {
+        id: fault_text_id(FaultKind::MotorOpen),
+        severity: Severity::Error,
+        text: "Motor open or poor contact (bus %d x 0.1 V, reason and phase %X)",
+    },
+    Text {
+        id: fault_text_id(FaultKind::UnderVoltage),
+        severity: Severity::Error,
+        text: "Bus under-voltage (bus %d x 0.1 V, detail %d)",
+    },
+    Text {
+        id: fault_text_id(FaultKind::FollowingError),
+        severity: Severity::Error,
+        text: "Position following error (bus %d x 0.1 V, detail %d)",
+    },
+    Text {
+        id: fault_text_id(FaultKind::Ecat),
+        severity: Severity::Error,
+        text: "EtherCAT communication fault (bus %d x 0.1 V, AL status / states %X)",
+    },
+    Text {
+        id: TEXT_COMMUNICATION_STOP,
+        severity: Severity::Warning,
+        text: "Master's commands stopped, drive stopped by 0x6007 (bus %d x 0.1 V, %X)",
+    },
+    Text {
+        id: TEXT_ERROR_RESET,
+        severity: Severity::Info,
+        text: "Faults reset",
+    },
+    Text {
+        id: TEXT_PARAMETERS_LOST,
+        severity: Severity::Warning,
+        text: "Stored parameters not loaded, defaults apply (code %X)",
+    },
+    Text {
+        id: TEXT_PARAMETERS_RESTORED,
+        severity: Severity::Info,
+        text: "Parameters restored to defaults",
+    },
+];
+
+const _: () = assert!(KINDS == 7, "one text per fault kind");
+
+/// The text of `id`.
+pub fn text(id: u16) -> Option<&'static Text> {
+    TEXTS.iter().find(|t| t.id == id)
+}
+
+fn severity_of(id: u16) -> Severity {
+    text(id).map_or(Severity::Error, |t| t.severity)
+}
+
+/// The diagnosis message of an emergency sent at `now_ms` (see the module docs).
+/// `fault` says whether it reports a fault (else the 0x6007 stop or the error reset).
+pub fn message_for_emergency(e: &Emergency, fault: bool, now_ms: u32) -> DiagMessage {
+    let t = u64::from(now_ms) * 1_000_000;
+    if e.code == 0 {
+        return DiagMessage::new(emergency_code(0), Severity::Info, TEXT_ERROR_RESET, t);
+    }
+    let id = match FaultKind::ALL.get(usize::from(e.data[0])) {
+        Some(&k) if fault => fault_text_id(k),
+        _ => TEXT_COMMUNICATION_STOP,
+    };
+    DiagMessage::new(emergency_code(e.code), severity_of(id), id, t)
+        .with(Param::U16(u16::from_le_bytes([e.data[1], e.data[2]])))
+        .with(Param::U16(u16::from_le_bytes([e.data[3], e.data[4]])))
+}
+
+/// The message of a stored-parameter event (`restored`: 0x1011 defaults, else a
+/// corrupt or lost record with the emergency code `code`).
+pub fn parameter_message(restored: bool, code: u16, now_ms: u32) -> DiagMessage {
+    let t = u64::from(now_ms) * 1_000_000;
+    if restored {
+        DiagMessage::new(0xE001, Severity::Info, TEXT_PARAMETERS_RESTORED, t)
+    } else {
+        DiagMessage::new(0xE002, Severity::Warning, TEXT_PARAMETERS_LOST, t).with(Param::U16(code))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn text_ids_are_unique_and_every_fault_has_one() {
+        for (i, a) in TEXTS.iter().enumerate() {
+            assert!(TEXTS[i + 1..].iter().all(|b| b.id != a.id), "{:#x}", a.id);
+        }
+        for k in FaultKind::ALL {
+            let t = text(fault_text_id(k)).expect("text");
+            assert_eq!(t.severity, Severity::Error);
+        }
+    }
+
+    #[test]
+    fn an_emergency_becomes_its_message() {
+        let e = Emergency {
+            code: 0x3210,
+            register: 0x05,
+            data: [FaultKind::OverVoltage as u8, 0x26, 0x02, 0, 0],
+        };
+        let m = message_for_emergency(&e, true, 1500);
+        assert_eq!(m.code, 0x3210_E800);
+        assert_eq!(m.text_id, 0x0102);
+        assert_eq!(m.time_ns, 1_500_000_000);
+        assert_eq!(m.params[0], Param::U16(550));
+        assert_eq!(m.n_params, 2);
+        // Garbage kind byte: the generic text, no panic.
+        let odd = Emergency {
+            data: [200, 0, 0, 0, 0],
+            ..e
+        };
+        assert_eq!(
+            message_for_emergency(&odd, true, 0).text_id,
+            TEXT_COMMUNICATION_STOP
+        );
+        let reset = Emergency {
+            code: 0,
+            register: 0,
+            data: [0; 5],
+        };
+        assert_eq!(
+            message_for_emergency(&reset, false, 0).severity,
+            Severity::Info
+        );
+    }
+}
