@@ -18,6 +18,14 @@
 //! to 4 ms and not below the product's minimum (0x1C32:05) → else 0x0035. A product
 //! whose minimum is 62.5 µs (`SlaveConfig::min_cycle_ns`) also accepts 62.5 µs.
 //!
+//! Without a sync type written in Pre-Op the mode follows 0x0981: SYNC0 active →
+//! DC SYNC0 (0x1C32:01 = 0x1C33:01 = 2, SI2 = 0x09A0), else SM-synchronous. Masters
+//! that arm SYNC0 only after requesting Safe-Op (SOEM: `ecx_config_map_group`
+//! requests Safe-Op, `ecx_dcsync0` follows) are served by the runtime reading
+//! 0x0981/0x09A0 again in Safe-Op (at most once per ms, and at the S→O request,
+//! `Slave::poll`): a consistent change switches the mode at once, an inconsistent one
+//! refuses S→O with the same codes (→ Pre-Op + error, as a refused P→S).
+//!
 //! # Supervision (DC SYNC0, [`Sync0Supervisor`])
 //! Every SYNC0 event is time-stamped with the caller's clock. An interval within
 //! ±50 % of the configured cycle is "good"; 4 good intervals in a row = **locked**.
