@@ -3,8 +3,8 @@
 //!
 //! # Modes
 //! * **Free run** (0x1C32:01 = 0): the application cycle runs on a local timer with
-//!   the period of 0x1C32:02 (1 ms when 0); process data are exchanged whenever the
-//!   master updates them.
+//!   the period of 0x1C32:02 (1 ms when 0; SI2 then reads 1 000 000); process data
+//!   are exchanged whenever the master updates them.
 //! * **SM2-synchronous** (0x1C32:01 = 1, 0x1C33:01 = 0x22): one cycle per SM2 event
 //!   (outputs written by the master); with no outputs mapped, per SM3 event
 //!   (0x1C33:01 = 1). The default when DC is off.
@@ -504,11 +504,14 @@ impl SyncState {
             0 => (0x20, 1),
             1 => (p.sync_type as u32, 2),
             2 => {
-                // SM-synchronous without a written cycle: the measured master cycle.
-                let v = if p.cycle_ns == 0 && self.mode == SyncMode::SmSync {
-                    self.diag.pdi_period.saturating_mul(1000)
-                } else {
-                    p.cycle_ns
+                // Without a written cycle: the measured master cycle (SM-synchronous)
+                // or the local timer's period (free run).
+                let v = match self.mode {
+                    SyncMode::SmSync if p.cycle_ns == 0 => {
+                        self.diag.pdi_period.saturating_mul(1000)
+                    }
+                    SyncMode::FreeRun => self.free_run_period_us().saturating_mul(1000),
+                    _ => p.cycle_ns,
                 };
                 (v, 4)
             }
