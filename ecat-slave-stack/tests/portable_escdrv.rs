@@ -276,7 +276,6 @@ const DESC: DeviceDescription = DeviceDescription {
     name: "ECS-HS EtherCAT hybrid servo",
     group_type: "Drives",
     group_name: "Drives",
-    order_code: "ECS",
     hardware_version: "1.0",
     software_version: "0.1.0",
     esc: EscFlavour::Lan9252,
@@ -557,7 +556,7 @@ qemu_runner::tests! {
         // general
         let g = s.general().unwrap();
         assert_eq!(s.string(g.name), Some(DESC.name));
-        assert_eq!(s.string(g.order), Some("ECS"));
+        assert_eq!(s.string(g.order), Some("ECS-HS"));
         assert_eq!(s.string(g.group), Some("Drives"));
         assert_eq!(g.group2, g.group);
         assert_eq!(g.image, 0);
@@ -762,7 +761,8 @@ qemu_runner::tests! {
         let mut out = Buf::<32768>::new();
         esi::write(&DESC, &OBJECTS, &maps, &mut out).unwrap();
         let x = out.as_str();
-        assert!(x.contains("<RxPdo><Index>#x1602</Index><Name>RxPDO</Name>"));
+        // Not assigned by default, but an RxPDO can only go to SM2: Sm="2" all the same.
+        assert!(x.contains("<RxPdo Sm=\"2\"><Index>#x1602</Index><Name>RxPDO</Name>"));
         assert!(x.contains("<TxPdo Sm=\"3\"><Index>#x1A00</Index>"));
     }
 

@@ -16,7 +16,7 @@ use firmware::identity::{self, Variant};
 
 use crate::esc_sim::Flavour;
 use crate::file_flash::FileFlash;
-use crate::segment::{sii_image, Segment, SegmentConfig};
+use crate::segment::{sii_image_with_pdos, Segment, SegmentConfig};
 use crate::sim_axis::AxisModel;
 use crate::sim_drive::{esc_flavour, slave_config, Motor, SimDrive};
 
@@ -133,7 +133,12 @@ impl<A: SlaveApplication> SlaveApplication for Counting<A> {
 /// is cheap enough for many short bring-ups), each behind a [`Counting`] wrapper.
 pub fn product_segment(flavour: Flavour, n: usize) -> Result<Segment<Counting<SimDrive>>, String> {
     let desc = identity::device_description(Variant::HybridServo, esc_flavour(flavour), 0);
-    let sii = sii_image(&desc).map_err(|e| format!("SII image: {e:?}"))?;
+    let sii = sii_image_with_pdos(
+        &desc,
+        firmware::dictionary::OBJECTS,
+        &firmware::pdo_defaults::PDO_DEFAULTS,
+    )
+    .map_err(|e| format!("SII image: {e:?}"))?;
     let apps = (0..n)
         .map(|i| {
             let axis = crate::sim_axis::boxed_model(Motor::Ecn57_20, AxisModel::Kinematic, n);
