@@ -766,6 +766,37 @@ qemu_runner::tests! {
         assert!(x.contains("<TxPdo Sm=\"3\"><Index>#x1A00</Index>"));
     }
 
+    fn sii_pdo_categories_byte_by_byte() {
+        static RX2: [u32; 1] = [pdo::entry(0x607A, 0, 32)];
+        let mut maps = [PDOS[0], PDOS[1], PDOS[0]];
+        maps[2] = PdoMap { index: 0x1601, name: Name::plain("RxPDO 2"), sm: None, fixed: true, mandatory: true, entries: &RX2 };
+        let mut img = [0xFFu8; 2048];
+        let n = sii::build_with_pdos(&DESC, &OBJECTS, &maps, &mut img).unwrap();
+        let view = sii::Sii::new(&img[..n]);
+        let cat = |kind: u16| view.categories().find(|c| c.kind == kind).map(|c| c.data);
+        let st = |s: &str| (1..=view.string_count()).find(|i| view.string(*i) == Some(s)).unwrap();
+        // TxPDO (0x32): 0x1A00, 1 entry, SM 3, name; 6041:00 "Statusword" UINT 16.
+        let tx = cat(sii::category::TXPDO).unwrap();
+        assert_eq!(tx.len(), 16);
+        assert_eq!(tx[..8], [0x00, 0x1A, 1, 3, 0, st("TxPDO 1"), 0, 0]);
+        assert_eq!(tx[8..], [0x41, 0x60, 0, st("Statusword"), 0x06, 16, 0, 0]);
+        // RxPDO (0x33): 0x1600 (SM 2; a 16-bit gap without name or type), then
+        // 0x1601 not assigned (SM 0xFF), mandatory and fixed (flags 0x0011).
+        let rx = cat(sii::category::RXPDO).unwrap();
+        assert_eq!(rx.len(), 8 + 16 + 8 + 8);
+        assert_eq!(rx[..8], [0x00, 0x16, 2, 2, 0, st("RxPDO 1"), 0, 0]);
+        assert_eq!(rx[8..16], [0x40, 0x60, 0, st("Controlword"), 0x06, 16, 0, 0]);
+        assert_eq!(rx[16..24], [0, 0, 0, 0, 0, 16, 0, 0]);
+        assert_eq!(rx[24..32], [0x01, 0x16, 1, 0xFF, 0, st("RxPDO 2"), 0x11, 0]);
+        assert_eq!(rx[32..], [0x7A, 0x60, 0, st("Target position"), 0x04, 32, 0, 0]);
+        // Order string = type name; without PDOs no PDO category.
+        let g = cat(sii::category::GENERAL).unwrap();
+        assert_eq!(view.string(g[2]), Some(DESC.type_name));
+        let n = sii::build(&DESC, &mut img).unwrap();
+        let view = sii::Sii::new(&img[..n]);
+        assert!(view.categories().all(|c| c.kind != sii::category::TXPDO && c.kind != sii::category::RXPDO));
+    }
+
     // ------------------------------------------------------------- LEDs
 
     fn led_patterns_follow_exact_timelines() {
