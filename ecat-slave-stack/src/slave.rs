@@ -266,9 +266,6 @@ pub struct Slave<E: EscAccess> {
     last_wd_check: u64,
     pending_since: u64,
     last_status: Option<(u16, u16)>,
-    /// 0x0981 and 0x09A0 as the sync mode was last derived from them (P→S, then
-    /// followed in Safe-Op).
-    dc_regs: (u8, u32),
     /// What the DC registers seen in Safe-Op are refused with at S→O.
     dc_refusal: Option<AlStatusCode>,
     last_dc_check: u64,
@@ -303,7 +300,6 @@ impl<E: EscAccess> Slave<E> {
             last_wd_check: 0,
             pending_since: 0,
             last_status: None,
-            dc_regs: (0, 0),
             dc_refusal: None,
             last_dc_check: 0,
             cfg,
@@ -411,6 +407,11 @@ impl<E: EscAccess> Slave<E> {
 
     /// One pass of the runtime (module docs).
     pub fn poll<A: SlaveApplication>(&mut self, app: &mut A, now_us: u64) -> Result<(), EscError> {
+        // Before the AL event request is read: a switch to DC mode acknowledges a
+        // SYNC0 event left from SM-synchronous operation, which then runs no cycle.
+        if self.esm.state() == EsmState::SafeOp {
+            self.follow_dc(now_us, false)?;
+        }
         let ev = self.esc.al_event()?;
         if ev & al_event::AL_CONTROL != 0 {
             self.handle_al_control(app, now_us)?;
@@ -418,12 +419,6 @@ impl<E: EscAccess> Slave<E> {
         if ev & al_event::SM_CHANGE != 0 {
             self.handle_sm_change(app)?;
         }
-        // A SYNC0 event raised before the switch to DC mode belongs to no cycle.
-        let ev = if self.esm.state() == EsmState::SafeOp && self.follow_dc(now_us, false)? {
-            ev & !al_event::SYNC0
-        } else {
-            ev
-        };
         self.supervise(app, ev, now_us)?;
         if self.esm.state().mailbox_running() {
             if ev & al_event::sm(0) != 0 {
@@ -569,33 +564,13 @@ impl<E: EscAccess> Slave<E> {
         {
             return Ok(Err(c));
         }
-        let activation = self.esc.read_u8(reg::DC_ACTIVATION)?;
-        let cycle = self.esc.read_u32(reg::DC_SYNC0_CYCLE)?;
-        let mode = match sync::resolve_mode(
-            self.sync.sm2.written_type,
-            self.sync.sm3.written_type,
-            activation,
-            cycle,
-            rx > 0,
-            self.sync.min_cycle_ns,
-        ) {
-            Ok(m) => m,
+        let (mode, cycle, wd_time) = match self.derive_sync(&sm2, rx > 0)? {
+            Ok(d) => d,
             Err(c) => return Ok(Err(c)),
         };
-        let wd_div = self.esc.read_u16(reg::WATCHDOG_DIVIDER)?;
-        let wd_time = self.esc.read_u16(reg::WATCHDOG_TIME_PD)?;
-        let cycle_for_wd = if mode == SyncMode::DcSync0 {
-            cycle
-        } else {
-            self.sync.sm2.cycle_ns
-        };
-        if let Err(c) = sm::validate_watchdog(&sm2, rx > 0, wd_div, wd_time, cycle_for_wd) {
-            return Ok(Err(c));
-        }
         self.plan = plan;
         self.active[2] = sm2;
         self.active[3] = sm3;
-        self.dc_regs = (activation, cycle);
         self.dc_refusal = None;
         self.enter_sync(mode, cycle, rx > 0)?;
         self.wd_armed = rx > 0 && wd_time != 0;
@@ -628,20 +603,42 @@ impl<E: EscAccess> Slave<E> {
     /// an inconsistent one keeps the mode and is remembered as the code the S→O
     /// transition is refused with (0x0028 / 0x0030 / 0x0035 / 0x001F). Reads the two
     /// registers at most once per [`WD_CHECK_US`] unless `force` (the S→O request).
-    /// Returns true when DC mode was entered now.
-    fn follow_dc(&mut self, now: u64, force: bool) -> Result<bool, EscError> {
-        let due = now.saturating_sub(self.last_dc_check) >= WD_CHECK_US || now < self.last_dc_check;
-        if !force && !due {
-            return Ok(false);
+    fn follow_dc(&mut self, now: u64, force: bool) -> Result<(), EscError> {
+        if !force && now.saturating_sub(self.last_dc_check) < WD_CHECK_US {
+            return Ok(());
         }
         self.last_dc_check = now;
+        let outputs = self.plan.rx.bytes() > 0;
+        let sm2 = self.active[2];
+        let (mode, cycle, _) = match self.derive_sync(&sm2, outputs)? {
+            Ok(d) => d,
+            Err(c) => {
+                self.dc_refusal = Some(c);
+                return Ok(());
+            }
+        };
+        self.dc_refusal = None;
+        if mode == self.sync.mode
+            && (mode != SyncMode::DcSync0 || cycle == self.sync.sm2.sync0_cycle_ns)
+        {
+            return Ok(());
+        }
+        self.enter_sync(mode, cycle, outputs)?;
+        self.write_event_mask()
+    }
+
+    /// The sync decision shared by P→S and the Safe-Op follow-up: reads 0x0981 and
+    /// 0x09A0, resolves the mode with the sync types written
+    /// in Pre-Op ([`sync::resolve_mode`]) and checks the process-data watchdog against
+    /// the cycle. Returns (mode, SYNC0 cycle, watchdog time 0x0420) or the refusal.
+    #[inline(never)]
+    fn derive_sync(
+        &mut self,
+        sm2: &SmRegs,
+        outputs: bool,
+    ) -> Result<Result<(SyncMode, u32, u16), AlStatusCode>, EscError> {
         let activation = self.esc.read_u8(reg::DC_ACTIVATION)?;
         let cycle = self.esc.read_u32(reg::DC_SYNC0_CYCLE)?;
-        if (activation, cycle) == self.dc_regs {
-            return Ok(false);
-        }
-        self.dc_regs = (activation, cycle);
-        let outputs = self.plan.rx.bytes() > 0;
         let mode = match sync::resolve_mode(
             self.sync.sm2.written_type,
             self.sync.sm3.written_type,
@@ -651,29 +648,19 @@ impl<E: EscAccess> Slave<E> {
             self.sync.min_cycle_ns,
         ) {
             Ok(m) => m,
-            Err(c) => {
-                self.dc_refusal = Some(c);
-                return Ok(false);
-            }
+            Err(c) => return Ok(Err(c)),
         };
-        if mode == SyncMode::DcSync0 {
-            let wd_div = self.esc.read_u16(reg::WATCHDOG_DIVIDER)?;
-            let wd_time = self.esc.read_u16(reg::WATCHDOG_TIME_PD)?;
-            let sm2 = self.active[2];
-            if let Err(c) = sm::validate_watchdog(&sm2, outputs, wd_div, wd_time, cycle) {
-                self.dc_refusal = Some(c);
-                return Ok(false);
-            }
-        }
-        self.dc_refusal = None;
-        let changed = mode != self.sync.mode
-            || (mode == SyncMode::DcSync0 && cycle != self.sync.sm2.sync0_cycle_ns);
-        if !changed {
-            return Ok(false);
-        }
-        self.enter_sync(mode, cycle, outputs)?;
-        self.write_event_mask()?;
-        Ok(mode == SyncMode::DcSync0)
+        let wd_div = self.esc.read_u16(reg::WATCHDOG_DIVIDER)?;
+        let wd_time = self.esc.read_u16(reg::WATCHDOG_TIME_PD)?;
+        let cycle_for_wd = if mode == SyncMode::DcSync0 {
+            cycle
+        } else {
+            self.sync.sm2.cycle_ns
+        };
+        Ok(
+            sm::validate_watchdog(sm2, outputs, wd_div, wd_time, cycle_for_wd)
+                .map(|()| (mode, cycle, wd_time)),
+        )
     }
 
     /// Side effects of a state change (both directions) and the application hook.

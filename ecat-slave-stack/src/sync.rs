@@ -506,12 +506,10 @@ impl SyncState {
             2 => {
                 // Without a written cycle: the measured master cycle (SM-synchronous)
                 // or the local timer's period (free run).
-                let v = match self.mode {
-                    SyncMode::SmSync if p.cycle_ns == 0 => {
-                        self.diag.pdi_period.saturating_mul(1000)
-                    }
-                    SyncMode::FreeRun => self.free_run_period_us().saturating_mul(1000),
-                    _ => p.cycle_ns,
+                let v = match (self.mode, p.cycle_ns) {
+                    (SyncMode::SmSync, 0) => self.diag.pdi_period.saturating_mul(1000),
+                    (SyncMode::FreeRun, 0) => DEFAULT_FREE_RUN_US * 1000,
+                    (_, c) => c,
                 };
                 (v, 4)
             }
