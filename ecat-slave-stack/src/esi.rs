@@ -470,7 +470,40 @@ fn write_objects<W: Write>(out: &mut W, objects: &[Object]) -> fmt::Result {
     out.write_str("</Objects>\n")
 }
 
-fn write_pdo<W: Write>(out: &mut W, objects: &[Object], p: &PdoMap) -> fmt::Result {
+/// The SyncManager a PDO can go to: its default assignment, else the device's
+/// SyncManager of the PDO's direction (an RxPDO can only go to the outputs SM, a
+/// TxPDO only to the inputs SM). The ESI's `Sm` attribute.
+pub fn pdo_sync_manager(desc: &DeviceDescription, p: &PdoMap) -> Option<u8> {
+    let kind = if p.is_rx() {
+        SmType::Outputs
+    } else {
+        SmType::Inputs
+    };
+    p.sm.or(desc.sync_manager(kind).map(|(n, _)| n))
+}
+
+/// A mapped entry as the ESI and the SII PDO categories name it: the object's name
+/// for a variable, the entry's name for a record or array member; `None` for a gap
+/// or an entry missing from the table.
+pub fn pdo_entry_name(objects: &[Object], e: PdoEntry) -> Option<(Name, &Entry)> {
+    if e.index == 0 {
+        return None;
+    }
+    let (o, entry) = find_entry(objects, e.index, e.sub)?;
+    let name = if o.code() == ObjectCode::Var {
+        o.name()
+    } else {
+        entry.name()
+    };
+    Some((name, entry))
+}
+
+fn write_pdo<W: Write>(
+    out: &mut W,
+    desc: &DeviceDescription,
+    objects: &[Object],
+    p: &PdoMap,
+) -> fmt::Result {
     let tag = if p.is_rx() { "RxPdo" } else { "TxPdo" };
     write!(out, "<{tag}")?;
     if p.fixed {
@@ -479,7 +512,7 @@ fn write_pdo<W: Write>(out: &mut W, objects: &[Object], p: &PdoMap) -> fmt::Resu
     if p.mandatory {
         out.write_str(" Mandatory=\"1\"")?;
     }
-    if let Some(sm) = p.sm {
+    if let Some(sm) = pdo_sync_manager(desc, p) {
         write!(out, " Sm=\"{sm}\"")?;
     }
     writeln!(
@@ -489,13 +522,8 @@ fn write_pdo<W: Write>(out: &mut W, objects: &[Object], p: &PdoMap) -> fmt::Resu
         Esc(p.name)
     )?;
     for e in p.entries.iter().map(|v| PdoEntry::decode(*v)) {
-        match find_entry(objects, e.index, e.sub) {
-            Some((o, entry)) if e.index != 0 => {
-                let name = if o.code() == ObjectCode::Var {
-                    o.name()
-                } else {
-                    entry.name()
-                };
+        match pdo_entry_name(objects, e) {
+            Some((name, entry)) => {
                 writeln!(
                     out,
                     "<Entry><Index>#x{:04X}</Index><SubIndex>{}</SubIndex><BitLen>{}</BitLen><Name>{}</Name><DataType>{}</DataType></Entry>",
@@ -660,10 +688,10 @@ fn write_device<W: Write>(
         )?;
     }
     for p in pdos.iter().filter(|p| p.is_rx()) {
-        write_pdo(out, objects, p)?;
+        write_pdo(out, desc, objects, p)?;
     }
     for p in pdos.iter().filter(|p| p.is_tx()) {
-        write_pdo(out, objects, p)?;
+        write_pdo(out, desc, objects, p)?;
     }
     let c = desc.coe;
     writeln!(
@@ -770,7 +798,6 @@ mod tests {
         name: "ECS-OL EtherCAT stepper",
         group_type: "Drives",
         group_name: "Drives",
-        order_code: "ECS",
         hardware_version: "1.0",
         software_version: "0.1.0",
         esc: EscFlavour::Et1100,

@@ -18,7 +18,7 @@
 //! | 0x1C | mailbox protocols (0x0004 = CoE) |
 //! | 0x3E | EEPROM size in Kibit − 1 |
 //! | 0x3F | version (1) |
-//! | 0x40… | categories: strings (10), general (30), FMMU (40), SyncManager (41), DC (60), end (0xFFFF) |
+//! | 0x40… | categories: strings (10), general (30; order string = the ESI type name), FMMU (40), SyncManager (41), DC (60), TxPDO (50 = 0x32) and RxPDO (51 = 0x33) with [`build_with_pdos`], end (0xFFFF) |
 //!
 //! # PDI configuration per ESC flavour
 //! * **LAN9252**: PDI type 0x80 (the ESC core's on-chip bus to the LAN9252 host
@@ -33,6 +33,9 @@
 //! 1000 × 10 ns = 10 µs unless described otherwise. [`SYNC0_DRIVE`] is the one
 //! definition of the SYNC0 polarity: the board firmware waits for the edge it names
 //! (`firmware::identity::SYNC0_ACTIVE_EDGE`).
+
+use crate::esi::{self, PdoEntry, PdoMap};
+use crate::od::{Name, Object};
 
 /// Mailbox protocol bit of SII word 0x1C: CoE.
 pub const MBOX_COE: u16 = 0x0004;
@@ -49,9 +52,9 @@ pub mod category {
     pub const FMMU: u16 = 40;
     /// SyncManagers.
     pub const SYNC_MANAGER: u16 = 41;
-    /// TxPDO (not written: CoE devices describe PDOs in the object dictionary).
+    /// TxPDO (0x32): the default TxPDOs, for masters that configure from the SII.
     pub const TXPDO: u16 = 50;
-    /// RxPDO (not written).
+    /// RxPDO (0x33): the default RxPDOs.
     pub const RXPDO: u16 = 51;
     /// Distributed clocks op modes.
     pub const DC: u16 = 60;
@@ -379,7 +382,8 @@ pub struct DeviceDescription {
     pub revision: u32,
     /// Serial number (0x1018:04; 0 in the generic image).
     pub serial: u32,
-    /// Type name (ESI `Type` text), e.g. "ECS-HS".
+    /// Type name (ESI `Type` text), e.g. "ECS-HS"; also the SII general category's
+    /// order string, so the two cannot disagree.
     pub type_name: &'static str,
     /// Device name (SII name string, ESI `Name`).
     pub name: &'static str,
@@ -387,8 +391,6 @@ pub struct DeviceDescription {
     pub group_type: &'static str,
     /// Group display name (ESI `Groups/Group/Name`).
     pub group_name: &'static str,
-    /// Order code (SII order string).
-    pub order_code: &'static str,
     /// Hardware version (0x1009; SII string).
     pub hardware_version: &'static str,
     /// Software version (0x100A; SII string).
@@ -578,22 +580,22 @@ pub enum SiiError {
 }
 
 /// Up to this many distinct strings.
-const MAX_STRINGS: usize = 40;
+const MAX_STRINGS: usize = 80;
 
 /// The string table: distinct non-empty strings in order of first use.
 struct Strings {
-    list: [&'static str; MAX_STRINGS],
+    list: [Name; MAX_STRINGS],
     n: usize,
 }
 
 impl Strings {
     fn new() -> Self {
         Strings {
-            list: [""; MAX_STRINGS],
+            list: [Name::plain(""); MAX_STRINGS],
             n: 0,
         }
     }
-    fn add(&mut self, s: &'static str) -> Result<(), SiiError> {
+    fn add(&mut self, s: Name) -> Result<(), SiiError> {
         if s.is_empty() || self.list[..self.n].contains(&s) {
             return Ok(());
         }
@@ -605,26 +607,34 @@ impl Strings {
         Ok(())
     }
     /// 1-based index, 0 for the empty string.
-    fn index(&self, s: &str) -> u8 {
+    fn index(&self, s: Name) -> u8 {
         self.list[..self.n]
             .iter()
             .position(|x| *x == s)
             .map_or(0, |i| i as u8 + 1)
     }
-    fn of(desc: &DeviceDescription) -> Result<Self, SiiError> {
+    fn of(desc: &DeviceDescription, objects: &[Object], pdos: &[PdoMap]) -> Result<Self, SiiError> {
         let mut t = Strings::new();
         for s in [
             desc.name,
-            desc.order_code,
+            desc.type_name,
             desc.group_type,
             desc.hardware_version,
             desc.software_version,
         ] {
-            t.add(s)?;
+            t.add(Name::plain(s))?;
         }
         for m in desc.dc_op_modes {
-            t.add(m.name)?;
-            t.add(m.description)?;
+            t.add(Name::plain(m.name))?;
+            t.add(Name::plain(m.description))?;
+        }
+        for p in pdos {
+            t.add(p.name)?;
+            for e in p.entries.iter().map(|v| PdoEntry::decode(*v)) {
+                if let Some((name, _)) = esi::pdo_entry_name(objects, e) {
+                    t.add(name)?;
+                }
+            }
         }
         Ok(t)
     }
@@ -674,11 +684,64 @@ impl Writer<'_> {
     }
 }
 
-/// Builds the SII image of `desc` into `out` and returns its length in bytes (the
-/// end marker included). The rest of the EEPROM should read 0xFF.
+/// Builds the SII image of `desc` into `out` without PDO categories (see
+/// [`build_with_pdos`]) and returns its length in bytes (the end marker included).
+/// The rest of the EEPROM should read 0xFF.
 pub fn build(desc: &DeviceDescription, out: &mut [u8]) -> Result<usize, SiiError> {
+    build_with_pdos(desc, &[], &[], out)
+}
+
+/// Writes one PDO category (TxPDO or RxPDO): per PDO an 8-byte header (index, entry
+/// count, SyncManager of the default assignment or 0xFF, DC sync 0, name string,
+/// flags: 0x0001 mandatory, 0x0010 fixed content), then 8 bytes per entry (index,
+/// sub-index, name string, CoE data type, bit length, flags 0).
+fn pdo_category(
+    w: &mut Writer<'_>,
+    kind: u16,
+    strings: &Strings,
+    objects: &[Object],
+    pdos: &[PdoMap],
+) -> Result<(), SiiError> {
+    let rx = kind == category::RXPDO;
+    let mut list = pdos
+        .iter()
+        .filter(|p| p.is_rx() == rx && p.is_rx() != p.is_tx());
+    if list.clone().next().is_none() {
+        return Ok(());
+    }
+    let at = w.begin(kind)?;
+    for p in list.by_ref() {
+        let n = u8::try_from(p.entries.len()).map_err(|_| SiiError::InvalidDescription)?;
+        w.u16(p.index)?;
+        let flags = (p.mandatory as u16) | (p.fixed as u16) << 4;
+        w.bytes(&[n, p.sm.unwrap_or(0xFF), 0, strings.index(p.name)])?;
+        w.u16(flags)?;
+        for e in p.entries.iter().map(|v| PdoEntry::decode(*v)) {
+            let (name, ty) = match esi::pdo_entry_name(objects, e) {
+                Some((name, entry)) => (strings.index(name), entry.data_type.code() as u8),
+                None => (0, 0),
+            };
+            w.u16(e.index)?;
+            w.bytes(&[e.sub, name, ty, e.bits])?;
+            w.u16(0)?;
+        }
+    }
+    w.end(at)
+}
+
+/// Builds the SII image of `desc` into `out`, with the PDO categories (TxPDO 0x32,
+/// RxPDO 0x33) of `pdos` — the list the ESI's `RxPdo`/`TxPdo` are written from
+/// ([`esi::pdo_maps`]), entry names and data types from `objects` as in the ESI —
+/// and returns its length in bytes (the end marker included). The rest of the
+/// EEPROM should read 0xFF.
+pub fn build_with_pdos(
+    desc: &DeviceDescription,
+    objects: &[Object],
+    pdos: &[PdoMap],
+    out: &mut [u8],
+) -> Result<usize, SiiError> {
     desc.validate()?;
-    let strings = Strings::of(desc)?;
+    let strings = Strings::of(desc, objects, pdos)?;
     let header_len = word::CATEGORIES * 2;
     out.get_mut(..header_len)
         .ok_or(SiiError::BufferTooSmall)?
@@ -719,18 +782,20 @@ pub fn build(desc: &DeviceDescription, out: &mut [u8]) -> Result<usize, SiiError
     w.bytes(&[strings.n as u8])?;
     for s in &strings.list[..strings.n] {
         w.bytes(&[s.len() as u8])?;
-        w.bytes(s.as_bytes())?;
+        for b in s.bytes() {
+            w.bytes(&[b])?;
+        }
     }
     w.end(at)?;
 
     // General: exactly 32 bytes.
     let at = w.begin(category::GENERAL)?;
-    let group = strings.index(desc.group_type);
+    let group = strings.index(Name::plain(desc.group_type));
     let mut g = [0u8; 32];
     g[0] = group;
     g[1] = 0; // image
-    g[2] = strings.index(desc.order_code);
-    g[3] = strings.index(desc.name);
+    g[2] = strings.index(Name::plain(desc.type_name));
+    g[3] = strings.index(Name::plain(desc.name));
     g[5] = desc.coe.bits();
     g[0x0B] = (desc.mailbox_data_link_layer as u8) << 2;
     g[0x0C..0x0E].copy_from_slice(&desc.ebus_current_ma.to_le_bytes());
@@ -766,8 +831,8 @@ pub fn build(desc: &DeviceDescription, out: &mut [u8]) -> Result<usize, SiiError
             w.u16(m.assign_activate)?;
             w.bytes(&m.sync0_factor.to_le_bytes())?;
             w.bytes(&[
-                strings.index(m.name),
-                strings.index(m.description),
+                strings.index(Name::plain(m.name)),
+                strings.index(Name::plain(m.description)),
                 0,
                 0,
                 0,
@@ -776,6 +841,9 @@ pub fn build(desc: &DeviceDescription, out: &mut [u8]) -> Result<usize, SiiError
         }
         w.end(at)?;
     }
+
+    pdo_category(&mut w, category::TXPDO, &strings, objects, pdos)?;
+    pdo_category(&mut w, category::RXPDO, &strings, objects, pdos)?;
 
     w.u16(category::END)?;
     if w.pos > desc.eeprom_bytes as usize {

@@ -15,7 +15,8 @@
 //! order: AL control (ESM requests and their checks), SyncManager activation changes
 //! (mailbox repeat request, process-data SM switched off), supervision (pending S→O
 //! waiting for the SYNC0 lock, process-data watchdog, SYNC0 missing, application
-//! error), the mailbox (SM0 received → [`MailboxServer::on_request`], SM1 free →
+//! error; in Safe-Op also the DC registers 0x0981/0x09A0, for masters that arm SYNC0
+//! after requesting Safe-Op — see [`crate::sync`]), the mailbox (SM0 received → [`MailboxServer::on_request`], SM1 free →
 //! [`MailboxServer::next_output`]) and, in Safe-Op/Op, the process data: SM2 event →
 //! outputs read; the cycle (unpack → [`SlaveApplication::cycle`] → pack → SM3) runs
 //! per SM2 event (SM-synchronous), per local period (free run) or per SYNC0 (DC).
@@ -265,6 +266,9 @@ pub struct Slave<E: EscAccess> {
     last_wd_check: u64,
     pending_since: u64,
     last_status: Option<(u16, u16)>,
+    /// What the DC registers seen in Safe-Op are refused with at S→O.
+    dc_refusal: Option<AlStatusCode>,
+    last_dc_check: u64,
 }
 
 impl<E: EscAccess> Slave<E> {
@@ -296,6 +300,8 @@ impl<E: EscAccess> Slave<E> {
             last_wd_check: 0,
             pending_since: 0,
             last_status: None,
+            dc_refusal: None,
+            last_dc_check: 0,
             cfg,
         }
     }
@@ -401,6 +407,11 @@ impl<E: EscAccess> Slave<E> {
 
     /// One pass of the runtime (module docs).
     pub fn poll<A: SlaveApplication>(&mut self, app: &mut A, now_us: u64) -> Result<(), EscError> {
+        // Before the AL event request is read: a switch to DC mode acknowledges a
+        // SYNC0 event left from SM-synchronous operation, which then runs no cycle.
+        if self.esm.state() == EsmState::SafeOp {
+            self.follow_dc(now_us, false)?;
+        }
         let ev = self.esc.al_event()?;
         if ev & al_event::AL_CONTROL != 0 {
             self.handle_al_control(app, now_us)?;
@@ -445,7 +456,7 @@ impl<E: EscAccess> Slave<E> {
         let before = self.esm.state();
         match self.esm.request(ctl) {
             Decision::None | Decision::Refuse { .. } => {}
-            Decision::Transition { from, to } => match self.transition(app, from, to)? {
+            Decision::Transition { from, to } => match self.transition(app, from, to, now)? {
                 Step::Done(r) => {
                     self.esm.finish(from, to, r);
                 }
@@ -472,13 +483,17 @@ impl<E: EscAccess> Slave<E> {
         app: &mut A,
         from: EsmState,
         to: EsmState,
+        now: u64,
     ) -> Result<Step, EscError> {
         use EsmState::*;
         Ok(match (from, to) {
             (Init, PreOp) => Step::Done(self.start_mailbox()?),
             (PreOp, SafeOp) => Step::Done(self.start_process_data(app)?),
             (SafeOp, Op) => {
-                if let Some(code) = app.local_error() {
+                self.follow_dc(now, true)?;
+                if let Some(code) = self.dc_refusal {
+                    Step::Done(Err(code))
+                } else if let Some(code) = app.local_error() {
                     Step::Done(Err(code))
                 } else if self.sync.mode == SyncMode::DcSync0 && !self.sync.sup.locked() {
                     Step::Pending
@@ -549,6 +564,79 @@ impl<E: EscAccess> Slave<E> {
         {
             return Ok(Err(c));
         }
+        let (mode, cycle, wd_time) = match self.derive_sync(&sm2, rx > 0)? {
+            Ok(d) => d,
+            Err(c) => return Ok(Err(c)),
+        };
+        self.plan = plan;
+        self.active[2] = sm2;
+        self.active[3] = sm3;
+        self.dc_refusal = None;
+        self.enter_sync(mode, cycle, rx > 0)?;
+        self.wd_armed = rx > 0 && wd_time != 0;
+        self.outputs_fresh = false;
+        self.outputs_seen = false;
+        self.rx_buf = [0; pdo::MAX_BYTES];
+        self.tx_buf = [0; pdo::MAX_BYTES];
+        // First inputs, so the master never reads an undefined image.
+        self.write_inputs(app)?;
+        Ok(Ok(()))
+    }
+
+    /// Applies a sync mode (0x1C32/0x1C33 SI1, SI2, SI0A, supervision); entering DC
+    /// mode acknowledges a SYNC0 event left over from before (0x098E), so the first
+    /// cycle belongs to the first SYNC0 of the new configuration.
+    fn enter_sync(&mut self, mode: SyncMode, cycle: u32, outputs: bool) -> Result<(), EscError> {
+        if mode == SyncMode::DcSync0 {
+            self.esc.read_u8(reg::DC_SYNC0_STATUS)?;
+        }
+        self.sync.enter(mode, cycle, outputs);
+        Ok(())
+    }
+
+    /// Safe-Op: follows the DC activation 0x0981 and SYNC0 cycle 0x09A0 the master
+    /// changed after Pre-Op→Safe-Op. SOEM arms SYNC0 only then (its
+    /// `ecx_config_map_group` requests Safe-Op, `ecx_dcsync0` comes later), so the
+    /// mode is derived again from the same rules as at P→S ([`sync::resolve_mode`]
+    /// with the sync types written in Pre-Op): a consistent change switches the mode
+    /// at once (0x1C32:01/02, 0x1C33:01 report it, SYNC0 supervision starts);
+    /// an inconsistent one keeps the mode and is remembered as the code the S→O
+    /// transition is refused with (0x0028 / 0x0030 / 0x0035 / 0x001F). Reads the two
+    /// registers at most once per [`WD_CHECK_US`] unless `force` (the S→O request).
+    fn follow_dc(&mut self, now: u64, force: bool) -> Result<(), EscError> {
+        if !force && now.saturating_sub(self.last_dc_check) < WD_CHECK_US {
+            return Ok(());
+        }
+        self.last_dc_check = now;
+        let outputs = self.plan.rx.bytes() > 0;
+        let sm2 = self.active[2];
+        let (mode, cycle, _) = match self.derive_sync(&sm2, outputs)? {
+            Ok(d) => d,
+            Err(c) => {
+                self.dc_refusal = Some(c);
+                return Ok(());
+            }
+        };
+        self.dc_refusal = None;
+        if mode == self.sync.mode
+            && (mode != SyncMode::DcSync0 || cycle == self.sync.sm2.sync0_cycle_ns)
+        {
+            return Ok(());
+        }
+        self.enter_sync(mode, cycle, outputs)?;
+        self.write_event_mask()
+    }
+
+    /// The sync decision shared by P→S and the Safe-Op follow-up: reads 0x0981 and
+    /// 0x09A0, resolves the mode with the sync types written
+    /// in Pre-Op ([`sync::resolve_mode`]) and checks the process-data watchdog against
+    /// the cycle. Returns (mode, SYNC0 cycle, watchdog time 0x0420) or the refusal.
+    #[inline(never)]
+    fn derive_sync(
+        &mut self,
+        sm2: &SmRegs,
+        outputs: bool,
+    ) -> Result<Result<(SyncMode, u32, u16), AlStatusCode>, EscError> {
         let activation = self.esc.read_u8(reg::DC_ACTIVATION)?;
         let cycle = self.esc.read_u32(reg::DC_SYNC0_CYCLE)?;
         let mode = match sync::resolve_mode(
@@ -556,7 +644,7 @@ impl<E: EscAccess> Slave<E> {
             self.sync.sm3.written_type,
             activation,
             cycle,
-            rx > 0,
+            outputs,
             self.sync.min_cycle_ns,
         ) {
             Ok(m) => m,
@@ -569,21 +657,10 @@ impl<E: EscAccess> Slave<E> {
         } else {
             self.sync.sm2.cycle_ns
         };
-        if let Err(c) = sm::validate_watchdog(&sm2, rx > 0, wd_div, wd_time, cycle_for_wd) {
-            return Ok(Err(c));
-        }
-        self.plan = plan;
-        self.active[2] = sm2;
-        self.active[3] = sm3;
-        self.sync.enter(mode, cycle, rx > 0);
-        self.wd_armed = rx > 0 && wd_time != 0;
-        self.outputs_fresh = false;
-        self.outputs_seen = false;
-        self.rx_buf = [0; pdo::MAX_BYTES];
-        self.tx_buf = [0; pdo::MAX_BYTES];
-        // First inputs, so the master never reads an undefined image.
-        self.write_inputs(app)?;
-        Ok(Ok(()))
+        Ok(
+            sm::validate_watchdog(sm2, outputs, wd_div, wd_time, cycle_for_wd)
+                .map(|()| (mode, cycle, wd_time)),
+        )
     }
 
     /// Side effects of a state change (both directions) and the application hook.

@@ -3,8 +3,8 @@
 //!
 //! # Modes
 //! * **Free run** (0x1C32:01 = 0): the application cycle runs on a local timer with
-//!   the period of 0x1C32:02 (1 ms when 0); process data are exchanged whenever the
-//!   master updates them.
+//!   the period of 0x1C32:02 (1 ms when 0; SI2 then reads 1 000 000); process data
+//!   are exchanged whenever the master updates them.
 //! * **SM2-synchronous** (0x1C32:01 = 1, 0x1C33:01 = 0x22): one cycle per SM2 event
 //!   (outputs written by the master); with no outputs mapped, per SM3 event
 //!   (0x1C33:01 = 1). The default when DC is off.
@@ -17,6 +17,14 @@
 //! 0x0028; with SYNC0 the cycle time 0x09A0 must be a multiple of 125 µs from 125 µs
 //! to 4 ms and not below the product's minimum (0x1C32:05) → else 0x0035. A product
 //! whose minimum is 62.5 µs (`SlaveConfig::min_cycle_ns`) also accepts 62.5 µs.
+//!
+//! Without a sync type written in Pre-Op the mode follows 0x0981: SYNC0 active →
+//! DC SYNC0 (0x1C32:01 = 0x1C33:01 = 2, SI2 = 0x09A0), else SM-synchronous. Masters
+//! that arm SYNC0 only after requesting Safe-Op (SOEM: `ecx_config_map_group`
+//! requests Safe-Op, `ecx_dcsync0` follows) are served by the runtime reading
+//! 0x0981/0x09A0 again in Safe-Op (at most once per ms, and at the S→O request,
+//! `Slave::poll`): a consistent change switches the mode at once, an inconsistent one
+//! refuses S→O with the same codes (→ Pre-Op + error, as a refused P→S).
 //!
 //! # Supervision (DC SYNC0, [`Sync0Supervisor`])
 //! Every SYNC0 event is time-stamped with the caller's clock. An interval within
@@ -496,11 +504,12 @@ impl SyncState {
             0 => (0x20, 1),
             1 => (p.sync_type as u32, 2),
             2 => {
-                // SM-synchronous without a written cycle: the measured master cycle.
-                let v = if p.cycle_ns == 0 && self.mode == SyncMode::SmSync {
-                    self.diag.pdi_period.saturating_mul(1000)
-                } else {
-                    p.cycle_ns
+                // Without a written cycle: the measured master cycle (SM-synchronous)
+                // or the local timer's period (free run).
+                let v = match (self.mode, p.cycle_ns) {
+                    (SyncMode::SmSync, 0) => self.diag.pdi_period.saturating_mul(1000),
+                    (SyncMode::FreeRun, 0) => DEFAULT_FREE_RUN_US * 1000,
+                    (_, c) => c,
                 };
                 (v, 4)
             }

@@ -276,7 +276,6 @@ const DESC: DeviceDescription = DeviceDescription {
     name: "ECS-HS EtherCAT hybrid servo",
     group_type: "Drives",
     group_name: "Drives",
-    order_code: "ECS",
     hardware_version: "1.0",
     software_version: "0.1.0",
     esc: EscFlavour::Lan9252,
@@ -557,7 +556,7 @@ qemu_runner::tests! {
         // general
         let g = s.general().unwrap();
         assert_eq!(s.string(g.name), Some(DESC.name));
-        assert_eq!(s.string(g.order), Some("ECS"));
+        assert_eq!(s.string(g.order), Some("ECS-HS"));
         assert_eq!(s.string(g.group), Some("Drives"));
         assert_eq!(g.group2, g.group);
         assert_eq!(g.image, 0);
@@ -762,8 +761,40 @@ qemu_runner::tests! {
         let mut out = Buf::<32768>::new();
         esi::write(&DESC, &OBJECTS, &maps, &mut out).unwrap();
         let x = out.as_str();
-        assert!(x.contains("<RxPdo><Index>#x1602</Index><Name>RxPDO</Name>"));
+        // Not assigned by default, but an RxPDO can only go to SM2: Sm="2" all the same.
+        assert!(x.contains("<RxPdo Sm=\"2\"><Index>#x1602</Index><Name>RxPDO</Name>"));
         assert!(x.contains("<TxPdo Sm=\"3\"><Index>#x1A00</Index>"));
+    }
+
+    fn sii_pdo_categories_byte_by_byte() {
+        static RX2: [u32; 1] = [pdo::entry(0x607A, 0, 32)];
+        let mut maps = [PDOS[0], PDOS[1], PDOS[0]];
+        maps[2] = PdoMap { index: 0x1601, name: Name::plain("RxPDO 2"), sm: None, fixed: true, mandatory: true, entries: &RX2 };
+        let mut img = [0xFFu8; 2048];
+        let n = sii::build_with_pdos(&DESC, &OBJECTS, &maps, &mut img).unwrap();
+        let view = sii::Sii::new(&img[..n]);
+        let cat = |kind: u16| view.categories().find(|c| c.kind == kind).map(|c| c.data);
+        let st = |s: &str| (1..=view.string_count()).find(|i| view.string(*i) == Some(s)).unwrap();
+        // TxPDO (0x32): 0x1A00, 1 entry, SM 3, name; 6041:00 "Statusword" UINT 16.
+        let tx = cat(sii::category::TXPDO).unwrap();
+        assert_eq!(tx.len(), 16);
+        assert_eq!(tx[..8], [0x00, 0x1A, 1, 3, 0, st("TxPDO 1"), 0, 0]);
+        assert_eq!(tx[8..], [0x41, 0x60, 0, st("Statusword"), 0x06, 16, 0, 0]);
+        // RxPDO (0x33): 0x1600 (SM 2; a 16-bit gap without name or type), then
+        // 0x1601 not assigned (SM 0xFF), mandatory and fixed (flags 0x0011).
+        let rx = cat(sii::category::RXPDO).unwrap();
+        assert_eq!(rx.len(), 8 + 16 + 8 + 8);
+        assert_eq!(rx[..8], [0x00, 0x16, 2, 2, 0, st("RxPDO 1"), 0, 0]);
+        assert_eq!(rx[8..16], [0x40, 0x60, 0, st("Controlword"), 0x06, 16, 0, 0]);
+        assert_eq!(rx[16..24], [0, 0, 0, 0, 0, 16, 0, 0]);
+        assert_eq!(rx[24..32], [0x01, 0x16, 1, 0xFF, 0, st("RxPDO 2"), 0x11, 0]);
+        assert_eq!(rx[32..], [0x7A, 0x60, 0, st("Target position"), 0x04, 32, 0, 0]);
+        // Order string = type name; without PDOs no PDO category.
+        let g = cat(sii::category::GENERAL).unwrap();
+        assert_eq!(view.string(g[2]), Some(DESC.type_name));
+        let n = sii::build(&DESC, &mut img).unwrap();
+        let view = sii::Sii::new(&img[..n]);
+        assert!(view.categories().all(|c| c.kind != sii::category::TXPDO && c.kind != sii::category::RXPDO));
     }
 
     // ------------------------------------------------------------- LEDs

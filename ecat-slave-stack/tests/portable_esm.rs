@@ -1255,4 +1255,114 @@ qemu_runner::tests! {
             }
         }
     }
+
+    fn dc_armed_in_safeop_as_soem_does_switches_to_sync0() {
+        // SOEM: ecx_config_map_group requests Safe-Op, ecx_dcsync0 arms SYNC0 after
+        // it (0x0981 = 0, 0x0980 = 0, start time, 0x09A0, 0x0981 = 3); 0x1C32:01 is
+        // never written.
+        let (mut s, mut app) = new_slave();
+        to_safeop(&mut s, &mut app);
+        assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C32, 1), 1);
+        assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C33, 1), 0x22);
+        let esc = s.esc_mut();
+        esc.ecat_write(reg::DC_ACTIVATION, &[0]);
+        esc.ecat_write(reg::DC_CYCLIC_UNIT_CONTROL, &[0]);
+        esc.ecat_write(reg::DC_START_TIME, &100_000_000u64.to_le_bytes());
+        esc.ecat_write(reg::DC_SYNC0_CYCLE, &1_000_000u32.to_le_bytes());
+        esc.ecat_write(reg::DC_ACTIVATION, &[3]);
+        // A SYNC0 event raised before (SM-synchronous mode ignores it) runs no cycle.
+        esc.set_event(1 << 2, true);
+        let c = app.cycles;
+        s.poll(&mut app, 1_500).unwrap();
+        assert_eq!(app.cycles, c, "stale SYNC0 event");
+        assert_eq!(s.sync().mode, sync::SyncMode::DcSync0);
+        assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C32, 1), 2);
+        assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C32, 2), 1_000_000);
+        assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C32, 0x0A), 1_000_000);
+        assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C33, 1), 2);
+        assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C33, 2), 1_000_000);
+        let m = reg::AL_EVENT_MASK as usize;
+        let mask = u32::from_le_bytes(s.esc_mut().m[m..m + 4].try_into().unwrap());
+        assert_ne!(mask & 1 << 2, 0, "SYNC0 in the event mask");
+        // S→O waits for the lock, then exactly one cycle per SYNC0.
+        assert_eq!(request(&mut s, &mut app, 8, 1_600), (0x04, 0));
+        let mut t = 1_600;
+        for _ in 0..6 {
+            t += 1000;
+            sync0(&mut s, &mut app, t, true);
+        }
+        assert_eq!(s.esc_mut().al_status(), (0x08, 0));
+        let c = app.cycles;
+        for _ in 0..20 {
+            t += 1000;
+            sync0(&mut s, &mut app, t, true);
+            // Polls between SYNC0 events (SM2 events included) run no cycle.
+            s.poll(&mut app, t + 300).unwrap();
+            s.esc_mut().ecat_write(0x1100, &[1, 2, 3, 4, 5, 6]);
+            s.poll(&mut app, t + 600).unwrap();
+        }
+        assert_eq!(app.cycles - c, 20);
+    }
+
+    fn dc_change_in_safeop_is_picked_up_within_1ms_and_can_be_undone() {
+        let (mut s, mut app) = new_slave();
+        to_safeop(&mut s, &mut app);
+        s.poll(&mut app, 5_000).unwrap();
+        dc_on(s.esc_mut(), 3, 250_000);
+        // Read at most once per ms: not yet at 5.5 ms, at 6 ms.
+        s.poll(&mut app, 5_500).unwrap();
+        assert_eq!(s.sync().mode, sync::SyncMode::SmSync);
+        s.poll(&mut app, 6_000).unwrap();
+        assert_eq!(s.sync().mode, sync::SyncMode::DcSync0);
+        assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C32, 2), 250_000);
+        // The master switches SYNC0 off again: SM-synchronous, nothing refused.
+        s.esc_mut().ecat_write(reg::DC_ACTIVATION, &[0]);
+        s.poll(&mut app, 7_000).unwrap();
+        assert_eq!(s.sync().mode, sync::SyncMode::SmSync);
+        assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C32, 1), 1);
+        assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C33, 1), 0x22);
+        assert_eq!(request(&mut s, &mut app, 8, 7_100), (0x08, 0));
+    }
+
+    fn dc_armed_in_safeop_against_the_written_type_refuses_op() {
+        // (0x1C32:01 written in Pre-Op, 0x0981, 0x09A0, S→O answer)
+        type Case = (Option<u16>, u8, u32, (u16, u16));
+        let cases: [Case; 6] = [
+            (Some(1), 3, 1_000_000, (0x12, 0x0028)),
+            (Some(0), 3, 1_000_000, (0x12, 0x0028)),
+            (None, 7, 1_000_000, (0x12, 0x0030)),
+            (None, 1, 1_000_000, (0x12, 0x0030)),
+            (None, 3, 300_000, (0x12, 0x0035)),
+            (Some(2), 3, 1_000_000, (0x04, 0)),
+        ];
+        for (i, (written, act, cycle, answer)) in cases.into_iter().enumerate() {
+            let (mut s, mut app) = new_slave();
+            to_preop(&mut s, &mut app);
+            pd_sms(s.esc_mut(), 6, 6);
+            if let Some(t) = written {
+                sdo_write(&mut s, &mut app, 0x1C32, 1, &t.to_le_bytes()).unwrap();
+            }
+            // Type 2 needs SYNC0 armed at P→S; the others go to Safe-Op without DC.
+            if written == Some(2) {
+                dc_on(s.esc_mut(), 3, 500_000);
+            }
+            assert_eq!(request(&mut s, &mut app, 4, 0), (0x04, 0), "case {i}");
+            let before = s.sync().mode;
+            dc_on(s.esc_mut(), act, cycle);
+            s.poll(&mut app, 2_000).unwrap();
+            if answer.1 != 0 {
+                assert_eq!(s.sync().mode, before, "case {i}: mode kept");
+            }
+            // The S→O request reads the registers again (no 1 ms wait).
+            assert_eq!(request(&mut s, &mut app, 8, 2_001), answer, "case {i}");
+            if answer.1 != 0 {
+                // Like a refused P→S: back in Pre-Op with the error. Acknowledged,
+                // corrected (SYNC0 off), Safe-Op and Op are reached.
+                assert_eq!(request(&mut s, &mut app, 0x12, 2_002), (0x02, 0));
+                s.esc_mut().ecat_write(reg::DC_ACTIVATION, &[0]);
+                assert_eq!(request(&mut s, &mut app, 4, 2_003), (0x04, 0), "case {i}");
+                assert_eq!(request(&mut s, &mut app, 8, 2_004), (0x08, 0), "case {i}");
+            }
+        }
+    }
 }

@@ -12,8 +12,6 @@ pub const VENDOR_ID: u32 = 0x0000_0E5C;
 pub const REVISION: u32 = 0x0001_0000;
 /// ESI device group.
 pub const GROUP: &str = "Drives";
-/// Order code prefix.
-pub const ORDER_CODE: &str = "ECS";
 /// Hardware version (0x1009).
 pub const HARDWARE_VERSION: &str = "1.0";
 /// Software version (0x100A): the crate version.
@@ -138,7 +136,6 @@ pub const fn device_description(
         name: variant.device_name(),
         group_type: GROUP,
         group_name: GROUP,
-        order_code: ORDER_CODE,
         hardware_version: HARDWARE_VERSION,
         software_version: SOFTWARE_VERSION,
         esc,

@@ -2,12 +2,14 @@
 //! chip models, the motor plant, the simulated drive (firmware library + ESC + axis),
 //! the raw-socket transport of `virtual-drive`, and the ethercrab seam for in-process
 //! integration tests.
+pub mod counting;
 pub mod esc_sim;
 
 pub mod ethercrab_seam;
 pub mod file_flash;
 pub mod plant;
 pub mod plot;
+pub mod raw_master;
 pub mod raw_socket;
 pub mod segment;
 pub mod sim_axis;

@@ -487,7 +487,6 @@ pub fn test_description(flavour: Flavour) -> DeviceDescription {
         name: "ECS-HS EtherCAT hybrid servo",
         group_type: "Drives",
         group_name: "Drives",
-        order_code: "ECS",
         hardware_version: "1.0",
         software_version: env!("CARGO_PKG_VERSION"),
         esc: match flavour {
@@ -513,6 +512,20 @@ pub fn test_description(flavour: Flavour) -> DeviceDescription {
 pub fn sii_image(desc: &DeviceDescription) -> Result<Vec<u8>, sii::SiiError> {
     let mut buf = vec![0xFFu8; (desc.eeprom_bytes as usize).max(128)];
     let n = sii::build(desc, &mut buf)?;
+    buf.truncate(buf.len().max(n));
+    Ok(buf)
+}
+
+/// The SII image of `desc` with the PDO categories of the default PDOs of
+/// `defaults` (the same list the ESI is written from), names from `objects`.
+pub fn sii_image_with_pdos(
+    desc: &DeviceDescription,
+    objects: &'static [Object],
+    defaults: &PdoDefaults,
+) -> Result<Vec<u8>, sii::SiiError> {
+    let pdos = ecat_slave_stack::esi::pdo_maps(desc, objects, defaults);
+    let mut buf = vec![0xFFu8; (desc.eeprom_bytes as usize).max(128)];
+    let n = sii::build_with_pdos(desc, objects, &pdos, &mut buf)?;
     buf.truncate(buf.len().max(n));
     Ok(buf)
 }

@@ -28,7 +28,7 @@ use firmware::storage::Storage;
 use crate::esc_sim::frame::FrameOutcome;
 use crate::esc_sim::Flavour;
 use crate::file_flash::{self, FileFlash};
-use crate::segment::{sii_image, Segment, SegmentConfig};
+use crate::segment::{Segment, SegmentConfig};
 pub use crate::sim_axis::AxisModel;
 
 /// The motor model of the simulated axis.
@@ -277,7 +277,12 @@ pub fn segment_with(
     model: AxisModel,
 ) -> Result<Segment<SimDrive>, String> {
     let desc = identity::device_description(Variant::HybridServo, esc_flavour(cfg.flavour), 0);
-    let sii = sii_image(&desc).map_err(|e| format!("SII image: {e:?}"))?;
+    let sii = crate::segment::sii_image_with_pdos(
+        &desc,
+        firmware::dictionary::OBJECTS,
+        &firmware::pdo_defaults::PDO_DEFAULTS,
+    )
+    .map_err(|e| format!("SII image: {e:?}"))?;
     let apps: Vec<SimDrive> = (0..n)
         .map(|i| {
             let flash = match &cfg.flash_file {

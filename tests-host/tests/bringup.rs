@@ -215,7 +215,7 @@ fn ethercrab_bringup() {
         for (i, name) in rep.names.iter().enumerate() {
             // ethercrab's name() is the SII order string, description() the name string.
             assert_eq!(
-                name, "ECS|ECS-HS EtherCAT hybrid servo",
+                name, "ECS-HS|ECS-HS EtherCAT hybrid servo",
                 "{ctx}: names from SII strings"
             );
             assert_eq!(

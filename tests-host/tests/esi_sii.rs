@@ -6,8 +6,10 @@
 //! the default maps read through the mapping objects; CoE details, FMMUs, DC op modes
 //! and EEPROM config area equal in both; a correct SII checksum. The SII is parsed
 //! here with a reader of its own (word map and category walk of the spec), not with
-//! the builder's parser. Also: the committed docs/object-dictionary.md and docs/esi/
-//! are what the generators produce today.
+//! the builder's parser; its PDO categories (0x32 TxPDO, 0x33 RxPDO) equal the
+//! ESI's TxPdo/RxPdo, and its order string the ESI type. A third-party parser
+//! (`ethercat-esi` 0.2) reads both committed ESI files. Also: the committed
+//! docs/object-dictionary.md and docs/esi/ are what the generators produce today.
 
 #[path = "../src/bin/drive-docs.rs"]
 #[allow(dead_code)]
@@ -542,7 +544,11 @@ fn identity_equals_sii_words_and_0x1018() {
             assert_eq!(read(&mut drive, 0x1008, 0), text(dev, "Name").as_bytes());
             assert_eq!(img.string(g[0]), text(dev, "GroupType"));
             assert_eq!(g[0x0E], g[0]);
-            assert_eq!(img.string(g[2]), identity::ORDER_CODE);
+            assert_eq!(
+                img.string(g[2]),
+                text(dev, "Type"),
+                "order string = ESI type"
+            );
             assert_eq!(
                 u16::from_le_bytes([g[0x10], g[0x11]]),
                 0x0011,
@@ -679,11 +685,9 @@ fn esi_pdos_equal_the_default_maps_read_through_the_mapping_objects() {
                         continue;
                     };
                     listed.push(map);
-                    assert_eq!(
-                        x.attribute("Sm"),
-                        is_assigned.then_some(sm),
-                        "{what}: {map:#06x} Sm"
-                    );
+                    // Every PDO names the only SyncManager it can go to (strict
+                    // parsers require `Sm`); the default assignment is 0x1C12/0x1C13.
+                    assert_eq!(x.attribute("Sm"), Some(sm), "{what}: {map:#06x} Sm");
                     let es = children(*x, "Entry");
                     assert_eq!(es.len(), entries.len(), "{what}: {map:#06x} entries");
                     for (e, val) in es.iter().zip(&entries) {
@@ -1062,4 +1066,123 @@ fn coe_details_match_what_the_mailbox_server_implements() {
     assert_eq!(download(5, 0x1C12, 0, &[1]), c.pdo_assign);
     assert_eq!(download(6, 0x1601, 0, &[0]), c.pdo_config, "0x1601:00 = 0");
     assert_eq!(download(7, 0x1601, 0, &[6]), c.pdo_config);
+}
+
+#[test]
+fn the_ethercat_esi_crate_parses_both_esi_files() {
+    for (esc, _) in FLAVOURS {
+        let path = repo_path(&format!("docs/esi/{}", drive_docs::esi_file_name(esc)));
+        let committed = std::fs::read_to_string(&path).expect("committed ESI file");
+        for (what, xml) in [("committed", committed), ("generated", esi(esc))] {
+            let info = ethercat_esi::EtherCatInfo::from_xml_str(&xml)
+                .unwrap_or_else(|e| panic!("{esc:?} {what}: ethercat-esi: {e}"));
+            assert_eq!(info.vendor.id, identity::VENDOR_ID, "{esc:?} {what}");
+            let devs = &info.description.devices;
+            assert_eq!(devs.len(), VARIANTS.len(), "{esc:?} {what}: devices");
+            for (v, _) in VARIANTS {
+                let d = devs
+                    .iter()
+                    .find(|d| d.product_code == v.product_code())
+                    .unwrap_or_else(|| panic!("{esc:?} {what}: {v:?} missing"));
+                assert_eq!(d.revision_no, identity::REVISION);
+                assert_eq!(d.sm.len(), 4, "{esc:?} {what} {v:?}: SMs");
+                let maps = drive_docs::pdo_maps(v, esc);
+                for (list, rx, sm) in [(&d.rx_pdo, true, 2u8), (&d.tx_pdo, false, 3)] {
+                    let want: Vec<_> = maps.iter().filter(|m| m.is_rx() == rx).collect();
+                    assert_eq!(list.len(), want.len(), "{esc:?} {what} {v:?}: PDOs");
+                    for (p, m) in list.iter().zip(want) {
+                        assert_eq!(u16::from(p.idx), m.index);
+                        assert_eq!(u8::from(p.sm), sm, "{:#06x}: Sm", m.index);
+                        assert_eq!(p.entries.len(), m.entries.len());
+                        for (e, raw) in p.entries.iter().zip(m.entries) {
+                            let pe = esi::PdoEntry::decode(*raw);
+                            assert_eq!(u16::from(e.entry_idx.idx), pe.index);
+                            assert_eq!(u8::from(e.entry_idx.sub_idx), pe.sub);
+                            assert_eq!(e.bit_len, usize::from(pe.bits));
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// One PDO of an SII PDO category: (index, SM byte, name, flags, entries as
+/// (index, sub, name, data type code, bits)).
+type SiiPdo = (u16, u8, String, u16, Vec<(u16, u8, String, u8, u8)>);
+
+fn sii_pdos(img: &Image, kind: u16) -> Vec<SiiPdo> {
+    let d = img.category(kind);
+    let name = |i: u8| if i == 0 { String::new() } else { img.string(i) };
+    let mut out = Vec::new();
+    let mut at = 0;
+    while at + 8 <= d.len() {
+        let index = u16::from_le_bytes([d[at], d[at + 1]]);
+        let n = usize::from(d[at + 2]);
+        let (sm, pdo_name) = (d[at + 3], name(d[at + 5]));
+        let flags = u16::from_le_bytes([d[at + 6], d[at + 7]]);
+        at += 8;
+        let mut entries = Vec::new();
+        for _ in 0..n {
+            let e = &d[at..at + 8];
+            entries.push((
+                u16::from_le_bytes([e[0], e[1]]),
+                e[2],
+                name(e[3]),
+                e[4],
+                e[5],
+            ));
+            at += 8;
+        }
+        out.push((index, sm, pdo_name, flags, entries));
+    }
+    assert_eq!(at, d.len(), "PDO category {kind}: no trailing bytes");
+    out
+}
+
+#[test]
+fn sii_pdo_categories_match_the_esi_pdos() {
+    for (esc, _) in FLAVOURS {
+        let xml = esi(esc);
+        let doc = Document::parse(&xml).unwrap();
+        for (v, _) in VARIANTS {
+            let what = format!("{esc:?} {v:?}");
+            let dev = device_of(&doc, v);
+            let img = image(v, esc);
+            let objs = drive_docs::variant_objects(v);
+            let mut rt = runtime();
+            for (tag, kind, assign, sm) in
+                [("TxPdo", 50u16, 0x1C13u16, 3u8), ("RxPdo", 51, 0x1C12, 2)]
+            {
+                let assigned: Vec<u16> = (1..=read_u32(&mut rt, assign, 0) as u8)
+                    .map(|s| read_u32(&mut rt, assign, s) as u16)
+                    .collect();
+                let xs = children(dev, tag);
+                let pdos = sii_pdos(&img, kind);
+                assert_eq!(pdos.len(), xs.len(), "{what}: {tag} count");
+                for ((index, sm_byte, name, flags, entries), x) in pdos.iter().zip(&xs) {
+                    assert_eq!(u64::from(*index), num(text(*x, "Index")), "{what}");
+                    assert_eq!(name, text(*x, "Name"), "{what}: {index:#06x} name");
+                    let want_sm = if assigned.contains(index) { sm } else { 0xFF };
+                    assert_eq!(*sm_byte, want_sm, "{what}: {index:#06x} default SM");
+                    assert_eq!(*flags, 0, "{what}: configurable, not mandatory");
+                    let es = children(*x, "Entry");
+                    assert_eq!(entries.len(), es.len(), "{what}: {index:#06x} entries");
+                    for ((ei, sub, en, ty, bits), e) in entries.iter().zip(&es) {
+                        assert_eq!(u64::from(*ei), num(text(*e, "Index")));
+                        assert_eq!(u64::from(*sub), num(text(*e, "SubIndex")));
+                        assert_eq!(u64::from(*bits), num(text(*e, "BitLen")));
+                        assert_eq!(en, text(*e, "Name"), "{what}: {ei:#06x}:{sub} name");
+                        let entry = objs
+                            .iter()
+                            .find(|o| o.index == *ei)
+                            .and_then(|o| o.entry(*sub))
+                            .expect("mapped entry exists");
+                        assert_eq!(u16::from(*ty), entry.data_type.code(), "{what}: type code");
+                        assert_eq!(text(*e, "DataType"), type_name(entry));
+                    }
+                }
+            }
+        }
+    }
 }

@@ -775,7 +775,6 @@ fn sii_image(esc: ecat_slave_stack::sii::EscFlavour) -> Vec<u8> {
         name: "ECS-HS EtherCAT hybrid servo",
         group_type: "Drives",
         group_name: "Drives",
-        order_code: "ECS",
         hardware_version: "1.0",
         software_version: "0.1.0",
         esc,

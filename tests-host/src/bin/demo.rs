@@ -212,6 +212,8 @@ struct Traces {
     homing: Vec<(f64, f64)>,
     homing_switch: Vec<(f64, f64)>,
     csp_error: Vec<(f64, f64)>,
+    /// The drive's own following error 0x60F4 (read by SDO after each cycle).
+    csp_following: Vec<(f64, f64)>,
     csp_target: Vec<(f64, f64)>,
 }
 
@@ -505,8 +507,10 @@ async fn commission(
     let t_move = 1.5;
     let cycles = (t_move * 1000.0) as usize + 300;
     let (mut csp_error, mut csp_target) = (Vec::new(), Vec::new());
+    let mut csp_following = Vec::new();
     let mut prev_target = p0 as i32;
     let mut max_err: f64 = 0.0;
+    let mut max_following: f64 = 0.0;
     for k in 0..cycles {
         let t = (k as f64 / 1000.0).min(t_move);
         let s = t / t_move;
@@ -518,9 +522,19 @@ async fn commission(
         // target of the previous cycle.
         let err = (prev_target - tx.position) as f64 / UNITS_PER_REV * COUNTS_PER_REV;
         prev_target = target;
+        // The drive's own following error (position demand − actual at its cycle),
+        // without the master's one-cycle transport delay.
+        let fe = op
+            .group
+            .subdevice(op.md, 0)?
+            .sdo_read::<i32>(0x60F4, 0)
+            .await?;
+        let fe = fe as f64 / UNITS_PER_REV * COUNTS_PER_REV;
         if k > 2 {
             max_err = max_err.max(err.abs());
+            max_following = max_following.max(fe.abs());
             csp_error.push((k as f64, err));
+            csp_following.push((k as f64, fe));
             csp_target.push((k as f64, target as f64 / UNITS_PER_REV));
         }
     }
@@ -529,13 +543,15 @@ async fn commission(
         "8. CSP: 5 revolutions as an S-curve (cycloidal) in 1.5 s, target every 1 ms cycle",
         &[
             "peak speed",
-            "max tracking error",
+            "max target − actual (master view)",
+            "max 0x60F4 (drive)",
             "final position",
             "final error",
         ],
         &[vec![
             format!("{:.0} rpm", 2.0 * 5.0 / t_move * 60.0),
             format!("{max_err:.1} counts"),
+            format!("{max_following:.1} counts"),
             tx.position.to_string(),
             format!(
                 "{:.1} counts",
@@ -626,6 +642,7 @@ async fn commission(
         homing,
         homing_switch,
         csp_error,
+        csp_following,
         csp_target,
     })
 }
@@ -701,7 +718,18 @@ fn main() {
             "CSP S-curve, 5 revolutions in 1.5 s: tracking error".to_string(),
             "cycle (1 ms)",
             "error (encoder counts)",
-            vec![("target − actual", traces.csp_error.clone(), RGBColor(30, 60, 200))],
+            vec![
+                (
+                    "target − actual as the master sees it (previous cycle's target; includes the 1-cycle transport delay)",
+                    traces.csp_error.clone(),
+                    RGBColor(30, 60, 200),
+                ),
+                (
+                    "0x60F4 following error: the drive's demand − actual at its own cycle",
+                    traces.csp_following.clone(),
+                    RGBColor(200, 30, 30),
+                ),
+            ],
         ),
         (
             "homing_trace.png",

@@ -254,7 +254,12 @@ pub fn esi_document(esc: EscFlavour) -> Result<String, EsiError> {
 pub fn sii_image(variant: Variant, esc: EscFlavour) -> Result<Vec<u8>, SiiError> {
     let d = description(variant, esc);
     let mut img = vec![0xFFu8; d.eeprom_bytes as usize];
-    sii::build(&d, &mut img)?;
+    sii::build_with_pdos(
+        &d,
+        variant_objects(variant),
+        &pdo_maps(variant, esc),
+        &mut img,
+    )?;
     Ok(img)
 }
 

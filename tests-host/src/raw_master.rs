@@ -1,0 +1,335 @@
+//! A master played with raw datagrams on a simulated [`Segment`]: the building blocks
+//! (single-datagram frames, SII reads through 0x0502, AL control, expedited and
+//! normal CoE SDO transfers through the mailbox SyncManagers) from which tests replay
+//! a real master's start-up register by register (`tests/master_startup.rs`).
+//!
+//! Every call is one frame through [`Segment::process`] (so the slaves poll after
+//! each datagram, as with a real master whose frames are a few µs apart); `after`
+//! runs after every frame (e.g. the product drive's housekeeping). With
+//! [`RawMaster::cyclic`] set, an LRW over the process image goes out at every cycle
+//! boundary the simulated time crosses, also while an SDO transfer waits — as a
+//! real master's cyclic task keeps running beside its mailbox traffic.
+
+use crate::esc_sim::frame::{Command, FrameBuilder};
+use crate::segment::Segment;
+use ecat_slave_stack::slave::SlaveApplication;
+
+/// SDO abort code or a transport failure (no answer, wrong working counter).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SdoError {
+    /// The slave answered with an abort.
+    Abort(u32),
+    /// No (valid) answer.
+    Transport(String),
+}
+
+/// The cyclic process-data exchange of a [`RawMaster`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Cyclic {
+    /// Cycle, ns.
+    pub period_ns: u64,
+    /// Simulated time of the next LRW, ns.
+    pub next_ns: u64,
+    /// Bytes of the LRW at logical address 0 (outputs and inputs).
+    pub len: usize,
+    /// LRWs sent.
+    pub sent: u64,
+    /// LRWs with working counter `wkc`.
+    pub good: u64,
+    /// Expected working counter.
+    pub wkc: u16,
+}
+
+/// Raw-datagram master of one segment.
+pub struct RawMaster<A: SlaveApplication> {
+    /// The segment.
+    pub seg: Segment<A>,
+    /// Runs after every frame and every time step.
+    pub after: fn(&mut Segment<A>),
+    counter: u8,
+    /// SM0 (out) and SM1 (in) start and length of the standard mailbox.
+    pub mbx: (u16, u16, u16, u16),
+    /// Frames sent.
+    pub frames: u64,
+    /// Cyclic process data (None: off).
+    pub cyclic: Option<Cyclic>,
+}
+
+fn nothing<A: SlaveApplication>(_: &mut Segment<A>) {}
+
+impl<A: SlaveApplication> RawMaster<A> {
+    /// A master on `seg`.
+    pub fn new(seg: Segment<A>) -> Self {
+        RawMaster {
+            seg,
+            after: nothing::<A>,
+            counter: 0,
+            mbx: (0x1000, 128, 0x1080, 128),
+            frames: 0,
+            cyclic: None,
+        }
+    }
+
+    /// Starts the cyclic LRW of `len` bytes every `period_ns` (first one now).
+    pub fn start_cyclic(&mut self, period_ns: u64, len: usize, wkc: u16) {
+        self.cyclic = Some(Cyclic {
+            period_ns: period_ns.max(1),
+            next_ns: self.seg.now_ns(),
+            len,
+            sent: 0,
+            good: 0,
+            wkc,
+        });
+        self.service_cyclic();
+    }
+
+    /// Sends the LRW when a cycle boundary has been reached.
+    fn service_cyclic(&mut self) {
+        let Some(mut c) = self.cyclic else {
+            return;
+        };
+        let now = self.seg.now_ns();
+        if now >= c.next_ns {
+            let d = self
+                .seg
+                .raw(FrameBuilder::new().logical(Command::Lrw, 0, &vec![0u8; c.len]));
+            self.frames += 1;
+            c.sent += 1;
+            if d.first().is_some_and(|v| v.wkc == c.wkc) {
+                c.good += 1;
+            }
+            c.next_ns += c.period_ns;
+            if c.next_ns <= now {
+                // Fell behind (a long blocking step): skip the lost cycles.
+                c.next_ns = now + c.period_ns - (now - c.next_ns) % c.period_ns;
+            }
+            self.cyclic = Some(c);
+            (self.after)(&mut self.seg);
+        }
+    }
+
+    /// One datagram in its own frame; returns (data, working counter).
+    pub fn dg(&mut self, cmd: Command, adp: u16, ado: u16, data: &[u8]) -> (Vec<u8>, u16) {
+        let d = self
+            .seg
+            .raw(FrameBuilder::new().physical(cmd, adp, ado, data));
+        self.frames += 1;
+        (self.after)(&mut self.seg);
+        self.service_cyclic();
+        match d.into_iter().next() {
+            Some(v) => (v.data, v.wkc),
+            None => (Vec::new(), 0),
+        }
+    }
+    /// FPWR; returns the working counter.
+    pub fn fpwr(&mut self, station: u16, ado: u16, data: &[u8]) -> u16 {
+        self.dg(Command::Fpwr, station, ado, data).1
+    }
+    /// FPRD of `len` bytes (empty on a working counter other than 1).
+    pub fn fprd(&mut self, station: u16, ado: u16, len: usize) -> Vec<u8> {
+        let (d, wkc) = self.dg(Command::Fprd, station, ado, &vec![0; len]);
+        if wkc == 1 {
+            d
+        } else {
+            Vec::new()
+        }
+    }
+    /// FPRD of a little-endian u16 (0 on no answer).
+    pub fn fprd_u16(&mut self, station: u16, ado: u16) -> u16 {
+        let d = self.fprd(station, ado, 2);
+        if d.len() == 2 {
+            u16::from_le_bytes([d[0], d[1]])
+        } else {
+            0
+        }
+    }
+    /// FPRD of a little-endian u64 (0 on no answer).
+    pub fn fprd_u64(&mut self, station: u16, ado: u16) -> u64 {
+        let d = self.fprd(station, ado, 8);
+        let mut b = [0u8; 8];
+        if d.len() == 8 {
+            b.copy_from_slice(&d);
+        }
+        u64::from_le_bytes(b)
+    }
+    /// BWR; returns the working counter.
+    pub fn bwr(&mut self, ado: u16, data: &[u8]) -> u16 {
+        self.dg(Command::Bwr, 0, ado, data).1
+    }
+    /// BRD; returns (data, working counter).
+    pub fn brd(&mut self, ado: u16, len: usize) -> (Vec<u8>, u16) {
+        self.dg(Command::Brd, 0, ado, &vec![0; len])
+    }
+    /// APWR to ring position `pos`; returns the working counter.
+    pub fn apwr(&mut self, pos: u16, ado: u16, data: &[u8]) -> u16 {
+        self.dg(Command::Apwr, 0u16.wrapping_sub(pos), ado, data).1
+    }
+
+    /// Moves simulated time on by `dt_ns` (in steps of at most `step_ns`, ending at
+    /// each cycle boundary of the cyclic exchange), running `after`.
+    pub fn wait(&mut self, dt_ns: u64, step_ns: u64) {
+        let end = self.seg.now_ns() + dt_ns;
+        while self.seg.now_ns() < end {
+            let now = self.seg.now_ns();
+            let mut s = (end - now).min(step_ns.max(1));
+            if let Some(c) = self.cyclic {
+                s = s.min(c.next_ns.saturating_sub(now).max(1));
+            }
+            self.seg.advance(s);
+            (self.after)(&mut self.seg);
+            self.service_cyclic();
+        }
+    }
+
+    /// One SII word pair (4 bytes) at word `addr` through the EEPROM interface
+    /// 0x0502-0x050B: read command, busy poll, data.
+    pub fn sii_read(&mut self, station: u16, addr: u16) -> Option<u32> {
+        let a = addr.to_le_bytes();
+        if self.fpwr(station, 0x0502, &[0x00, 0x01, a[0], a[1], 0, 0]) != 1 {
+            return None;
+        }
+        for _ in 0..100 {
+            let c = self.fprd(station, 0x0502, 2);
+            if c.len() == 2 && c[1] & 0x80 == 0 {
+                let d = self.fprd(station, 0x0508, 4);
+                return (d.len() == 4).then(|| u32::from_le_bytes([d[0], d[1], d[2], d[3]]));
+            }
+            self.wait(10_000, 10_000);
+        }
+        None
+    }
+
+    /// Writes AL control.
+    pub fn request_state(&mut self, station: u16, ctl: u16) -> u16 {
+        self.fpwr(station, 0x0120, &ctl.to_le_bytes())
+    }
+    /// AL status and AL status code (one 6-byte read of 0x0130, as SOEM does).
+    pub fn al_status(&mut self, station: u16) -> (u16, u16) {
+        let s = self.fprd(station, 0x0130, 6);
+        if s.len() == 6 {
+            (
+                u16::from_le_bytes([s[0], s[1]]),
+                u16::from_le_bytes([s[4], s[5]]),
+            )
+        } else {
+            (0, 0)
+        }
+    }
+    /// Polls AL status every `step_ns` for up to `timeout_ns` until the state is
+    /// `want` or the error bit is set; `cycle` runs between polls (process data).
+    pub fn wait_state(
+        &mut self,
+        station: u16,
+        want: u16,
+        timeout_ns: u64,
+        step_ns: u64,
+        mut cycle: impl FnMut(&mut Self),
+    ) -> (u16, u16) {
+        let mut t = 0;
+        loop {
+            let st = self.al_status(station);
+            if st.0 & 0x0F == want || st.0 & 0x10 != 0 || t >= timeout_ns {
+                return st;
+            }
+            cycle(self);
+            self.wait(step_ns, step_ns);
+            t += step_ns;
+        }
+    }
+
+    fn next_counter(&mut self) -> u8 {
+        self.counter = self.counter % 7 + 1;
+        self.counter
+    }
+
+    /// One CoE SDO request into SM0, the answer from SM1 (emergencies skipped).
+    fn sdo_exchange(&mut self, station: u16, sdo: &[u8]) -> Result<Vec<u8>, SdoError> {
+        let (out_start, out_len, in_start, in_len) = self.mbx;
+        let mut m = vec![0u8; out_len as usize];
+        let len = 2 + sdo.len();
+        m[0..2].copy_from_slice(&(len as u16).to_le_bytes());
+        m[5] = 0x03 | self.next_counter() << 4; // CoE
+        m[6..8].copy_from_slice(&(2u16 << 12).to_le_bytes()); // SDO request
+        m[8..8 + sdo.len()].copy_from_slice(sdo);
+        if self.fpwr(station, out_start, &m) != 1 {
+            return Err(SdoError::Transport("SM0 busy".into()));
+        }
+        for _ in 0..200 {
+            let st = self.fprd(station, 0x080D, 1);
+            if st.first().is_some_and(|s| s & 0x08 != 0) {
+                let a = self.fprd(station, in_start, in_len as usize);
+                if a.len() < 16 {
+                    return Err(SdoError::Transport("SM1 read".into()));
+                }
+                let service = u16::from_le_bytes([a[6], a[7]]) >> 12;
+                if a[5] & 0x0F == 0x03 && service == 1 {
+                    continue; // emergency
+                }
+                if a[5] & 0x0F != 0x03 {
+                    return Err(SdoError::Transport(format!("mailbox type {:#x}", a[5])));
+                }
+                if a[8] == 0x80 {
+                    return Err(SdoError::Abort(u32::from_le_bytes([
+                        a[12], a[13], a[14], a[15],
+                    ])));
+                }
+                return Ok(a);
+            }
+            self.wait(20_000, 20_000);
+        }
+        Err(SdoError::Transport("no SDO answer".into()))
+    }
+
+    /// Expedited SDO download of 1..=4 bytes.
+    pub fn sdo_download(
+        &mut self,
+        station: u16,
+        index: u16,
+        sub: u8,
+        data: &[u8],
+    ) -> Result<(), SdoError> {
+        if data.is_empty() || data.len() > 4 {
+            return Err(SdoError::Transport("expedited: 1..4 bytes".into()));
+        }
+        let mut sdo = [0u8; 8];
+        sdo[0] = 0x23 | ((4 - data.len() as u8) << 2);
+        sdo[1..3].copy_from_slice(&index.to_le_bytes());
+        sdo[3] = sub;
+        sdo[4..4 + data.len()].copy_from_slice(data);
+        let a = self.sdo_exchange(station, &sdo)?;
+        if a[8] == 0x60 {
+            Ok(())
+        } else {
+            Err(SdoError::Transport(format!("download answer {:#x}", a[8])))
+        }
+    }
+
+    /// SDO upload (expedited or normal, unsegmented) as a little-endian value.
+    pub fn sdo_upload(&mut self, station: u16, index: u16, sub: u8) -> Result<u64, SdoError> {
+        let mut sdo = [0u8; 8];
+        sdo[0] = 0x40;
+        sdo[1..3].copy_from_slice(&index.to_le_bytes());
+        sdo[3] = sub;
+        let a = self.sdo_exchange(station, &sdo)?;
+        let cmd = a[8];
+        let bytes: Vec<u8> = if cmd & 0xE2 == 0x42 {
+            // Expedited; size indicated or 4.
+            let n = if cmd & 0x01 != 0 {
+                4 - ((cmd >> 2) & 3) as usize
+            } else {
+                4
+            };
+            a[12..12 + n].to_vec()
+        } else if cmd & 0xE3 == 0x41 {
+            let n = u32::from_le_bytes([a[12], a[13], a[14], a[15]]) as usize;
+            a.get(16..16 + n.min(8))
+                .ok_or_else(|| SdoError::Transport("short normal upload".into()))?
+                .to_vec()
+        } else {
+            return Err(SdoError::Transport(format!("upload answer {cmd:#x}")));
+        };
+        let mut b = [0u8; 8];
+        b[..bytes.len().min(8)].copy_from_slice(&bytes[..bytes.len().min(8)]);
+        Ok(u64::from_le_bytes(b))
+    }
+}
