@@ -1,4 +1,5 @@
 #![no_std]
+pub mod board_glue;
 pub mod cia402;
 pub mod comm;
 pub mod commutation;

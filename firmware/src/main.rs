@@ -53,9 +53,14 @@
 //! * **Touch probes** (0x60B8-0x60BD): the interrupt publishes the axis position at
 //!   each electrical edge of IN1 / IN2 with a sequence number
 //!   (`firmware::latch::Edges`); whoever updates the drive (`update_axis`) turns new
-//!   ones into rising/falling edges per 0x2154 (`firmware::latch::ProbeInput`) and
-//!   hands them to the drive in `AxisState::probe1/probe2` until a drive cycle has
-//!   run (`publish_command` clears them), exactly as the index pulse.
+//!   ones into rising/falling edges per 0x2154 and hands them to the drive in
+//!   `AxisState::probe1/probe2` until a drive step has run (`publish_command` clears
+//!   them), exactly as the index pulse.
+//! * **Decisions** between the drive and the interrupt — latches pending for a step,
+//!   probe polarity, alignment failures → 0x8611, the failed offset check → fault 9,
+//!   the power and tune permissions, break latch ↔ fault 1 and its re-arm — are the
+//!   library's `firmware::board_glue::BoardGlue` (held in [`Shared`]), run by host and
+//!   QEMU tests and by the simulator (`tests-host`). This file wires tasks to it.
 //!
 //! ## Watchdog
 //! The independent watchdog ([`board::WATCHDOG_TIMEOUT_US`]) is fed by the supervisor
@@ -88,15 +93,15 @@ use embassy_stm32::time::Hertz;
 use embassy_stm32::{bind_interrupts, dma, peripherals, rcc};
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_time::{Duration, Instant, Ticker, Timer};
+use firmware::board_glue::BoardGlue;
 use firmware::current_supervisor::SupervisorConfig;
 use firmware::drive::{Drive, FlashStore};
-use firmware::faults::{FaultKind, Snapshot};
 use firmware::identity::{PulseEdge, Variant};
 use firmware::motion::{MotionConfig, SERVO_TS};
-use firmware::sampling::{OffsetCalibrator, CURRENT_SAMPLES};
+use firmware::sampling::{OffsetCalibrator, RawSample};
 
-use firmware::latch::{Edges, ProbeInput};
-use hw::control::{ControlCommand, COMMAND, FEEDBACK, PROBE2_RAW};
+use firmware::latch::Edges;
+use hw::control::{ControlCommand, COMMAND, FEEDBACK, PROBE2_RAW, SAMPLES};
 use hw::encoder::Encoder;
 use hw::esc::Esc;
 use hw::flash::{ParamFlash, Stage, StagedFlash};
@@ -139,24 +144,10 @@ struct Shared {
     drive: Placed<BoardDrive>,
     /// `None` when the ESC did not answer at start-up (the drive still runs locally).
     slave: Option<Placed<Slave<Esc>>>,
-    /// The last command published to the current-loop interrupt.
-    ctl: ControlCommand,
-    /// `Drive::steps` when the last command was published.
-    seen_steps: u32,
-    /// The break latch was reported to the drive as an over-current (fault 1).
-    oc_reported: bool,
-    /// The start-up offset self-check failed (fault 9, kept until restart).
-    offset_fault: bool,
-    /// Index pulses seen (`Feedback::index_seq`) and one not yet given to a cycle.
-    index_seen: u32,
-    pending_index: Option<i32>,
-    /// Touch-probe edges (`Feedback::probe1/2`) not yet given to a cycle.
-    probe1: ProbeInput,
-    probe2: ProbeInput,
-    /// Failed commutation alignments already seen (`Feedback::align_failures`), and
-    /// one not yet raised as a fault (by `tick`).
-    align_failures: u32,
-    align_fault: bool,
+    /// The glue between the drive and the current-loop interrupt (the last command
+    /// published, latches pending for a drive step, board faults):
+    /// `firmware::board_glue`.
+    glue: BoardGlue,
 }
 
 /// A value built in its own static slot (the one reference to it): the drive state
@@ -523,16 +514,7 @@ async fn main(spawner: Spawner) {
     let shared: &'static mut Shared = shared_slot.write(Shared {
         drive: Placed(drive),
         slave: slave.map(Placed),
-        ctl,
-        seen_steps: 0,
-        oc_reported: false,
-        offset_fault: false,
-        index_seen: 0,
-        pending_index: None,
-        probe1: ProbeInput::default(),
-        probe2: ProbeInput::default(),
-        align_failures: 0,
-        align_fault: false,
+        glue: BoardGlue::new(ctl),
     });
     SHARED.lock(|c| *c.borrow_mut() = Some(shared));
     hw::adc::init(hw::adc::Analog {
@@ -663,33 +645,17 @@ fn feedback() -> Option<(u32, hw::control::Feedback)> {
     FEEDBACK.read_looped()
 }
 
-/// Hands the interrupt's latest measurements to the drive (before a cycle / tick).
+/// The newest current sample and its number (`None` before the first one).
+fn latest_sample() -> Option<(u32, RawSample)> {
+    SAMPLES.read().filter(|&(n, _)| n != 0)
+}
+
+/// Hands the interrupt's latest measurements to the drive (before a cycle / tick):
+/// [`BoardGlue::update_axis`].
 fn update_axis(s: &mut Shared) {
-    if let Some((seq, mut fb)) = feedback() {
-        // Auto-tune results / motor open, "current does not follow" — once the
-        // interrupt has published (the initial report would end the drive's
-        // power-up self-test before the tune could start).
-        if seq != 0 {
-            s.drive.current_report(&fb.current);
-        }
-        // The axis state is completed in place in the feedback copy (no second copy).
-        let axis = &mut fb.axis;
-        axis.overcurrent_trip = hw::pwm::break_latched() != 0;
-        if fb.index_seq != s.index_seen {
-            s.index_seen = fb.index_seq;
-            s.pending_index = Some(fb.index_units);
-        }
-        // Kept until a drive cycle has seen it (cleared in `publish_command`).
-        axis.index = s.pending_index;
-        // Touch probes: electrical edges → rising/falling per 0x2154 (bits 0, 1).
-        let inverted = s.drive.params.get(firmware::params::P::InputPolarity);
-        axis.probe1 = s.probe1.update(&fb.probe1, inverted & 1 != 0);
-        axis.probe2 = s.probe2.update(&fb.probe2, inverted & 2 != 0);
-        if fb.align_failures != s.align_failures {
-            s.align_failures = fb.align_failures;
-            s.align_fault = true;
-        }
-        s.drive.set_axis(fb.axis);
+    if let Some((seq, fb)) = feedback() {
+        s.glue
+            .update_axis(&mut s.drive, seq, &fb, hw::pwm::break_latched() != 0);
     }
 }
 
@@ -697,28 +663,16 @@ fn update_axis(s: &mut Shared) {
 /// volatile write).
 #[inline(never)]
 fn send_command(c: &ControlCommand) {
-    COMMAND.write(Some(*c));
+    // SAFETY: every caller holds the drive's lock (or runs at start-up before the
+    // tasks exist): one writer at a time.
+    unsafe { COMMAND.write(Some(*c)) };
 }
 
-/// Publishes the drive's set-points to the current-loop interrupt; a new control step
-/// of the drive (tick or cycle: `Drive::steps` moved) starts a new interpolation
-/// segment of its length.
+/// Publishes the drive's set-points to the current-loop interrupt
+/// ([`BoardGlue::publish`]: a new interpolation segment per drive step, the power
+/// permission, the tune permission).
 fn publish_command(s: &mut Shared) {
-    if s.drive.steps() != s.seen_steps {
-        s.seen_steps = s.drive.steps();
-        s.pending_index = None;
-        s.probe1.consumed();
-        s.probe2.consumed();
-        s.ctl.cycle = s.ctl.cycle.wrapping_add(1);
-        s.ctl.command = *s.drive.command();
-        s.ctl.cycle_s = s.drive.segment_s();
-    }
-    s.ctl.power_allowed = s.drive.power_permission();
-    s.ctl.tune_allowed = s.drive.tune_permitted() && s.ctl.offsets.is_some();
-    if !s.ctl.power_allowed {
-        s.ctl.command.drive_enabled = false;
-    }
-    send_command(&s.ctl);
+    send_command(s.glue.publish(&s.drive));
 }
 
 /// Waits for the leading edge of the next SYNC0 pulse: the edge
@@ -840,7 +794,8 @@ async fn touch_probe2(mut in2: ExtiInput<'static, Async>, enc: Encoder) {
         let count = enc.position();
         // Opto input: active while the pin is low.
         edges.record(in2.is_low(), count);
-        PROBE2_RAW.write(edges);
+        // SAFETY: this task is the one writer of PROBE2_RAW.
+        unsafe { PROBE2_RAW.write(edges) };
     }
 }
 
@@ -859,31 +814,14 @@ async fn tick(mut leds: io::Leds<'static>, mut ports: io::Ports<'static>) {
         let now = now_ms();
         let out = with_shared(|s| {
             over_current(s);
-            // Board faults: the start-up offset check failed (fault 9, kept until
-            // restart); the encoder did not follow the commutation alignment's sweep
-            // (following error, once per failed alignment).
-            let align = core::mem::take(&mut s.align_fault);
-            for (present, kind) in [
-                (s.offset_fault, FaultKind::PhaseSensing),
-                (align, FaultKind::FollowingError),
-            ] {
-                if present {
-                    s.drive.faults.raise(kind, Snapshot::default(), now);
-                }
-            }
             update_axis(s);
+            // Board faults: failed offset check (fault 9), failed alignment (0x8611).
+            s.glue.raise_board_faults(&mut s.drive, now);
             s.drive.tick(now_us(), raw);
             // Parameter writes that change the motion layer (every 10 ms).
             if n.is_multiple_of(10) {
-                let m = motion_config(&s.drive);
-                let w = align_wiggle(&s.drive);
-                let sc = supervisor_config(&s.drive);
-                if m != s.ctl.motion || w != s.ctl.align_wiggle || sc != s.ctl.supervisor {
-                    s.ctl.motion = m;
-                    s.ctl.align_wiggle = w;
-                    s.ctl.supervisor = sc;
-                    s.ctl.config = s.ctl.config.wrapping_add(1);
-                }
+                let (m, w) = (motion_config(&s.drive), align_wiggle(&s.drive));
+                s.glue.configure(m, w, supervisor_config(&s.drive));
             }
             publish_command(s);
             let (state, err) = match s.slave.as_ref() {
@@ -912,23 +850,20 @@ async fn tick(mut leds: io::Leds<'static>, mut ports: io::Ports<'static>) {
     }
 }
 
-/// Break latch (hardware over-current) ↔ drive fault 1: a latch is reported to the
-/// drive (AxisState.overcurrent_trip → FaultKind::OverCurrent, latched there); once
-/// the break inputs are inactive again the latch is re-armed and the condition is
-/// reported gone, so a fault reset (controlword bit 7, input, 0x2057) clears the drive
-/// fault. The bridges stay off meanwhile: the drive's fault withdraws the power
-/// permission before the latch is re-armed.
+/// Break latch (hardware over-current) ↔ drive fault 1
+/// ([`BoardGlue::over_current`]): once the drive holds the fault, the command that
+/// withdraws the power permission is published (the ISR reads COMMAND) before the
+/// latch is re-armed; a re-armed latch is the condition gone, so a fault reset clears
+/// the fault.
 fn over_current(s: &mut Shared) {
-    let latched = hw::pwm::break_latched() != 0;
-    if latched && s.oc_reported && s.drive.faults.is_active(FaultKind::OverCurrent) {
-        // Permission withdrawn before re-arming (the ISR reads COMMAND).
-        publish_command(s);
+    if let Some(c) = s
+        .glue
+        .over_current(&mut s.drive, hw::pwm::break_latched() != 0)
+    {
+        send_command(c);
         if hw::pwm::rearm() {
-            s.drive.faults.condition_gone(FaultKind::OverCurrent);
-            s.oc_reported = false;
+            s.glue.break_rearmed(&mut s.drive);
         }
-    } else if latched {
-        s.oc_reported = true;
     }
 }
 
@@ -939,11 +874,11 @@ async fn supervisor(mut wdg: hw::safety::Watchdog, enc: Encoder) {
     offset_self_check(&mut wdg).await;
 
     let mut ticker = ticker(Duration::from_millis(10));
-    let mut last_samples = CURRENT_SAMPLES.count();
+    let mut last_samples = SAMPLES.sequence();
     let mut ticks: u32 = 0;
     loop {
         ticker.next().await;
-        let n = CURRENT_SAMPLES.count();
+        let n = SAMPLES.sequence();
         if n != last_samples && hw::control::ready() {
             wdg.pet();
             last_samples = n;
@@ -957,12 +892,12 @@ async fn supervisor(mut wdg: hw::safety::Watchdog, enc: Encoder) {
 
 async fn offset_self_check(wdg: &mut hw::safety::Watchdog) {
     let mut cal = OffsetCalibrator::new(board::OFFSET_SAMPLES);
-    let mut last = CURRENT_SAMPLES.count();
+    let mut last = SAMPLES.sequence();
     let mut idle = 0u32;
     // New samples arrive every 25 µs; give up after 10 ms without one.
     while !cal.is_complete() && idle < 200 {
         Timer::after_micros(50).await;
-        match CURRENT_SAMPLES.latest() {
+        match latest_sample() {
             Some((seq, s)) if seq != last => {
                 last = seq;
                 idle = 0;
@@ -981,13 +916,13 @@ async fn offset_self_check(wdg: &mut hw::safety::Watchdog) {
                 cal.count()
             );
             with_shared(|s| {
-                s.ctl.offsets = Some((o.ia, o.ib));
+                s.glue.offsets_passed(o.ia, o.ib);
                 publish_command(s);
             });
         }
         Err(e) => {
             hw::safety::raise_fault(hw::safety::FAULT_CURRENT_SENSING);
-            with_shared(|s| s.offset_fault = true);
+            with_shared(|s| s.glue.offset_check_failed());
             defmt::error!("fault 9, current-sensor self-check: {}", e);
         }
     }
@@ -1041,7 +976,7 @@ fn status_line(enc: &Encoder) {
         (st, code, feedback().is_some_and(|(_, f)| f.bridges_on))
     })
     .unwrap_or((0, 0, false));
-    match CURRENT_SAMPLES.latest() {
+    match latest_sample() {
         Some((n, s)) => defmt::info!(
             "samples {=u32}: I_A {=u16} I_B {=u16} V_BUS {=f32} V | enc {=u32} | AL status {=u16:#x} code {=u16:#x} irq {=u32} sync0 {=u32} err {=u32} | bridges {=bool} break {=u8} hw-fault {=u8} adc2-late {=u32} flash-err {=u32} | ISR max {=u32} cycles | stack {=usize}/{=usize} B",
             n,

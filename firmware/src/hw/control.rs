@@ -2,8 +2,8 @@
 //! and the lock-free exchange with the cyclic path.
 //!
 //! Every PWM period (40 kHz) [`on_sample`] runs, in this order:
-//! 1. the raw sample is published ([`firmware::sampling::current_loop_hook`]: offset
-//!    self-check, status line, watchdog sign of life);
+//! 1. the raw sample is published ([`SAMPLES`]: offset self-check, status line,
+//!    watchdog sign of life);
 //! 2. the encoder counter (TIM2) → `foc::encoder::Encoder::update` (position, PLL
 //!    velocity, electrical angle);
 //! 3. every 4th period (10 kHz = `firmware::motion::SERVO_TS`): the newest
@@ -57,22 +57,28 @@
 //! withdrawn the permission), and the motion layer wants current
 //! (`CurrentReference::power`).
 //!
+//! What the drive side does with [`Feedback`] and how it builds [`ControlCommand`]
+//! (index and probe latches pending until a drive step, probe polarity, alignment
+//! failures → fault, power permission) is the library's `firmware::board_glue`.
+//!
 //! # Exchange (no locks in the interrupt)
-//! [`Exchange<T>`] is a double buffer with a sequence number: the writer fills the
-//! buffer the reader is not pointed at and then publishes it with one atomic store.
-//! * cyclic path → interrupt ([`COMMAND`]): the interrupt preempts the writer but is
-//!   never preempted by it, so it always reads a complete buffer.
-//! * interrupt → cyclic path ([`FEEDBACK`]): a reader preempted by two publications
-//!   could see a buffer being rewritten; it re-reads the sequence number afterwards
+//! `firmware::board_glue::Exchange<T>` is a double buffer with a sequence number: the
+//! writer fills the buffer the reader is not pointed at and then publishes it with
+//! one atomic store. It is the one seqlock of the board:
+//! * cyclic path → interrupt ([`COMMAND`]) and `touch_probe2` task → interrupt
+//!   ([`PROBE2_RAW`]): the interrupt preempts the writer but is never preempted by
+//!   it, so it always reads a complete buffer.
+//! * interrupt → cyclic path ([`FEEDBACK`]) and interrupt → everyone ([`SAMPLES`]):
+//!   a reader preempted by two publications could see a buffer being rewritten; it re-reads the sequence number afterwards
 //!   and retries (a seqlock), so it never uses a torn value.
 //!
 //! Writers of [`COMMAND`] run under the drive's lock (thread mode and the cyclic
 //! executor), so there is one writer at a time.
 use core::cell::UnsafeCell;
 use core::mem::MaybeUninit;
-use core::sync::atomic::{compiler_fence, AtomicBool, AtomicU32, Ordering};
+use core::sync::atomic::{AtomicBool, Ordering};
 
-use firmware::cia402::DriveCommand;
+pub use firmware::board_glue::{ControlCommand, Exchange, Feedback};
 use firmware::commutation::{CommutatedMotion, Commutation};
 use firmware::current_supervisor::{CurrentReport, CurrentSupervisor, SupervisorConfig};
 use firmware::latch::{units_at_count, Edges, Seen};
@@ -86,179 +92,13 @@ use foc::modulation::Modulator;
 use crate::board;
 use crate::hw::pwm;
 
-/// Latest-value double buffer (see the module docs).
-pub struct Exchange<T: Copy> {
-    seq: AtomicU32,
-    bufs: [UnsafeCell<T>; 2],
-}
-
-// SAFETY: access follows the protocol of the module docs (one writer at a time; the
-// reader either cannot be preempted by the writer or validates the sequence).
-unsafe impl<T: Copy + Send> Sync for Exchange<T> {}
-
-impl<T: Copy> Exchange<T> {
-    /// A cell holding `v` in both buffers (sequence 0).
-    pub const fn new(v: T) -> Self {
-        Exchange {
-            seq: AtomicU32::new(0),
-            bufs: [UnsafeCell::new(v), UnsafeCell::new(v)],
-        }
-    }
-
-    /// A cell of zero bytes (sequence 0): a static of it lives in .bss instead of
-    /// holding an initialised image in flash. The compiler rejects a `T` for which
-    /// zero bytes are not a valid value (const evaluation of the static), so an early
-    /// read sees zeros, never an invalid value; [`Exchange::reset`] gives the cell
-    /// its start value.
-    pub const fn zeroed() -> Self {
-        // SAFETY: evaluated at compile time, where a zero `T` that is not a valid
-        // value is an error.
-        let v: T = unsafe { core::mem::zeroed() };
-        Self::new(v)
-    }
-
-    /// Sets both buffers to `v` and the sequence to 0 (as [`Exchange::new`]).
-    ///
-    /// # Safety
-    /// Nothing may read or write the cell meanwhile (start-up, before the interrupt
-    /// and the tasks that use it run).
-    pub unsafe fn reset(&self, v: T) {
-        // SAFETY: exclusive access (the caller's contract).
-        unsafe {
-            *self.bufs[0].get() = v;
-            *self.bufs[1].get() = v;
-        }
-        self.seq.store(0, Ordering::Release);
-    }
-
-    /// As [`Exchange::reset`] with `v` = the zero value changed by `set`, written in
-    /// place (a large constant `v` would be an image in flash, copied twice). As for
-    /// [`Exchange::zeroed`], the compiler rejects a `T` for which zero bytes are not a
-    /// valid value.
-    ///
-    /// # Safety
-    /// As [`Exchange::reset`].
-    pub unsafe fn reset_then(&self, set: impl Fn(&mut T)) {
-        for b in &self.bufs {
-            // SAFETY: exclusive access (the caller's contract); a zero `T` that is not
-            // a valid value is a compile-time error (const evaluation).
-            unsafe {
-                b.get().write(const { core::mem::zeroed() });
-                set(&mut *b.get());
-            }
-        }
-        self.seq.store(0, Ordering::Release);
-    }
-
-    /// Publishes `v` (one writer at a time).
-    pub fn write(&self, v: T) {
-        let next = self.seq.load(Ordering::Relaxed).wrapping_add(1);
-        // SAFETY: buffer `next & 1` is not the published one; a reader that still
-        // holds it validates the sequence afterwards (module docs).
-        unsafe { core::ptr::write_volatile(self.bufs[(next & 1) as usize].get(), v) };
-        compiler_fence(Ordering::Release);
-        self.seq.store(next, Ordering::Release);
-    }
-
-    /// As [`Exchange::read`], but the copy is a loop over 32-bit words instead of an
-    /// unrolled copy of the whole value: a few instructions of flash for the thread-mode
-    /// readers of a large `T`, where the speed does not matter.
-    pub fn read_looped(&self) -> Option<(u32, T)> {
-        const {
-            assert!(size_of::<T>().is_multiple_of(4) && align_of::<T>() >= 4);
-        }
-        for _ in 0..4 {
-            let s = self.seq.load(Ordering::Acquire);
-            compiler_fence(Ordering::Acquire);
-            let mut v = MaybeUninit::<T>::uninit();
-            let src = self.bufs[(s & 1) as usize].get() as *const MaybeUninit<u32>;
-            let dst = v.as_mut_ptr() as *mut MaybeUninit<u32>;
-            for i in 0..size_of::<T>() / 4 {
-                // SAFETY: both point to a `T`, whose size is a multiple of 4 and whose
-                // alignment is at least 4 (checked above); words of `MaybeUninit` may
-                // hold the padding bytes.
-                unsafe { dst.add(i).write(src.add(i).read_volatile()) };
-            }
-            compiler_fence(Ordering::Acquire);
-            if self.seq.load(Ordering::Acquire).wrapping_sub(s) < 2 {
-                // SAFETY: every byte of a `T` that was not being rewritten (see `read`).
-                return Some((s, unsafe { v.assume_init() }));
-            }
-        }
-        None
-    }
-
-    /// The latest value and its sequence number; `None` only when the writer kept
-    /// publishing during four attempts.
-    pub fn read(&self) -> Option<(u32, T)> {
-        for _ in 0..4 {
-            let s = self.seq.load(Ordering::Acquire);
-            compiler_fence(Ordering::Acquire);
-            // SAFETY: see the module docs; validated below.
-            let v = unsafe { core::ptr::read_volatile(self.bufs[(s & 1) as usize].get()) };
-            compiler_fence(Ordering::Acquire);
-            // One more publication went to the other buffer: ours is intact.
-            if self.seq.load(Ordering::Acquire).wrapping_sub(s) < 2 {
-                return Some((s, v));
-            }
-        }
-        None
-    }
-}
-
-/// What the cyclic path tells the interrupt.
-#[derive(Clone, Copy)]
-pub struct ControlCommand {
-    /// Incremented once per drive cycle (a new set-point for the interpolation).
-    pub cycle: u32,
-    /// The drive's set-points of that cycle.
-    pub command: DriveCommand,
-    /// Length of the drive cycle, s.
-    pub cycle_s: f32,
-    /// Power stage requested and no drive fault active.
-    pub power_allowed: bool,
-    /// Incremented when [`Self::motion`] changed (parameter write, power-up load).
-    pub config: u32,
-    /// Motion configuration from the parameters.
-    pub motion: MotionConfig,
-    /// Alignment with the wiggle (0x2083 = 1); applied with [`Self::motion`].
-    pub align_wiggle: bool,
-    /// Current-sensor offsets (counts) once the start-up check passed.
-    pub offsets: Option<(f32, f32)>,
-    /// Current-loop supervision (auto-tune 0x2013, test current); applied with
-    /// [`Self::motion`].
-    pub supervisor: SupervisorConfig,
-    /// The drive permits the power-up auto-tune (`Drive::tune_permitted`) and the
-    /// offsets passed.
-    pub tune_allowed: bool,
-}
-
-/// What the interrupt measured (published at the servo rate).
-#[derive(Clone, Copy, Default)]
-pub struct Feedback {
-    /// Position / velocity / following error / current limit / torque current, as
-    /// `Motion::fill_axis_state` writes them.
-    pub axis: firmware::drive::AxisState,
-    /// The bridges are switched on.
-    pub bridges_on: bool,
-    /// Incremented at each encoder index pulse.
-    pub index_seq: u32,
-    /// Axis position at the last index pulse, command units (hardware-latched count
-    /// converted with the motion layer's scaling).
-    pub index_units: i32,
-    /// Touch probe 1 (IN1, TIM2 CH4 capture): positions at the electrical edges,
-    /// command units.
-    pub probe1: Edges<i32>,
-    /// Touch probe 2 (IN2, EXTI software latch): positions at the electrical edges.
-    pub probe2: Edges<i32>,
-    /// The commutation offset is known (closed loop available).
-    pub aligned: bool,
-    /// Failed commutation alignments since start (wrapping).
-    pub align_failures: u32,
-    /// The current-loop supervisor's report (auto-tune results and failures, "current
-    /// does not follow" detections) for `Drive::current_report`.
-    pub current: CurrentReport,
-}
+/// Interrupt → everyone: the raw sample of every PWM period (offset self-check,
+/// status line, watchdog sign of life: [`Exchange::sequence`] counts the samples).
+pub static SAMPLES: Exchange<RawSample> = Exchange::new(RawSample {
+    ia: 0,
+    ib: 0,
+    vbus: 0,
+});
 
 /// Cyclic path → interrupt (set-points, configuration, permission). `None` from
 /// [`init`] on (zero bytes before: .bss, not an image in flash).
@@ -419,7 +259,8 @@ pub fn ready() -> bool {
 /// One PWM period (called by the `ADC1_2` interrupt with the fresh sample).
 #[inline(always)]
 pub fn on_sample(s: RawSample) {
-    firmware::sampling::current_loop_hook(s);
+    // SAFETY: this interrupt is the one writer of SAMPLES.
+    unsafe { SAMPLES.write(s) };
     if !READY.load(Ordering::Acquire) {
         pwm::disable_outputs();
         return;
@@ -549,7 +390,7 @@ fn servo_step(c: &mut Control, cmd: Option<&ControlCommand>) {
     axis.ib_ma = ma(c.cl.i_ab.beta);
     axis.bus_mv = (c.cl.vbus * 1000.0).clamp(0.0, 1.0e6) as u32;
     axis.electrical_angle = (c.enc.electrical_angle().0 >> 16) as u16;
-    FEEDBACK.write(Feedback {
+    let fb = Feedback {
         axis,
         bridges_on: c.bridges_on,
         index_seq: c.index_seq,
@@ -559,7 +400,9 @@ fn servo_step(c: &mut Control, cmd: Option<&ControlCommand>) {
         aligned: c.motion.state() == Commutation::Aligned,
         align_failures: c.motion.failures(),
         current: c.sup.report(),
-    });
+    };
+    // SAFETY: this interrupt is the one writer of FEEDBACK.
+    unsafe { FEEDBACK.write(fb) };
 }
 
 /// Axis position (command units) at a latched TIM2 count.
