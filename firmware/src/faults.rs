@@ -73,6 +73,19 @@ pub enum FaultKind {
     Ecat = 6,
 }
 
+/// Bit n set: [`FaultKind`] n cuts the power at once ([`FaultKind::cuts_power`]).
+const POWER_CUT_MASK: u8 = {
+    let mut m = 0u8;
+    let mut i = 0;
+    while i < KINDS {
+        if FaultKind::ALL[i].cuts_power() {
+            m |= 1 << FaultKind::ALL[i] as u8;
+        }
+        i += 1;
+    }
+    m
+};
+
 /// Number of fault kinds.
 pub const KINDS: usize = 7;
 
@@ -495,9 +508,7 @@ impl Faults {
     /// True while a fault is active whose reaction is "power stage off at once"
     /// ([`FaultKind::cuts_power`]).
     pub fn power_cut(&self) -> bool {
-        FaultKind::ALL
-            .into_iter()
-            .any(|k| k.cuts_power() && self.is_active(k))
+        self.active & POWER_CUT_MASK != 0
     }
 
     /// Queues an emergency that reports an event without a fault (0x6007 = 2 or 3: the

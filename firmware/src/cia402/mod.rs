@@ -413,17 +413,13 @@ impl Params {
     }
     /// Interpolation period of 0x60C2 in seconds (0 if unset).
     pub fn interpolation_period_s(&self) -> f32 {
-        let mut t = self.interpolation_period as f32;
-        let mut i = self.interpolation_index;
-        while i < 0 {
-            t *= 0.1;
-            i += 1;
-        }
-        while i > 0 {
-            t *= 10.0;
-            i -= 1;
-        }
-        t
+        // 10^index for the indices a period can have (-6 µs … +1); the CSP path reads
+        // it every step, so a table, not a loop. Others: 0 (unset).
+        const POW10: [f32; 8] = [1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0, 10.0];
+        let k = (i16::from(self.interpolation_index) + 6) as usize;
+        POW10
+            .get(k)
+            .map_or(0.0, |p| f32::from(self.interpolation_period) * p)
     }
 }
 
@@ -491,6 +487,11 @@ impl Cyclic {
             1.0e-3
         };
         let seg = self.to.wrapping_sub(self.from);
+        if !self.interpolate && (!self.extrapolate || self.elapsed == 0.0) {
+            // Direct, at the set-point's step (or one step per set-point): the target,
+            // at the segment's velocity.
+            return (self.to, seg as f32 / period + offset);
+        }
         let start = if self.interpolate { 0.0 } else { 1.0 };
         let end = if self.extrapolate { 2.0 } else { 1.0 };
         let mut frac = start + self.elapsed / period;
@@ -1340,20 +1341,18 @@ impl Cia402 {
                 // frames, a master coming back) keeps 0x60C2.
                 let gap = self.cyc.since_fresh;
                 let near = |a: f32, b: f32| a >= 0.75 * b && a <= 1.33 * b;
-                let steady = if !near(gap, nominal) && near(gap, self.cyc.last_gap) {
-                    gap
-                } else if nominal > 0.0 {
-                    nominal
+                let (period, interpolate) = if nominal > 0.0 && near(gap, nominal) {
+                    (nominal, nominal >= 1.5 * STEP_PERIOD_S)
                 } else {
-                    gap
-                };
-                let interpolate = steady >= 1.5 * STEP_PERIOD_S;
-                // A direct segment's velocity is the set-points' difference over the
-                // time between them (0x60C2 while that is within a quarter of it).
-                let period = if interpolate || near(gap, nominal) {
-                    steady
-                } else {
-                    gap
+                    let steady = if near(gap, self.cyc.last_gap) || nominal <= 0.0 {
+                        gap
+                    } else {
+                        nominal
+                    };
+                    let interpolate = steady >= 1.5 * STEP_PERIOD_S;
+                    // A direct segment's velocity is the set-points' difference over
+                    // the time between them.
+                    (if interpolate { steady } else { gap }, interpolate)
                 };
                 self.cyc.last_gap = gap;
                 self.cyc.since_fresh = 0.0;
@@ -1367,18 +1366,18 @@ impl Cia402 {
             // An interpolated segment starts where the last one's demand is now (on
             // time that is its target; early or after a run-on, no step); a direct one
             // from the last target (its velocity is the set-points' difference).
-            let (at_now, _) = self.cyc.demand(0.0);
-            let interpolate_from = setpoint == SetpointArrival::Fresh && self.cyc.interpolate;
-            self.cyc.from = if interpolate_from {
-                at_now
+            let fresh = setpoint == SetpointArrival::Fresh;
+            self.cyc.from = if fresh && self.cyc.interpolate {
+                self.cyc.demand(0.0).0
             } else {
                 self.cyc.to
             };
             self.cyc.to = target;
             // Run-on only for a segment the axis can follow (not a jump of the target).
-            let speed = (target.wrapping_sub(self.cyc.from) as f32 / self.cyc.period).abs();
-            self.cyc.extrapolate =
-                setpoint == SetpointArrival::Fresh && speed <= self.params.vmax();
+            self.cyc.extrapolate = fresh && {
+                let dist = target.wrapping_sub(self.cyc.from) as f32;
+                dist.abs() <= self.params.vmax() * self.cyc.period
+            };
             self.cyc.elapsed = match (setpoint, self.cyc.interpolate) {
                 // The boundary step itself is the segment's first step.
                 (SetpointArrival::PerCycle, true) => dt,
