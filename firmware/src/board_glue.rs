@@ -70,6 +70,23 @@ pub struct ControlCommand {
     pub tune_allowed: bool,
 }
 
+impl ControlCommand {
+    /// The control path may switch the bridges on for the drive: the drive permits the
+    /// power stage and the current-sensor offsets passed their start-up check (one
+    /// input of `crate::power_gate::bridge_mode`).
+    pub fn permits_power(&self) -> bool {
+        self.power_allowed && self.offsets.is_some()
+    }
+
+    /// The set-points for the motion layer: `drive_enabled` only with the power
+    /// permitted.
+    pub fn motion_command(&self) -> DriveCommand {
+        let mut c = self.command;
+        c.drive_enabled &= self.power_allowed;
+        c
+    }
+}
+
 /// What the control path measured (published at the servo rate).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Feedback {

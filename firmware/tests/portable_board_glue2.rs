@@ -305,6 +305,25 @@ qemu_runner::tests! {
         let c3 = *r.g.publish(&r.d);
         assert!(!c3.power_allowed);
         assert!(!c3.command.drive_enabled);
+        assert!(!c3.permits_power());
+        assert!(!c3.motion_command().drive_enabled);
+    }
+
+    fn the_control_path_needs_permission_and_offsets() {
+        let r = Rig::enabled();
+        let mut c = *r.g.command();
+        assert!(c.power_allowed && c.offsets.is_some());
+        assert!(c.permits_power());
+        assert!(c.motion_command().drive_enabled);
+        c.offsets = None;
+        assert!(!c.permits_power());
+        c.offsets = Some((2048.0, 2048.0));
+        c.power_allowed = false;
+        assert!(!c.permits_power());
+        // The set-points other than the enable pass unchanged.
+        let m = c.motion_command();
+        assert!(!m.drive_enabled);
+        assert_eq!(m.position, c.command.position);
     }
 
     fn configuration_number_moves_only_on_a_change() {

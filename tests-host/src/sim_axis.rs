@@ -22,6 +22,7 @@ use firmware::drive::AxisState;
 use firmware::identity::Variant;
 use firmware::motion::{CurrentReference, Feedback, Frame, MotionConfig, MotorConstants};
 use firmware::params::Params;
+use firmware::power_gate::{bridge_mode, BridgeMode, GateInputs};
 use foc::modulation::Duties;
 use foc::transforms::{inverse_park, Dq};
 
@@ -462,27 +463,39 @@ impl PlantAxis {
         }
         let r = self.reference;
         let period = self.rig.plant.cfg.pwm_period;
+        let break_latched = self.tripped;
         let sup = &mut self.supervisor;
         if !r.power {
             // The drive no longer asks for power: a trip of the fast protection ends.
             sup.rearm();
         }
-        let tuning = sup.tuning();
+        // The board's bridge decision. The drive's power permission reaches the plant
+        // as the motion layer's power request (the command's `drive_enabled` is masked
+        // by it, `firmware::board_glue::BoardGlue::publish`); nothing halts the plant.
+        let mode = bridge_mode(GateInputs {
+            halted: false,
+            break_latched,
+            tripped: sup.tripped(),
+            tuning: sup.tuning(),
+            permitted: true,
+            power_wanted: r.power,
+        });
         self.rig.tick_with(|cl, enc, adc| {
-            let d = if tuning {
-                sup.tune_step(cl, adc)
-            } else if !r.power || sup.tripped() {
-                sup.idle();
-                cl.id_ref = 0.0;
-                cl.iq_ref = 0.0;
-                // Measures the currents, applies 0 V (50 % on every leg), clears the PIs.
-                let _ = cl.voltage_step(adc, 0.0, 0.0);
-                Duties::zero(period)
-            } else {
-                match r.frame {
+            let d = match mode {
+                BridgeMode::Tune => sup.tune_step(cl, adc),
+                BridgeMode::Off => {
+                    sup.idle();
+                    cl.id_ref = 0.0;
+                    cl.iq_ref = 0.0;
+                    // Measures the currents, applies 0 V (50 % on every leg), clears
+                    // the PIs.
+                    let _ = cl.voltage_step(adc, 0.0, 0.0);
+                    Duties::zero(period)
+                }
+                BridgeMode::Run => match r.frame {
                     Frame::Encoder => sup.run_step(cl, adc, enc.electrical_angle(), enc.omega_e()),
                     Frame::Command { angle, omega_e } => sup.run_step(cl, adc, angle, omega_e),
-                }
+                },
             };
             // The fast protection (as the board's current-loop interrupt): bridges
             // off in this period.

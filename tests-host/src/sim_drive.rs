@@ -7,10 +7,17 @@
 //! state to the drive, runs the drive cycle and gives the drive's set-points back to
 //! the axis. The helpers [`advance`] / [`process`] move the segment on and also do
 //! what the board's main loop does: the 1 ms supervision tick on the drive's own
-//! clock, which steps the drive whether or not frames arrive (with the board's glue:
-//! a failed commutation alignment, [`Axis::commutation_failures`], raises the
-//! following-error fault 0x8611 as `firmware/src/main.rs` `tick` does) and forwarding
-//! the drive's emergencies to the mailbox.
+//! clock, which steps the drive whether or not frames arrive, and forwarding the
+//! drive's emergencies to the mailbox.
+//!
+//! Between the drive and the axis sits the board's own glue,
+//! [`firmware::board_glue::BoardGlue`] (the same code as `firmware/src/main.rs`): the
+//! axis's measurements become a [`Feedback`] for [`BoardGlue::update_axis`] (index
+//! kept until a drive step consumed it, a failed commutation alignment,
+//! [`Axis::commutation_failures`], → following-error fault 0x8611 at the next tick,
+//! the current-loop report), and the axis takes its set-points from
+//! [`BoardGlue::publish`] (a new segment per drive step, `drive_enabled` masked by the
+//! power permission, the auto-tune permission).
 
 use std::path::PathBuf;
 
@@ -20,9 +27,12 @@ use ecat_slave_stack::od::{Dictionary, Object, SdoAbort};
 use ecat_slave_stack::pdo::ProcessData;
 use ecat_slave_stack::sii::EscFlavour;
 use ecat_slave_stack::slave::{CycleInfo, SlaveApplication, SlaveConfig};
+use firmware::board_glue::{BoardGlue, ControlCommand, Feedback};
 use firmware::cia402::DriveCommand;
+use firmware::current_supervisor::SupervisorConfig;
 use firmware::drive::{AxisState, Drive, FlashStore};
 use firmware::identity::{self, Variant};
+use firmware::motion::MotionConfig;
 use firmware::storage::Storage;
 
 use crate::esc_sim::frame::FrameOutcome;
@@ -102,12 +112,15 @@ pub struct SimDrive {
     axis_us: u64,
     /// Simulated time of the last 1 ms tick, µs.
     tick_us: u64,
-    /// The drive's control steps the axis has taken the set-points of.
-    seen_steps: u32,
-    /// Index position read by a housekeeping tick, kept for the next cycle.
-    pending_index: Option<i32>,
-    /// Failed commutation alignments already raised as faults.
-    align_failures: u32,
+    /// The board's glue between the drive and the axis.
+    glue: BoardGlue,
+    /// The glue's segment number the axis has taken the set-points of.
+    seen_cycle: u32,
+    /// Publications of the axis's measurements ([`Feedback`] sequence number).
+    fb_seq: u32,
+    /// Index pulses the axis has reported (`Feedback::index_seq`) and the last one.
+    index_seq: u32,
+    index_units: i32,
 }
 
 impl SimDrive {
@@ -117,60 +130,93 @@ impl SimDrive {
             storage: Storage::new(0, file_flash::SLOT_SIZE),
             flash,
         };
+        let drive = Drive::with_store(Variant::HybridServo, serial, store);
+        let p = &drive.params;
+        let mut glue = BoardGlue::new(ControlCommand {
+            cycle: 0,
+            command: *drive.command(),
+            cycle_s: 1e-3,
+            power_allowed: false,
+            config: 0,
+            // The axis takes its configuration from the parameters itself
+            // (`Axis::parameters`); these fields are the board's only.
+            motion: MotionConfig::from_params(
+                p,
+                Variant::HybridServo,
+                &firmware::motion::ECN57_20,
+                firmware::motion::SERVO_TS,
+            ),
+            align_wiggle: false,
+            offsets: None,
+            supervisor: SupervisorConfig::from_params(p, crate::plant::rig::TS, 2125),
+            tune_allowed: false,
+        });
+        // The simulated current sensors have no start-up check: passed at nominal.
+        glue.offsets_passed(0.0, 0.0);
         SimDrive {
-            drive: Drive::with_store(Variant::HybridServo, serial, store),
+            drive,
             axis,
             axis_us: 0,
             tick_us: 0,
-            seen_steps: 0,
-            pending_index: None,
-            align_failures: 0,
+            glue,
+            seen_cycle: 0,
+            fb_seq: 0,
+            index_seq: 0,
+            index_units: 0,
         }
+    }
+
+    /// The axis's measurements → the drive, through the board's glue
+    /// ([`BoardGlue::update_axis`]).
+    fn update_axis(&mut self) {
+        let axis = self.axis.state();
+        if let Some(u) = axis.index {
+            self.index_seq = self.index_seq.wrapping_add(1);
+            self.index_units = u;
+        }
+        let current = self.axis.current_control(self.glue.command().tune_allowed);
+        self.fb_seq = self.fb_seq.wrapping_add(1).max(1);
+        let fb = Feedback {
+            axis,
+            index_seq: self.index_seq,
+            index_units: self.index_units,
+            align_failures: self.axis.commutation_failures(),
+            current,
+            ..Feedback::default()
+        };
+        self.glue
+            .update_axis(&mut self.drive, self.fb_seq, &fb, axis.overcurrent_trip);
     }
 
     /// Brings the axis and the 1 ms housekeeping up to `now_us`.
     pub fn catch_up(&mut self, now_us: u64) {
         if now_us > self.axis_us {
             let dt = (now_us - self.axis_us) as f64 * 1e-6;
-            let cmd = *self.drive.command();
+            let cmd = self.glue.command().command;
             self.axis.advance(dt, &cmd);
             self.axis_us = now_us;
         }
         while self.tick_us + 1000 <= now_us {
             self.tick_us += 1000;
-            // Board glue (main.rs `tick`): one following-error fault per failed
-            // commutation alignment.
-            let failures = self.axis.commutation_failures();
-            if failures != self.align_failures {
-                self.align_failures = failures;
-                let now = (self.tick_us / 1000) as u32;
-                self.drive.faults.raise(
-                    firmware::faults::FaultKind::FollowingError,
-                    firmware::faults::Snapshot::default(),
-                    now,
-                );
-            }
+            // As the board's `tick` task: measurements, board faults, the drive's
+            // tick, the command.
             let raw = self.axis.raw_inputs();
-            let state = self.axis.state();
-            // The index latch belongs to the next application cycle.
-            if state.index.is_some() {
-                self.pending_index = state.index;
-            }
-            self.drive.set_axis(state);
-            let report = self.axis.current_control(self.drive.tune_permitted());
-            self.drive.current_report(&report);
+            self.update_axis();
+            let now_ms = (self.tick_us / 1000) as u32;
+            self.glue.raise_board_faults(&mut self.drive, now_ms);
             self.drive.tick(self.tick_us, raw);
             self.publish();
         }
     }
 
     /// Hands the set-points of a new control step (tick or cycle) to the axis, as the
-    /// board's `publish_command` does for the current-loop interrupt.
+    /// board's `publish_command` does for the current-loop interrupt
+    /// ([`BoardGlue::publish`]).
     fn publish(&mut self) {
-        if self.drive.steps() != self.seen_steps {
-            self.seen_steps = self.drive.steps();
-            let cmd = *self.drive.command();
-            self.axis.command(&cmd, f64::from(self.drive.segment_s()));
+        let c = *self.glue.publish(&self.drive);
+        if c.cycle != self.seen_cycle {
+            self.seen_cycle = c.cycle;
+            self.axis.command(&c.command, f64::from(c.cycle_s));
         }
     }
 }
@@ -226,10 +272,7 @@ impl EsmHooks for SimDrive {
 impl SlaveApplication for SimDrive {
     fn cycle(&mut self, info: &CycleInfo) {
         self.catch_up(info.now_us);
-        let mut state = self.axis.state();
-        let pending = self.pending_index.take();
-        state.index = state.index.or(pending);
-        self.drive.set_axis(state);
+        self.update_axis();
         self.drive.cycle(info);
         self.publish();
     }

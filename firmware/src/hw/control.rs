@@ -276,7 +276,7 @@ pub fn on_sample(s: RawSample) {
         // The command is read at the servo rate: a withdrawn permission switches the
         // bridges off within 100 µs (an over-current does so in hardware at once).
         let cmd = COMMAND.read().and_then(|(_, v)| v);
-        c.permitted = cmd.is_some_and(|k| k.power_allowed && k.offsets.is_some());
+        c.permitted = cmd.as_ref().is_some_and(ControlCommand::permits_power);
         if !c.permitted {
             // The drive has withdrawn the power (it took the trip's fault): re-armed.
             c.sup.rearm();
@@ -357,9 +357,7 @@ fn servo_step(c: &mut Control, cmd: Option<&ControlCommand>) {
         }
         if k.cycle != c.seen_cycle {
             c.seen_cycle = k.cycle;
-            let mut command = k.command;
-            command.drive_enabled &= k.power_allowed;
-            c.motion.set_command(&command, k.cycle_s);
+            c.motion.set_command(&k.motion_command(), k.cycle_s);
         }
     }
     let fb = firmware::motion::Feedback {
