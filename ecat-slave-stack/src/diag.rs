@@ -94,6 +94,18 @@ impl Severity {
     }
 }
 
+/// The text of a message, for the ESI's `<DiagMessages>` (the device's one table of
+/// texts: its messages carry the `id`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DiagText {
+    /// Text ID (message bytes 6-7).
+    pub id: u16,
+    /// Type.
+    pub severity: Severity,
+    /// English text; `%d` / `%X` are the parameters in order.
+    pub text: &'static str,
+}
+
 /// A parameter of a message: a value of a CoE basic type.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Param {

@@ -22,6 +22,7 @@
 
 use core::fmt::{self, Write};
 
+use crate::diag::DiagText;
 use crate::od::{Access, DataType, DefaultValue, Entry, Name, Object, ObjectCode, PdoMappable};
 use crate::sii::{DeviceDescription, SiiError, SmType};
 
@@ -565,6 +566,8 @@ pub struct EsiDevice<'a> {
     pub objects: &'a [Object],
     /// The default PDOs.
     pub pdos: &'a [PdoMap],
+    /// The texts of the 0x10F3 diagnosis messages (`<DiagMessages>`; empty: none).
+    pub diag_texts: &'a [DiagText],
 }
 
 /// Writes the ESI document of one device.
@@ -579,6 +582,7 @@ pub fn write<W: Write>(
             desc,
             objects,
             pdos,
+            diag_texts: &[],
         }],
         out,
     )
@@ -622,19 +626,33 @@ pub fn write_devices<W: Write>(devices: &[EsiDevice<'_>], out: &mut W) -> Result
     }
     out.write_str("</Groups>\n<Devices>\n")?;
     for d in devices {
-        write_device(d.desc, d.objects, d.pdos, out)?;
+        write_device(d, out)?;
     }
     out.write_str("</Devices>\n</Descriptions>\n</EtherCATInfo>\n")?;
     Ok(())
 }
 
+/// `<DiagMessages>` (ETG.2000, in `Profile` after `Dictionary`): one `DiagMessage`
+/// per text, with its ID and the English text.
+fn write_diag_messages<W: Write>(out: &mut W, texts: &[DiagText]) -> fmt::Result {
+    if texts.is_empty() {
+        return Ok(());
+    }
+    out.write_str("<DiagMessages>\n")?;
+    for t in texts {
+        writeln!(
+            out,
+            "<DiagMessage><TextId>#x{:04X}</TextId><MessageText LcId=\"1033\">{}</MessageText></DiagMessage>",
+            t.id,
+            Esc(t.text)
+        )?;
+    }
+    out.write_str("</DiagMessages>\n")
+}
+
 /// One `Device` element.
-fn write_device<W: Write>(
-    desc: &DeviceDescription,
-    objects: &[Object],
-    pdos: &[PdoMap],
-    out: &mut W,
-) -> fmt::Result {
+fn write_device<W: Write>(d: &EsiDevice<'_>, out: &mut W) -> fmt::Result {
+    let (desc, objects, pdos) = (d.desc, d.objects, d.pdos);
     out.write_str("<Device")?;
     let ph = physics(desc.physical_ports);
     let n = ph.iter().position(|c| *c == 0).unwrap_or(4);
@@ -663,7 +681,9 @@ fn write_device<W: Write>(
     out.write_str("<Dictionary>\n")?;
     write_data_types(out, objects)?;
     write_objects(out, objects)?;
-    out.write_str("</Dictionary>\n</Profile>\n")?;
+    out.write_str("</Dictionary>\n")?;
+    write_diag_messages(out, d.diag_texts)?;
+    out.write_str("</Profile>\n")?;
     for f in desc.fmmus.iter().filter(|f| !f.esi().is_empty()) {
         writeln!(out, "<Fmmu>{}</Fmmu>", f.esi())?;
     }

@@ -11,7 +11,7 @@
 //! milliseconds since power-up, in ns.
 
 use crate::faults::{Emergency, FaultKind, KINDS};
-use ecat_slave_stack::diag::{emergency_code, DiagMessage, Param, Severity};
+use ecat_slave_stack::diag::{emergency_code, DiagMessage, DiagText, Param, Severity};
 
 /// Messages the history holds (0x10F3:01).
 pub const HISTORY_LEN: usize = 16;
@@ -20,15 +20,7 @@ pub const HISTORY_LEN: usize = 16;
 pub type History = ecat_slave_stack::diag::DiagHistory<HISTORY_LEN>;
 
 /// One message text of the ESI.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Text {
-    /// Text ID (message bytes 6-7).
-    pub id: u16,
-    /// Type.
-    pub severity: Severity,
-    /// English text; `%d` are the parameters in order.
-    pub text: &'static str,
-}
+pub type Text = DiagText;
 
 /// Text ID of fault kind `k` (0x0101 + its number).
 pub const fn fault_text_id(k: FaultKind) -> u16 {

@@ -882,6 +882,7 @@ fn multi_device_writer_refuses_inconsistent_input() {
         desc,
         objects: objs,
         pdos: &maps,
+        diag_texts: &[],
     };
     assert_eq!(
         esi::write_devices(&[dev(&d), dev(&other)], &mut out),
@@ -1184,5 +1185,28 @@ fn sii_pdo_categories_match_the_esi_pdos() {
                 }
             }
         }
+    }
+}
+
+#[test]
+fn esi_diag_messages_are_the_drive_texts() {
+    // Every 0x10F3 message text of the drive (firmware::diagnosis::TEXTS) is in both
+    // ESI files with its ID, and every message the drive makes names one of them.
+    for name in ["ecs-lan9252.xml", "ecs-et1100.xml"] {
+        let xml = std::fs::read_to_string(repo_path("docs/esi").join(name)).unwrap();
+        for t in firmware::diagnosis::TEXTS {
+            let mut text = String::new();
+            ecat_slave_stack::esi::escape(&mut text, t.text).unwrap();
+            let want = format!(
+                "<DiagMessage><TextId>#x{:04X}</TextId><MessageText LcId=\"1033\">{text}</MessageText></DiagMessage>",
+                t.id
+            );
+            // Once per device of the file (both variants).
+            assert_eq!(xml.matches(&want).count(), 2, "{name}: {want}");
+        }
+    }
+    for k in firmware::faults::FaultKind::ALL {
+        let id = firmware::diagnosis::fault_text_id(k);
+        assert!(firmware::diagnosis::text(id).is_some(), "{k:?}");
     }
 }

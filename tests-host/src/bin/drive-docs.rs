@@ -242,6 +242,7 @@ pub fn esi_document(esc: EscFlavour) -> Result<String, EsiError> {
             desc: &descs[i],
             objects: variant_objects(*v),
             pdos: &maps[i],
+            diag_texts: firmware::diagnosis::TEXTS,
         })
         .collect();
     let mut out = String::new();
