@@ -19,8 +19,10 @@ use std::time::{Duration, Instant};
 use ethercrab::std::{ethercat_now, tx_rx_task};
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
 
-static PDU_STORAGE: PduStorage<16, { PduStorage::element_size(1100) }> = PduStorage::new();
-static PDU_STORAGE_PV: PduStorage<16, { PduStorage::element_size(1100) }> = PduStorage::new();
+/// One frame store per test (each test has its own master).
+type Storage = PduStorage<16, { PduStorage::element_size(1100) }>;
+static PDU_STORAGE: Storage = PduStorage::new();
+static PDU_STORAGE_PV: Storage = PduStorage::new();
 
 struct Netns {
     ns: String,
@@ -144,15 +146,14 @@ fn start_virtual_drive(tag: char, drives: usize) -> (Netns, Killed) {
     (net, child)
 }
 
-#[test]
-fn ethercrab_brings_virtual_drive_to_op_over_a_veth_pair() {
-    let (net, child) = start_virtual_drive('o', 2);
-    let (pdu_tx, pdu_rx, pdu_loop) = PDU_STORAGE.try_split().expect("split once");
-    let task = tx_rx_task(&net.host_if, pdu_tx, pdu_rx).expect("raw socket on the host end");
+/// An ethercrab master on the host end of the veth pair (its frame task on a thread).
+fn master(storage: &'static Storage, host_if: &str) -> MainDevice<'static> {
+    let (pdu_tx, pdu_rx, pdu_loop) = storage.try_split().expect("split once");
+    let task = tx_rx_task(host_if, pdu_tx, pdu_rx).expect("raw socket on the host end");
     std::thread::spawn(move || {
         let _ = async_io::block_on(task);
     });
-    let md = MainDevice::new(
+    MainDevice::new(
         pdu_loop,
         Timeouts {
             wait_loop_delay: Duration::from_millis(2),
@@ -163,7 +164,13 @@ fn ethercrab_brings_virtual_drive_to_op_over_a_veth_pair() {
             dc_static_sync_iterations: 100,
             ..MainDeviceConfig::default()
         },
-    );
+    )
+}
+
+#[test]
+fn ethercrab_brings_virtual_drive_to_op_over_a_veth_pair() {
+    let (net, child) = start_virtual_drive('o', 2);
+    let md = master(&PDU_STORAGE, &net.host_if);
     let result: Result<(usize, Vec<u16>, u32), ethercrab::error::Error> =
         async_io::block_on(async {
             let group = md.init_single_group::<4, 128>(ethercat_now).await?;
@@ -210,23 +217,7 @@ fn ethercrab_brings_virtual_drive_to_op_over_a_veth_pair() {
 #[test]
 fn silent_master_stops_virtual_drive_in_pv_over_a_veth_pair() {
     let (net, child) = start_virtual_drive('p', 1);
-    let (pdu_tx, pdu_rx, pdu_loop) = PDU_STORAGE_PV.try_split().expect("split once");
-    let task = tx_rx_task(&net.host_if, pdu_tx, pdu_rx).expect("raw socket on the host end");
-    std::thread::spawn(move || {
-        let _ = async_io::block_on(task);
-    });
-    let md = MainDevice::new(
-        pdu_loop,
-        Timeouts {
-            wait_loop_delay: Duration::from_millis(2),
-            mailbox_response: Duration::from_millis(2000),
-            ..Timeouts::default()
-        },
-        MainDeviceConfig {
-            dc_static_sync_iterations: 100,
-            ..MainDeviceConfig::default()
-        },
-    );
+    let md = master(&PDU_STORAGE_PV, &net.host_if);
     type Found = (u16, u16, u16, i32, i32, Duration);
     let result: Result<Found, (&str, ethercrab::error::Error)> = async_io::block_on(async {
         let group = md
@@ -287,6 +278,9 @@ fn silent_master_stops_virtual_drive_in_pv_over_a_veth_pair() {
         let sw: u16 = sd.sdo_read(0x6041, 0).await.map_err(|e| ("0x6041", e))?;
         let read_after = last_frame.elapsed();
         let err: u16 = sd.sdo_read(0x603F, 0).await.map_err(|e| ("0x603F", e))?;
+        // The power is off: the unbraked plant rotor may still roll out a little
+        // after the ramp; it must have come to rest 300 ms later.
+        async_io::Timer::after(Duration::from_millis(300)).await;
         let p1: i32 = sd.sdo_read(0x6064, 0).await.map_err(|e| ("0x6064", e))?;
         async_io::Timer::after(Duration::from_millis(200)).await;
         let p2: i32 = sd.sdo_read(0x6064, 0).await.map_err(|e| ("0x6064", e))?;
