@@ -206,14 +206,18 @@ pub struct Drive<S: ParameterStore = NoStore> {
     axis: AxisState,
     command: DriveCommand,
     esm: EsmState,
-    /// Local clock of the last control step ([`Drive::step`]) and of the last tick, µs.
-    last_step_us: Option<u64>,
-    last_tick_us: Option<u64>,
+    /// Local clock of the last control step ([`Drive::step`]) and of the last tick, µs
+    /// modulo 2^32 ([`Stamp`]).
+    last_step_us: Option<Stamp>,
+    last_tick_us: Option<Stamp>,
+    /// Microseconds of the drive's clock since its last whole millisecond, at the last
+    /// tick (the ticks count milliseconds from it).
+    tick_phase_us: u32,
     /// Control steps so far (wrapping).
     steps: u32,
     /// Local clock of the last master cycle and the time between the last two, µs.
-    last_cycle_us: Option<u64>,
-    cycle_period_us: u64,
+    last_cycle_us: Option<Stamp>,
+    cycle_period_us: u32,
     /// The master's commands stopped: the next tick steps whatever the timing.
     react_now: bool,
     now_ms: u32,
@@ -241,6 +245,20 @@ pub const TICK_US: u64 = 1000;
 /// least every [`TICK_US`] (once the cycles stop, after at most two).
 pub const TICK_STEP_AFTER_US: u64 = 900;
 
+/// A time of the drive's clock kept modulo 2^32 µs (71.6 minutes): every interval the
+/// drive measures between two stamps (a tick, a step, a master cycle) is far shorter,
+/// so `now.wrapping_sub(then)` is exact, and the cyclic path does 32-bit arithmetic
+/// instead of 64-bit. An interval of 2^31 µs or more reads as a clock that went back.
+type Stamp = u32;
+
+/// The time from `then` to `now`, µs; `None` when the clock went back (or stood still
+/// for more than 35 minutes, which no running drive does).
+#[inline]
+fn elapsed_us(now: Stamp, then: Stamp) -> Option<u32> {
+    let d = now.wrapping_sub(then);
+    (d < 1 << 31).then_some(d)
+}
+
 impl Drive<NoStore> {
     /// A drive at power-up defaults without parameter memory; `serial` is 0x1018:04.
     pub fn new(variant: Variant, serial: u32) -> Self {
@@ -264,6 +282,7 @@ macro_rules! power_up_fields {
             esm: EsmState::Init,
             last_step_us: None,
             last_tick_us: None,
+            tick_phase_us: 0,
             steps: 0,
             last_cycle_us: None,
             cycle_period_us: 0,
@@ -453,15 +472,22 @@ impl<S: ParameterStore> Drive<S> {
     /// and the brake advance whether or not frames arrive. A fault this tick detects
     /// starts its reaction in the same tick. `raw_inputs`: bit n = level of IN n+1.
     pub fn tick(&mut self, now_us: u64, raw_inputs: u8) {
-        let dt_ms = match self.last_tick_us {
-            Some(prev) if now_us > prev => {
-                let ms = (now_us / 1000).saturating_sub(prev / 1000);
-                ms.min(u64::from(u32::MAX)) as u32
+        let now = now_us as Stamp;
+        // Whole milliseconds of the clock since the last tick (the clock's millisecond
+        // boundaries, as `now_us / 1000` counts them).
+        let dt_ms = match self.last_tick_us.map(|prev| elapsed_us(now, prev)) {
+            Some(Some(d)) => {
+                let us = self.tick_phase_us + d;
+                self.tick_phase_us = us % 1000;
+                us / 1000
             }
-            Some(_) => 0,
-            None => (TICK_US / 1000) as u32,
+            Some(None) => 0,
+            None => {
+                self.tick_phase_us = (now_us % 1000) as u32;
+                (TICK_US / 1000) as u32
+            }
         };
-        self.last_tick_us = Some(now_us);
+        self.last_tick_us = Some(now);
         self.now_ms = self.now_ms.wrapping_add(dt_ms);
         self.faults.set_clock(self.now_ms);
         self.monitor.tick_ms(dt_ms);
@@ -469,9 +495,10 @@ impl<S: ParameterStore> Drive<S> {
             .update(raw_inputs, dt_ms.saturating_mul(1000), &self.params);
         self.params.set_raw_inputs(self.inputs.raw());
         let snap = self.snapshot();
-        let now = self.now_ms;
+        let now_ms = self.now_ms;
         if self.axis.bus_mv > 0 {
-            self.faults.check_bus_voltage(self.axis.bus_mv, snap, now);
+            self.faults
+                .check_bus_voltage(self.axis.bus_mv, snap, now_ms);
         }
         // Over-current: the measured phase currents against the limit (software check)
         // and the power stage's break latch. The condition is gone once the currents
@@ -481,10 +508,10 @@ impl<S: ParameterStore> Drive<S> {
             i32::from(self.axis.ia_ma),
             i32::from(self.axis.ib_ma),
             snap,
-            now,
+            now_ms,
         );
         if self.axis.overcurrent_trip {
-            self.faults.raise(FaultKind::OverCurrent, snap, now);
+            self.faults.raise(FaultKind::OverCurrent, snap, now_ms);
         }
         if self.inputs.fault_clear_edge() {
             self.faults.fault_reset();
@@ -492,13 +519,13 @@ impl<S: ParameterStore> Drive<S> {
         if self.params.take_fault_history_clear() {
             self.faults.clear_history();
         }
-        let after = match self.cycles_running(now_us) {
-            Some(p) => TICK_STEP_AFTER_US.max(p + p / 2),
-            None => TICK_STEP_AFTER_US,
+        let after = match self.cycles_running(now) {
+            Some(p) => (TICK_STEP_AFTER_US as u32).max(p + p / 2),
+            None => TICK_STEP_AFTER_US as u32,
         };
         let due = self
             .last_step_us
-            .is_none_or(|t| now_us.saturating_sub(t) >= after || now_us < t);
+            .is_none_or(|t| elapsed_us(now, t).is_none_or(|d| d >= after));
         // A fault the PDS has not taken yet starts its reaction in this tick.
         let fault_news = self.faults.any_active()
             && !matches!(
@@ -507,7 +534,7 @@ impl<S: ParameterStore> Drive<S> {
                     | crate::cia402::pds::PdsState::FaultReactionActive
             );
         if due || fault_news || core::mem::take(&mut self.react_now) {
-            self.step(now_us, SetpointArrival::Stale);
+            self.step_at(now, SetpointArrival::Stale);
         }
     }
 
@@ -515,23 +542,28 @@ impl<S: ParameterStore> Drive<S> {
     /// time since the previous step. Called by the supervision tick and by the
     /// master's cycle (`setpoint`: whether that cycle brought new outputs).
     pub fn step(&mut self, now_us: u64, setpoint: SetpointArrival) -> DriveCommand {
-        let dt = match self.last_step_us {
-            // Through u32: one FPU conversion instead of the u64 routine.
-            Some(prev) if now_us > prev => (now_us - prev).min(10_000) as u32 as f32 * 1e-6,
+        self.step_at(now_us as Stamp, setpoint)
+    }
+
+    /// [`Drive::step`] at a [`Stamp`]: steps of at most 10 ms (a longer pause is not
+    /// integrated), 1 µs when the clock stood still or went back.
+    fn step_at(&mut self, now: Stamp, setpoint: SetpointArrival) -> DriveCommand {
+        let dt = match self.last_step_us.map(|prev| elapsed_us(now, prev)) {
+            Some(Some(d)) if d > 0 => d.min(10_000) as f32 * 1e-6,
             Some(_) => 1e-6,
-            None => (TICK_US as f32 * 1e-6).min(0.01),
+            None => TICK_US as f32 * 1e-6,
         };
-        self.last_step_us = Some(now_us);
+        self.last_step_us = Some(now);
         self.steps = self.steps.wrapping_add(1);
         self.control_step(dt, setpoint)
     }
 
     /// The period of the master's cycles (µs) while they run at 1 ms or faster (the
     /// last one less than two periods ago).
-    fn cycles_running(&self, now_us: u64) -> Option<u64> {
+    fn cycles_running(&self, now: Stamp) -> Option<u32> {
         let p = self.cycle_period_us;
-        let t = self.last_cycle_us?;
-        (p > 0 && p <= TICK_US && now_us.saturating_sub(t) < 2 * p).then_some(p)
+        let since = elapsed_us(now, self.last_cycle_us?)?;
+        (p > 0 && p <= TICK_US as u32 && since < 2 * p).then_some(p)
     }
 
     /// How long the motion layer takes to reach a new step's set-points, s: the
@@ -542,7 +574,7 @@ impl<S: ParameterStore> Drive<S> {
         let us = self
             .last_step_us
             .and_then(|t| self.cycles_running(t))
-            .unwrap_or(TICK_US);
+            .unwrap_or(TICK_US as u32);
         us as f32 * 1e-6
     }
 
@@ -801,8 +833,10 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
     }
 }
 
-/// Stand-in for the runtime's objects when a write does not come through the runtime.
-struct NoRuntime;
+/// Stand-in for the slave runtime's objects where there is no runtime (no ESC on the
+/// board) or a write does not come through it: the product's objects, none of the
+/// runtime's (a save through it keeps no PDO mapping).
+pub struct NoRuntime;
 
 impl Dictionary for NoRuntime {
     fn objects(&self) -> &'static [Object] {
@@ -964,16 +998,17 @@ impl<S: ParameterStore> SlaveApplication for Drive<S> {
     /// The master's cycle: the set-points it brought take effect in a control step
     /// now (the supervision tick steps the drive as well, on its own clock).
     fn cycle(&mut self, info: &CycleInfo) {
+        let now = info.now_us as Stamp;
         if let Some(t) = self.last_cycle_us {
-            self.cycle_period_us = info.now_us.saturating_sub(t);
+            self.cycle_period_us = elapsed_us(now, t).unwrap_or(0);
         }
-        self.last_cycle_us = Some(info.now_us);
+        self.last_cycle_us = Some(now);
         let arrival = if info.outputs_fresh {
             SetpointArrival::Fresh
         } else {
             SetpointArrival::Stale
         };
-        self.step(info.now_us, arrival);
+        self.step_at(now, arrival);
     }
 
     fn on_outputs_lost(&mut self, code: AlStatusCode) {
