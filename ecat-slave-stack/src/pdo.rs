@@ -580,7 +580,7 @@ fn mask(bits: u8) -> u64 {
 
 /// Extracts `bits` bits at `bit_offset` (little-endian bit order) from `data`; bytes
 /// beyond `data` read as 0.
-#[inline]
+#[inline(always)]
 pub fn extract(data: &[u8], bit_offset: u16, bits: u8) -> u64 {
     let byte = (bit_offset / 8) as usize;
     let shift = (bit_offset % 8) as u32;
@@ -605,6 +605,15 @@ pub fn extract(data: &[u8], bit_offset: u16, bits: u8) -> u64 {
             _ => {}
         }
     }
+    extract_bits(data, bit_offset, bits)
+}
+
+/// [`extract`] for any offset and length: out of line, so that the byte-aligned
+/// fast path stays small enough to inline into the copy loops.
+#[inline(never)]
+fn extract_bits(data: &[u8], bit_offset: u16, bits: u8) -> u64 {
+    let byte = (bit_offset / 8) as usize;
+    let shift = (bit_offset % 8) as u32;
     let mut b = [0u8; 16];
     let end = (byte + 9).min(data.len());
     if byte < end {
@@ -621,7 +630,7 @@ pub fn extract(data: &[u8], bit_offset: u16, bits: u8) -> u64 {
 
 /// Inserts the low `bits` bits of `value` at `bit_offset` into `data`; bits beyond
 /// `data` are dropped, the other bits of `data` are kept.
-#[inline]
+#[inline(always)]
 pub fn insert(data: &mut [u8], bit_offset: u16, bits: u8, value: u64) {
     let byte = (bit_offset / 8) as usize;
     let shift = (bit_offset % 8) as u32;
@@ -648,6 +657,14 @@ pub fn insert(data: &mut [u8], bit_offset: u16, bits: u8, value: u64) {
             _ => {}
         }
     }
+    insert_bits(data, bit_offset, bits, value);
+}
+
+/// [`insert`] for any offset and length (out of line, as [`extract_bits`]).
+#[inline(never)]
+fn insert_bits(data: &mut [u8], bit_offset: u16, bits: u8, value: u64) {
+    let byte = (bit_offset / 8) as usize;
+    let shift = (bit_offset % 8) as u32;
     let m = mask(bits);
     let v = value & m;
     for k in 0..=(bits as u32 + shift).div_ceil(8) as usize {
