@@ -1,23 +1,18 @@
-//! Analog samples of the power stage: the exchange between the current-loop interrupt
-//! and the rest of the drive, and the start-up calibration of the current sensors.
+//! Analog samples of the power stage and the start-up calibration of the current
+//! sensors.
 //!
 //! Chip-independent. The board binary reads the ADC injected data registers in the
-//! ADC end-of-sequence interrupt (once per PWM period, at the PWM centre) and hands
-//! the raw counts to [`current_loop_hook`]; everything else reads the latest sample
-//! from [`CURRENT_SAMPLES`]. The simulators can feed the same hook.
+//! ADC end-of-sequence interrupt (once per PWM period, at the PWM centre) into a
+//! [`RawSample`]; the current loop takes it there, and the rest of the drive reads
+//! the supervised values through [`crate::board_glue::Exchange`], the one seqlock of
+//! the board.
 //!
-//! * [`SampleCell`] — single-writer, many-reader "latest value" cell (a sequence lock
-//!   on atomics). The writer is the highest-priority interrupt, so it is never
-//!   preempted by a reader; a reader that races with the writer retries a bounded
-//!   number of times and otherwise reports `None` (it never blocks the writer, never
-//!   returns a torn sample).
 //! * [`OffsetCalibrator`] — with the PWM outputs off, the phase currents are zero, so
 //!   the mean of N samples is the sensor's zero-current offset. A mean outside the
 //!   window of the [`AnalogScale`], or samples spread wider than the window allows,
 //!   is fault 9 of the drive requirements ("phase / current-sensing fault",
 //!   603F = 0x5210), reported as an [`OffsetFault`].
 //! * [`AnalogScale`] — raw counts → amperes / volts.
-use core::sync::atomic::{AtomicU32, Ordering};
 
 /// One set of raw ADC counts taken at the same PWM centre.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -206,87 +201,4 @@ impl OffsetCalibrator {
         }
         Ok(st.sum as f32 / n64 as f32)
     }
-}
-
-/// Latest-value cell written by one interrupt and read by anyone (see the module docs).
-pub struct SampleCell {
-    /// Even: stable; odd: a write is in progress. Increments by 2 per sample.
-    seq: AtomicU32,
-    currents: AtomicU32,
-    vbus: AtomicU32,
-}
-
-/// Attempts of [`SampleCell::latest`] before it gives up on a racing writer.
-const READ_ATTEMPTS: u32 = 4;
-
-impl SampleCell {
-    /// An empty cell (no sample yet).
-    pub const fn new() -> Self {
-        SampleCell {
-            seq: AtomicU32::new(0),
-            currents: AtomicU32::new(0),
-            vbus: AtomicU32::new(0),
-        }
-    }
-
-    /// Stores a sample. Only one context (the current-loop interrupt) may call this.
-    pub fn publish(&self, s: RawSample) {
-        let seq = self.seq.load(Ordering::Relaxed);
-        self.seq.store(seq.wrapping_add(1), Ordering::Relaxed);
-        core::sync::atomic::compiler_fence(Ordering::Release);
-        self.currents
-            .store(u32::from(s.ia) | (u32::from(s.ib) << 16), Ordering::Relaxed);
-        self.vbus.store(u32::from(s.vbus), Ordering::Relaxed);
-        core::sync::atomic::compiler_fence(Ordering::Release);
-        self.seq.store(seq.wrapping_add(2), Ordering::Release);
-    }
-
-    /// Number of samples published so far (wraps); a watchdog uses it as a sign of life.
-    pub fn count(&self) -> u32 {
-        self.seq.load(Ordering::Acquire) / 2
-    }
-
-    /// The latest sample with its number, `None` before the first one or when the
-    /// writer kept racing the reader.
-    pub fn latest(&self) -> Option<(u32, RawSample)> {
-        for _ in 0..READ_ATTEMPTS {
-            let before = self.seq.load(Ordering::Acquire);
-            if before & 1 == 1 {
-                continue;
-            }
-            core::sync::atomic::compiler_fence(Ordering::Acquire);
-            let c = self.currents.load(Ordering::Relaxed);
-            let v = self.vbus.load(Ordering::Relaxed);
-            core::sync::atomic::compiler_fence(Ordering::Acquire);
-            if self.seq.load(Ordering::Acquire) == before {
-                if before == 0 {
-                    return None;
-                }
-                let s = RawSample {
-                    ia: c as u16,
-                    ib: (c >> 16) as u16,
-                    vbus: v as u16,
-                };
-                return Some((before / 2, s));
-            }
-        }
-        None
-    }
-}
-
-impl Default for SampleCell {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-/// The drive's current-sample cell, written by [`current_loop_hook`].
-pub static CURRENT_SAMPLES: SampleCell = SampleCell::new();
-
-/// Called by the board's current-loop interrupt (ADC end of injected sequence) once
-/// per PWM period with the raw samples. For now it only publishes them; the
-/// field-oriented current loop is wired here later.
-#[inline]
-pub fn current_loop_hook(s: RawSample) {
-    CURRENT_SAMPLES.publish(s);
 }

@@ -1,8 +1,6 @@
 #![cfg_attr(target_os = "none", no_std, no_main)]
-//! Current-sensor calibration and the ISR sample exchange: nominal and garbage inputs.
-use firmware::sampling::{
-    AnalogScale, OffsetCalibrator, OffsetFault, Phase, RawSample, SampleCell,
-};
+//! Current-sensor calibration: nominal and garbage inputs.
+use firmware::sampling::{AnalogScale, OffsetCalibrator, OffsetFault, Phase, RawSample};
 
 const SCALE: AnalogScale = AnalogScale {
     amps_per_count: 0.006,
@@ -73,23 +71,5 @@ qemu_runner::tests! {
         assert!((SCALE.amps(2148, 2048.0) - 0.6).abs() < 1e-4);
         assert!((SCALE.amps(1948, 2048.0) + 0.6).abs() < 1e-4);
         assert!((SCALE.volts(1500) - 24.0).abs() < 1e-3);
-    }
-
-    fn sample_cell_starts_empty_and_keeps_latest() {
-        let cell = SampleCell::new();
-        assert_eq!(cell.latest(), None);
-        assert_eq!(cell.count(), 0);
-        cell.publish(RawSample { ia: 1, ib: 65535, vbus: 7 });
-        cell.publish(RawSample { ia: 2047, ib: 2049, vbus: 4095 });
-        assert_eq!(cell.count(), 2);
-        assert_eq!(cell.latest(), Some((2, RawSample { ia: 2047, ib: 2049, vbus: 4095 })));
-    }
-
-    fn current_loop_hook_publishes() {
-        let before = firmware::sampling::CURRENT_SAMPLES.count();
-        firmware::sampling::current_loop_hook(RawSample { ia: 10, ib: 20, vbus: 30 });
-        let (n, got) = firmware::sampling::CURRENT_SAMPLES.latest().unwrap();
-        assert_eq!(n, before + 1);
-        assert_eq!(got, RawSample { ia: 10, ib: 20, vbus: 30 });
     }
 }
