@@ -76,6 +76,9 @@ pub mod cmd {
 /// Value of the dummy byte sent after the address of a fast read. The chip ignores
 /// its value in SPI mode; 0x01 is what the common open-source drivers send.
 pub const FAST_READ_DUMMY: u8 = 0x01;
+/// ESC type register (0x0000) value of the LAN9252's EtherCAT core, as the ESC
+/// simulator reproduces it (no data sheet among the project's sources states it).
+pub const LAN9252_TYPE: u8 = 0xC0;
 
 /// System register addresses (host side, not ESC addresses).
 pub mod reg {

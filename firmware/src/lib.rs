@@ -21,5 +21,6 @@ pub mod params;
 pub mod pdo_defaults;
 pub mod power_gate;
 pub mod sampling;
+pub mod selftest;
 pub mod staged_flash;
 pub mod storage;

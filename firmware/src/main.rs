@@ -70,6 +70,9 @@
 //! start logs the cause.
 #![no_std]
 #![no_main]
+// The self-test build (`--features selftest`) spawns none of the drive's tasks: their
+// helpers are compiled but unused there.
+#![cfg_attr(feature = "selftest", allow(dead_code, unused_variables))]
 
 mod board;
 mod hw;
@@ -95,7 +98,7 @@ use embassy_sync::blocking_mutex::Mutex;
 use embassy_time::{Duration, Instant, Ticker, Timer};
 use firmware::board_glue::BoardGlue;
 use firmware::current_supervisor::SupervisorConfig;
-use firmware::drive::{Drive, FlashStore};
+use firmware::drive::{Drive, FlashStore, NoRuntime};
 use firmware::identity::{PulseEdge, Variant};
 use firmware::motion::{MotionConfig, SERVO_TS};
 use firmware::sampling::{OffsetCalibrator, RawSample};
@@ -526,6 +529,54 @@ async fn main(spawner: Spawner) {
     });
 
     let thread_spawner = spawner.make_send();
+    // The self-test build: the checks instead of the drive's tasks (bridges off).
+    #[cfg(feature = "selftest")]
+    {
+        let _ = (sync0, esc_irq, in2, enc, p.IWDG);
+        let parts = hw::selftest::Parts {
+            dip,
+            leds,
+            ports,
+            flash,
+            encoder_counts: mcfg.counts_per_rev / 4,
+        };
+        spawn(thread_spawner, selftest(parts), defmt::intern!("selftest"));
+    }
+    #[cfg(not(feature = "selftest"))]
+    spawn_drive_tasks(
+        thread_spawner,
+        (sync0, esc_irq, in2),
+        enc,
+        flash,
+        (leds, ports),
+        p.IWDG,
+        has_slave,
+    );
+}
+
+/// The self-test build's one task (`hw::selftest`).
+#[cfg(feature = "selftest")]
+#[embassy_executor::task]
+async fn selftest(parts: hw::selftest::Parts) {
+    hw::selftest::run(parts).await;
+}
+
+/// The drive's tasks: the cyclic path, the supervision tick and the touch probe on the
+/// interrupt executor; the ESC's mailbox/ESM task and the supervisor in thread mode.
+#[cfg(not(feature = "selftest"))]
+fn spawn_drive_tasks(
+    thread_spawner: SendSpawner,
+    (sync0, esc_irq, in2): (
+        ExtiInput<'static, Async>,
+        ExtiInput<'static, Async>,
+        ExtiInput<'static, Async>,
+    ),
+    enc: Encoder,
+    flash: Option<ParamFlash>,
+    (leds, ports): (io::Leds<'static>, io::Ports<'static>),
+    iwdg: embassy_stm32::Peri<'static, embassy_stm32::peripherals::IWDG>,
+    has_slave: bool,
+) {
     // Cyclic path on the interrupt executor.
     interrupt::UART4.set_priority(CYCLIC_PRIORITY);
     let cyclic_spawner = EXECUTOR_CYCLIC.start(interrupt::UART4);
@@ -540,7 +591,7 @@ async fn main(spawner: Spawner) {
     );
 
     // Thread-mode tasks.
-    let mut wdg = hw::safety::Watchdog::new(p.IWDG);
+    let mut wdg = hw::safety::Watchdog::new(iwdg);
     wdg.unleash();
     // The supervision tick runs on the interrupt executor: a flash commit (which
     // blocks thread mode for up to ~180 ms) never stops the drive's own clock.
@@ -609,32 +660,6 @@ fn motor_rl(d: &BoardDrive) -> (f32, f32) {
         (r, l_uh as f32 * 1e-6)
     } else {
         (MOTOR_R_OHM, MOTOR_L_H)
-    }
-}
-
-/// Stand-in for the runtime's objects when the ESC is absent (power-up load only).
-struct NoRuntime;
-
-impl ecat_slave_stack::od::Dictionary for NoRuntime {
-    fn objects(&self) -> &'static [ecat_slave_stack::od::Object] {
-        firmware::dictionary::OBJECTS
-    }
-    fn read(
-        &mut self,
-        _: u16,
-        _: u8,
-        _: &mut [u8],
-    ) -> Result<usize, ecat_slave_stack::od::SdoAbort> {
-        Err(ecat_slave_stack::od::SdoAbort::ObjectDoesNotExist)
-    }
-    fn write(
-        &mut self,
-        _: u16,
-        _: u8,
-        _: &[u8],
-        _: ecat_slave_stack::esm::EsmState,
-    ) -> Result<(), ecat_slave_stack::od::SdoAbort> {
-        Err(ecat_slave_stack::od::SdoAbort::ObjectDoesNotExist)
     }
 }
 

@@ -853,3 +853,33 @@ fn drivers_compose_with_the_esc_simulator() {
         d.spi_mut().violations
     );
 }
+
+// ------------------------------------------------------------------ board self-test
+
+/// The self-test's ESC checks (`firmware::selftest`) through both drivers and their
+/// chip models: the type register, and a process-RAM word through the LAN9252's FIFO
+/// path and the ET1100's direct access.
+#[test]
+fn selftest_esc_checks_through_both_drivers() {
+    use ecat_slave_stack::{et1100::ET1100_TYPE, lan9252::LAN9252_TYPE};
+    use firmware::selftest::{esc_identity, process_ram_word, Verdict, SCRATCH_PRAM};
+
+    let mut l = lan_default();
+    l.spi_mut().esc.mem[0] = LAN9252_TYPE;
+    assert_eq!(esc_identity(&mut l, LAN9252_TYPE), Verdict::Pass);
+    assert!(!esc_identity(&mut l, ET1100_TYPE).passed());
+    assert_eq!(process_ram_word(&mut l, SCRATCH_PRAM), Verdict::Pass);
+    let a = usize::from(SCRATCH_PRAM);
+    assert_eq!(l.spi_mut().esc.mem[a..a + 4], [0; 4]);
+    assert!(
+        l.spi_mut().violations.is_empty(),
+        "{:?}",
+        l.spi_mut().violations
+    );
+
+    let mut e = et(Et1100Config::default());
+    e.spi_mut().esc.mem[0] = ET1100_TYPE;
+    assert_eq!(esc_identity(&mut e, ET1100_TYPE), Verdict::Pass);
+    assert_eq!(process_ram_word(&mut e, SCRATCH_PRAM), Verdict::Pass);
+    assert_eq!(e.spi_mut().esc.mem[a..a + 4], [0; 4]);
+}

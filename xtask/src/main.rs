@@ -343,10 +343,15 @@ fn test() -> bool {
             "warnings",
         ])),
     );
-    for flavour in FIRMWARE_FLAVOURS {
-        let features = format!("board,{flavour}");
+    // The board image in both flavours, and the self-test image (README, "Board
+    // self-test") in both.
+    for (flavour, extra) in FIRMWARE_FLAVOURS
+        .iter()
+        .flat_map(|f| [(*f, ""), (*f, ",selftest")])
+    {
+        let features = format!("board,{flavour}{extra}");
         t.step(
-            &format!("clippy (board firmware, {flavour})"),
+            &format!("clippy (board firmware, {flavour}{extra})"),
             run_status(&mut cargo(&[
                 "clippy",
                 "-p",

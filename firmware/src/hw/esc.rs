@@ -175,6 +175,14 @@ pub const ESC_NAME: &str = if cfg!(all(feature = "esc-et1100", not(feature = "es
     "LAN9252"
 };
 
+/// ESC type register value of this build's chip (the self-test's identity check).
+#[cfg(feature = "selftest")]
+pub const ESC_TYPE: u8 = if cfg!(all(feature = "esc-et1100", not(feature = "esc-lan9252"))) {
+    ecat_slave_stack::et1100::ET1100_TYPE
+} else {
+    ecat_slave_stack::lan9252::LAN9252_TYPE
+};
+
 /// Builds the driver of this flavour over `spi`.
 pub fn new_esc(spi: EscSpi) -> Esc {
     Esc::new(spi, Default::default())

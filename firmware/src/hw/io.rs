@@ -107,7 +107,7 @@ pub fn set_output(pin: &mut Output<'_>, high: bool) {
     pin.set_level(Level::from(high));
 }
 
-impl Ports<'_> {
+impl<'d> Ports<'d> {
     /// IN1..IN5 as bits 0..4, 1 = input active (opto conducting pulls the pin low).
     pub fn read_inputs(&self) -> u8 {
         let idr = pac::GPIOB.idr().read();
@@ -126,10 +126,44 @@ impl Ports<'_> {
         }
     }
 
+    /// OUT1..OUT3 and the brake output, with the pad each drives (port, pin as typed
+    /// in [`IoPins`]), for the self-test's read-back.
+    #[cfg(feature = "selftest")]
+    pub fn output_pads(&mut self) -> [(&'static str, &mut Output<'d>, pac::gpio::Gpio, usize); 4] {
+        let [o1, o2, o3] = &mut self.outputs;
+        [
+            ("OUT1 (PA10)", o1, pac::GPIOA, 10),
+            ("OUT2 (PA11)", o2, pac::GPIOA, 11),
+            ("OUT3 (PA12)", o3, pac::GPIOA, 12),
+            ("brake (PB9)", &mut self.brake, pac::GPIOB, 9),
+        ]
+    }
+
     /// Releases (true) or engages (false) the holding brake.
     pub fn set_brake_released(&mut self, released: bool) {
         set_output(&mut self.brake, released);
     }
+}
+
+#[cfg(feature = "selftest")]
+impl Leds<'static> {
+    /// Each LED with the pad it drives (port, pin as typed in [`IoPins`]), for the
+    /// self-test's read-back.
+    pub fn pads(&mut self) -> [(&'static str, &mut Output<'static>, pac::gpio::Gpio, usize); 4] {
+        [
+            ("LED green (PC8)", &mut self.green, pac::GPIOC, 8),
+            ("LED red (PC9)", &mut self.red, pac::GPIOC, 9),
+            ("LED RUN (PB6)", &mut self.run, pac::GPIOB, 6),
+            ("LED ERR (PB7)", &mut self.err, pac::GPIOB, 7),
+        ]
+    }
+}
+
+/// The level at pad `n` of port `g` (input data register: what the pin is at, whatever
+/// drives it).
+#[cfg(feature = "selftest")]
+pub fn pad_high(g: pac::gpio::Gpio, n: usize) -> bool {
+    g.idr().read().idr(n) == pac::gpio::vals::Idr::HIGH
 }
 
 impl Dip<'_> {

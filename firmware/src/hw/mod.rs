@@ -14,6 +14,7 @@
 //! | [`flash`] | the parameter-record region of the internal flash (NorFlash) |
 //! | [`safety`] | emergency stop, panic and HardFault handlers, fault number |
 //! | [`stack`] | painted-stack high-water mark |
+//! | `selftest` | the checks of the `selftest` build (first power-up), verdicts from `firmware::selftest` |
 pub mod adc;
 pub mod control;
 pub mod encoder;
@@ -23,4 +24,6 @@ pub mod io;
 pub mod lock;
 pub mod pwm;
 pub mod safety;
+#[cfg(feature = "selftest")]
+pub mod selftest;
 pub mod stack;

@@ -59,25 +59,40 @@ struct Chip {
     name: &'static str,
     /// Highest SPI clock of the chip for the commands the driver uses, Hz.
     f_max: f64,
-    /// Where the figure comes from.
-    source: &'static str,
+    /// What backs `f_max`. No data sheet is among the project's sources, so the limit
+    /// is a recollection of the chip's data sheet, and the tables say so.
+    limit_source: &'static str,
+    /// A clock seen working with this chip on a real board, and where, if any.
+    seen_working: Option<(f64, &'static str)>,
 }
+
+/// The label of a limit that no source of the project backs.
+const NOT_SOURCED: &str = "not sourced";
 
 const CHIPS: [Chip; 2] = [
     Chip {
         flavour: Flavour::Lan9252,
         name: "LAN9252",
         f_max: 80e6,
-        source: "Microchip LAN9252 data sheet, SPI/SQI slave: 80 MHz for the fast read \
-                 (0x0B, one dummy byte) and writes; the plain read 0x03 is limited to 30 MHz. \
-                 The driver uses the fast read",
+        limit_source: "recalled from the Microchip LAN9252 data sheet (SPI/SQI slave: 80 MHz for \
+                       the fast read 0x0B with its dummy byte, which the driver uses, and for \
+                       writes; 30 MHz for the plain read 0x03); the data sheet is not among the \
+                       project's sources",
+        seen_working: Some((
+            42e6,
+            "the EasyCAT library's LAN9252spi.h runs its LAN9252 at 42 MHz on STM32F4 \
+             (SpiSpeed; as vendored in github.com/FuminoriSugawara/ethercat_canfd_module, \
+             lib/EasyCAT/LAN9252spi.h)",
+        )),
     },
     Chip {
         flavour: Flavour::Et1100,
         name: "ET1100",
         f_max: 30e6,
-        source: "Beckhoff ET1100 data sheet (section III), SPI PDI: SPI_CLK up to 30 MHz; \
-                 reads use the wait-state byte (command 0b011)",
+        limit_source: "recalled from the Beckhoff ET1100 hardware data sheet (section III, SPI \
+                       PDI); the SPI timing table is not among the project's sources, and no \
+                       public driver found states the clock it runs at",
+        seen_working: None,
     },
 ];
 
@@ -519,16 +534,25 @@ fn report(counts: &[(String, u64)]) -> Result<String, String> {
     for chip in &CHIPS {
         let _ = writeln!(
             w,
-            "- {}: maximum SPI clock {:.0} MHz ({}). A G474 at 170 MHz makes PCLK/2^n: {:.2} MHz \
-             is the fastest clock not above that{}.",
+            "- {}: maximum SPI clock {:.0} MHz, **{NOT_SOURCED}**: {}. A G474 at 170 MHz makes \
+             PCLK/2^n: {:.2} MHz is the fastest clock not above that{}.{}",
             chip.name,
             chip.f_max / 1e6,
-            chip.source,
+            chip.limit_source,
             g474_clock(chip.f_max) / 1e6,
             if chip.f_max > 75e6 {
                 " and the G474's SPI master limit (assumed 75 MHz)"
             } else {
                 ""
+            },
+            match chip.seen_working {
+                Some((f, source)) => format!(
+                    " Seen working on a real board: {:.0} MHz ({source}); the G474 clock \
+                     rows are within {:.1} MHz of it.",
+                    f / 1e6,
+                    (g474_clock(chip.f_max) - f).abs() / 1e6
+                ),
+                None => " No clock seen working on a real board is on record.".to_string(),
             }
         );
     }
@@ -601,7 +625,7 @@ fn report(counts: &[(String, u64)]) -> Result<String, String> {
     );
     let _ = writeln!(
         w,
-        "| chip | maps | SPI clock | t_bus (µs) | N (instructions) | t_cpu (µs) | t (µs) | shortest cycle | cycle share |\n|---|---|---|---|---|---|---|---|---|"
+        "| chip | maps | SPI clock | clock source | t_bus (µs) | N (instructions) | t_cpu (µs) | t (µs) | shortest cycle | cycle share |\n|---|---|---|---|---|---|---|---|---|---|"
     );
     let mut best_default = Vec::new();
     for (chip, label, t) in &bus {
@@ -627,9 +651,16 @@ fn report(counts: &[(String, u64)]) -> Result<String, String> {
                 .copied()
                 .find(|c| c * 1e-6 * MAX_SHARE >= total)
                 .unwrap_or(4000.0);
+            let source = match (clock_label, chip.seen_working) {
+                ("G474", Some((seen, _))) if (f - seen).abs() <= 1e6 => {
+                    "seen working on a real board"
+                }
+                ("G474", _) => "chip limit not sourced; G474 prescaler",
+                _ => NOT_SOURCED,
+            };
             let _ = writeln!(
                 w,
-                "| {} | {} | {clock_label} {:.2} MHz | {} | {n} | {} | {} | **{} µs** | {:.0} % |",
+                "| {} | {} | {clock_label} {:.2} MHz | {source} | {} | {n} | {} | {} | **{} µs** | {:.0} % |",
                 chip.name,
                 label,
                 f / 1e6,

@@ -45,8 +45,8 @@ impl Flavour {
     /// ESC type (0x0000). *Simulation choice* for the LAN9252 value.
     pub const fn esc_type(self) -> u8 {
         match self {
-            Flavour::Lan9252 => 0xC0,
-            Flavour::Et1100 => 0x11,
+            Flavour::Lan9252 => ecat_slave_stack::lan9252::LAN9252_TYPE,
+            Flavour::Et1100 => ecat_slave_stack::et1100::ET1100_TYPE,
         }
     }
     /// ESC revision (0x0001).
