@@ -3,6 +3,7 @@ pub mod board_glue;
 pub mod cia402;
 pub mod comm;
 pub mod commutation;
+pub mod control_core;
 pub mod current_supervisor;
 pub mod diagnosis;
 pub mod dictionary;

@@ -1,27 +1,13 @@
 //! The motor-control path inside the current-loop interrupt (`ADC1_2`, priority 0)
 //! and the lock-free exchange with the cyclic path.
 //!
-//! Every PWM period (40 kHz) [`on_sample`] runs, in this order:
-//! 1. the raw sample is published ([`SAMPLES`]: offset self-check, status line,
-//!    watchdog sign of life);
-//! 2. the encoder counter (TIM2) → `foc::encoder::Encoder::update` (position, PLL
-//!    velocity, electrical angle);
-//! 3. every 4th period (10 kHz = `firmware::motion::SERVO_TS`): the newest
-//!    [`ControlCommand`] is read (power permission, offsets; new cycle →
-//!    `set_command`, new parameters → `configure`), the motion layer steps
-//!    (`firmware::commutation::CommutatedMotion`: `Motion::step`, preceded at the first
-//!    closed-loop enable after power-up by the commutation alignment, whose offset goes
-//!    into the encoder) → current reference; the index and touch-probe latches are
-//!    converted to axis positions (`firmware::latch`), and the measurements for the
-//!    drive ([`Feedback`]) are published;
-//! 4. the current loop through `firmware::current_supervisor::CurrentSupervisor`
-//!    (`run_step`: `foc::current_loop::CurrentLoop::step` plus the "current does not
-//!    follow" check, fault 0x5210) → duties → TIM1/TIM8 compare registers, or the
-//!    bridges off. While the power-up auto-tune runs (0x2013 = 1, permitted by the
-//!    drive: offsets passed, bus voltage in range, no fault) the supervisor drives the
-//!    bridges in voltage mode instead (`tune_step`) and the motion layer is held
-//!    (`step_held`); the results and a failure (motor open 0x7120) reach the drive in
-//!    [`Feedback::current`].
+//! Every PWM period (40 kHz) [`on_sample`] publishes the raw sample ([`SAMPLES`]:
+//! offset self-check, status line, watchdog sign of life) and runs
+//! `firmware::control_core::ControlCore::period` with [`BoardHw`]: encoder update, at
+//! the servo rate (10 kHz) the command, the motion layer, the latches and the
+//! measurements for the drive ([`FEEDBACK`]), then the bridge decision and the
+//! current loop. Every decision is the library's (host- and QEMU-tested); this
+//! module holds the static cells and the register access of [`BoardHw`].
 //!
 //! Touch probes: probe 1 (IN1) is latched by TIM2 CH4 on both edges in hardware
 //! ([`crate::hw::encoder::take_probe1_capture`]: the pin level read with the capture
@@ -79,15 +65,12 @@ use core::mem::MaybeUninit;
 use core::sync::atomic::{AtomicBool, Ordering};
 
 pub use firmware::board_glue::{ControlCommand, Exchange, Feedback};
-use firmware::commutation::{CommutatedMotion, Commutation};
-use firmware::current_supervisor::{CurrentReport, CurrentSupervisor, SupervisorConfig};
-use firmware::latch::{units_at_count, Edges, Seen};
-use firmware::motion::{CurrentReference, Frame, MotionConfig};
-use firmware::power_gate::{bridge_mode, BridgeMode, GateInputs};
+use firmware::control_core::{ControlCore, ControlHw, LoopMotor, PowerStageConfig};
+use firmware::current_supervisor::{CurrentReport, SupervisorConfig};
+use firmware::latch::Edges;
+use firmware::motion::MotionConfig;
 use firmware::sampling::RawSample;
-use foc::current_loop::{AdcSample, CurrentLoop, CurrentLoopConfig, Sense};
-use foc::encoder::{Encoder, EncoderConfig};
-use foc::modulation::Modulator;
+use foc::modulation::Duties;
 
 use crate::board;
 use crate::hw::pwm;
@@ -123,13 +106,6 @@ fn feedback_start(f: &mut Feedback) {
     f.current = CurrentReport::NONE;
 }
 
-const NO_EDGES: Edges<i32> = Edges {
-    active_seq: 0,
-    active: 0,
-    inactive_seq: 0,
-    inactive: 0,
-};
-
 /// `touch_probe2` task → interrupt: encoder counts (TIM2) latched at the IN2 edges.
 /// One writer (that task, priority 2); the interrupt preempts it, never the reverse.
 pub static PROBE2_RAW: Exchange<Edges<u32>> = Exchange::new(Edges {
@@ -139,37 +115,53 @@ pub static PROBE2_RAW: Exchange<Edges<u32>> = Exchange::new(Edges {
     inactive: 0,
 });
 
-/// Current-loop bandwidth, rad/s (2π·f_PWM/20, the design limit of `foc::current_loop`).
-const WC: f32 = 2.0 * core::f32::consts::PI * board::PWM_HZ as f32 / 20.0;
-/// Encoder PLL natural frequency, rad/s.
-const PLL_OMEGA: f32 = 8000.0;
-/// Current-loop periods per servo period.
-const SERVO_DIVIDER: u8 = 4;
+/// The control path's view of the board: register access only.
+pub struct BoardHw;
 
-/// State owned by the interrupt.
-struct Control {
-    cl: CurrentLoop,
-    enc: Encoder,
-    motion: CommutatedMotion,
-    sup: CurrentSupervisor,
-    reference: CurrentReference,
-    divider: u8,
-    seen_cycle: u32,
-    seen_config: u32,
-    bridges_on: bool,
-    /// Power permission of the last command (read at the servo rate).
-    permitted: bool,
-    /// TIM2 count at the last encoder update.
-    raw: u32,
-    index_seq: u32,
-    index_units: i32,
-    probe1: Edges<i32>,
-    probe2: Edges<i32>,
-    /// Probe-2 latches already converted.
-    probe2_seen: Seen,
+impl ControlHw for BoardHw {
+    #[inline(always)]
+    fn raw_count(&mut self) -> u32 {
+        crate::hw::encoder::raw_count()
+    }
+    #[inline(always)]
+    fn command(&mut self) -> Option<ControlCommand> {
+        COMMAND.read().and_then(|(_, v)| v)
+    }
+    #[inline(always)]
+    fn take_index_capture(&mut self) -> Option<u32> {
+        crate::hw::encoder::take_index_capture()
+    }
+    #[inline(always)]
+    fn take_probe1_capture(&mut self) -> Option<(u32, bool)> {
+        crate::hw::encoder::take_probe1_capture()
+    }
+    #[inline(always)]
+    fn probe2(&mut self) -> Option<Edges<u32>> {
+        PROBE2_RAW.read().map(|(_, e)| e)
+    }
+    #[inline(always)]
+    fn halted(&self) -> bool {
+        crate::hw::safety::HALT.is_halted()
+    }
+    #[inline(always)]
+    fn break_latched(&self) -> bool {
+        pwm::break_latched() != 0
+    }
+    #[inline(always)]
+    fn enable_outputs(&mut self) -> bool {
+        pwm::enable_outputs()
+    }
+    #[inline(always)]
+    fn disable_outputs(&mut self) {
+        pwm::disable_outputs();
+    }
+    #[inline(always)]
+    fn set_duties(&mut self, d: Duties) {
+        pwm::set_compare(d.a1, d.a2, d.b1, d.b2);
+    }
 }
 
-struct IsrOwned(UnsafeCell<MaybeUninit<Control>>);
+struct IsrOwned(UnsafeCell<MaybeUninit<ControlCore>>);
 // SAFETY: written once by `init` before the interrupt is enabled, then only touched
 // by the interrupt (READY tells it the value is there).
 unsafe impl Sync for IsrOwned {}
@@ -191,31 +183,6 @@ pub fn init(
     l_h: f32,
     ke: f32,
 ) {
-    let ts = 1.0 / board::PWM_HZ as f32;
-    let (kp, ki) = CurrentLoopConfig::gains_for(r_ohm, l_h, WC);
-    let cl = CurrentLoop::new(CurrentLoopConfig {
-        ts,
-        kp,
-        ki,
-        inductance: l_h,
-        ke,
-        latency: 1.5,
-        sense: Sense {
-            amps_per_count: board::ANALOG.amps_per_count,
-            offset_a: f32::from(board::ANALOG.offset_nominal),
-            offset_b: f32::from(board::ANALOG.offset_nominal),
-            volts_per_count: board::ANALOG.volts_per_count,
-        },
-        modulator: Modulator::new(board::PWM_ARR),
-    });
-    let enc = Encoder::new(
-        EncoderConfig {
-            lines: encoder_lines.max(1),
-            ts,
-            pll_omega: PLL_OMEGA,
-        },
-        crate::hw::encoder::raw_count() as u16,
-    );
     if READY.load(Ordering::Acquire) {
         return;
     }
@@ -225,29 +192,26 @@ pub fn init(
         COMMAND.reset(None);
         FEEDBACK.reset_then(feedback_start);
     }
-    // One whole-struct write (a struct literal: a field added to `Control` and not
-    // given a value here does not compile).
     // SAFETY: the interrupt does not read CONTROL before READY is set, and `init` runs
     // once (checked above), so nothing else references the cell.
     let slot = unsafe { &mut *CONTROL.0.get() };
-    slot.write(Control {
-        cl,
-        enc,
-        motion: CommutatedMotion::new(motion, wiggle),
-        sup: CurrentSupervisor::new(supervisor),
-        reference: CurrentReference::OFF,
-        divider: 0,
-        seen_cycle: 0,
-        seen_config: 0,
-        bridges_on: false,
-        permitted: false,
-        raw: crate::hw::encoder::raw_count(),
-        index_seq: 0,
-        index_units: 0,
-        probe1: NO_EDGES,
-        probe2: NO_EDGES,
-        probe2_seen: Seen::default(),
-    });
+    slot.write(ControlCore::new(
+        PowerStageConfig {
+            pwm_hz: board::PWM_HZ,
+            pwm_arr: board::PWM_ARR,
+            analog: board::ANALOG,
+        },
+        LoopMotor {
+            r_ohm,
+            l_h,
+            ke,
+            encoder_lines,
+        },
+        motion,
+        wiggle,
+        supervisor,
+        crate::hw::encoder::raw_count(),
+    ));
     READY.store(true, Ordering::Release);
 }
 
@@ -267,178 +231,8 @@ pub fn on_sample(s: RawSample) {
     }
     // SAFETY: initialised (READY), and only this interrupt touches it from then on.
     let c = unsafe { (*CONTROL.0.get()).assume_init_mut() };
-    c.raw = crate::hw::encoder::raw_count();
-    c.enc.update(c.raw as u16);
-
-    c.divider += 1;
-    if c.divider >= SERVO_DIVIDER {
-        c.divider = 0;
-        // The command is read at the servo rate: a withdrawn permission switches the
-        // bridges off within 100 µs (an over-current does so in hardware at once).
-        let cmd = COMMAND.read().and_then(|(_, v)| v);
-        c.permitted = cmd.as_ref().is_some_and(ControlCommand::permits_power);
-        if !c.permitted {
-            // The drive has withdrawn the power (it took the trip's fault): re-armed.
-            c.sup.rearm();
-        }
-        servo_step(c, cmd.as_ref());
+    if let Some(fb) = c.period(&mut BoardHw, s) {
+        // SAFETY: this interrupt is the one writer of FEEDBACK.
+        unsafe { FEEDBACK.write(fb) };
     }
-
-    // The bridge decision is the library's (`firmware::power_gate`): never on while
-    // halted (panic / HardFault) or with a latched break.
-    let mode = bridge_mode(GateInputs {
-        halted: crate::hw::safety::HALT.is_halted(),
-        break_latched: pwm::break_latched() != 0,
-        tripped: c.sup.tripped(),
-        tuning: c.sup.tuning(),
-        permitted: c.permitted,
-        power_wanted: c.reference.power,
-    });
-    let adc = AdcSample {
-        ia: s.ia,
-        ib: s.ib,
-        vbus: s.vbus,
-    };
-    if mode != BridgeMode::Off {
-        if !c.bridges_on {
-            c.cl.reset();
-            c.bridges_on = pwm::enable_outputs();
-        }
-        let d = if mode == BridgeMode::Tune {
-            // Power-up auto-tune: voltage mode, the motion layer is held.
-            c.sup.tune_step(&mut c.cl, &adc)
-        } else {
-            if c.reference.reset {
-                c.cl.reset();
-                c.reference.reset = false;
-            }
-            c.cl.id_ref = c.reference.id;
-            c.cl.iq_ref = c.reference.iq;
-            let (theta, omega) = match c.reference.frame {
-                Frame::Encoder => (c.enc.electrical_angle(), c.enc.omega_e()),
-                Frame::Command { angle, omega_e } => (angle, omega_e),
-            };
-            c.sup.run_step(&mut c.cl, &adc, theta, omega)
-        };
-        if c.sup.protect(&c.cl) {
-            // The fast protection (`CurrentSupervisor::protect`): off in this period.
-            pwm::disable_outputs();
-            c.bridges_on = false;
-        } else {
-            pwm::set_compare(d.a1, d.a2, d.b1, d.b2);
-        }
-    } else {
-        if c.bridges_on {
-            pwm::disable_outputs();
-            c.bridges_on = false;
-        }
-        c.sup.idle();
-        // Keep the measurements fresh for the drive (and the protection watching).
-        c.cl.voltage_step(&adc, 0.0, 0.0);
-        c.sup.protect(&c.cl);
-    }
-}
-
-fn servo_step(c: &mut Control, cmd: Option<&ControlCommand>) {
-    c.sup.permit_tune(cmd.is_some_and(|k| k.tune_allowed));
-    if let Some(k) = cmd {
-        if k.config != c.seen_config {
-            c.seen_config = k.config;
-            c.motion.configure(k.motion, k.align_wiggle);
-            if k.supervisor != *c.sup.config() {
-                c.sup.configure(k.supervisor);
-            }
-        }
-        if let Some((a, b)) = k.offsets {
-            let cfg = c.cl.config().sense;
-            if cfg.offset_a != a || cfg.offset_b != b {
-                c.cl.set_offsets(a, b);
-            }
-        }
-        if k.cycle != c.seen_cycle {
-            c.seen_cycle = k.cycle;
-            c.motion.set_command(&k.motion_command(), k.cycle_s);
-        }
-    }
-    let fb = firmware::motion::Feedback {
-        position: c.enc.position(),
-        velocity: c.enc.velocity(),
-        electrical_angle: c.enc.electrical_angle(),
-        voltage_limited: c.cl.saturated,
-    };
-    let step = if c.sup.tuning() {
-        c.motion.step_held(&fb)
-    } else {
-        c.motion.step(&fb, c.enc.raw_electrical_angle())
-    };
-    c.reference = step.reference;
-    if let Some(offset) = step.offset {
-        c.enc.set_electrical_offset(offset);
-    }
-    if let Some(z) = crate::hw::encoder::take_index_capture() {
-        index_pulse(c, z);
-    }
-    probe_latches(c);
-    let mut axis = firmware::drive::AxisState::default();
-    c.motion.motion().fill_axis_state(&mut axis);
-    // CiA 402 transition 4 waits while the closed loop still needs its alignment.
-    axis.commutation_pending = c.motion.enable_pending();
-    let ma = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
-    axis.ia_ma = ma(c.cl.i_ab.alpha);
-    axis.ib_ma = ma(c.cl.i_ab.beta);
-    axis.bus_mv = (c.cl.vbus * 1000.0).clamp(0.0, 1.0e6) as u32;
-    axis.electrical_angle = (c.enc.electrical_angle().0 >> 16) as u16;
-    let fb = Feedback {
-        axis,
-        bridges_on: c.bridges_on,
-        index_seq: c.index_seq,
-        index_units: c.index_units,
-        probe1: c.probe1,
-        probe2: c.probe2,
-        aligned: c.motion.state() == Commutation::Aligned,
-        align_failures: c.motion.failures(),
-        current: c.sup.report(),
-    };
-    // SAFETY: this interrupt is the one writer of FEEDBACK.
-    unsafe { FEEDBACK.write(fb) };
-}
-
-/// Axis position (command units) at a latched TIM2 count.
-fn units_at(c: &Control, latched: u32) -> i32 {
-    let m = c.motion.motion();
-    units_at_count(
-        m.config(),
-        m.position_units(),
-        c.raw.wrapping_sub(latched) as i32,
-    )
-}
-
-/// Touch-probe latches of this servo period → command units.
-fn probe_latches(c: &mut Control) {
-    if let Some((count, to_active)) = crate::hw::encoder::take_probe1_capture() {
-        let u = units_at(c, count);
-        c.probe1.record(to_active, u);
-    }
-    if let Some((_, raw)) = PROBE2_RAW.read() {
-        let (to_active, to_inactive) = raw.take_new(&mut c.probe2_seen);
-        if let Some(n) = to_active {
-            let u = units_at(c, n);
-            c.probe2.record(true, u);
-        }
-        if let Some(n) = to_inactive {
-            let u = units_at(c, n);
-            c.probe2.record(false, u);
-        }
-    }
-}
-
-/// An index pulse latched count `z` (TIM2 CH3): the axis position at that instant
-/// is the present position minus the counts moved since, in command units.
-fn index_pulse(c: &mut Control, z: u32) {
-    c.enc.on_index(z as u16);
-    if c.motion.motion().config().counts_per_rev == 0 {
-        return;
-    }
-    c.index_units = units_at(c, z);
-    c.index_seq = c.index_seq.wrapping_add(1);
 }

@@ -1,0 +1,580 @@
+//! The motor-control path of the current-loop interrupt, chip-independent: what the
+//! board's `ADC1_2` interrupt (`firmware/src/hw/control.rs`) does every PWM period,
+//! behind the [`ControlHw`] trait, so that host and QEMU tests run the same decisions
+//! the board runs.
+//!
+//! Every PWM period [`ControlCore::period`] does, in this order:
+//! 1. the encoder counter → `foc::encoder::Encoder::update` (position, PLL velocity,
+//!    electrical angle);
+//! 2. every [`SERVO_DIVIDER`]th period (10 kHz = [`crate::motion::SERVO_TS`]): the
+//!    newest [`ControlCommand`] is read (power permission, offsets; a new cycle →
+//!    `set_command`, new parameters → `configure`), the motion layer steps
+//!    ([`CommutatedMotion`], held while the power-up auto-tune runs) → current
+//!    reference; the index and touch-probe latches become axis positions
+//!    ([`crate::latch`]), and the measurements for the drive ([`Feedback`]) are
+//!    returned for publication;
+//! 3. the bridges: [`bridge_mode`] decides (halted, break latched, fast protection
+//!    tripped, auto-tune, the drive's permission, the motion layer's wish); on, the
+//!    current loop through [`CurrentSupervisor`] (`run_step`, or `tune_step` in
+//!    voltage mode while tuning) → duties → compare registers, unless the fast
+//!    protection trips in this very period; off, the loop keeps measuring (the
+//!    protection keeps watching) with zero volts.
+//!
+//! A withdrawn permission re-arms the fast protection (the drive has taken the trip's
+//! fault); the current loop's integrators restart at every enable and at a
+//! reference's reset.
+use crate::board_glue::{ControlCommand, Feedback};
+use crate::commutation::{CommutatedMotion, Commutation};
+use crate::current_supervisor::{CurrentSupervisor, SupervisorConfig};
+use crate::latch::{units_at_count, Edges, Seen};
+use crate::motion::{CurrentReference, Frame, MotionConfig};
+use crate::power_gate::{bridge_mode, BridgeMode, GateInputs};
+use crate::sampling::{AnalogScale, RawSample};
+use foc::current_loop::{AdcSample, CurrentLoop, CurrentLoopConfig, Sense};
+use foc::encoder::{Encoder, EncoderConfig};
+use foc::modulation::{Duties, Modulator};
+
+/// Current-loop periods per servo period.
+pub const SERVO_DIVIDER: u8 = 4;
+/// Encoder PLL natural frequency, rad/s.
+const PLL_OMEGA: f32 = 8000.0;
+
+/// What the control path needs of the hardware: the board maps each call onto its
+/// registers (TIM2, TIM1/TIM8, the capture flags, the halted state); tests onto a
+/// model.
+pub trait ControlHw {
+    /// The encoder counter (wrapping).
+    fn raw_count(&mut self) -> u32;
+    /// The newest command of the drive side (read at the servo rate).
+    fn command(&mut self) -> Option<ControlCommand>;
+    /// The counter latched by an index pulse since the last call.
+    fn take_index_capture(&mut self) -> Option<u32>;
+    /// The counter latched by a touch-probe 1 edge since the last call, and whether
+    /// the edge went to the active level.
+    fn take_probe1_capture(&mut self) -> Option<(u32, bool)>;
+    /// The counters latched at the touch-probe 2 edges (sequence-numbered).
+    fn probe2(&mut self) -> Option<Edges<u32>>;
+    /// A panic or HardFault halted the drive (sticky until reset).
+    fn halted(&self) -> bool;
+    /// A break (over-current) is latched.
+    fn break_latched(&self) -> bool;
+    /// Switches both bridges on at zero volts; false when the hardware refused.
+    fn enable_outputs(&mut self) -> bool;
+    /// Switches both bridges off.
+    fn disable_outputs(&mut self);
+    /// Loads the compare registers.
+    fn set_duties(&mut self, d: Duties);
+}
+
+/// The board's fixed quantities the control path is built from.
+#[derive(Debug, Clone, Copy)]
+pub struct PowerStageConfig {
+    /// PWM frequency, Hz (one [`ControlCore::period`] per PWM period).
+    pub pwm_hz: u32,
+    /// PWM auto-reload value (centre-aligned).
+    pub pwm_arr: u16,
+    /// ADC scaling and nominal offsets.
+    pub analog: AnalogScale,
+}
+
+/// The motor data the current loop's gains and feed-forward start from (until an
+/// auto-tune replaces them).
+#[derive(Debug, Clone, Copy)]
+pub struct LoopMotor {
+    /// Phase resistance, Ω.
+    pub r_ohm: f32,
+    /// Phase inductance, H.
+    pub l_h: f32,
+    /// Back-EMF constant, V·s/rad (electrical).
+    pub ke: f32,
+    /// Encoder lines per revolution.
+    pub encoder_lines: u32,
+}
+
+/// The state of the control path (owned by the current-loop interrupt on the board).
+pub struct ControlCore {
+    cl: CurrentLoop,
+    enc: Encoder,
+    motion: CommutatedMotion,
+    sup: CurrentSupervisor,
+    reference: CurrentReference,
+    divider: u8,
+    seen_cycle: u32,
+    seen_config: u32,
+    bridges_on: bool,
+    /// Power permission of the last command (read at the servo rate).
+    permitted: bool,
+    /// Encoder counter at the last update.
+    raw: u32,
+    index_seq: u32,
+    index_units: i32,
+    probe1: Edges<i32>,
+    probe2: Edges<i32>,
+    /// Probe-2 latches already converted.
+    probe2_seen: Seen,
+}
+
+const NO_EDGES: Edges<i32> = Edges {
+    active_seq: 0,
+    active: 0,
+    inactive_seq: 0,
+    inactive: 0,
+};
+
+impl ControlCore {
+    /// The control path at power-up: bridges off, no command seen, the current loop's
+    /// gains for a bandwidth of 2π·f_PWM/20 (the design limit of
+    /// `foc::current_loop`), the encoder starting at `raw_count`.
+    pub fn new(
+        stage: PowerStageConfig,
+        motor: LoopMotor,
+        motion: MotionConfig,
+        wiggle: bool,
+        supervisor: SupervisorConfig,
+        raw_count: u32,
+    ) -> Self {
+        let ts = 1.0 / stage.pwm_hz as f32;
+        let wc = 2.0 * core::f32::consts::PI * stage.pwm_hz as f32 / 20.0;
+        let (kp, ki) = CurrentLoopConfig::gains_for(motor.r_ohm, motor.l_h, wc);
+        let cl = CurrentLoop::new(CurrentLoopConfig {
+            ts,
+            kp,
+            ki,
+            inductance: motor.l_h,
+            ke: motor.ke,
+            latency: 1.5,
+            sense: Sense {
+                amps_per_count: stage.analog.amps_per_count,
+                offset_a: f32::from(stage.analog.offset_nominal),
+                offset_b: f32::from(stage.analog.offset_nominal),
+                volts_per_count: stage.analog.volts_per_count,
+            },
+            modulator: Modulator::new(stage.pwm_arr),
+        });
+        let enc = Encoder::new(
+            EncoderConfig {
+                lines: motor.encoder_lines.max(1),
+                ts,
+                pll_omega: PLL_OMEGA,
+            },
+            raw_count as u16,
+        );
+        ControlCore {
+            cl,
+            enc,
+            motion: CommutatedMotion::new(motion, wiggle),
+            sup: CurrentSupervisor::new(supervisor),
+            reference: CurrentReference::OFF,
+            divider: 0,
+            seen_cycle: 0,
+            seen_config: 0,
+            bridges_on: false,
+            permitted: false,
+            raw: raw_count,
+            index_seq: 0,
+            index_units: 0,
+            probe1: NO_EDGES,
+            probe2: NO_EDGES,
+            probe2_seen: Seen::default(),
+        }
+    }
+
+    /// The bridges are on.
+    pub fn bridges_on(&self) -> bool {
+        self.bridges_on
+    }
+
+    /// One PWM period with the fresh sample `s` (module docs). Returns the
+    /// measurements for the drive at the servo rate.
+    #[inline(always)]
+    pub fn period<H: ControlHw>(&mut self, hw: &mut H, s: RawSample) -> Option<Feedback> {
+        self.raw = hw.raw_count();
+        self.enc.update(self.raw as u16);
+
+        let mut feedback = None;
+        self.divider += 1;
+        if self.divider >= SERVO_DIVIDER {
+            self.divider = 0;
+            // The command is read at the servo rate: a withdrawn permission switches
+            // the bridges off within one servo period (an over-current does so in
+            // hardware at once).
+            let cmd = hw.command();
+            self.permitted = cmd.as_ref().is_some_and(ControlCommand::permits_power);
+            if !self.permitted {
+                // The drive has withdrawn the power (it took the trip's fault): re-armed.
+                self.sup.rearm();
+            }
+            feedback = Some(self.servo_step(hw, cmd.as_ref()));
+        }
+
+        // The bridge decision (`power_gate`): never on while halted (panic /
+        // HardFault) or with a latched break.
+        let mode = bridge_mode(GateInputs {
+            halted: hw.halted(),
+            break_latched: hw.break_latched(),
+            tripped: self.sup.tripped(),
+            tuning: self.sup.tuning(),
+            permitted: self.permitted,
+            power_wanted: self.reference.power,
+        });
+        let adc = AdcSample {
+            ia: s.ia,
+            ib: s.ib,
+            vbus: s.vbus,
+        };
+        if mode != BridgeMode::Off {
+            if !self.bridges_on {
+                self.cl.reset();
+                self.bridges_on = hw.enable_outputs();
+            }
+            let d = if mode == BridgeMode::Tune {
+                // Power-up auto-tune: voltage mode, the motion layer is held.
+                self.sup.tune_step(&mut self.cl, &adc)
+            } else {
+                if self.reference.reset {
+                    self.cl.reset();
+                    self.reference.reset = false;
+                }
+                self.cl.id_ref = self.reference.id;
+                self.cl.iq_ref = self.reference.iq;
+                let (theta, omega) = match self.reference.frame {
+                    Frame::Encoder => (self.enc.electrical_angle(), self.enc.omega_e()),
+                    Frame::Command { angle, omega_e } => (angle, omega_e),
+                };
+                self.sup.run_step(&mut self.cl, &adc, theta, omega)
+            };
+            if self.sup.protect(&self.cl) {
+                // The fast protection (`CurrentSupervisor::protect`): off in this period.
+                hw.disable_outputs();
+                self.bridges_on = false;
+            } else {
+                hw.set_duties(d);
+            }
+        } else {
+            if self.bridges_on {
+                hw.disable_outputs();
+                self.bridges_on = false;
+            }
+            self.sup.idle();
+            // Keep the measurements fresh for the drive (and the protection watching).
+            self.cl.voltage_step(&adc, 0.0, 0.0);
+            self.sup.protect(&self.cl);
+        }
+        feedback
+    }
+
+    /// The servo period: the command's news, the motion layer's step, the latches and
+    /// the measurements for the drive.
+    fn servo_step<H: ControlHw>(&mut self, hw: &mut H, cmd: Option<&ControlCommand>) -> Feedback {
+        self.sup.permit_tune(cmd.is_some_and(|k| k.tune_allowed));
+        if let Some(k) = cmd {
+            if k.config != self.seen_config {
+                self.seen_config = k.config;
+                self.motion.configure(k.motion, k.align_wiggle);
+                if k.supervisor != *self.sup.config() {
+                    self.sup.configure(k.supervisor);
+                }
+            }
+            if let Some((a, b)) = k.offsets {
+                let cfg = self.cl.config().sense;
+                if cfg.offset_a != a || cfg.offset_b != b {
+                    self.cl.set_offsets(a, b);
+                }
+            }
+            if k.cycle != self.seen_cycle {
+                self.seen_cycle = k.cycle;
+                self.motion.set_command(&k.motion_command(), k.cycle_s);
+            }
+        }
+        let fb = crate::motion::Feedback {
+            position: self.enc.position(),
+            velocity: self.enc.velocity(),
+            electrical_angle: self.enc.electrical_angle(),
+            voltage_limited: self.cl.saturated,
+        };
+        let step = if self.sup.tuning() {
+            self.motion.step_held(&fb)
+        } else {
+            self.motion.step(&fb, self.enc.raw_electrical_angle())
+        };
+        self.reference = step.reference;
+        if let Some(offset) = step.offset {
+            self.enc.set_electrical_offset(offset);
+        }
+        if let Some(z) = hw.take_index_capture() {
+            self.index_pulse(z);
+        }
+        self.probe_latches(hw);
+        let mut axis = crate::drive::AxisState::default();
+        self.motion.motion().fill_axis_state(&mut axis);
+        // CiA 402 transition 4 waits while the closed loop still needs its alignment.
+        axis.commutation_pending = self.motion.enable_pending();
+        let ma = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
+        axis.ia_ma = ma(self.cl.i_ab.alpha);
+        axis.ib_ma = ma(self.cl.i_ab.beta);
+        axis.bus_mv = (self.cl.vbus * 1000.0).clamp(0.0, 1.0e6) as u32;
+        axis.electrical_angle = (self.enc.electrical_angle().0 >> 16) as u16;
+        Feedback {
+            axis,
+            bridges_on: self.bridges_on,
+            index_seq: self.index_seq,
+            index_units: self.index_units,
+            probe1: self.probe1,
+            probe2: self.probe2,
+            aligned: self.motion.state() == Commutation::Aligned,
+            align_failures: self.motion.failures(),
+            current: self.sup.report(),
+        }
+    }
+
+    /// Axis position (command units) at a latched encoder count.
+    fn units_at(&self, latched: u32) -> i32 {
+        let m = self.motion.motion();
+        units_at_count(
+            m.config(),
+            m.position_units(),
+            self.raw.wrapping_sub(latched) as i32,
+        )
+    }
+
+    /// Touch-probe latches of this servo period → command units.
+    fn probe_latches<H: ControlHw>(&mut self, hw: &mut H) {
+        if let Some((count, to_active)) = hw.take_probe1_capture() {
+            let u = self.units_at(count);
+            self.probe1.record(to_active, u);
+        }
+        if let Some(raw) = hw.probe2() {
+            let (to_active, to_inactive) = raw.take_new(&mut self.probe2_seen);
+            if let Some(n) = to_active {
+                let u = self.units_at(n);
+                self.probe2.record(true, u);
+            }
+            if let Some(n) = to_inactive {
+                let u = self.units_at(n);
+                self.probe2.record(false, u);
+            }
+        }
+    }
+
+    /// An index pulse latched count `z`: the axis position at that instant is the
+    /// present position minus the counts moved since, in command units.
+    fn index_pulse(&mut self, z: u32) {
+        self.enc.on_index(z as u16);
+        if self.motion.motion().config().counts_per_rev == 0 {
+            return;
+        }
+        self.index_units = self.units_at(z);
+        self.index_seq = self.index_seq.wrapping_add(1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cia402::{DriveCommand, SetpointKind};
+    use crate::identity::Variant;
+    use crate::motion::{ECN57_20, SERVO_TS};
+    use crate::params::Params;
+
+    const STAGE: PowerStageConfig = PowerStageConfig {
+        pwm_hz: 40_000,
+        pwm_arr: 2125,
+        analog: AnalogScale {
+            amps_per_count: 0.006,
+            volts_per_count: 0.016,
+            offset_nominal: 2048,
+            offset_tolerance: 200,
+            noise_tolerance: 40,
+        },
+    };
+
+    /// Registers of a model board: what the control path did to them.
+    #[derive(Default)]
+    struct ModelHw {
+        count: u32,
+        command: Option<ControlCommand>,
+        index: Option<u32>,
+        halted: bool,
+        break_latched: bool,
+        on: bool,
+        enables: u32,
+        duties: Option<Duties>,
+    }
+
+    impl ControlHw for ModelHw {
+        fn raw_count(&mut self) -> u32 {
+            self.count
+        }
+        fn command(&mut self) -> Option<ControlCommand> {
+            self.command
+        }
+        fn take_index_capture(&mut self) -> Option<u32> {
+            self.index.take()
+        }
+        fn take_probe1_capture(&mut self) -> Option<(u32, bool)> {
+            None
+        }
+        fn probe2(&mut self) -> Option<Edges<u32>> {
+            None
+        }
+        fn halted(&self) -> bool {
+            self.halted
+        }
+        fn break_latched(&self) -> bool {
+            self.break_latched
+        }
+        fn enable_outputs(&mut self) -> bool {
+            // The board refuses with a latched break or when halted.
+            self.on = !self.break_latched && !self.halted;
+            self.enables += 1;
+            self.on
+        }
+        fn disable_outputs(&mut self) {
+            self.on = false;
+        }
+        fn set_duties(&mut self, d: Duties) {
+            self.duties = Some(d);
+        }
+    }
+
+    fn core(variant: Variant) -> (ControlCore, ControlCommand) {
+        let mut p = Params::new(variant);
+        // Open loop: no commutation alignment before the current flows.
+        p.set_internal(crate::params::P::LoopMode, 1);
+        let motion = MotionConfig::from_params(&p, variant, &ECN57_20, SERVO_TS);
+        let sup = SupervisorConfig::from_params(&p, 1.0 / STAGE.pwm_hz as f32, STAGE.pwm_arr);
+        let c = ControlCore::new(
+            STAGE,
+            LoopMotor {
+                r_ohm: 0.5,
+                l_h: 1.6e-3,
+                ke: ECN57_20.kt,
+                encoder_lines: motion.counts_per_rev / 4,
+            },
+            motion,
+            false,
+            sup,
+            0,
+        );
+        let cmd = ControlCommand {
+            cycle: 1,
+            command: DriveCommand {
+                power_stage: true,
+                drive_enabled: true,
+                kind: SetpointKind::Position,
+                position: 0,
+                velocity: 0.0,
+                acceleration: 0.0,
+                torque_limit: 1000,
+                current_limit: 1000,
+                brake_release: true,
+            },
+            cycle_s: 1e-3,
+            power_allowed: true,
+            config: 1,
+            motion,
+            align_wiggle: false,
+            offsets: Some((2048.0, 2048.0)),
+            supervisor: sup,
+            tune_allowed: false,
+        };
+        (c, cmd)
+    }
+
+    /// Zero current at 24 V.
+    const REST: RawSample = RawSample {
+        ia: 2048,
+        ib: 2048,
+        vbus: 1500,
+    };
+
+    fn run(c: &mut ControlCore, hw: &mut ModelHw, periods: u32) -> Option<Feedback> {
+        let mut last = None;
+        for _ in 0..periods {
+            if let Some(f) = c.period(hw, REST) {
+                last = Some(f);
+            }
+        }
+        last
+    }
+
+    #[test]
+    fn feedback_at_the_servo_rate_and_bridges_off_without_a_command() {
+        let (mut c, _) = core(Variant::OpenLoop);
+        let mut hw = ModelHw::default();
+        let mut published = 0;
+        for _ in 0..40 {
+            published += u32::from(c.period(&mut hw, REST).is_some());
+        }
+        assert_eq!(published, 40 / u32::from(SERVO_DIVIDER));
+        assert_eq!((hw.enables, hw.on), (0, false));
+        assert!(!c.bridges_on());
+    }
+
+    #[test]
+    fn permission_and_offsets_switch_on_and_their_withdrawal_off() {
+        let (mut c, cmd) = core(Variant::OpenLoop);
+        let mut hw = ModelHw {
+            command: Some(ControlCommand {
+                offsets: None,
+                ..cmd
+            }),
+            ..ModelHw::default()
+        };
+        run(&mut c, &mut hw, 40);
+        assert!(!hw.on, "no offsets: no power");
+        hw.command = Some(cmd);
+        let fb = run(&mut c, &mut hw, 400).expect("feedback");
+        assert!(hw.on && c.bridges_on() && fb.bridges_on);
+        assert_eq!(hw.enables, 1, "enabled once, then held");
+        assert!(hw.duties.is_some());
+        assert!(
+            (fb.axis.bus_mv as i32 - 24_000).abs() < 100,
+            "{}",
+            fb.axis.bus_mv
+        );
+        hw.command = Some(ControlCommand {
+            power_allowed: false,
+            ..cmd
+        });
+        run(&mut c, &mut hw, u32::from(SERVO_DIVIDER));
+        assert!(!hw.on && !c.bridges_on(), "off within one servo period");
+    }
+
+    #[test]
+    fn halt_and_break_keep_the_bridges_off() {
+        for (halted, brk) in [(true, false), (false, true)] {
+            let (mut c, cmd) = core(Variant::OpenLoop);
+            let mut hw = ModelHw {
+                command: Some(cmd),
+                ..ModelHw::default()
+            };
+            run(&mut c, &mut hw, 200);
+            assert!(hw.on);
+            hw.halted = halted;
+            hw.break_latched = brk;
+            run(&mut c, &mut hw, 200);
+            assert!(!hw.on && !c.bridges_on(), "halted {halted} break {brk}");
+        }
+    }
+
+    #[test]
+    fn index_capture_becomes_an_axis_position() {
+        let (mut c, cmd) = core(Variant::HybridServo);
+        let mut hw = ModelHw {
+            command: Some(cmd),
+            ..ModelHw::default()
+        };
+        let before = run(&mut c, &mut hw, 8).expect("feedback").index_seq;
+        hw.count = 100;
+        hw.index = Some(60);
+        let fb = run(&mut c, &mut hw, u32::from(SERVO_DIVIDER)).expect("feedback");
+        assert_eq!(fb.index_seq, before + 1);
+        // 40 counts moved since the pulse: the index was 40 counts behind, in units.
+        let m = c.motion.motion();
+        assert_eq!(
+            fb.index_units,
+            units_at_count(m.config(), m.position_units(), 40)
+        );
+    }
+}
