@@ -91,6 +91,35 @@ pub struct LoopMotor {
     pub encoder_lines: u32,
 }
 
+impl LoopMotor {
+    /// The current loop's resistance and inductance from the parameters 0x2020 (mΩ) /
+    /// 0x2021 (µH) once 0x2021 holds a plausible inductance (≥ 100 µH, as an auto-tune
+    /// or the user writes it), else `fallback` (the board's motor, Ω and H).
+    pub fn from_params(
+        p: &crate::params::Params,
+        fallback: (f32, f32),
+        ke: f32,
+        encoder_lines: u32,
+    ) -> Self {
+        use crate::params::P;
+        let l_uh = p.get(P::MotorInductance);
+        let (r_ohm, l_h) = if l_uh >= 100 {
+            (
+                p.get(P::MotorResistance).max(1) as f32 * 1e-3,
+                l_uh as f32 * 1e-6,
+            )
+        } else {
+            fallback
+        };
+        LoopMotor {
+            r_ohm,
+            l_h,
+            ke,
+            encoder_lines,
+        }
+    }
+}
+
 /// The state of the control path (owned by the current-loop interrupt on the board).
 pub struct ControlCore {
     cl: CurrentLoop,
@@ -576,5 +605,21 @@ mod tests {
             fb.index_units,
             units_at_count(m.config(), m.position_units(), 40)
         );
+    }
+
+    #[test]
+    fn loop_motor_takes_a_plausible_inductance_from_the_parameters() {
+        use crate::params::P;
+        let mut p = Params::new(Variant::HybridServo);
+        p.set_internal(P::MotorInductance, 50);
+        let m = LoopMotor::from_params(&p, (0.5, 1.6e-3), 0.1, 1000);
+        assert_eq!(
+            (m.r_ohm, m.l_h, m.ke, m.encoder_lines),
+            (0.5, 1.6e-3, 0.1, 1000)
+        );
+        p.set_internal(P::MotorInductance, 2500);
+        p.set_internal(P::MotorResistance, 0);
+        let m = LoopMotor::from_params(&p, (0.5, 1.6e-3), 0.1, 1000);
+        assert_eq!((m.r_ohm, m.l_h), (1e-3, 2.5e-3), "R at least 1 mΩ");
     }
 }

@@ -495,8 +495,13 @@ async fn main(spawner: Spawner) {
     let mcfg = motion_config(drive);
     let wiggle = align_wiggle(drive);
     let scfg = supervisor_config(drive);
-    let (r, l) = motor_rl(drive);
-    hw::control::init(mcfg, wiggle, scfg, mcfg.counts_per_rev / 4, r, l, MOTOR.kt);
+    let motor = firmware::control_core::LoopMotor::from_params(
+        &drive.params,
+        (MOTOR_R_OHM, MOTOR_L_H),
+        MOTOR.kt,
+        mcfg.counts_per_rev / 4,
+    );
+    hw::control::init(mcfg, wiggle, scfg, motor);
     let ctl = ControlCommand {
         cycle: 0,
         command: *drive.command(),
@@ -648,19 +653,6 @@ fn new_slave(slot: &'static mut MaybeUninit<Slave<Esc>>, esc: Esc) -> &'static m
 #[inline(never)]
 fn align_wiggle(d: &BoardDrive) -> bool {
     d.params.get(firmware::params::P::PowerUpWiggle) != 0
-}
-
-/// Resistance and inductance for the current loop: the parameters 0x2020 / 0x2021
-/// once 0x2021 holds a plausible inductance (≥ 100 µH), else the board's motor.
-fn motor_rl(d: &BoardDrive) -> (f32, f32) {
-    use firmware::params::P;
-    let l_uh = d.params.get(P::MotorInductance);
-    if l_uh >= 100 {
-        let r = d.params.get(P::MotorResistance).max(1) as f32 * 1e-3;
-        (r, l_uh as f32 * 1e-6)
-    } else {
-        (MOTOR_R_OHM, MOTOR_L_H)
-    }
 }
 
 /// The interrupt's latest measurements: one out-of-line copy of the (volatile,

@@ -171,18 +171,10 @@ static CONTROL: IsrOwned = IsrOwned(UnsafeCell::new(MaybeUninit::uninit()));
 static READY: AtomicBool = AtomicBool::new(false);
 
 /// Builds the control state. Call once, before the current-loop interrupt is
-/// enabled. `r_ohm`, `l_h`, `ke`: motor constants for the current-loop gains and
-/// feed-forward (until an auto-tune replaces them); `wiggle`: 0x2083.
+/// enabled. `motor`: the current loop's motor constants (until an auto-tune
+/// replaces them); `wiggle`: 0x2083.
 #[inline(never)]
-pub fn init(
-    motion: MotionConfig,
-    wiggle: bool,
-    supervisor: SupervisorConfig,
-    encoder_lines: u32,
-    r_ohm: f32,
-    l_h: f32,
-    ke: f32,
-) {
+pub fn init(motion: MotionConfig, wiggle: bool, supervisor: SupervisorConfig, motor: LoopMotor) {
     if READY.load(Ordering::Acquire) {
         return;
     }
@@ -201,12 +193,7 @@ pub fn init(
             pwm_arr: board::PWM_ARR,
             analog: board::ANALOG,
         },
-        LoopMotor {
-            r_ohm,
-            l_h,
-            ke,
-            encoder_lines,
-        },
+        motor,
         motion,
         wiggle,
         supervisor,
