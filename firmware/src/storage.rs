@@ -294,6 +294,9 @@ fn le32(b: &[u8]) -> u32 {
     u32::from_le_bytes(a)
 }
 
+/// The newest valid record: slot, sequence number, payload length.
+type Newest = (usize, u32, u32);
+
 /// True when sequence `a` is newer than `b` (wrapping comparison).
 pub fn newer(a: u32, b: u32) -> bool {
     (a.wrapping_sub(b) as i32) > 0
@@ -736,7 +739,7 @@ impl Storage {
     fn begin<F: NorFlash>(
         &self,
         flash: &mut F,
-    ) -> Result<(Writer, usize, u32, Option<(usize, u32, u32)>), StorageError> {
+    ) -> Result<(Writer, usize, u32, Option<Newest>), StorageError> {
         self.check(flash)?;
         let (_, best) = self.scan(flash);
         let (target, sequence) = match best {
