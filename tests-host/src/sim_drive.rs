@@ -86,6 +86,12 @@ pub trait Axis {
     fn commutation_failures(&self) -> u32 {
         0
     }
+    /// The plant develops `fault` from now on (`virtual-drive --fault`); false when the
+    /// model cannot (default: nothing is modelled).
+    fn inject(&mut self, fault: crate::fault_inject::InjectedFault) -> bool {
+        let _ = fault;
+        false
+    }
 }
 
 /// Settings of the simulated drives.
