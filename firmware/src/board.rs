@@ -128,12 +128,14 @@ pub const OFFSET_SAMPLES: u32 = 1024;
 /// First byte of the parameter record region (flash offset; the last 16 KiB of the
 /// 512 KiB flash, kept out of the linker's FLASH region by memory.x).
 pub const PARAM_FLASH_OFFSET: u32 = 512 * 1024 - 16 * 1024;
-/// Size of the parameter record region (two 8 KiB slots).
+/// Size of the record region: parameters and fault history, laid out as
+/// `firmware::storage::region` says.
 pub const PARAM_FLASH_SIZE: u32 = 16 * 1024;
 
 /// Independent watchdog timeout, µs. It must cover the longest blocking thread-mode
-/// operation: erasing one 8 KiB record slot = 4 pages × ≤ 40 ms (datasheet maximum;
-/// typically ≈ 22 ms), while the supervisor task cannot run.
+/// operation: erasing one 4 KiB record slot = 2 pages × ≤ 40 ms (datasheet maximum;
+/// typically ≈ 22 ms), while the supervisor task cannot run (300 ms also covered the
+/// 8 KiB slots of the earlier layout).
 pub const WATCHDOG_TIMEOUT_US: u32 = 300_000;
 
 /// Number of DIP matrix rows and columns.

@@ -111,12 +111,29 @@ pub trait ParameterStore {
     ) -> Result<SaveReport, StorageError>;
     /// Power-up: applies the newest valid record to `dict`.
     fn load(&mut self, dict: &mut dyn Dictionary) -> LoadReport;
+    /// Power-up: copies the payload of the newest valid fault-history record into
+    /// `out` and returns its length; `None`: no history memory or no valid record.
+    fn load_history(&mut self, out: &mut [u8]) -> Option<usize> {
+        let _ = out;
+        None
+    }
+    /// Writes a fault-history record (`crate::faults::Faults::encode_history`):
+    /// `Ok(true)` written (or, on the board, staged for programming), `Ok(false)` no
+    /// history memory (the history lives in RAM only).
+    fn write_history(&mut self, payload: &[u8]) -> Result<bool, StorageError> {
+        let _ = payload;
+        Ok(false)
+    }
 }
 
-/// The two-record flash store ([`Storage`]) over a [`NorFlash`].
+/// The two-record flash store ([`Storage`]) over a [`NorFlash`], with the fault
+/// history's own record pair in the same flash.
 pub struct FlashStore<F: NorFlash> {
-    /// Layout of the two records.
+    /// Layout of the two parameter records.
     pub storage: Storage,
+    /// Layout of the two fault-history records (`None`: the history is not kept
+    /// across power cycles). See [`crate::storage::region`].
+    pub history: Option<Storage>,
     /// The flash region.
     pub flash: F,
 }
@@ -131,6 +148,15 @@ impl<F: NorFlash> ParameterStore for FlashStore<F> {
     }
     fn load(&mut self, dict: &mut dyn Dictionary) -> LoadReport {
         self.storage.load(&mut self.flash, dict)
+    }
+    fn load_history(&mut self, out: &mut [u8]) -> Option<usize> {
+        self.history?.read_newest(&mut self.flash, out)
+    }
+    fn write_history(&mut self, payload: &[u8]) -> Result<bool, StorageError> {
+        match self.history {
+            Some(h) => h.write_bytes(&mut self.flash, payload).map(|_| true),
+            None => Ok(false),
+        }
     }
 }
 
@@ -373,8 +399,54 @@ impl<S: ParameterStore> Drive<S> {
         self.load_report = Some(report);
         self.params.latch_power_up();
         self.monitor.power_up();
+        self.load_history();
         self.apply_parameters();
         report
+    }
+
+    /// Power-up: the fault history from its flash record (nothing, i.e. an empty
+    /// history, for erased, torn or garbage records) and the operating time stored
+    /// with it — the larger of that and the parameter record's 0x2307 counts, the
+    /// history being written more often than the parameters.
+    fn load_history(&mut self) {
+        let mut buf = [0u8; crate::faults::HISTORY_PAYLOAD_MAX];
+        let n = self.store.as_mut().and_then(|s| s.load_history(&mut buf));
+        if let Some(op) = n.and_then(|n| self.faults.restore_history(&buf[..n.min(buf.len())])) {
+            self.monitor.running_time_at_least(op);
+        }
+        self.faults
+            .set_operating_base(self.monitor.running_time_s());
+    }
+
+    /// Deferred work for whoever services 'save' (the board's `ecat` task after
+    /// `poll`, the simulator's housekeeping): when the fault history changed since
+    /// the last call, writes it with the operating time 0x2307 as a new history record.
+    /// The fault path only marks the history dirty; this is never called from it.
+    ///
+    /// The board's flash rule holds as for a parameter 'save': through the staged
+    /// store this only serialises the record (≈ 170 bytes) into the RAM stage under
+    /// the shared lock; the erase and programming run afterwards in thread mode
+    /// outside the lock (bank 2 read-while-write: the current loop and the cyclic
+    /// path keep running, also with the power stage on). Call it only while no staged
+    /// parameter record waits for programming (the stage is shared).
+    ///
+    /// `None`: nothing to do (or no history memory); `Some(result)` of the write. The
+    /// history counts as written either way (a failed write is reported once, not
+    /// retried every tick; the next change writes again).
+    pub fn persist_history(&mut self) -> Option<Result<(), StorageError>> {
+        if !self.faults.history_dirty() {
+            return None;
+        }
+        self.faults.history_written();
+        let mut buf = [0u8; crate::faults::HISTORY_PAYLOAD_MAX];
+        let n = self
+            .faults
+            .encode_history(self.monitor.running_time_s(), &mut buf);
+        match self.store.as_mut()?.write_history(&buf[..n.min(buf.len())]) {
+            Ok(true) => Some(Ok(())),
+            Ok(false) => None,
+            Err(e) => Some(Err(e)),
+        }
     }
 
     /// The parameter store (the board takes a finished staged record out of it to
@@ -1440,6 +1512,7 @@ mod tests {
             7,
             FlashStore {
                 storage,
+                history: None,
                 flash: RamFlash::<8192>::new(),
             },
         );
@@ -1471,7 +1544,15 @@ mod tests {
         }
         // Power cycle: a new drive and runtime over the same flash.
         let FlashStore { flash, .. } = d.store.take().expect("store");
-        let mut d2 = Drive::with_store(Variant::HybridServo, 7, FlashStore { storage, flash });
+        let mut d2 = Drive::with_store(
+            Variant::HybridServo,
+            7,
+            FlashStore {
+                storage,
+                history: None,
+                flash,
+            },
+        );
         let mut pdo2 = PdoConfig::new(crate::pdo_defaults::PDO_DEFAULTS);
         let mut sync2 = SyncState::new((0, 0));
         let report = {
@@ -1501,12 +1582,223 @@ mod tests {
         for (i, b) in flash.mem.iter_mut().enumerate() {
             *b = (i as u8).wrapping_mul(37) ^ 0x5A;
         }
-        let mut d = Drive::with_store(Variant::HybridServo, 0, FlashStore { storage, flash });
+        let mut d = Drive::with_store(
+            Variant::HybridServo,
+            0,
+            FlashStore {
+                storage,
+                history: None,
+                flash,
+            },
+        );
         let report = d.power_up(&mut NoRuntime);
         assert!(report.source.is_none());
         assert_eq!(sdo_read_u32_any(&mut d, 0x2000, 0), 3200);
         let e = d.pop_emergency().expect("emergency for lost parameters");
         assert_eq!(e.code, crate::storage::EMCY_PARAMETERS_LOST);
+    }
+
+    /// Bytes of the record header after its CRC (reserved, not checked).
+    const HEADER_LEN_RESERVED: u32 = 12;
+
+    type HistoryFlash = crate::storage::RamFlash<{ crate::storage::region::SIZE as usize }>;
+
+    /// A drive over `flash` with the product's record layout (parameters and fault
+    /// history), powered up, all detections enabled.
+    fn history_drive(flash: HistoryFlash) -> Drive<FlashStore<HistoryFlash>> {
+        use crate::storage::region;
+        let mut d = Drive::with_store(
+            Variant::HybridServo,
+            1,
+            FlashStore {
+                storage: region::PARAMS,
+                history: Some(region::HISTORY),
+                flash,
+            },
+        );
+        d.power_up(&mut NoRuntime);
+        sdo_write_any(&mut d, 0x2056, 0, &0xFFFFu16.to_le_bytes()).expect("mask");
+        d
+    }
+
+    /// The history as the SDO dictionary shows it: (0x240n:01 code, :04 bus voltage,
+    /// :07 time, :08 operating time) for n = 1..6.
+    fn history_by_sdo<S: ParameterStore>(d: &mut Drive<S>) -> [[u32; 4]; 6] {
+        let mut h = [[0u32; 4]; 6];
+        for (i, e) in h.iter_mut().enumerate() {
+            let index = 0x2401 + i as u16;
+            assert_eq!(sdo_read_u32_any(d, index, 0), 8);
+            *e = [1, 4, 7, 8].map(|sub| sdo_read_u32_any(d, index, sub));
+        }
+        h
+    }
+
+    /// Raises and resets `kind` at `now_ms` with bus voltage `bus_dv`.
+    fn fault_at<S: ParameterStore>(d: &mut Drive<S>, kind: FaultKind, bus_dv: u16, now_ms: u32) {
+        let snap = Snapshot {
+            bus_dv,
+            ..Snapshot::default()
+        };
+        assert!(d.faults.raise(kind, snap, now_ms));
+        d.faults.condition_gone(kind);
+        d.faults.fault_reset();
+    }
+
+    fn take_flash(d: Drive<FlashStore<HistoryFlash>>) -> HistoryFlash {
+        let mut d = d;
+        d.store.take().expect("store").flash
+    }
+
+    #[test]
+    fn fault_history_survives_a_power_cycle_and_is_written_only_when_serviced() {
+        let mut d = history_drive(HistoryFlash::new());
+        assert_eq!(history_by_sdo(&mut d), [[0; 4]; 6], "blank flash: empty");
+        assert_eq!(d.persist_history(), None, "nothing to write");
+        // 100 s of running time, then an over-voltage detected by the tick.
+        for t in 1..=100_000u64 {
+            d.tick(t * 1000, 0);
+        }
+        let ops = d.store.as_ref().map(|s| s.flash.ops);
+        d.set_axis(AxisState {
+            bus_mv: 60_000,
+            ..AxisState::default()
+        });
+        d.tick(100_001_000, 0);
+        assert!(d.faults.is_active(FaultKind::OverVoltage));
+        assert!(d.faults.history_dirty());
+        assert_eq!(
+            d.store.as_ref().map(|s| s.flash.ops),
+            ops,
+            "the fault path does not touch the flash"
+        );
+        assert_eq!(d.persist_history(), Some(Ok(())));
+        assert_eq!(d.persist_history(), None, "written once");
+        let before = history_by_sdo(&mut d);
+        assert_eq!(before[0], [0x3210, 600, 100_001, 100]);
+        // Power cycle: the same history, over the SDO dictionary, and the operating
+        // time went on from the stored one (no 'save' of 0x2307 happened).
+        let mut d2 = history_drive(take_flash(d));
+        assert_eq!(history_by_sdo(&mut d2), before);
+        assert_eq!(sdo_read_u32_any(&mut d2, 0x2400, 2), 0x3210);
+        assert_eq!(sdo_read_u32_any(&mut d2, 0x2307, 0), 100);
+        assert!(!d2.faults.history_dirty(), "loading is no change");
+        // A new entry goes on top of the loaded ones and carries the operating time.
+        for t in 1..=5_000u64 {
+            d2.tick(t * 1000, 0);
+        }
+        fault_at(&mut d2, FaultKind::UnderVoltage, 110, 5_000);
+        assert_eq!(d2.persist_history(), Some(Ok(())));
+        let mut d3 = history_drive(take_flash(d2));
+        let h = history_by_sdo(&mut d3);
+        assert_eq!(h[0], [0x3220, 110, 5_000, 105]);
+        assert_eq!(h[1], before[0]);
+        // 0x2093 = 1 clears it, in flash too.
+        sdo_write_any(&mut d3, 0x2093, 0, &[1]).expect("clear");
+        d3.tick(1000, 0);
+        assert_eq!(history_by_sdo(&mut d3), [[0; 4]; 6]);
+        assert_eq!(d3.persist_history(), Some(Ok(())));
+        let mut d4 = history_drive(take_flash(d3));
+        assert_eq!(history_by_sdo(&mut d4), [[0; 4]; 6], "cleared in flash");
+    }
+
+    #[test]
+    fn power_cut_at_every_byte_of_a_history_write_keeps_old_or_new_history() {
+        // Old history: two entries, written.
+        let mut d = history_drive(HistoryFlash::new());
+        fault_at(&mut d, FaultKind::UnderVoltage, 111, 10);
+        fault_at(&mut d, FaultKind::FollowingError, 222, 20);
+        assert_eq!(d.persist_history(), Some(Ok(())));
+        let old_flash = take_flash(d);
+        let old = history_by_sdo(&mut history_drive(old_flash.clone()));
+        assert_eq!((old[0][0], old[1][0], old[2][0]), (0x8611, 0x3220, 0));
+        // The new history: one more entry; how many byte operations its write takes.
+        let raise_new = |d: &mut Drive<FlashStore<HistoryFlash>>| {
+            fault_at(d, FaultKind::MotorOpen, 333, 30);
+        };
+        let mut d = history_drive(old_flash.clone());
+        raise_new(&mut d);
+        if let Some(s) = d.store.as_mut() {
+            s.flash.power_on();
+        }
+        assert_eq!(d.persist_history(), Some(Ok(())));
+        let total = d.store.as_ref().map_or(0, |s| s.flash.ops);
+        let new = history_by_sdo(&mut history_drive(take_flash(d)));
+        assert_eq!((new[0][0], new[1][0], new[2][0]), (0x7120, 0x8611, 0x3220));
+        assert!(
+            total > 2048,
+            "erase of a 2 KiB slot and the record: {total}"
+        );
+        // Old history until the header's CRC is in flash (its last 12 bytes are
+        // reserved, not part of the record's check), the new one from then on.
+        let (mut saw_old, mut saw_new) = (0, 0);
+        for cut in 0..=total {
+            let mut d = history_drive(old_flash.clone());
+            raise_new(&mut d);
+            if let Some(s) = d.store.as_mut() {
+                s.flash.power_on();
+                s.flash.cut_power_after(cut);
+            }
+            let r = d.persist_history();
+            assert_eq!(r.is_some_and(|r| r.is_ok()), cut == total, "cut {cut}");
+            let mut flash = take_flash(d);
+            flash.power_on();
+            // Restart: the history read back over the SDO dictionary.
+            let mut d2 = history_drive(flash);
+            let h = history_by_sdo(&mut d2);
+            if h == old {
+                assert_eq!(saw_new, 0, "old history after the new one (cut {cut})");
+                saw_old += 1;
+            } else {
+                assert_eq!(h, new, "cut after {cut} of {total} operations");
+                saw_new += 1;
+            }
+            assert_eq!(d2.faults.active_mask(), 0);
+        }
+        assert_eq!(saw_old + saw_new, total + 1);
+        assert_eq!(
+            saw_new,
+            1 + (HEADER_LEN_RESERVED as usize),
+            "new once committed"
+        );
+    }
+
+    #[test]
+    fn garbage_flash_gives_an_empty_history_and_the_drive_runs_on() {
+        use crate::storage::region;
+        let mut flash = HistoryFlash::new();
+        let mut x = 0x1234_5678u32;
+        for b in flash.mem.iter_mut() {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            *b = x as u8;
+        }
+        let mut d = history_drive(flash);
+        assert_eq!(history_by_sdo(&mut d), [[0; 4]; 6]);
+        fault_at(&mut d, FaultKind::UnderVoltage, 1, 1);
+        assert_eq!(d.persist_history(), Some(Ok(())), "writes over garbage");
+        let mut d = history_drive(take_flash(d));
+        assert_eq!(history_by_sdo(&mut d)[0][0], 0x3220);
+        // A record with a valid CRC but a payload that is no history (unknown kind,
+        // wrong length): an empty history.
+        for bad in [
+            &[0u8, 0, 0, 0, 1, 0, 0, 0][..],
+            &[0u8; 34][..],
+            &[9u8; 3][..],
+        ] {
+            let mut flash = HistoryFlash::new();
+            let mut p = [0u8; 34];
+            p[..bad.len()].copy_from_slice(bad);
+            if bad.len() == 34 {
+                p[4] = 1;
+                p[8] = 200; // kind 200
+            }
+            region::HISTORY
+                .write_bytes(&mut flash, &p[..bad.len()])
+                .expect("record");
+            let mut d = history_drive(flash);
+            assert_eq!(history_by_sdo(&mut d), [[0; 4]; 6], "{bad:?}");
+        }
     }
 
     fn sdo_write_any<S: ParameterStore>(

@@ -1,7 +1,8 @@
 //! Faults and protections (drive-requirements §6): detection from measured values,
 //! the 0x603F error code, the 0x1001 error register, one emergency per occurrence,
 //! the PDS fault request, the alarm output, latching (0x2057), masking (0x2056), and
-//! the history of the last six faults with a snapshot (objects 0x2400-0x2406).
+//! the history of the last six faults with a snapshot (objects 0x2400-0x2406), kept
+//! in flash across power cycles.
 //!
 //! | fault | 603F | 1001 bits | red LED | latched | 0x2056 bit | reaction |
 //! |---|---|---|---|---|---|---|
@@ -49,6 +50,19 @@
 //! re-armed), so a fault reset with 0x2057 = 1 clears the fault. Motor open (failed
 //! power-up tune) and "current does not follow" are events (`Drive::current_report`,
 //! [`crate::current_supervisor`]): a fault reset clears them.
+//!
+//! **Persistent history**: the six history entries (and the operating-time counter
+//! 0x2307 at the time of writing) survive power cycles in a record pair of their own
+//! (`crate::storage::region::HISTORY`, the parameter storage's record code with its own
+//! magic: erase, payload, header last, the newer valid record wins). Raising a fault
+//! only marks the history dirty ([`Faults::history_dirty`]); the write is deferred
+//! work of whoever services the parameter 'save' (`Drive::persist_history`: the
+//! board's `ecat` task, the simulator's housekeeping), never the fault path. Each
+//! entry carries the operating time (s since the drive was first powered, 0x2307)
+//! when it happened, besides the time since that power-up. At power-up the stored
+//! history is loaded ([`Faults::restore_history`]); anything that is not a valid
+//! record (erased, torn by a power cut, garbage) gives the previous record or an empty
+//! history. Clearing (0x2093 = 1, 0x1003:00 = 0) is written to the flash the same way.
 
 use ecat_slave_stack::od::{Access, DataType, Entry, Object, PdoMappable, SdoAbort};
 use heapless::Deque;
@@ -90,6 +104,10 @@ const POWER_CUT_MASK: u8 = {
 pub const KINDS: usize = 7;
 
 impl FaultKind {
+    /// The kind numbered `n` (its `repr(u8)` value), if any.
+    pub fn from_number(n: u8) -> Option<FaultKind> {
+        FaultKind::ALL.get(usize::from(n)).copied()
+    }
     /// All kinds, most severe first.
     pub const ALL: [FaultKind; KINDS] = [
         FaultKind::OverCurrent,
@@ -187,7 +205,19 @@ pub struct FaultRecord {
     pub snapshot: Snapshot,
     /// Milliseconds since power-up.
     pub time_ms: u32,
+    /// Operating time (0x2307, s of powered time since the first power-up) when it
+    /// happened.
+    pub operating_s: u32,
 }
+
+/// Bytes of one history entry in the flash record: kind u8, 0, code u16, phase A and
+/// B current i16, bus voltage u16, position error i32, speed i32, time since power-up
+/// u32, operating time u32 (little-endian).
+const RECORD_BYTES: usize = 26;
+
+/// Bytes of the history record's payload: operating time u32 (0x2307 when written),
+/// entry count u8, 3 × 0, then the entries newest first ([`Faults::encode_history`]).
+pub const HISTORY_PAYLOAD_MAX: usize = 8 + HISTORY * RECORD_BYTES;
 
 /// An emergency for `MailboxServer::emergency`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -253,6 +283,10 @@ pub struct Faults {
     uv_armed: bool,
     diag: crate::diagnosis::History,
     clock_ms: u32,
+    /// The history changed since it was last written to flash.
+    history_dirty: bool,
+    /// Operating time at this power-up, s (0x2307 as restored).
+    operating_base_s: u32,
 }
 
 impl Default for Faults {
@@ -281,6 +315,8 @@ impl Faults {
             uv_armed: false,
             diag: crate::diagnosis::History::new(),
             clock_ms: 0,
+            history_dirty: false,
+            operating_base_s: 0,
         }
     }
 
@@ -365,7 +401,9 @@ impl Faults {
             code,
             snapshot: snap,
             time_ms: now_ms,
+            operating_s: self.operating_base_s.saturating_add(now_ms / 1000),
         });
+        self.history_dirty = true;
         self.count = self.count.saturating_add(1);
         self.pds_request = true;
         let v = snap.bus_dv.to_le_bytes();
@@ -604,9 +642,89 @@ impl Faults {
         self.history.iter().filter(|r| r.is_some()).count()
     }
 
-    /// Empties the history (0x2093 = 1, 0x1003:00 = 0). Active faults stay.
+    /// Empties the history (0x2093 = 1, 0x1003:00 = 0), in flash too at the next
+    /// history write. Active faults stay.
     pub fn clear_history(&mut self) {
         self.history = [None; HISTORY];
+        self.history_dirty = true;
+    }
+
+    /// The operating time (0x2307, s) at this power-up: entries raised from now on
+    /// carry it plus their time since power-up.
+    pub fn set_operating_base(&mut self, seconds: u32) {
+        self.operating_base_s = seconds;
+    }
+
+    /// The history changed since the last [`Faults::history_written`]: a history write
+    /// is due (deferred work, see the module docs).
+    pub fn history_dirty(&self) -> bool {
+        self.history_dirty
+    }
+
+    /// The history as it is now has been handed to the flash.
+    pub fn history_written(&mut self) {
+        self.history_dirty = false;
+    }
+
+    /// The history record's payload (see [`HISTORY_PAYLOAD_MAX`]) with `operating_s`
+    /// (0x2307 now): its length.
+    pub fn encode_history(&self, operating_s: u32, out: &mut [u8; HISTORY_PAYLOAD_MAX]) -> usize {
+        out.fill(0);
+        out[0..4].copy_from_slice(&operating_s.to_le_bytes());
+        let mut n = 0usize;
+        for (i, r) in (0..HISTORY).filter_map(|i| self.history(i)).enumerate() {
+            let at = 8 + i * RECORD_BYTES;
+            let Some(b) = out.get_mut(at..at + RECORD_BYTES) else {
+                break;
+            };
+            let s = &r.snapshot;
+            b[0] = r.kind as u8;
+            b[2..4].copy_from_slice(&r.code.to_le_bytes());
+            b[4..6].copy_from_slice(&s.ia_ma.to_le_bytes());
+            b[6..8].copy_from_slice(&s.ib_ma.to_le_bytes());
+            b[8..10].copy_from_slice(&s.bus_dv.to_le_bytes());
+            b[10..14].copy_from_slice(&s.position_error.to_le_bytes());
+            b[14..18].copy_from_slice(&s.speed.to_le_bytes());
+            b[18..22].copy_from_slice(&r.time_ms.to_le_bytes());
+            b[22..26].copy_from_slice(&r.operating_s.to_le_bytes());
+            n = i + 1;
+        }
+        out[4] = n as u8;
+        8 + n * RECORD_BYTES
+    }
+
+    /// Power-up: takes the history from a record payload ([`Faults::encode_history`]).
+    /// Returns the operating time stored with it, or `None` (history left empty) when
+    /// the payload is not a well-formed history: wrong length, too many entries, an
+    /// unknown kind. Does not mark the history dirty.
+    pub fn restore_history(&mut self, payload: &[u8]) -> Option<u32> {
+        let head = payload.get(..8)?;
+        let n = usize::from(head[4]);
+        if n > HISTORY || payload.len() != 8 + n * RECORD_BYTES {
+            return None;
+        }
+        let mut h: [Option<FaultRecord>; HISTORY] = [None; HISTORY];
+        for (i, slot) in h.iter_mut().enumerate().take(n) {
+            let b = payload.get(8 + i * RECORD_BYTES..8 + (i + 1) * RECORD_BYTES)?;
+            let u16_at = |k: usize| u16::from_le_bytes([b[k], b[k + 1]]);
+            let u32_at = |k: usize| u32::from_le_bytes([b[k], b[k + 1], b[k + 2], b[k + 3]]);
+            *slot = Some(FaultRecord {
+                kind: FaultKind::from_number(b[0])?,
+                code: u16_at(2),
+                snapshot: Snapshot {
+                    ia_ma: u16_at(4) as i16,
+                    ib_ma: u16_at(6) as i16,
+                    bus_dv: u16_at(8),
+                    position_error: u32_at(10) as i32,
+                    speed: u32_at(14) as i32,
+                },
+                time_ms: u32_at(18),
+                operating_s: u32_at(22),
+            });
+        }
+        self.history = h;
+        self.newest = 0;
+        Some(u32::from_le_bytes([head[0], head[1], head[2], head[3]]))
     }
 
     /// SDO read of 0x2400-0x2406.
@@ -619,7 +737,7 @@ impl Faults {
                 .history(usize::from(sub) - 2)
                 .map_or(0, |r| u32::from(r.code)),
             (0x2400, 8) => u32::from(self.active_mask()),
-            (0x2401..=0x2406, 0) => 7,
+            (0x2401..=0x2406, 0) => 8,
             (0x2401..=0x2406, _) => match self.history(usize::from(index - 0x2401)) {
                 None => 0,
                 Some(r) => match sub {
@@ -629,7 +747,8 @@ impl Faults {
                     4 => u32::from(r.snapshot.bus_dv),
                     5 => r.snapshot.position_error as u32,
                     6 => r.snapshot.speed as u32,
-                    _ => r.time_ms,
+                    7 => r.time_ms,
+                    _ => r.operating_s,
                 },
             },
             _ => return Err(SdoAbort::ObjectDoesNotExist),
@@ -647,7 +766,7 @@ const fn ro(sub: u8, name: &'static str, t: DataType, unit: &'static str) -> Ent
 }
 
 const SNAPSHOT: &[Entry] = &[
-    Entry::count(7),
+    Entry::count(8),
     ro(1, "Error code", DataType::Unsigned16, ""),
     ro(2, "Phase A current", DataType::Integer16, "mA"),
     ro(3, "Phase B current", DataType::Integer16, "mA"),
@@ -655,6 +774,7 @@ const SNAPSHOT: &[Entry] = &[
     ro(5, "Position error", DataType::Integer32, "inc"),
     ro(6, "Speed", DataType::Integer32, "inc/s"),
     ro(7, "Time since power-up", DataType::Unsigned32, "ms"),
+    ro(8, "Operating time", DataType::Unsigned32, "s"),
 ];
 
 const fn snap_obj(index: u16, name: &'static str) -> Object {
@@ -662,7 +782,8 @@ const fn snap_obj(index: u16, name: &'static str) -> Object {
         index,
         name,
         SNAPSHOT,
-        "Values captured when the fault occurred (zeros when empty)",
+        "Values captured when the fault occurred (zeros when empty); kept in flash \
+         across power cycles; sub 8: operating time 0x2307 at the fault",
     )
 }
 
@@ -942,7 +1063,7 @@ mod tests {
             Err(SdoAbort::ObjectDoesNotExist)
         );
         assert_eq!(
-            f.read(0x2401, 8, &mut buf),
+            f.read(0x2401, 9, &mut buf),
             Err(SdoAbort::SubindexDoesNotExist)
         );
         assert_eq!(

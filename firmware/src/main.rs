@@ -43,7 +43,10 @@
 //!   releasing the lock ([`hw::flash::commit`]: erase, payload, header last — the
 //!   storage's power-loss order). So no flash erase ever runs under the lock and the
 //!   cyclic path keeps its timing during a save; a flash error at commit time is
-//!   logged and sent as an emergency (0x5530). A second 'save' while one is being
+//!   logged and sent as an emergency (0x5530). The fault history's record
+//!   (`Drive::persist_history`, polled after `poll` when no 'save' record waits) goes
+//!   the same way through the same stage: the fault path only marks it dirty.
+//!   A second 'save' while one is being
 //!   programmed cannot happen (the same task does both in turn).
 //! * The **motor control state** (`CurrentLoop`, `foc::encoder::Encoder`,
 //!   `CommutatedMotion` = `Motion` + the commutation alignment) is owned by the ADC
@@ -250,10 +253,10 @@ fn clock_config() -> embassy_stm32::Config {
     c
 }
 
-/// The parameter-record store in the flash region: two slots of half the region
-/// each (offsets relative to the region).
-const PARAM_STORE: firmware::storage::Storage =
-    firmware::storage::Storage::new(0, board::PARAM_FLASH_SIZE / 2);
+/// The parameter-record store in the flash region (offsets relative to the region;
+/// the layout of `firmware::storage::region`: parameters, then the fault history).
+const PARAM_STORE: firmware::storage::Storage = firmware::storage::region::PARAMS;
+const _: () = assert!(firmware::storage::region::SIZE == board::PARAM_FLASH_SIZE);
 
 /// The motor the current-loop gains and the servo's base gains are computed for
 /// (board constants: the vendor parameters 0x2020/0x2021 take over once auto-tune or
@@ -631,6 +634,7 @@ fn new_drive(
         serial,
         FlashStore {
             storage: PARAM_STORE,
+            history: Some(firmware::storage::region::HISTORY),
             flash: staged,
         },
     )
@@ -766,7 +770,18 @@ async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>)
                 ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
             }
             publish_command(s);
-            s.drive.store_mut().and_then(|st| st.flash.take_ready())
+            // A 'save' staged its record: programmed first. Otherwise a changed fault
+            // history is staged now (deferred work of the fault path, same rule as a
+            // 'save': serialised here under the lock, programmed below without it).
+            let mut staged = s.drive.store_mut().and_then(|st| st.flash.take_ready());
+            if staged.is_none() {
+                if let Some(Err(e)) = s.drive.persist_history() {
+                    FLASH_ERRORS.fetch_add(1, Ordering::Relaxed);
+                    defmt::error!("fault history: not staged: {=istr}", storage_error(e));
+                }
+                staged = s.drive.store_mut().and_then(|st| st.flash.take_ready());
+            }
+            staged
         })
         .flatten();
         if let Some(stage) = staged {
@@ -776,10 +791,13 @@ async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>)
             };
             let failed = result.is_err();
             match result {
-                Ok(()) => defmt::info!("parameters: record programmed"),
+                Ok(()) => defmt::info!("flash record programmed (parameters or fault history)"),
                 Err(e) => {
                     FLASH_ERRORS.fetch_add(1, Ordering::Relaxed);
-                    defmt::error!("parameters: programming failed: {=istr}", region_error(&e));
+                    defmt::error!(
+                        "flash record: programming failed: {=istr}",
+                        region_error(&e)
+                    );
                 }
             }
             with_shared(|s| {

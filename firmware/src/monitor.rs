@@ -127,6 +127,15 @@ impl Monitor {
         self.since_power_up_ms += u64::from(dt_ms);
     }
 
+    /// Power-up: raises the running time to `seconds` if it is less (a counter kept
+    /// elsewhere — the fault-history record — was written after the last 'save').
+    pub fn running_time_at_least(&mut self, seconds: u32) {
+        if seconds > self.running_time_s() {
+            let since_s = (self.since_power_up_ms / 1000).min(u64::from(u32::MAX)) as u32;
+            self.base_running_s = seconds.saturating_sub(since_s);
+        }
+    }
+
     /// Power-ups counted.
     pub fn power_on_count(&self) -> u32 {
         self.power_on_count

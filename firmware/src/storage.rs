@@ -43,8 +43,11 @@ use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::od::{self, Dictionary, ObjectCode, SdoAbort};
 use embedded_storage::nor_flash::{NorFlash, NorFlashError, NorFlashErrorKind};
 
-/// Record magic ("ECSP" little-endian).
+/// Record magic of the parameter records ("ECSP" little-endian).
 pub const RECORD_MAGIC: u32 = 0x5053_4345;
+/// Record magic of the fault-history records ("ECSH" little-endian): a store of
+/// another kind (or a slot of an older layout) never passes for one of these.
+pub const HISTORY_MAGIC: u32 = 0x4853_4345;
 /// Record format version.
 pub const FORMAT_VERSION: u16 = 1;
 /// Header length; also the write/read granularity the storage needs (WRITE_SIZE and
@@ -254,10 +257,17 @@ impl LoadReport {
 }
 
 /// The two-slot record store at `base` in a [`NorFlash`].
+///
+/// The parameter records are its dictionary payload ([`Storage::save`],
+/// [`Storage::load`]); other records (the fault history, `crate::faults`) use the same
+/// slots, header, CRC and slot selection with a payload of their own
+/// ([`Storage::write_bytes`], [`Storage::read_newest`]) and their own magic, so one
+/// piece of code carries the power-loss rules for every record in flash.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Storage {
     base: u32,
     slot_size: u32,
+    magic: u32,
 }
 
 /// Header fields.
@@ -268,9 +278,9 @@ struct Header {
     crc: u32,
 }
 
-fn header_bytes(sequence: u32, payload_len: u32) -> [u8; HEADER_LEN] {
+fn header_bytes(magic: u32, sequence: u32, payload_len: u32) -> [u8; HEADER_LEN] {
     let mut h = [0u8; HEADER_LEN];
-    h[0..4].copy_from_slice(&RECORD_MAGIC.to_le_bytes());
+    h[0..4].copy_from_slice(&magic.to_le_bytes());
     h[4..6].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
     h[6..8].copy_from_slice(&0u16.to_le_bytes());
     h[8..12].copy_from_slice(&sequence.to_le_bytes());
@@ -283,6 +293,9 @@ fn le32(b: &[u8]) -> u32 {
     a.copy_from_slice(&b[..4]);
     u32::from_le_bytes(a)
 }
+
+/// The newest valid record: slot, sequence number, payload length.
+type Newest = (usize, u32, u32);
 
 /// True when sequence `a` is newer than `b` (wrapping comparison).
 pub fn newer(a: u32, b: u32) -> bool {
@@ -416,7 +429,17 @@ impl Storage {
     /// A store using two slots of `slot_size` bytes from `base` (checked against the
     /// flash geometry by [`Storage::check`] on every operation).
     pub const fn new(base: u32, slot_size: u32) -> Self {
-        Storage { base, slot_size }
+        Self::with_magic(base, slot_size, RECORD_MAGIC)
+    }
+
+    /// [`Storage::new`] for records of another kind, told apart by `magic` (e.g.
+    /// [`HISTORY_MAGIC`]).
+    pub const fn with_magic(base: u32, slot_size: u32, magic: u32) -> Self {
+        Storage {
+            base,
+            slot_size,
+            magic,
+        }
     }
 
     /// Start address of slot `n` (0 or 1).
@@ -451,7 +474,7 @@ impl Storage {
     ) -> Result<Option<Header>, StorageError> {
         let mut h = [0u8; HEADER_LEN];
         flash.read(self.slot_address(slot), &mut h).map_err(fe)?;
-        if le32(&h[0..]) != RECORD_MAGIC || u16::from_le_bytes([h[4], h[5]]) != FORMAT_VERSION {
+        if le32(&h[0..]) != self.magic || u16::from_le_bytes([h[4], h[5]]) != FORMAT_VERSION {
             return Ok(None);
         }
         let payload_len = le32(&h[12..]);
@@ -505,7 +528,7 @@ impl Storage {
     ) -> Result<SlotStatus, StorageError> {
         self.check(flash)?;
         if let Some(h) = self.read_header(flash, slot)? {
-            let head = header_bytes(h.sequence, h.payload_len);
+            let head = header_bytes(self.magic, h.sequence, h.payload_len);
             if self.payload_crc(flash, slot, h.payload_len, &head)? == h.crc {
                 return Ok(SlotStatus::Valid {
                     sequence: h.sequence,
@@ -645,22 +668,7 @@ impl Storage {
         dict: Option<&mut D>,
         scope: Scope,
     ) -> Result<SaveReport, StorageError> {
-        self.check(flash)?;
-        let (_, best) = self.scan(flash);
-        let (target, sequence) = match best {
-            Some((slot, seq, _)) => (1 - slot, seq.wrapping_add(1)),
-            None => (0, 1),
-        };
-        let base = self.slot_address(target);
-        flash.erase(base, base + self.slot_size).map_err(fe)?;
-        let mut w = Writer {
-            start: base + HEADER_LEN as u32,
-            limit: self.slot_size - HEADER_LEN as u32,
-            flushed: 0,
-            buf: [0; CHUNK],
-            fill: 0,
-            crc: Crc32::new(),
-        };
+        let (mut w, target, sequence, best) = self.begin(flash)?;
         let mut report = SaveReport {
             slot: target,
             sequence,
@@ -720,15 +728,90 @@ impl Storage {
                 }
             }
         }
+        report.payload_len = self.finish(flash, w, target, sequence)?;
+        Ok(report)
+    }
+
+    /// Start of a new record: the layout checked, the target slot (the one *not*
+    /// holding the newest valid record) erased, a writer for its payload. Returns the
+    /// writer, the target slot, the new sequence number and the newest record found
+    /// (slot, sequence, payload length).
+    fn begin<F: NorFlash>(
+        &self,
+        flash: &mut F,
+    ) -> Result<(Writer, usize, u32, Option<Newest>), StorageError> {
+        self.check(flash)?;
+        let (_, best) = self.scan(flash);
+        let (target, sequence) = match best {
+            Some((slot, seq, _)) => (1 - slot, seq.wrapping_add(1)),
+            None => (0, 1),
+        };
+        let base = self.slot_address(target);
+        flash.erase(base, base + self.slot_size).map_err(fe)?;
+        let w = Writer {
+            start: base + HEADER_LEN as u32,
+            limit: self.slot_size - HEADER_LEN as u32,
+            flushed: 0,
+            buf: [0; CHUNK],
+            fill: 0,
+            crc: Crc32::new(),
+        };
+        Ok((w, target, sequence, best))
+    }
+
+    /// End of a new record: the payload flushed, then the header written **last** —
+    /// the commit (see the module docs). Returns the payload length.
+    fn finish<F: NorFlash>(
+        &self,
+        flash: &mut F,
+        mut w: Writer,
+        target: usize,
+        sequence: u32,
+    ) -> Result<u32, StorageError> {
         let payload_len = w.len();
         w.flush(flash)?;
-        let mut head = header_bytes(sequence, payload_len);
+        let mut head = header_bytes(self.magic, sequence, payload_len);
         let mut crc = w.crc;
         crc.update(&head[..16]);
         head[16..20].copy_from_slice(&crc.finish().to_le_bytes());
-        flash.write(base, &head).map_err(fe)?;
-        report.payload_len = payload_len;
-        Ok(report)
+        flash.write(self.slot_address(target), &head).map_err(fe)?;
+        Ok(payload_len)
+    }
+
+    /// Writes `payload` as a new record (a record kind of its own, see
+    /// [`Storage::with_magic`]), with the power-loss order of [`Storage::save`]: a cut
+    /// at any point leaves the previous record valid.
+    pub fn write_bytes<F: NorFlash>(
+        &self,
+        flash: &mut F,
+        payload: &[u8],
+    ) -> Result<SaveReport, StorageError> {
+        let (mut w, target, sequence, _) = self.begin(flash)?;
+        w.push(flash, payload)?;
+        let payload_len = self.finish(flash, w, target, sequence)?;
+        Ok(SaveReport {
+            slot: target,
+            sequence,
+            entries: 0,
+            unreadable: 0,
+            payload_len,
+        })
+    }
+
+    /// The payload of the newest valid record, copied into `out`: its length, or
+    /// `None` when there is no valid record (erased, torn or corrupt slots), it does
+    /// not fit in `out`, or the flash cannot be read. Never panics on any content.
+    pub fn read_newest<F: NorFlash>(&self, flash: &mut F, out: &mut [u8]) -> Option<usize> {
+        let (_, best) = self.scan(flash);
+        let (slot, _, len) = best?;
+        let len = len as usize;
+        let dst = out.get_mut(..len)?;
+        let slot_end = self.slot_address(slot) + self.slot_size;
+        let mut rd = Reader::new(self.slot_address(slot) + HEADER_LEN as u32, len as u32);
+        match rd.read(flash, slot_end, dst) {
+            Ok(true) => Some(len),
+            _ => None,
+        }
     }
 }
 
@@ -782,6 +865,32 @@ fn apply<D: Dictionary + ?Sized>(
     } else {
         report.skipped = report.skipped.saturating_add(1);
     }
+}
+
+/// The record layout of the drive's 16 KiB record region (the board's `PARAMS` region
+/// in memory.x, the file of `virtual-drive --flash`; offsets relative to the region):
+///
+/// | offset | size | records |
+/// |---|---|---|
+/// | 0 | 2 × 4 KiB | parameters ([`region::PARAMS`], magic "ECSP") |
+/// | 8 KiB | 2 × 4 KiB | fault history + operating time ([`region::HISTORY`], magic "ECSH") |
+///
+/// Every slot is a whole number of erase pages in either bank mode (2 KiB dual-bank,
+/// 4 KiB single-bank pages), and erasing one (≤ 2 dual-bank pages) stays within what
+/// the board's watchdog covers. A parameter record is at most the board's 2 KiB stage;
+/// a history record is < 200 bytes.
+/// Before the history existed the parameters used two 8 KiB slots: a record left in
+/// the old second slot (offset 8 KiB) is not a history record (other magic: the
+/// history starts empty and its first write erases it), and the parameters fall back
+/// to the record in the first slot, if any.
+pub mod region {
+    use super::{Storage, HISTORY_MAGIC};
+    /// Size of the region.
+    pub const SIZE: u32 = 16 * 1024;
+    /// The parameter records.
+    pub const PARAMS: Storage = Storage::new(0, 4 * 1024);
+    /// The fault-history records.
+    pub const HISTORY: Storage = Storage::with_magic(8 * 1024, 4 * 1024, HISTORY_MAGIC);
 }
 
 /// An empty dictionary (tests).

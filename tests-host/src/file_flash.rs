@@ -6,10 +6,9 @@ use embedded_storage::nor_flash::{ErrorType, NorFlash, NorFlashErrorKind, ReadNo
 use firmware::storage;
 use std::path::PathBuf;
 
-/// Size of the parameter region (two 8 KiB record slots, as in `memory.x`).
-pub const SIZE: usize = 16 * 1024;
-/// Record slot size used with this flash.
-pub const SLOT_SIZE: u32 = (SIZE / 2) as u32;
+/// Size of the record region (as in `memory.x`; laid out as
+/// `firmware::storage::region`: parameters, then the fault history).
+pub const SIZE: usize = firmware::storage::region::SIZE as usize;
 
 /// Flash contents in memory, mirrored to `file` after every change when set.
 pub struct FileFlash {

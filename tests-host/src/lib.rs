@@ -6,6 +6,7 @@ pub mod counting;
 pub mod esc_sim;
 
 pub mod ethercrab_seam;
+pub mod fault_inject;
 pub mod file_flash;
 pub mod plant;
 pub mod plot;

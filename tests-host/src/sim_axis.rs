@@ -12,6 +12,7 @@
 //! [`firmware::commutation`]) at 10 kHz. [`AxisModel`] chooses between them; the rule for
 //! [`AxisModel::Auto`] is [`PLANT_MAX_DRIVES`].
 
+use crate::fault_inject::InjectedFault;
 use crate::plant::motor::{PlantConfig, ECN57_20, TC86_45};
 use crate::plant::rig::{Rig, SERVO_DIV, TS, TS_SERVO};
 use crate::sim_drive::{Axis, Motor};
@@ -177,6 +178,17 @@ impl Axis for KinematicAxis {
 
     fn true_position(&self) -> Option<f64> {
         Some(self.pos)
+    }
+
+    /// The kinematic model has a bus voltage but no phases.
+    fn inject(&mut self, fault: InjectedFault) -> bool {
+        let v = match fault {
+            InjectedFault::BusOvervoltage => crate::fault_inject::OVERVOLTAGE_V,
+            InjectedFault::BusUndervoltage => crate::fault_inject::UNDERVOLTAGE_V,
+            _ => return false,
+        };
+        self.bus_mv = (v * 1000.0) as u32;
+        true
     }
 
     fn raw_inputs(&self) -> u8 {
@@ -603,6 +615,22 @@ impl Axis for PlantAxis {
         self.motion.failures()
     }
 
+    /// The electrical plant models every kind.
+    fn inject(&mut self, fault: InjectedFault) -> bool {
+        match fault {
+            InjectedFault::OpenPhaseA => self.open_phase(0, true),
+            InjectedFault::OpenPhaseB => self.open_phase(1, true),
+            InjectedFault::PhaseShort => self.inject_phase_short(0, true),
+            InjectedFault::BusOvervoltage => {
+                self.set_bus_voltage(crate::fault_inject::OVERVOLTAGE_V)
+            }
+            InjectedFault::BusUndervoltage => {
+                self.set_bus_voltage(crate::fault_inject::UNDERVOLTAGE_V)
+            }
+        }
+        true
+    }
+
     fn true_position(&self) -> Option<f64> {
         Some(PlantAxis::true_position(self))
     }
@@ -652,5 +680,8 @@ impl Axis for SharedPlant {
     }
     fn commutation_failures(&self) -> u32 {
         self.0.borrow().commutation_failures()
+    }
+    fn inject(&mut self, fault: InjectedFault) -> bool {
+        self.0.borrow_mut().inject(fault)
     }
 }

@@ -33,11 +33,11 @@ use firmware::current_supervisor::SupervisorConfig;
 use firmware::drive::{AxisState, Drive, FlashStore};
 use firmware::identity::{self, Variant};
 use firmware::motion::MotionConfig;
-use firmware::storage::Storage;
+use firmware::storage::region;
 
 use crate::esc_sim::frame::FrameOutcome;
 use crate::esc_sim::Flavour;
-use crate::file_flash::{self, FileFlash};
+use crate::file_flash::FileFlash;
 use crate::segment::{Segment, SegmentConfig};
 pub use crate::sim_axis::AxisModel;
 
@@ -86,6 +86,12 @@ pub trait Axis {
     fn commutation_failures(&self) -> u32 {
         0
     }
+    /// The plant develops `fault` from now on (`virtual-drive --fault`); false when the
+    /// model cannot (default: nothing is modelled).
+    fn inject(&mut self, fault: crate::fault_inject::InjectedFault) -> bool {
+        let _ = fault;
+        false
+    }
 }
 
 /// Settings of the simulated drives.
@@ -127,7 +133,8 @@ impl SimDrive {
     /// A drive with parameter flash `flash` and motor side `axis`.
     pub fn new(serial: u32, flash: FileFlash, axis: Box<dyn Axis>) -> Self {
         let store = FlashStore {
-            storage: Storage::new(0, file_flash::SLOT_SIZE),
+            storage: region::PARAMS,
+            history: Some(region::HISTORY),
             flash,
         };
         let drive = Drive::with_store(Variant::HybridServo, serial, store);
@@ -354,11 +361,16 @@ pub fn segment_with(
     Ok(seg)
 }
 
-/// Sends every drive's pending emergencies through its mailbox.
+/// Sends every drive's pending emergencies through its mailbox, and writes a changed
+/// fault history to the drive's flash ([`Drive::persist_history`]): the board's `ecat`
+/// task does both after each `poll`, outside the fault path.
 pub fn forward_emergencies(seg: &mut Segment<SimDrive>) {
     for d in seg.drives_mut() {
         while let Some(e) = d.app.drive.pop_emergency() {
             d.slave.emergency(e.code, e.register, e.data);
+        }
+        if let Some(Err(e)) = d.app.drive.persist_history() {
+            eprintln!("simulated drive: fault history not written: {e:?}");
         }
     }
 }

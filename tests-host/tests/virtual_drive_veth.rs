@@ -5,6 +5,8 @@
 //!
 //! A second test stops the master in the middle of a PV move and checks over SDO that
 //! the drive reacted on its own clock (issue 15).
+//! A third runs `virtual-drive --fault bus-overvoltage@1s` and reads the drive's report
+//! (0x603F, the newest 0x10F3 message) over SDO after the fault time (issue 19).
 //!
 //! Needs root (network namespaces, raw sockets) and iproute2. CI runs as root, so the
 //! tests are plain `#[test]`s: without root they fail and say how to run them
@@ -23,6 +25,7 @@ use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
 type Storage = PduStorage<16, { PduStorage::element_size(1100) }>;
 static PDU_STORAGE: Storage = PduStorage::new();
 static PDU_STORAGE_PV: Storage = PduStorage::new();
+static PDU_STORAGE_FAULT: Storage = PduStorage::new();
 
 struct Netns {
     ns: String,
@@ -111,6 +114,17 @@ fn require_root() {
 
 /// A namespace + veth pair with `virtual-drive --drives N` listening in it, ready.
 fn start_virtual_drive(tag: char, drives: usize) -> (Netns, Killed) {
+    let (net, child, _log) = start_virtual_drive_with(tag, drives, &[]);
+    (net, child)
+}
+
+/// [`start_virtual_drive`] with `extra` options; also the lines it prints after
+/// `ready`.
+fn start_virtual_drive_with(
+    tag: char,
+    drives: usize,
+    extra: &[&str],
+) -> (Netns, Killed, mpsc::Receiver<String>) {
     require_root();
     let net = Netns::create(tag).expect(
         "running as root, but the network namespace / veth pair could not be created \
@@ -127,6 +141,7 @@ fn start_virtual_drive(tag: char, drives: usize) -> (Netns, Killed) {
             "--drives",
             &drives.to_string(),
         ])
+        .args(extra)
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())
         .spawn()
@@ -143,7 +158,7 @@ fn start_virtual_drive(tag: char, drives: usize) -> (Netns, Killed) {
         .recv_timeout(Duration::from_secs(30))
         .expect("virtual-drive printed nothing");
     assert!(ready.contains("ready"), "first line: {ready}");
-    (net, child)
+    (net, child, rx)
 }
 
 /// An ethercrab master on the host end of the veth pair (its frame task on a thread).
@@ -311,4 +326,66 @@ fn silent_master_stops_virtual_drive_in_pv_over_a_veth_pair() {
         "0x6064 stopped changing (two reads 200 ms apart): {p1} → {p2}"
     );
     drop(child);
+}
+
+/// `virtual-drive --fault bus-overvoltage@1s` (1 drive) brought to Op by ethercrab:
+/// after the fault time the drive's own over-voltage detection has reported it —
+/// 0x603F = 0x3210 and the newest 0x10F3 message is its emergency (diagnosis code
+/// 0xE800 | 0x3210 << 16), read over SDO — and the log shows the injection and the
+/// red LED's two flashes.
+#[test]
+fn injected_bus_overvoltage_is_reported_over_sdo_on_a_veth_pair() {
+    let (net, child, log) = start_virtual_drive_with('f', 1, &["--fault", "bus-overvoltage@1s"]);
+    let md = master(&PDU_STORAGE_FAULT, &net.host_if);
+    type Found = (u16, u16, u8, [u8; 28]);
+    let result: Result<Found, (&str, ethercrab::error::Error)> = async_io::block_on(async {
+        let group = md
+            .init_single_group::<4, 128>(ethercat_now)
+            .await
+            .map_err(|e| ("init", e))?;
+        let before: u16 = group
+            .subdevice(&md, 0)
+            .map_err(|e| ("drive 0", e))?
+            .sdo_read(0x603F, 0)
+            .await
+            .map_err(|e| ("0x603F", e))?;
+        let group = group.into_op(&md).await.map_err(|e| ("into_op", e))?;
+        // Cyclic exchange until well after the fault time (1 s after start).
+        let start = Instant::now();
+        while start.elapsed() < Duration::from_millis(1500) {
+            group.tx_rx(&md).await.map_err(|e| ("tx_rx", e))?;
+            async_io::Timer::after(Duration::from_millis(1)).await;
+        }
+        let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
+        let err: u16 = sd.sdo_read(0x603F, 0).await.map_err(|e| ("0x603F", e))?;
+        let newest: u8 = sd.sdo_read(0x10F3, 2).await.map_err(|e| ("0x10F3:02", e))?;
+        let msg: [u8; 28] = sd
+            .sdo_read(0x10F3, newest)
+            .await
+            .map_err(|e| ("0x10F3 message", e))?;
+        Ok((before, err, newest, msg))
+    });
+    let (before, err, newest, msg) = result.expect("ethercrab over the veth pair (fault)");
+    assert_eq!(before, 0, "no fault before the injection");
+    assert_eq!(err, 0x3210, "0x603F after the injected over-voltage");
+    assert!(newest >= 6, "0x10F3:02 {newest}");
+    assert_eq!(
+        u32::from_le_bytes([msg[0], msg[1], msg[2], msg[3]]),
+        0x3210_E800,
+        "newest diagnosis message {msg:02x?}"
+    );
+    drop(child);
+    let lines: Vec<String> = log.try_iter().collect();
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.contains("fault injected: bus-overvoltage")),
+        "{lines:#?}"
+    );
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.contains("red fault LED 2 flash(es)")),
+        "{lines:#?}"
+    );
 }

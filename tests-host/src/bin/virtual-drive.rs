@@ -4,17 +4,24 @@
 //!
 //! ```text
 //! virtual-drive --iface NAME [--drives N] [--motor ECN57-20|TC86-45]
-//!               [--esc lan9252|et1100] [--flash FILE]
+//!               [--esc lan9252|et1100] [--flash FILE] [--fault KIND@TIME]...
 //! ```
 //!
 //! Runs in real time: simulated time follows the wall clock. Prints one line
 //! containing `ready` once it listens; SIGINT/SIGTERM close it cleanly.
+//!
+//! `--fault KIND@TIME` (repeatable) makes every drive's plant develop a fault TIME
+//! after the start (`5s`, `250ms`): see `tests_host::fault_inject` for the kinds; the
+//! drive's own detections then report it. The log shows each injection and every
+//! change of the LEDs (RUN, ERR, red fault LED) with its time. Bad options: a message
+//! and exit code 2.
 
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use tests_host::esc_sim::Flavour;
+use tests_host::fault_inject::{self, Injection, LedLog, Schedule};
 use tests_host::raw_socket::RawSocket;
 use tests_host::sim_drive::{self, Motor, SimDriveConfig};
 
@@ -30,9 +37,21 @@ struct Options {
     motor: Motor,
     flavour: Flavour,
     flash: Option<String>,
+    faults: Vec<Injection>,
 }
 
-const USAGE: &str = "usage: virtual-drive --iface NAME [--drives N] [--motor ECN57-20|TC86-45] [--esc lan9252|et1100] [--flash FILE]";
+fn usage() -> String {
+    let mut u = String::from(
+        "usage: virtual-drive --iface NAME [--drives N] [--motor ECN57-20|TC86-45] \
+         [--esc lan9252|et1100] [--flash FILE] [--fault KIND@TIME]...\n\
+         \n  --fault KIND@TIME  the plant develops a fault TIME after start (e.g. 5s, 250ms);\n\
+         \x20                    repeatable. KIND:",
+    );
+    for k in fault_inject::InjectedFault::ALL {
+        u.push_str(&format!("\n    {:<18} {}", k.name(), k.effect()));
+    }
+    u
+}
 
 fn parse(args: &[String]) -> Result<Options, String> {
     let mut o = Options {
@@ -41,6 +60,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         motor: Motor::Ecn57_20,
         flavour: Flavour::Lan9252,
         flash: None,
+        faults: Vec::new(),
     };
     let mut it = args.iter();
     while let Some(a) = it.next() {
@@ -74,12 +94,15 @@ fn parse(args: &[String]) -> Result<Options, String> {
                 }
             }
             "--flash" => o.flash = Some(value("--flash")?),
-            "-h" | "--help" => return Err(USAGE.into()),
-            other => return Err(format!("unknown argument '{other}'\n{USAGE}")),
+            "--fault" => o
+                .faults
+                .push(fault_inject::parse_injection(&value("--fault")?)?),
+            "-h" | "--help" => return Err(usage()),
+            other => return Err(format!("unknown argument '{other}'\n{}", usage())),
         }
     }
     if o.iface.is_empty() {
-        return Err(format!("--iface is required\n{USAGE}"));
+        return Err(format!("--iface is required\n{}", usage()));
     }
     Ok(o)
 }
@@ -126,6 +149,18 @@ fn main() -> ExitCode {
         opts.iface
     );
 
+    for f in &opts.faults {
+        println!(
+            "virtual-drive: fault {} scheduled at {:.3} s",
+            f.fault.name(),
+            f.at_ns as f64 * 1e-9
+        );
+    }
+    let mut schedule = Schedule::new(opts.faults.clone());
+    let mut leds = LedLog::default();
+    let mut log = |line: String| println!("virtual-drive: {line}");
+    leds.observe(&seg, &mut log);
+
     let start = Instant::now();
     let mut buf = vec![0u8; 2048];
     let (mut frames, mut send_errors) = (0u64, 0u64);
@@ -136,6 +171,8 @@ fn main() -> ExitCode {
         if wall_ns > seg.now_ns() {
             let dt = wall_ns - seg.now_ns();
             sim_drive::advance(&mut seg, dt);
+            schedule.apply_due(&mut seg, &mut log);
+            leds.observe(&seg, &mut log);
         }
         match sock.wait_readable(1_000) {
             Ok(true) => {}
@@ -150,6 +187,7 @@ fn main() -> ExitCode {
                 Ok(Some(n)) => {
                     let frame = &mut buf[..n];
                     sim_drive::process(&mut seg, frame);
+                    leds.observe(&seg, &mut log);
                     frames += 1;
                     if sock.send(frame).is_err() {
                         send_errors += 1;

@@ -1,0 +1,315 @@
+//! Faults injected into the simulated drives' plants at a given time
+//! (`virtual-drive --fault KIND@TIME`), and the log of what an integrator then sees:
+//! the injection itself and every change of the LED patterns (RUN, ERR, the red fault
+//! LED's blink code) with its time.
+//!
+//! An injection changes the *plant* (the motor, the power stage, the supply), never
+//! the drive: the drive's own detections (`firmware::faults`, the current-loop
+//! supervisor, the power stage's break latch) must find the fault, exactly as on a
+//! board. The kinds are those the drive can detect ([`InjectedFault::ALL`]); what the
+//! drive reports for each is in [`InjectedFault::effect`] (checked by
+//! `tests-host/tests/virtual_fault_inject.rs`).
+//!
+//! Not offered: encoder loss (the drive has no encoder-signal fault; a frozen encoder
+//! is only noticed indirectly, as a following error while the axis moves) and
+//! over-temperature (neither the plant nor the drive models a temperature).
+
+use ecat_slave_stack::esm::EsmState;
+use ecat_slave_stack::leds::{run_pattern, ErrCondition, Pattern};
+
+use crate::segment::Segment;
+use crate::sim_drive::SimDrive;
+
+/// A physical fault the plant develops.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InjectedFault {
+    /// Motor phase A open: no current in it whatever the bridge applies.
+    OpenPhaseA,
+    /// Motor phase B open.
+    OpenPhaseB,
+    /// Short circuit across the terminals of phase A.
+    PhaseShort,
+    /// The DC bus rises to [`OVERVOLTAGE_V`].
+    BusOvervoltage,
+    /// The DC bus falls to [`UNDERVOLTAGE_V`].
+    BusUndervoltage,
+}
+
+/// Bus voltage of [`InjectedFault::BusOvervoltage`], V (the drive's limit: 55 V).
+pub const OVERVOLTAGE_V: f64 = 60.0;
+/// Bus voltage of [`InjectedFault::BusUndervoltage`], V (the drive's limit: 12 V).
+pub const UNDERVOLTAGE_V: f64 = 9.0;
+
+impl InjectedFault {
+    /// Every kind, in the order of `--help`.
+    pub const ALL: [InjectedFault; 5] = [
+        InjectedFault::OpenPhaseA,
+        InjectedFault::OpenPhaseB,
+        InjectedFault::PhaseShort,
+        InjectedFault::BusOvervoltage,
+        InjectedFault::BusUndervoltage,
+    ];
+
+    /// Its name on the command line.
+    pub const fn name(self) -> &'static str {
+        match self {
+            InjectedFault::OpenPhaseA => "open-phase-a",
+            InjectedFault::OpenPhaseB => "open-phase-b",
+            InjectedFault::PhaseShort => "phase-short",
+            InjectedFault::BusOvervoltage => "bus-overvoltage",
+            InjectedFault::BusUndervoltage => "bus-undervoltage",
+        }
+    }
+
+    /// The kind called `name`.
+    pub fn from_name(name: &str) -> Option<InjectedFault> {
+        Self::ALL.into_iter().find(|k| k.name() == name)
+    }
+
+    /// What the plant does and what the drive reports (for `--help` and the log).
+    pub const fn effect(self) -> &'static str {
+        match self {
+            InjectedFault::OpenPhaseA | InjectedFault::OpenPhaseB => {
+                "phase current 0; at start (TIME 0s) with 0x2056 bit 2 on (saved): the \
+                 power-up tune reports motor open 0x7120, 4 red flashes, power off; \
+                 later only with bit 3 on and current demanded by a load (0x5210, 9 \
+                 flashes) — the virtual axis has no load; both bits are off by default"
+            }
+            InjectedFault::PhaseShort => {
+                "phase A shorted; while the power stage is on: 0x2310, 1 red flash, \
+                 power off at once, latched (0x2057)"
+            }
+            InjectedFault::BusOvervoltage => {
+                "bus 60 V; 0x3210, 2 red flashes, power off at once, latched (0x2057)"
+            }
+            InjectedFault::BusUndervoltage => {
+                "bus 9 V; 0x3220, 3 red flashes, 0x605E fault reaction then Fault, not \
+                 latched (the injected bus stays low)"
+            }
+        }
+    }
+}
+
+/// One `--fault KIND@TIME`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Injection {
+    /// The fault.
+    pub fault: InjectedFault,
+    /// When, ns of simulated time since start.
+    pub at_ns: u64,
+}
+
+/// A time like `5s`, `250ms`, `1.5s`, `800us`: nanoseconds.
+pub fn parse_time(s: &str) -> Result<u64, String> {
+    let (num, scale) = if let Some(n) = s.strip_suffix("ms") {
+        (n, 1e6)
+    } else if let Some(n) = s.strip_suffix("us") {
+        (n, 1e3)
+    } else if let Some(n) = s.strip_suffix('s') {
+        (n, 1e9)
+    } else {
+        return Err(format!(
+            "time '{s}' needs a unit: s, ms or us (e.g. 5s, 250ms)"
+        ));
+    };
+    match num.parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 && v * scale < u64::MAX as f64 => {
+            Ok((v * scale).round() as u64)
+        }
+        _ => Err(format!("'{s}' is not a time (e.g. 5s, 250ms)")),
+    }
+}
+
+/// The kinds for an error message or the usage text.
+pub fn kind_names() -> String {
+    InjectedFault::ALL
+        .iter()
+        .map(|k| k.name())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// `KIND@TIME`, e.g. `bus-overvoltage@1s`.
+pub fn parse_injection(s: &str) -> Result<Injection, String> {
+    let Some((kind, time)) = s.split_once('@') else {
+        return Err(format!(
+            "--fault '{s}': expected KIND@TIME, e.g. bus-overvoltage@5s"
+        ));
+    };
+    let fault = InjectedFault::from_name(&kind.to_ascii_lowercase()).ok_or_else(|| {
+        format!(
+            "--fault '{s}': unknown fault kind '{kind}' (one of: {})",
+            kind_names()
+        )
+    })?;
+    let at_ns = parse_time(time).map_err(|e| format!("--fault '{s}': {e}"))?;
+    Ok(Injection { fault, at_ns })
+}
+
+/// The injections still to come, applied to every drive of a segment when their time
+/// is reached.
+#[derive(Debug, Clone, Default)]
+pub struct Schedule {
+    pending: Vec<Injection>,
+}
+
+impl Schedule {
+    /// The injections, in any order.
+    pub fn new(mut injections: Vec<Injection>) -> Self {
+        injections.sort_by_key(|i| std::cmp::Reverse(i.at_ns));
+        Schedule {
+            pending: injections,
+        }
+    }
+
+    /// True when every injection has been applied.
+    pub fn is_done(&self) -> bool {
+        self.pending.is_empty()
+    }
+
+    /// Applies the injections whose time has come (segment time) to every drive's
+    /// plant; one log line each.
+    pub fn apply_due(&mut self, seg: &mut Segment<SimDrive>, log: &mut dyn FnMut(String)) {
+        let now = seg.now_ns();
+        while self.pending.last().is_some_and(|i| i.at_ns <= now) {
+            let Some(inj) = self.pending.pop() else {
+                break;
+            };
+            for (n, d) in seg.drives_mut().iter_mut().enumerate() {
+                let applied = d.app.axis.inject(inj.fault);
+                log(format!(
+                    "{} drive {}: fault injected: {}{}",
+                    stamp(now),
+                    n + 1,
+                    inj.fault.name(),
+                    if applied {
+                        format!(" ({})", inj.fault.effect())
+                    } else {
+                        " — not supported by this axis model".to_string()
+                    }
+                ));
+            }
+        }
+    }
+}
+
+/// `[  12.345 s]`.
+fn stamp(now_ns: u64) -> String {
+    format!("[{:9.3} s]", now_ns as f64 * 1e-9)
+}
+
+/// What the LEDs of one drive show: RUN and ERR (ETG.1300, from the ESM state and AL
+/// status) and the red fault LED's blink code (number of flashes, `None` dark).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LedState {
+    /// RUN pattern.
+    pub run: Pattern,
+    /// ERR pattern.
+    pub err: Pattern,
+    /// Red fault LED: flashes per burst.
+    pub red: Option<u8>,
+}
+
+/// The LED state of drive `i` of `seg` now.
+pub fn led_state(seg: &Segment<SimDrive>, i: usize) -> LedState {
+    let d = seg.drive(i);
+    let (status, code) = seg.al_status(i);
+    let state = EsmState::from_bits(status as u8).unwrap_or(EsmState::Init);
+    LedState {
+        run: run_pattern(state),
+        err: ErrCondition::from_al_status(status, code).pattern(),
+        red: d.app.drive.faults.led_code(),
+    }
+}
+
+/// Logs each change of a drive's [`LedState`] with the time: the LED timeline.
+#[derive(Debug, Clone, Default)]
+pub struct LedLog {
+    last: Vec<Option<LedState>>,
+}
+
+impl LedLog {
+    /// Compares every drive's LEDs with the last seen and logs the changes.
+    pub fn observe(&mut self, seg: &Segment<SimDrive>, log: &mut dyn FnMut(String)) {
+        self.last.resize(seg.len(), None);
+        for i in 0..seg.len() {
+            let now = led_state(seg, i);
+            if self.last[i] != Some(now) {
+                self.last[i] = Some(now);
+                let red = match now.red {
+                    Some(n) => format!("{n} flash(es) every 3 s"),
+                    None => "dark".to_string(),
+                };
+                log(format!(
+                    "{} drive {}: LEDs RUN {:?}, ERR {:?}, red fault LED {red}",
+                    stamp(seg.now_ns()),
+                    i + 1,
+                    now.run,
+                    now.err
+                ));
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn times() {
+        assert_eq!(parse_time("5s"), Ok(5_000_000_000));
+        assert_eq!(parse_time("250ms"), Ok(250_000_000));
+        assert_eq!(parse_time("1.5s"), Ok(1_500_000_000));
+        assert_eq!(parse_time("800us"), Ok(800_000));
+        assert_eq!(parse_time("0s"), Ok(0));
+        assert!(parse_time("5").unwrap_err().contains("unit"));
+        assert!(parse_time("xs").is_err());
+        assert!(parse_time("-1s").is_err());
+        assert!(parse_time("infs").is_err());
+        assert!(parse_time("1e30s").is_err());
+    }
+
+    #[test]
+    fn injections() {
+        assert_eq!(
+            parse_injection("bus-overvoltage@1s"),
+            Ok(Injection {
+                fault: InjectedFault::BusOvervoltage,
+                at_ns: 1_000_000_000
+            })
+        );
+        assert_eq!(
+            parse_injection("Open-Phase-B@250ms").map(|i| i.fault),
+            Ok(InjectedFault::OpenPhaseB)
+        );
+        for k in InjectedFault::ALL {
+            let i = parse_injection(&format!("{}@2s", k.name())).expect("kind");
+            assert_eq!((i.fault, i.at_ns), (k, 2_000_000_000));
+        }
+        let e = parse_injection("nonsense@x").unwrap_err();
+        assert!(e.contains("unknown fault kind 'nonsense'"), "{e}");
+        assert!(e.contains("bus-overvoltage"), "lists the kinds: {e}");
+        let e = parse_injection("phase-short@x").unwrap_err();
+        assert!(e.contains("needs a unit"), "{e}");
+        let e = parse_injection("phase-short").unwrap_err();
+        assert!(e.contains("KIND@TIME"), "{e}");
+    }
+
+    #[test]
+    fn schedule_orders_by_time() {
+        let s = Schedule::new(vec![
+            Injection {
+                fault: InjectedFault::PhaseShort,
+                at_ns: 5,
+            },
+            Injection {
+                fault: InjectedFault::BusUndervoltage,
+                at_ns: 1,
+            },
+        ]);
+        assert_eq!(s.pending.last().map(|i| i.at_ns), Some(1));
+        assert!(!s.is_done());
+        assert!(Schedule::default().is_done());
+    }
+}
