@@ -388,6 +388,7 @@ mod tests {
             3,
             FlashStore {
                 storage,
+                history: None,
                 flash: RamFlash::<8192>::new(),
             },
         );
@@ -420,7 +421,15 @@ mod tests {
         st.flash.power_on();
         assert!(!record_check(&storage, &mut st.flash, probe).passed());
         let flash = core::mem::take(&mut d.store_mut().expect("store").flash);
-        let mut d2 = Drive::with_store(Variant::HybridServo, 3, FlashStore { storage, flash });
+        let mut d2 = Drive::with_store(
+            Variant::HybridServo,
+            3,
+            FlashStore {
+                storage,
+                history: None,
+                flash,
+            },
+        );
         assert!(d2.power_up(&mut NoRuntime).source.is_some());
         let mut b = [0u8; 8];
         d2.read(0x2000, 0, &mut b).expect("read");
