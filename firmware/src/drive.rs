@@ -138,6 +138,23 @@ pub struct FlashStore<F: NorFlash> {
     pub flash: F,
 }
 
+/// A parameter store whose flash is staged in RAM ([`crate::staged_flash`]): the
+/// board's, whose records are programmed outside the drive's lock.
+pub trait StagedStore<'a, R, const N: usize, const E: usize> {
+    /// The staged flash view.
+    fn staged(&mut self) -> &mut crate::staged_flash::StagedFlash<'a, R, N, E>;
+}
+
+impl<'a, R, const N: usize, const E: usize> StagedStore<'a, R, N, E>
+    for FlashStore<crate::staged_flash::StagedFlash<'a, R, N, E>>
+where
+    crate::staged_flash::StagedFlash<'a, R, N, E>: NorFlash,
+{
+    fn staged(&mut self) -> &mut crate::staged_flash::StagedFlash<'a, R, N, E> {
+        &mut self.flash
+    }
+}
+
 impl<F: NorFlash> ParameterStore for FlashStore<F> {
     fn execute(
         &mut self,
@@ -447,6 +464,32 @@ impl<S: ParameterStore> Drive<S> {
             Ok(false) => None,
             Err(e) => Some(Err(e)),
         }
+    }
+
+    /// The next record for the board to program outside its lock, from a staged
+    /// store: a record a 'save' staged comes first; only when none waits is a changed
+    /// fault history staged ([`Drive::persist_history`]: the stage is shared). Returns
+    /// the stage to program (give it back with `StagedFlash::give_back` afterwards),
+    /// and the error of a history that could not be staged.
+    pub fn next_staged_record<'a, R, const N: usize, const E: usize>(
+        &mut self,
+    ) -> (
+        Option<&'a mut crate::staged_flash::Stage<N>>,
+        Option<StorageError>,
+    )
+    where
+        S: StagedStore<'a, R, N, E>,
+        R: embedded_storage::nor_flash::ReadNorFlash,
+    {
+        let take = |d: &mut Self| d.store.as_mut().and_then(|st| st.staged().take_ready());
+        if let Some(stage) = take(self) {
+            return (Some(stage), None);
+        }
+        let err = match self.persist_history() {
+            Some(Err(e)) => Some(e),
+            _ => None,
+        };
+        (take(self), err)
     }
 
     /// The parameter store (the board takes a finished staged record out of it to
@@ -1619,6 +1662,54 @@ mod tests {
         d.power_up(&mut NoRuntime);
         sdo_write_any(&mut d, 0x2056, 0, &0xFFFFu16.to_le_bytes()).expect("mask");
         d
+    }
+
+    #[test]
+    fn staged_store_programs_a_save_before_the_history() {
+        use crate::staged_flash::{Stage, StagedFlash};
+        use crate::storage::region;
+        let mut ram = HistoryFlash::new();
+        let mut stage = Stage::<4096>::new();
+        {
+            let staged: StagedFlash<'_, &mut HistoryFlash, 4096, 2048> =
+                StagedFlash::new(&mut ram, &mut stage, true);
+            let mut d = Drive::with_store(
+                Variant::HybridServo,
+                1,
+                FlashStore {
+                    storage: region::PARAMS,
+                    history: Some(region::HISTORY),
+                    flash: staged,
+                },
+            );
+            d.power_up(&mut NoRuntime);
+            let (none, err) = d.next_staged_record();
+            assert!(none.is_none() && err.is_none(), "nothing to program");
+            // A fault marks the history dirty, and a 'save' stages its record: the
+            // save's record comes first, the history stays dirty for the next call.
+            d.faults
+                .raise(FaultKind::OverVoltage, Snapshot::default(), 5);
+            let save = u32::from_le_bytes(*b"save").to_le_bytes();
+            d.write(0x1010, 1, &save, EsmState::PreOp).expect("save");
+            let (first, err) = d.next_staged_record();
+            assert!(err.is_none());
+            let first = first.expect("the save's record");
+            assert_eq!(
+                first.erased_range().map(|(from, _)| from),
+                Some(region::PARAMS.slot_address(0))
+            );
+            d.store_mut().expect("store").flash.give_back(first);
+            let (second, err) = d.next_staged_record();
+            assert!(err.is_none());
+            let second = second.expect("the history's record");
+            assert_eq!(
+                second.erased_range().map(|(from, _)| from),
+                Some(region::HISTORY.slot_address(0))
+            );
+            d.store_mut().expect("store").flash.give_back(second);
+            let (none, _) = d.next_staged_record();
+            assert!(none.is_none(), "the history was written once");
+        }
     }
 
     /// The history as the SDO dictionary shows it: (0x240n:01 code, :04 bus voltage,

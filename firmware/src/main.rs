@@ -770,16 +770,12 @@ async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>)
                 ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
             }
             publish_command(s);
-            // A 'save' staged its record: programmed first. Otherwise a changed fault
-            // history is staged now (deferred work of the fault path, same rule as a
-            // 'save': serialised here under the lock, programmed below without it).
-            let mut staged = s.drive.store_mut().and_then(|st| st.flash.take_ready());
-            if staged.is_none() {
-                if let Some(Err(e)) = s.drive.persist_history() {
-                    FLASH_ERRORS.fetch_add(1, Ordering::Relaxed);
-                    defmt::error!("fault history: not staged: {=istr}", storage_error(e));
-                }
-                staged = s.drive.store_mut().and_then(|st| st.flash.take_ready());
+            // A staged 'save' first, else a changed fault history (serialised here under
+            // the lock, programmed below without it): `Drive::next_staged_record`.
+            let (staged, history_error) = s.drive.next_staged_record();
+            if let Some(e) = history_error {
+                FLASH_ERRORS.fetch_add(1, Ordering::Relaxed);
+                defmt::error!("fault history: not staged: {=istr}", storage_error(e));
             }
             staged
         })
