@@ -716,13 +716,18 @@ fn write_device<W: Write>(d: &EsiDevice<'_>, out: &mut W) -> fmt::Result {
     let c = desc.coe;
     writeln!(
         out,
-        "<Mailbox DataLinkLayer=\"{}\"><CoE SdoInfo=\"{}\" PdoAssign=\"{}\" PdoConfig=\"{}\" PdoUpload=\"{}\" CompleteAccess=\"{}\"/></Mailbox>",
+        "<Mailbox DataLinkLayer=\"{}\"><CoE SdoInfo=\"{}\" PdoAssign=\"{}\" PdoConfig=\"{}\" PdoUpload=\"{}\" CompleteAccess=\"{}\"/>{}</Mailbox>",
         desc.mailbox_data_link_layer,
         c.sdo_info,
         c.pdo_assign,
         c.pdo_config,
         c.pdo_upload,
-        c.complete_access
+        c.complete_access,
+        if desc.mailbox_protocols & crate::sii::MBOX_FOE != 0 {
+            "<FoE/>"
+        } else {
+            ""
+        }
     )?;
     if !desc.dc_op_modes.is_empty() {
         out.write_str("<Dc>\n")?;
@@ -1006,6 +1011,51 @@ mod tests {
             g.flags & 4 != 0,
             child(dev, "Mailbox").attribute("DataLinkLayer") == Some("true")
         );
+    }
+
+    #[test]
+    fn foe_is_announced_in_the_esi_and_the_sii() {
+        let desc = DeviceDescription {
+            mailbox_protocols: sii::MBOX_COE | sii::MBOX_FOE,
+            ..DESC
+        };
+        for (d, foe) in [(&DESC, false), (&desc, true)] {
+            let mut xml = String::new();
+            write(d, crate::pdo::OBJECTS, &[], &mut xml).unwrap();
+            let doc = roxmltree::Document::parse(&xml).expect("well-formed XML");
+            let mbx = doc
+                .descendants()
+                .find(|n| n.has_tag_name("Mailbox"))
+                .unwrap();
+            let kinds: Vec<_> = mbx
+                .children()
+                .filter(|c| c.is_element())
+                .map(|c| c.tag_name().name())
+                .collect();
+            assert_eq!(
+                kinds,
+                if foe {
+                    &["CoE", "FoE"][..]
+                } else {
+                    &["CoE"][..]
+                }
+            );
+            let mut img = vec![0u8; 2048];
+            let n = sii::build(d, &mut img).unwrap();
+            let s = sii::Sii::new(&img[..n]);
+            assert_eq!(s.general().unwrap().foe_details, foe as u8);
+            assert_eq!(s.word(sii::word::MBX_PROTOCOLS), Some(d.mailbox_protocols));
+            assert_eq!(s.bootstrap_mailbox(), None);
+            let boot = crate::sm::BootMailbox::STANDARD;
+            sii::set_bootstrap_mailbox(&mut img, &boot).unwrap();
+            let s = sii::Sii::new(&img[..n]);
+            assert_eq!(s.bootstrap_mailbox(), Some(boot));
+            assert!(s.checksum_ok());
+            assert_eq!(
+                sii::set_bootstrap_mailbox(&mut img[..0x2F], &boot),
+                Err(SiiError::BufferTooSmall)
+            );
+        }
     }
 
     #[test]

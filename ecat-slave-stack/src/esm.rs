@@ -11,9 +11,14 @@
 //! * upward steps one at a time (I→P→S→O), downward steps may skip;
 //! * refused transitions (I→S, I→O, P→O, P→B, S→B, O→B, B→P/S/O) answer 0x0011 and
 //!   stay in the current state with the error indication set; a state code outside
-//!   {1, 2, 3, 4, 8} answers 0x0012 the same way; Bootstrap from Init answers 0x0013.
-//!   A refusal while in Op falls back to Safe-Op (outputs never keep running under an
-//!   error indication);
+//!   {1, 2, 3, 4, 8} answers 0x0012 the same way. A refusal while in Op falls back to
+//!   Safe-Op (outputs never keep running under an error indication);
+//! * Bootstrap (digest §2.4) is an option ([`Esm::with_bootstrap`], off by default):
+//!   off, Init→Boot answers 0x0013 and stays in Init; on, Init→Boot is allowed (the
+//!   runtime checks SM0/SM1 against the bootstrap mailbox, else 0x0015 and Init) and
+//!   Boot→Init is allowed; every other way into or out of Boot stays refused with
+//!   0x0011, a refusal in Boot staying in Boot. In Boot the mailbox runs (FoE), the
+//!   process data does not;
 //! * while the error indication is set, requests without the acknowledge bit (0x0120
 //!   bit 4) are ignored, except a request for Init (implicit acknowledge);
 //! * a successful transition clears the status code;
@@ -30,7 +35,8 @@ pub enum EsmState {
     Init = 1,
     /// Pre-Operational: mailbox running.
     PreOp = 2,
-    /// Bootstrap (firmware update); refused by this stack with 0x0013.
+    /// Bootstrap (firmware download over FoE); only when enabled
+    /// ([`Esm::with_bootstrap`]), else refused with 0x0013.
     Bootstrap = 3,
     /// Safe-Operational: inputs running, outputs in safe state.
     SafeOp = 4,
@@ -64,9 +70,12 @@ impl EsmState {
             Self::Op => 3,
         }
     }
-    /// Mailbox running (Pre-Op and above).
+    /// Mailbox running (Pre-Op and above, and Bootstrap).
     pub const fn mailbox_running(self) -> bool {
-        matches!(self, Self::PreOp | Self::SafeOp | Self::Op)
+        matches!(
+            self,
+            Self::PreOp | Self::SafeOp | Self::Op | Self::Bootstrap
+        )
     }
     /// Process data running (Safe-Op and Op).
     pub const fn process_data_running(self) -> bool {
@@ -129,8 +138,9 @@ pub enum Rule {
 
 use EsmState::{Bootstrap as B, Init as I, Op as O, PreOp as P, SafeOp as S};
 
-/// The transition table of digest §2.1: (from, to, rule), every pair of the five
-/// states exactly once.
+/// The transition table of digest §2.1 for a slave without Bootstrap: (from, to,
+/// rule), every pair of the five states exactly once. With Bootstrap enabled the
+/// (Init, Bootstrap) entry becomes [`Rule::Allowed`] ([`rule_with`]).
 pub const TRANSITIONS: &[(EsmState, EsmState, Rule)] = &[
     (I, I, Rule::Stay),
     (I, P, Rule::Allowed),
@@ -159,8 +169,16 @@ pub const TRANSITIONS: &[(EsmState, EsmState, Rule)] = &[
     (O, O, Rule::Stay),
 ];
 
-/// Looks a pair up in [`TRANSITIONS`].
+/// Looks a pair up in [`rule_with`] for a slave without Bootstrap.
 pub fn rule(from: EsmState, to: EsmState) -> Rule {
+    rule_with(from, to, false)
+}
+
+/// Looks a pair up in [`TRANSITIONS`]; with `bootstrap` Init→Bootstrap is allowed.
+pub fn rule_with(from: EsmState, to: EsmState, bootstrap: bool) -> Rule {
+    if bootstrap && from == EsmState::Init && to == EsmState::Bootstrap {
+        return Rule::Allowed;
+    }
     TRANSITIONS
         .iter()
         .find(|(f, t, _)| *f == from && *t == to)
@@ -171,12 +189,17 @@ pub fn rule(from: EsmState, to: EsmState) -> Rule {
 }
 
 /// The state a refusal or a local error leaves the slave in when the error is reported
-/// from `current`: the current state, except that Op falls to Safe-Op and Bootstrap
-/// (never entered by this stack) resolves to Init.
+/// from `current` by a slave without Bootstrap: the current state, except that Op
+/// falls to Safe-Op and Bootstrap (which such a slave is never in) resolves to Init.
 pub const fn refusal_state(current: EsmState) -> EsmState {
+    refusal_state_with(current, false)
+}
+
+/// [`refusal_state`]; with `bootstrap` a refusal in Bootstrap stays in Bootstrap.
+pub const fn refusal_state_with(current: EsmState, bootstrap: bool) -> EsmState {
     match current {
         EsmState::Op => EsmState::SafeOp,
-        EsmState::Bootstrap => EsmState::Init,
+        EsmState::Bootstrap if !bootstrap => EsmState::Init,
         s => s,
     }
 }
@@ -221,8 +244,18 @@ pub fn error_state(code: AlStatusCode, current: EsmState) -> EsmState {
 }
 
 /// Decides what an AL control word asks for, given the current state and whether the
-/// error indication is set. Pure function of the table.
+/// error indication is set, for a slave without Bootstrap. Pure function of the table.
 pub fn decide(current: EsmState, error_pending: bool, control: u16) -> Decision {
+    decide_with(current, error_pending, control, false)
+}
+
+/// [`decide`] for a slave with (`bootstrap` = true) or without Bootstrap support.
+pub fn decide_with(
+    current: EsmState,
+    error_pending: bool,
+    control: u16,
+    bootstrap: bool,
+) -> Decision {
     let requested_bits = (control & al_control::STATE_MASK) as u8;
     let ack = control & al_control::ERROR_ACK != 0;
     let requested = EsmState::from_bits(requested_bits);
@@ -232,15 +265,15 @@ pub fn decide(current: EsmState, error_pending: bool, control: u16) -> Decision 
     let Some(to) = requested else {
         return Decision::Refuse {
             code: AlStatusCode::UnknownState,
-            state: refusal_state(current),
+            state: refusal_state_with(current, bootstrap),
         };
     };
-    match rule(current, to) {
+    match rule_with(current, to, bootstrap) {
         Rule::Stay => Decision::None,
         Rule::Allowed => Decision::Transition { from: current, to },
         Rule::Refused(code) => Decision::Refuse {
             code,
-            state: refusal_state(current),
+            state: refusal_state_with(current, bootstrap),
         },
     }
 }
@@ -255,6 +288,8 @@ pub struct Esm {
     id_loaded: bool,
     /// A transition accepted but not complete yet (S→O waiting for sync lock).
     pending: Option<EsmState>,
+    /// Bootstrap supported (Init→Boot allowed).
+    bootstrap: bool,
 }
 
 impl Default for Esm {
@@ -264,15 +299,24 @@ impl Default for Esm {
 }
 
 impl Esm {
-    /// Init, no error.
+    /// Init, no error, Bootstrap not supported.
     pub const fn new() -> Self {
+        Self::with_bootstrap(false)
+    }
+    /// Init, no error; Bootstrap supported or not (see the module docs).
+    pub const fn with_bootstrap(bootstrap: bool) -> Self {
         Esm {
             state: EsmState::Init,
             error: false,
             code: 0,
             id_loaded: false,
             pending: None,
+            bootstrap,
         }
+    }
+    /// Bootstrap supported.
+    pub const fn bootstrap_supported(&self) -> bool {
+        self.bootstrap
     }
     /// Current state.
     pub const fn state(&self) -> EsmState {
@@ -311,7 +355,7 @@ impl Esm {
     /// decided. Refusals are applied here; for [`Decision::Transition`] the caller
     /// runs the checks and calls [`Esm::finish`].
     pub fn request(&mut self, control: u16) -> Decision {
-        let d = decide(self.state, self.error, control);
+        let d = decide_with(self.state, self.error, control, self.bootstrap);
         let ack = control & al_control::ERROR_ACK != 0;
         let init =
             EsmState::from_bits((control & al_control::STATE_MASK) as u8) == Some(EsmState::Init);
@@ -408,9 +452,20 @@ impl Esm {
 /// The CiA 402 coupling lives here: leaving Op while the power drive system is in
 /// *Operation enabled* must fault the PDS, going to Init puts the PDS into *Switch on
 /// disabled*. A PDS state change never changes the ESM state.
+///
+/// Bootstrap: [`EsmHooks::on_enter_bootstrap`] and [`EsmHooks::on_leave_bootstrap`]
+/// frame the firmware download (power stage off on entry; on leaving, after an
+/// accepted image, reset into the bootloader).
 pub trait EsmHooks {
     /// Called after every state change the slave made (requested or local).
     fn on_state_change(&mut self, from: EsmState, to: EsmState);
+    /// Init → Bootstrap done (after [`EsmHooks::on_state_change`]): the master will
+    /// download firmware over FoE. The drive must keep its power stage off.
+    fn on_enter_bootstrap(&mut self) {}
+    /// Bootstrap → Init done (after [`EsmHooks::on_state_change`]); AL status Init is
+    /// already written to the ESC, so the application may reset at once (e.g. into
+    /// the bootloader when a downloaded image was accepted).
+    fn on_leave_bootstrap(&mut self) {}
 }
 
 #[cfg(test)]

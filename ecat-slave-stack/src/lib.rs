@@ -3,7 +3,9 @@
 //! `no_std`, no heap, no panics on input from the wire. Layers:
 //! [`esc`] (access to the ESC address space, drivers for LAN9252 and ET1100),
 //! [`registers`] and [`al_status`] (the one register map and AL status code table),
-//! [`esm`] (state machine), [`od`] (object dictionary description and checks).
+//! [`esm`] (state machine), [`od`] (object dictionary description and checks),
+//! [`mailbox`] with [`coe`] (SDO, SDO information, emergency) and [`foe`] (file
+//! access, firmware download in Bootstrap).
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_op_in_unsafe_fn)]
 #![warn(missing_docs)]
@@ -15,6 +17,7 @@ pub mod esc;
 pub mod esi;
 pub mod esm;
 pub mod et1100;
+pub mod foe;
 pub mod lan9252;
 pub mod leds;
 pub mod mailbox;

@@ -16,7 +16,8 @@
 //! # The server
 //!
 //! [`MailboxServer::on_request`] parses one SM0 buffer, executes it (CoE SDO, SDO
-//! information) and keeps the answer; [`MailboxServer::next_output`] hands out the next
+//! information; with [`MailboxServer::on_request_with`] also FoE, [`crate::foe`]) and
+//! keeps the answer; [`MailboxServer::next_output`] hands out the next
 //! frame for SM1 — the pending reply or the next SDO information fragment first, then
 //! queued emergencies — and gives it the next counter (1…7, wrapping to 1). The last frame
 //! handed out stays available for the mailbox repeat request ([`MailboxServer::repeat_last`]).
@@ -30,13 +31,15 @@
 //!   answer was fetched replaces that answer (the master breaks the protocol if it does
 //!   not wait for the answer).
 //! * Malformed frames get a mailbox error reply (type 0, see [`ErrorDetail`]); so do
-//!   mailbox types other than CoE and CoE services other than SDO request and SDO
+//!   mailbox types without a handler ([`Handlers`]: CoE with a dictionary, FoE with a
+//!   file backend; every other type) and CoE services other than SDO request and SDO
 //!   information.
 //! * No heap: the answer, the last sent frame and the SDO transfer data live in fixed
 //!   buffers of [`MAX_MAILBOX_SIZE`] and [`crate::coe::sdo::TRANSFER_MAX`] bytes.
 
 use crate::coe::{self, emcy::EmergencyQueue, info::InfoJob, sdo::SdoServer};
 use crate::esm::EsmState;
+use crate::foe::{self, FoeFiles, FoeServer};
 use crate::od::Dictionary;
 
 /// Byte ranges of the mailbox header.
@@ -118,7 +121,7 @@ impl MailboxType {
 pub enum ErrorDetail {
     /// Syntax of the 6-byte header is wrong (buffer shorter than a header).
     Syntax = 0x0001,
-    /// The mailbox protocol is not supported (only CoE is).
+    /// The mailbox protocol is not supported (no handler for it, see [`Handlers`]).
     UnsupportedProtocol = 0x0002,
     /// Channel field is not 0.
     InvalidChannel = 0x0003,
@@ -353,9 +356,39 @@ enum LastAnswer {
     Info,
 }
 
+/// The protocol handlers one request may be given to. A request of a protocol
+/// without a handler is answered with the mailbox error "protocol not supported".
+/// The runtime passes only the handler the request's mailbox type needs (both borrow
+/// the application), and no CoE handler in Bootstrap.
+pub struct Handlers<'a, D: Dictionary> {
+    /// CoE (SDO, SDO information): the object dictionary.
+    pub coe: Option<&'a mut D>,
+    /// FoE: the application's files.
+    pub foe: Option<&'a mut dyn FoeFiles>,
+}
+
+impl<'a, D: Dictionary> Handlers<'a, D> {
+    /// CoE only.
+    pub fn coe(dict: &'a mut D) -> Self {
+        Handlers {
+            coe: Some(dict),
+            foe: None,
+        }
+    }
+    /// FoE only (`None`: no protocol at all).
+    pub fn foe(files: Option<&'a mut dyn FoeFiles>) -> Self {
+        Handlers {
+            coe: None,
+            foe: files,
+        }
+    }
+}
+
 /// The mailbox side of the slave: executes SM0 requests and produces SM1 frames.
 pub struct MailboxServer {
     size: usize,
+    /// The receive mailbox (SM0) length, which sizes FoE segments.
+    rx_size: usize,
     /// The answer to the last request (counter not yet set).
     reply: [u8; MAX_MAILBOX_SIZE],
     reply_len: usize,
@@ -373,6 +406,7 @@ pub struct MailboxServer {
     in_counter: Option<u8>,
     sdo: SdoServer,
     emcy: EmergencyQueue,
+    foe: FoeServer,
 }
 
 /// The mailbox size clamped to [`MIN_MAILBOX_SIZE`]…[`MAX_MAILBOX_SIZE`].
@@ -394,6 +428,7 @@ impl MailboxServer {
     pub const fn new(mailbox_size: usize) -> Self {
         MailboxServer {
             size: clamp_size(mailbox_size),
+            rx_size: clamp_size(mailbox_size),
             reply: [0; MAX_MAILBOX_SIZE],
             reply_len: 0,
             reply_pending: false,
@@ -406,6 +441,7 @@ impl MailboxServer {
             in_counter: None,
             sdo: SdoServer::new(),
             emcy: EmergencyQueue::new(),
+            foe: FoeServer::new(),
         }
     }
 
@@ -414,8 +450,9 @@ impl MailboxServer {
         self.size
     }
 
-    /// Changes the mailbox size (e.g. after the master configured SM0/SM1) and resets
-    /// like [`Self::reset`] (the emergency overrun counter is kept).
+    /// Changes the mailbox size (e.g. after the master configured SM0/SM1; both
+    /// directions the same size) and resets like [`Self::reset`] (the emergency
+    /// overrun counter is kept).
     ///
     /// In place (the same state as [`Self::new`] with the counter kept): the
     /// slave runtime calls this from the cyclic path on a state change, where a new
@@ -424,6 +461,31 @@ impl MailboxServer {
     #[inline(never)]
     pub fn set_mailbox_size(&mut self, mailbox_size: usize) {
         self.size = clamp_size(mailbox_size);
+        self.rx_size = self.size;
+        self.clear();
+    }
+
+    /// Sets the sizes from the SyncManager lengths (SM0 receive, SM1 send), each
+    /// clamped like [`Self::new`], and resets like [`Self::reset`]: answers are
+    /// bounded by the smaller one ([`Self::mailbox_size`]), FoE segments follow SM0
+    /// ([`Self::foe_segment`]).
+    #[inline(never)]
+    pub fn set_mailbox_sizes(&mut self, sm0_len: usize, sm1_len: usize) {
+        self.size = clamp_size(if sm0_len < sm1_len { sm0_len } else { sm1_len });
+        self.rx_size = clamp_size(sm0_len);
+        self.clear();
+    }
+
+    /// The largest FoE DATA payload the master sends (receive mailbox − 12 bytes).
+    pub const fn foe_segment(&self) -> usize {
+        self.rx_size - foe::OVERHEAD
+    }
+
+    /// Drops every transfer and answer, restarts the counters (sizes and the
+    /// emergency overrun counter are kept). The FoE transfer is forgotten without
+    /// telling its backend: call [`Self::foe_abort`] first.
+    #[inline(never)]
+    fn clear(&mut self) {
         self.reply_len = 0;
         self.reply_pending = false;
         self.last_answer = LastAnswer::None;
@@ -434,14 +496,28 @@ impl MailboxServer {
         self.in_counter = None;
         self.sdo.reset();
         self.emcy.clear();
+        self.foe.reset();
     }
 
     /// A whole SM0 buffer arrived (or its header plus the bytes the header announces):
-    /// parse, execute, keep the answer for [`Self::next_output`].
+    /// parse, execute, keep the answer for [`Self::next_output`]. CoE only: a FoE
+    /// request answers "protocol not supported" ([`Self::on_request_with`] serves
+    /// FoE too).
     pub fn on_request(
         &mut self,
         frame: &[u8],
         dict: &mut impl Dictionary,
+        state: EsmState,
+        now_us: u64,
+    ) {
+        self.on_request_with(frame, Handlers::coe(dict), state, now_us);
+    }
+
+    /// [`Self::on_request`] with the protocol handlers given explicitly.
+    pub fn on_request_with<D: Dictionary>(
+        &mut self,
+        frame: &[u8],
+        handlers: Handlers<'_, D>,
         state: EsmState,
         now_us: u64,
     ) {
@@ -483,17 +559,40 @@ impl MailboxServer {
             self.answer_error(ErrorDetail::InvalidChannel);
             return;
         }
-        if view.mailbox_type() != MailboxType::Coe {
-            self.answer_error(ErrorDetail::UnsupportedProtocol);
-            return;
+        match (view.mailbox_type(), handlers.coe, handlers.foe) {
+            (MailboxType::Coe, Some(dict), _) => {
+                self.on_coe(view.payload(), dict, state, now_us, expired)
+            }
+            (MailboxType::Foe, _, Some(files)) => self.on_foe(view.payload(), files, state, now_us),
+            _ => self.answer_error(ErrorDetail::UnsupportedProtocol),
         }
-        self.on_coe(view.payload(), dict, state, now_us, expired);
     }
 
-    fn on_coe(
+    fn on_foe(&mut self, payload: &[u8], files: &mut dyn FoeFiles, state: EsmState, now_us: u64) {
+        let segment = self.foe_segment();
+        let ctx = foe::Context {
+            in_boot: state == EsmState::Bootstrap,
+            write_segment: segment,
+            // SOEM and IgH expect read segments of SM0 − 12 bytes: they must fit SM1.
+            read_segment: if self.rx_size <= self.size {
+                segment
+            } else {
+                0
+            },
+            now_us,
+        };
+        let out = reply_area(&mut self.reply, self.size);
+        match self.foe.on_request(payload, files, ctx, out) {
+            foe::Answer::None => self.answer_none(),
+            foe::Answer::Frame(n) => self.answer_frame(MailboxType::Foe, n),
+            foe::Answer::MailboxError(detail) => self.answer_error(detail),
+        }
+    }
+
+    fn on_coe<D: Dictionary>(
         &mut self,
         payload: &[u8],
-        dict: &mut impl Dictionary,
+        dict: &mut D,
         state: EsmState,
         now_us: u64,
         expired: Option<(u16, u8)>,
@@ -546,13 +645,19 @@ impl MailboxServer {
 
     /// The CoE payload of `n` bytes is in `reply[6..]`: add the header and keep it.
     fn answer_coe(&mut self, n: usize) {
+        self.answer_frame(MailboxType::Coe, n);
+    }
+
+    /// The payload of `n` bytes of protocol `t` is in `reply[6..]`: add the header and
+    /// keep it.
+    fn answer_frame(&mut self, t: MailboxType, n: usize) {
         let mut f = Frame::new_unchecked(&mut self.reply[..]);
         Repr {
             length: n as u16,
             address: 0,
             channel: 0,
             priority: 0,
-            mailbox_type: MailboxType::Coe,
+            mailbox_type: t,
             counter: 0,
         }
         .emit(&mut f);
@@ -652,11 +757,34 @@ impl MailboxServer {
         }
     }
 
-    /// Leaving Pre-Op towards Init: drops the transfer, pending answers and queued
-    /// emergencies (the mailbox is off), restarts both counters. The emergency overrun
-    /// counter is kept.
+    /// Leaving Pre-Op (or Bootstrap) towards Init: drops the transfers, pending
+    /// answers and queued emergencies (the mailbox is off), restarts both counters.
+    /// The sizes and the emergency overrun counter are kept. An open FoE transfer is
+    /// forgotten without telling its backend: call [`Self::foe_abort`] first.
     pub fn reset(&mut self) {
-        self.set_mailbox_size(self.size);
+        self.clear();
+    }
+
+    /// FoE timeout supervision ([`FoeServer::tick`]): a stalled transfer is aborted
+    /// (backend told, no answer). Returns whether one was.
+    pub fn foe_tick(&mut self, now_us: u64, files: &mut dyn FoeFiles) -> bool {
+        self.foe.tick(now_us, files)
+    }
+
+    /// Aborts the open FoE transfer (backend told, no answer), e.g. before the mailbox
+    /// stops. Returns whether one was open.
+    pub fn foe_abort(&mut self, files: &mut dyn FoeFiles) -> bool {
+        self.foe.abort(files)
+    }
+
+    /// The direction of the open FoE transfer, if any.
+    pub fn foe_active(&self) -> Option<foe::Direction> {
+        self.foe.active()
+    }
+
+    /// Sets the FoE transfer timeout, µs ([`foe::DEFAULT_TIMEOUT_US`] by default).
+    pub fn set_foe_timeout_us(&mut self, us: u64) {
+        self.foe.set_timeout_us(us);
     }
 
     /// Queues an emergency message (CoE service 1): error code, error register (0x1001)

@@ -13,9 +13,9 @@
 //! | 0x00-0x07 | ESC configuration area: PDI control (→0x0140), PDI configuration (→0x0150), SYNC pulse length (→0x0982), extended PDI configuration (→0x0152), station alias (→0x0012), 2 reserved, checksum (CRC-8 over bytes 0-13 in the low byte) |
 //! | 0x08-0x0F | vendor ID, product code, revision, serial number (u32 each) |
 //! | 0x10-0x13 | reserved (0) |
-//! | 0x14-0x17 | bootstrap mailbox out/in offset and size (0: Bootstrap is not supported) |
+//! | 0x14-0x17 | bootstrap mailbox receive/send offset and size (0: Bootstrap is not supported; [`set_bootstrap_mailbox`] fills them in) |
 //! | 0x18-0x1B | standard mailbox out (SM0) / in (SM1) offset and size |
-//! | 0x1C | mailbox protocols (0x0004 = CoE) |
+//! | 0x1C | mailbox protocols (0x0004 = CoE, 0x0008 = FoE) |
 //! | 0x3E | EEPROM size in Kibit − 1 |
 //! | 0x3F | version (1) |
 //! | 0x40… | categories: strings (10), general (30; order string = the ESI type name), FMMU (40), SyncManager (41), DC (60), TxPDO (50 = 0x32) and RxPDO (51 = 0x33) with [`build_with_pdos`], end (0xFFFF) |
@@ -39,6 +39,9 @@ use crate::od::{Name, Object};
 
 /// Mailbox protocol bit of SII word 0x1C: CoE.
 pub const MBOX_COE: u16 = 0x0004;
+/// Mailbox protocol bit of SII word 0x1C: FoE (IgH refuses FoE without it). With it
+/// the general category's FoE details byte is 1 and the ESI mailbox lists `<FoE/>`.
+pub const MBOX_FOE: u16 = 0x0008;
 /// All protocol bits defined by ETG.1000.6 (AoE, EoE, CoE, FoE, SoE, VoE).
 pub const MBOX_VALID: u16 = 0x003F;
 
@@ -797,6 +800,7 @@ pub fn build_with_pdos(
     g[2] = strings.index(Name::plain(desc.type_name));
     g[3] = strings.index(Name::plain(desc.name));
     g[5] = desc.coe.bits();
+    g[6] = (desc.mailbox_protocols & MBOX_FOE != 0) as u8;
     g[0x0B] = (desc.mailbox_data_link_layer as u8) << 2;
     g[0x0C..0x0E].copy_from_slice(&desc.ebus_current_ma.to_le_bytes());
     g[0x0E] = group;
@@ -850,6 +854,20 @@ pub fn build_with_pdos(
         return Err(SiiError::EepromTooSmall);
     }
     Ok(w.pos)
+}
+
+/// Writes the bootstrap mailbox (words 0x14–0x17, outside the checksummed area) into
+/// a built image; `image` must hold at least the fixed part (0x40 words).
+pub fn set_bootstrap_mailbox(
+    image: &mut [u8],
+    boot: &crate::sm::BootMailbox,
+) -> Result<(), SiiError> {
+    let at = word::BOOT_RX_OFFSET * 2;
+    let dst = image.get_mut(at..at + 8).ok_or(SiiError::BufferTooSmall)?;
+    for (d, w) in dst.chunks_exact_mut(2).zip(boot.sii_words()) {
+        d.copy_from_slice(&w.to_le_bytes());
+    }
+    Ok(())
 }
 
 /// A panic-free view of an SII image (any bytes: missing parts read as `None`).
@@ -993,6 +1011,18 @@ impl<'a> Sii<'a> {
     /// Serial number.
     pub fn serial(&self) -> Option<u32> {
         self.dword(word::SERIAL)
+    }
+    /// The bootstrap mailbox of words 0x14–0x17 (`None`: all zero, Bootstrap not
+    /// supported, or the image is too short).
+    pub fn bootstrap_mailbox(&self) -> Option<crate::sm::BootMailbox> {
+        let w = |i| self.word(word::BOOT_RX_OFFSET + i);
+        let b = crate::sm::BootMailbox {
+            rx_start: w(0)?,
+            rx_len: w(1)?,
+            tx_start: w(2)?,
+            tx_len: w(3)?,
+        };
+        (b.sii_words() != [0; 4]).then_some(b)
     }
     /// The categories.
     pub fn categories(&self) -> Categories<'a> {

@@ -26,6 +26,17 @@
 //! the SYNC0 interrupt, or [`Slave::poll`] at least once per SYNC0 period (coalesced
 //! SYNC0 events look like a wrong period and the slave never locks → 0x002D).
 //!
+//! Bootstrap ([`SlaveConfig::bootstrap`], off by default): Init→Boot checks SM0/SM1
+//! against the product's [`BootMailbox`] (0x0015 otherwise) and starts the mailbox
+//! with FoE only — CoE requests answer the mailbox error "protocol not supported", no
+//! process data; [`EsmHooks::on_enter_bootstrap`] / [`EsmHooks::on_leave_bootstrap`]
+//! tell the application.
+//!
+//! FoE: mailbox type 4 goes to [`SlaveApplication::foe`] ([`crate::foe`]); an
+//! application without files keeps answering "protocol not supported". A FoE
+//! transfer is aborted when the mailbox stops (→ Init) and after
+//! [`SlaveConfig::foe_timeout_us`] without a request.
+//!
 //! Objects 0x1600-0x1C33 and 0x2200 are served by the runtime itself (its
 //! [`PdoConfig`] and [`SyncState`]); every other index goes to the application's
 //! [`Dictionary`] ([`CommDictionary`]).
@@ -33,11 +44,12 @@
 use crate::al_status::AlStatusCode;
 use crate::esc::{EscAccess, EscError};
 use crate::esm::{Decision, Esm, EsmHooks, EsmState};
-use crate::mailbox::MailboxServer;
+use crate::foe::FoeFiles;
+use crate::mailbox::{Frame as MailboxFrame, Handlers, MailboxServer, MailboxType};
 use crate::od::{Dictionary, Object, SdoAbort};
 use crate::pdo::{self, CopyPlan, PdoConfig, PdoDefaults, ProcessData};
 use crate::registers::{self as reg, al_event};
-use crate::sm::{self, MailboxLimits, PdDirection, RamWindow, SmRegs};
+use crate::sm::{self, BootMailbox, MailboxLimits, PdDirection, RamWindow, SmRegs};
 use crate::sync::{self, SyncEvent, SyncMode, SyncState};
 
 /// Longest time between two reads of the process-data watchdog status, µs.
@@ -79,6 +91,12 @@ pub trait SlaveApplication: Dictionary + ProcessData + EsmHooks {
     fn now_us(&mut self) -> Option<u64> {
         None
     }
+    /// The files served over FoE (mailbox type 4), e.g. the firmware image writer;
+    /// `None` (the default): FoE requests answer the mailbox error "protocol not
+    /// supported".
+    fn foe(&mut self) -> Option<&mut dyn FoeFiles> {
+        None
+    }
 }
 
 /// What one cycle is about.
@@ -108,6 +126,12 @@ pub struct SlaveConfig {
     /// Shortest DC SYNC0 cycle the product supports (0x1C32:05), ns: 125 000 by
     /// default; 62 500 also accepts the 62.5 µs cycle.
     pub min_cycle_ns: u32,
+    /// Bootstrap support with this mailbox layout (the SII words 0x14–0x17 must say
+    /// the same); `None` (default): Init→Boot is refused with 0x0013.
+    pub bootstrap: Option<BootMailbox>,
+    /// A FoE transfer without a request for this long is aborted, µs (default
+    /// [`crate::foe::DEFAULT_TIMEOUT_US`], 10 s; applied by [`Slave::init`]).
+    pub foe_timeout_us: u64,
 }
 
 impl Default for SlaveConfig {
@@ -118,6 +142,8 @@ impl Default for SlaveConfig {
             pdo_defaults: PdoDefaults::EMPTY,
             calc_copy_ns: (0, 0),
             min_cycle_ns: sync::MIN_CYCLE_NS,
+            bootstrap: None,
+            foe_timeout_us: crate::foe::DEFAULT_TIMEOUT_US,
         }
     }
 }
@@ -278,7 +304,7 @@ impl<E: EscAccess> Slave<E> {
             esc,
             info: EscInfo::default(),
             ram: RamWindow::from_kib(4),
-            esm: Esm::new(),
+            esm: Esm::with_bootstrap(cfg.bootstrap.is_some()),
             pdo: PdoConfig::new(cfg.pdo_defaults),
             sync: SyncState {
                 min_cycle_ns: cfg.min_cycle_ns,
@@ -315,7 +341,7 @@ impl<E: EscAccess> Slave<E> {
     }
 
     /// Reads the ESC information, writes the alias (if configured), the AL event mask
-    /// and AL status Init without error.
+    /// and AL status Init without error; applies the FoE timeout.
     pub fn init(&mut self) -> Result<EscInfo, EscError> {
         let mut b = [0u8; 10];
         self.esc.read(reg::ESC_TYPE, &mut b)?;
@@ -332,7 +358,8 @@ impl<E: EscAccess> Slave<E> {
         if let Some(a) = self.cfg.station_alias {
             self.esc.write_u16(reg::STATION_ALIAS, a)?;
         }
-        self.esm = Esm::new();
+        self.esm = Esm::with_bootstrap(self.cfg.bootstrap.is_some());
+        self.mbx.set_foe_timeout_us(self.cfg.foe_timeout_us);
         self.last_status = None;
         self.write_event_mask()?;
         self.write_status()?;
@@ -396,8 +423,12 @@ impl<E: EscAccess> Slave<E> {
         }
     }
 
-    /// Queues an emergency message (sent when SM1 is free, in Pre-Op and above).
+    /// Queues an emergency message (sent when SM1 is free, in Pre-Op and above). In
+    /// Bootstrap, whose mailbox serves FoE only, the message is dropped.
     pub fn emergency(&mut self, error_code: u16, error_register: u8, data: [u8; 5]) {
+        if self.esm.state() == EsmState::Bootstrap {
+            return;
+        }
         self.mbx.emergency(error_code, error_register, data);
     }
     /// Emergencies dropped because the mailbox's emergency queue was full.
@@ -425,6 +456,11 @@ impl<E: EscAccess> Slave<E> {
                 self.receive_mailbox(app, now_us)?;
             }
             self.mbx.tick(now_us);
+            if self.mbx.foe_active().is_some() {
+                if let Some(files) = app.foe() {
+                    self.mbx.foe_tick(now_us, files);
+                }
+            }
             self.send_mailbox(now_us)?;
         }
         if self.esm.state().process_data_running() {
@@ -488,6 +524,7 @@ impl<E: EscAccess> Slave<E> {
         use EsmState::*;
         Ok(match (from, to) {
             (Init, PreOp) => Step::Done(self.start_mailbox()?),
+            (Init, Bootstrap) => Step::Done(self.start_boot_mailbox()?),
             (PreOp, SafeOp) => Step::Done(self.start_process_data(app)?),
             (SafeOp, Op) => {
                 self.follow_dc(now, true)?;
@@ -523,9 +560,31 @@ impl<E: EscAccess> Slave<E> {
         {
             return Ok(Err(c));
         }
+        self.activate_mailbox(sm0, sm1)?;
+        Ok(Ok(()))
+    }
+
+    /// I→B: SM0/SM1 must be the bootstrap mailbox of the configuration.
+    fn start_boot_mailbox(&mut self) -> Result<Result<(), AlStatusCode>, EscError> {
+        let Some(boot) = self.cfg.bootstrap else {
+            return Ok(Err(AlStatusCode::BootstrapNotSupported));
+        };
+        self.station = self.esc.read_u16(reg::STATION_ADDRESS)?;
+        self.read_sms()?;
+        let [sm0, sm1, _, _] = self.sms;
+        if let Err(c) = sm::validate_boot_mailbox(&sm0, &sm1, &boot, self.ram) {
+            return Ok(Err(c));
+        }
+        self.activate_mailbox(sm0, sm1)?;
+        Ok(Ok(()))
+    }
+
+    /// Takes validated SM0/SM1 into use and starts the mailbox.
+    fn activate_mailbox(&mut self, sm0: SmRegs, sm1: SmRegs) -> Result<(), EscError> {
         self.active[0] = sm0;
         self.active[1] = sm1;
-        self.mbx.set_mailbox_size(sm0.len.min(sm1.len) as usize);
+        self.mbx
+            .set_mailbox_sizes(sm0.len as usize, sm1.len as usize);
         self.sm1_busy = false;
         self.repeat_ack = sm1.repeat_request();
         // Make sure neither mailbox SM is deactivated from the PDI side; start the
@@ -538,8 +597,7 @@ impl<E: EscAccess> Slave<E> {
             0
         };
         self.esc
-            .write_u8(reg::sm_register(1) + reg::sm::PDI_CONTROL, ack)?;
-        Ok(Ok(()))
+            .write_u8(reg::sm_register(1) + reg::sm::PDI_CONTROL, ack)
     }
 
     fn start_process_data<A: SlaveApplication>(
@@ -680,6 +738,9 @@ impl<E: EscAccess> Slave<E> {
             self.outputs_fresh = false;
         }
         if before.mailbox_running() && !after.mailbox_running() {
+            if let Some(files) = app.foe() {
+                self.mbx.foe_abort(files);
+            }
             self.mbx.reset();
             self.sm1_busy = false;
             self.sync.reset_written();
@@ -689,6 +750,13 @@ impl<E: EscAccess> Slave<E> {
         }
         self.write_event_mask()?;
         app.on_state_change(before, after);
+        if after == EsmState::Bootstrap {
+            app.on_enter_bootstrap();
+        } else if before == EsmState::Bootstrap {
+            // The hook may reset the device: the master must see Init first.
+            self.write_status()?;
+            app.on_leave_bootstrap();
+        }
         Ok(())
     }
 
@@ -842,13 +910,24 @@ impl<E: EscAccess> Slave<E> {
             self.esc.read(sm0.last_byte(), &mut last)?;
         }
         let state = self.esm.state();
-        let mut dict = CommDictionary {
-            pdo: &mut self.pdo,
-            sync: &mut self.sync,
-            app,
-        };
-        self.mbx
-            .on_request(&self.mbx_buf[..total], &mut dict, state, now);
+        let frame = &self.mbx_buf[..total];
+        // Only the handler of the request's protocol is lent out (both borrow `app`);
+        // Bootstrap serves FoE only.
+        if MailboxFrame::new_unchecked(frame).mailbox_type() == MailboxType::Foe {
+            let h = Handlers::<CommDictionary<'_, A>>::foe(app.foe());
+            self.mbx.on_request_with(frame, h, state, now);
+        } else if state == EsmState::Bootstrap {
+            let h = Handlers::<CommDictionary<'_, A>>::foe(None);
+            self.mbx.on_request_with(frame, h, state, now);
+        } else {
+            let mut dict = CommDictionary {
+                pdo: &mut self.pdo,
+                sync: &mut self.sync,
+                app,
+            };
+            self.mbx
+                .on_request_with(frame, Handlers::coe(&mut dict), state, now);
+        }
         Ok(())
     }
 

@@ -13,6 +13,9 @@
 //!   SM2 with the AL event interrupt (control bit 5: the runtime is driven by the SM2
 //!   event), enabled iff the size is non-zero, no overlap with the mailboxes or each other
 //!   (a 3-buffer SM occupies 3 × length) → 0x001D (outputs) / 0x001E (inputs).
+//! * [`validate_boot_mailbox`] (I→B): SM0/SM1 exactly at the start addresses and
+//!   lengths of the product's [`BootMailbox`] (SII words 0x14–0x17), with the same
+//!   mode/direction/enable/RAM/overlap rules as at I→P → else 0x0015.
 //! * [`validate_watchdog`] (P→S): 0x0420 ≠ 0 exactly when SM2's watchdog trigger
 //!   (control bit 6) is set, and an enabled watchdog at least twice the cycle time →
 //!   else 0x001F.
@@ -171,6 +174,54 @@ impl Default for MailboxLimits {
     }
 }
 
+/// The bootstrap mailbox of a product (SII words 0x14–0x17, ESI `<BootStrap>`): the
+/// SM0/SM1 layout a master must configure before requesting Bootstrap. Lengths of
+/// [`crate::mailbox::MIN_MAILBOX_SIZE`]…[`crate::mailbox::MAX_MAILBOX_SIZE`] bytes
+/// (others are never accepted: every Init→Boot answers 0x0015).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BootMailbox {
+    /// Receive mailbox (SM0, master → slave) start address.
+    pub rx_start: u16,
+    /// Receive mailbox length, bytes.
+    pub rx_len: u16,
+    /// Send mailbox (SM1, slave → master) start address.
+    pub tx_start: u16,
+    /// Send mailbox length, bytes.
+    pub tx_len: u16,
+}
+
+impl BootMailbox {
+    /// The usual layout, the same as the standard mailbox: SM0 at 0x1000, SM1 at
+    /// 0x1080, 128 bytes each (SOES `MBXSIZEBOOT`).
+    pub const STANDARD: BootMailbox = BootMailbox {
+        rx_start: 0x1000,
+        rx_len: 128,
+        tx_start: 0x1080,
+        tx_len: 128,
+    };
+
+    /// SII words 0x14–0x17: receive offset, receive size, send offset, send size.
+    pub const fn sii_words(&self) -> [u16; 4] {
+        [self.rx_start, self.rx_len, self.tx_start, self.tx_len]
+    }
+
+    /// The ESI `<Eeprom><BootStrap>` value: the four SII words as 8 bytes in
+    /// little-endian order, written as 16 upper-case hex digits (e.g.
+    /// `0010800080108000` for [`Self::STANDARD`]).
+    pub fn esi_hex(&self) -> [u8; 16] {
+        const HEX: &[u8; 16] = b"0123456789ABCDEF";
+        let mut out = [b'0'; 16];
+        for (i, w) in self.sii_words().iter().enumerate() {
+            for (j, b) in w.to_le_bytes().iter().enumerate() {
+                let k = 4 * i + 2 * j;
+                out[k] = HEX[(b >> 4) as usize];
+                out[k + 1] = HEX[(b & 0x0F) as usize];
+            }
+        }
+        out
+    }
+}
+
 /// The process RAM window `[0x1000, 0x1000 + size)`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RamWindow {
@@ -242,6 +293,33 @@ pub fn validate_mailbox(
         }
     }
     Ok(())
+}
+
+/// The I→B check of SM0/SM1 against the product's bootstrap mailbox: exact start
+/// addresses and lengths, plus the rules of [`validate_mailbox`] (SM2/SM3 are not
+/// looked at: there is no process data in Bootstrap) → else 0x0015.
+pub fn validate_boot_mailbox(
+    sm0: &SmRegs,
+    sm1: &SmRegs,
+    boot: &BootMailbox,
+    ram: RamWindow,
+) -> Result<(), AlStatusCode> {
+    let bad = Err(AlStatusCode::InvalidMailboxBoot);
+    let sizes = crate::mailbox::MIN_MAILBOX_SIZE..=crate::mailbox::MAX_MAILBOX_SIZE;
+    if sm0.start != boot.rx_start
+        || sm0.len != boot.rx_len
+        || sm1.start != boot.tx_start
+        || sm1.len != boot.tx_len
+        || !sizes.contains(&(boot.rx_len as usize))
+        || !sizes.contains(&(boot.tx_len as usize))
+    {
+        return bad;
+    }
+    let limits = MailboxLimits {
+        sm0_len: (boot.rx_len, boot.rx_len),
+        sm1_len: (boot.tx_len, boot.tx_len),
+    };
+    validate_mailbox(sm0, sm1, &[], &limits, ram).or(bad)
 }
 
 /// Which process-data SyncManager is checked.
@@ -373,6 +451,40 @@ mod tests {
             Ok(())
         );
         assert_eq!(validate_watchdog(&sm2, true, 2498, 1000, 1_000_000), Ok(()));
+    }
+
+    #[test]
+    fn boot_mailbox_check() {
+        let b = BootMailbox::STANDARD;
+        assert_eq!(b.sii_words(), [0x1000, 128, 0x1080, 128]);
+        assert_eq!(&b.esi_hex(), b"0010800080108000");
+        let sm0 = sm(0x1000, 128, 0x26);
+        let sm1 = sm(0x1080, 128, 0x22);
+        assert_eq!(validate_boot_mailbox(&sm0, &sm1, &b, RAM), Ok(()));
+        let bad = Err(AlStatusCode::InvalidMailboxBoot);
+        for (s0, s1) in [
+            (sm(0x1000, 64, 0x26), sm1),
+            (sm(0x1002, 128, 0x26), sm1),
+            (sm0, sm(0x1080, 128, 0x26)),
+            (sm0, SmRegs { activate: 0, ..sm1 }),
+            (sm(0x1000, 128, 0x24), sm1),
+        ] {
+            assert_eq!(validate_boot_mailbox(&s0, &s1, &b, RAM), bad);
+        }
+        // A configuration with overlapping or oversized mailboxes never passes.
+        let overlap = BootMailbox {
+            tx_start: 0x1040,
+            ..b
+        };
+        let s1 = sm(0x1040, 128, 0x22);
+        assert_eq!(validate_boot_mailbox(&sm0, &s1, &overlap, RAM), bad);
+        let big = BootMailbox {
+            rx_len: 512,
+            tx_start: 0x1200,
+            ..b
+        };
+        let (s0, s1) = (sm(0x1000, 512, 0x26), sm(0x1200, 128, 0x22));
+        assert_eq!(validate_boot_mailbox(&s0, &s1, &big, RAM), bad);
     }
 
     #[test]

@@ -7,10 +7,13 @@
 use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esc::{EscAccess, EscError};
 use ecat_slave_stack::esm::{self, Decision, EsmHooks, EsmState};
+use ecat_slave_stack::foe::{ErrorCode, FoeFiles, WriteStatus};
+use ecat_slave_stack::leds::{ErrCondition, Pattern, StatusLeds};
 use ecat_slave_stack::od::{Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort};
 use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
 use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
+use ecat_slave_stack::sm::BootMailbox;
 use ecat_slave_stack::sync;
 
 // ---- fake ESC -----------------------------------------------------------------
@@ -243,6 +246,54 @@ const DEFAULTS: PdoDefaults = PdoDefaults {
     tx_assign: &[0x1A00],
 };
 
+/// A firmware file "fw.bin" (Bootstrap only): counts the bytes, completions, aborts.
+struct FwFile {
+    bytes: u32,
+    finished: u32,
+    aborted: u32,
+    open: bool,
+}
+
+impl FoeFiles for FwFile {
+    fn open_write(&mut self, name: &[u8], _password: u32, in_boot: bool) -> Result<(), ErrorCode> {
+        match name {
+            b"fw.bin" if in_boot => {
+                self.open = true;
+                self.bytes = 0;
+                Ok(())
+            }
+            b"fw.bin" => Err(ErrorCode::BootstrapOnly),
+            _ => Err(ErrorCode::NotFound),
+        }
+    }
+    fn write(&mut self, offset: u32, data: &[u8]) -> WriteStatus {
+        assert_eq!(offset, self.bytes);
+        self.bytes += data.len() as u32;
+        WriteStatus::Done
+    }
+    fn finish_write(&mut self) -> Result<(), ErrorCode> {
+        self.open = false;
+        self.finished += 1;
+        Ok(())
+    }
+    fn open_read(
+        &mut self,
+        _name: &[u8],
+        _password: u32,
+        _in_boot: bool,
+    ) -> Result<u32, ErrorCode> {
+        Err(ErrorCode::NotFound)
+    }
+    fn read(&mut self, _offset: u32, _buf: &mut [u8]) -> usize {
+        0
+    }
+    fn abort(&mut self) {
+        assert!(self.open);
+        self.open = false;
+        self.aborted += 1;
+    }
+}
+
 // Slots: 0 cw, 1 target, 2 mode, 3 flag, 4 sw, 5 pos, 6 big, 7 outputs
 struct App {
     v: [u64; 8],
@@ -253,6 +304,10 @@ struct App {
     fresh_cycles: u32,
     refuse_tx: bool,
     local: Option<AlStatusCode>,
+    /// FoE backend (None: the application serves no files).
+    files: Option<FwFile>,
+    /// Bootstrap hooks called: (entered, left).
+    boot_hooks: (u32, u32),
 }
 
 impl App {
@@ -266,6 +321,8 @@ impl App {
             fresh_cycles: 0,
             refuse_tx: false,
             local: None,
+            files: None,
+            boot_hooks: (0, 0),
         }
     }
     fn last_change(&self) -> Option<(EsmState, EsmState)> {
@@ -332,6 +389,20 @@ impl EsmHooks for App {
         self.changes[self.n_changes % 16] = (from, to);
         self.n_changes += 1;
     }
+    fn on_enter_bootstrap(&mut self) {
+        assert_eq!(
+            self.last_change(),
+            Some((EsmState::Init, EsmState::Bootstrap))
+        );
+        self.boot_hooks.0 += 1;
+    }
+    fn on_leave_bootstrap(&mut self) {
+        assert_eq!(
+            self.last_change(),
+            Some((EsmState::Bootstrap, EsmState::Init))
+        );
+        self.boot_hooks.1 += 1;
+    }
 }
 
 impl SlaveApplication for App {
@@ -350,6 +421,9 @@ impl SlaveApplication for App {
     fn local_error(&mut self) -> Option<AlStatusCode> {
         self.local
     }
+    fn foe(&mut self) -> Option<&mut dyn FoeFiles> {
+        self.files.as_mut().map(|f| f as &mut dyn FoeFiles)
+    }
 }
 
 // ---- helpers ----------------------------------------------------------------------
@@ -366,6 +440,70 @@ fn new_slave() -> (Slave<FakeEsc>, App) {
     let mut s = Slave::new(FakeEsc::new(), cfg());
     s.init().unwrap();
     (s, App::new())
+}
+
+/// Bootstrap mailbox: SM0 at 0x1000, SM1 at 0x1100, 192 bytes each.
+const BOOT: BootMailbox = BootMailbox {
+    rx_start: 0x1000,
+    rx_len: 192,
+    tx_start: 0x1100,
+    tx_len: 192,
+};
+
+/// A slave with Bootstrap support and an application with the firmware file.
+fn new_boot_slave() -> (Slave<FakeEsc>, App) {
+    let mut s = Slave::new(
+        FakeEsc::new(),
+        SlaveConfig {
+            bootstrap: Some(BOOT),
+            ..cfg()
+        },
+    );
+    s.init().unwrap();
+    let mut app = App::new();
+    app.files = Some(FwFile {
+        bytes: 0,
+        finished: 0,
+        aborted: 0,
+        open: false,
+    });
+    (s, app)
+}
+
+fn boot_mailbox(esc: &mut FakeEsc) {
+    esc.write_sm(0, BOOT.rx_start, BOOT.rx_len, 0x26, true);
+    esc.write_sm(1, BOOT.tx_start, BOOT.tx_len, 0x22, true);
+}
+
+fn to_boot(s: &mut Slave<FakeEsc>, app: &mut App) {
+    boot_mailbox(s.esc_mut());
+    assert_eq!(request(s, app, 3, 0), (0x03, 0));
+}
+
+/// Writes one mailbox request of type `t` (SM0 of `size` bytes) with `counter`,
+/// polls, and returns the answer read from SM1 (None if there is none).
+fn mailbox_exchange(
+    s: &mut Slave<FakeEsc>,
+    app: &mut App,
+    size: usize,
+    t: u8,
+    counter: u8,
+    payload: &[u8],
+    now: u64,
+) -> Option<([u8; 256], usize)> {
+    let (sm0, _) = s.esc_mut().sm(0);
+    let mut req = [0u8; 256];
+    req[..2].copy_from_slice(&(payload.len() as u16).to_le_bytes());
+    req[5] = t | (counter << 4);
+    req[6..6 + payload.len()].copy_from_slice(payload);
+    s.esc_mut().ecat_write(sm0, &req[..size]);
+    s.poll(app, now).unwrap();
+    let mut out = [0u8; 256];
+    if !s.esc_mut().read_sm1(&mut out[..size]) {
+        return None;
+    }
+    let len = 6 + u16::from_le_bytes([out[0], out[1]]) as usize;
+    Some((out, len))
 }
 
 fn standard_mailbox(esc: &mut FakeEsc) {
@@ -680,6 +818,208 @@ qemu_runner::tests! {
         assert_eq!(request(&mut s, &mut app, 2, 0), (0x11, 0x0013));
         // … with acknowledge it is carried out and the code cleared.
         assert_eq!(request(&mut s, &mut app, 0x12, 0), (0x02, 0));
+    }
+
+    fn bootstrap_transition_table() {
+        use EsmState::*;
+        let states = [Init, PreOp, Bootstrap, SafeOp, Op];
+        for from in states {
+            for to in states {
+                let with = esm::decide_with(from, false, to.bits() as u16, true);
+                let without = esm::decide(from, false, to.bits() as u16);
+                match (from, to) {
+                    (Init, Bootstrap) => {
+                        assert_eq!(with, Decision::Transition { from, to });
+                        assert_eq!(without, Decision::Refuse {
+                            code: AlStatusCode::BootstrapNotSupported,
+                            state: Init,
+                        });
+                    }
+                    (Bootstrap, Init) => assert_eq!(with, Decision::Transition { from, to }),
+                    (Bootstrap, Bootstrap) => assert_eq!(with, Decision::None),
+                    // Every other way out of Boot: 0x0011, staying in Boot.
+                    (Bootstrap, _) => assert_eq!(with, Decision::Refuse {
+                        code: AlStatusCode::InvalidStateChange,
+                        state: Bootstrap,
+                    }),
+                    (_, Bootstrap) => {
+                        assert_eq!(with, without);
+                        assert!(matches!(with, Decision::Refuse {
+                            code: AlStatusCode::InvalidStateChange, ..
+                        }));
+                    }
+                    _ => assert_eq!(with, without),
+                }
+            }
+        }
+        assert!(!esm::Esm::new().bootstrap_supported());
+        assert!(esm::Esm::with_bootstrap(true).bootstrap_supported());
+    }
+
+    fn bootstrap_disabled_still_answers_0x0013() {
+        // The default configuration, even with the boot mailbox configured by the master.
+        let (mut s, mut app) = new_slave();
+        boot_mailbox(s.esc_mut());
+        assert_eq!(request(&mut s, &mut app, 3, 0), (0x11, 0x0013));
+        assert_eq!(app.n_changes, 0);
+        assert_eq!(app.boot_hooks, (0, 0));
+    }
+
+    fn init_to_boot_with_the_boot_mailbox_and_back() {
+        let (mut s, mut app) = new_boot_slave();
+        to_boot(&mut s, &mut app);
+        assert_eq!(app.last_change(), Some((EsmState::Init, EsmState::Bootstrap)));
+        assert_eq!(app.boot_hooks, (1, 0));
+        // Mailbox events on, no process data.
+        let mask = s.esc_mut().u16(reg::AL_EVENT_MASK) as u32;
+        assert_ne!(mask & (1 << 8), 0);
+        assert_eq!(mask & (1 << 10), 0);
+        // RUN flickers (50 ms on / 50 ms off), ERR off.
+        let mut leds = StatusLeds::new();
+        let (st, code) = s.esc_mut().al_status();
+        leds.update(s.state(), ErrCondition::from_al_status(st, code), 0);
+        assert_eq!(leds.run.pattern(), Pattern::Flickering);
+        assert_eq!(leds.err.pattern(), Pattern::Off);
+        assert_eq!(leds.levels(10), (true, false));
+        assert_eq!(leds.levels(60), (false, false));
+        assert_eq!(leds.levels(110), (true, false));
+        // Boot → Init.
+        assert_eq!(request(&mut s, &mut app, 1, 0), (0x01, 0));
+        assert_eq!(app.last_change(), Some((EsmState::Bootstrap, EsmState::Init)));
+        assert_eq!(app.boot_hooks, (1, 1));
+        // And again, then the normal way up still works.
+        to_boot(&mut s, &mut app);
+        assert_eq!(request(&mut s, &mut app, 1, 0), (0x01, 0));
+        assert_eq!(app.boot_hooks, (2, 2));
+        to_preop(&mut s, &mut app);
+        assert_eq!(app.boot_hooks, (2, 2));
+    }
+
+    fn init_to_boot_with_a_wrong_mailbox_gives_0x0015() {
+        let cases: &[(SmCfg, SmCfg)] = &[
+            ((0x1000, 128, 0x26, true), (0x1080, 128, 0x22, true)),  // the standard mailbox
+            ((0x1000, 192, 0x26, true), (0x1100, 190, 0x22, true)),  // SM1 length
+            ((0x1002, 192, 0x26, true), (0x1100, 192, 0x22, true)),  // SM0 start
+            ((0x1000, 192, 0x26, true), (0x1100, 192, 0x22, false)), // SM1 disabled
+            ((0x1000, 192, 0x22, true), (0x1100, 192, 0x22, true)),  // SM0 direction
+            ((0x1000, 192, 0x26, true), (0x1100, 192, 0x20, true)),  // SM1 buffered
+        ];
+        for (a, b) in cases {
+            let (mut s, mut app) = new_boot_slave();
+            s.esc_mut().write_sm(0, a.0, a.1, a.2, a.3);
+            s.esc_mut().write_sm(1, b.0, b.1, b.2, b.3);
+            assert_eq!(request(&mut s, &mut app, 3, 0), (0x11, 0x0015), "{:?} {:?}", a, b);
+            assert_eq!(app.n_changes, 0);
+            assert_eq!(app.boot_hooks, (0, 0));
+            // Acknowledge, fix the configuration, enter Boot.
+            boot_mailbox(s.esc_mut());
+            assert_eq!(request(&mut s, &mut app, 0x13, 0), (0x03, 0));
+        }
+    }
+
+    fn other_transitions_into_and_out_of_boot_give_0x0011() {
+        let (mut s, mut app) = new_boot_slave();
+        to_preop(&mut s, &mut app);
+        assert_eq!(request(&mut s, &mut app, 3, 0), (0x12, 0x0011)); // P→B
+        let (mut s, mut app) = new_boot_slave();
+        to_safeop(&mut s, &mut app);
+        assert_eq!(request(&mut s, &mut app, 3, 0), (0x14, 0x0011)); // S→B
+        let (mut s, mut app) = new_boot_slave();
+        to_op(&mut s, &mut app);
+        assert_eq!(request(&mut s, &mut app, 3, 0), (0x14, 0x0011)); // O→B falls to Safe-Op
+        for ctl in [2u16, 4, 8] {
+            let (mut s, mut app) = new_boot_slave();
+            to_boot(&mut s, &mut app);
+            pd_sms(s.esc_mut(), 6, 6);
+            let n = app.n_changes;
+            // B→P/S/O: refused, Boot + ERR.
+            assert_eq!(request(&mut s, &mut app, ctl, 0), (0x13, 0x0011), "B → {ctl}");
+            assert_eq!(app.n_changes, n);
+            // Ignored without acknowledge; acknowledged in Boot.
+            assert_eq!(request(&mut s, &mut app, ctl, 0), (0x13, 0x0011));
+            assert_eq!(request(&mut s, &mut app, 0x13, 0), (0x03, 0));
+            // With acknowledge still refused.
+            assert_eq!(request(&mut s, &mut app, ctl | 0x10, 0), (0x13, 0x0011));
+            // Init is an implicit acknowledge.
+            assert_eq!(request(&mut s, &mut app, 1, 0), (0x01, 0));
+            assert_eq!(app.boot_hooks, (1, 1));
+        }
+    }
+
+    fn firmware_download_over_foe_in_boot() {
+        let (mut s, mut app) = new_boot_slave();
+        to_boot(&mut s, &mut app);
+        let seg = 192 - 12;
+        // CoE in Boot: mailbox error "protocol not supported".
+        let sdo = [0x00, 0x20, 0x40, 0x12, 0x1C, 0x01, 0, 0, 0, 0];
+        let (out, len) = mailbox_exchange(&mut s, &mut app, 192, 3, 1, &sdo, 0).unwrap();
+        assert_eq!(&out[5..len], &[0x10, 0x01, 0x00, 0x02, 0x00]);
+        // WRQ "fw.bin" → ACK 0.
+        let mut wrq = [0u8; 12];
+        wrq[0] = 2;
+        wrq[6..].copy_from_slice(b"fw.bin");
+        let (out, len) = mailbox_exchange(&mut s, &mut app, 192, 4, 2, &wrq, 0).unwrap();
+        assert_eq!(out[5] & 0x0F, 4);
+        assert_eq!(&out[6..len], &[4, 0, 0, 0, 0, 0]);
+        // Two whole segments and a short one.
+        let mut cnt = 2;
+        for (packet, n) in [(1u32, seg), (2, seg), (3, 10)] {
+            cnt = cnt % 7 + 1;
+            let mut d = [0u8; 256];
+            d[0] = 3;
+            d[2..6].copy_from_slice(&packet.to_le_bytes());
+            let (out, len) = mailbox_exchange(&mut s, &mut app, 192, 4, cnt, &d[..6 + n], 0).unwrap();
+            assert_eq!(&out[6..len], &[4, 0, packet as u8, 0, 0, 0]);
+        }
+        let f = app.files.as_ref().unwrap();
+        assert_eq!((f.bytes, f.finished, f.aborted), (2 * seg as u32 + 10, 1, 0));
+        // A transfer left open is aborted when the master goes back to Init.
+        let (out, len) = mailbox_exchange(&mut s, &mut app, 192, 4, cnt % 7 + 1, &wrq, 0).unwrap();
+        assert_eq!(&out[6..len], &[4, 0, 0, 0, 0, 0]);
+        assert_eq!(request(&mut s, &mut app, 1, 0), (0x01, 0));
+        assert_eq!(app.files.as_ref().unwrap().aborted, 1);
+        assert_eq!(app.boot_hooks, (1, 1));
+    }
+
+    fn foe_outside_boot_and_its_timeout() {
+        let (mut s, mut app) = new_boot_slave();
+        to_preop(&mut s, &mut app);
+        let mut wrq = [0u8; 12];
+        wrq[0] = 2;
+        wrq[6..].copy_from_slice(b"fw.bin");
+        // The firmware file is Bootstrap only: 0x8008.
+        let (out, len) = mailbox_exchange(&mut s, &mut app, 128, 4, 1, &wrq, 0).unwrap();
+        assert_eq!(&out[6..len], &[5, 0, 0x08, 0x80, 0, 0]);
+        // In Boot: a stalled transfer is aborted after 10 s without a request.
+        let (mut s, mut app) = new_boot_slave();
+        to_boot(&mut s, &mut app);
+        mailbox_exchange(&mut s, &mut app, 192, 4, 1, &wrq, 1_000).unwrap();
+        s.poll(&mut app, 1_000 + 10_000_000).unwrap();
+        assert_eq!(app.files.as_ref().unwrap().aborted, 0);
+        s.poll(&mut app, 1_001 + 10_000_000).unwrap();
+        assert_eq!(app.files.as_ref().unwrap().aborted, 1);
+        let d = [3u8, 0, 1, 0, 0, 0];
+        let (out, len) = mailbox_exchange(&mut s, &mut app, 192, 4, 2, &d, 10_002_000).unwrap();
+        assert_eq!(&out[6..len], &[5, 0, 0x04, 0x80, 0, 0]);
+    }
+
+    fn foe_without_files_answers_unsupported_protocol() {
+        // An application without FoE, in Pre-Op and (with Bootstrap on) in Boot.
+        let (mut s, mut app) = new_slave();
+        to_preop(&mut s, &mut app);
+        let wrq = [2u8, 0, 0, 0, 0, 0, b'x'];
+        let (out, len) = mailbox_exchange(&mut s, &mut app, 128, 4, 1, &wrq, 0).unwrap();
+        assert_eq!(&out[5..len], &[0x10, 0x01, 0x00, 0x02, 0x00]);
+        let (mut s, mut app) = new_boot_slave();
+        app.files = None;
+        to_boot(&mut s, &mut app);
+        let (out, len) = mailbox_exchange(&mut s, &mut app, 192, 4, 1, &wrq, 0).unwrap();
+        assert_eq!(&out[5..len], &[0x10, 0x01, 0x00, 0x02, 0x00]);
+        // Emergencies are not sent in Boot.
+        s.emergency(0x1234, 1, [0; 5]);
+        s.poll(&mut app, 10).unwrap();
+        let mut o = [0u8; 192];
+        assert!(!s.esc_mut().read_sm1(&mut o));
     }
 
     fn init_request_is_an_implicit_acknowledge() {
