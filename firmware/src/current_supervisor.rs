@@ -60,14 +60,33 @@
 //! 20 ms is three times the worst case. 0.3 A is above the sensors' noise (±0.25 A
 //! peak-to-peak at the start-up check) and half of the reference means "far"; the
 //! 80 % headroom leaves room for the dead-time loss and the `L·di/dt` of transients.
-//! What it catches: an open phase or a dead / disconnected current sensor while
-//! current is demanded. A sensor *offset* or moderate gain error is regulated away by
+//! What it catches: a dead / disconnected current sensor, or a gain far off, while
+//! current is demanded (an open phase is classified first, below). A sensor *offset* or moderate gain error is regulated away by
 //! the loop (the measured current follows) and is the start-up check's job.
 //! With no current demanded (servo holding without load) nothing can be detected.
+//!
+//! # Motor open while running (fault 0x7120, 0x2056 bit 2)
+//! An open coil or a lost contact leaves its phase without current however large its
+//! voltage: the loop winds up and saturates, so the same saturated periods are
+//! examined (no cost when unsaturated). Per phase, a saturated period is evidence
+//! *for* an open phase when the phase voltage exceeds [`OPEN_VOLTAGE_FRACTION`] of
+//! the voltage limit while its current stays below [`OPEN_CURRENT_A`], and evidence
+//! *against* when the voltage is as large and the current is not that small. The
+//! evidence is summed (never below 0), in periods whose reference the motor model
+//! calls reachable (as above); [`OPEN_TIME_S`] of net evidence is one
+//! detection, before the 20 ms of the follow check, which is then not reported for
+//! the same event. A healthy phase at speed also crosses zero current while its
+//! voltage is large (back-EMF and `ωL` shift the voltage ahead of the current), but
+//! only while the current is inside the ±0.2 A band: with a reference of at least
+//! [`OPEN_MIN_REF_A`] that is under ±20° of each half period, against the ±60° the
+//! voltage stays above half its peak, so the sum goes down, not up. Below that
+//! reference magnitude the check does not count.
 
 use crate::params::{Params, P};
 use foc::angle::Angle;
-use foc::autotune::{ki_from_param, kp_from_param, Autotune, AutotuneConfig, TuneError, TuneState};
+use foc::autotune::{
+    ki_from_param, kp_from_param, Autotune, AutotuneConfig, Phase, TuneError, TuneState,
+};
 use foc::current_loop::{AdcSample, CurrentLoop};
 use foc::modulation::Duties;
 
@@ -82,6 +101,15 @@ pub const FOLLOW_REL_ERROR: f32 = 0.5;
 /// The reference counts as reachable when it needs less than this fraction of the
 /// voltage limit.
 pub const FOLLOW_HEADROOM: f32 = 0.8;
+/// A phase carrying less than this current, A, counts as carrying none (the sensors'
+/// noise is ±0.125 A).
+pub const OPEN_CURRENT_A: f32 = 0.2;
+/// A phase voltage above this fraction of the voltage limit counts as large.
+pub const OPEN_VOLTAGE_FRACTION: f32 = 0.5;
+/// Net time of evidence for an open phase, s.
+pub const OPEN_TIME_S: f32 = 0.01;
+/// Smallest reference magnitude, A, for which the open-phase check counts.
+pub const OPEN_MIN_REF_A: f32 = 0.6;
 
 /// Configuration (from the parameters: [`SupervisorConfig::from_params`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -96,6 +124,8 @@ pub struct SupervisorConfig {
     pub test_current: f32,
     /// Periods of [`FOLLOW_TIME_S`].
     pub follow_periods: u32,
+    /// Periods of [`OPEN_TIME_S`].
+    pub open_periods: u32,
     /// Fast protection: a phase current above this trips the bridges, A.
     pub trip_current_a: f32,
     /// Fast protection: a bus voltage above this trips the bridges, V.
@@ -117,6 +147,7 @@ impl SupervisorConfig {
             auto_tune: p.get(P::AutoTune) == 1,
             test_current: TEST_CURRENT_FRACTION * peak,
             follow_periods: ((FOLLOW_TIME_S / ts) as u32).max(1),
+            open_periods: ((OPEN_TIME_S / ts) as u32).max(1),
             trip_current_a: FAULT_LIMITS.over_current_ma as f32 * 1e-3,
             trip_bus_v: FAULT_LIMITS.over_voltage_mv as f32 * 1e-3,
         }
@@ -181,6 +212,10 @@ pub struct CurrentReport {
     pub follow_seq: u8,
     /// Reference current magnitude at the last detection, mA.
     pub follow_ref_ma: u16,
+    /// Incremented (wrapping) at each "motor open while running" detection.
+    pub open_seq: u8,
+    /// The phase of the last such detection.
+    pub open_phase: Phase,
     /// Incremented (wrapping) at each trip of the fast protection.
     pub trip_seq: u8,
     /// What the last trip was.
@@ -206,6 +241,8 @@ impl CurrentReport {
         tune_seq: 0,
         follow_seq: 0,
         follow_ref_ma: 0,
+        open_seq: 0,
+        open_phase: Phase::A,
         trip_seq: 0,
         trip: Trip::None,
         trip_ia_ma: 0,
@@ -227,6 +264,9 @@ pub struct CurrentSupervisor {
     follow_armed: bool,
     follow_seq: u8,
     follow_ref_ma: u16,
+    open_n: [u32; 2],
+    open_seq: u8,
+    open_phase: Phase,
     tripped: bool,
     trip: Trip,
     trip_seq: u8,
@@ -251,6 +291,9 @@ impl CurrentSupervisor {
             follow_armed: true,
             follow_seq: 0,
             follow_ref_ma: 0,
+            open_n: [0; 2],
+            open_seq: 0,
+            open_phase: Phase::A,
             tripped: false,
             trip: Trip::None,
             trip_seq: 0,
@@ -368,7 +411,38 @@ impl CurrentSupervisor {
     #[inline]
     pub fn idle(&mut self) {
         self.follow_n = 0;
+        self.open_n = [0; 2];
         self.follow_armed = true;
+    }
+
+    /// The open-phase evidence of one saturated period (module docs). True when it
+    /// found an open phase now.
+    fn check_open(&mut self, cl: &CurrentLoop, r2: f32) -> bool {
+        if r2 < OPEN_MIN_REF_A * OPEN_MIN_REF_A {
+            return false;
+        }
+        let v_large = OPEN_VOLTAGE_FRACTION * cl.config().modulator.vmax(cl.vbus);
+        let phases = [
+            (cl.v_ab.alpha, cl.i_ab.alpha, Phase::A),
+            (cl.v_ab.beta, cl.i_ab.beta, Phase::B),
+        ];
+        for (n, (v, i, phase)) in self.open_n.iter_mut().zip(phases) {
+            if v.abs() <= v_large {
+                continue;
+            }
+            if i.abs() >= OPEN_CURRENT_A {
+                *n = n.saturating_sub(1);
+                continue;
+            }
+            *n += 1;
+            if *n >= self.cfg.open_periods {
+                *n = 0;
+                self.open_phase = phase;
+                self.open_seq = self.open_seq.wrapping_add(1);
+                return true;
+            }
+        }
+        false
     }
 
     #[inline(never)]
@@ -393,6 +467,12 @@ impl CurrentSupervisor {
         let vq = r * iq + wl * id + c.ke * (1.0 / foc::angle::POLE_PAIRS as f32) * omega_e;
         let vmax = c.modulator.vmax(cl.vbus) * FOLLOW_HEADROOM;
         let reachable = vd * vd + vq * vq < vmax * vmax;
+        if reachable && self.follow_armed && self.check_open(cl, r2) {
+            // The same event is not a "current does not follow" fault as well.
+            self.follow_n = 0;
+            self.follow_armed = false;
+            return;
+        }
         if !(big && reachable && self.follow_armed) {
             self.follow_n = 0;
             return;
@@ -466,6 +546,8 @@ impl CurrentSupervisor {
             tune_seq: self.tune_seq,
             follow_seq: self.follow_seq,
             follow_ref_ma: self.follow_ref_ma,
+            open_seq: self.open_seq,
+            open_phase: self.open_phase,
             trip_seq: self.trip_seq,
             trip: self.trip,
             trip_ia_ma: self.trip_sample.0,
@@ -479,7 +561,6 @@ impl CurrentSupervisor {
 mod tests {
     use super::*;
     use crate::identity::Variant;
-    use foc::autotune::Phase;
     use foc::current_loop::{CurrentLoopConfig, Sense};
     use foc::modulation::Modulator;
 
@@ -493,6 +574,8 @@ mod tests {
         l: f32,
         i: [f32; 2],
         gain: [f32; 2],
+        /// Sensor reading added to gain × current, A.
+        bias: [f32; 2],
         vbus: f32,
         /// Duties computed in the previous period (one period of computation delay).
         pending: Duties,
@@ -505,12 +588,15 @@ mod tests {
                 l: 1.8e-3,
                 i: [0.0; 2],
                 gain: [1.0; 2],
+                bias: [0.0; 2],
                 vbus: 48.0,
                 pending: Duties::zero(PERIOD),
             }
         }
         fn adc(&self) -> AdcSample {
-            let c = |k: usize| (2048.0 + self.gain[k] * self.i[k] / APC).round() as u16;
+            let c = |k: usize| {
+                (2048.0 + (self.gain[k] * self.i[k] + self.bias[k]) / APC).round() as u16
+            };
             AdcSample {
                 ia: c(0),
                 ib: c(1),
@@ -759,14 +845,16 @@ mod tests {
     }
 
     #[test]
-    fn dead_current_sensor_is_detected_once_after_20_ms() {
+    fn stuck_current_sensor_is_detected_once_after_20_ms() {
         let mut s = CurrentSupervisor::new(cfg(false));
         let mut cl = current_loop();
         let mut m = Coils::new();
         run_loop(&mut s, &mut cl, &mut m, 3.0, 0.0, 4000);
         assert_eq!(s.report().follow_seq, 0, "healthy: follows");
-        // Phase B (q at θe = 0) sensor reads nothing: the loop saturates.
+        // Phase B (q at θe = 0) sensor stuck at −1 A: the loop saturates. (A sensor
+        // stuck at 0 A is indistinguishable from an open phase and reported as one.)
         m.gain[1] = 0.0;
+        m.bias[1] = -1.0;
         // The integrator needs a few ms to reach the voltage limit.
         let mut k = 0;
         while !cl.saturated && k < 2000 {
@@ -793,8 +881,37 @@ mod tests {
         let mut m = Coils::new();
         run_loop(&mut s, &mut cl, &mut m, 2.0, 0.0, 400);
         m.r[1] = 1e6;
+        // The integrator needs a few ms to reach the voltage limit, then 10 ms.
+        run_loop(&mut s, &mut cl, &mut m, 2.0, 0.0, 300);
+        assert_eq!(s.report().open_seq, 0, "not before 10 ms");
+        run_loop(&mut s, &mut cl, &mut m, 2.0, 0.0, 1700);
+        let r = s.report();
+        assert_eq!((r.open_seq, r.open_phase), (1, Phase::B));
+        assert_eq!(r.follow_seq, 0, "one fault for one event");
+        // Once until the bridges were off.
         run_loop(&mut s, &mut cl, &mut m, 2.0, 0.0, 2000);
-        assert_eq!(s.report().follow_seq, 1);
+        assert_eq!(s.report().open_seq, 1);
+        s.idle();
+        run_loop(&mut s, &mut cl, &mut m, 2.0, 0.0, 2000);
+        assert_eq!(s.report().open_seq, 2);
+    }
+
+    #[test]
+    fn small_references_and_a_healthy_motor_are_not_an_open_phase() {
+        let mut s = CurrentSupervisor::new(cfg(false));
+        let mut cl = current_loop();
+        let mut m = Coils::new();
+        m.r[1] = 1e6;
+        run_loop(&mut s, &mut cl, &mut m, 0.5, 0.0, 4000);
+        assert!(cl.saturated);
+        assert_eq!(s.report().open_seq, 0, "below 0.6 A: not counted");
+        let mut s = CurrentSupervisor::new(cfg(false));
+        let mut m = Coils::new();
+        for k in 0..40 {
+            let i = if k % 2 == 0 { 6.0 } else { -6.0 };
+            run_loop(&mut s, &mut cl, &mut m, i, 0.0, 200);
+        }
+        assert_eq!(s.report().open_seq, 0, "reversals cross zero current");
     }
 
     #[test]

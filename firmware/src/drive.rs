@@ -271,6 +271,7 @@ pub struct Drive<S: ParameterStore = NoStore> {
     storage_emergency: Option<(u16, [u8; 5])>,
     seen_tune_seq: u8,
     seen_follow_seq: u8,
+    seen_open_seq: u8,
     seen_trip_seq: u8,
     power_up_tune_over: bool,
 }
@@ -338,6 +339,7 @@ macro_rules! power_up_fields {
             storage_emergency: None,
             seen_tune_seq: 0,
             seen_follow_seq: 0,
+            seen_open_seq: 0,
             seen_trip_seq: 0,
             power_up_tune_over: false,
             params: $params,
@@ -727,8 +729,8 @@ impl<S: ParameterStore> Drive<S> {
 
     /// The current-loop supervisor's report (control path → drive; call every tick,
     /// before [`Drive::tick`]). A finished tune writes 0x2020 (mΩ), 0x2021 (µH), 0x2015
-    /// and 0x2016 (the gains the loop now uses); a failed one raises motor open
-    /// 0x7120; a "current does not follow" detection raises 0x5210; a trip of the fast
+    /// and 0x2016 (the gains the loop now uses); a failed one, or a phase without
+    /// current while running, raises motor open 0x7120; a "current does not follow" detection raises 0x5210; a trip of the fast
     /// protection raises over-current 0x2310 or over-voltage 0x3210. Both are events:
     /// the condition is reported gone at once, so a fault reset clears them (see the
     /// module docs of [`crate::current_supervisor`] for the retry).
@@ -790,6 +792,16 @@ impl<S: ParameterStore> Drive<S> {
                 };
                 self.faults.raise(kind, snap, self.now_ms);
             }
+        }
+        if r.open_seq != self.seen_open_seq {
+            // A phase without current while running: motor open, detail 4 and the
+            // phase (0 = A, 1 = B).
+            self.seen_open_seq = r.open_seq;
+            let phase = u8::from(r.open_phase == foc::autotune::Phase::B);
+            let snap = self.snapshot();
+            self.faults
+                .raise_detail(FaultKind::MotorOpen, [4, phase], snap, self.now_ms);
+            self.faults.condition_gone(FaultKind::MotorOpen);
         }
         if r.follow_seq != self.seen_follow_seq {
             self.seen_follow_seq = r.follow_seq;

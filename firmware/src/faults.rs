@@ -38,8 +38,9 @@
 //! **Emergencies**: one per occurrence (a fault that is already active does not send
 //! again). Manufacturer data: byte 0 the [`FaultKind`] number, bytes 1-2 the bus
 //! voltage in 0.1 V, bytes 3-4 a detail: the caller's EtherCAT diagnosis; for motor
-//! open (failed power-up tune) the reason (1 open phase, 2 unbalanced phases,
-//! 3 implausible result) and the phase (0 A, 1 B); for "current does not follow"
+//! open the reason (failed power-up tune: 1 open phase, 2 unbalanced phases,
+//! 3 implausible result; 4 no current in a phase while running) and the phase
+//! (0 A, 1 B); for "current does not follow"
 //! (0x5210 while running) the reference current magnitude in mA (u16); 0 otherwise.
 //! When a fault reset clears the last active fault, the CiA 301 "error reset"
 //! emergency (code 0x0000) is sent.

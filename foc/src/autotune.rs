@@ -35,9 +35,10 @@ use crate::num;
 use core::f32::consts::PI;
 
 /// Phase being measured.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Phase {
     /// Phase A.
+    #[default]
     A,
     /// Phase B.
     B,

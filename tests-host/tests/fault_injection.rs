@@ -755,10 +755,10 @@ fn masked_motor_open_is_not_reported() {
 }
 
 #[test]
-fn open_phase_while_running_is_current_sensing_fault_0x5210() {
+fn open_phase_while_running_is_motor_open_0x7120() {
     let mut b = Bench::new();
-    // 0x2056 bit 3 (current sensing) on.
-    b.sdo_write(0x2056, 0, &0x00CBu16.to_le_bytes()).unwrap();
+    // 0x2056 bits 2 (motor open) and 3 (current sensing) on.
+    b.sdo_write(0x2056, 0, &0x00CFu16.to_le_bytes()).unwrap();
     b.enable();
     let t_inject = b.now_ms();
     b.axis.borrow_mut().open_phase(0, true);
@@ -766,15 +766,27 @@ fn open_phase_while_running_is_current_sensing_fault_0x5210() {
     let t_fault = run_until_fault(&mut b, 500);
     b.axis.borrow_mut().set_load(0.0);
     assert!(
-        b.d.drive.faults.is_active(FaultKind::PhaseSensing),
+        b.d.drive.faults.is_active(FaultKind::MotorOpen),
         "code {:#x}",
         b.d.drive.faults.error_code()
     );
-    assert!(t_fault >= t_inject + 20, "not before 20 ms: {t_fault}");
-    check_fault_reaction(&mut b, FaultKind::PhaseSensing, 0x5210, 0x03);
-    let ref_ma = u16::from_le_bytes([b.emcy[0].data[3], b.emcy[0].data[4]]);
-    assert!(ref_ma > 300, "reference {ref_ma} mA");
-    check_blink(&mut b, 9, t_inject);
+    assert!(
+        !b.d.drive.faults.is_active(FaultKind::PhaseSensing),
+        "one fault for one event"
+    );
+    assert!(t_fault >= t_inject + 10, "not before 10 ms: {t_fault}");
+    assert!(
+        t_fault <= t_inject + 100,
+        "within 100 ms: {}",
+        t_fault - t_inject
+    );
+    check_fault_reaction(&mut b, FaultKind::MotorOpen, 0x7120, 0x21);
+    assert_eq!(
+        [b.emcy[0].data[3], b.emcy[0].data[4]],
+        [4, 0],
+        "running, phase A"
+    );
+    check_blink(&mut b, 4, t_inject);
     // Not latched: the drive is off, so a reset clears it; with the phase connected
     // again the drive enables and holds.
     b.axis.borrow_mut().open_phase(0, false);
@@ -782,7 +794,7 @@ fn open_phase_while_running_is_current_sensing_fault_0x5210() {
 }
 
 #[test]
-fn masked_current_sensing_fault_is_not_reported_while_running() {
+fn masked_open_phase_is_not_reported_while_running() {
     let mut b = Bench::new();
     // Bit 3 off (default), and the following error off too so nothing else trips.
     b.sdo_write(0x2056, 0, &0x0043u16.to_le_bytes()).unwrap();
@@ -792,10 +804,7 @@ fn masked_current_sensing_fault_is_not_reported_while_running() {
     b.axis.borrow_mut().set_load(0.3);
     b.run_ms(300);
     b.axis.borrow_mut().set_load(0.0);
-    assert!(
-        b.axis.borrow().supervisor.report().follow_seq > 0,
-        "detected"
-    );
+    assert!(b.axis.borrow().supervisor.report().open_seq > 0, "detected");
     assert!(b.emcy.is_empty(), "{:x?}", b.emcy);
     assert_eq!(b.state(), PdsState::OperationEnabled);
     assert_eq!(b.sdo_read(0x603F, 0), 0);
@@ -803,7 +812,7 @@ fn masked_current_sensing_fault_is_not_reported_while_running() {
     assert_eq!(b.red_between(t, b.now_ms()), vec![(false, t, b.now_ms())]);
 }
 
-/// The "current does not follow" check stays quiet in normal operation: CSP moves
+/// The "current does not follow" and "motor open" checks stay quiet in normal operation: CSP moves
 /// with load steps at 48 V and at a low bus voltage inside the range (13 V).
 #[test]
 fn current_sensing_check_does_not_false_trip_in_motion() {
@@ -840,11 +849,8 @@ fn current_sensing_check_does_not_false_trip_in_motion() {
             saturated > 0,
             "{volts} V: the moves reach the voltage limit"
         );
-        assert_eq!(
-            b.axis.borrow().supervisor.report().follow_seq,
-            0,
-            "{volts} V"
-        );
+        let r = b.axis.borrow().supervisor.report();
+        assert_eq!((r.follow_seq, r.open_seq), (0, 0), "{volts} V");
         assert!(b.emcy.is_empty(), "{volts} V: {:x?}", b.emcy);
         assert_eq!(b.state(), PdsState::OperationEnabled);
     }
