@@ -35,8 +35,9 @@
 //!
 //! Writes: SI3 = 0 clears the ring; SI3 = the sub-index of a stored message
 //! acknowledges it and every older one; other values are refused (value range); SI5
-//! takes bits 0-4 (bit 5 is read-only). Complete access is not supported (the
-//! dictionary answers sub by sub), as in the reference slave code.
+//! takes bits 0-4 (bit 5 is read-only). A complete-access read gets every entry,
+//! each message at its declared 28 bytes (a shorter message padded with zeros), in
+//! one image (`coe::sdo`); complete-access writes are refused.
 
 use crate::od::SdoAbort;
 

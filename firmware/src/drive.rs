@@ -1747,6 +1747,90 @@ mod tests {
         d.faults.fault_reset();
     }
 
+    /// 0x10F3 by complete access through the SDO server (segmented upload in a
+    /// 128-byte mailbox): the header entries and every message at its 28 bytes, the
+    /// same bytes as sub by sub.
+    #[test]
+    fn diagnosis_history_by_complete_access() {
+        use ecat_slave_stack::coe::sdo::SdoServer;
+        let mut d = Drive::new(Variant::HybridServo, 42);
+        fault_at(&mut d, FaultKind::UnderVoltage, 100, 10);
+        let mut single = [([0u8; 32], 0usize); 22];
+        for (sub, (b, n)) in single.iter_mut().enumerate() {
+            *n = Dictionary::read(&mut d, 0x10F3, sub as u8, b).unwrap();
+        }
+        let single: [&[u8]; 22] = core::array::from_fn(|k| &single[k].0[..single[k].1]);
+        let mut server = SdoServer::new();
+        let mut out = [0u8; 128 - 6 - 2];
+        let state = EsmState::PreOp;
+        // Initiate upload, complete access from sub-index 0.
+        let n = server
+            .on_request(
+                &[0x50, 0xF3, 0x10, 0, 0, 0, 0, 0],
+                &mut out,
+                &mut d,
+                state,
+                0,
+                None,
+            )
+            .unwrap();
+        // `out` starts with the CoE header (2 bytes).
+        assert_eq!(
+            out[2] & 0xE0,
+            0x40,
+            "initiate upload response: {:x?}",
+            &out[..n]
+        );
+        let total = u32::from_le_bytes(out[6..10].try_into().unwrap()) as usize;
+        let mut image = [0u8; 512];
+        let mut len = n - 10;
+        image[..len].copy_from_slice(&out[10..n]);
+        let mut toggle = 0u8;
+        while len < total {
+            let n = server
+                .on_request(
+                    &[0x60 | toggle << 4, 0, 0, 0, 0, 0, 0, 0],
+                    &mut out,
+                    &mut d,
+                    state,
+                    0,
+                    None,
+                )
+                .unwrap();
+            assert_eq!(out[2] & 0xE0, 0x00, "upload segment response");
+            let unused = usize::from((out[2] >> 1) & 7);
+            let k = if n == 10 { 7 - unused } else { n - 3 };
+            image[len..len + k].copy_from_slice(&out[3..3 + k]);
+            len += k;
+            if out[2] & 1 == 1 {
+                break;
+            }
+            toggle ^= 1;
+        }
+        assert_eq!(len, 8 + 16 * 28);
+        assert_eq!(total, len);
+        assert_eq!(image[0], single[0][0], "SI0");
+        for sub in 1..=3 {
+            assert_eq!(image[1 + sub], single[sub][0], "SI{sub}");
+        }
+        // SI4 was 1 before the newest message was read sub by sub, 0 since.
+        assert_eq!((single[4][0], image[5]), (1, 0), "SI4");
+        assert_eq!(image[6..8], *single[5], "SI5");
+        for k in 0..16 {
+            let m = &image[8 + 28 * k..8 + 28 * (k + 1)];
+            let s = single[6 + k];
+            assert_eq!(m[..s.len()], s[..], "message {k}");
+            assert!(
+                m[s.len()..].iter().all(|&b| b == 0),
+                "padding of message {k}"
+            );
+        }
+        assert_eq!(
+            u32::from_le_bytes(image[8..12].try_into().unwrap()),
+            0x3220_E800
+        );
+    }
+
     fn take_flash(d: Drive<FlashStore<HistoryFlash>>) -> HistoryFlash {
         let mut d = d;
         d.store.take().expect("store").flash

@@ -854,7 +854,9 @@ fn ca_upload(
     dict.read(obj.index, 0, &mut tmp)?;
     let raw_count = tmp[0];
     let count = raw_count.min(obj.max_sub());
-    if ca_entries(obj, count).any(|e| e.data_type.is_variable_length()) {
+    // A VISIBLE_STRING's length is its content's; an OCTET_STRING keeps its declared
+    // length (an upload pads a shorter value with zeros), so it has a fixed place.
+    if ca_entries(obj, count).any(|e| e.data_type == od::DataType::VisibleString) {
         return Err(SdoAbort::CompleteAccessVariableLength);
     }
     let mut bit = 0usize;
@@ -866,6 +868,16 @@ fn ca_upload(
     }
     for e in ca_entries(obj, count) {
         let nbits = e.bits as usize;
+        if e.data_type == od::DataType::OctetString {
+            let start = bit.div_ceil(8);
+            let end = start + nbits / 8;
+            let out = buf.get_mut(start..end).ok_or(SdoAbort::OutOfMemory)?;
+            od::check_read(e, state)?;
+            let n = dict.read(obj.index, e.sub, out)?.min(out.len());
+            out[n..].fill(0);
+            bit = end * 8;
+            continue;
+        }
         if nbits > 64 {
             return Err(SdoAbort::UnsupportedAccess);
         }
