@@ -327,6 +327,8 @@ impl ControlCore {
             self.motion.step(&fb, self.enc.raw_electrical_angle())
         };
         self.reference = step.reference;
+        // The first power request with 0x2013 = 0 starts the phase check.
+        self.sup.request_power(self.reference.power);
         if let Some(offset) = step.offset {
             self.enc.set_electrical_offset(offset);
         }

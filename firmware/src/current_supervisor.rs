@@ -38,7 +38,13 @@
 //! interrupted by a withdrawn permission (another fault) restarts from the beginning
 //! when the permission returns.
 //!
-//! 0x2013 = 0: no tune; the loop keeps the gains the board configured.
+//! 0x2013 = 0: no tune; the loop keeps the gains the board configured. Instead, the
+//! first time the motion layer asks for the bridges ([`CurrentSupervisor::request_power`])
+//! a short phase check ([`foc::autotune::PhaseCheck`]: a voltage pulse per phase until
+//! [`CHECK_CURRENT_FRACTION`] × 0x2000 flows, under 1 ms for the product's motors,
+//! at most [`CHECK_TIME_S`] per phase) runs in its place, with the motion layer held as
+//! for the tune. A phase without current is the same motor-open fault; the fault
+//! reset arms the check again for the next enable.
 //!
 //! # "Current does not follow" (fault 0x5210, 0x2056 bit 3)
 //! While the bridges are on and the closed current loop runs, every PWM period that
@@ -85,13 +91,19 @@
 use crate::params::{Params, P};
 use foc::angle::Angle;
 use foc::autotune::{
-    ki_from_param, kp_from_param, Autotune, AutotuneConfig, Phase, TuneError, TuneState,
+    ki_from_param, kp_from_param, Autotune, AutotuneConfig, Phase, PhaseCheck, TuneError, TuneState,
 };
 use foc::current_loop::{AdcSample, CurrentLoop};
 use foc::modulation::Duties;
 
 /// Test current of the auto-tune, fraction of the peak current 0x2000.
 pub const TEST_CURRENT_FRACTION: f32 = 0.8;
+/// Current the first-enable phase check waits for, fraction of 0x2000 (at least
+/// 0.5 A, at most 2 A).
+pub const CHECK_CURRENT_FRACTION: f32 = 0.25;
+/// Longest voltage pulse of the phase check, s (a coil of 20 mH reaches 2 A at 12 V
+/// in 3.3 ms).
+pub const CHECK_TIME_S: f32 = 0.005;
 /// Time the current must stay far from its reference while saturated, s.
 pub const FOLLOW_TIME_S: f32 = 0.02;
 /// Smallest current error counted, A.
@@ -126,6 +138,8 @@ pub struct SupervisorConfig {
     pub follow_periods: u32,
     /// Periods of [`OPEN_TIME_S`].
     pub open_periods: u32,
+    /// First-enable phase check current, A.
+    pub check_current: f32,
     /// Fast protection: a phase current above this trips the bridges, A.
     pub trip_current_a: f32,
     /// Fast protection: a bus voltage above this trips the bridges, V.
@@ -146,6 +160,7 @@ impl SupervisorConfig {
             pwm_period: pwm_period.max(2),
             auto_tune: p.get(P::AutoTune) == 1,
             test_current: TEST_CURRENT_FRACTION * peak,
+            check_current: (CHECK_CURRENT_FRACTION * peak).clamp(0.5, 2.0),
             follow_periods: ((FOLLOW_TIME_S / ts) as u32).max(1),
             open_periods: ((OPEN_TIME_S / ts) as u32).max(1),
             trip_current_a: FAULT_LIMITS.over_current_ma as f32 * 1e-3,
@@ -256,6 +271,8 @@ impl CurrentReport {
 pub struct CurrentSupervisor {
     cfg: SupervisorConfig,
     tune: Option<Autotune>,
+    check: Option<PhaseCheck>,
+    check_armed: bool,
     status: TuneStatus,
     tuned: TunedValues,
     tune_seq: u8,
@@ -279,6 +296,8 @@ impl CurrentSupervisor {
         CurrentSupervisor {
             cfg,
             tune: None,
+            check: None,
+            check_armed: true,
             status: if cfg.auto_tune {
                 TuneStatus::Pending
             } else {
@@ -328,10 +347,35 @@ impl CurrentSupervisor {
             self.tune = None;
             self.status = TuneStatus::Pending;
         }
+        if !yes && self.check.take().is_some() {
+            self.check_armed = true;
+        }
         if yes && !self.permitted && matches!(self.status, TuneStatus::Failed(_)) {
-            self.status = TuneStatus::Pending;
+            if self.cfg.auto_tune {
+                self.status = TuneStatus::Pending;
+            } else {
+                // A failed phase check: checked again at the next enable.
+                self.status = TuneStatus::Off;
+                self.check_armed = true;
+            }
         }
         self.permitted = yes;
+    }
+
+    /// The motion layer's power request of this servo period (before it is held). The
+    /// first request with 0x2013 = 0 starts the phase check (module docs).
+    pub fn request_power(&mut self, wanted: bool) {
+        if wanted
+            && self.check_armed
+            && self.permitted
+            && !self.tripped
+            && !self.cfg.auto_tune
+            && self.status == TuneStatus::Off
+        {
+            self.check_armed = false;
+            let steps = ((CHECK_TIME_S / self.cfg.ts) as u32).max(2);
+            self.check = Some(PhaseCheck::new(self.cfg.check_current, steps));
+        }
     }
 
     /// True while the tune owns the bridges: switch them on and call
@@ -341,13 +385,17 @@ impl CurrentSupervisor {
     pub fn tuning(&self) -> bool {
         self.permitted
             && !self.tripped
-            && matches!(self.status, TuneStatus::Pending | TuneStatus::Running)
+            && (self.check.is_some()
+                || matches!(self.status, TuneStatus::Pending | TuneStatus::Running))
     }
 
     /// One PWM period of the tune (voltage mode). Returns the duties to apply.
     pub fn tune_step(&mut self, cl: &mut CurrentLoop, adc: &AdcSample) -> Duties {
         if !self.tuning() {
             return cl.voltage_step(adc, 0.0, 0.0);
+        }
+        if self.check.is_some() {
+            return self.check_step(cl, adc);
         }
         let cfg = self.cfg;
         let t = self.tune.get_or_insert_with(|| {
@@ -378,6 +426,27 @@ impl CurrentSupervisor {
             }
             TuneState::Failed(e) => self.finish(TuneStatus::Failed(e)),
             _ => {}
+        }
+        d
+    }
+
+    /// One PWM period of the first-enable phase check.
+    fn check_step(&mut self, cl: &mut CurrentLoop, adc: &AdcSample) -> Duties {
+        let sense = cl.config().sense;
+        let i = sense.currents(adc);
+        let v = 0.5 * cl.config().modulator.vmax(sense.vbus(adc));
+        let Some(c) = &mut self.check else {
+            return cl.voltage_step(adc, 0.0, 0.0);
+        };
+        let (va, vb) = c.step(i.alpha, i.beta, v);
+        let d = cl.voltage_step(adc, va, vb);
+        match c.result {
+            Some(Ok(())) => self.check = None,
+            Some(Err(e)) => {
+                self.check = None;
+                self.finish(TuneStatus::Failed(e));
+            }
+            None => {}
         }
         d
     }
@@ -754,6 +823,57 @@ mod tests {
         run_tune(&mut s, &mut cl, &mut m);
         assert_eq!(s.report().tune, TuneStatus::Done);
         assert_eq!(s.report().tune_seq, 2);
+    }
+
+    #[test]
+    fn first_enable_phase_check_without_the_tune() {
+        let mut s = CurrentSupervisor::new(cfg(false));
+        let mut cl = current_loop();
+        let kp = cl.config().kp;
+        let mut m = Coils::new();
+        s.permit_tune(true);
+        assert!(!s.tuning(), "nothing before the first power request");
+        s.request_power(true);
+        assert!(s.tuning());
+        let n = run_tune(&mut s, &mut cl, &mut m);
+        assert!(n < 40, "under 1 ms: {n} periods");
+        let r = s.report();
+        assert_eq!(
+            (r.tune, r.tune_seq),
+            (TuneStatus::Off, 0),
+            "passed: nothing reported"
+        );
+        assert_eq!(cl.config().kp, kp, "gains untouched");
+        s.request_power(true);
+        assert!(!s.tuning(), "once");
+        // Open phase B at the next power cycle: the motor-open report.
+        let mut s = CurrentSupervisor::new(cfg(false));
+        m.r[1] = 1e6;
+        s.permit_tune(true);
+        s.request_power(true);
+        let n = run_tune(&mut s, &mut cl, &mut m);
+        assert!(n <= 230, "phase A, then 5 ms on phase B at most: {n}");
+        let r = s.report();
+        assert_eq!(
+            (r.tune, r.tune_seq),
+            (TuneStatus::Failed(TuneError::OpenPhase(Phase::B)), 1)
+        );
+        // The fault withdraws the permission; after the reset the next enable checks
+        // again (no full tune with 0x2013 = 0).
+        s.permit_tune(false);
+        s.permit_tune(true);
+        assert!(!s.tuning());
+        assert_eq!(s.report().tune, TuneStatus::Off);
+        m.r[1] = 0.4;
+        s.request_power(true);
+        assert!(s.tuning());
+        run_tune(&mut s, &mut cl, &mut m);
+        assert_eq!(s.report().tune_seq, 1, "passed");
+        // With the tune on, no phase check.
+        let mut s = CurrentSupervisor::new(cfg(true));
+        s.permit_tune(true);
+        s.request_power(true);
+        assert_eq!(s.report().tune, TuneStatus::Pending);
     }
 
     #[test]

@@ -196,6 +196,81 @@ fn quantize(v: f32, q: f32) -> f32 {
     }
 }
 
+/// The short phase check at the first enable when the power-up tune is off
+/// (0x2013 = 0): is there a coil behind each phase?
+///
+/// Each phase in turn gets the voltage passed to [`PhaseCheck::step`] while the other is held at 0 V, until its
+/// current reaches `i_check` (A); then the reverse voltage until the current is below
+/// a tenth of it (or `max_steps` passed), and the next phase. A phase whose current has
+/// not reached `i_check` after `max_steps` samples is [`TuneError::OpenPhase`].
+///
+/// With ½·Vmax the current of an ECN57-20 (1.8 mH) at 48 V rises by
+/// 12.7 A/ms, so 1 A takes 3-4 samples of 25 µs and the whole check well under 1 ms;
+/// the one sample of computation delay overshoots `i_check` by one sample's rise
+/// (0.3 A). The pulses are too short to move the rotor, unlike the tune's DC points.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PhaseCheck {
+    i_check: f32,
+    max_steps: u32,
+    phase: Phase,
+    decaying: bool,
+    t: u32,
+    /// `Some` once finished: `Ok` when both phases carried current.
+    pub result: Option<Result<(), TuneError>>,
+}
+
+impl PhaseCheck {
+    /// New check (phase A first).
+    pub fn new(i_check: f32, max_steps: u32) -> Self {
+        PhaseCheck {
+            i_check: num::pos(i_check),
+            max_steps: max_steps.max(2),
+            phase: Phase::A,
+            decaying: false,
+            t: 0,
+            result: None,
+        }
+    }
+
+    /// One sample: measured phase currents (A) and the pulse voltage (V). Returns the
+    /// phase voltages (V).
+    pub fn step(&mut self, ia: f32, ib: f32, v_check: f32) -> (f32, f32) {
+        if self.result.is_some() {
+            return (0.0, 0.0);
+        }
+        let i = if self.phase == Phase::A { ia } else { ib };
+        let v = num::pos(v_check);
+        let on_phase = |v: f32| match self.phase {
+            Phase::A => (v, 0.0),
+            Phase::B => (0.0, v),
+        };
+        self.t += 1;
+        if self.decaying {
+            if i < 0.1 * self.i_check || self.t >= self.max_steps {
+                self.t = 0;
+                self.decaying = false;
+                match self.phase {
+                    Phase::A => self.phase = Phase::B,
+                    Phase::B => self.result = Some(Ok(())),
+                }
+                return (0.0, 0.0);
+            }
+            // The reverse voltage brings the current back as fast as it rose.
+            return on_phase(-v);
+        }
+        if i >= self.i_check {
+            self.t = 0;
+            self.decaying = true;
+            return on_phase(-v);
+        }
+        if self.t >= self.max_steps {
+            self.result = Some(Err(TuneError::OpenPhase(self.phase)));
+            return (0.0, 0.0);
+        }
+        on_phase(v)
+    }
+}
+
 /// The auto-tune state machine.
 #[derive(Clone, Copy, Debug)]
 pub struct Autotune {

@@ -467,6 +467,7 @@ impl PlantAxis {
                 self.rig.enc.set_electrical_offset(offset);
             }
             self.reference = step.reference;
+            self.supervisor.request_power(self.reference.power);
             if self.reference.reset {
                 self.rig.cl.reset();
             }

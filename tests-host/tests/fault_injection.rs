@@ -732,6 +732,46 @@ fn motor_open_at_the_power_up_tune_is_0x7120_and_clears_by_reset() {
     assert!(b.sdo_read(0x2021, 0).abs_diff(1800) <= 180);
 }
 
+/// With the power-up tune off (0x2013 = 0) the first enable runs the short phase
+/// check: a healthy motor enables as before, an open phase is motor open 0x7120.
+#[test]
+fn first_enable_phase_check_finds_an_open_phase_without_the_tune() {
+    let mut b = Bench::power_up();
+    b.sdo_write(0x2013, 0, &[0]).unwrap();
+    b.sdo_write(0x2056, 0, &0x00C7u16.to_le_bytes()).unwrap();
+    b.axis.borrow_mut().open_phase(1, true);
+    b.run_ms(50);
+    assert_eq!(b.tune(), TuneStatus::Off, "no power-up tune");
+    assert!(
+        b.emcy.is_empty(),
+        "nothing before the enable: {:x?}",
+        b.emcy
+    );
+    let here = b.d.drive.cia402.position_actual();
+    b.sdo_write(0x607A, 0, &here.to_le_bytes()).unwrap();
+    b.controlword(0x0006, 5);
+    b.controlword(0x0007, 5);
+    let t_enable = b.now_ms();
+    b.sdo_write(0x6040, 0, &0x000Fu16.to_le_bytes()).unwrap();
+    let t_fault = run_until_fault(&mut b, 200);
+    assert!(
+        t_fault <= t_enable + 15,
+        "within 15 ms of the enable: {}",
+        t_fault - t_enable
+    );
+    check_fault_reaction(&mut b, FaultKind::MotorOpen, 0x7120, 0x21);
+    assert_eq!(b.emcy[0].data[3..5], [1, 1], "open phase, phase B");
+    check_blink(&mut b, 4, t_enable);
+    assert_eq!(
+        b.tune(),
+        TuneStatus::Failed(foc::autotune::TuneError::OpenPhase(foc::autotune::Phase::B))
+    );
+    // Connected again: the reset arms the check, the next enable passes it and holds.
+    b.axis.borrow_mut().open_phase(1, false);
+    check_recovery(&mut b);
+    assert_eq!(b.tune(), TuneStatus::Off, "no tune after the check");
+}
+
 #[test]
 fn masked_motor_open_is_not_reported() {
     let mut b = Bench::power_up();
