@@ -173,6 +173,11 @@ fn master(storage: &'static Storage, host_if: &str) -> MainDevice<'static> {
         Timeouts {
             wait_loop_delay: Duration::from_millis(2),
             mailbox_response: Duration::from_millis(2000),
+            // The tests of this file run at once, three virtual drives and their
+            // masters on a shared machine: ethercrab's 30 ms PDU and 10 ms EEPROM
+            // timeouts were seen to expire during init.
+            pdu: Duration::from_millis(300),
+            eeprom: Duration::from_millis(100),
             ..Timeouts::default()
         },
         MainDeviceConfig {
