@@ -406,7 +406,7 @@ impl<const N: usize> DiagHistory<N> {
             s if s >= FIRST_MESSAGE_SUB && s <= Self::highest_sub() => {
                 let i = usize::from(s - FIRST_MESSAGE_SUB);
                 match self.ring[i] {
-                    Some(m) if i < self.count || self.count == N => m.emit(buf),
+                    Some(m) if self.holds(i) => m.emit(buf),
                     _ => {
                         // An empty slot reads as zeros.
                         let out = buf.get_mut(..MESSAGE_LEN).ok_or(SdoAbort::ExceedsMailbox)?;
@@ -432,15 +432,18 @@ impl<const N: usize> DiagHistory<N> {
         match (sub, data) {
             (3, &[v]) => {
                 if v == 0 {
-                    self.clear();
+                    if self.flags & flags::ACK_MODE != 0 {
+                        self.clear_acknowledged();
+                    } else {
+                        self.clear();
+                    }
                     return Ok(());
                 }
                 if v < FIRST_MESSAGE_SUB || v > Self::highest_sub() {
                     return Err(SdoAbort::ValueRangeExceeded);
                 }
                 let i = usize::from(v - FIRST_MESSAGE_SUB);
-                let stored = self.count == N || i < self.count;
-                if !stored {
+                if !self.holds(i) {
                     return Err(SdoAbort::ValueRangeExceeded);
                 }
                 self.acked = Some(i);
@@ -461,7 +464,31 @@ impl<const N: usize> DiagHistory<N> {
         }
     }
 
-    /// Clears every message and the "lost" flag (SI3 = 0).
+    /// Age of ring slot `i` (0 = the newest message).
+    fn age_of(&self, i: usize) -> usize {
+        (self.newest + N - i) % N
+    }
+
+    /// True when ring slot `i` holds one of the stored messages.
+    fn holds(&self, i: usize) -> bool {
+        i < N && self.age_of(i) < self.count
+    }
+
+    /// SI3 = 0 in acknowledge mode: removes the acknowledged message and every older
+    /// one (the unacknowledged ones stay where they are), and the "lost" flag.
+    pub fn clear_acknowledged(&mut self) {
+        if let Some(a) = self.acked.take() {
+            self.count = self.age_of(a);
+            for i in 0..N {
+                if !self.holds(i) {
+                    self.ring[i] = None;
+                }
+            }
+        }
+        self.flags &= !flags::LOST;
+    }
+
+    /// Clears every message and the "lost" flag (SI3 = 0 in overwrite mode).
     pub fn clear(&mut self) {
         self.ring = [None; N];
         self.count = 0;
@@ -592,6 +619,46 @@ mod tests {
         assert_eq!(rd(&mut h, 4), 1);
         h.write(3, &[7]).unwrap();
         assert_eq!(rd(&mut h, 4), 0, "newest acknowledged");
+    }
+
+    #[test]
+    fn acknowledge_mode_clear_removes_only_the_acknowledged() {
+        let mut h = DiagHistory::<4>::new();
+        h.write(5, &flags::ACK_MODE.to_le_bytes()).unwrap();
+        h.write(3, &[0]).unwrap();
+        assert!(h.is_empty(), "nothing acknowledged, nothing stored");
+        for k in 1..=4 {
+            assert!(h.push(msg(k)));
+        }
+        assert!(!h.push(msg(5)), "full: dropped, lost flag");
+        // Acknowledge the second (sub 7): SI3 = 0 removes it and the first.
+        h.write(3, &[7]).unwrap();
+        h.write(3, &[0]).unwrap();
+        assert_eq!(h.len(), 2);
+        assert_eq!((rd(&mut h, 2), rd(&mut h, 3), rd(&mut h, 4)), (9, 0, 1));
+        assert_eq!(rd(&mut h, 5) & flags::LOST, 0, "lost flag cleared");
+        let text = |h: &mut DiagHistory<4>, sub: u8| {
+            let mut b = [0u8; MESSAGE_LEN];
+            h.read(sub, &mut b).unwrap();
+            DiagMessage::parse(&b).map(|m| m.text_id)
+        };
+        assert_eq!((text(&mut h, 8), text(&mut h, 9)), (Some(3), Some(4)));
+        let mut b = [0xFFu8; MESSAGE_LEN];
+        h.read(6, &mut b).unwrap();
+        assert_eq!(b, [0; MESSAGE_LEN], "removed: reads as zeros");
+        assert_eq!(h.write(3, &[6]), Err(SdoAbort::ValueRangeExceeded));
+        // The freed slots take the next messages, in order.
+        assert!(h.push(msg(5)) && h.push(msg(6)));
+        assert_eq!((text(&mut h, 6), text(&mut h, 7)), (Some(5), Some(6)));
+        assert_eq!(rd(&mut h, 2), 7);
+        assert!(!h.push(msg(7)), "full of unacknowledged again");
+        // Acknowledging the newest and clearing empties it.
+        h.write(3, &[7]).unwrap();
+        h.write(3, &[0]).unwrap();
+        assert!(h.is_empty());
+        assert_eq!((rd(&mut h, 2), rd(&mut h, 4)), (0, 0));
+        assert!(h.push(msg(8)));
+        assert_eq!(rd(&mut h, 2), 6);
     }
 
     #[test]

@@ -76,17 +76,19 @@
 //! voltage: the loop winds up and saturates, so the same saturated periods are
 //! examined (no cost when unsaturated). Per phase, a saturated period is evidence
 //! *for* an open phase when the phase voltage exceeds [`OPEN_VOLTAGE_FRACTION`] of
-//! the voltage limit while its current stays below [`OPEN_CURRENT_A`], and evidence
-//! *against* when the voltage is as large and the current is not that small. The
-//! evidence is summed (never below 0), in periods whose reference the motor model
-//! calls reachable (as above); [`OPEN_TIME_S`] of net evidence is one
+//! the voltage limit while its current stays below [`OPEN_CURRENT_A`]; a saturated
+//! period in which the phase carries [`OPEN_CURRENT_A`] or more clears the evidence
+//! (an open phase never does). Only periods whose reference the motor model calls
+//! reachable (as above) count; [`OPEN_TIME_S`] of evidence without a current is one
 //! detection, before the 20 ms of the follow check, which is then not reported for
 //! the same event. A healthy phase at speed also crosses zero current while its
-//! voltage is large (back-EMF and `ωL` shift the voltage ahead of the current), but
-//! only while the current is inside the ±0.2 A band: with a reference of at least
-//! [`OPEN_MIN_REF_A`] that is under ±20° of each half period, against the ±60° the
-//! voltage stays above half its peak, so the sum goes down, not up. Below that
-//! reference magnitude the check does not count.
+//! voltage is large (back-EMF and `ωL` put the voltage ahead of the current), but it
+//! stays inside the ±0.2 A band for 2·asin(0.2 A / |i|) / ω_e per crossing: with a
+//! reference of at least [`OPEN_MIN_REF_A`] that is 10 ms only below 0.22 rev/s,
+//! where the voltage is far from large. Below that reference magnitude the check does
+//! not count. (An earlier rule that only *subtracted* a period of current from the
+//! sum tripped on the TC86-45 at 13 V: at the voltage limit the current lags the
+//! voltage by up to 80°, so most large-voltage periods fall near a zero crossing.)
 
 use crate::params::{Params, P};
 use foc::angle::Angle;
@@ -496,11 +498,11 @@ impl CurrentSupervisor {
             (cl.v_ab.beta, cl.i_ab.beta, Phase::B),
         ];
         for (n, (v, i, phase)) in self.open_n.iter_mut().zip(phases) {
-            if v.abs() <= v_large {
+            if i.abs() >= OPEN_CURRENT_A {
+                *n = 0;
                 continue;
             }
-            if i.abs() >= OPEN_CURRENT_A {
-                *n = n.saturating_sub(1);
+            if v.abs() <= v_large {
                 continue;
             }
             *n += 1;

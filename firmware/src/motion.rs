@@ -54,7 +54,14 @@
 //!   the actual position, so the rotor is held where it is (soft start from zero).
 //!
 //! Following error: reported in encoder counts (demand − actual); the drive's fault
-//! module compares it with 0x2030 (the servo's own latch is not used).
+//! module compares it with 0x2030 (the servo's own latch is not used). With velocity
+//! set-points (PV, CSV) it is the following error of the position that the velocity
+//! demand describes, ∫(v_demand − v_actual) dt from the enable: bounded while the
+//! velocity loop follows (its integrator brings the speed error's integral back),
+//! growing without bound when the shaft cannot follow — a blocked axis, a speed beyond
+//! what the bus allows, or an encoder whose signals are lost (the counter stops, the
+//! velocity loop drives the current to its limit on a frozen commutation angle and the
+//! rotor stalls). So the 0x2030 fault (7 flashes, 0x8611) covers every closed-loop mode.
 //!
 //! Nothing here panics on any parameter value: ratios are guarded, divisions are by
 //! values ≥ 1, non-finite inputs fall back to zero.
@@ -78,6 +85,9 @@ pub const SERVO_TS: f32 = 1e-4;
 /// encoder PLL's estimate carries the count quantisation (±5 % at 2 rev/s with 4000
 /// counts/rev); the loops use the unfiltered estimate.
 pub const VELOCITY_REPORT_TAU: f32 = 0.005;
+/// Bound of the velocity set-points' following error, counts: well beyond the largest
+/// 0x2030 (60 000), small enough that the sum keeps its resolution in an `f32`.
+pub const LAG_LIMIT: f32 = 1.0e6;
 
 /// Mechanical constants the base gains need (not among the vendor parameters: the
 /// board knows its motor).
@@ -440,6 +450,10 @@ pub struct Motion {
     last_ref: CurrentReference,
     demand: (i32, f32),
     following_error: f32,
+    /// Velocity set-points: ∫(demand − actual velocity) dt since the drive was enabled
+    /// or left the position set-points, counts (the following error of the position
+    /// the velocity demand describes).
+    velocity_lag: f32,
     open_pos_units: i32,
     open_vel_units: f32,
     vel_report: f32,
@@ -494,6 +508,7 @@ impl Motion {
             last_ref: CurrentReference::OFF,
             demand: (0, 0.0),
             following_error: 0.0,
+            velocity_lag: 0.0,
             open_pos_units: 0,
             open_vel_units: 0.0,
             vel_report: 0.0,
@@ -755,6 +770,7 @@ impl Motion {
     fn track_disabled(&mut self, fb: &Feedback) {
         self.current_limited = false;
         self.following_error = 0.0;
+        self.velocity_lag = 0.0;
         self.acc_ff = 0.0;
         if self.cfg.counts_per_rev > 0 {
             let n = self.actual_axis_counts(fb);
@@ -786,13 +802,19 @@ impl Motion {
                 };
                 // Keep the position demand on the actual position: bumpless return.
                 self.rest_at(pos);
-                self.following_error = 0.0;
+                self.velocity_lag = clampf(
+                    self.velocity_lag + (v - vel) * self.cfg.ts,
+                    -LAG_LIMIT,
+                    LAG_LIMIT,
+                );
+                self.following_error = self.velocity_lag;
                 self.servo.step_velocity(v, self.acc_ff, vel)
             }
             SetpointKind::Position => {
                 let d = self.next_demand();
                 self.demand = (d.pos, d.frac);
                 let iq = self.servo.step(&d, pos, vel);
+                self.velocity_lag = 0.0;
                 self.following_error = self.servo.following_error;
                 iq
             }

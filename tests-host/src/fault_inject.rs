@@ -10,8 +10,10 @@
 //! drive reports for each is in [`InjectedFault::effect`] (checked by
 //! `tests-host/tests/virtual_fault_inject.rs`).
 //!
-//! Not offered: encoder loss (the drive has no encoder-signal fault; a frozen encoder
-//! is only noticed indirectly, as a following error while the axis moves) and
+//! Encoder loss has no fault of its own: the encoder interface of the board (a timer
+//! counting A/B edges) cannot tell a lost signal from a shaft at rest, so the drive
+//! notices it as the following error of the closed loop once the axis should move —
+//! as the reference product does ("over-error", 7 flashes). Not offered:
 //! over-temperature (neither the plant nor the drive models a temperature).
 
 use ecat_slave_stack::esm::EsmState;
@@ -33,6 +35,8 @@ pub enum InjectedFault {
     BusOvervoltage,
     /// The DC bus falls to [`UNDERVOLTAGE_V`].
     BusUndervoltage,
+    /// The encoder signals are lost: the counter stops where it is.
+    EncoderLoss,
 }
 
 /// Bus voltage of [`InjectedFault::BusOvervoltage`], V (the drive's limit: 55 V).
@@ -42,12 +46,13 @@ pub const UNDERVOLTAGE_V: f64 = 9.0;
 
 impl InjectedFault {
     /// Every kind, in the order of `--help`.
-    pub const ALL: [InjectedFault; 5] = [
+    pub const ALL: [InjectedFault; 6] = [
         InjectedFault::OpenPhaseA,
         InjectedFault::OpenPhaseB,
         InjectedFault::PhaseShort,
         InjectedFault::BusOvervoltage,
         InjectedFault::BusUndervoltage,
+        InjectedFault::EncoderLoss,
     ];
 
     /// Its name on the command line.
@@ -58,6 +63,7 @@ impl InjectedFault {
             InjectedFault::PhaseShort => "phase-short",
             InjectedFault::BusOvervoltage => "bus-overvoltage",
             InjectedFault::BusUndervoltage => "bus-undervoltage",
+            InjectedFault::EncoderLoss => "encoder-loss",
         }
     }
 
@@ -70,10 +76,11 @@ impl InjectedFault {
     pub const fn effect(self) -> &'static str {
         match self {
             InjectedFault::OpenPhaseA | InjectedFault::OpenPhaseB => {
-                "phase current 0; at start (TIME 0s) with 0x2056 bit 2 on (saved): the \
-                 power-up tune reports motor open 0x7120, 4 red flashes, power off; \
-                 later only with bit 3 on and current demanded by a load (0x5210, 9 \
-                 flashes) — the virtual axis has no load; both bits are off by default"
+                "phase current 0; with 0x2056 bit 2 on (saved; off by default): at start \
+                 (TIME 0s) the power-up tune, or the phase check of the first enable, \
+                 reports motor open 0x7120, 4 red flashes, power off; while running, the \
+                 current loop reports it once the drive demands 0.6 A or more in that \
+                 phase (a load or a fast acceleration; the virtual axis has no load)"
             }
             InjectedFault::PhaseShort => {
                 "phase A shorted; while the power stage is on: 0x2310, 1 red flash, \
@@ -85,6 +92,13 @@ impl InjectedFault {
             InjectedFault::BusUndervoltage => {
                 "bus 9 V; 0x3220, 3 red flashes, 0x605E fault reaction then Fault, not \
                  latched (the injected bus stays low)"
+            }
+            InjectedFault::EncoderLoss => {
+                "encoder counter stops; closed loop (0x2024 = 2): the rotor stalls on \
+                 the frozen commutation angle, and once the axis is commanded to move \
+                 (any mode) the following error passes 0x2030: 0x8611, 7 red flashes, \
+                 Fault; open loop: the motor keeps running and 0x6064 stops, so 0x60F4 \
+                 grows against the window 0x6065 in PP, CSP and HM"
             }
         }
     }

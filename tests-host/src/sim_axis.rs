@@ -413,6 +413,20 @@ impl PlantAxis {
         }
     }
 
+    /// Fault injection: the encoder signals are lost, the counter stops where it is.
+    pub fn lose_encoder(&mut self) {
+        let p = &mut self.rig.plant;
+        p.encoder_frozen = Some(p.encoder_raw());
+    }
+
+    /// Fault injection: the current sensor of phase `phase` (0 = A, 1 = B) reads the
+    /// ADC value `counts` whatever the current (`None`: healthy again).
+    pub fn stick_current_sensor(&mut self, phase: usize, counts: Option<u16>) {
+        if let Some(s) = self.rig.plant.adc_stuck.get_mut(phase) {
+            *s = counts;
+        }
+    }
+
     /// Fault injection: zero-current error of the current sensors (A, B), ADC counts.
     pub fn set_adc_offset_error(&mut self, counts: [f64; 2]) {
         self.rig.plant.adc_offset_error = counts;
@@ -628,6 +642,7 @@ impl Axis for PlantAxis {
             InjectedFault::BusUndervoltage => {
                 self.set_bus_voltage(crate::fault_inject::UNDERVOLTAGE_V)
             }
+            InjectedFault::EncoderLoss => self.lose_encoder(),
         }
         true
     }

@@ -122,6 +122,8 @@ enum Motion {
     Disabled,
     /// CSP, holding its position.
     Holding,
+    /// PV at 2 rev/s.
+    Moving,
 }
 
 /// Injects `fault` at `at_ms` (0x2056 = `mask` from the start, the drive enabled at
@@ -132,8 +134,14 @@ fn check_kind(fault: InjectedFault, at_ms: u64, mask: u16, motion: Motion, code:
     r.write(0x2056, 0, &mask.to_le_bytes());
     if at_ms > 500 {
         r.run_ms(500);
-        if motion == Motion::Holding {
-            r.enable(8);
+        match motion {
+            Motion::Disabled => {}
+            Motion::Holding => r.enable(8),
+            Motion::Moving => {
+                let v = 2 * r.read(0x2001, 0) as i32; // 2 rev/s in pulses (0x2001 per rev)
+                r.write(0x60FF, 0, &v.to_le_bytes());
+                r.enable(3);
+            }
         }
         assert!(r.emcy.is_empty(), "{fault:?}: before: {:x?}", r.emcy);
         assert_eq!(r.read(0x603F, 0), 0);
@@ -250,6 +258,18 @@ fn open_phase_b_at_start_is_motor_open_0x7120_with_four_flashes() {
         Motion::Disabled,
         0x7120,
         4,
+    );
+}
+
+#[test]
+fn encoder_loss_while_moving_is_a_following_error_with_seven_flashes() {
+    check_kind(
+        InjectedFault::EncoderLoss,
+        1500,
+        0x00C3,
+        Motion::Moving,
+        0x8611,
+        7,
     );
 }
 

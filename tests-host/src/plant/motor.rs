@@ -176,6 +176,12 @@ pub struct Plant {
     pub bridges_off: bool,
     /// Fault injection: zero-current error of the current sensors (A, B), ADC counts.
     pub adc_offset_error: [f64; 2],
+    /// Fault injection: the encoder signals are lost (cable cut). The counter then
+    /// holds this value whatever the shaft does.
+    pub encoder_frozen: Option<u16>,
+    /// Fault injection: a current sensor (A, B) whose output stays at this ADC value
+    /// whatever the current (a broken amplifier or an open sense resistor path).
+    pub adc_stuck: [Option<u16>; 2],
     stuck: bool,
     next: Duties,
     now: Duties,
@@ -206,6 +212,8 @@ impl Plant {
             short: [false; 2],
             bridges_off: false,
             adc_offset_error: [0.0; 2],
+            encoder_frozen: None,
+            adc_stuck: [None; 2],
             stuck: true,
             next: z,
             now: z,
@@ -223,9 +231,13 @@ impl Plant {
     pub fn sample(&mut self) -> AdcSample {
         let (ia, ib) = (self.ia, self.ib);
         let v = (self.cfg.vbus / self.cfg.vbus_full_scale * 4096.0).round();
+        let (sa, sb) = (
+            self.adc_current(ia, self.adc_offset_error[0]),
+            self.adc_current(ib, self.adc_offset_error[1]),
+        );
         AdcSample {
-            ia: self.adc_current(ia, self.adc_offset_error[0]),
-            ib: self.adc_current(ib, self.adc_offset_error[1]),
+            ia: self.adc_stuck[0].unwrap_or(sa),
+            ib: self.adc_stuck[1].unwrap_or(sb),
             vbus: v.clamp(0.0, 4095.0) as u16,
         }
     }
@@ -238,7 +250,7 @@ impl Plant {
 
     /// Encoder timer counter value (16 bits).
     pub fn encoder_raw(&self) -> u16 {
-        self.encoder_count() as u16
+        self.encoder_frozen.unwrap_or(self.encoder_count() as u16)
     }
 
     /// Electrical angle, rad.
