@@ -34,6 +34,8 @@
 use std::cell::RefCell;
 use std::rc::Rc;
 
+use ecat_slave_stack::diag::DiagMessage;
+use ecat_slave_stack::leds::Pattern;
 use ecat_slave_stack::od::Dictionary;
 use ecat_slave_stack::registers as reg;
 use firmware::cia402::pds::PdsState;
@@ -860,6 +862,32 @@ fn run_case(mode: Mode, option: i16, loss: Loss) -> Outcome {
         vec![loss.emergency()]
     };
     assert_eq!(codes, want, "{case}: emergencies {:x?}", m.emcy);
+    // The ERR LED shows the final AL status code (ETG.1300: double flash for the
+    // watchdog, single flash for the sync error, off without an error).
+    let want_led = match expected_al.1 {
+        0x001B => Pattern::DoubleFlash,
+        0x002C => Pattern::SingleFlash,
+        _ => Pattern::Off,
+    };
+    assert_eq!(
+        tests_host::fault_inject::led_state(&m.seg, 0).err,
+        want_led,
+        "{case}: ERR LED"
+    );
+    // The emergency is also the newest 0x10F3 message (diagnosis code 0xE800 with the
+    // emergency code in bits 16-31).
+    if let Some(&code) = want.first() {
+        let mut b = [0u8; 64];
+        Dictionary::read(m.app(), 0x10F3, 2, &mut b).expect("0x10F3:02");
+        let newest = b[0];
+        let n = Dictionary::read(m.app(), 0x10F3, newest, &mut b).expect("0x10F3 message");
+        let msg = DiagMessage::parse(&b[..n]).expect("a diagnosis message");
+        assert_eq!(
+            msg.code,
+            0xE800 | (u32::from(code) << 16),
+            "{case}: 0x10F3 message {newest}"
+        );
+    }
     if option == 1 {
         assert!(
             m.emcy[0].register != 0,
