@@ -11,6 +11,7 @@ pub mod dip;
 pub mod drive;
 pub mod fault_led;
 pub mod faults;
+pub mod flash_layout;
 pub mod flash_region;
 pub mod identity;
 pub mod io;
