@@ -191,10 +191,7 @@ impl<T: AsRef<[u8]>> Frame<T> {
     }
     /// The bytes the header signature covers.
     pub fn signed_part(&self) -> &[u8] {
-        self.buffer
-            .as_ref()
-            .get(..SIGNED_HEADER_LEN)
-            .unwrap_or(&[])
+        self.buffer.as_ref().get(..SIGNED_HEADER_LEN).unwrap_or(&[])
     }
 }
 
@@ -304,7 +301,11 @@ pub fn image_digest(image: &[u8]) -> [u8; 64] {
 
 /// Checks `image` (exactly `header.image_len` bytes) against the header's image
 /// signature, as embassy-boot does over the DFU partition.
-pub fn verify_image(header: &Header, image: &[u8], public_key: &[u8; 32]) -> Result<(), ImageError> {
+pub fn verify_image(
+    header: &Header,
+    image: &[u8],
+    public_key: &[u8; 32],
+) -> Result<(), ImageError> {
     if image.len() != header.image_len as usize {
         return Err(ImageError::Truncated);
     }
@@ -423,7 +424,10 @@ mod tests {
             Err(ImageError::WrongEsc)
         );
         let other_product = update_file(&SEED, 0x0ECA, 0x5703, Esc::Lan9252, 1, &image());
-        assert_eq!(check_file(&other_product, &e), Err(ImageError::WrongProduct));
+        assert_eq!(
+            check_file(&other_product, &e),
+            Err(ImageError::WrongProduct)
+        );
         let other_key = update_file(&OTHER, 0x0ECA, 0x5702, Esc::Lan9252, 1, &image());
         assert_eq!(
             check_file(&other_key, &e),

@@ -26,3 +26,4 @@ pub mod sampling;
 pub mod selftest;
 pub mod staged_flash;
 pub mod storage;
+pub mod update;

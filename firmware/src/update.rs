@@ -1,0 +1,1022 @@
+//! Firmware update over EtherCAT: the FoE files of the Bootstrap state, the checks of
+//! a signed `.efw` image ([`efw`]) and embassy-boot's trial boot.
+//!
+//! # The path of an update
+//! 1. The master takes the drive Init → Bootstrap (the power stage stays off there) and
+//!    writes a `*.efw` file over FoE ([`Update`] is the drive's [`FoeFiles`]).
+//! 2. The first [`efw::HEADER_LEN`] bytes are the header: format, header signature
+//!    with the drive's public key ([`PUBLIC_KEY`]), vendor and product code, ESC
+//!    flavour, and an image length that fits [`flash_layout::IMAGE_MAX`]. Anything
+//!    else is refused with an FoE error before a byte of the DFU partition is erased.
+//! 3. The image goes to the DFU partition through embassy-boot's
+//!    `write_firmware`, in writes of [`WRITE_CHUNK`] bytes (the FoE data of a packet
+//!    is not a multiple of the flash's 8-byte unit).
+//! 4. After the last packet the header goes to the DFU partition's header page
+//!    ([`flash_layout::HEADER_OFFSET`]), and embassy-boot's `verify_and_mark_updated`
+//!    checks the image signature (ed25519 over SHA-512 of the image) and marks the
+//!    partition for the swap. Only then is the last packet acknowledged.
+//! 5. Bootstrap → Init: the drive resets; embassy-boot swaps (power-fail safe) and
+//!    starts the new image on trial ([`BootState::Trial`]).
+//! 6. The new image confirms itself (`mark_booted`, [`Update::confirm`]) once its
+//!    start-up checks have passed and the EtherCAT runtime reached Pre-Op. A reset
+//!    before that (a crash, the watchdog) makes embassy-boot revert to the old image,
+//!    which then reports [`BootState::Reverted`] and confirms itself.
+//!
+//! While an image is on trial no update is taken (embassy-boot's rule: the running
+//! image must be confirmed first), and the refusal says so (FoE "access denied").
+//!
+//! # The information file
+//! Reading [`INFO_FILE`] over FoE returns a few `key=value` lines about the running
+//! image: vendor and product, ESC, version, whether its header carries a valid
+//! signature of [`PUBLIC_KEY`] (an image flashed by probe-rs has no header), and the
+//! boot state, so a tool can check an update.
+
+use crate::flash_layout;
+use ecat_slave_stack::foe::{ErrorCode, FoeFiles, WriteStatus};
+use efw::{Esc, Expected, Header, ImageError, HEADER_LEN};
+
+/// The public key update images must be signed with: the repository's development
+/// key (`keys/dev-signing-key.hex`) unless the build sets `ECS_UPDATE_PUBLIC_KEY`
+/// (64 hex digits) for a manufacturer's own key (see the README).
+pub const PUBLIC_KEY: [u8; 32] = public_key();
+
+const fn public_key() -> [u8; 32] {
+    let hex = match option_env!("ECS_UPDATE_PUBLIC_KEY") {
+        Some(k) => k,
+        None => DEV_PUBLIC_KEY_HEX,
+    };
+    let b = hex.as_bytes();
+    assert!(b.len() == 64, "ECS_UPDATE_PUBLIC_KEY: 64 hex digits");
+    let mut out = [0u8; 32];
+    let mut i = 0;
+    while i < 32 {
+        out[i] = nibble(b[2 * i]) << 4 | nibble(b[2 * i + 1]);
+        i += 1;
+    }
+    out
+}
+
+const fn nibble(c: u8) -> u8 {
+    match c {
+        b'0'..=b'9' => c - b'0',
+        b'a'..=b'f' => c - b'a' + 10,
+        b'A'..=b'F' => c - b'A' + 10,
+        _ => panic!("ECS_UPDATE_PUBLIC_KEY: not a hex digit"),
+    }
+}
+
+/// The public key of the repository's development key pair (DEVELOPMENT ONLY: its
+/// secret half is public in `keys/`; `cargo xtask update-image` checks that the two
+/// belong together).
+pub const DEV_PUBLIC_KEY_HEX: &str = include_str!("../../keys/dev-public-key.hex").trim_ascii();
+
+/// File name read over FoE for the running image's information.
+pub const INFO_FILE: &[u8] = b"firmware.info";
+/// Image bytes collected before a write to the DFU partition (a multiple of the
+/// STM32G4's 8-byte write unit).
+pub const WRITE_CHUNK: usize = 256;
+
+/// Where the running image stands with embassy-boot (0x2320 reports it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BootState {
+    /// Confirmed (or never updated): updates are taken.
+    Confirmed = 0,
+    /// A new image on trial: not yet confirmed; a reset now reverts it.
+    Trial = 1,
+    /// The bootloader reverted an unconfirmed image: the previous image runs.
+    Reverted = 2,
+}
+
+impl BootState {
+    /// Its text in [`INFO_FILE`].
+    pub const fn name(self) -> &'static str {
+        match self {
+            BootState::Confirmed => "confirmed",
+            BootState::Trial => "trial",
+            BootState::Reverted => "reverted",
+        }
+    }
+}
+
+/// Errors of an [`Updater`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum UpdaterError {
+    /// The flash failed (or an access was out of bounds).
+    Flash,
+    /// The image signature does not verify.
+    Signature,
+    /// The running image is not confirmed (no update while on trial).
+    NotConfirmed,
+}
+
+/// What the update needs from the flash and embassy-boot (implemented by
+/// [`EmbassyUpdater`] for the board and the host alike).
+pub trait Updater {
+    /// Size of the DFU partition.
+    fn capacity(&self) -> u32;
+    /// Erases the page ([`flash_layout::PAGE`]) at `offset` of the DFU partition.
+    fn erase_page(&mut self, offset: u32) -> Result<(), UpdaterError>;
+    /// Writes `data` (a multiple of 8 bytes, into erased flash) at `offset` of the DFU
+    /// partition.
+    fn write(&mut self, offset: u32, data: &[u8]) -> Result<(), UpdaterError>;
+    /// Checks the first `len` bytes of the DFU partition against `signature` and
+    /// marks them for the swap.
+    fn verify_and_mark_updated(
+        &mut self,
+        key: &[u8; 32],
+        signature: &[u8; 64],
+        len: u32,
+    ) -> Result<(), UpdaterError>;
+    /// The boot state.
+    fn boot_state(&mut self) -> Result<BootState, UpdaterError>;
+    /// Confirms the running image.
+    fn mark_booted(&mut self) -> Result<(), UpdaterError>;
+    /// Reads the running image's header page (its first [`HEADER_LEN`] bytes).
+    fn read_running_header(&mut self, buf: &mut [u8; HEADER_LEN]) -> Result<(), UpdaterError>;
+}
+
+/// [`Updater`] over embassy-boot: its firmware updater (DFU and state partitions:
+/// verification, marking, boot state), the DFU partition once more for the writes,
+/// and the active partition, read for the running image's header.
+///
+/// The image is written page by page here rather than by embassy-boot's
+/// `write_firmware`: that one erases a page only when it is not the last page it
+/// erased, so a transfer that starts again after an aborted one would write into a
+/// programmed page. Here every transfer erases what it writes, one page per FoE
+/// DATA at most (answered BUSY), so no call blocks for more than one page erase.
+pub struct EmbassyUpdater<'d, DFU, STATE, ACTIVE>
+where
+    DFU: embedded_storage::nor_flash::NorFlash,
+    STATE: embedded_storage::nor_flash::NorFlash,
+{
+    fw: embassy_boot::BlockingFirmwareUpdater<'d, DFU, STATE>,
+    dfu: DFU,
+    active: ACTIVE,
+}
+
+impl<'d, DFU, STATE, ACTIVE> EmbassyUpdater<'d, DFU, STATE, ACTIVE>
+where
+    DFU: embedded_storage::nor_flash::NorFlash + Clone,
+    STATE: embedded_storage::nor_flash::NorFlash,
+    ACTIVE: embedded_storage::nor_flash::ReadNorFlash,
+{
+    /// The updater of the `dfu` and `state` partitions (`aligned`: at least the
+    /// state partition's write size, aligned to it) and the `active` partition
+    /// (partitions of one flash, e.g. embassy's `BlockingPartition`).
+    pub fn new(dfu: DFU, state: STATE, active: ACTIVE, aligned: &'d mut [u8]) -> Self {
+        EmbassyUpdater {
+            fw: embassy_boot::BlockingFirmwareUpdater::new(
+                embassy_boot::FirmwareUpdaterConfig {
+                    dfu: dfu.clone(),
+                    state,
+                },
+                aligned,
+            ),
+            dfu,
+            active,
+        }
+    }
+}
+
+fn updater_error(e: embassy_boot::FirmwareUpdaterError) -> UpdaterError {
+    match e {
+        embassy_boot::FirmwareUpdaterError::Flash(_) => UpdaterError::Flash,
+        embassy_boot::FirmwareUpdaterError::Signature(_) => UpdaterError::Signature,
+        embassy_boot::FirmwareUpdaterError::BadState => UpdaterError::NotConfirmed,
+    }
+}
+
+impl<DFU, STATE, ACTIVE> Updater for EmbassyUpdater<'_, DFU, STATE, ACTIVE>
+where
+    DFU: embedded_storage::nor_flash::NorFlash + Clone,
+    STATE: embedded_storage::nor_flash::NorFlash,
+    ACTIVE: embedded_storage::nor_flash::ReadNorFlash,
+{
+    fn capacity(&self) -> u32 {
+        self.dfu.capacity() as u32
+    }
+
+    fn erase_page(&mut self, offset: u32) -> Result<(), UpdaterError> {
+        let end = offset
+            .checked_add(flash_layout::PAGE)
+            .ok_or(UpdaterError::Flash)?;
+        self.dfu.erase(offset, end).map_err(|_| UpdaterError::Flash)
+    }
+
+    fn write(&mut self, offset: u32, data: &[u8]) -> Result<(), UpdaterError> {
+        self.dfu
+            .write(offset, data)
+            .map_err(|_| UpdaterError::Flash)
+    }
+
+    fn verify_and_mark_updated(
+        &mut self,
+        key: &[u8; 32],
+        signature: &[u8; 64],
+        len: u32,
+    ) -> Result<(), UpdaterError> {
+        if len > self.capacity() {
+            return Err(UpdaterError::Flash);
+        }
+        self.fw
+            .verify_and_mark_updated(key, signature, len)
+            .map_err(updater_error)
+    }
+
+    fn boot_state(&mut self) -> Result<BootState, UpdaterError> {
+        Ok(match self.fw.get_state().map_err(updater_error)? {
+            embassy_boot::State::Swap => BootState::Trial,
+            embassy_boot::State::Revert => BootState::Reverted,
+            embassy_boot::State::Boot | embassy_boot::State::DfuDetach => BootState::Confirmed,
+        })
+    }
+
+    fn mark_booted(&mut self) -> Result<(), UpdaterError> {
+        self.fw.mark_booted().map_err(updater_error)
+    }
+
+    fn read_running_header(&mut self, buf: &mut [u8; HEADER_LEN]) -> Result<(), UpdaterError> {
+        self.active
+            .read(flash_layout::HEADER_OFFSET, buf)
+            .map_err(|_| UpdaterError::Flash)
+    }
+}
+
+/// What happened, for the diagnosis history (the drive turns it into a 0x10F3
+/// message).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Event {
+    /// An image was received, verified and marked: it starts after Bootstrap → Init.
+    Accepted {
+        /// Its version.
+        version: u32,
+    },
+    /// An image was refused with this FoE error; the running image is untouched.
+    Refused(ErrorCode),
+    /// This start: a new image on trial confirmed itself.
+    Confirmed {
+        /// Its version.
+        version: u32,
+    },
+    /// This start: the bootloader had reverted an unconfirmed image.
+    Reverted,
+}
+
+/// The running image, from its header page.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Running {
+    /// The header, when the page holds one signed with [`PUBLIC_KEY`] for this product
+    /// (`None`: an image flashed without an update file, e.g. by probe-rs).
+    pub header: Option<Header>,
+    /// Boot state at start-up.
+    pub boot: BootState,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Rx {
+    Idle,
+    /// Receiving: `head_len` header bytes so far, then the image.
+    Receiving,
+    /// A refused or failed transfer: everything until the next request is refused.
+    Failed(ErrorCode),
+}
+
+/// The drive's FoE files and update state over an [`Updater`].
+pub struct Update<U> {
+    updater: U,
+    expected: Expected,
+    running: Running,
+    confirmed: bool,
+    rx: Rx,
+    head: [u8; HEADER_LEN],
+    head_len: usize,
+    header: Option<Header>,
+    /// Image bytes received.
+    received: u32,
+    chunk: [u8; WRITE_CHUNK],
+    chunk_len: usize,
+    /// Image bytes written to the DFU partition.
+    written: u32,
+    /// The DFU partition is erased (in this transfer) up to here.
+    erased_end: u32,
+    /// The header page is erased (in this transfer).
+    header_page_erased: bool,
+    accepted: Option<Header>,
+    event: Option<Event>,
+    info: [u8; INFO_LEN],
+    info_len: usize,
+}
+
+const INFO_LEN: usize = 224;
+
+/// FoE answer of a refused image.
+pub const fn foe_error(e: ImageError) -> ErrorCode {
+    match e {
+        ImageError::WrongProduct | ImageError::WrongEsc | ImageError::BadMagic => {
+            ErrorCode::FirmwareNotForHardware
+        }
+        ImageError::UnknownFormat => ErrorCode::FirmwareNotForHardware,
+        ImageError::BadHeaderSignature | ImageError::BadImageSignature => {
+            ErrorCode::InvalidChecksum
+        }
+        ImageError::TooLong => ErrorCode::DiskFull,
+        ImageError::Truncated => ErrorCode::ProgramError,
+    }
+}
+
+impl<U: Updater> Update<U> {
+    /// The update of a drive with this identity (`vendor_id`, `product_code`, `esc`)
+    /// over `updater`; reads the running image's header and the boot state. An
+    /// image the bootloader reverted to confirms itself at once (it ran before).
+    pub fn new(mut updater: U, vendor_id: u32, product_code: u32, esc: Esc) -> Self {
+        let expected = Expected {
+            vendor_id,
+            product_code,
+            esc,
+            capacity: flash_layout::IMAGE_MAX.min(updater.capacity()),
+            public_key: PUBLIC_KEY,
+        };
+        let mut page = [0xFFu8; HEADER_LEN];
+        let header = match updater.read_running_header(&mut page) {
+            Ok(()) => efw::check_header(&page, &expected).ok(),
+            Err(_) => None,
+        };
+        let boot = updater.boot_state().unwrap_or(BootState::Confirmed);
+        let mut u = Update {
+            updater,
+            expected,
+            running: Running { header, boot },
+            confirmed: boot == BootState::Confirmed,
+            rx: Rx::Idle,
+            head: [0; HEADER_LEN],
+            head_len: 0,
+            header: None,
+            received: 0,
+            chunk: [0xFF; WRITE_CHUNK],
+            chunk_len: 0,
+            written: 0,
+            erased_end: 0,
+            header_page_erased: false,
+            accepted: None,
+            event: None,
+            info: [0; INFO_LEN],
+            info_len: 0,
+        };
+        if boot == BootState::Reverted && u.updater.mark_booted().is_ok() {
+            u.confirmed = true;
+            u.event = Some(Event::Reverted);
+        }
+        u
+    }
+
+    /// The running image.
+    pub fn running(&self) -> &Running {
+        &self.running
+    }
+
+    /// The version to report in 0x100A: the running image's header, if it has one.
+    pub fn running_version(&self) -> Option<u32> {
+        self.running.header.map(|h| h.version)
+    }
+
+    /// Boot state now (a trial image is [`BootState::Confirmed`] once confirmed).
+    pub fn boot_state(&self) -> BootState {
+        if self.confirmed {
+            if self.running.boot == BootState::Reverted {
+                BootState::Reverted
+            } else {
+                BootState::Confirmed
+            }
+        } else {
+            self.running.boot
+        }
+    }
+
+    /// Confirms a trial image (`mark_booted`) once `checks_passed` (the start-up
+    /// checks) and `runtime_up` (the EtherCAT runtime reached Pre-Op); does nothing
+    /// otherwise or when there is nothing to confirm. Returns true when it confirmed.
+    pub fn confirm(&mut self, checks_passed: bool, runtime_up: bool) -> bool {
+        if self.confirmed || !checks_passed || !runtime_up {
+            return false;
+        }
+        if self.updater.mark_booted().is_err() {
+            return false;
+        }
+        self.confirmed = true;
+        self.event = Some(Event::Confirmed {
+            version: self.running_version().unwrap_or(0),
+        });
+        true
+    }
+
+    /// The header of an image received and marked in this Bootstrap (the drive
+    /// resets into the bootloader on Bootstrap → Init).
+    pub fn accepted(&self) -> Option<&Header> {
+        self.accepted.as_ref()
+    }
+
+    /// The last event, once.
+    pub fn take_event(&mut self) -> Option<Event> {
+        self.event.take()
+    }
+
+    fn fail(&mut self, code: ErrorCode) -> ErrorCode {
+        self.rx = Rx::Failed(code);
+        self.event = Some(Event::Refused(code));
+        code
+    }
+
+    /// Erases the DFU partition up to `end` (whole pages).
+    fn erase_to(&mut self, end: u32) -> Result<(), UpdaterError> {
+        while self.erased_end < end {
+            self.updater.erase_page(self.erased_end)?;
+            self.erased_end += flash_layout::PAGE;
+        }
+        Ok(())
+    }
+
+    /// The page this DATA of `n` bytes needs erased before it is taken, if any: the
+    /// header page once the header is known good, then the pages the chunks it
+    /// completes go to.
+    fn page_to_erase(&self, n: usize) -> Option<u32> {
+        let header_part = if self.header.is_some() {
+            0
+        } else {
+            HEADER_LEN - self.head_len
+        };
+        if n < header_part {
+            // The header is not complete yet: nothing to write.
+            return None;
+        }
+        if !self.header_page_erased {
+            return Some(flash_layout::HEADER_OFFSET);
+        }
+        let image_part = n - header_part;
+        let full = (self.chunk_len + image_part) / WRITE_CHUNK * WRITE_CHUNK;
+        let end = self.written + full as u32;
+        (end > self.erased_end).then_some(self.erased_end)
+    }
+
+    /// Writes the collected chunk (padded with erased bytes to the write unit) into
+    /// erased flash.
+    fn flush(&mut self) -> Result<(), UpdaterError> {
+        if self.chunk_len == 0 {
+            return Ok(());
+        }
+        let n = self.chunk_len.next_multiple_of(8);
+        self.chunk[self.chunk_len..n].fill(0xFF);
+        self.erase_to(self.written + n as u32)?;
+        let r = self.updater.write(self.written, &self.chunk[..n]);
+        self.written += self.chunk_len as u32;
+        self.chunk_len = 0;
+        self.chunk.fill(0xFF);
+        r
+    }
+
+    fn take_image_bytes(&mut self, mut data: &[u8]) -> Result<(), ErrorCode> {
+        let Some(h) = self.header else {
+            return Err(ErrorCode::ProgramError);
+        };
+        if u64::from(self.received) + data.len() as u64 > u64::from(h.image_len) {
+            return Err(ErrorCode::DiskFull);
+        }
+        self.received += data.len() as u32;
+        while !data.is_empty() {
+            let n = (WRITE_CHUNK - self.chunk_len).min(data.len());
+            self.chunk[self.chunk_len..self.chunk_len + n].copy_from_slice(&data[..n]);
+            self.chunk_len += n;
+            data = &data[n..];
+            if self.chunk_len == WRITE_CHUNK {
+                self.flush().map_err(|_| ErrorCode::ProgramError)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn take(&mut self, mut data: &[u8]) -> Result<(), ErrorCode> {
+        if self.header.is_none() {
+            let n = (HEADER_LEN - self.head_len).min(data.len());
+            self.head[self.head_len..self.head_len + n].copy_from_slice(&data[..n]);
+            self.head_len += n;
+            data = &data[n..];
+            if self.head_len < HEADER_LEN {
+                return Ok(());
+            }
+            let h = efw::check_header(&self.head, &self.expected).map_err(foe_error)?;
+            self.header = Some(h);
+        }
+        self.take_image_bytes(data)
+    }
+
+    fn finish(&mut self) -> Result<Header, ErrorCode> {
+        let h = self.header.ok_or(ErrorCode::ProgramError)?;
+        if self.received != h.image_len {
+            return Err(ErrorCode::ProgramError);
+        }
+        self.flush().map_err(|_| ErrorCode::ProgramError)?;
+        if !self.header_page_erased {
+            self.updater
+                .erase_page(flash_layout::HEADER_OFFSET)
+                .map_err(|_| ErrorCode::ProgramError)?;
+            self.header_page_erased = true;
+        }
+        self.updater
+            .write(flash_layout::HEADER_OFFSET, &self.head)
+            .map_err(|_| ErrorCode::ProgramError)?;
+        match self.updater.verify_and_mark_updated(
+            &self.expected.public_key,
+            &h.image_signature,
+            h.image_len,
+        ) {
+            Ok(()) => Ok(h),
+            Err(UpdaterError::Signature) => Err(ErrorCode::InvalidChecksum),
+            Err(UpdaterError::NotConfirmed) => Err(ErrorCode::AccessDenied),
+            Err(UpdaterError::Flash) => Err(ErrorCode::ProgramError),
+        }
+    }
+
+    fn reset_transfer(&mut self) {
+        self.rx = Rx::Idle;
+        self.head_len = 0;
+        self.header = None;
+        self.received = 0;
+        self.chunk_len = 0;
+        self.written = 0;
+        self.erased_end = 0;
+        self.header_page_erased = false;
+    }
+
+    /// Checks the header before anything is erased, when this DATA completes it.
+    fn check_completed_header(&self, data: &[u8]) -> Result<(), ErrorCode> {
+        if self.header.is_some() || self.head_len + data.len() < HEADER_LEN {
+            return Ok(());
+        }
+        let mut h = self.head;
+        h[self.head_len..].copy_from_slice(&data[..HEADER_LEN - self.head_len]);
+        efw::check_header(&h, &self.expected)
+            .map(|_| ())
+            .map_err(foe_error)
+    }
+
+    fn done_percent(&self) -> u8 {
+        match self.header {
+            Some(h) if h.image_len > 0 => {
+                (u64::from(self.received) * 100 / u64::from(h.image_len)).min(100) as u8
+            }
+            _ => 0,
+        }
+    }
+
+    fn build_info(&mut self) -> usize {
+        use core::fmt::Write as _;
+        struct Buf<'a>(&'a mut [u8], usize);
+        impl core::fmt::Write for Buf<'_> {
+            fn write_str(&mut self, s: &str) -> core::fmt::Result {
+                let end = self.1 + s.len();
+                let dst = self.0.get_mut(self.1..end).ok_or(core::fmt::Error)?;
+                dst.copy_from_slice(s.as_bytes());
+                self.1 = end;
+                Ok(())
+            }
+        }
+        let e = self.expected;
+        let boot = self.boot_state();
+        let mut b = Buf(&mut self.info, 0);
+        let _ = write!(
+            b,
+            "vendor=0x{:08X}\nproduct=0x{:08X}\nesc={}\n",
+            e.vendor_id,
+            e.product_code,
+            e.esc.name()
+        );
+        let _ = match self.running.header {
+            Some(h) => write!(
+                b,
+                "version={}.{}.{}\nimage-length={}\nsignature=valid\n",
+                h.version >> 16,
+                (h.version >> 8) & 0xFF,
+                h.version & 0xFF,
+                h.image_len
+            ),
+            None => write!(b, "version=unknown\nsignature=none\n"),
+        };
+        let _ = writeln!(b, "boot={}", boot.name());
+        b.1
+    }
+}
+
+/// `name` ends in `.efw` (any case, after any path).
+fn is_update_file(name: &[u8]) -> bool {
+    name.len() > 4 && name[name.len() - 4..].eq_ignore_ascii_case(b".efw")
+}
+
+impl<U: Updater> FoeFiles for Update<U> {
+    fn open_write(&mut self, name: &[u8], password: u32, in_boot: bool) -> Result<(), ErrorCode> {
+        self.reset_transfer();
+        if !is_update_file(name) {
+            return Err(ErrorCode::NotFound);
+        }
+        if password != 0 {
+            return Err(ErrorCode::NoRights);
+        }
+        if !in_boot {
+            return Err(ErrorCode::BootstrapOnly);
+        }
+        if !self.confirmed {
+            return Err(self.fail(ErrorCode::AccessDenied));
+        }
+        self.accepted = None;
+        self.rx = Rx::Receiving;
+        Ok(())
+    }
+
+    fn write(&mut self, _offset: u32, data: &[u8]) -> WriteStatus {
+        match self.rx {
+            Rx::Receiving => {}
+            Rx::Failed(code) => return WriteStatus::Err(code),
+            Rx::Idle => return WriteStatus::Err(ErrorCode::Illegal),
+        }
+        if let Err(code) = self.check_completed_header(data) {
+            return WriteStatus::Err(self.fail(code));
+        }
+        if let Some(page) = self.page_to_erase(data.len()) {
+            // One page erase per call; the server asks again with the same data.
+            return match self.updater.erase_page(page) {
+                Ok(()) => {
+                    if page == flash_layout::HEADER_OFFSET {
+                        self.header_page_erased = true;
+                    } else {
+                        self.erased_end += flash_layout::PAGE;
+                    }
+                    WriteStatus::Busy {
+                        done_percent: self.done_percent(),
+                    }
+                }
+                Err(_) => WriteStatus::Err(self.fail(ErrorCode::ProgramError)),
+            };
+        }
+        match self.take(data) {
+            Ok(()) => WriteStatus::Done,
+            Err(code) => WriteStatus::Err(self.fail(code)),
+        }
+    }
+
+    fn finish_write(&mut self) -> Result<(), ErrorCode> {
+        if self.rx != Rx::Receiving {
+            return Err(ErrorCode::Illegal);
+        }
+        let r = self.finish();
+        self.reset_transfer();
+        match r {
+            Ok(h) => {
+                self.accepted = Some(h);
+                self.event = Some(Event::Accepted { version: h.version });
+                Ok(())
+            }
+            Err(code) => Err(self.fail(code)),
+        }
+    }
+
+    fn open_read(&mut self, name: &[u8], password: u32, _in_boot: bool) -> Result<u32, ErrorCode> {
+        if name != INFO_FILE {
+            return Err(ErrorCode::NotFound);
+        }
+        if password != 0 {
+            return Err(ErrorCode::NoRights);
+        }
+        self.info_len = self.build_info();
+        Ok(self.info_len as u32)
+    }
+
+    fn read(&mut self, offset: u32, buf: &mut [u8]) -> usize {
+        let rest = self.info.get(offset as usize..self.info_len).unwrap_or(&[]);
+        let n = rest.len().min(buf.len());
+        buf[..n].copy_from_slice(&rest[..n]);
+        n
+    }
+
+    fn abort(&mut self) {
+        if self.rx == Rx::Receiving {
+            self.event = Some(Event::Refused(ErrorCode::NotDefined));
+        }
+        self.reset_transfer();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use crate::storage::RamFlash;
+    use core::cell::RefCell;
+    use embassy_boot::{BootLoader, BootLoaderConfig};
+    use embassy_embedded_hal::flash::partition::BlockingPartition;
+    use embassy_sync::blocking_mutex::{raw::NoopRawMutex, Mutex};
+    use std::boxed::Box;
+    use std::vec::Vec;
+
+    const ACTIVE_SIZE: usize = flash_layout::ACTIVE.size as usize;
+    const DFU_SIZE: usize = flash_layout::DFU.size as usize;
+    const STATE_SIZE: usize = flash_layout::BOOT_STATE.size as usize;
+    const VENDOR: u32 = 0x0ECA;
+    const PRODUCT: u32 = 0x5702;
+
+    /// A [`RamFlash`] erased in the STM32G4's 2 KiB pages (embassy-boot sizes its
+    /// state by the page count).
+    struct Paged<const N: usize>(RamFlash<N>);
+
+    impl<const N: usize> embedded_storage::nor_flash::ErrorType for Paged<N> {
+        type Error = embedded_storage::nor_flash::NorFlashErrorKind;
+    }
+    impl<const N: usize> embedded_storage::nor_flash::ReadNorFlash for Paged<N> {
+        const READ_SIZE: usize = 1;
+        fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+            self.0.read(offset, bytes)
+        }
+        fn capacity(&self) -> usize {
+            N
+        }
+    }
+    impl<const N: usize> embedded_storage::nor_flash::NorFlash for Paged<N> {
+        const WRITE_SIZE: usize = 8;
+        const ERASE_SIZE: usize = flash_layout::PAGE as usize;
+        fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+            if !from.is_multiple_of(flash_layout::PAGE) || !to.is_multiple_of(flash_layout::PAGE) {
+                return Err(embedded_storage::nor_flash::NorFlashErrorKind::NotAligned);
+            }
+            self.0.erase(from, to)
+        }
+        fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+            self.0.write(offset, bytes)
+        }
+    }
+
+    type Part<const N: usize> = Mutex<NoopRawMutex, RefCell<Paged<N>>>;
+
+    /// The three partitions, each its own RAM flash.
+    struct Flashes {
+        active: Part<ACTIVE_SIZE>,
+        dfu: Part<DFU_SIZE>,
+        state: Part<STATE_SIZE>,
+    }
+
+    impl Flashes {
+        fn new() -> Box<Self> {
+            Box::new(Flashes {
+                active: Mutex::new(RefCell::new(Paged(RamFlash::new()))),
+                dfu: Mutex::new(RefCell::new(Paged(RamFlash::new()))),
+                state: Mutex::new(RefCell::new(Paged(RamFlash::new()))),
+            })
+        }
+
+        fn update(&self) -> Update<impl Updater + '_> {
+            let aligned = Box::leak(Box::new([0u8; 8]));
+            let u = EmbassyUpdater::new(
+                BlockingPartition::new(&self.dfu, 0, DFU_SIZE as u32),
+                BlockingPartition::new(&self.state, 0, STATE_SIZE as u32),
+                BlockingPartition::new(&self.active, 0, ACTIVE_SIZE as u32),
+                aligned,
+            );
+            Update::new(u, VENDOR, PRODUCT, Esc::Lan9252)
+        }
+
+        /// A reset: embassy-boot's `prepare_boot` (swap or revert).
+        fn boot(&self) -> embassy_boot::State {
+            let mut bl = BootLoader::new(BootLoaderConfig {
+                active: BlockingPartition::new(&self.active, 0, ACTIVE_SIZE as u32),
+                dfu: BlockingPartition::new(&self.dfu, 0, DFU_SIZE as u32),
+                state: BlockingPartition::new(&self.state, 0, STATE_SIZE as u32),
+            });
+            let mut page = [0u8; flash_layout::PAGE as usize];
+            bl.prepare_boot(&mut page).expect("prepare_boot")
+        }
+
+        fn active_starts_with(&self, image: &[u8]) -> bool {
+            self.active
+                .lock(|f| f.borrow().0.mem[..image.len()] == *image)
+        }
+    }
+
+    fn seed() -> [u8; 32] {
+        let hex = include_str!("../../keys/dev-signing-key.hex").trim();
+        let mut s = [0u8; 32];
+        for (i, b) in s.iter_mut().enumerate() {
+            *b = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).unwrap();
+        }
+        s
+    }
+
+    fn image(len: usize, salt: u8) -> Vec<u8> {
+        (0..len)
+            .map(|i| (i as u8).wrapping_mul(31) ^ salt)
+            .collect()
+    }
+
+    fn file(esc: Esc, version: u32, img: &[u8]) -> Vec<u8> {
+        efw::sign::update_file(&seed(), VENDOR, PRODUCT, esc, version, img)
+    }
+
+    /// Sends `f` as FoE does: open, DATA of 116 bytes (repeated after BUSY), finish.
+    fn send(u: &mut dyn FoeFiles, f: &[u8]) -> Result<(), ErrorCode> {
+        send_counting(u, f).map(|_| ())
+    }
+
+    /// [`send`]; returns how many BUSY answers came.
+    fn send_counting(u: &mut dyn FoeFiles, f: &[u8]) -> Result<usize, ErrorCode> {
+        u.open_write(b"ecs-lan9252.efw", 0, true)?;
+        let (mut off, mut busy) = (0, 0);
+        for c in f.chunks(116) {
+            loop {
+                match u.write(off, c) {
+                    WriteStatus::Done => break,
+                    WriteStatus::Err(e) => return Err(e),
+                    WriteStatus::Busy { .. } => busy += 1,
+                }
+                assert!(busy < 10_000, "BUSY for ever");
+            }
+            off += c.len() as u32;
+        }
+        u.finish_write()?;
+        Ok(busy)
+    }
+
+    #[test]
+    fn each_erase_is_one_busy_answer() {
+        let fl = Flashes::new();
+        let img = image(20_000, 9);
+        // The header page, then ⌈20 000 / 2048⌉ = 10 image pages (the last one erased
+        // at the finish if the last chunk is short).
+        let busy = send_counting(&mut fl.update(), &file(Esc::Lan9252, 1, &img)).unwrap();
+        assert!((10..=11).contains(&busy), "{busy}");
+    }
+
+    #[test]
+    fn the_dev_key_pair_belongs_together() {
+        assert_eq!(efw::sign::public_key(&seed()), PUBLIC_KEY);
+    }
+
+    #[test]
+    fn an_update_is_taken_swapped_on_trial_and_confirmed() {
+        let fl = Flashes::new();
+        let new = image(3000, 0x5A);
+        {
+            let mut u = fl.update();
+            assert_eq!(u.running().header, None, "probe-rs image: no header");
+            assert_eq!(u.boot_state(), BootState::Confirmed);
+            assert_eq!(send(&mut u, &file(Esc::Lan9252, 0x0002_0100, &new)), Ok(()));
+            assert_eq!(u.accepted().map(|h| h.version), Some(0x0002_0100));
+            assert_eq!(
+                u.take_event(),
+                Some(Event::Accepted {
+                    version: 0x0002_0100
+                })
+            );
+        }
+        assert_eq!(fl.boot(), embassy_boot::State::Swap);
+        assert!(fl.active_starts_with(&new));
+        let mut u = fl.update();
+        assert_eq!(u.boot_state(), BootState::Trial);
+        assert_eq!(u.running_version(), Some(0x0002_0100));
+        // No update while on trial.
+        assert_eq!(
+            send(&mut u, &file(Esc::Lan9252, 3, &new)),
+            Err(ErrorCode::AccessDenied)
+        );
+        assert!(!u.confirm(true, false), "runtime not up yet");
+        assert!(!u.confirm(false, true), "checks failed");
+        assert!(u.confirm(true, true));
+        assert_eq!(u.boot_state(), BootState::Confirmed);
+        drop(u);
+        assert_eq!(fl.boot(), embassy_boot::State::Boot);
+        assert!(fl.active_starts_with(&new), "confirmed: stays");
+    }
+
+    #[test]
+    fn an_unconfirmed_image_is_reverted() {
+        let fl = Flashes::new();
+        let old = image(2000, 0x11);
+        fl.active
+            .lock(|f| f.borrow_mut().0.mem[..old.len()].copy_from_slice(&old));
+        let new = image(2500, 0x77);
+        assert_eq!(send(&mut fl.update(), &file(Esc::Lan9252, 9, &new)), Ok(()));
+        assert_eq!(fl.boot(), embassy_boot::State::Swap);
+        assert!(fl.active_starts_with(&new));
+        // Reset before the confirmation: reverted.
+        assert_eq!(fl.boot(), embassy_boot::State::Swap);
+        assert!(fl.active_starts_with(&old));
+        let mut u = fl.update();
+        assert_eq!(u.boot_state(), BootState::Reverted);
+        assert_eq!(u.take_event(), Some(Event::Reverted));
+        assert_eq!(u.running_version(), None);
+        drop(u);
+        assert_eq!(fl.boot(), embassy_boot::State::Boot, "confirmed itself");
+        assert!(fl.active_starts_with(&old));
+    }
+
+    #[test]
+    fn bad_images_are_refused_and_the_running_image_stays() {
+        let fl = Flashes::new();
+        let img = image(1500, 3);
+        let good = file(Esc::Lan9252, 5, &img);
+        let mut tampered = good.clone();
+        tampered[HEADER_LEN + 700] ^= 1;
+        let other_key = efw::sign::update_file(&[1; 32], VENDOR, PRODUCT, Esc::Lan9252, 5, &img);
+        let other_product = efw::sign::update_file(&seed(), VENDOR, 0x9999, Esc::Lan9252, 5, &img);
+        let big = file(
+            Esc::Lan9252,
+            5,
+            &image(flash_layout::IMAGE_MAX as usize + 8, 0),
+        );
+        let cases: [(&str, Vec<u8>, ErrorCode); 7] = [
+            (
+                "other ESC",
+                file(Esc::Et1100, 5, &img),
+                ErrorCode::FirmwareNotForHardware,
+            ),
+            (
+                "other product",
+                other_product,
+                ErrorCode::FirmwareNotForHardware,
+            ),
+            ("other key", other_key, ErrorCode::InvalidChecksum),
+            ("tampered byte", tampered, ErrorCode::InvalidChecksum),
+            ("too long", big, ErrorCode::DiskFull),
+            (
+                "truncated",
+                good[..good.len() - 100].to_vec(),
+                ErrorCode::ProgramError,
+            ),
+            ("header only", good[..100].to_vec(), ErrorCode::ProgramError),
+        ];
+        for (what, f, code) in cases {
+            let mut u = fl.update();
+            assert_eq!(send(&mut u, &f), Err(code), "{what}");
+            assert_eq!(u.accepted(), None, "{what}");
+            assert_eq!(u.take_event(), Some(Event::Refused(code)), "{what}");
+            drop(u);
+            assert_eq!(
+                fl.boot(),
+                embassy_boot::State::Boot,
+                "{what}: nothing marked"
+            );
+        }
+        // Refused requests: name, password, outside Bootstrap.
+        let mut u = fl.update();
+        assert_eq!(
+            u.open_write(b"firmware.bin", 0, true),
+            Err(ErrorCode::NotFound)
+        );
+        assert_eq!(u.open_write(b"a.efw", 7, true), Err(ErrorCode::NoRights));
+        assert_eq!(
+            u.open_write(b"a.efw", 0, false),
+            Err(ErrorCode::BootstrapOnly)
+        );
+        assert_eq!(u.write(0, &[1, 2, 3]), WriteStatus::Err(ErrorCode::Illegal));
+        // Half a transfer, then abort: nothing marked, the next one works.
+        u.open_write(b"x/Y.EFW", 0, true).unwrap();
+        while u.write(0, &good[..500]) != WriteStatus::Done {}
+        u.abort();
+        assert_eq!(u.finish_write(), Err(ErrorCode::Illegal));
+        assert_eq!(send(&mut u, &good), Ok(()));
+    }
+
+    #[test]
+    fn the_info_file_describes_the_running_image() {
+        let fl = Flashes::new();
+        let read = |u: &mut dyn FoeFiles| {
+            let n = u.open_read(INFO_FILE, 0, false).unwrap() as usize;
+            let mut b = std::vec![0u8; n];
+            assert_eq!(u.read(0, &mut b), n);
+            std::string::String::from_utf8(b).unwrap()
+        };
+        let t = read(&mut fl.update());
+        assert!(
+            t.contains("signature=none") && t.contains("boot=confirmed"),
+            "{t}"
+        );
+        assert!(
+            t.contains("esc=lan9252") && t.contains("product=0x00005702"),
+            "{t}"
+        );
+        assert_eq!(
+            send(
+                &mut fl.update(),
+                &file(Esc::Lan9252, 0x0001_0203, &image(900, 1))
+            ),
+            Ok(())
+        );
+        fl.boot();
+        let t = read(&mut fl.update());
+        assert!(
+            t.contains("version=1.2.3") && t.contains("signature=valid"),
+            "{t}"
+        );
+        assert!(
+            t.contains("boot=trial") && t.contains("image-length=900"),
+            "{t}"
+        );
+        let mut u = fl.update();
+        assert_eq!(u.open_read(b"other", 0, false), Err(ErrorCode::NotFound));
+        assert_eq!(u.open_read(INFO_FILE, 1, false), Err(ErrorCode::NoRights));
+    }
+}
