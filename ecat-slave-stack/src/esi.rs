@@ -759,12 +759,19 @@ fn write_device<W: Write>(d: &EsiDevice<'_>, out: &mut W) -> fmt::Result {
         out.write_str("</Dc>\n")?;
     }
     let cfg = desc.config_area();
-    writeln!(
+    write!(
         out,
-        "<Eeprom><ByteSize>{}</ByteSize><ConfigData>{}</ConfigData></Eeprom>",
+        "<Eeprom><ByteSize>{}</ByteSize><ConfigData>{}</ConfigData>",
         desc.eeprom_bytes,
         Hex(&cfg[..14])
     )?;
+    if let Some(boot) = &desc.bootstrap {
+        let hex = boot.esi_hex();
+        // ASCII hex digits: always UTF-8.
+        let hex = core::str::from_utf8(&hex).unwrap_or("");
+        write!(out, "<BootStrap>{hex}</BootStrap>")?;
+    }
+    out.write_str("</Eeprom>\n")?;
     out.write_str("</Device>\n")
 }
 
@@ -838,6 +845,7 @@ mod tests {
         physical_ports: 0x0011,
         profile_no: 402,
         ebus_current_ma: 0,
+        bootstrap: None,
     };
 
     fn child<'a, 'i>(n: roxmltree::Node<'a, 'i>, tag: &str) -> roxmltree::Node<'a, 'i> {

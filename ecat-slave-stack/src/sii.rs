@@ -424,6 +424,9 @@ pub struct DeviceDescription {
     pub profile_no: u16,
     /// E-bus current in mA (0: not E-bus powered).
     pub ebus_current_ma: i16,
+    /// Bootstrap mailbox (SII words 0x14-0x17, ESI `Eeprom/BootStrap`); `None`: the
+    /// device has no Bootstrap state (the words stay 0).
+    pub bootstrap: Option<crate::sm::BootMailbox>,
 }
 
 /// The standard FMMU use: outputs, inputs, mailbox state.
@@ -853,7 +856,11 @@ pub fn build_with_pdos(
     if w.pos > desc.eeprom_bytes as usize {
         return Err(SiiError::EepromTooSmall);
     }
-    Ok(w.pos)
+    let len = w.pos;
+    if let Some(boot) = &desc.bootstrap {
+        set_bootstrap_mailbox(out, boot)?;
+    }
+    Ok(len)
 }
 
 /// Writes the bootstrap mailbox (words 0x14–0x17, outside the checksummed area) into

@@ -291,6 +291,7 @@ const DESC: DeviceDescription = DeviceDescription {
     physical_ports: 0x0011,
     profile_no: 402,
     ebus_current_ma: 0,
+    bootstrap: None,
 };
 
 struct Buf<const N: usize> {

@@ -36,6 +36,15 @@ pub const TEXT_PARAMETERS_LOST: u16 = 0x0130;
 /// Text ID of "parameters restored to defaults" (0x1011).
 pub const TEXT_PARAMETERS_RESTORED: u16 = 0x0131;
 
+/// Text ID of "firmware update accepted" (starts after Bootstrap → Init).
+pub const TEXT_UPDATE_ACCEPTED: u16 = 0x0140;
+/// Text ID of "firmware update refused" (the running image is untouched).
+pub const TEXT_UPDATE_REFUSED: u16 = 0x0141;
+/// Text ID of "new firmware confirmed".
+pub const TEXT_UPDATE_CONFIRMED: u16 = 0x0142;
+/// Text ID of "unconfirmed firmware reverted".
+pub const TEXT_UPDATE_REVERTED: u16 = 0x0143;
+
 /// Every text, by ID.
 pub const TEXTS: &[Text] = &[
     Text {
@@ -93,6 +102,26 @@ pub const TEXTS: &[Text] = &[
         severity: Severity::Info,
         text: "Parameters restored to defaults",
     },
+    Text {
+        id: TEXT_UPDATE_ACCEPTED,
+        severity: Severity::Info,
+        text: "Firmware update accepted, version %X; starts after Bootstrap to Init",
+    },
+    Text {
+        id: TEXT_UPDATE_REFUSED,
+        severity: Severity::Warning,
+        text: "Firmware update refused (FoE error %X); the running firmware is unchanged",
+    },
+    Text {
+        id: TEXT_UPDATE_CONFIRMED,
+        severity: Severity::Info,
+        text: "New firmware version %X confirmed",
+    },
+    Text {
+        id: TEXT_UPDATE_REVERTED,
+        severity: Severity::Warning,
+        text: "New firmware was not confirmed; the previous firmware was restored",
+    },
 ];
 
 const _: () = assert!(KINDS == 7, "one text per fault kind");
@@ -130,6 +159,25 @@ pub fn parameter_message(restored: bool, code: u16, now_ms: u32) -> DiagMessage 
         DiagMessage::new(0xE001, Severity::Info, TEXT_PARAMETERS_RESTORED, t)
     } else {
         DiagMessage::new(0xE002, Severity::Warning, TEXT_PARAMETERS_LOST, t).with(Param::U16(code))
+    }
+}
+
+/// The message of a firmware-update event at `now_ms` (diagnosis codes 0xE010 to
+/// 0xE013; the version is major << 16 | minor << 8 | patch).
+pub fn update_message(e: crate::update::Event, now_ms: u32) -> DiagMessage {
+    use crate::update::Event;
+    let t = u64::from(now_ms) * 1_000_000;
+    let (code, id) = match e {
+        Event::Accepted { .. } => (0xE010, TEXT_UPDATE_ACCEPTED),
+        Event::Refused(_) => (0xE011, TEXT_UPDATE_REFUSED),
+        Event::Confirmed { .. } => (0xE012, TEXT_UPDATE_CONFIRMED),
+        Event::Reverted => (0xE013, TEXT_UPDATE_REVERTED),
+    };
+    let m = DiagMessage::new(code, severity_of(id), id, t);
+    match e {
+        Event::Accepted { version } | Event::Confirmed { version } => m.with(Param::U32(version)),
+        Event::Refused(c) => m.with(Param::U16(c as u16)),
+        Event::Reverted => m,
     }
 }
 

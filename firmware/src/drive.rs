@@ -46,6 +46,8 @@ use crate::io::{self, Inputs, OutputStatus};
 use crate::monitor::Monitor;
 use crate::params::{Params, P};
 use crate::storage::{LoadReport, SaveReport, SlotStatus, Storage, StorageError};
+use crate::update::FirmwareUpdate;
+use ecat_slave_stack::foe::FoeFiles;
 use embedded_storage::nor_flash::NorFlash;
 
 /// What the motor side measured, handed to the drive before each cycle (raw,
@@ -274,6 +276,14 @@ pub struct Drive<S: ParameterStore = NoStore> {
     seen_open_seq: u8,
     seen_trip_seq: u8,
     power_up_tune_over: bool,
+    /// Firmware update over FoE (the board's or the simulation's flash behind it).
+    update: Option<&'static mut dyn FirmwareUpdate>,
+    /// The EtherCAT runtime has reached Pre-Op since power-up.
+    reached_preop: bool,
+    /// The start-up checks' outcome, once the board reported it.
+    startup_checks: Option<bool>,
+    /// Bootstrap → Init after an accepted update: the board resets.
+    reset_request: bool,
 }
 
 /// Error code reported when the outputs stopped arriving (process-data watchdog,
@@ -342,6 +352,10 @@ macro_rules! power_up_fields {
             seen_open_seq: 0,
             seen_trip_seq: 0,
             power_up_tune_over: false,
+            update: None,
+            reached_preop: false,
+            startup_checks: None,
+            reset_request: false,
             params: $params,
         }
     };
@@ -521,6 +535,42 @@ impl<S: ParameterStore> Drive<S> {
         &self.command
     }
 
+    /// Gives the drive its firmware update ([`crate::update`]): FoE in Bootstrap, the
+    /// boot state 0x2309, 0x100A from the running image's header, and the trial
+    /// image's confirmation once [`Drive::startup_checks_done`] reported success and
+    /// the runtime reached Pre-Op.
+    pub fn attach_update(&mut self, update: &'static mut dyn FirmwareUpdate) {
+        self.monitor.set_boot_state(update.boot_state() as u8);
+        self.update = Some(update);
+    }
+
+    /// The board's start-up checks (current-sensor offsets, the board self-test) are
+    /// over: `passed` or not. A trial image is confirmed only after a pass.
+    pub fn startup_checks_done(&mut self, passed: bool) {
+        self.startup_checks = Some(passed);
+    }
+
+    /// An accepted update waits for the reset into the bootloader (set on Bootstrap →
+    /// Init): the board resets; the simulation restarts the drive.
+    pub fn reset_requested(&self) -> bool {
+        self.reset_request
+    }
+
+    /// The update's housekeeping, every tick: the trial image's confirmation, the
+    /// update's events as diagnosis messages, the boot state 0x2309.
+    fn update_housekeeping(&mut self) {
+        let Some(u) = self.update.as_deref_mut() else {
+            return;
+        };
+        u.confirm(self.startup_checks == Some(true), self.reached_preop);
+        if let Some(e) = u.take_event() {
+            self.faults
+                .diagnosis_mut()
+                .push(crate::diagnosis::update_message(e, self.now_ms));
+        }
+        self.monitor.set_boot_state(u.boot_state() as u8);
+    }
+
     /// The last cycle enabled the drive function (Operation enabled and the stopping
     /// states) — not just the motor side while CiA 402 transition 4 waits for the
     /// commutation alignment ([`Cia402::enable_waiting`]).
@@ -608,6 +658,7 @@ impl<S: ParameterStore> Drive<S> {
         self.now_ms = self.now_ms.wrapping_add(dt_ms);
         self.faults.set_clock(self.now_ms);
         self.monitor.tick_ms(dt_ms);
+        self.update_housekeeping();
         self.inputs
             .update(raw_inputs, dt_ms.saturating_mul(1000), &self.params);
         self.params.set_raw_inputs(self.inputs.raw());
@@ -894,8 +945,9 @@ impl<S: ParameterStore> Drive<S> {
         if self.faults.take_pds_fault_request() {
             self.cia402.raise_fault(self.faults.error_code());
         }
-        // (No fault this step raises cuts the power: one reading serves.)
-        if power_cut {
+        // (No fault this step raises cuts the power: one reading serves.) In Bootstrap
+        // the power stage stays off whatever the PDS says.
+        if power_cut || self.esm == EsmState::Bootstrap {
             self.command.power_stage = false;
             self.command.drive_enabled = false;
             self.command.brake_release = false;
@@ -914,6 +966,19 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
             // Reading the newest diagnosis message clears "new messages available".
             crate::dictionary::find_entry_in(crate::dictionary::COMM, index, sub)?;
             return self.faults.diagnosis_mut().read(sub, buf);
+        }
+        if let (0x100A, Some(v)) = (
+            index,
+            self.update.as_deref().and_then(|u| u.running_version()),
+        ) {
+            // The version of the running image's update header.
+            crate::dictionary::find_entry_in(crate::dictionary::COMM, index, sub)?;
+            let n = crate::update::format_version(v, buf);
+            return if n == 0 {
+                Err(SdoAbort::ExceedsMailbox)
+            } else {
+                Ok(n)
+            };
         }
         self.read_entry(index, sub, buf)
     }
@@ -1111,12 +1176,27 @@ impl<S: ParameterStore> Drive<S> {
 impl<S: ParameterStore> EsmHooks for Drive<S> {
     fn on_state_change(&mut self, from: EsmState, to: EsmState) {
         self.esm = to;
+        if matches!(to, EsmState::PreOp | EsmState::SafeOp | EsmState::Op) {
+            self.reached_preop = true;
+        }
+        if to == EsmState::Bootstrap {
+            // Nothing of the motion survives the Bootstrap: the power stage is off.
+            self.command.power_stage = false;
+            self.command.drive_enabled = false;
+            self.command.brake_release = false;
+        }
         if from == EsmState::Op && to != EsmState::Op {
             let code = if to == EsmState::Init { 0xA000 } else { 0xA001 };
             self.left_op(code, [from.bits(), to.bits()]);
         }
         if to == EsmState::Init {
             self.cia402.on_esm_init();
+        }
+    }
+
+    fn on_leave_bootstrap(&mut self) {
+        if self.update.as_deref().is_some_and(|u| u.accepted()) {
+            self.reset_request = true;
         }
     }
 }
@@ -1144,6 +1224,13 @@ impl<S: ParameterStore> SlaveApplication for Drive<S> {
 
     fn sync_error_limit(&self) -> u16 {
         self.comm.sync_error_limit()
+    }
+
+    fn foe(&mut self) -> Option<&mut dyn FoeFiles> {
+        match self.update.as_deref_mut() {
+            Some(u) => Some(u),
+            None => None,
+        }
     }
 }
 

@@ -118,9 +118,24 @@ pub const VENDOR_NAME: &str = "ECS open drive firmware";
 /// SII EEPROM size in bytes (16 Kibit part).
 pub const EEPROM_BYTES: u16 = 2048;
 
+/// The Bootstrap mailbox of firmware updates over FoE ([`crate::update`]).
+pub const BOOTSTRAP: Option<ecat_slave_stack::sm::BootMailbox> =
+    Some(ecat_slave_stack::sm::BootMailbox::STANDARD);
+
+/// The slave runtime's configuration of the product (the board's and the
+/// simulation's): the default PDO maps and the Bootstrap mailbox.
+pub fn slave_config() -> ecat_slave_stack::slave::SlaveConfig {
+    ecat_slave_stack::slave::SlaveConfig {
+        pdo_defaults: crate::pdo_defaults::PDO_DEFAULTS,
+        bootstrap: BOOTSTRAP,
+        ..ecat_slave_stack::slave::SlaveConfig::default()
+    }
+}
+
 /// The device description for the SII image and the ESI file of `variant` built with
 /// `esc` (standard SyncManager/FMMU layout, DC SYNC0 and SM-synchronous op modes, two
-/// MII ports, CiA 402 profile). `serial` is 0 in the generic image.
+/// MII ports, CiA 402 profile, FoE with the Bootstrap mailbox). `serial` is 0 in the
+/// generic image.
 pub const fn device_description(
     variant: Variant,
     esc: sii::EscFlavour,
@@ -142,7 +157,7 @@ pub const fn device_description(
         // 10 µs SYNC pulse (1000 × 10 ns), the usual ESC default.
         sync_pulse_length: 1000,
         station_alias: 0,
-        mailbox_protocols: sii::MBOX_COE,
+        mailbox_protocols: sii::MBOX_COE | sii::MBOX_FOE,
         mailbox_data_link_layer: true,
         coe: sii::STANDARD_COE,
         fmmus: &sii::STANDARD_FMMUS,
@@ -152,6 +167,7 @@ pub const fn device_description(
         physical_ports: 0x0011,
         profile_no: 402,
         ebus_current_ma: 0,
+        bootstrap: BOOTSTRAP,
     }
 }
 

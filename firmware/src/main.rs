@@ -86,7 +86,7 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use defmt_rtt as _;
 use ecat_slave_stack::leds::{ErrCondition, StatusLeds};
-use ecat_slave_stack::slave::{Slave, SlaveConfig};
+use ecat_slave_stack::slave::Slave;
 use embassy_executor::{InterruptExecutor, SendSpawner, SpawnError, SpawnToken, Spawner};
 use embassy_futures::select::{select, Either};
 use embassy_stm32::exti::{self, ExtiInput};
@@ -644,13 +644,7 @@ fn new_drive(
 /// whole into `slot` (out of line, as [`new_drive`]).
 #[inline(never)]
 fn new_slave(slot: &'static mut MaybeUninit<Slave<Esc>>, esc: Esc) -> &'static mut Slave<Esc> {
-    slot.write(Slave::new(
-        esc,
-        SlaveConfig {
-            pdo_defaults: firmware::pdo_defaults::PDO_DEFAULTS,
-            ..SlaveConfig::default()
-        },
-    ))
+    slot.write(Slave::new(esc, firmware::identity::slave_config()))
 }
 
 /// 0x2083: the power-up alignment sweeps the field (wiggle) and checks the encoder.

@@ -82,6 +82,12 @@ pub const OBJECTS: &[Object] = &[
         &[tx("Time since power-up", DataType::Unsigned32, "ms")],
         "Milliseconds since this power-up",
     ),
+    Object::var(
+        0x2309,
+        "Firmware boot state",
+        &[Entry::new(0, "Firmware boot state", DataType::Unsigned8, Access::RO).default(3)],
+        "0 confirmed, 1 on trial (a new image not yet confirmed: a reset reverts it), 2 reverted (an unconfirmed image was replaced by the previous one), 3 no firmware update",
+    ),
 ];
 
 /// Values measured by the control loops, updated by the application.
@@ -102,19 +108,40 @@ pub struct Measurements {
 }
 
 /// Monitoring state.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct Monitor {
     /// Latest measurements.
     pub m: Measurements,
     power_on_count: u32,
     base_running_s: u32,
     since_power_up_ms: u64,
+    boot_state: u8,
+}
+
+/// 0x2309 of a drive without firmware update.
+pub const NO_UPDATE: u8 = 3;
+
+impl Default for Monitor {
+    fn default() -> Self {
+        Monitor {
+            m: Measurements::default(),
+            power_on_count: 0,
+            base_running_s: 0,
+            since_power_up_ms: 0,
+            boot_state: NO_UPDATE,
+        }
+    }
 }
 
 impl Monitor {
     /// Zeroed state.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// 0x2309 ([`crate::update::BootState`] as a number, or [`NO_UPDATE`]).
+    pub fn set_boot_state(&mut self, state: u8) {
+        self.boot_state = state;
     }
 
     /// Counts this power-up (after the stored values were restored).
@@ -164,6 +191,7 @@ impl Monitor {
             0x2305 => u32::from(self.m.bus_10mv),
             0x2306 => self.power_on_count,
             0x2307 => self.running_time_s(),
+            0x2309 => u32::from(self.boot_state),
             _ => self.since_power_up_ms(),
         };
         crate::dictionary::put_le(entry, u64::from(v), buf)
@@ -232,8 +260,11 @@ mod tests {
             Err(SdoAbort::WriteReadOnly)
         );
         assert_eq!(m.write(0x2306, 0, &[0; 5]), Err(SdoAbort::LengthTooHigh));
+        assert_eq!(rd(&m, 0x2309, &mut buf), i64::from(NO_UPDATE));
+        m.set_boot_state(1);
+        assert_eq!(rd(&m, 0x2309, &mut buf), 1);
         assert_eq!(
-            m.read(0x2309, 0, &mut buf),
+            m.read(0x230A, 0, &mut buf),
             Err(SdoAbort::ObjectDoesNotExist)
         );
         assert_eq!(

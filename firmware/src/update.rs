@@ -309,6 +309,72 @@ pub struct Update<U> {
 
 const INFO_LEN: usize = 224;
 
+/// The update as the drive holds it (object-safe: the drive keeps a
+/// `&'static mut dyn FirmwareUpdate`, whatever flash is behind it).
+pub trait FirmwareUpdate: FoeFiles {
+    /// An image was received and marked in this Bootstrap.
+    fn accepted(&self) -> bool;
+    /// Boot state now.
+    fn boot_state(&self) -> BootState;
+    /// The running image's version from its header.
+    fn running_version(&self) -> Option<u32>;
+    /// [`Update::confirm`].
+    fn confirm(&mut self, checks_passed: bool, runtime_up: bool) -> bool;
+    /// The last event, once.
+    fn take_event(&mut self) -> Option<Event>;
+}
+
+impl<U: Updater> FirmwareUpdate for Update<U> {
+    fn accepted(&self) -> bool {
+        self.accepted.is_some()
+    }
+    fn boot_state(&self) -> BootState {
+        Update::boot_state(self)
+    }
+    fn running_version(&self) -> Option<u32> {
+        Update::running_version(self)
+    }
+    fn confirm(&mut self, checks_passed: bool, runtime_up: bool) -> bool {
+        Update::confirm(self, checks_passed, runtime_up)
+    }
+    fn take_event(&mut self) -> Option<Event> {
+        Update::take_event(self)
+    }
+}
+
+/// `major.minor.patch` of a version word (major << 16 | minor << 8 | patch) into
+/// `buf`; returns the length (0 when `buf` is too short).
+pub fn format_version(version: u32, buf: &mut [u8]) -> usize {
+    let mut n = 0;
+    for (k, part) in [version >> 16, (version >> 8) & 0xFF, version & 0xFF]
+        .into_iter()
+        .enumerate()
+    {
+        if k > 0 {
+            let Some(b) = buf.get_mut(n) else { return 0 };
+            *b = b'.';
+            n += 1;
+        }
+        let mut digits = [0u8; 5];
+        let mut d = 0;
+        let mut v = part;
+        loop {
+            digits[d] = b'0' + (v % 10) as u8;
+            d += 1;
+            v /= 10;
+            if v == 0 {
+                break;
+            }
+        }
+        for &c in digits[..d].iter().rev() {
+            let Some(b) = buf.get_mut(n) else { return 0 };
+            *b = c;
+            n += 1;
+        }
+    }
+    n
+}
+
 /// FoE answer of a refused image.
 pub const fn foe_error(e: ImageError) -> ErrorCode {
     match e {

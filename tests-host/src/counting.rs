@@ -95,6 +95,12 @@ impl<A: EsmHooks> EsmHooks for Counting<A> {
     fn on_state_change(&mut self, from: EsmState, to: EsmState) {
         self.inner.on_state_change(from, to)
     }
+    fn on_enter_bootstrap(&mut self) {
+        self.inner.on_enter_bootstrap()
+    }
+    fn on_leave_bootstrap(&mut self) {
+        self.inner.on_leave_bootstrap()
+    }
 }
 
 impl<A: SlaveApplication> SlaveApplication for Counting<A> {
@@ -125,6 +131,9 @@ impl<A: SlaveApplication> SlaveApplication for Counting<A> {
     }
     fn now_us(&mut self) -> Option<u64> {
         self.inner.now_us()
+    }
+    fn foe(&mut self) -> Option<&mut dyn ecat_slave_stack::foe::FoeFiles> {
+        self.inner.foe()
     }
 }
 

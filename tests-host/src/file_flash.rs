@@ -19,21 +19,31 @@ pub struct FileFlash {
 }
 
 impl FileFlash {
-    /// Erased flash, not mirrored.
+    /// Erased record region ([`SIZE`]), not mirrored.
     pub fn in_memory() -> Self {
+        Self::in_memory_sized(SIZE)
+    }
+
+    /// Erased flash of `size` bytes, not mirrored.
+    pub fn in_memory_sized(size: usize) -> Self {
         FileFlash {
-            mem: vec![0xFF; SIZE],
+            mem: vec![0xFF; size],
             file: None,
             file_errors: 0,
         }
     }
 
-    /// Flash mirrored to `path`: loads it when it exists (a file of another size is
-    /// treated as erased flash), creates it on the first write.
+    /// The record region ([`SIZE`]) mirrored to `path` (see [`FileFlash::open_sized`]).
     pub fn open(path: PathBuf) -> Self {
-        let mut mem = vec![0xFF; SIZE];
+        Self::open_sized(path, SIZE)
+    }
+
+    /// Flash of `size` bytes mirrored to `path`: loads it when it exists (a file of
+    /// another size is treated as erased flash), creates it on the first write.
+    pub fn open_sized(path: PathBuf, size: usize) -> Self {
+        let mut mem = vec![0xFF; size];
         if let Ok(bytes) = std::fs::read(&path) {
-            if bytes.len() == SIZE {
+            if bytes.len() == size {
                 mem.copy_from_slice(&bytes);
             }
         }
@@ -49,13 +59,33 @@ impl FileFlash {
         &self.mem
     }
 
-    fn persist(&mut self) {
-        if let Some(path) = &self.file {
-            let tmp = path.with_extension("tmp");
-            let ok = std::fs::write(&tmp, &self.mem).is_ok() && std::fs::rename(&tmp, path).is_ok();
-            if !ok {
-                self.file_errors += 1;
+    /// Mirrors the bytes `range` to the file: in place when the file has the flash's
+    /// size (a process killed mid-write is then a power cut at that byte, which the
+    /// record and boot layers survive), else the whole flash, written beside the file
+    /// and renamed over it.
+    fn persist(&mut self, range: std::ops::Range<usize>) {
+        use std::os::unix::fs::FileExt;
+        let Some(path) = &self.file else {
+            return;
+        };
+        let in_place = std::fs::OpenOptions::new()
+            .write(true)
+            .open(path)
+            .ok()
+            .filter(|f| f.metadata().is_ok_and(|m| m.len() == self.mem.len() as u64))
+            .map(|f| {
+                f.write_all_at(&self.mem[range.clone()], range.start as u64)
+                    .is_ok()
+            });
+        let ok = match in_place {
+            Some(ok) => ok,
+            None => {
+                let tmp = path.with_extension("tmp");
+                std::fs::write(&tmp, &self.mem).is_ok() && std::fs::rename(&tmp, path).is_ok()
             }
+        };
+        if !ok {
+            self.file_errors += 1;
         }
     }
 }
@@ -67,12 +97,12 @@ impl ErrorType for FileFlash {
 impl ReadNorFlash for FileFlash {
     const READ_SIZE: usize = 1;
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
-        let range = storage::read_range(SIZE, offset, bytes.len())?;
+        let range = storage::read_range(self.mem.len(), offset, bytes.len())?;
         bytes.copy_from_slice(&self.mem[range]);
         Ok(())
     }
     fn capacity(&self) -> usize {
-        SIZE
+        self.mem.len()
     }
 }
 
@@ -80,15 +110,15 @@ impl NorFlash for FileFlash {
     const WRITE_SIZE: usize = 8;
     const ERASE_SIZE: usize = 2048;
     fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-        let range = storage::erase_range(SIZE, Self::ERASE_SIZE, from, to)?;
-        self.mem[range].fill(0xFF);
-        self.persist();
+        let range = storage::erase_range(self.mem.len(), Self::ERASE_SIZE, from, to)?;
+        self.mem[range.clone()].fill(0xFF);
+        self.persist(range);
         Ok(())
     }
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
         let range = storage::write_range(&self.mem, Self::WRITE_SIZE, offset, bytes.len())?;
-        self.mem[range].copy_from_slice(bytes);
-        self.persist();
+        self.mem[range.clone()].copy_from_slice(bytes);
+        self.persist(range);
         Ok(())
     }
 }

@@ -15,4 +15,5 @@ pub mod raw_socket;
 pub mod segment;
 pub mod sim_axis;
 pub mod sim_drive;
+pub mod sim_update;
 pub mod spi_models;

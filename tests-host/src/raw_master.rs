@@ -23,6 +23,26 @@ pub enum SdoError {
     Transport(String),
 }
 
+/// How an FoE transfer of a [`RawMaster`] ended badly.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum FoeError {
+    /// The slave answered ERR with this code.
+    Err(u32),
+    /// No (valid) answer, or an unexpected one.
+    Transport(String),
+}
+
+/// Counts of a successful FoE write.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FoeStats {
+    /// DATA packets acknowledged.
+    pub packets: u32,
+    /// BUSY answers (each followed by the same DATA again).
+    pub busy: u32,
+    /// Frames the transfer took.
+    pub frames: u64,
+}
+
 /// The cyclic process-data exchange of a [`RawMaster`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Cyclic {
@@ -278,6 +298,179 @@ impl<A: SlaveApplication> RawMaster<A> {
             self.wait(20_000, 20_000);
         }
         Err(SdoError::Transport("no SDO answer".into()))
+    }
+
+    /// Writes SM0 (out) and SM1 (in) for the mailbox `mbx` (start, length each) and
+    /// makes it the mailbox of the following requests.
+    pub fn configure_mailbox(&mut self, station: u16, mbx: (u16, u16, u16, u16)) -> u16 {
+        self.mbx = mbx;
+        let (s0, l0, s1, l1) = mbx;
+        let mut sms = [0u8; 16];
+        sms[0..2].copy_from_slice(&s0.to_le_bytes());
+        sms[2..4].copy_from_slice(&l0.to_le_bytes());
+        sms[4] = 0x26;
+        sms[6] = 1;
+        sms[8..10].copy_from_slice(&s1.to_le_bytes());
+        sms[10..12].copy_from_slice(&l1.to_le_bytes());
+        sms[12] = 0x22;
+        sms[14] = 1;
+        self.fpwr(station, 0x0800, &sms)
+    }
+
+    /// Init → Bootstrap as SOEM does it: the boot mailbox from SII words 0x14-0x17
+    /// into SM0/SM1, then AL control 0x03; returns the AL status and code reached.
+    pub fn enter_bootstrap(&mut self, station: u16) -> (u16, u16) {
+        let rx = self.sii_read(station, 0x14).unwrap_or(0);
+        let tx = self.sii_read(station, 0x16).unwrap_or(0);
+        self.configure_mailbox(
+            station,
+            (rx as u16, (rx >> 16) as u16, tx as u16, (tx >> 16) as u16),
+        );
+        self.request_state(station, 0x03);
+        self.wait_state(station, 0x03, 50_000_000, 1_000_000, |_| {})
+    }
+
+    /// Sends one mailbox message of `kind` (4 = FoE) with `data` through SM0.
+    fn mailbox_send(&mut self, station: u16, kind: u8, data: &[u8]) -> Result<(), String> {
+        let (out_start, out_len, _, _) = self.mbx;
+        if 6 + data.len() > out_len as usize {
+            return Err(format!("{} bytes do not fit the mailbox", data.len()));
+        }
+        let mut m = vec![0u8; out_len as usize];
+        m[0..2].copy_from_slice(&(data.len() as u16).to_le_bytes());
+        m[5] = kind | self.next_counter() << 4;
+        m[6..6 + data.len()].copy_from_slice(data);
+        if self.fpwr(station, out_start, &m) != 1 {
+            return Err("SM0 busy".into());
+        }
+        Ok(())
+    }
+
+    /// The next mailbox message of `kind` from SM1 (others skipped), its data.
+    fn mailbox_receive(&mut self, station: u16, kind: u8) -> Result<Vec<u8>, String> {
+        let (_, _, in_start, in_len) = self.mbx;
+        for _ in 0..2000 {
+            let st = self.fprd(station, 0x080D, 1);
+            if st.first().is_some_and(|s| s & 0x08 != 0) {
+                let a = self.fprd(station, in_start, in_len as usize);
+                if a.len() < 6 {
+                    return Err("SM1 read".into());
+                }
+                if a[5] & 0x0F != kind {
+                    continue;
+                }
+                let n = (u16::from_le_bytes([a[0], a[1]]) as usize).min(a.len() - 6);
+                return Ok(a[6..6 + n].to_vec());
+            }
+            self.wait(20_000, 20_000);
+        }
+        Err("no answer".into())
+    }
+
+    /// One FoE request and its answer.
+    fn foe_exchange(
+        &mut self,
+        station: u16,
+        req: &ecat_slave_stack::foe::Repr<'_>,
+    ) -> Result<Vec<u8>, FoeError> {
+        use ecat_slave_stack::foe::Frame;
+        let mut b = vec![0u8; req.buffer_len()];
+        req.emit(&mut Frame::new_unchecked(&mut b[..]));
+        self.mailbox_send(station, 0x04, &b)
+            .map_err(FoeError::Transport)?;
+        self.mailbox_receive(station, 0x04)
+            .map_err(FoeError::Transport)
+    }
+
+    /// FoE write of `file` as `name` with `password`, in DATA of the mailbox's size
+    /// (SM0 length − 12), each DATA sent again after BUSY, as SOEM's `ecx_FOEwrite`.
+    pub fn foe_write(
+        &mut self,
+        station: u16,
+        name: &[u8],
+        password: u32,
+        file: &[u8],
+    ) -> Result<FoeStats, FoeError> {
+        use ecat_slave_stack::foe::{Frame, Repr, OVERHEAD};
+        let frames0 = self.frames;
+        let segment = self.mbx.1 as usize - OVERHEAD;
+        let mut stats = FoeStats::default();
+        let parse = |a: &[u8]| -> Result<(u8, u32), FoeError> {
+            let f = Frame::new_checked(a).map_err(|e| FoeError::Transport(format!("{e:?}")))?;
+            match Repr::parse(&f).map_err(|e| FoeError::Transport(format!("{e:?}")))? {
+                Repr::Ack { packet } => Ok((4, packet)),
+                Repr::Busy { .. } => Ok((6, 0)),
+                Repr::Error { code, .. } => Err(FoeError::Err(code)),
+                other => Err(FoeError::Transport(format!("unexpected {other:?}"))),
+            }
+        };
+        let a = self.foe_exchange(station, &Repr::Write { password, name })?;
+        if parse(&a)? != (4, 0) {
+            return Err(FoeError::Transport("no ACK 0 for the WRQ".into()));
+        }
+        let mut packet = 1u32;
+        let mut chunks = file.chunks(segment).peekable();
+        // A file that fills whole DATA ends with an empty one.
+        let empty_last = file.len().is_multiple_of(segment);
+        loop {
+            let data = match chunks.next() {
+                Some(c) => c,
+                None if empty_last && packet == stats.packets + 1 => &[][..],
+                None => break,
+            };
+            loop {
+                let a = self.foe_exchange(station, &Repr::Data { packet, data })?;
+                match parse(&a)? {
+                    (4, n) if n == packet => break,
+                    (6, _) => {
+                        stats.busy += 1;
+                        if stats.busy > 100_000 {
+                            return Err(FoeError::Transport("BUSY for ever".into()));
+                        }
+                    }
+                    (_, n) => return Err(FoeError::Transport(format!("ACK {n} for {packet}"))),
+                }
+            }
+            stats.packets += 1;
+            packet += 1;
+            if data.len() < segment {
+                break;
+            }
+        }
+        stats.frames = self.frames - frames0;
+        Ok(stats)
+    }
+
+    /// FoE read of `name` with `password` (each DATA acknowledged).
+    pub fn foe_read(
+        &mut self,
+        station: u16,
+        name: &[u8],
+        password: u32,
+    ) -> Result<Vec<u8>, FoeError> {
+        use ecat_slave_stack::foe::{Frame, Repr};
+        let mut out = Vec::new();
+        let mut a = self.foe_exchange(station, &Repr::Read { password, name })?;
+        loop {
+            let f =
+                Frame::new_checked(&a[..]).map_err(|e| FoeError::Transport(format!("{e:?}")))?;
+            match Repr::parse(&f).map_err(|e| FoeError::Transport(format!("{e:?}")))? {
+                Repr::Data { packet, data } => {
+                    out.extend_from_slice(data);
+                    let last = data.len() < self.mbx.3 as usize - ecat_slave_stack::foe::OVERHEAD;
+                    if last {
+                        let mut b = vec![0u8; 8];
+                        Repr::Ack { packet }.emit(&mut Frame::new_unchecked(&mut b[..]));
+                        self.mailbox_send(station, 0x04, &b)
+                            .map_err(FoeError::Transport)?;
+                        return Ok(out);
+                    }
+                    a = self.foe_exchange(station, &Repr::Ack { packet })?;
+                }
+                Repr::Error { code, .. } => return Err(FoeError::Err(code)),
+                other => return Err(FoeError::Transport(format!("unexpected {other:?}"))),
+            }
+        }
     }
 
     /// Expedited SDO download of 1..=4 bytes.

@@ -505,6 +505,7 @@ pub fn test_description(flavour: Flavour) -> DeviceDescription {
         physical_ports: 0x0011,
         profile_no: 402,
         ebus_current_ma: 0,
+        bootstrap: None,
     }
 }
 

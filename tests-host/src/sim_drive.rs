@@ -124,6 +124,12 @@ pub struct SimDrive {
     seen_cycle: u32,
     /// Publications of the axis's measurements ([`Feedback`] sequence number).
     fb_seq: u32,
+    /// 0x1018:04.
+    serial: u32,
+    /// The boot flash and ESC of the firmware update, when attached.
+    boot: Option<(&'static crate::sim_update::Shared, Flavour)>,
+    /// What the bootloader did at this start.
+    boot_state: Option<Result<embassy_boot::State, String>>,
     /// Index pulses the axis has reported (`Feedback::index_seq`) and the last one.
     index_seq: u32,
     index_units: i32,
@@ -160,6 +166,8 @@ impl SimDrive {
         });
         // The simulated current sensors have no start-up check: passed at nominal.
         glue.offsets_passed(0.0, 0.0);
+        let mut drive = drive;
+        drive.startup_checks_done(true);
         SimDrive {
             drive,
             axis,
@@ -168,8 +176,53 @@ impl SimDrive {
             glue,
             seen_cycle: 0,
             fb_seq: 0,
+            serial,
+            boot: None,
+            boot_state: None,
             index_seq: 0,
             index_units: 0,
+        }
+    }
+
+    /// Gives the drive its firmware update over the boot flash `shared` (see
+    /// [`crate::sim_update`]): the bootloader runs first, as at a power-up.
+    pub fn attach_update(&mut self, shared: &'static crate::sim_update::Shared, esc: Flavour) {
+        let (update, state) = crate::sim_update::boot(
+            shared,
+            identity::VENDOR_ID,
+            Variant::HybridServo.product_code(),
+            match esc {
+                Flavour::Lan9252 => efw::Esc::Lan9252,
+                Flavour::Et1100 => efw::Esc::Et1100,
+            },
+        );
+        self.drive.attach_update(Box::leak(Box::new(update)));
+        self.boot = Some((shared, esc));
+        self.boot_state = Some(state);
+    }
+
+    /// What the bootloader did at this start (`None`: no update attached).
+    pub fn boot_state(&self) -> Option<&Result<embassy_boot::State, String>> {
+        self.boot_state.as_ref()
+    }
+
+    /// A reset of the drive's processor (after an accepted update, as the board does
+    /// on Bootstrap → Init): a new drive over the same parameter flash, boot flash
+    /// (the bootloader swaps or reverts first) and motor. Call
+    /// [`restart_requested`] rather, which also restarts the slave runtime.
+    fn reset(&mut self) {
+        let flash = self
+            .drive
+            .store_mut()
+            .map(|s| std::mem::replace(&mut s.flash, FileFlash::in_memory()))
+            .unwrap_or_else(FileFlash::in_memory);
+        let parked =
+            crate::sim_axis::boxed_model(Motor::Ecn57_20, crate::sim_axis::AxisModel::Kinematic, 1);
+        let axis = std::mem::replace(&mut self.axis, parked);
+        let boot = self.boot;
+        *self = SimDrive::new(self.serial, flash, axis);
+        if let Some((shared, esc)) = boot {
+            self.attach_update(shared, esc);
         }
     }
 
@@ -274,6 +327,12 @@ impl EsmHooks for SimDrive {
     fn on_state_change(&mut self, from: EsmState, to: EsmState) {
         self.drive.on_state_change(from, to)
     }
+    fn on_enter_bootstrap(&mut self) {
+        self.drive.on_enter_bootstrap()
+    }
+    fn on_leave_bootstrap(&mut self) {
+        self.drive.on_leave_bootstrap()
+    }
 }
 
 impl SlaveApplication for SimDrive {
@@ -289,6 +348,9 @@ impl SlaveApplication for SimDrive {
     fn sync_error_limit(&self) -> u16 {
         self.drive.sync_error_limit()
     }
+    fn foe(&mut self) -> Option<&mut dyn ecat_slave_stack::foe::FoeFiles> {
+        self.drive.foe()
+    }
 }
 
 /// The ESC flavour of the SII for a simulator flavour.
@@ -301,10 +363,7 @@ pub fn esc_flavour(f: Flavour) -> EscFlavour {
 
 /// The runtime configuration of the product.
 pub fn slave_config() -> SlaveConfig {
-    SlaveConfig {
-        pdo_defaults: firmware::pdo_defaults::PDO_DEFAULTS,
-        ..SlaveConfig::default()
-    }
+    firmware::identity::slave_config()
 }
 
 /// The axis model used for `motor` (see [`crate::sim_axis`]).
@@ -341,7 +400,19 @@ pub fn segment_with(
                 None => FileFlash::in_memory(),
             };
             let axis = crate::sim_axis::boxed_model(cfg.motor, model, n);
-            SimDrive::new(0x1000 + i as u32, flash, axis)
+            let mut d = SimDrive::new(0x1000 + i as u32, flash, axis);
+            if let Some(p) = &cfg.flash_file {
+                let file = if i == 0 {
+                    p.clone()
+                } else {
+                    PathBuf::from(format!("{}.{}", p.display(), i + 1))
+                };
+                let shared = crate::sim_update::share(crate::sim_update::boot_flash(Some(
+                    crate::sim_update::boot_file(&file),
+                )));
+                d.attach_update(shared, cfg.flavour);
+            }
+            d
         })
         .collect();
     let mut seg = Segment::new(
@@ -359,6 +430,46 @@ pub fn segment_with(
     }
     forward_emergencies(&mut seg);
     Ok(seg)
+}
+
+/// Gives every drive of the segment a firmware update over a boot flash in memory
+/// (the drives of [`segment`] with a flash file have one in the file already).
+pub fn attach_updates_in_memory(seg: &mut Segment<SimDrive>, flavour: Flavour) {
+    for d in seg.drives_mut() {
+        if d.app.boot.is_none() {
+            let shared = crate::sim_update::share(crate::sim_update::boot_flash(None));
+            d.app.attach_update(shared, flavour);
+        }
+    }
+}
+
+/// Restarts every drive that asks for a reset (an update accepted, Bootstrap →
+/// Init): the processor's reset ([`SimDrive`]'s bootloader and power-up), the slave
+/// runtime's start (AL status Init). Returns the drives restarted.
+pub fn restart_requested(seg: &mut Segment<SimDrive>) -> Vec<usize> {
+    let due: Vec<usize> = (0..seg.len())
+        .filter(|&i| seg.drive(i).app.drive.reset_requested())
+        .collect();
+    for &i in &due {
+        restart(seg, i);
+    }
+    due
+}
+
+/// Resets drive `i`'s processor now (a power cycle of the drive's logic, a watchdog
+/// reset): the bootloader runs, the drive powers up, the slave runtime starts in Init.
+pub fn restart(seg: &mut Segment<SimDrive>, i: usize) {
+    let d = seg.drive_mut(i);
+    d.app.reset();
+    if let Err(e) = d.slave.init() {
+        eprintln!(
+            "simulated drive {}: ESC start-up after the reset: {e:?}",
+            i + 1
+        );
+    }
+    let mut runtime = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
+    d.app.drive.power_up(&mut runtime);
+    d.app.axis.parameters(&d.app.drive.params);
 }
 
 /// Sends every drive's pending emergencies through its mailbox, and writes a changed

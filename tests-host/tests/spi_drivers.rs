@@ -790,6 +790,7 @@ fn sii_image(esc: ecat_slave_stack::sii::EscFlavour) -> Vec<u8> {
         physical_ports: 0x0011,
         profile_no: 402,
         ebus_current_ma: 0,
+        bootstrap: None,
     };
     let mut img = vec![0xFF; 2048];
     sii::build(&desc, &mut img).unwrap();

@@ -20,10 +20,12 @@ use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use ecat_slave_stack::od::Dictionary;
 use tests_host::esc_sim::Flavour;
 use tests_host::fault_inject::{self, Injection, LedLog, Schedule};
 use tests_host::raw_socket::RawSocket;
-use tests_host::sim_drive::{self, Motor, SimDriveConfig};
+use tests_host::segment::Segment;
+use tests_host::sim_drive::{self, Motor, SimDrive, SimDriveConfig};
 
 static STOP: AtomicBool = AtomicBool::new(false);
 
@@ -107,6 +109,23 @@ fn parse(args: &[String]) -> Result<Options, String> {
     Ok(o)
 }
 
+/// A drive whose update was accepted resets on Bootstrap → Init, as the board does:
+/// the bootloader swaps, the new image starts on trial.
+fn restart_after_update(seg: &mut Segment<SimDrive>, log: &mut dyn FnMut(String)) {
+    for i in sim_drive::restart_requested(seg) {
+        let d = &mut seg.drive_mut(i).app;
+        let mut v = [0u8; 16];
+        let n = Dictionary::read(d, 0x100A, 0, &mut v).unwrap_or(0);
+        log(format!(
+            "drive {}: firmware update accepted; reset into the bootloader ({:?}); now \
+             running {} on trial (0x2309 = 1) until it reaches Pre-Op",
+            i + 1,
+            d.boot_state(),
+            String::from_utf8_lossy(&v[..n])
+        ));
+    }
+}
+
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let opts = match parse(&args) {
@@ -135,6 +154,10 @@ fn main() -> ExitCode {
             return ExitCode::from(1);
         }
     };
+    if cfg.flash_file.is_none() {
+        // Without --flash the update's partitions live in memory (lost at exit).
+        sim_drive::attach_updates_in_memory(&mut seg, opts.flavour);
+    }
     // SAFETY: installing a handler that only stores to an atomic.
     unsafe {
         libc::signal(libc::SIGINT, on_signal as *const () as libc::sighandler_t);
@@ -172,6 +195,7 @@ fn main() -> ExitCode {
             let dt = wall_ns - seg.now_ns();
             sim_drive::advance(&mut seg, dt);
             schedule.apply_due(&mut seg, &mut log);
+            restart_after_update(&mut seg, &mut log);
             leds.observe(&seg, &mut log);
         }
         match sock.wait_readable(1_000) {
@@ -187,6 +211,7 @@ fn main() -> ExitCode {
                 Ok(Some(n)) => {
                     let frame = &mut buf[..n];
                     sim_drive::process(&mut seg, frame);
+                    restart_after_update(&mut seg, &mut log);
                     leds.observe(&seg, &mut log);
                     frames += 1;
                     if sock.send(frame).is_err() {
