@@ -277,7 +277,7 @@ pub struct Drive<S: ParameterStore = NoStore> {
     seen_trip_seq: u8,
     power_up_tune_over: bool,
     /// Firmware update over FoE (the board's or the simulation's flash behind it).
-    update: Option<&'static mut dyn FirmwareUpdate>,
+    update: Option<&'static mut (dyn FirmwareUpdate + Send)>,
     /// The EtherCAT runtime has reached Pre-Op since power-up.
     reached_preop: bool,
     /// The start-up checks' outcome, once the board reported it.
@@ -539,7 +539,7 @@ impl<S: ParameterStore> Drive<S> {
     /// boot state 0x2309, 0x100A from the running image's header, and the trial
     /// image's confirmation once [`Drive::startup_checks_done`] reported success and
     /// the runtime reached Pre-Op.
-    pub fn attach_update(&mut self, update: &'static mut dyn FirmwareUpdate) {
+    pub fn attach_update(&mut self, update: &'static mut (dyn FirmwareUpdate + Send)) {
         self.monitor.set_boot_state(update.boot_state() as u8);
         self.update = Some(update);
     }

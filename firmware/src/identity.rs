@@ -113,6 +113,9 @@ impl Identity {
     }
 }
 
+/// The variant the board binary is built as (its product code in update images).
+pub const BOARD_VARIANT: Variant = Variant::HybridServo;
+
 /// Vendor name (ESI).
 pub const VENDOR_NAME: &str = "ECS open drive firmware";
 /// SII EEPROM size in bytes (16 Kibit part).

@@ -134,7 +134,7 @@ fn UART4() {
 }
 
 /// The product variant this board runs (hybrid servo: encoder on TIM2).
-const VARIANT: Variant = Variant::HybridServo;
+const VARIANT: Variant = firmware::identity::BOARD_VARIANT;
 
 /// The drive with its parameter store of this board.
 type BoardDrive = Drive<FlashStore<StagedFlash>>;

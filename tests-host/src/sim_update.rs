@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 
 use embassy_boot::{BootLoader, BootLoaderConfig, State};
 use embassy_embedded_hal::flash::partition::BlockingPartition;
-use embassy_sync::blocking_mutex::{raw::NoopRawMutex, Mutex};
+use embassy_sync::blocking_mutex::{raw::CriticalSectionRawMutex, Mutex};
 use firmware::flash_layout::{self, Partition, ACTIVE, BOOT_STATE, DFU};
 use firmware::update::{EmbassyUpdater, Update};
 
@@ -42,8 +42,8 @@ pub fn boot_flash(file: Option<PathBuf>) -> FileFlash {
 
 /// A drive's boot flash, shared by the bootloader and the firmware's updater (and
 /// kept across the drive's restarts).
-pub type Shared = Mutex<NoopRawMutex, RefCell<FileFlash>>;
-type Part = BlockingPartition<'static, NoopRawMutex, FileFlash>;
+pub type Shared = Mutex<CriticalSectionRawMutex, RefCell<FileFlash>>;
+type Part = BlockingPartition<'static, CriticalSectionRawMutex, FileFlash>;
 
 /// The boot flash `flash`, shared for the process's life.
 pub fn share(flash: FileFlash) -> &'static Shared {

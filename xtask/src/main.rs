@@ -12,8 +12,11 @@
 //! * `size`   — builds the board firmware and prints its flash/RAM use and its static
 //!   worst-case stack (`stack.rs`); `stack <ELF>` prints that analysis for one ELF.
 //! * `flash`  — builds and flashes the board firmware with probe-rs (needs a probe).
+//! * `update-image` — the signed firmware update files `target/update/ecs-*.efw`
+//!   (`update_image.rs`).
 
 mod stack;
+mod update_image;
 
 use std::env;
 use std::fmt::Write as _;
@@ -98,8 +101,22 @@ fn main() -> ExitCode {
             }
         },
         Some("flash") => flash(rest),
+        Some("update-image") => match update_image::run(
+            &root,
+            &[
+                ("esc-lan9252", efw::Esc::Lan9252),
+                ("esc-et1100", efw::Esc::Et1100),
+            ],
+            build_board_elf,
+        ) {
+            Ok(()) => true,
+            Err(e) => {
+                eprintln!("update-image: {e}");
+                false
+            }
+        },
         _ => {
-            eprintln!("usage: cargo xtask <test|bench|demo|esi|od-doc|size|flash>");
+            eprintln!("usage: cargo xtask <test|bench|demo|esi|od-doc|size|flash|update-image>");
             false
         }
     };
@@ -449,6 +466,31 @@ struct Fit {
 
 /// Builds every firmware flavour in release and prints flash/RAM use and the static
 /// worst-case stack.
+/// Builds the board firmware of `flavour` (feature `esc-…`) in release, as
+/// [`size_report`] does, and returns the path of its ELF copy.
+fn build_board_elf(flavour: &str) -> Result<String, String> {
+    let features = format!("board,{flavour}");
+    let target_dir = "target/firmware";
+    if !run_status(&mut cargo(&[
+        "build",
+        "-p",
+        "firmware",
+        "--release",
+        "--features",
+        &features,
+        "--target",
+        THUMB,
+        "--target-dir",
+        target_dir,
+    ])) {
+        return Err(format!("firmware build ({flavour}) failed"));
+    }
+    let elf = format!("{target_dir}/firmware-{flavour}.elf");
+    std::fs::copy(format!("{target_dir}/{THUMB}/release/firmware"), &elf)
+        .map_err(|e| format!("copy firmware ELF: {e}"))?;
+    Ok(elf)
+}
+
 fn size_report() -> Result<Fit, String> {
     let mut within = true;
     let mut budget = true;
