@@ -628,7 +628,8 @@ fn mailbox_and_sync_managers_equal_in_esi_sii_and_the_standard_layout() {
                     assert_eq!(sii_len, 0, "{what} SII SM{i}: length from the mapping");
                 }
             }
-            // Standard mailbox words = SM0/SM1; no bootstrap mailbox; CoE only.
+            // Standard mailbox words = SM0/SM1; the bootstrap mailbox (FoE updates) is
+            // the standard one too, in the SII and the ESI's Eeprom/BootStrap.
             assert_eq!(
                 [0x18, 0x19, 0x1A, 0x1B].map(|w| img.word(w)),
                 [0x1000, 128, 0x1080, 128],
@@ -636,14 +637,21 @@ fn mailbox_and_sync_managers_equal_in_esi_sii_and_the_standard_layout() {
             );
             assert_eq!(
                 [0x14, 0x15, 0x16, 0x17].map(|w| img.word(w)),
-                [0; 4],
+                [0x1000, 128, 0x1080, 128],
                 "{what}: bootstrap"
             );
-            assert!(opt_child(child(dev, "Eeprom"), "BootStrap").is_none());
-            assert_eq!(img.word(0x1C), 0x0004, "{what}: CoE only");
+            let boot = child(child(dev, "Eeprom"), "BootStrap")
+                .text()
+                .unwrap_or("");
+            assert_eq!(
+                boot, "0010800080108000",
+                "{what}: ESI BootStrap = SII 0x14-0x17"
+            );
+            assert_eq!(img.word(0x1C), 0x000C, "{what}: CoE and FoE");
             let mbx = child(dev, "Mailbox");
             assert!(opt_child(mbx, "CoE").is_some());
-            for p in ["EoE", "FoE", "SoE", "AoE", "VoE"] {
+            assert!(opt_child(mbx, "FoE").is_some(), "{what}: FoE");
+            for p in ["EoE", "SoE", "AoE", "VoE"] {
                 assert!(opt_child(mbx, p).is_none(), "{what}: {p} not implemented");
             }
         }
@@ -751,7 +759,7 @@ fn coe_details_fmmus_dc_and_eeprom_agree() {
                 let on = esi_flag == "true" || esi_flag == "1";
                 assert_eq!(g[5] >> bit & 1 == 1, on, "{what}: {attr}");
             }
-            assert_eq!((g[6], g[7]), (0, 0), "{what}: no FoE, no EoE");
+            assert_eq!((g[6], g[7]), (1, 0), "{what}: FoE, no EoE");
             let dll = child(dev, "Mailbox").attribute("DataLinkLayer") == Some("true");
             assert_eq!(
                 g[0x0B] >> 2 & 1 == 1,
