@@ -121,6 +121,11 @@ fn an_update_over_foe_swaps_runs_on_trial_and_confirms() {
         !m.seg.drive(0).app.drive.command().power_stage,
         "power stage off in Bootstrap"
     );
+    assert_eq!(
+        tests_host::fault_inject::led_state(&m.seg, 0).run,
+        ecat_slave_stack::leds::Pattern::Flickering,
+        "RUN LED flickers in Bootstrap"
+    );
     let file = efw(efw::Esc::Lan9252, 0x0002_0300, &image(20_000, 0x3C));
     let stats = m
         .foe_write(STATION, b"ecs-lan9252.efw", 0, &file)

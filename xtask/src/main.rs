@@ -13,7 +13,8 @@
 //!   worst-case stack (`stack.rs`); `stack <ELF>` prints that analysis for one ELF.
 //! * `flash`  — builds and flashes the board firmware with probe-rs (needs a probe).
 //! * `update-image` — the signed firmware update files `target/update/ecs-*.efw`
-//!   (`update_image.rs`).
+//!   (`update_image.rs`); `public-key [KEY FILE]` prints the public key of a signing
+//!   key (default: the development key).
 
 mod stack;
 mod update_image;
@@ -101,6 +102,16 @@ fn main() -> ExitCode {
             }
         },
         Some("flash") => flash(rest),
+        Some("public-key") => match update_image::public_key_of(rest.first().map(String::as_str)) {
+            Ok(hex) => {
+                println!("{hex}");
+                true
+            }
+            Err(e) => {
+                eprintln!("public-key: {e}");
+                false
+            }
+        },
         Some("update-image") => match update_image::run(
             &root,
             &[
@@ -116,7 +127,7 @@ fn main() -> ExitCode {
             }
         },
         _ => {
-            eprintln!("usage: cargo xtask <test|bench|demo|esi|od-doc|size|flash|update-image>");
+            eprintln!("usage: cargo xtask <test|bench|demo|esi|od-doc|size|flash|update-image|public-key>");
             false
         }
     };

@@ -116,6 +116,18 @@ fn signing_key(root: &Path) -> Result<([u8; 32], String), String> {
     ))
 }
 
+/// The public key (64 hex digits) of the secret key in `file` (default: the
+/// development key).
+pub fn public_key_of(file: Option<&str>) -> Result<String, String> {
+    let path = file.unwrap_or(DEV_KEY_FILE);
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
+    let seed = parse_key(&text).map_err(|e| format!("{path}: {e}"))?;
+    Ok(efw::sign::public_key(&seed)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect())
+}
+
 /// Builds the board image of each flavour (`build(flavour)` returns its ELF path) and
 /// writes its update file into `target/update/`.
 pub fn run(
