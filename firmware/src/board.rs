@@ -126,11 +126,11 @@ pub const ANALOG: firmware::sampling::AnalogScale = firmware::sampling::AnalogSc
 pub const OFFSET_SAMPLES: u32 = 1024;
 
 /// First byte of the parameter record region (flash offset; the last 16 KiB of the
-/// 512 KiB flash, kept out of the linker's FLASH region by memory.x).
-pub const PARAM_FLASH_OFFSET: u32 = 512 * 1024 - 16 * 1024;
+/// 512 KiB flash, outside every partition an update touches: `firmware::flash_layout`).
+pub const PARAM_FLASH_OFFSET: u32 = firmware::flash_layout::RECORDS.offset;
 /// Size of the record region: parameters and fault history, laid out as
 /// `firmware::storage::region` says.
-pub const PARAM_FLASH_SIZE: u32 = 16 * 1024;
+pub const PARAM_FLASH_SIZE: u32 = firmware::flash_layout::RECORDS.size;
 
 /// Independent watchdog timeout, µs. It must cover the longest blocking thread-mode
 /// operation: erasing one 4 KiB record slot = 2 pages × ≤ 40 ms (datasheet maximum;

@@ -562,7 +562,14 @@ impl<S: ParameterStore> Drive<S> {
         let Some(u) = self.update.as_deref_mut() else {
             return;
         };
-        u.confirm(self.startup_checks == Some(true), self.reached_preop);
+        // Only with the power stage off: confirming writes embassy-boot's state
+        // partition, in the flash bank the code runs from, which stalls the
+        // current-loop interrupt for the page erase.
+        let quiet = !self.command.power_stage;
+        u.confirm(
+            self.startup_checks == Some(true) && quiet,
+            self.reached_preop,
+        );
         if let Some(e) = u.take_event() {
             self.faults
                 .diagnosis_mut()

@@ -48,6 +48,16 @@
 //!   the same way through the same stage: the fault path only marks it dirty.
 //!   A second 'save' while one is being
 //!   programmed cannot happen (the same task does both in turn).
+//! * The **chip's flash** is one `hw::flash::ChipFlash` (a thread-mode mutex: taking it
+//!   masks nothing) shared by the parameter region and the **firmware update**
+//!   (`firmware::update`, attached to the drive): FoE in Bootstrap runs inside `poll`,
+//!   erasing and programming the DFU partition (bank 2, read-while-write) under the
+//!   lock, one 2 KiB page per FoE DATA at most (≈ 20 ms, answered BUSY); the power
+//!   stage is off in Bootstrap. After an accepted update, Bootstrap → Init resets the
+//!   chip into embassy-boot (`Drive::reset_requested`). A new image confirms itself
+//!   (embassy-boot's state partition, bank 1: a stall of the code bank for the page
+//!   erase) only with the power stage off, once the offset check passed and Pre-Op was
+//!   reached.
 //! * The **motor control state** (`CurrentLoop`, `foc::encoder::Encoder`,
 //!   `CommutatedMotion` = `Motion` + the commutation alignment) is owned by the ADC
 //!   interrupt ([`hw::control`]). It talks to the drive through two lock-free double
@@ -135,6 +145,11 @@ fn UART4() {
 
 /// The product variant this board runs (hybrid servo: encoder on TIM2).
 const VARIANT: Variant = firmware::identity::BOARD_VARIANT;
+/// The ESC of this build, as update images name it.
+#[cfg(not(feature = "esc-et1100"))]
+const BOARD_ESC: efw::Esc = efw::Esc::Lan9252;
+#[cfg(feature = "esc-et1100")]
+const BOARD_ESC: efw::Esc = efw::Esc::Et1100;
 
 /// The drive with its parameter store of this board.
 type BoardDrive = Drive<FlashStore<StagedFlash>>;
@@ -179,6 +194,11 @@ static SHARED: Mutex<CyclicCeiling, RefCell<Option<&'static mut Shared>>> =
     Mutex::new(RefCell::new(None));
 /// RAM image of a parameter record being saved (see `hw::flash::StagedFlash`).
 static mut STAGE_MEM: Stage = Stage::new();
+/// The chip's flash, shared by the records and the update (`hw::flash::ChipFlash`).
+static mut CHIP_FLASH_MEM: MaybeUninit<hw::flash::ChipFlash> = MaybeUninit::uninit();
+/// embassy-boot's aligned state buffer and the firmware update's slot.
+static mut UPDATE_ALIGNED: embassy_boot::AlignedBuffer<8> = embassy_boot::AlignedBuffer([0; 8]);
+static mut UPDATE_MEM: MaybeUninit<hw::flash::BoardUpdate> = MaybeUninit::uninit();
 static mut SHARED_MEM: MaybeUninit<Shared> = MaybeUninit::uninit();
 /// The drive application's slot (written whole by `Drive::init_in`).
 static mut DRIVE_MEM: MaybeUninit<BoardDrive> = MaybeUninit::uninit();
@@ -286,19 +306,17 @@ fn esc_error(e: ecat_slave_stack::EscError) -> defmt::Str {
 
 /// Log text of a parameter-region flash error.
 fn region_error(e: &hw::flash::RegionErrorOf) -> defmt::Str {
+    use embassy_embedded_hal::flash::partition::Error as P;
+    use embassy_stm32::flash::Error as F;
     use firmware::flash_region::RegionError as E;
     match e {
-        E::OutOfBounds => defmt::intern!("outside the parameter region"),
+        E::OutOfBounds | E::Flash(P::OutOfBounds) => defmt::intern!("outside the parameter region"),
         E::NotAligned => defmt::intern!("not aligned to the flash granularity"),
-        E::Flash(embassy_stm32::flash::Error::Prog) => defmt::intern!("flash: programming error"),
-        E::Flash(embassy_stm32::flash::Error::Size) => defmt::intern!("flash: size error"),
-        E::Flash(embassy_stm32::flash::Error::Miss) => {
-            defmt::intern!("flash: fast programming data miss")
-        }
-        E::Flash(embassy_stm32::flash::Error::Seq) => defmt::intern!("flash: sequence error"),
-        E::Flash(embassy_stm32::flash::Error::Protected) => {
-            defmt::intern!("flash: write protected")
-        }
+        E::Flash(P::Flash(F::Prog)) => defmt::intern!("flash: programming error"),
+        E::Flash(P::Flash(F::Size)) => defmt::intern!("flash: size error"),
+        E::Flash(P::Flash(F::Miss)) => defmt::intern!("flash: fast programming data miss"),
+        E::Flash(P::Flash(F::Seq)) => defmt::intern!("flash: sequence error"),
+        E::Flash(P::Flash(F::Protected)) => defmt::intern!("flash: write protected"),
         E::Flash(_) => defmt::intern!("flash: driver error"),
     }
 }
@@ -434,8 +452,18 @@ async fn main(spawner: Spawner) {
         irq.set_priority(CYCLIC_PRIORITY);
     }
 
+    // The chip's flash, shared by the parameter storage and the firmware update.
+    // SAFETY: main runs once and is the only place that takes these references.
+    let (chip_slot, aligned, update_slot) = unsafe {
+        (
+            &mut *core::ptr::addr_of_mut!(CHIP_FLASH_MEM),
+            &mut *core::ptr::addr_of_mut!(UPDATE_ALIGNED),
+            &mut *core::ptr::addr_of_mut!(UPDATE_MEM),
+        )
+    };
+    let chip = hw::flash::chip_flash(p.FLASH, chip_slot);
     // Parameter storage: reads straight from the region, saves staged in RAM.
-    let flash = hw::flash::param_flash(p.FLASH);
+    let flash = chip.and_then(hw::flash::param_flash);
     if flash.is_none() {
         defmt::error!(
             "flash is not in dual-bank mode (option byte DBANK = 0): parameter storage off"
@@ -461,6 +489,17 @@ async fn main(spawner: Spawner) {
         )
     };
     let drive = new_drive(drive_slot, serial, staged);
+    if let Some(chip) = chip {
+        // Firmware update over FoE; embassy-boot's state tells whether this image is
+        // on trial (confirmed once the start-up checks passed and Pre-Op is reached).
+        let update = hw::flash::board_update(chip, aligned, update_slot, BOARD_ESC);
+        defmt::info!(
+            "firmware: boot state {=u8} (0 confirmed, 1 trial, 2 reverted), header version {}",
+            firmware::update::FirmwareUpdate::boot_state(update) as u8,
+            firmware::update::FirmwareUpdate::running_version(update)
+        );
+        drive.attach_update(update);
+    }
     let mut slave = esc_ok.then(|| new_slave(slave_slot, esc));
     let report = match slave.as_mut() {
         Some(s) => drive.power_up(&mut s.runtime_objects(firmware::dictionary::OBJECTS)),
@@ -764,6 +803,13 @@ async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>)
                 ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
             }
             publish_command(s);
+            if s.drive.reset_requested() {
+                // An update was accepted and the master took the drive Bootstrap →
+                // Init (AL status Init is written): reset into embassy-boot, which
+                // swaps the partitions and starts the new image on trial.
+                defmt::info!("firmware update accepted: reset into the bootloader");
+                cortex_m::peripheral::SCB::sys_reset();
+            }
             // A staged 'save' first, else a changed fault history (serialised here under
             // the lock, programmed below without it): `Drive::next_staged_record`.
             let (staged, history_error) = s.drive.next_staged_record();
@@ -942,12 +988,17 @@ async fn offset_self_check(wdg: &mut hw::safety::Watchdog) {
             );
             with_shared(|s| {
                 s.glue.offsets_passed(o.ia, o.ib);
+                // A new image on trial may confirm itself once Pre-Op is reached too.
+                s.drive.startup_checks_done(true);
                 publish_command(s);
             });
         }
         Err(e) => {
             hw::safety::raise_fault(hw::safety::FAULT_CURRENT_SENSING);
-            with_shared(|s| s.glue.offset_check_failed());
+            with_shared(|s| {
+                s.glue.offset_check_failed();
+                s.drive.startup_checks_done(false);
+            });
             defmt::error!("fault 9, current-sensor self-check: {}", e);
         }
     }

@@ -14,27 +14,88 @@
 //! current-loop interrupt keeps running during a save. embassy-stm32 panics when the
 //! option byte disagrees with its `dual-bank` feature, so [`param_flash`] checks DBANK
 //! first and returns `None` instead.
+use core::cell::RefCell;
+use core::mem::MaybeUninit;
+
+use embassy_embedded_hal::flash::partition::BlockingPartition;
 use embassy_stm32::flash::{Blocking, Flash};
 use embassy_stm32::pac;
 use embassy_stm32::peripherals::FLASH;
 use embassy_stm32::Peri;
+use embassy_sync::blocking_mutex::raw::ThreadModeRawMutex;
+use embassy_sync::blocking_mutex::Mutex;
+use firmware::flash_layout::{self, Partition};
 use firmware::flash_region::FlashRegion;
+use firmware::update::{EmbassyUpdater, Update};
 
 use crate::board;
 
-/// The parameter region of the internal flash.
-pub type ParamFlash = FlashRegion<Flash<'static, Blocking>>;
+/// The whole internal flash, shared by the parameter records and the firmware update.
+/// Thread mode only: the mutex does not mask interrupts, so no flash operation ever
+/// holds off the current loop (it panics if taken in an interrupt).
+pub type ChipFlash = Mutex<ThreadModeRawMutex, RefCell<Flash<'static, Blocking>>>;
 
-/// The region, or `None` when the flash is not in dual-bank mode (see the module docs).
-pub fn param_flash(p: Peri<'static, FLASH>) -> Option<ParamFlash> {
+/// A partition of the chip's flash (`firmware::flash_layout`).
+pub type Part = BlockingPartition<'static, ThreadModeRawMutex, Flash<'static, Blocking>>;
+
+/// The parameter region of the internal flash.
+pub type ParamFlash = FlashRegion<Part>;
+
+/// The firmware update of the board: embassy-boot over the DFU, boot-state and
+/// active partitions.
+pub type BoardUpdate = Update<EmbassyUpdater<'static, Part, Part, Part>>;
+
+/// The chip's flash in `slot`, or `None` when it is not in dual-bank mode (see the
+/// module docs).
+pub fn chip_flash(
+    p: Peri<'static, FLASH>,
+    slot: &'static mut MaybeUninit<ChipFlash>,
+) -> Option<&'static ChipFlash> {
     if !pac::FLASH.optr().read().dbank() {
         return None;
     }
+    Some(slot.write(Mutex::new(RefCell::new(Flash::new_blocking(p)))))
+}
+
+fn part(chip: &'static ChipFlash, p: Partition) -> Part {
+    BlockingPartition::new(chip, p.offset, p.size)
+}
+
+/// The parameter region.
+pub fn param_flash(chip: &'static ChipFlash) -> Option<ParamFlash> {
     FlashRegion::new(
-        Flash::new_blocking(p),
+        part(
+            chip,
+            Partition {
+                offset: 0,
+                size: flash_layout::FLASH_SIZE,
+            },
+        ),
         board::PARAM_FLASH_OFFSET,
         board::PARAM_FLASH_SIZE,
     )
+}
+
+/// The firmware update (`firmware::update`) of a board with ESC `esc`, written into
+/// `slot`; reads the running image's header and embassy-boot's state.
+pub fn board_update(
+    chip: &'static ChipFlash,
+    aligned: &'static mut embassy_boot::AlignedBuffer<8>,
+    slot: &'static mut MaybeUninit<BoardUpdate>,
+    esc: efw::Esc,
+) -> &'static mut BoardUpdate {
+    let updater = EmbassyUpdater::new(
+        part(chip, flash_layout::DFU),
+        part(chip, flash_layout::BOOT_STATE),
+        part(chip, flash_layout::ACTIVE),
+        &mut aligned.0,
+    );
+    slot.write(Update::new(
+        updater,
+        firmware::identity::VENDOR_ID,
+        firmware::identity::BOARD_VARIANT.product_code(),
+        esc,
+    ))
 }
 
 // ---------------------------------------------------------------------------------
@@ -94,7 +155,9 @@ impl embedded_storage::nor_flash::ReadNorFlash for MappedRegion {
 }
 
 /// Error of the real region.
-pub type RegionErrorOf = firmware::flash_region::RegionError<embassy_stm32::flash::Error>;
+pub type RegionErrorOf = firmware::flash_region::RegionError<
+    embassy_embedded_hal::flash::partition::Error<embassy_stm32::flash::Error>,
+>;
 
 /// Programs a staged record into the flash (`firmware::staged_flash::commit`: erase,
 /// payload, header last). Blocking (erase ≈ 20 ms per 2 KiB page, program ≈ 85 µs
