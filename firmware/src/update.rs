@@ -301,6 +301,8 @@ pub struct Update<U> {
     erased_end: u32,
     /// The header page is erased (in this transfer).
     header_page_erased: bool,
+    /// The header passed its checks (kept while its last DATA is answered BUSY).
+    header_ok: bool,
     accepted: Option<Header>,
     event: Option<Event>,
     info: [u8; INFO_LEN],
@@ -423,6 +425,7 @@ impl<U: Updater> Update<U> {
             written: 0,
             erased_end: 0,
             header_page_erased: false,
+            header_ok: false,
             accepted: None,
             event: None,
             info: [0; INFO_LEN],
@@ -568,7 +571,11 @@ impl<U: Updater> Update<U> {
             if self.head_len < HEADER_LEN {
                 return Ok(());
             }
-            let h = efw::check_header(&self.head, &self.expected).map_err(foe_error)?;
+            // Checked when this DATA arrived (`check_completed_header`): parse only.
+            if !self.header_ok {
+                return Err(ErrorCode::ProgramError);
+            }
+            let h = Header::parse(&efw::Frame::new_unchecked(&self.head[..])).map_err(foe_error)?;
             self.header = Some(h);
         }
         self.take_image_bytes(data)
@@ -610,18 +617,20 @@ impl<U: Updater> Update<U> {
         self.written = 0;
         self.erased_end = 0;
         self.header_page_erased = false;
+        self.header_ok = false;
     }
 
-    /// Checks the header before anything is erased, when this DATA completes it.
-    fn check_completed_header(&self, data: &[u8]) -> Result<(), ErrorCode> {
-        if self.header.is_some() || self.head_len + data.len() < HEADER_LEN {
+    /// Checks the header before anything is erased, when this DATA completes it (once:
+    /// the same DATA comes again after BUSY).
+    fn check_completed_header(&mut self, data: &[u8]) -> Result<(), ErrorCode> {
+        if self.header_ok || self.header.is_some() || self.head_len + data.len() < HEADER_LEN {
             return Ok(());
         }
         let mut h = self.head;
         h[self.head_len..].copy_from_slice(&data[..HEADER_LEN - self.head_len]);
-        efw::check_header(&h, &self.expected)
-            .map(|_| ())
-            .map_err(foe_error)
+        efw::check_header(&h, &self.expected).map_err(foe_error)?;
+        self.header_ok = true;
+        Ok(())
     }
 
     fn done_percent(&self) -> u8 {

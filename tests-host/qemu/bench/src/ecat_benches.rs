@@ -3,9 +3,11 @@
 mod coe_rows;
 mod escdrv_rows;
 mod esm_rows;
+mod foe_rows;
 
 pub fn run() {
     esm_rows::run();
     coe_rows::run();
     escdrv_rows::run();
+    foe_rows::run();
 }
