@@ -1,15 +1,18 @@
-//! Linker set-up. Board binary: cortex-m-rt's link.x with the root memory.x, plus
-//! defmt's table. Cross-compiled library tests: the QEMU image script (qemu.x).
+//! Linker set-up. Board binary: cortex-m-rt's link.x with the root memory.x (which
+//! includes the root layout.x), plus defmt's table. Cross-compiled library tests: the
+//! QEMU image script (qemu.x).
 use std::{env, fs, path::PathBuf};
 
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed=../memory.x");
+    println!("cargo:rerun-if-changed=../layout.x");
     let thumb = env::var("TARGET").unwrap_or_default().starts_with("thumb");
     let board = env::var_os("CARGO_FEATURE_BOARD").is_some();
     if thumb && board {
         let out = PathBuf::from(env::var("OUT_DIR").expect("OUT_DIR"));
         fs::copy("../memory.x", out.join("memory.x")).expect("copy memory.x");
+        fs::copy("../layout.x", out.join("layout.x")).expect("copy layout.x");
         println!("cargo:rustc-link-search={}", out.display());
         println!("cargo:rustc-link-arg-bins=--nmagic");
         println!("cargo:rustc-link-arg-bins=-Tlink.x");
