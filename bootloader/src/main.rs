@@ -34,7 +34,8 @@
 //!
 //! ## Flashing
 //! Once per board, with a debug probe: the bootloader, then the first firmware image
-//! (linked at 0x0800_9000; `cargo xtask size` builds both):
+//! (linked at 0x0800_9000). (`cargo xtask size` builds both too, into
+//! `target/bootloader/` and `target/firmware/`.)
 //!
 //! ```text
 //! cargo build -p bootloader --release --target thumbv7em-none-eabihf
@@ -42,9 +43,10 @@
 //! cargo xtask flash
 //! ```
 //!
-//! (`cargo xtask flash` downloads the firmware and runs it; `probe-rs download` of
-//! the firmware ELF does the same without the log.) Each download erases only the
-//! pages it writes, so the parameter records survive. An erased boot state, or one
+//! (`cargo xtask flash` builds the firmware, downloads it and runs it with its defmt
+//! log; without the log: `probe-rs download --chip STM32G474RETx` of the firmware ELF,
+//! then `probe-rs reset --chip STM32G474RETx`.) Each download erases only the pages
+//! it writes, so the parameter records survive. An erased boot state, or one
 //! left over from firmware that was linked at 0x0800_0000, reads as "boot": the
 //! bootloader starts the active image. Later images come through FoE.
 //!
