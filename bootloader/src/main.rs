@@ -78,7 +78,7 @@ mod boot {
         // copy buffer is one erase page.
         let loader = BootLoader::prepare::<_, _, _, MAX_ERASE_SIZE>(config);
         // SAFETY: the active partition holds a cortex-m-rt image linked at its start
-        // (memory.x), beginning with its vector table; `load` points VTOR there, and
+        // (firmware/memory.x), beginning with its vector table; `load` points VTOR there, and
         // sets the stack pointer and jumps to the reset vector from it.
         unsafe { loader.load(FLASH_BASE as u32 + active) }
     }

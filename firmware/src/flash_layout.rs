@@ -89,12 +89,12 @@ const _: () = {
 
 #[cfg(test)]
 mod tests {
-    //! The linker's copy of the layout (`layout.x`, and the FLASH regions of the two
-    //! `memory.x` files) against the constants above.
+    //! The linker's copy of the layout (`layout.x`, and the regions of
+    //! `firmware/memory.x` and `bootloader/memory.x`) against the constants above.
     use super::*;
 
     const LAYOUT_X: &str = include_str!("../../layout.x");
-    const MEMORY_X: &str = include_str!("../../memory.x");
+    const MEMORY_X: &str = include_str!("../memory.x");
     const BOOTLOADER_MEMORY_X: &str = include_str!("../../bootloader/memory.x");
 
     /// The text of a linker script outside its `/* */` comments.
