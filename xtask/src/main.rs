@@ -37,12 +37,17 @@ const THUMB: &str = "thumbv7em-none-eabihf";
 const FLASH_BUDGET: u64 = 112 * 1024;
 const RAM_BUDGET: u64 = 24 * 1024;
 /// What the STM32G474RE can hold: flash, the active partition less its update-header
-/// page (`firmware::flash_layout::IMAGE_MAX`, memory.x: 228 KiB − 2 KiB), 128 KiB RAM.
-/// Above this the image cannot run at all: `test` fails.
+/// page (`firmware::flash_layout::IMAGE_MAX`, firmware/memory.x: 228 KiB − 2 KiB);
+/// 128 KiB RAM. Above this the image cannot run at all: `test` fails.
 const FLASH_CHIP: u64 = 226 * 1024;
 const RAM_CHIP: u64 = 128 * 1024;
 /// The bootloader's partition (`firmware::flash_layout::BOOTLOADER`, bootloader/memory.x).
 const BOOTLOADER_FLASH: u64 = 32 * 1024;
+/// Where each image's vector table must be: the bootloader at the flash base (the
+/// reset vector), the firmware at the start of the active partition (the bootloader
+/// starts it there). A memory.x at the workspace root would silently move them.
+const BOOTLOADER_ORIGIN: u64 = 0x0800_0000;
+const FIRMWARE_ORIGIN: u64 = 0x0800_9000;
 /// Crates whose `tests/portable*.rs` run on the host and under QEMU.
 const PORTABLE_CRATES: &[&str] = &["foc", "ecat-slave-stack", "firmware"];
 /// Board firmware flavours (ESC chip), built and size-checked by `test`.
@@ -559,6 +564,7 @@ fn size_report() -> Result<Fit, String> {
         let (flash, ram) = elf_usage(&elf)?;
         let in_budget = flash <= FLASH_BUDGET && ram <= RAM_BUDGET;
         within &= flash <= FLASH_CHIP && ram <= RAM_CHIP;
+        within &= linked_at(&elf, FIRMWARE_ORIGIN)?;
         budget &= in_budget;
         println!(
             "firmware ({flavour}): flash {flash} B ({:.1} KiB; product budget {} KiB), RAM {ram} B ({:.1} KiB; budget {} KiB) — {}  [{elf}]",
@@ -627,7 +633,7 @@ fn bootloader_size() -> Result<bool, String> {
     }
     let elf = format!("{target_dir}/{THUMB}/release/bootloader");
     let (flash, ram) = elf_usage(&elf)?;
-    let mut fits = flash <= BOOTLOADER_FLASH;
+    let mut fits = flash <= BOOTLOADER_FLASH && linked_at(&elf, BOOTLOADER_ORIGIN)?;
     let stack = match stack::analyse(Path::new(&elf)) {
         Ok(report) => {
             fits &= report.bounded && ram + report.worst <= RAM_CHIP;
@@ -649,6 +655,30 @@ fn bootloader_size() -> Result<bool, String> {
         if fits { "fits" } else { "DOES NOT FIT" }
     );
     Ok(fits)
+}
+
+/// Whether the ELF's vector table is at `origin`; says so when it is not.
+fn linked_at(elf: &str, origin: u64) -> Result<bool, String> {
+    let out = Command::new("size")
+        .args(["-A", "-d", elf])
+        .output()
+        .map_err(|e| format!("size: {e}"))?;
+    let at = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .find_map(|line| {
+            let cols: Vec<&str> = line.split_whitespace().collect();
+            (cols.len() >= 3 && cols[0] == ".vector_table")
+                .then(|| cols[2].parse::<u64>().ok())
+                .flatten()
+        });
+    match at {
+        Some(a) if a == origin => Ok(true),
+        Some(a) => {
+            println!("{elf}: vector table at {a:#010x}, not at {origin:#010x} — wrong memory.x?");
+            Ok(false)
+        }
+        None => Err(format!("{elf}: no .vector_table")),
+    }
 }
 
 /// Flash = sections loaded into flash (.vector_table, .text, .rodata, .data image);
