@@ -86,3 +86,137 @@ const _: () = {
     assert!(BOOTLOADER.size.is_multiple_of(4096) && BOOT_STATE.offset.is_multiple_of(4096));
     assert!(ACTIVE.offset.is_multiple_of(4096) && RECORDS.offset.is_multiple_of(4096));
 };
+
+#[cfg(test)]
+mod tests {
+    //! The linker's copy of the layout (`layout.x`, and the regions of
+    //! `firmware/memory.x` and `bootloader/memory.x`) against the constants above.
+    use super::*;
+
+    const LAYOUT_X: &str = include_str!("../../layout.x");
+    const MEMORY_X: &str = include_str!("../memory.x");
+    const BOOTLOADER_MEMORY_X: &str = include_str!("../../bootloader/memory.x");
+
+    /// The text of a linker script outside its `/* */` comments.
+    fn code(script: &str) -> impl Iterator<Item = &str> {
+        script
+            .split("*/")
+            .map(|chunk| chunk.split("/*").next().unwrap_or(""))
+            .flat_map(str::lines)
+            .map(str::trim)
+            .filter(|line| !line.is_empty())
+    }
+
+    /// A linker-script number: decimal, `0x` hex, or decimal with a `K` suffix.
+    fn number(text: &str) -> u32 {
+        let text = text.trim();
+        let value = if let Some(hex) = text.strip_prefix("0x") {
+            u32::from_str_radix(hex, 16).ok()
+        } else if let Some(kib) = text.strip_suffix('K') {
+            kib.parse::<u32>().ok().and_then(|k| k.checked_mul(1024))
+        } else {
+            text.parse().ok()
+        };
+        value.unwrap_or_else(|| panic!("not a plain number: {text:?}"))
+    }
+
+    /// The symbol assignments `name = number;` of a script.
+    fn assignments(script: &str) -> impl Iterator<Item = (&str, u32)> {
+        code(script).filter_map(|line| {
+            let (name, value) = line.strip_suffix(';')?.split_once('=')?;
+            let name = name.trim();
+            let symbol = name.chars().all(|c| c == '_' || c.is_ascii_alphanumeric());
+            symbol.then(|| (name, number(value)))
+        })
+    }
+
+    /// ORIGIN and LENGTH of a MEMORY region (`NAME : ORIGIN = a, LENGTH = b`).
+    fn region(script: &str, name: &str) -> (u32, u32) {
+        let line = code(script)
+            .find(|line| {
+                line.split_once(':')
+                    .is_some_and(|(region, _)| region.trim() == name)
+            })
+            .unwrap_or_else(|| panic!("no MEMORY region {name}"));
+        let (_, attributes) = line.split_once(':').unwrap();
+        let (origin, length) = attributes
+            .split_once(',')
+            .expect("ORIGIN = .., LENGTH = ..");
+        let value = |attribute: &str, key: &str| {
+            let (k, v) = attribute.split_once('=').expect("key = value");
+            assert_eq!(k.trim(), key, "{name}: {line}");
+            number(v)
+        };
+        (value(origin, "ORIGIN"), value(length, "LENGTH"))
+    }
+
+    fn includes_layout(script: &str) -> bool {
+        code(script).any(|line| line == "INCLUDE layout.x")
+    }
+
+    #[test]
+    fn layout_x_states_the_rust_layout() {
+        // Offsets from the flash base, as embassy-boot reads them.
+        let end = |p: Partition| p.offset + p.size;
+        let expected = [
+            ("__flash_base", FLASH_BASE),
+            ("__flash_page", PAGE),
+            ("__bootloader_start", BOOTLOADER.offset),
+            ("__bootloader_end", end(BOOTLOADER)),
+            ("__bootloader_state_start", BOOT_STATE.offset),
+            ("__bootloader_state_end", end(BOOT_STATE)),
+            ("__bootloader_active_start", ACTIVE.offset),
+            ("__bootloader_active_end", end(ACTIVE)),
+            ("__bootloader_dfu_start", DFU.offset),
+            ("__bootloader_dfu_end", end(DFU)),
+            ("__records_start", RECORDS.offset),
+            ("__records_end", end(RECORDS)),
+        ];
+        let mut seen = [false; 12];
+        for (name, value) in assignments(LAYOUT_X) {
+            let i = expected
+                .iter()
+                .position(|(n, _)| *n == name)
+                .unwrap_or_else(|| panic!("layout.x: {name} is not in the Rust layout"));
+            assert!(!seen[i], "layout.x: {name} twice");
+            seen[i] = true;
+            assert_eq!(value, expected[i].1, "layout.x: {name} = {value:#x}");
+        }
+        for ((name, _), seen) in expected.iter().zip(seen) {
+            assert!(seen, "layout.x lacks {name}");
+        }
+    }
+
+    #[test]
+    fn memory_x_links_the_firmware_into_the_active_partition() {
+        assert!(includes_layout(MEMORY_X));
+        // The image, then the page of its update header.
+        assert_eq!(region(MEMORY_X, "FLASH"), (ACTIVE.start(), HEADER_OFFSET));
+        assert_eq!(HEADER_OFFSET, 226 * 1024);
+        assert_eq!(region(MEMORY_X, "PARAMS"), (RECORDS.start(), RECORDS.size));
+        assert_eq!(region(MEMORY_X, "RAM"), (0x2000_0000, 128 * 1024));
+    }
+
+    #[test]
+    fn the_bootloader_links_into_its_partition() {
+        assert!(includes_layout(BOOTLOADER_MEMORY_X));
+        assert_eq!(
+            region(BOOTLOADER_MEMORY_X, "FLASH"),
+            (BOOTLOADER.start(), BOOTLOADER.size)
+        );
+        assert_eq!(region(BOOTLOADER_MEMORY_X, "RAM"), region(MEMORY_X, "RAM"));
+    }
+
+    #[test]
+    fn the_script_reader() {
+        let script = "/* a = 1; */ b = 0x10; /* c = 2;\n d = 3; */\ne = 4K;\nASSERT(x == 1);";
+        let mut found = assignments(script);
+        assert_eq!(found.next(), Some(("b", 16)));
+        assert_eq!(found.next(), Some(("e", 4096)));
+        assert_eq!(found.next(), None);
+        assert_eq!(
+            region("M {\n  R : ORIGIN = 0x100, LENGTH = 2K\n}", "R"),
+            (0x100, 2048)
+        );
+    }
+}

@@ -3,14 +3,16 @@
 //! * `test`   — installs what is missing (rustup target, qemu-system-arm via apt-get when
 //!   root), then fmt check, clippy (host crates, bare-metal libraries, board firmware),
 //!   host tests, the harness self-test, the QEMU tests of every logic crate, the
-//!   firmware release builds with their flash/RAM budget; ends with `N passed, N failed`.
+//!   firmware release builds with their flash/RAM budget, the bootloader release build
+//!   in its partition; ends with `N passed, N failed`. Clippy covers the bootloader.
 //! * `bench`  — instruction counts of the hot paths under QEMU (TCG plugin) and the
 //!   control-quality figures of the plant simulation → `BENCHMARKS.md`.
 //! * `demo`   — the simulated-drive commissioning demo (no hardware).
 //! * `esi`    — writes the ESI XML files and the SII images into `docs/esi/`.
 //! * `od-doc` — writes the object dictionary reference (`docs/object-dictionary.md`).
 //! * `size`   — builds the board firmware and prints its flash/RAM use and its static
-//!   worst-case stack (`stack.rs`); `stack <ELF>` prints that analysis for one ELF.
+//!   worst-case stack (`stack.rs`); then the same for the bootloader, against its
+//!   32 KiB partition; `stack <ELF>` prints that analysis for one ELF.
 //! * `flash`  — builds and flashes the board firmware with probe-rs (needs a probe).
 //! * `update-image` — the signed firmware update files `target/update/ecs-*.efw`
 //!   (`update_image.rs`); `public-key [KEY FILE]` prints the public key of a signing
@@ -34,10 +36,18 @@ const THUMB: &str = "thumbv7em-none-eabihf";
 /// static RAM plus the static worst-case stack. `test` fails above it.
 const FLASH_BUDGET: u64 = 112 * 1024;
 const RAM_BUDGET: u64 = 24 * 1024;
-/// What the STM32G474RE can hold: 512 KiB flash minus the 16 KiB parameter records,
+/// What the STM32G474RE can hold: flash, the active partition less its update-header
+/// page (`firmware::flash_layout::IMAGE_MAX`, firmware/memory.x: 228 KiB − 2 KiB);
 /// 128 KiB RAM. Above this the image cannot run at all: `test` fails.
-const FLASH_CHIP: u64 = 496 * 1024;
+const FLASH_CHIP: u64 = 226 * 1024;
 const RAM_CHIP: u64 = 128 * 1024;
+/// The bootloader's partition (`firmware::flash_layout::BOOTLOADER`, bootloader/memory.x).
+const BOOTLOADER_FLASH: u64 = 32 * 1024;
+/// Where each image's vector table must be: the bootloader at the flash base (the
+/// reset vector), the firmware at the start of the active partition (the bootloader
+/// starts it there). A memory.x at the workspace root would silently move them.
+const BOOTLOADER_ORIGIN: u64 = 0x0800_0000;
+const FIRMWARE_ORIGIN: u64 = 0x0800_9000;
 /// Crates whose `tests/portable*.rs` run on the host and under QEMU.
 const PORTABLE_CRATES: &[&str] = &["foc", "ecat-slave-stack", "firmware"];
 /// Board firmware flavours (ESC chip), built and size-checked by `test`.
@@ -85,7 +95,7 @@ fn main() -> ExitCode {
             "od-doc",
             "docs/object-dictionary.md",
         ])),
-        Some("size") => size_report().is_ok_and(|f| f.chip),
+        Some("size") => size_report().is_ok_and(|f| f.chip && f.bootloader),
         // The static stack analysis of a given ELF (no build).
         Some("stack") => match rest.first().map(|p| stack::analyse(Path::new(p))) {
             Some(Ok(report)) => {
@@ -141,7 +151,9 @@ fn main() -> ExitCode {
 /// Builds the board firmware (the same command and code generation as [`size_report`]
 /// and the QEMU test images: no board-only compiler flags) and runs it through
 /// probe-rs (`probe-rs run`: flashes, resets, prints the defmt log). Extra arguments
-/// go to cargo, e.g. `--features esc-et1100`.
+/// go to cargo, e.g. `--features esc-et1100`. The firmware is linked at the active
+/// partition (0x0800_9000): the board needs the bootloader (`bootloader/`, flashed
+/// once) to start it after the reset.
 fn flash(extra: &[String]) -> bool {
     run_status(
         cargo(&[
@@ -373,6 +385,19 @@ fn test() -> bool {
     );
     // The board image in both flavours, and the self-test image (README, "Board
     // self-test") in both.
+    t.step(
+        "clippy (bootloader)",
+        run_status(&mut cargo(&[
+            "clippy",
+            "-p",
+            "bootloader",
+            "--target",
+            THUMB,
+            "--",
+            "-D",
+            "warnings",
+        ])),
+    );
     for (flavour, extra) in FIRMWARE_FLAVOURS
         .iter()
         .flat_map(|f| [(*f, ""), (*f, ",selftest")])
@@ -446,6 +471,13 @@ fn test() -> bool {
                 ),
                 fit.budget,
             );
+            t.step(
+                &format!(
+                    "bootloader release build fits its {} KiB partition",
+                    BOOTLOADER_FLASH / 1024
+                ),
+                fit.bootloader,
+            );
         }
         Err(e) => {
             eprintln!("error: {e}");
@@ -467,16 +499,16 @@ fn summary(t: &Tally) -> bool {
 // firmware size
 // ---------------------------------------------------------------------------------------
 
-/// Whether every firmware flavour fits.
+/// Whether every firmware flavour, and the bootloader, fits.
 struct Fit {
-    /// The STM32G474RE (flash beside the parameter records, RAM).
+    /// The STM32G474RE (flash: the active partition less its header page; RAM).
     chip: bool,
     /// The product budget: flash, and static RAM plus the static worst-case stack.
     budget: bool,
+    /// The bootloader: its partition, and the RAM with its worst-case stack.
+    bootloader: bool,
 }
 
-/// Builds every firmware flavour in release and prints flash/RAM use and the static
-/// worst-case stack.
 /// Builds the board firmware of `flavour` (feature `esc-…`) in release, as
 /// [`size_report`] does, and returns the path of its ELF copy.
 fn build_board_elf(flavour: &str) -> Result<String, String> {
@@ -502,6 +534,8 @@ fn build_board_elf(flavour: &str) -> Result<String, String> {
     Ok(elf)
 }
 
+/// Builds every firmware flavour and the bootloader in release and prints flash/RAM
+/// use and the static worst-case stack.
 fn size_report() -> Result<Fit, String> {
     let mut within = true;
     let mut budget = true;
@@ -530,6 +564,7 @@ fn size_report() -> Result<Fit, String> {
         let (flash, ram) = elf_usage(&elf)?;
         let in_budget = flash <= FLASH_BUDGET && ram <= RAM_BUDGET;
         within &= flash <= FLASH_CHIP && ram <= RAM_CHIP;
+        within &= linked_at(&elf, FIRMWARE_ORIGIN)?;
         budget &= in_budget;
         println!(
             "firmware ({flavour}): flash {flash} B ({:.1} KiB; product budget {} KiB), RAM {ram} B ({:.1} KiB; budget {} KiB) — {}  [{elf}]",
@@ -576,7 +611,74 @@ fn size_report() -> Result<Fit, String> {
     Ok(Fit {
         chip: within,
         budget,
+        bootloader: bootloader_size()?,
     })
+}
+
+/// Builds the bootloader in release and prints its flash/RAM use against its
+/// partition; whether it fits.
+fn bootloader_size() -> Result<bool, String> {
+    let target_dir = "target/bootloader";
+    if !run_status(&mut cargo(&[
+        "build",
+        "-p",
+        "bootloader",
+        "--release",
+        "--target",
+        THUMB,
+        "--target-dir",
+        target_dir,
+    ])) {
+        return Err("bootloader build failed".into());
+    }
+    let elf = format!("{target_dir}/{THUMB}/release/bootloader");
+    let (flash, ram) = elf_usage(&elf)?;
+    let mut fits = flash <= BOOTLOADER_FLASH && linked_at(&elf, BOOTLOADER_ORIGIN)?;
+    let stack = match stack::analyse(Path::new(&elf)) {
+        Ok(report) => {
+            fits &= report.bounded && ram + report.worst <= RAM_CHIP;
+            format!(
+                "+ stack {} B{}",
+                report.worst,
+                if report.bounded { "" } else { " (+ recursion)" }
+            )
+        }
+        Err(e) => {
+            fits = false;
+            format!("(stack analysis failed: {e})")
+        }
+    };
+    println!(
+        "bootloader: flash {flash} B ({:.1} KiB of its {} KiB partition), RAM {ram} B {stack} — {}  [{elf}]",
+        flash as f64 / 1024.0,
+        BOOTLOADER_FLASH / 1024,
+        if fits { "fits" } else { "DOES NOT FIT" }
+    );
+    Ok(fits)
+}
+
+/// Whether the ELF's vector table is at `origin`; says so when it is not.
+fn linked_at(elf: &str, origin: u64) -> Result<bool, String> {
+    let out = Command::new("size")
+        .args(["-A", "-d", elf])
+        .output()
+        .map_err(|e| format!("size: {e}"))?;
+    let at = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .find_map(|line| {
+            let cols: Vec<&str> = line.split_whitespace().collect();
+            (cols.len() >= 3 && cols[0] == ".vector_table")
+                .then(|| cols[2].parse::<u64>().ok())
+                .flatten()
+        });
+    match at {
+        Some(a) if a == origin => Ok(true),
+        Some(a) => {
+            println!("{elf}: vector table at {a:#010x}, not at {origin:#010x} — wrong memory.x?");
+            Ok(false)
+        }
+        None => Err(format!("{elf}: no .vector_table")),
+    }
 }
 
 /// Flash = sections loaded into flash (.vector_table, .text, .rodata, .data image);
