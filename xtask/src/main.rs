@@ -31,11 +31,16 @@ use std::sync::mpsc;
 use std::thread;
 
 const THUMB: &str = "thumbv7em-none-eabihf";
-/// Budget of the finished product (issue 16): flash 112 KiB (a 128 KiB
-/// STM32G431-class part with its 16 KiB of parameter pages), RAM 24 KiB for the
-/// static RAM plus the static worst-case stack. `test` fails above it.
-const FLASH_BUDGET: u64 = 112 * 1024;
-const RAM_BUDGET: u64 = 24 * 1024;
+/// Budget of the finished product. Issue 16 set 112 KiB of flash and 24 KiB of RAM (a
+/// 128 KiB STM32G431-class part). Firmware update (issue 18) needs two image
+/// partitions and a bootloader, so the product is the 512 KiB STM32G474RE; the update
+/// itself (ed25519, SHA-512, embassy-boot, FoE) added 22 KiB of code and an 8 KiB
+/// stack path (the signature check). The budget is now 144 KiB of flash (the active
+/// partition holds 226 KiB: room for a second flavour of features) and 32 KiB of RAM
+/// for the static RAM plus the static worst-case stack (of 128 KiB). `test` fails
+/// above it.
+const FLASH_BUDGET: u64 = 144 * 1024;
+const RAM_BUDGET: u64 = 32 * 1024;
 /// What the STM32G474RE can hold: flash, the active partition less its update-header
 /// page (`firmware::flash_layout::IMAGE_MAX`, firmware/memory.x: 228 KiB − 2 KiB);
 /// 128 KiB RAM. Above this the image cannot run at all: `test` fails.
@@ -509,10 +514,12 @@ struct Fit {
     bootloader: bool,
 }
 
-/// Builds the board firmware of `flavour` (feature `esc-…`) in release, as
-/// [`size_report`] does, and returns the path of its ELF copy.
+/// Builds the board firmware of `flavour` (feature `esc-…`) in release (for
+/// [`size_report`] and `update-image`) and returns the path of its ELF copy.
 fn build_board_elf(flavour: &str) -> Result<String, String> {
     let features = format!("board,{flavour}");
+    // One target directory for both flavours: the dependencies built without the
+    // flavour feature are shared, the final ELF is copied out per flavour.
     let target_dir = "target/firmware";
     if !run_status(&mut cargo(&[
         "build",
@@ -540,27 +547,7 @@ fn size_report() -> Result<Fit, String> {
     let mut within = true;
     let mut budget = true;
     for flavour in FIRMWARE_FLAVOURS {
-        let features = format!("board,{flavour}");
-        // One target directory for both flavours: the dependencies built without the
-        // flavour feature are shared, the final ELF is copied out per flavour.
-        let target_dir = "target/firmware";
-        if !run_status(&mut cargo(&[
-            "build",
-            "-p",
-            "firmware",
-            "--release",
-            "--features",
-            &features,
-            "--target",
-            THUMB,
-            "--target-dir",
-            target_dir,
-        ])) {
-            return Err(format!("firmware build ({flavour}) failed"));
-        }
-        let elf = format!("{target_dir}/firmware-{flavour}.elf");
-        std::fs::copy(format!("{target_dir}/{THUMB}/release/firmware"), &elf)
-            .map_err(|e| format!("copy firmware ELF: {e}"))?;
+        let elf = build_board_elf(flavour)?;
         let (flash, ram) = elf_usage(&elf)?;
         let in_budget = flash <= FLASH_BUDGET && ram <= RAM_BUDGET;
         within &= flash <= FLASH_CHIP && ram <= RAM_CHIP;
