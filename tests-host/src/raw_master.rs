@@ -1,18 +1,156 @@
-//! A master played with raw datagrams on a simulated [`Segment`]: the building blocks
-//! (single-datagram frames, SII reads through 0x0502, AL control, expedited and
-//! normal CoE SDO transfers through the mailbox SyncManagers) from which tests replay
-//! a real master's start-up register by register (`tests/master_startup.rs`).
+//! A master played with raw datagrams: the building blocks (single-datagram frames,
+//! SII reads through 0x0502, AL control, expedited and normal CoE SDO transfers, FoE
+//! reads and writes through the mailbox SyncManagers) from which tests replay a real
+//! master's start-up register by register (`tests/master_startup.rs`) or update a
+//! drive's firmware (`tests/firmware_update.rs`, `tests/virtual_drive_update_veth.rs`).
 //!
-//! Every call is one frame through [`Segment::process`] (so the slaves poll after
-//! each datagram, as with a real master whose frames are a few µs apart); `after`
-//! runs after every frame (e.g. the product drive's housekeeping). With
-//! [`RawMaster::cyclic`] set, an LRW over the process image goes out at every cycle
-//! boundary the simulated time crosses, also while an SDO transfer waits — as a
+//! [`Master`] holds the protocol; every frame goes through a [`Transport`]:
+//! * [`SegmentTransport`], a simulated [`Segment`] in the same process ([`RawMaster`]):
+//!   every frame goes through [`Segment::process`] (so the slaves poll after each
+//!   datagram, as with a real master whose frames are a few µs apart); `after` runs
+//!   after every frame and every time step (e.g. the product drive's housekeeping).
+//!   Time is simulated: waits advance the segment.
+//! * [`SocketTransport`], real Ethernet frames on a network interface through an
+//!   AF_PACKET [`RawSocket`] (e.g. `virtual-drive` behind a veth pair,
+//!   [`SocketMaster`]): each exchange waits a bounded time for its frame to come
+//!   back. Time is the wall clock: waits sleep.
+//!
+//! With [`Master::cyclic`] set, an LRW over the process image goes out at every cycle
+//! boundary the transport's clock crosses, also while an SDO transfer waits — as a
 //! real master's cyclic task keeps running beside its mailbox traffic.
 
-use crate::esc_sim::frame::{Command, FrameBuilder};
+use std::ops::{Deref, DerefMut};
+use std::time::{Duration, Instant};
+
+use crate::esc_sim::frame::{
+    datagrams, Command, DatagramView, FrameBuilder, ETHERTYPE_ETHERCAT, ETH_HEADER_LEN,
+};
+use crate::raw_socket::{OpenError, RawSocket};
 use crate::segment::Segment;
 use ecat_slave_stack::slave::SlaveApplication;
+
+/// How the frames of a [`Master`] reach the slaves and come back, and its clock.
+pub trait Transport {
+    /// Sends one Ethernet frame; returns the frame that came back, or `None` when
+    /// none did (within the transport's timeout).
+    fn exchange(&mut self, frame: &[u8]) -> Option<Vec<u8>>;
+    /// The transport's clock, ns (simulated time, or the wall clock since it opened).
+    fn now_ns(&self) -> u64;
+    /// Lets `dt_ns` pass (simulated: the segment advances; real: a sleep).
+    fn advance(&mut self, dt_ns: u64);
+}
+
+/// The in-process transport: a simulated segment, and the hook that runs after every
+/// frame and every time step.
+pub struct SegmentTransport<A: SlaveApplication> {
+    /// The segment.
+    pub seg: Segment<A>,
+    /// Runs after every frame and every time step.
+    pub after: fn(&mut Segment<A>),
+}
+
+impl<A: SlaveApplication> Transport for SegmentTransport<A> {
+    fn exchange(&mut self, frame: &[u8]) -> Option<Vec<u8>> {
+        let mut f = frame.to_vec();
+        self.seg.process(&mut f);
+        (self.after)(&mut self.seg);
+        Some(f)
+    }
+    fn now_ns(&self) -> u64 {
+        self.seg.now_ns()
+    }
+    fn advance(&mut self, dt_ns: u64) {
+        self.seg.advance(dt_ns);
+        (self.after)(&mut self.seg);
+    }
+}
+
+/// Offset of the first datagram's index byte in a frame built by [`FrameBuilder`]
+/// (no VLAN tag): the socket transport numbers its frames there.
+const FIRST_INDEX: usize = ETH_HEADER_LEN + 2 + 1;
+
+/// Real frames on a network interface: an AF_PACKET raw socket, a bounded wait for
+/// each frame to come back, the wall clock.
+///
+/// Every frame sent carries a number in its first datagram's index byte (slaves
+/// leave the index alone). A received frame with another number (one that came back
+/// after its exchange had given up, or any other EtherCAT traffic on the link) is
+/// dropped and counted, so a late frame is never taken for the answer to the next.
+pub struct SocketTransport {
+    sock: RawSocket,
+    /// How long an exchange waits for its frame to come back.
+    pub timeout: Duration,
+    start: Instant,
+    tag: u8,
+    buf: Vec<u8>,
+    /// Frames that did not come back within `timeout`.
+    pub lost: u64,
+    /// Frames received that were not the one awaited (dropped).
+    pub stray: u64,
+}
+
+impl SocketTransport {
+    /// A raw socket on `iface` (needs root or CAP_NET_RAW); each exchange waits up to
+    /// `timeout` for its frame.
+    pub fn open(iface: &str, timeout: Duration) -> Result<Self, OpenError> {
+        Ok(SocketTransport {
+            sock: RawSocket::open(iface)?,
+            timeout,
+            start: Instant::now(),
+            tag: 0,
+            buf: vec![0u8; 2048],
+            lost: 0,
+            stray: 0,
+        })
+    }
+
+    /// The next received frame that carries `tag`, until `deadline`.
+    fn receive(&mut self, tag: u8, deadline: Instant) -> Option<Vec<u8>> {
+        loop {
+            while let Ok(Some(n)) = self.sock.recv(&mut self.buf) {
+                let r = &self.buf[..n];
+                if r.len() > FIRST_INDEX
+                    && r[12..14] == ETHERTYPE_ETHERCAT.to_be_bytes()
+                    && r[FIRST_INDEX] == tag
+                {
+                    return Some(r.to_vec());
+                }
+                self.stray += 1;
+            }
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return None;
+            }
+            // A failed poll is retried until the deadline.
+            let _ = self.sock.wait_readable(left.as_micros().max(1) as u64);
+        }
+    }
+}
+
+impl Transport for SocketTransport {
+    fn exchange(&mut self, frame: &[u8]) -> Option<Vec<u8>> {
+        let mut f = frame.to_vec();
+        self.tag = self.tag.wrapping_add(1);
+        if let Some(b) = f.get_mut(FIRST_INDEX) {
+            *b = self.tag;
+        }
+        if self.sock.send(&f).is_err() {
+            self.lost += 1;
+            return None;
+        }
+        let back = self.receive(self.tag, Instant::now() + self.timeout);
+        if back.is_none() {
+            self.lost += 1;
+        }
+        back
+    }
+    fn now_ns(&self) -> u64 {
+        self.start.elapsed().as_nanos() as u64
+    }
+    fn advance(&mut self, dt_ns: u64) {
+        std::thread::sleep(Duration::from_nanos(dt_ns));
+    }
+}
 
 /// SDO abort code or a transport failure (no answer, wrong working counter).
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -48,7 +186,7 @@ pub struct FoeStats {
 pub struct Cyclic {
     /// Cycle, ns.
     pub period_ns: u64,
-    /// Simulated time of the next LRW, ns.
+    /// Time of the next LRW on the transport's clock, ns.
     pub next_ns: u64,
     /// Bytes of the LRW at logical address 0 (outputs and inputs).
     pub len: usize,
@@ -60,12 +198,11 @@ pub struct Cyclic {
     pub wkc: u16,
 }
 
-/// Raw-datagram master of one segment.
-pub struct RawMaster<A: SlaveApplication> {
-    /// The segment.
-    pub seg: Segment<A>,
-    /// Runs after every frame and every time step.
-    pub after: fn(&mut Segment<A>),
+/// Raw-datagram master over a [`Transport`]. It dereferences to its transport: the
+/// segment of a [`RawMaster`] is `m.seg`, its hook `m.after`.
+pub struct Master<T> {
+    /// How the frames travel.
+    pub link: T,
     counter: u8,
     /// SM0 (out) and SM1 (in) start and length of the standard mailbox.
     pub mbx: (u16, u16, u16, u16),
@@ -75,14 +212,50 @@ pub struct RawMaster<A: SlaveApplication> {
     pub cyclic: Option<Cyclic>,
 }
 
+/// Raw-datagram master of one simulated segment.
+pub type RawMaster<A> = Master<SegmentTransport<A>>;
+
+/// Raw-datagram master on a real network interface.
+pub type SocketMaster = Master<SocketTransport>;
+
+impl<T> Deref for Master<T> {
+    type Target = T;
+    fn deref(&self) -> &T {
+        &self.link
+    }
+}
+
+impl<T> DerefMut for Master<T> {
+    fn deref_mut(&mut self) -> &mut T {
+        &mut self.link
+    }
+}
+
 fn nothing<A: SlaveApplication>(_: &mut Segment<A>) {}
 
-impl<A: SlaveApplication> RawMaster<A> {
+impl<A: SlaveApplication> Master<SegmentTransport<A>> {
     /// A master on `seg`.
     pub fn new(seg: Segment<A>) -> Self {
-        RawMaster {
+        Master::over(SegmentTransport {
             seg,
             after: nothing::<A>,
+        })
+    }
+}
+
+impl Master<SocketTransport> {
+    /// A master on the interface `iface` (raw socket: root or CAP_NET_RAW); each
+    /// frame is waited for up to `timeout`.
+    pub fn open(iface: &str, timeout: Duration) -> Result<Self, OpenError> {
+        SocketTransport::open(iface, timeout).map(Master::over)
+    }
+}
+
+impl<T: Transport> Master<T> {
+    /// A master whose frames go through `link`.
+    pub fn over(link: T) -> Self {
+        Master {
+            link,
             counter: 0,
             mbx: (0x1000, 128, 0x1080, 128),
             frames: 0,
@@ -90,11 +263,19 @@ impl<A: SlaveApplication> RawMaster<A> {
         }
     }
 
+    /// One frame through the transport (counted); its datagrams as they came back
+    /// (none when the frame did not come back).
+    fn frame(&mut self, fb: FrameBuilder) -> Vec<DatagramView> {
+        let back = self.link.exchange(&fb.build());
+        self.frames += 1;
+        back.and_then(|f| datagrams(&f)).unwrap_or_default()
+    }
+
     /// Starts the cyclic LRW of `len` bytes every `period_ns` (first one now).
     pub fn start_cyclic(&mut self, period_ns: u64, len: usize, wkc: u16) {
         self.cyclic = Some(Cyclic {
             period_ns: period_ns.max(1),
-            next_ns: self.seg.now_ns(),
+            next_ns: self.link.now_ns(),
             len,
             sent: 0,
             good: 0,
@@ -108,12 +289,9 @@ impl<A: SlaveApplication> RawMaster<A> {
         let Some(mut c) = self.cyclic else {
             return;
         };
-        let now = self.seg.now_ns();
+        let now = self.link.now_ns();
         if now >= c.next_ns {
-            let d = self
-                .seg
-                .raw(FrameBuilder::new().logical(Command::Lrw, 0, &vec![0u8; c.len]));
-            self.frames += 1;
+            let d = self.frame(FrameBuilder::new().logical(Command::Lrw, 0, &vec![0u8; c.len]));
             c.sent += 1;
             if d.first().is_some_and(|v| v.wkc == c.wkc) {
                 c.good += 1;
@@ -124,17 +302,12 @@ impl<A: SlaveApplication> RawMaster<A> {
                 c.next_ns = now + c.period_ns - (now - c.next_ns) % c.period_ns;
             }
             self.cyclic = Some(c);
-            (self.after)(&mut self.seg);
         }
     }
 
     /// One datagram in its own frame; returns (data, working counter).
     pub fn dg(&mut self, cmd: Command, adp: u16, ado: u16, data: &[u8]) -> (Vec<u8>, u16) {
-        let d = self
-            .seg
-            .raw(FrameBuilder::new().physical(cmd, adp, ado, data));
-        self.frames += 1;
-        (self.after)(&mut self.seg);
+        let d = self.frame(FrameBuilder::new().physical(cmd, adp, ado, data));
         self.service_cyclic();
         match d.into_iter().next() {
             Some(v) => (v.data, v.wkc),
@@ -185,18 +358,18 @@ impl<A: SlaveApplication> RawMaster<A> {
         self.dg(Command::Apwr, 0u16.wrapping_sub(pos), ado, data).1
     }
 
-    /// Moves simulated time on by `dt_ns` (in steps of at most `step_ns`, ending at
-    /// each cycle boundary of the cyclic exchange), running `after`.
+    /// Moves the transport's time on by `dt_ns` (in steps of at most `step_ns`, ending
+    /// at each cycle boundary of the cyclic exchange): the simulated segment advances
+    /// and runs `after`; a real link sleeps.
     pub fn wait(&mut self, dt_ns: u64, step_ns: u64) {
-        let end = self.seg.now_ns() + dt_ns;
-        while self.seg.now_ns() < end {
-            let now = self.seg.now_ns();
+        let end = self.link.now_ns() + dt_ns;
+        while self.link.now_ns() < end {
+            let now = self.link.now_ns();
             let mut s = (end - now).min(step_ns.max(1));
             if let Some(c) = self.cyclic {
                 s = s.min(c.next_ns.saturating_sub(now).max(1));
             }
-            self.seg.advance(s);
-            (self.after)(&mut self.seg);
+            self.link.advance(s);
             self.service_cyclic();
         }
     }
