@@ -23,7 +23,9 @@
 //!    which then reports [`BootState::Reverted`] and confirms itself.
 //!
 //! While an image is on trial no update is taken (embassy-boot's rule: the running
-//! image must be confirmed first), and the refusal says so (FoE "access denied").
+//! image must be confirmed first), and neither is a second one in the Bootstrap that
+//! accepted one (it would rewrite the partition marked for the swap); the refusal
+//! says so (FoE "access denied").
 //!
 //! # The information file
 //! Reading [`INFO_FILE`] over FoE returns a few `key=value` lines about the running
@@ -301,8 +303,9 @@ pub struct Update<U> {
     erased_end: u32,
     /// The header page is erased (in this transfer).
     header_page_erased: bool,
-    /// The header passed its checks (kept while its last DATA is answered BUSY).
-    header_ok: bool,
+    /// The header bytes that passed their checks (kept while the DATA that completes
+    /// them is answered BUSY: a resend with other bytes is checked again).
+    header_ok: Option<[u8; HEADER_LEN]>,
     accepted: Option<Header>,
     event: Option<Event>,
     info: [u8; INFO_LEN],
@@ -425,7 +428,7 @@ impl<U: Updater> Update<U> {
             written: 0,
             erased_end: 0,
             header_page_erased: false,
-            header_ok: false,
+            header_ok: None,
             accepted: None,
             event: None,
             info: [0; INFO_LEN],
@@ -571,9 +574,10 @@ impl<U: Updater> Update<U> {
             if self.head_len < HEADER_LEN {
                 return Ok(());
             }
-            // Checked when this DATA arrived (`check_completed_header`): parse only.
-            if !self.header_ok {
-                return Err(ErrorCode::ProgramError);
+            // Checked when this DATA arrived (`check_completed_header`): these very
+            // bytes, or nothing is taken.
+            if self.header_ok != Some(self.head) {
+                return Err(ErrorCode::InvalidChecksum);
             }
             let h = Header::parse(&efw::Frame::new_unchecked(&self.head[..])).map_err(foe_error)?;
             self.header = Some(h);
@@ -617,19 +621,24 @@ impl<U: Updater> Update<U> {
         self.written = 0;
         self.erased_end = 0;
         self.header_page_erased = false;
-        self.header_ok = false;
+        self.header_ok = None;
     }
 
-    /// Checks the header before anything is erased, when this DATA completes it (once:
-    /// the same DATA comes again after BUSY).
+    /// Checks the header before anything is erased, when this DATA completes it. The
+    /// same DATA comes again after BUSY: the check is not repeated for the same bytes,
+    /// but other bytes are checked again.
     fn check_completed_header(&mut self, data: &[u8]) -> Result<(), ErrorCode> {
-        if self.header_ok || self.header.is_some() || self.head_len + data.len() < HEADER_LEN {
+        if self.header.is_some() || self.head_len + data.len() < HEADER_LEN {
             return Ok(());
         }
         let mut h = self.head;
         h[self.head_len..].copy_from_slice(&data[..HEADER_LEN - self.head_len]);
+        if self.header_ok == Some(h) {
+            return Ok(());
+        }
+        self.header_ok = None;
         efw::check_header(&h, &self.expected).map_err(foe_error)?;
-        self.header_ok = true;
+        self.header_ok = Some(h);
         Ok(())
     }
 
@@ -700,7 +709,11 @@ impl<U: Updater> FoeFiles for Update<U> {
         if !self.confirmed {
             return Err(self.fail(ErrorCode::AccessDenied));
         }
-        self.accepted = None;
+        if self.accepted.is_some() {
+            // An image is marked for the swap: a second download in this Bootstrap
+            // would rewrite the DFU partition under it. Leave Bootstrap first.
+            return Err(self.fail(ErrorCode::AccessDenied));
+        }
         self.rx = Rx::Receiving;
         Ok(())
     }

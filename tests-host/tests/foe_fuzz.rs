@@ -47,9 +47,9 @@
 //! succeeds, swaps and confirms. The counts of answers by kind are printed.
 //!
 //! Two directed tests follow from what the fuzzer's invariants catch: a header
-//! changed in the DATA resent after BUSY must be refused; and (ignored: a product
-//! bug, see its text) a second download after an accepted one must not leave an
-//! unverified image to be swapped in.
+//! changed in the DATA resent after BUSY must be refused; and a second download
+//! after an accepted one must not leave an unverified image to be swapped in (both
+//! were product bugs this fuzzer found; the backend now refuses them).
 //!
 //! Own small PRNG (xorshift64*), fixed seeds: runs are repeatable.
 
@@ -1647,8 +1647,6 @@ fn send_file(u: &mut dyn FoeFiles, file: &[u8]) -> Result<(), ErrorCode> {
 /// image byte. A master that retries a download whose last ACK it missed gets the
 /// same: an error, no reset, the image swapped in at some later power-up.
 #[test]
-#[ignore = "product bug in firmware/src/update.rs (a second download after an accepted one \
-            overwrites the marked DFU partition unverified); run with --ignored"]
 fn a_second_download_after_an_accepted_one_cannot_smuggle_an_unverified_image() {
     let fl = Flashes::new();
     let files = Files::new(116, 7);
