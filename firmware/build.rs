@@ -17,6 +17,7 @@ fn main() {
         "a memory.x at the workspace root would be linked into every cortex-m-rt image \
          instead of the crate's own (see firmware/build.rs)"
     );
+    test_update_files();
     let thumb = env::var("TARGET").unwrap_or_default().starts_with("thumb");
     let board = env::var_os("CARGO_FEATURE_BOARD").is_some();
     if thumb && board {
@@ -29,5 +30,30 @@ fn main() {
         println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
     } else if thumb {
         println!("cargo:rustc-link-arg-tests=-Tqemu.x");
+    }
+}
+
+/// The update files of `tests/portable_update.rs` (which runs under QEMU too, where
+/// nothing can be signed): a 6 KiB image signed with the development key, and the
+/// same image signed with another key. The identity (vendor 0x0ECA, product 0x5702,
+/// LAN9252) is the test's own; it reads it back from the header.
+fn test_update_files() {
+    let key_file = "../keys/dev-signing-key.hex";
+    println!("cargo:rerun-if-changed={key_file}");
+    let hex = fs::read_to_string(key_file).expect("keys/dev-signing-key.hex");
+    let hex = hex.trim();
+    let mut seed = [0u8; 32];
+    for (i, b) in seed.iter_mut().enumerate() {
+        *b = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).expect("hex key");
+    }
+    let image: Vec<u8> = (0..6144u32).map(|i| (i * 31 + 7) as u8).collect();
+    let out = PathBuf::from(env::var("OUT_DIR").expect("OUT_DIR"));
+    for (name, key) in [
+        ("test-update.efw", seed),
+        ("test-update-other-key.efw", [0x5A; 32]),
+    ] {
+        let file =
+            efw::sign::update_file(&key, 0x0ECA, 0x5702, efw::Esc::Lan9252, 0x0002_0001, &image);
+        fs::write(out.join(name), file).expect("test update file");
     }
 }

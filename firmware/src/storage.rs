@@ -1062,6 +1062,45 @@ impl<const N: usize> NorFlash for RamFlash<N> {
     }
 }
 
+/// A [`RamFlash`] erased in the STM32G4's 2 KiB pages (dual-bank mode) with its 8-byte
+/// writes: the flash model of the firmware update's tests (embassy-boot sizes its
+/// state by the page count, so the page size must be the chip's).
+#[derive(Clone, Default)]
+pub struct PagedRamFlash<const N: usize>(pub RamFlash<N>);
+
+impl<const N: usize> PagedRamFlash<N> {
+    /// Erased flash.
+    pub const fn new() -> Self {
+        PagedRamFlash(RamFlash::new())
+    }
+}
+
+impl<const N: usize> embedded_storage::nor_flash::ErrorType for PagedRamFlash<N> {
+    type Error = NorFlashErrorKind;
+}
+
+impl<const N: usize> embedded_storage::nor_flash::ReadNorFlash for PagedRamFlash<N> {
+    const READ_SIZE: usize = 1;
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        self.0.read(offset, bytes)
+    }
+    fn capacity(&self) -> usize {
+        N
+    }
+}
+
+impl<const N: usize> NorFlash for PagedRamFlash<N> {
+    const WRITE_SIZE: usize = 8;
+    const ERASE_SIZE: usize = crate::flash_layout::PAGE as usize;
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+        erase_range(N, Self::ERASE_SIZE, from, to)?;
+        self.0.erase(from, to)
+    }
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        self.0.write(offset, bytes)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

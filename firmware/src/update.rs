@@ -795,7 +795,7 @@ impl<U: Updater> FoeFiles for Update<U> {
 mod tests {
     extern crate std;
     use super::*;
-    use crate::storage::RamFlash;
+    use crate::storage::PagedRamFlash;
     use core::cell::RefCell;
     use embassy_boot::{BootLoader, BootLoaderConfig};
     use embassy_embedded_hal::flash::partition::BlockingPartition;
@@ -809,37 +809,7 @@ mod tests {
     const VENDOR: u32 = 0x0ECA;
     const PRODUCT: u32 = 0x5702;
 
-    /// A [`RamFlash`] erased in the STM32G4's 2 KiB pages (embassy-boot sizes its
-    /// state by the page count).
-    struct Paged<const N: usize>(RamFlash<N>);
-
-    impl<const N: usize> embedded_storage::nor_flash::ErrorType for Paged<N> {
-        type Error = embedded_storage::nor_flash::NorFlashErrorKind;
-    }
-    impl<const N: usize> embedded_storage::nor_flash::ReadNorFlash for Paged<N> {
-        const READ_SIZE: usize = 1;
-        fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
-            self.0.read(offset, bytes)
-        }
-        fn capacity(&self) -> usize {
-            N
-        }
-    }
-    impl<const N: usize> embedded_storage::nor_flash::NorFlash for Paged<N> {
-        const WRITE_SIZE: usize = 8;
-        const ERASE_SIZE: usize = flash_layout::PAGE as usize;
-        fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-            if !from.is_multiple_of(flash_layout::PAGE) || !to.is_multiple_of(flash_layout::PAGE) {
-                return Err(embedded_storage::nor_flash::NorFlashErrorKind::NotAligned);
-            }
-            self.0.erase(from, to)
-        }
-        fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
-            self.0.write(offset, bytes)
-        }
-    }
-
-    type Part<const N: usize> = Mutex<NoopRawMutex, RefCell<Paged<N>>>;
+    type Part<const N: usize> = Mutex<NoopRawMutex, RefCell<PagedRamFlash<N>>>;
 
     /// The three partitions, each its own RAM flash.
     struct Flashes {
@@ -851,9 +821,9 @@ mod tests {
     impl Flashes {
         fn new() -> Box<Self> {
             Box::new(Flashes {
-                active: Mutex::new(RefCell::new(Paged(RamFlash::new()))),
-                dfu: Mutex::new(RefCell::new(Paged(RamFlash::new()))),
-                state: Mutex::new(RefCell::new(Paged(RamFlash::new()))),
+                active: Mutex::new(RefCell::new(PagedRamFlash::new())),
+                dfu: Mutex::new(RefCell::new(PagedRamFlash::new())),
+                state: Mutex::new(RefCell::new(PagedRamFlash::new())),
             })
         }
 
