@@ -65,9 +65,9 @@ impl Flashes {
     ) -> Update<impl firmware::update::Updater + 'a> {
         let (v, p) = identity();
         let u = EmbassyUpdater::new(
-            Partition::new(&self.dfu),
-            Partition::new(&self.state),
-            Partition::new(&self.active),
+            whole(&self.dfu),
+            whole(&self.state),
+            whole(&self.active),
             aligned,
         );
         Update::new(u, v, p, efw::Esc::Lan9252)
@@ -76,9 +76,9 @@ impl Flashes {
     fn boot(&self) -> State {
         let mut page = [0u8; PAGE as usize];
         BootLoader::new(BootLoaderConfig {
-            active: Partition::new(&self.active),
-            dfu: Partition::new(&self.dfu),
-            state: Partition::new(&self.state),
+            active: whole(&self.active),
+            dfu: whole(&self.dfu),
+            state: whole(&self.state),
         })
         .prepare_boot(&mut page)
         .unwrap()
@@ -94,13 +94,10 @@ type Part<'a, const N: usize> = BlockingPartition<'a, NoopRawMutex, &'static mut
 
 /// A whole partition over one of the RAM flashes (embedded-storage implements the
 /// flash traits for `&mut F`).
-struct Partition;
-impl Partition {
-    fn new<'a, const N: usize>(
-        m: &'a Mutex<NoopRawMutex, RefCell<&'static mut PagedRamFlash<N>>>,
-    ) -> Part<'a, N> {
-        BlockingPartition::new(m, 0, N as u32)
-    }
+fn whole<const N: usize>(
+    m: &Mutex<NoopRawMutex, RefCell<&'static mut PagedRamFlash<N>>>,
+) -> Part<'_, N> {
+    Blockingwhole(m, 0, N as u32)
 }
 
 /// `f` as FoE brings it: DATA of 116 bytes, each again after BUSY; `flip` changes one
