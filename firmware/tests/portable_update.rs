@@ -94,10 +94,10 @@ type Part<'a, const N: usize> = BlockingPartition<'a, NoopRawMutex, &'static mut
 
 /// A whole partition over one of the RAM flashes (embedded-storage implements the
 /// flash traits for `&mut F`).
-fn whole<const N: usize>(
-    m: &Mutex<NoopRawMutex, RefCell<&'static mut PagedRamFlash<N>>>,
-) -> Part<'_, N> {
-    Blockingwhole(m, 0, N as u32)
+fn whole<'a, const N: usize>(
+    m: &'a Mutex<NoopRawMutex, RefCell<&'static mut PagedRamFlash<N>>>,
+) -> Part<'a, N> {
+    BlockingPartition::new(m, 0, N as u32)
 }
 
 /// `f` as FoE brings it: DATA of 116 bytes, each again after BUSY; `flip` changes one
