@@ -38,14 +38,8 @@ fn main() {
 /// same image signed with another key. The identity (vendor 0x0ECA, product 0x5702,
 /// LAN9252) is the test's own; it reads it back from the header.
 fn test_update_files() {
-    let key_file = "../keys/dev-signing-key.hex";
-    println!("cargo:rerun-if-changed={key_file}");
-    let hex = fs::read_to_string(key_file).expect("keys/dev-signing-key.hex");
-    let hex = hex.trim();
-    let mut seed = [0u8; 32];
-    for (i, b) in seed.iter_mut().enumerate() {
-        *b = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).expect("hex key");
-    }
+    println!("cargo:rerun-if-changed=../keys/dev-signing-key.hex");
+    let seed = efw::sign::dev_key();
     let image: Vec<u8> = (0..6144u32).map(|i| (i * 31 + 7) as u8).collect();
     let out = PathBuf::from(env::var("OUT_DIR").expect("OUT_DIR"));
     for (name, key) in [

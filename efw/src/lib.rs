@@ -334,6 +334,27 @@ pub mod sign {
     use ed25519_dalek::{Signer, SigningKey};
     use std::vec::Vec;
 
+    /// The 32-byte key written as 64 hex digits in `text` (surrounding white space
+    /// ignored).
+    pub fn key_from_hex(text: &str) -> Option<[u8; 32]> {
+        let t = text.trim();
+        if t.len() != 64 || !t.bytes().all(|c| c.is_ascii_hexdigit()) {
+            return None;
+        }
+        let mut k = [0u8; 32];
+        for (i, b) in k.iter_mut().enumerate() {
+            *b = u8::from_str_radix(&t[2 * i..2 * i + 2], 16).ok()?;
+        }
+        Some(k)
+    }
+
+    /// The repository's DEVELOPMENT secret key (`keys/dev-signing-key.hex`, public:
+    /// it proves nothing), for the tests and the default of `cargo xtask update-image`.
+    pub fn dev_key() -> [u8; 32] {
+        key_from_hex(include_str!("../../keys/dev-signing-key.hex"))
+            .unwrap_or_else(|| panic!("keys/dev-signing-key.hex is not 64 hex digits"))
+    }
+
     /// The public key of the 32-byte secret key `seed`.
     pub fn public_key(seed: &[u8; 32]) -> [u8; 32] {
         SigningKey::from_bytes(seed).verifying_key().to_bytes()

@@ -16,12 +16,7 @@ const STATION: u16 = 0x1001;
 type Master = RawMaster<SimDrive>;
 
 fn seed() -> [u8; 32] {
-    let hex = include_str!("../../keys/dev-signing-key.hex").trim();
-    let mut s = [0u8; 32];
-    for (i, b) in s.iter_mut().enumerate() {
-        *b = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).unwrap();
-    }
-    s
+    efw::sign::dev_key()
 }
 
 fn image(len: usize, salt: u8) -> Vec<u8> {

@@ -186,12 +186,7 @@ fn require_root() {
 }
 
 fn seed() -> [u8; 32] {
-    let hex = include_str!("../../keys/dev-signing-key.hex").trim();
-    let mut s = [0u8; 32];
-    for (i, b) in s.iter_mut().enumerate() {
-        *b = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).unwrap();
-    }
-    s
+    efw::sign::dev_key()
 }
 
 /// A master on the host end of the veth pair that has given the drive its station

@@ -714,6 +714,9 @@ fn elf_usage(elf: &str) -> Result<(u64, u64), String> {
 /// Goals from the issues, by benchmark name.
 const GOALS: &[(&str, &str)] = &[
     ("current loop step", "≤ 300"),
+    // Issue 19: with the running checks, unsaturated (the saturated row says what the
+    // checks cost when they run).
+    ("supervised current step (unsaturated)", "≤ 300"),
     ("CSP cycle (unpack", "≤ 1500"),
 ];
 

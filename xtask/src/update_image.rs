@@ -18,15 +18,7 @@ const DEV_KEY_FILE: &str = "keys/dev-signing-key.hex";
 
 /// The 32-byte key written as 64 hex digits in `text`.
 pub fn parse_key(text: &str) -> Result<[u8; 32], String> {
-    let t = text.trim();
-    if t.len() != 64 || !t.bytes().all(|c| c.is_ascii_hexdigit()) {
-        return Err("a key is 64 hex digits".into());
-    }
-    let mut k = [0u8; 32];
-    for (i, b) in k.iter_mut().enumerate() {
-        *b = u8::from_str_radix(&t[2 * i..2 * i + 2], 16).map_err(|e| e.to_string())?;
-    }
-    Ok(k)
+    efw::sign::key_from_hex(text).ok_or_else(|| "a key is 64 hex digits".into())
 }
 
 /// `major.minor.patch` → major << 16 | minor << 8 | patch.

@@ -2,17 +2,8 @@
 //! (a 4 KiB image signed with the development key) is made here, on the host.
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
-    let key_file = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../keys/dev-signing-key.hex"
-    );
-    println!("cargo:rerun-if-changed={key_file}");
-    let hex = std::fs::read_to_string(key_file).expect("development key");
-    let hex = hex.trim();
-    let mut seed = [0u8; 32];
-    for (i, b) in seed.iter_mut().enumerate() {
-        *b = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).expect("hex key");
-    }
+    println!("cargo:rerun-if-changed=../../../keys/dev-signing-key.hex");
+    let seed = efw::sign::dev_key();
     let image: Vec<u8> = (0..4096u32).map(|i| (i * 7 + 1) as u8).collect();
     let file = efw::sign::update_file(
         &seed,

@@ -83,14 +83,17 @@ pub fn run() {
     }
     #[cfg(not(target_os = "none"))]
     assert!(cl.saturated);
-    crate::bench("supervised current step (saturated, follow check)", || {
-        sup.run_step(
-            &mut cl,
-            black_box(&dead),
-            black_box(Angle(0x2345_6789)),
-            black_box(10.0),
-        )
-    });
+    crate::bench(
+        "supervised current step (saturated: follow and open-phase checks)",
+        || {
+            sup.run_step(
+                &mut cl,
+                black_box(&dead),
+                black_box(Angle(0x2345_6789)),
+                black_box(10.0),
+            )
+        },
+    );
 
     // The power-up auto-tune, one PWM period (DC regulation of phase A).
     p.set_internal(P::AutoTune, 1);
