@@ -29,9 +29,11 @@
 //!
 //! # The information file
 //! Reading [`INFO_FILE`] over FoE returns a few `key=value` lines about the running
-//! image: vendor and product, ESC, version, whether its header carries a valid
-//! signature of [`PUBLIC_KEY`] (an image flashed by probe-rs has no header), and the
-//! boot state, so a tool can check an update.
+//! image: vendor and product, ESC, version, build (the first 8 bytes of its image
+//! signature, in hex: unique to the signed image), image length, whether its header
+//! carries a valid signature of [`PUBLIC_KEY`] (an image flashed by probe-rs has no
+//! header: its version is then the build's own, `build=none`, `signature=none`), and
+//! the boot state, so a tool can check an update.
 
 use crate::flash_layout;
 use ecat_slave_stack::foe::{ErrorCode, FoeFiles, WriteStatus};
@@ -674,15 +676,26 @@ impl<U: Updater> Update<U> {
             e.esc.name()
         );
         let _ = match self.running.header {
-            Some(h) => write!(
+            Some(h) => {
+                let _ = write!(
+                    b,
+                    "version={}.{}.{}\nbuild=",
+                    h.version >> 16,
+                    (h.version >> 8) & 0xFF,
+                    h.version & 0xFF
+                );
+                // The build: the start of the image signature, unique to the signed
+                // image.
+                for x in &h.image_signature[..8] {
+                    let _ = write!(b, "{x:02x}");
+                }
+                write!(b, "\nimage-length={}\nsignature=valid\n", h.image_len)
+            }
+            None => write!(
                 b,
-                "version={}.{}.{}\nimage-length={}\nsignature=valid\n",
-                h.version >> 16,
-                (h.version >> 8) & 0xFF,
-                h.version & 0xFF,
-                h.image_len
+                "version={}\nbuild=none\nsignature=none\n",
+                crate::identity::SOFTWARE_VERSION
             ),
-            None => write!(b, "version=unknown\nsignature=none\n"),
         };
         let _ = writeln!(b, "boot={}", boot.name());
         b.1
@@ -1051,13 +1064,13 @@ mod tests {
             t.contains("esc=lan9252") && t.contains("product=0x00005702"),
             "{t}"
         );
-        assert_eq!(
-            send(
-                &mut fl.update(),
-                &file(Esc::Lan9252, 0x0001_0203, &image(900, 1))
-            ),
-            Ok(())
+        let own = std::format!(
+            "version={}\nbuild=none\n",
+            crate::identity::SOFTWARE_VERSION
         );
+        assert!(t.contains(&own), "{t}");
+        let f = file(Esc::Lan9252, 0x0001_0203, &image(900, 1));
+        assert_eq!(send(&mut fl.update(), &f), Ok(()));
         fl.boot();
         let t = read(&mut fl.update());
         assert!(
@@ -1068,6 +1081,9 @@ mod tests {
             t.contains("boot=trial") && t.contains("image-length=900"),
             "{t}"
         );
+        let sig = efw::Frame::new_checked(&f[..]).unwrap().image_signature();
+        let build: std::string::String = sig[..8].iter().map(|x| std::format!("{x:02x}")).collect();
+        assert!(t.contains(&std::format!("build={build}\n")), "{t}");
         let mut u = fl.update();
         assert_eq!(u.open_read(b"other", 0, false), Err(ErrorCode::NotFound));
         assert_eq!(u.open_read(INFO_FILE, 1, false), Err(ErrorCode::NoRights));
