@@ -556,26 +556,33 @@ impl<S: ParameterStore> Drive<S> {
         self.reset_request
     }
 
-    /// The update's housekeeping, every tick: the trial image's confirmation, the
-    /// update's events as diagnosis messages, the boot state 0x2309.
+    /// The update's housekeeping, every tick: its events as diagnosis messages, the
+    /// boot state 0x2309. (No flash access here: the tick may run in an interrupt.)
     fn update_housekeeping(&mut self) {
         let Some(u) = self.update.as_deref_mut() else {
             return;
         };
-        // Only with the power stage off: confirming writes embassy-boot's state
-        // partition, in the flash bank the code runs from, which stalls the
-        // current-loop interrupt for the page erase.
-        let quiet = !self.command.power_stage;
-        u.confirm(
-            self.startup_checks == Some(true) && quiet,
-            self.reached_preop,
-        );
         if let Some(e) = u.take_event() {
             self.faults
                 .diagnosis_mut()
                 .push(crate::diagnosis::update_message(e, self.now_ms));
         }
         self.monitor.set_boot_state(u.boot_state() as u8);
+    }
+
+    /// Confirms a new image on trial (embassy-boot's `mark_booted`) once its start-up
+    /// checks passed and the runtime reached Pre-Op, and only while the power stage
+    /// is off: the confirmation writes embassy-boot's state partition, in the flash
+    /// bank the code runs from, which stalls the current-loop interrupt for the page
+    /// erase. Call it from thread mode, where the flash is used (the board's `ecat`
+    /// task after `poll`); returns true when it confirmed now.
+    pub fn confirm_update(&mut self) -> bool {
+        let due = self.startup_checks == Some(true) && !self.command.power_stage;
+        let runtime_up = self.reached_preop;
+        match self.update.as_deref_mut() {
+            Some(u) => u.confirm(due, runtime_up),
+            None => false,
+        }
     }
 
     /// The last cycle enabled the drive function (Operation enabled and the stopping

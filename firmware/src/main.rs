@@ -803,6 +803,10 @@ async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>)
                 ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
             }
             publish_command(s);
+            // A new image on trial confirms itself here, in thread mode (the flash).
+            if s.drive.confirm_update() {
+                defmt::info!("firmware: the new image confirmed itself");
+            }
             if s.drive.reset_requested() {
                 // An update was accepted and the master took the drive Bootstrap →
                 // Init (AL status Init is written): reset into embassy-boot, which

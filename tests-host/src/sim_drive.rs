@@ -472,11 +472,13 @@ pub fn restart(seg: &mut Segment<SimDrive>, i: usize) {
     d.app.axis.parameters(&d.app.drive.params);
 }
 
-/// Sends every drive's pending emergencies through its mailbox, and writes a changed
-/// fault history to the drive's flash ([`Drive::persist_history`]): the board's `ecat`
-/// task does both after each `poll`, outside the fault path.
+/// Sends every drive's pending emergencies through its mailbox, writes a changed
+/// fault history to the drive's flash ([`Drive::persist_history`]) and lets a new
+/// image on trial confirm itself ([`Drive::confirm_update`]): the board's `ecat` task
+/// does these after each `poll`, in thread mode, outside the fault path.
 pub fn forward_emergencies(seg: &mut Segment<SimDrive>) {
     for d in seg.drives_mut() {
+        d.app.drive.confirm_update();
         while let Some(e) = d.app.drive.pop_emergency() {
             d.slave.emergency(e.code, e.register, e.data);
         }
