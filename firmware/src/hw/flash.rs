@@ -1,18 +1,20 @@
-//! The parameter-record region of the internal flash: the last 16 KiB
-//! ([`board::PARAM_FLASH_OFFSET`], [`board::PARAM_FLASH_SIZE`]), kept out of the
-//! linker's FLASH region by `memory.x`.
+//! The internal flash: the parameter-record region, the last 16 KiB
+//! ([`board::PARAM_FLASH_OFFSET`], [`board::PARAM_FLASH_SIZE`]; kept out of the
+//! linker's FLASH region by `firmware/memory.x`), and the firmware update's partitions
+//! (`firmware::flash_layout`).
 //!
-//! [`ParamFlash`] is embassy-stm32's blocking flash driver (`NorFlash`) seen through
+//! Both go through one embassy-stm32 blocking flash driver ([`ChipFlash`], a
+//! thread-mode mutex). [`ParamFlash`] is a partition of it seen through
 //! `firmware::flash_region::FlashRegion`: offsets are relative to the region and every
 //! access outside it is refused before it reaches the driver, so the record code can
-//! never touch program flash.
+//! never touch program flash. [`BoardUpdate`] holds embassy-boot's partitions.
 //!
 //! The STM32G474RE is run in dual-bank mode (option byte DBANK = 1, the factory
 //! setting): 2 KiB pages, 8-byte (double-word) programming; the region lies in bank 2,
 //! so erasing it does not stall code running from bank 1 (read-while-write), and the
 //! whole-flash driver used here erases and programs without a critical section: the
 //! current-loop interrupt keeps running during a save. embassy-stm32 panics when the
-//! option byte disagrees with its `dual-bank` feature, so [`param_flash`] checks DBANK
+//! option byte disagrees with its `dual-bank` feature, so [`chip_flash`] checks DBANK
 //! first and returns `None` instead.
 use core::cell::RefCell;
 use core::mem::MaybeUninit;
