@@ -210,19 +210,10 @@ fn init_to_preop(m: &mut Master, who: Raw) {
         inp as u16,
         (inp >> 16) as u16,
     );
-    let (s0, l0, s1, l1) = m.mbx;
-    let mut sms = [0u8; 16];
-    sms[0..2].copy_from_slice(&s0.to_le_bytes());
-    sms[2..4].copy_from_slice(&l0.to_le_bytes());
-    sms[4] = 0x26;
-    sms[6] = 1;
-    sms[8..10].copy_from_slice(&s1.to_le_bytes());
-    sms[10..12].copy_from_slice(&l1.to_le_bytes());
-    sms[12] = 0x22;
-    sms[14] = 1;
     // SOEM writes SM0 and SM1 in one 16-byte datagram; IgH and TwinCAT the same
     // area (IgH: fsm_slave_config "mailbox sync").
-    assert_eq!(m.fpwr(STATION, 0x0800, &sms), 1);
+    let mbx = m.mbx;
+    assert_eq!(m.configure_mailbox(STATION, mbx), 1);
     // EEPROM to the PDI before Pre-Op (SOEM ecx_eeprom2pdi).
     m.fpwr(STATION, 0x0500, &[0x01]);
     m.request_state(STATION, 0x02);
