@@ -1730,6 +1730,44 @@ mod tests {
         );
     }
 
+    /// A parameter record of a format this image does not know (written by a newer
+    /// image, then an older one runs: an update the other way, or a revert) is
+    /// refused as a whole: the defaults apply, nothing is half-read, and the next
+    /// 'save' writes a record of this image's format.
+    #[test]
+    fn a_record_of_an_unknown_format_is_refused_and_defaults_apply() {
+        use crate::storage::{RamFlash, FORMAT_VERSION};
+        let storage = Storage::new(0, 4096);
+        let store = |flash| FlashStore {
+            storage,
+            history: None,
+            flash,
+        };
+        let mut d = Drive::with_store(Variant::HybridServo, 0, store(RamFlash::<8192>::new()));
+        d.power_up(&mut NoRuntime);
+        sdo_write_any(&mut d, 0x2000, 0, &2100u16.to_le_bytes()).expect("peak current");
+        let save = crate::comm::SAVE.to_le_bytes();
+        sdo_write_any(&mut d, 0x1010, 1, &save).expect("save");
+        let FlashStore { mut flash, .. } = d.store.take().expect("store");
+        // The format version (header bytes 4-5) of every slot one higher.
+        let newer = (FORMAT_VERSION + 1).to_le_bytes();
+        for slot in 0..2 {
+            let at = storage.slot_address(slot) as usize + 4;
+            flash.mem[at..at + 2].copy_from_slice(&newer);
+        }
+        let mut d2 = Drive::with_store(Variant::HybridServo, 0, store(flash));
+        let report = d2.power_up(&mut NoRuntime);
+        assert!(report.source.is_none(), "{report:?}");
+        assert_eq!(sdo_read_u32_any(&mut d2, 0x2000, 0), 3200, "defaults");
+        // A save of this image's format works over it.
+        sdo_write_any(&mut d2, 0x2000, 0, &1900u16.to_le_bytes()).expect("peak current");
+        sdo_write_any(&mut d2, 0x1010, 1, &save).expect("save");
+        let FlashStore { flash, .. } = d2.store.take().expect("store");
+        let mut d3 = Drive::with_store(Variant::HybridServo, 0, store(flash));
+        assert!(d3.power_up(&mut NoRuntime).source.is_some());
+        assert_eq!(sdo_read_u32_any(&mut d3, 0x2000, 0), 1900);
+    }
+
     #[test]
     fn corrupt_flash_gives_defaults_and_an_emergency() {
         use crate::storage::RamFlash;
