@@ -77,7 +77,16 @@
 //! * TIM2: 32-bit quadrature encoder (×4), CH3 capture of Z, CH4 capture of IN1 (both edges).
 //! * TIM5: embassy time driver. TIM15 is left alone because its vector is shared
 //!   with TIM1's break interrupt.
-#![allow(dead_code)] // a board description: not every constant is consumed yet
+
+/// The motor the current-loop gains and the servo's base gains are computed for
+/// (the vendor parameters 0x2020/0x2021 take over once auto-tune or the user has set
+/// a plausible inductance).
+pub const MOTOR: firmware::motion::MotorConstants = firmware::motion::ECN57_20;
+/// Phase resistance of [`MOTOR`] used while 0x2021 holds no plausible value, Ω
+/// (datasheet class value of a NEMA 23 hybrid stepper; to be measured).
+pub const MOTOR_R_OHM: f32 = 0.5;
+/// Phase inductance of [`MOTOR`] used while 0x2021 holds no plausible value, H.
+pub const MOTOR_L_H: f32 = 1.6e-3;
 
 /// System clock (PLL from the 24 MHz HSE: 24 / 6 × 85 / 2), Hz.
 pub const SYSCLK_HZ: u32 = 170_000_000;
@@ -134,8 +143,7 @@ pub const PARAM_FLASH_SIZE: u32 = firmware::flash_layout::RECORDS.size;
 
 /// Independent watchdog timeout, µs. It must cover the longest blocking thread-mode
 /// operation: erasing one 4 KiB record slot = 2 pages × ≤ 40 ms (datasheet maximum;
-/// typically ≈ 22 ms), while the supervisor task cannot run (300 ms also covered the
-/// 8 KiB slots of the earlier layout).
+/// typically ≈ 22 ms), while the supervisor task cannot run.
 pub const WATCHDOG_TIMEOUT_US: u32 = 300_000;
 
 /// Number of DIP matrix rows and columns.

@@ -1,4 +1,5 @@
 #![no_std]
+#![deny(clippy::undocumented_unsafe_blocks)]
 pub mod board_glue;
 pub mod cia402;
 pub mod comm;

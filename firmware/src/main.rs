@@ -29,7 +29,7 @@
 //! ## Who owns what
 //! * The **drive state** — `Slave<Esc>` (the ESC and its SPI bus) and `Drive` (the
 //!   application: dictionary, CiA 402, faults, parameter store) — is one
-//!   [`Shared`] value in a blocking `Mutex<CyclicCeiling, RefCell<..>>`
+//!   [`DriveState`] value in a blocking `Mutex<CyclicCeiling, RefCell<..>>`
 //!   ([`hw::lock`]): locking raises BASEPRI to the cyclic priority, so the thread-mode
 //!   tasks exclude the cyclic path while they hold it, and the current loop
 //!   (priority 0) and the DMA / break interrupts (priority 1) are never delayed by it.
@@ -72,7 +72,7 @@
 //! * **Decisions** between the drive and the interrupt — latches pending for a step,
 //!   probe polarity, alignment failures → 0x8611, the failed offset check → fault 9,
 //!   the power and tune permissions, break latch ↔ fault 1 and its re-arm — are the
-//!   library's `firmware::board_glue::BoardGlue` (held in [`Shared`]), run by host and
+//!   library's `firmware::board_glue::BoardGlue` (held in [`DriveState`]), run by host and
 //!   QEMU tests and by the simulator (`tests-host`). This file wires tasks to it.
 //!
 //! ## Watchdog
@@ -86,13 +86,14 @@
 // The self-test build (`--features selftest`) spawns none of the drive's tasks: their
 // helpers are compiled but unused there.
 #![cfg_attr(feature = "selftest", allow(dead_code, unused_variables))]
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 mod board;
 mod hw;
 
 use core::cell::RefCell;
 use core::mem::MaybeUninit;
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::sync::atomic::Ordering;
 
 use defmt_rtt as _;
 use ecat_slave_stack::leds::{ErrCondition, StatusLeds};
@@ -105,19 +106,18 @@ use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::mode::Async;
 use embassy_stm32::spi::Spi;
-use embassy_stm32::time::Hertz;
-use embassy_stm32::{bind_interrupts, dma, peripherals, rcc};
+use embassy_stm32::{bind_interrupts, dma, peripherals};
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_time::{Duration, Instant, Ticker, Timer};
 use firmware::board_glue::BoardGlue;
 use firmware::current_supervisor::SupervisorConfig;
 use firmware::drive::{Drive, FlashStore, NoRuntime};
-use firmware::identity::{PulseEdge, Variant};
+use firmware::identity::Variant;
 use firmware::motion::{MotionConfig, SERVO_TS};
-use firmware::sampling::{OffsetCalibrator, RawSample};
+use firmware::sampling::OffsetCalibrator;
 
 use firmware::latch::Edges;
-use hw::control::{ControlCommand, COMMAND, FEEDBACK, PROBE2_RAW, SAMPLES};
+use hw::control::{ControlCommand, COMMAND, PROBE2_RAW, SAMPLES};
 use hw::encoder::Encoder;
 use hw::esc::Esc;
 use hw::flash::{ParamFlash, Stage, StagedFlash};
@@ -139,7 +139,9 @@ static EXECUTOR_CYCLIC: InterruptExecutor = InterruptExecutor::new();
 /// against the device's interrupt enum: a misspelt vector does not compile.
 #[interrupt]
 fn UART4() {
-    // SAFETY: the vector is used for nothing else (UART4's pins carry TIM8).
+    // SAFETY: `on_interrupt` runs only here, in the handler of UART4, the interrupt
+    // `spawn_drive_tasks` starts EXECUTOR_CYCLIC on; the vector serves nothing else
+    // (UART4's pins carry TIM8).
     unsafe { EXECUTOR_CYCLIC.on_interrupt() }
 }
 
@@ -161,7 +163,7 @@ type BoardDrive = Drive<FlashStore<StagedFlash>>;
 /// value there does not compile). The two large parts live in static slots of their
 /// own, each written whole by its constructor ([`new_drive`]: `Drive::init_in`;
 /// [`new_slave`]), so no 5 KiB value is built on the stack and moved.
-struct Shared {
+struct DriveState {
     drive: Placed<BoardDrive>,
     /// `None` when the ESC did not answer at start-up (the drive still runs locally).
     slave: Option<Placed<Slave<Esc>>>,
@@ -188,9 +190,9 @@ impl<T> core::ops::DerefMut for Placed<T> {
     }
 }
 
-/// The lock holds a reference to [`SHARED_MEM`] (a `None` reference is all zeros, so
+/// The lock holds a reference to [`DRIVE_STATE_SLOT`] (a `None` reference is all zeros, so
 /// the lock lives in .bss).
-static SHARED: Mutex<CyclicCeiling, RefCell<Option<&'static mut Shared>>> =
+static DRIVE_STATE: Mutex<CyclicCeiling, RefCell<Option<&'static mut DriveState>>> =
     Mutex::new(RefCell::new(None));
 /// RAM image of a parameter record being saved (see `hw::flash::StagedFlash`).
 static mut STAGE_MEM: Stage = Stage::new();
@@ -199,7 +201,7 @@ static mut CHIP_FLASH_MEM: MaybeUninit<hw::flash::ChipFlash> = MaybeUninit::unin
 /// embassy-boot's aligned state buffer and the firmware update's slot.
 static mut UPDATE_ALIGNED: embassy_boot::AlignedBuffer<8> = embassy_boot::AlignedBuffer([0; 8]);
 static mut UPDATE_MEM: MaybeUninit<hw::flash::BoardUpdate> = MaybeUninit::uninit();
-static mut SHARED_MEM: MaybeUninit<Shared> = MaybeUninit::uninit();
+static mut DRIVE_STATE_SLOT: MaybeUninit<DriveState> = MaybeUninit::uninit();
 /// The drive application's slot (written whole by `Drive::init_in`).
 static mut DRIVE_MEM: MaybeUninit<BoardDrive> = MaybeUninit::uninit();
 /// The slave runtime's slot (written whole by [`new_slave`] when the ESC answered).
@@ -207,18 +209,12 @@ static mut SLAVE_MEM: MaybeUninit<Slave<Esc>> = MaybeUninit::uninit();
 
 /// Runs `f` on the drive state under the priority-ceiling lock; `None` before the
 /// state exists.
-fn with_shared<R>(f: impl FnOnce(&mut Shared) -> R) -> Option<R> {
-    SHARED.lock(|c| match c.try_borrow_mut() {
+fn with_drive_state<R>(f: impl FnOnce(&mut DriveState) -> R) -> Option<R> {
+    DRIVE_STATE.lock(|c| match c.try_borrow_mut() {
         Ok(mut g) => g.as_deref_mut().map(f),
         Err(_) => None,
     })
 }
-
-/// SYNC0 edges / ESC IRQ wake-ups / ESC access errors / flash commit errors.
-static SYNC0S: AtomicU32 = AtomicU32::new(0);
-static ESC_IRQS: AtomicU32 = AtomicU32::new(0);
-static ESC_ERRORS: AtomicU32 = AtomicU32::new(0);
-static FLASH_ERRORS: AtomicU32 = AtomicU32::new(0);
 
 defmt::timestamp!("{=u64:us}", Instant::now().as_micros());
 
@@ -226,8 +222,8 @@ fn now_us() -> u64 {
     Instant::now().as_micros()
 }
 
-/// `Ticker::every` for the 1 ms tick and the supervisor, one out-of-line copy (each
-/// inlined copy reads the time driver's clock of its own).
+/// `Ticker::every`, for the 1 ms tick and the supervisor (not inlined: both tasks
+/// share one copy of the time-driver read).
 #[inline(never)]
 fn ticker(period: Duration) -> Ticker {
     Ticker::every(period)
@@ -237,98 +233,13 @@ fn now_ms() -> u32 {
     Instant::now().as_millis() as u32
 }
 
-fn clock_config() -> embassy_stm32::Config {
-    use rcc::{Hse, HseMode, Pll, PllMul, PllPreDiv, PllRDiv, PllSource, Sysclk};
-    let mut c = embassy_stm32::Config::default();
-    c.rcc.pll = Some(if board::CLOCK_FROM_HSE {
-        c.rcc.hse = Some(Hse {
-            freq: Hertz(board::HSE_HZ),
-            mode: HseMode::Oscillator,
-        });
-        Pll {
-            source: PllSource::HSE,
-            prediv: PllPreDiv::DIV6,
-            mul: PllMul::MUL85,
-            divp: None,
-            divq: None,
-            divr: Some(PllRDiv::DIV2),
-        }
-    } else {
-        Pll {
-            source: PllSource::HSI,
-            prediv: PllPreDiv::DIV4,
-            mul: PllMul::MUL85,
-            divp: None,
-            divq: None,
-            divr: Some(PllRDiv::DIV2),
-        }
-    });
-    c.rcc.sys = Sysclk::PLL1_R;
-    // Range 1 boost mode: required above 150 MHz.
-    c.rcc.boost = true;
-    // ADC1/2 kernel clock = SYSCLK (the driver divides it by 4 → 42.5 MHz).
-    c.rcc.mux.adc12sel = rcc::mux::Adcsel::SYS;
-    // DMA completion must preempt the cyclic path that waits for it.
-    c.bdma_interrupt_priority = Priority::P1;
-    c
-}
-
 /// The parameter-record store in the flash region (offsets relative to the region;
 /// the layout of `firmware::storage::region`: parameters, then the fault history).
 const PARAM_STORE: firmware::storage::Storage = firmware::storage::region::PARAMS;
 const _: () = assert!(firmware::storage::region::SIZE == board::PARAM_FLASH_SIZE);
 
-/// The motor the current-loop gains and the servo's base gains are computed for
-/// (board constants: the vendor parameters 0x2020/0x2021 take over once auto-tune or
-/// the user has set a plausible inductance).
-const MOTOR: firmware::motion::MotorConstants = firmware::motion::ECN57_20;
-/// Phase resistance / inductance of [`MOTOR`] used while 0x2021 holds no plausible
-/// value (datasheet class values of a NEMA 23 hybrid stepper; to be measured).
-const MOTOR_R_OHM: f32 = 0.5;
-const MOTOR_L_H: f32 = 1.6e-3;
-
 fn motion_config(d: &BoardDrive) -> MotionConfig {
-    MotionConfig::from_params(&d.params, d.variant, &MOTOR, SERVO_TS)
-}
-
-/// Log text of an ESC access error (no `core::fmt` in the image: `Debug2Format` would
-/// pull it in). The log texts are interned by defmt (`{=istr}`): they stay in the ELF's
-/// .defmt section for the host decoder, not in flash.
-fn esc_error(e: ecat_slave_stack::EscError) -> defmt::Str {
-    use ecat_slave_stack::EscError as E;
-    match e {
-        E::Bus => defmt::intern!("SPI bus error"),
-        E::NotDetected => defmt::intern!("chip not detected"),
-        E::Timeout => defmt::intern!("timeout"),
-        E::OutOfRange => defmt::intern!("address out of range"),
-    }
-}
-
-/// Log text of a parameter-region flash error.
-fn region_error(e: &hw::flash::RegionErrorOf) -> defmt::Str {
-    use embassy_embedded_hal::flash::partition::Error as P;
-    use embassy_stm32::flash::Error as F;
-    use firmware::flash_region::RegionError as E;
-    match e {
-        E::OutOfBounds | E::Flash(P::OutOfBounds) => defmt::intern!("outside the parameter region"),
-        E::NotAligned => defmt::intern!("not aligned to the flash granularity"),
-        E::Flash(P::Flash(F::Prog)) => defmt::intern!("flash: programming error"),
-        E::Flash(P::Flash(F::Size)) => defmt::intern!("flash: size error"),
-        E::Flash(P::Flash(F::Miss)) => defmt::intern!("flash: fast programming data miss"),
-        E::Flash(P::Flash(F::Seq)) => defmt::intern!("flash: sequence error"),
-        E::Flash(P::Flash(F::Protected)) => defmt::intern!("flash: write protected"),
-        E::Flash(_) => defmt::intern!("flash: driver error"),
-    }
-}
-
-/// Log text of a parameter-store error.
-fn storage_error(e: firmware::storage::StorageError) -> defmt::Str {
-    use firmware::storage::StorageError as E;
-    match e {
-        E::Flash(_) => defmt::intern!("flash driver error"),
-        E::Geometry => defmt::intern!("flash geometry does not fit the record layout"),
-        E::RecordTooLarge => defmt::intern!("record larger than a slot"),
-    }
+    MotionConfig::from_params(&d.params, d.variant, &board::MOTOR, SERVO_TS)
 }
 
 /// Current-loop supervision (power-up auto-tune 0x2013, its test current from 0x2000).
@@ -346,27 +257,8 @@ async fn main(spawner: Spawner) {
     // Gate pins driven low before anything else (`hw::pwm`, "Defined gate levels").
     hw::pwm::hold_gates_low();
     hw::stack::paint();
-    let p = embassy_stm32::init(clock_config());
-    // While a debugger halts the core: PWM counters stop with the bridges forced off
-    // (as if MOE were cleared), and the watchdog pauses.
-    embassy_stm32::pac::DBGMCU.apb2fzr().modify(|w| {
-        w.set_tim1(true);
-        w.set_tim8(true);
-    });
-    embassy_stm32::pac::DBGMCU
-        .apb1lfzr()
-        .modify(|w| w.set_iwdg(true));
-    if let Some(core) = cortex_m::Peripherals::take() {
-        hw::adc::enable_cycle_counter(core.DCB, core.DWT);
-    }
-    // The time driver defaults to priority 0; keep it below the control path.
-    interrupt::TIM5.set_priority(Priority::P3);
-    defmt::info!(
-        "ECS drive firmware {=str} ({=str}), reset cause: {=istr}",
-        env!("CARGO_PKG_VERSION"),
-        hw::esc::ESC_NAME,
-        hw::safety::take_reset_cause()
-    );
+    let p = embassy_stm32::init(hw::clock::config());
+    start_chip();
 
     // Power stage first: the gate-driver inputs get defined (off) levels at once.
     hw::pwm::init(hw::pwm::PowerStage {
@@ -406,15 +298,7 @@ async fn main(spawner: Spawner) {
         led_err: p.PB7,
         tp1: p.PC1,
     });
-    let dips = dip.read();
-    let dip_cfg =
-        firmware::dip::power_up(firmware::dip::Board::TwoBanks, dips.id, dips.function, 0);
-    defmt::info!(
-        "DIP banks: ID {=u8:#010b} (station address {=u16}), function {=u8:#010b}",
-        dips.id,
-        dip_cfg.address,
-        dips.function
-    );
+    let dip_cfg = read_dip_banks(&mut dip);
 
     // EtherCAT slave controller.
     let spi = Spi::new(
@@ -428,145 +312,28 @@ async fn main(spawner: Spawner) {
         hw::esc::spi_config(),
     );
     let mut esc = hw::esc::new_esc(hw::esc::EscSpi::new(spi, hw::esc::cs_pin(p.PB12)));
-    let esc_ok = match hw::esc::probe(&mut esc) {
-        Ok(()) => true,
-        Err(e) => {
-            defmt::error!(
-                "ESC {=str} not answering: {=istr}",
-                hw::esc::ESC_NAME,
-                esc_error(e)
-            );
-            false
-        }
-    };
+    let esc_ok = probe_esc(&mut esc);
     let esc_irq = ExtiInput::new(p.PC2, p.EXTI2, Pull::Up, Irqs);
-    // SYNC0 is pushed-pulled by the ESC once it has loaded the SII; until then the pull
-    // holds it at its idle level (low for an active-high pulse).
-    let sync0_idle = match firmware::identity::SYNC0_ACTIVE_EDGE {
-        PulseEdge::Rising => Pull::Down,
-        PulseEdge::Falling => Pull::Up,
-    };
-    let sync0 = ExtiInput::new(p.PC3, p.EXTI3, sync0_idle, Irqs);
+    let sync0 = ExtiInput::new(p.PC3, p.EXTI3, hw::esc::SYNC0_IDLE_PULL, Irqs);
     let in2 = ExtiInput::new(p.PB1, p.EXTI1, Pull::None, Irqs);
     for irq in [interrupt::EXTI1, interrupt::EXTI2, interrupt::EXTI3] {
         irq.set_priority(CYCLIC_PRIORITY);
     }
 
-    // The chip's flash, shared by the parameter storage and the firmware update.
-    // SAFETY: main runs once and is the only place that takes these references.
-    let (chip_slot, aligned, update_slot) = unsafe {
-        (
-            &mut *core::ptr::addr_of_mut!(CHIP_FLASH_MEM),
-            &mut *core::ptr::addr_of_mut!(UPDATE_ALIGNED),
-            &mut *core::ptr::addr_of_mut!(UPDATE_MEM),
-        )
-    };
-    let chip = hw::flash::chip_flash(p.FLASH, chip_slot);
-    // Parameter storage: reads straight from the region, saves staged in RAM.
-    let flash = chip.and_then(hw::flash::param_flash);
-    if flash.is_none() {
-        defmt::error!(
-            "flash is not in dual-bank mode (option byte DBANK = 0): parameter storage off"
-        );
-    }
-    // SAFETY: main runs once and is the only place that takes this reference.
-    let stage: &'static mut Stage = unsafe { &mut *core::ptr::addr_of_mut!(STAGE_MEM) };
-    let mut staged = StagedFlash::new(hw::flash::MappedRegion, stage, flash.is_some());
-    if flash.is_some() {
-        report_param_region(&mut staged);
-    }
-
-    // The drive and the slave runtime; stored parameters (drive objects and the PDO
-    // mapping) are loaded before the ESC leaves Init.
-    // Built in place in their static slots: the drive state is ≈ 5 KiB, and building
-    // it in `main`'s frame and moving it in would add that (twice) to the stack peak.
-    let serial = firmware::identity::serial_from_unique_id(&embassy_stm32::uid::uid());
-    // SAFETY: main runs once and is the only place that takes these references.
-    let (drive_slot, slave_slot) = unsafe {
+    let (chip, flash, staged) = start_flash(p.FLASH);
+    // SAFETY: `main` runs once and is the only place that takes references to
+    // DRIVE_MEM and SLAVE_MEM: these are unique.
+    let slots = unsafe {
         (
             &mut *core::ptr::addr_of_mut!(DRIVE_MEM),
             &mut *core::ptr::addr_of_mut!(SLAVE_MEM),
         )
     };
-    let drive = new_drive(drive_slot, serial, staged);
-    if let Some(chip) = chip {
-        // Firmware update over FoE; embassy-boot's state tells whether this image is
-        // on trial (confirmed once the start-up checks passed and Pre-Op is reached).
-        let update = hw::flash::board_update(chip, aligned, update_slot, BOARD_ESC);
-        defmt::info!(
-            "firmware: boot state {=u8} (0 confirmed, 1 trial, 2 reverted), header version {}",
-            firmware::update::FirmwareUpdate::boot_state(update) as u8,
-            firmware::update::FirmwareUpdate::running_version(update)
-        );
-        drive.attach_update(update);
-    }
-    let mut slave = esc_ok.then(|| new_slave(slave_slot, esc));
-    let report = match slave.as_mut() {
-        Some(s) => drive.power_up(&mut s.runtime_objects(firmware::dictionary::OBJECTS)),
-        None => drive.power_up(&mut NoRuntime),
-    };
-    defmt::info!(
-        "parameters: {=u16} applied, {=u16} skipped, from slot {}",
-        report.applied,
-        report.skipped,
-        report.source.map(|(slot, seq)| (slot as u8, seq))
-    );
-    let active = drive.params.active();
-    let (alias, source) =
-        firmware::dip::station_alias(active.alias_source, active.alias_value, dip_cfg.address, 0);
-    if let Some(s) = slave.as_mut() {
-        // SII source: keep what the ESC loaded from SII word 4.
-        s.set_station_alias((source != firmware::dip::AliasSource::Sii).then_some(alias));
-        match s.init() {
-            Ok(info) => defmt::info!(
-                "slave runtime: ESC type {=u8:#04x}, {=u8} SMs, {=u8} KiB RAM, alias {=u16} ({})",
-                info.esc_type,
-                info.sync_managers,
-                info.ram_kib,
-                alias,
-                source
-            ),
-            Err(e) => {
-                ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
-                defmt::error!("slave init: {=istr}", esc_error(e));
-            }
-        }
-    }
-
+    let (drive, slave) = new_drive_and_slave(slots, chip, staged, esc, esc_ok, dip_cfg.address);
     // Motor control in the current-loop interrupt, then the ADCs (which enable it).
-    let mcfg = motion_config(drive);
-    let wiggle = align_wiggle(drive);
-    let scfg = supervisor_config(drive);
-    let motor = firmware::control_core::LoopMotor::from_params(
-        &drive.params,
-        (MOTOR_R_OHM, MOTOR_L_H),
-        MOTOR.kt,
-        mcfg.counts_per_rev / 4,
-    );
-    hw::control::init(mcfg, wiggle, scfg, motor);
-    let ctl = ControlCommand {
-        cycle: 0,
-        command: *drive.command(),
-        cycle_s: 1e-3,
-        power_allowed: false,
-        config: 0,
-        motion: mcfg,
-        align_wiggle: wiggle,
-        offsets: None,
-        supervisor: scfg,
-        tune_allowed: false,
-    };
-    send_command(&ctl);
+    let ctl = start_control(drive);
     let has_slave = slave.is_some();
-    // SAFETY: main runs once and is the only place that takes this reference; from
-    // here on the value is reached only through the lock.
-    let shared_slot = unsafe { &mut *core::ptr::addr_of_mut!(SHARED_MEM) };
-    let shared: &'static mut Shared = shared_slot.write(Shared {
-        drive: Placed(drive),
-        slave: slave.map(Placed),
-        glue: BoardGlue::new(ctl),
-    });
-    SHARED.lock(|c| *c.borrow_mut() = Some(shared));
+    install_drive_state(drive, slave, ctl);
     hw::adc::init(hw::adc::Analog {
         adc1: p.ADC1,
         adc2: p.ADC2,
@@ -585,7 +352,7 @@ async fn main(spawner: Spawner) {
             leds,
             ports,
             flash,
-            encoder_counts: mcfg.counts_per_rev / 4,
+            encoder_counts: ctl.motion.counts_per_rev / 4,
         };
         spawn(thread_spawner, selftest(parts), defmt::intern!("selftest"));
     }
@@ -599,6 +366,221 @@ async fn main(spawner: Spawner) {
         p.IWDG,
         has_slave,
     );
+}
+
+/// The chip's set-up after `embassy_stm32::init`, then the first log line.
+fn start_chip() {
+    // While a debugger halts the core: PWM counters stop with the bridges forced off
+    // (as if MOE were cleared), and the watchdog pauses.
+    embassy_stm32::pac::DBGMCU.apb2fzr().modify(|w| {
+        w.set_tim1(true);
+        w.set_tim8(true);
+    });
+    embassy_stm32::pac::DBGMCU
+        .apb1lfzr()
+        .modify(|w| w.set_iwdg(true));
+    if let Some(core) = cortex_m::Peripherals::take() {
+        hw::adc::enable_cycle_counter(core.DCB, core.DWT);
+    }
+    // The time driver defaults to priority 0; keep it below the control path.
+    interrupt::TIM5.set_priority(Priority::P3);
+    defmt::info!(
+        "ECS drive firmware {=str} ({=str}), reset cause: {=istr}",
+        env!("CARGO_PKG_VERSION"),
+        hw::esc::ESC_NAME,
+        hw::safety::take_reset_cause()
+    );
+}
+
+/// Reads both DIP banks once (power-up) and logs them; the station address and the
+/// function switches they select.
+fn read_dip_banks(dip: &mut io::Dip<'static>) -> firmware::dip::DipConfig {
+    let dips = dip.read();
+    let dip_cfg =
+        firmware::dip::power_up(firmware::dip::Board::TwoBanks, dips.id, dips.function, 0);
+    defmt::info!(
+        "DIP banks: ID {=u8:#010b} (station address {=u16}), function {=u8:#010b}",
+        dips.id,
+        dip_cfg.address,
+        dips.function
+    );
+    dip_cfg
+}
+
+/// Whether the ESC answers ([`hw::esc::probe`]); logs why not.
+fn probe_esc(esc: &mut Esc) -> bool {
+    match hw::esc::probe(esc) {
+        Ok(()) => true,
+        Err(e) => {
+            defmt::error!(
+                "ESC {=str} not answering: {=istr}",
+                hw::esc::ESC_NAME,
+                hw::log::esc_error(e)
+            );
+            false
+        }
+    }
+}
+
+/// The chip's flash, shared by the parameter storage and the firmware update (`None`
+/// without dual-bank mode); the parameter region (`None` likewise); the drive's view
+/// of the region, which reads straight from it and stages saves in RAM.
+fn start_flash(
+    flash: embassy_stm32::Peri<'static, peripherals::FLASH>,
+) -> (
+    Option<&'static hw::flash::ChipFlash>,
+    Option<ParamFlash>,
+    StagedFlash,
+) {
+    // SAFETY: `main` calls this once, and nothing else takes a reference to
+    // CHIP_FLASH_MEM: this one is unique.
+    let chip_slot = unsafe { &mut *core::ptr::addr_of_mut!(CHIP_FLASH_MEM) };
+    let chip = hw::flash::chip_flash(flash, chip_slot);
+    let param_flash = chip.and_then(hw::flash::param_flash);
+    if param_flash.is_none() {
+        defmt::error!(
+            "flash is not in dual-bank mode (option byte DBANK = 0): parameter storage off"
+        );
+    }
+    // SAFETY: `main` calls this once, and nothing else takes a reference to STAGE_MEM:
+    // this one is unique.
+    let stage: &'static mut Stage = unsafe { &mut *core::ptr::addr_of_mut!(STAGE_MEM) };
+    let mut staged = StagedFlash::new(hw::flash::MappedRegion, stage, param_flash.is_some());
+    if param_flash.is_some() {
+        hw::log::param_region(&PARAM_STORE, &mut staged);
+    }
+    (chip, param_flash, staged)
+}
+
+/// The drive and, when the ESC answered, the slave runtime, each built in its static
+/// slot; stored parameters (drive objects and the PDO mapping) are loaded before the
+/// ESC leaves Init.
+///
+/// Built in place: the drive state is ≈ 5 KiB, and building it in `main`'s frame and
+/// moving it in would add that (twice) to the stack peak.
+fn new_drive_and_slave(
+    (drive_slot, slave_slot): (
+        &'static mut MaybeUninit<BoardDrive>,
+        &'static mut MaybeUninit<Slave<Esc>>,
+    ),
+    chip: Option<&'static hw::flash::ChipFlash>,
+    staged: StagedFlash,
+    esc: Esc,
+    esc_ok: bool,
+    dip_address: u16,
+) -> (&'static mut BoardDrive, Option<&'static mut Slave<Esc>>) {
+    let serial = firmware::identity::serial_from_unique_id(&embassy_stm32::uid::uid());
+    let drive = new_drive(drive_slot, serial, staged);
+    if let Some(chip) = chip {
+        attach_update(drive, chip);
+    }
+    let mut slave = esc_ok.then(|| new_slave(slave_slot, esc));
+    let report = match slave.as_mut() {
+        Some(s) => drive.power_up(&mut s.runtime_objects(firmware::dictionary::OBJECTS)),
+        None => drive.power_up(&mut NoRuntime),
+    };
+    defmt::info!(
+        "parameters: {=u16} applied, {=u16} skipped, from slot {}",
+        report.applied,
+        report.skipped,
+        report.source.map(|(slot, seq)| (slot as u8, seq))
+    );
+    if let Some(s) = slave.as_mut() {
+        start_slave(s, drive, dip_address);
+    }
+    (drive, slave)
+}
+
+/// Firmware update over FoE; embassy-boot's state tells whether this image is on
+/// trial (confirmed once the start-up checks passed and Pre-Op is reached).
+fn attach_update(drive: &mut BoardDrive, chip: &'static hw::flash::ChipFlash) {
+    // SAFETY: called once, from start-up, and nothing else takes a reference to
+    // UPDATE_ALIGNED or UPDATE_MEM: these are unique.
+    let (aligned, update_slot) = unsafe {
+        (
+            &mut *core::ptr::addr_of_mut!(UPDATE_ALIGNED),
+            &mut *core::ptr::addr_of_mut!(UPDATE_MEM),
+        )
+    };
+    let update = hw::flash::board_update(chip, aligned, update_slot, BOARD_ESC);
+    defmt::info!(
+        "firmware: boot state {=u8} (0 confirmed, 1 trial, 2 reverted), header version {}",
+        firmware::update::FirmwareUpdate::boot_state(update) as u8,
+        firmware::update::FirmwareUpdate::running_version(update)
+    );
+    drive.attach_update(update);
+}
+
+/// The station alias (DIP bank `dip_address` or 0x2150/0x2151, after the stored
+/// parameters were loaded), then `Slave::init`.
+fn start_slave(slave: &mut Slave<Esc>, drive: &BoardDrive, dip_address: u16) {
+    let active = drive.params.active();
+    let (alias, source) =
+        firmware::dip::station_alias(active.alias_source, active.alias_value, dip_address, 0);
+    // SII source: keep what the ESC loaded from SII word 4.
+    slave.set_station_alias((source != firmware::dip::AliasSource::Sii).then_some(alias));
+    match slave.init() {
+        Ok(info) => defmt::info!(
+            "slave runtime: ESC type {=u8:#04x}, {=u8} SMs, {=u8} KiB RAM, alias {=u16} ({})",
+            info.esc_type,
+            info.sync_managers,
+            info.ram_kib,
+            alias,
+            source
+        ),
+        Err(e) => {
+            hw::log::ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
+            defmt::error!("slave init: {=istr}", hw::log::esc_error(e));
+        }
+    }
+}
+
+/// The current-loop interrupt's control state from the drive's parameters, and the
+/// first command published to it (power not allowed yet).
+fn start_control(drive: &BoardDrive) -> ControlCommand {
+    let mcfg = motion_config(drive);
+    let wiggle = align_wiggle(drive);
+    let scfg = supervisor_config(drive);
+    let motor = firmware::control_core::LoopMotor::from_params(
+        &drive.params,
+        (board::MOTOR_R_OHM, board::MOTOR_L_H),
+        board::MOTOR.kt,
+        mcfg.counts_per_rev / 4,
+    );
+    hw::control::init(mcfg, wiggle, scfg, motor);
+    let ctl = ControlCommand {
+        cycle: 0,
+        command: *drive.command(),
+        cycle_s: 1e-3,
+        power_allowed: false,
+        config: 0,
+        motion: mcfg,
+        align_wiggle: wiggle,
+        offsets: None,
+        supervisor: scfg,
+        tune_allowed: false,
+    };
+    send_command(&ctl);
+    ctl
+}
+
+/// Puts the drive state into its slot and hands it to the lock: from here on it is
+/// reached only through [`with_drive_state`].
+fn install_drive_state(
+    drive: &'static mut BoardDrive,
+    slave: Option<&'static mut Slave<Esc>>,
+    ctl: ControlCommand,
+) {
+    // SAFETY: called once, from start-up, and nothing else takes a reference to
+    // DRIVE_STATE_SLOT: this one is unique; afterwards the value is reached only
+    // through the lock.
+    let slot = unsafe { &mut *core::ptr::addr_of_mut!(DRIVE_STATE_SLOT) };
+    let state: &'static mut DriveState = slot.write(DriveState {
+        drive: Placed(drive),
+        slave: slave.map(Placed),
+        glue: BoardGlue::new(ctl),
+    });
+    DRIVE_STATE.lock(|c| *c.borrow_mut() = Some(state));
 }
 
 /// The self-test build's one task (`hw::selftest`).
@@ -660,7 +642,7 @@ fn spawn<S: Send>(spawner: SendSpawner, task: Result<SpawnToken<S>, SpawnError>,
 }
 
 /// The drive at its power-up defaults with the board's parameter store, written whole
-/// into `slot` (out of line: start-up code, not worth inlining into `main`).
+/// into `slot` (not inlined: start-up code that runs once).
 #[inline(never)]
 fn new_drive(
     slot: &'static mut MaybeUninit<BoardDrive>,
@@ -680,7 +662,7 @@ fn new_drive(
 }
 
 /// The slave runtime over the ESC with the product's default PDO mapping, written
-/// whole into `slot` (out of line, as [`new_drive`]).
+/// whole into `slot` (not inlined, as [`new_drive`]).
 #[inline(never)]
 fn new_slave(slot: &'static mut MaybeUninit<Slave<Esc>>, esc: Esc) -> &'static mut Slave<Esc> {
     slot.write(Slave::new(esc, firmware::identity::slave_config()))
@@ -692,29 +674,17 @@ fn align_wiggle(d: &BoardDrive) -> bool {
     d.params.get(firmware::params::P::PowerUpWiggle) != 0
 }
 
-/// The interrupt's latest measurements: one out-of-line copy of the (volatile,
-/// word-by-word, looped) read for the thread-mode users instead of one per call site.
-#[inline(never)]
-fn feedback() -> Option<(u32, hw::control::Feedback)> {
-    FEEDBACK.read_looped()
-}
-
-/// The newest current sample and its number (`None` before the first one).
-fn latest_sample() -> Option<(u32, RawSample)> {
-    SAMPLES.read().filter(|&(n, _)| n != 0)
-}
-
 /// Hands the interrupt's latest measurements to the drive (before a cycle / tick):
 /// [`BoardGlue::update_axis`].
-fn update_axis(s: &mut Shared) {
-    if let Some((seq, fb)) = feedback() {
+fn update_axis(s: &mut DriveState) {
+    if let Some((seq, fb)) = hw::control::feedback() {
         s.glue
             .update_axis(&mut s.drive, seq, &fb, hw::pwm::break_latched() != 0);
     }
 }
 
-/// Publishes a command to the current-loop interrupt (one out-of-line copy of the
-/// volatile write).
+/// Publishes a command to the current-loop interrupt (not inlined: one copy of the
+/// volatile write for every caller).
 #[inline(never)]
 fn send_command(c: &ControlCommand) {
     // SAFETY: every caller holds the drive's lock (or runs at start-up before the
@@ -725,22 +695,12 @@ fn send_command(c: &ControlCommand) {
 /// Publishes the drive's set-points to the current-loop interrupt
 /// ([`BoardGlue::publish`]: a new interpolation segment per drive step, the power
 /// permission, the tune permission).
-fn publish_command(s: &mut Shared) {
+fn publish_command(s: &mut DriveState) {
     send_command(s.glue.publish(&s.drive));
 }
 
-/// Waits for the leading edge of the next SYNC0 pulse: the edge
-/// [`firmware::identity::SYNC0_ACTIVE_EDGE`] derives from the SII's 0x0151 value (the
-/// one definition of the polarity, `ecat_slave_stack::sii::SYNC0_DRIVE`).
-async fn sync0_edge(pin: &mut ExtiInput<'static, Async>) {
-    match firmware::identity::SYNC0_ACTIVE_EDGE {
-        PulseEdge::Rising => pin.wait_for_rising_edge().await,
-        PulseEdge::Falling => pin.wait_for_falling_edge().await,
-    }
-}
-
 /// The cyclic path (DC mode): one `Slave::cycle` per SYNC0 pulse (its leading edge,
-/// [`sync0_edge`]).
+/// [`hw::esc::sync0_edge`]).
 ///
 /// In DC mode the ESC IRQ also signals SYNC0 (the runtime puts it in the event
 /// mask), so a thread-mode `poll` that read the AL event register just after a SYNC0
@@ -752,17 +712,17 @@ async fn sync0_edge(pin: &mut ExtiInput<'static, Async>) {
 async fn cyclic(mut sync0: ExtiInput<'static, Async>) {
     let mut mine: Option<u64> = None;
     loop {
-        sync0_edge(&mut sync0).await;
-        SYNC0S.fetch_add(1, Ordering::Relaxed);
+        hw::esc::sync0_edge(&mut sync0).await;
+        hw::log::SYNC0S.fetch_add(1, Ordering::Relaxed);
         let now = now_us();
-        with_shared(|s| {
+        with_drive_state(|s| {
             update_axis(s);
             if let Some(slave) = s.slave.as_mut() {
                 let sync = slave.sync();
                 let dc = sync.mode == ecat_slave_stack::sync::SyncMode::DcSync0;
                 let taken_by_poll = sync.last_cycle != mine;
                 if dc && !taken_by_poll && slave.cycle(&mut *s.drive, now).is_err() {
-                    ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
+                    hw::log::ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
                 }
                 mine = slave.sync().last_cycle;
             }
@@ -785,7 +745,7 @@ async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>)
             )
             .await
             {
-                ESC_IRQS.fetch_add(1, Ordering::Relaxed);
+                hw::log::ESC_IRQS.fetch_add(1, Ordering::Relaxed);
             }
         } else {
             // The IRQ line is still asserted: events are pending; let the other
@@ -793,14 +753,14 @@ async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>)
             embassy_futures::yield_now().await;
         }
         let now = now_us();
-        let staged = with_shared(|s| {
+        let staged = with_drive_state(|s| {
             update_axis(s);
             let slave = s.slave.as_mut()?;
             while let Some(e) = s.drive.pop_emergency() {
                 slave.emergency(e.code, e.register, e.data);
             }
             if slave.poll(&mut *s.drive, now).is_err() {
-                ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
+                hw::log::ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
             }
             publish_command(s);
             // A new image on trial confirms itself here, in thread mode (the flash).
@@ -818,8 +778,11 @@ async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>)
             // the lock, programmed below without it): `Drive::next_staged_record`.
             let (staged, history_error) = s.drive.next_staged_record();
             if let Some(e) = history_error {
-                FLASH_ERRORS.fetch_add(1, Ordering::Relaxed);
-                defmt::error!("fault history: not staged: {=istr}", storage_error(e));
+                hw::log::FLASH_ERRORS.fetch_add(1, Ordering::Relaxed);
+                defmt::error!(
+                    "fault history: not staged: {=istr}",
+                    hw::log::storage_error(e)
+                );
             }
             staged
         })
@@ -833,14 +796,14 @@ async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>)
             match result {
                 Ok(()) => defmt::info!("flash record programmed (parameters or fault history)"),
                 Err(e) => {
-                    FLASH_ERRORS.fetch_add(1, Ordering::Relaxed);
+                    hw::log::FLASH_ERRORS.fetch_add(1, Ordering::Relaxed);
                     defmt::error!(
                         "flash record: programming failed: {=istr}",
-                        region_error(&e)
+                        hw::log::region_error(&e)
                     );
                 }
             }
-            with_shared(|s| {
+            with_drive_state(|s| {
                 if failed {
                     let reg = s.drive.faults.error_register() | 1;
                     if let Some(slave) = s.slave.as_mut() {
@@ -887,7 +850,7 @@ async fn tick(mut leds: io::Leds<'static>, mut ports: io::Ports<'static>) {
         n = n.wrapping_add(1);
         let raw = ports.read_inputs();
         let now = now_ms();
-        let out = with_shared(|s| {
+        let out = with_drive_state(|s| {
             over_current(s);
             update_axis(s);
             // Board faults: failed offset check (fault 9), failed alignment (0x8611).
@@ -930,7 +893,7 @@ async fn tick(mut leds: io::Leds<'static>, mut ports: io::Ports<'static>) {
 /// withdraws the power permission is published (the ISR reads COMMAND) before the
 /// latch is re-armed; a re-armed latch is the condition gone, so a fault reset clears
 /// the fault.
-fn over_current(s: &mut Shared) {
+fn over_current(s: &mut DriveState) {
     if let Some(c) = s
         .glue
         .over_current(&mut s.drive, hw::pwm::break_latched() != 0)
@@ -972,7 +935,7 @@ async fn offset_self_check(wdg: &mut hw::safety::Watchdog) {
     // New samples arrive every 25 µs; give up after 10 ms without one.
     while !cal.is_complete() && idle < 200 {
         Timer::after_micros(50).await;
-        match latest_sample() {
+        match hw::control::latest_sample() {
             Some((seq, s)) if seq != last => {
                 last = seq;
                 idle = 0;
@@ -990,7 +953,7 @@ async fn offset_self_check(wdg: &mut hw::safety::Watchdog) {
                 o.ib,
                 cal.count()
             );
-            with_shared(|s| {
+            with_drive_state(|s| {
                 s.glue.offsets_passed(o.ia, o.ib);
                 // A new image on trial may confirm itself once Pre-Op is reached too.
                 s.drive.startup_checks_done(true);
@@ -999,7 +962,7 @@ async fn offset_self_check(wdg: &mut hw::safety::Watchdog) {
         }
         Err(e) => {
             hw::safety::raise_fault(hw::safety::FAULT_CURRENT_SENSING);
-            with_shared(|s| {
+            with_drive_state(|s| {
                 s.glue.offset_check_failed();
                 s.drive.startup_checks_done(false);
             });
@@ -1008,92 +971,24 @@ async fn offset_self_check(wdg: &mut hw::safety::Watchdog) {
     }
 }
 
-/// Validates both record slots at start-up (magic, version, CRC) and logs what they
-/// hold (the drive's power-up load applies the newest).
-///
-/// Reads through the drive's own view of the region (the same bytes as the flash
-/// driver's: no second instance of the storage code for the driver type).
-fn report_param_region(f: &mut StagedFlash) {
-    use firmware::storage::SlotStatus;
-    if let Err(e) = PARAM_STORE.check(f) {
-        defmt::error!("parameter store layout: {=istr}", storage_error(e));
-        return;
-    }
-    let (slots, newest) = PARAM_STORE.scan(f);
-    for (i, s) in slots.iter().enumerate() {
-        let at = board::PARAM_FLASH_OFFSET + PARAM_STORE.slot_address(i);
-        match *s {
-            SlotStatus::Erased => {
-                defmt::info!("parameter slot {=usize} @ {=u32:#x}: erased", i, at)
-            }
-            SlotStatus::Valid {
-                sequence,
-                payload_len,
-            } => defmt::info!(
-                "parameter slot {=usize} @ {=u32:#x}: record {=u32}, {=u32} bytes",
-                i,
-                at,
-                sequence,
-                payload_len
-            ),
-            SlotStatus::Corrupt => {
-                defmt::warn!("parameter slot {=usize} @ {=u32:#x}: corrupt", i, at)
-            }
-        }
-    }
-    if newest.is_none() {
-        defmt::info!("parameters: no saved record, defaults apply");
-    }
-}
-
+/// The status line ([`hw::log::status_line`]) with the drive state's ESM figures.
 fn status_line(enc: &Encoder) {
-    let (used, avail) = hw::stack::high_water();
-    let (al, code, bridges) = with_shared(|s| {
-        let (st, code) = s
+    let link = with_drive_state(|s| {
+        let (al_status, al_code) = s
             .slave
             .as_ref()
             .map_or((0, 0), |sl| (sl.esm().status_word(), sl.esm().code()));
-        (st, code, feedback().is_some_and(|(_, f)| f.bridges_on))
+        hw::log::LinkStatus {
+            al_status,
+            al_code,
+            bridges_on: hw::control::feedback().is_some_and(|(_, f)| f.bridges_on),
+        }
     })
-    .unwrap_or((0, 0, false));
-    match latest_sample() {
-        Some((n, s)) => defmt::info!(
-            "samples {=u32}: I_A {=u16} I_B {=u16} V_BUS {=f32} V | enc {=u32} | AL status {=u16:#x} code {=u16:#x} irq {=u32} sync0 {=u32} err {=u32} | bridges {=bool} break {=u8} hw-fault {=u8} adc2-late {=u32} flash-err {=u32} | ISR max {=u32} cycles | stack {=usize}/{=usize} B",
-            n,
-            s.ia,
-            s.ib,
-            board::ANALOG.volts(s.vbus),
-            enc.position(),
-            al,
-            code,
-            ESC_IRQS.load(Ordering::Relaxed),
-            SYNC0S.load(Ordering::Relaxed),
-            ESC_ERRORS.load(Ordering::Relaxed),
-            bridges,
-            hw::pwm::break_latched(),
-            hw::safety::active_fault(),
-            hw::adc::adc2_late_count(),
-            FLASH_ERRORS.load(Ordering::Relaxed),
-            hw::adc::isr_max_cycles(),
-            used,
-            avail
-        ),
-        None => defmt::warn!("no current samples (PWM/ADC chain not running)"),
-    }
-    if let Some((_, f)) = feedback() {
-        let (p1, p2) = (f.probe1, f.probe2);
-        defmt::info!(
-            "commutation aligned {=bool}, failed {=u32} | probe edges (active/inactive, last units): IN1 {=u32}/{=u32} {=i32}/{=i32}, IN2 {=u32}/{=u32} {=i32}/{=i32}",
-            f.aligned,
-            f.align_failures,
-            p1.active_seq,
-            p1.inactive_seq,
-            p1.active,
-            p1.inactive,
-            p2.active_seq,
-            p2.inactive_seq,
-            p2.active,
-            p2.inactive
-        );
-    }
+    .unwrap_or_default();
+    hw::log::status_line(
+        hw::control::latest_sample(),
+        enc.position(),
+        link,
+        hw::control::feedback().map(|(_, f)| f),
+    );
 }

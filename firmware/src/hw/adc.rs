@@ -6,9 +6,11 @@
 //! * Trigger: JEXTSEL = TIM1_TRGO2, rising edge; ADC clock = SYSCLK / 4 = 42.5 MHz
 //!   (asynchronous clock from the RCC mux, at most one ADC clock of trigger jitter).
 //! * Sampling: currents 24.5 cycles, bus voltage 47.5 cycles (divider impedance).
-//!   ADC1 finishes last (two conversions, ≈ 2.3 µs after the trigger, [`TIMING`]), so only its
-//!   end-of-injected-sequence (JEOS) interrupt is enabled: `ADC1_2` at priority 0,
-//!   the highest in the system — the current-loop slot.
+//!   Each conversion takes 12.5 ADC cycles (12 bits) after its sampling time. ADC1
+//!   finishes last: I_A (24.5 + 12.5) then V_BUS (47.5 + 12.5) = 97 ADC cycles / 42.5 MHz
+//!   ≈ 2.28 µs after the trigger ([`TIMING`]); ADC2's I_B ends after 37 cycles
+//!   (≈ 0.87 µs). So only ADC1's end-of-injected-sequence (JEOS) interrupt is enabled:
+//!   `ADC1_2` at priority 0, the highest in the system — the current-loop slot.
 //!
 //! Power-up, calibration (single-ended and differential) and enabling follow
 //! embassy-stm32's `Adc::new` register by register (`power_up`); the injected
@@ -18,8 +20,7 @@
 //! fields PRESC / CKMODE may be written only while every ADC of the pair is disabled
 //! — ADEN = 0 and no calibration or conversion running): the ADC12 clock on (ADC1 and
 //! ADC2 share it and its reset), then the common register written **once**, and only
-//! then ADC1 and ADC2 powered up, calibrated and enabled. Until issue 16 the prescaler
-//! was written a second time after ADC1 had been enabled.
+//! then ADC1 and ADC2 powered up, calibrated and enabled.
 //!
 //! # Sampling instant against the PWM period
 //! One PWM period is 2 × ARR = 4250 timer ticks = 25 µs (centre-aligned: the counter
@@ -87,9 +88,10 @@ pub fn init(p: Analog<'static>) {
     // The clock (shared by ADC1/ADC2: enabled and reset once) and the prescaler, then
     // each ADC in turn, as the HAL's `Adc::new` would (see `power_up`).
     let Analog { adc1, adc2, .. } = p;
-    let _ = (adc1, adc2); // the peripherals are programmed through the PAC below
-                          // Clock of both ADCs (one shared enable and reset; embassy counts the users), then
-                          // the common register while both are still disabled (module docs), then each ADC.
+    // The peripherals are programmed through the PAC below.
+    let _ = (adc1, adc2);
+    // Clock of both ADCs (one shared enable and reset; embassy counts the users), then
+    // the common register while both are still disabled (module docs), then each ADC.
     rcc::enable_and_reset::<ADC1>();
     rcc::enable_and_reset::<ADC2>();
     debug_assert!(!pac::ADC1.cr().read().aden() && !pac::ADC2.cr().read().aden());
@@ -134,14 +136,16 @@ pub fn init(p: Analog<'static>) {
     }
     a1.ier().modify(|w| w.set_jeosie(true));
     interrupt::ADC1_2.set_priority(Priority::P0);
-    // SAFETY: the handler only reads the ADC data registers and publishes a sample.
+    // SAFETY: unmasking ADC1_2 breaks no critical section: its handler (below) uses
+    // only the ADC, timer and GPIO registers, atomics, and the state it owns or shares
+    // through the lock-free exchange cells (`hw::control`).
     unsafe { interrupt::ADC1_2.enable() };
     for a in [a1, a2] {
         a.cr().modify(|w| w.set_jadstart(true));
     }
 }
 
-/// ADC prescaler: the ADC1/2 kernel clock is SYSCLK (main.rs, `clock_config`); the
+/// ADC prescaler: the ADC1/2 kernel clock is SYSCLK (`hw::clock::config`); the
 /// HAL's rule — the smallest division keeping it at most 60 MHz — gives 4 (42.5 MHz).
 const ADC_PRESC: Presc = Presc::DIV4;
 const _: () = assert!((board::SYSCLK_HZ - 1) / 60_000_000 == 2);
@@ -192,8 +196,8 @@ const _: () = assert!(TIMING.vbus_window.0 > TIMING.current_window.1);
 
 /// Powers up, calibrates (single-ended, then differential) and enables one ADC with
 /// single conversions and no regular trigger: the register sequence of
-/// embassy-stm32's `Adc::new` for the G4 with the default `AdcConfig`, written once
-/// for both ADCs (the HAL's is generic: a copy per ADC, plus its clock arithmetic).
+/// embassy-stm32's `Adc::new` for the G4 with the default `AdcConfig`, one routine for
+/// both ADCs (the clock is set up once, in [`init`]).
 #[inline(never)]
 fn power_up(a: pac::adc::Adc) {
     // 20 µs (regulator start-up, between the calibrations and before enabling).

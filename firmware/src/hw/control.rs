@@ -207,6 +207,18 @@ pub fn ready() -> bool {
     READY.load(Ordering::Acquire)
 }
 
+/// The interrupt's latest measurements and their sequence number, for the thread-mode
+/// and cyclic users (not inlined: one copy of the volatile word-by-word read).
+#[inline(never)]
+pub fn feedback() -> Option<(u32, Feedback)> {
+    FEEDBACK.read_looped()
+}
+
+/// The newest current sample and its number (`None` before the first one).
+pub fn latest_sample() -> Option<(u32, RawSample)> {
+    SAMPLES.read().filter(|&(n, _)| n != 0)
+}
+
 /// One PWM period (called by the `ADC1_2` interrupt with the fresh sample).
 #[inline(always)]
 pub fn on_sample(s: RawSample) {

@@ -33,7 +33,9 @@ pub struct Encoder {
     _private: (),
 }
 
-fn capture_pin<C: embassy_stm32::timer::TimerChannel, P: TimerPin<TIM2, C>>(pin: Peri<'static, P>) {
+fn capture_pin<C: embassy_stm32::timer::TimerChannel, Pin: TimerPin<TIM2, C>>(
+    pin: Peri<'static, Pin>,
+) {
     let af = pin.af_num();
     crate::hw::pwm::af_pin(pin.into(), af, AfType::input(Pull::None), false);
 }

@@ -12,11 +12,13 @@
 //! (the DMA interrupt is more urgent than every caller, see main.rs), shorter ones
 //! (address/command phases) are polled because setting up a DMA transfer costs more
 //! than clocking a few bytes. SPI mode 3, [`board::ESC_SPI_HZ`].
+use embassy_stm32::exti::ExtiInput;
 use embassy_stm32::gpio::{Level, Output, Pull, Speed};
 use embassy_stm32::mode::Async;
 use embassy_stm32::spi::{self, mode::Master, Spi};
 use embassy_stm32::time::Hertz;
 use embedded_hal::spi::{ErrorKind, ErrorType, Operation, SpiDevice};
+use firmware::identity::PulseEdge;
 
 use crate::board;
 
@@ -28,8 +30,8 @@ const ET1100: bool = cfg!(all(feature = "esc-et1100", not(feature = "esc-lan9252
 /// Operation kinds whose long data phases go by DMA in this build: the ones its ESC
 /// driver issues with [`DMA_MIN_LEN`] bytes or more (LAN9252: `Read` and `Write`;
 /// ET1100: `Write` and `TransferInPlace`; neither sends a long `Transfer`, only
-/// address phases). Other kinds still work, polled; leaving their DMA code out saves
-/// flash.
+/// address phases). Other kinds still work, polled, and their DMA paths are not
+/// compiled in.
 const DMA_READ: bool = !ET1100;
 const DMA_TRANSFER_IN_PLACE: bool = ET1100;
 const DMA_TRANSFER: bool = false;
@@ -78,8 +80,8 @@ impl EscSpi {
     /// Polled transfer of max(`read`, `write`) bytes: embassy's blocking transfer pads
     /// `write` with zeros and drops what comes after `read` is full, so with an empty
     /// `write` it is exactly its blocking read (same register accesses, zeros
-    /// clocked out). Nothing for two empty buffers. One out-of-line copy for the
-    /// polled reads and transfers.
+    /// clocked out). Nothing for two empty buffers. Not inlined: the polled reads and
+    /// transfers share it.
     #[inline(never)]
     fn polled_transfer(&mut self, read: &mut [u8], write: &[u8]) -> Result<(), spi::Error> {
         if read.is_empty() && write.is_empty() {
@@ -151,6 +153,23 @@ impl SpiDevice for EscSpi {
         }
         self.cs.set_high();
         result
+    }
+}
+
+/// The pull of the SYNC0 input: the ESC drives SYNC0 push-pull once it has loaded the
+/// SII; until then the pull holds it at its idle level (low for an active-high pulse).
+pub const SYNC0_IDLE_PULL: Pull = match firmware::identity::SYNC0_ACTIVE_EDGE {
+    PulseEdge::Rising => Pull::Down,
+    PulseEdge::Falling => Pull::Up,
+};
+
+/// Waits for the leading edge of the next SYNC0 pulse: the edge
+/// [`firmware::identity::SYNC0_ACTIVE_EDGE`] derives from the SII's 0x0151 value (the
+/// one definition of the polarity, `ecat_slave_stack::sii::SYNC0_DRIVE`).
+pub async fn sync0_edge(pin: &mut ExtiInput<'static, Async>) {
+    match firmware::identity::SYNC0_ACTIVE_EDGE {
+        PulseEdge::Rising => pin.wait_for_rising_edge().await,
+        PulseEdge::Falling => pin.wait_for_falling_edge().await,
     }
 }
 

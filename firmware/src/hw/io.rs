@@ -100,8 +100,8 @@ pub fn init(p: IoPins<'static>) -> (Leds<'static>, Ports<'static>, Dip<'static>)
     (leds, ports, dip)
 }
 
-/// Drives an output high (`true`) or low: one out-of-line copy for the 1 ms tick's
-/// LEDs, outputs and brake (`Output::set_level` inlined is a BSRR write per level).
+/// Drives an output high (`true`) or low. Not inlined: the 1 ms tick's LEDs, outputs
+/// and brake share it.
 #[inline(never)]
 pub fn set_output(pin: &mut Output<'_>, high: bool) {
     pin.set_level(Level::from(high));

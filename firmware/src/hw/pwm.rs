@@ -3,8 +3,9 @@
 //! embassy-stm32 enables the timer clocks (`timer::low_level::Timer`); the eight
 //! output pins go on their alternate functions as its `PwmPin` / `ComplementaryPwmPin`
 //! would put them (latch low, then push-pull, very high speed; the channel's AF number
-//! from the same pin traits), through one out-of-line [`af_pin`]; the timers themselves are programmed through the PAC (`embassy_stm32::pac`),
-//! because the HAL has no notion of motor control:
+//! from the same pin traits), through [`af_pin`]; the timers themselves are programmed
+//! through the PAC (`embassy_stm32::pac`), because the HAL has no notion of motor
+//! control:
 //!
 //! * centre-aligned mode 1, PSC = 0, ARR = [`board::PWM_ARR`] → 40 kHz, CCR preload;
 //! * CH1/CH2 PWM mode 1 with complementary outputs and hardware dead time
@@ -35,8 +36,8 @@
 //!    OISx = OISxN = 0 (idle level low), CCxE = CCxNE = 1 — *before* the pins are
 //!    switched from GPIO-low to the timer's alternate function, so a gate pin is
 //!    driven low at every moment: first by the GPIO, then by the timer's off state.
-//!    (With OSSI = 0, MOE = 0 releases the outputs to Hi-Z; the old order, pins to AF
-//!    first, left them floating until the timer was configured.) The break pins are
+//!    (With OSSI = 0, MOE = 0 would release the outputs to Hi-Z; pins put on their AF
+//!    before the timer is configured would float until it is.) The break pins are
 //!    on their alternate function before the break is enabled (BKE), so an unconnected
 //!    BKIN cannot fire a break at start.
 //!
@@ -94,8 +95,8 @@ static BREAK_LATCH: AtomicU8 = AtomicU8::new(0);
 /// A pin on alternate function `af` for the rest of the program (the driver is not
 /// dropped: dropping would reset the pin). `low_first`: the output latch is set low
 /// first, in the same critical section (what embassy-stm32's `PwmPin::new` and
-/// `ComplementaryPwmPin::new` do). One out-of-line copy for every pin of the power
-/// stage and the encoder (`hw::encoder`).
+/// `ComplementaryPwmPin::new` do). Used for every pin of the power stage and the
+/// encoder (`hw::encoder`); not inlined, so they share one copy.
 #[inline(never)]
 pub(crate) fn af_pin(pin: Peri<'static, AnyPin>, af: u8, ty: AfType, low_first: bool) {
     let mut f = Flex::new(pin);
@@ -126,7 +127,7 @@ fn pwm_pin_n<T: AdvancedInstance4Channel, C: TimerChannel>(
 /// Output type of the bridge outputs.
 const PWM_OUT: AfType = AfType::output(OutputType::PushPull, Speed::VeryHigh);
 
-fn break_pin<T: AdvancedInstance4Channel, P: BreakInputPin<T, BkIn1>>(pin: Peri<'static, P>) {
+fn break_pin<T: AdvancedInstance4Channel, Pin: BreakInputPin<T, BkIn1>>(pin: Peri<'static, Pin>) {
     let af = pin.af_num();
     af_pin(pin.into(), af, AfType::input(Pull::Up), false);
 }
@@ -176,8 +177,7 @@ pub fn init(p: PowerStage<'static>) {
     // register (`configure`: the off state with defined idle levels, MOE = 0), and
     // only then the gate pins from GPIO-low to their alternate function (module docs).
     // `configure` programs every timer register the HAL's `ComplementaryPwm` would
-    // set (its PSC/ARR computation, a 64-bit division, is not needed: PSC = 0, ARR =
-    // PWM_ARR), and leaves MOE off throughout.
+    // set, with PSC = 0 and ARR = PWM_ARR as constants, and leaves MOE off throughout.
     hold_gates_low();
     let tim_a = Timer::new(p.tim1);
     let tim_b = Timer::new(p.tim8);
@@ -220,7 +220,8 @@ pub fn init(p: PowerStage<'static>) {
     }
     interrupt::TIM1_BRK_TIM15.set_priority(Priority::P1);
     interrupt::TIM8_BRK.set_priority(Priority::P1);
-    // SAFETY: the handlers below only touch the PWM registers and an atomic.
+    // SAFETY: unmasking the break interrupts breaks no critical section: their
+    // handlers (below) touch only the TIM1/TIM8 registers and atomics.
     unsafe {
         interrupt::TIM1_BRK_TIM15.enable();
         interrupt::TIM8_BRK.enable();
@@ -358,22 +359,6 @@ pub fn rearm() -> bool {
         t.dier().modify(|w| w.set_bie(true));
     }
     true
-}
-
-/// Sets the bridge voltages as fractions of the bus voltage, −1.0 ..= 1.0 (values
-/// outside are clamped). Leg 1 gets (1 + u)/2, leg 2 (1 − u)/2 duty, so u = 0 is
-/// 0 V across the winding. Takes effect at the next update event (preload).
-#[inline(always)]
-#[allow(dead_code)] // power-stage API for the drive logic (CiA 402 enable, fault reset, FOC output)
-pub fn set_bridge_voltages(ua: f32, ub: f32) {
-    let arr = f32::from(board::PWM_ARR);
-    for (t, u) in [(pac::TIM1, ua), (pac::TIM8, ub)] {
-        let u = u.clamp(-1.0, 1.0);
-        let c1 = ((1.0 + u) * 0.5 * arr) as u16;
-        let c2 = ((1.0 - u) * 0.5 * arr) as u16;
-        t.ccr(0).write(|w| w.set_ccr(c1));
-        t.ccr(1).write(|w| w.set_ccr(c2));
-    }
 }
 
 /// Writes the four compare values (TIM1 CH1/CH2 = bridge A legs 1/2, TIM8 CH1/CH2 =

@@ -41,37 +41,7 @@ pub async fn run(mut p: Parts) -> Summary {
     let mut sum = Summary::default();
     defmt::info!("SELFTEST start: bridges stay disabled");
 
-    // ESC identification and a process-RAM word, through the driver the image uses.
-    let esc_result = crate::with_shared(|s| {
-        let slave = s.slave.as_mut()?;
-        let e = slave.esc_mut();
-        Some((
-            st::esc_identity(e, esc::ESC_TYPE),
-            ecat_slave_stack::EscAccess::read_u8(e, ecat_slave_stack::registers::ESC_TYPE).ok(),
-            st::process_ram_word(e, st::SCRATCH_PRAM),
-        ))
-    })
-    .flatten();
-    match esc_result {
-        Some((id, ty, pram)) => {
-            defmt::info!(
-                "ESC {=str}: type register {=?}, expected {=u8:#04x}",
-                esc::ESC_NAME,
-                ty,
-                esc::ESC_TYPE
-            );
-            line(&mut sum, "ESC identity", id);
-            line(&mut sum, "process RAM word", pram);
-        }
-        None => {
-            line(
-                &mut sum,
-                "ESC identity",
-                Verdict::Fail("the ESC did not answer at start-up"),
-            );
-            line(&mut sum, "process RAM word", Verdict::Fail("no ESC"));
-        }
-    }
+    esc_checks(&mut sum);
 
     // DIP banks: eight scans 5 ms apart must agree.
     let mut scans = [io::DipBanks { id: 0, function: 0 }; 8];
@@ -82,42 +52,7 @@ pub async fn run(mut p: Parts) -> Summary {
     defmt::info!("DIP banks: {}", scans[0]);
     line(&mut sum, "DIP banks", st::dip_stable(&scans));
 
-    // Current-sensor offsets and the bus voltage from the running ADC chain.
-    let mut cal = firmware::sampling::OffsetCalibrator::new(board::OFFSET_SAMPLES);
-    let mut last = None;
-    let mut vbus_counts = 0u16;
-    let deadline = Instant::now() + Duration::from_millis(100);
-    while !cal.is_complete() && Instant::now() < deadline {
-        Timer::after_micros(50).await;
-        if let Some((seq, s)) = crate::latest_sample() {
-            if last != Some(seq) {
-                last = Some(seq);
-                cal.add(s);
-                vbus_counts = s.vbus;
-            }
-        }
-    }
-    let offsets = cal.finish(&board::ANALOG);
-    if let Ok(o) = &offsets {
-        defmt::info!(
-            "current-sensor offsets: A {=f32} B {=f32} counts",
-            o.ia,
-            o.ib
-        );
-    }
-    line(
-        &mut sum,
-        "current-sensor offsets",
-        st::current_offsets(&offsets),
-    );
-    let mv = (board::ANALOG.volts(vbus_counts) * 1000.0) as u32;
-    let limits = firmware::faults::FaultConfig::DEFAULT;
-    defmt::info!("bus voltage: {=u32} mV", mv);
-    line(
-        &mut sum,
-        "bus voltage",
-        st::bus_voltage(mv, limits.under_voltage_mv, limits.over_voltage_mv),
-    );
+    analog_checks(&mut sum).await;
 
     // Encoder: turn the shaft by hand within 20 s.
     defmt::info!(
@@ -159,6 +94,75 @@ pub async fn run(mut p: Parts) -> Summary {
     sum
 }
 
+/// ESC identification and a process-RAM word, through the driver the image uses.
+fn esc_checks(sum: &mut Summary) {
+    let esc_result = crate::with_drive_state(|s| {
+        let slave = s.slave.as_mut()?;
+        let e = slave.esc_mut();
+        Some((
+            st::esc_identity(e, esc::ESC_TYPE),
+            ecat_slave_stack::EscAccess::read_u8(e, ecat_slave_stack::registers::ESC_TYPE).ok(),
+            st::process_ram_word(e, st::SCRATCH_PRAM),
+        ))
+    })
+    .flatten();
+    match esc_result {
+        Some((id, ty, pram)) => {
+            defmt::info!(
+                "ESC {=str}: type register {=?}, expected {=u8:#04x}",
+                esc::ESC_NAME,
+                ty,
+                esc::ESC_TYPE
+            );
+            line(sum, "ESC identity", id);
+            line(sum, "process RAM word", pram);
+        }
+        None => {
+            line(
+                sum,
+                "ESC identity",
+                Verdict::Fail("the ESC did not answer at start-up"),
+            );
+            line(sum, "process RAM word", Verdict::Fail("no ESC"));
+        }
+    }
+}
+
+/// Current-sensor offsets and the bus voltage from the running ADC chain.
+async fn analog_checks(sum: &mut Summary) {
+    let mut cal = firmware::sampling::OffsetCalibrator::new(board::OFFSET_SAMPLES);
+    let mut last = None;
+    let mut vbus_counts = 0u16;
+    let deadline = Instant::now() + Duration::from_millis(100);
+    while !cal.is_complete() && Instant::now() < deadline {
+        Timer::after_micros(50).await;
+        if let Some((seq, s)) = crate::hw::control::latest_sample() {
+            if last != Some(seq) {
+                last = Some(seq);
+                cal.add(s);
+                vbus_counts = s.vbus;
+            }
+        }
+    }
+    let offsets = cal.finish(&board::ANALOG);
+    if let Ok(o) = &offsets {
+        defmt::info!(
+            "current-sensor offsets: A {=f32} B {=f32} counts",
+            o.ia,
+            o.ib
+        );
+    }
+    line(sum, "current-sensor offsets", st::current_offsets(&offsets));
+    let mv = (board::ANALOG.volts(vbus_counts) * 1000.0) as u32;
+    let limits = firmware::faults::FaultConfig::DEFAULT;
+    defmt::info!("bus voltage: {=u32} mV", mv);
+    line(
+        sum,
+        "bus voltage",
+        st::bus_voltage(mv, limits.under_voltage_mv, limits.over_voltage_mv),
+    );
+}
+
 /// Drives `pin` high for 300 ms (an LED is seen lit), reads its pad, then low.
 async fn pad_check(
     pin: &mut embassy_stm32::gpio::Output<'static>,
@@ -181,7 +185,7 @@ fn record_check(flash: Option<&mut flash::ParamFlash>) -> Verdict {
         return Verdict::Fail("no parameter flash (option byte DBANK = 0)");
     };
     let save = u32::from_le_bytes(*b"save").to_le_bytes();
-    let staged = crate::with_shared(|s| {
+    let staged = crate::with_drive_state(|s| {
         let probe = st::record_probe(&crate::PARAM_STORE, &mut s.drive.store_mut()?.flash);
         let result = match s.slave.as_mut() {
             Some(slave) => {
@@ -216,7 +220,7 @@ fn record_check(flash: Option<&mut flash::ParamFlash>) -> Verdict {
         return Verdict::Fail("the save staged no record");
     };
     let programmed = flash::commit(flash, stage);
-    crate::with_shared(|s| {
+    crate::with_drive_state(|s| {
         let st_flash = &mut s.drive.store_mut()?.flash;
         st_flash.give_back(stage);
         Some(match programmed {

@@ -42,7 +42,8 @@ pub fn high_water() -> (usize, usize) {
     let (bottom, top) = bounds();
     let mut p = bottom;
     while p < top {
-        // SAFETY: reads inside the stack region.
+        // SAFETY: `p` is word-aligned and inside the stack region [_stack_end,
+        // _stack_start), which is RAM: always readable.
         if unsafe { core::ptr::read_volatile(p as *const u32) } != PAINT {
             break;
         }
