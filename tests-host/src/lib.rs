@@ -2,12 +2,14 @@
 //! chip models, the motor plant, the simulated drive (firmware library + ESC + axis),
 //! the raw-socket transport of `virtual-drive`, and the ethercrab seam for in-process
 //! integration tests.
+#![deny(clippy::undocumented_unsafe_blocks)]
 pub mod counting;
 pub mod esc_sim;
 
 pub mod ethercrab_seam;
 pub mod fault_inject;
 pub mod file_flash;
+pub mod markdown;
 pub mod plant;
 pub mod plot;
 pub mod raw_master;

@@ -609,12 +609,12 @@ impl Axis for PlantAxis {
         };
         let (s, c) = (foc::trig::sin(angle), foc::trig::cos(angle));
         let set = inverse_park(Dq { d: id, q: iq }, s, c);
-        let ma = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
+        let to_milliamps = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
         let mut a = AxisState {
-            ia_ma: ma(cl.i_ab.alpha),
-            ib_ma: ma(cl.i_ab.beta),
-            ia_set_ma: ma(set.alpha),
-            ib_set_ma: ma(set.beta),
+            ia_ma: to_milliamps(cl.i_ab.alpha),
+            ib_ma: to_milliamps(cl.i_ab.beta),
+            ia_set_ma: to_milliamps(set.alpha),
+            ib_set_ma: to_milliamps(set.beta),
             electrical_angle: (self.rig.enc.electrical_angle().0 >> 16) as u16,
             bus_mv: (self.rig.plant.cfg.vbus * 1000.0) as u32,
             index: self.index.take(),

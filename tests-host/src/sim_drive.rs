@@ -127,7 +127,7 @@ pub struct SimDrive {
     /// 0x1018:04.
     serial: u32,
     /// The boot flash and ESC of the firmware update, when attached.
-    boot: Option<(&'static crate::sim_update::Shared, Flavour)>,
+    boot: Option<(&'static crate::sim_update::SharedFlash, Flavour)>,
     /// What the bootloader did at this start.
     boot_state: Option<Result<embassy_boot::State, String>>,
     /// Index pulses the axis has reported (`Feedback::index_seq`) and the last one.
@@ -186,7 +186,7 @@ impl SimDrive {
 
     /// Gives the drive its firmware update over the boot flash `shared` (see
     /// [`crate::sim_update`]): the bootloader runs first, as at a power-up.
-    pub fn attach_update(&mut self, shared: &'static crate::sim_update::Shared, esc: Flavour) {
+    pub fn attach_update(&mut self, shared: &'static crate::sim_update::SharedFlash, esc: Flavour) {
         let (update, state) = crate::sim_update::boot(
             shared,
             identity::VENDOR_ID,
@@ -423,11 +423,7 @@ pub fn segment_with(
         None,
     )
     .map_err(|e| format!("ESC start-up: {e:?}"))?;
-    for d in seg.drives_mut() {
-        let mut runtime = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
-        d.app.drive.power_up(&mut runtime);
-        d.app.axis.parameters(&d.app.drive.params);
-    }
+    power_up_drives(&mut seg);
     forward_emergencies(&mut seg);
     Ok(seg)
 }
@@ -470,6 +466,16 @@ pub fn restart(seg: &mut Segment<SimDrive>, i: usize) {
     let mut runtime = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
     d.app.drive.power_up(&mut runtime);
     d.app.axis.parameters(&d.app.drive.params);
+}
+
+/// Every drive's power-up: the stored parameters (and PDO mapping) loaded through its
+/// slave runtime, then the axis model set from the parameters.
+pub fn power_up_drives(seg: &mut Segment<SimDrive>) {
+    for d in seg.drives_mut() {
+        let mut runtime = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
+        d.app.drive.power_up(&mut runtime);
+        d.app.axis.parameters(&d.app.drive.params);
+    }
 }
 
 /// Sends every drive's pending emergencies through its mailbox, writes a changed

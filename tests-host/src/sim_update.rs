@@ -42,15 +42,15 @@ pub fn boot_flash(file: Option<PathBuf>) -> FileFlash {
 
 /// A drive's boot flash, shared by the bootloader and the firmware's updater (and
 /// kept across the drive's restarts).
-pub type Shared = Mutex<CriticalSectionRawMutex, RefCell<FileFlash>>;
+pub type SharedFlash = Mutex<CriticalSectionRawMutex, RefCell<FileFlash>>;
 type Part = BlockingPartition<'static, CriticalSectionRawMutex, FileFlash>;
 
 /// The boot flash `flash`, shared for the process's life.
-pub fn share(flash: FileFlash) -> &'static Shared {
+pub fn share(flash: FileFlash) -> &'static SharedFlash {
     Box::leak(Box::new(Mutex::new(RefCell::new(flash))))
 }
 
-fn part(flash: &'static Shared, p: Partition) -> Part {
+fn part(flash: &'static SharedFlash, p: Partition) -> Part {
     BlockingPartition::new(flash, p.offset - BOOT_STATE.offset, p.size)
 }
 
@@ -58,7 +58,7 @@ fn part(flash: &'static Shared, p: Partition) -> Part {
 /// marked update, or the revert of an unconfirmed one), then the firmware's update
 /// over the same partitions. Returns the update and the bootloader's state.
 pub fn boot(
-    shared: &'static Shared,
+    shared: &'static SharedFlash,
     vendor_id: u32,
     product_code: u32,
     esc: efw::Esc,

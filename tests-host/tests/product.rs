@@ -258,7 +258,8 @@ fn new_drive() -> Drive {
     Drive::power_up(Flash::new()).0
 }
 
-fn le(v: i64, len: usize) -> Vec<u8> {
+/// The `len` low bytes of `v`, little-endian (an SDO download's data).
+fn le_bytes(v: i64, len: usize) -> Vec<u8> {
     (v as u64).to_le_bytes()[..len].to_vec()
 }
 
@@ -287,7 +288,7 @@ fn every_vendor_parameter_default_and_range_edges_over_sdo() {
             }
             if !e.access.writable() {
                 assert_eq!(
-                    d.sdo_download(o.index, e.sub, &le(0, len)),
+                    d.sdo_download(o.index, e.sub, &le_bytes(0, len)),
                     Err(SdoAbort::WriteReadOnly.code())
                 );
                 continue;
@@ -297,7 +298,7 @@ fn every_vendor_parameter_default_and_range_edges_over_sdo() {
             }
             for v in [e.min(), e.max()] {
                 assert_eq!(
-                    d.sdo_download(o.index, e.sub, &le(v, len)),
+                    d.sdo_download(o.index, e.sub, &le_bytes(v, len)),
                     Ok(()),
                     "{:#x}:{} = {v}",
                     o.index,
@@ -308,7 +309,7 @@ fn every_vendor_parameter_default_and_range_edges_over_sdo() {
             let (_, tmin, tmax) = od::type_range(e.data_type);
             if e.max() < tmax {
                 assert_eq!(
-                    d.sdo_download(o.index, e.sub, &le(e.max() + 1, len)),
+                    d.sdo_download(o.index, e.sub, &le_bytes(e.max() + 1, len)),
                     Err(0x0609_0031),
                     "{:#x}",
                     o.index
@@ -321,7 +322,7 @@ fn every_vendor_parameter_default_and_range_edges_over_sdo() {
             }
             if e.min() > tmin {
                 assert_eq!(
-                    d.sdo_download(o.index, e.sub, &le(e.min() - 1, len)),
+                    d.sdo_download(o.index, e.sub, &le_bytes(e.min() - 1, len)),
                     Err(0x0609_0032),
                     "{:#x}",
                     o.index
@@ -349,18 +350,24 @@ fn every_vendor_parameter_default_and_range_edges_over_sdo() {
 #[test]
 fn auto_tune_lock_and_counters_over_sdo() {
     let mut d = new_drive();
-    assert_eq!(d.sdo_download(0x2015, 0, &le(3000, 2)), Err(0x0800_0021));
-    assert_eq!(d.sdo_download(0x2016, 0, &le(300, 2)), Err(0x0800_0021));
+    assert_eq!(
+        d.sdo_download(0x2015, 0, &le_bytes(3000, 2)),
+        Err(0x0800_0021)
+    );
+    assert_eq!(
+        d.sdo_download(0x2016, 0, &le_bytes(300, 2)),
+        Err(0x0800_0021)
+    );
     assert_eq!(d.sdo_upload(0x2015, 0), Ok(1000));
     d.params.add_command_pulses(70_000);
     assert_eq!(d.sdo_upload(0x2039, 0), Ok(1));
     assert_eq!(d.sdo_upload(0x2040, 0), Ok(70_000 - 65_536));
-    assert_eq!(d.sdo_download(0x2040, 0, &le(1, 2)), Ok(()));
+    assert_eq!(d.sdo_download(0x2040, 0, &le_bytes(1, 2)), Ok(()));
     assert_eq!(
         (d.sdo_upload(0x2039, 0), d.sdo_upload(0x2040, 0)),
         (Ok(0), Ok(0))
     );
-    assert_eq!(d.sdo_download(0x2039, 0, &le(1, 2)), Err(0x0601_0002));
+    assert_eq!(d.sdo_download(0x2039, 0, &le_bytes(1, 2)), Err(0x0601_0002));
     assert_eq!(d.sdo_upload(0x2155, 0), Ok(0));
     d.step(0b1_0101, 24_000, 0, 0, 0);
     assert_eq!(d.sdo_upload(0x2155, 0), Ok(0b1_0101));
@@ -371,24 +378,24 @@ fn auto_tune_lock_and_counters_over_sdo() {
 #[test]
 fn save_power_cycle_restores_parameters_and_pdo_mapping() {
     let mut d = new_drive();
-    d.sdo_download(0x2000, 0, &le(4200, 2)).unwrap();
-    d.sdo_download(0x2001, 0, &le(12_800, 4)).unwrap();
-    d.sdo_download(0x2152, 5, &le(16, 2)).unwrap();
-    d.sdo_download(0x10F1, 2, &le(8, 2)).unwrap();
+    d.sdo_download(0x2000, 0, &le_bytes(4200, 2)).unwrap();
+    d.sdo_download(0x2001, 0, &le_bytes(12_800, 4)).unwrap();
+    d.sdo_download(0x2152, 5, &le_bytes(16, 2)).unwrap();
+    d.sdo_download(0x10F1, 2, &le_bytes(8, 2)).unwrap();
     // New TxPDO1 mapping and TxPDO2 assigned as well.
     d.sdo_download(0x1A00, 0, &[0]).unwrap();
-    d.sdo_download(0x1A00, 1, &le(pdo::entry(0x2303, 0, 16) as i64, 4))
+    d.sdo_download(0x1A00, 1, &le_bytes(pdo::entry(0x2303, 0, 16) as i64, 4))
         .unwrap();
-    d.sdo_download(0x1A00, 2, &le(pdo::entry(0x2039, 0, 16) as i64, 4))
+    d.sdo_download(0x1A00, 2, &le_bytes(pdo::entry(0x2039, 0, 16) as i64, 4))
         .unwrap();
     d.sdo_download(0x1A00, 0, &[2]).unwrap();
     d.sdo_download(0x1A01, 0, &[0]).unwrap();
-    d.sdo_download(0x1A01, 1, &le(pdo::entry(0x1001, 0, 8) as i64, 4))
+    d.sdo_download(0x1A01, 1, &le_bytes(pdo::entry(0x1001, 0, 8) as i64, 4))
         .unwrap();
     d.sdo_download(0x1A01, 0, &[1]).unwrap();
     d.sdo_download(0x1C13, 0, &[0]).unwrap();
-    d.sdo_download(0x1C13, 1, &le(0x1A00, 2)).unwrap();
-    d.sdo_download(0x1C13, 2, &le(0x1A01, 2)).unwrap();
+    d.sdo_download(0x1C13, 1, &le_bytes(0x1A00, 2)).unwrap();
+    d.sdo_download(0x1C13, 2, &le_bytes(0x1A01, 2)).unwrap();
     d.sdo_download(0x1C13, 0, &[2]).unwrap();
     assert_eq!(
         d.params.active().pulses_per_rev,
@@ -625,14 +632,14 @@ fn latched_fault_needs_power_cycle_and_most_severe_is_shown() {
 #[test]
 fn masked_faults_are_not_reported() {
     let mut d = new_drive();
-    d.sdo_download(0x2056, 0, &le(0x0001, 2)).unwrap(); // only over-current
+    d.sdo_download(0x2056, 0, &le_bytes(0x0001, 2)).unwrap(); // only over-current
     let (tl, pins) = led_timeline(&mut d, 3000, |_| (0, 60_000, 0, 0, 99_999));
     assert_eq!(pulses(&tl), 0);
     assert_eq!(pins, 0b11);
     assert!(d.emergencies().is_empty());
     assert!(!d.pds_fault);
     // Fault history clear record 0x2093.
-    d.sdo_download(0x2056, 0, &le(0x00C3, 2)).unwrap();
+    d.sdo_download(0x2056, 0, &le_bytes(0x00C3, 2)).unwrap();
     led_timeline(&mut d, 10, |_| (0, 60_000, 0, 0, 0));
     assert_eq!(d.sdo_upload(0x2400, 2), Ok(0x3210));
     d.sdo_download(0x2093, 0, &[1]).unwrap();
@@ -647,7 +654,7 @@ fn masked_faults_are_not_reported() {
 #[test]
 fn ecat_and_power_up_faults() {
     let mut d = new_drive();
-    d.sdo_download(0x2056, 0, &le(0xFFFF, 2)).unwrap();
+    d.sdo_download(0x2056, 0, &le_bytes(0xFFFF, 2)).unwrap();
     d.step(0, 24_000, 0, 0, 0);
     for (kind, code, flashes) in [
         (FaultKind::MotorOpen, 0x7120u16, 4usize),

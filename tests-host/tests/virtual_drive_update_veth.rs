@@ -17,6 +17,7 @@
 //! root it fails and says how to run it (`sudo -E cargo test -p tests-host --test
 //! virtual_drive_update_veth`); as root a failed namespace or veth setup is a failure
 //! too, never a skip.
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};

@@ -12,6 +12,7 @@
 //! tests are plain `#[test]`s: without root they fail and say how to run them
 //! (`sudo -E cargo test -p tests-host --test virtual_drive_veth`); as root a failed
 //! namespace or veth setup is a failure too, never a skip.
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};

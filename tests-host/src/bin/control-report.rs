@@ -5,6 +5,7 @@
 //! `--plots DIR` also writes `current_step.png` and `csp_tracking_error.png` into DIR.
 //! Text in the plots uses DejaVu Sans from /usr/share/fonts if it is installed;
 //! without it the plots are drawn without text.
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 use plotters::prelude::*;
 use std::path::PathBuf;

@@ -18,6 +18,7 @@
 //! section "Cycle time budget" of that file is replaced (or appended); the report is
 //! printed either way. Fails (exit 1) when a count is missing or the drive does not
 //! reach Op / run its cycle.
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 use std::fmt::Write as _;
 
@@ -174,11 +175,7 @@ fn spi_segment(flavour: Flavour) -> Result<Segment<SimDrive>, String> {
         None,
     )
     .map_err(|e| format!("ESC start-up: {e:?}"))?;
-    for d in seg.drives_mut() {
-        let mut runtime = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
-        d.app.drive.power_up(&mut runtime);
-        d.app.axis.parameters(&d.app.drive.params);
-    }
+    sim_drive::power_up_drives(&mut seg);
     Ok(seg)
 }
 
@@ -452,6 +449,28 @@ fn us(s: f64) -> String {
     format!("{:.1}", s * 1e6)
 }
 
+/// The instruction counts of the report, from the bench table.
+#[derive(Clone, Copy)]
+struct Counts {
+    csp: u64,
+    runtime: u64,
+    lan_event: u64,
+    lan_read: u64,
+    et_event: u64,
+    et_read: u64,
+    cur: u64,
+    enc: u64,
+    servo: u64,
+}
+
+/// Time on the SPI bus of `n` transactions carrying `bytes` at clock `f`, s.
+fn bus_time(bytes: usize, n: usize, f: f64) -> f64 {
+    bytes as f64 * 8.0 / f + n as f64 * T_TRANSACTION
+}
+
+/// The measured SPI traffic of one chip with one pair of maps.
+type BusRow = (&'static Chip, &'static str, CycleTraffic);
+
 fn report(counts: &[(String, u64)]) -> Result<String, String> {
     let csp = count(
         counts,
@@ -472,10 +491,30 @@ fn report(counts: &[(String, u64)]) -> Result<String, String> {
     let enc = count(counts, "encoder update (count + PLL)")?;
     let servo = count(counts, "servo step (motion layer)")?;
 
+    let c = Counts {
+        csp,
+        runtime,
+        lan_event,
+        lan_read,
+        et_event,
+        et_read,
+        cur,
+        enc,
+        servo,
+    };
+    let mut md = String::new();
+    let bus = spi_traffic_section(&mut md)?;
+    bus_time_section(&mut md, &bus);
+    cpu_time_section(&mut md, &c);
+    shortest_cycle_section(&mut md, counts, &c, &bus)?;
+    Ok(md)
+}
+
+/// The report's introduction and its section "SPI traffic per process-data cycle":
+/// each chip with the default and the 32 + 32 byte maps, measured.
+fn spi_traffic_section(w: &mut String) -> Result<Vec<BusRow>, String> {
     let rx32 = map_32(RX32);
     let tx32 = map_32(TX32);
-    let mut md = String::new();
-    let w = &mut md;
     let _ = writeln!(w, "{SECTION}\n");
     let _ = writeln!(
         w,
@@ -530,6 +569,11 @@ fn report(counts: &[(String, u64)]) -> Result<String, String> {
         fmt_map(&tx32)
     );
 
+    Ok(bus)
+}
+
+/// Section "Bus time": each chip's SPI clock limit and the bus time of each row.
+fn bus_time_section(w: &mut String, bus: &[BusRow]) {
     let _ = writeln!(w, "### Bus time\n");
     for chip in &CHIPS {
         let _ = writeln!(
@@ -566,9 +610,7 @@ fn report(counts: &[(String, u64)]) -> Result<String, String> {
         w,
         "| chip | maps | transactions | bytes | bus time at chip max (µs) | bus time at G474 clock (µs) |\n|---|---|---|---|---|---|"
     );
-    let bus_time =
-        |bytes: usize, n: usize, f: f64| bytes as f64 * 8.0 / f + n as f64 * T_TRANSACTION;
-    for (chip, label, t) in &bus {
+    for (chip, label, t) in bus {
         let _ = writeln!(
             w,
             "| {} | {} | {} | {} | {} = {}·8/{:.0} MHz + {}·{:.1} | {} = {}·8/{:.2} MHz + {}·{:.1} |",
@@ -588,7 +630,10 @@ fn report(counts: &[(String, u64)]) -> Result<String, String> {
             T_TRANSACTION * 1e6,
         );
     }
+}
 
+/// Section "CPU time": the instruction counts and the interrupt load.
+fn cpu_time_section(w: &mut String, c: &Counts) {
     let _ = writeln!(w, "\n### CPU time\n");
     let _ = writeln!(
         w,
@@ -599,18 +644,32 @@ fn report(counts: &[(String, u64)]) -> Result<String, String> {
     let _ = writeln!(
         w,
         "| part | instructions |\n|---|---|\n\
-         | CSP cycle (unpack → Drive cycle → motion servo step → pack) | {csp} |\n\
-         | slave runtime poll with an SM2 event (process data cycle row, includes its own small unpack/pack) | {runtime} |\n\
+         | CSP cycle (unpack → Drive cycle → motion servo step → pack) | {} |\n\
+         | slave runtime poll with an SM2 event (process data cycle row, includes its own small unpack/pack) | {} |\n\
          | LAN9252 driver: AL event via CSR + 2 × process RAM access | {} |\n\
          | ET1100 driver: AL event + 2 × process RAM access | {} |\n\
-         | interrupt load: current loop step {cur} + encoder update {enc} at {:.0} kHz, servo step {servo} at {:.0} kHz | {:.1} % of the CPU |\n",
-        lan_event + 2 * lan_read,
-        et_event + 2 * et_read,
+         | interrupt load: current loop step {} + encoder update {} at {:.0} kHz, servo step {} at {:.0} kHz | {:.1} % of the CPU |\n",
+        c.csp,
+        c.runtime,
+        c.lan_event + 2 * c.lan_read,
+        c.et_event + 2 * c.et_read,
+        c.cur,
+        c.enc,
         F_PWM / 1e3,
+        c.servo,
         F_SERVO / 1e3,
-        100.0 * irq_load(cur + enc, servo),
+        100.0 * irq_load(c.cur + c.enc, c.servo),
     );
-    let load = irq_load(cur + enc, servo);
+}
+
+/// Section "Shortest cycle time": bus + CPU time per row, the shortest supported cycle.
+fn shortest_cycle_section(
+    w: &mut String,
+    counts: &[(String, u64)],
+    c: &Counts,
+    bus: &[BusRow],
+) -> Result<(), String> {
+    let load = irq_load(c.cur + c.enc, c.servo);
     let _ = writeln!(w, "### Shortest cycle time\n");
     let _ = writeln!(
         w,
@@ -628,10 +687,10 @@ fn report(counts: &[(String, u64)]) -> Result<String, String> {
         "| chip | maps | SPI clock | clock source | t_bus (µs) | N (instructions) | t_cpu (µs) | t (µs) | shortest cycle | cycle share |\n|---|---|---|---|---|---|---|---|---|---|"
     );
     let mut best_default = Vec::new();
-    for (chip, label, t) in &bus {
+    for (chip, label, t) in bus {
         let drv = match chip.flavour {
-            Flavour::Lan9252 => lan_event + 2 * lan_read,
-            Flavour::Et1100 => et_event + 2 * et_read,
+            Flavour::Lan9252 => c.lan_event + 2 * c.lan_read,
+            Flavour::Et1100 => c.et_event + 2 * c.et_read,
         };
         // The CSP row is measured with the default maps; for 32 + 32 bytes the copy
         // plans grow: add the difference of the 32-byte unpack/pack rows over the
@@ -641,7 +700,7 @@ fn report(counts: &[(String, u64)]) -> Result<String, String> {
         } else {
             0
         };
-        let n = csp + runtime + drv + extra;
+        let n = c.csp + c.runtime + drv + extra;
         let t_cpu = n as f64 * CPI / F_CPU / (1.0 - load);
         for (clock_label, f) in [("chip max", chip.f_max), ("G474", g474_clock(chip.f_max))] {
             let t_bus = bus_time(t.bytes(), t.transactions.len(), f);
@@ -695,14 +754,15 @@ fn report(counts: &[(String, u64)]) -> Result<String, String> {
     );
     let _ = writeln!(
         w,
-        "- Instructions of the composed CSP cycle: {csp} (issue 7 goal ≤ 1500{}).",
-        if csp <= 1500 {
+        "- Instructions of the composed CSP cycle: {} (issue 7 goal ≤ 1500{}).",
+        c.csp,
+        if c.csp <= 1500 {
             ", met"
         } else {
             ", not yet met"
         }
     );
-    Ok(md)
+    Ok(())
 }
 
 /// Fraction of the CPU taken by the interrupts (current loop + encoder at the PWM
@@ -716,36 +776,6 @@ fn fmt_map(m: &[u32]) -> String {
         .map(|e| format!("{:04X}:{:02X}/{}", e >> 16, (e >> 8) & 0xFF, e & 0xFF))
         .collect::<Vec<_>>()
         .join(" ")
-}
-
-/// Replaces the section starting at `heading` (up to the next `## ` heading) in the
-/// Markdown file `path`, or appends it.
-pub fn replace_section(path: &str, heading: &str, body: &str) -> std::io::Result<()> {
-    let old = std::fs::read_to_string(path).unwrap_or_default();
-    let mut out = String::new();
-    let mut lines = old.lines().peekable();
-    let mut done = false;
-    while let Some(l) = lines.next() {
-        if l.trim_end() == heading {
-            out.push_str(body.trim_end());
-            out.push_str("\n\n");
-            while lines.peek().is_some_and(|n| !n.starts_with("## ")) {
-                lines.next();
-            }
-            done = true;
-            continue;
-        }
-        out.push_str(l);
-        out.push('\n');
-    }
-    if !done {
-        if !out.is_empty() && !out.ends_with("\n\n") {
-            out.push('\n');
-        }
-        out.push_str(body.trim_end());
-        out.push('\n');
-    }
-    std::fs::write(path, out.trim_end().to_string() + "\n")
 }
 
 fn main() {
@@ -769,7 +799,7 @@ fn main() {
     };
     print!("{md}");
     if let Some(path) = out {
-        if let Err(e) = replace_section(&path, SECTION, &md) {
+        if let Err(e) = tests_host::markdown::replace_section(&path, SECTION, &md) {
             eprintln!("cycle-budget: cannot write {path}: {e}");
             std::process::exit(1);
         }

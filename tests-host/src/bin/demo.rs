@@ -8,6 +8,7 @@
 //! its emergency and the fault reset. Prints a report of tables and writes PNG plots
 //! (current step response of the FOC current loop on the motor plant, CSP tracking
 //! error, homing trace) into `target/demo/` (or `--out DIR`).
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 use std::cell::RefCell;
 use std::path::PathBuf;
@@ -66,6 +67,7 @@ impl Wire for SimWire {
 }
 
 type Wired = Rc<RefCell<SimWire>>;
+type PreOpGroup = SubDeviceGroup<4, 128>;
 type OpGroup = SubDeviceGroup<4, 128, ethercrab::DefaultLock, ethercrab::subdevice_group::Op>;
 
 fn table(title: &str, headers: &[&str], rows: &[Vec<String>]) {
@@ -222,10 +224,67 @@ async fn commission(
     wire: Wired,
 ) -> Result<Traces, ethercrab::error::Error> {
     let group = md.init_single_group::<4, 128>(sim_now_ns).await?;
+    scan_report(&md, &group).await?;
+    sdo_report(&md, &group).await?;
+    pdo_report(&md, &group).await?;
 
-    // --- scan and identity -------------------------------------------------------
+    // --- Op -----------------------------------------------------------------------
+    let group = group.into_op(&md).await?;
+    let op = Op {
+        md: &md,
+        group: &group,
+        wire: wire.clone(),
+        t0: sim_now_ns(),
+    };
+    let (seg_in, seg_out) = {
+        let sd = group.subdevice(&md, 0)?;
+        let i = sd.inputs_raw().len();
+        let o = sd.outputs_raw_mut().len();
+        (i, o)
+    };
+    println!("\n4. Operational: {seg_out} bytes of outputs and {seg_in} bytes of inputs exchanged every 1 ms (LRW).");
+
+    let mut problems = Problems::default();
+    let tx = enable_after_self_test(&op, &mut problems).await?;
+    let (tx, homing, homing_switch) = home(&op, tx, &mut problems).await?;
+    let tx = profile_position(&op, tx, &mut problems).await?;
+    let (tx, csp) = csp_s_curve(&op, tx, &mut problems).await?;
+    fault_and_reset(&op, tx, &mut problems).await?;
+    emergency_report(&wire.borrow(), op.t0);
+    let group = group.into_safe_op(&md).await?;
+    let group = group.into_pre_op(&md).await?;
+    let _ = group.into_init(&md).await?;
+    println!("\nBack to Init.");
+    Ok(Traces {
+        problems: problems.0,
+        homing,
+        homing_switch,
+        csp_error: csp.error,
+        csp_following: csp.following,
+        csp_target: csp.target,
+    })
+}
+
+/// What did not go as the demo expects (it fails with these).
+#[derive(Default)]
+struct Problems(Vec<String>);
+
+impl Problems {
+    /// Notes `what` unless `ok`.
+    fn expect(&mut self, ok: bool, what: &str) {
+        if !ok {
+            self.0.push(what.to_string());
+        }
+    }
+}
+
+/// Table 1: the drives found on the segment, identity and names from the SII.
+async fn scan_report(
+    md: &MainDevice<'static>,
+    group: &PreOpGroup,
+) -> Result<(), ethercrab::error::Error> {
     let mut rows = Vec::new();
-    for sd in group.iter(&md) {
+    for sd in group.iter(md) {
         let id = sd.identity();
         rows.push(vec![
             format!("{:#06x}", sd.configured_address()),
@@ -247,9 +306,15 @@ async fn commission(
         ],
         &rows,
     );
+    Ok(())
+}
 
-    // --- SDO reads of key objects ------------------------------------------------
-    let sd = group.subdevice(&md, 0)?;
+/// Table 2: SDO reads of key objects, and the abort for a missing one.
+async fn sdo_report(
+    md: &MainDevice<'static>,
+    group: &PreOpGroup,
+) -> Result<(), ethercrab::error::Error> {
+    let sd = group.subdevice(md, 0)?;
     let mut rows = Vec::new();
     let u32s: [(u16, u8, &str); 6] = [
         (0x1000, 0, "device type (CiA 402 servo)"),
@@ -305,8 +370,15 @@ async fn commission(
         &["object", "meaning", "value"],
         &rows,
     );
+    Ok(())
+}
 
-    // --- PDO configuration -----------------------------------------------------------
+/// Table 3: the default PDO mapping, read back by SDO.
+async fn pdo_report(
+    md: &MainDevice<'static>,
+    group: &PreOpGroup,
+) -> Result<(), ethercrab::error::Error> {
+    let sd = group.subdevice(md, 0)?;
     let mut rows = Vec::new();
     for (assign, dir) in [(0x1C12u16, "RxPDO (outputs)"), (0x1C13, "TxPDO (inputs)")] {
         let n: u8 = sd.sdo_read(assign, 0).await?;
@@ -338,36 +410,21 @@ async fn commission(
         &["direction", "map", "entries (index:sub/bits)", "bytes"],
         &rows,
     );
+    Ok(())
+}
 
-    // --- Op -----------------------------------------------------------------------
-    let group = group.into_op(&md).await?;
-    let op = Op {
-        md: &md,
-        group: &group,
-        wire: wire.clone(),
-        t0: sim_now_ns(),
-    };
-    let (seg_in, seg_out) = {
-        let sd = group.subdevice(&md, 0)?;
-        let i = sd.inputs_raw().len();
-        let o = sd.outputs_raw_mut().len();
-        (i, o)
-    };
-    println!("\n4. Operational: {seg_out} bytes of outputs and {seg_in} bytes of inputs exchanged every 1 ms (LRW).");
-
-    let mut problems: Vec<String> = Vec::new();
-    let mut expect = |ok: bool, what: &str| {
-        if !ok {
-            problems.push(what.to_string());
-        }
-    };
-    // --- power-up self-test and enable ---------------------------------------------
+/// Table 5: the power-up self-test, then the CiA 402 enable sequence; the auto-tune's
+/// results. Returns the inputs in Operation enabled.
+async fn enable_after_self_test(
+    op: &Op<'_>,
+    problems: &mut Problems,
+) -> Result<Tx, ethercrab::error::Error> {
     // The drive stays in Not ready to switch on while it auto-tunes its current loop
     // (0x2013 = 1); like a real master, wait for Switch on disabled first, then step
     // through the states, each until the statusword shows it.
     let mut rows = Vec::new();
     let (mut tx, waited) = op.until_state(0x0000, 0x40, 3000, 0).await?;
-    expect(
+    problems.expect(
         tx.status & 0x6F == 0x40,
         "Switch on disabled after the power-up self-test",
     );
@@ -383,14 +440,13 @@ async fn commission(
     ] {
         let (t, n) = op.until_state(cw, state, 2000, tx.position).await?;
         tx = t;
-        expect(tx.status & 0x6F == state, what);
+        problems.expect(tx.status & 0x6F == state, what);
         rows.push(vec![
             format!("{cw:#06x} {what} ({n} cycles)"),
             format!("{:#06x}", tx.status),
             pds_state(tx.status).into(),
         ]);
     }
-    let hold = tx.position;
     table(
         "5. Enable through the CiA 402 power drive system",
         &["controlword", "statusword", "state"],
@@ -411,8 +467,16 @@ async fn commission(
         &["object", "meaning", "value"],
         &tuned,
     );
+    Ok(tx)
+}
 
-    // --- homing -------------------------------------------------------------------
+/// Table 6: homing, method 19; the position and home-switch traces of the plot.
+async fn home(
+    op: &Op<'_>,
+    mut tx: Tx,
+    problems: &mut Problems,
+) -> Result<(Tx, Vec<(f64, f64)>, Vec<(f64, f64)>), ethercrab::error::Error> {
+    let hold = tx.position;
     op.sdo_w(0x6098, 0, 19i8).await?;
     op.sdo_w(0x6099, 1, 40_000u32).await?;
     op.sdo_w(0x6099, 2, 4_000u32).await?;
@@ -438,7 +502,7 @@ async fn commission(
         }
     }
     tx = op.cycle(0x000F, 0).await?;
-    expect(attained.is_some(), "homing attained");
+    problems.expect(attained.is_some(), "homing attained");
     table(
         "6. Homing, method 19 (home switch, positive side) on the simulated axis",
         &["0x6061", "result", "time", "position (units)", "statusword"],
@@ -453,8 +517,15 @@ async fn commission(
             format!("{:#06x}", tx.status),
         ]],
     );
+    Ok((tx, homing, homing_switch))
+}
 
-    // --- profile position -------------------------------------------------------------
+/// Table 7: a profile-position move with the set-point handshake.
+async fn profile_position(
+    op: &Op<'_>,
+    mut tx: Tx,
+    problems: &mut Problems,
+) -> Result<Tx, ethercrab::error::Error> {
     tx = op.set_mode(1, tx.position).await?;
     let pp_start = tx.position;
     op.sdo_w(0x6081, 0, 100_000u32).await?;
@@ -475,7 +546,7 @@ async fn commission(
             break;
         }
     }
-    expect(reached_at.is_some(), "PP target reached");
+    problems.expect(reached_at.is_some(), "PP target reached");
     table(
         "7. Profile position move: 2 revolutions at 2 rev/s, 10 rev/s² (PP, set-point handshake)",
         &[
@@ -498,8 +569,22 @@ async fn commission(
             ),
         ]],
     );
+    Ok(tx)
+}
 
-    // --- CSP S-curve ------------------------------------------------------------------
+/// The CSP run's traces (cycle number, counts or revolutions).
+struct CspTraces {
+    error: Vec<(f64, f64)>,
+    following: Vec<(f64, f64)>,
+    target: Vec<(f64, f64)>,
+}
+
+/// Table 8: a CSP S-curve at 1 ms cycle with its tracking error.
+async fn csp_s_curve(
+    op: &Op<'_>,
+    mut tx: Tx,
+    problems: &mut Problems,
+) -> Result<(Tx, CspTraces), ethercrab::error::Error> {
     tx = op.set_mode(8, tx.position).await?;
     let p0 = tx.position as f64;
     // Backwards: the simulated positive limit switch sits at +4 revolutions.
@@ -538,7 +623,7 @@ async fn commission(
             csp_target.push((k as f64, target as f64 / UNITS_PER_REV));
         }
     }
-    expect(max_err < 500.0, "CSP tracking error below 500 counts");
+    problems.expect(max_err < 500.0, "CSP tracking error below 500 counts");
     table(
         "8. CSP: 5 revolutions as an S-curve (cycloidal) in 1.5 s, target every 1 ms cycle",
         &[
@@ -559,8 +644,22 @@ async fn commission(
             ),
         ]],
     );
+    Ok((
+        tx,
+        CspTraces {
+            error: csp_error,
+            following: csp_following,
+            target: csp_target,
+        },
+    ))
+}
 
-    // --- fault and reset ------------------------------------------------------------
+/// Table 9: a following-error fault, its reset and a new enable.
+async fn fault_and_reset(
+    op: &Op<'_>,
+    mut tx: Tx,
+    problems: &mut Problems,
+) -> Result<(), ethercrab::error::Error> {
     op.sdo_w(0x6065, 0, 500u32).await?;
     op.sdo_w(0x6066, 0, 5u16).await?;
     let jump = tx.position + 50_000;
@@ -568,7 +667,7 @@ async fn commission(
     for _ in 0..20 {
         tx = op.cycle(0x000F, jump).await?;
     }
-    expect(tx.error == 0x8611, "following-error fault 0x8611");
+    problems.expect(tx.error == 0x8611, "following-error fault 0x8611");
     rows.push(vec![
         "target jumps by one revolution (following error window 500 units, 5 ms)".into(),
         format!("{:#06x}", tx.status),
@@ -589,7 +688,7 @@ async fn commission(
     for (cw, state) in [(0x0006u16, 0x21u16), (0x0007, 0x23), (0x000F, 0x27)] {
         tx = op.until_state(cw, state, 2000, tx.position).await?.0;
     }
-    expect(
+    problems.expect(
         tx.status & 0x6F == 0x27,
         "Operation enabled again after the reset",
     );
@@ -605,46 +704,36 @@ async fn commission(
         &["event", "statusword", "state", "0x603F"],
         &rows,
     );
-    {
-        let w = wire.borrow();
-        let rows: Vec<Vec<String>> = w
-            .emergencies
-            .iter()
-            .map(|(t, code, reg, m)| {
-                vec![
-                    format!("{:.0} ms", (*t - op.t0) as f64 * 1e-6),
-                    format!("{code:#06x}"),
-                    format!("{reg:#04x}"),
-                    m.iter()
-                        .map(|b| format!("{b:02x}"))
-                        .collect::<Vec<_>>()
-                        .join(" "),
-                ]
-            })
-            .collect();
-        table(
-            "10. Emergency messages the master read from the mailbox",
-            &[
-                "read by the master at",
-                "error code",
-                "error register",
-                "manufacturer bytes",
-            ],
-            &rows,
-        );
-    }
-    let group = group.into_safe_op(&md).await?;
-    let group = group.into_pre_op(&md).await?;
-    let _ = group.into_init(&md).await?;
-    println!("\nBack to Init.");
-    Ok(Traces {
-        problems,
-        homing,
-        homing_switch,
-        csp_error,
-        csp_following,
-        csp_target,
-    })
+    Ok(())
+}
+
+/// Table 10: the emergencies the master read from the mailbox (times from `t0`).
+fn emergency_report(w: &SimWire, t0: u64) {
+    let rows: Vec<Vec<String>> = w
+        .emergencies
+        .iter()
+        .map(|(t, code, reg, m)| {
+            vec![
+                format!("{:.0} ms", (*t - t0) as f64 * 1e-6),
+                format!("{code:#06x}"),
+                format!("{reg:#04x}"),
+                m.iter()
+                    .map(|b| format!("{b:02x}"))
+                    .collect::<Vec<_>>()
+                    .join(" "),
+            ]
+        })
+        .collect();
+    table(
+        "10. Emergency messages the master read from the mailbox",
+        &[
+            "read by the master at",
+            "error code",
+            "error register",
+            "manufacturer bytes",
+        ],
+        &rows,
+    );
 }
 
 fn main() {

@@ -24,6 +24,7 @@
 //!
 //! `od-doc FILE` writes `ecat_slave_stack::od::write_reference` of the hybrid-servo
 //! dictionary, followed by the list of entries in which the open-loop variant differs.
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;

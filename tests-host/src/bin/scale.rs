@@ -13,6 +13,7 @@
 //!
 //! Usage: `scale [--seconds S] [--drives 8,16,32,64,128,256] [OUT.md]` (release build);
 //! with `OUT.md` the section "Scale" of that file is replaced (or appended).
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 use std::cell::RefCell;
 use std::fmt::Write as _;
@@ -209,37 +210,23 @@ async fn scenario(
     Ok(run)
 }
 
-/// Replaces the section starting at `heading` (up to the next `## ` heading) in the
-/// Markdown file `path`, or appends it.
-fn replace_section(path: &str, heading: &str, body: &str) -> std::io::Result<()> {
-    let old = std::fs::read_to_string(path).unwrap_or_default();
-    let mut out = String::new();
-    let mut lines = old.lines().peekable();
-    let mut done = false;
-    while let Some(l) = lines.next() {
-        if l.trim_end() == heading {
-            out.push_str(body.trim_end());
-            out.push_str("\n\n");
-            while lines.peek().is_some_and(|n| !n.starts_with("## ")) {
-                lines.next();
-            }
-            done = true;
-            continue;
+fn main() {
+    let (seconds, drives, out) = parse_args();
+    let cycles = (seconds * 1000.0).round().max(1.0) as u64;
+    let runs = measure(&drives, cycles);
+    let md = report(&runs, cycles);
+    print!("{md}");
+    if let Some(path) = out {
+        if let Err(e) = tests_host::markdown::replace_section(&path, SECTION, &md) {
+            eprintln!("scale: cannot write {path}: {e}");
+            std::process::exit(1);
         }
-        out.push_str(l);
-        out.push('\n');
     }
-    if !done {
-        if !out.is_empty() && !out.ends_with("\n\n") {
-            out.push('\n');
-        }
-        out.push_str(body.trim_end());
-        out.push('\n');
-    }
-    std::fs::write(path, out.trim_end().to_string() + "\n")
 }
 
-fn main() {
+/// `--seconds S` (simulated seconds per N), `--drives N,N,…` and the Markdown file to
+/// write into, with their defaults.
+fn parse_args() -> (f64, Vec<usize>, Option<String>) {
     let mut seconds = 2.0f64;
     let mut drives = vec![8usize, 16, 32, 64, 128, 256];
     let mut out = None;
@@ -259,7 +246,12 @@ fn main() {
             _ => out = Some(a),
         }
     }
-    let cycles = (seconds * 1000.0).round().max(1.0) as u64;
+    (seconds, drives, out)
+}
+
+/// One run per segment size in `drives`, `cycles` timed cycles each; exits the
+/// program when a segment cannot start or the master reports an error.
+fn measure(drives: &[usize], cycles: u64) -> Vec<Run> {
     let cfg = SimDriveConfig {
         motor: Motor::Ecn57_20,
         flavour: Flavour::Lan9252,
@@ -273,7 +265,7 @@ fn main() {
         }
     };
     let mut runs = Vec::new();
-    for &n in &drives {
+    for &n in drives {
         let seg = match sim_drive::segment_with(&cfg, n, AxisModel::Kinematic) {
             Ok(s) => s,
             Err(e) => {
@@ -305,6 +297,11 @@ fn main() {
         }
     }
 
+    runs
+}
+
+/// The Markdown section of the runs.
+fn report(runs: &[Run], cycles: u64) -> String {
     let mut md = String::new();
     let _ = writeln!(md, "{SECTION}\n");
     let _ = writeln!(
@@ -337,7 +334,7 @@ fn main() {
         "| drives | LRW datagrams per cycle | expected WKC | cycles with that WKC | enabled at the end | segment CPU per simulated s | master CPU per simulated s | segment per 1 ms cycle | per drive per cycle | real time on one core |\n|---|---|---|---|---|---|---|---|---|---|"
     );
     let mut best = None;
-    for r in &runs {
+    for r in runs {
         let sim_s = r.cycles as f64 * 1e-3;
         let seg_per_s = r.segment_s / sim_s;
         let master_per_s = (r.total_s - r.segment_s).max(0.0) / sim_s;
@@ -391,11 +388,5 @@ fn main() {
             );
         }
     }
-    print!("{md}");
-    if let Some(path) = out {
-        if let Err(e) = replace_section(&path, SECTION, &md) {
-            eprintln!("scale: cannot write {path}: {e}");
-            std::process::exit(1);
-        }
-    }
+    md
 }

@@ -15,6 +15,7 @@
 //! drive's own detections then report it. The log shows each injection and every
 //! change of the LEDs (RUN, ERR, red fault LED) with its time. Bad options: a message
 //! and exit code 2.
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};

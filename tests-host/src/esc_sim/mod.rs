@@ -22,11 +22,16 @@
 //! Choices where the real chips' behaviour is not in our sources are marked
 //! *simulation choice* in the docs below.
 
+mod dc;
 pub mod frame;
+mod sii;
 mod sm;
+
+pub use sii::sii_crc8;
 
 use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::{EscAccess, EscError};
+use sii::SII_CTRL_BUSY;
 use sm::SmRuntime;
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -171,22 +176,6 @@ pub struct EscSim {
     port0_closed: bool,
 }
 
-/// The SII checksum: CRC-8, polynomial 0x07, init 0xFF, MSB first (digest §7.2).
-pub fn sii_crc8(bytes: &[u8]) -> u8 {
-    let mut crc: u8 = 0xFF;
-    for &b in bytes {
-        crc ^= b;
-        for _ in 0..8 {
-            crc = if crc & 0x80 != 0 {
-                (crc << 1) ^ 0x07
-            } else {
-                crc << 1
-            };
-        }
-    }
-    crc
-}
-
 fn get_u16(m: &[u8], a: usize) -> u16 {
     u16::from_le_bytes([m[a], m[a + 1]])
 }
@@ -207,16 +196,6 @@ fn put_u32(m: &mut [u8], a: usize, v: u32) {
 fn put_u64(m: &mut [u8], a: usize, v: u64) {
     m[a..a + 8].copy_from_slice(&v.to_le_bytes());
 }
-
-const SII_CTRL_WRITE_ENABLE: u16 = 1 << 0;
-const SII_CTRL_READ_8: u16 = 1 << 6;
-const SII_CTRL_ADDR_2BYTES: u16 = 1 << 7;
-const SII_CTRL_CMD_MASK: u16 = 0x0700;
-const SII_CTRL_CHECKSUM_ERR: u16 = 1 << 11;
-const SII_CTRL_NOT_LOADED: u16 = 1 << 12;
-const SII_CTRL_ACK_ERR: u16 = 1 << 13;
-const SII_CTRL_WE_ERR: u16 = 1 << 14;
-const SII_CTRL_BUSY: u16 = 1 << 15;
 
 /// ECAT event request bit: AL status changed.
 const ECAT_EVENT_AL_STATUS: u16 = 1 << 3;
@@ -270,42 +249,6 @@ impl EscSim {
         put_u16(m, reg::WATCHDOG_STATUS_PD as usize, 0x0001);
         self.set_ports(false);
         self.load_sii_config();
-    }
-
-    /// (Re)loads the ESC configuration area from the SII image: PDI control and
-    /// configuration, SYNC pulse length, station alias (word 4).
-    fn load_sii_config(&mut self) {
-        let mut ctrl = get_u16(&self.mem, reg::SII_CONTROL as usize)
-            & !(SII_CTRL_CHECKSUM_ERR
-                | SII_CTRL_NOT_LOADED
-                | SII_CTRL_READ_8
-                | SII_CTRL_ADDR_2BYTES);
-        if self.flavour.sii_reads_8_bytes() {
-            ctrl |= SII_CTRL_READ_8;
-        }
-        if self.sii.len() > 2048 {
-            ctrl |= SII_CTRL_ADDR_2BYTES;
-        }
-        let ok = self.sii.len() >= 16 && sii_crc8(&self.sii[0..14]) == self.sii[14];
-        let dl = reg::DL_STATUS as usize;
-        if ok {
-            let s = &self.sii;
-            let w = |i: usize| u16::from_le_bytes([s[2 * i], s[2 * i + 1]]);
-            let (w0, w1, w2, w3, w4) = (w(0), w(1), w(2), w(3), w(4));
-            put_u16(&mut self.mem, reg::PDI_CONTROL as usize, w0);
-            put_u16(&mut self.mem, reg::PDI_CONFIG as usize, w1);
-            put_u16(&mut self.mem, reg::DC_PULSE_LENGTH as usize, w2);
-            put_u16(&mut self.mem, reg::PDI_CONFIG as usize + 2, w3);
-            put_u16(&mut self.mem, reg::STATION_ALIAS as usize, w4);
-            self.mem[dl] |= 0x01;
-        } else {
-            if self.sii.len() >= 16 {
-                ctrl |= SII_CTRL_CHECKSUM_ERR;
-            }
-            ctrl |= SII_CTRL_NOT_LOADED;
-            self.mem[dl] &= !0x01;
-        }
-        put_u16(&mut self.mem, reg::SII_CONTROL as usize, ctrl);
     }
 
     /// Sets the link state of the ports: port 0 always has a link (towards the
@@ -886,261 +829,6 @@ impl EscSim {
         }
         self.sm_update_status(n);
         outcome.accepted
-    }
-
-    // ---------------------------------------------------------------- SII
-
-    fn sii_reg_write(&mut self, a: usize, v: u8) {
-        match a {
-            0x0502 => {
-                // Only write enable is writable in the low byte.
-                self.mem[a] = (self.mem[a] & !0x01) | (v & 0x01);
-            }
-            0x0503 => {
-                // Command bits 10:8; status bits are read-only.
-                self.mem[a] = (self.mem[a] & !0x07) | (v & 0x07);
-            }
-            _ => self.mem[a] = v,
-        }
-    }
-
-    fn sii_execute(&mut self) {
-        let ca = reg::SII_CONTROL as usize;
-        let mut ctl = get_u16(&self.mem, ca);
-        let cmd = (ctl & SII_CTRL_CMD_MASK) >> 8;
-        ctl &= !SII_CTRL_CMD_MASK;
-        let word = get_u32(&self.mem, reg::SII_ADDRESS as usize) as usize;
-        match cmd {
-            0 => {
-                // No command: clears the error bits.
-                ctl &= !(SII_CTRL_ACK_ERR | SII_CTRL_WE_ERR);
-                put_u16(&mut self.mem, ca, ctl);
-                return;
-            }
-            1 => {
-                ctl &= !(SII_CTRL_ACK_ERR | SII_CTRL_WE_ERR);
-                let n = if self.flavour.sii_reads_8_bytes() {
-                    8
-                } else {
-                    4
-                };
-                for i in 0..8 {
-                    let b = if i < n {
-                        word.checked_mul(2)
-                            .and_then(|o| o.checked_add(i))
-                            .and_then(|o| self.sii.get(o).copied())
-                            .unwrap_or(0xFF)
-                    } else {
-                        0
-                    };
-                    self.mem[reg::SII_DATA as usize + i] = b;
-                }
-            }
-            2 => {
-                if ctl & SII_CTRL_WRITE_ENABLE == 0 {
-                    ctl |= SII_CTRL_WE_ERR;
-                } else {
-                    let o = word.saturating_mul(2);
-                    let cap = self.sii_capacity();
-                    if o + 2 <= cap {
-                        if self.sii.len() < o + 2 {
-                            self.sii.resize(o + 2, 0xFF);
-                        }
-                        let d = reg::SII_DATA as usize;
-                        self.sii[o] = self.mem[d];
-                        self.sii[o + 1] = self.mem[d + 1];
-                        ctl &= !(SII_CTRL_ACK_ERR | SII_CTRL_WE_ERR);
-                    } else {
-                        ctl |= SII_CTRL_ACK_ERR;
-                    }
-                }
-                ctl &= !SII_CTRL_WRITE_ENABLE;
-            }
-            4 => {
-                put_u16(&mut self.mem, ca, ctl);
-                self.load_sii_config();
-                ctl = get_u16(&self.mem, ca);
-                if self.flavour.sii_reads_8_bytes() {
-                    // Reload with 8-byte reads supplies words 0..3 in the data register.
-                    for i in 0..8 {
-                        self.mem[reg::SII_DATA as usize + i] =
-                            self.sii.get(i).copied().unwrap_or(0xFF);
-                    }
-                }
-            }
-            _ => {
-                ctl |= SII_CTRL_ACK_ERR;
-            }
-        }
-        self.stats.sii_commands += 1;
-        // Busy for the next status read: the master must poll.
-        ctl |= SII_CTRL_BUSY;
-        self.sii_busy_reads = 1;
-        put_u16(&mut self.mem, ca, ctl);
-    }
-
-    fn sii_finish_busy(&mut self) {
-        let ca = reg::SII_CONTROL as usize;
-        let ctl = get_u16(&self.mem, ca) & !SII_CTRL_BUSY;
-        put_u16(&mut self.mem, ca, ctl);
-        self.sii_busy_reads = 0;
-    }
-
-    /// EEPROM capacity in bytes from SII word 0x3E (KiBit − 1), at least the image.
-    fn sii_capacity(&self) -> usize {
-        let declared = if self.sii.len() >= 0x80 {
-            (u16::from_le_bytes([self.sii[0x7C], self.sii[0x7D]]) as usize + 1) * 128
-        } else {
-            128
-        };
-        declared.max(self.sii.len()).min(1 << 20)
-    }
-
-    // ---------------------------------------------------------------- DC
-
-    fn latch_receive_times(&mut self) {
-        let t0 = self.timing.port0_ns.wrapping_add(self.clock_base_ns);
-        put_u32(
-            &mut self.mem,
-            reg::DC_RECEIVE_TIME_PORT0 as usize,
-            t0 as u32,
-        );
-        if let Some(t1) = self.timing.port1_ns {
-            let t1 = t1.wrapping_add(self.clock_base_ns);
-            put_u32(
-                &mut self.mem,
-                reg::DC_RECEIVE_TIME_PORT0 as usize + 4,
-                t1 as u32,
-            );
-        }
-        put_u64(&mut self.mem, reg::DC_RECEIVE_TIME_PU as usize, t0);
-    }
-
-    fn system_time_write(&mut self, start: usize, data: &[u8]) {
-        // Only a write that starts at 0x0910 carries a comparable time value.
-        if start != reg::DC_SYSTEM_TIME as usize || data.len() < 4 {
-            return;
-        }
-        let delay = get_u32(&self.mem, reg::DC_SYSTEM_TIME_DELAY as usize) as u64;
-        let local = self.system_time_at(self.timing.port0_ns);
-        let diff: i64 = if data.len() >= 8 {
-            let mut b = [0u8; 8];
-            b.copy_from_slice(&data[..8]);
-            u64::from_le_bytes(b)
-                .wrapping_add(delay)
-                .wrapping_sub(local) as i64
-        } else {
-            let v = u32::from_le_bytes([data[0], data[1], data[2], data[3]]);
-            v.wrapping_add(delay as u32).wrapping_sub(local as u32) as i32 as i64
-        };
-        // 0x092C: bit 31 set when the local copy is smaller than the received time.
-        let mag = diff.unsigned_abs().min(0x7FFF_FFFF) as u32;
-        let reg_v = if diff > 0 { mag | 0x8000_0000 } else { mag };
-        put_u32(&mut self.mem, reg::DC_SYSTEM_TIME_DIFF as usize, reg_v);
-        // Drift compensation: the simulated clocks do not drift, so the control loop
-        // settles at once on the measured difference.
-        self.pll_correction = self.pll_correction.wrapping_add(diff);
-    }
-
-    fn sync_activation_changed(&mut self) {
-        let act = self.mem[reg::DC_ACTIVATION as usize];
-        let status = reg::DC_ACTIVATION_STATUS as usize;
-        if act & 0x03 == 0x03 {
-            let start = get_u64(&self.mem, reg::DC_START_TIME as usize);
-            let cycle = get_u32(&self.mem, reg::DC_SYNC0_CYCLE as usize);
-            self.sync0 = Sync0 {
-                active: true,
-                next: start,
-                cycle,
-            };
-            let now = self.system_time_at(self.now_ns.max(self.timing.port0_ns));
-            self.mem[status] = 0x01;
-            if start < now {
-                // Start time already past: the chip would wait for the 64-bit system
-                // time to wrap around; no SYNC0 in any simulated lifetime.
-                self.mem[status] |= 0x04;
-                self.sync0.active = false;
-            }
-        } else {
-            self.sync0.active = false;
-            self.mem[status] = 0;
-        }
-    }
-
-    // ---------------------------------------------------------------- watchdogs
-
-    fn watchdog_period_ns(&self, time_reg: u16) -> u64 {
-        let div = get_u16(&self.mem, reg::WATCHDOG_DIVIDER as usize) as u64;
-        let t = get_u16(&self.mem, time_reg as usize) as u64;
-        (div + 2) * 40 * t
-    }
-
-    fn pd_watchdog_trigger(&mut self) {
-        self.pd_wd_armed = true;
-        self.pd_wd_last_ns = self.now_ns;
-        self.mem[reg::WATCHDOG_STATUS_PD as usize] |= 0x01;
-    }
-
-    /// True while the process-data watchdog has not expired (0x0440 bit 0).
-    pub fn pd_watchdog_ok(&self) -> bool {
-        self.mem[reg::WATCHDOG_STATUS_PD as usize] & 0x01 != 0
-    }
-
-    // ---------------------------------------------------------------- time
-
-    /// Advances simulated time to `t_ns` (never backwards): generates SYNC0 pulses,
-    /// runs the process-data and PDI watchdogs, and ends a pending EEPROM busy phase.
-    pub fn advance_to(&mut self, t_ns: u64) {
-        if t_ns < self.now_ns {
-            return;
-        }
-        self.now_ns = t_ns;
-        if self.sii_busy_reads > 0 {
-            self.sii_finish_busy();
-        }
-        if self.sync0.active {
-            let st = self.system_time_at(t_ns);
-            if st >= self.sync0.next {
-                let pulses = if self.sync0.cycle == 0 {
-                    self.sync0.active = false;
-                    1
-                } else {
-                    (st - self.sync0.next) / self.sync0.cycle as u64 + 1
-                };
-                self.sync0.next = self
-                    .sync0
-                    .next
-                    .wrapping_add(pulses.wrapping_mul(self.sync0.cycle as u64));
-                self.stats.sync0_pulses += pulses;
-                self.mem[reg::DC_SYNC0_STATUS as usize] |= 0x01;
-                self.mem[reg::DC_ACTIVATION_STATUS as usize] &= !0x01;
-                self.al_event_set(reg::al_event::SYNC0);
-                put_u64(&mut self.mem, reg::DC_START_TIME as usize, self.sync0.next);
-            }
-        }
-        let pd_period = self.watchdog_period_ns(reg::WATCHDOG_TIME_PD);
-        if self.pd_wd_armed
-            && pd_period != 0
-            && self.pd_watchdog_ok()
-            && t_ns.saturating_sub(self.pd_wd_last_ns) > pd_period
-        {
-            self.mem[reg::WATCHDOG_STATUS_PD as usize] &= !0x01;
-            let c = reg::WATCHDOG_COUNTER_PD as usize;
-            self.mem[c] = self.mem[c].saturating_add(1);
-            self.stats.pd_watchdog_expiries += 1;
-            self.al_event_set(reg::al_event::WATCHDOG);
-        }
-        let pdi_period = self.watchdog_period_ns(reg::WATCHDOG_TIME_PDI);
-        let dl = reg::DL_STATUS as usize;
-        if pdi_period != 0
-            && self.mem[dl] & 0x02 != 0
-            && t_ns.saturating_sub(self.pdi_last_ns) > pdi_period
-        {
-            self.mem[dl] &= !0x02;
-            let c = reg::WATCHDOG_COUNTER_PDI as usize;
-            self.mem[c] = self.mem[c].saturating_add(1);
-            self.stats.pdi_watchdog_expiries += 1;
-        }
     }
 
     pub(crate) fn set_frame_timing(&mut self, timing: FrameTiming) {

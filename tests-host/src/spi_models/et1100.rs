@@ -22,7 +22,7 @@ use ecat_slave_stack::registers::AL_EVENT_REQUEST;
 use ecat_slave_stack::EscAccess;
 use embedded_hal::spi::{ErrorType, Operation, SpiDevice};
 
-use super::{run_transaction, ByteDevice, ModelBusError, Transaction};
+use super::{model_transaction, ByteDevice, ModelBusError, Transaction};
 
 /// Injected faults.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -109,6 +109,12 @@ impl<B: EscAccess> Et1100Model<B> {
 }
 
 impl<B: EscAccess> ByteDevice for Et1100Model<B> {
+    fn take_injected_failure(&mut self) -> bool {
+        std::mem::take(&mut self.faults.fail_next)
+    }
+    fn log(&mut self) -> &mut Vec<Transaction> {
+        &mut self.log
+    }
     fn begin(&mut self) {
         self.phase = Phase::A0;
         self.index = 0;
@@ -246,13 +252,6 @@ impl<B> ErrorType for Et1100Model<B> {
 
 impl<B: EscAccess> SpiDevice for Et1100Model<B> {
     fn transaction(&mut self, operations: &mut [Operation<'_, u8>]) -> Result<(), ModelBusError> {
-        if self.faults.fail_next {
-            self.faults.fail_next = false;
-            return Err(ModelBusError);
-        }
-        let mut log = std::mem::take(&mut self.log);
-        run_transaction(self, &mut log, operations);
-        self.log = log;
-        Ok(())
+        model_transaction(self, operations)
     }
 }

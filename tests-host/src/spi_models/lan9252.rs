@@ -36,7 +36,7 @@ use ecat_slave_stack::lan9252::{self as chip, reg};
 use ecat_slave_stack::EscAccess;
 use embedded_hal::spi::{ErrorType, Operation, SpiDevice};
 
-use super::{run_transaction, ByteDevice, ModelBusError, Transaction};
+use super::{model_transaction, ByteDevice, ModelBusError, Transaction};
 
 /// ID_REV value of the model (chip ID 0x9252, revision 1).
 pub const MODEL_ID_REV: u32 = 0x9252_0001;
@@ -477,6 +477,12 @@ impl<B: EscAccess> Lan9252Model<B> {
 }
 
 impl<B: EscAccess> ByteDevice for Lan9252Model<B> {
+    fn take_injected_failure(&mut self) -> bool {
+        std::mem::take(&mut self.faults.fail_next)
+    }
+    fn log(&mut self) -> &mut Vec<Transaction> {
+        &mut self.log
+    }
     fn begin(&mut self) {
         self.phase = Phase::Instr;
         self.index = 0;
@@ -579,13 +585,6 @@ impl<B> ErrorType for Lan9252Model<B> {
 
 impl<B: EscAccess> SpiDevice for Lan9252Model<B> {
     fn transaction(&mut self, operations: &mut [Operation<'_, u8>]) -> Result<(), ModelBusError> {
-        if self.faults.fail_next {
-            self.faults.fail_next = false;
-            return Err(ModelBusError);
-        }
-        let mut log = std::mem::take(&mut self.log);
-        run_transaction(self, &mut log, operations);
-        self.log = log;
-        Ok(())
+        model_transaction(self, operations)
     }
 }

@@ -58,6 +58,25 @@ pub(crate) trait ByteDevice {
     fn delay(&mut self, _ns: u32) {}
     /// Chip select went high.
     fn end(&mut self);
+    /// Whether the next transaction is to fail (an injected fault); clears the request.
+    fn take_injected_failure(&mut self) -> bool;
+    /// The log of the transactions run so far.
+    fn log(&mut self) -> &mut Vec<Transaction>;
+}
+
+/// One `SpiDevice` transaction of a chip model: refused when a failure was injected,
+/// else run through [`run_transaction`] and appended to the model's log.
+pub(crate) fn model_transaction<D: ByteDevice>(
+    dev: &mut D,
+    ops: &mut [Operation<'_, u8>],
+) -> Result<(), ModelBusError> {
+    if dev.take_injected_failure() {
+        return Err(ModelBusError);
+    }
+    let mut log = std::mem::take(dev.log());
+    run_transaction(dev, &mut log, ops);
+    *dev.log() = log;
+    Ok(())
 }
 
 /// Runs the operations of one transaction through `dev` and records it.
