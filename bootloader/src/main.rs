@@ -52,6 +52,7 @@
 //!
 //! [embassy-boot]: https://docs.embassy.dev/embassy-boot
 #![cfg_attr(target_os = "none", no_std, no_main)]
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 #[cfg(target_os = "none")]
 mod boot {

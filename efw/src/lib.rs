@@ -30,6 +30,7 @@
 
 #![no_std]
 #![forbid(unsafe_code)]
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 #[cfg(feature = "std")]
 extern crate std;

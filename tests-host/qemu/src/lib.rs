@@ -24,6 +24,7 @@
 //! Both sides print `test result: ok. N passed; M failed` so `cargo xtask test`
 //! counts them the same way.
 #![cfg_attr(target_os = "none", no_std)]
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 #[cfg(target_os = "none")]
 pub mod target;

@@ -75,25 +75,31 @@ pub fn run() {
     let src = black_box(Block([0x5A; 260]));
     let mut dst = Block([0; 260]);
     let (s, d) = (src.0.as_ptr(), dst.0.as_mut_ptr());
-    // SAFETY (all rows): `src` and `dst` are distinct 260-byte buffers; every copy or
-    // fill stays inside them (offset 1 + 64 bytes, 256 bytes from the start).
-    crate::bench("board memcpy 256 B aligned (firmware::mem)", || unsafe {
-        firmware::mem::copy(d, s, black_box(256))
+    // Every row: `src` and `dst` are distinct 260-byte buffers, and every copy or fill
+    // stays inside them (offset 1 + 64 bytes, 256 bytes from the start).
+    crate::bench("board memcpy 256 B aligned (firmware::mem)", || {
+        // SAFETY: inside `src` / `dst`, which do not overlap (see above).
+        unsafe { firmware::mem::copy(d, s, black_box(256)) }
     });
-    crate::bench("compiler_builtins memcpy 256 B aligned", || unsafe {
-        core::ptr::copy_nonoverlapping(s, d, black_box(256))
+    crate::bench("compiler_builtins memcpy 256 B aligned", || {
+        // SAFETY: inside `src` / `dst`, which do not overlap (see above).
+        unsafe { core::ptr::copy_nonoverlapping(s, d, black_box(256)) }
     });
-    crate::bench("board memcpy 64 B unaligned (firmware::mem)", || unsafe {
-        firmware::mem::copy(d.add(1), s, black_box(64))
+    crate::bench("board memcpy 64 B unaligned (firmware::mem)", || {
+        // SAFETY: inside `src` / `dst`, which do not overlap (see above).
+        unsafe { firmware::mem::copy(d.add(1), s, black_box(64)) }
     });
-    crate::bench("compiler_builtins memcpy 64 B unaligned", || unsafe {
-        core::ptr::copy_nonoverlapping(s, d.add(1), black_box(64))
+    crate::bench("compiler_builtins memcpy 64 B unaligned", || {
+        // SAFETY: inside `src` / `dst`, which do not overlap (see above).
+        unsafe { core::ptr::copy_nonoverlapping(s, d.add(1), black_box(64)) }
     });
-    crate::bench("board memset 256 B (firmware::mem)", || unsafe {
-        firmware::mem::fill(d, 0, black_box(256))
+    crate::bench("board memset 256 B (firmware::mem)", || {
+        // SAFETY: 256 bytes inside `dst` (see above).
+        unsafe { firmware::mem::fill(d, 0, black_box(256)) }
     });
-    crate::bench("compiler_builtins memset 256 B", || unsafe {
-        core::ptr::write_bytes(d, 0, black_box(256))
+    crate::bench("compiler_builtins memset 256 B", || {
+        // SAFETY: 256 bytes inside `dst` (see above).
+        unsafe { core::ptr::write_bytes(d, 0, black_box(256)) }
     });
     black_box(&dst);
 }

@@ -3,6 +3,7 @@
 //! the counting plugin and pairs the printed `BENCH <name>` lines with the counts.
 //! On the host the same binary runs the benchmarks natively (a smoke test, no counts).
 #![cfg_attr(target_os = "none", no_std, no_main)]
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 mod board_benches;
 mod ecat_benches;
