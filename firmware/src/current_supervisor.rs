@@ -90,7 +90,7 @@
 //! sum tripped on the TC86-45 at 13 V: at the voltage limit the current lags the
 //! voltage by up to 80°, so most large-voltage periods fall near a zero crossing.)
 
-use crate::params::{Params, P};
+use crate::params::{Param, Params};
 use foc::angle::Angle;
 use foc::autotune::{
     ki_from_param, kp_from_param, Autotune, AutotuneConfig, Phase, PhaseCheck, TuneError, TuneState,
@@ -156,11 +156,11 @@ impl SupervisorConfig {
         } else {
             25e-6
         };
-        let peak = p.get(P::PeakCurrent).clamp(100, 20_000) as f32 * 1e-3;
+        let peak = p.get(Param::PeakCurrent).clamp(100, 20_000) as f32 * 1e-3;
         SupervisorConfig {
             ts,
             pwm_period: pwm_period.max(2),
-            auto_tune: p.get(P::AutoTune) == 1,
+            auto_tune: p.get(Param::AutoTune) == 1,
             test_current: TEST_CURRENT_FRACTION * peak,
             check_current: (CHECK_CURRENT_FRACTION * peak).clamp(0.5, 2.0),
             follow_periods: ((FOLLOW_TIME_S / ts) as u32).max(1),
@@ -713,7 +713,7 @@ mod tests {
 
     fn cfg(auto_tune: bool) -> SupervisorConfig {
         let mut p = Params::new(Variant::HybridServo);
-        p.set_internal(P::AutoTune, i32::from(auto_tune));
+        p.set_internal(Param::AutoTune, i32::from(auto_tune));
         SupervisorConfig::from_params(&p, TS, PERIOD)
     }
 
@@ -766,7 +766,7 @@ mod tests {
         assert!((c.test_current - 0.8 * 3.2).abs() < 1e-4);
         assert_eq!(c.follow_periods, 800);
         let mut p = Params::new(Variant::HybridServo);
-        p.set_internal(P::AutoTune, 0);
+        p.set_internal(Param::AutoTune, 0);
         let c = SupervisorConfig::from_params(&p, f32::NAN, 0);
         assert!(!c.auto_tune);
         assert_eq!((c.ts, c.pwm_period), (25e-6, 2));

@@ -44,7 +44,7 @@ use crate::faults::{Emergency, FaultKind, Faults, Snapshot};
 use crate::identity::{Identity, Variant};
 use crate::io::{self, Inputs, OutputStatus};
 use crate::monitor::Monitor;
-use crate::params::{Params, P};
+use crate::params::{Param, Params};
 use crate::storage::{LoadReport, SaveReport, SlotStatus, Storage, StorageError};
 use crate::update::FirmwareUpdate;
 use ecat_slave_stack::foe::FoeFiles;
@@ -392,7 +392,7 @@ impl<S: ParameterStore> Drive<S> {
         self.faults.configure_from(&self.params);
         let active = self.params.active();
         let encoder_counts = if self.variant.has_encoder() {
-            (self.params.get(P::EncoderResolution) as u32).saturating_mul(4)
+            (self.params.get(Param::EncoderResolution) as u32).saturating_mul(4)
         } else {
             0
         };
@@ -400,7 +400,7 @@ impl<S: ParameterStore> Drive<S> {
             .set_resolution(encoder_counts, active.pulses_per_rev);
         self.cia402.set_has_index(self.variant.has_encoder());
         self.cia402
-            .set_rated_current_ma(self.params.get(P::PeakCurrent) as u32);
+            .set_rated_current_ma(self.params.get(Param::PeakCurrent) as u32);
     }
 
     /// Power-up: loads the stored parameters (drive objects and, through `runtime` —
@@ -804,7 +804,7 @@ impl<S: ParameterStore> Drive<S> {
     /// self-test is running: the PDS stays in Not ready to switch on.
     pub fn current_report(&mut self, r: &CurrentReport) {
         if !self.power_up_tune_over {
-            let running = self.params.get(P::AutoTune) == 1
+            let running = self.params.get(Param::AutoTune) == 1
                 && r.tune_seq == 0
                 && matches!(r.tune, TuneStatus::Pending | TuneStatus::Running);
             self.power_up_tune_over = !running;
@@ -816,11 +816,11 @@ impl<S: ParameterStore> Drive<S> {
                 TuneStatus::Done => {
                     let t = r.tuned;
                     self.params
-                        .set_internal(P::MotorResistance, i32::from(t.r_mohm));
+                        .set_internal(Param::MotorResistance, i32::from(t.r_mohm));
                     self.params
-                        .set_internal(P::MotorInductance, i32::from(t.l_uh));
-                    self.params.set_internal(P::CurrentKp, i32::from(t.kp));
-                    self.params.set_internal(P::CurrentKi, i32::from(t.ki));
+                        .set_internal(Param::MotorInductance, i32::from(t.l_uh));
+                    self.params.set_internal(Param::CurrentKp, i32::from(t.kp));
+                    self.params.set_internal(Param::CurrentKi, i32::from(t.ki));
                 }
                 TuneStatus::Failed(e) => {
                     use foc::autotune::{Phase, TuneError};
@@ -939,10 +939,10 @@ impl<S: ParameterStore> Drive<S> {
         // Following-error supervision of the closed loop (0x2030, encoder counts).
         if self.command.drive_enabled
             && self.variant.has_encoder()
-            && self.params.get(P::LoopMode) == 2
+            && self.params.get(Param::LoopMode) == 2
         {
             let err = self.axis.servo_following_error;
-            let limit = self.params.get(P::FollowingErrorLimit) as u16;
+            let limit = self.params.get(Param::FollowingErrorLimit) as u16;
             if err.unsigned_abs() > u32::from(limit) {
                 // The snapshot is only taken when there is something to record.
                 let snap = self.snapshot();

@@ -329,8 +329,11 @@ impl Faults {
 
     /// Applies 0x2056 / 0x2057 from the parameters.
     pub fn configure_from(&mut self, p: &crate::params::Params) {
-        use crate::params::P;
-        self.configure(p.get(P::FaultMask) as u16, p.get(P::FaultClearAllowed) == 1);
+        use crate::params::Param;
+        self.configure(
+            p.get(Param::FaultMask) as u16,
+            p.get(Param::FaultClearAllowed) == 1,
+        );
     }
 
     /// The thresholds.

@@ -69,7 +69,7 @@
 use crate::cia402::{DriveCommand, SetpointKind};
 use crate::drive::AxisState;
 use crate::identity::Variant;
-use crate::params::{Params, P};
+use crate::params::{Param, Params};
 use core::num::{NonZeroU32, NonZeroU64};
 use foc::angle::{Angle, CountScale, POLE_PAIRS};
 use foc::open_loop::{OpenLoop, OpenLoopConfig};
@@ -166,17 +166,17 @@ impl MotionConfig {
             SERVO_TS
         };
         let counts = if variant.has_encoder() {
-            (p.get(P::EncoderResolution).clamp(1, 1 << 20) as u32) * 4
+            (p.get(Param::EncoderResolution).clamp(1, 1 << 20) as u32) * 4
         } else {
             0
         };
         let ppr = match p.active().pulses_per_rev {
-            0 => p.get(P::PulsesPerRev),
+            0 => p.get(Param::PulsesPerRev),
             n => n as i32,
         }
         .clamp(1, 1 << 24) as u32;
-        let peak = p.get(P::PeakCurrent).clamp(0, 20_000) as f32 * 1e-3;
-        let g = |x: P| p.get(x).clamp(0, 150) as u16;
+        let peak = p.get(Param::PeakCurrent).clamp(0, 20_000) as f32 * 1e-3;
+        let g = |x: Param| p.get(x).clamp(0, 150) as u16;
         let base = ServoGains::from_bandwidth(
             finite_pos(motor.inertia).max(1e-9),
             finite_pos(motor.kt).max(1e-6),
@@ -184,9 +184,14 @@ impl MotionConfig {
             BASE_BANDWIDTH_HZ,
             peak,
         );
-        let gains = base.scaled(g(P::PosKp), g(P::PosKi), g(P::VelFf), g(P::SpeedKp).max(1));
-        let filter_s = if p.get(P::CmdFilterEnable) != 0 {
-            p.get(P::CmdFilterTime).clamp(0, 1_000_000) as f32 * 1e-6
+        let gains = base.scaled(
+            g(Param::PosKp),
+            g(Param::PosKi),
+            g(Param::VelFf),
+            g(Param::SpeedKp).max(1),
+        );
+        let filter_s = if p.get(Param::CmdFilterEnable) != 0 {
+            p.get(Param::CmdFilterTime).clamp(0, 1_000_000) as f32 * 1e-6
         } else {
             0.0
         };
@@ -194,14 +199,14 @@ impl MotionConfig {
             ts,
             pulses_per_rev: ppr,
             counts_per_rev: counts,
-            closed_loop: counts > 0 && p.get(P::LoopMode) == 2,
+            closed_loop: counts > 0 && p.get(Param::LoopMode) == 2,
             peak_current: peak,
-            holding_percent: p.get(P::HoldingCurrent).clamp(0, 100) as u8,
-            standby_s: p.get(P::StandbyTime).clamp(0, 100_000) as f32 * 1e-3,
-            soft_start_s: p.get(P::SoftStart).clamp(0, 100_000) as f32 * 50e-6,
+            holding_percent: p.get(Param::HoldingCurrent).clamp(0, 100) as u8,
+            standby_s: p.get(Param::StandbyTime).clamp(0, 100_000) as f32 * 1e-3,
+            soft_start_s: p.get(Param::SoftStart).clamp(0, 100_000) as f32 * 50e-6,
             filter_s,
-            reverse: p.get(P::DirectionReversal) != 0,
-            following_error_limit: p.get(P::FollowingErrorLimit).clamp(1, 1 << 24) as u32,
+            reverse: p.get(Param::DirectionReversal) != 0,
+            following_error_limit: p.get(Param::FollowingErrorLimit).clamp(1, 1 << 24) as u32,
             gains,
         }
     }
