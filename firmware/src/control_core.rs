@@ -340,9 +340,9 @@ impl ControlCore {
         self.motion.motion().fill_axis_state(&mut axis);
         // CiA 402 transition 4 waits while the closed loop still needs its alignment.
         axis.commutation_pending = self.motion.enable_pending();
-        let ma = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
-        axis.ia_ma = ma(self.cl.i_ab.alpha);
-        axis.ib_ma = ma(self.cl.i_ab.beta);
+        let milliamps = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
+        axis.ia_ma = milliamps(self.cl.i_ab.alpha);
+        axis.ib_ma = milliamps(self.cl.i_ab.beta);
         axis.bus_mv = (self.cl.vbus * 1000.0).clamp(0.0, 1.0e6) as u32;
         axis.electrical_angle = (self.enc.electrical_angle().0 >> 16) as u16;
         Feedback {

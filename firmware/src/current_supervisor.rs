@@ -580,7 +580,7 @@ impl CurrentSupervisor {
 
     #[inline(never)]
     fn trip_now(&mut self, cl: &CurrentLoop, over_current: bool) {
-        let ma = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
+        let milliamps = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
         self.tripped = true;
         self.trip = if over_current {
             Trip::OverCurrent
@@ -589,8 +589,8 @@ impl CurrentSupervisor {
         };
         self.trip_seq = self.trip_seq.wrapping_add(1);
         self.trip_sample = (
-            ma(cl.i_ab.alpha),
-            ma(cl.i_ab.beta),
+            milliamps(cl.i_ab.alpha),
+            milliamps(cl.i_ab.beta),
             (cl.vbus * 10.0).clamp(0.0, 65535.0) as u16,
         );
         self.tune = None;

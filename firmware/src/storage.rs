@@ -129,7 +129,8 @@ impl StorageError {
     }
 }
 
-fn fe<E: NorFlashError>(e: E) -> StorageError {
+/// The storage error of a flash driver error (its kind).
+fn flash_error<E: NorFlashError>(e: E) -> StorageError {
     StorageError::Flash(e.kind())
 }
 
@@ -231,7 +232,8 @@ fn header_bytes(magic: u32, sequence: u32, payload_len: u32) -> [u8; HEADER_LEN]
     h
 }
 
-fn le32(b: &[u8]) -> u32 {
+/// The little-endian `u32` in the first 4 bytes of `b` (at least 4 long).
+fn u32_le(b: &[u8]) -> u32 {
     let mut a = [0u8; 4];
     a.copy_from_slice(&b[..4]);
     u32::from_le_bytes(a)
@@ -288,7 +290,9 @@ impl Reader {
                 if n == 0 {
                     return Ok(false);
                 }
-                flash.read(abs, &mut self.buf[..n as usize]).map_err(fe)?;
+                flash
+                    .read(abs, &mut self.buf[..n as usize])
+                    .map_err(flash_error)?;
                 self.buf_at = at;
                 self.buf_len = n;
             }
@@ -343,7 +347,9 @@ impl Writer {
         for b in data.iter_mut().skip(self.fill) {
             *b = 0xFF;
         }
-        flash.write(self.start + self.flushed, data).map_err(fe)?;
+        flash
+            .write(self.start + self.flushed, data)
+            .map_err(flash_error)?;
         self.flushed += self.fill as u32;
         self.fill = 0;
         Ok(())
@@ -416,18 +422,20 @@ impl Storage {
         slot: usize,
     ) -> Result<Option<Header>, StorageError> {
         let mut h = [0u8; HEADER_LEN];
-        flash.read(self.slot_address(slot), &mut h).map_err(fe)?;
-        if le32(&h[0..]) != self.magic || u16::from_le_bytes([h[4], h[5]]) != FORMAT_VERSION {
+        flash
+            .read(self.slot_address(slot), &mut h)
+            .map_err(flash_error)?;
+        if u32_le(&h[0..]) != self.magic || u16::from_le_bytes([h[4], h[5]]) != FORMAT_VERSION {
             return Ok(None);
         }
-        let payload_len = le32(&h[12..]);
+        let payload_len = u32_le(&h[12..]);
         if payload_len > self.slot_size - HEADER_LEN as u32 {
             return Ok(None);
         }
         Ok(Some(Header {
-            sequence: le32(&h[8..]),
+            sequence: u32_le(&h[8..]),
             payload_len,
-            crc: le32(&h[16..]),
+            crc: u32_le(&h[16..]),
         }))
     }
 
@@ -448,7 +456,9 @@ impl Storage {
             // (n ≤ CHUNK, a multiple of HEADER_LEN: the `min` only lets the compiler
             // drop the bounds check.)
             let rn = ((n as usize).div_ceil(HEADER_LEN) * HEADER_LEN).min(CHUNK);
-            flash.read(start + done, &mut buf[..rn]).map_err(fe)?;
+            flash
+                .read(start + done, &mut buf[..rn])
+                .map_err(flash_error)?;
             crc.update(&buf[..n as usize]);
             done += n;
         }
@@ -487,7 +497,7 @@ impl Storage {
             let n = (self.slot_size - at).min(CHUNK as u32) as usize;
             flash
                 .read(self.slot_address(slot) + at, &mut buf[..n])
-                .map_err(fe)?;
+                .map_err(flash_error)?;
             if buf[..n].iter().any(|&b| b != 0xFF) {
                 return Ok(SlotStatus::Corrupt);
             }
@@ -690,7 +700,9 @@ impl Storage {
             None => (0, 1),
         };
         let base = self.slot_address(target);
-        flash.erase(base, base + self.slot_size).map_err(fe)?;
+        flash
+            .erase(base, base + self.slot_size)
+            .map_err(flash_error)?;
         let w = Writer {
             start: base + HEADER_LEN as u32,
             limit: self.slot_size - HEADER_LEN as u32,
@@ -717,7 +729,9 @@ impl Storage {
         let mut crc = w.crc;
         crc.update(&head[..16]);
         head[16..20].copy_from_slice(&crc.finish().to_le_bytes());
-        flash.write(self.slot_address(target), &head).map_err(fe)?;
+        flash
+            .write(self.slot_address(target), &head)
+            .map_err(flash_error)?;
         Ok(payload_len)
     }
 

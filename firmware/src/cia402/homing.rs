@@ -85,231 +85,46 @@ impl Method {
     /// The methods as written in the standard (compile time only: [`PACKED`]).
     const fn spec(method: i8) -> Option<Method> {
         use Kind::*;
+        use Sig::{Home, Neg, Pos};
+        /// An edge of `sig`, which equals `level` on the approach side.
+        const fn edge(sig: Sig, level: bool) -> Kind {
+            Edge { sig, level }
+        }
+        /// The `upper` or lower edge of the home switch zone, searched first in
+        /// `init_dir`.
+        const fn zone(upper: bool, init_dir: i8) -> Kind {
+            Zone { upper, init_dir }
+        }
+        // Methods 1-14 end on the index pulse, 17-30 are the same without it.
         let (kind, final_dir, index) = match method {
-            1 => (
-                Edge {
-                    sig: Sig::Neg,
-                    level: true,
-                },
-                1,
-                true,
-            ),
-            2 => (
-                Edge {
-                    sig: Sig::Pos,
-                    level: true,
-                },
-                -1,
-                true,
-            ),
-            3 => (
-                Edge {
-                    sig: Sig::Home,
-                    level: true,
-                },
-                -1,
-                true,
-            ),
-            4 => (
-                Edge {
-                    sig: Sig::Home,
-                    level: false,
-                },
-                1,
-                true,
-            ),
-            5 => (
-                Edge {
-                    sig: Sig::Home,
-                    level: true,
-                },
-                1,
-                true,
-            ),
-            6 => (
-                Edge {
-                    sig: Sig::Home,
-                    level: false,
-                },
-                -1,
-                true,
-            ),
-            7 => (
-                Zone {
-                    upper: false,
-                    init_dir: 1,
-                },
-                -1,
-                true,
-            ),
-            8 => (
-                Zone {
-                    upper: false,
-                    init_dir: 1,
-                },
-                1,
-                true,
-            ),
-            9 => (
-                Zone {
-                    upper: true,
-                    init_dir: 1,
-                },
-                -1,
-                true,
-            ),
-            10 => (
-                Zone {
-                    upper: true,
-                    init_dir: 1,
-                },
-                1,
-                true,
-            ),
-            11 => (
-                Zone {
-                    upper: true,
-                    init_dir: -1,
-                },
-                1,
-                true,
-            ),
-            12 => (
-                Zone {
-                    upper: true,
-                    init_dir: -1,
-                },
-                -1,
-                true,
-            ),
-            13 => (
-                Zone {
-                    upper: false,
-                    init_dir: -1,
-                },
-                1,
-                true,
-            ),
-            14 => (
-                Zone {
-                    upper: false,
-                    init_dir: -1,
-                },
-                -1,
-                true,
-            ),
-            17 => (
-                Edge {
-                    sig: Sig::Neg,
-                    level: true,
-                },
-                1,
-                false,
-            ),
-            18 => (
-                Edge {
-                    sig: Sig::Pos,
-                    level: true,
-                },
-                -1,
-                false,
-            ),
-            19 => (
-                Edge {
-                    sig: Sig::Home,
-                    level: true,
-                },
-                -1,
-                false,
-            ),
-            20 => (
-                Edge {
-                    sig: Sig::Home,
-                    level: false,
-                },
-                1,
-                false,
-            ),
-            21 => (
-                Edge {
-                    sig: Sig::Home,
-                    level: true,
-                },
-                1,
-                false,
-            ),
-            22 => (
-                Edge {
-                    sig: Sig::Home,
-                    level: false,
-                },
-                -1,
-                false,
-            ),
-            23 => (
-                Zone {
-                    upper: false,
-                    init_dir: 1,
-                },
-                -1,
-                false,
-            ),
-            24 => (
-                Zone {
-                    upper: false,
-                    init_dir: 1,
-                },
-                1,
-                false,
-            ),
-            25 => (
-                Zone {
-                    upper: true,
-                    init_dir: 1,
-                },
-                -1,
-                false,
-            ),
-            26 => (
-                Zone {
-                    upper: true,
-                    init_dir: 1,
-                },
-                1,
-                false,
-            ),
-            27 => (
-                Zone {
-                    upper: true,
-                    init_dir: -1,
-                },
-                1,
-                false,
-            ),
-            28 => (
-                Zone {
-                    upper: true,
-                    init_dir: -1,
-                },
-                -1,
-                false,
-            ),
-            29 => (
-                Zone {
-                    upper: false,
-                    init_dir: -1,
-                },
-                1,
-                false,
-            ),
-            30 => (
-                Zone {
-                    upper: false,
-                    init_dir: -1,
-                },
-                -1,
-                false,
-            ),
+            1 => (edge(Neg, true), 1, true),
+            2 => (edge(Pos, true), -1, true),
+            3 => (edge(Home, true), -1, true),
+            4 => (edge(Home, false), 1, true),
+            5 => (edge(Home, true), 1, true),
+            6 => (edge(Home, false), -1, true),
+            7 => (zone(false, 1), -1, true),
+            8 => (zone(false, 1), 1, true),
+            9 => (zone(true, 1), -1, true),
+            10 => (zone(true, 1), 1, true),
+            11 => (zone(true, -1), 1, true),
+            12 => (zone(true, -1), -1, true),
+            13 => (zone(false, -1), 1, true),
+            14 => (zone(false, -1), -1, true),
+            17 => (edge(Neg, true), 1, false),
+            18 => (edge(Pos, true), -1, false),
+            19 => (edge(Home, true), -1, false),
+            20 => (edge(Home, false), 1, false),
+            21 => (edge(Home, true), 1, false),
+            22 => (edge(Home, false), -1, false),
+            23 => (zone(false, 1), -1, false),
+            24 => (zone(false, 1), 1, false),
+            25 => (zone(true, 1), -1, false),
+            26 => (zone(true, 1), 1, false),
+            27 => (zone(true, -1), 1, false),
+            28 => (zone(true, -1), -1, false),
+            29 => (zone(false, -1), 1, false),
+            30 => (zone(false, -1), -1, false),
             33 => (Index, -1, true),
             34 => (Index, 1, true),
             35 | 37 => (Here, 1, false),

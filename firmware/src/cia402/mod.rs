@@ -668,8 +668,8 @@ impl Cia402 {
         self.assigned_inputs = mask;
     }
     /// Rated motor current shown in 0x6075 (mA).
-    pub fn set_rated_current_ma(&mut self, ma: u32) {
-        self.rated_current_ma = ma;
+    pub fn set_rated_current_ma(&mut self, milliamps: u32) {
+        self.rated_current_ma = milliamps;
     }
     /// Encoder increments per motor revolution (0x608F:01) and command units per
     /// revolution (0x2001, shown as feed in 0x6092:01).
