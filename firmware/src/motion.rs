@@ -176,7 +176,10 @@ impl MotionConfig {
         }
         .clamp(1, 1 << 24) as u32;
         let peak = p.get(Param::PeakCurrent).clamp(0, 20_000) as f32 * 1e-3;
-        let g = |x: Param| p.get(x).clamp(0, 150) as u16;
+        // Parameter values are always inside their range in the `params` table (every
+        // write is checked, internal sets are clamped): the gains and the holding
+        // current need no clamp of their own here.
+        let g = |x: Param| p.get(x) as u16;
         let base = ServoGains::from_bandwidth(
             finite_pos(motor.inertia).max(1e-9),
             finite_pos(motor.kt).max(1e-6),
@@ -201,7 +204,7 @@ impl MotionConfig {
             counts_per_rev: counts,
             closed_loop: counts > 0 && p.get(Param::LoopMode) == 2,
             peak_current: peak,
-            holding_percent: p.get(Param::HoldingCurrent).clamp(0, 100) as u8,
+            holding_percent: p.get(Param::HoldingCurrent) as u8,
             standby_s: p.get(Param::StandbyTime).clamp(0, 100_000) as f32 * 1e-3,
             soft_start_s: p.get(Param::SoftStart).clamp(0, 100_000) as f32 * 50e-6,
             filter_s,
