@@ -265,7 +265,7 @@ vendor_params! {
     }
 }
 
-/// The former short name of [`Param`], still used by the board glue.
+/// Short alias of [`Param`], used by the board glue and the integration tests.
 pub use Param as P;
 
 const N: usize = KEYS.len();

@@ -14,7 +14,9 @@
 //!
 //! Submodules: [`pds`] (states and the transition table), [`profile`] (trajectory
 //! generator), [`homing`], [`probe`] (touch probe), [`objects`] (dictionary entries,
-//! SDO read/write, PDO slots).
+//! SDO read/write, PDO slots). The step itself: `cycle` (its order), `power` (the
+//! power drive system in a step), `modes` (the mode dispatch and generators),
+//! `limits` (software limits, following error), `statusword`.
 //!
 //! # Behaviour decided here (where the sources leave a choice)
 //! * The drive steps the profile on its own clock ([`Cia402::step`] from its
