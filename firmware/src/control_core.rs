@@ -101,11 +101,11 @@ impl LoopMotor {
         ke: f32,
         encoder_lines: u32,
     ) -> Self {
-        use crate::params::P;
-        let l_uh = p.get(P::MotorInductance);
+        use crate::params::Param;
+        let l_uh = p.get(Param::MotorInductance);
         let (r_ohm, l_h) = if l_uh >= 100 {
             (
-                p.get(P::MotorResistance).max(1) as f32 * 1e-3,
+                p.get(Param::MotorResistance).max(1) as f32 * 1e-3,
                 l_uh as f32 * 1e-6,
             )
         } else {
@@ -340,9 +340,9 @@ impl ControlCore {
         self.motion.motion().fill_axis_state(&mut axis);
         // CiA 402 transition 4 waits while the closed loop still needs its alignment.
         axis.commutation_pending = self.motion.enable_pending();
-        let ma = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
-        axis.ia_ma = ma(self.cl.i_ab.alpha);
-        axis.ib_ma = ma(self.cl.i_ab.beta);
+        let milliamps = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
+        axis.ia_ma = milliamps(self.cl.i_ab.alpha);
+        axis.ib_ma = milliamps(self.cl.i_ab.beta);
         axis.bus_mv = (self.cl.vbus * 1000.0).clamp(0.0, 1.0e6) as u32;
         axis.electrical_angle = (self.enc.electrical_angle().0 >> 16) as u16;
         Feedback {
@@ -471,7 +471,7 @@ mod tests {
     fn core(variant: Variant) -> (ControlCore, ControlCommand) {
         let mut p = Params::new(variant);
         // Open loop: no commutation alignment before the current flows.
-        p.set_internal(crate::params::P::LoopMode, 1);
+        p.set_internal(crate::params::Param::LoopMode, 1);
         let motion = MotionConfig::from_params(&p, variant, &ECN57_20, SERVO_TS);
         let sup = SupervisorConfig::from_params(&p, 1.0 / STAGE.pwm_hz as f32, STAGE.pwm_arr);
         let c = ControlCore::new(
@@ -611,16 +611,16 @@ mod tests {
 
     #[test]
     fn loop_motor_takes_a_plausible_inductance_from_the_parameters() {
-        use crate::params::P;
+        use crate::params::Param;
         let mut p = Params::new(Variant::HybridServo);
-        p.set_internal(P::MotorInductance, 50);
+        p.set_internal(Param::MotorInductance, 50);
         let m = LoopMotor::from_params(&p, (0.5, 1.6e-3), 0.1, 1000);
         assert_eq!(
             (m.r_ohm, m.l_h, m.ke, m.encoder_lines),
             (0.5, 1.6e-3, 0.1, 1000)
         );
-        p.set_internal(P::MotorInductance, 2500);
-        p.set_internal(P::MotorResistance, 0);
+        p.set_internal(Param::MotorInductance, 2500);
+        p.set_internal(Param::MotorResistance, 0);
         let m = LoopMotor::from_params(&p, (0.5, 1.6e-3), 0.1, 1000);
         assert_eq!((m.r_ohm, m.l_h), (1e-3, 2.5e-3), "R at least 1 mΩ");
     }

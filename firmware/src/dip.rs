@@ -149,12 +149,12 @@ pub struct Settings {
 /// Chooses between the parameters and the DIP functions (`dip`: what
 /// [`power_up`] read; `None` when the board has none or is in station entry).
 pub fn settings(p: &crate::params::Params, dip: Option<DipFunctions>) -> Settings {
-    use crate::params::P;
+    use crate::params::Param;
     match dip {
-        Some(f) if p.get(P::ControlMode) == 0 => Settings {
+        Some(f) if p.get(Param::ControlMode) == 0 => Settings {
             peak_current_ma: f.peak_current_ma,
             holding_percent: match f.standstill {
-                Standstill::Software => p.get(P::HoldingCurrent) as u8,
+                Standstill::Software => p.get(Param::HoldingCurrent) as u8,
                 Standstill::Full => 100,
                 Standstill::Half => 50,
             },
@@ -162,11 +162,11 @@ pub fn settings(p: &crate::params::Params, dip: Option<DipFunctions>) -> Setting
             smoothing_us: f.smoothing_us,
         },
         _ => Settings {
-            peak_current_ma: p.get(P::PeakCurrent) as u16,
-            holding_percent: p.get(P::HoldingCurrent) as u8,
-            direction_reversed: p.get(P::DirectionReversal) == 1,
-            smoothing_us: if p.get(P::CmdFilterEnable) == 1 {
-                p.get(P::CmdFilterTime) as u32
+            peak_current_ma: p.get(Param::PeakCurrent) as u16,
+            holding_percent: p.get(Param::HoldingCurrent) as u8,
+            direction_reversed: p.get(Param::DirectionReversal) == 1,
+            smoothing_us: if p.get(Param::CmdFilterEnable) == 1 {
+                p.get(Param::CmdFilterTime) as u32
             } else {
                 0
             },
@@ -343,10 +343,10 @@ mod tests {
     #[test]
     fn dip_functions_only_with_control_mode_zero() {
         use crate::identity::Variant;
-        use crate::params::{Params, P};
+        use crate::params::{Param, Params};
         let mut p = Params::new(Variant::OpenLoop);
         let f = est584_functions(0b0001_1000); // SW4, SW5 ON; SW1-3 OFF: 8.4 A; 25 ms
-        assert_eq!(p.get(P::ControlMode), 5);
+        assert_eq!(p.get(Param::ControlMode), 5);
         let s = settings(&p, Some(f));
         assert_eq!(
             s,
@@ -357,7 +357,7 @@ mod tests {
                 smoothing_us: 0
             }
         );
-        p.set_internal(P::ControlMode, 0);
+        p.set_internal(Param::ControlMode, 0);
         let s = settings(&p, Some(f));
         assert_eq!(
             s,
@@ -369,14 +369,14 @@ mod tests {
             }
         );
         // SW4 OFF: the software holding current.
-        p.set_internal(P::HoldingCurrent, 30);
+        p.set_internal(Param::HoldingCurrent, 30);
         assert_eq!(settings(&p, Some(est584_functions(0))).holding_percent, 30);
         assert_eq!(
             settings(&p, Some(dp3cl705_functions(0))).holding_percent,
             50
         );
         // No function switches (station entry, or none on the board): parameters rule.
-        p.set_internal(P::CmdFilterEnable, 1);
+        p.set_internal(Param::CmdFilterEnable, 1);
         assert_eq!(settings(&p, None).smoothing_us, 1000);
         assert_eq!(settings(&p, None).peak_current_ma, 3200);
     }

@@ -13,7 +13,7 @@
 //! function is *in-position only* (value 4) uses 0x2053 for its active level instead.
 //! The brake output is energised (released) only while the drive holds the motor.
 
-use crate::params::{Params, P};
+use crate::params::{Param, Params};
 
 /// Number of inputs.
 pub const INPUTS: usize = 5;
@@ -105,7 +105,7 @@ impl Inputs {
             raw,
             dt_us,
             filters,
-            p.get(P::InputPolarity) as u8,
+            p.get(Param::InputPolarity) as u8,
             functions,
         );
     }
@@ -218,9 +218,12 @@ pub fn output_levels_with(
 /// [`output_levels_with`] with the configuration from the parameters.
 pub fn output_levels(p: &Params, s: OutputStatus) -> u8 {
     output_levels_with(
-        [p.get(P::Out1Function) as u16, p.get(P::Out2Function) as u16],
-        p.get(P::OutputLevel) as u8,
-        p.get(P::InPositionLevel) as u8,
+        [
+            p.get(Param::Out1Function) as u16,
+            p.get(Param::Out2Function) as u16,
+        ],
+        p.get(Param::OutputLevel) as u8,
+        p.get(Param::InPositionLevel) as u8,
         s,
     )
 }

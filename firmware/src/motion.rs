@@ -69,7 +69,7 @@
 use crate::cia402::{DriveCommand, SetpointKind};
 use crate::drive::AxisState;
 use crate::identity::Variant;
-use crate::params::{Params, P};
+use crate::params::{Param, Params};
 use core::num::{NonZeroU32, NonZeroU64};
 use foc::angle::{Angle, CountScale, POLE_PAIRS};
 use foc::open_loop::{OpenLoop, OpenLoopConfig};
@@ -166,17 +166,20 @@ impl MotionConfig {
             SERVO_TS
         };
         let counts = if variant.has_encoder() {
-            (p.get(P::EncoderResolution).clamp(1, 1 << 20) as u32) * 4
+            (p.get(Param::EncoderResolution).clamp(1, 1 << 20) as u32) * 4
         } else {
             0
         };
         let ppr = match p.active().pulses_per_rev {
-            0 => p.get(P::PulsesPerRev),
+            0 => p.get(Param::PulsesPerRev),
             n => n as i32,
         }
         .clamp(1, 1 << 24) as u32;
-        let peak = p.get(P::PeakCurrent).clamp(0, 20_000) as f32 * 1e-3;
-        let g = |x: P| p.get(x).clamp(0, 150) as u16;
+        let peak = p.get(Param::PeakCurrent).clamp(0, 20_000) as f32 * 1e-3;
+        // Parameter values are always inside their range in the `params` table (every
+        // write is checked, internal sets are clamped): the gains and the holding
+        // current need no clamp of their own here.
+        let g = |x: Param| p.get(x) as u16;
         let base = ServoGains::from_bandwidth(
             finite_pos(motor.inertia).max(1e-9),
             finite_pos(motor.kt).max(1e-6),
@@ -184,9 +187,14 @@ impl MotionConfig {
             BASE_BANDWIDTH_HZ,
             peak,
         );
-        let gains = base.scaled(g(P::PosKp), g(P::PosKi), g(P::VelFf), g(P::SpeedKp).max(1));
-        let filter_s = if p.get(P::CmdFilterEnable) != 0 {
-            p.get(P::CmdFilterTime).clamp(0, 1_000_000) as f32 * 1e-6
+        let gains = base.scaled(
+            g(Param::PosKp),
+            g(Param::PosKi),
+            g(Param::VelFf),
+            g(Param::SpeedKp).max(1),
+        );
+        let filter_s = if p.get(Param::CmdFilterEnable) != 0 {
+            p.get(Param::CmdFilterTime).clamp(0, 1_000_000) as f32 * 1e-6
         } else {
             0.0
         };
@@ -194,14 +202,14 @@ impl MotionConfig {
             ts,
             pulses_per_rev: ppr,
             counts_per_rev: counts,
-            closed_loop: counts > 0 && p.get(P::LoopMode) == 2,
+            closed_loop: counts > 0 && p.get(Param::LoopMode) == 2,
             peak_current: peak,
-            holding_percent: p.get(P::HoldingCurrent).clamp(0, 100) as u8,
-            standby_s: p.get(P::StandbyTime).clamp(0, 100_000) as f32 * 1e-3,
-            soft_start_s: p.get(P::SoftStart).clamp(0, 100_000) as f32 * 50e-6,
+            holding_percent: p.get(Param::HoldingCurrent) as u8,
+            standby_s: p.get(Param::StandbyTime).clamp(0, 100_000) as f32 * 1e-3,
+            soft_start_s: p.get(Param::SoftStart).clamp(0, 100_000) as f32 * 50e-6,
             filter_s,
-            reverse: p.get(P::DirectionReversal) != 0,
-            following_error_limit: p.get(P::FollowingErrorLimit).clamp(1, 1 << 24) as u32,
+            reverse: p.get(Param::DirectionReversal) != 0,
+            following_error_limit: p.get(Param::FollowingErrorLimit).clamp(1, 1 << 24) as u32,
             gains,
         }
     }
@@ -972,78 +980,4 @@ impl Motion {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::{floor_div_i32, floor_div_i64, Scale};
-    use core::num::{NonZeroU32, NonZeroU64};
-
-    #[test]
-    fn unsigned_floor_division_is_div_euclid() {
-        let xs = [
-            0,
-            1,
-            -1,
-            2,
-            -2,
-            49_999,
-            -50_000,
-            -50_001,
-            i32::MAX,
-            i32::MIN,
-            i32::MIN + 1,
-        ];
-        for d in [1u32, 2, 3, 7, 4000, 50_000, 240_000, 1 << 24] {
-            let nz = NonZeroU32::new(d).unwrap();
-            for &x in &xs {
-                assert_eq!(floor_div_i32(x, nz), x.div_euclid(d as i32), "{x} / {d}");
-                let w = i64::from(x) * i64::from(d) - 1;
-                let nz64 = NonZeroU64::new(u64::from(d) * 2).unwrap();
-                assert_eq!(
-                    floor_div_i64(w, nz64),
-                    w.div_euclid(i64::from(d) * 2),
-                    "{w}"
-                );
-            }
-        }
-        let one = NonZeroU64::new(1).unwrap();
-        assert_eq!(floor_div_i64(i64::MIN, one), i64::MIN);
-        assert_eq!(floor_div_i64(i64::MAX, one), i64::MAX);
-    }
-
-    #[test]
-    fn narrow_and_wide_unit_conversion_agree() {
-        let mut x = 0x1234_5678u32;
-        for (u, c) in [
-            (50_000u32, 4000u32),
-            (200, 4000),
-            (51_200, 240_000),
-            (3, 7),
-            (1, 1),
-        ] {
-            let s = Scale::new(u, c);
-            for k in 0..20_000 {
-                x ^= x << 13;
-                x ^= x >> 17;
-                x ^= x << 5;
-                let p = if k < 10 {
-                    [0, 1, -1, i32::MAX, i32::MIN, 49_999, -50_000, 12, -13, 7][k]
-                } else {
-                    x as i32
-                };
-                let (w1, f1) = s.to_counts(p);
-                let (w2, f2) = s.to_counts_wide(p);
-                assert_eq!(w1, w2, "{u}/{c} p {p}");
-                assert!((f1 - f2).abs() < 1e-6, "{u}/{c} p {p}");
-                assert!((0.0..1.0).contains(&f1));
-                // Round trip within half a unit.
-                let back = s.to_units(w1);
-                let (su, sc) = (i64::from(s.units.get()), i64::from(s.counts.get()));
-                if su >= sc && p.unsigned_abs() < (1 << 28) {
-                    assert!(
-                        (i64::from(back) - i64::from(p)).abs() * sc <= su,
-                        "{u}/{c} p {p} back {back}"
-                    );
-                }
-            }
-        }
-    }
-}
+mod tests;

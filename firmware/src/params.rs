@@ -30,6 +30,7 @@ use ecat_slave_stack::od::{
 
 use crate::identity::Variant;
 
+/// A saved read-write entry: range `min..=max`, default `def`, unit `unit`.
 const fn rws(
     sub: u8,
     name: &'static str,
@@ -48,397 +49,224 @@ const fn rws(
 
 use DataType::{Unsigned16 as U16, Unsigned32 as U32, Unsigned8 as U8};
 
-/// The vendor parameter objects, sorted by index.
-pub const OBJECTS: &[Object] = &[
-    Object::var(
-        0x2000,
-        "Peak current",
-        &[rws(0, "Peak current", U16, 3200, 1, 8400, "mA")],
-        "Peak phase current while running",
-    ),
-    Object::var(
-        0x2001,
-        "Pulses per revolution",
-        &[rws(
-            0,
-            "Pulses per revolution",
-            U32,
-            50000,
-            200,
-            51200,
-            "inc/rev",
-        )],
-        "Command units per motor revolution; effective after restart",
-    ),
-    Object::var(
-        0x2002,
-        "Stand-by time",
-        &[rws(0, "Stand-by time", U16, 500, 100, 10000, "ms")],
-        "Time without motion before the holding current applies",
-    ),
-    Object::array(
-        0x2005,
-        "Output function",
-        &[
-            Entry::count(2),
-            rws(1, "Output 1 function", U16, 1, 1, 4, ""),
-            rws(2, "Output 2 function", U16, 1, 1, 4, ""),
-        ],
-        "bit0 alarm, bit1 ready, bit2 in-position",
-    ),
-    Object::var(
-        0x2008,
-        "Output level",
-        &[rws(0, "Output level", U8, 0, 0, 3, "")],
-        "bit n = 1: output n+1 is active-high",
-    ),
-    Object::var(
-        0x2009,
-        "Command filter enable",
-        &[rws(0, "Command filter enable", U8, 0, 0, 1, "")],
-        "Command smoothing filter on/off",
-    ),
-    Object::record(
-        0x2010,
-        "Command filter",
-        &[
-            Entry::count(2),
-            rws(2, "Command filter time", U16, 1000, 50, 25600, "us"),
-        ],
-        "Command smoothing filter time (sub-index 1 is not used)",
-    ),
-    Object::var(
-        0x2013,
-        "Current loop auto-tune",
-        &[rws(0, "Current loop auto-tune", U8, 1, 0, 1, "")],
-        "Measure R and L and compute the current gains at power-up",
-    ),
-    Object::var(
-        0x2015,
-        "Current Kp",
-        &[rws(0, "Current Kp", U16, 1000, 200, 32767, "")],
-        "Current loop proportional gain; read-only while 0x2013 = 1",
-    ),
-    Object::var(
-        0x2016,
-        "Current Ki",
-        &[rws(0, "Current Ki", U16, 200, 0, 32767, "")],
-        "Current loop integral gain; read-only while 0x2013 = 1",
-    ),
-    Object::var(
-        0x2017,
-        "Current Kc",
-        &[Entry::new(0, "Current Kc", U16, Access::RO)
-            .range(80, 300)
-            .default(100)],
-        "Current loop anti-windup gain (read-only)",
-    ),
-    Object::var(
-        0x2020,
-        "Motor resistance",
-        &[rws(0, "Motor resistance", U16, 1000, 1, 20000, "mOhm")],
-        "Phase resistance (auto-tune fills it)",
-    ),
-    Object::var(
-        0x2021,
-        "Motor inductance",
-        &[rws(0, "Motor inductance", U16, 1, 1, 6000, "uH")],
-        "Phase inductance (auto-tune fills it)",
-    ),
-    Object::var(
-        0x2024,
-        "Loop mode",
-        &[rws(0, "Loop mode", U8, 2, 1, 2, "")],
-        "1 open loop, 2 closed loop",
-    ),
-    Object::var(
-        0x2025,
-        "Control mode",
-        &[rws(0, "Control mode", U8, 5, 0, 5, "")],
-        "0 DIP, 1 lead, 2 PM, 3 FOC, 4 self-test, 5 closed loop",
-    ),
-    Object::var(
-        0x2026,
-        "Holding current",
-        &[rws(0, "Holding current", U8, 50, 0, 100, "%")],
-        "Stand-still current in % of peak (open loop)",
-    ),
-    Object::var(
-        0x2029,
-        "Encoder resolution",
-        &[rws(
-            0,
-            "Encoder resolution",
-            U16,
-            1000,
-            200,
-            60000,
-            "lines/rev",
-        )],
-        "Encoder lines per revolution",
-    ),
-    Object::var(
-        0x2030,
-        "Following error limit",
-        &[rws(0, "Following error limit", U16, 1000, 1, 60000, "inc")],
-        "Position following error limit in encoder counts (fault, 7 flashes)",
-    ),
-    Object::var(
-        0x2039,
-        "Command pulses high",
-        &[Entry::new(0, "Command pulses high", U16, Access::RO)
-            .pdo(PdoMappable::Tx)
-            .default(0)],
-        "Received command pulses, bits 16-31",
-    ),
-    Object::var(
-        0x2040,
-        "Command pulses low",
-        &[Entry::new(0, "Command pulses low", U16, Access::RW)
-            .range(0, 1)
-            .pdo(PdoMappable::Tx)
-            .default(0)],
-        "Received command pulses, bits 0-15; write 1 clears the counter",
-    ),
-    Object::var(
-        0x2041,
-        "Encoder counts high",
-        &[Entry::new(0, "Encoder counts high", U16, Access::RO)
-            .pdo(PdoMappable::Tx)
-            .default(0)],
-        "Encoder feedback counts, bits 16-31",
-    ),
-    Object::var(
-        0x2042,
-        "Encoder counts low",
-        &[Entry::new(0, "Encoder counts low", U16, Access::RW)
-            .range(0, 1)
-            .pdo(PdoMappable::Tx)
-            .default(0)],
-        "Encoder feedback counts, bits 0-15; write 1 clears the counter",
-    ),
-    Object::var(
-        0x2051,
-        "Direction reversal",
-        &[rws(0, "Direction reversal", U8, 0, 0, 1, "")],
-        "1 reverses the motor direction",
-    ),
-    Object::var(
-        0x2053,
-        "In-position output level",
-        &[rws(0, "In-position output level", U8, 0, 0, 1, "")],
-        "1: an in-position output is active-high",
-    ),
-    Object::var(
-        0x2056,
-        "Fault detection mask",
-        &[rws(0, "Fault detection mask", U16, 0x00C3, 0, 0xFFFF, "")],
-        "bit = 1 enables the detection (see faults module)",
-    ),
-    Object::var(
-        0x2057,
-        "Fault clear allowed",
-        &[rws(0, "Fault clear allowed", U8, 0, 0, 1, "")],
-        "1: latched faults may be cleared without a power cycle",
-    ),
-    Object::var(
-        0x2058,
-        "Current soft-start",
-        &[rws(0, "Current soft-start", U16, 1, 0, 10000, "50us")],
-        "Current ramp on enable",
-    ),
-    Object::var(
-        0x2083,
-        "Power-up wiggle",
-        &[rws(0, "Power-up wiggle", U8, 0, 0, 1, "")],
-        "Angle alignment by a small shaft movement at power-up",
-    ),
-    Object::var(
-        0x2093,
-        "Fault clear record",
-        &[Entry::new(0, "Fault clear record", U8, Access::RW)
-            .range(0, 1)
-            .default(0)],
-        "Write 1: clear the fault history",
-    ),
-    Object::var(
-        0x2137,
-        "Position loop Kp",
-        &[rws(0, "Position loop Kp", U16, 120, 0, 150, "")],
-        "Position loop proportional gain",
-    ),
-    Object::var(
-        0x2138,
-        "Position loop Ki",
-        &[rws(0, "Position loop Ki", U16, 50, 0, 150, "")],
-        "Position loop integral gain",
-    ),
-    Object::var(
-        0x2139,
-        "Velocity feed-forward",
-        &[rws(0, "Velocity feed-forward", U16, 70, 0, 150, "")],
-        "Velocity feed-forward gain",
-    ),
-    Object::var(
-        0x2140,
-        "Speed loop Kp",
-        &[rws(0, "Speed loop Kp", U16, 60, 0, 150, "")],
-        "Speed loop proportional gain",
-    ),
-    Object::var(
-        0x2150,
-        "Station alias",
-        &[rws(0, "Station alias", U16, 1, 1, 65535, "")],
-        "Station alias used when 0x2151 = 1; effective after restart",
-    ),
-    Object::var(
-        0x2151,
-        "Alias source",
-        &[rws(0, "Alias source", U8, 0, 0, 1, "")],
-        "0 DIP (DIP 0: SII word 4), 1 object 0x2150; effective after restart",
-    ),
-    Object::array(
-        0x2152,
-        "Input function",
-        &[
-            Entry::count(5),
-            rws(1, "Input 1 function", U16, 1, 0, 0xFFFF, ""),
-            rws(2, "Input 2 function", U16, 2, 0, 0xFFFF, ""),
-            rws(3, "Input 3 function", U16, 4, 0, 0xFFFF, ""),
-            rws(4, "Input 4 function", U16, 8, 0, 0xFFFF, ""),
-            rws(5, "Input 5 function", U16, 0, 0, 0xFFFF, ""),
-        ],
-        "1 home, 2 limit-, 4 limit+, 8 fault clear, 16 quick stop, 32 probe",
-    ),
-    Object::array(
-        0x2153,
-        "Input filter",
-        &[
-            Entry::count(5),
-            rws(1, "Input 1 filter", U16, 20, 1, 60000, "50us"),
-            rws(2, "Input 2 filter", U16, 20, 1, 60000, "50us"),
-            rws(3, "Input 3 filter", U16, 20, 1, 60000, "50us"),
-            rws(4, "Input 4 filter", U16, 20, 1, 60000, "50us"),
-            rws(5, "Input 5 filter", U16, 20, 1, 60000, "50us"),
-        ],
-        "Digital input filter time",
-    ),
-    Object::var(
-        0x2154,
-        "Input polarity",
-        &[rws(0, "Input polarity", U8, 0, 0, 0x1F, "")],
-        "bit n inverts input n+1",
-    ),
-    Object::var(
-        0x2155,
-        "Input raw levels",
-        &[Entry::new(0, "Input raw levels", U8, Access::RO).pdo(PdoMappable::Tx)],
-        "bit n = electrical level of input n+1",
-    ),
-    Object::var(
-        0x2156,
-        "Stored DIP station number",
-        &[rws(0, "Stored DIP station number", U16, 0, 0, 127, "")],
-        "Station number entered with SW8 on single-bank boards (0 = none); effective after restart",
-    ),
-];
-
-/// One stored vendor parameter (the ones with a value slot in [`Params`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u8)]
-#[allow(missing_docs)]
-pub enum P {
-    PeakCurrent,
-    PulsesPerRev,
-    StandbyTime,
-    Out1Function,
-    Out2Function,
-    OutputLevel,
-    CmdFilterEnable,
-    CmdFilterTime,
-    AutoTune,
-    CurrentKp,
-    CurrentKi,
-    CurrentKc,
-    MotorResistance,
-    MotorInductance,
-    LoopMode,
-    ControlMode,
-    HoldingCurrent,
-    EncoderResolution,
-    FollowingErrorLimit,
-    DirectionReversal,
-    InPositionLevel,
-    FaultMask,
-    FaultClearAllowed,
-    SoftStart,
-    PowerUpWiggle,
-    PosKp,
-    PosKi,
-    VelFf,
-    SpeedKp,
-    AliasValue,
-    AliasSource,
-    In1Function,
-    In2Function,
-    In3Function,
-    In4Function,
-    In5Function,
-    In1Filter,
-    In2Filter,
-    In3Filter,
-    In4Filter,
-    In5Filter,
-    InputPolarity,
-    DipStation,
+/// Generates [`OBJECTS`], [`Param`] and [`KEYS`] from the table below: per object
+/// `index code "name", "description" { slot = entry, .. }`, where `slot` is the
+/// [`Param`] variant holding the entry's value in [`Params`], or `_` for entries
+/// without a stored value (counts and the run-time values served by [`Params::read`]).
+macro_rules! vendor_params {
+    ($($index:literal $code:ident $name:literal, $description:literal {
+        $($slot:tt = $entry:expr,)*
+    })*) => {
+        /// The vendor parameter objects, sorted by index.
+        pub const OBJECTS: &[Object] = &[
+            $(Object::$code($index, $name, &[$($entry),*], $description),)*
+        ];
+        param_slots!([] [] $($(($index, $slot, $entry))*)*);
+    };
 }
 
-/// (index, sub-index) of each [`P`], in the same order.
-pub const KEYS: [(u16, u8); 43] = [
-    (0x2000, 0),
-    (0x2001, 0),
-    (0x2002, 0),
-    (0x2005, 1),
-    (0x2005, 2),
-    (0x2008, 0),
-    (0x2009, 0),
-    (0x2010, 2),
-    (0x2013, 0),
-    (0x2015, 0),
-    (0x2016, 0),
-    (0x2017, 0),
-    (0x2020, 0),
-    (0x2021, 0),
-    (0x2024, 0),
-    (0x2025, 0),
-    (0x2026, 0),
-    (0x2029, 0),
-    (0x2030, 0),
-    (0x2051, 0),
-    (0x2053, 0),
-    (0x2056, 0),
-    (0x2057, 0),
-    (0x2058, 0),
-    (0x2083, 0),
-    (0x2137, 0),
-    (0x2138, 0),
-    (0x2139, 0),
-    (0x2140, 0),
-    (0x2150, 0),
-    (0x2151, 0),
-    (0x2152, 1),
-    (0x2152, 2),
-    (0x2152, 3),
-    (0x2152, 4),
-    (0x2152, 5),
-    (0x2153, 1),
-    (0x2153, 2),
-    (0x2153, 3),
-    (0x2153, 4),
-    (0x2153, 5),
-    (0x2154, 0),
-    (0x2156, 0),
-];
+/// Collects the entries with a value slot into [`Param`] and [`KEYS`] (same order).
+macro_rules! param_slots {
+    ([$($variant:ident)*] [$($key:expr,)*]) => {
+        /// One stored vendor parameter (the ones with a value slot in [`Params`]),
+        /// named after its object; the order is that of [`KEYS`].
+        #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+        #[repr(u8)]
+        #[allow(missing_docs)]
+        pub enum Param {
+            $($variant,)*
+        }
+
+        /// (index, sub-index) of each [`Param`], in the same order.
+        pub const KEYS: [(u16, u8); [$(Param::$variant),*].len()] = [$($key,)*];
+    };
+    ([$($variant:ident)*] [$($key:expr,)*] ($index:literal, _, $entry:expr) $($rest:tt)*) => {
+        param_slots!([$($variant)*] [$($key,)*] $($rest)*);
+    };
+    ([$($variant:ident)*] [$($key:expr,)*] ($index:literal, $slot:ident, $entry:expr)
+        $($rest:tt)*) => {
+        param_slots!([$($variant)* $slot] [$($key,)* ($index, $entry.sub),] $($rest)*);
+    };
+}
+
+vendor_params! {
+    0x2000 var "Peak current",
+        "Peak phase current while running" {
+        PeakCurrent = rws(0, "Peak current", U16, 3200, 1, 8400, "mA"),
+    }
+    0x2001 var "Pulses per revolution",
+        "Command units per motor revolution; effective after restart" {
+        PulsesPerRev = rws(0, "Pulses per revolution", U32, 50000, 200, 51200, "inc/rev"),
+    }
+    0x2002 var "Stand-by time",
+        "Time without motion before the holding current applies" {
+        StandbyTime = rws(0, "Stand-by time", U16, 500, 100, 10000, "ms"),
+    }
+    0x2005 array "Output function",
+        "bit0 alarm, bit1 ready, bit2 in-position" {
+        _ = Entry::count(2),
+        Out1Function = rws(1, "Output 1 function", U16, 1, 1, 4, ""),
+        Out2Function = rws(2, "Output 2 function", U16, 1, 1, 4, ""),
+    }
+    0x2008 var "Output level",
+        "bit n = 1: output n+1 is active-high" {
+        OutputLevel = rws(0, "Output level", U8, 0, 0, 3, ""),
+    }
+    0x2009 var "Command filter enable",
+        "Command smoothing filter on/off" {
+        CmdFilterEnable = rws(0, "Command filter enable", U8, 0, 0, 1, ""),
+    }
+    0x2010 record "Command filter",
+        "Command smoothing filter time (sub-index 1 is not used)" {
+        _ = Entry::count(2),
+        CmdFilterTime = rws(2, "Command filter time", U16, 1000, 50, 25600, "us"),
+    }
+    0x2013 var "Current loop auto-tune",
+        "Measure R and L and compute the current gains at power-up" {
+        AutoTune = rws(0, "Current loop auto-tune", U8, 1, 0, 1, ""),
+    }
+    0x2015 var "Current Kp",
+        "Current loop proportional gain; read-only while 0x2013 = 1" {
+        CurrentKp = rws(0, "Current Kp", U16, 1000, 200, 32767, ""),
+    }
+    0x2016 var "Current Ki",
+        "Current loop integral gain; read-only while 0x2013 = 1" {
+        CurrentKi = rws(0, "Current Ki", U16, 200, 0, 32767, ""),
+    }
+    0x2017 var "Current Kc",
+        "Current loop anti-windup gain (read-only)" {
+        CurrentKc = Entry::new(0, "Current Kc", U16, Access::RO).range(80, 300).default(100),
+    }
+    0x2020 var "Motor resistance",
+        "Phase resistance (auto-tune fills it)" {
+        MotorResistance = rws(0, "Motor resistance", U16, 1000, 1, 20000, "mOhm"),
+    }
+    0x2021 var "Motor inductance",
+        "Phase inductance (auto-tune fills it)" {
+        MotorInductance = rws(0, "Motor inductance", U16, 1, 1, 6000, "uH"),
+    }
+    0x2024 var "Loop mode",
+        "1 open loop, 2 closed loop" {
+        LoopMode = rws(0, "Loop mode", U8, 2, 1, 2, ""),
+    }
+    0x2025 var "Control mode",
+        "0 DIP, 1 lead, 2 PM, 3 FOC, 4 self-test, 5 closed loop" {
+        ControlMode = rws(0, "Control mode", U8, 5, 0, 5, ""),
+    }
+    0x2026 var "Holding current",
+        "Stand-still current in % of peak (open loop)" {
+        HoldingCurrent = rws(0, "Holding current", U8, 50, 0, 100, "%"),
+    }
+    0x2029 var "Encoder resolution",
+        "Encoder lines per revolution" {
+        EncoderResolution = rws(0, "Encoder resolution", U16, 1000, 200, 60000, "lines/rev"),
+    }
+    0x2030 var "Following error limit",
+        "Position following error limit in encoder counts (fault, 7 flashes)" {
+        FollowingErrorLimit = rws(0, "Following error limit", U16, 1000, 1, 60000, "inc"),
+    }
+    0x2039 var "Command pulses high",
+        "Received command pulses, bits 16-31" {
+        _ = Entry::new(0, "Command pulses high", U16, Access::RO).pdo(PdoMappable::Tx).default(0),
+    }
+    0x2040 var "Command pulses low",
+        "Received command pulses, bits 0-15; write 1 clears the counter" {
+        _ = Entry::new(0, "Command pulses low", U16, Access::RW).range(0, 1).pdo(PdoMappable::Tx).default(0),
+    }
+    0x2041 var "Encoder counts high",
+        "Encoder feedback counts, bits 16-31" {
+        _ = Entry::new(0, "Encoder counts high", U16, Access::RO).pdo(PdoMappable::Tx).default(0),
+    }
+    0x2042 var "Encoder counts low",
+        "Encoder feedback counts, bits 0-15; write 1 clears the counter" {
+        _ = Entry::new(0, "Encoder counts low", U16, Access::RW).range(0, 1).pdo(PdoMappable::Tx).default(0),
+    }
+    0x2051 var "Direction reversal",
+        "1 reverses the motor direction" {
+        DirectionReversal = rws(0, "Direction reversal", U8, 0, 0, 1, ""),
+    }
+    0x2053 var "In-position output level",
+        "1: an in-position output is active-high" {
+        InPositionLevel = rws(0, "In-position output level", U8, 0, 0, 1, ""),
+    }
+    0x2056 var "Fault detection mask",
+        "bit = 1 enables the detection (see faults module)" {
+        FaultMask = rws(0, "Fault detection mask", U16, 0x00C3, 0, 0xFFFF, ""),
+    }
+    0x2057 var "Fault clear allowed",
+        "1: latched faults may be cleared without a power cycle" {
+        FaultClearAllowed = rws(0, "Fault clear allowed", U8, 0, 0, 1, ""),
+    }
+    0x2058 var "Current soft-start",
+        "Current ramp on enable" {
+        SoftStart = rws(0, "Current soft-start", U16, 1, 0, 10000, "50us"),
+    }
+    0x2083 var "Power-up wiggle",
+        "Angle alignment by a small shaft movement at power-up" {
+        PowerUpWiggle = rws(0, "Power-up wiggle", U8, 0, 0, 1, ""),
+    }
+    0x2093 var "Fault clear record",
+        "Write 1: clear the fault history" {
+        _ = Entry::new(0, "Fault clear record", U8, Access::RW).range(0, 1).default(0),
+    }
+    0x2137 var "Position loop Kp",
+        "Position loop proportional gain" {
+        PosKp = rws(0, "Position loop Kp", U16, 120, 0, 150, ""),
+    }
+    0x2138 var "Position loop Ki",
+        "Position loop integral gain" {
+        PosKi = rws(0, "Position loop Ki", U16, 50, 0, 150, ""),
+    }
+    0x2139 var "Velocity feed-forward",
+        "Velocity feed-forward gain" {
+        VelFf = rws(0, "Velocity feed-forward", U16, 70, 0, 150, ""),
+    }
+    0x2140 var "Speed loop Kp",
+        "Speed loop proportional gain" {
+        SpeedKp = rws(0, "Speed loop Kp", U16, 60, 0, 150, ""),
+    }
+    0x2150 var "Station alias",
+        "Station alias used when 0x2151 = 1; effective after restart" {
+        AliasValue = rws(0, "Station alias", U16, 1, 1, 65535, ""),
+    }
+    0x2151 var "Alias source",
+        "0 DIP (DIP 0: SII word 4), 1 object 0x2150; effective after restart" {
+        AliasSource = rws(0, "Alias source", U8, 0, 0, 1, ""),
+    }
+    0x2152 array "Input function",
+        "1 home, 2 limit-, 4 limit+, 8 fault clear, 16 quick stop, 32 probe" {
+        _ = Entry::count(5),
+        In1Function = rws(1, "Input 1 function", U16, 1, 0, 0xFFFF, ""),
+        In2Function = rws(2, "Input 2 function", U16, 2, 0, 0xFFFF, ""),
+        In3Function = rws(3, "Input 3 function", U16, 4, 0, 0xFFFF, ""),
+        In4Function = rws(4, "Input 4 function", U16, 8, 0, 0xFFFF, ""),
+        In5Function = rws(5, "Input 5 function", U16, 0, 0, 0xFFFF, ""),
+    }
+    0x2153 array "Input filter",
+        "Digital input filter time" {
+        _ = Entry::count(5),
+        In1Filter = rws(1, "Input 1 filter", U16, 20, 1, 60000, "50us"),
+        In2Filter = rws(2, "Input 2 filter", U16, 20, 1, 60000, "50us"),
+        In3Filter = rws(3, "Input 3 filter", U16, 20, 1, 60000, "50us"),
+        In4Filter = rws(4, "Input 4 filter", U16, 20, 1, 60000, "50us"),
+        In5Filter = rws(5, "Input 5 filter", U16, 20, 1, 60000, "50us"),
+    }
+    0x2154 var "Input polarity",
+        "bit n inverts input n+1" {
+        InputPolarity = rws(0, "Input polarity", U8, 0, 0, 0x1F, ""),
+    }
+    0x2155 var "Input raw levels",
+        "bit n = electrical level of input n+1" {
+        _ = Entry::new(0, "Input raw levels", U8, Access::RO).pdo(PdoMappable::Tx),
+    }
+    0x2156 var "Stored DIP station number",
+        "Station number entered with SW8 on single-bank boards (0 = none); effective after restart" {
+        DipStation = rws(0, "Stored DIP station number", U16, 0, 0, 127, ""),
+    }
+}
+
+/// Short alias of [`Param`], used by the board glue and the integration tests.
+pub use Param as P;
 
 const N: usize = KEYS.len();
 
@@ -477,7 +305,7 @@ impl Params {
         for (slot, &(index, sub)) in KEYS.iter().enumerate() {
             values[slot] = default_of(index, sub);
         }
-        values[P::LoopMode as usize] = i32::from(variant.default_loop_mode());
+        values[Param::LoopMode as usize] = i32::from(variant.default_loop_mode());
         let mut p = Params {
             variant,
             values,
@@ -511,9 +339,9 @@ impl Params {
     /// at power-up, after the stored record was loaded.
     pub fn latch_power_up(&mut self) {
         self.active = ActiveConfig {
-            pulses_per_rev: self.get(P::PulsesPerRev) as u32,
-            alias_value: self.get(P::AliasValue) as u16,
-            alias_source: self.get(P::AliasSource) as u8,
+            pulses_per_rev: self.get(Param::PulsesPerRev) as u32,
+            alias_value: self.get(Param::AliasValue) as u16,
+            alias_source: self.get(Param::AliasSource) as u8,
         };
     }
 
@@ -523,13 +351,13 @@ impl Params {
     }
 
     /// Current (pending) value of a parameter.
-    pub fn get(&self, p: P) -> i32 {
+    pub fn get(&self, p: Param) -> i32 {
         self.values[p as usize]
     }
 
     /// Sets a parameter from inside the drive (auto-tune results, DIP values), clamped
     /// to the table range. Not subject to the SDO rules (auto-tune lock).
-    pub fn set_internal(&mut self, p: P, value: i32) {
+    pub fn set_internal(&mut self, p: Param, value: i32) {
         let (index, sub) = KEYS[p as usize];
         let v = match crate::dictionary::find_entry_in(crate::dictionary::PARAMS, index, sub) {
             // max/min rather than clamp: clamp's min > max panic would bring
@@ -542,24 +370,24 @@ impl Params {
 
     /// Input function bits of input `n` (0-based, 0..5).
     pub fn input_function(&self, n: usize) -> u16 {
-        const F: [P; 5] = [
-            P::In1Function,
-            P::In2Function,
-            P::In3Function,
-            P::In4Function,
-            P::In5Function,
+        const F: [Param; 5] = [
+            Param::In1Function,
+            Param::In2Function,
+            Param::In3Function,
+            Param::In4Function,
+            Param::In5Function,
         ];
         F.get(n).map_or(0, |&p| self.get(p) as u16)
     }
 
     /// Input filter of input `n` in 50 µs units.
     pub fn input_filter(&self, n: usize) -> u16 {
-        const F: [P; 5] = [
-            P::In1Filter,
-            P::In2Filter,
-            P::In3Filter,
-            P::In4Filter,
-            P::In5Filter,
+        const F: [Param; 5] = [
+            Param::In1Filter,
+            Param::In2Filter,
+            Param::In3Filter,
+            Param::In4Filter,
+            Param::In5Filter,
         ];
         F.get(n).map_or(1, |&p| self.get(p) as u16)
     }
@@ -636,7 +464,7 @@ impl Params {
                 }
                 return Ok(());
             }
-            (0x2015, 0) | (0x2016, 0) if self.get(P::AutoTune) == 1 => {
+            (0x2015, 0) | (0x2016, 0) if self.get(Param::AutoTune) == 1 => {
                 return Err(SdoAbort::LocalControl);
             }
             (0x2024, 0) if v > i64::from(self.variant.max_loop_mode()) => {
@@ -712,7 +540,7 @@ mod tests {
         for &(index, sub) in KEYS.iter() {
             let e = od::find_entry(OBJECTS, index, sub).unwrap();
             let mut p = Params::new(Variant::HybridServo);
-            p.set_internal(P::AutoTune, 0);
+            p.set_internal(Param::AutoTune, 0);
             let DefaultValue::Int(def) = e.default_value() else {
                 panic!("{index:x} no default")
             };
@@ -829,18 +657,21 @@ mod tests {
     #[test]
     fn current_gains_locked_while_auto_tune() {
         let mut p = Params::new(Variant::HybridServo);
-        assert_eq!(p.get(P::AutoTune), 1);
+        assert_eq!(p.get(Param::AutoTune), 1);
         assert_eq!(w(&mut p, 0x2015, 0, 2000), Err(SdoAbort::LocalControl));
         assert_eq!(w(&mut p, 0x2016, 0, 300), Err(SdoAbort::LocalControl));
-        assert_eq!(p.get(P::CurrentKp), 1000);
-        p.set_internal(P::CurrentKp, 1500); // auto-tune result
+        assert_eq!(p.get(Param::CurrentKp), 1000);
+        p.set_internal(Param::CurrentKp, 1500); // auto-tune result
         assert_eq!(r(&p, 0x2015, 0), 1500);
-        p.set_internal(P::CurrentKp, 100_000);
+        p.set_internal(Param::CurrentKp, 100_000);
         assert_eq!(r(&p, 0x2015, 0), 32767, "clamped");
         assert_eq!(w(&mut p, 0x2013, 0, 0), Ok(()));
         assert_eq!(w(&mut p, 0x2015, 0, 2000), Ok(()));
         assert_eq!(w(&mut p, 0x2016, 0, 300), Ok(()));
-        assert_eq!((p.get(P::CurrentKp), p.get(P::CurrentKi)), (2000, 300));
+        assert_eq!(
+            (p.get(Param::CurrentKp), p.get(Param::CurrentKi)),
+            (2000, 300)
+        );
     }
 
     #[test]
@@ -917,8 +748,14 @@ mod tests {
         assert_eq!(p.write(0x2FFF, 0, &[0]), Err(SdoAbort::ObjectDoesNotExist));
         // Every all-ones value is above the range of entries that have a limit; the
         // unlimited ones (functions, mask, alias) took 0xFFFF.
-        assert_eq!(p.get(P::PeakCurrent), before[P::PeakCurrent as usize]);
-        assert_eq!(p.get(P::PulsesPerRev), before[P::PulsesPerRev as usize]);
+        assert_eq!(
+            p.get(Param::PeakCurrent),
+            before[Param::PeakCurrent as usize]
+        );
+        assert_eq!(
+            p.get(Param::PulsesPerRev),
+            before[Param::PulsesPerRev as usize]
+        );
         assert!(!p.take_fault_history_clear());
     }
 

@@ -57,64 +57,7 @@ pub const HEADER_LEN: usize = 32;
 pub const MAX_VALUE_LEN: usize = 64;
 const CHUNK: usize = 64;
 
-/// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, init and final XOR
-/// 0xFFFFFFFF), with a 16-entry nibble table.
-#[derive(Debug, Clone, Copy)]
-pub struct Crc32(u32);
-
-const CRC_NIBBLE: [u32; 16] = {
-    let mut t = [0u32; 16];
-    let mut i = 0;
-    while i < 16 {
-        let mut c = i as u32;
-        let mut k = 0;
-        while k < 4 {
-            c = if c & 1 != 0 {
-                (c >> 1) ^ 0xEDB8_8320
-            } else {
-                c >> 1
-            };
-            k += 1;
-        }
-        t[i] = c;
-        i += 1;
-    }
-    t
-};
-
-impl Default for Crc32 {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl Crc32 {
-    /// A fresh CRC.
-    pub const fn new() -> Self {
-        Crc32(0xFFFF_FFFF)
-    }
-    /// Adds bytes.
-    pub fn update(&mut self, data: &[u8]) {
-        let mut c = self.0;
-        for &b in data {
-            c ^= u32::from(b);
-            c = (c >> 4) ^ CRC_NIBBLE[(c & 0xF) as usize];
-            c = (c >> 4) ^ CRC_NIBBLE[(c & 0xF) as usize];
-        }
-        self.0 = c;
-    }
-    /// The CRC of everything added.
-    pub const fn finish(self) -> u32 {
-        !self.0
-    }
-}
-
-/// CRC-32 of `data` (see [`Crc32`]).
-pub fn crc32(data: &[u8]) -> u32 {
-    let mut c = Crc32::new();
-    c.update(data);
-    c.finish()
-}
+pub use crc::{crc32, Crc32};
 
 /// Which part of the dictionary a store / restore command covers (0x1010 / 0x1011
 /// sub-index 1-4).
@@ -186,7 +129,8 @@ impl StorageError {
     }
 }
 
-fn fe<E: NorFlashError>(e: E) -> StorageError {
+/// The storage error of a flash driver error (its kind).
+fn flash_error<E: NorFlashError>(e: E) -> StorageError {
     StorageError::Flash(e.kind())
 }
 
@@ -288,7 +232,8 @@ fn header_bytes(magic: u32, sequence: u32, payload_len: u32) -> [u8; HEADER_LEN]
     h
 }
 
-fn le32(b: &[u8]) -> u32 {
+/// The little-endian `u32` in the first 4 bytes of `b` (at least 4 long).
+fn u32_le(b: &[u8]) -> u32 {
     let mut a = [0u8; 4];
     a.copy_from_slice(&b[..4]);
     u32::from_le_bytes(a)
@@ -345,7 +290,9 @@ impl Reader {
                 if n == 0 {
                     return Ok(false);
                 }
-                flash.read(abs, &mut self.buf[..n as usize]).map_err(fe)?;
+                flash
+                    .read(abs, &mut self.buf[..n as usize])
+                    .map_err(flash_error)?;
                 self.buf_at = at;
                 self.buf_len = n;
             }
@@ -400,7 +347,9 @@ impl Writer {
         for b in data.iter_mut().skip(self.fill) {
             *b = 0xFF;
         }
-        flash.write(self.start + self.flushed, data).map_err(fe)?;
+        flash
+            .write(self.start + self.flushed, data)
+            .map_err(flash_error)?;
         self.flushed += self.fill as u32;
         self.fill = 0;
         Ok(())
@@ -473,18 +422,20 @@ impl Storage {
         slot: usize,
     ) -> Result<Option<Header>, StorageError> {
         let mut h = [0u8; HEADER_LEN];
-        flash.read(self.slot_address(slot), &mut h).map_err(fe)?;
-        if le32(&h[0..]) != self.magic || u16::from_le_bytes([h[4], h[5]]) != FORMAT_VERSION {
+        flash
+            .read(self.slot_address(slot), &mut h)
+            .map_err(flash_error)?;
+        if u32_le(&h[0..]) != self.magic || u16::from_le_bytes([h[4], h[5]]) != FORMAT_VERSION {
             return Ok(None);
         }
-        let payload_len = le32(&h[12..]);
+        let payload_len = u32_le(&h[12..]);
         if payload_len > self.slot_size - HEADER_LEN as u32 {
             return Ok(None);
         }
         Ok(Some(Header {
-            sequence: le32(&h[8..]),
+            sequence: u32_le(&h[8..]),
             payload_len,
-            crc: le32(&h[16..]),
+            crc: u32_le(&h[16..]),
         }))
     }
 
@@ -505,7 +456,9 @@ impl Storage {
             // (n ≤ CHUNK, a multiple of HEADER_LEN: the `min` only lets the compiler
             // drop the bounds check.)
             let rn = ((n as usize).div_ceil(HEADER_LEN) * HEADER_LEN).min(CHUNK);
-            flash.read(start + done, &mut buf[..rn]).map_err(fe)?;
+            flash
+                .read(start + done, &mut buf[..rn])
+                .map_err(flash_error)?;
             crc.update(&buf[..n as usize]);
             done += n;
         }
@@ -544,7 +497,7 @@ impl Storage {
             let n = (self.slot_size - at).min(CHUNK as u32) as usize;
             flash
                 .read(self.slot_address(slot) + at, &mut buf[..n])
-                .map_err(fe)?;
+                .map_err(flash_error)?;
             if buf[..n].iter().any(|&b| b != 0xFF) {
                 return Ok(SlotStatus::Corrupt);
             }
@@ -747,7 +700,9 @@ impl Storage {
             None => (0, 1),
         };
         let base = self.slot_address(target);
-        flash.erase(base, base + self.slot_size).map_err(fe)?;
+        flash
+            .erase(base, base + self.slot_size)
+            .map_err(flash_error)?;
         let w = Writer {
             start: base + HEADER_LEN as u32,
             limit: self.slot_size - HEADER_LEN as u32,
@@ -774,7 +729,9 @@ impl Storage {
         let mut crc = w.crc;
         crc.update(&head[..16]);
         head[16..20].copy_from_slice(&crc.finish().to_le_bytes());
-        flash.write(self.slot_address(target), &head).map_err(fe)?;
+        flash
+            .write(self.slot_address(target), &head)
+            .map_err(flash_error)?;
         Ok(payload_len)
     }
 
@@ -910,286 +867,10 @@ impl Dictionary for NoDict {
     }
 }
 
-/// The bytes a read of `len` bytes at `offset` covers in a flash of `capacity` bytes
-/// (the range check shared by the NOR flashes held in memory: [`RamFlash`] and the
-/// host's file-backed flash).
-pub fn read_range(
-    capacity: usize,
-    offset: u32,
-    len: usize,
-) -> Result<core::ops::Range<usize>, NorFlashErrorKind> {
-    let start = offset as usize;
-    match start.checked_add(len) {
-        Some(end) if end <= capacity => Ok(start..end),
-        _ => Err(NorFlashErrorKind::OutOfBounds),
-    }
-}
+mod crc;
+mod ram_flash;
 
-/// The bytes an erase of `from..to` covers: within `capacity`, on `erase_size`
-/// boundaries.
-pub fn erase_range(
-    capacity: usize,
-    erase_size: usize,
-    from: u32,
-    to: u32,
-) -> Result<core::ops::Range<usize>, NorFlashErrorKind> {
-    let (from, to) = (from as usize, to as usize);
-    if from > to || to > capacity {
-        return Err(NorFlashErrorKind::OutOfBounds);
-    }
-    if !from.is_multiple_of(erase_size) || !to.is_multiple_of(erase_size) {
-        return Err(NorFlashErrorKind::NotAligned);
-    }
-    Ok(from..to)
-}
-
-/// The bytes a write of `len` bytes at `offset` into `mem` covers: offset and length
-/// multiples of `write_size`, within `mem`, and every byte still erased (0xFF) —
-/// programming a double word twice is an error on the STM32G4 (`Other`).
-pub fn write_range(
-    mem: &[u8],
-    write_size: usize,
-    offset: u32,
-    len: usize,
-) -> Result<core::ops::Range<usize>, NorFlashErrorKind> {
-    if !(offset as usize).is_multiple_of(write_size) || !len.is_multiple_of(write_size) {
-        return Err(NorFlashErrorKind::NotAligned);
-    }
-    let range = read_range(mem.len(), offset, len)?;
-    if mem[range.clone()].iter().any(|&b| b != 0xFF) {
-        return Err(NorFlashErrorKind::Other);
-    }
-    Ok(range)
-}
-
-/// A RAM [`NorFlash`] for simulation and tests: `N` bytes, 32-byte pages, 8-byte write
-/// units (like the STM32G4's double words). Writing a byte that is not erased fails,
-/// as on the chip. It can lose power after a given number of byte operations (erase or
-/// write): the operation in progress stops there and every later one fails until
-/// [`RamFlash::power_on`].
-#[derive(Clone)]
-pub struct RamFlash<const N: usize> {
-    /// The memory.
-    pub mem: [u8; N],
-    budget: Option<usize>,
-    dead: bool,
-    /// Byte operations done since the last [`RamFlash::power_on`].
-    pub ops: usize,
-}
-
-impl<const N: usize> Default for RamFlash<N> {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl<const N: usize> RamFlash<N> {
-    /// Erased flash.
-    pub const fn new() -> Self {
-        RamFlash {
-            mem: [0xFF; N],
-            budget: None,
-            dead: false,
-            ops: 0,
-        }
-    }
-    /// Power is lost after `ops` more byte operations.
-    pub fn cut_power_after(&mut self, ops: usize) {
-        self.budget = Some(ops);
-    }
-    /// Power back, no cut scheduled.
-    pub fn power_on(&mut self) {
-        self.budget = None;
-        self.dead = false;
-        self.ops = 0;
-    }
-    /// True once power was cut.
-    pub fn power_lost(&self) -> bool {
-        self.dead
-    }
-    fn step(&mut self) -> Result<(), NorFlashErrorKind> {
-        if self.dead {
-            return Err(NorFlashErrorKind::Other);
-        }
-        if let Some(b) = self.budget {
-            if b == 0 {
-                self.dead = true;
-                return Err(NorFlashErrorKind::Other);
-            }
-            self.budget = Some(b - 1);
-        }
-        self.ops += 1;
-        Ok(())
-    }
-}
-
-impl<const N: usize> embedded_storage::nor_flash::ErrorType for RamFlash<N> {
-    type Error = NorFlashErrorKind;
-}
-
-impl<const N: usize> embedded_storage::nor_flash::ReadNorFlash for RamFlash<N> {
-    const READ_SIZE: usize = 1;
-    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
-        if self.dead {
-            return Err(NorFlashErrorKind::Other);
-        }
-        let range = read_range(N, offset, bytes.len())?;
-        bytes.copy_from_slice(&self.mem[range]);
-        Ok(())
-    }
-    fn capacity(&self) -> usize {
-        N
-    }
-}
-
-impl<const N: usize> NorFlash for RamFlash<N> {
-    const WRITE_SIZE: usize = 8;
-    const ERASE_SIZE: usize = 32;
-    fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-        for i in erase_range(N, Self::ERASE_SIZE, from, to)? {
-            self.step()?;
-            self.mem[i] = 0xFF;
-        }
-        Ok(())
-    }
-    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
-        let range = write_range(&self.mem, Self::WRITE_SIZE, offset, bytes.len())?;
-        for (i, &b) in range.zip(bytes) {
-            self.step()?;
-            self.mem[i] = b;
-        }
-        Ok(())
-    }
-}
-
-/// A [`RamFlash`] erased in the STM32G4's 2 KiB pages (dual-bank mode) with its 8-byte
-/// writes: the flash model of the firmware update's tests (embassy-boot sizes its
-/// state by the page count, so the page size must be the chip's).
-#[derive(Clone, Default)]
-pub struct PagedRamFlash<const N: usize>(pub RamFlash<N>);
-
-impl<const N: usize> PagedRamFlash<N> {
-    /// Erased flash.
-    pub const fn new() -> Self {
-        PagedRamFlash(RamFlash::new())
-    }
-}
-
-impl<const N: usize> embedded_storage::nor_flash::ErrorType for PagedRamFlash<N> {
-    type Error = NorFlashErrorKind;
-}
-
-impl<const N: usize> embedded_storage::nor_flash::ReadNorFlash for PagedRamFlash<N> {
-    const READ_SIZE: usize = 1;
-    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
-        self.0.read(offset, bytes)
-    }
-    fn capacity(&self) -> usize {
-        N
-    }
-}
-
-impl<const N: usize> NorFlash for PagedRamFlash<N> {
-    const WRITE_SIZE: usize = 8;
-    const ERASE_SIZE: usize = crate::flash_layout::PAGE as usize;
-    fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-        erase_range(N, Self::ERASE_SIZE, from, to)?;
-        self.0.erase(from, to)
-    }
-    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
-        self.0.write(offset, bytes)
-    }
-}
+pub use ram_flash::{erase_range, read_range, write_range, PagedRamFlash, RamFlash};
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn memory_flash_range_checks() {
-        use NorFlashErrorKind::{NotAligned, Other, OutOfBounds};
-        assert_eq!(read_range(64, 60, 4), Ok(60..64));
-        assert_eq!(read_range(64, 61, 4), Err(OutOfBounds));
-        assert_eq!(read_range(64, u32::MAX, usize::MAX), Err(OutOfBounds));
-        assert_eq!(erase_range(64, 32, 0, 64), Ok(0..64));
-        assert_eq!(erase_range(64, 32, 32, 0), Err(OutOfBounds));
-        assert_eq!(erase_range(64, 32, 0, 96), Err(OutOfBounds));
-        assert_eq!(erase_range(64, 32, 8, 32), Err(NotAligned));
-        let mut mem = [0xFFu8; 32];
-        mem[20] = 0;
-        assert_eq!(write_range(&mem, 8, 8, 8), Ok(8..16));
-        assert_eq!(write_range(&mem, 8, 4, 8), Err(NotAligned));
-        assert_eq!(write_range(&mem, 8, 8, 4), Err(NotAligned));
-        assert_eq!(write_range(&mem, 8, 32, 8), Err(OutOfBounds));
-        assert_eq!(write_range(&mem, 8, 16, 8), Err(Other));
-        assert_eq!(
-            write_range(&mem, 8, u32::MAX - 7, usize::MAX - 7),
-            Err(OutOfBounds)
-        );
-    }
-
-    #[test]
-    fn crc32_known_values() {
-        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
-        assert_eq!(crc32(b""), 0);
-        let mut c = Crc32::new();
-        c.update(b"1234");
-        c.update(b"56789");
-        assert_eq!(c.finish(), 0xCBF4_3926);
-    }
-
-    #[test]
-    fn sequence_comparison_wraps() {
-        assert!(newer(2, 1));
-        assert!(!newer(1, 2));
-        assert!(newer(0, u32::MAX));
-        assert!(!newer(5, 5));
-    }
-
-    #[test]
-    fn scope_from_sub() {
-        assert_eq!(Scope::from_sub(1), Some(Scope::All));
-        assert_eq!(Scope::from_sub(4), Some(Scope::All));
-        assert_eq!(Scope::from_sub(2), Some(Scope::Communication));
-        assert_eq!(Scope::from_sub(3), Some(Scope::Application));
-        assert_eq!(Scope::from_sub(0), None);
-        assert_eq!(Scope::from_sub(5), None);
-        assert!(Scope::Communication.contains(0x1C12));
-        assert!(!Scope::Communication.contains(0x2000));
-        assert!(Scope::Application.contains(0x6060));
-    }
-
-    #[test]
-    fn geometry_is_checked() {
-        let mut f = RamFlash::<1024>::new();
-        assert_eq!(Storage::new(0, 512).check(&f), Ok(()));
-        assert_eq!(Storage::new(0, 513).check(&f), Err(StorageError::Geometry));
-        assert_eq!(
-            Storage::new(32, 512).check(&f),
-            Err(StorageError::Geometry),
-            "beyond capacity"
-        );
-        assert_eq!(
-            Storage::new(16, 256).check(&f),
-            Err(StorageError::Geometry),
-            "unaligned base"
-        );
-        assert_eq!(
-            Storage::new(0, 32).check(&f),
-            Err(StorageError::Geometry),
-            "too small"
-        );
-        let mut d = NoDict;
-        let r = Storage::new(0, 513).load(&mut f, &mut d);
-        assert_eq!(r.source, None);
-        assert_eq!(
-            Storage::new(0, 513).restore_defaults(&mut f, Scope::All),
-            Err(StorageError::Geometry)
-        );
-        assert_eq!(StorageError::Geometry.abort(), SdoAbort::DataCannotBeStored);
-        assert_eq!(
-            StorageError::Flash(NorFlashErrorKind::Other).abort(),
-            SdoAbort::HardwareError
-        );
-    }
-}
+mod tests;

@@ -85,231 +85,46 @@ impl Method {
     /// The methods as written in the standard (compile time only: [`PACKED`]).
     const fn spec(method: i8) -> Option<Method> {
         use Kind::*;
+        use Sig::{Home, Neg, Pos};
+        /// An edge of `sig`, which equals `level` on the approach side.
+        const fn edge(sig: Sig, level: bool) -> Kind {
+            Edge { sig, level }
+        }
+        /// The `upper` or lower edge of the home switch zone, searched first in
+        /// `init_dir`.
+        const fn zone(upper: bool, init_dir: i8) -> Kind {
+            Zone { upper, init_dir }
+        }
+        // Methods 1-14 end on the index pulse, 17-30 are the same without it.
         let (kind, final_dir, index) = match method {
-            1 => (
-                Edge {
-                    sig: Sig::Neg,
-                    level: true,
-                },
-                1,
-                true,
-            ),
-            2 => (
-                Edge {
-                    sig: Sig::Pos,
-                    level: true,
-                },
-                -1,
-                true,
-            ),
-            3 => (
-                Edge {
-                    sig: Sig::Home,
-                    level: true,
-                },
-                -1,
-                true,
-            ),
-            4 => (
-                Edge {
-                    sig: Sig::Home,
-                    level: false,
-                },
-                1,
-                true,
-            ),
-            5 => (
-                Edge {
-                    sig: Sig::Home,
-                    level: true,
-                },
-                1,
-                true,
-            ),
-            6 => (
-                Edge {
-                    sig: Sig::Home,
-                    level: false,
-                },
-                -1,
-                true,
-            ),
-            7 => (
-                Zone {
-                    upper: false,
-                    init_dir: 1,
-                },
-                -1,
-                true,
-            ),
-            8 => (
-                Zone {
-                    upper: false,
-                    init_dir: 1,
-                },
-                1,
-                true,
-            ),
-            9 => (
-                Zone {
-                    upper: true,
-                    init_dir: 1,
-                },
-                -1,
-                true,
-            ),
-            10 => (
-                Zone {
-                    upper: true,
-                    init_dir: 1,
-                },
-                1,
-                true,
-            ),
-            11 => (
-                Zone {
-                    upper: true,
-                    init_dir: -1,
-                },
-                1,
-                true,
-            ),
-            12 => (
-                Zone {
-                    upper: true,
-                    init_dir: -1,
-                },
-                -1,
-                true,
-            ),
-            13 => (
-                Zone {
-                    upper: false,
-                    init_dir: -1,
-                },
-                1,
-                true,
-            ),
-            14 => (
-                Zone {
-                    upper: false,
-                    init_dir: -1,
-                },
-                -1,
-                true,
-            ),
-            17 => (
-                Edge {
-                    sig: Sig::Neg,
-                    level: true,
-                },
-                1,
-                false,
-            ),
-            18 => (
-                Edge {
-                    sig: Sig::Pos,
-                    level: true,
-                },
-                -1,
-                false,
-            ),
-            19 => (
-                Edge {
-                    sig: Sig::Home,
-                    level: true,
-                },
-                -1,
-                false,
-            ),
-            20 => (
-                Edge {
-                    sig: Sig::Home,
-                    level: false,
-                },
-                1,
-                false,
-            ),
-            21 => (
-                Edge {
-                    sig: Sig::Home,
-                    level: true,
-                },
-                1,
-                false,
-            ),
-            22 => (
-                Edge {
-                    sig: Sig::Home,
-                    level: false,
-                },
-                -1,
-                false,
-            ),
-            23 => (
-                Zone {
-                    upper: false,
-                    init_dir: 1,
-                },
-                -1,
-                false,
-            ),
-            24 => (
-                Zone {
-                    upper: false,
-                    init_dir: 1,
-                },
-                1,
-                false,
-            ),
-            25 => (
-                Zone {
-                    upper: true,
-                    init_dir: 1,
-                },
-                -1,
-                false,
-            ),
-            26 => (
-                Zone {
-                    upper: true,
-                    init_dir: 1,
-                },
-                1,
-                false,
-            ),
-            27 => (
-                Zone {
-                    upper: true,
-                    init_dir: -1,
-                },
-                1,
-                false,
-            ),
-            28 => (
-                Zone {
-                    upper: true,
-                    init_dir: -1,
-                },
-                -1,
-                false,
-            ),
-            29 => (
-                Zone {
-                    upper: false,
-                    init_dir: -1,
-                },
-                1,
-                false,
-            ),
-            30 => (
-                Zone {
-                    upper: false,
-                    init_dir: -1,
-                },
-                -1,
-                false,
-            ),
+            1 => (edge(Neg, true), 1, true),
+            2 => (edge(Pos, true), -1, true),
+            3 => (edge(Home, true), -1, true),
+            4 => (edge(Home, false), 1, true),
+            5 => (edge(Home, true), 1, true),
+            6 => (edge(Home, false), -1, true),
+            7 => (zone(false, 1), -1, true),
+            8 => (zone(false, 1), 1, true),
+            9 => (zone(true, 1), -1, true),
+            10 => (zone(true, 1), 1, true),
+            11 => (zone(true, -1), 1, true),
+            12 => (zone(true, -1), -1, true),
+            13 => (zone(false, -1), 1, true),
+            14 => (zone(false, -1), -1, true),
+            17 => (edge(Neg, true), 1, false),
+            18 => (edge(Pos, true), -1, false),
+            19 => (edge(Home, true), -1, false),
+            20 => (edge(Home, false), 1, false),
+            21 => (edge(Home, true), 1, false),
+            22 => (edge(Home, false), -1, false),
+            23 => (zone(false, 1), -1, false),
+            24 => (zone(false, 1), 1, false),
+            25 => (zone(true, 1), -1, false),
+            26 => (zone(true, 1), 1, false),
+            27 => (zone(true, -1), 1, false),
+            28 => (zone(true, -1), -1, false),
+            29 => (zone(false, -1), 1, false),
+            30 => (zone(false, -1), -1, false),
             33 => (Index, -1, true),
             34 => (Index, 1, true),
             35 | 37 => (Here, 1, false),
@@ -661,23 +476,16 @@ impl Homing {
         }
     }
 
-    /// One cycle. Drives `motion` (user units) and returns `Some(delta)` when the home
-    /// position has been set: the caller shifts actual and demand positions by `delta`.
-    pub fn cycle(&mut self, motion: &mut Motion, inp: &HomingInputs, dt: f32) -> Option<i32> {
-        let (Some(p), Some(m)) = (self.params, self.method) else {
-            if self.running() {
-                self.fail_now();
-            }
-            return None;
-        };
-        let di = inp.digital_inputs;
+    /// Reads the switches of this cycle: the home signal's side before and now (zone
+    /// tracking from the switch edges and the direction of travel `v`), and whether a
+    /// limit switch the method does not home on was hit in the direction of travel.
+    fn sense(&mut self, m: &Method, di: u32, v: f32) -> Sensed {
         let sig_mask = match m.kind {
             Kind::Edge { sig, .. } => sig.mask(),
             Kind::Zone { .. } => DI_HOME,
             _ => 0,
         };
         let active = di & sig_mask != 0;
-        let v = motion.velocity();
         let moving_dir: i8 = if v > 0.0 {
             1
         } else if v < 0.0 {
@@ -709,6 +517,82 @@ impl Homing {
             0
         };
         let limit_hit = di & lim_mask & !sig_mask != 0;
+        Sensed {
+            side_before,
+            side,
+            limit_hit,
+        }
+    }
+
+    /// The approach of the home position at the slow speed (`slow`, command units/s):
+    /// the switch edge, then the index pulse if the method homes on it. Returns the
+    /// velocity to move towards (0 = stop).
+    fn approach_home(&mut self, m: &Method, inp: &HomingInputs, sensed: Sensed, slow: f32) -> f32 {
+        let Sensed {
+            side_before,
+            side,
+            limit_hit,
+        } = sensed;
+        match self.step {
+            Step::Fine => {
+                if side_before == Some(true) && side == Some(false) {
+                    self.edge = Some(inp.actual);
+                    if m.index {
+                        self.step = Step::IndexSearch;
+                        return m.final_dir as f32 * slow;
+                    } else {
+                        self.home = inp.actual;
+                        self.step = Step::Stopping {
+                            then: After::Return,
+                        };
+                    }
+                } else if side == Some(false) {
+                    // Pushed over the edge before the approach started: approach again.
+                    self.step = Step::Seek {
+                        dir: -m.final_dir,
+                        fast: false,
+                        to_p: true,
+                    };
+                } else if limit_hit {
+                    self.step = Step::Stopping { then: After::Error };
+                } else {
+                    return m.final_dir as f32 * slow;
+                }
+            }
+            Step::IndexSearch => {
+                let idx = inp.index.filter(|&i| match self.edge {
+                    Some(e) => i.wrapping_sub(e) as i64 * m.final_dir as i64 >= 0,
+                    None => true,
+                });
+                if let Some(i) = idx {
+                    self.home = i;
+                    self.step = Step::Stopping {
+                        then: After::Return,
+                    };
+                } else if limit_hit {
+                    self.step = Step::Stopping { then: After::Error };
+                } else {
+                    return m.final_dir as f32 * slow;
+                }
+            }
+            _ => {}
+        }
+        0.0
+    }
+
+    /// One cycle. Drives `motion` (user units) and returns `Some(delta)` when the home
+    /// position has been set: the caller shifts actual and demand positions by `delta`.
+    pub fn cycle(&mut self, motion: &mut Motion, inp: &HomingInputs, dt: f32) -> Option<i32> {
+        let (Some(p), Some(m)) = (self.params, self.method) else {
+            if self.running() {
+                self.fail_now();
+            }
+            return None;
+        };
+        let sensed = self.sense(&m, inp.digital_inputs, motion.velocity());
+        let Sensed {
+            side, limit_hit, ..
+        } = sensed;
         let fast = p.fast;
         let slow = p.slow;
         let acc = p.acc;
@@ -754,46 +638,8 @@ impl Homing {
                     target = dir as f32 * if f { fast } else { slow };
                 }
             }
-            Step::Fine => {
-                if side_before == Some(true) && side == Some(false) {
-                    self.edge = Some(inp.actual);
-                    if m.index {
-                        self.step = Step::IndexSearch;
-                        target = m.final_dir as f32 * slow;
-                    } else {
-                        self.home = inp.actual;
-                        self.step = Step::Stopping {
-                            then: After::Return,
-                        };
-                    }
-                } else if side == Some(false) {
-                    // Pushed over the edge before the approach started: approach again.
-                    self.step = Step::Seek {
-                        dir: -m.final_dir,
-                        fast: false,
-                        to_p: true,
-                    };
-                } else if limit_hit {
-                    self.step = Step::Stopping { then: After::Error };
-                } else {
-                    target = m.final_dir as f32 * slow;
-                }
-            }
-            Step::IndexSearch => {
-                let idx = inp.index.filter(|&i| match self.edge {
-                    Some(e) => i.wrapping_sub(e) as i64 * m.final_dir as i64 >= 0,
-                    None => true,
-                });
-                if let Some(i) = idx {
-                    self.home = i;
-                    self.step = Step::Stopping {
-                        then: After::Return,
-                    };
-                } else if limit_hit {
-                    self.step = Step::Stopping { then: After::Error };
-                } else {
-                    target = m.final_dir as f32 * slow;
-                }
+            Step::Fine | Step::IndexSearch => {
+                target = self.approach_home(&m, inp, sensed, slow);
             }
             Step::Stopping { then } => {
                 if motion.stop(acc, dt) {
@@ -829,6 +675,17 @@ impl Homing {
         motion.ramp_velocity(target, acc, acc, dt);
         None
     }
+}
+
+/// The switches as [`Homing::cycle`] sees them in one cycle.
+#[derive(Clone, Copy)]
+struct Sensed {
+    /// Side of the home signal before this cycle (`None`: not known).
+    side_before: Option<bool>,
+    /// Side of the home signal now.
+    side: Option<bool>,
+    /// A limit switch in the direction of travel that is not the home signal.
+    limit_hit: bool,
 }
 
 #[cfg(test)]

@@ -1,0 +1,320 @@
+//! The drive as the slave runtime sees it: the dictionary ([`Dictionary`]), the
+//! cyclic data ([`ProcessData`]: CiA 402 slots plus the other TxPDO entries), the ESM
+//! hooks and the application cycle ([`SlaveApplication`]).
+
+use super::*;
+
+/// The whole dictionary as 'save' sees it: the drive's objects plus those the slave
+/// runtime serves (mapping, assignment, sync).
+pub(super) struct WholeDictionary<'a, S: ParameterStore> {
+    pub(super) drive: &'a mut Drive<S>,
+    pub(super) runtime: &'a mut dyn Dictionary,
+}
+
+pub(super) fn is_runtime_index(index: u16) -> bool {
+    ecat_slave_stack::pdo::is_pdo_index(index) || ecat_slave_stack::sync::is_sync_index(index)
+}
+
+impl<S: ParameterStore> Dictionary for WholeDictionary<'_, S> {
+    fn objects(&self) -> &'static [Object] {
+        dictionary::OBJECTS
+    }
+    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        if is_runtime_index(index) {
+            self.runtime.read(index, sub, buf)
+        } else {
+            self.drive.read(index, sub, buf)
+        }
+    }
+    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        if is_runtime_index(index) {
+            self.runtime.write(index, sub, data, state)
+        } else {
+            self.drive.write(index, sub, data, state)
+        }
+    }
+}
+
+impl<S: ParameterStore> Dictionary for Drive<S> {
+    fn objects(&self) -> &'static [Object] {
+        dictionary::OBJECTS
+    }
+
+    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        if index == 0x10F3 {
+            // Reading the newest diagnosis message clears "new messages available".
+            crate::dictionary::find_entry_in(crate::dictionary::COMM, index, sub)?;
+            return self.faults.diagnosis_mut().read(sub, buf);
+        }
+        if let (0x100A, Some(v)) = (
+            index,
+            self.update.as_deref().and_then(|u| u.running_version()),
+        ) {
+            // The version of the running image's update header.
+            crate::dictionary::find_entry_in(crate::dictionary::COMM, index, sub)?;
+            let n = crate::update::format_version(v, buf);
+            return if n == 0 {
+                Err(SdoAbort::ExceedsMailbox)
+            } else {
+                Ok(n)
+            };
+        }
+        self.read_entry(index, sub, buf)
+    }
+
+    fn write(
+        &mut self,
+        index: u16,
+        sub: u8,
+        data: &[u8],
+        _state: EsmState,
+    ) -> Result<(), SdoAbort> {
+        match index {
+            0x1000..=0x10FF => match self.comm.write(&mut self.faults, index, sub, data)? {
+                // Without the runtime's objects a save would miss the PDO mapping.
+                Some(cmd) => self.run_store(cmd, &mut NoRuntime),
+                None => Ok(()),
+            },
+            0x2000..=0x21FF => {
+                self.params.write(index, sub, data)?;
+                self.faults.configure_from(&self.params);
+                Ok(())
+            }
+            0x2300..=0x23FF => self.monitor.write(index, sub, data),
+            0x6000..=0x6FFF => self.cia402.write(index, sub, data),
+            _ => Err(SdoAbort::WriteReadOnly),
+        }
+    }
+
+    fn write_with_runtime(
+        &mut self,
+        index: u16,
+        sub: u8,
+        data: &[u8],
+        state: EsmState,
+        runtime: &mut dyn Dictionary,
+    ) -> Result<(), SdoAbort> {
+        if (0x1000..=0x10FF).contains(&index) {
+            if let Some(cmd) = self.comm.write(&mut self.faults, index, sub, data)? {
+                return self.run_store(cmd, runtime);
+            }
+            return Ok(());
+        }
+        self.write(index, sub, data, state)
+    }
+}
+
+/// Stand-in for the slave runtime's objects where there is no runtime (no ESC on the
+/// board) or a write does not come through it: the product's objects, none of the
+/// runtime's (a save through it keeps no PDO mapping).
+pub struct NoRuntime;
+
+impl Dictionary for NoRuntime {
+    fn objects(&self) -> &'static [Object] {
+        dictionary::OBJECTS
+    }
+    fn read(&mut self, _index: u16, _sub: u8, _buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        Err(SdoAbort::ObjectDoesNotExist)
+    }
+    fn write(
+        &mut self,
+        _index: u16,
+        _sub: u8,
+        _data: &[u8],
+        _state: EsmState,
+    ) -> Result<(), SdoAbort> {
+        Err(SdoAbort::ObjectDoesNotExist)
+    }
+}
+
+/// Slots of TxPDO-mappable entries outside the CiA 402 range start here; they are
+/// served through the dictionary read (not a hot path: the default maps use none).
+pub(super) const OTHER_TX_SLOT: u16 = 0x8000;
+/// Highest number of such entries.
+const OTHER_TX_MAX: usize = 32;
+
+pub(super) fn other_tx_entries() -> impl Iterator<Item = (u16, u8)> {
+    dictionary::OBJECTS
+        .iter()
+        .filter(|o| !(0x6000..=0x6FFF).contains(&o.index))
+        .flat_map(|o| {
+            o.entries()
+                .iter()
+                .filter(|e| e.pdo_mappable().tx())
+                .map(move |e| (o.index, e.sub))
+        })
+        .take(OTHER_TX_MAX)
+}
+
+/// Entry number `n` of [`other_tx_entries`]: a plain walk (the chain's generic
+/// `Iterator::nth` is three times as large).
+#[inline(never)]
+pub(super) fn other_tx_entry(n: usize) -> Option<(u16, u8)> {
+    for (k, e) in other_tx_entries().enumerate() {
+        if k == n {
+            return Some(e);
+        }
+    }
+    None
+}
+
+impl<S: ParameterStore> ProcessData for Drive<S> {
+    fn rx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+        ProcessData::rx_slot(&self.cia402, index, sub)
+    }
+
+    fn tx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+        if (0x6000..=0x6FFF).contains(&index) {
+            return ProcessData::tx_slot(&self.cia402, index, sub);
+        }
+        other_tx_entries()
+            .position(|k| k == (index, sub))
+            .map(|n| OTHER_TX_SLOT + n as u16)
+    }
+
+    #[inline]
+    fn set_rx(&mut self, slot: u16, raw: u64) {
+        ProcessData::set_rx(&mut self.cia402, slot, raw);
+    }
+
+    #[inline]
+    fn get_tx(&self, slot: u16) -> u64 {
+        if slot < OTHER_TX_SLOT {
+            return ProcessData::get_tx(&self.cia402, slot);
+        }
+        let Some((index, sub)) = other_tx_entry(usize::from(slot - OTHER_TX_SLOT)) else {
+            return 0;
+        };
+        let mut buf = [0u8; 8];
+        // (`other_tx_entry` never names a 0x6xxx entry.)
+        match self.read_entry(index, sub, &mut buf) {
+            Ok(_) => u64::from_le_bytes(buf),
+            Err(_) => 0,
+        }
+    }
+}
+
+impl<S: ParameterStore> Drive<S> {
+    /// SDO read of a product entry, dispatched on the index range (the dictionary
+    /// read and the TxPDO entries outside 0x6xxx share it).
+    #[inline(never)]
+    fn read_entry(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        match index {
+            0x1000..=0x10FF => self.comm.read(&self.faults, index, sub, buf),
+            0x2000..=0x21FF => self.params.read(index, sub, buf),
+            0x2300..=0x23FF => self.monitor.read(index, sub, buf),
+            0x2400..=0x24FF => self.faults.read(index, sub, buf),
+            0x6000..=0x6FFF => self.cia402.read(index, sub, buf),
+            _ => Err(SdoAbort::ObjectDoesNotExist),
+        }
+    }
+
+    /// The master's commands stopped: the ESM left Op (requested or forced), the
+    /// outputs were lost (SM watchdog) or SYNC0 stopped. Applies 0x6007
+    /// ([`Cia402::on_connection_lost`]); the reaction then runs on the drive's own
+    /// clock (every [`Drive::tick`]). While the motor side aligns for transition 4 the
+    /// PDS drops to Switch on disabled (no drive function yet: no fault). With the
+    /// drive function enabled, 0x6007 = 1 raises the EtherCAT fault `code` with `diag`
+    /// (emergency, history; an event, so a fault reset may clear it); 2 and 3 send the
+    /// emergency `code` without a fault; 0 does nothing.
+    #[inline(never)]
+    fn left_op(&mut self, code: u16, diag: [u8; 2]) {
+        use crate::cia402::pds::PdsState;
+        let before = self.cia402.state();
+        let had_function = matches!(
+            before,
+            PdsState::OperationEnabled | PdsState::QuickStopActive
+        ) && !self.cia402.enable_waiting();
+        let option = self.cia402.on_connection_lost();
+        // The master's cycles are over: the reaction starts at the next tick. A PDS
+        // that lost its voltage here (0x6007 = 2) shows it at once (statusword, power
+        // off, brake engaged): a step of no length.
+        self.last_cycle_us = None;
+        self.react_now = option != AbortConnection::NoAction;
+        if self.cia402.state() != before && !self.cia402.state().voltage_enabled() {
+            self.control_step(1e-6, SetpointArrival::Stale);
+        }
+        // Reported once: a second report of the same loss (the outputs lost, then the
+        // ESM change) finds the reaction already running.
+        if !had_function || self.cia402.state() == before {
+            return;
+        }
+        match option {
+            AbortConnection::NoAction => {}
+            AbortConnection::Fault => {
+                self.faults.raise_ecat(code, diag, self.now_ms);
+                self.faults.condition_gone(FaultKind::Ecat);
+            }
+            AbortConnection::DisableVoltage | AbortConnection::QuickStop => {
+                self.faults.notify(code, diag);
+            }
+        }
+    }
+}
+
+impl<S: ParameterStore> EsmHooks for Drive<S> {
+    fn on_state_change(&mut self, from: EsmState, to: EsmState) {
+        self.esm = to;
+        if matches!(to, EsmState::PreOp | EsmState::SafeOp | EsmState::Op) {
+            self.reached_preop = true;
+        }
+        if to == EsmState::Bootstrap {
+            // Nothing of the motion survives the Bootstrap: the power stage is off.
+            self.command.power_stage = false;
+            self.command.drive_enabled = false;
+            self.command.brake_release = false;
+        }
+        if from == EsmState::Op && to != EsmState::Op {
+            let code = if to == EsmState::Init { 0xA000 } else { 0xA001 };
+            self.left_op(code, [from.bits(), to.bits()]);
+        }
+        if to == EsmState::Init {
+            self.cia402.on_esm_init();
+        }
+    }
+
+    fn on_leave_bootstrap(&mut self) {
+        if self.update.as_deref().is_some_and(|u| u.accepted()) {
+            self.reset_request = true;
+        }
+    }
+}
+
+impl<S: ParameterStore> SlaveApplication for Drive<S> {
+    /// The master's cycle: the set-points it brought take effect in a control step
+    /// now (the supervision tick steps the drive as well, on its own clock).
+    fn cycle(&mut self, info: &CycleInfo) {
+        let now = info.now_us as Stamp;
+        if let Some(t) = self.last_cycle_us {
+            self.cycle_period_us = elapsed_us(now, t).unwrap_or(0);
+        }
+        self.last_cycle_us = Some(now);
+        let arrival = if info.outputs_fresh {
+            SetpointArrival::Fresh
+        } else {
+            SetpointArrival::Stale
+        };
+        self.step_at(now, arrival);
+    }
+
+    fn on_outputs_lost(&mut self, code: AlStatusCode) {
+        self.left_op(ERR_COMMUNICATION_LOST, code.code().to_le_bytes());
+    }
+
+    fn sync_error_limit(&self) -> u16 {
+        self.comm.sync_error_limit()
+    }
+
+    fn foe(&mut self) -> Option<&mut dyn FoeFiles> {
+        match self.update.as_deref_mut() {
+            Some(u) => Some(u),
+            None => None,
+        }
+    }
+}
+
+/// True when `index` is stored by 'save' somewhere in the dictionary (for tests and
+/// the storage layout documentation).
+pub fn is_saved(index: u16, sub: u8) -> bool {
+    od::find_entry(dictionary::OBJECTS, index, sub).is_ok_and(|e| e.is_saved())
+}
