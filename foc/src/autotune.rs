@@ -18,6 +18,35 @@
 //!    period are taken `delay` samples after the voltage command changed (one
 //!    sample of computation delay in the PWM update).
 //!
+//! 4. **Inductance at two currents**: the toggling runs after DC point 1 too, so L
+//!    is measured at `½·I_test` ([`TuneResult::l_low`]) and at `I_test`
+//!    ([`TuneResult::l_phase`]): the drop of the incremental inductance with the
+//!    current. The current loop is designed to stay within 5 % overshoot from 0.7
+//!    to 1.3 × the tuned L ([`crate::current_loop`], "Design").
+//!
+//! After phase B, with both bridges at 0 V for `settle` s (the test current decays
+//! through the winding), the phase currents are averaged for `average` s: the
+//! **offsets** of the current channels with the bridges switching
+//! ([`TuneResult::offset`], A; the power-up calibration is made with the bridges
+//! off). They are measured last because the rotor is then at rest in the detent the
+//! test current pulled it into: before the first DC point a rotor creeping into its
+//! detent drives a real back-EMF current through the switching bridges (tens of mA
+//! in the plant for a rotor 0.7° off its detent), which an offset measurement
+//! cannot tell from an offset. R and L come from differences and do not depend on
+//! the offsets; the dead-time intercept below is corrected with them.
+//!
+//! From the DC points come two more results:
+//! * **dead-time loss** ([`TuneResult::dead_time_v`]): the intercept `V₂ − R·I₂` of
+//!   each phase's V-I line, the voltage the bridge loses at a positive current,
+//!   mean of both phases;
+//! * **channel gain ratio** ([`TuneResult::gain_b`]): the two windings are wound
+//!   alike, so a difference between the phases' apparent resistances `R/g` is the
+//!   current sensors' gain difference `g`; `gain_b = R_B/R_A` is the factor that
+//!   scales channel B to channel A. A winding mismatch is indistinguishable from it
+//!   and is calibrated away with it (it is what the bridge sees as the same
+//!   current). A ratio outside [`GAIN_RATIO_BAND`] or an offset above
+//!   [`AutotuneConfig::max_offset`] is a sensing fault, [`TuneError::Sensing`].
+//!
 //! All applied voltages are rounded to the modulator's resolution (`2·Vbus/period`,
 //! see [`crate::modulation::Modulator::duties`]) so the averaged command equals what
 //! the bridge produced. Gains: `Kp = L·ωc`, `Ki = R·ωc` with the means of both phases.
@@ -28,11 +57,10 @@
 //! * current Kp (`0x2015`): **0.01 V/A** per unit (1000 = 10 V/A);
 //! * current Ki (`0x2016`): **10 V/(A·s)** per unit (200 = 2000 V/(A·s)).
 //!
-//! With the default ωc = 2π·2 kHz an ECN57-20 (0.4 Ω, 1.8 mH) gives Kp = 2262,
-//! Ki = 503.
+//! With the default ωc = [`crate::current_loop::robust_bandwidth`] (0.23/Ts, 9.2·10³
+//! rad/s at 40 kHz) an ECN57-20 (0.4 Ω, 1.8 mH) gives Kp = 1656, Ki = 368.
 
 use crate::num;
-use core::f32::consts::PI;
 
 /// Phase being measured.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -53,7 +81,18 @@ pub enum TuneError {
     Unbalanced,
     /// A result outside the physically plausible range (R ≤ 0, L ≤ 0, no ripple).
     Implausible,
+    /// The current sensing calibration is outside its plausible band: the channels'
+    /// gains differ by more than [`GAIN_RATIO_BAND`] or an offset with the bridges
+    /// switching exceeds [`AutotuneConfig::max_offset`].
+    Sensing,
 }
+
+/// Time constants `L/R` the test current decays for before the offsets are
+/// measured (e⁻¹² of 4 A is 25 µA).
+pub const OFFSET_SETTLE_TAUS: f32 = 12.0;
+
+/// Plausible band of the channel gain ratio [`TuneResult::gain_b`].
+pub const GAIN_RATIO_BAND: (f32, f32) = (0.9, 1.1);
 
 /// Steps of the procedure.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -62,8 +101,10 @@ pub enum TuneState {
     Dc1(Phase),
     /// Second DC point.
     Dc2(Phase),
-    /// Voltage toggling for L.
+    /// Voltage toggling for L (after DC point 1, then after DC point 2).
     Toggle(Phase),
+    /// Current-channel offsets with both bridges at 0 V.
+    Offsets,
     /// Finished.
     Done(TuneResult),
     /// Failed.
@@ -101,6 +142,8 @@ pub struct AutotuneConfig {
     pub bandwidth: f32,
     /// Largest relative difference between the phases' R and L.
     pub unbalance: f32,
+    /// Largest plausible current-channel offset with the bridges switching, A.
+    pub max_offset: f32,
 }
 
 impl AutotuneConfig {
@@ -119,8 +162,9 @@ impl AutotuneConfig {
             toggle_half: 4,
             toggle_time: 0.02,
             delay: 1,
-            bandwidth: 2.0 * PI / (20.0 * ts),
+            bandwidth: crate::current_loop::robust_bandwidth(ts),
             unbalance: 0.2,
+            max_offset: 0.25,
         }
     }
 }
@@ -140,6 +184,14 @@ pub struct TuneResult {
     pub kp: f32,
     /// Current-loop integral gain, V/(A·s).
     pub ki: f32,
+    /// Inductance per phase at half the test current, H.
+    pub l_low: [f32; 2],
+    /// Current-channel offsets (A, B) with the bridges switching at 0 V, A.
+    pub offset: [f32; 2],
+    /// Dead-time voltage loss of the bridges, V (mean of both phases).
+    pub dead_time_v: f32,
+    /// Gain factor that scales current channel B to channel A.
+    pub gain_b: f32,
 }
 
 /// `x·scale` rounded to a parameter value in `min..=max` (`min` for a non-finite or
@@ -292,6 +344,10 @@ pub struct Autotune {
     sum_di: f32,
     n_di: u32,
     vt: f32,
+    /// The toggling after DC point 2 (not after DC point 1).
+    second_toggle: bool,
+    /// Settling steps of the offset measurement.
+    offset_settle: u32,
     res: TuneResult,
 }
 
@@ -327,7 +383,12 @@ impl Autotune {
             sum_di: 0.0,
             n_di: 0,
             vt: 0.0,
-            res: TuneResult::default(),
+            second_toggle: false,
+            offset_settle: 0,
+            res: TuneResult {
+                gain_b: 1.0,
+                ..TuneResult::default()
+            },
         }
     }
 
@@ -339,6 +400,10 @@ impl Autotune {
     /// One step: measured phase currents (A) and bus voltage (V). Returns the phase
     /// voltages `(v_A, v_B)` to apply (V).
     pub fn step(&mut self, ia: f32, ib: f32, vbus: f32) -> (f32, f32) {
+        if self.state == TuneState::Offsets {
+            self.measure_offsets(ia, ib);
+            return (0.0, 0.0);
+        }
         let q = 2.0 * num::pos(vbus) / self.cfg.pwm_period as f32;
         let quant = |v: f32| quantize(v, q);
         let vmax = num::pos(self.cfg.max_modulation * vbus);
@@ -386,10 +451,15 @@ impl Autotune {
                     self.sum_i = 0.0;
                     self.n = 0;
                     self.t = 0;
+                    self.vt = quant(num::pos(self.cfg.toggle_modulation * vbus));
+                    self.sum_di = 0.0;
+                    self.n_di = 0;
                     if first {
                         self.v1 = va;
                         self.i1 = im;
-                        self.state = TuneState::Dc2(phase);
+                        self.v_dc = quant(va);
+                        self.second_toggle = false;
+                        self.state = TuneState::Toggle(phase);
                     } else {
                         let di = im - self.i1;
                         let r = if di.abs() > 1e-6 {
@@ -398,10 +468,9 @@ impl Autotune {
                             0.0
                         };
                         self.res.r_phase[phase as usize] = r;
+                        self.res.dead_time_v += 0.5 * (va - r * im);
                         self.v_dc = quant(va);
-                        self.vt = quant(num::pos(self.cfg.toggle_modulation * vbus));
-                        self.sum_di = 0.0;
-                        self.n_di = 0;
+                        self.second_toggle = true;
                         self.state = TuneState::Toggle(phase);
                     }
                 }
@@ -445,6 +514,34 @@ impl Autotune {
         }
     }
 
+    /// Offsets: at 0 V for `settle` s or [`OFFSET_SETTLE_TAUS`] of phase B's measured
+    /// `L/R` (whichever is longer: the test current must have decayed to a few µA),
+    /// then the currents averaged for `average` s.
+    fn measure_offsets(&mut self, ia: f32, ib: f32) {
+        self.t = self.t.saturating_add(1);
+        if self.t == 1 {
+            let (r, l) = (self.res.r_phase[1], self.res.l_phase[1]);
+            let tau = if r > 0.0 && l > 0.0 { l / r } else { 0.0 };
+            let decay = (OFFSET_SETTLE_TAUS * tau / self.cfg.ts).min(u32::MAX as f32) as u32;
+            self.offset_settle = self.settle_steps.max(decay);
+        }
+        if self.t <= self.offset_settle {
+            return;
+        }
+        self.sum_v += ia;
+        self.sum_i += ib;
+        self.n += 1;
+        if self.t >= self.offset_settle.saturating_add(self.avg_steps) {
+            let n = self.n.max(1) as f32;
+            self.res.offset = [self.sum_v / n, self.sum_i / n];
+            self.sum_v = 0.0;
+            self.sum_i = 0.0;
+            self.n = 0;
+            self.t = 0;
+            self.evaluate();
+        }
+    }
+
     fn finish_phase(&mut self, phase: Phase) {
         let span = self.vt * self.cfg.toggle_half as f32 * self.cfg.ts * self.n_di as f32;
         let l = if self.sum_di > 1e-6 {
@@ -452,12 +549,18 @@ impl Autotune {
         } else {
             0.0
         };
-        self.res.l_phase[phase as usize] = l;
         self.t = 0;
+        if !self.second_toggle {
+            // After DC point 1: on to DC point 2 (the regulator keeps its state).
+            self.res.l_low[phase as usize] = l;
+            self.state = TuneState::Dc2(phase);
+            return;
+        }
+        self.res.l_phase[phase as usize] = l;
         self.x = 0.0;
         match phase {
             Phase::A => self.state = TuneState::Dc1(Phase::B),
-            Phase::B => self.evaluate(),
+            Phase::B => self.state = TuneState::Offsets,
         }
     }
 
@@ -476,6 +579,19 @@ impl Autotune {
             self.state = TuneState::Failed(TuneError::Unbalanced);
             return;
         }
+        let gain_b = r[1] / r[0];
+        let m = self.cfg.max_offset;
+        let offset_ok = |o: f32| o.is_finite() && o.abs() <= m;
+        let off = self.res.offset;
+        if !(GAIN_RATIO_BAND.0..=GAIN_RATIO_BAND.1).contains(&gain_b)
+            || !(offset_ok(off[0]) && offset_ok(off[1]))
+        {
+            self.state = TuneState::Failed(TuneError::Sensing);
+            return;
+        }
+        self.res.gain_b = gain_b;
+        // The intercepts were taken on currents that include the offsets.
+        self.res.dead_time_v += 0.5 * (r[0] * off[0] + r[1] * off[1]);
         self.res.r = rm;
         self.res.l = lm;
         self.res.kp = lm * self.cfg.bandwidth;

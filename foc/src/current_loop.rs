@@ -10,6 +10,7 @@
 //! v_q = PI_q(i_q* − i_q) + ωe·L·i_d* + Ke·ωe/50      (+ back-EMF feed-forward)
 //! |v| ≤ m_max·V_bus                                  (circle, anti-windup)
 //! (v_A, v_B) = Park⁻¹(v_d, v_q, θe + 1.5·ωe·Ts)      (latency compensation)
+//! v_X += V_dt·clamp(i_X/I_dt, −1, 1)                 (dead-time compensation)
 //! duties = ½ ± v/(2·V_bus)                           (two H-bridges)
 //! ```
 //!
@@ -20,10 +21,49 @@
 //! ([`CurrentLoopConfig::latency`]) with [`rotate_small2`] instead of a second
 //! sin/cos.
 //!
-//! Design: with `Kp = L·ωc`, `Ki = R·ωc` the PI zero cancels the coil pole and the
-//! continuous loop is `ωc/(s + ωc)`. With the sample delay a practical limit is
-//! `ωc ≈ 2π·f_s/20` (`Kp·Ts/L ≈ 0.31`, ~2 % overshoot). [`CurrentLoopConfig::gains_for`]
-//! computes the gains.
+//! # Design: robust to the inductance and to the delay
+//! With `Kp = L̂·ωc`, `Ki = R̂·ωc` the PI zero cancels the coil pole and, without
+//! delay, the loop is `ωc/(s + ωc)`. Two things move it on a real drive:
+//! * **the inductance**: a hybrid stepper's incremental inductance falls with the
+//!   current (typically 25-30 % at rated current), and the tune measures it at one
+//!   current. With `L = 0.7·L̂` the loop gain is 1.43 times the design's.
+//! * **the delay** `D` from the sample to the update event that loads the duties:
+//!   on the board 0.5 sample when the current-loop interrupt ends before the PWM
+//!   underflow (sample at the counter peak, `ADC1_2` at +2.3 µs, underflow at
+//!   +12.5 µs; the loaded duties then form the pulse centred on the next sample),
+//!   1.0 when the interrupt ends after it (the duties load at the next peak). The
+//!   design takes the worse, `D = 1`.
+//!
+//! Simulating the loop `i[k+1] = e^{−RTs/L}·i[k] + …` with the duties acting from
+//! `k + D` (ECN57-20; overshoot of a step, % — the TC86-45 gives the same within
+//! 0.5 %, the figures depend on `ωc·Ts` and `L̂/L` only):
+//!
+//! | `ωc·Ts` | D = 1: L × 0.7 / 1.0 / 1.3 | D = 1.5, L × 1 | D = 1.5, L × 0.7 | −3 dB, D = 1 |
+//! |---|---|---|---|---|
+//! | 0.314 (`2π·f_s/20`) | 18.3 / 2.1 / 0.5 | 14.0 | 38.2 | 4.5 kHz |
+//! | 0.24 | 4.2 / 0.0 / 0.6 | 3.1 | 18.6 | 2.7 kHz |
+//! | 0.22 | 1.5 / 0.0 / 0.6 | 1.2 | 13.2 | 2.3 kHz |
+//!
+//! The drive uses `ωc = 0.23/Ts` ([`ROBUST_WC_TS`], 9.2·10³ rad/s at 40 kHz), between
+//! the last two rows: ≤ 5 % overshoot from 0.7 to 1.3 × the tuned L and with 1.5
+//! samples of delay, a 10-90 % rise of ≈ 170 µs and a bandwidth above 2 kHz (the
+//! figures on the plant, with its ADC noise and quantisation, are in BENCHMARKS.md:
+//! "Control quality" and "Robustness"). The gains are **not scheduled** on |i|:
+//! the margin the delay needs already covers the L(i) drop to rated current, and a
+//! schedule would add work to every step and depend on the fit of L(i). A Smith
+//! predictor of the delay (tried: `i + Σ` of the voltages not yet applied) bought
+//! no more than this lower gain: 0.0 / 0.4 % instead of 1.5 / 1.2 %, 14 % combined.
+//! [`CurrentLoopConfig::gains_for`] computes the gains, [`robust_bandwidth`] ωc.
+//!
+//! # Dead-time compensation
+//! The bridge loses `V_dt·sgn(i)` of each phase voltage to its dead time (during it
+//! the current's own direction decides which diode conducts). The step adds it back
+//! by the sign of the **measured** phase current, through a linear band `±I_dt`
+//! ([`CurrentLoop::set_dead_time`]) so the correction is continuous at the zero
+//! crossing, where the ripple current makes the loss itself a ramp. `V_dt` is
+//! stated as a fraction of the bus voltage (the loss is `Vbus·t_dead·f_pwm` per
+//! leg pair, less the switching times); the auto-tune measures it
+//! ([`crate::autotune::TuneResult::dead_time_v`]).
 //!
 //! Cost on a Cortex-M4F: 290 executed instructions per step (QEMU instruction count,
 //! `current loop step` benchmark, unsaturated path; the voltage limit adds ~25 when
@@ -35,6 +75,10 @@ use crate::num;
 use crate::pi::Pi;
 use crate::transforms::{inverse_park, park, rotate_small2, AlphaBeta, Dq};
 use crate::trig;
+
+/// Default current band of the dead-time compensation, A (the plant's and a typical
+/// bridge's: the PWM ripple current at which the loss has fully changed sign).
+pub const DEAD_TIME_BAND: f32 = 0.05;
 
 /// One set of ADC conversions taken at the PWM centre (raw 12-bit counts).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -77,6 +121,14 @@ impl Sense {
     }
 }
 
+/// `ωc·Ts` of the robust design (module doc).
+pub const ROBUST_WC_TS: f32 = 0.23;
+
+/// Current-loop bandwidth ωc (rad/s) of the robust design for sample period `ts`.
+pub fn robust_bandwidth(ts: f32) -> f32 {
+    ROBUST_WC_TS / ts
+}
+
 /// Static configuration of the current loop.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CurrentLoopConfig {
@@ -113,6 +165,12 @@ pub struct CurrentLoop {
     // Precomputed: Ke per electrical rad/s (Ke/50) and Ts·latency.
     ke_e: f32,
     advance: f32,
+    /// Relative gain of the phase-B channel against phase A (calibration, 1 = equal).
+    gain_b: f32,
+    /// Dead-time loss as a fraction of the bus voltage.
+    dead_time: f32,
+    /// 1 / the current band of the dead-time compensation, 1/A.
+    dead_time_slope: f32,
     pi_d: Pi,
     pi_q: Pi,
     /// Current reference on d (A).
@@ -140,6 +198,9 @@ impl CurrentLoop {
             cfg,
             ke_e: cfg.ke * (1.0 / crate::angle::POLE_PAIRS as f32),
             advance: cfg.ts * cfg.latency,
+            gain_b: 1.0,
+            dead_time: 0.0,
+            dead_time_slope: 1.0 / DEAD_TIME_BAND,
             pi_d: Pi::new(cfg.kp, cfg.ki, cfg.ts, 0.0),
             pi_q: Pi::new(cfg.kp, cfg.ki, cfg.ts, 0.0),
             id_ref: 0.0,
@@ -179,6 +240,27 @@ impl CurrentLoop {
         self.cfg.sense.offset_b = offset_b;
     }
 
+    /// Phase-B channel gain relative to phase A (the calibration's `1/ratio`); values
+    /// outside 0.5..2 or not finite are ignored.
+    pub fn set_gain_b(&mut self, gain_b: f32) {
+        if gain_b.is_finite() && (0.5..=2.0).contains(&gain_b) {
+            self.gain_b = gain_b;
+        }
+    }
+
+    /// Dead-time compensation: the loss as a fraction of the bus voltage (0 = off;
+    /// clamped to 0..0.1) and the current band `band` (A, > 0) of its linear part.
+    pub fn set_dead_time(&mut self, fraction: f32, band: f32) {
+        self.dead_time = if fraction.is_finite() {
+            num::clamp(fraction, 0.0, 0.1)
+        } else {
+            0.0
+        };
+        if band.is_finite() && band > 1e-4 {
+            self.dead_time_slope = 1.0 / band;
+        }
+    }
+
     /// Clears both integrators (use when the bridges were off).
     pub fn reset(&mut self) {
         self.pi_d.reset();
@@ -191,7 +273,11 @@ impl CurrentLoop {
     #[inline]
     pub fn step(&mut self, adc: &AdcSample, theta_e: Angle, omega_e: f32) -> Duties {
         let cfg = &self.cfg;
-        let i_ab = cfg.sense.currents(adc);
+        let raw = cfg.sense.currents(adc);
+        let i_ab = AlphaBeta {
+            alpha: raw.alpha,
+            beta: raw.beta * self.gain_b,
+        };
         let vbus = cfg.sense.vbus(adc);
         let (s, c) = (trig::sin(theta_e), trig::cos(theta_e));
         let i_dq = park(i_ab, s, c);
@@ -219,7 +305,13 @@ impl CurrentLoop {
         let (s2, c2) = rotate_small2(s, c, omega_e * self.advance);
         let v_dq = Dq { d: vd, q: vq };
         let v_ab = inverse_park(v_dq, s2, c2);
-        let duties = cfg.modulator.duties(v_ab.alpha, v_ab.beta, vbus);
+        let v_dt = vbus * self.dead_time;
+        let k = self.dead_time_slope;
+        let duties = cfg.modulator.duties(
+            v_ab.alpha + v_dt * num::clamp(i_ab.alpha * k, -1.0, 1.0),
+            v_ab.beta + v_dt * num::clamp(i_ab.beta * k, -1.0, 1.0),
+            vbus,
+        );
 
         self.i_ab = i_ab;
         self.i_dq = i_dq;

@@ -20,6 +20,27 @@
 //! i.e. `v̂/n = (2ζωs + ω²)/(s² + 2ζωs + ω²)·s` (ζ = 1): zero steady-state error for a
 //! constant speed, −3 dB bandwidth ≈ 2.5·ω. `p̂` is kept as an integer plus an `f32`
 //! fraction so it never loses resolution over many turns.
+//!
+//! # Angle and speed for the current loop
+//! A count is 4.5° electrical at 4000 counts/rev. Commutating on the count itself
+//! makes the voltage vector jump by that much at every edge, and the PLL speed,
+//! which follows each edge within its bandwidth (≈ 3 kHz), ripples at the edge
+//! pattern: both reach the current as steps at non-integer speeds, where the count
+//! pattern does not repeat. The current loop therefore takes angle and speed from
+//! a second, slower **commutation tracker** (type 3, all three poles at
+//! −[`COMMUTATION_OMEGA`]):
+//!
+//! ```text
+//! p̂⁻ = p̂ + Ts·v̂      e = n − p̂⁻      p̂ = p̂⁻ + 3ωTs·e      v̂ ← v̂ + Ts·â + 3ω²Ts·e      â ← â + ω³Ts·e
+//! ```
+//!
+//! `p̂/n = (3ωs² + 3ω²s + ω³)/(s + ω)³`. Being of type 3 it has no lag at constant
+//! speed nor at constant acceleration; a jerk `J` leaves a position lag of `J/ω³`.
+//! Its angle ([`Encoder::commutation_angle`]) is the count's angle moved by
+//! `p̂ − n`, bounded to ±[`MAX_INTERPOLATION`] counts: whatever the motion (a
+//! shock, an acceleration step), the commutation stays within 9° electrical of the
+//! count, the PLL and the servo loops are not affected. `p̂` is kept relative to the
+//! count, so it keeps its resolution over any number of turns.
 
 use crate::angle::{Angle, CountScale, POLE_PAIRS};
 use core::f32::consts::PI;
@@ -31,6 +52,26 @@ use core::f32::consts::PI;
 fn wrap(n: i32, cpr: u32) -> i32 {
     n.checked_rem_euclid(cpr as i32).unwrap_or(0)
 }
+
+/// Largest correction of the commutation angle against the count, counts.
+pub const MAX_INTERPOLATION: f32 = 2.0;
+
+/// Pole of the commutation tracker, rad/s (triple; −3 dB ≈ 2·ω = 80 Hz).
+///
+/// Chosen on the plant (i_q* = 0.5 A, shaft at constant speed, i_q peak-to-peak at
+/// 1, 5.07 and 10.13 rev/s and over 0.013-10.013 rev/s in steps of 0.25, both
+/// motors): 200 rad/s lets the TC86-45's ripple grow with speed (24 mA at 10.13
+/// rev/s), 250 rad/s gives 3-5 mA at 1 and 5.07 rev/s and 8.6/10.2 mA at 10.13,
+/// 300-400 rad/s let more of the edge steps through (10-14 mA at 10.13 rev/s).
+/// Where the count pattern beats slower than the tracker's bandwidth (within
+/// ≈ 0.02 rev/s of 10 rev/s: one count per sample with a slip every 19 ms at
+/// 10.013 rev/s) no filter of the count can tell the slip from the motion, and the
+/// ripple is 28-34 mA there (BENCHMARKS.md, "Robustness").
+pub const COMMUTATION_OMEGA: f32 = 250.0;
+
+/// Bound of the commutation tracker's state against the count, counts (beyond it the
+/// tracker is re-started on the count: a stall or a shock).
+const TRACKER_LIMIT: f32 = 64.0;
 
 /// Encoder configuration.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -78,12 +119,20 @@ pub struct Encoder {
     mech: CountScale,
     elec: CountScale,
     elec_offset: Angle,
+    /// Electrical angle of one count, in [`Angle`] units (2³² per turn).
+    elec_per_count: f32,
     ts: f32,
     k1: f32,
     k2: f32,
     pll_pos: i32,
     pll_frac: f32,
     pll_vel: f32,
+    /// Commutation tracker: `p̂ − n` (counts), `v̂` (counts/s), `â` (counts/s²).
+    trk_pos: f32,
+    trk_vel: f32,
+    trk_acc: f32,
+    /// Its gains times Ts: 3ω·Ts, 3ω²·Ts, ω³·Ts.
+    trk_k: [f32; 3],
     /// Z-index state.
     pub index: IndexState,
 }
@@ -106,12 +155,20 @@ impl Encoder {
             mech: CountScale::new(cpr, 1),
             elec: CountScale::new(cpr, POLE_PAIRS),
             elec_offset: Angle::ZERO,
+            elec_per_count: 4_294_967_296.0 * POLE_PAIRS as f32 / cpr as f32,
             ts: cfg.ts,
             k1: 2.0 * w,
             k2: w * w,
             pll_pos: 0,
             pll_frac: 0.0,
             pll_vel: 0.0,
+            trk_pos: 0.0,
+            trk_vel: 0.0,
+            trk_acc: 0.0,
+            trk_k: {
+                let (w, ts) = (COMMUTATION_OMEGA, cfg.ts);
+                [3.0 * w * ts, 3.0 * w * w * ts, w * w * w * ts]
+            },
             index: IndexState::default(),
         }
     }
@@ -140,7 +197,32 @@ impl Encoder {
         let whole = self.pll_frac as i32;
         self.pll_pos = self.pll_pos.wrapping_add(whole);
         self.pll_frac -= whole as f32;
+        self.track(delta);
         delta
+    }
+
+    /// The commutation tracker's step (module doc) for a count that moved by `delta`:
+    /// the prediction from the last estimate, then its correction by the new count, so
+    /// the estimate is the shaft's at this sample.
+    #[inline]
+    fn track(&mut self, delta: i32) {
+        let p = self.trk_pos + self.ts * self.trk_vel - delta as f32;
+        if !(-TRACKER_LIMIT..=TRACKER_LIMIT).contains(&p) {
+            // Far off the count (or not finite): restart on it at the PLL's speed.
+            self.trk_pos = 0.0;
+            self.trk_vel = if self.pll_vel.is_finite() {
+                self.pll_vel
+            } else {
+                0.0
+            };
+            self.trk_acc = 0.0;
+            return;
+        }
+        let [k1, k2, k3] = self.trk_k;
+        let e = -p;
+        self.trk_pos = p + k1 * e;
+        self.trk_vel += self.ts * self.trk_acc + k2 * e;
+        self.trk_acc += k3 * e;
     }
 
     /// Index pulse: `raw_at_index` is the counter value latched by the hardware at the
@@ -207,6 +289,23 @@ impl Encoder {
     #[inline]
     pub fn electrical_angle(&self) -> Angle {
         self.elec.angle(self.in_rev).wrapping_add(self.elec_offset)
+    }
+
+    /// Commutation angle for the current loop (alignment offset included): the
+    /// count's angle moved by the commutation tracker's `p̂ − n`, at most
+    /// ±[`MAX_INTERPOLATION`] counts (module doc).
+    #[inline]
+    pub fn commutation_angle(&self) -> Angle {
+        let d = crate::num::clamp(self.trk_pos, -MAX_INTERPOLATION, MAX_INTERPOLATION);
+        self.electrical_angle()
+            .wrapping_add(Angle((d * self.elec_per_count) as i32 as u32))
+    }
+
+    /// Electrical speed of the commutation tracker, rad/s (the current loop's
+    /// feed-forward speed, module doc).
+    #[inline]
+    pub fn commutation_omega_e(&self) -> f32 {
+        self.trk_vel * self.elec_per_count * (2.0 * PI / 4_294_967_296.0)
     }
 
     /// Sets the electrical offset found by the alignment.

@@ -277,6 +277,136 @@ qemu_runner::tests! {
         assert!(near(sum / 8000.0, 4000.0, 40.0), "{}", sum / 8000.0);
     }
 
+    fn encoder_commutation_tracker_interpolates_and_stays_bounded() {
+        // 10.013 rev/s at 4000 counts/rev and 40 kHz: 1.0013 counts per step, a count
+        // pattern that repeats only every ~770 steps. The tracker's angle moves by the
+        // shaft's advance every step, not by whole counts.
+        let mut e = Encoder::new(EncoderConfig::default(), 0);
+        let per_step = 1.0013f64;
+        let mut worst_jump = 0.0f64;
+        let mut worst_error = 0.0f64;
+        let mut last = e.commutation_angle();
+        let count_angle = 50.0 / 4000.0; // electrical turns per count
+        for k in 1..20_000u32 {
+            let true_counts = k as f64 * per_step;
+            e.update((true_counts.floor() as u32) as u16);
+            let a = e.commutation_angle();
+            if k > 8000 {
+                let step_turns = a.diff(last) as f64 / 4_294_967_296.0;
+                worst_jump = worst_jump.max((step_turns / count_angle - per_step).abs());
+                let est = a.0 as f64 / 4_294_967_296.0;
+                // The count covers [n, n + 1): its centre is the best a tracker of n can do.
+                let truth = ((true_counts - 0.5) * count_angle).fract();
+                let mut err = est - truth;
+                err -= err.round();
+                worst_error = worst_error.max((err / count_angle).abs());
+            }
+            last = a;
+        }
+        // Steps within 0.1 count of the true advance (the count jumps by 0 or 2 at the
+        // pattern's slips); the angle within 0.6 count of the true shaft.
+        assert!(worst_jump < 0.1, "jump {worst_jump} counts");
+        assert!(worst_error < 0.6, "error {worst_error} counts");
+        let w = e.commutation_omega_e();
+        let w_true = (per_step * 40_000.0 / 4000.0 * 50.0 * 2.0 * core::f64::consts::PI) as f32;
+        assert!(near(w, w_true, 0.01 * w_true), "omega {w} vs {w_true}");
+
+        // A jump of 1000 counts (a shock, a lost counter) restarts the tracker on the
+        // count: the commutation angle stays within ±2 counts of it.
+        let before = e.electrical_angle();
+        let raw = (19_999.0f64 * per_step).floor() as u32 + 1000;
+        e.update(raw as u16);
+        let off = e.commutation_angle().diff(e.electrical_angle()) as f64 / 4_294_967_296.0;
+        assert!((off / count_angle).abs() <= 2.0 + 1e-3, "{off}");
+        assert_ne!(before, e.electrical_angle());
+        // Standing still: the angle is the count's.
+        let mut e = Encoder::new(EncoderConfig::default(), 7);
+        for _ in 0..4000 {
+            e.update(7);
+        }
+        assert!(e.commutation_angle().diff(e.electrical_angle()).abs() < 1000);
+        assert!(e.commutation_omega_e().abs() < 1e-3);
+    }
+
+    fn current_loop_dead_time_and_channel_gain() {
+        let mut cl = CurrentLoop::new(loop_config(0.4, 1.8e-3));
+        let m = Modulator::new(PERIOD);
+        // At zero reference and zero current, nothing is added.
+        cl.set_dead_time(0.5 / 48.0, 0.05);
+        let d = cl.step(&adc_of(0.0, 0.0, 48.0), Angle::ZERO, 0.0);
+        let (va, vb) = m.voltages(&d, 48.0);
+        assert!(va.abs() < 0.05 && vb.abs() < 0.05, "{va} {vb}");
+        // Well outside the band the full loss is added by the current's sign; inside it
+        // the correction is linear (continuous through zero).
+        let at = |cl: &mut CurrentLoop, ia: f32, ib: f32| {
+            cl.reset();
+            cl.id_ref = ia;
+            cl.iq_ref = ib;
+            let d0 = cl.step(&adc_of(ia, ib, 48.0), Angle::ZERO, 0.0);
+            m.voltages(&d0, 48.0)
+        };
+        let (pa, pb) = at(&mut cl, 1.0, -1.0);
+        // At its reference the loop (integrators cleared) adds only the compensation.
+        assert!(near(pa, 0.5, 0.06), "{pa}");
+        assert!(near(pb, -0.5, 0.06), "{pb}");
+        let (sa, _) = at(&mut cl, 0.0244, 0.0);
+        assert!(sa > 0.05 && sa < 0.4, "{sa}");
+        // Nonsense settings are refused or clamped: the loss to 0..10 % of the bus.
+        cl.set_dead_time(f32::NAN, 0.05);
+        cl.set_dead_time(1.0, f32::NAN);
+        cl.set_gain_b(f32::NAN);
+        cl.set_gain_b(5.0);
+        let (pa, _) = at(&mut cl, 1.0, 0.0);
+        assert!(near(pa, 4.8, 0.1), "{pa}");
+
+        // Channel B reading 3 % low, calibrated: i_q on B's axis is regulated to the
+        // reference as channel A would see it.
+        let mut cl = CurrentLoop::new(loop_config(0.4, 1.8e-3));
+        cl.set_gain_b(1.0 / 0.97);
+        let mut coils = Coils::new(0.4, 1.8e-3);
+        cl.iq_ref = 1.0;
+        for _ in 0..8000 {
+            let mut adc = coils.sample();
+            adc.ib = adc_of(0.0, coils.i[1] * 0.97, 48.0).ib;
+            let d = cl.step(&adc, Angle::ZERO, 0.0);
+            coils.advance(d);
+        }
+        assert!(near(coils.i[1], 1.0, 0.01), "{}", coils.i[1]);
+    }
+
+    fn autotune_calibrates_offsets_gains_and_dead_time() {
+        // Channel B reads 3 % high, channel A 20 mA high; the bridges lose 0.5 V each
+        // (applied as a current-signed voltage loss).
+        let run = |gain_b: f32, offset_a: f32, loss: f32| {
+            let mut coils = Coils::new(0.4, 1.8e-3);
+            let m = Modulator::new(PERIOD);
+            let mut t = Autotune::new(AutotuneConfig::new(TS, PERIOD, 4.0));
+            let s = sense();
+            let mut n = 0;
+            while !t.finished() && n < 100_000 {
+                let adc = coils.sample();
+                let i = s.currents(&adc);
+                let (va, vb) = t.step(i.alpha + offset_a, i.beta * gain_b, s.vbus(&adc));
+                let lose = |v: f32, i: f32| v - loss * libm::tanhf(i / 0.02);
+                let (ca, cb) = (coils.i[0], coils.i[1]);
+                coils.advance(m.duties(lose(va, ca), lose(vb, cb), s.vbus(&adc)));
+                n += 1;
+            }
+            t.state
+        };
+        let r = match run(1.03, 0.02, 0.5) {
+            TuneState::Done(r) => r,
+            s => panic!("{s:?}"),
+        };
+        assert!(near(r.gain_b, 1.0 / 1.03, 0.005), "gain_b {}", r.gain_b);
+        assert!(near(r.offset[0], 0.02, 0.004) && near(r.offset[1], 0.0, 0.004), "{:?}", r.offset);
+        assert!(near(r.dead_time_v, 0.5, 0.05), "dead time {}", r.dead_time_v);
+        assert!(near(r.r, 0.4 * 0.5 * (1.0 + 1.0 / 1.03), 0.01), "R {}", r.r);
+        // A channel 12 % off, or an offset of 0.5 A, is a sensing fault.
+        assert_eq!(run(0.88, 0.0, 0.0), TuneState::Failed(TuneError::Sensing));
+        assert_eq!(run(1.0, 0.5, 0.0), TuneState::Failed(TuneError::Sensing));
+    }
+
     fn encoder_index_reference_and_lost_counts() {
         let mut e = Encoder::new(EncoderConfig::default(), 0);
         e.update(1000);
@@ -587,8 +717,14 @@ qemu_runner::tests! {
         assert!(near(r.r, 0.4, 0.02), "R {}", r.r);
         assert!(near(r.l, 1.8e-3, 0.18e-3), "L {}", r.l);
         assert!((n as f32) * TS < 2.0);
-        let wc = 2.0 * core::f32::consts::PI / (20.0 * TS);
+        let wc = foc::current_loop::robust_bandwidth(TS);
         assert!(near(r.kp, r.l * wc, 1e-3) && near(r.ki, r.r * wc, 1e-2));
+        // Ideal sensing and bridges: the calibration finds nothing to correct, and L is
+        // the same at both test currents.
+        assert!(near(r.gain_b, 1.0, 0.01), "gain_b {}", r.gain_b);
+        assert!(r.offset.iter().all(|o| o.abs() < 0.01), "offsets {:?}", r.offset);
+        assert!(r.dead_time_v.abs() < 0.05, "dead time {}", r.dead_time_v);
+        assert!(r.l_low.iter().all(|&l| near(l, 1.8e-3, 0.18e-3)), "L low {:?}", r.l_low);
     }
 
     fn autotune_detects_open_and_unbalanced_phase() {
