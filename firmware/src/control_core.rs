@@ -30,7 +30,7 @@ use crate::latch::{units_at_count, Edges, Seen};
 use crate::motion::{CurrentReference, Frame, MotionConfig};
 use crate::power_gate::{bridge_mode, BridgeMode, GateInputs};
 use crate::sampling::{AnalogScale, RawSample};
-use foc::current_loop::{AdcSample, CurrentLoop, CurrentLoopConfig, Sense};
+use foc::current_loop::{robust_bandwidth, AdcSample, CurrentLoop, CurrentLoopConfig, Sense};
 use foc::encoder::{Encoder, EncoderConfig};
 use foc::modulation::{Duties, Modulator};
 
@@ -152,8 +152,9 @@ const NO_EDGES: Edges<i32> = Edges {
 
 impl ControlCore {
     /// The control path at power-up: bridges off, no command seen, the current loop's
-    /// gains for a bandwidth of 2π·f_PWM/20 (the design limit of
-    /// `foc::current_loop`), the encoder starting at `raw_count`.
+    /// gains for the robust bandwidth `foc::current_loop::robust_bandwidth` (0.23/Ts,
+    /// ≤ 5 % overshoot over 0.7-1.3 × L and 1.5 samples of delay), the encoder
+    /// starting at `raw_count`.
     pub fn new(
         stage: PowerStageConfig,
         motor: LoopMotor,
@@ -163,7 +164,7 @@ impl ControlCore {
         raw_count: u32,
     ) -> Self {
         let ts = 1.0 / stage.pwm_hz as f32;
-        let wc = 2.0 * core::f32::consts::PI * stage.pwm_hz as f32 / 20.0;
+        let wc = robust_bandwidth(ts);
         let (kp, ki) = CurrentLoopConfig::gains_for(motor.r_ohm, motor.l_h, wc);
         let cl = CurrentLoop::new(CurrentLoopConfig {
             ts,
@@ -267,7 +268,9 @@ impl ControlCore {
                 self.cl.id_ref = self.reference.id;
                 self.cl.iq_ref = self.reference.iq;
                 let (theta, omega) = match self.reference.frame {
-                    Frame::Encoder => (self.enc.electrical_angle(), self.enc.omega_e()),
+                    Frame::Encoder => {
+                        (self.enc.commutation_angle(), self.enc.commutation_omega_e())
+                    }
                     Frame::Command { angle, omega_e } => (angle, omega_e),
                 };
                 self.sup.run_step(&mut self.cl, &adc, theta, omega)

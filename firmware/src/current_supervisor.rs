@@ -26,7 +26,14 @@
 //! decoupling inductance are set at once (in the interrupt, no round trip) to the
 //! values the parameters will report: `Kp = 0x2015 × 0.01 V/A`, `Ki = 0x2016 × 10
 //! V/(A·s)`, `L = 0x2021 µH`; the drive writes 0x2020/0x2021/0x2015/0x2016 from the
-//! [`CurrentReport`].
+//! [`CurrentReport`]. The tune's current-sensing calibration is applied at the same
+//! moment ([`Calibration`]): the channel offsets re-measured with the bridges
+//! switching, channel B's gain scaled to channel A's, and the dead-time
+//! compensation of the measured loss (`foc::current_loop`, "Dead-time
+//! compensation"); the drive reports it in 0x2022. A calibration outside its
+//! plausible band fails the tune with [`TuneError::Sensing`], the current-sensing
+//! fault 0x5210 (detail 2) with its emergency; the loop then keeps the power-up
+//! calibration.
 //!
 //! **Failure:** [`TuneError::OpenPhase`] (no current in a phase), `Unbalanced` (the
 //! phases differ, poor contact) and `Implausible` are all the motor-open / poor-contact
@@ -213,6 +220,41 @@ pub struct TunedValues {
     pub kp: u16,
     /// 0x2016, 10 V/(A·s).
     pub ki: u16,
+    /// The current-sensing calibration (0x2022).
+    pub calibration: Calibration,
+}
+
+/// The auto-tune's current-sensing calibration in the integer units of 0x2022.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Calibration {
+    /// Channel B gain relative to channel A, 1/10000 (10000 = equal).
+    pub gain_b_e4: u16,
+    /// Channel offsets with the bridges switching (A, B), mA.
+    pub offset_ma: [i16; 2],
+    /// Dead-time voltage loss of the bridges, mV.
+    pub dead_time_mv: u16,
+    /// Inductance at half the test current (mean of both phases), µH.
+    pub l_low_uh: u16,
+}
+
+impl Calibration {
+    /// The integer form of a tune's results.
+    pub fn from_tune(r: &foc::autotune::TuneResult) -> Self {
+        let round = |x: f32, lo: f32, hi: f32| {
+            if x.is_finite() {
+                (x + 0.5 * x.signum()).clamp(lo, hi)
+            } else {
+                0.0
+            }
+        };
+        let ma = |a: f32| round(a * 1e3, -32768.0, 32767.0) as i16;
+        Calibration {
+            gain_b_e4: round(r.gain_b * 1e4, 0.0, 65535.0) as u16,
+            offset_ma: [ma(r.offset[0]), ma(r.offset[1])],
+            dead_time_mv: round(r.dead_time_v * 1e3, 0.0, 65535.0) as u16,
+            l_low_uh: round(0.5 * (r.l_low[0] + r.l_low[1]) * 1e6, 0.0, 65535.0) as u16,
+        }
+    }
 }
 
 /// What the control path tells the drive (copy it across to the cyclic side; the
@@ -254,6 +296,12 @@ impl CurrentReport {
             l_uh: 0,
             kp: 0,
             ki: 0,
+            calibration: Calibration {
+                gain_b_e4: 0,
+                offset_ma: [0, 0],
+                dead_time_mv: 0,
+                l_low_uh: 0,
+            },
         },
         tune_seq: 0,
         follow_seq: 0,
@@ -419,10 +467,12 @@ impl CurrentSupervisor {
                     l_uh: r.inductance_uh(),
                     kp: r.kp_param(),
                     ki: r.ki_param(),
+                    calibration: Calibration::from_tune(&r),
                 };
                 let ke = cl.config().ke;
                 cl.set_gains(kp_from_param(self.tuned.kp), ki_from_param(self.tuned.ki));
                 cl.set_motor(f32::from(self.tuned.l_uh) * 1e-6, ke);
+                apply_calibration(cl, &r, sense.vbus(adc));
                 cl.reset();
                 self.finish(TuneStatus::Done);
             }
@@ -625,6 +675,23 @@ impl CurrentSupervisor {
             trip_ib_ma: self.trip_sample.1,
             trip_bus_dv: self.trip_sample.2,
         }
+    }
+}
+
+/// Applies a finished tune's current-sensing calibration to the loop: the offsets
+/// (A, added to the power-up ones in counts), channel B's relative gain, and the
+/// dead-time compensation as a fraction of the bus voltage `vbus` (V) at the tune.
+fn apply_calibration(cl: &mut CurrentLoop, r: &foc::autotune::TuneResult, vbus: f32) {
+    let s = cl.config().sense;
+    if s.amps_per_count > 0.0 {
+        cl.set_offsets(
+            s.offset_a + r.offset[0] / s.amps_per_count,
+            s.offset_b + r.offset[1] / s.amps_per_count,
+        );
+    }
+    cl.set_gain_b(r.gain_b);
+    if vbus > 1.0 {
+        cl.set_dead_time(r.dead_time_v / vbus, foc::current_loop::DEAD_TIME_BAND);
     }
 }
 

@@ -665,7 +665,7 @@ impl<S: ParameterStore> Drive<S> {
 
     /// The current-loop supervisor's report (control path → drive; call every tick,
     /// before [`Drive::tick`]). A finished tune writes 0x2020 (mΩ), 0x2021 (µH), 0x2015
-    /// and 0x2016 (the gains the loop now uses); a failed one, or a phase without
+    /// and 0x2016 (the gains the loop now uses) and the calibration 0x2022; a failed one, or a phase without
     /// current while running, raises motor open 0x7120; a "current does not follow" detection raises 0x5210; a trip of the fast
     /// protection raises over-current 0x2310 or over-voltage 0x3210. Both are events:
     /// the condition is reported gone at once, so a fault reset clears them (see the
@@ -692,19 +692,22 @@ impl<S: ParameterStore> Drive<S> {
                         .set_internal(Param::MotorInductance, i32::from(t.l_uh));
                     self.params.set_internal(Param::CurrentKp, i32::from(t.kp));
                     self.params.set_internal(Param::CurrentKi, i32::from(t.ki));
+                    self.params.set_calibration(t.calibration);
                 }
                 TuneStatus::Failed(e) => {
                     use foc::autotune::{Phase, TuneError};
-                    let detail = match e {
-                        TuneError::OpenPhase(Phase::A) => [1, 0],
-                        TuneError::OpenPhase(Phase::B) => [1, 1],
-                        TuneError::Unbalanced => [2, 0],
-                        TuneError::Implausible => [3, 0],
+                    // A calibration outside its band is the current sensing's fault
+                    // (0x5210, detail 2); the others are the motor's.
+                    let (kind, detail) = match e {
+                        TuneError::OpenPhase(Phase::A) => (FaultKind::MotorOpen, [1, 0]),
+                        TuneError::OpenPhase(Phase::B) => (FaultKind::MotorOpen, [1, 1]),
+                        TuneError::Unbalanced => (FaultKind::MotorOpen, [2, 0]),
+                        TuneError::Implausible => (FaultKind::MotorOpen, [3, 0]),
+                        TuneError::Sensing => (FaultKind::PhaseSensing, [2, 0]),
                     };
                     let snap = self.snapshot();
-                    self.faults
-                        .raise_detail(FaultKind::MotorOpen, detail, snap, self.now_ms);
-                    self.faults.condition_gone(FaultKind::MotorOpen);
+                    self.faults.raise_detail(kind, detail, snap, self.now_ms);
+                    self.faults.condition_gone(kind);
                 }
                 _ => {}
             }

@@ -18,6 +18,8 @@
 //!   *pending* value, the drive uses the *active* copy latched by
 //!   [`Params::latch_power_up`] ([`ActiveConfig`]).
 //! * 0x2024 = 2 (closed loop) is refused with 0x06090031 on the open-loop variant.
+//! * 0x2022 (current-sensing calibration) is filled by the drive from the power-up
+//!   auto-tune's report ([`Params::set_calibration`]); read-only, not saved.
 //! * 0x2155 (raw input levels) is filled by the I/O module ([`Params::set_raw_inputs`]).
 //! * 0x2156 (ours) keeps the station number entered on a single-bank DIP board (SW8
 //!   ON → SW1-SW7 → SW8 OFF, see [`crate::dip::SingleBank`]); the application sets it
@@ -28,6 +30,7 @@ use ecat_slave_stack::od::{
     self, Access, DataType, DefaultValue, Entry, Object, ObjectCode, PdoMappable, SdoAbort,
 };
 
+use crate::current_supervisor::Calibration;
 use crate::identity::Variant;
 
 /// A saved read-write entry: range `min..=max`, default `def`, unit `unit`.
@@ -47,7 +50,7 @@ const fn rws(
         .saved()
 }
 
-use DataType::{Unsigned16 as U16, Unsigned32 as U32, Unsigned8 as U8};
+use DataType::{Integer16 as I16, Unsigned16 as U16, Unsigned32 as U32, Unsigned8 as U8};
 
 /// Generates [`OBJECTS`], [`Param`] and [`KEYS`] from the table below: per object
 /// `index code "name", "description" { slot = entry, .. }`, where `slot` is the
@@ -144,6 +147,15 @@ vendor_params! {
     0x2021 var "Motor inductance",
         "Phase inductance (auto-tune fills it)" {
         MotorInductance = rws(0, "Motor inductance", U16, 1, 1, 6000, "uH"),
+    }
+    0x2022 record "Current sensing calibration",
+        "Measured by the power-up auto-tune: channel B gain in 1/10000 of A's, offsets, dead-time loss, L at half the test current (0 until a tune has finished)" {
+        _ = Entry::count(5),
+        _ = Entry::new(1, "Channel B gain", U16, Access::RO).default(0),
+        _ = Entry::new(2, "Offset A", I16, Access::RO).unit("mA").default(0),
+        _ = Entry::new(3, "Offset B", I16, Access::RO).unit("mA").default(0),
+        _ = Entry::new(4, "Dead-time loss", U16, Access::RO).unit("mV").default(0),
+        _ = Entry::new(5, "Inductance at half test current", U16, Access::RO).unit("uH").default(0),
     }
     0x2024 var "Loop mode",
         "1 open loop, 2 closed loop" {
@@ -295,6 +307,7 @@ pub struct Params {
     command_pulses: u32,
     encoder_counts: u32,
     fault_history_clear: bool,
+    calibration: Calibration,
 }
 
 impl Params {
@@ -318,6 +331,7 @@ impl Params {
             command_pulses: 0,
             encoder_counts: 0,
             fault_history_clear: false,
+            calibration: Calibration::default(),
         };
         p.latch_power_up();
         p
@@ -407,6 +421,11 @@ impl Params {
         self.encoder_counts = self.encoder_counts.wrapping_add(delta);
     }
 
+    /// Sets the current-sensing calibration reported by 0x2022.
+    pub fn set_calibration(&mut self, c: Calibration) {
+        self.calibration = c;
+    }
+
     /// True once after 1 was written to 0x2093.
     pub fn take_fault_history_clear(&mut self) -> bool {
         core::mem::take(&mut self.fault_history_clear)
@@ -430,6 +449,11 @@ impl Params {
             (None, 0x2042, 0) => self.encoder_counts & 0xFFFF,
             (None, 0x2093, 0) => u32::from(self.fault_history_clear),
             (None, 0x2155, 0) => u32::from(self.raw_inputs),
+            (None, 0x2022, 1) => u32::from(self.calibration.gain_b_e4),
+            (None, 0x2022, 2) => self.calibration.offset_ma[0] as u32,
+            (None, 0x2022, 3) => self.calibration.offset_ma[1] as u32,
+            (None, 0x2022, 4) => u32::from(self.calibration.dead_time_mv),
+            (None, 0x2022, 5) => u32::from(self.calibration.l_low_uh),
             _ => match slot_of(index, sub).and_then(|slot| self.values.get(slot)) {
                 Some(&v) => v as u32,
                 None => return Err(SdoAbort::SubindexDoesNotExist),

@@ -354,6 +354,12 @@ fn current_report_writes_tune_results_and_raises_its_faults() {
             l_uh: 1795,
             kp: 2256,
             ki: 505,
+            calibration: crate::current_supervisor::Calibration {
+                gain_b_e4: 9709,
+                offset_ma: [20, -21],
+                dead_time_mv: 498,
+                l_low_uh: 1801,
+            },
         },
         tune_seq: 1,
         ..CurrentReport::default()
@@ -363,6 +369,21 @@ fn current_report_writes_tune_results_and_raises_its_faults() {
     assert_eq!(sdo_read_u32(&mut d, 0x2021, 0), 1795);
     assert_eq!(sdo_read_u32(&mut d, 0x2015, 0), 2256);
     assert_eq!(sdo_read_u32(&mut d, 0x2016, 0), 505);
+    // The current-sensing calibration, read-only.
+    assert_eq!(sdo_read_u32(&mut d, 0x2022, 0), 5);
+    assert_eq!(sdo_read_u32(&mut d, 0x2022, 1), 9709);
+    assert_eq!(sdo_read_u32(&mut d, 0x2022, 2), 20);
+    assert_eq!(sdo_read_u32(&mut d, 0x2022, 3) as u16 as i16, -21);
+    assert_eq!(sdo_read_u32(&mut d, 0x2022, 4), 498);
+    assert_eq!(sdo_read_u32(&mut d, 0x2022, 5), 1801);
+    assert_eq!(
+        sdo_write(&mut d, 0x2022, 1, &1u16.to_le_bytes()),
+        Err(SdoAbort::WriteReadOnly)
+    );
+    assert_eq!(
+        d.read(0x2022, 6, &mut [0u8; 8]),
+        Err(SdoAbort::SubindexDoesNotExist)
+    );
     // Default mask 0x00C3: motor open and current sensing are off.
     let failed = CurrentReport {
         tune: TuneStatus::Failed(TuneError::OpenPhase(Phase::B)),
@@ -394,6 +415,18 @@ fn current_report_writes_tune_results_and_raises_its_faults() {
     // Events: a fault reset clears both.
     assert!(d.faults.fault_reset());
     assert!(d.tune_permitted());
+    // A calibration outside its band: the current-sensing fault, detail 2, with its
+    // emergency; the last good calibration stays readable.
+    let sensing = CurrentReport {
+        tune: TuneStatus::Failed(TuneError::Sensing),
+        tune_seq: 4,
+        ..failed
+    };
+    while d.pop_emergency().is_some() {}
+    d.current_report(&sensing);
+    let e = d.pop_emergency().expect("sensing");
+    assert_eq!((e.code, e.data[3], e.data[4]), (0x5210, 2, 0));
+    assert_eq!(sdo_read_u32(&mut d, 0x2022, 1), 9709);
 }
 
 #[test]
