@@ -655,7 +655,8 @@ fn power_up_auto_tune_reports_r_l_and_gains() {
     assert_eq!(b.sdo_read(0x2021, 0), 1, "placeholder before the tune");
     let t = b.wait_for_tune();
     assert_eq!(b.tune(), TuneStatus::Done);
-    assert!((200..400).contains(&t), "tune took {t} ms");
+    // R and L at two currents, then the offsets after 12 L/R (foc::autotune).
+    assert!((200..600).contains(&t), "tune took {t} ms");
     let r = b.sdo_read(0x2020, 0);
     let l = b.sdo_read(0x2021, 0);
     assert!(r.abs_diff(400) <= 40, "R {r} mΩ (plant 400)");
@@ -673,6 +674,17 @@ fn power_up_auto_tune_reports_r_l_and_gains() {
         cfg.ki
     );
     assert!((cfg.inductance - l as f32 * 1e-6).abs() < 1e-9);
+    // The sensing calibration (0x2022): equal channels, small offsets, the plant's
+    // 0.2 V dead-time loss, L at half the test current.
+    let gain = b.sdo_read(0x2022, 1);
+    assert!(gain.abs_diff(10_000) <= 100, "channel B gain {gain}");
+    for sub in [2, 3] {
+        let o = b.sdo_read(0x2022, sub) as u16 as i16;
+        assert!(o.abs() <= 10, "offset {sub}: {o} mA");
+    }
+    let dt = b.sdo_read(0x2022, 4);
+    assert!(dt.abs_diff(200) <= 40, "dead-time loss {dt} mV (plant 200)");
+    assert!(b.sdo_read(0x2022, 5).abs_diff(1800) <= 180);
     // Read-only while 0x2013 = 1.
     assert_eq!(
         b.sdo_write(0x2015, 0, &1000u16.to_le_bytes()),

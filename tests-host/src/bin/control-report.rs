@@ -2,15 +2,20 @@
 //! (the same code the `control_quality` tests assert) and prints a Markdown table
 //! `| figure | goal | achieved | met |`.
 //!
-//! `--plots DIR` also writes `current_step.png` and `csp_tracking_error.png` into DIR.
+//! Then the "Robustness" table (`tests_host::plant::robustness`): the current loop on
+//! the plant with a real motor's and board's non-idealities.
+//!
+//! `--plots DIR` also writes `current_step.png`, `csp_tracking_error.png` and
+//! `iq_ripple_vs_speed.png` (the README's plot) into DIR.
 //! Text in the plots uses DejaVu Sans from /usr/share/fonts if it is installed;
 //! without it the plots are drawn without text.
 #![deny(clippy::undocumented_unsafe_blocks)]
 
 use plotters::prelude::*;
 use std::path::PathBuf;
-use tests_host::plant::motor::ECN57_20;
-use tests_host::plant::scenarios;
+use tests_host::plant::motor::{ECN57_20, TC86_45};
+use tests_host::plant::robustness::{self, Calibration, Conditions, Design};
+use tests_host::plant::scenarios::{self, Figure};
 use tests_host::plot::{load_font, plot};
 
 fn main() {
@@ -36,17 +41,11 @@ fn main() {
         }
     }
 
-    println!("| figure | goal | achieved | met |");
-    println!("|---|---|---|---|");
-    for f in scenarios::report() {
-        println!(
-            "| {} | {} | {} | {} |",
-            f.name,
-            f.goal,
-            f.achieved,
-            if f.met { "yes" } else { "no" }
-        );
-    }
+    print_table(&scenarios::report());
+    println!();
+    println!("### Robustness (current loop on a non-ideal plant)");
+    println!();
+    print_table(&robustness::report());
 
     if let Some(dir) = plots {
         if let Err(e) = std::fs::create_dir_all(&dir) {
@@ -77,7 +76,9 @@ fn main() {
             &[("following error", &csp.trace, BLUE)],
             text,
         );
-        for (p, r) in [(p1, r1), (p2, r2)] {
+        let p3 = dir.join("iq_ripple_vs_speed.png");
+        let r3 = ripple_plot(&p3, text);
+        for (p, r) in [(p1, r1), (p2, r2), (p3, r3)] {
             match r {
                 Ok(()) => eprintln!("wrote {}", p.display()),
                 Err(e) => {
@@ -87,4 +88,44 @@ fn main() {
             }
         }
     }
+}
+
+fn print_table(rows: &[Figure]) {
+    println!("| figure | goal | achieved | met |");
+    println!("|---|---|---|---|");
+    for f in rows {
+        println!(
+            "| {} | {} | {} | {} |",
+            f.name,
+            f.goal,
+            f.achieved,
+            if f.met { "yes" } else { "no" }
+        );
+    }
+}
+
+/// i_q ripple against speed on the encoder, both motors, before (the baseline loop)
+/// and after (the robust loop).
+fn ripple_plot(path: &std::path::Path, text: bool) -> Result<(), Box<dyn std::error::Error>> {
+    let c = Conditions::IDEAL;
+    let after = Design::Robust(Calibration::Off);
+    let ecn_before = robustness::ripple_sweep(ECN57_20, &c, Design::Baseline);
+    let ecn_after = robustness::ripple_sweep(ECN57_20, &c, after);
+    let tc_before = robustness::ripple_sweep(TC86_45, &c, Design::Baseline);
+    let tc_after = robustness::ripple_sweep(TC86_45, &c, after);
+    let goal: Vec<(f64, f64)> = vec![(0.0, 10.0), (10.013, 10.0)];
+    plot(
+        path,
+        "i_q ripple p-p on the encoder (4000 counts/rev), i_q* = 0.5 A, 40 kHz",
+        "speed (rev/s), 0.013 + n·0.25",
+        "i_q ripple p-p (mA)",
+        &[
+            ("ECN57-20 before", &ecn_before, RGBColor(255, 150, 150)),
+            ("TC86-45 before", &tc_before, RGBColor(150, 150, 255)),
+            ("ECN57-20 after", &ecn_after, RED),
+            ("TC86-45 after", &tc_after, BLUE),
+            ("goal 10 mA", &goal, BLACK),
+        ],
+        text,
+    )
 }

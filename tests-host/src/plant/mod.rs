@@ -4,9 +4,11 @@
 //! * [`motor`]: the model of `shared/spec/motor-model.md` (both motors), H-bridge
 //!   average model, ADC and encoder quantisation, seeded noise, one sample of delay;
 //! * [`rig`]: the plant wired to the `foc` controllers as on the board;
-//! * [`scenarios`]: the control-quality scenarios, shared by the tests and the report.
+//! * [`scenarios`]: the control-quality scenarios, shared by the tests and the report;
+//! * [`robustness`]: the current loop under the non-idealities of a real motor.
 
 pub mod motor;
 pub mod rig;
 pub mod rng;
+pub mod robustness;
 pub mod scenarios;

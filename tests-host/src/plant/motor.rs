@@ -6,10 +6,28 @@
 //! `J·dω/dt = T − B·ω − Tc·sgn ω − T_load` with a stick band, integrated with RK4 at
 //! PWM period / 8. The H-bridges are an average model: the bridge voltage is
 //! `(duty₁ − duty₂)·Vbus` minus a dead-time loss `V_dt·sat(i/0.05 A)`. Duties written
-//! by the controller after the sample at `t` act from `t + Ts` (one sample of delay).
+//! by the controller after the sample at `t` act from `t + D·Ts`
+//! ([`PlantConfig::delay`], D = 1 by default: one sample of delay).
 //! Current sampling: 12-bit ADC, offset 2048, seeded Gaussian noise; bus voltage
 //! 12-bit; encoder: floor of the angle in counts plus a mounting offset, as the
 //! 16-bit counter of a timer in encoder mode.
+//!
+//! # Non-idealities (all off by default)
+//! The robustness figures switch them on one at a time, then all together:
+//! * **L(i)**, [`PlantConfig::saturation`]: the incremental inductance of each phase
+//!   falls with its own current, `L(i) = L₀·(1 − s·min((i/I_rated)², 2))`. The curves
+//!   used are [`SATURATION_ECN57_20`] (s = 0.30: 30 % lower at rated current) and
+//!   [`SATURATION_TC86_45`] (s = 0.25), the typical drop of a hybrid stepper's
+//!   phase inductance at rated current. [`PlantConfig::l_scale`] multiplies L₀ (a
+//!   tune made at another operating point).
+//! * **Delay**, [`PlantConfig::delay`]: 0.5 is the board when the current-loop
+//!   interrupt ends before the PWM underflow (the duties load half a period after the
+//!   sample), 1.0 when it ends after it, 1.5 the robustness case.
+//! * **Current sensing**, [`PlantConfig::adc_gain`] (per channel) and
+//!   [`Plant::adc_offset_error`] (counts).
+//! * **Dead time**, [`PlantConfig::dead_time_v`].
+//! * **Encoder at any speed**, [`Plant::forced_speed`]: a dynamometer holds the shaft
+//!   at a constant speed, so the count pattern need not repeat.
 
 use super::rng::Rng;
 use foc::current_loop::{AdcSample, Sense};
@@ -22,6 +40,10 @@ pub const OPEN_SCALE: f64 = 1e3;
 pub const SHORT_OHMS: f64 = 0.02;
 /// Inductance of that short (the motor leads), H.
 pub const SHORT_HENRY: f64 = 2e-6;
+/// Relative inductance drop of the ECN57-20 at rated current (the L(i) curve).
+pub const SATURATION_ECN57_20: f64 = 0.30;
+/// Relative inductance drop of the TC86-45 at rated current.
+pub const SATURATION_TC86_45: f64 = 0.25;
 
 /// Motor constants (SI units).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -112,6 +134,15 @@ pub struct PlantConfig {
     /// Phase resistance multipliers (A, B) for fault studies (1.0 = healthy; a huge
     /// value = open coil).
     pub r_scale: [f64; 2],
+    /// Samples from the current sample to the update event that loads the duties
+    /// computed from it (0.5, 1.0 or 1.5; see the module doc).
+    pub delay: f64,
+    /// Multiplier of the motor's inductance L₀ (the tuned value is `motor.l`).
+    pub l_scale: f64,
+    /// Relative drop of the incremental inductance at rated current (0 = constant L).
+    pub saturation: f64,
+    /// Gain of the current sensors (A, B), 1.0 = nominal.
+    pub adc_gain: [f64; 2],
 }
 
 impl PlantConfig {
@@ -135,7 +166,17 @@ impl PlantConfig {
             seed: 1,
             r_scale: [1.0, 1.0],
             theta0: 0.0123,
+            delay: 1.0,
+            l_scale: 1.0,
+            saturation: 0.0,
+            adc_gain: [1.0, 1.0],
         }
+    }
+
+    /// Incremental inductance of a phase carrying `i` amperes, H.
+    pub fn inductance(&self, i: f64) -> f64 {
+        let x = i / self.motor.i_rated;
+        self.motor.l * self.l_scale * (1.0 - self.saturation * (x * x).min(2.0))
     }
 
     /// The controller's ADC scaling matching this plant.
@@ -182,9 +223,12 @@ pub struct Plant {
     /// Fault injection: a current sensor (A, B) whose output stays at this ADC value
     /// whatever the current (a broken amplifier or an open sense resistor path).
     pub adc_stuck: [Option<u16>; 2],
+    /// A dynamometer holds the shaft at this speed, rad/s (the motor's torque then
+    /// does not change it).
+    pub forced_speed: Option<f64>,
     stuck: bool,
-    next: Duties,
-    now: Duties,
+    /// Duties computed from the last three samples, newest first.
+    duties: [Duties; 3],
     rng: Rng,
 }
 
@@ -214,16 +258,16 @@ impl Plant {
             adc_offset_error: [0.0; 2],
             encoder_frozen: None,
             adc_stuck: [None; 2],
+            forced_speed: None,
             stuck: true,
-            next: z,
-            now: z,
+            duties: [z; 3],
             rng: Rng::new(cfg.seed),
         }
     }
 
-    fn adc_current(&mut self, i: f64, offset_error: f64) -> u16 {
+    fn adc_current(&mut self, i: f64, offset_error: f64, gain: f64) -> u16 {
         let lsb = 2.0 * self.cfg.adc_full_scale / 4096.0;
-        let x = 2048.0 + offset_error + i / lsb + self.cfg.adc_noise_lsb * self.rng.normal();
+        let x = 2048.0 + offset_error + gain * i / lsb + self.cfg.adc_noise_lsb * self.rng.normal();
         x.round().clamp(0.0, 4095.0) as u16
     }
 
@@ -232,8 +276,8 @@ impl Plant {
         let (ia, ib) = (self.ia, self.ib);
         let v = (self.cfg.vbus / self.cfg.vbus_full_scale * 4096.0).round();
         let (sa, sb) = (
-            self.adc_current(ia, self.adc_offset_error[0]),
-            self.adc_current(ib, self.adc_offset_error[1]),
+            self.adc_current(ia, self.adc_offset_error[0], self.cfg.adc_gain[0]),
+            self.adc_current(ib, self.adc_offset_error[1], self.cfg.adc_gain[1]),
         );
         AdcSample {
             ia: self.adc_stuck[0].unwrap_or(sa),
@@ -283,8 +327,9 @@ impl Plant {
         let sat = |i: f64| (i / 0.05).clamp(-1.0, 1.0);
         let ea = -m.kt * w * s;
         let eb = m.kt * w * c;
-        let mut dia = (u.va - dt * sat(ia) - m.r * self.cfg.r_scale[0] * ia - ea) / m.l;
-        let mut dib = (u.vb - dt * sat(ib) - m.r * self.cfg.r_scale[1] * ib - eb) / m.l;
+        let (la, lb) = (self.cfg.inductance(ia), self.cfg.inductance(ib));
+        let mut dia = (u.va - dt * sat(ia) - m.r * self.cfg.r_scale[0] * ia - ea) / la;
+        let mut dib = (u.vb - dt * sat(ib) - m.r * self.cfg.r_scale[1] * ib - eb) / lb;
         if self.short != [false; 2] || self.bridges_off {
             let vbus = self.cfg.vbus;
             let phase = |p: usize, i: f64, v: f64, e: f64, d: f64| -> f64 {
@@ -300,7 +345,7 @@ impl Plant {
                 if self.short[p] {
                     (v - SHORT_OHMS * i) / SHORT_HENRY
                 } else if self.bridges_off {
-                    (v - m.r * self.cfg.r_scale[p] * i - e) / m.l
+                    (v - m.r * self.cfg.r_scale[p] * i - e) / self.cfg.inductance(i)
                 } else {
                     d
                 }
@@ -317,6 +362,9 @@ impl Plant {
         }
         if self.stuck || self.cfg.locked {
             return [dia, dib, 0.0, 0.0];
+        }
+        if self.forced_speed.is_some() {
+            return [dia, dib, w, 0.0];
         }
         let s2 = 2.0 * s * c;
         let c2 = c * c - s * s;
@@ -336,21 +384,34 @@ impl Plant {
         [dia, dib, w, (net - m.b * w - fr) / m.j]
     }
 
-    /// Advances one PWM period with the duties latched before, then latches `next`
-    /// for the following period.
+    /// Advances one PWM period. `next` is what the controller computed from the
+    /// sample just taken; it acts from [`PlantConfig::delay`] samples after it.
     pub fn advance(&mut self, next: Duties) {
-        self.now = self.next;
-        self.next = next;
+        self.duties = [next, self.duties[0], self.duties[1]];
         let p = self.cfg.pwm_period.max(1) as f64;
         let vbus = self.cfg.vbus;
+        let bridge = |d: &Duties| {
+            (
+                (d.a1 as f64 - d.a2 as f64) / p * vbus,
+                (d.b1 as f64 - d.b2 as f64) / p * vbus,
+            )
+        };
         let mut u = Inputs {
-            va: (self.now.a1 as f64 - self.now.a2 as f64) / p * vbus,
-            vb: (self.now.b1 as f64 - self.now.b2 as f64) / p * vbus,
+            va: 0.0,
+            vb: 0.0,
             free: [0.0; 2],
         };
         let n = self.cfg.substeps.max(1);
         let h = self.cfg.ts / n as f64;
-        for _ in 0..n {
+        if let Some(w) = self.forced_speed {
+            self.omega = w;
+            self.stuck = false;
+        }
+        for s in 0..n {
+            // The duties computed `age` samples ago are active at this sub-step.
+            let tau = s as f64 / n as f64;
+            let age = ((self.cfg.delay - tau).ceil().max(0.0) as usize).min(2);
+            (u.va, u.vb) = bridge(&self.duties[age]);
             let x = [self.ia, self.ib, self.theta, self.omega];
             let sgn = |i: f64| if i == 0.0 { 0.0 } else { i.signum() };
             u.free = [sgn(x[0]), sgn(x[1])];
@@ -390,6 +451,11 @@ impl Plant {
 
     fn update_mechanics(&mut self, w_old: f64, th: f64, w: f64) {
         let m = self.cfg.motor;
+        if let Some(w) = self.forced_speed {
+            self.theta = th;
+            self.omega = w;
+            return;
+        }
         let net = self.torque() - self.load;
         if self.stuck {
             if net.abs() > m.tc {

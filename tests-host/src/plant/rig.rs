@@ -16,8 +16,9 @@ pub const TS: f32 = 25e-6;
 pub const SERVO_DIV: u64 = 4;
 /// Servo period, s.
 pub const TS_SERVO: f32 = TS * SERVO_DIV as f32;
-/// Current-loop bandwidth used by the rigs: ωc = 2π·f_s/20, rad/s.
-pub const WC: f32 = 2.0 * std::f32::consts::PI / (20.0 * TS);
+/// Current-loop bandwidth used by the rigs: the drive's robust design
+/// ([`foc::current_loop::robust_bandwidth`]), rad/s.
+pub const WC: f32 = foc::current_loop::ROBUST_WC_TS / TS;
 /// Encoder PLL natural frequency, rad/s.
 pub const PLL_OMEGA: f32 = 8000.0;
 
@@ -108,9 +109,19 @@ impl Rig {
         self.k += 1;
     }
 
-    /// One PWM period of FOC on the encoder angle.
+    /// One PWM period of FOC on the encoder's commutation angle and speed
+    /// (`foc::encoder`, "Angle and speed for the current loop"), as the board's
+    /// closed loop.
     pub fn tick(&mut self) {
-        self.tick_with(|cl, enc, adc| cl.step(adc, enc.electrical_angle(), enc.omega_e()));
+        let adc = self.plant.sample();
+        self.enc.update(self.plant.encoder_raw());
+        let d = self.cl.step(
+            &adc,
+            self.enc.commutation_angle(),
+            self.enc.commutation_omega_e(),
+        );
+        self.plant.advance(d);
+        self.k += 1;
     }
 
     /// One PWM period of FOC on a given angle and electrical speed (open loop).
@@ -138,6 +149,25 @@ impl Rig {
             bw_hz,
             (m.i_rated * std::f64::consts::SQRT_2) as f32,
         )
+    }
+
+    /// Applies an auto-tune's results as the drive does after its power-up tune:
+    /// current-loop gains of the robust design, L and Ke for the feed-forward, the
+    /// offsets and channel-B gain, and the dead-time compensation.
+    pub fn apply_tune(&mut self, r: &foc::autotune::TuneResult) {
+        let (kp, ki) = CurrentLoopConfig::gains_for(r.r, r.l, WC);
+        self.cl.set_gains(kp, ki);
+        let ke = self.cl.config().ke;
+        self.cl.set_motor(r.l, ke);
+        let s = self.cl.config().sense;
+        self.cl.set_offsets(
+            s.offset_a + r.offset[0] / s.amps_per_count,
+            s.offset_b + r.offset[1] / s.amps_per_count,
+        );
+        self.cl.set_gain_b(r.gain_b);
+        let vbus = self.plant.cfg.vbus as f32;
+        self.cl
+            .set_dead_time(r.dead_time_v / vbus, foc::current_loop::DEAD_TIME_BAND);
     }
 
     /// Simulated time, s.

@@ -46,15 +46,22 @@ pub struct CurrentStep {
 
 /// 0.5 A q-current step on a locked rotor, averaged over `runs` noise seeds.
 pub fn current_step(motor: MotorParams, runs: u32) -> CurrentStep {
+    current_step_on(PlantConfig::new(motor), runs, |_| {})
+}
+
+/// [`current_step`] on the plant `cfg` (locked here); `prepare` adjusts each run's
+/// rig before the step (fault or non-ideality injection).
+pub fn current_step_on(cfg: PlantConfig, runs: u32, prepare: impl Fn(&mut Rig)) -> CurrentStep {
     let step = 0.5;
     let pre = 20usize;
     let post = 120usize;
     let mut acc = vec![0.0f64; pre + post];
     for seed in 0..runs.max(1) {
-        let mut cfg = PlantConfig::new(motor);
+        let mut cfg = cfg;
         cfg.locked = true;
         cfg.seed = 100 + seed as u64;
         let mut rig = Rig::new(cfg);
+        prepare(&mut rig);
         for _ in 0..40 {
             rig.tick();
         }
@@ -376,8 +383,15 @@ pub fn autotune(motor: MotorParams, r_scale: [f64; 2]) -> Tune {
 
 /// [`autotune`] on any plant configuration (initial angle, noise, seed...).
 pub fn autotune_on(cfg: PlantConfig) -> Tune {
+    autotune_with(cfg, |_| {})
+}
+
+/// [`autotune_on`]; `prepare` adjusts the rig first (fault or non-ideality
+/// injection).
+pub fn autotune_with(cfg: PlantConfig, prepare: impl FnOnce(&mut Rig)) -> Tune {
     let motor = cfg.motor;
     let mut rig = Rig::new(cfg);
+    prepare(&mut rig);
     let mut tune = Autotune::new(AutotuneConfig::new(
         TS,
         cfg.pwm_period,
