@@ -7,8 +7,8 @@
 //! | 0x1600-0x1C33 | `ecat_slave_stack::pdo` (mapping, assignment, sync manager parameters; served by the slave runtime) |
 //! | 0x2000-0x21FF | [`crate::params`] (vendor parameters) |
 //! | 0x2200 | `ecat_slave_stack::sync` (timing diagnostics; served by the slave runtime) |
-//! | 0x2400 | [`crate::faults`] (fault history) |
-//! | 0x2500 | [`crate::monitor`] (monitoring) |
+//! | 0x2300-0x2308 | [`crate::monitor`] (monitoring) |
+//! | 0x2400-0x2406 | [`crate::faults`] (fault history) |
 //! | 0x6000-0x6FFF | [`crate::cia402`] (drive profile) |
 //!
 //! The same table feeds the SDO server, PDO mapping rules, SDO information, the ESI,

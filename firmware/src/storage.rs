@@ -836,10 +836,9 @@ fn apply<D: Dictionary + ?Sized>(
 /// 4 KiB single-bank pages), and erasing one (≤ 2 dual-bank pages) stays within what
 /// the board's watchdog covers. A parameter record is at most the board's 2 KiB stage;
 /// a history record is < 200 bytes.
-/// Before the history existed the parameters used two 8 KiB slots: a record left in
-/// the old second slot (offset 8 KiB) is not a history record (other magic: the
-/// history starts empty and its first write erases it), and the parameters fall back
-/// to the record in the first slot, if any.
+/// A parameter record found at offset 8 KiB (a layout of two 8 KiB parameter slots)
+/// is not a history record (other magic): the history starts empty and its first
+/// write erases it, and the parameters load from the record at offset 0, if any.
 pub mod region {
     use super::{Storage, HISTORY_MAGIC};
     /// Size of the region.

@@ -8,6 +8,14 @@
 //! The two-phase hybrid stepper has [`POLE_PAIRS`] = 50 rotor teeth: the electrical
 //! angle is `θe = 50·θ`. In fixed point this is a wrapping multiplication by 50, exact
 //! to the LSB (the lost high bits are whole electrical turns).
+//!
+//! The `fixed` crate's `U0F32` / `I0F32` would express the wrapping sum, difference
+//! and integer multiply with the same code (identical Thumb-2 output), but its float
+//! conversions are correctly rounded software routines where the casts here are one
+//! `vcvt`: built with `fixed` 1.31 for `thumbv7em-none-eabihf` at opt-level 3,
+//! `to_radians` is 55 instructions against 9, `add_radians` 124 against 9 and
+//! `from_turns` 98 against 51 (function bodies, prologue included). So `Angle` stays a
+//! plain `u32`, and `foc` depends on `libm` only.
 
 use core::f32::consts::PI;
 

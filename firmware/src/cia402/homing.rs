@@ -73,8 +73,8 @@ pub struct Method {
 }
 
 impl Method {
-    /// The description of `method`, `None` if unsupported: [`Method::spec`], looked up
-    /// in a one-byte-per-method table built from it at compile time ([`PACKED`]).
+    /// The description of `method`, `None` if unsupported: `Method::spec`, looked up
+    /// in a one-byte-per-method table built from it at compile time (`PACKED`).
     pub const fn describe(method: i8) -> Option<Method> {
         if method < 0 || method as usize >= PACKED.len() {
             return None;
