@@ -11,7 +11,7 @@
 //! * `esi`    — writes the ESI XML files and the SII images into `docs/esi/`.
 //! * `od-doc` — writes the object dictionary reference (`docs/object-dictionary.md`).
 //! * `size`   — builds the board firmware and prints its flash/RAM use and its static
-//!   worst-case stack (`stack.rs`); then the same for the bootloader, against its
+//!   worst-case stack (`stack/`); then the same for the bootloader, against its
 //!   32 KiB partition; `stack <ELF>` prints that analysis for one ELF.
 //! * `flash`  — builds and flashes the board firmware with probe-rs (needs a probe).
 //! * `update-image` — the signed firmware update files `target/update/ecs-*.efw`
