@@ -1,4 +1,11 @@
-//! Thumb-2 decoding (only what the analysis needs) and the per-function scan.
+//! Thumb-2 decoding (only what the analysis needs) and the per-function scan. The
+//! instruction length comes from the first halfword (so data halfwords can be stepped
+//! over); capstone (Thumb, M-class) decodes the instruction, which is then reduced to
+//! the few kinds the analysis uses ([`Insn`]).
+
+use capstone::arch::arm::{ArchExtraMode, ArchMode, ArmInsn, ArmOperandType, ArmReg};
+use capstone::arch::ArchDetail;
+use capstone::prelude::*;
 
 use super::elf::Elf;
 
@@ -31,154 +38,176 @@ pub fn is_32bit(hw1: u16) -> bool {
     matches!(hw1 >> 11, 0b11101..=0b11111)
 }
 
-fn sext(v: u32, bits: u32) -> i32 {
-    let shift = 32 - bits;
-    ((v << shift) as i32) >> shift
+thread_local! {
+    static CS: Capstone = Capstone::new()
+        .arm()
+        .mode(ArchMode::Thumb)
+        .extra_mode([ArchExtraMode::MClass].into_iter())
+        .detail(true)
+        .build()
+        .expect("capstone: Thumb, M-class");
 }
 
-fn rel(pc: u32, off: i32) -> u32 {
-    pc.wrapping_add(4).wrapping_add(off as u32)
-}
-
-/// ThumbExpandImm of a 12-bit modified immediate (ARMv7-M ARM A5.3.2).
-pub fn thumb_expand_imm(imm12: u32) -> u32 {
-    let imm8 = imm12 & 0xFF;
-    if imm12 >> 10 == 0 {
-        match (imm12 >> 8) & 3 {
-            0 => imm8,
-            1 => (imm8 << 16) | imm8,
-            2 => (imm8 << 24) | (imm8 << 8),
-            _ => imm8 * 0x0101_0101,
+/// Register number 0..=15 of a capstone core register.
+fn core_reg(r: RegId) -> Option<u8> {
+    let r = u32::from(r.0);
+    match r {
+        _ if (ArmReg::ARM_REG_R0..=ArmReg::ARM_REG_R12).contains(&r) => {
+            Some((r - ArmReg::ARM_REG_R0) as u8)
         }
-    } else {
-        (0x80 | (imm12 & 0x7F)).rotate_right((imm12 >> 7) & 0x1F)
+        ArmReg::ARM_REG_SP => Some(13),
+        ArmReg::ARM_REG_LR => Some(14),
+        ArmReg::ARM_REG_PC => Some(15),
+        _ => None,
     }
 }
 
-/// A 16-bit instruction at `pc`.
-pub fn decode16(hw: u16, pc: u32) -> Insn {
-    let h = u32::from(hw);
-    if hw & 0xFE00 == 0xB400 {
-        // PUSH {reglist} (+ LR with the M bit)
-        return Insn::SpDown(4 * ((h & 0xFF).count_ones() + ((h >> 8) & 1)));
+/// Bytes a VPUSH register takes.
+fn fp_reg_bytes(r: RegId) -> u32 {
+    let r = u32::from(r.0);
+    if (ArmReg::ARM_REG_D0..=ArmReg::ARM_REG_D31).contains(&r) {
+        8
+    } else {
+        4
     }
-    if hw & 0xFF80 == 0xB080 {
-        // SUB SP, SP, #imm7*4
-        return Insn::SpDown((h & 0x7F) * 4);
+}
+
+/// The instruction in `bytes` (2 or 4) at `pc`.
+pub fn classify(bytes: &[u8], pc: u32) -> Insn {
+    CS.with(|cs| classify_with(cs, bytes, pc))
+}
+
+fn classify_with(cs: &Capstone, bytes: &[u8], pc: u32) -> Insn {
+    let Ok(insns) = cs.disasm_count(bytes, u64::from(pc), 1) else {
+        return Insn::Other;
+    };
+    let Some(i) = insns.iter().next() else {
+        return Insn::Other;
+    };
+    if i.bytes().len() != bytes.len() {
+        return Insn::Other;
     }
-    if hw & 0xFF87 == 0x4780 {
-        return Insn::IndirectCall; // BLX Rm
+    let Ok(detail) = cs.insn_detail(i) else {
+        return Insn::Other;
+    };
+    let ArchDetail::ArmDetail(arm) = detail.arch_detail() else {
+        return Insn::Other;
+    };
+    let ops: Vec<ArmOperandType> = arm.operands().map(|o| o.op_type).collect();
+    let wide = bytes.len() == 4;
+    let reg = |k: usize| match ops.get(k) {
+        Some(ArmOperandType::Reg(r)) => core_reg(*r),
+        _ => None,
+    };
+    let imm = |k: usize| match ops.get(k) {
+        Some(ArmOperandType::Imm(v)) => Some(*v),
+        _ => None,
+    };
+    let mem = |k: usize| match ops.get(k) {
+        Some(ArmOperandType::Mem(m)) => Some((core_reg(m.base()), m.disp())),
+        _ => None,
+    };
+    let id = i.id().0;
+    let is = |x: ArmInsn| id == x as u32;
+    if is(ArmInsn::ARM_INS_PUSH) {
+        return Insn::SpDown(4 * ops.len() as u32);
     }
-    if hw & 0xFF87 == 0x4700 {
-        // BX Rm: BX LR is a return
-        return if (h >> 3) & 0xF == 14 {
+    if is(ArmInsn::ARM_INS_VPUSH) {
+        let n = ops
+            .iter()
+            .map(|o| match o {
+                ArmOperandType::Reg(r) => fp_reg_bytes(*r),
+                _ => 0,
+            })
+            .sum();
+        return Insn::SpDown(n);
+    }
+    if (is(ArmInsn::ARM_INS_STR) || is(ArmInsn::ARM_INS_STRD)) && arm.writeback() {
+        let k = if is(ArmInsn::ARM_INS_STR) { 1 } else { 2 };
+        if let Some((Some(13), d)) = mem(k) {
+            if d < 0 && ops.len() == k + 1 {
+                return Insn::SpDown(d.unsigned_abs());
+            }
+        }
+    }
+    if is(ArmInsn::ARM_INS_SUB) || is(ArmInsn::ARM_INS_SUBW) {
+        let sp_sp = reg(0) == Some(13) && reg(1) == Some(13);
+        match (sp_sp, imm(2), reg(2)) {
+            (true, Some(v), _) => return Insn::SpDown(v as u32),
+            (true, None, Some(_)) if wide => return Insn::SpByRegister,
+            _ => {}
+        }
+        if !wide && reg(0) == Some(13) && ops.len() == 2 {
+            if let Some(v) = imm(1) {
+                return Insn::SpDown(v as u32);
+            }
+        }
+    }
+    if is(ArmInsn::ARM_INS_BL) {
+        if let Some(t) = imm(0) {
+            return Insn::Call(t as u32);
+        }
+    }
+    if is(ArmInsn::ARM_INS_B) {
+        if let Some(t) = imm(0) {
+            return Insn::Branch(t as u32);
+        }
+    }
+    if is(ArmInsn::ARM_INS_CBZ) || is(ArmInsn::ARM_INS_CBNZ) {
+        if let Some(t) = imm(1) {
+            return Insn::Branch(t as u32);
+        }
+    }
+    if is(ArmInsn::ARM_INS_BLX) && reg(0).is_some() {
+        return Insn::IndirectCall;
+    }
+    if is(ArmInsn::ARM_INS_BX) {
+        return if reg(0) == Some(14) {
             Insn::Other
         } else {
             Insn::IndirectJump
         };
     }
-    if hw & 0xFF87 == 0x4687 {
-        return Insn::IndirectJump; // MOV PC, Rm
+    if is(ArmInsn::ARM_INS_MOV) && !wide && reg(0) == Some(15) {
+        return Insn::IndirectJump;
     }
-    if hw & 0xF800 == 0xE000 {
-        return Insn::Branch(rel(pc, sext((h & 0x7FF) << 1, 12)));
+    // Capstone 5 gives MOVW the id of MOV; its mnemonic tells it from MOV.W #imm.
+    let movw =
+        is(ArmInsn::ARM_INS_MOVW) || (is(ArmInsn::ARM_INS_MOV) && i.mnemonic() == Some("movw"));
+    if movw || is(ArmInsn::ARM_INS_MOVT) {
+        if let (Some(r), Some(v)) = (reg(0), imm(1)) {
+            return if movw {
+                Insn::Movw(r, v as u16)
+            } else {
+                Insn::Movt(r, v as u16)
+            };
+        }
     }
-    if hw & 0xF000 == 0xD000 && (h >> 8) & 0xF < 0xE {
-        return Insn::Branch(rel(pc, sext((h & 0xFF) << 1, 9)));
-    }
-    if hw & 0xF500 == 0xB100 {
-        // CBZ / CBNZ: forward only
-        let off = (((h >> 9) & 1) << 6) | (((h >> 3) & 0x1F) << 1);
-        return Insn::Branch(rel(pc, off as i32));
-    }
-    if hw & 0xF800 == 0x4800 {
-        let base = (pc.wrapping_add(4)) & !3;
-        return Insn::LdrLiteral(((h >> 8) & 7) as u8, base.wrapping_add((h & 0xFF) * 4));
+    if is(ArmInsn::ARM_INS_LDR) {
+        match (reg(0), mem(1)) {
+            (Some(15), Some((Some(15), _))) => return Insn::IndirectJump,
+            (Some(r), Some((Some(15), d))) => {
+                let base = (pc.wrapping_add(4)) & !3;
+                return Insn::LdrLiteral(r, base.wrapping_add(d as u32));
+            }
+            (Some(15), Some((Some(b), _))) if wide && b != 13 => return Insn::IndirectJump,
+            _ => {}
+        }
     }
     Insn::Other
 }
 
+/// A 16-bit instruction at `pc` (the unit tests' view of [`classify`]).
+#[cfg(test)]
+pub fn decode16(hw: u16, pc: u32) -> Insn {
+    classify(&hw.to_le_bytes(), pc)
+}
+
 /// A 32-bit instruction (halfwords `hw1`, `hw2`) at `pc`.
+#[cfg(test)]
 pub fn decode32(hw1: u16, hw2: u16, pc: u32) -> Insn {
-    let (a, b) = (u32::from(hw1), u32::from(hw2));
-    let rd_is_sp = b & 0x8F00 == 0x0D00;
-    if hw1 == 0xE92D {
-        // STMDB SP!, {reglist} (PUSH.W)
-        return Insn::SpDown(4 * (b & 0x5FFF).count_ones());
-    }
-    if hw1 == 0xF84D && b & 0x0F00 == 0x0D00 {
-        // STR.W Rt, [SP, #-imm8]!
-        return Insn::SpDown(b & 0xFF);
-    }
-    if hw1 == 0xE96D {
-        // STRD Rt, Rt2, [SP, #-imm8*4]!
-        return Insn::SpDown((b & 0xFF) * 4);
-    }
-    if hw1 & 0xFFBF == 0xED2D && b & 0x0E00 == 0x0A00 {
-        // VPUSH (double 0x0B00 / single 0x0A00 form): imm8 words
-        return Insn::SpDown((b & 0xFF) * 4);
-    }
-    let imm12 = ((a >> 10) & 1) << 11 | ((b >> 12) & 7) << 8 | (b & 0xFF);
-    if hw1 & 0xFBEF == 0xF1AD && rd_is_sp {
-        // SUB.W SP, SP, #ThumbExpandImm
-        return Insn::SpDown(thumb_expand_imm(imm12));
-    }
-    if hw1 & 0xFBFF == 0xF2AD && rd_is_sp {
-        // SUBW SP, SP, #imm12
-        return Insn::SpDown(imm12);
-    }
-    if hw1 & 0xFFEF == 0xEBAD && rd_is_sp {
-        return Insn::SpByRegister; // SUB.W SP, SP, Rm
-    }
-    if hw1 & 0xF800 == 0xF000 && b & 0x8000 != 0 {
-        let s = (a >> 10) & 1;
-        let (j1, j2) = ((b >> 13) & 1, (b >> 11) & 1);
-        match b & 0xD000 {
-            0xD000 | 0x9000 => {
-                let (i1, i2) = (!(j1 ^ s) & 1, !(j2 ^ s) & 1);
-                let off =
-                    (s << 24) | (i1 << 23) | (i2 << 22) | ((a & 0x3FF) << 12) | ((b & 0x7FF) << 1);
-                let target = rel(pc, sext(off, 25));
-                return if b & 0xD000 == 0xD000 {
-                    Insn::Call(target)
-                } else {
-                    Insn::Branch(target)
-                };
-            }
-            0x8000 if (a >> 6) & 0xF < 0xE => {
-                let off =
-                    (s << 20) | (j2 << 19) | (j1 << 18) | ((a & 0x3F) << 12) | ((b & 0x7FF) << 1);
-                return Insn::Branch(rel(pc, sext(off, 21)));
-            }
-            _ => return Insn::Other,
-        }
-    }
-    if hw1 & 0xFBF0 == 0xF240 && b & 0x8000 == 0 {
-        let imm16 = ((a & 0xF) << 12) | ((a >> 10) & 1) << 11 | ((b >> 12) & 7) << 8 | (b & 0xFF);
-        return Insn::Movw(((b >> 8) & 0xF) as u8, imm16 as u16);
-    }
-    if hw1 & 0xFBF0 == 0xF2C0 && b & 0x8000 == 0 {
-        let imm16 = ((a & 0xF) << 12) | ((a >> 10) & 1) << 11 | ((b >> 12) & 7) << 8 | (b & 0xFF);
-        return Insn::Movt(((b >> 8) & 0xF) as u8, imm16 as u16);
-    }
-    if hw1 & 0xFF7F == 0xF85F {
-        // LDR.W Rt, [PC, #±imm12]
-        let base = (pc.wrapping_add(4)) & !3;
-        let addr = if a & 0x80 != 0 {
-            base.wrapping_add(b & 0xFFF)
-        } else {
-            base.wrapping_sub(b & 0xFFF)
-        };
-        return if b >> 12 == 15 {
-            Insn::IndirectJump
-        } else {
-            Insn::LdrLiteral((b >> 12) as u8, addr)
-        };
-    }
-    if (hw1 & 0xFFF0 == 0xF8D0 || hw1 & 0xFFF0 == 0xF850) && b >> 12 == 15 && a & 0xF != 13 {
-        return Insn::IndirectJump; // LDR PC, [Rn, ...] with Rn != SP (not a pop)
-    }
-    Insn::Other
+    let ([a, b], [c, d]) = (hw1.to_le_bytes(), hw2.to_le_bytes());
+    classify(&[a, b, c, d], pc)
 }
 
 // ---------------------------------------------------------------------------------------
@@ -223,17 +252,12 @@ pub fn scan(
             continue;
         }
         let hw1 = u16::from_le_bytes([code[i], code[i + 1]]);
-        let insn = if is_32bit(hw1) {
-            if i + 4 > code.len() {
-                break;
-            }
-            let hw2 = u16::from_le_bytes([code[i + 2], code[i + 3]]);
-            i += 4;
-            decode32(hw1, hw2, pc)
-        } else {
-            i += 2;
-            decode16(hw1, pc)
-        };
+        let len = if is_32bit(hw1) { 4 } else { 2 };
+        if i + len > code.len() {
+            break;
+        }
+        let insn = classify(&code[i..i + len], pc);
+        i += len;
         match insn {
             Insn::SpDown(n) => f.frame = f.frame.saturating_add(n),
             Insn::SpByRegister => f.sp_by_register = true,

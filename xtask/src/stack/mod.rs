@@ -1,11 +1,13 @@
 //! Static worst-case stack usage of the board firmware (printed by `cargo xtask size`).
 //!
-//! Reads the firmware ELF itself (std only, no external tool):
+//! Reads the firmware ELF itself (no external tool; the instructions are decoded by
+//! the capstone library):
 //!
 //! 1. a minimal ELF32 little-endian reader: section headers, `.symtab`/`.strtab`, bytes
 //!    at a load address;
 //! 2. every function (`STT_FUNC`, size > 0) is walked instruction by instruction
-//!    (Thumb-2, 16/32-bit length decoding; the `$t`/`$d` mapping symbols mark literal
+//!    (Thumb-2: the length from the first halfword, the instruction from capstone in
+//!    Thumb M-class mode; the `$t`/`$d` mapping symbols mark literal
 //!    pools and jump tables, which are skipped — without them data is decoded as code,
 //!    which can only add SP decrements or edges, i.e. over-estimate). Its frame is the
 //!    sum of *every* SP decrement in its body (PUSH, STMDB SP!, STR/STRD pre-indexed on
@@ -34,6 +36,14 @@
 //! The steps live in submodules: [`elf`] (the reader), [`decode`] (Thumb-2 decoding and
 //! the per-function scan), [`graph`] (functions, edges, tasks, roots), [`depth`] (the
 //! solver), [`report`] (nesting, coarse bound, the printed text), [`names`] (demangling).
+//!
+//! The decoder is capstone (crate `capstone` 0.14, Capstone 5.0 built from source by
+//! `capstone-sys` with the C compiler) rather than a decoder of our own or
+//! `yaxpeax-arm`: yaxpeax-arm 0.5.0 decodes no Thumb floating-point instruction
+//! (`vpush`, `vpop`, `vldr`, `vadd.f32` all give `DecodeError::Incomplete`: its table
+//! A6-30 leaves the `101x` coprocessor rows unimplemented), and VPUSH is part of the
+//! frame. Capstone decodes all the analysis needs: push/pop, vpush, sub sp, bl/blx, b.w
+//! tail calls, cbz, ldr pc, movw/movt, literal loads, and tbb/tbh and it blocks.
 
 mod decode;
 mod depth;
@@ -51,7 +61,7 @@ use graph::{Program, Roots, Tasks};
 // What the unit tests reach through `super::*`.
 #[cfg(test)]
 use {
-    decode::{decode16, decode32, is_32bit, scan, thumb_expand_imm, Insn},
+    decode::{decode16, decode32, is_32bit, scan, Insn},
     depth::Solver,
     elf::{SHT_SYMTAB, STT_FUNC},
     names::demangle,

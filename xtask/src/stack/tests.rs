@@ -55,14 +55,22 @@ fn push_and_sub_forms() {
 
 #[test]
 fn modified_immediates() {
-    assert_eq!(thumb_expand_imm(0x0AB), 0xAB);
-    assert_eq!(thumb_expand_imm(0x1AB), 0x00AB_00AB);
-    assert_eq!(thumb_expand_imm(0x2AB), 0xAB00_AB00);
-    assert_eq!(thumb_expand_imm(0x3AB), 0xABAB_ABAB);
+    // SUB.W SP, SP, #ThumbExpandImm(imm12): i:imm3:imm8 spread over the two halfwords.
+    let sub_sp = |imm12: u16| {
+        decode32(
+            0xF1AD | (imm12 >> 11) << 10,
+            0x0D00 | ((imm12 >> 8) & 7) << 12 | (imm12 & 0xFF),
+            0,
+        )
+    };
+    assert_eq!(sub_sp(0x0AB), Insn::SpDown(0xAB));
+    assert_eq!(sub_sp(0x1AB), Insn::SpDown(0x00AB_00AB));
+    assert_eq!(sub_sp(0x2AB), Insn::SpDown(0xAB00_AB00));
+    assert_eq!(sub_sp(0x3AB), Insn::SpDown(0xABAB_ABAB));
     // rotation 8 (imm12 = 0x400): 0x80 ror 8
-    assert_eq!(thumb_expand_imm(0x400), 0x8000_0000);
+    assert_eq!(sub_sp(0x400), Insn::SpDown(0x8000_0000));
     // 1024 = 0x80 ror 29 (imm12 = 29 << 7 = 0xE80)
-    assert_eq!(thumb_expand_imm(0xE80), 0x400);
+    assert_eq!(sub_sp(0xE80), Insn::SpDown(0x400));
 }
 
 #[test]
