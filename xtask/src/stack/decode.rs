@@ -72,129 +72,168 @@ fn fp_reg_bytes(r: RegId) -> u32 {
     }
 }
 
-/// The instruction in `bytes` (2 or 4) at `pc`.
+/// The instruction in `bytes` (2 or 4) at `pc`; `Other` for whatever capstone cannot
+/// decode.
 pub fn classify(bytes: &[u8], pc: u32) -> Insn {
-    CS.with(|cs| classify_with(cs, bytes, pc))
+    CS.with(|cs| Decoded::new(cs, bytes, pc))
+        .and_then(|d| {
+            d.stack_change()
+                .or_else(|| d.control_flow())
+                .or_else(|| d.constant(pc))
+        })
+        .unwrap_or(Insn::Other)
 }
 
-fn classify_with(cs: &Capstone, bytes: &[u8], pc: u32) -> Insn {
-    let Ok(insns) = cs.disasm_count(bytes, u64::from(pc), 1) else {
-        return Insn::Other;
-    };
-    let Some(i) = insns.iter().next() else {
-        return Insn::Other;
-    };
-    if i.bytes().len() != bytes.len() {
-        return Insn::Other;
-    }
-    let Ok(detail) = cs.insn_detail(i) else {
-        return Insn::Other;
-    };
-    let ArchDetail::ArmDetail(arm) = detail.arch_detail() else {
-        return Insn::Other;
-    };
-    let ops: Vec<ArmOperandType> = arm.operands().map(|o| o.op_type).collect();
-    let wide = bytes.len() == 4;
-    let reg = |k: usize| match ops.get(k) {
-        Some(ArmOperandType::Reg(r)) => core_reg(*r),
-        _ => None,
-    };
-    let imm = |k: usize| match ops.get(k) {
-        Some(ArmOperandType::Imm(v)) => Some(*v),
-        _ => None,
-    };
-    let mem = |k: usize| match ops.get(k) {
-        Some(ArmOperandType::Mem(m)) => Some((core_reg(m.base()), m.disp())),
-        _ => None,
-    };
-    let id = i.id().0;
-    let is = |x: ArmInsn| id == x as u32;
-    if is(ArmInsn::ARM_INS_PUSH) {
-        return Insn::SpDown(4 * ops.len() as u32);
-    }
-    if is(ArmInsn::ARM_INS_VPUSH) {
-        let n = ops
-            .iter()
-            .map(|o| match o {
-                ArmOperandType::Reg(r) => fp_reg_bytes(*r),
-                _ => 0,
-            })
-            .sum();
-        return Insn::SpDown(n);
-    }
-    if (is(ArmInsn::ARM_INS_STR) || is(ArmInsn::ARM_INS_STRD)) && arm.writeback() {
-        let k = if is(ArmInsn::ARM_INS_STR) { 1 } else { 2 };
-        if let Some((Some(13), d)) = mem(k) {
-            if d < 0 && ops.len() == k + 1 {
-                return Insn::SpDown(d.unsigned_abs());
-            }
+const SP: u8 = 13;
+const LR: u8 = 14;
+const PC: u8 = 15;
+
+/// What the classification looks at in one capstone instruction.
+struct Decoded {
+    id: u32,
+    /// Capstone 5 gives MOVW the id of MOV; its mnemonic tells it from MOV.W #imm.
+    movw: bool,
+    ops: Vec<ArmOperandType>,
+    wide: bool,
+    writeback: bool,
+}
+
+impl Decoded {
+    fn new(cs: &Capstone, bytes: &[u8], pc: u32) -> Option<Self> {
+        let insns = cs.disasm_count(bytes, u64::from(pc), 1).ok()?;
+        let i = insns.iter().next()?;
+        if i.bytes().len() != bytes.len() {
+            return None;
         }
-    }
-    if is(ArmInsn::ARM_INS_SUB) || is(ArmInsn::ARM_INS_SUBW) {
-        let sp_sp = reg(0) == Some(13) && reg(1) == Some(13);
-        match (sp_sp, imm(2), reg(2)) {
-            (true, Some(v), _) => return Insn::SpDown(v as u32),
-            (true, None, Some(_)) if wide => return Insn::SpByRegister,
-            _ => {}
-        }
-        if !wide && reg(0) == Some(13) && ops.len() == 2 {
-            if let Some(v) = imm(1) {
-                return Insn::SpDown(v as u32);
-            }
-        }
-    }
-    if is(ArmInsn::ARM_INS_BL) {
-        if let Some(t) = imm(0) {
-            return Insn::Call(t as u32);
-        }
-    }
-    if is(ArmInsn::ARM_INS_B) {
-        if let Some(t) = imm(0) {
-            return Insn::Branch(t as u32);
-        }
-    }
-    if is(ArmInsn::ARM_INS_CBZ) || is(ArmInsn::ARM_INS_CBNZ) {
-        if let Some(t) = imm(1) {
-            return Insn::Branch(t as u32);
-        }
-    }
-    if is(ArmInsn::ARM_INS_BLX) && reg(0).is_some() {
-        return Insn::IndirectCall;
-    }
-    if is(ArmInsn::ARM_INS_BX) {
-        return if reg(0) == Some(14) {
-            Insn::Other
-        } else {
-            Insn::IndirectJump
+        let detail = cs.insn_detail(i).ok()?;
+        let ArchDetail::ArmDetail(arm) = detail.arch_detail() else {
+            return None;
         };
+        let id = i.id().0;
+        Some(Decoded {
+            id,
+            movw: id == ArmInsn::ARM_INS_MOVW as u32
+                || (id == ArmInsn::ARM_INS_MOV as u32 && i.mnemonic() == Some("movw")),
+            ops: arm.operands().map(|o| o.op_type).collect(),
+            wide: bytes.len() == 4,
+            writeback: arm.writeback(),
+        })
     }
-    if is(ArmInsn::ARM_INS_MOV) && !wide && reg(0) == Some(15) {
-        return Insn::IndirectJump;
+
+    fn is(&self, x: ArmInsn) -> bool {
+        self.id == x as u32
     }
-    // Capstone 5 gives MOVW the id of MOV; its mnemonic tells it from MOV.W #imm.
-    let movw =
-        is(ArmInsn::ARM_INS_MOVW) || (is(ArmInsn::ARM_INS_MOV) && i.mnemonic() == Some("movw"));
-    if movw || is(ArmInsn::ARM_INS_MOVT) {
-        if let (Some(r), Some(v)) = (reg(0), imm(1)) {
-            return if movw {
-                Insn::Movw(r, v as u16)
-            } else {
-                Insn::Movt(r, v as u16)
-            };
+
+    /// Operand `k` as a core register number.
+    fn reg(&self, k: usize) -> Option<u8> {
+        match self.ops.get(k) {
+            Some(ArmOperandType::Reg(r)) => core_reg(*r),
+            _ => None,
         }
     }
-    if is(ArmInsn::ARM_INS_LDR) {
-        match (reg(0), mem(1)) {
-            (Some(15), Some((Some(15), _))) => return Insn::IndirectJump,
-            (Some(r), Some((Some(15), d))) => {
-                let base = (pc.wrapping_add(4)) & !3;
-                return Insn::LdrLiteral(r, base.wrapping_add(d as u32));
+
+    fn imm(&self, k: usize) -> Option<i32> {
+        match self.ops.get(k) {
+            Some(ArmOperandType::Imm(v)) => Some(*v),
+            _ => None,
+        }
+    }
+
+    /// Operand `k` as a memory operand: base register, displacement.
+    fn mem(&self, k: usize) -> Option<(Option<u8>, i32)> {
+        match self.ops.get(k) {
+            Some(ArmOperandType::Mem(m)) => Some((core_reg(m.base()), m.disp())),
+            _ => None,
+        }
+    }
+
+    /// PUSH (STMDB SP!), VPUSH, STR/STRD pre-indexed on SP, SUB SP.
+    fn stack_change(&self) -> Option<Insn> {
+        if self.is(ArmInsn::ARM_INS_PUSH) {
+            return Some(Insn::SpDown(4 * self.ops.len() as u32));
+        }
+        if self.is(ArmInsn::ARM_INS_VPUSH) {
+            let n = self
+                .ops
+                .iter()
+                .map(|o| match o {
+                    ArmOperandType::Reg(r) => fp_reg_bytes(*r),
+                    _ => 0,
+                })
+                .sum();
+            return Some(Insn::SpDown(n));
+        }
+        if (self.is(ArmInsn::ARM_INS_STR) || self.is(ArmInsn::ARM_INS_STRD)) && self.writeback {
+            // Pre-indexed: the memory operand is the last one (post-indexed adds an offset).
+            let k = if self.is(ArmInsn::ARM_INS_STR) { 1 } else { 2 };
+            if let Some((Some(SP), d)) = self.mem(k) {
+                if d < 0 && self.ops.len() == k + 1 {
+                    return Some(Insn::SpDown(d.unsigned_abs()));
+                }
             }
-            (Some(15), Some((Some(b), _))) if wide && b != 13 => return Insn::IndirectJump,
-            _ => {}
+        }
+        if self.is(ArmInsn::ARM_INS_SUB) || self.is(ArmInsn::ARM_INS_SUBW) {
+            let sp_sp = self.reg(0) == Some(SP) && self.reg(1) == Some(SP);
+            match (sp_sp, self.imm(2), self.reg(2)) {
+                (true, Some(v), _) => return Some(Insn::SpDown(v as u32)),
+                (true, None, Some(_)) if self.wide => return Some(Insn::SpByRegister),
+                _ => {}
+            }
+            // The 16-bit form is printed `sub sp, #imm`.
+            if !self.wide && self.reg(0) == Some(SP) && self.ops.len() == 2 {
+                return self.imm(1).map(|v| Insn::SpDown(v as u32));
+            }
+        }
+        None
+    }
+
+    /// BL, B / B<c> / CBZ / CBNZ, BLX Rm, BX Rm, MOV PC, Rm.
+    fn control_flow(&self) -> Option<Insn> {
+        if self.is(ArmInsn::ARM_INS_BL) {
+            return self.imm(0).map(|t| Insn::Call(t as u32));
+        }
+        if self.is(ArmInsn::ARM_INS_B) {
+            return self.imm(0).map(|t| Insn::Branch(t as u32));
+        }
+        if self.is(ArmInsn::ARM_INS_CBZ) || self.is(ArmInsn::ARM_INS_CBNZ) {
+            return self.imm(1).map(|t| Insn::Branch(t as u32));
+        }
+        if self.is(ArmInsn::ARM_INS_BLX) && self.reg(0).is_some() {
+            return Some(Insn::IndirectCall);
+        }
+        if self.is(ArmInsn::ARM_INS_BX) {
+            // BX LR is a return.
+            return (self.reg(0) != Some(LR)).then_some(Insn::IndirectJump);
+        }
+        if self.is(ArmInsn::ARM_INS_MOV) && !self.wide && self.reg(0) == Some(PC) {
+            return Some(Insn::IndirectJump);
+        }
+        None
+    }
+
+    /// MOVW / MOVT, LDR from a literal, and LDR PC (a jump unless it is a pop).
+    fn constant(&self, pc: u32) -> Option<Insn> {
+        if self.movw || self.is(ArmInsn::ARM_INS_MOVT) {
+            let (r, v) = (self.reg(0)?, self.imm(1)? as u16);
+            return Some(if self.movw {
+                Insn::Movw(r, v)
+            } else {
+                Insn::Movt(r, v)
+            });
+        }
+        if !self.is(ArmInsn::ARM_INS_LDR) {
+            return None;
+        }
+        match (self.reg(0), self.mem(1)) {
+            (Some(PC), Some((Some(PC), _))) => Some(Insn::IndirectJump),
+            (Some(r), Some((Some(PC), d))) => {
+                let base = (pc.wrapping_add(4)) & !3;
+                Some(Insn::LdrLiteral(r, base.wrapping_add(d as u32)))
+            }
+            (Some(PC), Some((Some(b), _))) if self.wide && b != SP => Some(Insn::IndirectJump),
+            _ => None,
         }
     }
-    Insn::Other
 }
 
 /// A 16-bit instruction at `pc` (the unit tests' view of [`classify`]).
