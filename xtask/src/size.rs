@@ -1,0 +1,236 @@
+//! `cargo xtask size`: flash/RAM use of the release images and their static
+//! worst-case stack, against the chip, the product budget and the bootloader partition.
+
+use std::path::Path;
+use std::process::Command;
+
+use crate::run::{cargo, run_status};
+use crate::{stack, THUMB};
+
+/// Budget of the finished product. Issue 16 set 112 KiB of flash and 24 KiB of RAM (a
+/// 128 KiB STM32G431-class part). Firmware update (issue 18) needs two image
+/// partitions and a bootloader, so the product is the 512 KiB STM32G474RE; the update
+/// itself (ed25519, SHA-512, embassy-boot, FoE) added 22 KiB of code and an 8 KiB
+/// stack path (the signature check). The budget is now 144 KiB of flash (the active
+/// partition holds 226 KiB: room for a second flavour of features) and 32 KiB of RAM
+/// for the static RAM plus the static worst-case stack (of 128 KiB). `test` fails
+/// above it.
+pub const FLASH_BUDGET: u64 = 144 * 1024;
+pub const RAM_BUDGET: u64 = 32 * 1024;
+/// What the STM32G474RE can hold: flash, the active partition less its update-header
+/// page (`firmware::flash_layout::IMAGE_MAX`, firmware/memory.x: 228 KiB − 2 KiB);
+/// 128 KiB RAM. Above this the image cannot run at all: `test` fails.
+const FLASH_CHIP: u64 = 226 * 1024;
+const RAM_CHIP: u64 = 128 * 1024;
+/// The bootloader's partition (`firmware::flash_layout::BOOTLOADER`, bootloader/memory.x).
+pub const BOOTLOADER_FLASH: u64 = 32 * 1024;
+/// Where each image's vector table must be: the bootloader at the flash base (the
+/// reset vector), the firmware at the start of the active partition (the bootloader
+/// starts it there). A memory.x at the workspace root would silently move them.
+const BOOTLOADER_ORIGIN: u64 = 0x0800_0000;
+const FIRMWARE_ORIGIN: u64 = 0x0800_9000;
+/// Board firmware flavours (ESC chip), built and size-checked by `test`.
+pub const FIRMWARE_FLAVOURS: &[&str] = &["esc-lan9252", "esc-et1100"];
+
+/// Whether every firmware flavour, and the bootloader, fits.
+pub struct Fit {
+    /// The STM32G474RE (flash: the active partition less its header page; RAM).
+    pub chip: bool,
+    /// The product budget: flash, and static RAM plus the static worst-case stack.
+    pub budget: bool,
+    /// The bootloader: its partition, and the RAM with its worst-case stack.
+    pub bootloader: bool,
+}
+
+/// Builds the board firmware of `flavour` (feature `esc-…`) in release (for
+/// [`size_report`] and `update-image`) and returns the path of its ELF copy.
+pub fn build_board_elf(flavour: &str) -> Result<String, String> {
+    let features = format!("board,{flavour}");
+    // One target directory for both flavours: the dependencies built without the
+    // flavour feature are shared, the final ELF is copied out per flavour.
+    let target_dir = "target/firmware";
+    if !run_status(&mut cargo(&[
+        "build",
+        "-p",
+        "firmware",
+        "--release",
+        "--features",
+        &features,
+        "--target",
+        THUMB,
+        "--target-dir",
+        target_dir,
+    ])) {
+        return Err(format!("firmware build ({flavour}) failed"));
+    }
+    let elf = format!("{target_dir}/firmware-{flavour}.elf");
+    std::fs::copy(format!("{target_dir}/{THUMB}/release/firmware"), &elf)
+        .map_err(|e| format!("copy firmware ELF: {e}"))?;
+    Ok(elf)
+}
+
+/// Builds every firmware flavour and the bootloader in release and prints flash/RAM
+/// use and the static worst-case stack.
+pub fn size_report() -> Result<Fit, String> {
+    let mut within = true;
+    let mut budget = true;
+    for flavour in FIRMWARE_FLAVOURS {
+        let elf = build_board_elf(flavour)?;
+        let (flash, ram) = elf_usage(&elf)?;
+        let in_budget = flash <= FLASH_BUDGET && ram <= RAM_BUDGET;
+        within &= flash <= FLASH_CHIP && ram <= RAM_CHIP;
+        within &= linked_at(&elf, FIRMWARE_ORIGIN)?;
+        budget &= in_budget;
+        println!(
+            "firmware ({flavour}): flash {flash} B ({:.1} KiB; product budget {} KiB), RAM {ram} B ({:.1} KiB; budget {} KiB) — {}  [{elf}]",
+            flash as f64 / 1024.0,
+            FLASH_BUDGET / 1024,
+            ram as f64 / 1024.0,
+            RAM_BUDGET / 1024,
+            if in_budget { "within budget" } else { "OVER THE PRODUCT BUDGET (fits the chip)" }
+        );
+        // Static worst-case stack: RAM = static RAM + stack.
+        match stack::analyse(Path::new(&elf)) {
+            Ok(report) => {
+                print!("{}", report.text);
+                let total = ram + report.worst;
+                within &= !report.bounded || total <= RAM_CHIP;
+                budget &= report.bounded && total <= RAM_BUDGET;
+                println!(
+                    "  RAM with the worst-case stack: static {ram} + stack {}{} = {total} B ({:.1} KiB) of the {} KiB budget — {}",
+                    report.worst,
+                    if report.bounded { "" } else { " (+ recursion)" },
+                    total as f64 / 1024.0,
+                    RAM_BUDGET / 1024,
+                    if !report.bounded {
+                        "UNBOUNDED (recursion)"
+                    } else if total <= RAM_BUDGET {
+                        "within budget"
+                    } else {
+                        "OVER THE PRODUCT BUDGET"
+                    }
+                );
+                let coarse = ram + report.with_indirect;
+                println!(
+                    "  (coarse bound, unresolved indirect calls to every function no direct call reaches: {ram} + {} = {coarse} B, {})",
+                    report.with_indirect,
+                    if coarse <= RAM_BUDGET { "within budget" } else { "over the budget" }
+                );
+            }
+            Err(e) => {
+                println!("  stack analysis of {elf} failed: {e}");
+                budget = false;
+            }
+        }
+    }
+    Ok(Fit {
+        chip: within,
+        budget,
+        bootloader: bootloader_size()?,
+    })
+}
+
+/// Builds the bootloader in release and prints its flash/RAM use against its
+/// partition; whether it fits.
+fn bootloader_size() -> Result<bool, String> {
+    let target_dir = "target/bootloader";
+    if !run_status(&mut cargo(&[
+        "build",
+        "-p",
+        "bootloader",
+        "--release",
+        "--target",
+        THUMB,
+        "--target-dir",
+        target_dir,
+    ])) {
+        return Err("bootloader build failed".into());
+    }
+    let elf = format!("{target_dir}/{THUMB}/release/bootloader");
+    let (flash, ram) = elf_usage(&elf)?;
+    let mut fits = flash <= BOOTLOADER_FLASH && linked_at(&elf, BOOTLOADER_ORIGIN)?;
+    let stack = match stack::analyse(Path::new(&elf)) {
+        Ok(report) => {
+            fits &= report.bounded && ram + report.worst <= RAM_CHIP;
+            format!(
+                "+ stack {} B{}",
+                report.worst,
+                if report.bounded { "" } else { " (+ recursion)" }
+            )
+        }
+        Err(e) => {
+            fits = false;
+            format!("(stack analysis failed: {e})")
+        }
+    };
+    println!(
+        "bootloader: flash {flash} B ({:.1} KiB of its {} KiB partition), RAM {ram} B {stack} — {}  [{elf}]",
+        flash as f64 / 1024.0,
+        BOOTLOADER_FLASH / 1024,
+        if fits { "fits" } else { "DOES NOT FIT" }
+    );
+    Ok(fits)
+}
+
+/// Whether the ELF's vector table is at `origin`; says so when it is not.
+fn linked_at(elf: &str, origin: u64) -> Result<bool, String> {
+    let out = Command::new("size")
+        .args(["-A", "-d", elf])
+        .output()
+        .map_err(|e| format!("size: {e}"))?;
+    let at = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .find_map(|line| {
+            let cols: Vec<&str> = line.split_whitespace().collect();
+            (cols.len() >= 3 && cols[0] == ".vector_table")
+                .then(|| cols[2].parse::<u64>().ok())
+                .flatten()
+        });
+    match at {
+        Some(a) if a == origin => Ok(true),
+        Some(a) => {
+            println!("{elf}: vector table at {a:#010x}, not at {origin:#010x} — wrong memory.x?");
+            Ok(false)
+        }
+        None => Err(format!("{elf}: no .vector_table")),
+    }
+}
+
+/// Flash = sections loaded into flash (.vector_table, .text, .rodata, .data image);
+/// RAM = .data + .bss + .uninit (static RAM; the stack takes the rest).
+fn elf_usage(elf: &str) -> Result<(u64, u64), String> {
+    let out = Command::new("size")
+        .args(["-A", "-d", elf])
+        .output()
+        .map_err(|e| format!("size: {e}"))?;
+    if !out.status.success() {
+        return Err(format!("size -A {elf} failed"));
+    }
+    let (mut flash, mut ram) = (0u64, 0u64);
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        let cols: Vec<&str> = line.split_whitespace().collect();
+        if cols.len() < 3 {
+            continue;
+        }
+        let (name, Ok(size), Ok(addr)) = (cols[0], cols[1].parse::<u64>(), cols[2].parse::<u64>())
+        else {
+            continue;
+        };
+        match name {
+            ".vector_table" | ".text" | ".rodata" | ".gnu.sgstubs" => flash += size,
+            ".data" => {
+                flash += size;
+                ram += size;
+            }
+            ".bss" | ".uninit" => ram += size,
+            _ if (0x0800_0000..0x0810_0000).contains(&addr)
+                && size > 0
+                && !name.starts_with(".defmt") =>
+            {
+                flash += size
+            }
+            _ => {}
+        }
+    }
+    Ok((flash, ram))
+}
