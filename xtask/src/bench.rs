@@ -273,15 +273,18 @@ fn write_control_quality(md: &mut String) -> Result<(), String> {
     .output();
     match report {
         Ok(o) if o.status.success() => {
-            // Only the report's stdout goes into the file (the plot paths it prints
-            // are kept out of the table).
+            // Only the report's stdout goes into the file: its tables and their
+            // headings (the plot paths it prints are kept out).
             for line in String::from_utf8_lossy(&o.stdout).lines() {
-                if line.starts_with('|') || line.is_empty() {
+                if line.starts_with('|') || line.starts_with('#') || line.is_empty() {
                     md.push_str(line);
                     md.push('\n');
                 }
             }
-            md.push_str("\nPlots: `target/plots/current_step.png`, `target/plots/csp_tracking_error.png`.\n");
+            md.push_str(
+                "\nPlots: `target/plots/current_step.png`, `target/plots/csp_tracking_error.png`, \
+                 `target/plots/iq_ripple_vs_speed.png` (README, \"Quiet current on a real motor\").\n",
+            );
         }
         _ => {
             return Err("control-report failed".into());
