@@ -92,19 +92,76 @@ pub mod cmd {
     pub const ABORT: u8 = 0x80;
 }
 
+/// Length of the fixed part of an initiate, abort or segment frame after the CoE header:
+/// command byte, index, sub-index and 4 data bytes (a segment: command and 7 data bytes).
+pub const BODY_LEN: usize = 8;
+
+/// Why a buffer could not be read as an SDO frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WireError {
+    /// Shorter than the fields its command byte carries.
+    Truncated,
+    /// A server command specifier (bits 7:5) outside 0…4 ([`Response::parse`]).
+    UnknownCommand(u8),
+}
+
+impl From<WireError> for ErrorDetail {
+    /// A truncated SDO request is answered with the mailbox error "size too short"
+    /// (requests never give [`WireError::UnknownCommand`]: those are aborted).
+    fn from(e: WireError) -> Self {
+        match e {
+            WireError::Truncated => ErrorDetail::SizeTooShort,
+            WireError::UnknownCommand(_) => ErrorDetail::InvalidHeader,
+        }
+    }
+}
+
 /// A zero-copy view of an SDO frame (after the CoE header).
+///
+/// Invariant of the accessors: they index the buffer directly and panic on bytes beyond
+/// its end. [`Frame::check_len`] guarantees the command byte, and for every request that
+/// carries index, sub-index and data (initiate, abort, download segment) all
+/// [`BODY_LEN`] bytes; a frame built with [`Frame::new_unchecked`] must be long enough
+/// for the fields read.
 #[derive(Debug, Clone)]
 pub struct Frame<T: AsRef<[u8]>> {
     buffer: T,
 }
 
 impl<T: AsRef<[u8]>> Frame<T> {
-    /// Wraps a buffer; accessors return 0 / empty for bytes beyond its end.
-    pub const fn new(buffer: T) -> Self {
+    /// Wraps a buffer without checking it.
+    pub const fn new_unchecked(buffer: T) -> Self {
         Frame { buffer }
     }
-    fn byte(&self, i: usize) -> u8 {
-        self.buffer.as_ref().get(i).copied().unwrap_or(0)
+    /// Wraps a buffer after [`Frame::check_len`].
+    pub fn new_checked(buffer: T) -> Result<Self, WireError> {
+        let f = Self::new_unchecked(buffer);
+        f.check_len()?;
+        Ok(f)
+    }
+    /// Checks that the buffer holds the command byte and the fields that command carries
+    /// as a request: [`BODY_LEN`] bytes for initiate download / upload, download segment
+    /// and abort; the command byte alone for upload segment and unknown commands.
+    pub fn check_len(&self) -> Result<(), WireError> {
+        let b = self.buffer.as_ref();
+        let need = match b.first() {
+            None => 1,
+            Some(c) if Self::carries_body(*c) => BODY_LEN,
+            Some(_) => 1,
+        };
+        if b.len() < need {
+            Err(WireError::Truncated)
+        } else {
+            Ok(())
+        }
+    }
+    /// True for request commands with index, sub-index and data (specifier 0, 1, 2, 4).
+    const fn carries_body(command: u8) -> bool {
+        matches!(command >> 5, 0 | 1 | 2 | 4)
+    }
+    /// Returns the buffer.
+    pub fn into_inner(self) -> T {
+        self.buffer
     }
     /// Length of the buffer.
     pub fn len(&self) -> usize {
@@ -116,28 +173,21 @@ impl<T: AsRef<[u8]>> Frame<T> {
     }
     /// The command byte.
     pub fn command(&self) -> u8 {
-        self.byte(field::COMMAND)
+        self.buffer.as_ref()[field::COMMAND]
     }
     /// The index.
     pub fn index(&self) -> u16 {
-        u16::from_le_bytes([
-            self.byte(field::INDEX.start),
-            self.byte(field::INDEX.start + 1),
-        ])
+        let b = &self.buffer.as_ref()[field::INDEX];
+        u16::from_le_bytes([b[0], b[1]])
     }
     /// The sub-index.
     pub fn sub(&self) -> u8 {
-        self.byte(field::SUB)
+        self.buffer.as_ref()[field::SUB]
     }
     /// The 4 data bytes of an initiate or abort frame.
     pub fn data4(&self) -> [u8; 4] {
-        let s = field::DATA.start;
-        [
-            self.byte(s),
-            self.byte(s + 1),
-            self.byte(s + 2),
-            self.byte(s + 3),
-        ]
+        let b = &self.buffer.as_ref()[field::DATA];
+        [b[0], b[1], b[2], b[3]]
     }
     /// The 4 data bytes as u32 (complete size, abort code).
     pub fn data_u32(&self) -> u32 {
@@ -145,11 +195,38 @@ impl<T: AsRef<[u8]>> Frame<T> {
     }
     /// The data after the complete size of a normal transfer.
     pub fn normal_data(&self) -> &[u8] {
-        self.buffer.as_ref().get(field::NORMAL_DATA).unwrap_or(&[])
+        &self.buffer.as_ref()[field::NORMAL_DATA]
     }
     /// The data area of a segment.
     pub fn segment_data(&self) -> &[u8] {
-        self.buffer.as_ref().get(field::SEGMENT_DATA).unwrap_or(&[])
+        &self.buffer.as_ref()[field::SEGMENT_DATA]
+    }
+}
+
+impl<T: AsRef<[u8]> + AsMut<[u8]>> Frame<T> {
+    /// Sets the command byte.
+    pub fn set_command(&mut self, v: u8) {
+        self.buffer.as_mut()[field::COMMAND] = v;
+    }
+    /// Sets the index.
+    pub fn set_index(&mut self, v: u16) {
+        self.buffer.as_mut()[field::INDEX].copy_from_slice(&v.to_le_bytes());
+    }
+    /// Sets the sub-index.
+    pub fn set_sub(&mut self, v: u8) {
+        self.buffer.as_mut()[field::SUB] = v;
+    }
+    /// Sets the 4 data bytes.
+    pub fn set_data4(&mut self, v: [u8; 4]) {
+        self.buffer.as_mut()[field::DATA].copy_from_slice(&v);
+    }
+    /// The data area of a normal transfer, writable.
+    pub fn normal_data_mut(&mut self) -> &mut [u8] {
+        &mut self.buffer.as_mut()[field::NORMAL_DATA]
+    }
+    /// The data area of a segment, writable.
+    pub fn segment_data_mut(&mut self) -> &mut [u8] {
+        &mut self.buffer.as_mut()[field::SEGMENT_DATA]
     }
 }
 
@@ -221,24 +298,11 @@ impl<'a> Request<'a> {
     /// Parses the SDO part of a request (after the CoE header). `Err` = too short for the
     /// command it carries.
     pub fn parse(b: &'a [u8]) -> Result<Self, ErrorDetail> {
-        let f = Frame::new(b);
-        if f.is_empty() {
-            return Err(ErrorDetail::SizeTooShort);
-        }
+        let f = Frame::new_checked(b)?;
         let c = f.command();
-        let need_full = |r: Self| {
-            if f.len() >= 8 {
-                Ok(r)
-            } else {
-                Err(ErrorDetail::SizeTooShort)
-            }
-        };
         match c >> 5 {
             0 => {
-                if f.len() < 8 {
-                    return Err(ErrorDetail::SizeTooShort);
-                }
-                let seg: &'a [u8] = b.get(field::SEGMENT_DATA).unwrap_or(&[]);
+                let seg: &'a [u8] = &b[field::SEGMENT_DATA];
                 let n = if seg.len() > 7 {
                     seg.len()
                 } else {
@@ -247,24 +311,23 @@ impl<'a> Request<'a> {
                 Ok(Request::DownloadSegment {
                     toggle: c & cmd::TOGGLE != 0,
                     last: c & cmd::LAST != 0,
-                    data: seg.get(..n).unwrap_or(seg),
+                    data: &seg[..n],
                 })
             }
             1 => {
                 let expedited = c & cmd::EXPEDITED != 0;
                 let size_indicated = c & cmd::SIZE_INDICATED != 0;
-                let data = if expedited {
+                let data: &'a [u8] = if expedited {
                     let n = if size_indicated {
                         4 - ((c >> 2) & 3) as usize
                     } else {
                         4
                     };
-                    b.get(field::DATA.start..field::DATA.start + n)
-                        .unwrap_or(&[])
+                    &b[field::DATA.start..field::DATA.start + n]
                 } else {
-                    b.get(field::NORMAL_DATA).unwrap_or(&[])
+                    &b[field::NORMAL_DATA]
                 };
-                need_full(Request::InitiateDownload {
+                Ok(Request::InitiateDownload {
                     index: f.index(),
                     sub: f.sub(),
                     complete_access: c & cmd::COMPLETE_ACCESS != 0,
@@ -274,7 +337,7 @@ impl<'a> Request<'a> {
                     data,
                 })
             }
-            2 => need_full(Request::InitiateUpload {
+            2 => Ok(Request::InitiateUpload {
                 index: f.index(),
                 sub: f.sub(),
                 complete_access: c & cmd::COMPLETE_ACCESS != 0,
@@ -282,82 +345,259 @@ impl<'a> Request<'a> {
             3 => Ok(Request::UploadSegment {
                 toggle: c & cmd::TOGGLE != 0,
             }),
-            4 => need_full(Request::Abort {
+            4 => Ok(Request::Abort {
                 index: f.index(),
                 sub: f.sub(),
                 code: f.data_u32(),
             }),
-            _ => Ok(Request::Unknown {
-                command: c,
-                index: f.index(),
-                sub: f.sub(),
-            }),
+            _ => {
+                // Unknown commands need only the command byte: index and sub-index are
+                // echoed in the abort as far as the request carries them (missing
+                // bytes as 0).
+                let at = |i: usize| b.get(i).copied().unwrap_or(0);
+                Ok(Request::Unknown {
+                    command: c,
+                    index: u16::from_le_bytes([at(field::INDEX.start), at(field::INDEX.start + 1)]),
+                    sub: at(field::SUB),
+                })
+            }
         }
     }
 }
 
-/// Writes a 10-byte initiate-style frame (CoE header, command, index, sub-index, 4 data
-/// bytes) into `out`; returns 10, or 0 if `out` is too short. Every 10-byte answer is
-/// built here.
-#[inline(never)]
-fn emit_initiate(
-    out: &mut [u8],
-    service: Service,
-    command: u8,
-    index: u16,
-    sub: u8,
-    data: [u8; 4],
-) -> usize {
-    let Some(b) = out.get_mut(..INITIATE_LEN) else {
-        return 0;
-    };
-    let [h0, h1] = Header::of(service).to_u16().to_le_bytes();
-    let [i0, i1] = index.to_le_bytes();
-    let [d0, d1, d2, d3] = data;
-    b.copy_from_slice(&[h0, h1, command, i0, i1, sub, d0, d1, d2, d3]);
-    INITIATE_LEN
+/// An SDO frame sent by this server: a response, or an abort (which travels as a CoE
+/// SDO request, see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Response<'a> {
+    /// Initiate download response (0x60, complete access 0x70).
+    Download {
+        /// Index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// Complete access.
+        complete_access: bool,
+    },
+    /// Download segment response (0x20 | toggle, 7 reserved bytes).
+    DownloadSegment {
+        /// Toggle bit.
+        toggle: bool,
+    },
+    /// Expedited upload response (0x43/47/4B/4F): 1…4 bytes of data in the data field.
+    UploadExpedited {
+        /// Index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// The value, 1…4 bytes.
+        data: &'a [u8],
+    },
+    /// Normal upload response (0x41, complete access 0x51): the complete size and the
+    /// first part of the data.
+    Upload {
+        /// Index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// Complete access.
+        complete_access: bool,
+        /// Complete size, bytes.
+        size: u32,
+        /// Data carried in this frame.
+        data: &'a [u8],
+    },
+    /// Upload segment response (`000 t n n n c`), data padded to 7 bytes.
+    UploadSegment {
+        /// Toggle bit.
+        toggle: bool,
+        /// Last segment.
+        last: bool,
+        /// Data of this segment.
+        data: &'a [u8],
+    },
+    /// Abort (0x80) with the u32 abort code.
+    Abort {
+        /// Index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// Abort code.
+        code: u32,
+    },
 }
 
-/// Writes an abort (CoE service 2, command 0x80) into `out` (the CoE payload area, at
-/// least 10 bytes); returns 10, or 0 if `out` is too short.
-pub fn emit_abort(out: &mut [u8], index: u16, sub: u8, abort: SdoAbort) -> usize {
-    emit_initiate(
-        out,
-        Service::SdoRequest,
-        cmd::ABORT,
-        index,
-        sub,
-        abort.code().to_le_bytes(),
-    )
+const fn flag(on: bool, bit: u8) -> u8 {
+    if on {
+        bit
+    } else {
+        0
+    }
 }
 
-/// Download response (0x60, complete access 0x70).
-fn emit_download_response(out: &mut [u8], index: u16, sub: u8, ca: bool) -> usize {
-    let c = cmd::DOWNLOAD_RESPONSE | if ca { cmd::COMPLETE_ACCESS } else { 0 };
-    emit_initiate(out, Service::SdoResponse, c, index, sub, [0; 4])
-}
+impl<'a> Response<'a> {
+    /// An abort with a standard code.
+    pub const fn abort(index: u16, sub: u8, abort: SdoAbort) -> Self {
+        Response::Abort {
+            index,
+            sub,
+            code: abort.code(),
+        }
+    }
 
-/// Download segment response (0x20 | toggle, 7 reserved bytes).
-fn emit_download_segment_response(out: &mut [u8], toggle: bool) -> usize {
-    let c = cmd::DOWNLOAD_SEGMENT_RESPONSE | if toggle { cmd::TOGGLE } else { 0 };
-    emit_initiate(out, Service::SdoResponse, c, 0, 0, [0; 4])
-}
+    /// The CoE service the frame travels in: aborts as SDO request, the rest as SDO
+    /// response.
+    pub const fn service(&self) -> Service {
+        match self {
+            Response::Abort { .. } => Service::SdoRequest,
+            _ => Service::SdoResponse,
+        }
+    }
 
-/// Segment frame (upload segment response): command, data padded to 7 bytes.
-fn emit_segment(out: &mut [u8], toggle: bool, last: bool, data: &[u8]) -> usize {
-    let len = data.len().max(7);
-    let Some(b) = out.get_mut(..COE_HEADER_LEN + 1 + len) else {
-        return 0;
-    };
-    let (head, rest) = b.split_at_mut(COE_HEADER_LEN + 1);
-    Header::of(Service::SdoResponse).emit(head);
-    let n = (7 - data.len().min(7)) as u8;
-    head[COE_HEADER_LEN] =
-        (if toggle { cmd::TOGGLE } else { 0 }) | (n << 1) | if last { cmd::LAST } else { 0 };
-    let (d, pad) = rest.split_at_mut(data.len());
-    d.copy_from_slice(data);
-    pad.fill(0);
-    COE_HEADER_LEN + 1 + len
+    /// Parses a frame sent by an SDO server (the counterpart of [`Response::emit`], for
+    /// masters and tests).
+    pub fn parse(frame: &Frame<&'a [u8]>) -> Result<Self, WireError> {
+        let b: &'a [u8] = frame.buffer;
+        if b.len() < BODY_LEN {
+            return Err(WireError::Truncated);
+        }
+        let c = frame.command();
+        let (index, sub) = (frame.index(), frame.sub());
+        let ca = c & cmd::COMPLETE_ACCESS != 0;
+        Ok(match c >> 5 {
+            0 => {
+                let seg: &'a [u8] = &b[field::SEGMENT_DATA];
+                let n = if seg.len() > 7 {
+                    seg.len()
+                } else {
+                    7 - ((c >> 1) & 7) as usize
+                };
+                Response::UploadSegment {
+                    toggle: c & cmd::TOGGLE != 0,
+                    last: c & cmd::LAST != 0,
+                    data: &seg[..n],
+                }
+            }
+            1 => Response::DownloadSegment {
+                toggle: c & cmd::TOGGLE != 0,
+            },
+            2 if c & cmd::EXPEDITED != 0 => {
+                let n = if c & cmd::SIZE_INDICATED != 0 {
+                    4 - ((c >> 2) & 3) as usize
+                } else {
+                    4
+                };
+                Response::UploadExpedited {
+                    index,
+                    sub,
+                    data: &b[field::DATA.start..field::DATA.start + n],
+                }
+            }
+            2 => Response::Upload {
+                index,
+                sub,
+                complete_access: ca,
+                size: frame.data_u32(),
+                data: &b[field::NORMAL_DATA],
+            },
+            3 => Response::Download {
+                index,
+                sub,
+                complete_access: ca,
+            },
+            4 => Response::Abort {
+                index,
+                sub,
+                code: frame.data_u32(),
+            },
+            _ => return Err(WireError::UnknownCommand(c)),
+        })
+    }
+
+    /// Length of the emitted frame after the CoE header.
+    pub fn buffer_len(&self) -> usize {
+        match *self {
+            Response::Upload { data, .. } => BODY_LEN + data.len(),
+            Response::UploadSegment { data, .. } => 1 + data.len().max(7),
+            _ => BODY_LEN,
+        }
+    }
+
+    /// Writes the frame (after the CoE header) into the start of `frame`'s buffer;
+    /// returns its length, or 0 (buffer untouched) when the buffer is shorter than
+    /// [`Response::buffer_len`].
+    pub fn emit<T: AsRef<[u8]> + AsMut<[u8]>>(&self, frame: &mut Frame<T>) -> usize {
+        let n = self.buffer_len();
+        if frame.len() < n {
+            return 0;
+        }
+        let (command, index, sub, d4) = match *self {
+            Response::Download {
+                index,
+                sub,
+                complete_access,
+            } => (
+                cmd::DOWNLOAD_RESPONSE | flag(complete_access, cmd::COMPLETE_ACCESS),
+                index,
+                sub,
+                [0; 4],
+            ),
+            Response::DownloadSegment { toggle } => (
+                cmd::DOWNLOAD_SEGMENT_RESPONSE | flag(toggle, cmd::TOGGLE),
+                0,
+                0,
+                [0; 4],
+            ),
+            Response::UploadExpedited { index, sub, data } => {
+                let len = data.len().min(4);
+                let mut d = [0u8; 4];
+                d[..len].copy_from_slice(&data[..len]);
+                let c = cmd::UPLOAD_RESPONSE
+                    | cmd::EXPEDITED
+                    | cmd::SIZE_INDICATED
+                    | (((4 - len) as u8 & 3) << 2);
+                (c, index, sub, d)
+            }
+            Response::Upload {
+                index,
+                sub,
+                complete_access,
+                size,
+                data,
+            } => {
+                frame.normal_data_mut()[..data.len()].copy_from_slice(data);
+                let c = cmd::UPLOAD_RESPONSE
+                    | cmd::SIZE_INDICATED
+                    | flag(complete_access, cmd::COMPLETE_ACCESS);
+                (c, index, sub, size.to_le_bytes())
+            }
+            Response::Abort { index, sub, code } => (cmd::ABORT, index, sub, code.to_le_bytes()),
+            Response::UploadSegment { toggle, last, data } => {
+                // A segment has no index field: command and 7 or more data bytes.
+                let pad = (7 - data.len().min(7)) as u8;
+                frame.set_command(flag(toggle, cmd::TOGGLE) | (pad << 1) | flag(last, cmd::LAST));
+                let (d, rest) = frame.segment_data_mut()[..n - 1].split_at_mut(data.len());
+                d.copy_from_slice(data);
+                rest.fill(0);
+                return n;
+            }
+        };
+        frame.set_command(command);
+        frame.set_index(index);
+        frame.set_sub(sub);
+        frame.set_data4(d4);
+        n
+    }
+
+    /// Writes the CoE header of [`Response::service`] and the frame into `out`; returns
+    /// the length of both, or 0 (nothing written) when `out` is too short.
+    pub fn emit_coe(&self, out: &mut [u8]) -> usize {
+        if out.len() < COE_HEADER_LEN + self.buffer_len() {
+            return 0;
+        }
+        let (head, body) = out.split_at_mut(COE_HEADER_LEN);
+        Header::of(self.service()).emit(head);
+        COE_HEADER_LEN + self.emit(&mut Frame::new_unchecked(body))
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -490,8 +730,13 @@ impl SdoServer {
                     )
                 };
                 match r {
-                    Ok(()) => emit_download_response(out, index, sub, complete_access),
-                    Err(a) => emit_abort(out, index, sub, a),
+                    Ok(()) => Response::Download {
+                        index,
+                        sub,
+                        complete_access,
+                    }
+                    .emit_coe(out),
+                    Err(a) => Response::abort(index, sub, a).emit_coe(out),
                 }
             }
             Request::DownloadSegment { toggle, last, data } => match self.t {
@@ -507,11 +752,11 @@ impl SdoServer {
                     ) {
                         Ok(()) => {
                             self.last_us = now_us;
-                            emit_download_segment_response(out, toggle)
+                            Response::DownloadSegment { toggle }.emit_coe(out)
                         }
                         Err(a) => {
                             self.t = Transfer::Idle;
-                            emit_abort(out, index, sub, a)
+                            Response::abort(index, sub, a).emit_coe(out)
                         }
                     }
                 }
@@ -534,7 +779,7 @@ impl SdoServer {
                 } => {
                     if toggle != expected {
                         self.t = Transfer::Idle;
-                        emit_abort(out, index, sub, SdoAbort::ToggleBit)
+                        Response::abort(index, sub, SdoAbort::ToggleBit).emit_coe(out)
                     } else {
                         self.last_us = now_us;
                         self.upload_segment(out, index, sub, pos, toggle)
@@ -548,7 +793,7 @@ impl SdoServer {
             }
             Request::Unknown { index, sub, .. } => {
                 self.t = Transfer::Idle;
-                emit_abort(out, index, sub, SdoAbort::InvalidCommand)
+                Response::abort(index, sub, SdoAbort::InvalidCommand).emit_coe(out)
             }
         };
         Ok(n)
@@ -557,11 +802,11 @@ impl SdoServer {
     /// A segment request that does not belong to the current transfer.
     fn no_transfer(&mut self, out: &mut [u8], expired: Option<(u16, u8)>) -> usize {
         if let Some((index, sub)) = expired {
-            return emit_abort(out, index, sub, SdoAbort::Timeout);
+            return Response::abort(index, sub, SdoAbort::Timeout).emit_coe(out);
         }
         let (index, sub) = self.target().unwrap_or((0, 0));
         self.t = Transfer::Idle;
-        emit_abort(out, index, sub, SdoAbort::InvalidCommand)
+        Response::abort(index, sub, SdoAbort::InvalidCommand).emit_coe(out)
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -693,29 +938,22 @@ impl SdoServer {
     ) -> usize {
         let len = match upload(dict, state, index, sub, ca, &mut self.buf) {
             Ok(n) => n,
-            Err(a) => return emit_abort(out, index, sub, a),
+            Err(a) => return Response::abort(index, sub, a).emit_coe(out),
         };
-        let ca_bit = if ca { cmd::COMPLETE_ACCESS } else { 0 };
         if !ca && (1..=4).contains(&len) {
-            let c = cmd::UPLOAD_RESPONSE
-                | cmd::EXPEDITED
-                | cmd::SIZE_INDICATED
-                | (((4 - len) as u8) << 2);
-            let mut d = [0u8; 4];
-            d[..len].copy_from_slice(&self.buf[..len]);
-            return emit_initiate(out, Service::SdoResponse, c, index, sub, d);
+            let data = &self.buf[..len];
+            return Response::UploadExpedited { index, sub, data }.emit_coe(out);
         }
         let room = out.len() - INITIATE_LEN;
         let first = len.min(room);
-        emit_initiate(
-            out,
-            Service::SdoResponse,
-            cmd::UPLOAD_RESPONSE | cmd::SIZE_INDICATED | ca_bit,
+        Response::Upload {
             index,
             sub,
-            (len as u32).to_le_bytes(),
-        );
-        out[INITIATE_LEN..INITIATE_LEN + first].copy_from_slice(&self.buf[..first]);
+            complete_access: ca,
+            size: len as u32,
+            data: &self.buf[..first],
+        }
+        .emit_coe(out);
         if first < len {
             self.len = len;
             self.t = Transfer::Upload {
@@ -741,7 +979,7 @@ impl SdoServer {
         let end = (pos + room).min(self.len);
         let last = end == self.len;
         let data = self.buf.get(pos.min(end)..end).unwrap_or_default();
-        let n = emit_segment(out, toggle, last, data);
+        let n = Response::UploadSegment { toggle, last, data }.emit_coe(out);
         self.t = if last {
             Transfer::Idle
         } else {
@@ -1123,29 +1361,117 @@ mod tests {
 
     #[test]
     fn frame_view_and_emitters() {
-        let f = Frame::new(&[0x41u8, 0x08, 0x10, 0x00, 3, 0, 0, 0, b'a', b'b', b'c'][..]);
+        let f = Frame::new_unchecked(&[0x41u8, 0x08, 0x10, 0x00, 3, 0, 0, 0, b'a', b'b', b'c'][..]);
         assert_eq!(
             (f.command(), f.index(), f.sub(), f.data_u32()),
             (0x41, 0x1008, 0, 3)
         );
         assert_eq!(f.normal_data(), b"abc");
-        let e = Frame::new(&[][..] as &[u8]);
+        let e = Frame::new_unchecked(&[][..] as &[u8]);
         assert!(e.is_empty());
-        assert_eq!((e.command(), e.index(), e.data4()), (0, 0, [0; 4]));
+        assert_eq!(e.check_len(), Err(WireError::Truncated));
+        assert!(Frame::new_checked(&[0x40u8, 0, 0x10][..]).is_err());
+        assert!(Frame::new_checked(&[0x60u8][..]).is_ok());
         let mut out = [0u8; 16];
-        assert_eq!(emit_abort(&mut out, 0x6040, 0, SdoAbort::ValueTooHigh), 10);
+        assert_eq!(
+            Response::abort(0x6040, 0, SdoAbort::ValueTooHigh).emit_coe(&mut out),
+            10
+        );
         assert_eq!(
             out[..10],
             [0x00, 0x20, 0x80, 0x40, 0x60, 0x00, 0x31, 0x00, 0x09, 0x06]
         );
-        assert_eq!(emit_abort(&mut out[..9], 0, 0, SdoAbort::Timeout), 0);
-        assert_eq!(emit_segment(&mut out, true, true, &[9, 8]), 10);
+        assert_eq!(
+            Response::abort(0, 0, SdoAbort::Timeout).emit_coe(&mut out[..9]),
+            0
+        );
+        let seg = |toggle, last, data| Response::UploadSegment { toggle, last, data };
+        assert_eq!(seg(true, true, &[9, 8]).emit_coe(&mut out), 10);
         assert_eq!(out[..10], [0x00, 0x30, 0x1B, 9, 8, 0, 0, 0, 0, 0]);
-        assert_eq!(emit_segment(&mut out[..9], false, false, &[1]), 0);
-        assert_eq!(emit_download_response(&mut out, 0x1C12, 2, true), 10);
+        assert_eq!(seg(false, false, &[1]).emit_coe(&mut out[..9]), 0);
+        let download = Response::Download {
+            index: 0x1C12,
+            sub: 2,
+            complete_access: true,
+        };
+        assert_eq!(download.emit_coe(&mut out), 10);
         assert_eq!(out[..10], [0x00, 0x30, 0x70, 0x12, 0x1C, 2, 0, 0, 0, 0]);
-        assert_eq!(emit_download_segment_response(&mut out, true), 10);
+        assert_eq!(
+            Response::DownloadSegment { toggle: true }.emit_coe(&mut out),
+            10
+        );
         assert_eq!(out[..10], [0x00, 0x30, 0x30, 0, 0, 0, 0, 0, 0, 0]);
+    }
+
+    #[test]
+    fn response_round_trips() {
+        let cases: [&[u8]; 7] = [
+            &[0x60, 0x40, 0x60, 0x00, 0, 0, 0, 0],
+            &[0x70, 0x12, 0x1C, 0x02, 0, 0, 0, 0],
+            &[0x30, 0, 0, 0, 0, 0, 0, 0],
+            &[0x4B, 0x41, 0x60, 0x00, 0x37, 0x02, 0, 0],
+            &[0x51, 0x00, 0x1C, 0x00, 5, 0, 0, 0, 4, 1, 2],
+            &[0x1B, 9, 8, 0, 0, 0, 0, 0],
+            &[0x80, 0x40, 0x60, 0x00, 0x31, 0x00, 0x09, 0x06],
+        ];
+        for bytes in cases {
+            let r = Response::parse(&Frame::new_unchecked(bytes)).unwrap();
+            assert_eq!(r.buffer_len(), bytes.len());
+            let mut out = [0xEEu8; 16];
+            assert_eq!(r.emit(&mut Frame::new_unchecked(&mut out[..])), bytes.len());
+            assert_eq!(&out[..bytes.len()], bytes);
+            assert_eq!(
+                r.emit(&mut Frame::new_unchecked(&mut out[..bytes.len() - 1])),
+                0
+            );
+        }
+        assert_eq!(
+            Response::parse(&Frame::new_unchecked(&[
+                0x4B, 0x41, 0x60, 0x00, 0x37, 0x02, 0, 0
+            ])),
+            Ok(Response::UploadExpedited {
+                index: 0x6041,
+                sub: 0,
+                data: &[0x37, 0x02]
+            })
+        );
+        assert_eq!(
+            Response::parse(&Frame::new_unchecked(&[0x60, 0x40, 0x60][..])),
+            Err(WireError::Truncated)
+        );
+        assert_eq!(
+            Response::parse(&Frame::new_unchecked(&[0xA0, 0, 0, 0, 0, 0, 0, 0][..])),
+            Err(WireError::UnknownCommand(0xA0))
+        );
+        assert_eq!(
+            Response::abort(0x1000, 0, SdoAbort::Timeout).service(),
+            Service::SdoRequest
+        );
+        assert_eq!(
+            Response::DownloadSegment { toggle: false }.service(),
+            Service::SdoResponse
+        );
+    }
+
+    #[test]
+    fn request_frame_checks() {
+        for short in [
+            &[][..],
+            &[0x40, 0, 0x10][..],
+            &[0x23, 0, 0x60, 0, 1, 2, 3][..],
+        ] {
+            assert_eq!(Frame::new_checked(short).unwrap_err(), WireError::Truncated);
+            assert_eq!(Request::parse(short), Err(ErrorDetail::SizeTooShort));
+        }
+        assert!(Frame::new_checked(&[0x60u8][..]).is_ok());
+        assert_eq!(
+            Request::parse(&[0xC0, 0x34]),
+            Ok(Request::Unknown {
+                command: 0xC0,
+                index: 0x34,
+                sub: 0
+            })
+        );
     }
 
     #[test]
