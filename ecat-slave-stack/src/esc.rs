@@ -5,6 +5,8 @@
 //! this trait. Addresses are ESC addresses (registers 0x0000-0x0FFF, process RAM
 //! from 0x1000); multi-byte values are little-endian as on the wire.
 
+use crate::registers::Register;
+
 /// Errors an ESC access can report. Drivers map their bus errors onto these.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum EscError {
@@ -18,6 +20,33 @@ pub enum EscError {
     OutOfRange,
 }
 
+/// An integer register value: little-endian on the wire, as wide as its type.
+pub trait RegisterValue: Copy {
+    /// Width, bytes.
+    const LEN: usize;
+    /// Decodes `LEN` little-endian bytes.
+    fn from_le(b: &[u8]) -> Self;
+    /// Encodes into `LEN` little-endian bytes.
+    fn to_le(self, out: &mut [u8]);
+}
+
+macro_rules! register_value {
+    ($($t:ty),*) => {$(
+        impl RegisterValue for $t {
+            const LEN: usize = core::mem::size_of::<$t>();
+            fn from_le(b: &[u8]) -> Self {
+                let mut a = [0u8; core::mem::size_of::<$t>()];
+                a.copy_from_slice(b);
+                <$t>::from_le_bytes(a)
+            }
+            fn to_le(self, out: &mut [u8]) {
+                out.copy_from_slice(&self.to_le_bytes());
+            }
+        }
+    )*};
+}
+register_value!(u8, u16, u32, u64);
+
 /// Read/write access to the ESC address space as seen from the PDI.
 pub trait EscAccess {
     /// Reads `buf.len()` bytes starting at ESC address `addr`.
@@ -27,7 +56,22 @@ pub trait EscAccess {
     /// Reads the AL event request register (0x0220, 32 bit). Drivers that get it for
     /// free during an SPI address phase (ET1100) return the last value clocked out.
     fn al_event(&mut self) -> Result<u32, EscError> {
-        self.read_u32(crate::registers::AL_EVENT_REQUEST)
+        self.get(crate::registers::AL_EVENT_REQUEST)
+    }
+
+    /// Reads a register at its width.
+    fn get<T: RegisterValue>(&mut self, r: Register<T>) -> Result<T, EscError> {
+        let mut b = [0u8; 8];
+        let b = &mut b[..T::LEN];
+        self.read(r.addr(), b)?;
+        Ok(T::from_le(b))
+    }
+    /// Writes a register at its width.
+    fn set<T: RegisterValue>(&mut self, r: Register<T>, v: T) -> Result<(), EscError> {
+        let mut b = [0u8; 8];
+        let b = &mut b[..T::LEN];
+        v.to_le(b);
+        self.write(r.addr(), b)
     }
 
     /// Reads one byte.

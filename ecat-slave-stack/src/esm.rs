@@ -26,6 +26,7 @@
 //!   0x0134 and sets AL status bit 5.
 
 use crate::al_status::AlStatusCode;
+use crate::registers::{AlControl, AlStatus};
 
 /// An ESM state as encoded in AL control / AL status bits 3:0.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -81,24 +82,6 @@ impl EsmState {
     pub const fn process_data_running(self) -> bool {
         matches!(self, Self::SafeOp | Self::Op)
     }
-}
-
-/// AL control (0x0120) bits.
-pub mod al_control {
-    /// Requested state, bits 3:0.
-    pub const STATE_MASK: u16 = 0x000F;
-    /// Error indication acknowledge.
-    pub const ERROR_ACK: u16 = 1 << 4;
-    /// Device identification request.
-    pub const ID_REQUEST: u16 = 1 << 5;
-}
-
-/// AL status (0x0130) bits.
-pub mod al_status_bits {
-    /// Error indication.
-    pub const ERROR: u16 = 1 << 4;
-    /// Device identification loaded into 0x0134.
-    pub const ID_LOADED: u16 = 1 << 5;
 }
 
 /// What one AL control write asks the slave to do.
@@ -256,10 +239,9 @@ pub fn decide_with(
     control: u16,
     bootstrap: bool,
 ) -> Decision {
-    let requested_bits = (control & al_control::STATE_MASK) as u8;
-    let ack = control & al_control::ERROR_ACK != 0;
-    let requested = EsmState::from_bits(requested_bits);
-    if error_pending && !ack && requested != Some(EsmState::Init) {
+    let control = AlControl::from_raw(control);
+    let requested = control.requested();
+    if error_pending && !control.ack && requested != Some(EsmState::Init) {
         return Decision::None;
     }
     let Some(to) = requested else {
@@ -341,13 +323,15 @@ impl Esm {
     }
     /// The 16-bit AL status word (0x0130).
     pub const fn status_word(&self) -> u16 {
-        self.state.bits() as u16
-            | if self.error { al_status_bits::ERROR } else { 0 }
-            | if self.id_loaded {
-                al_status_bits::ID_LOADED
-            } else {
-                0
-            }
+        self.status().to_raw()
+    }
+    /// AL status (0x0130).
+    pub const fn status(&self) -> AlStatus {
+        AlStatus {
+            state: self.state,
+            error: self.error,
+            id_loaded: self.id_loaded,
+        }
     }
 
     /// Handles one AL control word. An acknowledge (bit 4) or a request for Init
@@ -356,15 +340,14 @@ impl Esm {
     /// runs the checks and calls [`Esm::finish`].
     pub fn request(&mut self, control: u16) -> Decision {
         let d = decide_with(self.state, self.error, control, self.bootstrap);
-        let ack = control & al_control::ERROR_ACK != 0;
-        let init =
-            EsmState::from_bits((control & al_control::STATE_MASK) as u8) == Some(EsmState::Init);
-        if self.error && (ack || init) {
+        let control = AlControl::from_raw(control);
+        let init = control.requested() == Some(EsmState::Init);
+        if self.error && (control.ack || init) {
             self.error = false;
             self.code = 0;
         }
         if let Some(p) = self.pending {
-            if (control & al_control::STATE_MASK) as u8 == p.bits() {
+            if control.state == p.bits() {
                 // The same request again while it is waiting: keep waiting.
                 return Decision::None;
             }
@@ -433,7 +416,7 @@ impl Esm {
     /// pending, `id` goes into the status code and AL status bit 5 is set; with the
     /// bit clear, a loaded ID is removed again.
     pub fn id_request(&mut self, control: u16, id: u16) {
-        if control & al_control::ID_REQUEST != 0 {
+        if AlControl::from_raw(control).id_request {
             if !self.error {
                 self.id_loaded = true;
                 self.code = id;

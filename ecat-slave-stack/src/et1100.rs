@@ -170,7 +170,7 @@ impl<SPI: SpiDevice> Et1100<SPI> {
             if i > 0 {
                 delay.delay_us(self.cfg.startup_poll_interval_us);
             }
-            let t = self.read_u8(registers::ESC_TYPE)?;
+            let t = self.get(registers::ESC_TYPE)?;
             let ok = match self.cfg.expected_type {
                 Some(e) => t == e,
                 None => t != 0x00 && t != 0xFF,
@@ -187,7 +187,7 @@ impl<SPI: SpiDevice> Et1100<SPI> {
             if i > 0 {
                 delay.delay_us(self.cfg.startup_poll_interval_us);
             }
-            if self.read_u16(registers::DL_STATUS)? & 1 != 0 {
+            if self.get(registers::DL_STATUS)? & 1 != 0 {
                 return Ok(());
             }
         }

@@ -747,12 +747,8 @@ impl MailboxServer {
     /// queued as the answer).
     pub fn tick(&mut self, now_us: u64) {
         if let Some((index, sub)) = self.sdo.expire(now_us) {
-            let n = coe::sdo::emit_abort(
-                reply_area(&mut self.reply, self.size),
-                index,
-                sub,
-                crate::od::SdoAbort::Timeout,
-            );
+            let abort = coe::sdo::Response::abort(index, sub, crate::od::SdoAbort::Timeout);
+            let n = abort.emit_coe(reply_area(&mut self.reply, self.size));
             self.answer_coe(n);
         }
     }

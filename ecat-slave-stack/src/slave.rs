@@ -48,9 +48,12 @@ use crate::foe::FoeFiles;
 use crate::mailbox::{Frame as MailboxFrame, Handlers, MailboxServer, MailboxType};
 use crate::od::{Dictionary, Object, SdoAbort};
 use crate::pdo::{self, CopyPlan, PdoConfig, PdoDefaults, ProcessData};
-use crate::registers::{self as reg, al_event};
+use crate::registers::{self as reg, AlControl, AlEvent};
 use crate::sm::{self, BootMailbox, MailboxLimits, PdDirection, RamWindow, SmRegs};
 use crate::sync::{self, SyncEvent, SyncMode, SyncState};
+
+mod mailbox;
+mod process_data;
 
 /// Longest time between two reads of the process-data watchdog status, µs.
 pub const WD_CHECK_US: u64 = 1000;
@@ -344,7 +347,7 @@ impl<E: EscAccess> Slave<E> {
     /// and AL status Init without error; applies the FoE timeout.
     pub fn init(&mut self) -> Result<EscInfo, EscError> {
         let mut b = [0u8; 10];
-        self.esc.read(reg::ESC_TYPE, &mut b)?;
+        self.esc.read(reg::ESC_TYPE.addr(), &mut b)?;
         self.info = EscInfo {
             esc_type: b[0],
             revision: b[1],
@@ -356,7 +359,7 @@ impl<E: EscAccess> Slave<E> {
         };
         self.ram = RamWindow::from_kib(self.info.ram_kib);
         if let Some(a) = self.cfg.station_alias {
-            self.esc.write_u16(reg::STATION_ALIAS, a)?;
+            self.esc.set(reg::STATION_ALIAS, a)?;
         }
         self.esm = Esm::with_bootstrap(self.cfg.bootstrap.is_some());
         self.mbx.set_foe_timeout_us(self.cfg.foe_timeout_us);
@@ -443,16 +446,16 @@ impl<E: EscAccess> Slave<E> {
         if self.esm.state() == EsmState::SafeOp {
             self.follow_dc(now_us, false)?;
         }
-        let ev = self.esc.al_event()?;
-        if ev & al_event::AL_CONTROL != 0 {
+        let ev = AlEvent::from_raw(self.esc.al_event()?);
+        if ev.al_control {
             self.handle_al_control(app, now_us)?;
         }
-        if ev & al_event::SM_CHANGE != 0 {
+        if ev.sm_change {
             self.handle_sm_change(app)?;
         }
         self.supervise(app, ev, now_us)?;
         if self.esm.state().mailbox_running() {
-            if ev & al_event::sm(0) != 0 {
+            if ev.sm(0) {
                 self.receive_mailbox(app, now_us)?;
             }
             self.mbx.tick(now_us);
@@ -476,7 +479,7 @@ impl<E: EscAccess> Slave<E> {
         if !self.esm.state().process_data_running() {
             return Ok(());
         }
-        let ev = self.esc.al_event()?;
+        let ev = AlEvent::from_raw(self.esc.al_event()?);
         self.process_data(app, ev, now_us, true)?;
         self.write_status()
     }
@@ -488,7 +491,7 @@ impl<E: EscAccess> Slave<E> {
         app: &mut A,
         now: u64,
     ) -> Result<(), EscError> {
-        let ctl = self.esc.read_u16(reg::AL_CONTROL)?;
+        let ctl = self.esc.get(reg::AL_CONTROL)?;
         let before = self.esm.state();
         match self.esm.request(ctl) {
             Decision::None | Decision::Refuse { .. } => {}
@@ -502,10 +505,10 @@ impl<E: EscAccess> Slave<E> {
                 }
             },
         }
-        let id = if ctl & crate::esm::al_control::ID_REQUEST != 0 {
+        let id = if AlControl::from_raw(ctl).id_request {
             match app.device_id() {
                 Some(id) => id,
-                None => self.esc.read_u16(reg::STATION_ALIAS)?,
+                None => self.esc.get(reg::STATION_ALIAS)?,
             }
         } else {
             0
@@ -552,7 +555,7 @@ impl<E: EscAccess> Slave<E> {
     }
 
     fn start_mailbox(&mut self) -> Result<Result<(), AlStatusCode>, EscError> {
-        self.station = self.esc.read_u16(reg::STATION_ADDRESS)?;
+        self.station = self.esc.get(reg::STATION_ADDRESS)?;
         self.read_sms()?;
         let [sm0, sm1, sm2, sm3] = self.sms;
         if let Err(c) =
@@ -569,7 +572,7 @@ impl<E: EscAccess> Slave<E> {
         let Some(boot) = self.cfg.bootstrap else {
             return Ok(Err(AlStatusCode::BootstrapNotSupported));
         };
-        self.station = self.esc.read_u16(reg::STATION_ADDRESS)?;
+        self.station = self.esc.get(reg::STATION_ADDRESS)?;
         self.read_sms()?;
         let [sm0, sm1, _, _] = self.sms;
         if let Err(c) = sm::validate_boot_mailbox(&sm0, &sm1, &boot, self.ram) {
@@ -646,7 +649,7 @@ impl<E: EscAccess> Slave<E> {
     /// cycle belongs to the first SYNC0 of the new configuration.
     fn enter_sync(&mut self, mode: SyncMode, cycle: u32, outputs: bool) -> Result<(), EscError> {
         if mode == SyncMode::DcSync0 {
-            self.esc.read_u8(reg::DC_SYNC0_STATUS)?;
+            self.esc.get(reg::DC_SYNC0_STATUS)?;
         }
         self.sync.enter(mode, cycle, outputs);
         Ok(())
@@ -695,8 +698,8 @@ impl<E: EscAccess> Slave<E> {
         sm2: &SmRegs,
         outputs: bool,
     ) -> Result<Result<(SyncMode, u32, u16), AlStatusCode>, EscError> {
-        let activation = self.esc.read_u8(reg::DC_ACTIVATION)?;
-        let cycle = self.esc.read_u32(reg::DC_SYNC0_CYCLE)?;
+        let activation = self.esc.get(reg::DC_ACTIVATION)?;
+        let cycle = self.esc.get(reg::DC_SYNC0_CYCLE)?;
         let mode = match sync::resolve_mode(
             self.sync.sm2.written_type,
             self.sync.sm3.written_type,
@@ -708,8 +711,8 @@ impl<E: EscAccess> Slave<E> {
             Ok(m) => m,
             Err(c) => return Ok(Err(c)),
         };
-        let wd_div = self.esc.read_u16(reg::WATCHDOG_DIVIDER)?;
-        let wd_time = self.esc.read_u16(reg::WATCHDOG_TIME_PD)?;
+        let wd_div = self.esc.get(reg::WATCHDOG_DIVIDER)?;
+        let wd_time = self.esc.get(reg::WATCHDOG_TIME_PD)?;
         let cycle_for_wd = if mode == SyncMode::DcSync0 {
             cycle
         } else {
@@ -761,29 +764,32 @@ impl<E: EscAccess> Slave<E> {
     }
 
     fn write_event_mask(&mut self) -> Result<(), EscError> {
-        let mut m = al_event::AL_CONTROL | al_event::SM_CHANGE | al_event::WATCHDOG;
+        let mut m = AlEvent {
+            al_control: true,
+            sm_change: true,
+            watchdog: true,
+            ..AlEvent::NONE
+        };
         let s = self.esm.state();
         if s.mailbox_running() {
-            m |= al_event::sm(0) | al_event::sm(1);
+            m = m.with_sm(0).with_sm(1);
         }
         if s.process_data_running() {
             if self.plan.rx.bytes() > 0 {
-                m |= al_event::sm(2);
+                m = m.with_sm(2);
             } else if self.plan.tx.bytes() > 0 {
-                m |= al_event::sm(3);
+                m = m.with_sm(3);
             }
-            if self.sync.mode == SyncMode::DcSync0 {
-                m |= al_event::SYNC0;
-            }
+            m.sync0 = self.sync.mode == SyncMode::DcSync0;
         }
-        self.esc.write_u32(reg::AL_EVENT_MASK, m)
+        self.esc.set(reg::AL_EVENT_MASK, m.to_raw())
     }
 
     fn write_status(&mut self) -> Result<(), EscError> {
         let st = (self.esm.status_word(), self.esm.code());
         if self.last_status != Some(st) {
-            self.esc.write_u16(reg::AL_STATUS_CODE, st.1)?;
-            self.esc.write_u16(reg::AL_STATUS, st.0)?;
+            self.esc.set(reg::AL_STATUS_CODE, st.1)?;
+            self.esc.set(reg::AL_STATUS, st.0)?;
             self.last_status = Some(st);
         }
         Ok(())
@@ -812,7 +818,7 @@ impl<E: EscAccess> Slave<E> {
     fn supervise<A: SlaveApplication>(
         &mut self,
         app: &mut A,
-        ev: u32,
+        ev: AlEvent,
         now: u64,
     ) -> Result<(), EscError> {
         if let Some(to) = self.esm.pending() {
@@ -833,16 +839,12 @@ impl<E: EscAccess> Slave<E> {
         // The watchdog status is read at most once per WD_CHECK_US (the watchdog
         // itself is milliseconds), at once when the ESC flags the watchdog event, and
         // not when fresh outputs just arrived (they re-trigger it).
-        let wd_due = ev & al_event::WATCHDOG != 0
+        let wd_due = ev.watchdog
             || now.saturating_sub(self.last_wd_check) >= WD_CHECK_US
             || now < self.last_wd_check;
-        if self.wd_armed
-            && (s == EsmState::Op || self.outputs_seen)
-            && ev & al_event::sm(2) == 0
-            && wd_due
-        {
+        if self.wd_armed && (s == EsmState::Op || self.outputs_seen) && !ev.sm(2) && wd_due {
             self.last_wd_check = now;
-            let st = self.esc.read_u16(reg::WATCHDOG_STATUS_PD)?;
+            let st = self.esc.get(reg::WATCHDOG_STATUS_PD)?;
             if st & 1 == 0 {
                 return self.local_error(app, AlStatusCode::SmWatchdog);
             }
@@ -881,217 +883,5 @@ impl<E: EscAccess> Slave<E> {
             }
         }
         Ok(())
-    }
-
-    // ---- mailbox ---------------------------------------------------------------
-
-    fn receive_mailbox<A: SlaveApplication>(
-        &mut self,
-        app: &mut A,
-        now: u64,
-    ) -> Result<(), EscError> {
-        let sm0 = self.active[0];
-        let len = (sm0.len as usize).min(MAX_MAILBOX);
-        if len == 0 {
-            return Ok(());
-        }
-        // Header first, then only the bytes it announces (clamped to the buffer), then
-        // the last byte of the buffer: reading it hands the buffer back to the master.
-        let hdr = crate::mailbox::HEADER_LEN.min(len);
-        self.esc.read(sm0.start, &mut self.mbx_buf[..hdr])?;
-        let announced = u16::from_le_bytes([self.mbx_buf[0], self.mbx_buf[1]]) as usize;
-        let total = (hdr + announced).clamp(hdr, len);
-        if total > hdr {
-            self.esc
-                .read(sm0.start + hdr as u16, &mut self.mbx_buf[hdr..total])?;
-        }
-        if total < len {
-            let mut last = [0u8; 1];
-            self.esc.read(sm0.last_byte(), &mut last)?;
-        }
-        let state = self.esm.state();
-        let frame = &self.mbx_buf[..total];
-        // Only the handler of the request's protocol is lent out (both borrow `app`);
-        // Bootstrap serves FoE only.
-        if MailboxFrame::new_unchecked(frame).mailbox_type() == MailboxType::Foe {
-            let h = Handlers::<CommDictionary<'_, A>>::foe(app.foe());
-            self.mbx.on_request_with(frame, h, state, now);
-        } else if state == EsmState::Bootstrap {
-            let h = Handlers::<CommDictionary<'_, A>>::foe(None);
-            self.mbx.on_request_with(frame, h, state, now);
-        } else {
-            let mut dict = CommDictionary {
-                pdo: &mut self.pdo,
-                sync: &mut self.sync,
-                app,
-            };
-            self.mbx
-                .on_request_with(frame, Handlers::coe(&mut dict), state, now);
-        }
-        Ok(())
-    }
-
-    fn send_mailbox(&mut self, now: u64) -> Result<(), EscError> {
-        let sm1 = self.active[1];
-        let len = (sm1.len as usize).min(MAX_MAILBOX);
-        if len == 0 {
-            return Ok(());
-        }
-        if self.sm1_busy {
-            let st = self.esc.read_u8(reg::sm_register(1) + reg::sm::STATUS)?;
-            if st & sm::status::MAILBOX_FULL != 0 {
-                return Ok(());
-            }
-            self.sm1_busy = false;
-        }
-        let n = self.mbx.next_output(&mut self.mbx_buf[..len], now);
-        if n > 0 {
-            self.write_sm1(sm1, n)?;
-        }
-        Ok(())
-    }
-
-    /// Writes `mbx_buf[..n]` into SM1 so that the last byte of the buffer is written
-    /// (buffer hand-over rule).
-    fn write_sm1(&mut self, sm1: SmRegs, n: usize) -> Result<(), EscError> {
-        let len = (sm1.len as usize).min(MAX_MAILBOX);
-        let n = n.min(len);
-        self.esc.write(sm1.start, &self.mbx_buf[..n])?;
-        if n < len {
-            self.esc.write_u8(sm1.last_byte(), 0)?;
-        }
-        self.sm1_busy = true;
-        Ok(())
-    }
-
-    fn repeat_mailbox(&mut self, sm1: SmRegs) -> Result<(), EscError> {
-        let len = (sm1.len as usize).min(MAX_MAILBOX);
-        let n = self.mbx.repeat_last(&mut self.mbx_buf[..len]);
-        let pdi = reg::sm_register(1) + reg::sm::PDI_CONTROL;
-        let new_ack = sm1.repeat_request();
-        let ack_bits = if new_ack {
-            sm::pdi_control::REPEAT_ACK
-        } else {
-            0
-        };
-        if n > 0 {
-            if sm1.status & sm::status::MAILBOX_FULL != 0 {
-                // An unread mailbox is in the way: flush SM1 by deactivating it.
-                self.esc.write_u8(
-                    pdi,
-                    sm::pdi_control::DEACTIVATE | (ack_bits ^ sm::pdi_control::REPEAT_ACK),
-                )?;
-                self.esc
-                    .write_u8(pdi, ack_bits ^ sm::pdi_control::REPEAT_ACK)?;
-            }
-            self.write_sm1(sm1, n)?;
-        }
-        self.esc.write_u8(pdi, ack_bits)?;
-        self.repeat_ack = new_ack;
-        Ok(())
-    }
-
-    // ---- process data ----------------------------------------------------------
-
-    fn process_data<A: SlaveApplication>(
-        &mut self,
-        app: &mut A,
-        ev: u32,
-        now: u64,
-        external: bool,
-    ) -> Result<(), EscError> {
-        let rx_len = self.plan.rx.bytes() as usize;
-        let got_sm2 = rx_len > 0 && ev & al_event::sm(2) != 0;
-        if got_sm2 {
-            let start = self.active[2].start;
-            self.esc
-                .read(start, &mut self.rx_buf[..rx_len.min(pdo::MAX_BYTES)])?;
-            self.outputs_fresh = true;
-            self.outputs_seen = true;
-            self.sync.sm2_since_sync0 = true;
-            self.sync.last_sm2 = Some(now);
-        }
-        let run = match self.sync.mode {
-            SyncMode::DcSync0 => {
-                let sync0 = ev & al_event::SYNC0 != 0 || external;
-                if sync0 {
-                    self.esc.read_u8(reg::DC_SYNC0_STATUS)?;
-                    self.on_sync0(app, now)?;
-                }
-                sync0
-            }
-            SyncMode::SmSync => external || got_sm2 || (rx_len == 0 && ev & al_event::sm(3) != 0),
-            SyncMode::FreeRun => {
-                external
-                    || self.sync.last_cycle.is_none_or(|t| {
-                        now.saturating_sub(t) >= self.sync.free_run_period_us() as u64
-                    })
-            }
-        };
-        if run && self.esm.state().process_data_running() {
-            self.run_cycle(app, now)?;
-        }
-        Ok(())
-    }
-
-    fn on_sync0<A: SlaveApplication>(&mut self, app: &mut A, now: u64) -> Result<(), EscError> {
-        let (event, interval) = self.sync.sup.on_sync0(now);
-        if let Some(i) = interval {
-            self.sync.diag.sync0_period(i);
-        }
-        if let Some(t) = self.sync.last_sm2 {
-            if self.sync.sm2_since_sync0 {
-                self.sync.diag.pdi_to_sync0 = now.saturating_sub(t).min(u32::MAX as u64) as u32;
-            }
-        }
-        if let SyncEvent::Error(code) = event {
-            if !self.esm.error() {
-                return self.local_error(app, code);
-            }
-        }
-        if self.esm.state() == EsmState::Op && self.plan.rx.bytes() > 0 && !self.esm.error() {
-            let got = self.sync.sm2_since_sync0;
-            if let Some(code) = self.sync.account_sm_event(got, app.sync_error_limit()) {
-                self.sync.sm2_since_sync0 = false;
-                return self.local_error(app, code);
-            }
-        }
-        self.sync.sm2_since_sync0 = false;
-        Ok(())
-    }
-
-    fn run_cycle<A: SlaveApplication>(&mut self, app: &mut A, now: u64) -> Result<(), EscError> {
-        if let Some(t) = self.sync.last_cycle {
-            self.sync.diag.pdi_period = now.saturating_sub(t).min(u32::MAX as u64) as u32;
-        }
-        self.sync.last_cycle = Some(now);
-        let start = app.now_us();
-        let state = self.esm.state();
-        let fresh = state == EsmState::Op && self.outputs_fresh;
-        if fresh {
-            pdo::unpack(&self.plan.rx, &self.rx_buf, app);
-            self.outputs_fresh = false;
-        }
-        app.cycle(&CycleInfo {
-            state,
-            outputs_fresh: fresh,
-            mode: self.sync.mode,
-            now_us: now,
-        });
-        self.write_inputs(app)?;
-        if let (Some(a), Some(b)) = (start, app.now_us()) {
-            self.sync
-                .computation(b.saturating_sub(a), app.sync_error_limit());
-        }
-        Ok(())
-    }
-
-    fn write_inputs<A: SlaveApplication>(&mut self, app: &mut A) -> Result<(), EscError> {
-        let tx_len = (self.plan.tx.bytes() as usize).min(pdo::MAX_BYTES);
-        if tx_len == 0 {
-            return Ok(());
-        }
-        pdo::pack(&self.plan.tx, app, &mut self.tx_buf[..tx_len]);
-        self.esc.write(self.active[3].start, &self.tx_buf[..tx_len])
     }
 }

@@ -52,6 +52,7 @@ use crate::al_status::AlStatusCode;
 use crate::esm::EsmState;
 use crate::od::{Access, DataType, Entry, Object, SdoAbort};
 use crate::pdo;
+use crate::registers::DcActivation;
 
 /// SM2 (outputs) sync parameters.
 pub const SM2_SYNC: u16 = 0x1C32;
@@ -113,9 +114,6 @@ impl SyncMode {
     }
 }
 
-/// DC activation bits 2:0 that mean "SYNC0 running".
-pub const DC_SYNC0_ACTIVE: u8 = 0x03;
-
 /// The 62.5 µs cycle (stretch goal), accepted only when the product allows it.
 pub const HALF_STEP_CYCLE_NS: u32 = 62_500;
 
@@ -154,11 +152,11 @@ pub fn resolve_mode(
     min_cycle_ns: u32,
 ) -> Result<SyncMode, AlStatusCode> {
     let unsupported = Err(AlStatusCode::SyncModeNotSupported);
-    let act = dc_activation & 0x07;
-    if act != 0 && act != DC_SYNC0_ACTIVE {
+    let act = DcActivation::from_raw(dc_activation);
+    if !act.off() && !act.sync0_only() {
         return Err(AlStatusCode::InvalidDcSync);
     }
-    let mode = if act == DC_SYNC0_ACTIVE {
+    let mode = if act.sync0_only() {
         SyncMode::DcSync0
     } else {
         match written_sm2 {

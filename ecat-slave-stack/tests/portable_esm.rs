@@ -27,19 +27,19 @@ struct FakeEsc {
 impl FakeEsc {
     fn new() -> Self {
         let mut m = [0u8; MEM];
-        m[reg::RAM_SIZE as usize] = 4;
-        m[reg::SM_COUNT as usize] = 4;
-        m[reg::FMMU_COUNT as usize] = 3;
-        m[reg::STATION_ALIAS as usize] = 0x34;
-        m[reg::STATION_ALIAS as usize + 1] = 0x12;
-        m[reg::WATCHDOG_STATUS_PD as usize] = 1;
+        m[reg::RAM_SIZE.addr() as usize] = 4;
+        m[reg::SM_COUNT.addr() as usize] = 4;
+        m[reg::FMMU_COUNT.addr() as usize] = 3;
+        m[reg::STATION_ALIAS.addr() as usize] = 0x34;
+        m[reg::STATION_ALIAS.addr() as usize + 1] = 0x12;
+        m[reg::WATCHDOG_STATUS_PD.addr() as usize] = 1;
         FakeEsc { m }
     }
     fn u16(&self, a: u16) -> u16 {
         u16::from_le_bytes([self.m[a as usize], self.m[a as usize + 1]])
     }
     fn event(&self) -> u32 {
-        let a = reg::AL_EVENT_REQUEST as usize;
+        let a = reg::AL_EVENT_REQUEST.addr() as usize;
         u32::from_le_bytes([self.m[a], self.m[a + 1], self.m[a + 2], self.m[a + 3]])
     }
     fn set_event(&mut self, bits: u32, on: bool) {
@@ -48,7 +48,7 @@ impl FakeEsc {
         } else {
             self.event() & !bits
         };
-        let a = reg::AL_EVENT_REQUEST as usize;
+        let a = reg::AL_EVENT_REQUEST.addr() as usize;
         self.m[a..a + 4].copy_from_slice(&v.to_le_bytes());
     }
     fn sm(&self, n: u16) -> (u16, u16) {
@@ -61,7 +61,7 @@ impl FakeEsc {
         self.m[a..a + data.len()].copy_from_slice(data);
         let end = addr + data.len() as u16;
         let touches = |x: u16| addr <= x && x < end;
-        if touches(reg::AL_CONTROL) {
+        if touches(reg::AL_CONTROL.addr()) {
             self.set_event(1, true);
         }
         for n in 0..4 {
@@ -77,14 +77,17 @@ impl FakeEsc {
         let (s2, l2) = self.sm(2);
         if l2 > 0 && touches(s2 + l2 - 1) {
             self.set_event(1 << 10, true);
-            self.m[reg::WATCHDOG_STATUS_PD as usize] = 1;
+            self.m[reg::WATCHDOG_STATUS_PD.addr() as usize] = 1;
         }
     }
     fn al_control(&mut self, v: u16) {
-        self.ecat_write(reg::AL_CONTROL, &v.to_le_bytes());
+        self.ecat_write(reg::AL_CONTROL.addr(), &v.to_le_bytes());
     }
     fn al_status(&self) -> (u16, u16) {
-        (self.u16(reg::AL_STATUS), self.u16(reg::AL_STATUS_CODE))
+        (
+            self.u16(reg::AL_STATUS.addr()),
+            self.u16(reg::AL_STATUS_CODE.addr()),
+        )
     }
     fn write_sm(&mut self, n: u8, start: u16, len: u16, control: u8, enable: bool) {
         let mut b = [0u8; 8];
@@ -117,13 +120,13 @@ impl EscAccess for FakeEsc {
         }
         buf.copy_from_slice(&self.m[a..end]);
         let touches = |x: u16| (a..end).contains(&(x as usize));
-        if touches(reg::AL_CONTROL) {
+        if touches(reg::AL_CONTROL.addr()) {
             self.set_event(1, false);
         }
         if (0..4).any(|n| touches(reg::sm_register(n) + reg::sm::ACTIVATE)) {
             self.set_event(1 << 4, false);
         }
-        if touches(reg::DC_SYNC0_STATUS) {
+        if touches(reg::DC_SYNC0_STATUS.addr()) {
             self.set_event(1 << 2, false);
         }
         let (s0, l0) = self.sm(0);
@@ -144,7 +147,7 @@ impl EscAccess for FakeEsc {
             return Err(EscError::OutOfRange);
         }
         // The PDI cannot write the master's AL control or SM configuration.
-        if a <= reg::AL_CONTROL as usize && (reg::AL_CONTROL as usize) < end {
+        if a <= reg::AL_CONTROL.addr() as usize && (reg::AL_CONTROL.addr() as usize) < end {
             return Ok(());
         }
         self.m[a..end].copy_from_slice(data);
@@ -526,8 +529,8 @@ fn to_preop(s: &mut Slave<FakeEsc>, app: &mut App) {
 fn pd_sms(esc: &mut FakeEsc, rx: u16, tx: u16) {
     esc.write_sm(2, 0x1100, rx, 0x64, rx > 0);
     esc.write_sm(3, 0x1400, tx, 0x20, tx > 0);
-    esc.ecat_write(reg::WATCHDOG_DIVIDER, &2498u16.to_le_bytes());
-    esc.ecat_write(reg::WATCHDOG_TIME_PD, &1000u16.to_le_bytes());
+    esc.ecat_write(reg::WATCHDOG_DIVIDER.addr(), &2498u16.to_le_bytes());
+    esc.ecat_write(reg::WATCHDOG_TIME_PD.addr(), &1000u16.to_le_bytes());
 }
 
 fn to_safeop(s: &mut Slave<FakeEsc>, app: &mut App) {
@@ -562,8 +565,8 @@ fn sdo_read_u32(s: &mut Slave<FakeEsc>, app: &mut App, index: u16, sub: u8) -> u
 
 /// DC SYNC0 active with `cycle_ns`.
 fn dc_on(esc: &mut FakeEsc, activation: u8, cycle_ns: u32) {
-    esc.ecat_write(reg::DC_ACTIVATION, &[activation]);
-    esc.ecat_write(reg::DC_SYNC0_CYCLE, &cycle_ns.to_le_bytes());
+    esc.ecat_write(reg::DC_ACTIVATION.addr(), &[activation]);
+    esc.ecat_write(reg::DC_SYNC0_CYCLE.addr(), &cycle_ns.to_le_bytes());
 }
 
 fn sync0(s: &mut Slave<FakeEsc>, app: &mut App, now: u64, with_outputs: bool) {
@@ -736,8 +739,8 @@ qemu_runner::tests! {
         assert_eq!(info.ram_kib, 4);
         let esc = s.esc_mut();
         assert_eq!(esc.al_status(), (0x01, 0));
-        assert_eq!(esc.u16(reg::STATION_ALIAS), 0x0042);
-        assert_ne!(esc.u16(reg::AL_EVENT_MASK) & 0x11, 0);
+        assert_eq!(esc.u16(reg::STATION_ALIAS.addr()), 0x0042);
+        assert_ne!(esc.u16(reg::AL_EVENT_MASK.addr()) & 0x11, 0);
     }
 
     fn init_to_preop_and_back() {
@@ -871,7 +874,7 @@ qemu_runner::tests! {
         assert_eq!(app.last_change(), Some((EsmState::Init, EsmState::Bootstrap)));
         assert_eq!(app.boot_hooks, (1, 0));
         // Mailbox events on, no process data.
-        let mask = s.esc_mut().u16(reg::AL_EVENT_MASK) as u32;
+        let mask = s.esc_mut().u16(reg::AL_EVENT_MASK.addr()) as u32;
         assert_ne!(mask & (1 << 8), 0);
         assert_eq!(mask & (1 << 10), 0);
         // RUN flickers (50 ms on / 50 ms off), ERR off.
@@ -1153,14 +1156,14 @@ qemu_runner::tests! {
         let (mut s, mut app) = new_slave();
         to_preop(&mut s, &mut app);
         pd_sms(s.esc_mut(), 6, 6);
-        s.esc_mut().ecat_write(reg::WATCHDOG_TIME_PD, &10u16.to_le_bytes());
+        s.esc_mut().ecat_write(reg::WATCHDOG_TIME_PD.addr(), &10u16.to_le_bytes());
         dc_on(s.esc_mut(), 3, 1_000_000);
         assert_eq!(request(&mut s, &mut app, 4, 0), (0x12, 0x001F));
         // Watchdog time exactly 2 × cycle is fine.
         let (mut s, mut app) = new_slave();
         to_preop(&mut s, &mut app);
         pd_sms(s.esc_mut(), 6, 6);
-        s.esc_mut().ecat_write(reg::WATCHDOG_TIME_PD, &20u16.to_le_bytes());
+        s.esc_mut().ecat_write(reg::WATCHDOG_TIME_PD.addr(), &20u16.to_le_bytes());
         dc_on(s.esc_mut(), 3, 1_000_000);
         assert_eq!(request(&mut s, &mut app, 4, 0), (0x04, 0));
     }
@@ -1199,7 +1202,7 @@ qemu_runner::tests! {
             let (mut s, mut app) = new_slave();
             to_preop(&mut s, &mut app);
             pd_sms(s.esc_mut(), 6, 6);
-            s.esc_mut().ecat_write(reg::WATCHDOG_TIME_PD, &0u16.to_le_bytes());
+            s.esc_mut().ecat_write(reg::WATCHDOG_TIME_PD.addr(), &0u16.to_le_bytes());
             s.esc_mut().write_sm(2, 0x1100, 6, 0x24, true);
             dc_on(s.esc_mut(), 3, cyc);
             assert_eq!(request(&mut s, &mut app, 4, 0), (0x12, 0x0035), "{cyc}");
@@ -1353,7 +1356,7 @@ qemu_runner::tests! {
         s.poll(&mut app, 100).unwrap();
         assert_eq!(app.v[0], 1);
         // The ESC reports the watchdog expired.
-        s.esc_mut().m[reg::WATCHDOG_STATUS_PD as usize] = 0;
+        s.esc_mut().m[reg::WATCHDOG_STATUS_PD.addr() as usize] = 0;
         s.poll(&mut app, 200_000).unwrap();
         assert_eq!(s.esc_mut().al_status(), (0x14, 0x001B));
         assert_eq!(app.lost, Some(AlStatusCode::SmWatchdog));
@@ -1367,7 +1370,7 @@ qemu_runner::tests! {
         to_safeop(&mut s, &mut app);
         s.esc_mut().ecat_write(0x1100, &[1, 0, 2, 0, 0, 0]);
         s.poll(&mut app, 100).unwrap();
-        s.esc_mut().m[reg::WATCHDOG_STATUS_PD as usize] = 0;
+        s.esc_mut().m[reg::WATCHDOG_STATUS_PD.addr() as usize] = 0;
         s.poll(&mut app, 200_000).unwrap();
         assert_eq!(s.esc_mut().al_status(), (0x14, 0x001B));
     }
@@ -1376,7 +1379,7 @@ qemu_runner::tests! {
         let (mut s, mut app) = new_slave();
         to_op(&mut s, &mut app);
         s.poll(&mut app, 10_000).unwrap();
-        s.esc_mut().m[reg::WATCHDOG_STATUS_PD as usize] = 0;
+        s.esc_mut().m[reg::WATCHDOG_STATUS_PD.addr() as usize] = 0;
         s.poll(&mut app, 10_500).unwrap();
         assert_eq!(s.esc_mut().al_status(), (0x08, 0));
         s.poll(&mut app, 11_000).unwrap();
@@ -1385,7 +1388,7 @@ qemu_runner::tests! {
         let (mut s, mut app) = new_slave();
         to_op(&mut s, &mut app);
         s.poll(&mut app, 10_000).unwrap();
-        s.esc_mut().m[reg::WATCHDOG_STATUS_PD as usize] = 0;
+        s.esc_mut().m[reg::WATCHDOG_STATUS_PD.addr() as usize] = 0;
         s.esc_mut().set_event(1 << 6, true);
         s.poll(&mut app, 10_001).unwrap();
         assert_eq!(s.esc_mut().al_status(), (0x14, 0x001B));
@@ -1605,11 +1608,11 @@ qemu_runner::tests! {
         assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C32, 1), 1);
         assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C33, 1), 0x22);
         let esc = s.esc_mut();
-        esc.ecat_write(reg::DC_ACTIVATION, &[0]);
-        esc.ecat_write(reg::DC_CYCLIC_UNIT_CONTROL, &[0]);
-        esc.ecat_write(reg::DC_START_TIME, &100_000_000u64.to_le_bytes());
-        esc.ecat_write(reg::DC_SYNC0_CYCLE, &1_000_000u32.to_le_bytes());
-        esc.ecat_write(reg::DC_ACTIVATION, &[3]);
+        esc.ecat_write(reg::DC_ACTIVATION.addr(), &[0]);
+        esc.ecat_write(reg::DC_CYCLIC_UNIT_CONTROL.addr(), &[0]);
+        esc.ecat_write(reg::DC_START_TIME.addr(), &100_000_000u64.to_le_bytes());
+        esc.ecat_write(reg::DC_SYNC0_CYCLE.addr(), &1_000_000u32.to_le_bytes());
+        esc.ecat_write(reg::DC_ACTIVATION.addr(), &[3]);
         // A SYNC0 event raised before (SM-synchronous mode ignores it) runs no cycle.
         esc.set_event(1 << 2, true);
         let c = app.cycles;
@@ -1621,7 +1624,7 @@ qemu_runner::tests! {
         assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C32, 0x0A), 1_000_000);
         assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C33, 1), 2);
         assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C33, 2), 1_000_000);
-        let m = reg::AL_EVENT_MASK as usize;
+        let m = reg::AL_EVENT_MASK.addr() as usize;
         let mask = u32::from_le_bytes(s.esc_mut().m[m..m + 4].try_into().unwrap());
         assert_ne!(mask & 1 << 2, 0, "SYNC0 in the event mask");
         // S→O waits for the lock, then exactly one cycle per SYNC0.
@@ -1656,7 +1659,7 @@ qemu_runner::tests! {
         assert_eq!(s.sync().mode, sync::SyncMode::DcSync0);
         assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C32, 2), 250_000);
         // The master switches SYNC0 off again: SM-synchronous, nothing refused.
-        s.esc_mut().ecat_write(reg::DC_ACTIVATION, &[0]);
+        s.esc_mut().ecat_write(reg::DC_ACTIVATION.addr(), &[0]);
         s.poll(&mut app, 7_000).unwrap();
         assert_eq!(s.sync().mode, sync::SyncMode::SmSync);
         assert_eq!(sdo_read_u32(&mut s, &mut app, 0x1C32, 1), 1);
@@ -1699,7 +1702,7 @@ qemu_runner::tests! {
                 // Like a refused P→S: back in Pre-Op with the error. Acknowledged,
                 // corrected (SYNC0 off), Safe-Op and Op are reached.
                 assert_eq!(request(&mut s, &mut app, 0x12, 2_002), (0x02, 0));
-                s.esc_mut().ecat_write(reg::DC_ACTIVATION, &[0]);
+                s.esc_mut().ecat_write(reg::DC_ACTIVATION.addr(), &[0]);
                 assert_eq!(request(&mut s, &mut app, 4, 2_003), (0x04, 0), "case {i}");
                 assert_eq!(request(&mut s, &mut app, 8, 2_004), (0x08, 0), "case {i}");
             }

@@ -73,7 +73,7 @@ pub const SCRATCH_PRAM: u16 = 0x1FFC;
 
 /// The ESC type register (0x0000) names the chip the image was built for.
 pub fn esc_identity<E: EscAccess + ?Sized>(esc: &mut E, expected_type: u8) -> Verdict {
-    match esc.read_u8(ecat_slave_stack::registers::ESC_TYPE) {
+    match esc.get(ecat_slave_stack::registers::ESC_TYPE) {
         Ok(t) if t == expected_type => Verdict::Pass,
         Ok(0x00) | Ok(0xFF) => Verdict::Fail("type register reads 0x00/0xFF: no chip on the bus"),
         Ok(_) => Verdict::Fail("type register names another ESC than this image's"),

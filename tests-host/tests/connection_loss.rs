@@ -216,7 +216,7 @@ impl Master {
     /// AL control `state`; waits (≤ `timeout_ms`) until the AL status shows it or an
     /// error. Returns (AL status, AL status code).
     fn request(&mut self, state: u16, timeout_ms: u64) -> (u16, u16) {
-        self.ecat_write(reg::AL_CONTROL, &state.to_le_bytes());
+        self.ecat_write(reg::AL_CONTROL.addr(), &state.to_le_bytes());
         for _ in 0..timeout_ms * 10 {
             self.wait(STEP);
             let (s, c) = self.al();
@@ -348,10 +348,10 @@ impl Master {
     fn go_op(&mut self, dc: bool) {
         self.process_data_sms();
         if dc {
-            self.ecat_write(reg::DC_SYNC0_CYCLE, &(MS as u32).to_le_bytes());
+            self.ecat_write(reg::DC_SYNC0_CYCLE.addr(), &(MS as u32).to_le_bytes());
             let start = self.seg.esc(0).system_time() + 2 * MS;
-            self.ecat_write(reg::DC_START_TIME, &start.to_le_bytes());
-            self.ecat_write(reg::DC_ACTIVATION, &[0x03]);
+            self.ecat_write(reg::DC_START_TIME.addr(), &start.to_le_bytes());
+            self.ecat_write(reg::DC_ACTIVATION.addr(), &[0x03]);
         }
         assert_eq!(self.request(4, 20), (0x04, 0), "Pre-Op → Safe-Op");
         self.cw = 0;
@@ -599,7 +599,7 @@ impl Master {
         match loss {
             Loss::MasterStops | Loss::Sync0Stops => {
                 if loss == Loss::Sync0Stops {
-                    self.ecat_write(reg::DC_ACTIVATION, &[0x00]);
+                    self.ecat_write(reg::DC_ACTIVATION.addr(), &[0x00]);
                 }
                 let code = if loss == Loss::MasterStops {
                     0x001B
@@ -616,7 +616,7 @@ impl Master {
             }
             Loss::SafeOp | Loss::Init => {
                 let state = if loss == Loss::SafeOp { 4u16 } else { 1 };
-                self.ecat_write(reg::AL_CONTROL, &state.to_le_bytes());
+                self.ecat_write(reg::AL_CONTROL.addr(), &state.to_le_bytes());
                 self.seg.poll_all();
                 assert_eq!(self.al(), (state, 0), "{loss:?} request");
                 if loss == Loss::Init {
@@ -1029,7 +1029,7 @@ fn plant_faults_react_without_master_frames() {
         // SM2 watchdog off (no trigger, 0x0420 = 0): the silent master leaves the ESM
         // in Op.
         m.sm2_control = 0x24;
-        m.ecat_write(reg::WATCHDOG_TIME_PD, &[0, 0]);
+        m.ecat_write(reg::WATCHDOG_TIME_PD.addr(), &[0, 0]);
         m.go_op(false);
         m.enable();
         m.wait(20 * MS);

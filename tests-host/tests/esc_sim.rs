@@ -67,7 +67,7 @@ fn set_addresses(escs: &mut [EscSim]) {
             escs,
             Command::Apwr,
             0u16.wrapping_sub(i as u16),
-            reg::STATION_ADDRESS,
+            reg::STATION_ADDRESS.addr(),
             &(0x1000 + i as u16).to_le_bytes(),
         );
         assert_eq!(d.wkc, 1);
@@ -110,7 +110,7 @@ fn auto_increment_and_configured_addressing() {
         &mut escs,
         Command::Aprd,
         0xFFFE,
-        reg::STATION_ADDRESS,
+        reg::STATION_ADDRESS.addr(),
         &[0, 0],
     );
     assert_eq!(d.wkc, 1);
@@ -121,7 +121,7 @@ fn auto_increment_and_configured_addressing() {
         &mut escs,
         Command::Aprd,
         0xFFF0,
-        reg::STATION_ADDRESS,
+        reg::STATION_ADDRESS.addr(),
         &[0xAA, 0xBB],
     );
     assert_eq!(d.wkc, 0);
@@ -131,7 +131,7 @@ fn auto_increment_and_configured_addressing() {
         &mut escs,
         Command::Fprd,
         0x1003,
-        reg::STATION_ADDRESS,
+        reg::STATION_ADDRESS.addr(),
         &[0, 0],
     );
     assert_eq!(
@@ -142,16 +142,22 @@ fn auto_increment_and_configured_addressing() {
         &mut escs,
         Command::Fprd,
         0x0101,
-        reg::STATION_ALIAS,
+        reg::STATION_ALIAS.addr(),
         &[0, 0],
     );
     assert_eq!(d.wkc, 0);
-    one(&mut escs, Command::Fpwr, 0x1001, reg::DL_CONTROL + 3, &[1]);
+    one(
+        &mut escs,
+        Command::Fpwr,
+        0x1001,
+        reg::DL_CONTROL.addr() + 3,
+        &[1],
+    );
     let d = one(
         &mut escs,
         Command::Fprd,
         0x0101,
-        reg::STATION_ALIAS,
+        reg::STATION_ALIAS.addr(),
         &[0, 0],
     );
     assert_eq!(
@@ -256,41 +262,48 @@ fn access_rights_ecat_versus_pdi() {
         &mut escs,
         Command::Apwr,
         0,
-        reg::AL_STATUS,
+        reg::AL_STATUS.addr(),
         &[0x08, 0, 0, 0, 0x1B, 0],
     );
     assert_eq!(escs[0].al_status(), 0x0001);
     assert_eq!(escs[0].al_status_code(), 0);
     one(&mut escs, Command::Apwr, 0, 0x0000, &[0xFF; 10]);
     assert_eq!(escs[0].peek(0x0004, 1), &[8]);
-    one(&mut escs, Command::Apwr, 0, reg::AL_EVENT_MASK, &[0xFF; 4]);
-    assert_eq!(escs[0].peek(reg::AL_EVENT_MASK, 4), &[0; 4]);
+    one(
+        &mut escs,
+        Command::Apwr,
+        0,
+        reg::AL_EVENT_MASK.addr(),
+        &[0xFF; 4],
+    );
+    assert_eq!(escs[0].peek(reg::AL_EVENT_MASK.addr(), 4), &[0; 4]);
     // The PDI cannot write AL control, the station address or FMMUs/SM configuration.
     let e = &mut escs[0];
-    e.write_u16(reg::AL_CONTROL, 0x0008).unwrap();
-    e.write_u16(reg::STATION_ADDRESS, 0x4444).unwrap();
+    e.write_u16(reg::AL_CONTROL.addr(), 0x0008).unwrap();
+    e.write_u16(reg::STATION_ADDRESS.addr(), 0x4444).unwrap();
     e.write(reg::fmmu_register(0), &[0xFF; 16]).unwrap();
     e.write(reg::sm_register(0), &[0xFF; 7]).unwrap();
-    assert_eq!(e.peek(reg::AL_CONTROL, 2), &[1, 0]);
-    assert_eq!(e.peek(reg::STATION_ADDRESS, 2), &[0, 0]);
+    assert_eq!(e.peek(reg::AL_CONTROL.addr(), 2), &[1, 0]);
+    assert_eq!(e.peek(reg::STATION_ADDRESS.addr(), 2), &[0, 0]);
     assert_eq!(e.peek(reg::fmmu_register(0), 16), &[0; 16]);
     assert_eq!(e.peek(reg::sm_register(0), 7), &[0; 7]);
     // The PDI writes AL status and code and the event mask.
-    e.write(reg::AL_STATUS, &[0x12, 0, 0, 0, 0x16, 0]).unwrap();
-    e.write_u32(reg::AL_EVENT_MASK, 0x0000_0001).unwrap();
+    e.write(reg::AL_STATUS.addr(), &[0x12, 0, 0, 0, 0x16, 0])
+        .unwrap();
+    e.write_u32(reg::AL_EVENT_MASK.addr(), 0x0000_0001).unwrap();
     assert_eq!((e.al_status(), e.al_status_code()), (0x12, 0x16));
     // An AL status change raises ECAT event bit 3, visible in the IRQ field once masked.
     one(
         &mut escs,
         Command::Apwr,
         0,
-        reg::ECAT_EVENT_MASK,
+        reg::ECAT_EVENT_MASK.addr(),
         &[0x08, 0],
     );
-    let d = one(&mut escs, Command::Aprd, 0, reg::AL_STATUS, &[0; 6]);
+    let d = one(&mut escs, Command::Aprd, 0, reg::AL_STATUS.addr(), &[0; 6]);
     assert_eq!(d.irq & 0x08, 0x08);
     assert_eq!(d.data, [0x12, 0, 0, 0, 0x16, 0]);
-    let d = one(&mut escs, Command::Aprd, 0, reg::AL_STATUS, &[0; 2]);
+    let d = one(&mut escs, Command::Aprd, 0, reg::AL_STATUS.addr(), &[0; 2]);
     assert_eq!(
         d.irq & 0x08,
         0,
@@ -305,36 +318,67 @@ fn access_rights_ecat_versus_pdi() {
 fn al_control_event_and_mailbox_like_handshake() {
     let mut escs = chain(1, Flavour::Lan9252);
     escs[0]
-        .write_u32(reg::AL_EVENT_MASK, reg::al_event::AL_CONTROL)
+        .write_u32(reg::AL_EVENT_MASK.addr(), reg::al_event::AL_CONTROL)
         .unwrap();
     assert!(!escs[0].pdi_irq());
     assert_eq!(
-        one(&mut escs, Command::Apwr, 0, reg::AL_CONTROL, &[0x02, 0]).wkc,
+        one(
+            &mut escs,
+            Command::Apwr,
+            0,
+            reg::AL_CONTROL.addr(),
+            &[0x02, 0]
+        )
+        .wkc,
         1
     );
     let e = &mut escs[0];
     assert_eq!(e.al_event().unwrap() & 1, 1);
     assert!(e.pdi_irq());
     // A second request before the PDI read it is not taken.
-    one(&mut escs, Command::Apwr, 0, reg::AL_CONTROL, &[0x04, 0]);
+    one(
+        &mut escs,
+        Command::Apwr,
+        0,
+        reg::AL_CONTROL.addr(),
+        &[0x04, 0],
+    );
     let e = &mut escs[0];
     assert_eq!(e.stats().al_control_writes_ignored, 1);
-    assert_eq!(pdi_u16(e, reg::AL_CONTROL), 0x0002);
+    assert_eq!(pdi_u16(e, reg::AL_CONTROL.addr()), 0x0002);
     assert_eq!(
         e.al_event().unwrap() & 1,
         0,
         "reading AL control clears AL event bit 0"
     );
     assert!(!e.pdi_irq());
-    one(&mut escs, Command::Apwr, 0, reg::AL_CONTROL, &[0x04, 0]);
-    assert_eq!(pdi_u16(&mut escs[0], reg::AL_CONTROL), 0x0004);
+    one(
+        &mut escs,
+        Command::Apwr,
+        0,
+        reg::AL_CONTROL.addr(),
+        &[0x04, 0],
+    );
+    assert_eq!(pdi_u16(&mut escs[0], reg::AL_CONTROL.addr()), 0x0004);
     // Device emulation (0x0141 bit 0) mirrors AL control into AL status.
     let mut s = sii_image(0);
     s[1] = 0x01;
     s[14] = sii_crc8(&s[0..14]);
     let mut emu = vec![EscSim::new(Flavour::Et1100, s)];
-    one(&mut emu, Command::Apwr, 0, reg::AL_CONTROL, &[0x02, 0]);
-    one(&mut emu, Command::Apwr, 0, reg::AL_CONTROL, &[0x04, 0]);
+    one(
+        &mut emu,
+        Command::Apwr,
+        0,
+        reg::AL_CONTROL.addr(),
+        &[0x02, 0],
+    );
+    one(
+        &mut emu,
+        Command::Apwr,
+        0,
+        reg::AL_CONTROL.addr(),
+        &[0x04, 0],
+    );
     assert_eq!(emu[0].al_status(), 0x0004);
 }
 
@@ -392,7 +436,7 @@ fn mailbox_sync_managers() {
     configure_sm(&mut escs, 0, 1, 0x1080, 128, 0x22);
     let e = &mut escs[0];
     e.write_u32(
-        reg::AL_EVENT_MASK,
+        reg::AL_EVENT_MASK.addr(),
         reg::al_event::sm(0) | reg::al_event::sm(1),
     )
     .unwrap();
@@ -496,7 +540,7 @@ fn three_buffer_consumer_gets_latest_complete_buffer() {
     configure_sm(&mut escs, 0, 2, 0x1100, 4, 0x64);
     configure_sm(&mut escs, 0, 3, 0x1400, 4, 0x20);
     escs[0]
-        .write_u32(reg::AL_EVENT_MASK, reg::al_event::sm(2))
+        .write_u32(reg::AL_EVENT_MASK.addr(), reg::al_event::sm(2))
         .unwrap();
     // Master writes A then B: the PDI gets B.
     one(&mut escs, Command::Apwr, 0, 0x1100, &[0xA; 4]);
@@ -700,17 +744,29 @@ fn sii_read(escs: &mut [EscSim], word: u16) -> (Vec<u8>, usize) {
     cmd[1] = 0x01;
     cmd[2..4].copy_from_slice(&word.to_le_bytes());
     assert_eq!(
-        one(escs, Command::Fpwr, 0x1000, reg::SII_CONTROL, &cmd).wkc,
+        one(escs, Command::Fpwr, 0x1000, reg::SII_CONTROL.addr(), &cmd).wkc,
         1
     );
     let mut polls = 0;
     loop {
         polls += 1;
-        let d = one(escs, Command::Fprd, 0x1000, reg::SII_CONTROL, &[0, 0]);
+        let d = one(
+            escs,
+            Command::Fprd,
+            0x1000,
+            reg::SII_CONTROL.addr(),
+            &[0, 0],
+        );
         let st = u16::from_le_bytes([d.data[0], d.data[1]]);
         if st & 0x8000 == 0 {
             let n = if st & 0x40 != 0 { 8 } else { 4 };
-            let d = one(escs, Command::Fprd, 0x1000, reg::SII_DATA, &vec![0; n]);
+            let d = one(
+                escs,
+                Command::Fprd,
+                0x1000,
+                reg::SII_DATA.addr(),
+                &vec![0; n],
+            );
             return (d.data, polls);
         }
         assert!(polls < 10);
@@ -724,8 +780,20 @@ fn sii_eeprom_interface() {
         set_addresses(&mut escs);
         let img = escs[0].sii().to_vec();
         // Ownership dance as ethercrab does it.
-        one(&mut escs, Command::Fpwr, 0x1000, reg::SII_CONFIG, &[2]);
-        one(&mut escs, Command::Fpwr, 0x1000, reg::SII_CONFIG, &[0]);
+        one(
+            &mut escs,
+            Command::Fpwr,
+            0x1000,
+            reg::SII_CONFIG.addr(),
+            &[2],
+        );
+        one(
+            &mut escs,
+            Command::Fpwr,
+            0x1000,
+            reg::SII_CONFIG.addr(),
+            &[0],
+        );
         for w in [0u16, 4, 8, 0x40, 0x7F] {
             let (data, polls) = sii_read(&mut escs, w);
             assert_eq!(polls, 2, "busy seen once");
@@ -742,69 +810,105 @@ fn sii_eeprom_interface() {
             &mut escs,
             Command::Fpwr,
             0x1000,
-            reg::SII_DATA,
+            reg::SII_DATA.addr(),
             &[0x34, 0x12],
         );
         one(
             &mut escs,
             Command::Fpwr,
             0x1000,
-            reg::SII_CONTROL,
+            reg::SII_CONTROL.addr(),
             &[0x00, 0x02, 0x50, 0, 0, 0],
         );
-        let st = one(&mut escs, Command::Fprd, 0x1000, reg::SII_CONTROL, &[0, 0]);
+        let st = one(
+            &mut escs,
+            Command::Fprd,
+            0x1000,
+            reg::SII_CONTROL.addr(),
+            &[0, 0],
+        );
         let st = u16::from_le_bytes([st.data[0], st.data[1]]);
         assert_ne!(st & 0x4000, 0);
         one(
             &mut escs,
             Command::Fpwr,
             0x1000,
-            reg::SII_CONTROL,
+            reg::SII_CONTROL.addr(),
             &[0x01, 0x02, 0x50, 0, 0, 0],
         );
         assert_eq!(&escs[0].sii()[0xA0..0xA2], &[0x34, 0x12]);
         // A command while busy is ignored: poll first.
-        one(&mut escs, Command::Fprd, 0x1000, reg::SII_CONTROL, &[0, 0]);
+        one(
+            &mut escs,
+            Command::Fprd,
+            0x1000,
+            reg::SII_CONTROL.addr(),
+            &[0, 0],
+        );
         // Unknown command: error bit 13.
         one(
             &mut escs,
             Command::Fpwr,
             0x1000,
-            reg::SII_CONTROL,
+            reg::SII_CONTROL.addr(),
             &[0x00, 0x07],
         );
-        one(&mut escs, Command::Fprd, 0x1000, reg::SII_CONTROL, &[0, 0]);
-        let st = one(&mut escs, Command::Fprd, 0x1000, reg::SII_CONTROL, &[0, 0]);
+        one(
+            &mut escs,
+            Command::Fprd,
+            0x1000,
+            reg::SII_CONTROL.addr(),
+            &[0, 0],
+        );
+        let st = one(
+            &mut escs,
+            Command::Fprd,
+            0x1000,
+            reg::SII_CONTROL.addr(),
+            &[0, 0],
+        );
         assert_ne!(u16::from_le_bytes([st.data[0], st.data[1]]) & 0x2000, 0);
         // Offered to the PDI but not taken: the master keeps access.
-        one(&mut escs, Command::Fpwr, 0x1000, reg::SII_CONFIG, &[1]);
+        one(
+            &mut escs,
+            Command::Fpwr,
+            0x1000,
+            reg::SII_CONFIG.addr(),
+            &[1],
+        );
         let before = escs[0].stats().sii_commands;
         one(
             &mut escs,
             Command::Fpwr,
             0x1000,
-            reg::SII_CONTROL,
+            reg::SII_CONTROL.addr(),
             &[0x00, 0x01, 0, 0, 0, 0],
         );
         assert_eq!(escs[0].stats().sii_commands, before + 1);
-        one(&mut escs, Command::Fprd, 0x1000, reg::SII_CONTROL, &[0, 0]);
+        one(
+            &mut escs,
+            Command::Fprd,
+            0x1000,
+            reg::SII_CONTROL.addr(),
+            &[0, 0],
+        );
         // Taken by the PDI (0x0501 bit 0): the master's commands are ignored.
-        escs[0].write_u8(reg::SII_PDI_ACCESS, 1).unwrap();
+        escs[0].write_u8(reg::SII_PDI_ACCESS.addr(), 1).unwrap();
         let before = escs[0].stats().sii_commands;
         one(
             &mut escs,
             Command::Fpwr,
             0x1000,
-            reg::SII_CONTROL,
+            reg::SII_CONTROL.addr(),
             &[0x00, 0x01, 0, 0, 0, 0],
         );
         assert_eq!(escs[0].stats().sii_commands, before);
         // The PDI can read it now.
         let e = &mut escs[0];
-        e.write(reg::SII_CONTROL, &[0x00, 0x01, 0x08, 0, 0, 0])
+        e.write(reg::SII_CONTROL.addr(), &[0x00, 0x01, 0x08, 0, 0, 0])
             .unwrap();
-        let _ = e.read_u16(reg::SII_CONTROL).unwrap();
-        assert_eq!(e.read_u32(reg::SII_DATA).unwrap(), 0x0000_0E5C);
+        let _ = e.read_u16(reg::SII_CONTROL.addr()).unwrap();
+        assert_eq!(e.read_u32(reg::SII_DATA.addr()).unwrap(), 0x0000_0E5C);
     }
 }
 
@@ -814,24 +918,30 @@ fn sii_checksum_error_and_short_image() {
     bad[14] ^= 1;
     for img in [bad, vec![1, 2, 3], Vec::new()] {
         let mut escs = vec![EscSim::new(Flavour::Et1100, img)];
-        let dl = one(&mut escs, Command::Aprd, 0, reg::DL_STATUS, &[0, 0]);
+        let dl = one(&mut escs, Command::Aprd, 0, reg::DL_STATUS.addr(), &[0, 0]);
         assert_eq!(
             dl.data[0] & 1,
             0,
             "PDI not operational without a valid EEPROM"
         );
-        let st = one(&mut escs, Command::Aprd, 0, reg::SII_CONTROL, &[0, 0]);
+        let st = one(
+            &mut escs,
+            Command::Aprd,
+            0,
+            reg::SII_CONTROL.addr(),
+            &[0, 0],
+        );
         assert_ne!(st.data[1] & 0x10, 0, "not loaded");
-        assert_eq!(escs[0].peek(reg::STATION_ALIAS, 2), &[0, 0]);
+        assert_eq!(escs[0].peek(reg::STATION_ALIAS.addr(), 2), &[0, 0]);
         // Reads still work and never panic.
         one(
             &mut escs,
             Command::Apwr,
             0,
-            reg::SII_CONTROL,
+            reg::SII_CONTROL.addr(),
             &[0, 1, 0xFF, 0xFF, 0xFF, 0xFF],
         );
-        let d = one(&mut escs, Command::Aprd, 0, reg::SII_DATA, &[0; 8]);
+        let d = one(&mut escs, Command::Aprd, 0, reg::SII_DATA.addr(), &[0; 8]);
         assert_eq!(d.data, vec![0xFF; 8]);
     }
 }
@@ -858,9 +968,12 @@ fn process_data_watchdog_in_simulated_time() {
     assert!(!escs[0].pd_watchdog_ok());
     assert_eq!(escs[0].stats().pd_watchdog_expiries, 1);
     assert_ne!(escs[0].al_event().unwrap() & reg::al_event::WATCHDOG, 0);
-    assert_eq!(escs[0].read_u16(reg::WATCHDOG_STATUS_PD).unwrap() & 1, 0);
+    assert_eq!(
+        escs[0].read_u16(reg::WATCHDOG_STATUS_PD.addr()).unwrap() & 1,
+        0
+    );
     assert_eq!(escs[0].al_event().unwrap() & reg::al_event::WATCHDOG, 0);
-    assert_eq!(escs[0].peek(reg::WATCHDOG_COUNTER_PD, 1), &[1]);
+    assert_eq!(escs[0].peek(reg::WATCHDOG_COUNTER_PD.addr(), 1), &[1]);
     run(
         &mut escs,
         FrameBuilder::new().logical(Command::Lwr, 0, &[1, 2]),
@@ -871,21 +984,27 @@ fn process_data_watchdog_in_simulated_time() {
         &mut escs,
         Command::Apwr,
         0,
-        reg::WATCHDOG_DIVIDER,
+        reg::WATCHDOG_DIVIDER.addr(),
         &98u16.to_le_bytes(),
     );
     one(
         &mut escs,
         Command::Apwr,
         0,
-        reg::WATCHDOG_TIME_PD,
+        reg::WATCHDOG_TIME_PD.addr(),
         &250u16.to_le_bytes(),
     );
     let t = escs[0].now_ns();
     escs[0].advance_to(t + 1_000_001);
     assert!(!escs[0].pd_watchdog_ok());
     // 0 disables it.
-    one(&mut escs, Command::Apwr, 0, reg::WATCHDOG_TIME_PD, &[0, 0]);
+    one(
+        &mut escs,
+        Command::Apwr,
+        0,
+        reg::WATCHDOG_TIME_PD.addr(),
+        &[0, 0],
+    );
     run(
         &mut escs,
         FrameBuilder::new().logical(Command::Lwr, 0, &[1, 2]),
@@ -913,7 +1032,7 @@ fn distributed_clocks_latching_offset_and_sync0() {
             &mut escs,
             Command::Bwr,
             0,
-            reg::DC_RECEIVE_TIME_PORT0,
+            reg::DC_RECEIVE_TIME_PORT0.addr(),
             &[0; 4]
         )
         .wkc,
@@ -925,7 +1044,7 @@ fn distributed_clocks_latching_offset_and_sync0() {
             &mut escs,
             Command::Fprd,
             0x1000 + i,
-            reg::DC_RECEIVE_TIME_PORT0,
+            reg::DC_RECEIVE_TIME_PORT0.addr(),
             &[0; 16],
         );
         let p0 = u32::from_le_bytes(d.data[0..4].try_into().unwrap());
@@ -942,7 +1061,7 @@ fn distributed_clocks_latching_offset_and_sync0() {
             &mut escs,
             Command::Fprd,
             0x1000 + i,
-            reg::DC_RECEIVE_TIME_PU,
+            reg::DC_RECEIVE_TIME_PU.addr(),
             &[0; 8],
         );
         let pu = u64::from_le_bytes(d.data[..8].try_into().unwrap());
@@ -957,14 +1076,14 @@ fn distributed_clocks_latching_offset_and_sync0() {
             &mut escs,
             Command::Fpwr,
             0x1000 + i,
-            reg::DC_SYSTEM_TIME_OFFSET,
+            reg::DC_SYSTEM_TIME_OFFSET.addr(),
             &off.to_le_bytes(),
         );
         one(
             &mut escs,
             Command::Fpwr,
             0x1000 + i,
-            reg::DC_SYSTEM_TIME_DELAY,
+            reg::DC_SYSTEM_TIME_DELAY.addr(),
             &((HOP * i as u64) as u32).to_le_bytes(),
         );
     }
@@ -973,7 +1092,7 @@ fn distributed_clocks_latching_offset_and_sync0() {
             &mut escs,
             Command::Frmw,
             0x1000,
-            reg::DC_SYSTEM_TIME,
+            reg::DC_SYSTEM_TIME.addr(),
             &[0; 8],
         );
         assert_eq!(d.wkc, 3);
@@ -989,33 +1108,33 @@ fn distributed_clocks_latching_offset_and_sync0() {
             &mut escs,
             Command::Fpwr,
             0x1000 + i,
-            reg::DC_SYNC0_CYCLE,
+            reg::DC_SYNC0_CYCLE.addr(),
             &250_000u32.to_le_bytes(),
         );
         one(
             &mut escs,
             Command::Fpwr,
             0x1000 + i,
-            reg::DC_START_TIME,
+            reg::DC_START_TIME.addr(),
             &start.to_le_bytes(),
         );
         one(
             &mut escs,
             Command::Fpwr,
             0x1000 + i,
-            reg::DC_CYCLIC_UNIT_CONTROL,
+            reg::DC_CYCLIC_UNIT_CONTROL.addr(),
             &[0x00, 0x03],
         );
     }
     escs[1]
-        .write_u32(reg::AL_EVENT_MASK, reg::al_event::SYNC0)
+        .write_u32(reg::AL_EVENT_MASK.addr(), reg::al_event::SYNC0)
         .unwrap();
     for e in escs.iter_mut() {
         e.advance_to(t + 999_000);
     }
     assert_eq!(escs[1].stats().sync0_pulses, 0);
     assert_eq!(
-        escs[1].peek(reg::DC_ACTIVATION_STATUS, 1)[0] & 1,
+        escs[1].peek(reg::DC_ACTIVATION_STATUS.addr(), 1)[0] & 1,
         1,
         "first SYNC0 pending"
     );
@@ -1024,7 +1143,7 @@ fn distributed_clocks_latching_offset_and_sync0() {
     }
     assert_eq!(escs[1].stats().sync0_pulses, 1);
     assert!(escs[1].pdi_irq());
-    assert_eq!(escs[1].read_u8(reg::DC_SYNC0_STATUS).unwrap(), 1);
+    assert_eq!(escs[1].read_u8(reg::DC_SYNC0_STATUS.addr()).unwrap(), 1);
     assert!(!escs[1].pdi_irq(), "reading 0x098E clears AL event bit 2");
     for e in escs.iter_mut() {
         e.advance_to(t + 2_000_000);
@@ -1034,7 +1153,7 @@ fn distributed_clocks_latching_offset_and_sync0() {
         &mut escs,
         Command::Fprd,
         0x1001,
-        reg::DC_START_TIME,
+        reg::DC_START_TIME.addr(),
         &[0; 8],
     );
     assert_eq!(
@@ -1043,19 +1162,34 @@ fn distributed_clocks_latching_offset_and_sync0() {
         "0x0990 reads the next SYNC0"
     );
     // A start time in the past never fires (the chip would wait for a wrap-around).
-    one(&mut escs, Command::Fpwr, 0x1000, reg::DC_ACTIVATION, &[0]);
     one(
         &mut escs,
         Command::Fpwr,
         0x1000,
-        reg::DC_START_TIME,
+        reg::DC_ACTIVATION.addr(),
+        &[0],
+    );
+    one(
+        &mut escs,
+        Command::Fpwr,
+        0x1000,
+        reg::DC_START_TIME.addr(),
         &1u64.to_le_bytes(),
     );
-    one(&mut escs, Command::Fpwr, 0x1000, reg::DC_ACTIVATION, &[3]);
+    one(
+        &mut escs,
+        Command::Fpwr,
+        0x1000,
+        reg::DC_ACTIVATION.addr(),
+        &[3],
+    );
     let before = escs[0].stats().sync0_pulses;
     escs[0].advance_to(t + 10_000_000);
     assert_eq!(escs[0].stats().sync0_pulses, before);
-    assert_eq!(escs[0].peek(reg::DC_ACTIVATION_STATUS, 1)[0] & 0x04, 0x04);
+    assert_eq!(
+        escs[0].peek(reg::DC_ACTIVATION_STATUS.addr(), 1)[0] & 0x04,
+        0x04
+    );
 }
 
 #[test]
@@ -1208,7 +1342,7 @@ fn fuzz_random_frames_never_panic() {
 fn pdi_watchdog_and_dl_status() {
     let mut escs = chain(2, Flavour::Et1100);
     let dl = |escs: &mut Vec<EscSim>, pos: u16| {
-        let d = one(escs, Command::Aprd, pos, reg::DL_STATUS, &[0, 0]);
+        let d = one(escs, Command::Aprd, pos, reg::DL_STATUS.addr(), &[0, 0]);
         u16::from_le_bytes([d.data[0], d.data[1]])
     };
     let first = dl(&mut escs, 0);
@@ -1223,7 +1357,7 @@ fn pdi_watchdog_and_dl_status() {
     assert_eq!(dl(&mut escs, 0) & 0x0002, 0x0002);
     escs[0].advance_to(100_000_001);
     assert_eq!(dl(&mut escs, 0) & 0x0002, 0);
-    assert_eq!(escs[0].peek(reg::WATCHDOG_COUNTER_PDI, 1), &[1]);
+    assert_eq!(escs[0].peek(reg::WATCHDOG_COUNTER_PDI.addr(), 1), &[1]);
     assert_eq!(escs[0].stats().pdi_watchdog_expiries, 1);
     escs[0].read_u8(0x0000).unwrap();
     assert_eq!(
@@ -1247,7 +1381,7 @@ fn circulating_frames_are_marked_then_destroyed() {
     // Cable to the master broken at the second ESC: it marks the frame.
     escs[1].set_port0_loop_closed(true);
     assert_ne!(
-        escs[1].peek(reg::DL_STATUS + 1, 1)[0] & 0x01,
+        escs[1].peek(reg::DL_STATUS.addr() + 1, 1)[0] & 0x01,
         0,
         "port 0 loop closed in DL status"
     );
@@ -1267,7 +1401,11 @@ fn circulating_frames_are_marked_then_destroyed() {
         FrameOutcome::Destroyed { at: 1 }
     );
     escs[1].set_port0_loop_closed(false);
-    assert_eq!(escs[1].peek(reg::DL_STATUS, 1)[0] & 0x10, 0x10, "link back");
+    assert_eq!(
+        escs[1].peek(reg::DL_STATUS.addr(), 1)[0] & 0x10,
+        0x10,
+        "link back"
+    );
 }
 
 #[test]
@@ -1299,26 +1437,26 @@ fn vlan_tagged_frames_are_processed() {
 #[test]
 fn sii_forced_back_to_the_master() {
     let mut escs = chain(1, Flavour::Et1100);
-    one(&mut escs, Command::Apwr, 0, reg::SII_CONFIG, &[1]);
-    escs[0].write_u8(reg::SII_PDI_ACCESS, 1).unwrap();
+    one(&mut escs, Command::Apwr, 0, reg::SII_CONFIG.addr(), &[1]);
+    escs[0].write_u8(reg::SII_PDI_ACCESS.addr(), 1).unwrap();
     let before = escs[0].stats().sii_commands;
     one(
         &mut escs,
         Command::Apwr,
         0,
-        reg::SII_CONTROL,
+        reg::SII_CONTROL.addr(),
         &[0x00, 0x01, 0, 0, 0, 0],
     );
     assert_eq!(escs[0].stats().sii_commands, before, "PDI holds the EEPROM");
     // Bit 1 forces master access: resets 0x0501 bit 0.
-    one(&mut escs, Command::Apwr, 0, reg::SII_CONFIG, &[2]);
-    assert_eq!(escs[0].peek(reg::SII_PDI_ACCESS, 1), &[0]);
-    one(&mut escs, Command::Apwr, 0, reg::SII_CONFIG, &[0]);
+    one(&mut escs, Command::Apwr, 0, reg::SII_CONFIG.addr(), &[2]);
+    assert_eq!(escs[0].peek(reg::SII_PDI_ACCESS.addr(), 1), &[0]);
+    one(&mut escs, Command::Apwr, 0, reg::SII_CONFIG.addr(), &[0]);
     one(
         &mut escs,
         Command::Apwr,
         0,
-        reg::SII_CONTROL,
+        reg::SII_CONTROL.addr(),
         &[0x00, 0x01, 0, 0, 0, 0],
     );
     assert_eq!(escs[0].stats().sii_commands, before + 1);

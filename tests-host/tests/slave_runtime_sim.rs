@@ -152,11 +152,11 @@ impl Bench {
         self.slave.poll(&mut self.app, self.now_us).unwrap();
     }
     fn request(&mut self, state: u16) -> (u16, u16) {
-        self.ecat_write(reg::AL_CONTROL, &state.to_le_bytes());
+        self.ecat_write(reg::AL_CONTROL.addr(), &state.to_le_bytes());
         self.step(10);
         (
-            self.ecat_u16(reg::AL_STATUS),
-            self.ecat_u16(reg::AL_STATUS_CODE),
+            self.ecat_u16(reg::AL_STATUS.addr()),
+            self.ecat_u16(reg::AL_STATUS_CODE.addr()),
         )
     }
     fn mailboxes(&self) {
@@ -199,7 +199,7 @@ impl Bench {
 fn bring_up_sdo_and_cyclic_exchange_on_both_chips() {
     for flavour in [Flavour::Lan9252, Flavour::Et1100] {
         let mut b = Bench::new(flavour);
-        assert_eq!(b.ecat_u16(reg::AL_STATUS), 0x01);
+        assert_eq!(b.ecat_u16(reg::AL_STATUS.addr()), 0x01);
         b.mailboxes();
         assert_eq!(b.request(2), (0x02, 0));
         // SDO upload 0x1A00:02 (expedited).
@@ -261,13 +261,13 @@ fn stopped_master_trips_the_process_data_watchdog() {
         b.ecat_write(0x1100, &[k, 0, 0, 0, 0, 0]);
         b.step(1000);
     }
-    assert_eq!(b.ecat_u16(reg::AL_STATUS), 0x08);
+    assert_eq!(b.ecat_u16(reg::AL_STATUS.addr()), 0x08);
     // No more outputs: the default watchdog (100 ms) expires.
     for _ in 0..150 {
         b.step(1000);
     }
-    assert_eq!(b.ecat_u16(reg::AL_STATUS), 0x14);
-    assert_eq!(b.ecat_u16(reg::AL_STATUS_CODE), 0x001B);
+    assert_eq!(b.ecat_u16(reg::AL_STATUS.addr()), 0x14);
+    assert_eq!(b.ecat_u16(reg::AL_STATUS_CODE.addr()), 0x001B);
     assert_eq!(b.app.lost, Some(AlStatusCode::SmWatchdog));
 }
 
@@ -279,32 +279,32 @@ fn dc_sync0_locks_and_missing_sync0_is_reported() {
         b.request(2);
         // Watchdog off (SM2 without trigger) for this test.
         b.process_data_sms_with(0x24);
-        b.ecat_write(reg::WATCHDOG_TIME_PD, &[0, 0]);
+        b.ecat_write(reg::WATCHDOG_TIME_PD.addr(), &[0, 0]);
         b.ecat_write(
-            reg::DC_SYNC0_CYCLE,
+            reg::DC_SYNC0_CYCLE.addr(),
             &((cycle_us * 1000) as u32).to_le_bytes(),
         );
         let start = (b.now_us + 2000) * 1000;
-        b.ecat_write(reg::DC_START_TIME, &start.to_le_bytes());
-        b.ecat_write(reg::DC_ACTIVATION, &[0x03]);
+        b.ecat_write(reg::DC_START_TIME.addr(), &start.to_le_bytes());
+        b.ecat_write(reg::DC_ACTIVATION.addr(), &[0x03]);
         assert_eq!(b.request(4), (0x04, 0));
-        b.ecat_write(reg::AL_CONTROL, &8u16.to_le_bytes());
+        b.ecat_write(reg::AL_CONTROL.addr(), &8u16.to_le_bytes());
         // Poll once per SYNC0 period; SYNC0 starts 2 ms from now.
         for _ in 0..(2000 / cycle_us + 12) {
             b.ecat_write(0x1100, &[1, 0, 0, 0, 0, 0]);
             b.step(cycle_us);
         }
-        assert_eq!(b.ecat_u16(reg::AL_STATUS), 0x08, "{cycle_us} µs");
+        assert_eq!(b.ecat_u16(reg::AL_STATUS.addr()), 0x08, "{cycle_us} µs");
         let mut buf = [0u8; 4];
         let mut d = b.slave.dictionary(&mut b.app);
         d.read(0x2200, 2, &mut buf).unwrap();
         assert_eq!(u32::from_le_bytes(buf) as u64, cycle_us);
         // SYNC0 stops.
-        b.ecat_write(reg::DC_ACTIVATION, &[0x00]);
+        b.ecat_write(reg::DC_ACTIVATION.addr(), &[0x00]);
         for _ in 0..20 {
             b.step(cycle_us);
         }
-        assert_eq!(b.ecat_u16(reg::AL_STATUS), 0x14);
-        assert_eq!(b.ecat_u16(reg::AL_STATUS_CODE), 0x002C);
+        assert_eq!(b.ecat_u16(reg::AL_STATUS.addr()), 0x14);
+        assert_eq!(b.ecat_u16(reg::AL_STATUS_CODE.addr()), 0x002C);
     }
 }

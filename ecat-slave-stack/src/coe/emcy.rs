@@ -158,6 +158,30 @@ mod tests {
     }
 
     #[test]
+    fn emergency_round_trips() {
+        let bytes = [0x00, 0x10, 0x10, 0x23, 0x81, 1, 2, 3, 4, 5];
+        let e = Emergency::parse(&bytes).unwrap();
+        assert_eq!(
+            e,
+            Emergency {
+                error_code: 0x2310,
+                error_register: 0x81,
+                data: [1, 2, 3, 4, 5]
+            }
+        );
+        let mut out = [0xEEu8; 12];
+        assert_eq!(e.emit(&mut out), PAYLOAD_LEN);
+        assert_eq!(out[..PAYLOAD_LEN], bytes);
+        assert_eq!(out[PAYLOAD_LEN..], [0xEE, 0xEE]);
+        assert_eq!(e.emit(&mut out[..PAYLOAD_LEN - 1]), 0);
+        assert_eq!(Emergency::parse(&bytes[..1]), None);
+        assert_eq!(
+            Emergency::parse(&[0x00, 0x30, 0, 0, 0, 0, 0, 0, 0, 0]),
+            None
+        );
+    }
+
+    #[test]
     fn full_queue_counts_overruns_and_keeps_oldest() {
         let mut q = EmergencyQueue::new();
         for i in 0..(QUEUE_LEN as u16 + 3) {

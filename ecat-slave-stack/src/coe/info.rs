@@ -126,25 +126,195 @@ impl<T: AsRef<[u8]>> Frame<T> {
     }
 }
 
-/// Writes the CoE + information header into `out[..6]`.
-/// (A shorter `out` is left as it is.)
-fn emit_prefix(out: &mut [u8], op: u8, incomplete: bool, fragments_left: u16) {
-    let [h0, h1] = Header::of(Service::SdoInformation).to_u16().to_le_bytes();
-    let op = op | if incomplete { opcode::INCOMPLETE } else { 0 };
-    let [f0, f1] = fragments_left.to_le_bytes();
-    if let Some(b) = out.get_mut(..PREFIX_LEN) {
-        b.copy_from_slice(&[h0, h1, op, 0, f0, f1]);
+impl<T: AsRef<[u8]>> Frame<T> {
+    /// Wraps a buffer after [`Frame::check_len`].
+    pub fn new_checked(buffer: T) -> Result<Self, WireError> {
+        let f = Self::new(buffer);
+        f.check_len()?;
+        Ok(f)
+    }
+    /// Checks that the 4-byte header fits.
+    pub fn check_len(&self) -> Result<(), WireError> {
+        if self.has_header() {
+            Ok(())
+        } else {
+            Err(WireError::Truncated)
+        }
     }
 }
 
-/// Writes an SDO information error (10 bytes) into `out`; 0 if `out` is too short.
-pub fn emit_error(out: &mut [u8], abort: SdoAbort) -> usize {
-    let Some(b) = out.get_mut(..PREFIX_LEN + 4) else {
-        return 0;
-    };
-    emit_prefix(b, opcode::ERROR, false, 0);
-    b[6..10].copy_from_slice(&abort.code().to_le_bytes());
-    PREFIX_LEN + 4
+impl<T: AsRef<[u8]> + AsMut<[u8]>> Frame<T> {
+    /// Sets opcode, incomplete flag and fragments left (a buffer shorter than the header
+    /// is left as it is).
+    pub fn set_header(&mut self, op: u8, incomplete: bool, fragments_left: u16) {
+        let op = (op & 0x7F) | if incomplete { opcode::INCOMPLETE } else { 0 };
+        let [f0, f1] = fragments_left.to_le_bytes();
+        if let Some(b) = self.buffer.as_mut().get_mut(..INFO_HEADER_LEN) {
+            b.copy_from_slice(&[op, 0, f0, f1]);
+        }
+    }
+    /// Service data, writable (empty for a buffer shorter than the header).
+    pub fn data_mut(&mut self) -> &mut [u8] {
+        self.buffer
+            .as_mut()
+            .get_mut(field::DATA)
+            .unwrap_or_default()
+    }
+}
+
+/// Why a buffer could not be read as an SDO information frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WireError {
+    /// Shorter than the header, or than the service data its opcode carries.
+    Truncated,
+}
+
+/// An SDO information request, or the error response (the frames of a whole message;
+/// responses other than the error are written fragment by fragment by [`InfoJob`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Repr {
+    /// Get OD list request (0x01).
+    OdList {
+        /// List type (0 = counts, 1 = all, 2 = RxPDO, 3 = TxPDO, 4 = backup, 5 = settings).
+        list: u16,
+    },
+    /// Get object description request (0x03).
+    ObjectDescription {
+        /// Index.
+        index: u16,
+    },
+    /// Get entry description request (0x05).
+    EntryDescription {
+        /// Index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// Value-info request ([`value_info`] flags).
+        value_info: u8,
+    },
+    /// SDO information error (0x07).
+    Error {
+        /// Abort code.
+        code: u32,
+    },
+    /// Any other opcode (its service data is not read).
+    Unknown {
+        /// Opcode without the incomplete flag.
+        opcode: u8,
+    },
+}
+
+impl Repr {
+    /// Parses a frame (header fragments-left and incomplete flag not checked).
+    pub fn parse<T: AsRef<[u8]>>(frame: &Frame<T>) -> Result<Self, WireError> {
+        frame.check_len()?;
+        let d = frame.data();
+        let need = |n: usize| {
+            if d.len() < n {
+                Err(WireError::Truncated)
+            } else {
+                Ok(())
+            }
+        };
+        let u16_at = |i: usize| u16::from_le_bytes([d[i], d[i + 1]]);
+        Ok(match frame.opcode() {
+            opcode::OD_LIST_REQUEST => {
+                need(2)?;
+                Repr::OdList { list: u16_at(0) }
+            }
+            opcode::OBJECT_DESCRIPTION_REQUEST => {
+                need(2)?;
+                Repr::ObjectDescription { index: u16_at(0) }
+            }
+            opcode::ENTRY_DESCRIPTION_REQUEST => {
+                need(4)?;
+                Repr::EntryDescription {
+                    index: u16_at(0),
+                    sub: d[2],
+                    value_info: d[3],
+                }
+            }
+            opcode::ERROR => {
+                need(4)?;
+                Repr::Error {
+                    code: u32::from_le_bytes([d[0], d[1], d[2], d[3]]),
+                }
+            }
+            op => Repr::Unknown { opcode: op },
+        })
+    }
+
+    /// Length of the emitted frame after the CoE header.
+    pub const fn buffer_len(&self) -> usize {
+        INFO_HEADER_LEN
+            + match self {
+                Repr::OdList { .. } | Repr::ObjectDescription { .. } => 2,
+                Repr::EntryDescription { .. } | Repr::Error { .. } => 4,
+                Repr::Unknown { .. } => 0,
+            }
+    }
+
+    /// Writes the frame (after the CoE header, as one complete fragment) into the start
+    /// of `frame`'s buffer; returns its length, or 0 (buffer untouched) when the buffer
+    /// is shorter than [`Repr::buffer_len`].
+    pub fn emit<T: AsRef<[u8]> + AsMut<[u8]>>(&self, frame: &mut Frame<T>) -> usize {
+        let n = self.buffer_len();
+        if frame.buffer.as_ref().len() < n {
+            return 0;
+        }
+        let (op, data): (u8, [u8; 4]) = match *self {
+            Repr::OdList { list } => {
+                let [a, b] = list.to_le_bytes();
+                (opcode::OD_LIST_REQUEST, [a, b, 0, 0])
+            }
+            Repr::ObjectDescription { index } => {
+                let [a, b] = index.to_le_bytes();
+                (opcode::OBJECT_DESCRIPTION_REQUEST, [a, b, 0, 0])
+            }
+            Repr::EntryDescription {
+                index,
+                sub,
+                value_info,
+            } => {
+                let [a, b] = index.to_le_bytes();
+                (opcode::ENTRY_DESCRIPTION_REQUEST, [a, b, sub, value_info])
+            }
+            Repr::Error { code } => (opcode::ERROR, code.to_le_bytes()),
+            Repr::Unknown { opcode } => (opcode, [0; 4]),
+        };
+        frame.set_header(op, false, 0);
+        let len = n - INFO_HEADER_LEN;
+        frame.data_mut()[..len].copy_from_slice(&data[..len]);
+        n
+    }
+
+    /// Writes the CoE header (service 8) and the frame into `out`; returns the length of
+    /// both, or 0 (nothing written) when `out` is too short.
+    pub fn emit_coe(&self, out: &mut [u8]) -> usize {
+        if out.len() < COE_HEADER_LEN + self.buffer_len() {
+            return 0;
+        }
+        let (head, body) = out.split_at_mut(COE_HEADER_LEN);
+        Header::of(Service::SdoInformation).emit(head);
+        COE_HEADER_LEN + self.emit(&mut Frame::new(body))
+    }
+}
+
+/// Writes the CoE header and the information header of a response fragment into
+/// `out[..6]` (a shorter `out` is left as it is).
+fn emit_prefix(out: &mut [u8], op: u8, incomplete: bool, fragments_left: u16) {
+    if let Some((head, body)) = out
+        .get_mut(..PREFIX_LEN)
+        .map(|b| b.split_at_mut(COE_HEADER_LEN))
+    {
+        Header::of(Service::SdoInformation).emit(head);
+        Frame::new(body).set_header(op, incomplete, fragments_left);
+    }
+}
+
+/// The SDO information error for an abort.
+const fn error(abort: SdoAbort) -> Repr {
+    Repr::Error { code: abort.code() }
 }
 
 /// The answer to a request.
@@ -329,32 +499,27 @@ pub fn on_request(
     cap: usize,
 ) -> Result<Answer, ErrorDetail> {
     let f = Frame::new(body);
-    if !f.has_header() {
-        return Err(ErrorDetail::SizeTooShort);
-    }
+    let req = match Repr::parse(&f) {
+        Ok(r) => r,
+        // An error frame from the master is no request, whatever its length: answered
+        // like an unknown opcode.
+        Err(_) if f.has_header() && f.opcode() == opcode::ERROR => Repr::Unknown {
+            opcode: opcode::ERROR,
+        },
+        Err(WireError::Truncated) => return Err(ErrorDetail::SizeTooShort),
+    };
     let objects = dict.objects();
-    let d = f.data();
-    let err = |out: &mut [u8], a: SdoAbort| Answer::Frame(emit_error(out, a));
-    let u16_at = |i: usize| u16::from_le_bytes([d[i], d[i + 1]]);
-    match f.opcode() {
-        opcode::OD_LIST_REQUEST => {
-            if d.len() < 2 {
-                return Err(ErrorDetail::SizeTooShort);
-            }
-            Ok(match OdListType::from_code(u16_at(0)) {
-                Some(list) => Answer::Series(InfoJob::new(
-                    opcode::OD_LIST_RESPONSE,
-                    Body::OdList { list, objects },
-                    cap,
-                )),
-                None => err(out, SdoAbort::UnsupportedAccess),
-            })
-        }
-        opcode::OBJECT_DESCRIPTION_REQUEST => {
-            if d.len() < 2 {
-                return Err(ErrorDetail::SizeTooShort);
-            }
-            let index = u16_at(0);
+    let err = |out: &mut [u8], a: SdoAbort| Answer::Frame(error(a).emit_coe(out));
+    match req {
+        Repr::OdList { list } => Ok(match OdListType::from_code(list) {
+            Some(list) => Answer::Series(InfoJob::new(
+                opcode::OD_LIST_RESPONSE,
+                Body::OdList { list, objects },
+                cap,
+            )),
+            None => err(out, SdoAbort::UnsupportedAccess),
+        }),
+        Repr::ObjectDescription { index } => {
             let Some(obj) = od::find(objects, index) else {
                 return Ok(err(out, SdoAbort::ObjectDoesNotExist));
             };
@@ -375,22 +540,22 @@ pub fn on_request(
                 cap,
             )))
         }
-        opcode::ENTRY_DESCRIPTION_REQUEST => {
-            if d.len() < 4 {
-                return Err(ErrorDetail::SizeTooShort);
-            }
-            let (index, sub, request) = (u16_at(0), d[2], d[3]);
+        Repr::EntryDescription {
+            index,
+            sub,
+            value_info,
+        } => {
             let e = match od::find_entry(objects, index, sub) {
                 Ok(e) => e,
                 Err(a) => return Ok(err(out, a)),
             };
             Ok(Answer::Series(InfoJob::new(
                 opcode::ENTRY_DESCRIPTION_RESPONSE,
-                entry_body(index, e, request),
+                entry_body(index, e, value_info),
                 cap,
             )))
         }
-        _ => Ok(err(out, SdoAbort::InvalidCommand)),
+        Repr::Error { .. } | Repr::Unknown { .. } => Ok(err(out, SdoAbort::InvalidCommand)),
     }
 }
 
@@ -454,12 +619,57 @@ mod tests {
         assert_eq!(s.fragments_left(), 0);
         assert!(s.data().is_empty());
         let mut out = [0u8; 10];
-        assert_eq!(emit_error(&mut out, SdoAbort::ObjectDoesNotExist), 10);
+        assert_eq!(error(SdoAbort::ObjectDoesNotExist).emit_coe(&mut out), 10);
         assert_eq!(
             out,
             [0x00, 0x80, 0x07, 0x00, 0x00, 0x00, 0x00, 0x00, 0x02, 0x06]
         );
-        assert_eq!(emit_error(&mut out[..9], SdoAbort::ObjectDoesNotExist), 0);
+        assert_eq!(
+            error(SdoAbort::ObjectDoesNotExist).emit_coe(&mut out[..9]),
+            0
+        );
+    }
+
+    #[test]
+    fn repr_round_trips() {
+        let cases: [(&[u8], Repr); 4] = [
+            (&[0x01, 0, 0, 0, 0x01, 0x00], Repr::OdList { list: 1 }),
+            (
+                &[0x03, 0, 0, 0, 0x00, 0x10],
+                Repr::ObjectDescription { index: 0x1000 },
+            ),
+            (
+                &[0x05, 0, 0, 0, 0x40, 0x60, 0x00, 0x70],
+                Repr::EntryDescription {
+                    index: 0x6040,
+                    sub: 0,
+                    value_info: 0x70,
+                },
+            ),
+            (
+                &[0x07, 0, 0, 0, 0x00, 0x00, 0x02, 0x06],
+                Repr::Error { code: 0x0602_0000 },
+            ),
+        ];
+        for (bytes, repr) in cases {
+            let r = Repr::parse(&Frame::new(bytes)).unwrap();
+            assert_eq!(r, repr);
+            let mut out = [0xEEu8; 8];
+            assert_eq!(r.emit(&mut Frame::new(&mut out[..])), bytes.len());
+            assert_eq!(&out[..bytes.len()], bytes);
+            assert_eq!(r.emit(&mut Frame::new(&mut out[..bytes.len() - 1])), 0);
+        }
+        assert_eq!(
+            Repr::parse(&Frame::new(&[0x09u8, 0, 0, 0][..])),
+            Ok(Repr::Unknown { opcode: 9 })
+        );
+        for short in [&[0x01u8, 0, 0][..], &[0x05, 0, 0, 0, 0x40, 0x60, 0x00][..]] {
+            assert_eq!(Repr::parse(&Frame::new(short)), Err(WireError::Truncated));
+        }
+        assert_eq!(
+            Frame::new_checked(&[0x01u8][..]).unwrap_err(),
+            WireError::Truncated
+        );
     }
 
     #[test]

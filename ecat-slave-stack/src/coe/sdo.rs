@@ -41,7 +41,7 @@
 //!   entries → 0x06070010; strings → 0x06010004; VAR objects or a start sub-index > 1 →
 //!   0x06010000.
 
-use super::{Header, Service, HEADER_LEN as COE_HEADER_LEN};
+use super::HEADER_LEN as COE_HEADER_LEN;
 use crate::esm::EsmState;
 use crate::mailbox::ErrorDetail;
 use crate::od::{self, Dictionary, Entry, Object, ObjectCode, SdoAbort};
@@ -53,312 +53,8 @@ pub const TRANSFER_TIMEOUT_US: u64 = 1_000_000;
 /// Length of an initiate / abort frame after the mailbox header (CoE header + 8).
 pub const INITIATE_LEN: usize = COE_HEADER_LEN + 8;
 
-/// Byte offsets of the SDO frame after the CoE header.
-pub mod field {
-    use core::ops::{Range, RangeFrom};
-    /// Command specifier.
-    pub const COMMAND: usize = 0;
-    /// Index (u16).
-    pub const INDEX: Range<usize> = 1..3;
-    /// Sub-index.
-    pub const SUB: usize = 3;
-    /// Expedited data, complete size or abort code.
-    pub const DATA: Range<usize> = 4..8;
-    /// Data of a normal transfer (after the complete size).
-    pub const NORMAL_DATA: RangeFrom<usize> = 8..;
-    /// Data of a segment.
-    pub const SEGMENT_DATA: RangeFrom<usize> = 1..;
-}
-
-/// Command byte bits.
-pub mod cmd {
-    /// Complete access flag of initiate requests and responses.
-    pub const COMPLETE_ACCESS: u8 = 0x10;
-    /// Toggle bit of segments.
-    pub const TOGGLE: u8 = 0x10;
-    /// Expedited flag.
-    pub const EXPEDITED: u8 = 0x02;
-    /// Size indicated flag.
-    pub const SIZE_INDICATED: u8 = 0x01;
-    /// Last segment flag.
-    pub const LAST: u8 = 0x01;
-    /// Download response.
-    pub const DOWNLOAD_RESPONSE: u8 = 0x60;
-    /// Download segment response.
-    pub const DOWNLOAD_SEGMENT_RESPONSE: u8 = 0x20;
-    /// Upload response (normal: 0x41; expedited adds 0x02 and `(4 − n) << 2`).
-    pub const UPLOAD_RESPONSE: u8 = 0x40;
-    /// Abort.
-    pub const ABORT: u8 = 0x80;
-}
-
-/// A zero-copy view of an SDO frame (after the CoE header).
-#[derive(Debug, Clone)]
-pub struct Frame<T: AsRef<[u8]>> {
-    buffer: T,
-}
-
-impl<T: AsRef<[u8]>> Frame<T> {
-    /// Wraps a buffer; accessors return 0 / empty for bytes beyond its end.
-    pub const fn new(buffer: T) -> Self {
-        Frame { buffer }
-    }
-    fn byte(&self, i: usize) -> u8 {
-        self.buffer.as_ref().get(i).copied().unwrap_or(0)
-    }
-    /// Length of the buffer.
-    pub fn len(&self) -> usize {
-        self.buffer.as_ref().len()
-    }
-    /// True when the buffer is empty.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-    /// The command byte.
-    pub fn command(&self) -> u8 {
-        self.byte(field::COMMAND)
-    }
-    /// The index.
-    pub fn index(&self) -> u16 {
-        u16::from_le_bytes([
-            self.byte(field::INDEX.start),
-            self.byte(field::INDEX.start + 1),
-        ])
-    }
-    /// The sub-index.
-    pub fn sub(&self) -> u8 {
-        self.byte(field::SUB)
-    }
-    /// The 4 data bytes of an initiate or abort frame.
-    pub fn data4(&self) -> [u8; 4] {
-        let s = field::DATA.start;
-        [
-            self.byte(s),
-            self.byte(s + 1),
-            self.byte(s + 2),
-            self.byte(s + 3),
-        ]
-    }
-    /// The 4 data bytes as u32 (complete size, abort code).
-    pub fn data_u32(&self) -> u32 {
-        u32::from_le_bytes(self.data4())
-    }
-    /// The data after the complete size of a normal transfer.
-    pub fn normal_data(&self) -> &[u8] {
-        self.buffer.as_ref().get(field::NORMAL_DATA).unwrap_or(&[])
-    }
-    /// The data area of a segment.
-    pub fn segment_data(&self) -> &[u8] {
-        self.buffer.as_ref().get(field::SEGMENT_DATA).unwrap_or(&[])
-    }
-}
-
-/// An SDO request from the master.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Request<'a> {
-    /// Initiate download (expedited: `data` is the value; normal: `size` is the complete
-    /// size and `data` the part carried in this frame).
-    InitiateDownload {
-        /// Index.
-        index: u16,
-        /// Sub-index.
-        sub: u8,
-        /// Complete access.
-        complete_access: bool,
-        /// Expedited transfer.
-        expedited: bool,
-        /// Size indicated (expedited: `data.len()` is exact).
-        size_indicated: bool,
-        /// Complete size (normal transfer).
-        size: u32,
-        /// Data carried in this frame.
-        data: &'a [u8],
-    },
-    /// Download segment.
-    DownloadSegment {
-        /// Toggle bit.
-        toggle: bool,
-        /// Last segment.
-        last: bool,
-        /// Data of this segment.
-        data: &'a [u8],
-    },
-    /// Initiate upload.
-    InitiateUpload {
-        /// Index.
-        index: u16,
-        /// Sub-index.
-        sub: u8,
-        /// Complete access.
-        complete_access: bool,
-    },
-    /// Upload segment.
-    UploadSegment {
-        /// Toggle bit.
-        toggle: bool,
-    },
-    /// Abort from the master.
-    Abort {
-        /// Index.
-        index: u16,
-        /// Sub-index.
-        sub: u8,
-        /// Abort code.
-        code: u32,
-    },
-    /// Block transfers and anything else.
-    Unknown {
-        /// The command byte.
-        command: u8,
-        /// Index (bytes 1–2, if present).
-        index: u16,
-        /// Sub-index (byte 3, if present).
-        sub: u8,
-    },
-}
-
-impl<'a> Request<'a> {
-    /// Parses the SDO part of a request (after the CoE header). `Err` = too short for the
-    /// command it carries.
-    pub fn parse(b: &'a [u8]) -> Result<Self, ErrorDetail> {
-        let f = Frame::new(b);
-        if f.is_empty() {
-            return Err(ErrorDetail::SizeTooShort);
-        }
-        let c = f.command();
-        let need_full = |r: Self| {
-            if f.len() >= 8 {
-                Ok(r)
-            } else {
-                Err(ErrorDetail::SizeTooShort)
-            }
-        };
-        match c >> 5 {
-            0 => {
-                if f.len() < 8 {
-                    return Err(ErrorDetail::SizeTooShort);
-                }
-                let seg: &'a [u8] = b.get(field::SEGMENT_DATA).unwrap_or(&[]);
-                let n = if seg.len() > 7 {
-                    seg.len()
-                } else {
-                    7 - ((c >> 1) & 7) as usize
-                };
-                Ok(Request::DownloadSegment {
-                    toggle: c & cmd::TOGGLE != 0,
-                    last: c & cmd::LAST != 0,
-                    data: seg.get(..n).unwrap_or(seg),
-                })
-            }
-            1 => {
-                let expedited = c & cmd::EXPEDITED != 0;
-                let size_indicated = c & cmd::SIZE_INDICATED != 0;
-                let data = if expedited {
-                    let n = if size_indicated {
-                        4 - ((c >> 2) & 3) as usize
-                    } else {
-                        4
-                    };
-                    b.get(field::DATA.start..field::DATA.start + n)
-                        .unwrap_or(&[])
-                } else {
-                    b.get(field::NORMAL_DATA).unwrap_or(&[])
-                };
-                need_full(Request::InitiateDownload {
-                    index: f.index(),
-                    sub: f.sub(),
-                    complete_access: c & cmd::COMPLETE_ACCESS != 0,
-                    expedited,
-                    size_indicated,
-                    size: f.data_u32(),
-                    data,
-                })
-            }
-            2 => need_full(Request::InitiateUpload {
-                index: f.index(),
-                sub: f.sub(),
-                complete_access: c & cmd::COMPLETE_ACCESS != 0,
-            }),
-            3 => Ok(Request::UploadSegment {
-                toggle: c & cmd::TOGGLE != 0,
-            }),
-            4 => need_full(Request::Abort {
-                index: f.index(),
-                sub: f.sub(),
-                code: f.data_u32(),
-            }),
-            _ => Ok(Request::Unknown {
-                command: c,
-                index: f.index(),
-                sub: f.sub(),
-            }),
-        }
-    }
-}
-
-/// Writes a 10-byte initiate-style frame (CoE header, command, index, sub-index, 4 data
-/// bytes) into `out`; returns 10, or 0 if `out` is too short. Every 10-byte answer is
-/// built here.
-#[inline(never)]
-fn emit_initiate(
-    out: &mut [u8],
-    service: Service,
-    command: u8,
-    index: u16,
-    sub: u8,
-    data: [u8; 4],
-) -> usize {
-    let Some(b) = out.get_mut(..INITIATE_LEN) else {
-        return 0;
-    };
-    let [h0, h1] = Header::of(service).to_u16().to_le_bytes();
-    let [i0, i1] = index.to_le_bytes();
-    let [d0, d1, d2, d3] = data;
-    b.copy_from_slice(&[h0, h1, command, i0, i1, sub, d0, d1, d2, d3]);
-    INITIATE_LEN
-}
-
-/// Writes an abort (CoE service 2, command 0x80) into `out` (the CoE payload area, at
-/// least 10 bytes); returns 10, or 0 if `out` is too short.
-pub fn emit_abort(out: &mut [u8], index: u16, sub: u8, abort: SdoAbort) -> usize {
-    emit_initiate(
-        out,
-        Service::SdoRequest,
-        cmd::ABORT,
-        index,
-        sub,
-        abort.code().to_le_bytes(),
-    )
-}
-
-/// Download response (0x60, complete access 0x70).
-fn emit_download_response(out: &mut [u8], index: u16, sub: u8, ca: bool) -> usize {
-    let c = cmd::DOWNLOAD_RESPONSE | if ca { cmd::COMPLETE_ACCESS } else { 0 };
-    emit_initiate(out, Service::SdoResponse, c, index, sub, [0; 4])
-}
-
-/// Download segment response (0x20 | toggle, 7 reserved bytes).
-fn emit_download_segment_response(out: &mut [u8], toggle: bool) -> usize {
-    let c = cmd::DOWNLOAD_SEGMENT_RESPONSE | if toggle { cmd::TOGGLE } else { 0 };
-    emit_initiate(out, Service::SdoResponse, c, 0, 0, [0; 4])
-}
-
-/// Segment frame (upload segment response): command, data padded to 7 bytes.
-fn emit_segment(out: &mut [u8], toggle: bool, last: bool, data: &[u8]) -> usize {
-    let len = data.len().max(7);
-    let Some(b) = out.get_mut(..COE_HEADER_LEN + 1 + len) else {
-        return 0;
-    };
-    let (head, rest) = b.split_at_mut(COE_HEADER_LEN + 1);
-    Header::of(Service::SdoResponse).emit(head);
-    let n = (7 - data.len().min(7)) as u8;
-    head[COE_HEADER_LEN] =
-        (if toggle { cmd::TOGGLE } else { 0 }) | (n << 1) | if last { cmd::LAST } else { 0 };
-    let (d, pad) = rest.split_at_mut(data.len());
-    d.copy_from_slice(data);
-    pad.fill(0);
-    COE_HEADER_LEN + 1 + len
-}
+mod wire;
+pub use wire::*;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Transfer {
@@ -490,8 +186,13 @@ impl SdoServer {
                     )
                 };
                 match r {
-                    Ok(()) => emit_download_response(out, index, sub, complete_access),
-                    Err(a) => emit_abort(out, index, sub, a),
+                    Ok(()) => Response::Download {
+                        index,
+                        sub,
+                        complete_access,
+                    }
+                    .emit_coe(out),
+                    Err(a) => Response::abort(index, sub, a).emit_coe(out),
                 }
             }
             Request::DownloadSegment { toggle, last, data } => match self.t {
@@ -507,11 +208,11 @@ impl SdoServer {
                     ) {
                         Ok(()) => {
                             self.last_us = now_us;
-                            emit_download_segment_response(out, toggle)
+                            Response::DownloadSegment { toggle }.emit_coe(out)
                         }
                         Err(a) => {
                             self.t = Transfer::Idle;
-                            emit_abort(out, index, sub, a)
+                            Response::abort(index, sub, a).emit_coe(out)
                         }
                     }
                 }
@@ -534,7 +235,7 @@ impl SdoServer {
                 } => {
                     if toggle != expected {
                         self.t = Transfer::Idle;
-                        emit_abort(out, index, sub, SdoAbort::ToggleBit)
+                        Response::abort(index, sub, SdoAbort::ToggleBit).emit_coe(out)
                     } else {
                         self.last_us = now_us;
                         self.upload_segment(out, index, sub, pos, toggle)
@@ -548,7 +249,7 @@ impl SdoServer {
             }
             Request::Unknown { index, sub, .. } => {
                 self.t = Transfer::Idle;
-                emit_abort(out, index, sub, SdoAbort::InvalidCommand)
+                Response::abort(index, sub, SdoAbort::InvalidCommand).emit_coe(out)
             }
         };
         Ok(n)
@@ -557,11 +258,11 @@ impl SdoServer {
     /// A segment request that does not belong to the current transfer.
     fn no_transfer(&mut self, out: &mut [u8], expired: Option<(u16, u8)>) -> usize {
         if let Some((index, sub)) = expired {
-            return emit_abort(out, index, sub, SdoAbort::Timeout);
+            return Response::abort(index, sub, SdoAbort::Timeout).emit_coe(out);
         }
         let (index, sub) = self.target().unwrap_or((0, 0));
         self.t = Transfer::Idle;
-        emit_abort(out, index, sub, SdoAbort::InvalidCommand)
+        Response::abort(index, sub, SdoAbort::InvalidCommand).emit_coe(out)
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -693,29 +394,22 @@ impl SdoServer {
     ) -> usize {
         let len = match upload(dict, state, index, sub, ca, &mut self.buf) {
             Ok(n) => n,
-            Err(a) => return emit_abort(out, index, sub, a),
+            Err(a) => return Response::abort(index, sub, a).emit_coe(out),
         };
-        let ca_bit = if ca { cmd::COMPLETE_ACCESS } else { 0 };
         if !ca && (1..=4).contains(&len) {
-            let c = cmd::UPLOAD_RESPONSE
-                | cmd::EXPEDITED
-                | cmd::SIZE_INDICATED
-                | (((4 - len) as u8) << 2);
-            let mut d = [0u8; 4];
-            d[..len].copy_from_slice(&self.buf[..len]);
-            return emit_initiate(out, Service::SdoResponse, c, index, sub, d);
+            let data = &self.buf[..len];
+            return Response::UploadExpedited { index, sub, data }.emit_coe(out);
         }
         let room = out.len() - INITIATE_LEN;
         let first = len.min(room);
-        emit_initiate(
-            out,
-            Service::SdoResponse,
-            cmd::UPLOAD_RESPONSE | cmd::SIZE_INDICATED | ca_bit,
+        Response::Upload {
             index,
             sub,
-            (len as u32).to_le_bytes(),
-        );
-        out[INITIATE_LEN..INITIATE_LEN + first].copy_from_slice(&self.buf[..first]);
+            complete_access: ca,
+            size: len as u32,
+            data: &self.buf[..first],
+        }
+        .emit_coe(out);
         if first < len {
             self.len = len;
             self.t = Transfer::Upload {
@@ -741,7 +435,7 @@ impl SdoServer {
         let end = (pos + room).min(self.len);
         let last = end == self.len;
         let data = self.buf.get(pos.min(end)..end).unwrap_or_default();
-        let n = emit_segment(out, toggle, last, data);
+        let n = Response::UploadSegment { toggle, last, data }.emit_coe(out);
         self.t = if last {
             Transfer::Idle
         } else {
@@ -1016,148 +710,4 @@ fn ca_download(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn request_parse() {
-        assert_eq!(
-            Request::parse(&[0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]),
-            Ok(Request::InitiateUpload {
-                index: 0x1000,
-                sub: 0,
-                complete_access: false
-            })
-        );
-        assert_eq!(
-            Request::parse(&[0x50, 0x12, 0x1C, 0x01, 0, 0, 0, 0]),
-            Ok(Request::InitiateUpload {
-                index: 0x1C12,
-                sub: 1,
-                complete_access: true
-            })
-        );
-        assert_eq!(
-            Request::parse(&[0x2B, 0x40, 0x60, 0x00, 0x0F, 0x00, 0xAA, 0xBB]),
-            Ok(Request::InitiateDownload {
-                index: 0x6040,
-                sub: 0,
-                complete_access: false,
-                expedited: true,
-                size_indicated: true,
-                size: 0xBBAA_000F,
-                data: &[0x0F, 0x00],
-            })
-        );
-        let b = [0x21, 0x02, 0x20, 0x00, 5, 0, 0, 0, 1, 2, 3];
-        assert_eq!(
-            Request::parse(&b),
-            Ok(Request::InitiateDownload {
-                index: 0x2002,
-                sub: 0,
-                complete_access: false,
-                expedited: false,
-                size_indicated: true,
-                size: 5,
-                data: &[1, 2, 3],
-            })
-        );
-        assert_eq!(
-            Request::parse(&[0x0B, 1, 2, 3, 4, 5, 6, 7]),
-            Ok(Request::DownloadSegment {
-                toggle: false,
-                last: true,
-                data: &[1, 2]
-            })
-        );
-        assert_eq!(
-            Request::parse(&[0x10, 1, 2, 3, 4, 5, 6, 7, 8]),
-            Ok(Request::DownloadSegment {
-                toggle: true,
-                last: false,
-                data: &[1, 2, 3, 4, 5, 6, 7, 8]
-            })
-        );
-        assert_eq!(
-            Request::parse(&[0x0E, 1, 2, 3, 4, 5, 6, 7]),
-            Ok(Request::DownloadSegment {
-                toggle: false,
-                last: false,
-                data: &[]
-            })
-        );
-        assert_eq!(
-            Request::parse(&[0x70]),
-            Ok(Request::UploadSegment { toggle: true })
-        );
-        assert_eq!(
-            Request::parse(&[0x80, 0x00, 0x10, 0x02, 0x00, 0x00, 0x04, 0x05]),
-            Ok(Request::Abort {
-                index: 0x1000,
-                sub: 2,
-                code: 0x0504_0000
-            })
-        );
-        assert_eq!(
-            Request::parse(&[0xC0]),
-            Ok(Request::Unknown {
-                command: 0xC0,
-                index: 0,
-                sub: 0
-            })
-        );
-        assert_eq!(Request::parse(&[]), Err(ErrorDetail::SizeTooShort));
-        assert_eq!(
-            Request::parse(&[0x40, 0, 0x10]),
-            Err(ErrorDetail::SizeTooShort)
-        );
-        assert_eq!(
-            Request::parse(&[0x00, 1, 2]),
-            Err(ErrorDetail::SizeTooShort)
-        );
-        assert_eq!(
-            Request::parse(&[0x80, 0, 0x10, 0, 0]),
-            Err(ErrorDetail::SizeTooShort)
-        );
-    }
-
-    #[test]
-    fn frame_view_and_emitters() {
-        let f = Frame::new(&[0x41u8, 0x08, 0x10, 0x00, 3, 0, 0, 0, b'a', b'b', b'c'][..]);
-        assert_eq!(
-            (f.command(), f.index(), f.sub(), f.data_u32()),
-            (0x41, 0x1008, 0, 3)
-        );
-        assert_eq!(f.normal_data(), b"abc");
-        let e = Frame::new(&[][..] as &[u8]);
-        assert!(e.is_empty());
-        assert_eq!((e.command(), e.index(), e.data4()), (0, 0, [0; 4]));
-        let mut out = [0u8; 16];
-        assert_eq!(emit_abort(&mut out, 0x6040, 0, SdoAbort::ValueTooHigh), 10);
-        assert_eq!(
-            out[..10],
-            [0x00, 0x20, 0x80, 0x40, 0x60, 0x00, 0x31, 0x00, 0x09, 0x06]
-        );
-        assert_eq!(emit_abort(&mut out[..9], 0, 0, SdoAbort::Timeout), 0);
-        assert_eq!(emit_segment(&mut out, true, true, &[9, 8]), 10);
-        assert_eq!(out[..10], [0x00, 0x30, 0x1B, 9, 8, 0, 0, 0, 0, 0]);
-        assert_eq!(emit_segment(&mut out[..9], false, false, &[1]), 0);
-        assert_eq!(emit_download_response(&mut out, 0x1C12, 2, true), 10);
-        assert_eq!(out[..10], [0x00, 0x30, 0x70, 0x12, 0x1C, 2, 0, 0, 0, 0]);
-        assert_eq!(emit_download_segment_response(&mut out, true), 10);
-        assert_eq!(out[..10], [0x00, 0x30, 0x30, 0, 0, 0, 0, 0, 0, 0]);
-    }
-
-    #[test]
-    fn bit_helpers() {
-        let mut b = [0xFFu8; 3];
-        put_bits(&mut b, 3, 0b1010, 4);
-        assert_eq!(b[0], 0b1101_0111);
-        assert_eq!(get_bits(&b, 3, 4), 0b1010);
-        put_bits(&mut b, 6, 0, 6);
-        assert_eq!(b[..2], [0b0001_0111, 0b1111_0000]);
-        assert_eq!(get_bits(&b, 20, 8), 0x0F); // bits past the end read 0
-        put_bits(&mut b, 22, 0xFF, 8); // writes past the end are dropped
-        assert_eq!(b[2], 0xFF);
-    }
-}
+mod tests;

@@ -224,9 +224,9 @@ pub fn probe(esc: &mut Esc) -> Result<(), ecat_slave_stack::EscError> {
         push_pull: false,
         deassert_interval: 0,
     })?;
-    let ty = esc.read_u8(ecat_slave_stack::registers::ESC_TYPE)?;
-    let rev = esc.read_u8(ecat_slave_stack::registers::ESC_REVISION)?;
-    let build = esc.read_u16(ecat_slave_stack::registers::ESC_BUILD)?;
+    let ty = esc.get(ecat_slave_stack::registers::ESC_TYPE)?;
+    let rev = esc.get(ecat_slave_stack::registers::ESC_REVISION)?;
+    let build = esc.get(ecat_slave_stack::registers::ESC_BUILD)?;
     #[cfg(not(all(feature = "esc-et1100", not(feature = "esc-lan9252"))))]
     defmt::info!(
         "ESC {=str}: ID_REV {=u32:#010x}, type {=u8:#04x} rev {=u8} build {=u16}",

@@ -101,7 +101,8 @@ fn esc_checks(sum: &mut Summary) {
         let e = slave.esc_mut();
         Some((
             st::esc_identity(e, esc::ESC_TYPE),
-            ecat_slave_stack::EscAccess::read_u8(e, ecat_slave_stack::registers::ESC_TYPE).ok(),
+            ecat_slave_stack::EscAccess::read_u8(e, ecat_slave_stack::registers::ESC_TYPE.addr())
+                .ok(),
             st::process_ram_word(e, st::SCRATCH_PRAM),
         ))
     })

@@ -8,26 +8,26 @@ impl EscSim {
         let t0 = self.timing.port0_ns.wrapping_add(self.clock_base_ns);
         put_u32(
             &mut self.mem,
-            reg::DC_RECEIVE_TIME_PORT0 as usize,
+            reg::DC_RECEIVE_TIME_PORT0.addr() as usize,
             t0 as u32,
         );
         if let Some(t1) = self.timing.port1_ns {
             let t1 = t1.wrapping_add(self.clock_base_ns);
             put_u32(
                 &mut self.mem,
-                reg::DC_RECEIVE_TIME_PORT0 as usize + 4,
+                reg::DC_RECEIVE_TIME_PORT0.addr() as usize + 4,
                 t1 as u32,
             );
         }
-        put_u64(&mut self.mem, reg::DC_RECEIVE_TIME_PU as usize, t0);
+        put_u64(&mut self.mem, reg::DC_RECEIVE_TIME_PU.addr() as usize, t0);
     }
 
     pub(super) fn system_time_write(&mut self, start: usize, data: &[u8]) {
         // Only a write that starts at 0x0910 carries a comparable time value.
-        if start != reg::DC_SYSTEM_TIME as usize || data.len() < 4 {
+        if start != reg::DC_SYSTEM_TIME.addr() as usize || data.len() < 4 {
             return;
         }
-        let delay = get_u32(&self.mem, reg::DC_SYSTEM_TIME_DELAY as usize) as u64;
+        let delay = get_u32(&self.mem, reg::DC_SYSTEM_TIME_DELAY.addr() as usize) as u64;
         let local = self.system_time_at(self.timing.port0_ns);
         let diff: i64 = if data.len() >= 8 {
             let mut b = [0u8; 8];
@@ -42,18 +42,22 @@ impl EscSim {
         // 0x092C: bit 31 set when the local copy is smaller than the received time.
         let mag = diff.unsigned_abs().min(0x7FFF_FFFF) as u32;
         let reg_v = if diff > 0 { mag | 0x8000_0000 } else { mag };
-        put_u32(&mut self.mem, reg::DC_SYSTEM_TIME_DIFF as usize, reg_v);
+        put_u32(
+            &mut self.mem,
+            reg::DC_SYSTEM_TIME_DIFF.addr() as usize,
+            reg_v,
+        );
         // Drift compensation: the simulated clocks do not drift, so the control loop
         // settles at once on the measured difference.
         self.pll_correction = self.pll_correction.wrapping_add(diff);
     }
 
     pub(super) fn sync_activation_changed(&mut self) {
-        let act = self.mem[reg::DC_ACTIVATION as usize];
-        let status = reg::DC_ACTIVATION_STATUS as usize;
+        let act = self.mem[reg::DC_ACTIVATION.addr() as usize];
+        let status = reg::DC_ACTIVATION_STATUS.addr() as usize;
         if act & 0x03 == 0x03 {
-            let start = get_u64(&self.mem, reg::DC_START_TIME as usize);
-            let cycle = get_u32(&self.mem, reg::DC_SYNC0_CYCLE as usize);
+            let start = get_u64(&self.mem, reg::DC_START_TIME.addr() as usize);
+            let cycle = get_u32(&self.mem, reg::DC_SYNC0_CYCLE.addr() as usize);
             self.sync0 = Sync0 {
                 active: true,
                 next: start,
@@ -76,7 +80,7 @@ impl EscSim {
     // ---------------------------------------------------------------- watchdogs
 
     pub(super) fn watchdog_period_ns(&self, time_reg: u16) -> u64 {
-        let div = get_u16(&self.mem, reg::WATCHDOG_DIVIDER as usize) as u64;
+        let div = get_u16(&self.mem, reg::WATCHDOG_DIVIDER.addr() as usize) as u64;
         let t = get_u16(&self.mem, time_reg as usize) as u64;
         (div + 2) * 40 * t
     }
@@ -84,12 +88,12 @@ impl EscSim {
     pub(super) fn pd_watchdog_trigger(&mut self) {
         self.pd_wd_armed = true;
         self.pd_wd_last_ns = self.now_ns;
-        self.mem[reg::WATCHDOG_STATUS_PD as usize] |= 0x01;
+        self.mem[reg::WATCHDOG_STATUS_PD.addr() as usize] |= 0x01;
     }
 
     /// True while the process-data watchdog has not expired (0x0440 bit 0).
     pub fn pd_watchdog_ok(&self) -> bool {
-        self.mem[reg::WATCHDOG_STATUS_PD as usize] & 0x01 != 0
+        self.mem[reg::WATCHDOG_STATUS_PD.addr() as usize] & 0x01 != 0
     }
 
     // ---------------------------------------------------------------- time
@@ -118,32 +122,36 @@ impl EscSim {
                     .next
                     .wrapping_add(pulses.wrapping_mul(self.sync0.cycle as u64));
                 self.stats.sync0_pulses += pulses;
-                self.mem[reg::DC_SYNC0_STATUS as usize] |= 0x01;
-                self.mem[reg::DC_ACTIVATION_STATUS as usize] &= !0x01;
+                self.mem[reg::DC_SYNC0_STATUS.addr() as usize] |= 0x01;
+                self.mem[reg::DC_ACTIVATION_STATUS.addr() as usize] &= !0x01;
                 self.al_event_set(reg::al_event::SYNC0);
-                put_u64(&mut self.mem, reg::DC_START_TIME as usize, self.sync0.next);
+                put_u64(
+                    &mut self.mem,
+                    reg::DC_START_TIME.addr() as usize,
+                    self.sync0.next,
+                );
             }
         }
-        let pd_period = self.watchdog_period_ns(reg::WATCHDOG_TIME_PD);
+        let pd_period = self.watchdog_period_ns(reg::WATCHDOG_TIME_PD.addr());
         if self.pd_wd_armed
             && pd_period != 0
             && self.pd_watchdog_ok()
             && t_ns.saturating_sub(self.pd_wd_last_ns) > pd_period
         {
-            self.mem[reg::WATCHDOG_STATUS_PD as usize] &= !0x01;
-            let c = reg::WATCHDOG_COUNTER_PD as usize;
+            self.mem[reg::WATCHDOG_STATUS_PD.addr() as usize] &= !0x01;
+            let c = reg::WATCHDOG_COUNTER_PD.addr() as usize;
             self.mem[c] = self.mem[c].saturating_add(1);
             self.stats.pd_watchdog_expiries += 1;
             self.al_event_set(reg::al_event::WATCHDOG);
         }
-        let pdi_period = self.watchdog_period_ns(reg::WATCHDOG_TIME_PDI);
-        let dl = reg::DL_STATUS as usize;
+        let pdi_period = self.watchdog_period_ns(reg::WATCHDOG_TIME_PDI.addr());
+        let dl = reg::DL_STATUS.addr() as usize;
         if pdi_period != 0
             && self.mem[dl] & 0x02 != 0
             && t_ns.saturating_sub(self.pdi_last_ns) > pdi_period
         {
             self.mem[dl] &= !0x02;
-            let c = reg::WATCHDOG_COUNTER_PDI as usize;
+            let c = reg::WATCHDOG_COUNTER_PDI.addr() as usize;
             self.mem[c] = self.mem[c].saturating_add(1);
             self.stats.pdi_watchdog_expiries += 1;
         }

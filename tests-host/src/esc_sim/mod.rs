@@ -233,20 +233,20 @@ impl EscSim {
     fn power_on(&mut self) {
         let f = self.flavour;
         let m = &mut self.mem;
-        m[reg::ESC_TYPE as usize] = f.esc_type();
-        m[reg::ESC_REVISION as usize] = f.revision();
-        put_u16(m, reg::ESC_BUILD as usize, f.build());
-        m[reg::FMMU_COUNT as usize] = f.fmmu_count();
-        m[reg::SM_COUNT as usize] = f.sm_count();
-        m[reg::RAM_SIZE as usize] = (f.ram_bytes() / 1024) as u8;
-        m[reg::PORT_DESCRIPTOR as usize] = f.port_descriptor();
-        put_u16(m, reg::FEATURES as usize, f.features());
-        put_u16(m, reg::AL_CONTROL as usize, 0x0001);
-        put_u16(m, reg::AL_STATUS as usize, 0x0001);
-        put_u16(m, reg::WATCHDOG_DIVIDER as usize, 2498);
-        put_u16(m, reg::WATCHDOG_TIME_PDI as usize, 1000);
-        put_u16(m, reg::WATCHDOG_TIME_PD as usize, 1000);
-        put_u16(m, reg::WATCHDOG_STATUS_PD as usize, 0x0001);
+        m[reg::ESC_TYPE.addr() as usize] = f.esc_type();
+        m[reg::ESC_REVISION.addr() as usize] = f.revision();
+        put_u16(m, reg::ESC_BUILD.addr() as usize, f.build());
+        m[reg::FMMU_COUNT.addr() as usize] = f.fmmu_count();
+        m[reg::SM_COUNT.addr() as usize] = f.sm_count();
+        m[reg::RAM_SIZE.addr() as usize] = (f.ram_bytes() / 1024) as u8;
+        m[reg::PORT_DESCRIPTOR.addr() as usize] = f.port_descriptor();
+        put_u16(m, reg::FEATURES.addr() as usize, f.features());
+        put_u16(m, reg::AL_CONTROL.addr() as usize, 0x0001);
+        put_u16(m, reg::AL_STATUS.addr() as usize, 0x0001);
+        put_u16(m, reg::WATCHDOG_DIVIDER.addr() as usize, 2498);
+        put_u16(m, reg::WATCHDOG_TIME_PDI.addr() as usize, 1000);
+        put_u16(m, reg::WATCHDOG_TIME_PD.addr() as usize, 1000);
+        put_u16(m, reg::WATCHDOG_STATUS_PD.addr() as usize, 0x0001);
         self.set_ports(false);
         self.load_sii_config();
     }
@@ -255,7 +255,7 @@ impl EscSim {
     /// master); port 1 has one when another ESC follows, otherwise its loop is closed.
     pub fn set_ports(&mut self, downstream: bool) {
         // bit 1 PDI watchdog OK is kept; bit 0 (PDI operational) is kept.
-        let keep = get_u16(&self.mem, reg::DL_STATUS as usize) & 0x0003;
+        let keep = get_u16(&self.mem, reg::DL_STATUS.addr() as usize) & 0x0003;
         let mut v = keep | (1 << 4) | (1 << 9); // link + communication on port 0
         if downstream {
             v |= (1 << 5) | (1 << 11); // link + communication on port 1
@@ -263,7 +263,7 @@ impl EscSim {
             v |= 1 << 10; // port 1 loop closed
         }
         v |= (1 << 12) | (1 << 14); // ports 2/3 closed
-        put_u16(&mut self.mem, reg::DL_STATUS as usize, v | 0x0002);
+        put_u16(&mut self.mem, reg::DL_STATUS.addr() as usize, v | 0x0002);
     }
 
     /// Closes (or reopens) the loop at port 0, as when the cable towards the master
@@ -271,7 +271,7 @@ impl EscSim {
     /// which marks them as circulating (see [`frame::process_frame`]).
     pub fn set_port0_loop_closed(&mut self, closed: bool) {
         self.port0_closed = closed;
-        let a = reg::DL_STATUS as usize;
+        let a = reg::DL_STATUS.addr() as usize;
         let mut v = get_u16(&self.mem, a);
         if closed {
             v = (v & !((1 << 4) | (1 << 9))) | (1 << 8);
@@ -321,54 +321,54 @@ impl EscSim {
 
     /// The PDI interrupt line: AL event request & AL event mask ≠ 0.
     pub fn pdi_irq(&self) -> bool {
-        let req = get_u32(&self.mem, reg::AL_EVENT_REQUEST as usize);
-        let mask = get_u32(&self.mem, reg::AL_EVENT_MASK as usize);
+        let req = get_u32(&self.mem, reg::AL_EVENT_REQUEST.addr() as usize);
+        let mask = get_u32(&self.mem, reg::AL_EVENT_MASK.addr() as usize);
         req & mask != 0
     }
 
     /// AL status (0x0130) as the master would read it.
     pub fn al_status(&self) -> u16 {
-        get_u16(&self.mem, reg::AL_STATUS as usize)
+        get_u16(&self.mem, reg::AL_STATUS.addr() as usize)
     }
 
     /// AL status code (0x0134).
     pub fn al_status_code(&self) -> u16 {
-        get_u16(&self.mem, reg::AL_STATUS_CODE as usize)
+        get_u16(&self.mem, reg::AL_STATUS_CODE.addr() as usize)
     }
 
     // ---------------------------------------------------------------- events
 
     fn al_event_set(&mut self, bits: u32) {
-        let a = reg::AL_EVENT_REQUEST as usize;
+        let a = reg::AL_EVENT_REQUEST.addr() as usize;
         let v = get_u32(&self.mem, a) | bits;
         put_u32(&mut self.mem, a, v);
     }
     fn al_event_clear(&mut self, bits: u32) {
-        let a = reg::AL_EVENT_REQUEST as usize;
+        let a = reg::AL_EVENT_REQUEST.addr() as usize;
         let v = get_u32(&self.mem, a) & !bits;
         put_u32(&mut self.mem, a, v);
     }
     fn ecat_event_set(&mut self, bits: u16) {
-        let a = reg::ECAT_EVENT_REQUEST as usize;
+        let a = reg::ECAT_EVENT_REQUEST.addr() as usize;
         let v = get_u16(&self.mem, a) | bits;
         put_u16(&mut self.mem, a, v);
     }
     fn ecat_event_clear(&mut self, bits: u16) {
-        let a = reg::ECAT_EVENT_REQUEST as usize;
+        let a = reg::ECAT_EVENT_REQUEST.addr() as usize;
         let v = get_u16(&self.mem, a) & !bits;
         put_u16(&mut self.mem, a, v);
     }
     /// ECAT event request & ECAT event mask, ORed into each datagram's IRQ field.
     pub(crate) fn ecat_irq(&self) -> u16 {
-        get_u16(&self.mem, reg::ECAT_EVENT_REQUEST as usize)
-            & get_u16(&self.mem, reg::ECAT_EVENT_MASK as usize)
+        get_u16(&self.mem, reg::ECAT_EVENT_REQUEST.addr() as usize)
+            & get_u16(&self.mem, reg::ECAT_EVENT_MASK.addr() as usize)
     }
 
     // ---------------------------------------------------------------- addressing
 
     /// Configured station address (0x0010).
     pub fn station_address(&self) -> u16 {
-        get_u16(&self.mem, reg::STATION_ADDRESS as usize)
+        get_u16(&self.mem, reg::STATION_ADDRESS.addr() as usize)
     }
 
     /// True when a configured-address datagram with `adp` addresses this ESC
@@ -377,8 +377,8 @@ impl EscSim {
         if adp == self.station_address() {
             return true;
         }
-        let alias_enabled = self.mem[reg::DL_CONTROL as usize + 3] & 0x01 != 0;
-        alias_enabled && adp == get_u16(&self.mem, reg::STATION_ALIAS as usize)
+        let alias_enabled = self.mem[reg::DL_CONTROL.addr() as usize + 3] & 0x01 != 0;
+        alias_enabled && adp == get_u16(&self.mem, reg::STATION_ALIAS.addr() as usize)
     }
 
     // ---------------------------------------------------------------- access
@@ -439,7 +439,7 @@ impl EscSim {
 
     fn pdi_touch(&mut self) {
         self.pdi_last_ns = self.now_ns;
-        self.mem[reg::DL_STATUS as usize] |= 0x02;
+        self.mem[reg::DL_STATUS.addr() as usize] |= 0x02;
     }
 
     /// Side-effect-free view of a byte range as the next consumer would see it
@@ -457,7 +457,7 @@ impl EscSim {
     // ---------------------------------------------------------------- registers
 
     fn system_time_at(&self, t: u64) -> u64 {
-        let offset = get_u64(&self.mem, reg::DC_SYSTEM_TIME_OFFSET as usize);
+        let offset = get_u64(&self.mem, reg::DC_SYSTEM_TIME_OFFSET.addr() as usize);
         t.wrapping_add(self.clock_base_ns)
             .wrapping_add(offset)
             .wrapping_add(self.pll_correction as u64)
@@ -486,23 +486,23 @@ impl EscSim {
         let end = start + buf.len();
         let overlaps = |a: usize, len: usize| start < a + len && a < end;
         // Dynamic values first.
-        if overlaps(reg::DC_SYSTEM_TIME as usize, 8) {
+        if overlaps(reg::DC_SYSTEM_TIME.addr() as usize, 8) {
             let st = self.system_time_at(self.access_time(side));
-            put_u64(&mut self.mem, reg::DC_SYSTEM_TIME as usize, st);
+            put_u64(&mut self.mem, reg::DC_SYSTEM_TIME.addr() as usize, st);
         }
         buf.copy_from_slice(&self.mem[start..end]);
         // Read side effects.
         match side {
             Side::Pdi => {
-                if overlaps(reg::AL_CONTROL as usize, 2) {
+                if overlaps(reg::AL_CONTROL.addr() as usize, 2) {
                     self.al_control_unread = false;
                     self.al_event_clear(reg::al_event::AL_CONTROL);
                 }
-                if overlaps(reg::DC_SYNC0_STATUS as usize, 1) {
-                    self.mem[reg::DC_SYNC0_STATUS as usize] = 0;
+                if overlaps(reg::DC_SYNC0_STATUS.addr() as usize, 1) {
+                    self.mem[reg::DC_SYNC0_STATUS.addr() as usize] = 0;
                     self.al_event_clear(reg::al_event::SYNC0);
                 }
-                if overlaps(reg::WATCHDOG_STATUS_PD as usize, 2) {
+                if overlaps(reg::WATCHDOG_STATUS_PD.addr() as usize, 2) {
                     self.al_event_clear(reg::al_event::WATCHDOG);
                 }
                 for n in 0..self.sms.len() {
@@ -512,12 +512,12 @@ impl EscSim {
                 }
             }
             Side::Ecat => {
-                if overlaps(reg::AL_STATUS as usize, 2) {
+                if overlaps(reg::AL_STATUS.addr() as usize, 2) {
                     self.ecat_event_clear(ECAT_EVENT_AL_STATUS);
                 }
             }
         }
-        if overlaps(reg::SII_CONTROL as usize + 1, 1) && self.sii_busy_reads > 0 {
+        if overlaps(reg::SII_CONTROL.addr() as usize + 1, 1) && self.sii_busy_reads > 0 {
             self.sii_busy_reads -= 1;
             if self.sii_busy_reads == 0 {
                 self.sii_finish_busy();
@@ -528,8 +528,8 @@ impl EscSim {
     /// Who may drive the EEPROM interface: the PDI once the master has offered it
     /// (0x0500 bit 0) and the PDI has taken it (0x0501 bit 0); the master otherwise.
     fn sii_owner(&self) -> Side {
-        let offered = self.mem[reg::SII_CONFIG as usize] & 0x01 != 0;
-        let taken = self.mem[reg::SII_PDI_ACCESS as usize] & 0x01 != 0;
+        let offered = self.mem[reg::SII_CONFIG.addr() as usize] & 0x01 != 0;
+        let taken = self.mem[reg::SII_PDI_ACCESS.addr() as usize] & 0x01 != 0;
         if offered && taken {
             Side::Pdi
         } else {
@@ -541,10 +541,10 @@ impl EscSim {
     fn write_registers(&mut self, side: Side, start: usize, data: &[u8]) {
         let end = start + data.len();
         let overlaps = |a: usize, len: usize| start < a + len && a < end;
-        let emulation = self.mem[reg::ESC_CONFIG as usize] & 0x01 != 0;
-        let sync_owner_pdi = self.mem[reg::DC_CYCLIC_UNIT_CONTROL as usize] & 0x01 != 0;
-        let old_activation = self.mem[reg::DC_ACTIVATION as usize];
-        let sii_busy = get_u16(&self.mem, reg::SII_CONTROL as usize) & SII_CTRL_BUSY != 0;
+        let emulation = self.mem[reg::ESC_CONFIG.addr() as usize] & 0x01 != 0;
+        let sync_owner_pdi = self.mem[reg::DC_CYCLIC_UNIT_CONTROL.addr() as usize] & 0x01 != 0;
+        let old_activation = self.mem[reg::DC_ACTIVATION.addr() as usize];
+        let sii_busy = get_u16(&self.mem, reg::SII_CONTROL.addr() as usize) & SII_CTRL_BUSY != 0;
         let mut al_control_written = false;
         let mut sii_cmd_written = false;
         for (i, &v) in data.iter().enumerate() {
@@ -571,7 +571,7 @@ impl EscSim {
                         self.mem[a] = v & 0x03;
                         if v & 0x02 != 0 {
                             // Force ECAT access: reset the PDI access flag.
-                            self.mem[reg::SII_PDI_ACCESS as usize] &= !0x01;
+                            self.mem[reg::SII_PDI_ACCESS.addr() as usize] &= !0x01;
                             self.mem[a] &= !0x01;
                         }
                     }
@@ -633,25 +633,25 @@ impl EscSim {
         }
         if al_control_written {
             if emulation {
-                let ctl = get_u16(&self.mem, reg::AL_CONTROL as usize);
-                put_u16(&mut self.mem, reg::AL_STATUS as usize, ctl & 0x000F);
+                let ctl = get_u16(&self.mem, reg::AL_CONTROL.addr() as usize);
+                put_u16(&mut self.mem, reg::AL_STATUS.addr() as usize, ctl & 0x000F);
             } else {
                 self.al_control_unread = true;
                 self.al_event_set(reg::al_event::AL_CONTROL);
             }
-        } else if side == Side::Ecat && overlaps(reg::AL_CONTROL as usize, 2) {
+        } else if side == Side::Ecat && overlaps(reg::AL_CONTROL.addr() as usize, 2) {
             self.stats.al_control_writes_ignored += 1;
         }
         if sii_cmd_written {
             self.sii_execute();
         }
-        if side == Side::Ecat && overlaps(reg::DC_SYSTEM_TIME as usize, 8) {
+        if side == Side::Ecat && overlaps(reg::DC_SYSTEM_TIME.addr() as usize, 8) {
             self.system_time_write(start, data);
         }
         let owner_wrote = (side == Side::Pdi) == sync_owner_pdi;
         if owner_wrote
-            && overlaps(reg::DC_ACTIVATION as usize, 1)
-            && old_activation != self.mem[reg::DC_ACTIVATION as usize]
+            && overlaps(reg::DC_ACTIVATION.addr() as usize, 1)
+            && old_activation != self.mem[reg::DC_ACTIVATION.addr() as usize]
         {
             self.sync_activation_changed();
         }

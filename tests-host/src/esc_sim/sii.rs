@@ -32,7 +32,7 @@ impl EscSim {
     /// (Re)loads the ESC configuration area from the SII image: PDI control and
     /// configuration, SYNC pulse length, station alias (word 4).
     pub(super) fn load_sii_config(&mut self) {
-        let mut ctrl = get_u16(&self.mem, reg::SII_CONTROL as usize)
+        let mut ctrl = get_u16(&self.mem, reg::SII_CONTROL.addr() as usize)
             & !(SII_CTRL_CHECKSUM_ERR
                 | SII_CTRL_NOT_LOADED
                 | SII_CTRL_READ_8
@@ -44,16 +44,16 @@ impl EscSim {
             ctrl |= SII_CTRL_ADDR_2BYTES;
         }
         let ok = self.sii.len() >= 16 && sii_crc8(&self.sii[0..14]) == self.sii[14];
-        let dl = reg::DL_STATUS as usize;
+        let dl = reg::DL_STATUS.addr() as usize;
         if ok {
             let s = &self.sii;
             let w = |i: usize| u16::from_le_bytes([s[2 * i], s[2 * i + 1]]);
             let (w0, w1, w2, w3, w4) = (w(0), w(1), w(2), w(3), w(4));
-            put_u16(&mut self.mem, reg::PDI_CONTROL as usize, w0);
-            put_u16(&mut self.mem, reg::PDI_CONFIG as usize, w1);
-            put_u16(&mut self.mem, reg::DC_PULSE_LENGTH as usize, w2);
-            put_u16(&mut self.mem, reg::PDI_CONFIG as usize + 2, w3);
-            put_u16(&mut self.mem, reg::STATION_ALIAS as usize, w4);
+            put_u16(&mut self.mem, reg::PDI_CONTROL.addr() as usize, w0);
+            put_u16(&mut self.mem, reg::PDI_CONFIG.addr() as usize, w1);
+            put_u16(&mut self.mem, reg::DC_PULSE_LENGTH.addr() as usize, w2);
+            put_u16(&mut self.mem, reg::PDI_CONFIG.addr() as usize + 2, w3);
+            put_u16(&mut self.mem, reg::STATION_ALIAS.addr() as usize, w4);
             self.mem[dl] |= 0x01;
         } else {
             if self.sii.len() >= 16 {
@@ -62,7 +62,7 @@ impl EscSim {
             ctrl |= SII_CTRL_NOT_LOADED;
             self.mem[dl] &= !0x01;
         }
-        put_u16(&mut self.mem, reg::SII_CONTROL as usize, ctrl);
+        put_u16(&mut self.mem, reg::SII_CONTROL.addr() as usize, ctrl);
     }
 
     pub(super) fn sii_reg_write(&mut self, a: usize, v: u8) {
@@ -80,11 +80,11 @@ impl EscSim {
     }
 
     pub(super) fn sii_execute(&mut self) {
-        let ca = reg::SII_CONTROL as usize;
+        let ca = reg::SII_CONTROL.addr() as usize;
         let mut ctl = get_u16(&self.mem, ca);
         let cmd = (ctl & SII_CTRL_CMD_MASK) >> 8;
         ctl &= !SII_CTRL_CMD_MASK;
-        let word = get_u32(&self.mem, reg::SII_ADDRESS as usize) as usize;
+        let word = get_u32(&self.mem, reg::SII_ADDRESS.addr() as usize) as usize;
         match cmd {
             0 => {
                 // No command: clears the error bits.
@@ -108,7 +108,7 @@ impl EscSim {
                     } else {
                         0
                     };
-                    self.mem[reg::SII_DATA as usize + i] = b;
+                    self.mem[reg::SII_DATA.addr() as usize + i] = b;
                 }
             }
             2 => {
@@ -121,7 +121,7 @@ impl EscSim {
                         if self.sii.len() < o + 2 {
                             self.sii.resize(o + 2, 0xFF);
                         }
-                        let d = reg::SII_DATA as usize;
+                        let d = reg::SII_DATA.addr() as usize;
                         self.sii[o] = self.mem[d];
                         self.sii[o + 1] = self.mem[d + 1];
                         ctl &= !(SII_CTRL_ACK_ERR | SII_CTRL_WE_ERR);
@@ -138,7 +138,7 @@ impl EscSim {
                 if self.flavour.sii_reads_8_bytes() {
                     // Reload with 8-byte reads supplies words 0..3 in the data register.
                     for i in 0..8 {
-                        self.mem[reg::SII_DATA as usize + i] =
+                        self.mem[reg::SII_DATA.addr() as usize + i] =
                             self.sii.get(i).copied().unwrap_or(0xFF);
                     }
                 }
@@ -155,7 +155,7 @@ impl EscSim {
     }
 
     pub(super) fn sii_finish_busy(&mut self) {
-        let ca = reg::SII_CONTROL as usize;
+        let ca = reg::SII_CONTROL.addr() as usize;
         let ctl = get_u16(&self.mem, ca) & !SII_CTRL_BUSY;
         put_u16(&mut self.mem, ca, ctl);
         self.sii_busy_reads = 0;

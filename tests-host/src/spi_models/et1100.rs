@@ -122,7 +122,7 @@ impl<B: EscAccess> ByteDevice for Et1100Model<B> {
         self.terminated = false;
         self.write_buf.clear();
         let mut al = [0u8; 4];
-        if self.esc.read(AL_EVENT_REQUEST, &mut al).is_err() {
+        if self.esc.read(AL_EVENT_REQUEST.addr(), &mut al).is_err() {
             self.violations
                 .push("ESC read of the AL event register failed".into());
         }

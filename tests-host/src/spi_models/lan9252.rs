@@ -313,8 +313,8 @@ impl<B: EscAccess> Lan9252Model<B> {
             reg::INT_STS => {
                 let mut m = [0u8; 4];
                 let mut r = [0u8; 4];
-                self.esc_read(ecat_slave_stack::registers::AL_EVENT_MASK, &mut m);
-                self.esc_read(ecat_slave_stack::registers::AL_EVENT_REQUEST, &mut r);
+                self.esc_read(ecat_slave_stack::registers::AL_EVENT_MASK.addr(), &mut m);
+                self.esc_read(ecat_slave_stack::registers::AL_EVENT_REQUEST.addr(), &mut r);
                 (u32::from_le_bytes(m) & u32::from_le_bytes(r) != 0) as u32
             }
             reg::INT_EN => self.int_en,

@@ -29,14 +29,14 @@ impl EscAccess for RamEsc {
         // the matching AL event bit, as on the chip.
         let end = a + buf.len();
         let mut clear = 0u32;
-        if (a..end).contains(&(reg::AL_CONTROL as usize)) {
+        if (a..end).contains(&(reg::AL_CONTROL.addr() as usize)) {
             clear |= 1;
         }
         if (a..end).contains(&0x110B) {
             clear |= 1 << 10;
         }
         if clear != 0 {
-            let e = reg::AL_EVENT_REQUEST as usize;
+            let e = reg::AL_EVENT_REQUEST.addr() as usize;
             let v = u32::from_le_bytes([self.m[e], self.m[e + 1], self.m[e + 2], self.m[e + 3]])
                 & !clear;
             self.m[e..e + 4].copy_from_slice(&v.to_le_bytes());
@@ -45,7 +45,9 @@ impl EscAccess for RamEsc {
     }
     fn write(&mut self, addr: u16, data: &[u8]) -> Result<(), EscError> {
         let a = addr as usize;
-        if a <= reg::AL_CONTROL as usize && (reg::AL_CONTROL as usize) < a + data.len() {
+        if a <= reg::AL_CONTROL.addr() as usize
+            && (reg::AL_CONTROL.addr() as usize) < a + data.len()
+        {
             return Ok(());
         }
         let dst = self
@@ -61,7 +63,7 @@ impl RamEsc {
     fn master_write(&mut self, addr: u16, data: &[u8], event: u32) {
         let a = addr as usize;
         self.m[a..a + data.len()].copy_from_slice(data);
-        let e = reg::AL_EVENT_REQUEST as usize;
+        let e = reg::AL_EVENT_REQUEST.addr() as usize;
         let v =
             u32::from_le_bytes([self.m[e], self.m[e + 1], self.m[e + 2], self.m[e + 3]]) | event;
         self.m[e..e + 4].copy_from_slice(&v.to_le_bytes());
@@ -196,8 +198,8 @@ impl SlaveApplication for App {
 
 /// A slave in Op with the default maps (12 B outputs, 19 B inputs), SM-synchronous.
 fn slave_in_op<'a>(esc: &'a mut RamEsc, app: &mut App) -> Option<Slave<&'a mut RamEsc>> {
-    esc.m[reg::RAM_SIZE as usize] = 4;
-    esc.m[reg::WATCHDOG_STATUS_PD as usize] = 1;
+    esc.m[reg::RAM_SIZE.addr() as usize] = 4;
+    esc.m[reg::WATCHDOG_STATUS_PD.addr() as usize] = 1;
     let defaults = PdoDefaults {
         rx: [RX1, &[], &[], &[]],
         tx: [TX1, &[], &[], &[]],
@@ -217,11 +219,11 @@ fn slave_in_op<'a>(esc: &'a mut RamEsc, app: &mut App) -> Option<Slave<&'a mut R
     e.sm(1, 0x1080, 128, 0x22);
     e.sm(2, 0x1100, 12, 0x64);
     e.sm(3, 0x1400, 19, 0x20);
-    e.master_write(reg::WATCHDOG_DIVIDER, &2498u16.to_le_bytes(), 0);
-    e.master_write(reg::WATCHDOG_TIME_PD, &1000u16.to_le_bytes(), 0);
+    e.master_write(reg::WATCHDOG_DIVIDER.addr(), &2498u16.to_le_bytes(), 0);
+    e.master_write(reg::WATCHDOG_TIME_PD.addr(), &1000u16.to_le_bytes(), 0);
     for state in [2u16, 4, 8] {
         s.esc_mut()
-            .master_write(reg::AL_CONTROL, &state.to_le_bytes(), 1);
+            .master_write(reg::AL_CONTROL.addr(), &state.to_le_bytes(), 1);
         s.poll(app, 0).ok()?;
     }
     if s.state() == EsmState::Op {

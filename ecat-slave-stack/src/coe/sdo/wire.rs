@@ -1,0 +1,553 @@
+//! The SDO wire format: a zero-copy [`Frame`] view with its [`field`] offsets and
+//! [`cmd`] bits, the master's [`Request`] and this server's [`Response`].
+
+use crate::coe::{Header, Service, HEADER_LEN as COE_HEADER_LEN};
+use crate::mailbox::ErrorDetail;
+use crate::od::SdoAbort;
+
+/// Byte offsets of the SDO frame after the CoE header.
+pub mod field {
+    use core::ops::{Range, RangeFrom};
+    /// Command specifier.
+    pub const COMMAND: usize = 0;
+    /// Index (u16).
+    pub const INDEX: Range<usize> = 1..3;
+    /// Sub-index.
+    pub const SUB: usize = 3;
+    /// Expedited data, complete size or abort code.
+    pub const DATA: Range<usize> = 4..8;
+    /// Data of a normal transfer (after the complete size).
+    pub const NORMAL_DATA: RangeFrom<usize> = 8..;
+    /// Data of a segment.
+    pub const SEGMENT_DATA: RangeFrom<usize> = 1..;
+}
+
+/// Command byte bits.
+pub mod cmd {
+    /// Complete access flag of initiate requests and responses.
+    pub const COMPLETE_ACCESS: u8 = 0x10;
+    /// Toggle bit of segments.
+    pub const TOGGLE: u8 = 0x10;
+    /// Expedited flag.
+    pub const EXPEDITED: u8 = 0x02;
+    /// Size indicated flag.
+    pub const SIZE_INDICATED: u8 = 0x01;
+    /// Last segment flag.
+    pub const LAST: u8 = 0x01;
+    /// Download response.
+    pub const DOWNLOAD_RESPONSE: u8 = 0x60;
+    /// Download segment response.
+    pub const DOWNLOAD_SEGMENT_RESPONSE: u8 = 0x20;
+    /// Upload response (normal: 0x41; expedited adds 0x02 and `(4 − n) << 2`).
+    pub const UPLOAD_RESPONSE: u8 = 0x40;
+    /// Abort.
+    pub const ABORT: u8 = 0x80;
+}
+
+/// Length of the fixed part of an initiate, abort or segment frame after the CoE header:
+/// command byte, index, sub-index and 4 data bytes (a segment: command and 7 data bytes).
+pub const BODY_LEN: usize = 8;
+
+/// Why a buffer could not be read as an SDO frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WireError {
+    /// Shorter than the fields its command byte carries.
+    Truncated,
+    /// A server command specifier (bits 7:5) outside 0…4 ([`Response::parse`]).
+    UnknownCommand(u8),
+}
+
+impl From<WireError> for ErrorDetail {
+    /// A truncated SDO request is answered with the mailbox error "size too short"
+    /// (requests never give [`WireError::UnknownCommand`]: those are aborted).
+    fn from(e: WireError) -> Self {
+        match e {
+            WireError::Truncated => ErrorDetail::SizeTooShort,
+            WireError::UnknownCommand(_) => ErrorDetail::InvalidHeader,
+        }
+    }
+}
+
+/// A zero-copy view of an SDO frame (after the CoE header).
+///
+/// Invariant of the accessors: they index the buffer directly and panic on bytes beyond
+/// its end. [`Frame::check_len`] guarantees the command byte, and for every request that
+/// carries index, sub-index and data (initiate, abort, download segment) all
+/// [`BODY_LEN`] bytes; a frame built with [`Frame::new_unchecked`] must be long enough
+/// for the fields read.
+#[derive(Debug, Clone)]
+pub struct Frame<T: AsRef<[u8]>> {
+    buffer: T,
+}
+
+impl<T: AsRef<[u8]>> Frame<T> {
+    /// Wraps a buffer without checking it.
+    pub const fn new_unchecked(buffer: T) -> Self {
+        Frame { buffer }
+    }
+    /// Wraps a buffer after [`Frame::check_len`].
+    pub fn new_checked(buffer: T) -> Result<Self, WireError> {
+        let f = Self::new_unchecked(buffer);
+        f.check_len()?;
+        Ok(f)
+    }
+    /// Checks that the buffer holds the command byte and the fields that command carries
+    /// as a request: [`BODY_LEN`] bytes for initiate download / upload, download segment
+    /// and abort; the command byte alone for upload segment and unknown commands.
+    pub fn check_len(&self) -> Result<(), WireError> {
+        let b = self.buffer.as_ref();
+        let need = match b.first() {
+            None => 1,
+            Some(c) if Self::carries_body(*c) => BODY_LEN,
+            Some(_) => 1,
+        };
+        if b.len() < need {
+            Err(WireError::Truncated)
+        } else {
+            Ok(())
+        }
+    }
+    /// True for request commands with index, sub-index and data (specifier 0, 1, 2, 4).
+    const fn carries_body(command: u8) -> bool {
+        matches!(command >> 5, 0 | 1 | 2 | 4)
+    }
+    /// Returns the buffer.
+    pub fn into_inner(self) -> T {
+        self.buffer
+    }
+    /// Length of the buffer.
+    pub fn len(&self) -> usize {
+        self.buffer.as_ref().len()
+    }
+    /// True when the buffer is empty.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// The command byte.
+    pub fn command(&self) -> u8 {
+        self.buffer.as_ref()[field::COMMAND]
+    }
+    /// The index.
+    pub fn index(&self) -> u16 {
+        let b = &self.buffer.as_ref()[field::INDEX];
+        u16::from_le_bytes([b[0], b[1]])
+    }
+    /// The sub-index.
+    pub fn sub(&self) -> u8 {
+        self.buffer.as_ref()[field::SUB]
+    }
+    /// The 4 data bytes of an initiate or abort frame.
+    pub fn data4(&self) -> [u8; 4] {
+        let b = &self.buffer.as_ref()[field::DATA];
+        [b[0], b[1], b[2], b[3]]
+    }
+    /// The 4 data bytes as u32 (complete size, abort code).
+    pub fn data_u32(&self) -> u32 {
+        u32::from_le_bytes(self.data4())
+    }
+    /// The data after the complete size of a normal transfer.
+    pub fn normal_data(&self) -> &[u8] {
+        &self.buffer.as_ref()[field::NORMAL_DATA]
+    }
+    /// The data area of a segment.
+    pub fn segment_data(&self) -> &[u8] {
+        &self.buffer.as_ref()[field::SEGMENT_DATA]
+    }
+}
+
+impl<T: AsRef<[u8]> + AsMut<[u8]>> Frame<T> {
+    /// Sets the command byte.
+    pub fn set_command(&mut self, v: u8) {
+        self.buffer.as_mut()[field::COMMAND] = v;
+    }
+    /// Sets the index.
+    pub fn set_index(&mut self, v: u16) {
+        self.buffer.as_mut()[field::INDEX].copy_from_slice(&v.to_le_bytes());
+    }
+    /// Sets the sub-index.
+    pub fn set_sub(&mut self, v: u8) {
+        self.buffer.as_mut()[field::SUB] = v;
+    }
+    /// Sets the 4 data bytes.
+    pub fn set_data4(&mut self, v: [u8; 4]) {
+        self.buffer.as_mut()[field::DATA].copy_from_slice(&v);
+    }
+    /// The data area of a normal transfer, writable.
+    pub fn normal_data_mut(&mut self) -> &mut [u8] {
+        &mut self.buffer.as_mut()[field::NORMAL_DATA]
+    }
+    /// The data area of a segment, writable.
+    pub fn segment_data_mut(&mut self) -> &mut [u8] {
+        &mut self.buffer.as_mut()[field::SEGMENT_DATA]
+    }
+}
+
+/// An SDO request from the master.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Request<'a> {
+    /// Initiate download (expedited: `data` is the value; normal: `size` is the complete
+    /// size and `data` the part carried in this frame).
+    InitiateDownload {
+        /// Index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// Complete access.
+        complete_access: bool,
+        /// Expedited transfer.
+        expedited: bool,
+        /// Size indicated (expedited: `data.len()` is exact).
+        size_indicated: bool,
+        /// Complete size (normal transfer).
+        size: u32,
+        /// Data carried in this frame.
+        data: &'a [u8],
+    },
+    /// Download segment.
+    DownloadSegment {
+        /// Toggle bit.
+        toggle: bool,
+        /// Last segment.
+        last: bool,
+        /// Data of this segment.
+        data: &'a [u8],
+    },
+    /// Initiate upload.
+    InitiateUpload {
+        /// Index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// Complete access.
+        complete_access: bool,
+    },
+    /// Upload segment.
+    UploadSegment {
+        /// Toggle bit.
+        toggle: bool,
+    },
+    /// Abort from the master.
+    Abort {
+        /// Index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// Abort code.
+        code: u32,
+    },
+    /// Block transfers and anything else.
+    Unknown {
+        /// The command byte.
+        command: u8,
+        /// Index (bytes 1–2, if present).
+        index: u16,
+        /// Sub-index (byte 3, if present).
+        sub: u8,
+    },
+}
+
+impl<'a> Request<'a> {
+    /// Parses the SDO part of a request (after the CoE header). `Err` = too short for the
+    /// command it carries.
+    pub fn parse(b: &'a [u8]) -> Result<Self, ErrorDetail> {
+        let f = Frame::new_checked(b)?;
+        let c = f.command();
+        match c >> 5 {
+            0 => {
+                let seg: &'a [u8] = &b[field::SEGMENT_DATA];
+                let n = if seg.len() > 7 {
+                    seg.len()
+                } else {
+                    7 - ((c >> 1) & 7) as usize
+                };
+                Ok(Request::DownloadSegment {
+                    toggle: c & cmd::TOGGLE != 0,
+                    last: c & cmd::LAST != 0,
+                    data: &seg[..n],
+                })
+            }
+            1 => {
+                let expedited = c & cmd::EXPEDITED != 0;
+                let size_indicated = c & cmd::SIZE_INDICATED != 0;
+                let data: &'a [u8] = if expedited {
+                    let n = if size_indicated {
+                        4 - ((c >> 2) & 3) as usize
+                    } else {
+                        4
+                    };
+                    &b[field::DATA.start..field::DATA.start + n]
+                } else {
+                    &b[field::NORMAL_DATA]
+                };
+                Ok(Request::InitiateDownload {
+                    index: f.index(),
+                    sub: f.sub(),
+                    complete_access: c & cmd::COMPLETE_ACCESS != 0,
+                    expedited,
+                    size_indicated,
+                    size: f.data_u32(),
+                    data,
+                })
+            }
+            2 => Ok(Request::InitiateUpload {
+                index: f.index(),
+                sub: f.sub(),
+                complete_access: c & cmd::COMPLETE_ACCESS != 0,
+            }),
+            3 => Ok(Request::UploadSegment {
+                toggle: c & cmd::TOGGLE != 0,
+            }),
+            4 => Ok(Request::Abort {
+                index: f.index(),
+                sub: f.sub(),
+                code: f.data_u32(),
+            }),
+            _ => {
+                // Unknown commands need only the command byte: index and sub-index are
+                // echoed in the abort as far as the request carries them (missing
+                // bytes as 0).
+                let at = |i: usize| b.get(i).copied().unwrap_or(0);
+                Ok(Request::Unknown {
+                    command: c,
+                    index: u16::from_le_bytes([at(field::INDEX.start), at(field::INDEX.start + 1)]),
+                    sub: at(field::SUB),
+                })
+            }
+        }
+    }
+}
+
+/// An SDO frame sent by this server: a response, or an abort (which travels as a CoE
+/// SDO request, see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Response<'a> {
+    /// Initiate download response (0x60, complete access 0x70).
+    Download {
+        /// Index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// Complete access.
+        complete_access: bool,
+    },
+    /// Download segment response (0x20 | toggle, 7 reserved bytes).
+    DownloadSegment {
+        /// Toggle bit.
+        toggle: bool,
+    },
+    /// Expedited upload response (0x43/47/4B/4F): 1…4 bytes of data in the data field.
+    UploadExpedited {
+        /// Index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// The value, 1…4 bytes.
+        data: &'a [u8],
+    },
+    /// Normal upload response (0x41, complete access 0x51): the complete size and the
+    /// first part of the data.
+    Upload {
+        /// Index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// Complete access.
+        complete_access: bool,
+        /// Complete size, bytes.
+        size: u32,
+        /// Data carried in this frame.
+        data: &'a [u8],
+    },
+    /// Upload segment response (`000 t n n n c`), data padded to 7 bytes.
+    UploadSegment {
+        /// Toggle bit.
+        toggle: bool,
+        /// Last segment.
+        last: bool,
+        /// Data of this segment.
+        data: &'a [u8],
+    },
+    /// Abort (0x80) with the u32 abort code.
+    Abort {
+        /// Index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// Abort code.
+        code: u32,
+    },
+}
+
+const fn flag(on: bool, bit: u8) -> u8 {
+    if on {
+        bit
+    } else {
+        0
+    }
+}
+
+impl<'a> Response<'a> {
+    /// An abort with a standard code.
+    pub const fn abort(index: u16, sub: u8, abort: SdoAbort) -> Self {
+        Response::Abort {
+            index,
+            sub,
+            code: abort.code(),
+        }
+    }
+
+    /// The CoE service the frame travels in: aborts as SDO request, the rest as SDO
+    /// response.
+    pub const fn service(&self) -> Service {
+        match self {
+            Response::Abort { .. } => Service::SdoRequest,
+            _ => Service::SdoResponse,
+        }
+    }
+
+    /// Parses a frame sent by an SDO server (the counterpart of [`Response::emit`], for
+    /// masters and tests).
+    pub fn parse(frame: &Frame<&'a [u8]>) -> Result<Self, WireError> {
+        let b: &'a [u8] = frame.buffer;
+        if b.len() < BODY_LEN {
+            return Err(WireError::Truncated);
+        }
+        let c = frame.command();
+        let (index, sub) = (frame.index(), frame.sub());
+        let ca = c & cmd::COMPLETE_ACCESS != 0;
+        Ok(match c >> 5 {
+            0 => {
+                let seg: &'a [u8] = &b[field::SEGMENT_DATA];
+                let n = if seg.len() > 7 {
+                    seg.len()
+                } else {
+                    7 - ((c >> 1) & 7) as usize
+                };
+                Response::UploadSegment {
+                    toggle: c & cmd::TOGGLE != 0,
+                    last: c & cmd::LAST != 0,
+                    data: &seg[..n],
+                }
+            }
+            1 => Response::DownloadSegment {
+                toggle: c & cmd::TOGGLE != 0,
+            },
+            2 if c & cmd::EXPEDITED != 0 => {
+                let n = if c & cmd::SIZE_INDICATED != 0 {
+                    4 - ((c >> 2) & 3) as usize
+                } else {
+                    4
+                };
+                Response::UploadExpedited {
+                    index,
+                    sub,
+                    data: &b[field::DATA.start..field::DATA.start + n],
+                }
+            }
+            2 => Response::Upload {
+                index,
+                sub,
+                complete_access: ca,
+                size: frame.data_u32(),
+                data: &b[field::NORMAL_DATA],
+            },
+            3 => Response::Download {
+                index,
+                sub,
+                complete_access: ca,
+            },
+            4 => Response::Abort {
+                index,
+                sub,
+                code: frame.data_u32(),
+            },
+            _ => return Err(WireError::UnknownCommand(c)),
+        })
+    }
+
+    /// Length of the emitted frame after the CoE header.
+    pub fn buffer_len(&self) -> usize {
+        match *self {
+            Response::Upload { data, .. } => BODY_LEN + data.len(),
+            Response::UploadSegment { data, .. } => 1 + data.len().max(7),
+            _ => BODY_LEN,
+        }
+    }
+
+    /// Writes the frame (after the CoE header) into the start of `frame`'s buffer;
+    /// returns its length, or 0 (buffer untouched) when the buffer is shorter than
+    /// [`Response::buffer_len`].
+    pub fn emit<T: AsRef<[u8]> + AsMut<[u8]>>(&self, frame: &mut Frame<T>) -> usize {
+        let n = self.buffer_len();
+        if frame.len() < n {
+            return 0;
+        }
+        let (command, index, sub, d4) = match *self {
+            Response::Download {
+                index,
+                sub,
+                complete_access,
+            } => (
+                cmd::DOWNLOAD_RESPONSE | flag(complete_access, cmd::COMPLETE_ACCESS),
+                index,
+                sub,
+                [0; 4],
+            ),
+            Response::DownloadSegment { toggle } => (
+                cmd::DOWNLOAD_SEGMENT_RESPONSE | flag(toggle, cmd::TOGGLE),
+                0,
+                0,
+                [0; 4],
+            ),
+            Response::UploadExpedited { index, sub, data } => {
+                let len = data.len().min(4);
+                let mut d = [0u8; 4];
+                d[..len].copy_from_slice(&data[..len]);
+                let c = cmd::UPLOAD_RESPONSE
+                    | cmd::EXPEDITED
+                    | cmd::SIZE_INDICATED
+                    | (((4 - len) as u8 & 3) << 2);
+                (c, index, sub, d)
+            }
+            Response::Upload {
+                index,
+                sub,
+                complete_access,
+                size,
+                data,
+            } => {
+                frame.normal_data_mut()[..data.len()].copy_from_slice(data);
+                let c = cmd::UPLOAD_RESPONSE
+                    | cmd::SIZE_INDICATED
+                    | flag(complete_access, cmd::COMPLETE_ACCESS);
+                (c, index, sub, size.to_le_bytes())
+            }
+            Response::Abort { index, sub, code } => (cmd::ABORT, index, sub, code.to_le_bytes()),
+            Response::UploadSegment { toggle, last, data } => {
+                // A segment has no index field: command and 7 or more data bytes.
+                let pad = (7 - data.len().min(7)) as u8;
+                frame.set_command(flag(toggle, cmd::TOGGLE) | (pad << 1) | flag(last, cmd::LAST));
+                let (d, rest) = frame.segment_data_mut()[..n - 1].split_at_mut(data.len());
+                d.copy_from_slice(data);
+                rest.fill(0);
+                return n;
+            }
+        };
+        frame.set_command(command);
+        frame.set_index(index);
+        frame.set_sub(sub);
+        frame.set_data4(d4);
+        n
+    }
+
+    /// Writes the CoE header of [`Response::service`] and the frame into `out`; returns
+    /// the length of both, or 0 (nothing written) when `out` is too short.
+    pub fn emit_coe(&self, out: &mut [u8]) -> usize {
+        if out.len() < COE_HEADER_LEN + self.buffer_len() {
+            return 0;
+        }
+        let (head, body) = out.split_at_mut(COE_HEADER_LEN);
+        Header::of(self.service()).emit(head);
+        COE_HEADER_LEN + self.emit(&mut Frame::new_unchecked(body))
+    }
+}
