@@ -12,7 +12,7 @@
 //!
 //! | what | runs in | priority | rate | worst-case budget |
 //! |---|---|---|---|---|
-//! | current loop: ADC1 JEOS → I_A, I_B, V_BUS → encoder update → `foc::current_loop::CurrentLoop::step` → TIM1/TIM8 compare (`hw::control`) | `ADC1_2` ISR | 0 | 40 kHz (PWM centre) | ≤ 12.5 µs (half a PWM period); current step ≈ 290 instructions (QEMU count) ≈ 2-3 µs; to be measured (`ISR max` in the status line) |
+//! | current loop: ADC1 JEOS → I_A, I_B, V_BUS → encoder update → `foc::current_loop::CurrentLoop::step` → TIM1/TIM8 compare (`hw::control`) | `ADC1_2` ISR | 0 | 40 kHz (PWM centre) | ≤ 12.5 µs (half a PWM period); current step ≈ 320 instructions (QEMU count) ≈ 2-3 µs; to be measured (`ISR max` in the status line) |
 //! | motion layer: `firmware::commutation::CommutatedMotion::step` — at the first closed-loop enable after power-up the commutation alignment (`foc::servo::Alignment`, 0.25 s, 0.65 s with the 0x2083 wiggle; offset → encoder), then `firmware::motion::Motion::step` (interpolation, servo / open loop → current reference); index, touch probe 1 (TIM2 CH4 capture) and touch probe 2 (from the task below) → positions (`firmware::latch`); feedback published | same ISR, every 4th period | 0 | 10 kHz | together with the current step ≤ 12.5 µs; to be measured |
 //! | over-current: break input → TIM1/TIM8 MOE off | hardware | — | event | break filter ≈ 24 ns + gate driver |
 //! | break bookkeeping: other bridge off, latch | `TIM1_BRK_TIM15`, `TIM8_BRK` ISRs | 1 | event | < 1 µs, to be measured |

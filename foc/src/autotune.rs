@@ -583,9 +583,10 @@ impl Autotune {
         let m = self.cfg.max_offset;
         let offset_ok = |o: f32| o.is_finite() && o.abs() <= m;
         let off = self.res.offset;
-        if !(GAIN_RATIO_BAND.0..=GAIN_RATIO_BAND.1).contains(&gain_b)
-            || !(offset_ok(off[0]) && offset_ok(off[1]))
-        {
+        let plausible = (GAIN_RATIO_BAND.0..=GAIN_RATIO_BAND.1).contains(&gain_b)
+            && offset_ok(off[0])
+            && offset_ok(off[1]);
+        if !plausible {
             self.state = TuneState::Failed(TuneError::Sensing);
             return;
         }

@@ -65,9 +65,10 @@
 //! leg pair, less the switching times); the auto-tune measures it
 //! ([`crate::autotune::TuneResult::dead_time_v`]).
 //!
-//! Cost on a Cortex-M4F: 290 executed instructions per step (QEMU instruction count,
+//! Cost on a Cortex-M4F: 319 executed instructions per step (QEMU instruction count,
 //! `current loop step` benchmark, unsaturated path; the voltage limit adds ~25 when
-//! active). Everything is `f32` on the FPU; no library calls, one division (by V_bus).
+//! active), of which about 29 are the channel-B gain and the dead-time compensation:
+//! over the 300 of the budget, for the ripple they remove (BENCHMARKS.md). Everything is `f32` on the FPU; no library calls, one division (by V_bus).
 
 use crate::angle::Angle;
 use crate::modulation::{limit_circle, Duties, Modulator};

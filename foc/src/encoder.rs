@@ -61,12 +61,12 @@ pub const MAX_INTERPOLATION: f32 = 2.0;
 /// Chosen on the plant (i_q* = 0.5 A, shaft at constant speed, i_q peak-to-peak at
 /// 1, 5.07 and 10.13 rev/s and over 0.013-10.013 rev/s in steps of 0.25, both
 /// motors): 200 rad/s lets the TC86-45's ripple grow with speed (24 mA at 10.13
-/// rev/s), 250 rad/s gives 3-5 mA at 1 and 5.07 rev/s and 8.6/10.2 mA at 10.13,
+/// rev/s), 250 rad/s gives 3-5 mA at 1 and 5.07 rev/s and 8.8/10.1 mA at 10.13,
 /// 300-400 rad/s let more of the edge steps through (10-14 mA at 10.13 rev/s).
 /// Where the count pattern beats slower than the tracker's bandwidth (within
 /// ≈ 0.02 rev/s of 10 rev/s: one count per sample with a slip every 19 ms at
 /// 10.013 rev/s) no filter of the count can tell the slip from the motion, and the
-/// ripple is 28-34 mA there (BENCHMARKS.md, "Robustness").
+/// ripple is 26-31 mA there (BENCHMARKS.md, "Robustness").
 pub const COMMUTATION_OMEGA: f32 = 250.0;
 
 /// Bound of the commutation tracker's state against the count, counts (beyond it the

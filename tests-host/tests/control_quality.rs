@@ -29,7 +29,11 @@ fn current_loop_bandwidth_at_least_2khz() {
     // (ωc = 0.23/Ts: 0.95 at 500 Hz).
     let wc = foc::current_loop::robust_bandwidth(tests_host::plant::rig::TS) as f64;
     let design = 1.0 / (1.0 + (2.0 * PI * 500.0 / wc).powi(2)).sqrt();
-    assert!((b.points[0].1 - design).abs() < 0.03, "{design}: {:?}", b.points);
+    assert!(
+        (b.points[0].1 - design).abs() < 0.03,
+        "{design}: {:?}",
+        b.points
+    );
 }
 
 #[test]
