@@ -289,16 +289,17 @@ qemu_runner::tests! {
         let count_angle = 50.0 / 4000.0; // electrical turns per count
         for k in 1..20_000u32 {
             let true_counts = k as f64 * per_step;
-            e.update((true_counts.floor() as u32) as u16);
+            e.update((libm::floor(true_counts) as u32) as u16);
             let a = e.commutation_angle();
             if k > 8000 {
                 let step_turns = a.diff(last) as f64 / 4_294_967_296.0;
                 worst_jump = worst_jump.max((step_turns / count_angle - per_step).abs());
                 let est = a.0 as f64 / 4_294_967_296.0;
                 // The count covers [n, n + 1): its centre is the best a tracker of n can do.
-                let truth = ((true_counts - 0.5) * count_angle).fract();
+                let x = (true_counts - 0.5) * count_angle;
+                let truth = x - libm::floor(x);
                 let mut err = est - truth;
-                err -= err.round();
+                err -= libm::round(err);
                 worst_error = worst_error.max((err / count_angle).abs());
             }
             last = a;
@@ -314,7 +315,7 @@ qemu_runner::tests! {
         // A jump of 1000 counts (a shock, a lost counter) restarts the tracker on the
         // count: the commutation angle stays within ±2 counts of it.
         let before = e.electrical_angle();
-        let raw = (19_999.0f64 * per_step).floor() as u32 + 1000;
+        let raw = libm::floor(19_999.0f64 * per_step) as u32 + 1000;
         e.update(raw as u16);
         let off = e.commutation_angle().diff(e.electrical_angle()) as f64 / 4_294_967_296.0;
         assert!((off / count_angle).abs() <= 2.0 + 1e-3, "{off}");
