@@ -19,6 +19,7 @@
 //! | [`autotune`] | R/L measurement, current-loop gains, open/unbalanced phase |
 #![no_std]
 #![warn(missing_docs)]
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 pub mod angle;
 pub mod autotune;
