@@ -10,13 +10,15 @@
 //!    newest [`ControlCommand`] is read (power permission, offsets; a new cycle →
 //!    `set_command`, new parameters → `configure`), the motion layer steps
 //!    ([`CommutatedMotion`], held while the power-up auto-tune runs) → current
-//!    reference; the index and touch-probe latches become axis positions
+//!    reference (in open loop its angle gets the anti-resonance correction,
+//!    `foc::damping`, 0x2059); the index and touch-probe latches become axis positions
 //!    ([`crate::latch`]), and the measurements for the drive ([`Feedback`]) are
 //!    returned for publication;
 //! 3. the bridges: [`bridge_mode`] decides (halted, break latched, fast protection
 //!    tripped, auto-tune, the drive's permission, the motion layer's wish); on, the
 //!    current loop through [`CurrentSupervisor`] (`run_step`, or `tune_step` in
-//!    voltage mode while tuning) → duties → compare registers, unless the fast
+//!    voltage mode while tuning) → duties → compare registers (in open loop the
+//!    applied voltage also goes to the damping's back-EMF estimate), unless the fast
 //!    protection trips in this very period; off, the loop keeps measuring (the
 //!    protection keeps watching) with zero volts.
 //!
@@ -31,6 +33,7 @@ use crate::motion::{CurrentReference, Frame, MotionConfig};
 use crate::power_gate::{bridge_mode, BridgeMode, GateInputs};
 use crate::sampling::{AnalogScale, RawSample};
 use foc::current_loop::{robust_bandwidth, AdcSample, CurrentLoop, CurrentLoopConfig, Sense};
+use foc::damping::{Damping, DampingConfig};
 use foc::encoder::{Encoder, EncoderConfig};
 use foc::modulation::{Duties, Modulator};
 
@@ -38,6 +41,9 @@ use foc::modulation::{Duties, Modulator};
 pub const SERVO_DIVIDER: u8 = 4;
 /// Encoder PLL natural frequency, rad/s.
 const PLL_OMEGA: f32 = 8000.0;
+/// The current loop's latency, samples: sample to the middle of the PWM period that
+/// applies the voltage (the duties load at the update event after the sample).
+const LATENCY: f32 = 1.5;
 
 /// What the control path needs of the hardware: the board maps each call onto its
 /// registers (TIM2, TIM1/TIM8, the capture flags, the halted state); tests onto a
@@ -85,7 +91,8 @@ pub struct LoopMotor {
     pub r_ohm: f32,
     /// Phase inductance, H.
     pub l_h: f32,
-    /// Back-EMF constant, V·s/rad (electrical).
+    /// Back-EMF constant, V·s/rad (mechanical; the current loop divides by the pole
+    /// pairs).
     pub ke: f32,
     /// Encoder lines per revolution.
     pub encoder_lines: u32,
@@ -127,6 +134,10 @@ pub struct ControlCore {
     motion: CommutatedMotion,
     sup: CurrentSupervisor,
     reference: CurrentReference,
+    /// Open-loop anti-resonance damping (`foc::damping`).
+    damping: Damping,
+    /// Phase resistance before a tune measured it, Ω.
+    motor_r: f32,
     divider: u8,
     seen_cycle: u32,
     seen_config: u32,
@@ -172,7 +183,7 @@ impl ControlCore {
             ki,
             inductance: motor.l_h,
             ke: motor.ke,
-            latency: 1.5,
+            latency: LATENCY,
             sense: Sense {
                 amps_per_count: stage.analog.amps_per_count,
                 offset_a: f32::from(stage.analog.offset_nominal),
@@ -195,6 +206,14 @@ impl ControlCore {
             motion: CommutatedMotion::new(motion, wiggle),
             sup: CurrentSupervisor::new(supervisor),
             reference: CurrentReference::OFF,
+            damping: Damping::new(DampingConfig::new(
+                ts * f32::from(SERVO_DIVIDER),
+                motor.r_ohm,
+                motor.l_h,
+                motor.ke,
+                LATENCY,
+            )),
+            motor_r: motor.r_ohm,
             divider: 0,
             seen_cycle: 0,
             seen_config: 0,
@@ -267,13 +286,18 @@ impl ControlCore {
                 }
                 self.cl.id_ref = self.reference.id;
                 self.cl.iq_ref = self.reference.iq;
-                let (theta, omega) = match self.reference.frame {
+                match self.reference.frame {
                     Frame::Encoder => {
-                        (self.enc.commutation_angle(), self.enc.commutation_omega_e())
+                        let (theta, omega) =
+                            (self.enc.commutation_angle(), self.enc.commutation_omega_e());
+                        self.sup.run_step(&mut self.cl, &adc, theta, omega)
                     }
-                    Frame::Command { angle, omega_e } => (angle, omega_e),
-                };
-                self.sup.run_step(&mut self.cl, &adc, theta, omega)
+                    Frame::Command { angle, omega_e } => {
+                        let d = self.sup.run_step(&mut self.cl, &adc, angle, omega_e);
+                        self.damping.tick(self.cl.v_ab);
+                        d
+                    }
+                }
             };
             if self.sup.protect(&self.cl) {
                 // The fast protection (`CurrentSupervisor::protect`): off in this period.
@@ -303,6 +327,7 @@ impl ControlCore {
             if k.config != self.seen_config {
                 self.seen_config = k.config;
                 self.motion.configure(k.motion, k.align_wiggle);
+                self.damping.set_gain(k.motion.damping_s);
                 if k.supervisor != *self.sup.config() {
                     self.sup.configure(k.supervisor);
                 }
@@ -330,6 +355,7 @@ impl ControlCore {
             self.motion.step(&fb, self.enc.raw_electrical_angle())
         };
         self.reference = step.reference;
+        self.damp_open_loop();
         // The first power request with 0x2013 = 0 starts the phase check.
         self.sup.request_power(self.reference.power);
         if let Some(offset) = step.offset {
@@ -358,6 +384,20 @@ impl ControlCore {
             aligned: self.motion.state() == Commutation::Aligned,
             align_failures: self.motion.failures(),
             current: self.sup.report(),
+        }
+    }
+
+    /// Open loop: the anti-resonance correction of the command angle (`foc::damping`),
+    /// from the currents and voltages of the last servo period. Otherwise, and with
+    /// the bridges off, the estimate restarts.
+    fn damp_open_loop(&mut self) {
+        match &mut self.reference.frame {
+            Frame::Command { angle, omega_e } if self.bridges_on => {
+                let r = self.sup.tuned_resistance().unwrap_or(self.motor_r);
+                self.damping.set_motor(r, self.cl.config().inductance);
+                *angle = angle.wrapping_add(self.damping.update(self.cl.i_ab, *omega_e));
+            }
+            _ => self.damping.reset(),
         }
     }
 

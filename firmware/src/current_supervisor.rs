@@ -428,6 +428,14 @@ impl CurrentSupervisor {
         }
     }
 
+    /// The phase resistance the last finished tune measured, Ω (`None` before one).
+    pub fn tuned_resistance(&self) -> Option<f32> {
+        match self.status {
+            TuneStatus::Done if self.tuned.r_mohm > 0 => Some(f32::from(self.tuned.r_mohm) * 1e-3),
+            _ => None,
+        }
+    }
+
     /// True while the tune owns the bridges: switch them on and call
     /// [`Self::tune_step`] instead of the current loop, and hold the motion layer
     /// (`Motion::step_held`).

@@ -137,6 +137,8 @@ pub struct MotionConfig {
     pub following_error_limit: u32,
     /// Servo gains (physical units, after the parameter scaling).
     pub gains: ServoGains,
+    /// Open-loop anti-resonance damping gain 0x2059, s (0 = off; `foc::damping`).
+    pub damping_s: f32,
 }
 
 fn finite_pos(x: f32) -> f32 {
@@ -211,6 +213,7 @@ impl MotionConfig {
             reverse: p.get(Param::DirectionReversal) != 0,
             following_error_limit: p.get(Param::FollowingErrorLimit).clamp(1, 1 << 24) as u32,
             gains,
+            damping_s: p.get(Param::ResonanceDamping) as f32 * 1e-6,
         }
     }
 

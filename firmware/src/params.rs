@@ -213,6 +213,10 @@ vendor_params! {
         "Current ramp on enable" {
         SoftStart = rws(0, "Current soft-start", U16, 1, 0, 10000, "50us"),
     }
+    0x2059 var "Anti-resonance damping",
+        "Open-loop damping gain Kd (foc::damping): the command angle advances by Kd times the speed error estimated from the back-EMF; 0 off" {
+        ResonanceDamping = rws(0, "Anti-resonance damping", U16, 1000, 0, 5000, "us"),
+    }
     0x2083 var "Power-up wiggle",
         "Angle alignment by a small shaft movement at power-up" {
         PowerUpWiggle = rws(0, "Power-up wiggle", U8, 0, 0, 1, ""),

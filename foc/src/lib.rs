@@ -15,6 +15,7 @@
 //! | [`current_loop`] | FOC current loop step: ADC counts → four duty cycles |
 //! | [`encoder`] | quadrature count, electrical angle, PLL velocity, Z index |
 //! | [`open_loop`] | microstepping, holding current, soft start, command filter |
+//! | [`damping`] | anti-resonance damping of open loop (back-EMF speed estimate) |
 //! | [`servo`] | position/velocity cascade, CSP interpolation, following error, alignment |
 //! | [`autotune`] | R/L measurement, current-loop gains, open/unbalanced phase |
 #![no_std]
@@ -24,6 +25,7 @@
 pub mod angle;
 pub mod autotune;
 pub mod current_loop;
+pub mod damping;
 pub mod encoder;
 pub mod modulation;
 pub mod num;

@@ -6,7 +6,7 @@
 //! the plant with a real motor's and board's non-idealities.
 //!
 //! `--plots DIR` also writes `current_step.png`, `csp_tracking_error.png` and
-//! `iq_ripple_vs_speed.png` (the README's plot) into DIR.
+//! `iq_ripple_vs_speed.png` and `open_loop_resonance.png` (the README's plots) into DIR.
 //! Text in the plots uses DejaVu Sans from /usr/share/fonts if it is installed;
 //! without it the plots are drawn without text.
 #![deny(clippy::undocumented_unsafe_blocks)]
@@ -14,6 +14,7 @@
 use plotters::prelude::*;
 use std::path::PathBuf;
 use tests_host::plant::motor::{ECN57_20, TC86_45};
+use tests_host::plant::resonance;
 use tests_host::plant::robustness::{self, Calibration, Conditions, Design};
 use tests_host::plant::scenarios::{self, Figure};
 use tests_host::plot::{load_font, plot};
@@ -46,6 +47,11 @@ fn main() {
     println!("### Robustness (current loop on a non-ideal plant)");
     println!();
     print_table(&robustness::report());
+    println!();
+    println!("### Open-loop resonance (sweep 0.5-20 rev/s, 5 % load, rated current)");
+    println!();
+    let sweeps = resonance::sweeps();
+    print_table(&resonance::report_of(&sweeps));
 
     if let Some(dir) = plots {
         if let Err(e) = std::fs::create_dir_all(&dir) {
@@ -78,7 +84,9 @@ fn main() {
         );
         let p3 = dir.join("iq_ripple_vs_speed.png");
         let r3 = ripple_plot(&p3, text);
-        for (p, r) in [(p1, r1), (p2, r2), (p3, r3)] {
+        let p4 = dir.join("open_loop_resonance.png");
+        let r4 = resonance_plot(&p4, &sweeps, text);
+        for (p, r) in [(p1, r1), (p2, r2), (p3, r3), (p4, r4)] {
             match r {
                 Ok(()) => eprintln!("wrote {}", p.display()),
                 Err(e) => {
@@ -102,6 +110,35 @@ fn print_table(rows: &[Figure]) {
             if f.met { "yes" } else { "no" }
         );
     }
+}
+
+/// Open-loop speed ripple against speed, both motors, damping off and on.
+fn resonance_plot(
+    path: &std::path::Path,
+    sweeps: &[resonance::MotorSweep],
+    text: bool,
+) -> Result<(), Box<dyn std::error::Error>> {
+    // Relative ripple in %, capped at 150 % (a lost rotor's ripple is its speed).
+    let pts = |v: &[resonance::SweepPoint]| -> Vec<(f64, f64)> {
+        v.iter()
+            .map(|p| (p.speed, (100.0 * p.ripple_rel()).min(150.0)))
+            .collect()
+    };
+    let (e, t) = (&sweeps[0], &sweeps[1]);
+    let (e_off, e_on, t_off, t_on) = (pts(&e.off), pts(&e.on), pts(&t.off), pts(&t.on));
+    plot(
+        path,
+        "Open loop at rated current, 5 % load, 48 V: speed ripple p-p / speed",
+        "commanded speed (rev/s)",
+        "speed ripple p-p (% of speed, capped at 150)",
+        &[
+            ("ECN57-20 undamped", &e_off, RGBColor(255, 150, 150)),
+            ("TC86-45 undamped", &t_off, RGBColor(150, 150, 255)),
+            ("ECN57-20 damped (0x2059 = 1 ms)", &e_on, RED),
+            ("TC86-45 damped", &t_on, BLUE),
+        ],
+        text,
+    )
 }
 
 /// i_q ripple against speed on the encoder, both motors, before (the baseline loop)

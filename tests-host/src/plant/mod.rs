@@ -10,5 +10,6 @@
 pub mod motor;
 pub mod rig;
 pub mod rng;
+pub mod resonance;
 pub mod robustness;
 pub mod scenarios;

@@ -19,6 +19,9 @@ pub const TS_SERVO: f32 = TS * SERVO_DIV as f32;
 /// Current-loop bandwidth used by the rigs: the drive's robust design
 /// ([`foc::current_loop::robust_bandwidth`]), rad/s.
 pub const WC: f32 = foc::current_loop::ROBUST_WC_TS / TS;
+/// The current loop's latency, samples (sample to the middle of the PWM period that
+/// applies its voltage: the plant's one sample of delay + 0.5).
+pub const LATENCY: f32 = 1.5;
 /// Encoder PLL natural frequency, rad/s.
 pub const PLL_OMEGA: f32 = 8000.0;
 
@@ -61,7 +64,7 @@ impl Rig {
             ki,
             inductance: m.l as f32,
             ke: m.kt as f32,
-            latency: 1.5,
+            latency: LATENCY,
             sense: cfg.sense(),
             modulator: Modulator::new(cfg.pwm_period),
         };

@@ -424,7 +424,7 @@ pub fn autotune_with(cfg: PlantConfig, prepare: impl FnOnce(&mut Rig)) -> Tune {
     }
 }
 
-fn open_loop_config(ppr: u32, current: f64) -> OpenLoopConfig {
+pub(crate) fn open_loop_config(ppr: u32, current: f64) -> OpenLoopConfig {
     OpenLoopConfig {
         pulses_per_rev: ppr,
         ts: TS_SERVO,
@@ -437,7 +437,7 @@ fn open_loop_config(ppr: u32, current: f64) -> OpenLoopConfig {
 }
 
 /// One servo period of open loop: the open-loop step, then the FOC ticks on its angle.
-fn open_loop_period(rig: &mut Rig, ol: &mut OpenLoop, cmd: i32) -> foc::open_loop::OpenLoopOutput {
+pub(crate) fn open_loop_period(rig: &mut Rig, ol: &mut OpenLoop, cmd: i32) -> foc::open_loop::OpenLoopOutput {
     let o = ol.step(cmd);
     rig.cl.id_ref = o.current;
     rig.cl.iq_ref = 0.0;
