@@ -6,7 +6,7 @@
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 use ecat_slave_stack::esm::EsmState;
-use ecat_slave_stack::od::{self, Access, DataType, Dictionary, Entry, Object, SdoAbort};
+use ecat_slave_stack::od::{self, Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, SdoAbort};
 use firmware::comm::{self, Comm, StoreCommand, LOAD, SAVE};
 use firmware::dip::{self, AliasSource, Board};
 use firmware::faults::{self, Faults};
@@ -20,16 +20,16 @@ use firmware::storage::{
 
 // ---- a test dictionary -------------------------------------------------------------
 
-const fn map_entry(sub: u8) -> Entry {
-    Entry::new(sub, "Mapped object", DataType::Unsigned32, Access::RW_PREOP).saved()
+const fn map_entry(sub: u8) -> EntryDesc {
+    EntryDesc::new(sub, "Mapped object", DataType::Unsigned32, Access::RW_PREOP).saved()
 }
 
-const MAPPING: &[Object] = &[
-    Object::record(
+const MAPPING: &[ObjectDesc] = &[
+    ObjectDesc::record(
         0x1600,
         "RxPDO1 mapping",
         &[
-            Entry::new(
+            EntryDesc::new(
                 0,
                 "Number of entries",
                 DataType::Unsigned8,
@@ -44,11 +44,11 @@ const MAPPING: &[Object] = &[
         ],
         "",
     ),
-    Object::array(
+    ObjectDesc::array(
         0x1C12,
         "RxPDO assign",
         &[
-            Entry::new(
+            EntryDesc::new(
                 0,
                 "Number of entries",
                 DataType::Unsigned8,
@@ -56,7 +56,7 @@ const MAPPING: &[Object] = &[
             )
             .range(0, 1)
             .saved(),
-            Entry::new(1, "Assigned PDO", DataType::Unsigned16, Access::RW_PREOP)
+            EntryDesc::new(1, "Assigned PDO", DataType::Unsigned16, Access::RW_PREOP)
                 .range(0x1600, 0x1603)
                 .saved(),
         ],
@@ -64,7 +64,7 @@ const MAPPING: &[Object] = &[
     ),
 ];
 
-const PARTS: &[&[Object]] = &[
+const PARTS: &[&[ObjectDesc]] = &[
     comm::OBJECTS,
     MAPPING,
     params::OBJECTS,
@@ -72,33 +72,8 @@ const PARTS: &[&[Object]] = &[
     faults::OBJECTS,
 ];
 
-const fn total(parts: &[&[Object]]) -> usize {
-    let mut n = 0;
-    let mut i = 0;
-    while i < parts.len() {
-        n += parts[i].len();
-        i += 1;
-    }
-    n
-}
-
-const fn concat<const N: usize>(parts: &[&[Object]]) -> [Object; N] {
-    let mut out = [parts[0][0]; N];
-    let mut k = 0;
-    let mut i = 0;
-    while i < parts.len() {
-        let mut j = 0;
-        while j < parts[i].len() {
-            out[k] = parts[i][j];
-            k += 1;
-            j += 1;
-        }
-        i += 1;
-    }
-    out
-}
-
-static ALL: [Object; total(PARTS)] = concat(PARTS);
+static ALL: &[Object] =
+    ecat_slave_stack::packed_dictionary!(PARTS, firmware::dictionary::VOCABULARY);
 
 #[derive(Clone)]
 struct Drive {
