@@ -10,13 +10,11 @@ use core::hint::black_box;
 
 use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::mailbox::MailboxServer;
-use ecat_slave_stack::od::{
-    self, Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort,
-};
+use ecat_slave_stack::od::{self, Access, DataType, Dictionary, Entry, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort};
 
 macro_rules! objects {
     ($( $idx:literal $t:ident ),* $(,)?) => {
-        &[$(Object::var($idx, "", &[Entry::new(0, "", DataType::$t, Access::RW).pdo(PdoMappable::RxTx)], "")),*]
+        &[$(ObjectDesc::var($idx, "", &[EntryDesc::new(0, "", DataType::$t, Access::RW).pdo(PdoMappable::RxTx)], "")),*]
     };
 }
 

@@ -9,7 +9,7 @@ use core::hint::black_box;
 use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esc::{EscAccess, EscError};
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
-use ecat_slave_stack::od::{Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{Access, DataType, Dictionary, Entry, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort};
 use ecat_slave_stack::pdo::{self, entry, PdoConfig, PdoDefaults, ProcessData};
 use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
@@ -80,7 +80,7 @@ impl RamEsc {
 
 macro_rules! objects {
     ($( $idx:literal $t:ident $dir:ident ),* $(,)?) => {
-        &[$(Object::var($idx, "", &[Entry::new(0, "", DataType::$t, Access::RW).pdo(PdoMappable::$dir)], "")),*]
+        &[$(ObjectDesc::var($idx, "", &[EntryDesc::new(0, "", DataType::$t, Access::RW).pdo(PdoMappable::$dir)], "")),*]
     };
 }
 
