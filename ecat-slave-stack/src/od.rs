@@ -368,9 +368,23 @@ impl Eq for Entry {}
 
 impl core::fmt::Debug for Entry {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("Entry")
+        self.debug(f, "Entry", &self.name(), self.default_value())
+    }
+}
+
+impl Entry {
+    /// The [`core::fmt::Debug`] form of an entry named `name` with the default
+    /// `default` (the packed entry and its description print alike).
+    fn debug(
+        &self,
+        f: &mut core::fmt::Formatter<'_>,
+        kind: &str,
+        name: &dyn core::fmt::Debug,
+        default: DefaultValue,
+    ) -> core::fmt::Result {
+        f.debug_struct(kind)
             .field("sub", &self.sub)
-            .field("name", &self.name())
+            .field("name", name)
             .field("data_type", &self.data_type)
             .field("bits", &self.bits())
             .field("access", &self.access)
@@ -378,7 +392,7 @@ impl core::fmt::Debug for Entry {
             .field("saved", &self.is_saved())
             .field("min", &self.min())
             .field("max", &self.max())
-            .field("default", &self.default_value())
+            .field("default", &default)
             .field("unit", &self.unit_text())
             .finish()
     }
@@ -409,7 +423,6 @@ pub const fn type_range(t: DataType) -> (u16, i64, i64) {
         DataType::Bit8 => (8, 0, 255),
     }
 }
-
 
 /// One object, as the packed dictionary keeps it.
 ///

@@ -714,7 +714,8 @@ macro_rules! map_entries {
     };
 }
 
-const MAP_ENTRIES: &[EntryDesc] = map_entries!(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16);
+const MAP_ENTRIES: &[EntryDesc] =
+    map_entries!(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16);
 
 const fn map_object(index: u16, name: &'static str) -> ObjectDesc {
     ObjectDesc::record(

@@ -10,7 +10,9 @@ use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::et1100::{self, Et1100, Et1100Config};
 use ecat_slave_stack::lan9252::{self, Lan9252, Lan9252Config};
 use ecat_slave_stack::leds::{self, ErrCondition, Indicator, Pattern, StatusLeds};
-use ecat_slave_stack::od::{Access, DataType, EntryDesc, Name, Object, ObjectCode, ObjectDesc, PdoMappable};
+use ecat_slave_stack::od::{
+    Access, DataType, EntryDesc, Name, Object, ObjectCode, ObjectDesc, PdoMappable,
+};
 use ecat_slave_stack::pdo;
 use ecat_slave_stack::sii::{self, DeviceDescription, EscFlavour, Sii, SiiError, SmType};
 use ecat_slave_stack::{EscAccess, EscError};
@@ -673,7 +675,7 @@ qemu_runner::tests! {
 
     fn esi_is_well_formed_and_lists_every_object() {
         let mut out = Buf::<32768>::new();
-        esi::write(&DESC, &OBJECTS, &PDOS, &mut out).unwrap();
+        esi::write(&DESC, OBJECTS, &PDOS, &mut out).unwrap();
         let x = out.as_str();
         assert!(xml_well_formed(x), "{x}");
         assert_eq!(x.matches("<Object>").count(), OBJECTS.len());
@@ -709,19 +711,19 @@ qemu_runner::tests! {
         static WRONG_DIR: [u32; 1] = [pdo::entry(0x6041, 0, 16)];
         static WRONG_BITS: [u32; 1] = [pdo::entry(0x6040, 0, 32)];
         let p = |index, sm, entries| [PdoMap { index, name: Name::plain("x"), sm, fixed: false, mandatory: false, entries }];
-        assert_eq!(esi::write(&DESC, &OBJECTS, &p(0x1600, Some(2), &BAD_ENTRY), &mut out),
+        assert_eq!(esi::write(&DESC, OBJECTS, &p(0x1600, Some(2), &BAD_ENTRY), &mut out),
             Err(EsiError::UnknownEntry { pdo: 0x1600, index: 0x6099, sub: 0 }));
-        assert_eq!(esi::write(&DESC, &OBJECTS, &p(0x1600, Some(2), &WRONG_DIR), &mut out),
+        assert_eq!(esi::write(&DESC, OBJECTS, &p(0x1600, Some(2), &WRONG_DIR), &mut out),
             Err(EsiError::NotMappable { pdo: 0x1600, index: 0x6041, sub: 0 }));
-        assert_eq!(esi::write(&DESC, &OBJECTS, &p(0x1600, Some(2), &WRONG_BITS), &mut out),
+        assert_eq!(esi::write(&DESC, OBJECTS, &p(0x1600, Some(2), &WRONG_BITS), &mut out),
             Err(EsiError::BitLength { pdo: 0x1600, index: 0x6040, sub: 0 }));
-        assert_eq!(esi::write(&DESC, &OBJECTS, &p(0x1600, Some(3), &RX1), &mut out),
+        assert_eq!(esi::write(&DESC, OBJECTS, &p(0x1600, Some(3), &RX1), &mut out),
             Err(EsiError::PdoSyncManager(0x1600)));
-        assert_eq!(esi::write(&DESC, &OBJECTS, &p(0x1234, None, &RX1), &mut out), Err(EsiError::PdoIndex(0x1234)));
+        assert_eq!(esi::write(&DESC, OBJECTS, &p(0x1234, None, &RX1), &mut out), Err(EsiError::PdoIndex(0x1234)));
         let unsorted = [OBJECTS[1], OBJECTS[0]];
         assert_eq!(esi::write(&DESC, &unsorted, &[], &mut out), Err(EsiError::ObjectsNotWellFormed));
         let mut small = Buf::<512>::new();
-        assert_eq!(esi::write(&DESC, &OBJECTS, &PDOS, &mut small), Err(EsiError::Fmt));
+        assert_eq!(esi::write(&DESC, OBJECTS, &PDOS, &mut small), Err(EsiError::Fmt));
         assert_eq!(out.n, 0, "nothing written before validation failed");
     }
 
@@ -729,7 +731,7 @@ qemu_runner::tests! {
         let mut img = [0u8; 2048];
         sii::build(&DESC, &mut img).unwrap();
         let mut out = Buf::<32768>::new();
-        esi::write(&DESC, &OBJECTS, &PDOS, &mut out).unwrap();
+        esi::write(&DESC, OBJECTS, &PDOS, &mut out).unwrap();
         let x = out.as_str();
         let start = x.find("<ConfigData>").unwrap() + "<ConfigData>".len();
         let hex = &x[start..start + 28];
@@ -751,7 +753,7 @@ qemu_runner::tests! {
             rx_assign: &RXA,
             tx_assign: &TXA,
         };
-        let maps = esi::pdo_maps(&DESC, &OBJECTS, &defaults);
+        let maps = esi::pdo_maps(&DESC, OBJECTS, &defaults);
         assert_eq!(maps.len(), 3);
         assert_eq!((maps[0].index, maps[0].sm), (0x1600, Some(2)));
         assert_eq!(maps[0].name, "RxPDO 1");
@@ -761,7 +763,7 @@ qemu_runner::tests! {
         assert_eq!(maps[2].name, "TxPDO 1");
         assert_eq!(PdoEntry::decode(maps[2].entries[0]), PdoEntry { index: 0x6041, sub: 0, bits: 16 });
         let mut out = Buf::<32768>::new();
-        esi::write(&DESC, &OBJECTS, &maps, &mut out).unwrap();
+        esi::write(&DESC, OBJECTS, &maps, &mut out).unwrap();
         let x = out.as_str();
         // Not assigned by default, but an RxPDO can only go to SM2: Sm="2" all the same.
         assert!(x.contains("<RxPdo Sm=\"2\"><Index>#x1602</Index><Name>RxPDO</Name>"));
@@ -773,7 +775,7 @@ qemu_runner::tests! {
         let mut maps = [PDOS[0], PDOS[1], PDOS[0]];
         maps[2] = PdoMap { index: 0x1601, name: Name::plain("RxPDO 2"), sm: None, fixed: true, mandatory: true, entries: &RX2 };
         let mut img = [0xFFu8; 2048];
-        let n = sii::build_with_pdos(&DESC, &OBJECTS, &maps, &mut img).unwrap();
+        let n = sii::build_with_pdos(&DESC, OBJECTS, &maps, &mut img).unwrap();
         let view = sii::Sii::new(&img[..n]);
         let cat = |kind: u16| view.categories().find(|c| c.kind == kind).map(|c| c.data);
         let st = |s: &str| (1..=view.string_count()).find(|i| view.string(*i) == Some(s)).unwrap();

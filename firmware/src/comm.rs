@@ -20,7 +20,9 @@
 //! else is refused with 0x06090030); sub-index n = error code (bits 0-15) and fault
 //! kind (bits 16-23) of the n-th newest fault.
 
-use ecat_slave_stack::od::{Access, DataType, Dictionary, EntryDesc, ObjectDesc, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    Access, DataType, Dictionary, EntryDesc, ObjectDesc, PdoMappable, SdoAbort,
+};
 use embedded_storage::nor_flash::NorFlash;
 
 use crate::diagnosis::HISTORY_LEN;

@@ -806,7 +806,8 @@ pub const OBJECTS: &[ObjectDesc] = &[
             ro(5, "Fault code 4", DataType::Unsigned16, ""),
             ro(6, "Fault code 5", DataType::Unsigned16, ""),
             ro(7, "Fault code 6 (oldest)", DataType::Unsigned16, ""),
-            EntryDesc::new(8, "Active faults", DataType::Unsigned16, Access::RO).pdo(PdoMappable::Tx),
+            EntryDesc::new(8, "Active faults", DataType::Unsigned16, Access::RO)
+                .pdo(PdoMappable::Tx),
         ],
         "Last six faults, newest first; sub 8: bit n = fault kind n active",
     ),

@@ -26,7 +26,10 @@
 //!   with [`Params::set_internal`] and stores it with a save. It is the DIP address from
 //!   the next power-up.
 
-use ecat_slave_stack::od::{self, Access, DataType, DefaultValue, Entry, EntryDesc, ObjectCode, ObjectDesc, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    self, Access, DataType, DefaultValue, Entry, EntryDesc, ObjectCode, ObjectDesc, PdoMappable,
+    SdoAbort,
+};
 
 use crate::current_supervisor::Calibration;
 use crate::identity::Variant;

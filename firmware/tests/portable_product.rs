@@ -6,7 +6,9 @@
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 use ecat_slave_stack::esm::EsmState;
-use ecat_slave_stack::od::{self, Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, SdoAbort};
+use ecat_slave_stack::od::{
+    self, Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, SdoAbort,
+};
 use firmware::comm::{self, Comm, StoreCommand, LOAD, SAVE};
 use firmware::dip::{self, AliasSource, Board};
 use firmware::faults::{self, Faults};
@@ -118,7 +120,7 @@ impl Drive {
         ]
     }
     fn sdo(&mut self, index: u16, sub: u8, v: u32) -> Result<Option<StoreCommand>, SdoAbort> {
-        let e = od::find_entry(&ALL, index, sub)?;
+        let e = od::find_entry(ALL, index, sub)?;
         let data = &v.to_le_bytes()[..e.byte_len()];
         od::check_write(e, data, EsmState::PreOp)?;
         match index {
@@ -156,7 +158,7 @@ impl Drive {
 
 impl Dictionary for Drive {
     fn objects(&self) -> &'static [Object] {
-        &ALL
+        ALL
     }
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
         match index {
@@ -169,7 +171,7 @@ impl Dictionary for Drive {
                     (0x1C12, 1) => u32::from(self.assign),
                     _ => return Err(SdoAbort::SubindexDoesNotExist),
                 };
-                let len = od::find_entry(&ALL, index, sub)?.byte_len();
+                let len = od::find_entry(ALL, index, sub)?.byte_len();
                 buf.get_mut(..len)
                     .ok_or(SdoAbort::ExceedsMailbox)?
                     .copy_from_slice(&v.to_le_bytes()[..len]);
@@ -334,7 +336,7 @@ qemu_runner::tests! {
     }
 
     fn dictionary_is_sorted() {
-        assert!(od::is_well_formed(&ALL));
+        assert!(od::is_well_formed(ALL));
     }
 
     fn blank_flash_gives_defaults_without_report() {

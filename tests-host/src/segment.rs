@@ -26,7 +26,9 @@ use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
 use ecat_slave_stack::et1100::{Et1100, Et1100Config};
 use ecat_slave_stack::lan9252::{Lan9252, Lan9252Config};
-use ecat_slave_stack::od::{Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+};
 use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
 use ecat_slave_stack::sii::{self, DeviceDescription};
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
@@ -327,9 +329,11 @@ const E_6040: &[EntryDesc] =
     &[EntryDesc::new(0, "Controlword", DataType::Unsigned16, Access::RW).pdo(PdoMappable::Rx)];
 const E_6041: &[EntryDesc] =
     &[EntryDesc::new(0, "Statusword", DataType::Unsigned16, Access::RO).pdo(PdoMappable::Tx)];
-const E_6064: &[EntryDesc] = &[
-    EntryDesc::new(0, "Position actual value", DataType::Integer32, Access::RO).pdo(PdoMappable::Tx),
-];
+const E_6064: &[EntryDesc] =
+    &[
+        EntryDesc::new(0, "Position actual value", DataType::Integer32, Access::RO)
+            .pdo(PdoMappable::Tx),
+    ];
 const E_607A: &[EntryDesc] =
     &[EntryDesc::new(0, "Target position", DataType::Integer32, Access::RW).pdo(PdoMappable::Rx)];
 
@@ -342,7 +346,8 @@ const TEST_OBJECTS_LOCAL: &[ObjectDesc] = &[
     var(0x6040, "Controlword", E_6040),
     var(0x6041, "Statusword", E_6041),
     var(0x6064, "Position actual value", E_6064),
-    var(0x607A, "Target position", E_607A),];
+    var(0x607A, "Target position", E_607A),
+];
 
 const RX: &[u32] = &[entry(0x6040, 0, 16), entry(0x607A, 0, 32)];
 const TX: &[u32] = &[entry(0x6041, 0, 16), entry(0x6064, 0, 32)];

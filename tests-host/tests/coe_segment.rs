@@ -12,7 +12,9 @@
 
 use ecat_slave_stack::coe::example::{self, ExampleDictionary, DEVICE_NAME};
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
-use ecat_slave_stack::od::{self, Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    self, Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+};
 use ecat_slave_stack::pdo::{self, ProcessData};
 use ecat_slave_stack::slave::SlaveApplication;
 use ecat_slave_stack::sync;
@@ -27,18 +29,20 @@ use tests_host::segment::{
     sii_image, test_description, test_slave_config, PdiPath, Segment, SegmentConfig,
 };
 
-const E_6064: &[EntryDesc] = &[
-    EntryDesc::new(0, "Position actual value", DataType::Integer32, Access::RO).pdo(PdoMappable::Tx),
-];
+const E_6064: &[EntryDesc] =
+    &[
+        EntryDesc::new(0, "Position actual value", DataType::Integer32, Access::RO)
+            .pdo(PdoMappable::Tx),
+    ];
 
 /// The example objects, the runtime's PDO objects and the timing diagnostics, sorted.
 static OBJECTS: &[Object] =
     ecat_slave_stack::packed_dictionary!(&[pdo::OBJECTS, OBJECTS_LOCAL, sync::DIAG_OBJECTS]);
 const OBJECTS_LOCAL: &[ObjectDesc] = &[
-    example::SOURCE[0], // 0x1000
-    example::SOURCE[1], // 0x1001
-    example::SOURCE[2], // 0x1008
-    example::SOURCE[3], // 0x1018
+    example::SOURCE[0],  // 0x1000
+    example::SOURCE[1],  // 0x1001
+    example::SOURCE[2],  // 0x1008
+    example::SOURCE[3],  // 0x1018
     example::SOURCE[6],  // 0x2000
     example::SOURCE[7],  // 0x2001
     example::SOURCE[8],  // 0x2002

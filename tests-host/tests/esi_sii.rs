@@ -453,7 +453,11 @@ fn esi_dictionary_is_exactly_the_drive_dictionary() {
                         types.contains_key(text(*x, "Type")),
                         "{what}: type not defined"
                     );
-                    assert_eq!(num(text(*x, "BitSize")), u64::from(e.bits()), "{what}: bits");
+                    assert_eq!(
+                        num(text(*x, "BitSize")),
+                        u64::from(e.bits()),
+                        "{what}: bits"
+                    );
                     check_flags(child(*x, "Flags"), e, &what);
                     check_default(info, o.index, e, v, &what);
                     continue;
@@ -469,7 +473,11 @@ fn esi_dictionary_is_exactly_the_drive_dictionary() {
                     assert_eq!(num(text(*s, "SubIdx")), u64::from(e.sub), "{what}");
                     assert_eq!(text(*s, "Name"), e.name(), "{what}");
                     assert_eq!(text(*s, "Type"), type_name(e), "{what}: type");
-                    assert_eq!(num(text(*s, "BitSize")), u64::from(e.bits()), "{what}: bits");
+                    assert_eq!(
+                        num(text(*s, "BitSize")),
+                        u64::from(e.bits()),
+                        "{what}: bits"
+                    );
                     // An entry of a byte or more starts on a byte (ETG.1020 DT10F3).
                     if e.bits() >= 8 {
                         off = off.next_multiple_of(8);

@@ -265,7 +265,10 @@ fn le_bytes(v: i64, len: usize) -> Vec<u8> {
 fn every_vendor_parameter_default_and_range_edges_over_sdo() {
     let mut d = new_drive();
     d.sdo_download(0x2013, 0, &[0]).unwrap(); // unlock 0x2015/0x2016
-    for o in all_objects().iter().filter(|o| (0x2000..=0x21FF).contains(&o.index)) {
+    for o in all_objects()
+        .iter()
+        .filter(|o| (0x2000..=0x21FF).contains(&o.index))
+    {
         for e in o.entries() {
             let len = e.byte_len();
             if let od::DefaultValue::Int(def) = e.default_value() {

@@ -5,7 +5,9 @@
 
 use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
-use ecat_slave_stack::od::{Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+};
 use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
 use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
@@ -24,13 +26,13 @@ const fn var(index: u16, entries: &'static [EntryDesc]) -> ObjectDesc {
     ObjectDesc::var(index, "", entries, "")
 }
 
-static OBJECTS: &[Object] =
-    ecat_slave_stack::packed_dictionary!(&[pdo::OBJECTS, OBJECTS_LOCAL]);
+static OBJECTS: &[Object] = ecat_slave_stack::packed_dictionary!(&[pdo::OBJECTS, OBJECTS_LOCAL]);
 const OBJECTS_LOCAL: &[ObjectDesc] = &[
     var(0x6040, E_6040),
     var(0x6041, E_6041),
     var(0x6064, E_6064),
-    var(0x607A, E_607A),];
+    var(0x607A, E_607A),
+];
 
 const RX1: &[u32] = &[entry(0x6040, 0, 16), entry(0x607A, 0, 32)];
 const TX1: &[u32] = &[entry(0x6041, 0, 16), entry(0x6064, 0, 32)];

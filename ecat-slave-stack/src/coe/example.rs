@@ -10,7 +10,8 @@
 
 use crate::esm::EsmState;
 use crate::od::{
-    self, Access, DataType, DefaultValue, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+    self, Access, DataType, DefaultValue, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable,
+    SdoAbort,
 };
 
 const U8: DataType = DataType::Unsigned8;
@@ -43,7 +44,12 @@ pub const SOURCE: &[ObjectDesc] = &[
     ObjectDesc::var(
         0x1008,
         "Manufacturer device name",
-        &[EntryDesc::text(0, "Manufacturer device name", 32, DEVICE_NAME)],
+        &[EntryDesc::text(
+            0,
+            "Manufacturer device name",
+            32,
+            DEVICE_NAME,
+        )],
         "",
     ),
     ObjectDesc::record(

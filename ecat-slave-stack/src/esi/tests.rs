@@ -81,7 +81,7 @@ fn child<'a, 'i>(n: roxmltree::Node<'a, 'i>, tag: &str) -> roxmltree::Node<'a, '
 #[test]
 fn parses_and_matches_description_and_dictionary() {
     let mut xml = String::new();
-    write(&DESC, &OBJECTS, &PDOS, &mut xml).unwrap();
+    write(&DESC, OBJECTS, &PDOS, &mut xml).unwrap();
     let doc = roxmltree::Document::parse(&xml).expect("well-formed XML");
     let root = doc.root_element();
     assert_eq!(root.tag_name().name(), "EtherCATInfo");

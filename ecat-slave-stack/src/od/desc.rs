@@ -69,7 +69,11 @@ impl EntryDesc {
     pub const fn range(mut self, min: i64, max: i64) -> Self {
         let f = &mut self.fields;
         if !f.has_no_range() {
-            f.spec = [pattern(f.data_type, min), pattern(f.data_type, max), f.spec[2]];
+            f.spec = [
+                pattern(f.data_type, min),
+                pattern(f.data_type, max),
+                f.spec[2],
+            ];
             f.flags &= !FLAG_NATURAL;
         }
         self
@@ -201,7 +205,10 @@ impl EntryDesc {
         name_len: usize,
         text_at: u16,
     ) -> Entry {
-        assert!(name_len <= u8::MAX as usize, "packed od name over 255 bytes");
+        assert!(
+            name_len <= u8::MAX as usize,
+            "packed od name over 255 bytes"
+        );
         let mut e = self.fields;
         e.strings = strings;
         e.name_at = name_at;
@@ -243,19 +250,8 @@ impl PartialEq<EntryDesc> for Entry {
 
 impl core::fmt::Debug for EntryDesc {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("EntryDesc")
-            .field("sub", &self.sub())
-            .field("name", &self.name)
-            .field("data_type", &self.data_type())
-            .field("bits", &self.bits())
-            .field("access", &self.access())
-            .field("pdo", &self.pdo_mappable())
-            .field("saved", &self.is_saved())
-            .field("min", &self.min())
-            .field("max", &self.max())
-            .field("default", &self.default_value())
-            .field("unit", &self.unit_text())
-            .finish()
+        self.fields
+            .debug(f, "EntryDesc", &self.name, self.default_value())
     }
 }
 
@@ -368,8 +364,7 @@ impl ObjectDesc {
             index: self.index,
             name_at,
             entries_at,
-            name_code: name_len as u8
-                | ((self.code as u8 - ObjectCode::Var as u8) << CODE_SHIFT),
+            name_code: name_len as u8 | ((self.code as u8 - ObjectCode::Var as u8) << CODE_SHIFT),
             entries_len: self.entries.len() as u8,
             #[cfg(feature = "descriptions")]
             description: self.description,
@@ -418,9 +413,5 @@ pub(crate) const PLACEHOLDER_ENTRY: EntryDesc =
 /// A packed entry to fill arrays with before they are written.
 pub(crate) const PLACEHOLDER_PACKED_ENTRY: Entry = PLACEHOLDER_ENTRY.fields;
 /// A packed object to fill arrays with before they are written.
-pub(crate) const PLACEHOLDER_PACKED_OBJECT: Object = ObjectDesc::var(0, "", &[], "").packed(
-    &Tables::NONE,
-    0,
-    0,
-    0,
-);
+pub(crate) const PLACEHOLDER_PACKED_OBJECT: Object =
+    ObjectDesc::var(0, "", &[], "").packed(&Tables::NONE, 0, 0, 0);

@@ -62,7 +62,11 @@ macro_rules! packed_dictionary {
         };
         const OD_PACK_TEXT_AT: [u16; OD_PACK_NE] = {
             let mut a = [0; OD_PACK_NE];
-            p::text_offsets(&OD_PACK_SRC, p::name_bytes(&OD_PACK_LIST, &OD_PACK_NAME_AT, OD_PACK_WORDS), &mut a);
+            p::text_offsets(
+                &OD_PACK_SRC,
+                p::name_bytes(&OD_PACK_LIST, &OD_PACK_NAME_AT, OD_PACK_WORDS),
+                &mut a,
+            );
             a
         };
         const OD_PACK_RUN_AT: [u16; OD_PACK_O] = {
@@ -540,9 +544,10 @@ mod tests {
         let u = od::find(PACKED, 0x3004).unwrap();
         assert_ne!(t.entries().as_ptr(), v.entries().as_ptr());
         assert_ne!(t.entries().as_ptr(), u.entries().as_ptr());
-        let (DefaultValue::Text(x), DefaultValue::Text(y)) =
-            (t.entries()[0].default_value(), u.entries()[0].default_value())
-        else {
+        let (DefaultValue::Text(x), DefaultValue::Text(y)) = (
+            t.entries()[0].default_value(),
+            u.entries()[0].default_value(),
+        ) else {
             panic!("text defaults");
         };
         assert_eq!(x, "ECS drive");

@@ -80,7 +80,12 @@ fn constructors_fill_the_object_code_and_the_count_entry() {
     let c = r.entries()[0];
     assert_eq!(
         (c.sub, c.name().to_string(), c.data_type, c.access),
-        (0, "Number of entries".to_string(), DataType::Unsigned8, Access::RO)
+        (
+            0,
+            "Number of entries".to_string(),
+            DataType::Unsigned8,
+            Access::RO
+        )
     );
     assert_eq!(
         (c.bits(), c.min(), c.max(), c.default_value()),
@@ -211,10 +216,7 @@ fn replaced_defaults_keep_the_other_fields() {
         (0, 0, DefaultValue::Text("seven"))
     );
     for x in [d, none, t] {
-        assert_eq!(
-            (x.name(), x.sub(), x.unit_text()),
-            ("Gain", 3, "mA")
-        );
+        assert_eq!((x.name(), x.sub(), x.unit_text()), ("Gain", 3, "mA"));
         assert_eq!(x.pdo_mappable(), PdoMappable::Rx);
         assert!(x.is_saved());
     }

@@ -10,7 +10,9 @@ use core::hint::black_box;
 
 use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::mailbox::MailboxServer;
-use ecat_slave_stack::od::{self, Access, DataType, Dictionary, Entry, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    self, Access, DataType, Dictionary, Entry, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+};
 
 macro_rules! objects {
     ($( $idx:literal $t:ident ),* $(,)?) => {

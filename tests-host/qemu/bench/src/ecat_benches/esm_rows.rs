@@ -9,7 +9,9 @@ use core::hint::black_box;
 use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esc::{EscAccess, EscError};
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
-use ecat_slave_stack::od::{Access, DataType, Dictionary, Entry, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    Access, DataType, Dictionary, Entry, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+};
 use ecat_slave_stack::pdo::{self, entry, PdoConfig, PdoDefaults, ProcessData};
 use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
