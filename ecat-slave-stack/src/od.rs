@@ -30,31 +30,40 @@ pub use types::*;
 pub use name::{pack_into, packed_len, words_into, words_len, Name, NameBytes, COE_WORDS};
 
 /// The texts of a packed dictionary: the names packed ([`pack_into`]), each distinct
-/// one once, then the text defaults as they are (UTF-8), and the vocabulary the names
-/// were packed with ([`words_into`]). Every [`Entry`] and, through [`Tables`], every
+/// one once, the vocabulary they were packed with ([`words_into`]), and the text
+/// defaults, each distinct one once. Every [`Entry`] and, through [`Tables`], every
 /// [`Object`] of the dictionary reads its name and text default here at an offset it
 /// keeps.
 pub struct Strings {
-    text: &'static [u8],
+    names: &'static [u8],
     words: &'static [u8],
+    texts: &'static str,
 }
 
 impl Strings {
-    /// The texts `text` of a dictionary whose names are packed with the vocabulary
-    /// `words` (made by [`crate::packed_dictionary!`] or [`pack::leak`]).
-    pub const fn new(text: &'static [u8], words: &'static [u8]) -> Self {
-        Strings { text, words }
+    /// The packed names `names` of a dictionary, packed with the vocabulary `words`,
+    /// and its text defaults `texts` (made by [`crate::packed_dictionary!`] or
+    /// [`pack::leak`]).
+    pub const fn new(names: &'static [u8], words: &'static [u8], texts: &'static str) -> Self {
+        Strings {
+            names,
+            words,
+            texts,
+        }
     }
     /// No texts: what an [`EntryDesc`] holds until it is packed.
-    const NONE: Strings = Strings::new(&[], &[]);
-    /// `len` bytes at `at` (empty when out of range: never for a packed dictionary).
-    fn bytes(&self, at: u16, len: usize) -> &'static [u8] {
-        let at = at as usize;
-        self.text.get(at..at + len).unwrap_or(&[])
-    }
-    /// The packed name of `len` bytes at `at`.
+    const NONE: Strings = Strings::new(&[], &[], "");
+    /// The packed name of `len` bytes at `at` (empty when out of range: never for a
+    /// packed dictionary).
     fn name(&self, at: u16, len: usize) -> Name {
-        Name::packed(self.bytes(at, len), self.words)
+        let at = at as usize;
+        Name::packed(self.names.get(at..at + len).unwrap_or(&[]), self.words)
+    }
+    /// The text default located by `spec[1]` of an entry ([`text_at`]).
+    fn text(&self, located: i32) -> &'static str {
+        let (at, len) = (located as u32 & 0xFFFF, located as u32 >> 16);
+        let texts: &'static str = self.texts;
+        texts.get(at as usize..(at + len) as usize).unwrap_or("")
     }
 }
 
@@ -159,9 +168,51 @@ pub const UNITS: &[&str] = &[
     "°C",
 ];
 
-/// [`UNITS`] as length-prefixed texts: what [`Entry::unit_text`] reads (one byte per
-/// unit instead of a pointer and a length).
-static UNIT_TEXT: [u8; name::prefixed_len(UNITS)] = name::prefixed_list(UNITS);
+/// The texts of [`UNITS`] one after the other, and where each one ends: what
+/// [`Entry::unit_text`] reads (one byte per unit instead of a pointer and a length).
+static UNIT_TEXT: &str = pack::utf8(&unit_bytes::<{ units_len() }>());
+static UNIT_END: [u8; UNITS.len()] = unit_ends();
+
+/// Bytes of all [`UNITS`] (at most 255: one byte locates each end).
+const fn units_len() -> usize {
+    let mut n = 0;
+    let mut k = 0;
+    while k < UNITS.len() {
+        n += UNITS[k].len();
+        k += 1;
+    }
+    assert!(n <= u8::MAX as usize, "od::UNITS over 255 bytes");
+    n
+}
+
+const fn unit_bytes<const N: usize>() -> [u8; N] {
+    let mut out = [0; N];
+    let mut at = 0;
+    let mut k = 0;
+    while k < UNITS.len() {
+        let u = UNITS[k].as_bytes();
+        let mut j = 0;
+        while j < u.len() {
+            out[at] = u[j];
+            at += 1;
+            j += 1;
+        }
+        k += 1;
+    }
+    out
+}
+
+const fn unit_ends() -> [u8; UNITS.len()] {
+    let mut out = [0; UNITS.len()];
+    let mut end = 0;
+    let mut k = 0;
+    while k < UNITS.len() {
+        end += UNITS[k].len();
+        out[k] = end as u8;
+        k += 1;
+    }
+    out
+}
 
 const fn str_eq(a: &str, b: &str) -> bool {
     let (a, b) = (a.as_bytes(), b.as_bytes());
@@ -248,7 +299,7 @@ impl Entry {
         if self.data_type.is_variable_length() {
             self.spec[0] as u16 * 8
         } else {
-            type_range(self.data_type).0
+            type_bits(self.data_type)
         }
     }
     /// No range: a string, or an entry with a text default.
@@ -273,10 +324,7 @@ impl Entry {
         if self.flags & FLAG_TEXT == 0 {
             return None;
         }
-        let at = self.spec[1] as u32;
-        let bytes = self.strings.bytes(at as u16, (at >> 16) as usize);
-        // The packer copies whole `&str`s: the bytes are UTF-8.
-        Some(core::str::from_utf8(bytes).unwrap_or(""))
+        Some(self.strings.text(self.spec[1]))
     }
     /// Smallest accepted value on write (numeric types).
     pub const fn min(&self) -> i64 {
@@ -350,8 +398,15 @@ impl Entry {
 
 /// Text `unit` of [`UNITS`].
 fn unit_text(unit: u8) -> &'static str {
-    // `UNIT_TEXT` holds the whole texts of `UNITS`, each after its length byte.
-    core::str::from_utf8(name::prefixed(&UNIT_TEXT, unit)).unwrap_or("")
+    let k = unit as usize;
+    let start = match k.checked_sub(1) {
+        Some(before) => UNIT_END.get(before),
+        None => Some(&0),
+    };
+    match (start, UNIT_END.get(k)) {
+        (Some(&a), Some(&b)) => UNIT_TEXT.get(a as usize..b as usize).unwrap_or(""),
+        _ => "",
+    }
 }
 
 /// Two entries are equal when they describe the same thing (same name, type, length,
@@ -400,27 +455,34 @@ impl Entry {
 
 /// Bit length and value range of a numeric type.
 pub const fn type_range(t: DataType) -> (u16, i64, i64) {
-    match t {
-        DataType::Boolean => (1, 0, 1),
-        DataType::Integer8 => (8, i8::MIN as i64, i8::MAX as i64),
-        DataType::Integer16 => (16, i16::MIN as i64, i16::MAX as i64),
-        DataType::Integer32 => (32, i32::MIN as i64, i32::MAX as i64),
-        DataType::Integer64 => (64, i64::MIN, i64::MAX),
-        DataType::Unsigned8 => (8, 0, u8::MAX as i64),
-        DataType::Unsigned16 => (16, 0, u16::MAX as i64),
-        DataType::Unsigned32 => (32, 0, u32::MAX as i64),
+    let bits = type_bits(t);
+    let (lo, hi) = match t {
+        DataType::Integer8 | DataType::Integer16 | DataType::Integer32 | DataType::Integer64 => {
+            (i64::MIN >> (64 - bits), i64::MAX >> (64 - bits))
+        }
         // u64 values above i64::MAX are not range-checked.
-        DataType::Unsigned64 => (64, 0, i64::MAX),
-        DataType::Real32 => (32, 0, 0),
-        DataType::VisibleString | DataType::OctetString => (0, 0, 0),
-        DataType::Bit1 => (1, 0, 1),
-        DataType::Bit2 => (2, 0, 3),
-        DataType::Bit3 => (3, 0, 7),
-        DataType::Bit4 => (4, 0, 15),
-        DataType::Bit5 => (5, 0, 31),
-        DataType::Bit6 => (6, 0, 63),
-        DataType::Bit7 => (7, 0, 127),
-        DataType::Bit8 => (8, 0, 255),
+        DataType::Unsigned64 => (0, i64::MAX),
+        DataType::Real32 | DataType::VisibleString | DataType::OctetString => (0, 0),
+        _ => (0, (1 << bits) - 1),
+    };
+    (bits, lo, hi)
+}
+
+/// Bit length of a value of `t` (0 for the strings: their length is the entry's).
+pub const fn type_bits(t: DataType) -> u16 {
+    match t {
+        DataType::Boolean | DataType::Bit1 => 1,
+        DataType::Bit2 => 2,
+        DataType::Bit3 => 3,
+        DataType::Bit4 => 4,
+        DataType::Bit5 => 5,
+        DataType::Bit6 => 6,
+        DataType::Bit7 => 7,
+        DataType::Integer8 | DataType::Unsigned8 | DataType::Bit8 => 8,
+        DataType::Integer16 | DataType::Unsigned16 => 16,
+        DataType::Integer32 | DataType::Unsigned32 | DataType::Real32 => 32,
+        DataType::Integer64 | DataType::Unsigned64 => 64,
+        DataType::VisibleString | DataType::OctetString => 0,
     }
 }
 

@@ -67,6 +67,7 @@ pub(crate) const fn prefixed_into(list: &[&str], out: &mut [u8]) {
 }
 
 /// `list` as length-prefixed texts ([`prefixed_into`]) in an array of its size.
+#[cfg(test)]
 pub(crate) const fn prefixed_list<const N: usize>(list: &[&str]) -> [u8; N] {
     let mut out = [0u8; N];
     prefixed_into(list, &mut out);

@@ -62,11 +62,7 @@ macro_rules! packed_dictionary {
         };
         const OD_PACK_TEXT_AT: [u16; OD_PACK_NE] = {
             let mut a = [0; OD_PACK_NE];
-            p::text_offsets(
-                &OD_PACK_SRC,
-                p::name_bytes(&OD_PACK_LIST, &OD_PACK_NAME_AT, OD_PACK_WORDS),
-                &mut a,
-            );
+            p::text_offsets(&OD_PACK_SRC, &mut a);
             a
         };
         const OD_PACK_RUN_AT: [u16; OD_PACK_O] = {
@@ -83,9 +79,14 @@ macro_rules! packed_dictionary {
             text_at: &OD_PACK_TEXT_AT,
             run_at: &OD_PACK_RUN_AT,
         };
-        static OD_PACK_TEXT: [u8; OD_PACK_L.text_bytes()] = {
+        static OD_PACK_NAMES: [u8; OD_PACK_L.name_bytes()] = {
+            let mut a = [0; OD_PACK_L.name_bytes()];
+            OD_PACK_L.write_names(&mut a);
+            a
+        };
+        const OD_PACK_TEXTS: [u8; OD_PACK_L.text_bytes()] = {
             let mut a = [0; OD_PACK_L.text_bytes()];
-            OD_PACK_L.write_text(&mut a);
+            OD_PACK_L.write_texts(&mut a);
             a
         };
         static OD_PACK_VOCABULARY: [u8; $crate::od::words_len(OD_PACK_WORDS)] = {
@@ -93,7 +94,8 @@ macro_rules! packed_dictionary {
             $crate::od::words_into(OD_PACK_WORDS, &mut a);
             a
         };
-        static OD_PACK_STRINGS: Strings = Strings::new(&OD_PACK_TEXT, &OD_PACK_VOCABULARY);
+        static OD_PACK_STRINGS: Strings =
+            Strings::new(&OD_PACK_NAMES, &OD_PACK_VOCABULARY, p::utf8(&OD_PACK_TEXTS));
         static OD_PACK_ENTRIES: [Entry; OD_PACK_L.entry_total()] = {
             let mut a = [p::PLACEHOLDER_PACKED; OD_PACK_L.entry_total()];
             OD_PACK_L.write_entries(&OD_PACK_STRINGS, &mut a);
@@ -228,10 +230,10 @@ pub const fn name_bytes(list: &[&str], at: &[u16], words: &[&str]) -> usize {
     end
 }
 
-/// Offset of each entry's default text in the text area into `out`, from `start`
-/// (after the names); equal texts share one, a numeric entry gets 0.
-pub const fn text_offsets(src: &[EntryDesc], start: usize, out: &mut [u16]) {
-    let mut at = start;
+/// Offset of each entry's default text in the text area into `out`; equal texts share
+/// one, a numeric entry gets 0.
+pub const fn text_offsets(src: &[EntryDesc], out: &mut [u16]) {
+    let mut at = 0;
     let mut k = 0;
     while k < src.len() {
         let t = src[k].text_value();
@@ -311,9 +313,23 @@ pub struct Layout<'a> {
 }
 
 impl Layout<'_> {
-    /// Size of the text area: the packed names, then the default texts.
+    /// Size of the name area.
+    pub const fn name_bytes(&self) -> usize {
+        name_bytes(self.names, self.name_at, self.words)
+    }
+    /// The name area ([`Layout::name_bytes`]): each distinct name packed once.
+    pub const fn write_names(&self, out: &mut [u8]) {
+        let mut k = 0;
+        while k < self.names.len() {
+            if first_with_name(self.names, k) == k {
+                super::pack_into(self.names[k], self.words, out, self.name_at[k] as usize);
+            }
+            k += 1;
+        }
+    }
+    /// Size of the area of the default texts.
     pub const fn text_bytes(&self) -> usize {
-        let mut end = name_bytes(self.names, self.name_at, self.words);
+        let mut end = 0;
         let mut k = 0;
         while k < self.entries.len() {
             let e = self.text_at[k] as usize + self.entries[k].text_value().len();
@@ -324,16 +340,9 @@ impl Layout<'_> {
         }
         end
     }
-    /// The text area ([`Layout::text_bytes`]): each distinct name packed once, each
-    /// distinct default text once.
-    pub const fn write_text(&self, out: &mut [u8]) {
-        let mut k = 0;
-        while k < self.names.len() {
-            if first_with_name(self.names, k) == k {
-                super::pack_into(self.names[k], self.words, out, self.name_at[k] as usize);
-            }
-            k += 1;
-        }
+    /// The default texts ([`Layout::text_bytes`]), each distinct one once: whole
+    /// `&str`s one after the other, so the area is UTF-8.
+    pub const fn write_texts(&self, out: &mut [u8]) {
         let mut k = 0;
         while k < self.entries.len() {
             let t = self.entries[k].text_value().as_bytes();
@@ -420,6 +429,15 @@ impl Layout<'_> {
     }
 }
 
+/// The text area written by [`Layout::write_texts`] as text (checked when the
+/// dictionary is built).
+pub const fn utf8(bytes: &'static [u8]) -> &'static str {
+    match core::str::from_utf8(bytes) {
+        Ok(s) => s,
+        Err(_) => panic!("od::pack: default texts are not UTF-8"),
+    }
+}
+
 /// [`crate::packed_dictionary!`] at run time: the packed dictionary of `parts` with
 /// the vocabulary `words`, in memory that is never freed (documentation generators on
 /// the host, which describe variants of a dictionary made at run time).
@@ -434,7 +452,7 @@ pub fn leak(parts: &[&[ObjectDesc]], words: &[&str]) -> &'static [Object] {
     let mut entries = vec![PLACEHOLDER; ne];
     entry_list(parts, &mut entries);
     let mut text_at = vec![0; ne];
-    text_offsets(&entries, name_bytes(&names, &name_at, words), &mut text_at);
+    text_offsets(&entries, &mut text_at);
     let mut run_at = vec![0; o];
     run_offsets(parts, &entries, &mut run_at);
     let l = Layout {
@@ -446,12 +464,17 @@ pub fn leak(parts: &[&[ObjectDesc]], words: &[&str]) -> &'static [Object] {
         text_at: &text_at,
         run_at: &run_at,
     };
-    let mut text = vec![0; l.text_bytes()];
-    l.write_text(&mut text);
+    let mut name_area = vec![0; l.name_bytes()];
+    l.write_names(&mut name_area);
+    let mut texts = vec![0; l.text_bytes()];
+    l.write_texts(&mut texts);
     let mut vocabulary = vec![0; super::words_len(words)];
     super::words_into(words, &mut vocabulary);
-    let strings: &'static Strings =
-        Box::leak(Box::new(Strings::new(text.leak(), vocabulary.leak())));
+    let strings: &'static Strings = Box::leak(Box::new(Strings::new(
+        name_area.leak(),
+        vocabulary.leak(),
+        utf8(texts.leak()),
+    )));
     let mut packed = vec![PLACEHOLDER_PACKED; l.entry_total()];
     l.write_entries(strings, &mut packed);
     let tables: &'static Tables = Box::leak(Box::new(Tables::new(strings, packed.leak())));

@@ -293,3 +293,17 @@ fn entry_name_over_the_limit_is_refused() {
         Access::RO,
     );
 }
+
+#[test]
+fn type_ranges_of_the_types() {
+    assert_eq!(type_range(DataType::Boolean), (1, 0, 1));
+    assert_eq!(type_range(DataType::Integer8), (8, -128, 127));
+    assert_eq!(type_range(DataType::Integer16), (16, -32768, 32767));
+    assert_eq!(type_range(DataType::Integer64), (64, i64::MIN, i64::MAX));
+    assert_eq!(type_range(DataType::Unsigned32), (32, 0, u32::MAX as i64));
+    assert_eq!(type_range(DataType::Unsigned64), (64, 0, i64::MAX));
+    assert_eq!(type_range(DataType::Bit3), (3, 0, 7));
+    assert_eq!(type_range(DataType::Bit8), (8, 0, 255));
+    assert_eq!(type_range(DataType::Real32), (32, 0, 0));
+    assert_eq!(type_range(DataType::OctetString), (0, 0, 0));
+}
