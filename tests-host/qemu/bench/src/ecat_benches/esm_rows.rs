@@ -10,7 +10,7 @@ use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esc::{EscAccess, EscError};
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
 use ecat_slave_stack::od::{
-    Access, DataType, Dictionary, Entry, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+    Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
 };
 use ecat_slave_stack::pdo::{self, entry, PdoConfig, PdoDefaults, ProcessData};
 use ecat_slave_stack::registers as reg;
@@ -86,7 +86,8 @@ macro_rules! objects {
     };
 }
 
-static OBJECTS: &[Object] = objects![
+static OBJECTS: &[Object] = ecat_slave_stack::packed_dictionary!(&[SOURCE]);
+const SOURCE: &[ObjectDesc] = objects![
     0x603F Unsigned16 Tx, 0x6040 Unsigned16 Rx, 0x6041 Unsigned16 Tx, 0x6060 Integer8 Rx,
     0x6061 Integer8 Tx, 0x6064 Integer32 Tx, 0x606C Integer32 Tx, 0x6077 Integer16 Tx,
     0x607A Integer32 Rx, 0x6081 Unsigned32 Rx, 0x6083 Unsigned32 Rx, 0x6098 Integer8 Rx,
