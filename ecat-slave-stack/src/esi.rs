@@ -233,7 +233,7 @@ pub fn validate(
             if !ok {
                 return Err(EsiError::NotMappable { pdo, index, sub });
             }
-            if entry.bits != e.bits as u16 {
+            if entry.bits() != e.bits as u16 {
                 return Err(EsiError::BitLength { pdo, index, sub });
             }
         }
@@ -285,8 +285,8 @@ struct TypeName<'a>(&'a Entry);
 impl fmt::Display for TypeName<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self.0.data_type {
-            DataType::VisibleString => write!(f, "STRING({})", self.0.bits / 8),
-            DataType::OctetString => write!(f, "OCTET_STRING({})", self.0.bits / 8),
+            DataType::VisibleString => write!(f, "STRING({})", self.0.bits() / 8),
+            DataType::OctetString => write!(f, "OCTET_STRING({})", self.0.bits() / 8),
             t => f.write_str(t.esi_name()),
         }
     }
@@ -362,11 +362,11 @@ fn bit_offsets(
 ) -> Result<u32, fmt::Error> {
     let mut off = 0u32;
     for (i, e) in o.entries().iter().enumerate() {
-        if e.bits >= 8 {
+        if e.bits() >= 8 {
             off = off.next_multiple_of(8);
         }
         f(e, off)?;
-        off += e.bits as u32;
+        off += e.bits() as u32;
         if i == 0 && o.entries().len() > 1 {
             off = off.max(16);
         }
@@ -396,7 +396,7 @@ fn write_data_types<W: Write>(out: &mut W, objects: &[Object]) -> fmt::Result {
         }
         if all()
             .take(i)
-            .any(|p| p.data_type == e.data_type && p.bits == e.bits)
+            .any(|p| p.data_type == e.data_type && p.bits() == e.bits())
         {
             continue;
         }
@@ -404,7 +404,7 @@ fn write_data_types<W: Write>(out: &mut W, objects: &[Object]) -> fmt::Result {
             out,
             "<DataType><Name>{}</Name><BitSize>{}</BitSize></DataType>",
             TypeName(e),
-            e.bits
+            e.bits()
         )?;
     }
     // Records and arrays.
@@ -419,7 +419,7 @@ fn write_data_types<W: Write>(out: &mut W, objects: &[Object]) -> fmt::Result {
                 e.sub,
                 Esc(e.name()),
                 TypeName(e),
-                e.bits
+                e.bits()
             )?;
             write_flags(out, e)?;
             out.write_str("</SubItem>\n")
@@ -444,7 +444,7 @@ fn write_objects<W: Write>(out: &mut W, objects: &[Object]) -> fmt::Result {
                     out,
                     "<Type>{}</Type><BitSize>{}</BitSize>",
                     TypeName(e),
-                    e.bits
+                    e.bits()
                 )?;
                 out.write_str("<Info>")?;
                 write_default(out, e)?;

@@ -11,6 +11,9 @@
 #![deny(clippy::undocumented_unsafe_blocks)]
 #![warn(missing_docs)]
 
+#[cfg(any(test, feature = "alloc"))]
+extern crate alloc;
+
 pub mod al_status;
 pub mod coe;
 pub mod diag;

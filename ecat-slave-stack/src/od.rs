@@ -1,11 +1,14 @@
 //! The object dictionary framework.
 //!
-//! One static description per object ([`Object`]) and per entry ([`Entry`]) — index,
-//! sub-index, name, data type, bit length, access per ESM state, PDO mappability,
-//! range, default, unit, saved-or-not. That single description feeds the SDO server
-//! (access, length and range checks), the PDO mapping rules, SDO information, the
-//! SII image, the ESI XML and the generated dictionary reference. The *values* are
-//! owned by the application, which implements [`Dictionary`].
+//! One description per object and per entry — index, sub-index, name, data type, bit
+//! length, access per ESM state, PDO mappability, range, default, unit, saved-or-not.
+//! The modules that own the values write it as constant tables of [`ObjectDesc`] and
+//! [`EntryDesc`]; [`crate::packed_dictionary!`] merges them at compile time into the
+//! table of [`Object`]s and [`Entry`]s kept in flash, whose names and texts are in one
+//! packed blob ([`Strings`]). That single description feeds the SDO server (access,
+//! length and range checks), the PDO mapping rules, SDO information, the SII image,
+//! the ESI XML and the generated dictionary reference. The *values* are owned by the
+//! application, which implements [`Dictionary`].
 //!
 //! The generic checks done by the stack before a write reaches the application are
 //! in [`check_write`]; lookups are binary searches over the sorted object table.
@@ -13,39 +16,101 @@
 use crate::esm::EsmState;
 
 mod abort;
+mod desc;
 mod name;
 pub mod pack;
 mod reference;
 mod types;
 
 pub use abort::SdoAbort;
+pub use desc::{EntryDesc, ObjectDesc};
 pub use reference::write_reference;
 pub use types::*;
 
-pub use name::{pack_into, packed_len, Name, NameBytes};
+pub use name::{pack_into, packed_len, words_into, words_len, Name, NameBytes, COE_WORDS};
 
-/// The static description of one entry (sub-index) of an object.
+/// The texts of a packed dictionary: the names packed ([`pack_into`]), each distinct
+/// one once, the vocabulary they were packed with ([`words_into`]), and the text
+/// defaults, each distinct one once. Every [`Entry`] and, through [`Tables`], every
+/// [`Object`] of the dictionary reads its name and text default here at an offset it
+/// keeps.
+pub struct Strings {
+    names: &'static [u8],
+    words: &'static [u8],
+    texts: &'static str,
+}
+
+impl Strings {
+    /// The packed names `names` of a dictionary, packed with the vocabulary `words`,
+    /// and its text defaults `texts` (made by [`crate::packed_dictionary!`] or
+    /// [`pack::leak`]).
+    pub const fn new(names: &'static [u8], words: &'static [u8], texts: &'static str) -> Self {
+        Strings {
+            names,
+            words,
+            texts,
+        }
+    }
+    /// No texts: what an [`EntryDesc`] holds until it is packed.
+    const NONE: Strings = Strings::new(&[], &[], "");
+    /// The packed name of `len` bytes at `at` (empty when out of range: never for a
+    /// packed dictionary).
+    fn name(&self, at: u16, len: usize) -> Name {
+        let at = at as usize;
+        Name::packed(self.names.get(at..at + len).unwrap_or(&[]), self.words)
+    }
+    /// The text default located by `spec[1]` of an entry ([`text_at`]).
+    fn text(&self, located: i32) -> &'static str {
+        let (at, len) = (located as u32 & 0xFFFF, located as u32 >> 16);
+        let texts: &'static str = self.texts;
+        texts.get(at as usize..(at + len) as usize).unwrap_or("")
+    }
+}
+
+/// The tables of a packed dictionary: its texts and its entry table, which each
+/// [`Object`] reads at an offset it keeps.
+pub struct Tables {
+    strings: &'static Strings,
+    entries: &'static [Entry],
+}
+
+impl Tables {
+    /// The entry table `entries` of a dictionary whose texts are `strings`.
+    pub const fn new(strings: &'static Strings, entries: &'static [Entry]) -> Self {
+        Tables { strings, entries }
+    }
+    /// No tables: what the placeholder objects of the packer hold.
+    const NONE: Tables = Tables::new(&Strings::NONE, &[]);
+}
+
+/// One entry (sub-index) of an object, as the packed dictionary keeps it.
 ///
 /// Kept compact (24 bytes on the target: the dictionary has several hundred entries):
-/// the name is a thin pointer and a one-byte length (read it with [`Entry::name`]),
-/// limits and the default are stored as 32-bit patterns read back through the data
-/// type, the unit as an index into [`UNITS`], the flags in one byte. Use
-/// [`Entry::min`], [`Entry::max`], [`Entry::default_value`], [`Entry::unit_text`] and
-/// [`Entry::is_saved`] to read them.
+/// the name is an offset into the dictionary's [`Strings`] and a one-byte length (read
+/// it with [`Entry::name`]), limits and the default are stored as 32-bit patterns read
+/// back through the data type, a text default as its offset and length in the same
+/// [`Strings`], the unit as an index into [`UNITS`], the flags in one byte. Use
+/// [`Entry::bits`], [`Entry::min`], [`Entry::max`], [`Entry::default_value`],
+/// [`Entry::unit_text`] and [`Entry::is_saved`] to read them. Tables are written as
+/// [`EntryDesc`]s.
 #[derive(Clone, Copy)]
 pub struct Entry {
-    /// First byte of the name (see [`Entry::name`]).
-    name_ptr: *const u8,
-    spec: Spec,
+    /// The dictionary's texts: the name and a text default are read here.
+    strings: &'static Strings,
+    /// `[lo, hi, def]`: 32-bit patterns read through the data type. A string type
+    /// has no range: `lo` is its maximum length in bytes. With a text default
+    /// ([`FLAG_TEXT`]) `hi` locates the text in `strings` (see [`text_at`]).
+    spec: [i32; 3],
+    /// Offset of the packed name in `strings`.
+    name_at: u16,
     /// Data type.
     pub data_type: DataType,
-    /// Length in bits (for strings: the maximum length).
-    pub bits: u16,
     /// Sub-index.
     pub sub: u8,
     /// Access per ESM state.
     pub access: Access,
     unit: u8,
+    /// Length of the packed name in bytes.
     name_len: u8,
     /// [`FLAG_SAVED`], [`FLAG_TEXT`], [`FLAG_NATURAL`], [`FLAG_HAS_DEFAULT`] and the
     /// [`PdoMappable`] code at [`PDO_SHIFT`].
@@ -55,62 +120,23 @@ pub struct Entry {
 #[cfg(target_pointer_width = "32")]
 const _: () = assert!(core::mem::size_of::<Entry>() == 24);
 
-// SAFETY: the only non-`Sync`/`Send` field is `name_ptr`, which always points into the
-// bytes of a `&'static str` (immutable, never freed): sharing or sending an `Entry` is
-// sharing that `&'static str`, which is `Sync` and `Send`.
-unsafe impl Sync for Entry {}
-// SAFETY: see the `Sync` impl above.
-unsafe impl Send for Entry {}
-
 /// Stored in flash by 'save' (0x1010).
 const FLAG_SAVED: u8 = 1 << 0;
-/// [`Spec::text`] holds the default (otherwise [`Spec::num`]).
+/// The default is a text, located by `spec[1]` (otherwise `spec[2]` holds a numeric
+/// default).
 const FLAG_TEXT: u8 = 1 << 1;
 /// The range is the data type's own and does not fit 32-bit patterns (64-bit types
-/// without [`Entry::range`]); the natural range of the other types is stored in
-/// [`Spec::num`] like any other, so [`Entry::min`]/[`Entry::max`] need no table of types.
+/// without a range of their own); the natural range of the other types is stored in
+/// `spec` like any other, so [`Entry::min`]/[`Entry::max`] need no table of types.
 const FLAG_NATURAL: u8 = 1 << 2;
-/// [`Spec::num`]'s default is meaningful.
+/// The numeric default in `spec` is meaningful.
 const FLAG_HAS_DEFAULT: u8 = 1 << 3;
 /// Position of the two [`PdoMappable`] bits in the flags.
 const PDO_SHIFT: u32 = 4;
 /// The two [`PdoMappable`] bits.
 const FLAG_PDO: u8 = 3 << PDO_SHIFT;
-/// The name is packed ([`Name`]; set by [`pack`]).
-const FLAG_PACKED: u8 = 1 << 6;
 
-/// Value part of an [`Entry`]: a numeric range and default (32-bit patterns `[lo, hi,
-/// def]`, read through the data type) or a text default; which one is written is
-/// [`FLAG_TEXT`] of the entry's flags (no tag of its own: that keeps `Entry` at 24
-/// bytes).
-#[derive(Clone, Copy)]
-union Spec {
-    num: [i32; 3],
-    text: &'static str,
-}
-
-/// Splits a name into the thin pointer and the one-byte length [`Entry`] and [`Object`]
-/// keep; a name longer than 255 bytes is a compile-time error for the constant tables.
-const fn short_name(name: &'static str) -> (*const u8, u8) {
-    assert!(
-        name.len() <= u8::MAX as usize,
-        "od name longer than 255 bytes"
-    );
-    (name.as_ptr(), name.len() as u8)
-}
-
-/// The name [`short_name`] split.
-///
-/// # Safety
-/// `ptr` and `len` must come from one [`short_name`] call.
-const unsafe fn long_name(ptr: *const u8, len: u8) -> &'static str {
-    // SAFETY: `short_name` took both from one `&'static str` whose length fits `u8`
-    // (checked there), so they describe `len` bytes of valid UTF-8 that live for
-    // `'static` and are never mutated.
-    unsafe { core::str::from_utf8_unchecked(core::slice::from_raw_parts(ptr, len as usize)) }
-}
-
-/// Unit texts an entry can carry ([`Entry::unit`]); index 0 is "no unit".
+/// Unit texts an entry can carry ([`EntryDesc::unit`]); index 0 is "no unit".
 pub const UNITS: &[&str] = &[
     "",
     "inc",
@@ -142,9 +168,51 @@ pub const UNITS: &[&str] = &[
     "°C",
 ];
 
-/// [`UNITS`] as length-prefixed texts: what [`Entry::unit_text`] reads (one byte per
-/// unit instead of a pointer and a length).
-static UNIT_TEXT: [u8; name::prefixed_len(UNITS)] = name::prefixed_list(UNITS);
+/// The texts of [`UNITS`] one after the other, and where each one ends: what
+/// [`Entry::unit_text`] reads (one byte per unit instead of a pointer and a length).
+static UNIT_TEXT: &str = pack::utf8(&unit_bytes::<{ units_len() }>());
+static UNIT_END: [u8; UNITS.len()] = unit_ends();
+
+/// Bytes of all [`UNITS`] (at most 255: one byte locates each end).
+const fn units_len() -> usize {
+    let mut n = 0;
+    let mut k = 0;
+    while k < UNITS.len() {
+        n += UNITS[k].len();
+        k += 1;
+    }
+    assert!(n <= u8::MAX as usize, "od::UNITS over 255 bytes");
+    n
+}
+
+const fn unit_bytes<const N: usize>() -> [u8; N] {
+    let mut out = [0; N];
+    let mut at = 0;
+    let mut k = 0;
+    while k < UNITS.len() {
+        let u = UNITS[k].as_bytes();
+        let mut j = 0;
+        while j < u.len() {
+            out[at] = u[j];
+            at += 1;
+            j += 1;
+        }
+        k += 1;
+    }
+    out
+}
+
+const fn unit_ends() -> [u8; UNITS.len()] {
+    let mut out = [0; UNITS.len()];
+    let mut end = 0;
+    let mut k = 0;
+    while k < UNITS.len() {
+        end += UNITS[k].len();
+        out[k] = end as u8;
+        k += 1;
+    }
+    out
+}
 
 const fn str_eq(a: &str, b: &str) -> bool {
     let (a, b) = (a.as_bytes(), b.as_bytes());
@@ -215,77 +283,30 @@ const fn natural_patterns(t: DataType) -> [i32; 3] {
     }
 }
 
+/// The pattern of `spec[1]` for a text default of `len` bytes at `at` in the
+/// dictionary's [`Strings`].
+const fn text_at(at: u16, len: u16) -> i32 {
+    (at as u32 | (len as u32) << 16) as i32
+}
+
 impl Entry {
-    /// A numeric entry with the natural range of its type, no default, not saved.
-    pub const fn new(sub: u8, name: &'static str, data_type: DataType, access: Access) -> Self {
-        let (bits, _, _) = type_range(data_type);
-        let (name_ptr, name_len) = short_name(name);
-        Entry {
-            sub,
-            name_ptr,
-            name_len,
-            data_type,
-            bits,
-            access,
-            spec: Spec {
-                num: natural_patterns(data_type),
-            },
-            unit: 0,
-            flags: natural_flag(data_type),
-        }
-    }
-    /// Sub-index 0 of an ARRAY or RECORD: "Number of entries", UINT8, read-only, with
-    /// default `n` and the natural range of UINT8.
-    pub const fn count(n: u8) -> Self {
-        Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(n as i64)
-    }
-    /// A visible string of at most `max_len` bytes (read-only).
-    pub const fn text(sub: u8, name: &'static str, max_len: u16, value: &'static str) -> Self {
-        let (name_ptr, name_len) = short_name(name);
-        Entry {
-            sub,
-            name_ptr,
-            name_len,
-            data_type: DataType::VisibleString,
-            bits: max_len * 8,
-            access: Access::RO,
-            spec: Spec { text: value },
-            unit: 0,
-            flags: FLAG_TEXT,
-        }
-    }
-    /// An octet string of `len` bytes (read-only) whose value the application
-    /// supplies (e.g. an ETG.1020 diagnosis message, 0x10F3:06 and up).
-    pub const fn octets(sub: u8, name: &'static str, len: u16) -> Self {
-        let mut e = Entry::text(sub, name, len, "");
-        e.data_type = DataType::OctetString;
-        e
-    }
     /// Name (SDO information, ESI, documentation).
-    pub const fn name(&self) -> Name {
-        if self.flags & FLAG_PACKED != 0 {
-            // SAFETY: with the flag set, `name_ptr` and `name_len` were set together by
-            // `with_packed_name` from one `&'static [u8]`.
-            Name::packed(unsafe {
-                core::slice::from_raw_parts(self.name_ptr, self.name_len as usize)
-            })
+    pub fn name(&self) -> Name {
+        self.strings.name(self.name_at, self.name_len as usize)
+    }
+    /// Length in bits (for strings: the maximum length).
+    // Read by most SDO paths: one copy instead of one per caller.
+    #[inline(never)]
+    pub const fn bits(&self) -> u16 {
+        if self.data_type.is_variable_length() {
+            self.spec[0] as u16 * 8
         } else {
-            // SAFETY: `name_ptr` and `name_len` are private and only set by `new`/`text`,
-            // from one `short_name` call.
-            Name::plain(unsafe { long_name(self.name_ptr, self.name_len) })
+            type_bits(self.data_type)
         }
     }
-    /// The same entry with its name replaced by packed bytes ([`pack`]); longer than
-    /// 255 bytes is a compile-time error for the constant tables.
-    pub(crate) const fn with_packed_name(mut self, packed: &'static [u8]) -> Self {
-        assert!(
-            packed.len() <= u8::MAX as usize,
-            "packed od name over 255 bytes"
-        );
-        self.name_ptr = packed.as_ptr();
-        self.name_len = packed.len() as u8;
-        self.flags |= FLAG_PACKED;
-        self
+    /// No range: a string, or an entry with a text default.
+    const fn has_no_range(&self) -> bool {
+        self.flags & FLAG_TEXT != 0 || self.data_type.is_variable_length()
     }
     /// Stored in flash by 'save' (0x1010).
     pub const fn is_saved(&self) -> bool {
@@ -300,102 +321,16 @@ impl Entry {
             _ => PdoMappable::RxTx,
         }
     }
-    /// The numeric patterns `[lo, hi, def]` (zeros for a text entry).
-    const fn num(&self) -> [i32; 3] {
-        if self.flags & FLAG_TEXT != 0 {
-            return [0; 3];
-        }
-        // SAFETY: every writer of `spec` sets or clears `FLAG_TEXT` with it: the flag
-        // is clear, so `num` is the field last written.
-        unsafe { self.spec.num }
-    }
-    /// The text default, if the entry has one.
-    const fn text_default(&self) -> Option<&'static str> {
+    /// The text default, if the entry is a string.
+    fn text_default(&self) -> Option<&'static str> {
         if self.flags & FLAG_TEXT == 0 {
             return None;
         }
-        // SAFETY: as in `num`: the flag is set, so `text` is the field last written.
-        Some(unsafe { self.spec.text })
-    }
-    /// Sets the accepted range (must fit the 32-bit pattern of the type: checked at
-    /// compile time for the constant tables).
-    pub const fn range(mut self, min: i64, max: i64) -> Self {
-        if self.flags & FLAG_TEXT == 0 {
-            let [_, _, def] = self.num();
-            let t = self.data_type;
-            self.spec = Spec {
-                num: [pattern(t, min), pattern(t, max), def],
-            };
-            self.flags &= !FLAG_NATURAL;
-        }
-        self
-    }
-    /// Sets the default value.
-    pub const fn default(mut self, v: i64) -> Self {
-        if self.flags & FLAG_TEXT == 0 {
-            let [lo, hi, _] = self.num();
-            self.spec = Spec {
-                num: [lo, hi, pattern(self.data_type, v)],
-            };
-            self.flags |= FLAG_HAS_DEFAULT;
-        }
-        self
-    }
-    /// Replaces the default (documentation generators that describe a variant).
-    pub const fn with_default_value(mut self, d: DefaultValue) -> Self {
-        match d {
-            DefaultValue::Int(v) => {
-                if self.flags & FLAG_TEXT != 0 {
-                    self.spec = Spec {
-                        num: natural_patterns(self.data_type),
-                    };
-                    self.flags = (self.flags & (FLAG_SAVED | FLAG_PDO | FLAG_PACKED))
-                        | natural_flag(self.data_type);
-                }
-                self.default(v)
-            }
-            DefaultValue::Text(t) => {
-                self.spec = Spec { text: t };
-                self.flags = (self.flags & (FLAG_SAVED | FLAG_PDO | FLAG_PACKED)) | FLAG_TEXT;
-                self
-            }
-            DefaultValue::None => {
-                self.flags &= !FLAG_HAS_DEFAULT;
-                self
-            }
-        }
-    }
-    /// Sets the unit (one of [`UNITS`]; an unknown unit is a compile-time error for
-    /// the constant tables).
-    pub const fn unit(mut self, unit: &'static str) -> Self {
-        let mut i = 0;
-        while i < UNITS.len() {
-            if str_eq(UNITS[i], unit) {
-                self.unit = i as u8;
-                return self;
-            }
-            i += 1;
-        }
-        panic!("unit not in od::UNITS");
-    }
-    /// Marks the entry as stored by 'save' (read back with [`Entry::is_saved`]).
-    pub const fn saved(mut self) -> Self {
-        self.flags |= FLAG_SAVED;
-        self
-    }
-    /// Sets the access rights (e.g. a writable text).
-    pub const fn with_access(mut self, access: Access) -> Self {
-        self.access = access;
-        self
-    }
-    /// Sets PDO mappability (read back with [`Entry::pdo_mappable`]).
-    pub const fn pdo(mut self, pdo: PdoMappable) -> Self {
-        self.flags = (self.flags & !FLAG_PDO) | ((pdo as u8) << PDO_SHIFT);
-        self
+        Some(self.strings.text(self.spec[1]))
     }
     /// Smallest accepted value on write (numeric types).
     pub const fn min(&self) -> i64 {
-        if self.flags & FLAG_TEXT != 0 {
+        if self.has_no_range() {
             0
         } else if self.flags & FLAG_NATURAL != 0 {
             // 64-bit types only (see `natural_flag`).
@@ -405,40 +340,42 @@ impl Entry {
                 0
             }
         } else {
-            unpattern(self.data_type, self.num()[0])
+            unpattern(self.data_type, self.spec[0])
         }
     }
     /// Largest accepted value on write (numeric types).
     pub const fn max(&self) -> i64 {
-        if self.flags & FLAG_TEXT != 0 {
+        if self.has_no_range() {
             0
         } else if self.flags & FLAG_NATURAL != 0 {
             // 64-bit types only; u64 values above i64::MAX are not range-checked.
             i64::MAX
         } else {
-            unpattern(self.data_type, self.num()[1])
+            unpattern(self.data_type, self.spec[1])
         }
     }
-    /// Default value (also the ESI `DefaultData`).
-    pub const fn default_value(&self) -> DefaultValue {
-        if let Some(t) = self.text_default() {
-            DefaultValue::Text(t)
-        } else if self.flags & FLAG_HAS_DEFAULT != 0 {
-            DefaultValue::Int(unpattern(self.data_type, self.num()[2]))
+    /// The numeric default (not for a string).
+    const fn int_default(&self) -> DefaultValue {
+        if self.flags & (FLAG_TEXT | FLAG_HAS_DEFAULT) == FLAG_HAS_DEFAULT {
+            DefaultValue::Int(unpattern(self.data_type, self.spec[2]))
         } else {
             DefaultValue::None
         }
     }
+    /// Default value (also the ESI `DefaultData`).
+    pub fn default_value(&self) -> DefaultValue {
+        match self.text_default() {
+            Some(t) => DefaultValue::Text(t),
+            None => self.int_default(),
+        }
+    }
     /// Unit text ("mA", "ms", "inc", …); empty when dimensionless.
     pub fn unit_text(&self) -> &'static str {
-        let text = name::prefixed(&UNIT_TEXT, self.unit);
-        // SAFETY: `UNIT_TEXT` holds the whole texts of `UNITS`, each after its length
-        // byte; `prefixed` returns one of them (or nothing): valid UTF-8.
-        unsafe { core::str::from_utf8_unchecked(text) }
+        unit_text(self.unit)
     }
     /// Size in bytes on the wire (rounded up).
     pub const fn byte_len(&self) -> usize {
-        (self.bits as usize).div_ceil(8)
+        (self.bits() as usize).div_ceil(8)
     }
     /// The access word of SDO information's entry description: bits 0-5 from
     /// [`Access::bits`], bit 6 RxPDO mappable, bit 7 TxPDO mappable.
@@ -447,36 +384,31 @@ impl Entry {
             | if self.pdo_mappable().rx() { 1 << 6 } else { 0 }
             | if self.pdo_mappable().tx() { 1 << 7 } else { 0 }
     }
+    /// The fields other than the name and the default, compared (same type, length,
+    /// sub-index, access, mapping, range, unit and 'save' flag).
+    const fn same_fields(&self, other: &Entry) -> bool {
+        self.data_type as u8 == other.data_type as u8
+            && self.bits() == other.bits()
+            && self.sub == other.sub
+            && self.access.0 == other.access.0
+            && self.flags & (FLAG_SAVED | FLAG_PDO) == other.flags & (FLAG_SAVED | FLAG_PDO)
+            && self.unit == other.unit
+            && self.min() == other.min()
+            && self.max() == other.max()
+    }
 }
 
-/// An entry to fill arrays with before they are written (compile-time table builders).
-pub(crate) const PLACEHOLDER_ENTRY: Entry = Entry::new(0, "", DataType::Unsigned8, Access::RO);
-/// An object to fill arrays with before they are written.
-pub(crate) const PLACEHOLDER_OBJECT: Object = Object::var(0, "", &[PLACEHOLDER_ENTRY], "");
-
-/// [`PartialEq`] for entries at compile time: the same text of the name, the same
-/// fields, flags and value part.
-pub(crate) const fn same_entry(a: &Entry, b: &Entry) -> bool {
-    let names = match (a.name().as_plain(), b.name().as_plain()) {
-        (Some(x), Some(y)) => str_eq(x, y),
-        _ => false,
+/// Text `unit` of [`UNITS`].
+fn unit_text(unit: u8) -> &'static str {
+    let k = unit as usize;
+    let start = match k.checked_sub(1) {
+        Some(before) => UNIT_END.get(before),
+        None => Some(&0),
     };
-    let values = match (a.text_default(), b.text_default()) {
-        (Some(x), Some(y)) => str_eq(x, y),
-        (None, None) => {
-            let (x, y) = (a.num(), b.num());
-            x[0] == y[0] && x[1] == y[1] && x[2] == y[2]
-        }
-        _ => false,
-    };
-    names
-        && values
-        && a.data_type as u8 == b.data_type as u8
-        && a.bits == b.bits
-        && a.sub == b.sub
-        && a.access.0 == b.access.0
-        && a.unit == b.unit
-        && a.flags == b.flags
+    match (start, UNIT_END.get(k)) {
+        (Some(&a), Some(&b)) => UNIT_TEXT.get(a as usize..b as usize).unwrap_or(""),
+        _ => "",
+    }
 }
 
 /// Two entries are equal when they describe the same thing (same name, type, length,
@@ -484,15 +416,7 @@ pub(crate) const fn same_entry(a: &Entry, b: &Entry) -> bool {
 impl PartialEq for Entry {
     fn eq(&self, other: &Self) -> bool {
         self.name() == other.name()
-            && self.data_type == other.data_type
-            && self.bits == other.bits
-            && self.sub == other.sub
-            && self.access == other.access
-            && self.pdo_mappable() == other.pdo_mappable()
-            && self.unit == other.unit
-            && self.is_saved() == other.is_saved()
-            && self.min() == other.min()
-            && self.max() == other.max()
+            && self.same_fields(other)
             && self.default_value() == other.default_value()
     }
 }
@@ -501,17 +425,31 @@ impl Eq for Entry {}
 
 impl core::fmt::Debug for Entry {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("Entry")
+        self.debug(f, "Entry", &self.name(), self.default_value())
+    }
+}
+
+impl Entry {
+    /// The [`core::fmt::Debug`] form of an entry named `name` with the default
+    /// `default` (the packed entry and its description print alike).
+    fn debug(
+        &self,
+        f: &mut core::fmt::Formatter<'_>,
+        kind: &str,
+        name: &dyn core::fmt::Debug,
+        default: DefaultValue,
+    ) -> core::fmt::Result {
+        f.debug_struct(kind)
             .field("sub", &self.sub)
-            .field("name", &self.name())
+            .field("name", name)
             .field("data_type", &self.data_type)
-            .field("bits", &self.bits)
+            .field("bits", &self.bits())
             .field("access", &self.access)
             .field("pdo", &self.pdo_mappable())
             .field("saved", &self.is_saved())
             .field("min", &self.min())
             .field("max", &self.max())
-            .field("default", &self.default_value())
+            .field("default", &default)
             .field("unit", &self.unit_text())
             .finish()
     }
@@ -519,48 +457,57 @@ impl core::fmt::Debug for Entry {
 
 /// Bit length and value range of a numeric type.
 pub const fn type_range(t: DataType) -> (u16, i64, i64) {
-    match t {
-        DataType::Boolean => (1, 0, 1),
-        DataType::Integer8 => (8, i8::MIN as i64, i8::MAX as i64),
-        DataType::Integer16 => (16, i16::MIN as i64, i16::MAX as i64),
-        DataType::Integer32 => (32, i32::MIN as i64, i32::MAX as i64),
-        DataType::Integer64 => (64, i64::MIN, i64::MAX),
-        DataType::Unsigned8 => (8, 0, u8::MAX as i64),
-        DataType::Unsigned16 => (16, 0, u16::MAX as i64),
-        DataType::Unsigned32 => (32, 0, u32::MAX as i64),
+    let bits = type_bits(t);
+    let (lo, hi) = match t {
+        DataType::Integer8 | DataType::Integer16 | DataType::Integer32 | DataType::Integer64 => {
+            (i64::MIN >> (64 - bits), i64::MAX >> (64 - bits))
+        }
         // u64 values above i64::MAX are not range-checked.
-        DataType::Unsigned64 => (64, 0, i64::MAX),
-        DataType::Real32 => (32, 0, 0),
-        DataType::VisibleString | DataType::OctetString => (0, 0, 0),
-        DataType::Bit1 => (1, 0, 1),
-        DataType::Bit2 => (2, 0, 3),
-        DataType::Bit3 => (3, 0, 7),
-        DataType::Bit4 => (4, 0, 15),
-        DataType::Bit5 => (5, 0, 31),
-        DataType::Bit6 => (6, 0, 63),
-        DataType::Bit7 => (7, 0, 127),
-        DataType::Bit8 => (8, 0, 255),
+        DataType::Unsigned64 => (0, i64::MAX),
+        DataType::Real32 | DataType::VisibleString | DataType::OctetString => (0, 0),
+        _ => (0, (1 << bits) - 1),
+    };
+    (bits, lo, hi)
+}
+
+/// Bit length of a value of `t` (0 for the strings: their length is the entry's).
+pub const fn type_bits(t: DataType) -> u16 {
+    match t {
+        DataType::Boolean | DataType::Bit1 => 1,
+        DataType::Bit2 => 2,
+        DataType::Bit3 => 3,
+        DataType::Bit4 => 4,
+        DataType::Bit5 => 5,
+        DataType::Bit6 => 6,
+        DataType::Bit7 => 7,
+        DataType::Integer8 | DataType::Unsigned8 | DataType::Bit8 => 8,
+        DataType::Integer16 | DataType::Unsigned16 => 16,
+        DataType::Integer32 | DataType::Unsigned32 | DataType::Real32 => 32,
+        DataType::Integer64 | DataType::Unsigned64 => 64,
+        DataType::VisibleString | DataType::OctetString => 0,
     }
 }
 
-/// The static description of one object.
+/// One object, as the packed dictionary keeps it.
 ///
-/// Kept compact (12 bytes on the target): the name and the entries are thin pointers
-/// with one-byte lengths, the object code shares a byte with the name length; read
-/// them with [`Object::name`], [`Object::entries`] and [`Object::code`].
+/// Kept compact (12 bytes on the target): the name and the entries are offsets into
+/// the dictionary's [`Tables`] with one-byte lengths, the object code shares a byte
+/// with the name length; read them with [`Object::name`], [`Object::entries`] and
+/// [`Object::code`]. Tables are written as [`ObjectDesc`]s.
 #[derive(Clone, Copy)]
 pub struct Object {
+    /// The dictionary's texts and entry table.
+    tables: &'static Tables,
     /// Index.
     pub index: u16,
-    /// Bits 0-5: length of the name (at most [`MAX_OBJECT_NAME`]); bits 6-7: the
+    /// Offset of the packed name in the dictionary's [`Strings`].
+    name_at: u16,
+    /// Offset of the first entry in the dictionary's entry table.
+    entries_at: u16,
+    /// Bits 0-5: length of the packed name (at most [`MAX_OBJECT_NAME`]); bits 6-7: the
     /// object code minus 7 (VAR 0, ARRAY 1, RECORD 2).
     name_code: u8,
-    /// First byte of the name (see [`Object::name`]).
-    name_ptr: *const u8,
-    /// First entry (see [`Object::entries`]).
-    entries_ptr: *const Entry,
-    /// Bits 0-6: number of entries (at most [`MAX_ENTRIES`]); bit 7: the name is packed
-    /// ([`Name`]; set by [`pack`]).
+    /// Number of entries (at most [`MAX_ENTRIES`]).
     entries_len: u8,
     /// What the object means (dictionary reference). Only kept with the
     /// `descriptions` feature (documentation generators); the target build leaves the
@@ -574,112 +521,33 @@ const _: () = assert!(core::mem::size_of::<Object>() == 12);
 
 /// Longest object name in bytes (6 bits of [`Object`]; entry names may have 255).
 pub const MAX_OBJECT_NAME: usize = 63;
-/// Most entries of one object (7 bits of [`Object`]).
-pub const MAX_ENTRIES: usize = 127;
-/// `Object::entries_len`: the name is packed.
-const OBJECT_NAME_PACKED: u8 = 1 << 7;
+/// Most entries of one object (one byte of [`Object`]).
+pub const MAX_ENTRIES: usize = 255;
 /// The bits of `Object::name_code` that hold the name length.
 const NAME_LEN_MASK: u8 = MAX_OBJECT_NAME as u8;
 /// Position of the object code in `Object::name_code`.
 const CODE_SHIFT: u32 = 6;
 
-// SAFETY: the only non-`Sync`/`Send` fields are `name_ptr` and `entries_ptr`, which
-// always point into a `&'static str` and a `&'static [Entry]` (immutable, never freed;
-// `Entry` is `Sync`): sharing or sending an `Object` is sharing those references.
-unsafe impl Sync for Object {}
-// SAFETY: see the `Sync` impl above.
-unsafe impl Send for Object {}
-
-/// Splits an entry table into the thin pointer and the one-byte count [`Object`]
-/// keeps; more than [`MAX_ENTRIES`] is a compile-time error for the constant tables.
-const fn short_entries(entries: &'static [Entry]) -> (*const Entry, u8) {
-    assert!(
-        entries.len() <= MAX_ENTRIES,
-        "od object with more than MAX_ENTRIES entries"
-    );
-    (entries.as_ptr(), entries.len() as u8)
-}
-
 impl Object {
-    /// An object with the given object code.
-    pub const fn new(
-        index: u16,
-        name: &'static str,
-        code: ObjectCode,
-        entries: &'static [Entry],
-        description: &'static str,
-    ) -> Self {
-        #[cfg(not(feature = "descriptions"))]
-        let _ = description;
-        assert!(
-            name.len() <= MAX_OBJECT_NAME,
-            "od object name longer than MAX_OBJECT_NAME"
-        );
-        let (name_ptr, name_len) = short_name(name);
-        let (entries_ptr, entries_len) = short_entries(entries);
-        Object {
-            index,
-            name_ptr,
-            name_code: name_len | ((code as u8 - ObjectCode::Var as u8) << CODE_SHIFT),
-            entries_ptr,
-            entries_len,
-            #[cfg(feature = "descriptions")]
-            description,
-        }
-    }
     /// Name.
-    pub const fn name(&self) -> Name {
-        let len = self.name_code & NAME_LEN_MASK;
-        if self.entries_len & OBJECT_NAME_PACKED != 0 {
-            // SAFETY: with the flag set, `name_ptr` and the length bits were set
-            // together by `with_packed_name` from one `&'static [u8]`.
-            Name::packed(unsafe { core::slice::from_raw_parts(self.name_ptr, len as usize) })
-        } else {
-            // SAFETY: `name_ptr` and the length bits of `name_code` are private and
-            // only set by `new`, from one `short_name` call (the length fits the bits:
-            // checked there).
-            Name::plain(unsafe { long_name(self.name_ptr, len) })
-        }
-    }
-    /// The same object with its name replaced by packed bytes ([`pack`]); longer than
-    /// [`MAX_OBJECT_NAME`] is a compile-time error for the constant tables.
-    pub(crate) const fn with_packed_name(mut self, packed: &'static [u8]) -> Self {
-        assert!(
-            packed.len() <= MAX_OBJECT_NAME,
-            "packed od object name too long"
-        );
-        self.name_ptr = packed.as_ptr();
-        self.name_code = (self.name_code & !NAME_LEN_MASK) | packed.len() as u8;
-        self.entries_len |= OBJECT_NAME_PACKED;
-        self
+    pub fn name(&self) -> Name {
+        let len = (self.name_code & NAME_LEN_MASK) as usize;
+        self.tables.strings.name(self.name_at, len)
     }
     /// VAR, ARRAY or RECORD.
     pub const fn code(&self) -> ObjectCode {
-        match self.name_code >> CODE_SHIFT {
-            0 => ObjectCode::Var,
-            1 => ObjectCode::Array,
-            _ => ObjectCode::Record,
-        }
+        code_of(self.name_code >> CODE_SHIFT)
     }
     /// Entries sorted by sub-index. A VAR has exactly one entry (sub-index 0); an
     /// ARRAY or RECORD has its sub-index 0 (UINT8 count) first.
-    pub const fn entries(&self) -> &'static [Entry] {
-        // SAFETY: `entries_ptr` and `entries_len` are private and only set by `new` and
-        // `with_entries`, from one `short_entries` call: they are the start and the
-        // length of one `&'static [Entry]`, immutable and never freed.
-        unsafe {
-            core::slice::from_raw_parts(
-                self.entries_ptr,
-                (self.entries_len & !OBJECT_NAME_PACKED) as usize,
-            )
-        }
-    }
-    /// The same object with other entries (documentation generators).
-    pub const fn with_entries(mut self, entries: &'static [Entry]) -> Self {
-        let (entries_ptr, entries_len) = short_entries(entries);
-        self.entries_ptr = entries_ptr;
-        self.entries_len = (self.entries_len & OBJECT_NAME_PACKED) | entries_len;
-        self
+    // One copy of the offset arithmetic and its bounds check for every caller.
+    #[inline(never)]
+    pub fn entries(&self) -> &'static [Entry] {
+        let at = self.entries_at as usize;
+        let entries: &'static [Entry] = self.tables.entries;
+        entries
+            .get(at..at + self.entries_len as usize)
+            .unwrap_or(&[])
     }
     /// What the object means; empty without the `descriptions` feature.
     pub const fn description(&self) -> &'static str {
@@ -688,33 +556,6 @@ impl Object {
         #[cfg(not(feature = "descriptions"))]
         return "";
     }
-    /// A VAR object (its single entry has sub-index 0).
-    pub const fn var(
-        index: u16,
-        name: &'static str,
-        entries: &'static [Entry],
-        description: &'static str,
-    ) -> Self {
-        Self::new(index, name, ObjectCode::Var, entries, description)
-    }
-    /// An ARRAY object (sub-index 0 is the count, see [`Entry::count`]).
-    pub const fn array(
-        index: u16,
-        name: &'static str,
-        entries: &'static [Entry],
-        description: &'static str,
-    ) -> Self {
-        Self::new(index, name, ObjectCode::Array, entries, description)
-    }
-    /// A RECORD object (sub-index 0 is the count, see [`Entry::count`]).
-    pub const fn record(
-        index: u16,
-        name: &'static str,
-        entries: &'static [Entry],
-        description: &'static str,
-    ) -> Self {
-        Self::new(index, name, ObjectCode::Record, entries, description)
-    }
     /// The entry with sub-index `sub`.
     pub fn entry(&self, sub: u8) -> Option<&'static Entry> {
         self.entries().iter().find(|e| e.sub == sub)
@@ -722,6 +563,15 @@ impl Object {
     /// Highest sub-index described.
     pub fn max_sub(&self) -> u8 {
         self.entries().last().map_or(0, |e| e.sub)
+    }
+}
+
+/// The object code of the two bits [`Object`] keeps (VAR 0, ARRAY 1, RECORD 2).
+const fn code_of(bits: u8) -> ObjectCode {
+    match bits {
+        0 => ObjectCode::Var,
+        1 => ObjectCode::Array,
+        _ => ObjectCode::Record,
     }
 }
 

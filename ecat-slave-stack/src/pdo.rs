@@ -32,7 +32,7 @@
 
 use crate::al_status::AlStatusCode;
 use crate::esm::EsmState;
-use crate::od::{self, Access, DataType, Entry, Object, SdoAbort};
+use crate::od::{self, Access, DataType, EntryDesc, Object, ObjectDesc, SdoAbort};
 
 /// Entries per mapping object.
 pub const MAX_ENTRIES: usize = 16;
@@ -189,10 +189,10 @@ fn check_entry(value: u32, dir: Dir, objects: &'static [Object]) -> Result<(), S
         Dir::Rx => e.pdo_mappable().rx(),
         Dir::Tx => e.pdo_mappable().tx(),
     };
-    if !ok || e.bits == 0 || e.bits > 64 {
+    if !ok || e.bits() == 0 || e.bits() > 64 {
         return Err(SdoAbort::NotMappable);
     }
-    if e.bits != bits {
+    if e.bits() != bits {
         return Err(SdoAbort::ParameterIncompatibility);
     }
     Ok(())
@@ -708,16 +708,17 @@ pub fn pack<P: ProcessData + ?Sized>(plan: &DirPlan, app: &P, sm3: &mut [u8]) {
 macro_rules! map_entries {
     ($($sub:literal),*) => {
         &[
-            Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RW_PREOP).range(0, MAX_ENTRIES as i64).saved(),
-            $(Entry::new($sub, concat!("Mapping entry ", $sub), DataType::Unsigned32, Access::RW_PREOP).saved(),)*
+            EntryDesc::new(0, "Number of entries", DataType::Unsigned8, Access::RW_PREOP).range(0, MAX_ENTRIES as i64).saved(),
+            $(EntryDesc::new($sub, concat!("Mapping entry ", $sub), DataType::Unsigned32, Access::RW_PREOP).saved(),)*
         ]
     };
 }
 
-const MAP_ENTRIES: &[Entry] = map_entries!(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16);
+const MAP_ENTRIES: &[EntryDesc] =
+    map_entries!(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16);
 
-const fn map_object(index: u16, name: &'static str) -> Object {
-    Object::record(
+const fn map_object(index: u16, name: &'static str) -> ObjectDesc {
+    ObjectDesc::record(
         index,
         name,
         MAP_ENTRIES,
@@ -727,14 +728,14 @@ const fn map_object(index: u16, name: &'static str) -> Object {
 
 /// Entries of an assignment object (0x1C12 / 0x1C13): the count, then one UINT16 per
 /// assignable map, limited to the maps `base..base + MAPS`.
-const fn assign_entries(base: u16) -> [Entry; MAPS + 1] {
+const fn assign_entries(base: u16) -> [EntryDesc; MAPS + 1] {
     const NAMES: [&str; MAPS] = [
         "Assigned PDO 1",
         "Assigned PDO 2",
         "Assigned PDO 3",
         "Assigned PDO 4",
     ];
-    let count = Entry::new(
+    let count = EntryDesc::new(
         0,
         "Number of assigned PDOs",
         DataType::Unsigned8,
@@ -745,7 +746,7 @@ const fn assign_entries(base: u16) -> [Entry; MAPS + 1] {
     let mut out = [count; MAPS + 1];
     let mut i = 0;
     while i < MAPS {
-        out[i + 1] = Entry::new(
+        out[i + 1] = EntryDesc::new(
             (i + 1) as u8,
             NAMES[i],
             DataType::Unsigned16,
@@ -758,25 +759,25 @@ const fn assign_entries(base: u16) -> [Entry; MAPS + 1] {
     out
 }
 
-const RX_ASSIGN_ENTRIES: &[Entry] = &assign_entries(RX_MAP_BASE);
-const TX_ASSIGN_ENTRIES: &[Entry] = &assign_entries(TX_MAP_BASE);
-const SM_TYPE_ENTRIES: &[Entry] = &[
-    Entry::new(
+const RX_ASSIGN_ENTRIES: &[EntryDesc] = &assign_entries(RX_MAP_BASE);
+const TX_ASSIGN_ENTRIES: &[EntryDesc] = &assign_entries(TX_MAP_BASE);
+const SM_TYPE_ENTRIES: &[EntryDesc] = &[
+    EntryDesc::new(
         0,
         "Number of sync managers",
         DataType::Unsigned8,
         Access::RO,
     )
     .default(4),
-    Entry::new(1, "SM0 communication type", DataType::Unsigned8, Access::RO).default(1),
-    Entry::new(2, "SM1 communication type", DataType::Unsigned8, Access::RO).default(2),
-    Entry::new(3, "SM2 communication type", DataType::Unsigned8, Access::RO).default(3),
-    Entry::new(4, "SM3 communication type", DataType::Unsigned8, Access::RO).default(4),
+    EntryDesc::new(1, "SM0 communication type", DataType::Unsigned8, Access::RO).default(1),
+    EntryDesc::new(2, "SM1 communication type", DataType::Unsigned8, Access::RO).default(2),
+    EntryDesc::new(3, "SM2 communication type", DataType::Unsigned8, Access::RO).default(3),
+    EntryDesc::new(4, "SM3 communication type", DataType::Unsigned8, Access::RO).default(4),
 ];
 
 /// Descriptions of the objects this module and [`crate::sync`] serve (0x1600-0x1C33),
 /// sorted by index.
-pub const OBJECTS: &[Object] = &[
+pub const OBJECTS: &[ObjectDesc] = &[
     map_object(0x1600, "RxPDO mapping 1"),
     map_object(0x1601, "RxPDO mapping 2"),
     map_object(0x1602, "RxPDO mapping 3"),
@@ -785,19 +786,19 @@ pub const OBJECTS: &[Object] = &[
     map_object(0x1A01, "TxPDO mapping 2"),
     map_object(0x1A02, "TxPDO mapping 3"),
     map_object(0x1A03, "TxPDO mapping 4"),
-    Object::array(
+    ObjectDesc::array(
         SM_COMM_TYPE,
         "Sync manager communication type",
         SM_TYPE_ENTRIES,
         "1 mailbox out, 2 mailbox in, 3 process data outputs, 4 process data inputs",
     ),
-    Object::array(
+    ObjectDesc::array(
         RX_ASSIGN,
         "RxPDO assign",
         RX_ASSIGN_ENTRIES,
         "RxPDO mapping objects carried by SM2 (outputs)",
     ),
-    Object::array(
+    ObjectDesc::array(
         TX_ASSIGN,
         "TxPDO assign",
         TX_ASSIGN_ENTRIES,
@@ -864,7 +865,8 @@ mod tests {
 
     #[test]
     fn objects_are_well_formed() {
-        assert!(od::is_well_formed(OBJECTS));
+        assert!(od::is_well_formed(crate::packed_dictionary!(&[OBJECTS])));
+        assert!(OBJECTS.windows(2).all(|w| w[0].index < w[1].index));
     }
 
     #[test]

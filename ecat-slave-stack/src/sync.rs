@@ -50,7 +50,7 @@
 
 use crate::al_status::AlStatusCode;
 use crate::esm::EsmState;
-use crate::od::{Access, DataType, Entry, Object, SdoAbort};
+use crate::od::{Access, DataType, EntryDesc, ObjectDesc, SdoAbort};
 use crate::pdo;
 use crate::registers::DcActivation;
 
@@ -600,61 +600,61 @@ pub const fn is_sync_index(index: u16) -> bool {
 macro_rules! sync_entries {
     ($dir:literal) => {
         &[
-            Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(0x20),
-            Entry::new(
+            EntryDesc::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(0x20),
+            EntryDesc::new(
                 1,
                 "Synchronization type",
                 DataType::Unsigned16,
                 Access::RW_PREOP,
             )
             .range(0, 0x22),
-            Entry::new(2, "Cycle time", DataType::Unsigned32, Access::RW_PREOP).unit("ns"),
-            Entry::new(3, "Shift time", DataType::Unsigned32, Access::RO).unit("ns"),
-            Entry::new(4, "Sync types supported", DataType::Unsigned16, Access::RO)
+            EntryDesc::new(2, "Cycle time", DataType::Unsigned32, Access::RW_PREOP).unit("ns"),
+            EntryDesc::new(3, "Shift time", DataType::Unsigned32, Access::RO).unit("ns"),
+            EntryDesc::new(4, "Sync types supported", DataType::Unsigned16, Access::RO)
                 .default(SUPPORTED_TYPES as i64),
-            Entry::new(5, "Minimum cycle time", DataType::Unsigned32, Access::RO)
+            EntryDesc::new(5, "Minimum cycle time", DataType::Unsigned32, Access::RO)
                 .default(MIN_CYCLE_NS as i64)
                 .unit("ns"),
-            Entry::new(
+            EntryDesc::new(
                 6,
                 concat!("Calc and copy time (", $dir, ")"),
                 DataType::Unsigned32,
                 Access::RO,
             )
             .unit("ns"),
-            Entry::new(7, "Minimum delay time", DataType::Unsigned32, Access::RO).unit("ns"),
-            Entry::new(8, "Get cycle time", DataType::Unsigned16, Access::RW).range(0, 1),
-            Entry::new(9, "Delay time", DataType::Unsigned32, Access::RO).unit("ns"),
-            Entry::new(0x0A, "SYNC0 cycle time", DataType::Unsigned32, Access::RO).unit("ns"),
-            Entry::new(0x0B, "SM event missed", DataType::Unsigned16, Access::RO),
-            Entry::new(
+            EntryDesc::new(7, "Minimum delay time", DataType::Unsigned32, Access::RO).unit("ns"),
+            EntryDesc::new(8, "Get cycle time", DataType::Unsigned16, Access::RW).range(0, 1),
+            EntryDesc::new(9, "Delay time", DataType::Unsigned32, Access::RO).unit("ns"),
+            EntryDesc::new(0x0A, "SYNC0 cycle time", DataType::Unsigned32, Access::RO).unit("ns"),
+            EntryDesc::new(0x0B, "SM event missed", DataType::Unsigned16, Access::RO),
+            EntryDesc::new(
                 0x0C,
                 "Cycle time too small",
                 DataType::Unsigned16,
                 Access::RO,
             ),
-            Entry::new(
+            EntryDesc::new(
                 0x0D,
                 "Shift time too short",
                 DataType::Unsigned16,
                 Access::RO,
             ),
-            Entry::new(
+            EntryDesc::new(
                 0x0E,
                 "RxPDO toggle failed",
                 DataType::Unsigned16,
                 Access::RO,
             ),
-            Entry::new(0x20, "Sync error", DataType::Boolean, Access::RO),
+            EntryDesc::new(0x20, "Sync error", DataType::Boolean, Access::RO),
         ]
     };
 }
 
-const SM2_SYNC_ENTRIES: &[Entry] = sync_entries!("outputs");
-const SM3_SYNC_ENTRIES: &[Entry] = sync_entries!("inputs");
+const SM2_SYNC_ENTRIES: &[EntryDesc] = sync_entries!("outputs");
+const SM3_SYNC_ENTRIES: &[EntryDesc] = sync_entries!("inputs");
 
 /// Description of 0x1C32.
-pub const SM2_SYNC_OBJECT: Object = Object::record(
+pub const SM2_SYNC_OBJECT: ObjectDesc = ObjectDesc::record(
     SM2_SYNC,
     "SM output parameter",
     SM2_SYNC_ENTRIES,
@@ -662,20 +662,20 @@ pub const SM2_SYNC_OBJECT: Object = Object::record(
 );
 
 /// Description of 0x1C33.
-pub const SM3_SYNC_OBJECT: Object = Object::record(SM3_SYNC, "SM input parameter", SM3_SYNC_ENTRIES, "Synchronisation of the inputs (SM3): sync type 0 free run, 0x22 SM2 event, 1 SM3 event, 2 DC SYNC0");
+pub const SM3_SYNC_OBJECT: ObjectDesc = ObjectDesc::record(SM3_SYNC, "SM input parameter", SM3_SYNC_ENTRIES, "Synchronisation of the inputs (SM3): sync type 0 free run, 0x22 SM2 event, 1 SM3 event, 2 DC SYNC0");
 
-const DIAG_ENTRIES: &[Entry] = &[
-    Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(6),
-    Entry::new(1, "PDI period", DataType::Unsigned32, Access::RO).unit("us"),
-    Entry::new(2, "SYNC0 period", DataType::Unsigned32, Access::RO).unit("us"),
-    Entry::new(3, "SYNC0 period min", DataType::Unsigned32, Access::RO).unit("us"),
-    Entry::new(4, "SYNC0 period max", DataType::Unsigned32, Access::RO).unit("us"),
-    Entry::new(5, "PDI to SYNC0 offset", DataType::Unsigned32, Access::RO).unit("us"),
-    Entry::new(6, "Computation time", DataType::Unsigned32, Access::RO).unit("us"),
+const DIAG_ENTRIES: &[EntryDesc] = &[
+    EntryDesc::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(6),
+    EntryDesc::new(1, "PDI period", DataType::Unsigned32, Access::RO).unit("us"),
+    EntryDesc::new(2, "SYNC0 period", DataType::Unsigned32, Access::RO).unit("us"),
+    EntryDesc::new(3, "SYNC0 period min", DataType::Unsigned32, Access::RO).unit("us"),
+    EntryDesc::new(4, "SYNC0 period max", DataType::Unsigned32, Access::RO).unit("us"),
+    EntryDesc::new(5, "PDI to SYNC0 offset", DataType::Unsigned32, Access::RO).unit("us"),
+    EntryDesc::new(6, "Computation time", DataType::Unsigned32, Access::RO).unit("us"),
 ];
 
 /// The timing diagnostics object 0x2200 (to be listed in the product's 0x2000 range).
-pub const DIAG_OBJECTS: &[Object] = &[Object::record(TIMING_DIAG, "Timing diagnostics", DIAG_ENTRIES, "Measured periods and times of the cyclic path in µs; reset on Pre-Op→Safe-Op and by 0x1C32:08 = 1")];
+pub const DIAG_OBJECTS: &[ObjectDesc] = &[ObjectDesc::record(TIMING_DIAG, "Timing diagnostics", DIAG_ENTRIES, "Measured periods and times of the cyclic path in µs; reset on Pre-Op→Safe-Op and by 0x1C32:08 = 1")];
 
 #[cfg(test)]
 mod tests {

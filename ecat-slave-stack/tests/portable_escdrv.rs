@@ -10,7 +10,9 @@ use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::et1100::{self, Et1100, Et1100Config};
 use ecat_slave_stack::lan9252::{self, Lan9252, Lan9252Config};
 use ecat_slave_stack::leds::{self, ErrCondition, Indicator, Pattern, StatusLeds};
-use ecat_slave_stack::od::{Access, DataType, Entry, Name, Object, ObjectCode, PdoMappable};
+use ecat_slave_stack::od::{
+    Access, DataType, EntryDesc, Name, Object, ObjectCode, ObjectDesc, PdoMappable,
+};
 use ecat_slave_stack::pdo;
 use ecat_slave_stack::sii::{self, DeviceDescription, EscFlavour, Sii, SiiError, SmType};
 use ecat_slave_stack::{EscAccess, EscError};
@@ -156,83 +158,84 @@ impl DelayNs for CountDelay {
 // ---------------------------------------------------------------------------------
 // Device description and a small dictionary for SII / ESI.
 
-static RECORD_1018: [Entry; 5] = [
-    Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(4),
-    Entry::new(1, "Vendor ID", DataType::Unsigned32, Access::RO).default(0x0E5C),
-    Entry::new(2, "Product code", DataType::Unsigned32, Access::RO).default(0x5840),
-    Entry::new(3, "Revision", DataType::Unsigned32, Access::RO).default(0x0001_0000),
-    Entry::new(
+const RECORD_1018: [EntryDesc; 5] = [
+    EntryDesc::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(4),
+    EntryDesc::new(1, "Vendor ID", DataType::Unsigned32, Access::RO).default(0x0E5C),
+    EntryDesc::new(2, "Product code", DataType::Unsigned32, Access::RO).default(0x5840),
+    EntryDesc::new(3, "Revision", DataType::Unsigned32, Access::RO).default(0x0001_0000),
+    EntryDesc::new(
         4,
         "Serial \"number\" <sn> & co",
         DataType::Unsigned32,
         Access::RO,
     ),
 ];
-static MAP_1600: [Entry; 3] = [
-    Entry::new(
+const MAP_1600: [EntryDesc; 3] = [
+    EntryDesc::new(
         0,
         "Number of entries",
         DataType::Unsigned8,
         Access::RW_PREOP,
     )
     .default(2),
-    Entry::new(1, "Entry 1", DataType::Unsigned32, Access::RW_PREOP).default(0x6040_0010),
-    Entry::new(2, "Entry 2", DataType::Unsigned32, Access::RW_PREOP).default(0x607A_0020),
+    EntryDesc::new(1, "Entry 1", DataType::Unsigned32, Access::RW_PREOP).default(0x6040_0010),
+    EntryDesc::new(2, "Entry 2", DataType::Unsigned32, Access::RW_PREOP).default(0x607A_0020),
 ];
-static MAP_1A00: [Entry; 2] = [
-    Entry::new(
+const MAP_1A00: [EntryDesc; 2] = [
+    EntryDesc::new(
         0,
         "Number of entries",
         DataType::Unsigned8,
         Access::RW_PREOP,
     )
     .default(1),
-    Entry::new(1, "Entry 1", DataType::Unsigned32, Access::RW_PREOP).default(0x6041_0010),
+    EntryDesc::new(1, "Entry 1", DataType::Unsigned32, Access::RW_PREOP).default(0x6041_0010),
 ];
-static ARR_1C12: [Entry; 2] = [
-    Entry::new(
+const ARR_1C12: [EntryDesc; 2] = [
+    EntryDesc::new(
         0,
         "Number of assigned PDOs",
         DataType::Unsigned8,
         Access::RW_PREOP,
     )
     .default(1),
-    Entry::new(1, "PDO 1", DataType::Unsigned16, Access::RW_PREOP).default(0x1600),
+    EntryDesc::new(1, "PDO 1", DataType::Unsigned16, Access::RW_PREOP).default(0x1600),
 ];
-static V1000: [Entry; 1] =
-    [Entry::new(0, "Device type", DataType::Unsigned32, Access::RO).default(0x0002_0192)];
-static V1008: [Entry; 1] = [Entry::text(
+const V1000: [EntryDesc; 1] =
+    [EntryDesc::new(0, "Device type", DataType::Unsigned32, Access::RO).default(0x0002_0192)];
+const V1008: [EntryDesc; 1] = [EntryDesc::text(
     0,
     "Device name",
     28,
     "ECS-HS EtherCAT hybrid servo",
 )];
-static V2000: [Entry; 1] =
+const V2000: [EntryDesc; 1] =
     [
-        Entry::new(0, "Limit <min> & \"max\"", DataType::Integer16, Access::RW)
+        EntryDesc::new(0, "Limit <min> & \"max\"", DataType::Integer16, Access::RW)
             .default(-2)
             .range(-100, 100),
     ];
-static V6040: [Entry; 1] = [
-    Entry::new(0, "Controlword", DataType::Unsigned16, Access::RW)
+const V6040: [EntryDesc; 1] = [
+    EntryDesc::new(0, "Controlword", DataType::Unsigned16, Access::RW)
         .pdo(PdoMappable::Rx)
         .default(0),
 ];
-static V6041: [Entry; 1] =
-    [Entry::new(0, "Statusword", DataType::Unsigned16, Access::RO).pdo(PdoMappable::Tx)];
-static V607A: [Entry; 1] =
-    [Entry::new(0, "Target position", DataType::Integer32, Access::RW).pdo(PdoMappable::Rx)];
+const V6041: [EntryDesc; 1] =
+    [EntryDesc::new(0, "Statusword", DataType::Unsigned16, Access::RO).pdo(PdoMappable::Tx)];
+const V607A: [EntryDesc; 1] =
+    [EntryDesc::new(0, "Target position", DataType::Integer32, Access::RW).pdo(PdoMappable::Rx)];
 
 const fn obj(
     index: u16,
     name: &'static str,
     code: ObjectCode,
-    entries: &'static [Entry],
-) -> Object {
-    Object::new(index, name, code, entries, "")
+    entries: &'static [EntryDesc],
+) -> ObjectDesc {
+    ObjectDesc::new(index, name, code, entries, "")
 }
 
-static OBJECTS: [Object; 10] = [
+static OBJECTS: &[Object] = ecat_slave_stack::packed_dictionary!(&[&SOURCE]);
+const SOURCE: [ObjectDesc; 10] = [
     obj(0x1000, "Device type", ObjectCode::Var, &V1000),
     obj(0x1008, "Device name", ObjectCode::Var, &V1008),
     obj(0x1018, "Identity", ObjectCode::Record, &RECORD_1018),
@@ -672,7 +675,7 @@ qemu_runner::tests! {
 
     fn esi_is_well_formed_and_lists_every_object() {
         let mut out = Buf::<32768>::new();
-        esi::write(&DESC, &OBJECTS, &PDOS, &mut out).unwrap();
+        esi::write(&DESC, OBJECTS, &PDOS, &mut out).unwrap();
         let x = out.as_str();
         assert!(xml_well_formed(x), "{x}");
         assert_eq!(x.matches("<Object>").count(), OBJECTS.len());
@@ -708,19 +711,19 @@ qemu_runner::tests! {
         static WRONG_DIR: [u32; 1] = [pdo::entry(0x6041, 0, 16)];
         static WRONG_BITS: [u32; 1] = [pdo::entry(0x6040, 0, 32)];
         let p = |index, sm, entries| [PdoMap { index, name: Name::plain("x"), sm, fixed: false, mandatory: false, entries }];
-        assert_eq!(esi::write(&DESC, &OBJECTS, &p(0x1600, Some(2), &BAD_ENTRY), &mut out),
+        assert_eq!(esi::write(&DESC, OBJECTS, &p(0x1600, Some(2), &BAD_ENTRY), &mut out),
             Err(EsiError::UnknownEntry { pdo: 0x1600, index: 0x6099, sub: 0 }));
-        assert_eq!(esi::write(&DESC, &OBJECTS, &p(0x1600, Some(2), &WRONG_DIR), &mut out),
+        assert_eq!(esi::write(&DESC, OBJECTS, &p(0x1600, Some(2), &WRONG_DIR), &mut out),
             Err(EsiError::NotMappable { pdo: 0x1600, index: 0x6041, sub: 0 }));
-        assert_eq!(esi::write(&DESC, &OBJECTS, &p(0x1600, Some(2), &WRONG_BITS), &mut out),
+        assert_eq!(esi::write(&DESC, OBJECTS, &p(0x1600, Some(2), &WRONG_BITS), &mut out),
             Err(EsiError::BitLength { pdo: 0x1600, index: 0x6040, sub: 0 }));
-        assert_eq!(esi::write(&DESC, &OBJECTS, &p(0x1600, Some(3), &RX1), &mut out),
+        assert_eq!(esi::write(&DESC, OBJECTS, &p(0x1600, Some(3), &RX1), &mut out),
             Err(EsiError::PdoSyncManager(0x1600)));
-        assert_eq!(esi::write(&DESC, &OBJECTS, &p(0x1234, None, &RX1), &mut out), Err(EsiError::PdoIndex(0x1234)));
+        assert_eq!(esi::write(&DESC, OBJECTS, &p(0x1234, None, &RX1), &mut out), Err(EsiError::PdoIndex(0x1234)));
         let unsorted = [OBJECTS[1], OBJECTS[0]];
         assert_eq!(esi::write(&DESC, &unsorted, &[], &mut out), Err(EsiError::ObjectsNotWellFormed));
         let mut small = Buf::<512>::new();
-        assert_eq!(esi::write(&DESC, &OBJECTS, &PDOS, &mut small), Err(EsiError::Fmt));
+        assert_eq!(esi::write(&DESC, OBJECTS, &PDOS, &mut small), Err(EsiError::Fmt));
         assert_eq!(out.n, 0, "nothing written before validation failed");
     }
 
@@ -728,7 +731,7 @@ qemu_runner::tests! {
         let mut img = [0u8; 2048];
         sii::build(&DESC, &mut img).unwrap();
         let mut out = Buf::<32768>::new();
-        esi::write(&DESC, &OBJECTS, &PDOS, &mut out).unwrap();
+        esi::write(&DESC, OBJECTS, &PDOS, &mut out).unwrap();
         let x = out.as_str();
         let start = x.find("<ConfigData>").unwrap() + "<ConfigData>".len();
         let hex = &x[start..start + 28];
@@ -750,7 +753,7 @@ qemu_runner::tests! {
             rx_assign: &RXA,
             tx_assign: &TXA,
         };
-        let maps = esi::pdo_maps(&DESC, &OBJECTS, &defaults);
+        let maps = esi::pdo_maps(&DESC, OBJECTS, &defaults);
         assert_eq!(maps.len(), 3);
         assert_eq!((maps[0].index, maps[0].sm), (0x1600, Some(2)));
         assert_eq!(maps[0].name, "RxPDO 1");
@@ -760,7 +763,7 @@ qemu_runner::tests! {
         assert_eq!(maps[2].name, "TxPDO 1");
         assert_eq!(PdoEntry::decode(maps[2].entries[0]), PdoEntry { index: 0x6041, sub: 0, bits: 16 });
         let mut out = Buf::<32768>::new();
-        esi::write(&DESC, &OBJECTS, &maps, &mut out).unwrap();
+        esi::write(&DESC, OBJECTS, &maps, &mut out).unwrap();
         let x = out.as_str();
         // Not assigned by default, but an RxPDO can only go to SM2: Sm="2" all the same.
         assert!(x.contains("<RxPdo Sm=\"2\"><Index>#x1602</Index><Name>RxPDO</Name>"));
@@ -772,7 +775,7 @@ qemu_runner::tests! {
         let mut maps = [PDOS[0], PDOS[1], PDOS[0]];
         maps[2] = PdoMap { index: 0x1601, name: Name::plain("RxPDO 2"), sm: None, fixed: true, mandatory: true, entries: &RX2 };
         let mut img = [0xFFu8; 2048];
-        let n = sii::build_with_pdos(&DESC, &OBJECTS, &maps, &mut img).unwrap();
+        let n = sii::build_with_pdos(&DESC, OBJECTS, &maps, &mut img).unwrap();
         let view = sii::Sii::new(&img[..n]);
         let cat = |kind: u16| view.categories().find(|c| c.kind == kind).map(|c| c.data);
         let st = |s: &str| (1..=view.string_count()).find(|i| view.string(*i) == Some(s)).unwrap();

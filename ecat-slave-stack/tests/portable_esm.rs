@@ -9,7 +9,9 @@ use ecat_slave_stack::esc::{EscAccess, EscError};
 use ecat_slave_stack::esm::{self, Decision, EsmHooks, EsmState};
 use ecat_slave_stack::foe::{ErrorCode, FoeFiles, WriteStatus};
 use ecat_slave_stack::leds::{ErrCondition, Pattern, StatusLeds};
-use ecat_slave_stack::od::{Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+};
 use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
 use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
@@ -166,50 +168,39 @@ const fn var(
     name: &'static str,
     t: DataType,
     pdo: PdoMappable,
-    entries: &'static [Entry],
-) -> Object {
+    entries: &'static [EntryDesc],
+) -> ObjectDesc {
     let _ = (t, pdo);
-    Object::var(index, name, entries, "")
+    ObjectDesc::var(index, name, entries, "")
 }
-const E_6040: &[Entry] =
-    &[Entry::new(0, "cw", DataType::Unsigned16, Access::RW).pdo(PdoMappable::Rx)];
-const E_6041: &[Entry] =
-    &[Entry::new(0, "sw", DataType::Unsigned16, Access::RO).pdo(PdoMappable::Tx)];
-const E_6060: &[Entry] =
-    &[Entry::new(0, "mode", DataType::Integer8, Access::RW).pdo(PdoMappable::Rx)];
-const E_6064: &[Entry] =
-    &[Entry::new(0, "pos", DataType::Integer32, Access::RO).pdo(PdoMappable::Tx)];
-const E_607A: &[Entry] =
-    &[Entry::new(0, "target", DataType::Integer32, Access::RW).pdo(PdoMappable::Rx)];
-const E_60FE: &[Entry] = &[
-    Entry::new(0, "n", DataType::Unsigned8, Access::RO),
-    Entry::new(1, "outputs", DataType::Unsigned32, Access::RW).pdo(PdoMappable::Rx),
+const E_6040: &[EntryDesc] =
+    &[EntryDesc::new(0, "cw", DataType::Unsigned16, Access::RW).pdo(PdoMappable::Rx)];
+const E_6041: &[EntryDesc] =
+    &[EntryDesc::new(0, "sw", DataType::Unsigned16, Access::RO).pdo(PdoMappable::Tx)];
+const E_6060: &[EntryDesc] =
+    &[EntryDesc::new(0, "mode", DataType::Integer8, Access::RW).pdo(PdoMappable::Rx)];
+const E_6064: &[EntryDesc] =
+    &[EntryDesc::new(0, "pos", DataType::Integer32, Access::RO).pdo(PdoMappable::Tx)];
+const E_607A: &[EntryDesc] =
+    &[EntryDesc::new(0, "target", DataType::Integer32, Access::RW).pdo(PdoMappable::Rx)];
+const E_60FE: &[EntryDesc] = &[
+    EntryDesc::new(0, "n", DataType::Unsigned8, Access::RO),
+    EntryDesc::new(1, "outputs", DataType::Unsigned32, Access::RW).pdo(PdoMappable::Rx),
 ];
-const E_2100: &[Entry] =
-    &[Entry::new(0, "flag", DataType::Boolean, Access::RW).pdo(PdoMappable::RxTx)];
-const E_2101: &[Entry] = &[Entry::new(
+const E_2100: &[EntryDesc] =
+    &[EntryDesc::new(0, "flag", DataType::Boolean, Access::RW).pdo(PdoMappable::RxTx)];
+const E_2101: &[EntryDesc] = &[EntryDesc::new(
     0,
     "not mappable",
     DataType::Unsigned16,
     Access::RW,
 )];
-const E_2102: &[Entry] =
-    &[Entry::new(0, "big", DataType::Unsigned64, Access::RW).pdo(PdoMappable::RxTx)];
+const E_2102: &[EntryDesc] =
+    &[EntryDesc::new(0, "big", DataType::Unsigned64, Access::RW).pdo(PdoMappable::RxTx)];
 
-static OBJECTS: &[Object] = &[
-    pdo::OBJECTS[0],
-    pdo::OBJECTS[1],
-    pdo::OBJECTS[2],
-    pdo::OBJECTS[3],
-    pdo::OBJECTS[4],
-    pdo::OBJECTS[5],
-    pdo::OBJECTS[6],
-    pdo::OBJECTS[7],
-    pdo::OBJECTS[8],
-    pdo::OBJECTS[9],
-    pdo::OBJECTS[10],
-    pdo::OBJECTS[11],
-    pdo::OBJECTS[12],
+static OBJECTS: &[Object] =
+    ecat_slave_stack::packed_dictionary!(&[pdo::OBJECTS, LOCAL, sync::DIAG_OBJECTS]);
+const LOCAL: &[ObjectDesc] = &[
     var(0x2100, "flag", DataType::Boolean, PdoMappable::RxTx, E_2100),
     var(0x2101, "nm", DataType::Unsigned16, PdoMappable::No, E_2101),
     var(
@@ -219,7 +210,6 @@ static OBJECTS: &[Object] = &[
         PdoMappable::RxTx,
         E_2102,
     ),
-    sync::DIAG_OBJECTS[0],
     var(0x6040, "cw", DataType::Unsigned16, PdoMappable::Rx, E_6040),
     var(0x6041, "sw", DataType::Unsigned16, PdoMappable::Tx, E_6041),
     var(0x6060, "mode", DataType::Integer8, PdoMappable::Rx, E_6060),
@@ -231,7 +221,7 @@ static OBJECTS: &[Object] = &[
         PdoMappable::Rx,
         E_607A,
     ),
-    Object::array(0x60FE, "outputs", E_60FE, ""),
+    ObjectDesc::array(0x60FE, "outputs", E_60FE, ""),
 ];
 
 const RX1: &[u32] = &[entry(0x6040, 0, 16), entry(0x607A, 0, 32)];

@@ -20,7 +20,9 @@
 //! else is refused with 0x06090030); sub-index n = error code (bits 0-15) and fault
 //! kind (bits 16-23) of the n-th newest fault.
 
-use ecat_slave_stack::od::{Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    Access, DataType, Dictionary, EntryDesc, ObjectDesc, PdoMappable, SdoAbort,
+};
 use embedded_storage::nor_flash::NorFlash;
 
 use crate::diagnosis::HISTORY_LEN;
@@ -57,39 +59,39 @@ pub fn execute<F: NorFlash, D: Dictionary + ?Sized>(
     }
 }
 
-const fn cmd(sub: u8, name: &'static str) -> Entry {
-    Entry::new(sub, name, DataType::Unsigned32, Access::RW).default(1)
+const fn cmd(sub: u8, name: &'static str) -> EntryDesc {
+    EntryDesc::new(sub, name, DataType::Unsigned32, Access::RW).default(1)
 }
 
-const fn ro32(sub: u8, name: &'static str) -> Entry {
-    Entry::new(sub, name, DataType::Unsigned32, Access::RO)
+const fn ro32(sub: u8, name: &'static str) -> EntryDesc {
+    EntryDesc::new(sub, name, DataType::Unsigned32, Access::RO)
 }
 
 const NAME_BITS: u16 = identity::MAX_NAME_LEN as u16;
 
 /// The communication objects of the product, sorted.
-pub const OBJECTS: &[Object] = &[
-    Object::var(
+pub const OBJECTS: &[ObjectDesc] = &[
+    ObjectDesc::var(
         0x1000,
         "Device type",
         &[ro32(0, "Device type").default(0x0002_0192)],
         "CiA 402 drive: 0x00020192 hybrid servo, 0x00040192 stepper",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x1001,
         "Error register",
         &[
-            Entry::new(0, "Error register", DataType::Unsigned8, Access::RO)
+            EntryDesc::new(0, "Error register", DataType::Unsigned8, Access::RO)
                 .pdo(PdoMappable::Tx)
                 .default(0),
         ],
         "b0 generic, b1 current, b2 voltage, b4 communication, b5 profile",
     ),
-    Object::array(
+    ObjectDesc::array(
         0x1003,
         "Pre-defined error field",
         &[
-            Entry::new(0, "Number of errors", DataType::Unsigned8, Access::RW).default(0),
+            EntryDesc::new(0, "Number of errors", DataType::Unsigned8, Access::RW).default(0),
             ro32(1, "Standard error field 1"),
             ro32(2, "Standard error field 2"),
             ro32(3, "Standard error field 3"),
@@ -99,10 +101,10 @@ pub const OBJECTS: &[Object] = &[
         ],
         "Newest fault first: bits 0-15 error code, bits 16-23 fault kind; write 0 to sub 0 clears",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x1008,
         "Device name",
-        &[Entry::text(
+        &[EntryDesc::text(
             0,
             "Device name",
             NAME_BITS,
@@ -110,10 +112,10 @@ pub const OBJECTS: &[Object] = &[
         )],
         "Device name",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x1009,
         "Hardware version",
-        &[Entry::text(
+        &[EntryDesc::text(
             0,
             "Hardware version",
             8,
@@ -121,10 +123,10 @@ pub const OBJECTS: &[Object] = &[
         )],
         "Hardware version",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x100A,
         "Software version",
-        &[Entry::text(
+        &[EntryDesc::text(
             0,
             "Software version",
             16,
@@ -132,11 +134,11 @@ pub const OBJECTS: &[Object] = &[
         )],
         "Software version",
     ),
-    Object::array(
+    ObjectDesc::array(
         0x1010,
         "Store parameters",
         &[
-            Entry::count(4),
+            EntryDesc::count(4),
             cmd(1, "Save all parameters"),
             cmd(2, "Save communication parameters"),
             cmd(3, "Save application parameters"),
@@ -144,11 +146,11 @@ pub const OBJECTS: &[Object] = &[
         ],
         "Write 'save' (0x65766173); 'load' to sub 4 restores defaults",
     ),
-    Object::array(
+    ObjectDesc::array(
         0x1011,
         "Restore default parameters",
         &[
-            Entry::count(4),
+            EntryDesc::count(4),
             cmd(1, "Restore all defaults"),
             cmd(2, "Restore communication defaults"),
             cmd(3, "Restore application defaults"),
@@ -156,11 +158,11 @@ pub const OBJECTS: &[Object] = &[
         ],
         "Write 'load' (0x64616F6C); effective after restart",
     ),
-    Object::record(
+    ObjectDesc::record(
         0x1018,
         "Identity",
         &[
-            Entry::count(4),
+            EntryDesc::count(4),
             ro32(1, "Vendor ID").default(identity::VENDOR_ID as i64),
             ro32(2, "Product code").default(0x5840),
             ro32(3, "Revision").default(identity::REVISION as i64),
@@ -168,15 +170,15 @@ pub const OBJECTS: &[Object] = &[
         ],
         "Identity (equals the SII)",
     ),
-    Object::record(
+    ObjectDesc::record(
         0x10F1,
         "Error settings",
         &[
-            Entry::count(2),
-            Entry::new(1, "Local error reaction", DataType::Unsigned32, Access::RW)
+            EntryDesc::count(2),
+            EntryDesc::new(1, "Local error reaction", DataType::Unsigned32, Access::RW)
                 .default(1)
                 .saved(),
-            Entry::new(
+            EntryDesc::new(
                 2,
                 "Sync error counter limit",
                 DataType::Unsigned16,
@@ -187,18 +189,18 @@ pub const OBJECTS: &[Object] = &[
         ],
         "Sync error counter limit used by the sync supervision",
     ),
-    Object::record(
+    ObjectDesc::record(
         0x10F3,
         "Diagnosis history",
         &[
-            Entry::count(diag::FIRST_MESSAGE_SUB - 1 + HISTORY_LEN as u8),
-            Entry::new(1, "Maximum messages", DataType::Unsigned8, Access::RO)
+            EntryDesc::count(diag::FIRST_MESSAGE_SUB - 1 + HISTORY_LEN as u8),
+            EntryDesc::new(1, "Maximum messages", DataType::Unsigned8, Access::RO)
                 .default(HISTORY_LEN as i64),
-            Entry::new(2, "Newest message", DataType::Unsigned8, Access::RO).default(0),
-            Entry::new(3, "Newest acknowledged message", DataType::Unsigned8, Access::RW)
+            EntryDesc::new(2, "Newest message", DataType::Unsigned8, Access::RO).default(0),
+            EntryDesc::new(3, "Newest acknowledged message", DataType::Unsigned8, Access::RW)
                 .default(0),
-            Entry::new(4, "New messages available", DataType::Boolean, Access::RO).default(0),
-            Entry::new(5, "Flags", DataType::Unsigned16, Access::RW).default(0),
+            EntryDesc::new(4, "New messages available", DataType::Boolean, Access::RO).default(0),
+            EntryDesc::new(5, "Flags", DataType::Unsigned16, Access::RW).default(0),
             msg(6, "Diagnosis message 001"),
             msg(7, "Diagnosis message 002"),
             msg(8, "Diagnosis message 003"),
@@ -220,8 +222,8 @@ pub const OBJECTS: &[Object] = &[
     ),
 ];
 
-const fn msg(sub: u8, name: &'static str) -> Entry {
-    Entry::octets(sub, name, diag::MESSAGE_LEN as u16)
+const fn msg(sub: u8, name: &'static str) -> EntryDesc {
+    EntryDesc::octets(sub, name, diag::MESSAGE_LEN as u16)
 }
 
 const _: () = assert!(HISTORY_LEN == 16, "one 0x10F3 entry per message");
@@ -374,6 +376,10 @@ const _: () = assert!(HISTORY == 6);
 
 #[cfg(test)]
 mod tests {
+    /// The table as the product packs it (with the plain names of its words).
+    static PACKED: &[ecat_slave_stack::od::Object] =
+        ecat_slave_stack::packed_dictionary!(&[super::OBJECTS]);
+
     use super::*;
     use crate::faults::{FaultKind, Snapshot};
     use crate::identity::Variant;
@@ -387,7 +393,7 @@ mod tests {
         sub: u8,
         v: u32,
     ) -> Result<Option<StoreCommand>, SdoAbort> {
-        let e = od::find_entry(OBJECTS, index, sub)?;
+        let e = od::find_entry(PACKED, index, sub)?;
         let data = &v.to_le_bytes()[..e.byte_len()];
         od::check_write(e, data, EsmState::PreOp)?;
         c.write(f, index, sub, data)
@@ -403,7 +409,7 @@ mod tests {
 
     #[test]
     fn identity_and_names() {
-        assert!(od::is_well_formed(OBJECTS));
+        assert!(od::is_well_formed(PACKED));
         let f = Faults::default();
         for (v, dt, pc) in [
             (Variant::HybridServo, 0x0002_0192, 0x5840),

@@ -14,9 +14,15 @@
 //! The same table feeds the SDO server, PDO mapping rules, SDO information, the ESI,
 //! the SII and the generated reference (`cargo xtask od-doc`), so they cannot disagree.
 
-use ecat_slave_stack::od::{self, Entry, Object, SdoAbort};
+use ecat_slave_stack::od::{self, Entry, Object, ObjectDesc, SdoAbort};
 
-const PARTS: &[&[Object]] = &[
+mod vocabulary;
+
+pub use vocabulary::VOCABULARY;
+
+/// The owners' tables, as written (compile-time descriptions; documentation
+/// generators describe variants of the dictionary from them).
+pub const PARTS: &[&[ObjectDesc]] = &[
     crate::comm::OBJECTS,
     ecat_slave_stack::pdo::OBJECTS,
     crate::params::OBJECTS,
@@ -27,9 +33,9 @@ const PARTS: &[&[Object]] = &[
 ];
 
 /// Every object of the drive, sorted by index: the module tables merged at compile
-/// time, names packed and stored once, identical entry tables once
+/// time, names packed with [`VOCABULARY`] and stored once, identical entry tables once
 /// (`ecat_slave_stack::od::pack`; two modules describing one index do not compile).
-pub static OBJECTS: &[Object] = ecat_slave_stack::packed_dictionary!(PARTS);
+pub static OBJECTS: &[Object] = ecat_slave_stack::packed_dictionary!(PARTS, VOCABULARY);
 
 /// True when the table is well formed (sorted objects, sorted sub-indices).
 pub fn is_well_formed() -> bool {
@@ -86,7 +92,7 @@ mod tests {
 
     #[test]
     fn module_ranges_hold_exactly_the_module_tables() {
-        let modules: [(&[Object], (u16, u16)); 5] = [
+        let modules: [(&[ObjectDesc], (u16, u16)); 5] = [
             (crate::comm::OBJECTS, COMM),
             (crate::params::OBJECTS, PARAMS),
             (crate::monitor::OBJECTS, MONITOR),
@@ -98,7 +104,7 @@ mod tests {
                 assert!((range.0..=range.1).contains(&o.index), "{:#06x}", o.index);
             }
             for index in 0..=u16::MAX {
-                let mine = od::find(own, index);
+                let mine = own.iter().find(|o| o.index == index);
                 let found = find_in(range, index);
                 assert_eq!(mine.is_some(), found.is_some(), "{index:#06x}");
                 if let (Some(a), Some(b)) = (mine, found) {
@@ -106,8 +112,10 @@ mod tests {
                     assert_eq!(a.entries().len(), b.entries().len());
                     for sub in 0..=u8::MAX {
                         assert_eq!(
-                            od::find_entry(own, index, sub).map(|e| (e.sub, e.name())),
-                            find_entry_in(range, index, sub).map(|e| (e.sub, e.name())),
+                            a.entry(sub)
+                                .map(|e| (e.sub(), e.name().to_string()))
+                                .ok_or(SdoAbort::SubindexDoesNotExist),
+                            find_entry_in(range, index, sub).map(|e| (e.sub, e.name().to_string())),
                             "{index:#06x}:{sub}"
                         );
                     }
@@ -133,10 +141,10 @@ mod tests {
                 assert_eq!(packed, src, "{:#06x}", src.index);
                 assert_eq!(packed.name().to_string(), src.name().to_string());
                 for (p, s) in packed.entries().iter().zip(src.entries()) {
-                    assert_eq!(p, s, "{:#06x}:{}", src.index, s.sub);
+                    assert_eq!(p, s, "{:#06x}:{}", src.index, s.sub());
                     assert_eq!(p.name().to_string(), s.name().to_string());
                     assert_eq!(p.name().len(), s.name().len());
-                    assert!(p.name().as_plain().is_none(), "packed");
+                    assert!(p.name().stored_len() <= s.name().len(), "packed");
                 }
                 n += 1;
             }

@@ -65,7 +65,7 @@
 //! record (erased, torn by a power cut, garbage) gives the previous record or an empty
 //! history. Clearing (0x2093 = 1, 0x1003:00 = 0) is written to the flash the same way.
 
-use ecat_slave_stack::od::{Access, DataType, Entry, Object, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{Access, DataType, EntryDesc, ObjectDesc, PdoMappable, SdoAbort};
 use heapless::Deque;
 
 /// The kinds of fault, most severe first.
@@ -765,12 +765,12 @@ fn sat16(v: i32) -> i16 {
     v.clamp(i32::from(i16::MIN), i32::from(i16::MAX)) as i16
 }
 
-const fn ro(sub: u8, name: &'static str, t: DataType, unit: &'static str) -> Entry {
-    Entry::new(sub, name, t, Access::RO).unit(unit)
+const fn ro(sub: u8, name: &'static str, t: DataType, unit: &'static str) -> EntryDesc {
+    EntryDesc::new(sub, name, t, Access::RO).unit(unit)
 }
 
-const SNAPSHOT: &[Entry] = &[
-    Entry::count(8),
+const SNAPSHOT: &[EntryDesc] = &[
+    EntryDesc::count(8),
     ro(1, "Error code", DataType::Unsigned16, ""),
     ro(2, "Phase A current", DataType::Integer16, "mA"),
     ro(3, "Phase B current", DataType::Integer16, "mA"),
@@ -781,8 +781,8 @@ const SNAPSHOT: &[Entry] = &[
     ro(8, "Operating time", DataType::Unsigned32, "s"),
 ];
 
-const fn snap_obj(index: u16, name: &'static str) -> Object {
-    Object::record(
+const fn snap_obj(index: u16, name: &'static str) -> ObjectDesc {
+    ObjectDesc::record(
         index,
         name,
         SNAPSHOT,
@@ -793,12 +793,12 @@ const fn snap_obj(index: u16, name: &'static str) -> Object {
 
 /// Fault history objects (the Xinje U1 group): 0x2400 summary, 0x2401 newest fault's
 /// snapshot … 0x2406 sixth newest.
-pub const OBJECTS: &[Object] = &[
-    Object::record(
+pub const OBJECTS: &[ObjectDesc] = &[
+    ObjectDesc::record(
         0x2400,
         "Fault history",
         &[
-            Entry::count(8),
+            EntryDesc::count(8),
             ro(1, "Faults since power-up", DataType::Unsigned16, ""),
             ro(2, "Fault code 1 (newest)", DataType::Unsigned16, ""),
             ro(3, "Fault code 2", DataType::Unsigned16, ""),
@@ -806,7 +806,8 @@ pub const OBJECTS: &[Object] = &[
             ro(5, "Fault code 4", DataType::Unsigned16, ""),
             ro(6, "Fault code 5", DataType::Unsigned16, ""),
             ro(7, "Fault code 6 (oldest)", DataType::Unsigned16, ""),
-            Entry::new(8, "Active faults", DataType::Unsigned16, Access::RO).pdo(PdoMappable::Tx),
+            EntryDesc::new(8, "Active faults", DataType::Unsigned16, Access::RO)
+                .pdo(PdoMappable::Tx),
         ],
         "Last six faults, newest first; sub 8: bit n = fault kind n active",
     ),

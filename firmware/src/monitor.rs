@@ -9,83 +9,83 @@
 //! power-up. They are thus exact up to the last save (the board may also save on a
 //! power-fail warning).
 
-use ecat_slave_stack::od::{Access, DataType, Entry, Object, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{Access, DataType, EntryDesc, ObjectDesc, PdoMappable, SdoAbort};
 
-const fn tx(name: &'static str, t: DataType, unit: &'static str) -> Entry {
-    Entry::new(0, name, t, Access::RO)
+const fn tx(name: &'static str, t: DataType, unit: &'static str) -> EntryDesc {
+    EntryDesc::new(0, name, t, Access::RO)
         .pdo(PdoMappable::Tx)
         .unit(unit)
 }
 
 /// Monitoring objects, sorted.
-pub const OBJECTS: &[Object] = &[
-    Object::var(
+pub const OBJECTS: &[ObjectDesc] = &[
+    ObjectDesc::var(
         0x2300,
         "Electrical angle",
         &[tx("Electrical angle", DataType::Unsigned16, "1/65536 turn")],
         "Electrical angle used by the current loop",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x2301,
         "Phase A current set",
         &[tx("Phase A current set", DataType::Integer16, "mA")],
         "Phase A current set-point",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x2302,
         "Phase B current set",
         &[tx("Phase B current set", DataType::Integer16, "mA")],
         "Phase B current set-point",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x2303,
         "Phase A current",
         &[tx("Phase A current", DataType::Integer16, "mA")],
         "Measured phase A current",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x2304,
         "Phase B current",
         &[tx("Phase B current", DataType::Integer16, "mA")],
         "Measured phase B current",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x2305,
         "Bus voltage",
         &[tx("Bus voltage", DataType::Unsigned16, "10mV")],
         "Measured DC bus voltage",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x2306,
         "Power-on count",
         &[
-            Entry::new(0, "Power-on count", DataType::Unsigned32, Access::RO)
+            EntryDesc::new(0, "Power-on count", DataType::Unsigned32, Access::RO)
                 .default(0)
                 .saved(),
         ],
         "Number of power-ups (as of the last save)",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x2307,
         "Running time",
         &[
-            Entry::new(0, "Running time", DataType::Unsigned32, Access::RO)
+            EntryDesc::new(0, "Running time", DataType::Unsigned32, Access::RO)
                 .unit("s")
                 .default(0)
                 .saved(),
         ],
         "Accumulated powered time (as of the last save)",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x2308,
         "Time since power-up",
         &[tx("Time since power-up", DataType::Unsigned32, "ms")],
         "Milliseconds since this power-up",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x2309,
         "Firmware boot state",
-        &[Entry::new(0, "Firmware boot state", DataType::Unsigned8, Access::RO).default(3)],
+        &[EntryDesc::new(0, "Firmware boot state", DataType::Unsigned8, Access::RO).default(3)],
         "0 confirmed, 1 on trial (a new image not yet confirmed: a reset reverts it), 2 reverted (an unconfirmed image was replaced by the previous one), 3 no firmware update",
     ),
 ];
@@ -223,12 +223,16 @@ impl Monitor {
 
 #[cfg(test)]
 mod tests {
+    /// The table as the product packs it (with the plain names of its words).
+    static PACKED: &[ecat_slave_stack::od::Object] =
+        ecat_slave_stack::packed_dictionary!(&[super::OBJECTS]);
+
     use super::*;
     use ecat_slave_stack::od;
 
     #[test]
     fn objects_and_values() {
-        assert!(od::is_well_formed(OBJECTS));
+        assert!(od::is_well_formed(PACKED));
         let mut m = Monitor::new();
         m.m = Measurements {
             electrical_angle: 0x8000,
@@ -241,7 +245,7 @@ mod tests {
         let mut buf = [0u8; 4];
         let rd = |m: &Monitor, i: u16, buf: &mut [u8; 4]| {
             let n = m.read(i, 0, buf).unwrap();
-            od::decode_int(od::find_entry(OBJECTS, i, 0).unwrap().data_type, &buf[..n]).unwrap()
+            od::decode_int(od::find_entry(PACKED, i, 0).unwrap().data_type, &buf[..n]).unwrap()
         };
         assert_eq!(rd(&m, 0x2300, &mut buf), 0x8000);
         assert_eq!(rd(&m, 0x2301, &mut buf), -1500);
@@ -274,7 +278,7 @@ mod tests {
         let mut small = [0u8; 1];
         assert_eq!(m.read(0x2306, 0, &mut small), Err(SdoAbort::ExceedsMailbox));
         // Every entry is read-only for the SDO server.
-        for o in OBJECTS {
+        for o in PACKED {
             assert!(!o.entries()[0].access.writable());
         }
     }

@@ -27,7 +27,8 @@
 //!   the next power-up.
 
 use ecat_slave_stack::od::{
-    self, Access, DataType, DefaultValue, Entry, Object, ObjectCode, PdoMappable, SdoAbort,
+    self, Access, DataType, DefaultValue, Entry, EntryDesc, ObjectCode, ObjectDesc, PdoMappable,
+    SdoAbort,
 };
 
 use crate::current_supervisor::Calibration;
@@ -42,8 +43,8 @@ const fn rws(
     min: i64,
     max: i64,
     unit: &'static str,
-) -> Entry {
-    Entry::new(sub, name, t, Access::RW)
+) -> EntryDesc {
+    EntryDesc::new(sub, name, t, Access::RW)
         .range(min, max)
         .default(def)
         .unit(unit)
@@ -61,8 +62,8 @@ macro_rules! vendor_params {
         $($slot:tt = $entry:expr,)*
     })*) => {
         /// The vendor parameter objects, sorted by index.
-        pub const OBJECTS: &[Object] = &[
-            $(Object::$code($index, $name, &[$($entry),*], $description),)*
+        pub const OBJECTS: &[ObjectDesc] = &[
+            $(ObjectDesc::$code($index, $name, &[$($entry),*], $description),)*
         ];
         param_slots!([] [] $($(($index, $slot, $entry))*)*);
     };
@@ -88,7 +89,7 @@ macro_rules! param_slots {
     };
     ([$($variant:ident)*] [$($key:expr,)*] ($index:literal, $slot:ident, $entry:expr)
         $($rest:tt)*) => {
-        param_slots!([$($variant)* $slot] [$($key,)* ($index, $entry.sub),] $($rest)*);
+        param_slots!([$($variant)* $slot] [$($key,)* ($index, $entry.sub()),] $($rest)*);
     };
 }
 
@@ -107,7 +108,7 @@ vendor_params! {
     }
     0x2005 array "Output function",
         "bit0 alarm, bit1 ready, bit2 in-position" {
-        _ = Entry::count(2),
+        _ = EntryDesc::count(2),
         Out1Function = rws(1, "Output 1 function", U16, 1, 1, 4, ""),
         Out2Function = rws(2, "Output 2 function", U16, 1, 1, 4, ""),
     }
@@ -121,7 +122,7 @@ vendor_params! {
     }
     0x2010 record "Command filter",
         "Command smoothing filter time (sub-index 1 is not used)" {
-        _ = Entry::count(2),
+        _ = EntryDesc::count(2),
         CmdFilterTime = rws(2, "Command filter time", U16, 1000, 50, 25600, "us"),
     }
     0x2013 var "Current loop auto-tune",
@@ -138,7 +139,7 @@ vendor_params! {
     }
     0x2017 var "Current Kc",
         "Current loop anti-windup gain (read-only)" {
-        CurrentKc = Entry::new(0, "Current Kc", U16, Access::RO).range(80, 300).default(100),
+        CurrentKc = EntryDesc::new(0, "Current Kc", U16, Access::RO).range(80, 300).default(100),
     }
     0x2020 var "Motor resistance",
         "Phase resistance (auto-tune fills it)" {
@@ -150,12 +151,12 @@ vendor_params! {
     }
     0x2022 record "Current sensing calibration",
         "Measured by the power-up auto-tune: channel B gain in 1/10000 of A's, offsets, dead-time loss, L at half the test current (0 until a tune has finished)" {
-        _ = Entry::count(5),
-        _ = Entry::new(1, "Channel B gain", U16, Access::RO).default(0),
-        _ = Entry::new(2, "Offset A", I16, Access::RO).unit("mA").default(0),
-        _ = Entry::new(3, "Offset B", I16, Access::RO).unit("mA").default(0),
-        _ = Entry::new(4, "Dead-time loss", U16, Access::RO).unit("mV").default(0),
-        _ = Entry::new(5, "Inductance at half test current", U16, Access::RO).unit("uH").default(0),
+        _ = EntryDesc::count(5),
+        _ = EntryDesc::new(1, "Channel B gain", U16, Access::RO).default(0),
+        _ = EntryDesc::new(2, "Offset A", I16, Access::RO).unit("mA").default(0),
+        _ = EntryDesc::new(3, "Offset B", I16, Access::RO).unit("mA").default(0),
+        _ = EntryDesc::new(4, "Dead-time loss", U16, Access::RO).unit("mV").default(0),
+        _ = EntryDesc::new(5, "Inductance at half test current", U16, Access::RO).unit("uH").default(0),
     }
     0x2024 var "Loop mode",
         "1 open loop, 2 closed loop" {
@@ -179,19 +180,19 @@ vendor_params! {
     }
     0x2039 var "Command pulses high",
         "Received command pulses, bits 16-31" {
-        _ = Entry::new(0, "Command pulses high", U16, Access::RO).pdo(PdoMappable::Tx).default(0),
+        _ = EntryDesc::new(0, "Command pulses high", U16, Access::RO).pdo(PdoMappable::Tx).default(0),
     }
     0x2040 var "Command pulses low",
         "Received command pulses, bits 0-15; write 1 clears the counter" {
-        _ = Entry::new(0, "Command pulses low", U16, Access::RW).range(0, 1).pdo(PdoMappable::Tx).default(0),
+        _ = EntryDesc::new(0, "Command pulses low", U16, Access::RW).range(0, 1).pdo(PdoMappable::Tx).default(0),
     }
     0x2041 var "Encoder counts high",
         "Encoder feedback counts, bits 16-31" {
-        _ = Entry::new(0, "Encoder counts high", U16, Access::RO).pdo(PdoMappable::Tx).default(0),
+        _ = EntryDesc::new(0, "Encoder counts high", U16, Access::RO).pdo(PdoMappable::Tx).default(0),
     }
     0x2042 var "Encoder counts low",
         "Encoder feedback counts, bits 0-15; write 1 clears the counter" {
-        _ = Entry::new(0, "Encoder counts low", U16, Access::RW).range(0, 1).pdo(PdoMappable::Tx).default(0),
+        _ = EntryDesc::new(0, "Encoder counts low", U16, Access::RW).range(0, 1).pdo(PdoMappable::Tx).default(0),
     }
     0x2051 var "Direction reversal",
         "1 reverses the motor direction" {
@@ -223,7 +224,7 @@ vendor_params! {
     }
     0x2093 var "Fault clear record",
         "Write 1: clear the fault history" {
-        _ = Entry::new(0, "Fault clear record", U8, Access::RW).range(0, 1).default(0),
+        _ = EntryDesc::new(0, "Fault clear record", U8, Access::RW).range(0, 1).default(0),
     }
     0x2137 var "Position loop Kp",
         "Position loop proportional gain" {
@@ -251,7 +252,7 @@ vendor_params! {
     }
     0x2152 array "Input function",
         "1 home, 2 limit-, 4 limit+, 8 fault clear, 16 quick stop, 32 probe" {
-        _ = Entry::count(5),
+        _ = EntryDesc::count(5),
         In1Function = rws(1, "Input 1 function", U16, 1, 0, 0xFFFF, ""),
         In2Function = rws(2, "Input 2 function", U16, 2, 0, 0xFFFF, ""),
         In3Function = rws(3, "Input 3 function", U16, 4, 0, 0xFFFF, ""),
@@ -260,7 +261,7 @@ vendor_params! {
     }
     0x2153 array "Input filter",
         "Digital input filter time" {
-        _ = Entry::count(5),
+        _ = EntryDesc::count(5),
         In1Filter = rws(1, "Input 1 filter", U16, 20, 1, 60000, "50us"),
         In2Filter = rws(2, "Input 2 filter", U16, 20, 1, 60000, "50us"),
         In3Filter = rws(3, "Input 3 filter", U16, 20, 1, 60000, "50us"),
@@ -273,7 +274,7 @@ vendor_params! {
     }
     0x2155 var "Input raw levels",
         "bit n = electrical level of input n+1" {
-        _ = Entry::new(0, "Input raw levels", U8, Access::RO).pdo(PdoMappable::Tx),
+        _ = EntryDesc::new(0, "Input raw levels", U8, Access::RO).pdo(PdoMappable::Tx),
     }
     0x2156 var "Stored DIP station number",
         "Station number entered with SW8 on single-bank boards (0 = none); effective after restart" {
@@ -519,12 +520,16 @@ fn default_of(index: u16, sub: u8) -> i32 {
 
 #[cfg(test)]
 mod tests {
+    /// The table as the product packs it (with the plain names of its words).
+    static PACKED: &[ecat_slave_stack::od::Object] =
+        ecat_slave_stack::packed_dictionary!(&[super::OBJECTS]);
+
     extern crate std;
     use super::*;
     use ecat_slave_stack::esm::EsmState;
 
     fn w(p: &mut Params, index: u16, sub: u8, v: i64) -> Result<(), SdoAbort> {
-        let e = od::find_entry(OBJECTS, index, sub)?;
+        let e = od::find_entry(PACKED, index, sub)?;
         let bytes = (v as u64).to_le_bytes();
         let data = &bytes[..e.byte_len()];
         od::check_write(e, data, EsmState::Op)?;
@@ -534,17 +539,17 @@ mod tests {
     fn r(p: &Params, index: u16, sub: u8) -> i64 {
         let mut buf = [0u8; 8];
         let n = p.read(index, sub, &mut buf).unwrap();
-        let e = od::find_entry(OBJECTS, index, sub).unwrap();
+        let e = od::find_entry(PACKED, index, sub).unwrap();
         od::decode_int(e.data_type, &buf[..n]).unwrap()
     }
 
     #[test]
     fn table_is_well_formed_and_keys_match_saved_entries() {
-        assert!(od::is_well_formed(OBJECTS));
+        assert!(od::is_well_formed(PACKED));
         let mut keys = KEYS.to_vec();
         keys.sort();
         assert_eq!(keys, KEYS.to_vec(), "KEYS sorted");
-        let saved: std::vec::Vec<(u16, u8)> = OBJECTS
+        let saved: std::vec::Vec<(u16, u8)> = PACKED
             .iter()
             .flat_map(|o| {
                 o.entries()
@@ -558,7 +563,7 @@ mod tests {
             assert!(KEYS.contains(k), "{k:x?} has no slot");
         }
         assert_eq!(saved.len() + 1, KEYS.len());
-        for o in OBJECTS {
+        for o in PACKED {
             assert!((0x2000..=0x2FFF).contains(&o.index));
         }
     }
@@ -566,7 +571,7 @@ mod tests {
     #[test]
     fn every_parameter_default_and_range_edges() {
         for &(index, sub) in KEYS.iter() {
-            let e = od::find_entry(OBJECTS, index, sub).unwrap();
+            let e = od::find_entry(PACKED, index, sub).unwrap();
             let mut p = Params::new(Variant::HybridServo);
             p.set_internal(Param::AutoTune, 0);
             let DefaultValue::Int(def) = e.default_value() else {
@@ -656,7 +661,7 @@ mod tests {
             (0x2154, 0, 0, 0, 0x1F),
         ];
         for &(i, s, d, lo, hi) in expect {
-            let e = od::find_entry(OBJECTS, i, s).unwrap();
+            let e = od::find_entry(PACKED, i, s).unwrap();
             assert_eq!(
                 (e.default_value(), e.min(), e.max()),
                 (DefaultValue::Int(d), lo, hi),
@@ -760,7 +765,7 @@ mod tests {
     fn garbage_writes_never_panic() {
         let mut p = Params::new(Variant::HybridServo);
         let before = p.values;
-        for o in OBJECTS {
+        for o in PACKED {
             for e in o.entries() {
                 for len in 0..6 {
                     let data = [0xFFu8; 6];

@@ -106,7 +106,7 @@ mod tests {
                 let (index, sub, bits) = ((v >> 16) as u16, (v >> 8) as u8, (v & 0xFF) as u16);
                 let e = od::find_entry(OBJECTS, index, sub)
                     .unwrap_or_else(|_| panic!("{index:#06x}:{sub} not in the dictionary"));
-                assert_eq!(e.bits, bits, "{index:#06x}:{sub} length");
+                assert_eq!(e.bits(), bits, "{index:#06x}:{sub} length");
                 assert!(
                     if rx {
                         e.pdo_mappable().rx()

@@ -6,7 +6,9 @@
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 use ecat_slave_stack::esm::EsmState;
-use ecat_slave_stack::od::{self, Access, DataType, Dictionary, Entry, Object, SdoAbort};
+use ecat_slave_stack::od::{
+    self, Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, SdoAbort,
+};
 use firmware::comm::{self, Comm, StoreCommand, LOAD, SAVE};
 use firmware::dip::{self, AliasSource, Board};
 use firmware::faults::{self, Faults};
@@ -20,16 +22,16 @@ use firmware::storage::{
 
 // ---- a test dictionary -------------------------------------------------------------
 
-const fn map_entry(sub: u8) -> Entry {
-    Entry::new(sub, "Mapped object", DataType::Unsigned32, Access::RW_PREOP).saved()
+const fn map_entry(sub: u8) -> EntryDesc {
+    EntryDesc::new(sub, "Mapped object", DataType::Unsigned32, Access::RW_PREOP).saved()
 }
 
-const MAPPING: &[Object] = &[
-    Object::record(
+const MAPPING: &[ObjectDesc] = &[
+    ObjectDesc::record(
         0x1600,
         "RxPDO1 mapping",
         &[
-            Entry::new(
+            EntryDesc::new(
                 0,
                 "Number of entries",
                 DataType::Unsigned8,
@@ -44,11 +46,11 @@ const MAPPING: &[Object] = &[
         ],
         "",
     ),
-    Object::array(
+    ObjectDesc::array(
         0x1C12,
         "RxPDO assign",
         &[
-            Entry::new(
+            EntryDesc::new(
                 0,
                 "Number of entries",
                 DataType::Unsigned8,
@@ -56,7 +58,7 @@ const MAPPING: &[Object] = &[
             )
             .range(0, 1)
             .saved(),
-            Entry::new(1, "Assigned PDO", DataType::Unsigned16, Access::RW_PREOP)
+            EntryDesc::new(1, "Assigned PDO", DataType::Unsigned16, Access::RW_PREOP)
                 .range(0x1600, 0x1603)
                 .saved(),
         ],
@@ -64,7 +66,7 @@ const MAPPING: &[Object] = &[
     ),
 ];
 
-const PARTS: &[&[Object]] = &[
+const PARTS: &[&[ObjectDesc]] = &[
     comm::OBJECTS,
     MAPPING,
     params::OBJECTS,
@@ -72,33 +74,8 @@ const PARTS: &[&[Object]] = &[
     faults::OBJECTS,
 ];
 
-const fn total(parts: &[&[Object]]) -> usize {
-    let mut n = 0;
-    let mut i = 0;
-    while i < parts.len() {
-        n += parts[i].len();
-        i += 1;
-    }
-    n
-}
-
-const fn concat<const N: usize>(parts: &[&[Object]]) -> [Object; N] {
-    let mut out = [parts[0][0]; N];
-    let mut k = 0;
-    let mut i = 0;
-    while i < parts.len() {
-        let mut j = 0;
-        while j < parts[i].len() {
-            out[k] = parts[i][j];
-            k += 1;
-            j += 1;
-        }
-        i += 1;
-    }
-    out
-}
-
-static ALL: [Object; total(PARTS)] = concat(PARTS);
+static ALL: &[Object] =
+    ecat_slave_stack::packed_dictionary!(PARTS, firmware::dictionary::VOCABULARY);
 
 #[derive(Clone)]
 struct Drive {
@@ -143,7 +120,7 @@ impl Drive {
         ]
     }
     fn sdo(&mut self, index: u16, sub: u8, v: u32) -> Result<Option<StoreCommand>, SdoAbort> {
-        let e = od::find_entry(&ALL, index, sub)?;
+        let e = od::find_entry(ALL, index, sub)?;
         let data = &v.to_le_bytes()[..e.byte_len()];
         od::check_write(e, data, EsmState::PreOp)?;
         match index {
@@ -181,7 +158,7 @@ impl Drive {
 
 impl Dictionary for Drive {
     fn objects(&self) -> &'static [Object] {
-        &ALL
+        ALL
     }
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
         match index {
@@ -194,7 +171,7 @@ impl Dictionary for Drive {
                     (0x1C12, 1) => u32::from(self.assign),
                     _ => return Err(SdoAbort::SubindexDoesNotExist),
                 };
-                let len = od::find_entry(&ALL, index, sub)?.byte_len();
+                let len = od::find_entry(ALL, index, sub)?.byte_len();
                 buf.get_mut(..len)
                     .ok_or(SdoAbort::ExceedsMailbox)?
                     .copy_from_slice(&v.to_le_bytes()[..len]);
@@ -359,7 +336,7 @@ qemu_runner::tests! {
     }
 
     fn dictionary_is_sorted() {
-        assert!(od::is_well_formed(&ALL));
+        assert!(od::is_well_formed(ALL));
     }
 
     fn blank_flash_gives_defaults_without_report() {

@@ -26,7 +26,9 @@ use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
 use ecat_slave_stack::et1100::{Et1100, Et1100Config};
 use ecat_slave_stack::lan9252::{Lan9252, Lan9252Config};
-use ecat_slave_stack::od::{Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+};
 use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
 use ecat_slave_stack::sii::{self, DeviceDescription};
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
@@ -313,44 +315,34 @@ impl<A: SlaveApplication> Wire for Segment<A> {
 
 // ---- a minimal test application ------------------------------------------------------
 
-const fn var(index: u16, name: &'static str, entries: &'static [Entry]) -> Object {
-    Object::var(index, name, entries, "")
+const fn var(index: u16, name: &'static str, entries: &'static [EntryDesc]) -> ObjectDesc {
+    ObjectDesc::var(index, name, entries, "")
 }
 
-const E_1000: &[Entry] = &[Entry::new(
+const E_1000: &[EntryDesc] = &[EntryDesc::new(
     0,
     "Device type",
     DataType::Unsigned32,
     Access::RO,
 )];
-const E_6040: &[Entry] =
-    &[Entry::new(0, "Controlword", DataType::Unsigned16, Access::RW).pdo(PdoMappable::Rx)];
-const E_6041: &[Entry] =
-    &[Entry::new(0, "Statusword", DataType::Unsigned16, Access::RO).pdo(PdoMappable::Tx)];
-const E_6064: &[Entry] = &[
-    Entry::new(0, "Position actual value", DataType::Integer32, Access::RO).pdo(PdoMappable::Tx),
-];
-const E_607A: &[Entry] =
-    &[Entry::new(0, "Target position", DataType::Integer32, Access::RW).pdo(PdoMappable::Rx)];
+const E_6040: &[EntryDesc] =
+    &[EntryDesc::new(0, "Controlword", DataType::Unsigned16, Access::RW).pdo(PdoMappable::Rx)];
+const E_6041: &[EntryDesc] =
+    &[EntryDesc::new(0, "Statusword", DataType::Unsigned16, Access::RO).pdo(PdoMappable::Tx)];
+const E_6064: &[EntryDesc] =
+    &[
+        EntryDesc::new(0, "Position actual value", DataType::Integer32, Access::RO)
+            .pdo(PdoMappable::Tx),
+    ];
+const E_607A: &[EntryDesc] =
+    &[EntryDesc::new(0, "Target position", DataType::Integer32, Access::RW).pdo(PdoMappable::Rx)];
 
 /// The test application's dictionary: 0x1000, the PDO objects, the timing
 /// diagnostics and four CiA 402 objects.
-pub static TEST_OBJECTS: &[Object] = &[
+pub static TEST_OBJECTS: &[Object] =
+    ecat_slave_stack::packed_dictionary!(&[pdo::OBJECTS, TEST_OBJECTS_LOCAL, sync::DIAG_OBJECTS]);
+const TEST_OBJECTS_LOCAL: &[ObjectDesc] = &[
     var(0x1000, "Device type", E_1000),
-    pdo::OBJECTS[0],
-    pdo::OBJECTS[1],
-    pdo::OBJECTS[2],
-    pdo::OBJECTS[3],
-    pdo::OBJECTS[4],
-    pdo::OBJECTS[5],
-    pdo::OBJECTS[6],
-    pdo::OBJECTS[7],
-    pdo::OBJECTS[8],
-    pdo::OBJECTS[9],
-    pdo::OBJECTS[10],
-    pdo::OBJECTS[11],
-    pdo::OBJECTS[12],
-    sync::DIAG_OBJECTS[0],
     var(0x6040, "Controlword", E_6040),
     var(0x6041, "Statusword", E_6041),
     var(0x6064, "Position actual value", E_6064),

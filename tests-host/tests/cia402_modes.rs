@@ -4,9 +4,13 @@
 //! randomized runs with garbage controlwords / SDO / PDO values, and the touch probe on
 //! a moving axis.
 use ecat_slave_stack::od::{self, DataType, SdoAbort};
-use firmware::cia402::objects::{OBJECTS, RX_SLOTS, TX_SLOTS};
+use firmware::cia402::objects::{RX_SLOTS, TX_SLOTS};
 use firmware::cia402::pds::PdsState;
 use firmware::cia402::{mode, sw, Cia402, DriveCommand, DriveFeedback, EdgeLatch, SetpointKind};
+
+/// The CiA 402 table as the product packs it.
+static OBJECTS: &[ecat_slave_stack::od::Object] =
+    ecat_slave_stack::packed_dictionary!(&[firmware::cia402::objects::OBJECTS]);
 
 const DT: f32 = 0.001;
 
@@ -432,7 +436,7 @@ fn dictionary_types_lengths_and_access() {
             assert_eq!(n, e.byte_len(), "{:#06x}:{}", o.index, e.sub);
             assert!(!e.data_type.is_variable_length());
             let (bits, _, _) = od::type_range(e.data_type);
-            assert_eq!(bits, e.bits);
+            assert_eq!(bits, e.bits());
             if !e.access.writable() {
                 assert_eq!(
                     d.write(o.index, e.sub, &buf[..n]),
@@ -451,7 +455,7 @@ fn dictionary_types_lengths_and_access() {
     }
     // Every mappable entry in the tables is at most 32 bits.
     for &(i, s) in RX_SLOTS.iter().chain(TX_SLOTS) {
-        assert!(od::find_entry(OBJECTS, i, s).unwrap().bits <= 32);
+        assert!(od::find_entry(OBJECTS, i, s).unwrap().bits() <= 32);
     }
     // Signed entries sign-extend.
     d.write(0x607C, 0, &(-5i32).to_le_bytes()).unwrap();

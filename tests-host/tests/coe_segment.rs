@@ -13,7 +13,7 @@
 use ecat_slave_stack::coe::example::{self, ExampleDictionary, DEVICE_NAME};
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
 use ecat_slave_stack::od::{
-    self, Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort,
+    self, Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
 };
 use ecat_slave_stack::pdo::{self, ProcessData};
 use ecat_slave_stack::slave::SlaveApplication;
@@ -29,41 +29,31 @@ use tests_host::segment::{
     sii_image, test_description, test_slave_config, PdiPath, Segment, SegmentConfig,
 };
 
-const E_6064: &[Entry] = &[
-    Entry::new(0, "Position actual value", DataType::Integer32, Access::RO).pdo(PdoMappable::Tx),
-];
+const E_6064: &[EntryDesc] =
+    &[
+        EntryDesc::new(0, "Position actual value", DataType::Integer32, Access::RO)
+            .pdo(PdoMappable::Tx),
+    ];
 
 /// The example objects, the runtime's PDO objects and the timing diagnostics, sorted.
-static OBJECTS: &[Object] = &[
-    example::OBJECTS[0], // 0x1000
-    example::OBJECTS[1], // 0x1001
-    example::OBJECTS[2], // 0x1008
-    example::OBJECTS[3], // 0x1018
-    pdo::OBJECTS[0],
-    pdo::OBJECTS[1],
-    pdo::OBJECTS[2],
-    pdo::OBJECTS[3],
-    pdo::OBJECTS[4],
-    pdo::OBJECTS[5],
-    pdo::OBJECTS[6],
-    pdo::OBJECTS[7],
-    pdo::OBJECTS[8],
-    pdo::OBJECTS[9],
-    pdo::OBJECTS[10],
-    pdo::OBJECTS[11],
-    pdo::OBJECTS[12],
-    example::OBJECTS[6],  // 0x2000
-    example::OBJECTS[7],  // 0x2001
-    example::OBJECTS[8],  // 0x2002
-    example::OBJECTS[9],  // 0x2003
-    example::OBJECTS[10], // 0x2004
-    example::OBJECTS[11], // 0x2005
-    sync::DIAG_OBJECTS[0],
-    example::OBJECTS[12], // 0x2FFF
-    example::OBJECTS[13], // 0x6040
-    example::OBJECTS[14], // 0x6041
-    Object::var(0x6064, "Position actual value", E_6064, ""),
-    example::OBJECTS[15], // 0x607A
+static OBJECTS: &[Object] =
+    ecat_slave_stack::packed_dictionary!(&[pdo::OBJECTS, OBJECTS_LOCAL, sync::DIAG_OBJECTS]);
+const OBJECTS_LOCAL: &[ObjectDesc] = &[
+    example::SOURCE[0],  // 0x1000
+    example::SOURCE[1],  // 0x1001
+    example::SOURCE[2],  // 0x1008
+    example::SOURCE[3],  // 0x1018
+    example::SOURCE[6],  // 0x2000
+    example::SOURCE[7],  // 0x2001
+    example::SOURCE[8],  // 0x2002
+    example::SOURCE[9],  // 0x2003
+    example::SOURCE[10], // 0x2004
+    example::SOURCE[11], // 0x2005
+    example::SOURCE[12], // 0x2FFF
+    example::SOURCE[13], // 0x6040
+    example::SOURCE[14], // 0x6041
+    ObjectDesc::var(0x6064, "Position actual value", E_6064, ""),
+    example::SOURCE[15], // 0x607A
 ];
 
 #[derive(Default)]

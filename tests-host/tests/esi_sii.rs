@@ -235,8 +235,8 @@ fn type_name(e: &Entry) -> String {
         DataType::Unsigned32 => "UDINT",
         DataType::Unsigned64 => "ULINT",
         DataType::Real32 => "REAL",
-        DataType::VisibleString => return format!("STRING({})", e.bits / 8),
-        DataType::OctetString => return format!("OCTET_STRING({})", e.bits / 8),
+        DataType::VisibleString => return format!("STRING({})", e.bits() / 8),
+        DataType::OctetString => return format!("OCTET_STRING({})", e.bits() / 8),
         t => return format!("BIT{}", t as u16 - 0x2F),
     };
     base.to_string()
@@ -290,7 +290,7 @@ fn check_default(info: Node, index: u16, e: &Entry, variant: Variant, what: &str
             assert_eq!((data, string), (None, None), "{what}: no default expected");
         }
         DefaultValue::Int(v) => {
-            let n = e.bits.div_ceil(8).clamp(1, 8) as usize;
+            let n = e.bits().div_ceil(8).clamp(1, 8) as usize;
             assert_eq!(
                 data,
                 Some(hex_bytes(&v.to_le_bytes()[..n]).as_str()),
@@ -373,7 +373,7 @@ fn variant_descriptions_differ_from_the_table_only_in_defaults() {
                         x.sub,
                         x.name(),
                         x.data_type,
-                        x.bits,
+                        x.bits(),
                         x.access,
                         x.pdo_mappable(),
                         x.min(),
@@ -385,7 +385,7 @@ fn variant_descriptions_differ_from_the_table_only_in_defaults() {
                         y.sub,
                         y.name(),
                         y.data_type,
-                        y.bits,
+                        y.bits(),
                         y.access,
                         y.pdo_mappable(),
                         y.min(),
@@ -453,7 +453,11 @@ fn esi_dictionary_is_exactly_the_drive_dictionary() {
                         types.contains_key(text(*x, "Type")),
                         "{what}: type not defined"
                     );
-                    assert_eq!(num(text(*x, "BitSize")), u64::from(e.bits), "{what}: bits");
+                    assert_eq!(
+                        num(text(*x, "BitSize")),
+                        u64::from(e.bits()),
+                        "{what}: bits"
+                    );
                     check_flags(child(*x, "Flags"), e, &what);
                     check_default(info, o.index, e, v, &what);
                     continue;
@@ -469,14 +473,18 @@ fn esi_dictionary_is_exactly_the_drive_dictionary() {
                     assert_eq!(num(text(*s, "SubIdx")), u64::from(e.sub), "{what}");
                     assert_eq!(text(*s, "Name"), e.name(), "{what}");
                     assert_eq!(text(*s, "Type"), type_name(e), "{what}: type");
-                    assert_eq!(num(text(*s, "BitSize")), u64::from(e.bits), "{what}: bits");
+                    assert_eq!(
+                        num(text(*s, "BitSize")),
+                        u64::from(e.bits()),
+                        "{what}: bits"
+                    );
                     // An entry of a byte or more starts on a byte (ETG.1020 DT10F3).
-                    if e.bits >= 8 {
+                    if e.bits() >= 8 {
                         off = off.next_multiple_of(8);
                     }
                     assert_eq!(num(text(*s, "BitOffs")), off, "{what}: offset");
                     check_flags(child(*s, "Flags"), e, &what);
-                    off += u64::from(e.bits);
+                    off += u64::from(e.bits());
                     if i == 0 {
                         off = off.max(16);
                     }
@@ -714,7 +722,7 @@ fn esi_pdos_equal_the_default_maps_read_through_the_mapping_objects() {
                             type_name(entry),
                             "{what}: {index:#06x}:{sub}"
                         );
-                        assert_eq!(entry.bits, u16::from(bits));
+                        assert_eq!(entry.bits(), u16::from(bits));
                         assert!(if tag == "RxPdo" {
                             entry.pdo_mappable().rx()
                         } else {

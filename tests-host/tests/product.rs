@@ -5,7 +5,7 @@
 
 use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::mailbox::MailboxServer;
-use ecat_slave_stack::od::{self, Dictionary, Object, SdoAbort};
+use ecat_slave_stack::od::{self, Dictionary, Object, ObjectDesc, SdoAbort};
 use ecat_slave_stack::pdo::{self, PdoConfig, PdoDefaults};
 use firmware::comm::{self, Comm, LOAD, SAVE};
 use firmware::fault_led::FaultLed;
@@ -18,7 +18,7 @@ use firmware::storage::{RamFlash, Storage, StorageError};
 
 // ---- the drive under test ---------------------------------------------------------
 
-const PARTS: &[&[Object]] = &[
+const PARTS: &[&[ObjectDesc]] = &[
     comm::OBJECTS,
     pdo::OBJECTS,
     params::OBJECTS,
@@ -27,13 +27,9 @@ const PARTS: &[&[Object]] = &[
 ];
 
 fn all_objects() -> &'static [Object] {
-    use std::sync::OnceLock;
-    static ALL: OnceLock<Vec<Object>> = OnceLock::new();
-    ALL.get_or_init(|| {
-        let mut v: Vec<Object> = PARTS.iter().flat_map(|p| p.iter().copied()).collect();
-        v.sort_by_key(|o| o.index);
-        v
-    })
+    static ALL: &[Object] =
+        ecat_slave_stack::packed_dictionary!(PARTS, firmware::dictionary::VOCABULARY);
+    ALL
 }
 
 const TX1: &[u32] = &[pdo::entry(0x1001, 0, 8), pdo::entry(0x2155, 0, 8)];
@@ -269,7 +265,10 @@ fn le_bytes(v: i64, len: usize) -> Vec<u8> {
 fn every_vendor_parameter_default_and_range_edges_over_sdo() {
     let mut d = new_drive();
     d.sdo_download(0x2013, 0, &[0]).unwrap(); // unlock 0x2015/0x2016
-    for o in params::OBJECTS {
+    for o in all_objects()
+        .iter()
+        .filter(|o| (0x2000..=0x21FF).contains(&o.index))
+    {
         for e in o.entries() {
             let len = e.byte_len();
             if let od::DefaultValue::Int(def) = e.default_value() {

@@ -5,39 +5,29 @@
 
 use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
-use ecat_slave_stack::od::{Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+};
 use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
 use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
 use tests_host::esc_sim::{EscSim, Flavour, SharedEsc, Side};
 
-const E_6040: &[Entry] =
-    &[Entry::new(0, "cw", DataType::Unsigned16, Access::RW).pdo(PdoMappable::Rx)];
-const E_6041: &[Entry] =
-    &[Entry::new(0, "sw", DataType::Unsigned16, Access::RO).pdo(PdoMappable::Tx)];
-const E_6064: &[Entry] =
-    &[Entry::new(0, "pos", DataType::Integer32, Access::RO).pdo(PdoMappable::Tx)];
-const E_607A: &[Entry] =
-    &[Entry::new(0, "target", DataType::Integer32, Access::RW).pdo(PdoMappable::Rx)];
+const E_6040: &[EntryDesc] =
+    &[EntryDesc::new(0, "cw", DataType::Unsigned16, Access::RW).pdo(PdoMappable::Rx)];
+const E_6041: &[EntryDesc] =
+    &[EntryDesc::new(0, "sw", DataType::Unsigned16, Access::RO).pdo(PdoMappable::Tx)];
+const E_6064: &[EntryDesc] =
+    &[EntryDesc::new(0, "pos", DataType::Integer32, Access::RO).pdo(PdoMappable::Tx)];
+const E_607A: &[EntryDesc] =
+    &[EntryDesc::new(0, "target", DataType::Integer32, Access::RW).pdo(PdoMappable::Rx)];
 
-const fn var(index: u16, entries: &'static [Entry]) -> Object {
-    Object::var(index, "", entries, "")
+const fn var(index: u16, entries: &'static [EntryDesc]) -> ObjectDesc {
+    ObjectDesc::var(index, "", entries, "")
 }
 
-static OBJECTS: &[Object] = &[
-    pdo::OBJECTS[0],
-    pdo::OBJECTS[1],
-    pdo::OBJECTS[2],
-    pdo::OBJECTS[3],
-    pdo::OBJECTS[4],
-    pdo::OBJECTS[5],
-    pdo::OBJECTS[6],
-    pdo::OBJECTS[7],
-    pdo::OBJECTS[8],
-    pdo::OBJECTS[9],
-    pdo::OBJECTS[10],
-    pdo::OBJECTS[11],
-    pdo::OBJECTS[12],
+static OBJECTS: &[Object] = ecat_slave_stack::packed_dictionary!(&[pdo::OBJECTS, OBJECTS_LOCAL]);
+const OBJECTS_LOCAL: &[ObjectDesc] = &[
     var(0x6040, E_6040),
     var(0x6041, E_6041),
     var(0x6064, E_6064),

@@ -10,7 +10,8 @@
 
 use crate::esm::EsmState;
 use crate::od::{
-    self, Access, DataType, DefaultValue, Dictionary, Entry, Object, PdoMappable, SdoAbort,
+    self, Access, DataType, DefaultValue, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable,
+    SdoAbort,
 };
 
 const U8: DataType = DataType::Unsigned8;
@@ -27,68 +28,73 @@ pub const DEVICE_NAME: &str = "CoE example device";
 pub static OBJECTS: &[Object] = crate::packed_dictionary!(&[SOURCE]);
 
 /// The objects as written (plain names, one entry table per object).
-pub const SOURCE: &[Object] = &[
-    Object::var(
+pub const SOURCE: &[ObjectDesc] = &[
+    ObjectDesc::var(
         0x1000,
         "Device type",
-        &[Entry::new(0, "Device type", U32, Access::RO).default(0x0002_0192)],
+        &[EntryDesc::new(0, "Device type", U32, Access::RO).default(0x0002_0192)],
         "CiA 402 servo drive.",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x1001,
         "Error register",
-        &[Entry::new(0, "Error register", U8, Access::RO).pdo(PdoMappable::Tx)],
+        &[EntryDesc::new(0, "Error register", U8, Access::RO).pdo(PdoMappable::Tx)],
         "",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x1008,
         "Manufacturer device name",
-        &[Entry::text(0, "Manufacturer device name", 32, DEVICE_NAME)],
+        &[EntryDesc::text(
+            0,
+            "Manufacturer device name",
+            32,
+            DEVICE_NAME,
+        )],
         "",
     ),
-    Object::record(
+    ObjectDesc::record(
         0x1018,
         "Identity",
         &[
-            Entry::new(0, "Number of entries", U8, Access::RO).default(4),
-            Entry::new(1, "Vendor ID", U32, Access::RO).default(0x0E5C),
-            Entry::new(2, "Product code", U32, Access::RO).default(0x5840),
-            Entry::new(3, "Revision", U32, Access::RO).default(0x0001_0000),
-            Entry::new(4, "Serial number", U32, Access::RO).default(0x1234_5678),
+            EntryDesc::new(0, "Number of entries", U8, Access::RO).default(4),
+            EntryDesc::new(1, "Vendor ID", U32, Access::RO).default(0x0E5C),
+            EntryDesc::new(2, "Product code", U32, Access::RO).default(0x5840),
+            EntryDesc::new(3, "Revision", U32, Access::RO).default(0x0001_0000),
+            EntryDesc::new(4, "Serial number", U32, Access::RO).default(0x1234_5678),
         ],
         "",
     ),
-    Object::array(
+    ObjectDesc::array(
         0x1600,
         "RxPDO mapping",
         &[
-            Entry::new(0, "Number of entries", U8, Access::RW_PREOP)
+            EntryDesc::new(0, "Number of entries", U8, Access::RW_PREOP)
                 .range(0, 4)
                 .default(2),
-            Entry::new(1, "Entry 1", U32, Access::RW_PREOP).default(0x6040_0010),
-            Entry::new(2, "Entry 2", U32, Access::RW_PREOP).default(0x607A_0020),
-            Entry::new(3, "Entry 3", U32, Access::RW_PREOP),
-            Entry::new(4, "Entry 4", U32, Access::RW_PREOP),
+            EntryDesc::new(1, "Entry 1", U32, Access::RW_PREOP).default(0x6040_0010),
+            EntryDesc::new(2, "Entry 2", U32, Access::RW_PREOP).default(0x607A_0020),
+            EntryDesc::new(3, "Entry 3", U32, Access::RW_PREOP),
+            EntryDesc::new(4, "Entry 4", U32, Access::RW_PREOP),
         ],
         "Sub-index 0 must be 0 while entries are written.",
     ),
-    Object::array(
+    ObjectDesc::array(
         0x1C12,
         "RxPDO assign",
         &[
-            Entry::new(0, "Number of entries", U8, Access::RW_PREOP)
+            EntryDesc::new(0, "Number of entries", U8, Access::RW_PREOP)
                 .range(0, 2)
                 .default(1),
-            Entry::new(1, "PDO 1", U16, Access::RW_PREOP).default(0x1600),
-            Entry::new(2, "PDO 2", U16, Access::RW_PREOP),
+            EntryDesc::new(1, "PDO 1", U16, Access::RW_PREOP).default(0x1600),
+            EntryDesc::new(2, "PDO 2", U16, Access::RW_PREOP),
         ],
         "",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x2000,
         "Current limit",
         &[
-            Entry::new(0, "Current limit", DataType::Integer32, Access::RW)
+            EntryDesc::new(0, "Current limit", DataType::Integer32, Access::RW)
                 .range(-1000, 1000)
                 .default(100)
                 .unit("mA")
@@ -97,114 +103,114 @@ pub const SOURCE: &[Object] = &[
         ],
         "",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x2001,
         "Command",
-        &[Entry::new(0, "Command", U16, Access::WO)],
+        &[EntryDesc::new(0, "Command", U16, Access::WO)],
         "Write-only.",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x2002,
         "Long text",
-        &[Entry::text(0, "Long text", LONG_TEXT_MAX as u16, "").with_access(Access::RW)],
+        &[EntryDesc::text(0, "Long text", LONG_TEXT_MAX as u16, "").with_access(Access::RW)],
         "",
     ),
-    Object::record(
+    ObjectDesc::record(
         0x2003,
         "Mixed record",
         &[
-            Entry::new(0, "Number of entries", U8, Access::RO).default(5),
-            Entry::new(1, "Flag A", DataType::Boolean, Access::RW),
-            Entry::new(2, "Field B", DataType::Bit2, Access::RW),
-            Entry::new(3, "Byte C", U8, Access::RW_PREOP)
+            EntryDesc::new(0, "Number of entries", U8, Access::RO).default(5),
+            EntryDesc::new(1, "Flag A", DataType::Boolean, Access::RW),
+            EntryDesc::new(2, "Field B", DataType::Bit2, Access::RW),
+            EntryDesc::new(3, "Byte C", U8, Access::RW_PREOP)
                 .range(0, 200)
                 .saved(),
-            Entry::new(4, "Word D", DataType::Integer16, Access::RO).default(-2),
-            Entry::new(5, "Secret E", U32, Access::WO),
+            EntryDesc::new(4, "Word D", DataType::Integer16, Access::RO).default(-2),
+            EntryDesc::new(5, "Secret E", U32, Access::WO),
         ],
         "Bit-sized, read-only, write-only and Pre-Op-only entries.",
     ),
-    Object::array(
+    ObjectDesc::array(
         0x2004,
         "Byte table",
         &[
-            Entry::new(0, "Number of entries", U8, Access::RO).default(40),
-            Entry::new(1, "B1", U8, Access::RW),
-            Entry::new(2, "B2", U8, Access::RW),
-            Entry::new(3, "B3", U8, Access::RW),
-            Entry::new(4, "B4", U8, Access::RW),
-            Entry::new(5, "B5", U8, Access::RW),
-            Entry::new(6, "B6", U8, Access::RW),
-            Entry::new(7, "B7", U8, Access::RW),
-            Entry::new(8, "B8", U8, Access::RW),
-            Entry::new(9, "B9", U8, Access::RW),
-            Entry::new(10, "B10", U8, Access::RW),
-            Entry::new(11, "B11", U8, Access::RW),
-            Entry::new(12, "B12", U8, Access::RW),
-            Entry::new(13, "B13", U8, Access::RW),
-            Entry::new(14, "B14", U8, Access::RW),
-            Entry::new(15, "B15", U8, Access::RW),
-            Entry::new(16, "B16", U8, Access::RW),
-            Entry::new(17, "B17", U8, Access::RW),
-            Entry::new(18, "B18", U8, Access::RW),
-            Entry::new(19, "B19", U8, Access::RW),
-            Entry::new(20, "B20", U8, Access::RW),
-            Entry::new(21, "B21", U8, Access::RW),
-            Entry::new(22, "B22", U8, Access::RW),
-            Entry::new(23, "B23", U8, Access::RW),
-            Entry::new(24, "B24", U8, Access::RW),
-            Entry::new(25, "B25", U8, Access::RW),
-            Entry::new(26, "B26", U8, Access::RW),
-            Entry::new(27, "B27", U8, Access::RW),
-            Entry::new(28, "B28", U8, Access::RW),
-            Entry::new(29, "B29", U8, Access::RW),
-            Entry::new(30, "B30", U8, Access::RW),
-            Entry::new(31, "B31", U8, Access::RW),
-            Entry::new(32, "B32", U8, Access::RW),
-            Entry::new(33, "B33", U8, Access::RW),
-            Entry::new(34, "B34", U8, Access::RW),
-            Entry::new(35, "B35", U8, Access::RW),
-            Entry::new(36, "B36", U8, Access::RW),
-            Entry::new(37, "B37", U8, Access::RW),
-            Entry::new(38, "B38", U8, Access::RW),
-            Entry::new(39, "B39", U8, Access::RW),
-            Entry::new(40, "B40", U8, Access::RW),
+            EntryDesc::new(0, "Number of entries", U8, Access::RO).default(40),
+            EntryDesc::new(1, "B1", U8, Access::RW),
+            EntryDesc::new(2, "B2", U8, Access::RW),
+            EntryDesc::new(3, "B3", U8, Access::RW),
+            EntryDesc::new(4, "B4", U8, Access::RW),
+            EntryDesc::new(5, "B5", U8, Access::RW),
+            EntryDesc::new(6, "B6", U8, Access::RW),
+            EntryDesc::new(7, "B7", U8, Access::RW),
+            EntryDesc::new(8, "B8", U8, Access::RW),
+            EntryDesc::new(9, "B9", U8, Access::RW),
+            EntryDesc::new(10, "B10", U8, Access::RW),
+            EntryDesc::new(11, "B11", U8, Access::RW),
+            EntryDesc::new(12, "B12", U8, Access::RW),
+            EntryDesc::new(13, "B13", U8, Access::RW),
+            EntryDesc::new(14, "B14", U8, Access::RW),
+            EntryDesc::new(15, "B15", U8, Access::RW),
+            EntryDesc::new(16, "B16", U8, Access::RW),
+            EntryDesc::new(17, "B17", U8, Access::RW),
+            EntryDesc::new(18, "B18", U8, Access::RW),
+            EntryDesc::new(19, "B19", U8, Access::RW),
+            EntryDesc::new(20, "B20", U8, Access::RW),
+            EntryDesc::new(21, "B21", U8, Access::RW),
+            EntryDesc::new(22, "B22", U8, Access::RW),
+            EntryDesc::new(23, "B23", U8, Access::RW),
+            EntryDesc::new(24, "B24", U8, Access::RW),
+            EntryDesc::new(25, "B25", U8, Access::RW),
+            EntryDesc::new(26, "B26", U8, Access::RW),
+            EntryDesc::new(27, "B27", U8, Access::RW),
+            EntryDesc::new(28, "B28", U8, Access::RW),
+            EntryDesc::new(29, "B29", U8, Access::RW),
+            EntryDesc::new(30, "B30", U8, Access::RW),
+            EntryDesc::new(31, "B31", U8, Access::RW),
+            EntryDesc::new(32, "B32", U8, Access::RW),
+            EntryDesc::new(33, "B33", U8, Access::RW),
+            EntryDesc::new(34, "B34", U8, Access::RW),
+            EntryDesc::new(35, "B35", U8, Access::RW),
+            EntryDesc::new(36, "B36", U8, Access::RW),
+            EntryDesc::new(37, "B37", U8, Access::RW),
+            EntryDesc::new(38, "B38", U8, Access::RW),
+            EntryDesc::new(39, "B39", U8, Access::RW),
+            EntryDesc::new(40, "B40", U8, Access::RW),
         ],
         "",
     ),
-    Object::record(
+    ObjectDesc::record(
         0x2005,
         "Record with text",
         &[
-            Entry::new(0, "Number of entries", U8, Access::RO).default(2),
-            Entry::new(1, "Value", U16, Access::RW),
-            Entry::text(2, "Label", 8, "label"),
+            EntryDesc::new(0, "Number of entries", U8, Access::RO).default(2),
+            EntryDesc::new(1, "Value", U16, Access::RW),
+            EntryDesc::text(2, "Label", 8, "label"),
         ],
         "Complete access is refused (variable length).",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x2FFF,
         "Abort injector",
-        &[Entry::new(0, "Abort injector", U32, Access::RW)],
+        &[EntryDesc::new(0, "Abort injector", U32, Access::RW)],
         "A write answers with the abort code written (0: accepted).",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x6040,
         "Controlword",
-        &[Entry::new(0, "Controlword", U16, Access::RW).pdo(PdoMappable::Rx)],
+        &[EntryDesc::new(0, "Controlword", U16, Access::RW).pdo(PdoMappable::Rx)],
         "",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x6041,
         "Statusword",
-        &[Entry::new(0, "Statusword", U16, Access::RO).pdo(PdoMappable::Tx)],
+        &[EntryDesc::new(0, "Statusword", U16, Access::RO).pdo(PdoMappable::Tx)],
         "",
     ),
-    Object::var(
+    ObjectDesc::var(
         0x607A,
         "Target position",
         &[
-            Entry::new(0, "Target position", DataType::Integer32, Access::RW)
+            EntryDesc::new(0, "Target position", DataType::Integer32, Access::RW)
                 .unit("inc")
                 .pdo(PdoMappable::Rx)
                 .saved(),

@@ -564,7 +564,7 @@ fn entry_body(index: u16, e: &'static Entry, request: u8) -> Body {
     head[0..2].copy_from_slice(&index.to_le_bytes());
     head[2] = e.sub;
     head[4..6].copy_from_slice(&e.data_type.code().to_le_bytes());
-    head[6..8].copy_from_slice(&e.bits.to_le_bytes());
+    head[6..8].copy_from_slice(&e.bits().to_le_bytes());
     head[8..10].copy_from_slice(&entry_access_word(e).to_le_bytes());
     let mut len = 10usize;
     let mut vi = request & value_info::ECHOED;
@@ -679,9 +679,22 @@ mod tests {
         // fragments are written, also where a fragment ends inside one.
         static PACKED_TEXT: &str =
             "Touch probe 1 positive edge counts Mapping entry 12 of the Fault 3 snapshot";
-        static PACKED: [u8; od::packed_len(PACKED_TEXT)] = {
-            let mut b = [0u8; od::packed_len(PACKED_TEXT)];
-            od::pack_into(PACKED_TEXT, &mut b, 0);
+        const WORDS: &[&str] = &[
+            "Touch probe ",
+            "positive edge",
+            "counts ",
+            "Mapping entry ",
+            "Fault ",
+            "snapshot",
+        ];
+        static VOCABULARY: [u8; od::words_len(WORDS)] = {
+            let mut b = [0u8; od::words_len(WORDS)];
+            od::words_into(WORDS, &mut b);
+            b
+        };
+        static PACKED: [u8; od::packed_len(PACKED_TEXT, WORDS)] = {
+            let mut b = [0u8; od::packed_len(PACKED_TEXT, WORDS)];
+            od::pack_into(PACKED_TEXT, WORDS, &mut b, 0);
             b
         };
         assert!(PACKED.len() < PACKED_TEXT.len() / 2);
@@ -689,7 +702,7 @@ mod tests {
         head[..6].copy_from_slice(&[1, 2, 3, 4, 5, 6]);
         for (name, text) in [
             (Name::plain(NAME), NAME),
-            (Name::packed(&PACKED), PACKED_TEXT),
+            (Name::packed(&PACKED, &VOCABULARY), PACKED_TEXT),
         ] {
             for cap in 10..80 {
                 let body = Body::Bytes {

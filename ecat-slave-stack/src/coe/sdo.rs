@@ -516,7 +516,7 @@ fn get_bits(buf: &[u8], pos: usize, nbits: usize) -> u64 {
 
 /// Where an entry starts in a complete-access image: byte types are byte-aligned.
 fn ca_start(e: &Entry, bit: usize) -> usize {
-    if e.bits.is_multiple_of(8) {
+    if e.bits().is_multiple_of(8) {
         bit.div_ceil(8) * 8
     } else {
         bit
@@ -561,7 +561,7 @@ fn ca_upload(
         bit = 16;
     }
     for e in ca_entries(obj, count) {
-        let nbits = e.bits as usize;
+        let nbits = e.bits() as usize;
         if e.data_type == od::DataType::OctetString {
             let start = bit.div_ceil(8);
             let end = start + nbits / 8;
@@ -612,7 +612,7 @@ fn ca_upload(
 
 /// The value of entry `e` at bit position `start` of a complete-access image.
 fn ca_value(data: &[u8], e: &Entry, start: usize) -> [u8; 8] {
-    let nbits = e.bits as usize;
+    let nbits = e.bits() as usize;
     if nbits.is_multiple_of(8) {
         let mut v = [0u8; 8];
         if let Some(src) = data.get(start / 8..start / 8 + nbits / 8) {
@@ -640,7 +640,7 @@ fn ca_walk(
 ) -> Result<usize, SdoAbort> {
     let mut bit = first_bit;
     for e in ca_entries(obj, count) {
-        let nbits = e.bits as usize;
+        let nbits = e.bits() as usize;
         if e.data_type.is_variable_length() {
             return Err(SdoAbort::CompleteAccessVariableLength);
         }

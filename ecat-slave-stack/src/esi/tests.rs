@@ -1,26 +1,29 @@
 //! Host-only: the generated document parsed by a real XML parser.
 use super::*;
-use crate::od::Entry;
+use crate::od::{EntryDesc, ObjectDesc};
 use crate::sii::{self, EscFlavour};
 
-static ID: [Entry; 3] = [
-    Entry::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(2),
-    Entry::new(1, "Vendor <ID>", DataType::Unsigned32, Access::RO).default(0x0E5C),
-    Entry::new(2, "Product & code", DataType::Unsigned32, Access::RO).default(0x5840),
+const ID: [EntryDesc; 3] = [
+    EntryDesc::new(0, "Number of entries", DataType::Unsigned8, Access::RO).default(2),
+    EntryDesc::new(1, "Vendor <ID>", DataType::Unsigned32, Access::RO).default(0x0E5C),
+    EntryDesc::new(2, "Product & code", DataType::Unsigned32, Access::RO).default(0x5840),
 ];
-static CW: [Entry; 1] =
-    [Entry::new(0, "Controlword", DataType::Unsigned16, Access::RW).pdo(PdoMappable::Rx)];
-static SW: [Entry; 1] =
-    [Entry::new(0, "Statusword", DataType::Unsigned16, Access::RO).pdo(PdoMappable::Tx)];
-static NAME: [Entry; 1] = [Entry::text(0, "Device name", 12, "A \"quoted\" <name>")];
-static FLAG: [Entry; 1] = [Entry::new(0, "Flag", DataType::Boolean, Access::RW).default(1)];
-static OBJECTS: [Object; 5] = [
-    Object::new(0x1008, "Device name", ObjectCode::Var, &NAME, ""),
-    Object::new(0x1018, "Identity", ObjectCode::Record, &ID, ""),
-    Object::new(0x2001, "Flag 'x'", ObjectCode::Var, &FLAG, ""),
-    Object::new(0x6040, "Controlword", ObjectCode::Var, &CW, ""),
-    Object::new(0x6041, "Statusword", ObjectCode::Var, &SW, ""),
+const CW: [EntryDesc; 1] =
+    [EntryDesc::new(0, "Controlword", DataType::Unsigned16, Access::RW).pdo(PdoMappable::Rx)];
+const SW: [EntryDesc; 1] =
+    [EntryDesc::new(0, "Statusword", DataType::Unsigned16, Access::RO).pdo(PdoMappable::Tx)];
+const NAME: [EntryDesc; 1] = [EntryDesc::text(0, "Device name", 12, "A \"quoted\" <name>")];
+const FLAG: [EntryDesc; 1] = [EntryDesc::new(0, "Flag", DataType::Boolean, Access::RW).default(1)];
+static OBJECTS: &[Object] = crate::packed_dictionary!(&[&SOURCE]);
+const SOURCE: [ObjectDesc; 5] = [
+    ObjectDesc::new(0x1008, "Device name", ObjectCode::Var, &NAME, ""),
+    ObjectDesc::new(0x1018, "Identity", ObjectCode::Record, &ID, ""),
+    ObjectDesc::new(0x2001, "Flag 'x'", ObjectCode::Var, &FLAG, ""),
+    ObjectDesc::new(0x6040, "Controlword", ObjectCode::Var, &CW, ""),
+    ObjectDesc::new(0x6041, "Statusword", ObjectCode::Var, &SW, ""),
 ];
+/// The stack's PDO objects, packed.
+static PDO_OBJECTS: &[Object] = crate::packed_dictionary!(&[crate::pdo::OBJECTS]);
 static RX: [u32; 1] = [crate::pdo::entry(0x6040, 0, 16)];
 static TX: [u32; 2] = [crate::pdo::entry(0x6041, 0, 16), 0x0000_0010];
 static PDOS: [PdoMap; 2] = [
@@ -78,7 +81,7 @@ fn child<'a, 'i>(n: roxmltree::Node<'a, 'i>, tag: &str) -> roxmltree::Node<'a, '
 #[test]
 fn parses_and_matches_description_and_dictionary() {
     let mut xml = String::new();
-    write(&DESC, &OBJECTS, &PDOS, &mut xml).unwrap();
+    write(&DESC, OBJECTS, &PDOS, &mut xml).unwrap();
     let doc = roxmltree::Document::parse(&xml).expect("well-formed XML");
     let root = doc.root_element();
     assert_eq!(root.tag_name().name(), "EtherCATInfo");
@@ -250,7 +253,7 @@ fn foe_is_announced_in_the_esi_and_the_sii() {
     };
     for (d, foe) in [(&DESC, false), (&desc, true)] {
         let mut xml = String::new();
-        write(d, crate::pdo::OBJECTS, &[], &mut xml).unwrap();
+        write(d, PDO_OBJECTS, &[], &mut xml).unwrap();
         let doc = roxmltree::Document::parse(&xml).expect("well-formed XML");
         let mbx = doc
             .descendants()
@@ -290,7 +293,7 @@ fn foe_is_announced_in_the_esi_and_the_sii() {
 #[test]
 fn the_stacks_own_object_tables_give_a_valid_document() {
     let mut xml = String::new();
-    write(&DESC, crate::pdo::OBJECTS, &[], &mut xml).unwrap();
+    write(&DESC, PDO_OBJECTS, &[], &mut xml).unwrap();
     let doc = roxmltree::Document::parse(&xml).expect("well-formed XML");
     let n = doc
         .descendants()

@@ -2,10 +2,13 @@
 //!
 //! SDO information must answer every object and entry name, so the names stay in
 //! flash; most of them repeat a few words ("Mapping entry 7", "Fault 3 snapshot",
-//! "Touch probe 1 positive edge"). [`pack_into`] stores a name with each word of
-//! [`VOCABULARY`] replaced by one byte `0x80 + k` (bytes below 0x80 are the name's own
-//! ASCII characters); [`Name`] reads either form back. A packed dictionary
-//! ([`super::pack`]) keeps only the packed bytes: about 45 % of the plain text.
+//! "Touch probe 1 positive edge"). [`pack_into`] stores a name with each word of a
+//! vocabulary replaced by one byte `0x80 + k` (bytes below 0x80 are the name's own
+//! ASCII characters); [`Name`] reads a packed name back through the same vocabulary,
+//! stored as length-prefixed words ([`words_into`]). The vocabulary is the
+//! application's: the words that repeat in its dictionary (the argument of
+//! [`crate::packed_dictionary!`]); [`COE_WORDS`] holds the ones of the objects this
+//! stack describes itself.
 //!
 //! Matching is on word boundaries only, so decoding is a plain concatenation: a word
 //! of the vocabulary is used where the name has it at a word start and either the
@@ -13,119 +16,24 @@
 
 use core::fmt;
 
-/// The words replaced by one byte (at most 128, each at most 255 ASCII bytes). Chosen
-/// by how many bytes they save in CoE / CiA 402 object names (the product dictionary
-/// of this project is what they were measured on); a name with other words is packed
-/// as far as it has these and keeps the rest as it is.
-const VOCABULARY: [&str; 102] = [
+/// The words of the names of the stack's own objects (PDO mapping and assignment,
+/// sync manager parameters, timing diagnostics): the vocabulary of a dictionary with
+/// no words of its own.
+pub const COE_WORDS: &[&str] = &[
     "Mapping entry ",
-    "Fault ",
-    "Position ",
     "communication ",
-    "Standard error ",
-    "Input ",
-    "function",
-    "Touch probe ",
-    "option code",
-    "mapping ",
-    "Velocity ",
-    "Following error ",
-    "actual value",
-    "time",
-    "parameters",
-    "Assigned PDO ",
-    "Interpolation time ",
-    "Current ",
-    "snapshot",
-    "filter",
-    "current",
-    "Command ",
-    "velocity",
-    "Restore ",
     "Number of ",
-    "position limit",
-    "RxPDO ",
-    "field ",
-    "acceleration",
-    "deceleration",
-    "type",
-    "Encoder ",
-    "Fault code ",
+    "Assigned PDO ",
     "SYNC0 ",
-    "TxPDO ",
-    "Max ",
-    "Output ",
-    "value",
-    "time ",
-    "offset",
-    "Motor ",
-    "Phase ",
-    "Profile ",
-    "defaults",
-    "since power-up",
-    "during search ",
-    "loop ",
-    "Save ",
-    "Sync ",
-    "Homing ",
-    "period ",
-    "demand ",
-    "negative edge",
-    "positive edge",
-    "application ",
-    "error ",
-    "Error ",
-    "window",
-    "cycle ",
     "period",
-    "Speed ",
-    "revolutions",
-    "current set",
-    "Quick stop ",
-    "all ",
-    "operation ",
-    "resolution",
-    "Calc and ",
-    "Modes of ",
-    "internal ",
-    "parameter",
-    "Software ",
-    "Digital ",
-    "profile ",
-    "Minimum ",
-    "filter ",
-    "pulses ",
-    "Device ",
-    "outputs",
-    "counts ",
-    "version",
-    "output ",
-    "window ",
-    "Target ",
-    "Cycle ",
-    "clear ",
-    "assign",
-    "number",
-    "Shift ",
-    "limit",
-    "SM ",
-    "copy ",
-    "level",
-    "error",
-    "code",
-    "mask",
-    "high",
-    "mode",
-    "too ",
-    "PDI ",
-    "(E5)",
-    "for ",
+    "time",
+    "cycle ",
 ];
 
 /// First byte value that stands for a vocabulary word.
 const WORD: u8 = 0x80;
 
-/// Bytes of `list` stored as length-prefixed texts ([`prefixed_list`]).
+/// Bytes of `list` stored as length-prefixed texts ([`prefixed_into`]).
 pub(crate) const fn prefixed_len(list: &[&str]) -> usize {
     let mut n = 0;
     let mut i = 0;
@@ -140,9 +48,9 @@ pub(crate) const fn prefixed_len(list: &[&str]) -> usize {
     n
 }
 
-/// `list` as length-prefixed texts: one byte of length, then the bytes, for each.
-pub(crate) const fn prefixed_list<const N: usize>(list: &[&str]) -> [u8; N] {
-    let mut out = [0u8; N];
+/// Writes `list` as length-prefixed texts into `out`: one byte of length, then the
+/// bytes, for each.
+pub(crate) const fn prefixed_into(list: &[&str], out: &mut [u8]) {
     let mut at = 0;
     let mut i = 0;
     while i < list.len() {
@@ -156,10 +64,17 @@ pub(crate) const fn prefixed_list<const N: usize>(list: &[&str]) -> [u8; N] {
         at += 1 + w.len();
         i += 1;
     }
+}
+
+/// `list` as length-prefixed texts ([`prefixed_into`]) in an array of its size.
+#[cfg(test)]
+pub(crate) const fn prefixed_list<const N: usize>(list: &[&str]) -> [u8; N] {
+    let mut out = [0u8; N];
+    prefixed_into(list, &mut out);
     out
 }
 
-/// Text `k` of a [`prefixed_list`] (empty past its end).
+/// Text `k` of a length-prefixed list (empty past its end).
 pub(crate) fn prefixed(list: &'static [u8], k: u8) -> &'static [u8] {
     let mut at = 0usize;
     for _ in 0..k {
@@ -172,11 +87,14 @@ pub(crate) fn prefixed(list: &'static [u8], k: u8) -> &'static [u8] {
     list.get(at + 1..at + 1 + len).unwrap_or(&[])
 }
 
-const fn vocabulary_checked() -> usize {
-    assert!(VOCABULARY.len() <= 128, "od name vocabulary over 128 words");
+/// Bytes of `words` as the length-prefixed list [`Name`] decodes with; a vocabulary
+/// of more than 128 words, an empty word or one that is not ASCII is a compile-time
+/// error for the constant tables.
+pub const fn words_len(words: &[&str]) -> usize {
+    assert!(words.len() <= 128, "od name vocabulary over 128 words");
     let mut i = 0;
-    while i < VOCABULARY.len() {
-        let w = VOCABULARY[i].as_bytes();
+    while i < words.len() {
+        let w = words[i].as_bytes();
         assert!(!w.is_empty(), "od vocabulary word empty");
         let mut j = 0;
         while j < w.len() {
@@ -185,27 +103,21 @@ const fn vocabulary_checked() -> usize {
         }
         i += 1;
     }
-    prefixed_len(&VOCABULARY)
+    prefixed_len(words)
 }
 
-const WORDS_LEN: usize = vocabulary_checked();
-
-/// The vocabulary as length-prefixed words: what decoding reads (the `&str` table
-/// itself is only used at compile time).
-static WORDS: [u8; WORDS_LEN] = prefixed_list(&VOCABULARY);
-
-/// Word `k` of the vocabulary (empty for an unknown `k`: never produced by
-/// [`pack_into`]).
-fn word(k: u8) -> &'static [u8] {
-    prefixed(&WORDS, k)
+/// Writes `words` into `out` ([`words_len`] bytes) as [`Name`] reads them.
+pub const fn words_into(words: &[&str], out: &mut [u8]) {
+    assert!(out.len() == words_len(words), "od: vocabulary buffer size");
+    prefixed_into(words, out);
 }
 
 /// The vocabulary word that `s` has at `i` (a word start), longest first.
-const fn word_at(s: &[u8], i: usize) -> Option<(u8, usize)> {
+const fn word_at(s: &[u8], i: usize, words: &[&str]) -> Option<(u8, usize)> {
     let mut best: Option<(u8, usize)> = None;
     let mut k = 0;
-    while k < VOCABULARY.len() {
-        let w = VOCABULARY[k].as_bytes();
+    while k < words.len() {
+        let w = words[k].as_bytes();
         let fits = i + w.len() <= s.len()
             && (w[w.len() - 1] == b' ' || i + w.len() == s.len())
             && match best {
@@ -226,13 +138,14 @@ const fn word_at(s: &[u8], i: usize) -> Option<(u8, usize)> {
     best
 }
 
-/// Walks `s` packing it; writes into `out` at `at` when given. Returns the packed length.
-const fn pack_walk(s: &str, mut out: Option<(&mut [u8], usize)>) -> usize {
+/// Walks `s` packing it with `words`; writes into `out` at `at` when given. Returns
+/// the packed length.
+const fn pack_walk(s: &str, words: &[&str], mut out: Option<(&mut [u8], usize)>) -> usize {
     let s = s.as_bytes();
     let mut n = 0;
     let mut i = 0;
     while i < s.len() {
-        if let Some((k, len)) = word_at(s, i) {
+        if let Some((k, len)) = word_at(s, i, words) {
             if let Some((o, at)) = &mut out {
                 o[*at + n] = WORD + k;
             }
@@ -257,68 +170,86 @@ const fn pack_walk(s: &str, mut out: Option<(&mut [u8], usize)>) -> usize {
     n
 }
 
-/// Length of `s` packed.
-pub const fn packed_len(s: &str) -> usize {
-    pack_walk(s, None)
+/// Length of `s` packed with `words`.
+pub const fn packed_len(s: &str, words: &[&str]) -> usize {
+    pack_walk(s, words, None)
 }
 
-/// Writes `s` packed into `out` at `at`; returns the packed length.
-pub const fn pack_into(s: &str, out: &mut [u8], at: usize) -> usize {
-    pack_walk(s, Some((out, at)))
+/// Writes `s` packed with `words` into `out` at `at`; returns the packed length.
+pub const fn pack_into(s: &str, words: &[&str], out: &mut [u8], at: usize) -> usize {
+    pack_walk(s, words, Some((out, at)))
 }
 
 /// An object or entry name: plain text, or packed (see the module documentation).
 /// Compare it with text, print it, or read its bytes with [`Name::bytes`].
 #[derive(Clone, Copy)]
-pub struct Name {
-    raw: &'static [u8],
-    packed: bool,
+pub struct Name(Form);
+
+#[derive(Clone, Copy)]
+enum Form {
+    Plain(&'static str),
+    /// Packed bytes and the vocabulary ([`words_into`]) they were packed with.
+    Packed {
+        raw: &'static [u8],
+        words: &'static [u8],
+    },
 }
 
 impl Name {
     /// A plain name.
     pub const fn plain(s: &'static str) -> Self {
-        Name {
-            raw: s.as_bytes(),
-            packed: false,
-        }
+        Name(Form::Plain(s))
     }
-    /// A name packed by [`pack_into`].
-    pub(crate) const fn packed(raw: &'static [u8]) -> Self {
-        Name { raw, packed: true }
+    /// A name packed by [`pack_into`] with the vocabulary `words` ([`words_into`]).
+    pub const fn packed(raw: &'static [u8], words: &'static [u8]) -> Self {
+        Name(Form::Packed { raw, words })
     }
     /// The text, when the name is stored plain (packed names are read with
     /// [`Name::bytes`]).
     pub const fn as_plain(self) -> Option<&'static str> {
-        if self.packed {
-            None
-        } else {
-            // SAFETY: plain names are only made by `Name::plain` from a `&'static str`.
-            Some(unsafe { core::str::from_utf8_unchecked(self.raw) })
+        match self.0 {
+            Form::Plain(s) => Some(s),
+            Form::Packed { .. } => None,
+        }
+    }
+    /// Bytes the name takes in flash (packed or plain).
+    pub const fn stored_len(self) -> usize {
+        match self.0 {
+            Form::Plain(s) => s.len(),
+            Form::Packed { raw, .. } => raw.len(),
         }
     }
     /// The name's bytes (UTF-8; ASCII for a packed name).
     pub fn bytes(self) -> NameBytes {
+        let (rest, words) = match self.0 {
+            Form::Plain(s) => (s.as_bytes(), None),
+            Form::Packed { raw, words } => (raw, Some(words)),
+        };
         NameBytes {
-            rest: self.raw,
+            rest,
             word: &[],
-            packed: self.packed,
+            words,
         }
     }
     /// Length in bytes of the name's text.
     pub fn len(self) -> usize {
-        if self.packed {
-            self.raw
+        match self.0 {
+            Form::Plain(s) => s.len(),
+            Form::Packed { raw, words } => raw
                 .iter()
-                .map(|&b| if b >= WORD { word(b - WORD).len() } else { 1 })
-                .sum()
-        } else {
-            self.raw.len()
+                .map(|&b| {
+                    if b >= WORD {
+                        prefixed(words, b - WORD).len()
+                    } else {
+                        1
+                    }
+                })
+                .sum(),
         }
     }
     /// True for the empty name.
     pub fn is_empty(self) -> bool {
-        self.raw.is_empty()
+        self.stored_len() == 0
     }
     /// The name's characters.
     pub fn chars(self) -> impl Iterator<Item = char> {
@@ -337,7 +268,8 @@ impl Name {
 pub struct NameBytes {
     rest: &'static [u8],
     word: &'static [u8],
-    packed: bool,
+    /// The vocabulary of a packed name; `None` for a plain one.
+    words: Option<&'static [u8]>,
 }
 
 impl Iterator for NameBytes {
@@ -350,10 +282,10 @@ impl Iterator for NameBytes {
             }
             let (&b, rest) = self.rest.split_first()?;
             self.rest = rest;
-            if !self.packed || b < WORD {
-                return Some(b);
+            match self.words {
+                Some(words) if b >= WORD => self.word = prefixed(words, b - WORD),
+                _ => return Some(b),
             }
-            self.word = word(b - WORD);
         }
     }
 }
@@ -403,13 +335,26 @@ impl fmt::Debug for Name {
 mod tests {
     use super::*;
 
+    /// A vocabulary for the tests: the stack's words and a few of a drive's.
+    const WORDS: &[&str] = &[
+        "Mapping entry ",
+        "Fault ",
+        "snapshot",
+        "time",
+        "Touch probe ",
+        "positive edge",
+        "time ",
+    ];
+    static WORD_BYTES: [u8; words_len(WORDS)] = prefixed_list(WORDS);
+
     fn roundtrip(s: &'static str) -> usize {
-        let n = packed_len(s);
+        let n = packed_len(s, WORDS);
         let buf: &'static mut [u8] = Box::leak(vec![0u8; n + 3].into_boxed_slice());
-        assert_eq!(pack_into(s, buf, 3), n);
-        let name = Name::packed(&buf[3..]);
+        assert_eq!(pack_into(s, WORDS, buf, 3), n);
+        let name = Name::packed(&buf[3..], &WORD_BYTES);
         assert_eq!(name, s, "{s}");
         assert_eq!(name.len(), s.len(), "{s}");
+        assert_eq!(name.stored_len(), n, "{s}");
         assert_eq!(name.to_string(), s);
         assert_eq!(name.chars().collect::<String>(), s);
         assert_eq!(name.bytes().collect::<Vec<u8>>(), s.as_bytes());
@@ -430,22 +375,32 @@ mod tests {
         assert_eq!(roundtrip(""), 0);
         assert_eq!(roundtrip(" "), 1);
         assert_eq!(roundtrip("a  b "), 5);
-        for w in VOCABULARY {
+        for w in WORDS {
             assert_eq!(roundtrip(w), 1, "{w}");
         }
+        // Without a vocabulary a name is its text.
+        assert_eq!(packed_len("Mapping entry 7", &[]), 15);
     }
 
     #[test]
     fn vocabulary_bytes_and_unknown_words() {
-        for (k, w) in VOCABULARY.iter().enumerate() {
-            assert_eq!(word(k as u8), w.as_bytes());
+        let mut bytes = [0u8; words_len(WORDS)];
+        words_into(WORDS, &mut bytes);
+        assert_eq!(bytes, WORD_BYTES);
+        for (k, w) in WORDS.iter().enumerate() {
+            assert_eq!(prefixed(&WORD_BYTES, k as u8), w.as_bytes());
         }
-        assert_eq!(word(VOCABULARY.len() as u8), b"");
-        assert_eq!(word(127), b"");
+        assert_eq!(prefixed(&WORD_BYTES, WORDS.len() as u8), b"");
+        assert_eq!(prefixed(&WORD_BYTES, 127), b"");
         // Bytes no packer writes (unknown word numbers) read as nothing, no panic.
-        let odd = Name::packed(&[b'a', 0xFF, 0xF0, b'b']);
+        let odd = Name::packed(&[b'a', 0xFF, 0xF0, b'b'], &WORD_BYTES);
         assert_eq!(odd, "ab");
         assert_eq!(odd.len(), 2);
+        // The same packed bytes read through another vocabulary are other text.
+        static TWO: [u8; 2] = [0x80, 0x81];
+        assert_eq!(Name::packed(&TWO, &WORD_BYTES), "Mapping entry Fault ");
+        static COE: [u8; words_len(COE_WORDS)] = prefixed_list(COE_WORDS);
+        assert_eq!(Name::packed(&TWO, &COE), "Mapping entry communication ");
     }
 
     #[test]
@@ -454,9 +409,12 @@ mod tests {
         assert_eq!(n.as_plain(), Some("Größe"));
         assert_eq!(n, "Größe");
         assert_eq!(n.len(), "Größe".len());
+        assert_eq!(n.stored_len(), "Größe".len());
         assert_eq!(n.to_string(), "Größe");
         assert_eq!(n.chars().collect::<String>(), "Größe");
         assert_eq!(format!("{n:?}"), "\"Größe\"");
         assert!(Name::plain("").is_empty());
+        // Bytes of 0x80 and up are the text's own in a plain name.
+        assert_eq!(n.bytes().collect::<Vec<u8>>(), "Größe".as_bytes());
     }
 }

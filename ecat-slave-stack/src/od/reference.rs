@@ -40,7 +40,7 @@ pub fn write_reference(objects: &[Object], w: &mut impl core::fmt::Write) -> cor
         for e in o.entries() {
             write!(w, "| {} | ", e.sub)?;
             write_md(w, e.name().chars())?;
-            write!(w, " | {} | {} | ", e.data_type.esi_name(), e.bits)?;
+            write!(w, " | {} | {} | ", e.data_type.esi_name(), e.bits())?;
             write_access(w, e.access)?;
             let pdo = match e.pdo_mappable() {
                 PdoMappable::No => "-",

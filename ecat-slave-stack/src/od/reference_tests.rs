@@ -1,22 +1,23 @@
 use super::*;
 
-static OBJS: &[Object] = &[
-    Object::var(
+static OBJS: &[Object] = crate::packed_dictionary!(&[SOURCE]);
+const SOURCE: &[ObjectDesc] = &[
+    ObjectDesc::var(
         0x1000,
         "Device type",
-        &[Entry::new(0, "Device type", DataType::Unsigned32, Access::RO).default(0x0002_0192)],
+        &[EntryDesc::new(0, "Device type", DataType::Unsigned32, Access::RO).default(0x0002_0192)],
         "Profile | type",
     ),
-    Object::record(
+    ObjectDesc::record(
         0x2000,
         "Gains",
         &[
-            Entry::new(0, "Count", DataType::Unsigned8, Access::RO),
-            Entry::new(1, "Kp", DataType::Unsigned16, Access::RW_PREOP)
+            EntryDesc::new(0, "Count", DataType::Unsigned8, Access::RO),
+            EntryDesc::new(1, "Kp", DataType::Unsigned16, Access::RW_PREOP)
                 .unit("mA")
                 .saved()
                 .pdo(PdoMappable::Rx),
-            Entry::text(2, "Label", 8, "abc"),
+            EntryDesc::text(2, "Label", 8, "abc"),
         ],
         "",
     ),
@@ -56,10 +57,13 @@ fn od_lists_and_abort_table() {
 
 #[test]
 fn constructors_fill_the_object_code_and_the_count_entry() {
-    const E: &[Entry] = &[Entry::count(3)];
-    let v = Object::var(0x1000, "V", E, "d");
-    let a = Object::array(0x1001, "A", E, "d");
-    let r = Object::record(0x1002, "R", E, "d");
+    const E: &[EntryDesc] = &[EntryDesc::count(3)];
+    static PACKED: &[Object] = crate::packed_dictionary!(&[&[
+        ObjectDesc::var(0x1000, "V", E, "d"),
+        ObjectDesc::array(0x1001, "A", E, "d"),
+        ObjectDesc::record(0x1002, "R", E, "d"),
+    ]]);
+    let [v, a, r] = [0x1000, 0x1001, 0x1002].map(|i| find(PACKED, i).unwrap());
     assert_eq!(
         (v.code(), a.code(), r.code()),
         (ObjectCode::Var, ObjectCode::Array, ObjectCode::Record)
@@ -70,16 +74,21 @@ fn constructors_fill_the_object_code_and_the_count_entry() {
         ""
     };
     assert_eq!(
-        (r.index, r.name().as_plain().unwrap(), r.description()),
-        (0x1002, "R", d)
+        (r.index, r.name().to_string(), r.description()),
+        (0x1002, "R".to_string(), d)
     );
-    let c = E[0];
+    let c = r.entries()[0];
     assert_eq!(
-        (c.sub, c.name().as_plain().unwrap(), c.data_type, c.access),
-        (0, "Number of entries", DataType::Unsigned8, Access::RO)
+        (c.sub, c.name().to_string(), c.data_type, c.access),
+        (
+            0,
+            "Number of entries".to_string(),
+            DataType::Unsigned8,
+            Access::RO
+        )
     );
     assert_eq!(
-        (c.bits, c.min(), c.max(), c.default_value()),
+        (c.bits(), c.min(), c.max(), c.default_value()),
         (8, 0, 255, DefaultValue::Int(3))
     );
     assert!(!c.is_saved() && c.pdo_mappable() == PdoMappable::No && c.unit_text().is_empty());
@@ -90,12 +99,13 @@ fn constructors_fill_the_object_code_and_the_count_entry() {
 #[test]
 fn every_unit_text_reads_back() {
     for (i, u) in UNITS.iter().enumerate() {
-        let e = Entry::new(1, "x", DataType::Unsigned16, Access::RO);
+        let e = EntryDesc::new(1, "x", DataType::Unsigned16, Access::RO);
         let e = if i == 0 { e } else { e.unit(u) };
         assert_eq!(e.unit_text(), *u, "unit {i}");
     }
-    // An index past the table (never set by `Entry::unit`) reads as no unit.
-    let mut e = Entry::new(1, "x", DataType::Unsigned16, Access::RO);
+    // An index past the table (never set by `EntryDesc::unit`) reads as no unit.
+    let mut e = find(OBJS, 0x2000).unwrap().entries()[1];
+    assert_eq!(e.unit_text(), "mA");
     for i in [UNITS.len(), 200, 255] {
         e.unit = i as u8;
         assert_eq!(e.unit_text(), "");
@@ -112,30 +122,32 @@ fn packed_fields_read_back() {
         "0123456789012345678901234567890123456789012345678901234567890123456789",
         "012345678901234567890123456789012345678901234"
     );
-    const ENTRIES: &[Entry] = &[
-        Entry::count(2),
-        Entry::new(1, LONGEST_ENTRY_NAME, DataType::Integer16, Access::RW)
+    const ENTRIES: &[EntryDesc] = &[
+        EntryDesc::count(2),
+        EntryDesc::new(1, LONGEST_ENTRY_NAME, DataType::Integer16, Access::RW)
             .pdo(PdoMappable::RxTx)
             .saved()
             .range(-5, 7)
             .default(-3)
             .unit("°C"),
-        Entry::new(2, "", DataType::Integer32, Access::RO)
+        EntryDesc::new(2, "", DataType::Integer32, Access::RO)
             .default(-1)
             .pdo(PdoMappable::Tx)
             .range(i32::MIN as i64, -2),
     ];
-    static O: Object = Object::record(0x2001, LONGEST_OBJECT_NAME, ENTRIES, "");
+    const D: ObjectDesc = ObjectDesc::record(0x2001, LONGEST_OBJECT_NAME, ENTRIES, "");
+    static PACKED: &[Object] = crate::packed_dictionary!(&[&[D]]);
+    let o0 = PACKED[0];
     assert_eq!(LONGEST_OBJECT_NAME.len(), MAX_OBJECT_NAME);
     assert_eq!(LONGEST_ENTRY_NAME.len(), 255);
-    assert_eq!(O.name(), LONGEST_OBJECT_NAME);
-    assert_eq!(O.code(), ObjectCode::Record);
-    assert_eq!(O.entries().as_ptr(), ENTRIES.as_ptr());
-    assert_eq!(O.entries().len(), 3);
-    let e = O.entries()[1];
+    assert_eq!(o0.name(), LONGEST_OBJECT_NAME);
+    assert_eq!(o0.code(), ObjectCode::Record);
+    assert_eq!(o0.entries(), ENTRIES);
+    assert_eq!(o0.entries().len(), 3);
+    let e = o0.entries()[1];
     assert_eq!(e.name(), LONGEST_ENTRY_NAME);
     assert_eq!(
-        (e.sub, e.data_type, e.bits, e.access),
+        (e.sub, e.data_type, e.bits(), e.access),
         (1, DataType::Integer16, 16, Access::RW)
     );
     assert_eq!(e.pdo_mappable(), PdoMappable::RxTx);
@@ -146,7 +158,7 @@ fn packed_fields_read_back() {
     );
     assert_eq!(e.unit_text(), "°C");
     assert_eq!(e.sdo_info_access(), 0x3F | 0xC0);
-    let f = O.entries()[2];
+    let f = o0.entries()[2];
     assert_eq!(f.name(), "");
     assert_eq!(f.pdo_mappable(), PdoMappable::Tx);
     assert!(!f.is_saved());
@@ -160,28 +172,29 @@ fn packed_fields_read_back() {
         PdoMappable::Tx,
         PdoMappable::RxTx,
     ] {
-        let e = Entry::new(0, "x", DataType::Unsigned8, Access::RO).pdo(p);
+        let e = EntryDesc::new(0, "x", DataType::Unsigned8, Access::RO).pdo(p);
         assert_eq!(e.pdo_mappable(), p);
         assert_eq!(e.pdo(PdoMappable::No).pdo_mappable(), PdoMappable::No);
     }
     for code in [ObjectCode::Var, ObjectCode::Array, ObjectCode::Record] {
-        let o = Object::new(0x3000, "n", code, ENTRIES, "");
-        assert_eq!((o.code(), o.name().as_plain().unwrap()), (code, "n"));
+        let o = ObjectDesc::new(0x3000, "n", code, ENTRIES, "");
+        assert_eq!((o.code(), o.name()), (code, "n"));
     }
-    let o = O.with_entries(&ENTRIES[..1]);
+    let o = D.with_entries(&ENTRIES[..1]);
     assert_eq!(
         (o.entries().len(), o.name(), o.code()),
-        (1, O.name(), O.code())
+        (1, D.name(), D.code())
     );
-    assert_ne!(o, O);
-    assert_eq!(O, O.with_entries(ENTRIES));
+    assert_ne!(o, D);
+    assert_eq!(D, D.with_entries(ENTRIES));
+    assert_eq!(o0, D);
 }
 
 /// Replacing the default keeps the name, mapping, 'save' flag and unit, and moves
 /// between a text and a numeric default as before the packing.
 #[test]
 fn replaced_defaults_keep_the_other_fields() {
-    let n = Entry::new(3, "Gain", DataType::Unsigned16, Access::RW)
+    let n = EntryDesc::new(3, "Gain", DataType::Unsigned16, Access::RW)
         .range(1, 100)
         .pdo(PdoMappable::Rx)
         .saved()
@@ -203,16 +216,13 @@ fn replaced_defaults_keep_the_other_fields() {
         (0, 0, DefaultValue::Text("seven"))
     );
     for x in [d, none, t] {
-        assert_eq!(
-            (x.name().as_plain().unwrap(), x.sub, x.unit_text()),
-            ("Gain", 3, "mA")
-        );
+        assert_eq!((x.name(), x.sub(), x.unit_text()), ("Gain", 3, "mA"));
         assert_eq!(x.pdo_mappable(), PdoMappable::Rx);
         assert!(x.is_saved());
     }
     // A text entry: range and numeric default do not apply; an Int default turns
     // it numeric with the natural range.
-    let s = Entry::text(0, "Label", 8, "abc");
+    let s = EntryDesc::text(0, "Label", 8, "abc");
     assert_eq!(s.range(1, 2).default(5), s);
     assert_eq!(
         s.with_default_value(DefaultValue::None).default_value(),
@@ -223,10 +233,10 @@ fn replaced_defaults_keep_the_other_fields() {
         (i.min(), i.max(), i.default_value()),
         (0, 0, DefaultValue::Int(9))
     );
-    assert_eq!((i.bits, i.name().as_plain().unwrap()), (64, "Label"));
+    assert_eq!((i.bits(), i.name()), (64, "Label"));
     // Equality is by content, not by where the name is stored.
     let owned = std::string::String::from("Gain");
-    let same = Entry::new(
+    let same = EntryDesc::new(
         3,
         std::boxed::Box::leak(owned.into_boxed_str()),
         DataType::Unsigned16,
@@ -247,8 +257,8 @@ fn replaced_defaults_keep_the_other_fields() {
 fn natural_range_of_every_type() {
     for t in DataType::ALL {
         let (bits, lo, hi) = type_range(t);
-        let e = Entry::new(1, "x", t, Access::RW);
-        assert_eq!((e.bits, e.min(), e.max()), (bits, lo, hi), "{t:?}");
+        let e = EntryDesc::new(1, "x", t, Access::RW);
+        assert_eq!((e.bits(), e.min(), e.max()), (bits, lo, hi), "{t:?}");
         assert_eq!(e.default_value(), DefaultValue::None, "{t:?}");
         let d = e
             .with_default_value(DefaultValue::Text("t"))
@@ -256,7 +266,7 @@ fn natural_range_of_every_type() {
         assert_eq!((d.min(), d.max()), (lo, hi), "{t:?}");
         assert_eq!(d.default_value(), DefaultValue::Int(0), "{t:?}");
     }
-    let l = Entry::new(1, "x", DataType::Integer64, Access::RW).range(-7, 7);
+    let l = EntryDesc::new(1, "x", DataType::Integer64, Access::RW).range(-7, 7);
     assert_eq!((l.min(), l.max()), (-7, 7));
 }
 
@@ -264,7 +274,7 @@ fn natural_range_of_every_type() {
 #[should_panic(expected = "longer than MAX_OBJECT_NAME")]
 fn object_name_over_the_limit_is_refused() {
     let name = std::string::String::from_utf8(std::vec![b'a'; MAX_OBJECT_NAME + 1]).unwrap();
-    let _ = Object::var(
+    let _ = ObjectDesc::var(
         0x2000,
         std::boxed::Box::leak(name.into_boxed_str()),
         &[],
@@ -276,10 +286,24 @@ fn object_name_over_the_limit_is_refused() {
 #[should_panic(expected = "longer than 255 bytes")]
 fn entry_name_over_the_limit_is_refused() {
     let name = std::string::String::from_utf8(std::vec![b'a'; 256]).unwrap();
-    let _ = Entry::new(
+    let _ = EntryDesc::new(
         0,
         std::boxed::Box::leak(name.into_boxed_str()),
         DataType::Unsigned8,
         Access::RO,
     );
+}
+
+#[test]
+fn type_ranges_of_the_types() {
+    assert_eq!(type_range(DataType::Boolean), (1, 0, 1));
+    assert_eq!(type_range(DataType::Integer8), (8, -128, 127));
+    assert_eq!(type_range(DataType::Integer16), (16, -32768, 32767));
+    assert_eq!(type_range(DataType::Integer64), (64, i64::MIN, i64::MAX));
+    assert_eq!(type_range(DataType::Unsigned32), (32, 0, u32::MAX as i64));
+    assert_eq!(type_range(DataType::Unsigned64), (64, 0, i64::MAX));
+    assert_eq!(type_range(DataType::Bit3), (3, 0, 7));
+    assert_eq!(type_range(DataType::Bit8), (8, 0, 255));
+    assert_eq!(type_range(DataType::Real32), (32, 0, 0));
+    assert_eq!(type_range(DataType::OctetString), (0, 0, 0));
 }

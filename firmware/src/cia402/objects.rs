@@ -28,7 +28,7 @@
 //!   abort code).
 
 use super::{homing, mode_supported, probe, Cia402, SUPPORTED_MODES};
-use ecat_slave_stack::od::{self, Access, DataType, Entry, Object, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{self, Access, DataType, EntryDesc, ObjectDesc, PdoMappable, SdoAbort};
 
 const RO: Access = Access::RO;
 const RW: Access = Access::RW;
@@ -116,14 +116,14 @@ fn valid_if(ok: bool) -> Result<(), SdoAbort> {
     }
 }
 
-/// The [`Entry`] description of one table entry.
+/// The [`EntryDesc`] of one table entry.
 macro_rules! entry_description {
     (count($n:literal) $(range($lo:expr, $hi:expr))?) => {
-        Entry::count($n) $(.range($lo, $hi))?
+        EntryDesc::count($n) $(.range($lo, $hi))?
     };
     ($sub:literal $name:literal: $t:ident $access:ident $pdo:ident
         $(range($lo:expr, $hi:expr))? [$($build:tt)*] $($binding:tt)*) => {
-        Entry::new($sub, $name, <$t as EntryInt>::DATA_TYPE, $access)
+        EntryDesc::new($sub, $name, <$t as EntryInt>::DATA_TYPE, $access)
             .pdo($pdo)
             $(.range($lo as i64, $hi as i64))?
             $($build)*
@@ -248,8 +248,8 @@ macro_rules! cia402_objects {
         /// The CiA 402 objects, sorted by index.
         // `range(lo, hi)` converts its bounds with `as i64` (`From` is not const).
         #[allow(clippy::unnecessary_cast)]
-        pub const OBJECTS: &[Object] = &[
-            $(Object::$code(
+        pub const OBJECTS: &[ObjectDesc] = &[
+            $(ObjectDesc::$code(
                 $index,
                 $name,
                 &[$(entry_description!($($entry)*)),*],
@@ -355,7 +355,7 @@ const fn mappable_keys<const N: usize>(rx: bool) -> [(u16, u8); N] {
         while e < entries.len() {
             let pdo = entries[e].pdo_mappable();
             if (rx && pdo.rx()) || (!rx && pdo.tx()) {
-                keys[n] = (OBJECTS[o].index, entries[e].sub);
+                keys[n] = (OBJECTS[o].index, entries[e].sub());
                 n += 1;
             }
             e += 1;

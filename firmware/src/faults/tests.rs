@@ -1,6 +1,9 @@
 use super::*;
 use ecat_slave_stack::od;
 
+/// The table as the product packs it.
+static PACKED: &[od::Object] = ecat_slave_stack::packed_dictionary!(&[OBJECTS]);
+
 const S: Snapshot = Snapshot {
     ia_ma: 0,
     ib_ma: 0,
@@ -17,7 +20,7 @@ fn all_enabled() -> Faults {
 
 #[test]
 fn table_well_formed() {
-    assert!(od::is_well_formed(OBJECTS));
+    assert!(od::is_well_formed(PACKED));
 }
 
 #[test]
@@ -217,7 +220,7 @@ fn history_keeps_six_newest_readable_by_sdo() {
     let mut buf = [0u8; 4];
     let rd = |f: &Faults, i, s, buf: &mut [u8; 4]| {
         let n = f.read(i, s, buf).unwrap();
-        let e = od::find_entry(OBJECTS, i, s).unwrap();
+        let e = od::find_entry(PACKED, i, s).unwrap();
         od::decode_int(e.data_type, &buf[..n]).unwrap()
     };
     assert_eq!(rd(&f, 0x2400, 0, &mut buf), 8);

@@ -116,11 +116,11 @@ fn map_32(candidates: &[(u16, u8)]) -> Vec<u32> {
         let Ok(e) = od::find_entry(firmware::dictionary::OBJECTS, index, sub) else {
             continue;
         };
-        let b = u32::from(e.bits);
+        let b = u32::from(e.bits());
         if bits + b > 256 || out.len() >= 14 {
             continue;
         }
-        out.push(entry(index, sub, e.bits as u8));
+        out.push(entry(index, sub, e.bits() as u8));
         bits += b;
     }
     while bits < 256 {

@@ -33,7 +33,7 @@ use std::sync::OnceLock;
 
 use ecat_slave_stack::esi::{self, EsiDevice, EsiError, PdoMap};
 use ecat_slave_stack::od::Dictionary as _;
-use ecat_slave_stack::od::{self, DataType, DefaultValue, Entry, Object};
+use ecat_slave_stack::od::{self, DataType, DefaultValue, Entry, EntryDesc, Object, ObjectDesc};
 use ecat_slave_stack::pdo::PdoConfig;
 use ecat_slave_stack::sii::{self, DeviceDescription, EscFlavour, SiiError};
 use firmware::drive::Drive;
@@ -100,7 +100,7 @@ pub enum Source {
 
 /// Which of the variant-aware modules serves `index`.
 pub fn source_of(index: u16) -> Option<Source> {
-    let has = |objects: &[Object]| objects.iter().any(|o| o.index == index);
+    let has = |objects: &[ObjectDesc]| objects.iter().any(|o| o.index == index);
     if has(firmware::comm::OBJECTS) {
         Some(Source::Comm)
     } else if has(firmware::params::OBJECTS) {
@@ -133,9 +133,9 @@ pub fn power_up_bytes(variant: Variant, index: u16, sub: u8) -> Option<Vec<u8>> 
 }
 
 /// The power-up value of `index:sub` as a default value of `entry`'s type.
-pub fn power_up_value(variant: Variant, index: u16, entry: &Entry) -> Option<DefaultValue> {
-    let bytes = power_up_bytes(variant, index, entry.sub)?;
-    match entry.data_type {
+pub fn power_up_value(variant: Variant, index: u16, entry: &EntryDesc) -> Option<DefaultValue> {
+    let bytes = power_up_bytes(variant, index, entry.sub())?;
+    match entry.data_type() {
         DataType::VisibleString => {
             let s = String::from_utf8(bytes).ok()?;
             Some(DefaultValue::Text(Box::leak(s.into_boxed_str())))
@@ -159,7 +159,7 @@ pub fn same_default(a: DefaultValue, b: DefaultValue) -> bool {
 /// when the entry has a default that depends on the variant (comm, params) or belongs
 /// to the product's default mapping (mapping and assignment objects); the table's
 /// default otherwise.
-pub fn variant_default(variant: Variant, index: u16, entry: &Entry) -> DefaultValue {
+pub fn variant_default(variant: Variant, index: u16, entry: &EntryDesc) -> DefaultValue {
     let live = || power_up_value(variant, index, entry);
     match (source_of(index), entry.default_value()) {
         (Some(Source::Pdo), _) => live().unwrap_or(entry.default_value()),
@@ -169,7 +169,8 @@ pub fn variant_default(variant: Variant, index: u16, entry: &Entry) -> DefaultVa
 }
 
 /// `firmware::dictionary::OBJECTS` with the defaults of `variant` (see
-/// [`variant_default`]). Same objects, entries, names, types, access and mapping.
+/// [`variant_default`]): the owners' tables with those defaults, packed as the
+/// firmware packs them. Same objects, entries, names, types, access and mapping.
 pub fn variant_objects(variant: Variant) -> &'static [Object] {
     static CACHE: [OnceLock<&'static [Object]>; 2] = [OnceLock::new(), OnceLock::new()];
     let slot = VARIANTS
@@ -177,18 +178,24 @@ pub fn variant_objects(variant: Variant) -> &'static [Object] {
         .position(|(v, _)| *v == variant)
         .unwrap_or(0);
     CACHE[slot].get_or_init(|| {
-        let objects: Vec<Object> = firmware::dictionary::OBJECTS
+        let parts: Vec<&'static [ObjectDesc]> = firmware::dictionary::PARTS
             .iter()
-            .map(|o| {
-                let entries: Vec<Entry> = o
-                    .entries()
+            .map(|part| {
+                let objects: Vec<ObjectDesc> = part
                     .iter()
-                    .map(|e| e.with_default_value(variant_default(variant, o.index, e)))
+                    .map(|o| {
+                        let entries: Vec<EntryDesc> = o
+                            .entries()
+                            .iter()
+                            .map(|e| e.with_default_value(variant_default(variant, o.index, e)))
+                            .collect();
+                        o.with_entries(Box::leak(entries.into_boxed_slice()))
+                    })
                     .collect();
-                o.with_entries(Box::leak(entries.into_boxed_slice()))
+                &*Box::leak(objects.into_boxed_slice())
             })
             .collect();
-        Box::leak(objects.into_boxed_slice())
+        od::pack::leak(&parts, firmware::dictionary::VOCABULARY)
     })
 }
 

@@ -1,17 +1,20 @@
 extern crate std;
 use super::*;
-use ecat_slave_stack::od::DefaultValue;
+use ecat_slave_stack::od::{DefaultValue, Entry, Object};
+
+/// The table as the product packs it.
+static PACKED: &[Object] = ecat_slave_stack::packed_dictionary!(&[OBJECTS]);
 
 #[test]
 fn table_is_well_formed_and_in_range() {
-    assert!(od::is_well_formed(OBJECTS));
-    assert!(OBJECTS.iter().all(|o| (0x6000..=0x6FFF).contains(&o.index)));
+    assert!(od::is_well_formed(PACKED));
+    assert!(PACKED.iter().all(|o| (0x6000..=0x6FFF).contains(&o.index)));
 }
 
 #[test]
 fn every_entry_has_a_value_and_defaults_match() {
     let d = Cia402::new();
-    for o in OBJECTS {
+    for o in PACKED {
         for e in o.entries() {
             let v = d.value(o.index, e.sub);
             assert!(v.is_some(), "{:#06x}:{}", o.index, e.sub);
@@ -31,17 +34,17 @@ fn every_entry_has_a_value_and_defaults_match() {
 #[test]
 fn slots_match_the_table() {
     for (i, &(idx, sub)) in RX_SLOTS.iter().enumerate() {
-        let e = od::find_entry(OBJECTS, idx, sub).unwrap();
+        let e = od::find_entry(PACKED, idx, sub).unwrap();
         assert!(e.pdo_mappable().rx(), "{idx:#06x}");
         assert_eq!(rx_slot(idx, sub), Some(i as u8));
     }
     for (i, &(idx, sub)) in TX_SLOTS.iter().enumerate() {
-        let e = od::find_entry(OBJECTS, idx, sub).unwrap();
+        let e = od::find_entry(PACKED, idx, sub).unwrap();
         assert!(e.pdo_mappable().tx(), "{idx:#06x}");
         assert_eq!(tx_slot(idx, sub), Some(i as u8));
     }
     // Every mappable entry has a slot.
-    for o in OBJECTS {
+    for o in PACKED {
         for e in o.entries() {
             assert_eq!(
                 e.pdo_mappable().rx(),
@@ -65,7 +68,7 @@ fn slots_match_the_table() {
 fn fields_cover_exactly_the_entries() {
     // Every entry of OBJECTS has one ENTRY_KEYS row and every row is an entry.
     let mut n = 0;
-    for o in OBJECTS {
+    for o in PACKED {
         for e in o.entries() {
             let rows = ENTRY_KEYS
                 .iter()
@@ -88,13 +91,13 @@ fn sdo_write_changes_only_its_entry() {
     // Each writable entry at its most negative (or largest) value: the value reads
     // back sign-extended and no other entry changes (the field widths are right).
     let all = |d: &Cia402| -> std::vec::Vec<(u16, u8, Option<i64>)> {
-        OBJECTS
+        PACKED
             .iter()
             .flat_map(|o| o.entries().iter().map(move |e| (o.index, e.sub)))
             .map(|(i, s)| (i, s, d.value(i, s)))
             .collect()
     };
-    for o in OBJECTS {
+    for o in PACKED {
         for e in o.entries().iter().filter(|e| e.access.writable()) {
             let (idx, sub) = (o.index, e.sub);
             let val: i64 = match (idx, sub) {
@@ -120,7 +123,7 @@ fn sdo_write_changes_only_its_entry() {
 
 #[test]
 fn every_writable_entry_reads_back_what_sdo_wrote() {
-    for o in OBJECTS {
+    for o in PACKED {
         for e in o.entries().iter().filter(|e| e.access.writable()) {
             let (idx, sub) = (o.index, e.sub);
             let val: i64 = match (idx, sub) {
@@ -154,7 +157,7 @@ fn written_and_read_back(e: &Entry, idx: u16, sub: u8, val: i64) -> Cia402 {
 fn rx_slots_and_sdo_write_agree() {
     // Writing each Rx slot and reading the entry back by SDO gives the same value.
     for (i, &(idx, sub)) in RX_SLOTS.iter().enumerate() {
-        let e = od::find_entry(OBJECTS, idx, sub).unwrap();
+        let e = od::find_entry(PACKED, idx, sub).unwrap();
         let val: i64 = match (idx, sub) {
             (0x6060, 0) => 3,
             (0x6098, 0) => 17,
@@ -274,7 +277,7 @@ fn sdo_errors() {
 fn garbage_writes_never_panic() {
     let mut d = Cia402::new();
     let mut x: u32 = 0x1234_5678;
-    for o in OBJECTS {
+    for o in PACKED {
         for e in o.entries() {
             for len in 0..6 {
                 for _ in 0..20 {

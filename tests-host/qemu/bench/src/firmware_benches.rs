@@ -129,7 +129,11 @@ fn product() {
     struct ParamsDict(Params);
     impl ecat_slave_stack::od::Dictionary for ParamsDict {
         fn objects(&self) -> &'static [ecat_slave_stack::od::Object] {
-            firmware::params::OBJECTS
+            static PARAMS: &[ecat_slave_stack::od::Object] = ecat_slave_stack::packed_dictionary!(
+                &[firmware::params::OBJECTS],
+                firmware::dictionary::VOCABULARY
+            );
+            PARAMS
         }
         fn read(
             &mut self,

@@ -11,16 +11,17 @@ use core::hint::black_box;
 use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::mailbox::MailboxServer;
 use ecat_slave_stack::od::{
-    self, Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort,
+    self, Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
 };
 
 macro_rules! objects {
     ($( $idx:literal $t:ident ),* $(,)?) => {
-        &[$(Object::var($idx, "", &[Entry::new(0, "", DataType::$t, Access::RW).pdo(PdoMappable::RxTx)], "")),*]
+        &[$(ObjectDesc::var($idx, "", &[EntryDesc::new(0, "", DataType::$t, Access::RW).pdo(PdoMappable::RxTx)], "")),*]
     };
 }
 
-static OBJECTS: &[Object] = objects![
+static OBJECTS: &[Object] = ecat_slave_stack::packed_dictionary!(&[SOURCE]);
+const SOURCE: &[ObjectDesc] = objects![
     0x1000 Unsigned32, 0x1001 Unsigned8, 0x2000 Integer32, 0x2001 Unsigned16,
     0x2002 Unsigned16, 0x2003 Integer32, 0x2004 Unsigned32, 0x2005 Integer16,
     0x603F Unsigned16, 0x6040 Unsigned16, 0x6041 Unsigned16, 0x6060 Integer8,

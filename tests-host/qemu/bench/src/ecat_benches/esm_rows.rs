@@ -9,7 +9,9 @@ use core::hint::black_box;
 use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esc::{EscAccess, EscError};
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
-use ecat_slave_stack::od::{Access, DataType, Dictionary, Entry, Object, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+};
 use ecat_slave_stack::pdo::{self, entry, PdoConfig, PdoDefaults, ProcessData};
 use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
@@ -80,11 +82,12 @@ impl RamEsc {
 
 macro_rules! objects {
     ($( $idx:literal $t:ident $dir:ident ),* $(,)?) => {
-        &[$(Object::var($idx, "", &[Entry::new(0, "", DataType::$t, Access::RW).pdo(PdoMappable::$dir)], "")),*]
+        &[$(ObjectDesc::var($idx, "", &[EntryDesc::new(0, "", DataType::$t, Access::RW).pdo(PdoMappable::$dir)], "")),*]
     };
 }
 
-static OBJECTS: &[Object] = objects![
+static OBJECTS: &[Object] = ecat_slave_stack::packed_dictionary!(&[SOURCE]);
+const SOURCE: &[ObjectDesc] = objects![
     0x603F Unsigned16 Tx, 0x6040 Unsigned16 Rx, 0x6041 Unsigned16 Tx, 0x6060 Integer8 Rx,
     0x6061 Integer8 Tx, 0x6064 Integer32 Tx, 0x606C Integer32 Tx, 0x6077 Integer16 Tx,
     0x607A Integer32 Rx, 0x6081 Unsigned32 Rx, 0x6083 Unsigned32 Rx, 0x6098 Integer8 Rx,
