@@ -22,6 +22,28 @@
 //! lag, the current loop and the servo period; in the plant simulation the loop stays
 //! well damped up to ωv ≈ 2π·300 Hz with a PLL of ω = 8000 rad/s (250 Hz is the
 //! scenarios' choice).
+//!
+//! # Torque control with a speed limit ([`Servo::step_torque`])
+//! In torque mode the q-current reference is the demand `i_t` (A) itself; the only
+//! loop left is a speed limit `v_max` (counts/s, ≥ 0) in the direction of the demand,
+//! `s = sgn(i_t)` (`+1` for 0). The velocity PI (same gains) runs on the speed margin
+//! with its output range narrowed to the demand ([`crate::pi::Pi::update_within`]):
+//!
+//! ```text
+//! e    = s·v_max − v̂                              (margin to the limit, sign of s)
+//! i_q* = clamp(Kv·e + x, −i_max, i_t)   for s = +1
+//! i_q* = clamp(Kv·e + x, i_t, +i_max)   for s = −1
+//! x   ← x + Ki·Ts·e, kept inside the same range
+//! ```
+//!
+//! Below the limit `e` pushes the output against the bound `i_t`: `i_q* = i_t`
+//! exactly and the integrator is set to `i_t` (no effect, no wind-up). Past the limit the
+//! proportional term takes torque off at once and the integrator brings the speed
+//! back to `v_max` with no steady-state error: the velocity loop's dynamics (its
+//! bandwidth and damping as above), engaged only beyond the limit. A shaft driven
+//! past the limit by its load is braked (down to `−i_max` against it). Because the
+//! integrator holds the applied current whenever the limit is not active, a switch
+//! to [`Servo::step`] / [`Servo::step_velocity`] afterwards is bumpless.
 
 use crate::angle::Angle;
 use crate::pi::Pi;
@@ -119,6 +141,11 @@ pub struct Servo {
     pub fault: bool,
     /// Last current reference, A.
     pub iq_ref: f32,
+    /// The last [`Servo::step_torque`] took torque off the demand (speed limit).
+    pub speed_limited: bool,
+    /// Torque feed-forward added inside the velocity PI of [`Servo::step`] and
+    /// [`Servo::step_velocity`], A ([`Servo::set_torque_offset`]).
+    iq_offset: f32,
 }
 
 impl Servo {
@@ -133,7 +160,16 @@ impl Servo {
             following_error: 0.0,
             fault: false,
             iq_ref: 0.0,
+            speed_limited: false,
+            iq_offset: 0.0,
         }
+    }
+
+    /// Torque feed-forward of the position and velocity steps, A (CiA 402 0x60B2): added
+    /// to the velocity PI's output inside its limit, so the anti-windup sees it. Non-finite
+    /// values are taken as 0.
+    pub fn set_torque_offset(&mut self, iq: f32) {
+        self.iq_offset = if iq.is_finite() { iq } else { 0.0 };
     }
 
     /// Gains in use.
@@ -179,7 +215,40 @@ impl Servo {
         self.following_error = 0.0;
         let iq = self
             .vel_pi
-            .update(vel_dem - vel, self.gains.acc_ff * acc_dem);
+            .update(vel_dem - vel, self.gains.acc_ff * acc_dem + self.iq_offset);
+        self.iq_ref = iq;
+        iq
+    }
+
+    /// Torque step (cyclic synchronous torque): q-current demand `iq_dem` (A, limited
+    /// to `±iq_max`) with the speed limit `v_max` (counts/s, magnitude) against the
+    /// velocity estimate `vel`; see the module docs. Returns the q-current reference
+    /// (A). The position integrator is cleared and no following error is kept; non-finite
+    /// inputs count as 0 (demand, velocity) or as no margin (limit).
+    #[inline]
+    pub fn step_torque(&mut self, iq_dem: f32, v_max: f32, vel: f32) -> f32 {
+        let finite = |x: f32| if x.is_finite() { x } else { 0.0 };
+        let lim = self.gains.iq_max.abs();
+        let it = crate::num::clamp(finite(iq_dem), -lim, lim);
+        let v_max = finite(v_max).abs();
+        let vel = finite(vel);
+        self.pos_int = 0.0;
+        self.following_error = 0.0;
+        if !self.speed_limited {
+            // Not limiting: the integrator follows a new demand at once.
+            self.vel_pi.x = it;
+        }
+        let iq = if it >= 0.0 {
+            self.vel_pi.update_within(v_max - vel, -lim, it)
+        } else {
+            self.vel_pi.update_within(-v_max - vel, it, lim)
+        };
+        // At the demand the limit is not acting: the integrator holds the demand (a
+        // conditional integrator would stay wherever it was while saturated).
+        self.speed_limited = iq != it;
+        if !self.speed_limited {
+            self.vel_pi.x = it;
+        }
         self.iq_ref = iq;
         iq
     }
@@ -204,7 +273,9 @@ impl Servo {
         let lim = 1e3 + self.fe_limit as f32 * 4.0;
         self.pos_int = crate::num::clamp(self.pos_int, -lim, lim);
         let v_cmd = g.vel_ff * d.vel + g.kp_pos * e + self.pos_int;
-        let iq = self.vel_pi.update(v_cmd - vel, g.acc_ff * d.acc);
+        let iq = self
+            .vel_pi
+            .update(v_cmd - vel, g.acc_ff * d.acc + self.iq_offset);
         self.iq_ref = iq;
         iq
     }
