@@ -140,6 +140,8 @@ pub const UNITS: &[&str] = &[
     "Hz",
     "kHz",
     "°C",
+    "mN·m",
+    "0.1 %/s",
 ];
 
 /// [`UNITS`] as length-prefixed texts: what [`Entry::unit_text`] reads (one byte per

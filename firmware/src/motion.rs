@@ -363,72 +363,6 @@ impl Scale {
     }
 }
 
-/// Linear interpolation of the cycle's set-points in counts (integer + fraction).
-#[derive(Debug, Clone, Copy)]
-struct Interp {
-    from_w: i32,
-    from_f: f32,
-    to_w: i32,
-    to_f: f32,
-    delta: f32,
-    k: u32,
-    n: u32,
-    inv_n: f32,
-    vel: f32,
-}
-
-impl Interp {
-    fn at(w: i32, f: f32) -> Self {
-        Interp {
-            from_w: w,
-            from_f: f,
-            to_w: w,
-            to_f: f,
-            delta: 0.0,
-            k: 1,
-            n: 1,
-            inv_n: 1.0,
-            vel: 0.0,
-        }
-    }
-    fn target(&mut self, w: i32, f: f32, n: u32, cycle_s: f32) {
-        self.from_w = self.to_w;
-        self.from_f = self.to_f;
-        self.to_w = w;
-        self.to_f = f;
-        self.delta = w.wrapping_sub(self.from_w) as f32 + (f - self.from_f);
-        self.n = n.max(1);
-        self.inv_n = 1.0 / self.n as f32;
-        self.k = 0;
-        self.vel = if cycle_s > 0.0 {
-            self.delta / cycle_s
-        } else {
-            0.0
-        };
-    }
-    /// Demand of the next step and whether the demand is still moving.
-    fn step(&mut self) -> (i32, f32, bool) {
-        if self.k < self.n {
-            self.k += 1;
-        }
-        let moving = self.k < self.n || self.delta != 0.0;
-        if self.k >= self.n {
-            // At the target: exact, no rounding of delta·k/n.
-            self.delta = 0.0;
-            self.from_w = self.to_w;
-            self.from_f = self.to_f;
-            return (self.to_w, self.to_f, moving);
-        }
-        let d = self.from_f + self.delta * (self.k as f32 * self.inv_n);
-        // floor without the library call (`as` saturates, NaN → 0).
-        let mut whole = d as i32;
-        if (whole as f32) > d {
-            whole -= 1;
-        }
-        (self.from_w.wrapping_add(whole), d - whole as f32, moving)
-    }
-}
-
 /// The motion layer's state (see the module docs).
 // In declaration order, the two smoothing windows (inside `open` and `smooth`, 1 KiB
 // each) last: the per-step fields stay within the short load/store offsets of Thumb-2
@@ -620,6 +554,9 @@ impl Motion {
             0.0
         };
         self.acc_ff += 0.25 * (a - self.acc_ff);
+        // Torque feed-forward of the position and velocity set-points (0x60B2).
+        self.servo
+            .set_torque_offset(cmd.torque * 1e-3 * self.cfg.peak_current);
         if cmd.kind == SetpointKind::Position && self.cfg.closed_loop && !self.smooth_on {
             let (w, f) = self.scale.to_counts(cmd.position);
             self.interp.target(w, f, self.cycle_steps, cycle_s);
@@ -826,6 +763,7 @@ impl Motion {
                 self.following_error = self.servo.following_error;
                 iq
             }
+            SetpointKind::Torque => self.torque_step(pos, vel),
         };
         self.current_limited = lim <= 0.0 || libm::fabsf(iq) >= lim * 0.999;
         let mut id = 0.0;
@@ -965,7 +903,7 @@ impl Motion {
         a.velocity = if v.is_finite() { v as i32 } else { 0 };
         let fe = libm::roundf(self.following_error);
         a.servo_following_error = if fe.is_finite() { fe as i32 } else { 0 };
-        a.current_limited = self.current_limited;
+        a.current_limited = self.current_limited || self.speed_limited();
         let peak = self.cfg.peak_current;
         let i = match self.last_ref.frame {
             Frame::Encoder => self.dir as f32 * self.last_ref.iq,
@@ -978,6 +916,11 @@ impl Motion {
         };
     }
 }
+
+mod interp;
+mod torque;
+
+use interp::Interp;
 
 #[cfg(test)]
 mod tests;

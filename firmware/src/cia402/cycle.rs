@@ -56,7 +56,18 @@ impl Cia402 {
         self.raw_position = fb.position;
         self.actual_position = self.raw_to_user(fb.position);
         self.actual_velocity = pol(self.vel_neg(), fb.velocity);
-        self.actual_torque = fb.torque;
+        // Torques follow the velocity polarity (0x607E bit 6), as the motion does.
+        let vel_neg = self.vel_neg();
+        self.actual_torque = if vel_neg {
+            fb.torque.wrapping_neg()
+        } else {
+            fb.torque
+        };
+        self.servo_torque = if vel_neg {
+            fb.torque_demand.wrapping_neg()
+        } else {
+            fb.torque_demand
+        };
         self.actual_current = fb.current;
         self.digital_inputs = fb.digital_inputs;
         self.enable_pending = fb.enable_pending;
@@ -82,6 +93,9 @@ impl Cia402 {
             };
             self.hm.reset();
             self.cyc = Cyclic::default();
+            // CST starts from the torque the servo loops demand now (see the module
+            // docs: bumpless with a torque slope).
+            self.torque_demand = f32::from(self.servo_torque);
         }
     }
 
@@ -104,15 +118,22 @@ impl Cia402 {
         self.prev_demand_vel = if drive_enabled { v } else { 0.0 };
         let sign = if self.vel_neg() { -1.0 } else { 1.0 };
         let motor_enabled = drive_enabled || self.enable_waiting;
+        // Torque control: the velocity is the speed limit (a magnitude).
+        let velocity = if kind == SetpointKind::Torque {
+            self.params.max_motor_speed as f32
+        } else {
+            sign * v
+        };
         DriveCommand {
             power_stage: power,
             drive_enabled: motor_enabled,
             kind,
             position: self.user_to_raw(self.motion.position()),
-            velocity: sign * v,
+            velocity,
             acceleration: sign * acc,
             torque_limit: self.params.max_torque,
             current_limit: self.params.max_current,
+            torque: sign * self.torque_cmd,
             brake_release: motor_enabled,
         }
     }
