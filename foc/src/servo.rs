@@ -40,7 +40,10 @@
 //! exactly and the integrator is set to `i_t` (no effect, no wind-up). Past the limit the
 //! proportional term takes torque off at once and the integrator brings the speed
 //! back to `v_max` with no steady-state error: the velocity loop's dynamics (its
-//! bandwidth and damping as above), engaged only beyond the limit. A shaft driven
+//! bandwidth and damping as above), engaged only beyond the limit. Taking the whole
+//! demand off needs a margin of `−i_t/Kv`, so a shaft that reaches the limit at full
+//! acceleration overshoots it by up to that much (1 rev/s for 1.6 A on the ECN57-20
+//! at 240 Hz) before the integrator brings it back. A shaft driven
 //! past the limit by its load is braked (down to `−i_max` against it). Because the
 //! integrator holds the applied current whenever the limit is not active, a switch
 //! to [`Servo::step`] / [`Servo::step_velocity`] afterwards is bumpless.
