@@ -543,6 +543,11 @@ impl Motion {
         };
         let n = (cycle_s / self.cfg.ts + 0.5) as u32;
         self.cycle_steps = n.max(1);
+        if self.cmd.kind == SetpointKind::Torque && cmd.kind != SetpointKind::Torque {
+            // Leaving torque set-points: the velocity loop starts from the current
+            // applied last (`foc::servo`, "Torque control with a speed limit").
+            self.servo.bumpless_start(self.servo.iq_ref);
+        }
         self.cmd = *cmd;
         if !self.enabled {
             return;

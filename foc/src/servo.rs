@@ -36,17 +36,23 @@
 //! x   ← x + Ki·Ts·e, kept inside the same range
 //! ```
 //!
-//! Below the limit `e` pushes the output against the bound `i_t`: `i_q* = i_t`
-//! exactly and the integrator is set to `i_t` (no effect, no wind-up). Past the limit the
-//! proportional term takes torque off at once and the integrator brings the speed
-//! back to `v_max` with no steady-state error: the velocity loop's dynamics (its
-//! bandwidth and damping as above), engaged only beyond the limit. Taking the whole
-//! demand off needs a margin of `−i_t/Kv`, so a shaft that reaches the limit at full
-//! acceleration overshoots it by up to that much (1 rev/s for 1.6 A on the ECN57-20
-//! at 240 Hz) before the integrator brings it back. A shaft driven
-//! past the limit by its load is braked (down to `−i_max` against it). Because the
-//! integrator holds the applied current whenever the limit is not active, a switch
-//! to [`Servo::step`] / [`Servo::step_velocity`] afterwards is bumpless.
+//! This is a speed controller on `s·v_max` whose output may never pass the demand
+//! (the clamp is its anti-windup: the integrator stops while the output sits at
+//! `i_t` and the margin pushes further). Far below the limit `Kv·e` holds the output
+//! at `i_t` exactly (no effect). Approaching the limit the proportional term takes
+//! torque off once `Kv·e + x < i_t`, and the integrator brings the speed to `v_max`
+//! with no steady-state error: the velocity loop's dynamics (its bandwidth and
+//! damping as above). A shaft held below the limit by its load ends with the output
+//! at `i_t` (the integrator rises until `Kv·e + x ≥ i_t`). How early the torque comes
+//! off depends on `x` (the current that held the limit last time, or what the
+//! previous mode left): taking the whole demand off needs a margin of
+//! `(x − i_t)/Kv`, so a shaft that reaches the limit at full acceleration may
+//! overshoot it by up to `i_t/Kv` (1 rev/s for 1.6 A on the ECN57-20 at 240 Hz)
+//! before the integrator brings it back. A shaft driven past the limit by its load is
+//! braked (down to `−i_max` against it). The integrator is not the applied current
+//! while the output sits at the demand: a switch to [`Servo::step`] /
+//! [`Servo::step_velocity`] afterwards is bumpless after [`Servo::bumpless_start`]
+//! with [`Servo::iq_ref`].
 
 use crate::angle::Angle;
 use crate::pi::Pi;
@@ -237,21 +243,12 @@ impl Servo {
         let vel = finite(vel);
         self.pos_int = 0.0;
         self.following_error = 0.0;
-        if !self.speed_limited {
-            // Not limiting: the integrator follows a new demand at once.
-            self.vel_pi.x = it;
-        }
         let iq = if it >= 0.0 {
             self.vel_pi.update_within(v_max - vel, -lim, it)
         } else {
             self.vel_pi.update_within(-v_max - vel, it, lim)
         };
-        // At the demand the limit is not acting: the integrator holds the demand (a
-        // conditional integrator would stay wherever it was while saturated).
         self.speed_limited = iq != it;
-        if !self.speed_limited {
-            self.vel_pi.x = it;
-        }
         self.iq_ref = iq;
         iq
     }

@@ -684,7 +684,9 @@ qemu_runner::tests! {
         for _ in 0..10 {
             s.step_torque(1.5, 40_000.0, 10_000.0);
         }
-        // The velocity step that follows at the same speed starts from the same current.
+        // The velocity step that follows at the same speed starts from the same current
+        // (after the hand-over preset).
+        s.bumpless_start(s.iq_ref);
         let iq = s.step_velocity(10_000.0, 0.0, 10_000.0);
         assert!(near(iq, 1.5, 1e-5), "{iq}");
         let iq = s.step(&Demand { pos: 7, ..Demand::default() }, 7, 0.0);
