@@ -502,7 +502,7 @@ mod tests {
                 acceleration: 0.0,
                 torque_limit: 1000,
                 current_limit: 1000,
-                torque: 0.0,
+                torque: 0,
                 brake_release: true,
             },
             cycle_s: 1e-3,

@@ -385,6 +385,8 @@ pub struct Motion {
     soft_step: f32,
     iq_limit: f32,
     iq_limit_set: f32,
+    /// q current of one per mille of the rated torque (0x2000 / 1000), A.
+    iq_per_permille: f32,
     id_handover: f32,
     id_ramp: f32,
     // Last values for the report.
@@ -444,6 +446,7 @@ impl Motion {
             soft_step: 1.0,
             iq_limit: cfg.gains.iq_max,
             iq_limit_set: cfg.gains.iq_max,
+            iq_per_permille: finite_pos(cfg.peak_current) * 1e-3,
             id_handover: 0.0,
             id_ramp: 0.0,
             last_fb: Feedback::default(),
@@ -502,6 +505,7 @@ impl Motion {
         self.servo
             .set_following_error_limit(cfg.following_error_limit);
         self.iq_limit_set = cfg.gains.iq_max;
+        self.iq_per_permille = finite_pos(cfg.peak_current) * 1e-3;
         if !self.enabled {
             self.scale = Scale::new(cfg.pulses_per_rev, cfg.counts_per_rev);
             self.dir = if cfg.reverse { -1 } else { 1 };
@@ -561,7 +565,7 @@ impl Motion {
         self.acc_ff += 0.25 * (a - self.acc_ff);
         // Torque feed-forward of the position and velocity set-points (0x60B2).
         self.servo
-            .set_torque_offset(cmd.torque * 1e-3 * self.cfg.peak_current);
+            .set_torque_offset(f32::from(cmd.torque) * self.iq_per_permille);
         if cmd.kind == SetpointKind::Position && self.cfg.closed_loop && !self.smooth_on {
             let (w, f) = self.scale.to_counts(cmd.position);
             self.interp.target(w, f, self.cycle_steps, cycle_s);

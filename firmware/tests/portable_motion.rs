@@ -287,7 +287,7 @@ qemu_runner::tests! {
         // 250 per mille of the rated (= peak, 3.2 A) current; speed limit 2 rev/s.
         let mut c = cmd(true, 0);
         c.kind = SetpointKind::Torque;
-        c.torque = 250.0;
+        c.torque = 250;
         c.velocity = 100_000.0;
         m.set_command(&c, 0.001);
         let out = m.step(&r.feedback());
@@ -310,7 +310,7 @@ qemu_runner::tests! {
         let out = m.step(&r.feedback());
         assert!((out.iq - before).abs() < 0.05, "{before} → {}", out.iq);
         // The demand is limited to 0x6072 like every current.
-        c.torque = 3000.0;
+        c.torque = 3000;
         c.torque_limit = 500;
         c.velocity = 1.0e9;
         m.set_command(&c, 0.001);
@@ -325,7 +325,7 @@ qemu_runner::tests! {
         let mut a = state(&m);
         // Holding at rest: the 0x60B2 offset appears in the reference at once.
         let mut c = cmd(true, 0);
-        c.torque = 100.0;
+        c.torque = 100;
         m.set_command(&c, 0.001);
         let before = a.current_permille;
         let out = m.step(&r.feedback());

@@ -47,7 +47,7 @@ fn cst_commands_the_target_torque_with_the_speed_limit() {
     let c = d.cycle(&fb_at(1234, 0), DT);
     assert_eq!(c.kind, SetpointKind::Torque);
     assert!(c.drive_enabled && c.power_stage);
-    assert_eq!(c.torque, 300.0);
+    assert_eq!(c.torque, 300);
     assert_eq!(c.velocity, 250_000.0, "the speed limit 0x6080");
     // Target torque used: bit 12; no internal limit.
     assert_eq!(d.statusword() & (sw::BIT12 | sw::INTERNAL_LIMIT), sw::BIT12);
@@ -63,28 +63,24 @@ fn cst_slope_limit_and_offset() {
     // 0x6087 = 50 000 per mille/s: 50 per 1 ms step.
     sdo_u32(&mut d, 0x6087, 50_000).unwrap();
     sdo_i16(&mut d, 0x6071, 180).unwrap();
-    let t: std::vec::Vec<f32> = (0..5)
-        .map(|_| d.cycle(&fb_at(0, 0), DT).torque.round())
-        .collect();
-    assert_eq!(t, [50.0, 100.0, 150.0, 180.0, 180.0]);
+    let t: std::vec::Vec<i16> = (0..5).map(|_| d.cycle(&fb_at(0, 0), DT).torque).collect();
+    assert_eq!(t, [50, 100, 150, 180, 180]);
     // Down again at the same rate, with the offset added to the target.
     sdo_i16(&mut d, 0x6071, -100).unwrap();
     sdo_i16(&mut d, 0x60B2, 30).unwrap();
-    let t: std::vec::Vec<f32> = (0..6)
-        .map(|_| d.cycle(&fb_at(0, 0), DT).torque.round())
-        .collect();
-    assert_eq!(t, [130.0, 80.0, 30.0, -20.0, -70.0, -70.0]);
+    let t: std::vec::Vec<i16> = (0..6).map(|_| d.cycle(&fb_at(0, 0), DT).torque).collect();
+    assert_eq!(t, [130, 80, 30, -20, -70, -70]);
     // 0 = no slope limit: the demand steps.
     sdo_u32(&mut d, 0x6087, 0).unwrap();
     sdo_i16(&mut d, 0x6071, 900).unwrap();
-    assert_eq!(d.cycle(&fb_at(0, 0), DT).torque, 930.0);
+    assert_eq!(d.cycle(&fb_at(0, 0), DT).torque, 930);
     // Limited to ±0x6072, with the internal limit (bit 11).
     sdo_u32(&mut d, 0x6072, 0).unwrap_err();
     d.write(0x6072, 0, &500u16.to_le_bytes()).unwrap();
-    assert_eq!(d.cycle(&fb_at(0, 0), DT).torque, 500.0);
+    assert_eq!(d.cycle(&fb_at(0, 0), DT).torque, 500);
     assert!(d.statusword() & sw::INTERNAL_LIMIT != 0);
     sdo_i16(&mut d, 0x6071, -3000).unwrap();
-    assert_eq!(d.cycle(&fb_at(0, 0), DT).torque, -500.0);
+    assert_eq!(d.cycle(&fb_at(0, 0), DT).torque, -500);
     assert_eq!(d.value(0x6074, 0), Some(-500));
 }
 
@@ -96,14 +92,14 @@ fn torque_offset_is_the_feed_forward_of_csp_and_csv() {
         let c = d.cycle(&fb_at(0, 0), DT);
         assert_eq!(
             (c.kind == SetpointKind::Torque, c.torque),
-            (false, -120.0),
+            (false, -120),
             "{m}"
         );
     }
     // Not in the profile modes.
     let mut d = enabled(mode::PV);
     sdo_i16(&mut d, 0x60B2, -120).unwrap();
-    assert_eq!(d.cycle(&fb_at(0, 0), DT).torque, 0.0);
+    assert_eq!(d.cycle(&fb_at(0, 0), DT).torque, 0);
 }
 
 #[test]
@@ -116,7 +112,7 @@ fn cst_entry_starts_from_the_servo_torque_and_polarity_applies() {
     sdo_i16(&mut d, 0x6071, 0).unwrap();
     d.set_mode(mode::CST);
     let c = d.cycle(&fb_at(0, 250), DT);
-    assert_eq!((c.kind, c.torque), (SetpointKind::Torque, 150.0));
+    assert_eq!((c.kind, c.torque), (SetpointKind::Torque, 150));
     // Velocity polarity (0x607E bit 6) turns torques round both ways.
     let mut d = enabled(mode::CST);
     d.set_controlword(0x0006);
@@ -128,7 +124,7 @@ fn cst_entry_starts_from_the_servo_torque_and_polarity_applies() {
     }
     sdo_i16(&mut d, 0x6071, 200).unwrap();
     let c = d.cycle(&fb_at(0, -77), DT);
-    assert_eq!(c.torque, -200.0);
+    assert_eq!(c.torque, -200);
     assert_eq!(d.value(0x6077, 0), Some(77));
 }
 
@@ -143,12 +139,12 @@ fn cst_halt_and_quick_stop_ramp_from_the_actual_speed() {
     let c = d.cycle(&fb_at(100_000, 400), DT);
     assert_eq!(c.kind, SetpointKind::Velocity);
     assert!((c.velocity - 99_500.0).abs() < 1.0, "{}", c.velocity);
-    assert_eq!(c.torque, 0.0);
+    assert_eq!(c.torque, 0);
     assert!(d.statusword() & sw::BIT12 == 0 && d.statusword() & sw::ABNORMAL_STOP != 0);
     // Released: torque control again, from the servo torque (no slope: the target).
     d.set_controlword(0x000F);
     let c = d.cycle(&fb_at(90_000, 400), DT);
-    assert_eq!((c.kind, c.torque), (SetpointKind::Torque, 400.0));
+    assert_eq!((c.kind, c.torque), (SetpointKind::Torque, 400));
     // Quick stop (0x605A = 2): position control on the 0x6085 ramp from the actual
     // speed, then Switch on disabled.
     d.set_controlword(0x000B);
@@ -184,7 +180,7 @@ fn cst_stops_at_a_limit_switch_in_the_direction_of_the_torque() {
     // Away from the switch: torque control.
     sdo_i16(&mut d, 0x6071, -300).unwrap();
     let c = d.cycle(&pos_limit, DT);
-    assert_eq!((c.kind, c.torque), (SetpointKind::Torque, -300.0));
+    assert_eq!((c.kind, c.torque), (SetpointKind::Torque, -300));
 }
 
 #[test]

@@ -56,18 +56,9 @@ impl Cia402 {
         self.raw_position = fb.position;
         self.actual_position = self.raw_to_user(fb.position);
         self.actual_velocity = pol(self.vel_neg(), fb.velocity);
-        // Torques follow the velocity polarity (0x607E bit 6), as the motion does.
-        let vel_neg = self.vel_neg();
-        self.actual_torque = if vel_neg {
-            fb.torque.wrapping_neg()
-        } else {
-            fb.torque
-        };
-        self.servo_torque = if vel_neg {
-            fb.torque_demand.wrapping_neg()
-        } else {
-            fb.torque_demand
-        };
+        // Raw (motor-side) torques; the objects apply the polarity when read.
+        self.actual_torque = fb.torque;
+        self.servo_torque = fb.torque_demand;
         self.actual_current = fb.current;
         self.digital_inputs = fb.digital_inputs;
         self.enable_pending = fb.enable_pending;
@@ -95,7 +86,7 @@ impl Cia402 {
             self.cyc = Cyclic::default();
             // CST starts from the torque the servo loops demand now (see the module
             // docs: bumpless with a torque slope).
-            self.torque_demand = f32::from(self.servo_torque);
+            self.torque_demand = f32::from(self.servo_torque_user());
         }
     }
 
@@ -133,7 +124,11 @@ impl Cia402 {
             acceleration: sign * acc,
             torque_limit: self.params.max_torque,
             current_limit: self.params.max_current,
-            torque: sign * self.torque_cmd,
+            torque: if self.vel_neg() {
+                self.torque_cmd.wrapping_neg()
+            } else {
+                self.torque_cmd
+            },
             brake_release: motor_enabled,
         }
     }

@@ -285,9 +285,9 @@ pub struct DriveCommand {
     pub torque_limit: u16,
     /// Current limit, per mille of rated current (0x6073).
     pub current_limit: u16,
-    /// Torque demand (CST) or torque feed-forward (CSP, CSV: 0x60B2), per mille of
-    /// rated torque; 0 in the other modes and states.
-    pub torque: f32,
+    /// Torque demand (CST, whole per mille) or torque feed-forward (CSP, CSV: 0x60B2),
+    /// per mille of rated torque; 0 in the other modes and states.
+    pub torque: i16,
     /// Release the holding brake.
     pub brake_release: bool,
 }
@@ -429,13 +429,13 @@ pub struct Cia402 {
     actual_velocity: i32,
     actual_torque: i16,
     actual_current: i16,
-    /// The servo loops' torque demand (last feedback, user sign).
+    /// The servo loops' torque demand (last feedback, raw sign).
     servo_torque: i16,
     /// CST: the torque demand after the slope and 0x6072, per mille (user sign).
     torque_demand: f32,
     /// Torque command of this step for the motor side ([`DriveCommand::torque`],
     /// user sign).
-    torque_cmd: f32,
+    torque_cmd: i16,
     digital_inputs: u32,
     following_error: i32,
     statusword: u16,
@@ -467,6 +467,14 @@ pub struct Cia402 {
 impl Default for Cia402 {
     fn default() -> Self {
         Self::new()
+    }
+}
+
+fn pol16(neg: bool, v: i16) -> i16 {
+    if neg {
+        v.wrapping_neg()
+    } else {
+        v
     }
 }
 
@@ -506,7 +514,7 @@ impl Cia402 {
             actual_current: 0,
             servo_torque: 0,
             torque_demand: 0.0,
-            torque_cmd: 0.0,
+            torque_cmd: 0,
             digital_inputs: 0,
             following_error: 0,
             statusword: 0,
@@ -729,14 +737,18 @@ impl Cia402 {
     /// servo loops' demand (per mille, user sign).
     pub fn torque_demand(&self) -> i16 {
         if self.mode == mode::CST && self.state == PdsState::OperationEnabled {
-            self.torque_demand as i16
+            libm::roundf(self.torque_demand) as i16
         } else {
-            self.servo_torque
+            self.servo_torque_user()
         }
     }
-    /// 0x6077.
+    /// 0x6077 (user sign: 0x607E bit 6 turns torques round with velocities).
     pub fn torque_actual(&self) -> i16 {
-        self.actual_torque
+        pol16(self.vel_neg(), self.actual_torque)
+    }
+    /// The servo loops' torque demand, user sign.
+    fn servo_torque_user(&self) -> i16 {
+        pol16(self.vel_neg(), self.servo_torque)
     }
     /// 0x606C.
     pub fn velocity_actual(&self) -> i32 {

@@ -39,7 +39,7 @@ impl Cia402 {
             mode::CSP | mode::CSV => {
                 let csv = self.mode == mode::CSV;
                 // 0x60B2: torque feed-forward of the servo loops.
-                self.torque_cmd = f32::from(p.torque_offset);
+                self.torque_cmd = p.torque_offset;
                 if halt {
                     self.halted = true;
                     self.abnormal_stop = true;
@@ -116,7 +116,7 @@ impl Cia402 {
             };
             self.abnormal_stop = true;
             self.motion.stop(dec, dt);
-            self.torque_demand = f32::from(self.servo_torque);
+            self.torque_demand = f32::from(self.servo_torque_user());
             return SetpointKind::Velocity;
         }
         if wanted != target {
@@ -129,7 +129,7 @@ impl Cia402 {
         } else {
             d + (target - d).clamp(-slope, slope)
         };
-        self.torque_cmd = self.torque_demand;
+        self.torque_cmd = libm::roundf(self.torque_demand) as i16;
         self.motion
             .set(self.actual_position, self.actual_velocity as f32);
         SetpointKind::Torque

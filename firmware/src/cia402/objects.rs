@@ -585,7 +585,7 @@ cia402_objects! {
     }
     var 0x6077 "Torque actual value", "Measured torque Kt·i_q (q current measured in the encoder frame, detent torque not included), per mille of rated torque; 0 without an encoder.",
     {
-        { 0 "Torque actual value": i16 RO TX [.unit("0.1 %")] field(actual_torque) }
+        { 0 "Torque actual value": i16 RO TX [.unit("0.1 %")] get(|d| d.torque_actual()) }
     }
     var 0x6078 "Current actual value", "Measured q current (encoder frame), per mille of rated current; 0 without an encoder.",
     {

@@ -26,7 +26,7 @@ impl Cia402 {
         }
         if to == PdsState::OperationEnabled {
             // Transitions 4 and 16: CST starts from the servo loops' torque demand.
-            self.torque_demand = f32::from(self.servo_torque);
+            self.torque_demand = f32::from(self.servo_torque_user());
         }
         if to == PdsState::FaultReactionActive {
             // A fault: the demand may be what went wrong (a jump of the master's
@@ -154,7 +154,7 @@ impl Cia402 {
         self.internal_limit = false;
         self.abnormal_stop = false;
         self.halted = false;
-        self.torque_cmd = 0.0;
+        self.torque_cmd = 0;
         let mut drive_enabled = false;
         let mut kind = SetpointKind::Position;
         match self.state {

@@ -140,7 +140,7 @@ fn cst_follows_the_loop_mode_and_torques_come_from_the_axis() {
     let c = d.run_cycle(0.001);
     assert_eq!(
         (c.kind, c.torque),
-        (crate::cia402::SetpointKind::Torque, 250.0)
+        (crate::cia402::SetpointKind::Torque, 250)
     );
     assert_eq!(sdo_read_u32(&mut d, 0x6077, 0) as u16 as i16, -321);
     assert_eq!(sdo_read_u32(&mut d, 0x6078, 0) as u16 as i16, -321);

@@ -40,11 +40,7 @@ impl Motion {
         self.rest_at(pos);
         self.velocity_lag = 0.0;
         self.following_error = 0.0;
-        let demand = if self.cmd.torque.is_finite() {
-            self.cmd.torque * 1e-3 * self.cfg.peak_current
-        } else {
-            0.0
-        };
+        let demand = f32::from(self.cmd.torque) * self.iq_per_permille;
         let v_max = self.cmd.velocity * self.scale.counts_per_unit();
         self.servo.step_torque(demand, v_max, vel)
     }
