@@ -565,7 +565,7 @@ impl Motion {
         self.acc_ff += 0.25 * (a - self.acc_ff);
         // Torque feed-forward of the position and velocity set-points (0x60B2).
         self.servo
-            .set_torque_offset(f32::from(cmd.torque) * self.iq_per_permille);
+            .set_torque_offset(cmd.torque as f32 * self.iq_per_permille);
         if cmd.kind == SetpointKind::Position && self.cfg.closed_loop && !self.smooth_on {
             let (w, f) = self.scale.to_counts(cmd.position);
             self.interp.target(w, f, self.cycle_steps, cycle_s);

@@ -442,7 +442,7 @@ qemu_runner::tests! {
                 1 => SetpointKind::Torque,
                 _ => SetpointKind::Position,
             };
-            c.torque = [i16::MIN, i16::MAX, -1, 0, 3000][(k as usize + 4) % 5];
+            c.torque = [i32::MIN, i32::MAX, -1, 0, 3000][(k as usize + 4) % 5];
             c.velocity = weird[k as usize % 5];
             c.acceleration = weird[(k as usize + 2) % 5];
             c.torque_limit = (k as u16).wrapping_mul(977);

@@ -177,6 +177,7 @@ impl Servo {
     /// Torque feed-forward of the position and velocity steps, A (CiA 402 0x60B2): added
     /// to the velocity PI's output inside its limit, so the anti-windup sees it. Non-finite
     /// values are taken as 0.
+    #[inline]
     pub fn set_torque_offset(&mut self, iq: f32) {
         self.iq_offset = if iq.is_finite() { iq } else { 0.0 };
     }

@@ -63,12 +63,12 @@ fn cst_slope_limit_and_offset() {
     // 0x6087 = 50 000 per mille/s: 50 per 1 ms step.
     sdo_u32(&mut d, 0x6087, 50_000).unwrap();
     sdo_i16(&mut d, 0x6071, 180).unwrap();
-    let t: std::vec::Vec<i16> = (0..5).map(|_| d.cycle(&fb_at(0, 0), DT).torque).collect();
+    let t: std::vec::Vec<i32> = (0..5).map(|_| d.cycle(&fb_at(0, 0), DT).torque).collect();
     assert_eq!(t, [50, 100, 150, 180, 180]);
     // Down again at the same rate, with the offset added to the target.
     sdo_i16(&mut d, 0x6071, -100).unwrap();
     sdo_i16(&mut d, 0x60B2, 30).unwrap();
-    let t: std::vec::Vec<i16> = (0..6).map(|_| d.cycle(&fb_at(0, 0), DT).torque).collect();
+    let t: std::vec::Vec<i32> = (0..6).map(|_| d.cycle(&fb_at(0, 0), DT).torque).collect();
     assert_eq!(t, [130, 80, 30, -20, -70, -70]);
     // 0 = no slope limit: the demand steps.
     sdo_u32(&mut d, 0x6087, 0).unwrap();

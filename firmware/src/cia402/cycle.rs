@@ -84,6 +84,7 @@ impl Cia402 {
             };
             self.hm.reset();
             self.cyc = Cyclic::default();
+            self.torque_cmd = 0;
             // CST starts from the torque the servo loops demand now (see the module
             // docs: bumpless with a torque slope).
             self.torque_demand = f32::from(self.servo_torque_user());
@@ -124,11 +125,7 @@ impl Cia402 {
             acceleration: sign * acc,
             torque_limit: self.params.max_torque,
             current_limit: self.params.max_current,
-            torque: if self.vel_neg() {
-                self.torque_cmd.wrapping_neg()
-            } else {
-                self.torque_cmd
-            },
+            torque: i32::from(pol16(self.vel_neg(), self.torque_cmd)),
             brake_release: motor_enabled,
         }
     }

@@ -286,8 +286,9 @@ pub struct DriveCommand {
     /// Current limit, per mille of rated current (0x6073).
     pub current_limit: u16,
     /// Torque demand (CST, whole per mille) or torque feed-forward (CSP, CSV: 0x60B2),
-    /// per mille of rated torque; 0 in the other modes and states.
-    pub torque: i16,
+    /// per mille of rated torque; 0 in the other modes and states. (An `i32`: the
+    /// command then has no padding and is copied whole, word by word.)
+    pub torque: i32,
     /// Release the holding brake.
     pub brake_release: bool,
 }
@@ -737,7 +738,7 @@ impl Cia402 {
     /// servo loops' demand (per mille, user sign).
     pub fn torque_demand(&self) -> i16 {
         if self.mode == mode::CST && self.state == PdsState::OperationEnabled {
-            libm::roundf(self.torque_demand) as i16
+            modes::round_i16(self.torque_demand)
         } else {
             self.servo_torque_user()
         }

@@ -84,7 +84,9 @@ impl Cia402 {
     /// start of any stop ramp). Halt, a hardware limit switch or a software position
     /// limit in the direction of the torque or of the motion stop the axis in velocity
     /// control instead (halt: 0x605D ramp; limits: 0x6085), the demand then follows
-    /// the servo loops' torque so that torque control resumes from it.
+    /// the servo loops' torque so that torque control resumes from it. Out of line:
+    /// the CSP path that shares the dispatch stays as it was.
+    #[inline(never)]
     pub(super) fn run_cst(
         &mut self,
         halt: bool,
@@ -117,6 +119,7 @@ impl Cia402 {
             self.abnormal_stop = true;
             self.motion.stop(dec, dt);
             self.torque_demand = f32::from(self.servo_torque_user());
+            self.torque_cmd = 0;
             return SetpointKind::Velocity;
         }
         if wanted != target {
@@ -129,7 +132,7 @@ impl Cia402 {
         } else {
             d + (target - d).clamp(-slope, slope)
         };
-        self.torque_cmd = libm::roundf(self.torque_demand) as i16;
+        self.torque_cmd = round_i16(self.torque_demand);
         self.motion
             .set(self.actual_position, self.actual_velocity as f32);
         SetpointKind::Torque
@@ -569,4 +572,9 @@ impl Cia402 {
         self.target_reached =
             done && inwin && self.window_time * 1000.0 >= p.position_window_time as f32;
     }
+}
+
+/// `x` rounded to the nearest whole number (halves away from zero), saturated.
+pub(super) fn round_i16(x: f32) -> i16 {
+    (x + if x < 0.0 { -0.5 } else { 0.5 }) as i16
 }

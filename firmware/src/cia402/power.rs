@@ -10,6 +10,8 @@ impl Cia402 {
         self.state = to;
         self.pending = Pending::None;
         self.enable_waiting = false;
+        // A new state starts without torque command (the modes set theirs).
+        self.torque_cmd = 0;
         if to == PdsState::OperationEnabled && from != PdsState::QuickStopActive {
             // Transition 4: clear internal set-points, start from where the axis is.
             self.motion.reset(self.actual_position);
@@ -154,7 +156,6 @@ impl Cia402 {
         self.internal_limit = false;
         self.abnormal_stop = false;
         self.halted = false;
-        self.torque_cmd = 0;
         let mut drive_enabled = false;
         let mut kind = SetpointKind::Position;
         match self.state {
@@ -167,6 +168,7 @@ impl Cia402 {
                         self.params.disable_op_option
                     };
                     let dec = self.params.option_decel(code).unwrap_or(0.0);
+                    self.torque_cmd = 0;
                     if self.motion.stop(dec, dt) {
                         let ev = Event::Cmd(c);
                         self.fire(ev, fb.fault);

@@ -40,7 +40,7 @@ impl Motion {
         self.rest_at(pos);
         self.velocity_lag = 0.0;
         self.following_error = 0.0;
-        let demand = f32::from(self.cmd.torque) * self.iq_per_permille;
+        let demand = self.cmd.torque as f32 * self.iq_per_permille;
         let v_max = self.cmd.velocity * self.scale.counts_per_unit();
         self.servo.step_torque(demand, v_max, vel)
     }
