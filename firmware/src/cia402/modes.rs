@@ -97,7 +97,7 @@ impl Cia402 {
         let p = &self.params;
         let tmax = f32::from(p.max_torque);
         let wanted = (i32::from(p.target_torque) + i32::from(p.torque_offset)) as f32;
-        let target = wanted.clamp(-tmax, tmax);
+        let target = foc::num::clamp(wanted, -tmax, tmax);
         let v = self.motion.velocity();
         let (mut up, mut down) = (pos_lim, neg_lim);
         if let Some((lo, hi)) = p.sw_limits() {
@@ -130,7 +130,7 @@ impl Cia402 {
         self.torque_demand = if p.torque_slope == 0 {
             target
         } else {
-            d + (target - d).clamp(-slope, slope)
+            d + foc::num::clamp(target - d, -slope, slope)
         };
         self.torque_cmd = round_i16(self.torque_demand);
         self.motion
