@@ -166,6 +166,8 @@ pub const UNITS: &[&str] = &[
     "Hz",
     "kHz",
     "°C",
+    "mN·m",
+    "0.1 %/s",
 ];
 
 /// The texts of [`UNITS`] one after the other, and where each one ends: what

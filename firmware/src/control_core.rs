@@ -372,6 +372,7 @@ impl ControlCore {
         let milliamps = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
         axis.ia_ma = milliamps(self.cl.i_ab.alpha);
         axis.ib_ma = milliamps(self.cl.i_ab.beta);
+        self.motion.motion().fill_measured_torque(&mut axis);
         axis.bus_mv = (self.cl.vbus * 1000.0).clamp(0.0, 1.0e6) as u32;
         axis.electrical_angle = (self.enc.electrical_angle().0 >> 16) as u16;
         Feedback {
@@ -541,6 +542,7 @@ mod tests {
                 acceleration: 0.0,
                 torque_limit: 1000,
                 current_limit: 1000,
+                torque: 0,
                 brake_release: true,
             },
             cycle_s: 1e-3,

@@ -66,8 +66,13 @@ pub struct AxisState {
     pub ia_set_ma: i16,
     /// Phase B set-point, mA.
     pub ib_set_ma: i16,
-    /// Torque-producing current, per mille of the peak current 0x2000.
+    /// Torque-producing current reference (the servo loops' demand), per mille of the
+    /// peak current 0x2000.
     pub current_permille: i16,
+    /// Measured torque-producing current: the q current in the encoder frame, per
+    /// mille of the peak current 0x2000 (= torque per mille of the rated torque 0x6076);
+    /// 0 without an encoder.
+    pub torque_permille: i16,
     /// Electrical angle, 1/65536 turn.
     pub electrical_angle: u16,
     /// DC bus voltage, mV.
@@ -272,6 +277,13 @@ impl<S: ParameterStore> Drive<S> {
         self.cia402.set_has_index(self.variant.has_encoder());
         self.cia402
             .set_rated_current_ma(self.params.get(Param::PeakCurrent) as u32);
+        self.cia402.set_torque_control(self.torque_control());
+    }
+
+    /// The closed loop is configured (an encoder and 0x2024 = 2): the motor side
+    /// controls torque, CST is available.
+    pub(crate) fn torque_control(&self) -> bool {
+        self.variant.has_encoder() && self.params.get(Param::LoopMode) == 2
     }
 
     /// Power-up: loads the stored parameters (drive objects and, through `runtime` —
@@ -796,8 +808,9 @@ impl<S: ParameterStore> Drive<S> {
         let fb = DriveFeedback {
             position: self.axis.position,
             velocity: self.axis.velocity,
-            torque: self.axis.current_permille,
-            current: self.axis.current_permille,
+            torque: self.axis.torque_permille,
+            torque_demand: self.axis.current_permille,
+            current: self.axis.torque_permille,
             digital_inputs: self.inputs.digital_inputs_60fd(),
             index: self.axis.index,
             probe1: self.axis.probe1,

@@ -649,7 +649,7 @@ fn new_drive(
     serial: u32,
     staged: StagedFlash,
 ) -> &'static mut BoardDrive {
-    Drive::init_in(
+    let d = Drive::init_in(
         slot,
         VARIANT,
         serial,
@@ -658,7 +658,10 @@ fn new_drive(
             history: Some(firmware::storage::region::HISTORY),
             flash: staged,
         },
-    )
+    );
+    // 0x6076 (rated torque) from the board's motor.
+    d.cia402.set_torque_constant(board::MOTOR.kt);
+    d
 }
 
 /// The slave runtime over the ESC with the product's default PDO mapping, written

@@ -366,72 +366,6 @@ impl Scale {
     }
 }
 
-/// Linear interpolation of the cycle's set-points in counts (integer + fraction).
-#[derive(Debug, Clone, Copy)]
-struct Interp {
-    from_w: i32,
-    from_f: f32,
-    to_w: i32,
-    to_f: f32,
-    delta: f32,
-    k: u32,
-    n: u32,
-    inv_n: f32,
-    vel: f32,
-}
-
-impl Interp {
-    fn at(w: i32, f: f32) -> Self {
-        Interp {
-            from_w: w,
-            from_f: f,
-            to_w: w,
-            to_f: f,
-            delta: 0.0,
-            k: 1,
-            n: 1,
-            inv_n: 1.0,
-            vel: 0.0,
-        }
-    }
-    fn target(&mut self, w: i32, f: f32, n: u32, cycle_s: f32) {
-        self.from_w = self.to_w;
-        self.from_f = self.to_f;
-        self.to_w = w;
-        self.to_f = f;
-        self.delta = w.wrapping_sub(self.from_w) as f32 + (f - self.from_f);
-        self.n = n.max(1);
-        self.inv_n = 1.0 / self.n as f32;
-        self.k = 0;
-        self.vel = if cycle_s > 0.0 {
-            self.delta / cycle_s
-        } else {
-            0.0
-        };
-    }
-    /// Demand of the next step and whether the demand is still moving.
-    fn step(&mut self) -> (i32, f32, bool) {
-        if self.k < self.n {
-            self.k += 1;
-        }
-        let moving = self.k < self.n || self.delta != 0.0;
-        if self.k >= self.n {
-            // At the target: exact, no rounding of delta·k/n.
-            self.delta = 0.0;
-            self.from_w = self.to_w;
-            self.from_f = self.to_f;
-            return (self.to_w, self.to_f, moving);
-        }
-        let d = self.from_f + self.delta * (self.k as f32 * self.inv_n);
-        // floor without the library call (`as` saturates, NaN → 0).
-        let mut whole = d as i32;
-        if (whole as f32) > d {
-            whole -= 1;
-        }
-        (self.from_w.wrapping_add(whole), d - whole as f32, moving)
-    }
-}
-
 /// The motion layer's state (see the module docs).
 // In declaration order, the two smoothing windows (inside `open` and `smooth`, 1 KiB
 // each) last: the per-step fields stay within the short load/store offsets of Thumb-2
@@ -454,6 +388,8 @@ pub struct Motion {
     soft_step: f32,
     iq_limit: f32,
     iq_limit_set: f32,
+    /// q current of one per mille of the rated torque (0x2000 / 1000), A.
+    iq_per_permille: f32,
     id_handover: f32,
     id_ramp: f32,
     // Last values for the report.
@@ -513,6 +449,7 @@ impl Motion {
             soft_step: 1.0,
             iq_limit: cfg.gains.iq_max,
             iq_limit_set: cfg.gains.iq_max,
+            iq_per_permille: finite_pos(cfg.peak_current) * 1e-3,
             id_handover: 0.0,
             id_ramp: 0.0,
             last_fb: Feedback::default(),
@@ -571,6 +508,7 @@ impl Motion {
         self.servo
             .set_following_error_limit(cfg.following_error_limit);
         self.iq_limit_set = cfg.gains.iq_max;
+        self.iq_per_permille = finite_pos(cfg.peak_current) * 1e-3;
         if !self.enabled {
             self.scale = Scale::new(cfg.pulses_per_rev, cfg.counts_per_rev);
             self.dir = if cfg.reverse { -1 } else { 1 };
@@ -612,6 +550,11 @@ impl Motion {
         };
         let n = (cycle_s / self.cfg.ts + 0.5) as u32;
         self.cycle_steps = n.max(1);
+        if self.cmd.kind == SetpointKind::Torque && cmd.kind != SetpointKind::Torque {
+            // Leaving torque set-points: the velocity loop starts from the current
+            // applied last (`foc::servo`, "Torque control with a speed limit").
+            self.servo.bumpless_start(self.servo.iq_ref);
+        }
         self.cmd = *cmd;
         if !self.enabled {
             return;
@@ -623,6 +566,9 @@ impl Motion {
             0.0
         };
         self.acc_ff += 0.25 * (a - self.acc_ff);
+        // Torque feed-forward of the position and velocity set-points (0x60B2).
+        self.servo
+            .set_torque_offset(cmd.torque as f32 * self.iq_per_permille);
         if cmd.kind == SetpointKind::Position && self.cfg.closed_loop && !self.smooth_on {
             let (w, f) = self.scale.to_counts(cmd.position);
             self.interp.target(w, f, self.cycle_steps, cycle_s);
@@ -829,6 +775,7 @@ impl Motion {
                 self.following_error = self.servo.following_error;
                 iq
             }
+            SetpointKind::Torque => self.torque_step(pos, vel),
         };
         self.current_limited = lim <= 0.0 || libm::fabsf(iq) >= lim * 0.999;
         let mut id = 0.0;
@@ -968,7 +915,7 @@ impl Motion {
         a.velocity = if v.is_finite() { v as i32 } else { 0 };
         let fe = libm::roundf(self.following_error);
         a.servo_following_error = if fe.is_finite() { fe as i32 } else { 0 };
-        a.current_limited = self.current_limited;
+        a.current_limited = self.current_limited || self.speed_limited();
         let peak = self.cfg.peak_current;
         let i = match self.last_ref.frame {
             Frame::Encoder => self.dir as f32 * self.last_ref.iq,
@@ -981,6 +928,11 @@ impl Motion {
         };
     }
 }
+
+mod interp;
+mod torque;
+
+use interp::Interp;
 
 #[cfg(test)]
 mod tests;

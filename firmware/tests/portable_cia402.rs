@@ -119,6 +119,11 @@ impl Axis {
     }
 }
 
+/// RxPDO slot of 0x60B8 (touch probe function).
+fn probe_fn_slot() -> u8 {
+    firmware::cia402::objects::rx_slot(0x60B8, 0).unwrap_or(u8::MAX)
+}
+
 fn step(d: &mut Cia402, ax: &mut Axis) -> DriveCommand {
     let fb = ax.feedback();
     let c = d.cycle(&fb, DT);
@@ -608,6 +613,8 @@ qemu_runner::tests! {
         d.set_mode(2); // velocity mode (vl) is not supported: ignored
         step(&mut d, &mut ax);
         assert_eq!(d.mode_display(), mode::PV);
+        assert_eq!(d.value(0x6502, 0), Some(0x3A5));
+        d.set_torque_control(false);
         assert_eq!(d.value(0x6502, 0), Some(0x1A5));
     }
 
@@ -955,8 +962,8 @@ qemu_runner::tests! {
         enable(&mut d, &mut ax, mode::CSP);
         d.params.target_position = 0;
         // Probe 1: input, single, both edges. Probe 2: index, continuous, rising.
-        d.set_rx(19, &0x1711u16.to_le_bytes());
-        d.set_rx(19, &0x1731u16.to_le_bytes());
+        d.set_rx(probe_fn_slot(), &0x1711u16.to_le_bytes());
+        d.set_rx(probe_fn_slot(), &0x1731u16.to_le_bytes());
         step(&mut d, &mut ax);
         assert_eq!(d.touch_probe().status(), 0x0101);
         ax.probe1 = EdgeLatch { rising: Some(111), falling: None };
@@ -978,10 +985,10 @@ qemu_runner::tests! {
         assert_eq!(d.touch_probe().value(2), 2100);
         assert_eq!(d.touch_probe().status() >> 8, 0x43);
         // Re-arm probe 1 by switching it off and on.
-        d.set_rx(19, &0x1700u16.to_le_bytes());
+        d.set_rx(probe_fn_slot(), &0x1700u16.to_le_bytes());
         step(&mut d, &mut ax);
         assert_eq!(d.touch_probe().status() & 0xFF, 0);
-        d.set_rx(19, &0x1731u16.to_le_bytes());
+        d.set_rx(probe_fn_slot(), &0x1731u16.to_le_bytes());
         ax.probe1 = EdgeLatch { rising: Some(444), falling: None };
         step(&mut d, &mut ax);
         assert_eq!(d.touch_probe().value(0), 444);

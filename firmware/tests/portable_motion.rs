@@ -280,6 +280,70 @@ qemu_runner::tests! {
         assert!(state(&m).servo_following_error.abs() < 10);
     }
 
+    fn torque_setpoints_give_the_q_current_with_the_speed_limit() {
+        let mut m = Motion::new(default_cfg());
+        let mut r = Rotor::new(100.0);
+        cycle(&mut m, &mut r, &cmd(true, 0));
+        // 250 per mille of the rated (= peak, 3.2 A) current; speed limit 2 rev/s.
+        let mut c = cmd(true, 0);
+        c.kind = SetpointKind::Torque;
+        c.torque = 250;
+        c.velocity = 100_000.0;
+        m.set_command(&c, 0.001);
+        let out = m.step(&r.feedback());
+        assert!((out.iq - 0.8).abs() < 1e-5, "{}", out.iq);
+        assert!(!state(&m).current_limited);
+        // The rotor runs up to the limit (8000 counts/s) and is held there.
+        for _ in 0..300 {
+            cycle(&mut m, &mut r, &c);
+        }
+        assert!((r.v - 8000.0).abs() < 80.0, "{}", r.v);
+        assert!(state(&m).current_limited, "speed limit active");
+        // On to velocity set-points at the actual speed (as a CSV master's): the
+        // current reference does not jump (the velocity integrator holds what was
+        // applied).
+        let before = m.last_reference().iq;
+        let mut v = cmd(true, 0);
+        v.kind = SetpointKind::Velocity;
+        v.velocity = 100_000.0;
+        m.set_command(&v, 0.001);
+        let out = m.step(&r.feedback());
+        assert!((out.iq - before).abs() < 0.05, "{before} → {}", out.iq);
+        // The demand is limited to 0x6072 like every current.
+        c.torque = 3000;
+        c.torque_limit = 500;
+        c.velocity = 1.0e9;
+        m.set_command(&c, 0.001);
+        let out = m.step(&r.feedback());
+        assert!((out.iq - 1.6).abs() < 1e-4, "{}", out.iq);
+    }
+
+    fn torque_offset_feeds_forward_and_measured_torque_is_reported() {
+        let mut m = Motion::new(default_cfg());
+        let mut r = Rotor::new(0.0);
+        cycle(&mut m, &mut r, &cmd(true, 0));
+        let mut a = state(&m);
+        // Holding at rest: the 0x60B2 offset appears in the reference at once.
+        let mut c = cmd(true, 0);
+        c.torque = 100;
+        m.set_command(&c, 0.001);
+        let before = a.current_permille;
+        let out = m.step(&r.feedback());
+        assert!((out.iq - 0.32 - f32::from(before) * 3.2e-3).abs() < 0.02, "{}", out.iq);
+        // Measured torque: the q current of (i_A, i_B) on the electrical angle.
+        let rad = |x: Angle| x.0 as f32 / 4_294_967_296.0 * 2.0 * core::f32::consts::PI;
+        let th = rad(r.feedback().electrical_angle);
+        a.ia_ma = (-1600.0 * libm::sinf(th)) as i16;
+        a.ib_ma = (1600.0 * libm::cosf(th)) as i16;
+        m.fill_measured_torque(&mut a);
+        assert!((a.torque_permille - 500).abs() <= 2, "{}", a.torque_permille);
+        // No encoder: nothing to measure the rotor frame with.
+        let o = Motion::new(MotionConfig::from_params(
+            &Params::new(Variant::OpenLoop), Variant::OpenLoop, &ECN57_20, SERVO_TS));
+        o.fill_measured_torque(&mut a);
+        assert_eq!(a.torque_permille, 0);
+    }
+
     fn open_loop_angle_follows_the_command_with_holding_current() {
         let mut cfg = default_cfg();
         cfg.closed_loop = false;
@@ -373,7 +437,12 @@ qemu_runner::tests! {
         let weird = [f32::NAN, f32::INFINITY, -1e30, 0.0, 1e-30];
         for k in 0..200i32 {
             let mut c = cmd(k % 7 != 3, k.wrapping_mul(0x1357_9BDF));
-            c.kind = if k % 3 == 0 { SetpointKind::Velocity } else { SetpointKind::Position };
+            c.kind = match k % 4 {
+                0 => SetpointKind::Velocity,
+                1 => SetpointKind::Torque,
+                _ => SetpointKind::Position,
+            };
+            c.torque = [i32::MIN, i32::MAX, -1, 0, 3000][(k as usize + 4) % 5];
             c.velocity = weird[k as usize % 5];
             c.acceleration = weird[(k as usize + 2) % 5];
             c.torque_limit = (k as u16).wrapping_mul(977);

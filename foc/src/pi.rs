@@ -95,6 +95,35 @@ impl Pi {
         }
     }
 
+    /// [`Pi::update`] (no feed-forward) with the output range narrowed to `[lo, hi]`
+    /// for this step (`lo ≤ hi`, both inside the controller's own limits): the
+    /// integrator is first pulled inside the range, then the same conditional
+    /// integration runs against it. A range that moves from step to step (a speed
+    /// limit whose bound is the torque demand, `crate::servo::Servo::step_torque`)
+    /// never leaves the integrator outside the output it may produce.
+    #[inline]
+    pub fn update_within(&mut self, e: f32, lo: f32, hi: f32) -> f32 {
+        let lo = num::clamp(lo, self.lo, self.hi);
+        let hi = num::clamp(hi, lo, self.hi);
+        self.x = num::clamp(self.x, lo, hi);
+        let u = self.kp * e + self.x;
+        let dx = self.ki_ts * e;
+        if u > hi {
+            if dx < 0.0 {
+                self.x += dx;
+            }
+            hi
+        } else if u < lo {
+            if dx > 0.0 {
+                self.x += dx;
+            }
+            lo
+        } else {
+            self.x = num::clamp(self.x + dx, lo, hi);
+            u
+        }
+    }
+
     /// Output without limiting and without touching the integrator: `Kp·e + x`.
     #[inline]
     pub fn output_unlimited(&self, e: f32) -> f32 {

@@ -22,6 +22,37 @@
 //! lag, the current loop and the servo period; in the plant simulation the loop stays
 //! well damped up to ωv ≈ 2π·300 Hz with a PLL of ω = 8000 rad/s (250 Hz is the
 //! scenarios' choice).
+//!
+//! # Torque control with a speed limit ([`Servo::step_torque`])
+//! In torque mode the q-current reference is the demand `i_t` (A) itself; the only
+//! loop left is a speed limit `v_max` (counts/s, ≥ 0) in the direction of the demand,
+//! `s = sgn(i_t)` (`+1` for 0). The velocity PI (same gains) runs on the speed margin
+//! with its output range narrowed to the demand ([`crate::pi::Pi::update_within`]):
+//!
+//! ```text
+//! e    = s·v_max − v̂                              (margin to the limit, sign of s)
+//! i_q* = clamp(Kv·e + x, −i_max, i_t)   for s = +1
+//! i_q* = clamp(Kv·e + x, i_t, +i_max)   for s = −1
+//! x   ← x + Ki·Ts·e, kept inside the same range
+//! ```
+//!
+//! This is a speed controller on `s·v_max` whose output may never pass the demand
+//! (the clamp is its anti-windup: the integrator stops while the output sits at
+//! `i_t` and the margin pushes further). Far below the limit `Kv·e` holds the output
+//! at `i_t` exactly (no effect). Approaching the limit the proportional term takes
+//! torque off once `Kv·e + x < i_t`, and the integrator brings the speed to `v_max`
+//! with no steady-state error: the velocity loop's dynamics (its bandwidth and
+//! damping as above). A shaft held below the limit by its load ends with the output
+//! at `i_t` (the integrator rises until `Kv·e + x ≥ i_t`). How early the torque comes
+//! off depends on `x` (the current that held the limit last time, or what the
+//! previous mode left): taking the whole demand off needs a margin of
+//! `(x − i_t)/Kv`, so a shaft that reaches the limit at full acceleration may
+//! overshoot it by up to `i_t/Kv` (1 rev/s for 1.6 A on the ECN57-20 at 240 Hz)
+//! before the integrator brings it back. A shaft driven past the limit by its load is
+//! braked (down to `−i_max` against it). The integrator is not the applied current
+//! while the output sits at the demand: a switch to [`Servo::step`] /
+//! [`Servo::step_velocity`] afterwards is bumpless after [`Servo::bumpless_start`]
+//! with [`Servo::iq_ref`].
 
 use crate::angle::Angle;
 use crate::pi::Pi;
@@ -119,6 +150,11 @@ pub struct Servo {
     pub fault: bool,
     /// Last current reference, A.
     pub iq_ref: f32,
+    /// The last [`Servo::step_torque`] took torque off the demand (speed limit).
+    pub speed_limited: bool,
+    /// Torque feed-forward added inside the velocity PI of [`Servo::step`] and
+    /// [`Servo::step_velocity`], A ([`Servo::set_torque_offset`]).
+    iq_offset: f32,
 }
 
 impl Servo {
@@ -133,7 +169,17 @@ impl Servo {
             following_error: 0.0,
             fault: false,
             iq_ref: 0.0,
+            speed_limited: false,
+            iq_offset: 0.0,
         }
+    }
+
+    /// Torque feed-forward of the position and velocity steps, A (CiA 402 0x60B2): added
+    /// to the velocity PI's output inside its limit, so the anti-windup sees it. Non-finite
+    /// values are taken as 0.
+    #[inline]
+    pub fn set_torque_offset(&mut self, iq: f32) {
+        self.iq_offset = if iq.is_finite() { iq } else { 0.0 };
     }
 
     /// Gains in use.
@@ -179,7 +225,31 @@ impl Servo {
         self.following_error = 0.0;
         let iq = self
             .vel_pi
-            .update(vel_dem - vel, self.gains.acc_ff * acc_dem);
+            .update(vel_dem - vel, self.gains.acc_ff * acc_dem + self.iq_offset);
+        self.iq_ref = iq;
+        iq
+    }
+
+    /// Torque step (cyclic synchronous torque): q-current demand `iq_dem` (A, limited
+    /// to `±iq_max`) with the speed limit `v_max` (counts/s, magnitude) against the
+    /// velocity estimate `vel`; see the module docs. Returns the q-current reference
+    /// (A). The position integrator is cleared and no following error is kept; non-finite
+    /// inputs count as 0 (demand, velocity) or as no margin (limit).
+    #[inline]
+    pub fn step_torque(&mut self, iq_dem: f32, v_max: f32, vel: f32) -> f32 {
+        let finite = |x: f32| if x.is_finite() { x } else { 0.0 };
+        let lim = self.gains.iq_max.abs();
+        let it = crate::num::clamp(finite(iq_dem), -lim, lim);
+        let v_max = finite(v_max).abs();
+        let vel = finite(vel);
+        self.pos_int = 0.0;
+        self.following_error = 0.0;
+        let iq = if it >= 0.0 {
+            self.vel_pi.update_within(v_max - vel, -lim, it)
+        } else {
+            self.vel_pi.update_within(-v_max - vel, it, lim)
+        };
+        self.speed_limited = iq != it;
         self.iq_ref = iq;
         iq
     }
@@ -204,7 +274,9 @@ impl Servo {
         let lim = 1e3 + self.fe_limit as f32 * 4.0;
         self.pos_int = crate::num::clamp(self.pos_int, -lim, lim);
         let v_cmd = g.vel_ff * d.vel + g.kp_pos * e + self.pos_int;
-        let iq = self.vel_pi.update(v_cmd - vel, g.acc_ff * d.acc);
+        let iq = self
+            .vel_pi
+            .update(v_cmd - vel, g.acc_ff * d.acc + self.iq_offset);
         self.iq_ref = iq;
         iq
     }

@@ -672,6 +672,89 @@ qemu_runner::tests! {
         assert!(!s.fault);
     }
 
+    fn servo_torque_mode_passes_the_demand_below_the_speed_limit() {
+        let (j, kt, cpr) = (4.8e-5f32, 0.283f32, 4000u32);
+        let b = kt * cpr as f32 / (2.0 * core::f32::consts::PI * j);
+        let mut s = Servo::new(ServoGains::from_bandwidth(j, kt, cpr, 200.0, 7.0), 1e-4, 100);
+        // Below the limit the output is the demand, exactly, whatever the speed does.
+        let mut v = 0.0f32;
+        for _ in 0..200 {
+            let iq = s.step_torque(1.0, 40_000.0, v);
+            assert_eq!(iq, 1.0);
+            assert!(!s.speed_limited);
+            v += b * iq * 1e-4 * 0.01;
+        }
+        // Beyond the demand's range the output is limited to ±iq_max.
+        assert_eq!(s.step_torque(50.0, 40_000.0, 0.0), 7.0);
+        assert_eq!(s.step_torque(-50.0, 40_000.0, 0.0), -7.0);
+        // Non-finite inputs: no current, no NaN.
+        assert_eq!(s.step_torque(f32::NAN, 40_000.0, 0.0), 0.0);
+        assert!(s.step_torque(1.0, f32::NAN, f32::INFINITY).is_finite());
+    }
+
+    fn servo_torque_mode_holds_the_speed_limit_both_ways() {
+        // Rigid body with friction: the demand alone would run away to 2.5e5 counts/s.
+        let (j, kt, cpr) = (4.8e-5f32, 0.283f32, 4000u32);
+        let b = kt * cpr as f32 / (2.0 * core::f32::consts::PI * j);
+        for sign in [1.0f32, -1.0] {
+            let mut s = Servo::new(ServoGains::from_bandwidth(j, kt, cpr, 200.0, 7.0), 1e-4, 100);
+            let mut v = 0.0f32;
+            let mut peak = 0.0f32;
+            for _ in 0..4000 {
+                let iq = s.step_torque(sign * 2.0, 20_000.0, v);
+                v += b * (iq - 2.0e-5 * v) * 1e-4;
+                peak = peak.max(sign * v);
+            }
+            assert!(near(v, sign * 20_000.0, 20.0), "{sign}: {v}");
+            assert!(s.speed_limited, "{sign}");
+            // The limit acts from the first step past it: an approach at 7.5e6
+            // counts/s² overshoots by less than a quarter of the limit.
+            assert!(peak < 25_000.0, "{sign}: peak {peak}");
+            // Holding the limit takes only the friction's current.
+            assert!(near(s.iq_ref, sign * 0.4, 0.05), "{sign}: {}", s.iq_ref);
+        }
+        // A shaft driven past the limit by its load is braked (zero demand).
+        let mut s = Servo::new(ServoGains::from_bandwidth(j, kt, cpr, 200.0, 7.0), 1e-4, 100);
+        assert!(s.step_torque(0.0, 20_000.0, 30_000.0) < 0.0);
+    }
+
+    fn servo_torque_to_velocity_is_bumpless_and_offset_adds() {
+        let g = ServoGains::from_bandwidth(4.8e-5, 0.283, 4000, 200.0, 7.0);
+        let mut s = Servo::new(g, 1e-4, 100);
+        for _ in 0..10 {
+            s.step_torque(1.5, 40_000.0, 10_000.0);
+        }
+        // The velocity step that follows at the same speed starts from the same current
+        // (after the hand-over preset).
+        s.bumpless_start(s.iq_ref);
+        let iq = s.step_velocity(10_000.0, 0.0, 10_000.0);
+        assert!(near(iq, 1.5, 1e-5), "{iq}");
+        let iq = s.step(&Demand { pos: 7, ..Demand::default() }, 7, 0.0);
+        assert!(near(iq, 1.5, 1e-5), "{iq}");
+        // The torque offset is added inside the limit.
+        s.set_torque_offset(0.5);
+        let iq = s.step(&Demand { pos: 7, ..Demand::default() }, 7, 0.0);
+        assert!(near(iq, 2.0, 1e-5), "{iq}");
+        s.set_torque_offset(100.0);
+        assert_eq!(s.step_velocity(0.0, 0.0, 0.0), 7.0);
+        s.set_torque_offset(f32::NAN);
+        let iq = s.step_velocity(0.0, 0.0, 0.0);
+        assert!(iq.is_finite() && iq <= 7.0, "{iq}");
+    }
+
+    fn pi_update_within_keeps_the_integrator_in_the_narrowed_range() {
+        let mut pi = Pi::new(1.0, 1000.0, 1e-3, 10.0);
+        pi.preset(8.0);
+        // Narrowed to [−10, 2]: the integrator is pulled to 2 at once.
+        assert_eq!(pi.update_within(5.0, -10.0, 2.0), 2.0);
+        assert_eq!(pi.x, 2.0);
+        // Negative error: proportional at once, the integrator moves from 2.
+        let u = pi.update_within(-1.0, -10.0, 2.0);
+        assert!(near(u, 1.0, 1e-6) && near(pi.x, 1.0, 1e-6), "{u} {}", pi.x);
+        // Bounds outside the controller's own limits are cut to them.
+        assert_eq!(pi.update_within(100.0, -50.0, 50.0), 10.0);
+    }
+
     fn servo_gain_parameters_scale_the_base() {
         let g = ServoGains::from_bandwidth(4.8e-5, 0.283, 4000, 250.0, 7.0);
         let same = g.scaled(100, 0, 100, 100);

@@ -135,6 +135,18 @@ impl Axis for KinematicAxis {
                         + 2.0 * self.omega * (ff - self.vel)
                 }
                 SetpointKind::Velocity => 4.0 * self.omega * (ff - self.vel),
+                SetpointKind::Torque => {
+                    // The torque's acceleration (rated torque = the acceleration
+                    // limit), the speed limit `ff` held by a velocity loop past it.
+                    self.demand = self.pos;
+                    let a = f64::from(cmd.torque) * 1e-3 * self.acc_max;
+                    let lim = a.signum() * ff.abs();
+                    if self.vel * a.signum() >= ff.abs() {
+                        (4.0 * self.omega * (lim - self.vel)).clamp(-a.abs(), a.abs())
+                    } else {
+                        a
+                    }
+                }
             };
             self.accel = acc.clamp(-self.acc_max, self.acc_max);
             self.vel += self.accel * h;
@@ -163,6 +175,7 @@ impl Axis for KinematicAxis {
             ia_set_ma: ia,
             ib_set_ma: 0,
             current_permille: current as i16,
+            torque_permille: current as i16,
             electrical_angle: ((self.pos / UNITS_PER_REV * 50.0).fract() * 65536.0) as u16,
             bus_mv: self.bus_mv,
             index: self.index.take(),
@@ -622,6 +635,7 @@ impl Axis for PlantAxis {
             ..AxisState::default()
         };
         self.motion.motion().fill_axis_state(&mut a);
+        self.motion.motion().fill_measured_torque(&mut a);
         a.commutation_pending = self.motion.enable_pending();
         a
     }

@@ -611,6 +611,7 @@ fn random_feedback_and_raw_parameters_never_panic() {
             position: rng.next() as i32,
             velocity: rng.next() as i32,
             torque: rng.next() as i16,
+            torque_demand: rng.next() as i16,
             current: rng.next() as i16,
             digital_inputs: rng.next() as u32,
             index: some(&mut rng),

@@ -12,14 +12,16 @@
 //! own clock; the segment's frame counter stays 0 throughout (no frame is ever sent).
 //!
 //! **Matrix** (one `#[test]` per mode, so that they run in parallel): every mode (PP,
-//! PV, HM, CSP, CSV) × every 0x6007 option (0-3) × every loss (the master stops → SM2
+//! PV, HM, CSP, CSV, CST) × every 0x6007 option (0-3) × every loss (the master stops → SM2
 //! watchdog 0x001B; the master requests Safe-Op; the master requests Init; SYNC0 stops
 //! in DC mode → 0x002C). The axis moves when the loss happens. Checked per case: the
 //! reaction starts within one tick of the detection; the stop takes |v|/0x6085 (the
 //! default 0x605A / 0x605E = 2 use 0x6085, configured to 1 500 000 inc/s²) within one
 //! tick, or the power goes off within one tick (0x6007 = 2), or the drive keeps its
 //! last set-points (0x6007 = 0); power stage, power permission and brake; position
-//! drift over 2 s (0x6064 and the true shaft position, ≤ 1 encoder count); 0x6041 and
+//! drift over 2 s (0x6064 and the true shaft position, ≤ 1 encoder count); in CST the
+//! axis runs at its speed limit (0x6080 = the matrix speed, 0x6071 = 20 % of the rated
+//! torque on the free shaft), the stops are the same ramps; 0x6041 and
 //! 0x603F read over SDO as the master would (after Init: back to Pre-Op first); the
 //! emergencies (read from SM1; for Init, where the mailbox is off, taken from the drive
 //! directly, see [`Master::lose`]).
@@ -458,6 +460,7 @@ enum Mode {
     Hm,
     Csp,
     Csv,
+    Cst,
 }
 
 impl Mode {
@@ -468,6 +471,7 @@ impl Mode {
             Mode::Hm => 6,
             Mode::Csp => 8,
             Mode::Csv => 9,
+            Mode::Cst => 10,
         }
     }
     fn speed(self) -> i32 {
@@ -533,6 +537,11 @@ impl Master {
                 m.sdo_set(0x609A, 0, &2_000_000u32.to_le_bytes());
             }
             Mode::Csp | Mode::Csv => {}
+            Mode::Cst => {
+                // The free shaft runs up to the speed limit and is held there.
+                m.sdo_set(0x6080, 0, &(SPEED as u32).to_le_bytes());
+                m.sdo_set(0x6071, 0, &200i16.to_le_bytes());
+            }
         }
         m.go_op(dc);
         m.enable();
@@ -562,6 +571,7 @@ impl Master {
                     acc: 2_000_000.0,
                 }
             }
+            Mode::Cst => {}
         }
         m.wait(140 * MS);
         let before = m.snap();
@@ -774,7 +784,7 @@ fn run_case(mode: Mode, option: i16, loss: Loss) -> Outcome {
     }
 
     // Settle, then 2 s of drift (closed loop holding, or power off at rest).
-    let keeps_moving = option == 0 && matches!(mode, Mode::Pp | Mode::Pv | Mode::Csv);
+    let keeps_moving = option == 0 && matches!(mode, Mode::Pp | Mode::Pv | Mode::Csv | Mode::Cst);
     if option == 0 && mode == Mode::Hm {
         // No action: the homing search goes on on the drive's clock and finishes
         // (attained: bits 12 and 10) at the home switch, 20 000 inc ahead.
@@ -952,6 +962,11 @@ fn connection_loss_csp() {
 #[test]
 fn connection_loss_csv() {
     matrix(Mode::Csv);
+}
+
+#[test]
+fn connection_loss_cst() {
+    matrix(Mode::Cst);
 }
 
 // ---- nothing waits on the master ----------------------------------------------------

@@ -408,10 +408,16 @@ fn variant_descriptions_differ_from_the_table_only_in_defaults() {
             .partition(|(i, _)| drive_docs::source_of(*i) == Some(drive_docs::Source::Pdo));
         assert!(pdo.contains(&(0x1600, 1)) && pdo.contains(&(0x1C13, 1)));
         // The table describes the hybrid servo; the open-loop drive reports its own
-        // device type, name, product code and loop mode.
+        // device type, name, product code, loop mode and modes (no CST).
         let want: &[(u16, u8)] = match v {
             Variant::HybridServo => &[],
-            Variant::OpenLoop => &[(0x1000, 0), (0x1008, 0), (0x1018, 2), (0x2024, 0)],
+            Variant::OpenLoop => &[
+                (0x1000, 0),
+                (0x1008, 0),
+                (0x1018, 2),
+                (0x2024, 0),
+                (0x6502, 0),
+            ],
         };
         assert_eq!(
             other, want,

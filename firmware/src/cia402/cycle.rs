@@ -56,7 +56,9 @@ impl Cia402 {
         self.raw_position = fb.position;
         self.actual_position = self.raw_to_user(fb.position);
         self.actual_velocity = pol(self.vel_neg(), fb.velocity);
+        // Raw (motor-side) torques; the objects apply the polarity when read.
         self.actual_torque = fb.torque;
+        self.servo_torque = fb.torque_demand;
         self.actual_current = fb.current;
         self.digital_inputs = fb.digital_inputs;
         self.enable_pending = fb.enable_pending;
@@ -82,6 +84,10 @@ impl Cia402 {
             };
             self.hm.reset();
             self.cyc = Cyclic::default();
+            self.torque_cmd = 0;
+            // CST starts from the torque the servo loops demand now (see the module
+            // docs: bumpless with a torque slope).
+            self.torque_demand = f32::from(self.servo_torque_user());
         }
     }
 
@@ -104,15 +110,22 @@ impl Cia402 {
         self.prev_demand_vel = if drive_enabled { v } else { 0.0 };
         let sign = if self.vel_neg() { -1.0 } else { 1.0 };
         let motor_enabled = drive_enabled || self.enable_waiting;
+        // Torque control: the velocity is the speed limit (a magnitude).
+        let velocity = if kind == SetpointKind::Torque {
+            self.params.max_motor_speed as f32
+        } else {
+            sign * v
+        };
         DriveCommand {
             power_stage: power,
             drive_enabled: motor_enabled,
             kind,
             position: self.user_to_raw(self.motion.position()),
-            velocity: sign * v,
+            velocity,
             acceleration: sign * acc,
             torque_limit: self.params.max_torque,
             current_limit: self.params.max_current,
+            torque: i32::from(pol16(self.vel_neg(), self.torque_cmd)),
             brake_release: motor_enabled,
         }
     }

@@ -1,5 +1,5 @@
 //! CiA 402 (IEC 61800-7-201/-301) drive profile: power drive system, operating modes
-//! (PP, PV, HM, CSP, CSV), homing, touch probe, limits and supervision, and the
+//! (PP, PV, HM, CSP, CSV, CST), homing, touch probe, limits and supervision, and the
 //! 0x6000-0x6FFF part of the object dictionary.
 //!
 //! The application calls [`Cia402::cycle`] once per control cycle with the measured
@@ -67,12 +67,33 @@
 //!   fault of the motor side (following error 0x8611), which ends it in Fault; any
 //!   other command (shutdown, disable voltage, quick stop) ends it at once. Open loop
 //!   and drives without encoder never report it (no wait).
+//! * CST (0x6060 = 10) needs the closed loop (an encoder and 0x2024 = 2,
+//!   [`Cia402::set_torque_control`]): 0x6502 shows bit 9 only then, and 0x6060 = 10
+//!   is refused otherwise like any unsupported mode (SDO abort 0x06090030; an RxPDO
+//!   value is not taken over). Losing the closed loop while 0x6060 = 10 sets 0x6060
+//!   to 0 (no mode): the axis stops on the 0x6085 ramp in position control and holds.
+//! * CST demand: 0x6071 + 0x60B2, limited to ±0x6072, approached at 0x6087 per mille
+//!   per second (0 = no slope limit: the demand steps). On entering CST while enabled,
+//!   and at transitions 4 and 16, the demand starts from the torque the servo loops
+//!   were demanding (0x6074), so with a slope the switch is bumpless; without one
+//!   the master writes 0x6071 = 0x6077 for that (as it copies 0x6064 into 0x607A for
+//!   CSP). Speed: the motion layer limits |v| to 0x6080 in the direction of the
+//!   torque (`foc::servo::Servo::step_torque`: torque is taken off past the limit,
+//!   statusword bit 11). Halt, hardware limit switches and software position limits
+//!   in the direction of the torque or of the motion, the stop ramps of quick stop,
+//!   fault reaction and transitions 5 / 8 leave torque control: the axis stops from
+//!   its actual position and speed in velocity (halt, limits) or position control
+//!   (the PDS stops) on the ramps of the option codes, as in the other modes.
+//!   0x60B2 is also the torque feed-forward of CSP and CSV.
 
+#[cfg(test)]
+mod cst_tests;
 mod cycle;
 pub mod homing;
 mod limits;
 mod modes;
 pub mod objects;
+mod params;
 pub mod pds;
 mod power;
 pub mod probe;
@@ -80,6 +101,7 @@ pub mod profile;
 mod statusword;
 
 use homing::{Homing, HomingInputs, HomingParams, HomingStatus};
+pub use params::Params;
 use pds::{Command, Event, Guard, PdsState};
 pub use probe::EdgeLatch;
 use probe::TouchProbe;
@@ -99,14 +121,21 @@ pub mod mode {
     pub const CSP: i8 = 8;
     /// Cyclic synchronous velocity.
     pub const CSV: i8 = 9;
+    /// Cyclic synchronous torque (closed loop only).
+    pub const CST: i8 = 10;
 }
 
-/// 0x6502: PP (bit 0), PV (bit 2), HM (bit 5), CSP (bit 7), CSV (bit 8).
-pub const SUPPORTED_MODES: u32 = (1 << 0) | (1 << 2) | (1 << 5) | (1 << 7) | (1 << 8);
+/// 0x6502 in closed loop: PP (bit 0), PV (bit 2), HM (bit 5), CSP (bit 7), CSV (bit 8),
+/// CST (bit 9).
+pub const SUPPORTED_MODES: u32 = SUPPORTED_MODES_OPEN_LOOP | (1 << 9);
 
-/// True if `m` may be written to 0x6060 (0 or a supported mode).
-pub const fn mode_supported(m: i8) -> bool {
-    m == 0 || (m >= 1 && m <= 32 && SUPPORTED_MODES & (1 << (m - 1)) != 0)
+/// 0x6502 without torque control (open loop, no encoder): no CST.
+pub const SUPPORTED_MODES_OPEN_LOOP: u32 = (1 << 0) | (1 << 2) | (1 << 5) | (1 << 7) | (1 << 8);
+
+/// True if `m` may be written to 0x6060 with the modes `supported` (a 0x6502 value):
+/// 0 or a mode whose bit is set.
+pub const fn mode_supported(m: i8, supported: u32) -> bool {
+    m == 0 || (m >= 1 && m <= 32 && supported & (1 << (m - 1)) != 0)
 }
 
 /// 0x6007 abort connection option code: what the drive does when the master's
@@ -183,8 +212,12 @@ pub struct DriveFeedback {
     pub position: i32,
     /// Actual velocity (command units/s).
     pub velocity: i32,
-    /// Actual torque, per mille of rated torque (0x6077).
+    /// Actual torque, per mille of rated torque (0x6077): the measured q current
+    /// (encoder frame) per mille of the rated current.
     pub torque: i16,
+    /// Torque the servo loops demand (their q-current reference), per mille of rated
+    /// torque (0x6074 outside CST).
+    pub torque_demand: i16,
     /// Actual current, per mille of rated current (0x6078).
     pub current: i16,
     /// Digital inputs in 0x60FD layout (bit 0 negative limit, 1 positive limit, 2 home),
@@ -222,6 +255,10 @@ pub enum SetpointKind {
     /// Follow `velocity` (PV, CSV); `position` is the actual position plus one cycle of
     /// that velocity (for a loop that can only follow positions, e.g. open loop).
     Velocity,
+    /// Follow `torque` (CST, closed loop); `velocity` is the speed limit (0x6080,
+    /// magnitude), `position` the actual position (a loop that cannot control torque
+    /// holds it).
+    Torque,
 }
 
 /// Set-points for the servo loops (raw, motor-side values).
@@ -248,192 +285,12 @@ pub struct DriveCommand {
     pub torque_limit: u16,
     /// Current limit, per mille of rated current (0x6073).
     pub current_limit: u16,
+    /// Torque demand (CST, whole per mille) or torque feed-forward (CSP, CSV: 0x60B2),
+    /// per mille of rated torque; 0 in the other modes and states. (An `i32`: the
+    /// command then has no padding and is copied whole, word by word.)
+    pub torque: i32,
     /// Release the holding brake.
     pub brake_release: bool,
-}
-
-/// The writable CiA 402 parameters (values of the RW objects).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Params {
-    /// 0x6007 abort connection option code ([`AbortConnection`]).
-    pub abort_connection_option: i16,
-    /// 0x605A quick stop option code.
-    pub quick_stop_option: i16,
-    /// 0x605B shutdown option code.
-    pub shutdown_option: i16,
-    /// 0x605C disable operation option code.
-    pub disable_op_option: i16,
-    /// 0x605D halt option code.
-    pub halt_option: i16,
-    /// 0x605E fault reaction option code.
-    pub fault_reaction_option: i16,
-    /// 0x6065 following error window (0xFFFFFFFF = off).
-    pub following_error_window: u32,
-    /// 0x6066 following error time-out (ms).
-    pub following_error_timeout: u16,
-    /// 0x6067 position window.
-    pub position_window: u32,
-    /// 0x6068 position window time (ms).
-    pub position_window_time: u16,
-    /// 0x606D velocity window.
-    pub velocity_window: u16,
-    /// 0x606E velocity window time (ms).
-    pub velocity_window_time: u16,
-    /// 0x606F velocity threshold (speed zero).
-    pub velocity_threshold: u16,
-    /// 0x6072 max torque (per mille).
-    pub max_torque: u16,
-    /// 0x6073 max current (per mille).
-    pub max_current: u16,
-    /// 0x607A target position.
-    pub target_position: i32,
-    /// 0x607C home offset.
-    pub home_offset: i32,
-    /// 0x607D:01 min software position limit.
-    pub sw_limit_min: i32,
-    /// 0x607D:02 max software position limit.
-    pub sw_limit_max: i32,
-    /// 0x607E polarity.
-    pub polarity: u8,
-    /// 0x607F max profile velocity.
-    pub max_profile_velocity: u32,
-    /// 0x6080 max motor speed (command units/s).
-    pub max_motor_speed: u32,
-    /// 0x6081 profile velocity.
-    pub profile_velocity: u32,
-    /// 0x6082 start/stop speed (E5).
-    pub start_stop_speed: u32,
-    /// 0x6083 profile acceleration.
-    pub profile_acceleration: u32,
-    /// 0x6084 profile deceleration.
-    pub profile_deceleration: u32,
-    /// 0x6085 quick stop deceleration.
-    pub quick_stop_deceleration: u32,
-    /// 0x6086 motion profile type (0 = trapezoid).
-    pub motion_profile_type: i16,
-    /// 0x6098 homing method.
-    pub homing_method: i8,
-    /// 0x6099:01 speed during search for switch.
-    pub homing_speed_switch: u32,
-    /// 0x6099:02 speed during search for zero.
-    pub homing_speed_zero: u32,
-    /// 0x609A homing acceleration.
-    pub homing_acceleration: u32,
-    /// 0x60B0 position offset.
-    pub position_offset: i32,
-    /// 0x60B1 velocity offset.
-    pub velocity_offset: i32,
-    /// 0x60C2:01 interpolation period value.
-    pub interpolation_period: u8,
-    /// 0x60C2:02 interpolation period index (power of ten).
-    pub interpolation_index: i8,
-    /// 0x60C5 max acceleration.
-    pub max_acceleration: u32,
-    /// 0x60C6 max deceleration.
-    pub max_deceleration: u32,
-    /// 0x60F2 positioning option code.
-    pub positioning_option: u16,
-    /// 0x60FE:01 physical outputs.
-    pub digital_outputs: u32,
-    /// 0x60FE:02 output bit mask.
-    pub digital_outputs_mask: u32,
-    /// 0x60FF target velocity.
-    pub target_velocity: i32,
-}
-
-impl Params {
-    /// The defaults (same values as the `default` of the dictionary entries).
-    pub const DEFAULT: Params = Params {
-        abort_connection_option: AbortConnection::Fault as i16,
-        quick_stop_option: 2,
-        shutdown_option: 0,
-        disable_op_option: 1,
-        halt_option: 1,
-        fault_reaction_option: 2,
-        following_error_window: 50_000,
-        following_error_timeout: 100,
-        position_window: 100,
-        position_window_time: 0,
-        velocity_window: 100,
-        velocity_window_time: 0,
-        velocity_threshold: 100,
-        max_torque: 1000,
-        max_current: 1000,
-        target_position: 0,
-        home_offset: 0,
-        sw_limit_min: i32::MIN,
-        sw_limit_max: i32::MAX,
-        polarity: 0,
-        max_profile_velocity: 5_000_000,
-        max_motor_speed: 5_000_000,
-        profile_velocity: 50_000,
-        start_stop_speed: 0,
-        profile_acceleration: 500_000,
-        profile_deceleration: 500_000,
-        quick_stop_deceleration: 2_000_000,
-        motion_profile_type: 0,
-        homing_method: 37,
-        homing_speed_switch: 20_000,
-        homing_speed_zero: 2_000,
-        homing_acceleration: 200_000,
-        position_offset: 0,
-        velocity_offset: 0,
-        interpolation_period: 1,
-        interpolation_index: -3,
-        max_acceleration: 100_000_000,
-        max_deceleration: 100_000_000,
-        positioning_option: 0,
-        digital_outputs: 0,
-        digital_outputs_mask: 0,
-        target_velocity: 0,
-    };
-
-    fn vmax(&self) -> f32 {
-        self.max_profile_velocity.min(self.max_motor_speed) as f32
-    }
-    fn acc(&self, a: u32) -> f32 {
-        a.min(self.max_acceleration) as f32
-    }
-    fn dec(&self, a: u32) -> f32 {
-        a.min(self.max_deceleration) as f32
-    }
-    /// Deceleration of a stop option (1 slow-down, 2 quick-stop, 3/4 limit); `None` =
-    /// disable the drive function at once. Out of line: the stop paths of several
-    /// states and modes share it.
-    #[inline(never)]
-    fn option_decel(&self, code: i16) -> Option<f32> {
-        match code {
-            1 | 5 => Some(self.dec(self.profile_deceleration)),
-            2 | 6 => Some(self.quick_stop_deceleration as f32),
-            3 | 4 | 7 | 8 => Some(self.max_deceleration as f32),
-            _ => None,
-        }
-    }
-    fn sw_limits(&self) -> Option<(i32, i32)> {
-        if self.sw_limit_min < self.sw_limit_max
-            && (self.sw_limit_min != i32::MIN || self.sw_limit_max != i32::MAX)
-        {
-            Some((self.sw_limit_min, self.sw_limit_max))
-        } else {
-            None
-        }
-    }
-    /// Interpolation period of 0x60C2 in seconds (0 if unset).
-    pub fn interpolation_period_s(&self) -> f32 {
-        // 10^index for the indices a period can have (-6 µs … +1); the CSP path reads
-        // it every step, so a table, not a loop. Others: 0 (unset).
-        const POW10: [f32; 8] = [1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0, 10.0];
-        let k = (i16::from(self.interpolation_index) + 6) as usize;
-        POW10
-            .get(k)
-            .map_or(0.0, |p| f32::from(self.interpolation_period) * p)
-    }
-}
-
-impl Default for Params {
-    fn default() -> Self {
-        Self::DEFAULT
-    }
 }
 
 /// One PP set-point.
@@ -573,6 +430,13 @@ pub struct Cia402 {
     actual_velocity: i32,
     actual_torque: i16,
     actual_current: i16,
+    /// The servo loops' torque demand (last feedback, raw sign).
+    servo_torque: i16,
+    /// CST: the torque demand after the slope and 0x6072, per mille (user sign).
+    torque_demand: f32,
+    /// Torque command of this step for the motor side ([`DriveCommand::torque`],
+    /// user sign).
+    torque_cmd: i16,
     digital_inputs: u32,
     following_error: i32,
     statusword: u16,
@@ -593,6 +457,10 @@ pub struct Cia402 {
     has_index: bool,
     assigned_inputs: u32,
     rated_current_ma: u32,
+    /// Torque constant of the motor, N·m/A (0x6076 = this · 0x6075).
+    torque_constant: f32,
+    /// The closed loop can control torque: CST available.
+    torque_control: bool,
     encoder_increments: u32,
     units_per_rev: u32,
 }
@@ -600,6 +468,14 @@ pub struct Cia402 {
 impl Default for Cia402 {
     fn default() -> Self {
         Self::new()
+    }
+}
+
+fn pol16(neg: bool, v: i16) -> i16 {
+    if neg {
+        v.wrapping_neg()
+    } else {
+        v
     }
 }
 
@@ -637,6 +513,9 @@ impl Cia402 {
             actual_velocity: 0,
             actual_torque: 0,
             actual_current: 0,
+            servo_torque: 0,
+            torque_demand: 0.0,
+            torque_cmd: 0,
             digital_inputs: 0,
             following_error: 0,
             statusword: 0,
@@ -653,6 +532,8 @@ impl Cia402 {
             has_index: true,
             assigned_inputs: homing::DI_NEG_LIMIT | homing::DI_POS_LIMIT | homing::DI_HOME,
             rated_current_ma: 3200,
+            torque_constant: crate::motion::ECN57_20.kt,
+            torque_control: true,
             encoder_increments: 4000,
             units_per_rev: 50_000,
         }
@@ -672,6 +553,33 @@ impl Cia402 {
     /// Rated motor current shown in 0x6075 (mA).
     pub fn set_rated_current_ma(&mut self, milliamps: u32) {
         self.rated_current_ma = milliamps;
+    }
+    /// Torque constant of the motor, N·m/A (peak q current; `crate::motion::
+    /// MotorConstants::kt`): the rated torque 0x6076 is it times the rated current
+    /// 0x6075. Torque values in per mille are per mille of the rated current on q.
+    pub fn set_torque_constant(&mut self, kt: f32) {
+        self.torque_constant = if kt.is_finite() && kt > 0.0 { kt } else { 0.0 };
+    }
+    /// Whether the motor side can control torque (closed loop: an encoder and 0x2024 =
+    /// 2): CST is available (0x6502 bit 9). Withdrawn while 0x6060 = 10, 0x6060 falls
+    /// to 0 (see the module docs).
+    pub fn set_torque_control(&mut self, available: bool) {
+        self.torque_control = available;
+        if !available && self.mode_request == mode::CST {
+            self.mode_request = mode::NONE;
+        }
+    }
+    /// 0x6502: the modes available now.
+    pub fn supported_modes(&self) -> u32 {
+        if self.torque_control {
+            SUPPORTED_MODES
+        } else {
+            SUPPORTED_MODES_OPEN_LOOP
+        }
+    }
+    /// 0x6076 motor rated torque, mN·m.
+    pub fn rated_torque_mnm(&self) -> u32 {
+        (self.torque_constant * self.rated_current_ma as f32 + 0.5) as u32
     }
     /// Encoder increments per motor revolution (0x608F:01) and command units per
     /// revolution (0x2001, shown as feed in 0x6092:01).
@@ -798,7 +706,7 @@ impl Cia402 {
     }
     /// Writes 0x6060; unsupported values are ignored (the SDO path refuses them).
     pub fn set_mode(&mut self, m: i8) {
-        if mode_supported(m) {
+        if mode_supported(m, self.supported_modes()) {
             self.mode_request = m;
         }
     }
@@ -825,6 +733,23 @@ impl Cia402 {
     /// 0x606B velocity demand value.
     pub fn velocity_demand(&self) -> i32 {
         self.motion.velocity() as i32
+    }
+    /// 0x6074 torque demand: in CST the demand after the slope and 0x6072, else the
+    /// servo loops' demand (per mille, user sign).
+    pub fn torque_demand(&self) -> i16 {
+        if self.mode == mode::CST && self.state == PdsState::OperationEnabled {
+            modes::round_i16(self.torque_demand)
+        } else {
+            self.servo_torque_user()
+        }
+    }
+    /// 0x6077 (user sign: 0x607E bit 6 turns torques round with velocities).
+    pub fn torque_actual(&self) -> i16 {
+        pol16(self.vel_neg(), self.actual_torque)
+    }
+    /// The servo loops' torque demand, user sign.
+    fn servo_torque_user(&self) -> i16 {
+        pol16(self.vel_neg(), self.servo_torque)
     }
     /// 0x606C.
     pub fn velocity_actual(&self) -> i32 {

@@ -1,5 +1,5 @@
 //! The operating modes in Operation enabled: the dispatch by 0x6061 and the
-//! generators of PP (trapezoid or jerk-limited), PV, HM, CSP and CSV.
+//! generators of PP (trapezoid or jerk-limited), PV, HM, CSP, CSV and CST.
 
 use super::*;
 
@@ -38,6 +38,8 @@ impl Cia402 {
             }
             mode::CSP | mode::CSV => {
                 let csv = self.mode == mode::CSV;
+                // 0x60B2: torque feed-forward of the servo loops.
+                self.torque_cmd = p.torque_offset;
                 if halt {
                     self.halted = true;
                     self.abnormal_stop = true;
@@ -69,11 +71,71 @@ impl Cia402 {
                     SetpointKind::Position
                 }
             }
+            mode::CST => self.run_cst(halt, pos_lim, neg_lim, dt),
             _ => {
                 self.motion.stop(qs_dec, dt);
                 SetpointKind::Position
             }
         }
+    }
+
+    /// CST: the torque demand 0x6071 + 0x60B2, limited to ±0x6072 and moved at the
+    /// slope 0x6087; the motion generator shows the actual position and speed (the
+    /// start of any stop ramp). Halt, a hardware limit switch or a software position
+    /// limit in the direction of the torque or of the motion stop the axis in velocity
+    /// control instead (halt: 0x605D ramp; limits: 0x6085), the demand then follows
+    /// the servo loops' torque so that torque control resumes from it. Out of line:
+    /// the CSP path that shares the dispatch stays as it was.
+    #[inline(never)]
+    pub(super) fn run_cst(
+        &mut self,
+        halt: bool,
+        pos_lim: bool,
+        neg_lim: bool,
+        dt: f32,
+    ) -> SetpointKind {
+        let p = &self.params;
+        let tmax = f32::from(p.max_torque);
+        let wanted = (i32::from(p.target_torque) + i32::from(p.torque_offset)) as f32;
+        let target = foc::num::clamp(wanted, -tmax, tmax);
+        let v = self.motion.velocity();
+        let (mut up, mut down) = (pos_lim, neg_lim);
+        if let Some((lo, hi)) = p.sw_limits() {
+            let pos = self.actual_position;
+            if pos >= hi || pos <= lo {
+                self.internal_limit = true;
+            }
+            up |= pos >= hi;
+            down |= pos <= lo;
+        }
+        let blocked = (up && (target > 0.0 || v > 0.0)) || (down && (target < 0.0 || v < 0.0));
+        if halt || blocked {
+            let dec = if halt {
+                self.halted = true;
+                p.option_decel(p.halt_option).unwrap_or(0.0)
+            } else {
+                p.quick_stop_deceleration as f32
+            };
+            self.abnormal_stop = true;
+            self.motion.stop(dec, dt);
+            self.torque_demand = f32::from(self.servo_torque_user());
+            self.torque_cmd = 0;
+            return SetpointKind::Velocity;
+        }
+        if wanted != target {
+            self.internal_limit = true;
+        }
+        let slope = p.torque_slope as f32 * dt;
+        let d = self.torque_demand;
+        self.torque_demand = if p.torque_slope == 0 {
+            target
+        } else {
+            d + foc::num::clamp(target - d, -slope, slope)
+        };
+        self.torque_cmd = round_i16(self.torque_demand);
+        self.motion
+            .set(self.actual_position, self.actual_velocity as f32);
+        SetpointKind::Torque
     }
 
     /// PV: the velocity ramp to 0x60FF, stopped by halt, a hardware limit in the
@@ -510,4 +572,9 @@ impl Cia402 {
         self.target_reached =
             done && inwin && self.window_time * 1000.0 >= p.position_window_time as f32;
     }
+}
+
+/// `x` rounded to the nearest whole number (halves away from zero), saturated.
+pub(super) fn round_i16(x: f32) -> i16 {
+    (x + if x < 0.0 { -0.5 } else { 0.5 }) as i16
 }

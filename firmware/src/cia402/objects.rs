@@ -501,11 +501,11 @@ cia402_objects! {
     {
         { 0 "Fault reaction option code": i16 RW NO range(0, 4) [.default(2).saved()] field(params.fault_reaction_option) }
     }
-    var 0x6060 "Modes of operation", "Requested mode: 0 none, 1 PP, 3 PV, 6 HM, 8 CSP, 9 CSV.",
+    var 0x6060 "Modes of operation", "Requested mode: 0 none, 1 PP, 3 PV, 6 HM, 8 CSP, 9 CSV, 10 CST (closed loop only: refused with 0x06090030 while 0x6502 bit 9 is clear; an RxPDO value is not taken over).",
     {
-        { 0 "Modes of operation": i8 RW RX range(0, 9) [.default(0)] field(mode_request)
+        { 0 "Modes of operation": i8 RW RX range(0, 10) [.default(0)] field(mode_request)
             set(|d, m| d.set_mode(m))
-            check(|_, m| valid_if(mode_supported(m))) }
+            check(|d, m| valid_if(mode_supported(m, d.supported_modes()))) }
     }
     var 0x6061 "Modes of operation display", "Mode that is running (changes when the switch is done).",
     {
@@ -559,7 +559,11 @@ cia402_objects! {
     {
         { 0 "Velocity threshold": u16 RW NO [.default(100).unit("inc/s").saved()] field(params.velocity_threshold) }
     }
-    var 0x6072 "Max torque", "Torque limit for the servo loops (closed loop), per mille of rated torque.",
+    var 0x6071 "Target torque", "CST target, per mille of the rated torque 0x6076; 0x60B2 is added, the sum is limited to ±0x6072 and approached at 0x6087.",
+    {
+        { 0 "Target torque": i16 RW RX range(-3000, 3000) [.default(0).unit("0.1 %")] field(params.target_torque) }
+    }
+    var 0x6072 "Max torque", "Torque limit for the servo loops (closed loop) and of the CST demand, per mille of rated torque.",
     {
         { 0 "Max torque": u16 RW RX range(0, 3000) [.default(1000).unit("0.1 %").saved()] field(params.max_torque) }
     }
@@ -567,15 +571,23 @@ cia402_objects! {
     {
         { 0 "Max current": u16 RW NO range(0, 3000) [.default(1000).unit("0.1 %").saved()] field(params.max_current) }
     }
+    var 0x6074 "Torque demand", "CST: the demand after the slope 0x6087 and the limit 0x6072; other modes: the servo loops' q-current reference; per mille of rated torque.",
+    {
+        { 0 "Torque demand": i16 RO TX [.unit("0.1 %")] get(|d| d.torque_demand()) }
+    }
     var 0x6075 "Motor rated current", "Rated current (follows the peak current setting 0x2000).",
     {
         { 0 "Motor rated current": u32 RO NO [.unit("mA")] field(rated_current_ma) }
     }
-    var 0x6077 "Torque actual value", "Measured torque, per mille of rated torque.",
+    var 0x6076 "Motor rated torque", "Torque constant of the motor (q current) times the rated current 0x6075; the reference of every torque in per mille.",
     {
-        { 0 "Torque actual value": i16 RO TX [.unit("0.1 %")] field(actual_torque) }
+        { 0 "Motor rated torque": u32 RO NO [.unit("mN·m")] get(|d| d.rated_torque_mnm()) }
     }
-    var 0x6078 "Current actual value", "Measured current, per mille of rated current.",
+    var 0x6077 "Torque actual value", "Measured torque Kt·i_q (q current measured in the encoder frame, detent torque not included), per mille of rated torque; 0 without an encoder.",
+    {
+        { 0 "Torque actual value": i16 RO TX [.unit("0.1 %")] get(|d| d.torque_actual()) }
+    }
+    var 0x6078 "Current actual value", "Measured q current (encoder frame), per mille of rated current; 0 without an encoder.",
     {
         { 0 "Current actual value": i16 RO TX [.unit("0.1 %")] field(actual_current) }
     }
@@ -611,7 +623,7 @@ cia402_objects! {
     {
         { 0 "Max profile velocity": u32 RW RX range(1, u32::MAX) [.default(5_000_000).unit("inc/s").saved()] field(params.max_profile_velocity) }
     }
-    var 0x6080 "Max motor speed", "Upper limit of every velocity demand.",
+    var 0x6080 "Max motor speed", "Upper limit of every velocity demand; in CST the speed limit (torque is taken off beyond it, statusword bit 11).",
     {
         { 0 "Max motor speed": u32 RW NO range(1, u32::MAX) [.default(5_000_000).unit("inc/s").saved()] field(params.max_motor_speed) }
     }
@@ -639,6 +651,10 @@ cia402_objects! {
     {
         { 0 "Motion profile type": i16 RW NO range(0, 3) [.default(0).saved()] field(params.motion_profile_type)
             check(|_, t| valid_if(t == 0 || t == 3)) }
+    }
+    var 0x6087 "Torque slope", "Rate at which the CST demand approaches its target, per mille of rated torque per second; 0 = no slope limit (the demand steps).",
+    {
+        { 0 "Torque slope": u32 RW RX [.default(0).unit("0.1 %/s").saved()] field(params.torque_slope) }
     }
     array 0x608F "Position encoder resolution", "Encoder increments per motor revolution.",
     {
@@ -685,6 +701,10 @@ cia402_objects! {
     var 0x60B1 "Velocity offset", "Velocity feed-forward (CSP) / added to the CSV target.",
     {
         { 0 "Velocity offset": i32 RW RX [.default(0).unit("inc/s")] field(params.velocity_offset) }
+    }
+    var 0x60B2 "Torque offset", "Added to the CST target; torque feed-forward of the servo loops in CSP and CSV; per mille of rated torque.",
+    {
+        { 0 "Torque offset": i16 RW RX range(-3000, 3000) [.default(0).unit("0.1 %")] field(params.torque_offset) }
     }
     var 0x60B8 "Touch probe function", "Per probe (2: bits 8-13): bit 0 enable, 1 continuous, 2 index pulse as trigger, 4 rising edge, 5 falling edge.",
     {
@@ -752,9 +772,9 @@ cia402_objects! {
     {
         { 0 "Target velocity": i32 RW RX [.default(0).unit("inc/s")] field(params.target_velocity) }
     }
-    var 0x6502 "Supported drive modes", "Bit 0 PP, 2 PV, 5 HM, 7 CSP, 8 CSV.",
+    var 0x6502 "Supported drive modes", "Bit 0 PP, 2 PV, 5 HM, 7 CSP, 8 CSV; bit 9 CST only in closed loop (an encoder and 0x2024 = 2).",
     {
-        { 0 "Supported drive modes": u32 RO NO [.default(SUPPORTED_MODES as i64)] constant(SUPPORTED_MODES) }
+        { 0 "Supported drive modes": u32 RO NO [.default(SUPPORTED_MODES as i64)] get(|d| d.supported_modes()) }
     }
 }
 

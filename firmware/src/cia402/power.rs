@@ -10,6 +10,8 @@ impl Cia402 {
         self.state = to;
         self.pending = Pending::None;
         self.enable_waiting = false;
+        // A new state starts without torque command (the modes set theirs).
+        self.torque_cmd = 0;
         if to == PdsState::OperationEnabled && from != PdsState::QuickStopActive {
             // Transition 4: clear internal set-points, start from where the axis is.
             self.motion.reset(self.actual_position);
@@ -23,6 +25,10 @@ impl Cia402 {
             self.cyc = Cyclic::default();
             self.fe_time = 0.0;
             self.fe_flag = false;
+        }
+        if to == PdsState::OperationEnabled {
+            // Transitions 4 and 16: CST starts from the servo loops' torque demand.
+            self.torque_demand = f32::from(self.servo_torque_user());
         }
         if to == PdsState::FaultReactionActive {
             // A fault: the demand may be what went wrong (a jump of the master's
@@ -162,6 +168,7 @@ impl Cia402 {
                         self.params.disable_op_option
                     };
                     let dec = self.params.option_decel(code).unwrap_or(0.0);
+                    self.torque_cmd = 0;
                     if self.motion.stop(dec, dt) {
                         let ev = Event::Cmd(c);
                         self.fire(ev, fb.fault);

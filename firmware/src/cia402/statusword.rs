@@ -78,7 +78,7 @@ impl Cia402 {
                         }
                     }
                 },
-                mode::CSP | mode::CSV => {
+                mode::CSP | mode::CSV | mode::CST => {
                     if !self.halted && !self.abnormal_stop && self.pending == Pending::None {
                         s |= sw::BIT12;
                     }

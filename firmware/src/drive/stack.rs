@@ -78,6 +78,8 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
             0x2000..=0x21FF => {
                 self.params.write(index, sub, data)?;
                 self.faults.configure_from(&self.params);
+                // 0x2024 decides whether CST is available.
+                self.cia402.set_torque_control(self.torque_control());
                 Ok(())
             }
             0x2300..=0x23FF => self.monitor.write(index, sub, data),

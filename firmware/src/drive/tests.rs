@@ -104,6 +104,54 @@ fn enable(d: &mut Drive) {
 }
 
 #[test]
+fn cst_follows_the_loop_mode_and_torques_come_from_the_axis() {
+    // The open-loop variant: no CST.
+    let mut d = Drive::new(Variant::OpenLoop, 0);
+    assert_eq!(sdo_read_u32(&mut d, 0x6502, 0), 0x1A5);
+    assert_eq!(
+        sdo_write(&mut d, 0x6060, 0, &[10]),
+        Err(SdoAbort::ValueRangeExceeded)
+    );
+    // The hybrid servo in closed loop: CST; 0x2024 = 1 takes it away again and
+    // leaves no mode.
+    let mut d = Drive::new(Variant::HybridServo, 0);
+    assert_eq!(sdo_read_u32(&mut d, 0x6502, 0), 0x3A5);
+    sdo_write(&mut d, 0x6060, 0, &[10]).unwrap();
+    sdo_write(&mut d, 0x2024, 0, &[1]).unwrap();
+    assert_eq!(sdo_read_u32(&mut d, 0x6502, 0), 0x1A5);
+    assert_eq!(sdo_read_u32(&mut d, 0x6060, 0), 0);
+    assert_eq!(
+        sdo_write(&mut d, 0x6060, 0, &[10]),
+        Err(SdoAbort::ValueRangeExceeded)
+    );
+    sdo_write(&mut d, 0x2024, 0, &[2]).unwrap();
+    sdo_write(&mut d, 0x6060, 0, &[10]).unwrap();
+    // 0x6076: Kt of the ECN57-20 times 0x6075 (0x2000).
+    assert_eq!(sdo_read_u32(&mut d, 0x6076, 0), 906);
+    enable(&mut d);
+    assert_eq!(d.cia402.mode_display(), 10);
+    d.set_axis(AxisState {
+        bus_mv: 48_000,
+        torque_permille: -321,
+        current_permille: 654,
+        ..AxisState::default()
+    });
+    sdo_write(&mut d, 0x6071, 0, &250i16.to_le_bytes()).unwrap();
+    let c = d.run_cycle(0.001);
+    assert_eq!(
+        (c.kind, c.torque),
+        (crate::cia402::SetpointKind::Torque, 250)
+    );
+    assert_eq!(sdo_read_u32(&mut d, 0x6077, 0) as u16 as i16, -321);
+    assert_eq!(sdo_read_u32(&mut d, 0x6078, 0) as u16 as i16, -321);
+    assert_eq!(sdo_read_u32(&mut d, 0x6074, 0) as u16 as i16, 250);
+    // Outside CST 0x6074 is the servo loops' demand.
+    sdo_write(&mut d, 0x6060, 0, &[9]).unwrap();
+    d.run_cycle(0.001);
+    assert_eq!(sdo_read_u32(&mut d, 0x6074, 0) as u16 as i16, 654);
+}
+
+#[test]
 fn enable_sequence_reaches_operation_enabled() {
     let mut d = Drive::new(Variant::HybridServo, 0);
     enable(&mut d);

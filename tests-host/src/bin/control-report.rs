@@ -3,7 +3,9 @@
 //! `| figure | goal | achieved | met |`.
 //!
 //! Then the "Robustness" table (`tests_host::plant::robustness`): the current loop on
-//! the plant with a real motor's and board's non-idealities.
+//! the plant with a real motor's and board's non-idealities; then the "Cyclic
+//! synchronous torque (CST)" table (`tests_host::plant::torque`): torque step and
+//! torque ripple through the firmware's CiA 402 profile and motion layer.
 //!
 //! `--plots DIR` also writes `current_step.png`, `csp_tracking_error.png` and
 //! `iq_ripple_vs_speed.png` and `open_loop_resonance.png` (the README's plots) into DIR.
@@ -17,6 +19,7 @@ use tests_host::plant::motor::{ECN57_20, TC86_45};
 use tests_host::plant::resonance;
 use tests_host::plant::robustness::{self, Calibration, Conditions, Design};
 use tests_host::plant::scenarios::{self, Figure};
+use tests_host::plant::torque;
 use tests_host::plot::{load_font, plot};
 
 fn main() {
@@ -52,6 +55,10 @@ fn main() {
     println!();
     let sweeps = resonance::sweeps();
     print_table(&resonance::report_of(&sweeps));
+    println!();
+    println!("### Cyclic synchronous torque (CST)");
+    println!();
+    print_table(&torque::report());
 
     if let Some(dir) = plots {
         if let Err(e) = std::fs::create_dir_all(&dir) {

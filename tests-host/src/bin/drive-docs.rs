@@ -96,6 +96,9 @@ pub enum Source {
     Params,
     /// `ecat_slave_stack::pdo::PdoConfig` with the product's default mapping.
     Pdo,
+    /// `firmware::cia402` entries that follow the variant's loop mode (0x6502: CST
+    /// only in closed loop).
+    Cia402,
 }
 
 /// Which of the variant-aware modules serves `index`.
@@ -107,6 +110,8 @@ pub fn source_of(index: u16) -> Option<Source> {
         Some(Source::Params)
     } else if has(ecat_slave_stack::pdo::OBJECTS) && is_mapping_or_assignment(index) {
         Some(Source::Pdo)
+    } else if index == 0x6502 {
+        Some(Source::Cia402)
     } else {
         None
     }

@@ -5,7 +5,9 @@
 //!   average model, ADC and encoder quantisation, seeded noise, one sample of delay;
 //! * [`rig`]: the plant wired to the `foc` controllers as on the board;
 //! * [`scenarios`]: the control-quality scenarios, shared by the tests and the report;
-//! * [`robustness`]: the current loop under the non-idealities of a real motor.
+//! * [`robustness`]: the current loop under the non-idealities of a real motor;
+//! * [`torque`]: cyclic synchronous torque (CST) through the firmware's profile and
+//!   motion layer.
 
 pub mod motor;
 pub mod rig;
@@ -13,3 +15,4 @@ pub mod rng;
 pub mod resonance;
 pub mod robustness;
 pub mod scenarios;
+pub mod torque;

@@ -244,7 +244,7 @@ fn sdo_errors() {
     assert_eq!(d.write(0x6040, 0, &[0, 0, 0]), Err(SdoAbort::LengthTooHigh));
     assert_eq!(d.write(0x6060, 0, &[2]), Err(SdoAbort::ValueRangeExceeded));
     assert_eq!(d.write(0x6060, 0, &[0xFF]), Err(SdoAbort::ValueTooLow));
-    assert_eq!(d.write(0x6060, 0, &[10]), Err(SdoAbort::ValueTooHigh));
+    assert_eq!(d.write(0x6060, 0, &[11]), Err(SdoAbort::ValueTooHigh));
     assert_eq!(d.write(0x6098, 0, &[15]), Err(SdoAbort::ValueRangeExceeded));
     assert_eq!(d.write(0x6098, 0, &[36]), Err(SdoAbort::ValueRangeExceeded));
     assert_eq!(d.write(0x605A, 0, &[9, 0]), Err(SdoAbort::ValueTooHigh));
@@ -270,7 +270,7 @@ fn sdo_errors() {
     d.write(0x607D, 1, &(-1000i32).to_le_bytes()).unwrap();
     assert_eq!(d.value(0x607D, 1), Some(-1000));
     assert_eq!(d.read(0x6502, 0, &mut buf), Ok(4));
-    assert_eq!(u32::from_le_bytes(buf), 0x1A5);
+    assert_eq!(u32::from_le_bytes(buf), 0x3A5);
 }
 
 #[test]

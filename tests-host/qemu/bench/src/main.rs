@@ -46,6 +46,7 @@ pub mod setup {
             acceleration: 0.0,
             torque_limit: 1000,
             current_limit: 1000,
+            torque: 0,
             brake_release: true,
         }
     }
