@@ -15,6 +15,7 @@
 //! | [`current_loop`] | FOC current loop step: ADC counts → four duty cycles |
 //! | [`encoder`] | quadrature count, electrical angle, PLL velocity, Z index |
 //! | [`open_loop`] | microstepping, holding current, soft start, command filter |
+//! | [`stall`] | open-loop stall detection from the back-EMF the current loop sees |
 //! | [`servo`] | position/velocity cascade, CSP interpolation, following error, alignment |
 //! | [`autotune`] | R/L measurement, current-loop gains, open/unbalanced phase |
 #![no_std]
@@ -30,6 +31,7 @@ pub mod num;
 pub mod open_loop;
 pub mod pi;
 pub mod servo;
+pub mod stall;
 pub mod transforms;
 pub mod trig;
 
