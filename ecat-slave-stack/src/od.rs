@@ -140,6 +140,7 @@ pub const UNITS: &[&str] = &[
     "Hz",
     "kHz",
     "°C",
+    "0.1°",
 ];
 
 /// [`UNITS`] as length-prefixed texts: what [`Entry::unit_text`] reads (one byte per
