@@ -74,6 +74,13 @@ use core::num::{NonZeroU32, NonZeroU64};
 use foc::angle::{Angle, CountScale, POLE_PAIRS};
 use foc::open_loop::{OpenLoop, OpenLoopConfig};
 use foc::servo::{handover_currents, Demand, Servo, ServoGains};
+use foc::stall::StallConfig;
+use foc::transforms::Dq;
+use interp::Interp;
+use stall::Stall;
+
+mod interp;
+mod stall;
 
 /// Velocity bandwidth of the base gains (0x2140 = 100), Hz.
 pub const BASE_BANDWIDTH_HZ: f32 = 400.0;
@@ -95,19 +102,28 @@ pub const LAG_LIMIT: f32 = 1.0e6;
 pub struct MotorConstants {
     /// Rotor (+ load) inertia, kg·m².
     pub inertia: f32,
-    /// Torque constant, N·m/A (FOC peak current).
+    /// Torque constant, N·m/A (FOC peak current); also the back-EMF constant, V·s/rad.
     pub kt: f32,
+    /// Phase resistance, Ω (the stall detection's model until 0x2020/0x2021 hold a
+    /// tuned motor).
+    pub resistance: f32,
+    /// Phase inductance, H (likewise).
+    pub inductance: f32,
 }
 
-/// ECN57-20 (NEMA 23): 480 g·cm², 0.283 N·m/A.
+/// ECN57-20 (NEMA 23): 480 g·cm², 0.283 N·m/A, 0.40 Ω, 1.8 mH.
 pub const ECN57_20: MotorConstants = MotorConstants {
     inertia: 480e-7,
     kt: 0.283,
+    resistance: 0.40,
+    inductance: 1.8e-3,
 };
-/// TC86-45 (NEMA 34): 1400 g·cm², 0.530 N·m/A.
+/// TC86-45 (NEMA 34): 1400 g·cm², 0.530 N·m/A, 0.325 Ω, 3.0 mH.
 pub const TC86_45: MotorConstants = MotorConstants {
     inertia: 1400e-7,
     kt: 0.530,
+    resistance: 0.325,
+    inductance: 3.0e-3,
 };
 
 /// Configuration of [`Motion`] (from the parameters: [`MotionConfig::from_params`]).
@@ -137,6 +153,8 @@ pub struct MotionConfig {
     pub following_error_limit: u32,
     /// Servo gains (physical units, after the parameter scaling).
     pub gains: ServoGains,
+    /// Open-loop stall detection (0x2060 = 1; 0x2061 → threshold), `None` when off.
+    pub stall: Option<StallConfig>,
 }
 
 fn finite_pos(x: f32) -> f32 {
@@ -211,6 +229,7 @@ impl MotionConfig {
             reverse: p.get(Param::DirectionReversal) != 0,
             following_error_limit: p.get(Param::FollowingErrorLimit).clamp(1, 1 << 24) as u32,
             gains,
+            stall: stall::config_from_params(p, motor, ts),
         }
     }
 
@@ -238,6 +257,10 @@ pub struct Feedback {
     pub electrical_angle: Angle,
     /// The current loop limited its voltage vector in the last period.
     pub voltage_limited: bool,
+    /// The current loop's commanded d/q voltages, mean over the last servo period, V.
+    pub v_dq: Dq,
+    /// The current loop's measured d/q currents, mean over the last servo period, A.
+    pub i_dq: Dq,
 }
 
 /// Which angle the current loop works on.
@@ -363,72 +386,6 @@ impl Scale {
     }
 }
 
-/// Linear interpolation of the cycle's set-points in counts (integer + fraction).
-#[derive(Debug, Clone, Copy)]
-struct Interp {
-    from_w: i32,
-    from_f: f32,
-    to_w: i32,
-    to_f: f32,
-    delta: f32,
-    k: u32,
-    n: u32,
-    inv_n: f32,
-    vel: f32,
-}
-
-impl Interp {
-    fn at(w: i32, f: f32) -> Self {
-        Interp {
-            from_w: w,
-            from_f: f,
-            to_w: w,
-            to_f: f,
-            delta: 0.0,
-            k: 1,
-            n: 1,
-            inv_n: 1.0,
-            vel: 0.0,
-        }
-    }
-    fn target(&mut self, w: i32, f: f32, n: u32, cycle_s: f32) {
-        self.from_w = self.to_w;
-        self.from_f = self.to_f;
-        self.to_w = w;
-        self.to_f = f;
-        self.delta = w.wrapping_sub(self.from_w) as f32 + (f - self.from_f);
-        self.n = n.max(1);
-        self.inv_n = 1.0 / self.n as f32;
-        self.k = 0;
-        self.vel = if cycle_s > 0.0 {
-            self.delta / cycle_s
-        } else {
-            0.0
-        };
-    }
-    /// Demand of the next step and whether the demand is still moving.
-    fn step(&mut self) -> (i32, f32, bool) {
-        if self.k < self.n {
-            self.k += 1;
-        }
-        let moving = self.k < self.n || self.delta != 0.0;
-        if self.k >= self.n {
-            // At the target: exact, no rounding of delta·k/n.
-            self.delta = 0.0;
-            self.from_w = self.to_w;
-            self.from_f = self.to_f;
-            return (self.to_w, self.to_f, moving);
-        }
-        let d = self.from_f + self.delta * (self.k as f32 * self.inv_n);
-        // floor without the library call (`as` saturates, NaN → 0).
-        let mut whole = d as i32;
-        if (whole as f32) > d {
-            whole -= 1;
-        }
-        (self.from_w.wrapping_add(whole), d - whole as f32, moving)
-    }
-}
-
 /// The motion layer's state (see the module docs).
 // In declaration order, the two smoothing windows (inside `open` and `smooth`, 1 KiB
 // each) last: the per-step fields stay within the short load/store offsets of Thumb-2
@@ -470,6 +427,7 @@ pub struct Motion {
     enabled: bool,
     reset_pending: bool,
     current_limited: bool,
+    stall: Stall,
     open: OpenLoop,
     // Closed-loop command smoothing (moving average in command units), in use when
     // `smooth_on`. Always present so that reconfiguring re-initialises it in place.
@@ -522,6 +480,7 @@ impl Motion {
             vel_report: 0.0,
             vel_k: cfg.ts / (VELOCITY_REPORT_TAU + cfg.ts),
             current_limited: false,
+            stall: Stall::new(cfg.stall, cfg.ts),
         }
     }
 
@@ -567,6 +526,9 @@ impl Motion {
         self.servo.set_gains(cfg.gains);
         self.servo
             .set_following_error_limit(cfg.following_error_limit);
+        if old.stall != cfg.stall {
+            self.stall.configure(cfg.stall);
+        }
         self.iq_limit_set = cfg.gains.iq_max;
         if !self.enabled {
             self.scale = Scale::new(cfg.pulses_per_rev, cfg.counts_per_rev);
@@ -640,6 +602,7 @@ impl Motion {
         self.acc_ff = 0.0;
         self.id_handover = 0.0;
         self.soft_k = 0.0;
+        self.stall.reset();
         self.soft_step = if self.cfg.soft_start_s > self.cfg.ts {
             self.cfg.ts / self.cfg.soft_start_s
         } else {
@@ -875,6 +838,7 @@ impl Motion {
 
     fn step_open(&mut self, fb: &Feedback) -> CurrentReference {
         let (p, _, _) = self.interp.step();
+        let p = self.stall.command(p);
         let motor_cmd = self.dir.wrapping_mul(p);
         self.open.voltage_limited(fb.voltage_limited);
         let o = self.open.step(motor_cmd);
@@ -889,6 +853,9 @@ impl Motion {
             0.0
         };
         self.current_limited = false;
+        if self.cfg.stall.is_some() {
+            self.stall.step(fb, o.omega_e, pos);
+        }
         CurrentReference {
             power: true,
             reset: false,
@@ -976,6 +943,9 @@ impl Motion {
         } else {
             0
         };
+        a.stall_seq = self.stall.seq;
+        a.stall_position = self.stall.position;
+        a.load_angle_ddeg = self.stall.load_angle_ddeg();
     }
 }
 

@@ -72,10 +72,12 @@ use core::f32::consts::PI;
 /// Command speed below which the detection is inactive, electrical rad/s (1 rev/s).
 pub const MIN_SPEED_E: f32 = 2.0 * PI * crate::angle::POLE_PAIRS as f32;
 /// Electrical angle the command turns while `s` stays below the threshold before the
-/// stall is declared, rad (half an electrical period).
-pub const CONFIRM_RAD: f32 = PI;
+/// stall is declared, rad (a quarter of an electrical period).
+pub const CONFIRM_RAD: f32 = 0.5 * PI;
 /// Time constant of the command-speed filter, s.
 pub const SPEED_TAU: f32 = 1e-3;
+/// Time constant of the back-EMF filter, electrical radians of the command.
+pub const FILTER_RAD: f32 = 0.5;
 /// Largest filter weight per step.
 const ALPHA_MAX: f32 = 0.5;
 
@@ -118,6 +120,9 @@ pub struct StallDetector {
     eq: f32,
     expected: f32,
     below: f32,
+    /// Command angle turned in step since the last suspect verdict, rad.
+    steady: f32,
+    onset: bool,
     state: StallState,
 }
 
@@ -134,6 +139,8 @@ impl StallDetector {
             eq: 0.0,
             expected: 0.0,
             below: 0.0,
+            steady: 0.0,
+            onset: false,
             state: StallState::Inactive,
         };
         d.configure(cfg);
@@ -171,6 +178,8 @@ impl StallDetector {
         self.eq = 0.0;
         self.expected = 0.0;
         self.below = 0.0;
+        self.steady = 0.0;
+        self.onset = false;
         self.state = StallState::Inactive;
     }
 
@@ -184,23 +193,27 @@ impl StallDetector {
         }
         self.omega_f += self.speed_k * (omega_e - self.omega_f);
         let w = self.omega_f.abs();
-        let a = num::clamp(w * self.cfg.ts, 0.0, ALPHA_MAX);
+        let a = num::clamp(w * self.cfg.ts * (1.0 / FILTER_RAD), 0.0, ALPHA_MAX);
         let wl = omega_e * self.cfg.l;
         let ed = v.d - self.cfg.r * i.d + wl * i.q;
         let eq = v.q - self.cfg.r * i.q - wl * i.d;
         self.ed += a * (ed - self.ed);
         self.eq += a * (eq - self.eq);
         self.expected += a * (self.ke_e * omega_e - self.expected);
+        self.onset = false;
         if self.state == StallState::Stalled {
             return self.state;
         }
         if w < MIN_SPEED_E {
             self.below = 0.0;
+            self.steady = 0.0;
             self.state = StallState::Inactive;
             return self.state;
         }
         let sign = if self.expected < 0.0 { -1.0 } else { 1.0 };
         if self.eq * sign < self.cfg.threshold * self.expected.abs() {
+            self.onset = self.steady >= CONFIRM_RAD;
+            self.steady = 0.0;
             self.below += w * self.cfg.ts;
             self.state = if self.below >= CONFIRM_RAD {
                 StallState::Stalled
@@ -209,9 +222,17 @@ impl StallDetector {
             };
         } else {
             self.below = 0.0;
+            self.steady += w * self.cfg.ts;
             self.state = StallState::InStep;
         }
         self.state
+    }
+
+    /// True in the step where `s` fell below the threshold after at least
+    /// [`CONFIRM_RAD`] in step: the command position of this step is where the rotor
+    /// met the obstacle (a short recovery while it bounces there does not move it).
+    pub fn onset(&self) -> bool {
+        self.onset
     }
 
     /// The last verdict.
@@ -283,11 +304,22 @@ mod tests {
         for (rev_s, delta) in [(2.0f32, 0.3f32), (10.0, 1.0), (-5.0, -0.6)] {
             let w_c = rev_s * 2.0 * PI * 50.0;
             let mut d = StallDetector::new(CFG);
-            assert_eq!(run(&mut d, w_c, w_c / 50.0, delta, 2000), StallState::InStep);
-            assert!((d.ratio() - libm::cosf(delta)).abs() < 1e-3, "{}", d.ratio());
+            assert_eq!(
+                run(&mut d, w_c, w_c / 50.0, delta, 2000),
+                StallState::InStep
+            );
+            assert!(
+                (d.ratio() - libm::cosf(delta)).abs() < 1e-3,
+                "{}",
+                d.ratio()
+            );
             // In reverse a lagging rotor is at θc − δ with δ < 0: lag |δ| along the
             // motion.
-            assert!((d.load_angle() - delta.abs()).abs() < 1e-3, "{}", d.load_angle());
+            assert!(
+                (d.load_angle() - delta.abs()).abs() < 1e-3,
+                "{}",
+                d.load_angle()
+            );
         }
     }
 
@@ -336,7 +368,10 @@ mod tests {
             q: 0.0,
         };
         assert_eq!(d.step(nan, nan, 1000.0), StallState::Inactive);
-        assert_eq!(d.step(Dq::default(), Dq::default(), f32::INFINITY), StallState::Inactive);
+        assert_eq!(
+            d.step(Dq::default(), Dq::default(), f32::INFINITY),
+            StallState::Inactive
+        );
         let mut bad = StallDetector::new(StallConfig {
             ts: -1.0,
             r: f32::NAN,
@@ -345,7 +380,10 @@ mod tests {
             threshold: 7.0,
         });
         let c = *bad.config();
-        assert_eq!((c.ts, c.r, c.l, c.ke, c.threshold), (1e-4, 0.0, 0.0, 0.0, 1.0));
+        assert_eq!(
+            (c.ts, c.r, c.l, c.ke, c.threshold),
+            (1e-4, 0.0, 0.0, 0.0, 1.0)
+        );
         assert!(bad.step(Dq::default(), Dq::default(), 3000.0) != StallState::Stalled);
         assert!(bad.ratio().is_finite() && bad.load_angle().is_finite());
     }

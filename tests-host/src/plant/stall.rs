@@ -49,7 +49,7 @@ pub struct StallRig {
     pub th0: f64,
     /// Command position of the last step, pulses.
     pub cmd: i32,
-    /// Command position at the start of the latest run of steps below the threshold.
+    /// Command position at the detector's last onset ([`StallDetector::onset`]).
     pub onset: i32,
 }
 
@@ -106,12 +106,19 @@ impl StallRig {
             i = add(i, self.rig.cl.i_dq);
         }
         self.ol.voltage_limited(limited);
-        let before = self.det.state();
         let k = 1.0 / SERVO_DIV as f32;
-        let s = self
-            .det
-            .step(Dq { d: v.d * k, q: v.q * k }, Dq { d: i.d * k, q: i.q * k }, o.omega_e);
-        if s == StallState::Suspect && before != StallState::Suspect {
+        let s = self.det.step(
+            Dq {
+                d: v.d * k,
+                q: v.q * k,
+            },
+            Dq {
+                d: i.d * k,
+                q: i.q * k,
+            },
+            o.omega_e,
+        );
+        if self.det.onset() {
             self.onset = o.position;
         }
         self.cmd = o.position;
@@ -326,7 +333,10 @@ pub fn report() -> Vec<Figure> {
     let runs = false_trip_runs();
     let trips = runs.iter().filter(|r| r.tripped).count();
     let slipped = runs.iter().filter(|r| r.max_lag_deg >= 180.0).count();
-    let min_ratio = runs.iter().map(|r| r.min_ratio).fold(f64::INFINITY, f64::min);
+    let min_ratio = runs
+        .iter()
+        .map(|r| r.min_ratio)
+        .fold(f64::INFINITY, f64::min);
     rows.push(Figure {
         name: format!(
             "false trips, {} runs: both motors, {:?} rev/s², 0 / 25 % T_hold load",
@@ -344,10 +354,15 @@ pub fn report() -> Vec<Figure> {
     let worst = homes
         .iter()
         .map(|h| h.error_deg.abs())
-        .fold(0.0f64, |a, b| if b.is_nan() { f64::INFINITY } else { a.max(b) });
+        .fold(
+            0.0f64,
+            |a, b| if b.is_nan() { f64::INFINITY } else { a.max(b) },
+        );
     let mean = homes.iter().map(|h| h.error_deg).sum::<f64>() / homes.len() as f64;
     rows.push(Figure {
-        name: format!("stall homing ECN57-20 at {HOMING_SPEED} rev/s, 20 runs with noise: position error"),
+        name: format!(
+            "stall homing ECN57-20 at {HOMING_SPEED} rev/s, 20 runs with noise: position error"
+        ),
         goal: format!("≤ ±{HOMING_GOAL_DEG}° (1 full step)"),
         achieved: format!("max |error| {worst:.2}° (mean {mean:+.2}°), {found}/20 found"),
         met: found == 20 && worst <= HOMING_GOAL_DEG,
