@@ -892,4 +892,6 @@ pub use stack::{is_saved, NoRuntime};
 pub use store::{FlashStore, NoStore, ParameterStore, StagedStore};
 
 #[cfg(test)]
+mod stall_tests;
+#[cfg(test)]
 mod tests;
