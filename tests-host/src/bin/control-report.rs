@@ -3,7 +3,8 @@
 //! `| figure | goal | achieved | met |`.
 //!
 //! Then the "Robustness" table (`tests_host::plant::robustness`): the current loop on
-//! the plant with a real motor's and board's non-idealities.
+//! the plant with a real motor's and board's non-idealities, and the "Stall detection
+//! (open loop)" table (`tests_host::plant::stall`).
 //!
 //! `--plots DIR` also writes `current_step.png`, `csp_tracking_error.png` and
 //! `iq_ripple_vs_speed.png` (the README's plot) into DIR.
@@ -16,6 +17,7 @@ use std::path::PathBuf;
 use tests_host::plant::motor::{ECN57_20, TC86_45};
 use tests_host::plant::robustness::{self, Calibration, Conditions, Design};
 use tests_host::plant::scenarios::{self, Figure};
+use tests_host::plant::stall;
 use tests_host::plot::{load_font, plot};
 
 fn main() {
@@ -46,6 +48,10 @@ fn main() {
     println!("### Robustness (current loop on a non-ideal plant)");
     println!();
     print_table(&robustness::report());
+    println!();
+    println!("### Stall detection (open loop)");
+    println!();
+    print_table(&stall::report());
 
     if let Some(dir) = plots {
         if let Err(e) = std::fs::create_dir_all(&dir) {
