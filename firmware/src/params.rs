@@ -221,7 +221,7 @@ vendor_params! {
         StallEnable = rws(0, "Stall detection enable", U8, 0, 0, 1, ""),
     }
     0x2061 var "Stall detection sensitivity",
-        "Trip when the in-phase back-EMF stays below this % of Ke times the command speed for half an electrical period; higher values trip at a smaller load angle, acos(x/100)" {
+        "Trip when the in-phase back-EMF stays below this % of Ke times the command speed for a quarter of an electrical period; higher values trip at a smaller load angle, acos(x/100)" {
         StallSensitivity = rws(0, "Stall detection sensitivity", U8, 30, 5, 90, "%"),
     }
     0x2062 var "Stall reaction",

@@ -37,18 +37,22 @@
 //! collapses or spins in the command frame and `s` falls to about 0 on average. The
 //! drive trips when `s` stays below the threshold (the sensitivity, 0x2061: a higher
 //! value trips at a smaller load angle, `δ = acos(threshold)` for a rotor still in
-//! step) for half an electrical turn of the command ([`CONFIRM_RAD`]).
+//! step) for a quarter of an electrical turn of the command ([`CONFIRM_RAD`]). The
+//! confirmation is this short so that the stall is known before the load angle of a
+//! blocked rotor passes 180°, beyond which the field pulls the rotor back (a stall
+//! homing that stops the field then still finds the rotor at the stop).
 //!
 //! # Filters and rates
 //! [`StallDetector::step`] runs at the servo rate (10 kHz), outside the current loop's
 //! step, on the values the loop keeps. `e_d`, `e_q` and the expected `Ke·ωc/50` pass
-//! the same first-order low-pass, `y += α·(x − y)`, whose time constant is one
-//! electrical radian of the command, `α = min(|ω̄c|·Ts, ½)` (ω̄c: the command speed
-//! through a 1 ms low-pass, [`SPEED_TAU`], which also smooths the pulse quantisation
-//! of the command). So the detection takes about the same part of an electrical
-//! period at every speed: the filtered `s` crosses a threshold of ½ about 0.7 rad
-//! after the rotor stops, the confirmation adds π rad: ≈ 0.6 electrical periods, plus
-//! the current loop's settling; the detent ripple at `4·ωc` is attenuated to 24 %.
+//! the same first-order low-pass, `y += α·(x − y)`, whose time constant is half an
+//! electrical radian of the command ([`FILTER_RAD`]), `α = min(2·|ω̄c|·Ts, ½)` (ω̄c:
+//! the command speed through a 1 ms low-pass, [`SPEED_TAU`], which also smooths the
+//! pulse quantisation of the command). So the detection takes about the same part of
+//! an electrical period at every speed: the filtered `s` falls to the default
+//! threshold 0.3 about `0.5·ln(1/0.3)` = 0.6 rad after the rotor stops, the
+//! confirmation adds π/2: ≈ 0.35 electrical periods, plus the current loop's
+//! settling; the detent ripple at `4·ωc` is attenuated to 45 %.
 //! Filtering the expected value with the same filter takes the filter's lag out of
 //! the ratio during acceleration.
 //!
@@ -61,7 +65,12 @@
 //!
 //! # Numeric behaviour
 //! `f32`, no division in [`StallDetector::step`] (the ratio is compared as
-//! `e_q·sgn(ωc) < threshold·|Ke·ωc/50|`), ≈ 30 FPU operations; the load angle
+//! `e_q·sgn(ωc) < threshold·|Ke·ωc/50|`), ≈ 30 FPU operations at the servo rate; the
+//! inputs are the means of the current loop's `v_dq`, `i_dq` over the servo period
+//! (the open-loop angle steps once per servo period: a single current-loop period's
+//! voltage carries the loop's response to that step, not the motor's steady
+//! voltage); their sums cost four additions per current-loop period outside
+//! `CurrentLoop::step`. The load angle
 //! ([`StallDetector::load_angle`]) takes one `atan2f` and is meant for the
 //! monitoring rate. Non-finite inputs leave the state unchanged.
 
@@ -336,7 +345,7 @@ mod tests {
                 assert!(n < 100_000);
             }
             let t = n as f32 * CFG.ts;
-            assert!(t > 0.5 * period && t < period, "{rev_s}: {t} s");
+            assert!(t > 0.2 * period && t < 0.6 * period, "{rev_s}: {t} s");
         }
     }
 
