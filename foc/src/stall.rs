@@ -195,9 +195,12 @@ impl StallDetector {
     /// One step with the current loop's last voltages `v` and currents `i` (command
     /// frame, V and A) and the command's electrical speed `omega_e` (rad/s).
     pub fn step(&mut self, v: Dq, i: Dq, omega_e: f32) -> StallState {
-        if !(v.d.is_finite() && v.q.is_finite() && i.d.is_finite() && i.q.is_finite())
-            || !omega_e.is_finite()
-        {
+        let finite = v.d.is_finite()
+            && v.q.is_finite()
+            && i.d.is_finite()
+            && i.q.is_finite()
+            && omega_e.is_finite();
+        if !finite {
             return self.state;
         }
         self.omega_f += self.speed_k * (omega_e - self.omega_f);
