@@ -168,6 +168,7 @@ pub const UNITS: &[&str] = &[
     "°C",
     "mN·m",
     "0.1 %/s",
+    "0.1°",
 ];
 
 /// The texts of [`UNITS`] one after the other, and where each one ends: what

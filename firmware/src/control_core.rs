@@ -20,7 +20,10 @@
 //!    voltage mode while tuning) → duties → compare registers (in open loop the
 //!    applied voltage also goes to the damping's back-EMF estimate), unless the fast
 //!    protection trips in this very period; off, the loop keeps measuring (the
-//!    protection keeps watching) with zero volts.
+//!    protection keeps watching) with zero volts. The loop's `v_dq` / `i_dq` are
+//!    summed for their servo-period means (the open-loop stall detection,
+//!    `foc::stall`: the open-loop angle steps once per servo period, so a single
+//!    period's voltage carries the current loop's response to that step).
 //!
 //! A withdrawn permission re-arms the fast protection (the drive has taken the trip's
 //! fault); the current loop's integrators restart at every enable and at a
@@ -36,6 +39,7 @@ use foc::current_loop::{robust_bandwidth, AdcSample, CurrentLoop, CurrentLoopCon
 use foc::damping::{Damping, DampingConfig};
 use foc::encoder::{Encoder, EncoderConfig};
 use foc::modulation::{Duties, Modulator};
+use foc::transforms::Dq;
 
 /// Current-loop periods per servo period.
 pub const SERVO_DIVIDER: u8 = 4;
@@ -152,6 +156,10 @@ pub struct ControlCore {
     probe2: Edges<i32>,
     /// Probe-2 latches already converted.
     probe2_seen: Seen,
+    /// Sums of the current loop's `v_dq` / `i_dq` over the periods since the last
+    /// servo period (their means feed the open loop's stall detection).
+    v_sum: Dq,
+    i_sum: Dq,
 }
 
 const NO_EDGES: Edges<i32> = Edges {
@@ -225,6 +233,8 @@ impl ControlCore {
             probe1: NO_EDGES,
             probe2: NO_EDGES,
             probe2_seen: Seen::default(),
+            v_sum: Dq::default(),
+            i_sum: Dq::default(),
         }
     }
 
@@ -306,6 +316,12 @@ impl ControlCore {
             } else {
                 hw.set_duties(d);
             }
+            // For the stall detection's servo-period means (four additions, outside
+            // `CurrentLoop::step`).
+            self.v_sum.d += self.cl.v_dq.d;
+            self.v_sum.q += self.cl.v_dq.q;
+            self.i_sum.d += self.cl.i_dq.d;
+            self.i_sum.q += self.cl.i_dq.q;
         } else {
             if self.bridges_on {
                 hw.disable_outputs();
@@ -343,12 +359,23 @@ impl ControlCore {
                 self.motion.set_command(&k.motion_command(), k.cycle_s);
             }
         }
+        let k = 1.0 / f32::from(SERVO_DIVIDER);
         let fb = crate::motion::Feedback {
             position: self.enc.position(),
             velocity: self.enc.velocity(),
             electrical_angle: self.enc.electrical_angle(),
             voltage_limited: self.cl.saturated,
+            v_dq: Dq {
+                d: self.v_sum.d * k,
+                q: self.v_sum.q * k,
+            },
+            i_dq: Dq {
+                d: self.i_sum.d * k,
+                q: self.i_sum.q * k,
+            },
         };
+        self.v_sum = Dq::default();
+        self.i_sum = Dq::default();
         let step = if self.sup.tuning() {
             self.motion.step_held(&fb)
         } else {

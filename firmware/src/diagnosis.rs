@@ -83,6 +83,11 @@ pub const TEXTS: &[Text] = &[
         text: "EtherCAT communication fault (bus %d x 0.1 V, AL status / states %X)",
     },
     Text {
+        id: fault_text_id(FaultKind::MotorBlocked),
+        severity: Severity::Error,
+        text: "Motor blocked, open-loop stall (bus %d x 0.1 V, load angle %d x 0.1 deg)",
+    },
+    Text {
         id: TEXT_COMMUNICATION_STOP,
         severity: Severity::Warning,
         text: "Master's commands stopped, drive stopped by 0x6007 (bus %d x 0.1 V, %X)",
@@ -124,7 +129,7 @@ pub const TEXTS: &[Text] = &[
     },
 ];
 
-const _: () = assert!(KINDS == 7, "one text per fault kind");
+const _: () = assert!(KINDS == 8, "one text per fault kind");
 
 /// The text of `id`.
 pub fn text(id: u16) -> Option<&'static Text> {

@@ -97,6 +97,12 @@ pub struct AxisState {
     /// aligns ([`crate::cia402::DriveFeedback::enable_pending`]). False (the default):
     /// open loop, no encoder, aligned — no wait.
     pub commutation_pending: bool,
+    /// Counts the open-loop stalls confirmed by the motion layer's detector (wrapping).
+    pub stall_seq: u32,
+    /// Command position where the last stall began (command units).
+    pub stall_position: i32,
+    /// Estimated load angle of the open loop, 0.1° electrical (0x2063).
+    pub load_angle_ddeg: i16,
 }
 
 /// LED levels of the drive (RUN/ERR come from the slave runtime's indicators).
@@ -144,6 +150,8 @@ pub struct Drive<S: ParameterStore = NoStore> {
     now_ms: u32,
     fault_led: fault_led::FaultLed,
     last_controlword: u16,
+    /// `AxisState::stall_seq` of the last stall handled.
+    stall_seen: u32,
     store: Option<S>,
     load_report: Option<LoadReport>,
     storage_emergency: Option<(u16, [u8; 5])>,
@@ -220,6 +228,7 @@ macro_rules! power_up_fields {
             now_ms: 0,
             fault_led: fault_led::FaultLed::new(),
             last_controlword: 0,
+            stall_seen: 0,
             store: Some($store),
             load_report: None,
             storage_emergency: None,
@@ -411,6 +420,7 @@ impl<S: ParameterStore> Drive<S> {
         self.monitor.m.ia_set_ma = a.ia_set_ma;
         self.monitor.m.ib_set_ma = a.ib_set_ma;
         self.monitor.m.bus_10mv = (a.bus_mv / 10).min(u32::from(u16::MAX)) as u16;
+        self.params.set_load_angle(a.load_angle_ddeg);
     }
 
     /// The set-points produced by the last cycle.
@@ -515,6 +525,27 @@ impl<S: ParameterStore> Drive<S> {
                 .push(crate::diagnosis::parameter_message(true, 0, self.now_ms));
         }
         r.map(|_| ()).map_err(StorageError::abort)
+    }
+
+    /// A stall the motion layer confirmed since the last step (where it began, command
+    /// units).
+    fn take_stall(&mut self) -> Option<i32> {
+        let seq = self.axis.stall_seq;
+        if seq == self.stall_seen {
+            return None;
+        }
+        self.stall_seen = seq;
+        Some(self.axis.stall_position)
+    }
+
+    /// Fault 0x7121 (motor blocked): an event, its condition gone at once, so a fault
+    /// reset clears it; the emergency's detail is the load angle (0.1°).
+    fn raise_motor_blocked(&mut self) {
+        let snap = self.snapshot();
+        let detail = self.axis.load_angle_ddeg.to_le_bytes();
+        self.faults
+            .raise_detail(FaultKind::MotorBlocked, detail, snap, self.now_ms);
+        self.faults.condition_gone(FaultKind::MotorBlocked);
     }
 
     fn snapshot(&self) -> Snapshot {
@@ -805,6 +836,11 @@ impl<S: ParameterStore> Drive<S> {
         }
         self.last_controlword = cw;
         let power_cut = self.faults.power_cut();
+        let stall = self.take_stall();
+        // The 0x2062 reaction, unless stall homing searches its stop: 1 quick stop (as
+        // the quick-stop input, for this step), 0 the motor-blocked fault below.
+        let stall_fault = stall.is_some() && !self.cia402.seeking_stall();
+        let stall_quick_stop = stall_fault && self.params.get(Param::StallReaction) == 1;
         let fb = DriveFeedback {
             position: self.axis.position,
             velocity: self.axis.velocity,
@@ -819,10 +855,14 @@ impl<S: ParameterStore> Drive<S> {
             power_stage_tripped: power_cut,
             warning: false,
             current_limited: self.axis.current_limited,
-            quick_stop_input: self.inputs.quick_stop(),
+            quick_stop_input: self.inputs.quick_stop() || stall_quick_stop,
             enable_pending: self.axis.commutation_pending,
+            stall,
         };
         self.command = self.cia402.step(&fb, dt, setpoint);
+        if stall_fault && !stall_quick_stop {
+            self.raise_motor_blocked();
+        }
         // Following-error supervision of the closed loop (0x2030, encoder counts).
         if self.command.drive_enabled
             && self.variant.has_encoder()
@@ -864,5 +904,7 @@ use stack::WholeDictionary;
 pub use stack::{is_saved, NoRuntime};
 pub use store::{FlashStore, NoStore, ParameterStore, StagedStore};
 
+#[cfg(test)]
+mod stall_tests;
 #[cfg(test)]
 mod tests;

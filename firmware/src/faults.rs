@@ -13,6 +13,7 @@
 //! | under-voltage (< 12 V) | 0x3220 | 0, 2 (voltage) | 3 | no | 6 | 0x605E ramp |
 //! | position following error | 0x8611 | 0, 5 (profile) | 7 | no | 7 | 0x605E ramp |
 //! | EtherCAT (watchdog, sync, ESM, PDO length) | caller's code (0x8700, 0xA000, 0xA001, 0x8210, 0x8220) | 0, 4 (communication) | — (ERR LED) | no | — | 0x605E ramp (0x6007 = 1) |
+//! | motor blocked (open-loop stall, 0x2060-0x2062) | 0x7121 | 0, 5 (profile) | 5 | no | — (0x2060) | 0x605E ramp |
 //!
 //! **Reaction** ([`FaultKind::cuts_power`]): "power off at once" withdraws the power
 //! stage in the same supervision tick (the motor coasts, the brake engages); the
@@ -20,7 +21,10 @@
 //! stage on until the motor stands, then Fault.
 //!
 //! The rows are in order of severity (the red LED shows the most severe active fault;
-//! 0x603F reports the most severe active fault's code, 0 when none).
+//! 0x603F reports the most severe active fault's code, 0 when none). Motor blocked
+//! comes last: its kind number (7) follows the older kinds, so the stored histories
+//! keep their meaning. It is an event of the stall detector ([`crate::motion`]); its
+//! condition is gone at once, so a fault reset clears it.
 //!
 //! **0x2056** (default 0x00C3): a set bit *enables* the detection. The default thus
 //! enables over-current, over-voltage, under-voltage and following error, and leaves
@@ -86,6 +90,8 @@ pub enum FaultKind {
     FollowingError = 5,
     /// EtherCAT communication fault (watchdog, sync, state transition, PDO length).
     Ecat = 6,
+    /// Motor blocked: the open-loop stall detection saw the rotor lose synchronism.
+    MotorBlocked = 7,
 }
 
 /// Bit n set: [`FaultKind`] n cuts the power at once ([`FaultKind::cuts_power`]).
@@ -102,7 +108,7 @@ const POWER_CUT_MASK: u8 = {
 };
 
 /// Number of fault kinds.
-pub const KINDS: usize = 7;
+pub const KINDS: usize = 8;
 
 impl FaultKind {
     /// The kind numbered `n` (its `repr(u8)` value), if any.
@@ -118,6 +124,7 @@ impl FaultKind {
         FaultKind::UnderVoltage,
         FaultKind::FollowingError,
         FaultKind::Ecat,
+        FaultKind::MotorBlocked,
     ];
     /// 0x603F code (EtherCAT faults carry the caller's code instead).
     pub const fn code(self) -> u16 {
@@ -129,6 +136,7 @@ impl FaultKind {
             Self::UnderVoltage => 0x3220,
             Self::FollowingError => 0x8611,
             Self::Ecat => 0x8700,
+            Self::MotorBlocked => 0x7121,
         }
     }
     /// Bits of 0x1001 (bit 0 generic always included).
@@ -136,7 +144,7 @@ impl FaultKind {
         match self {
             Self::OverCurrent | Self::PhaseSensing => 0x03,
             Self::OverVoltage | Self::UnderVoltage => 0x05,
-            Self::MotorOpen | Self::FollowingError => 0x21,
+            Self::MotorOpen | Self::FollowingError | Self::MotorBlocked => 0x21,
             Self::Ecat => 0x11,
         }
     }
@@ -149,6 +157,7 @@ impl FaultKind {
             Self::MotorOpen => Some(4),
             Self::FollowingError => Some(7),
             Self::PhaseSensing => Some(9),
+            Self::MotorBlocked => Some(5),
             Self::Ecat => None,
         }
     }
@@ -175,7 +184,7 @@ impl FaultKind {
             Self::PhaseSensing => Some(3),
             Self::UnderVoltage => Some(6),
             Self::FollowingError => Some(7),
-            Self::Ecat => None,
+            Self::Ecat | Self::MotorBlocked => None,
         }
     }
 }

@@ -74,6 +74,13 @@ use core::num::{NonZeroU32, NonZeroU64};
 use foc::angle::{Angle, CountScale, POLE_PAIRS};
 use foc::open_loop::{OpenLoop, OpenLoopConfig};
 use foc::servo::{handover_currents, Demand, Servo, ServoGains};
+use foc::stall::StallConfig;
+use foc::transforms::Dq;
+use interp::Interp;
+use stall::Stall;
+
+mod interp;
+mod stall;
 
 /// Velocity bandwidth of the base gains (0x2140 = 100), Hz.
 pub const BASE_BANDWIDTH_HZ: f32 = 400.0;
@@ -95,19 +102,28 @@ pub const LAG_LIMIT: f32 = 1.0e6;
 pub struct MotorConstants {
     /// Rotor (+ load) inertia, kg·m².
     pub inertia: f32,
-    /// Torque constant, N·m/A (FOC peak current).
+    /// Torque constant, N·m/A (FOC peak current); also the back-EMF constant, V·s/rad.
     pub kt: f32,
+    /// Phase resistance, Ω (the stall detection's model until 0x2020/0x2021 hold a
+    /// tuned motor).
+    pub resistance: f32,
+    /// Phase inductance, H (likewise).
+    pub inductance: f32,
 }
 
-/// ECN57-20 (NEMA 23): 480 g·cm², 0.283 N·m/A.
+/// ECN57-20 (NEMA 23): 480 g·cm², 0.283 N·m/A, 0.40 Ω, 1.8 mH.
 pub const ECN57_20: MotorConstants = MotorConstants {
     inertia: 480e-7,
     kt: 0.283,
+    resistance: 0.40,
+    inductance: 1.8e-3,
 };
-/// TC86-45 (NEMA 34): 1400 g·cm², 0.530 N·m/A.
+/// TC86-45 (NEMA 34): 1400 g·cm², 0.530 N·m/A, 0.325 Ω, 3.0 mH.
 pub const TC86_45: MotorConstants = MotorConstants {
     inertia: 1400e-7,
     kt: 0.530,
+    resistance: 0.325,
+    inductance: 3.0e-3,
 };
 
 /// Configuration of [`Motion`] (from the parameters: [`MotionConfig::from_params`]).
@@ -139,6 +155,8 @@ pub struct MotionConfig {
     pub gains: ServoGains,
     /// Open-loop anti-resonance damping gain 0x2059, s (0 = off; `foc::damping`).
     pub damping_s: f32,
+    /// Open-loop stall detection (0x2060 = 1; 0x2061 → threshold), `None` when off.
+    pub stall: Option<StallConfig>,
 }
 
 fn finite_pos(x: f32) -> f32 {
@@ -214,6 +232,7 @@ impl MotionConfig {
             following_error_limit: p.get(Param::FollowingErrorLimit).clamp(1, 1 << 24) as u32,
             gains,
             damping_s: p.get(Param::ResonanceDamping) as f32 * 1e-6,
+            stall: stall::config_from_params(p, motor, ts),
         }
     }
 
@@ -241,6 +260,10 @@ pub struct Feedback {
     pub electrical_angle: Angle,
     /// The current loop limited its voltage vector in the last period.
     pub voltage_limited: bool,
+    /// The current loop's commanded d/q voltages, mean over the last servo period, V.
+    pub v_dq: Dq,
+    /// The current loop's measured d/q currents, mean over the last servo period, A.
+    pub i_dq: Dq,
 }
 
 /// Which angle the current loop works on.
@@ -409,6 +432,7 @@ pub struct Motion {
     enabled: bool,
     reset_pending: bool,
     current_limited: bool,
+    stall: Stall,
     open: OpenLoop,
     // Closed-loop command smoothing (moving average in command units), in use when
     // `smooth_on`. Always present so that reconfiguring re-initialises it in place.
@@ -462,6 +486,7 @@ impl Motion {
             vel_report: 0.0,
             vel_k: cfg.ts / (VELOCITY_REPORT_TAU + cfg.ts),
             current_limited: false,
+            stall: Stall::new(cfg.stall, cfg.ts),
         }
     }
 
@@ -507,6 +532,9 @@ impl Motion {
         self.servo.set_gains(cfg.gains);
         self.servo
             .set_following_error_limit(cfg.following_error_limit);
+        if old.stall != cfg.stall {
+            self.stall.configure(cfg.stall);
+        }
         self.iq_limit_set = cfg.gains.iq_max;
         self.iq_per_permille = finite_pos(cfg.peak_current) * 1e-3;
         if !self.enabled {
@@ -589,6 +617,7 @@ impl Motion {
         self.acc_ff = 0.0;
         self.id_handover = 0.0;
         self.soft_k = 0.0;
+        self.stall.reset();
         self.soft_step = if self.cfg.soft_start_s > self.cfg.ts {
             self.cfg.ts / self.cfg.soft_start_s
         } else {
@@ -825,6 +854,7 @@ impl Motion {
 
     fn step_open(&mut self, fb: &Feedback) -> CurrentReference {
         let (p, _, _) = self.interp.step();
+        let p = self.stall.command(p);
         let motor_cmd = self.dir.wrapping_mul(p);
         self.open.voltage_limited(fb.voltage_limited);
         let o = self.open.step(motor_cmd);
@@ -839,6 +869,9 @@ impl Motion {
             0.0
         };
         self.current_limited = false;
+        if self.cfg.stall.is_some() {
+            self.stall.step(fb, o.omega_e, pos);
+        }
         CurrentReference {
             power: true,
             reset: false,
@@ -926,6 +959,9 @@ impl Motion {
         } else {
             0
         };
+        a.stall_seq = self.stall.seq;
+        a.stall_position = self.stall.position;
+        a.load_angle_ddeg = self.stall.load_angle_ddeg();
     }
 }
 

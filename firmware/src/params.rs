@@ -1,4 +1,5 @@
-//! Vendor parameters 0x2000-0x2156 (drive-requirements §3.3, plus 0x2156): the one table of their
+//! Vendor parameters 0x2000-0x2156 (drive-requirements §3.3, plus 0x2156 and the stall
+//! detection 0x2060-0x2063): the one table of their
 //! access, default, range, unit and saved flag, and the values.
 //!
 //! The generic SDO checks (`od::check_write`) refuse out-of-range writes from this
@@ -21,6 +22,8 @@
 //! * 0x2022 (current-sensing calibration) is filled by the drive from the power-up
 //!   auto-tune's report ([`Params::set_calibration`]); read-only, not saved.
 //! * 0x2155 (raw input levels) is filled by the I/O module ([`Params::set_raw_inputs`]).
+//! * 0x2063 (estimated load angle) is filled by the drive from the motion layer's
+//!   stall detector ([`Params::set_load_angle`]).
 //! * 0x2156 (ours) keeps the station number entered on a single-bank DIP board (SW8
 //!   ON → SW1-SW7 → SW8 OFF, see [`crate::dip::SingleBank`]); the application sets it
 //!   with [`Params::set_internal`] and stores it with a save. It is the DIP address from
@@ -218,6 +221,22 @@ vendor_params! {
         "Open-loop damping gain Kd (foc::damping): the command angle advances by Kd times the speed error estimated from the back-EMF; 0 off" {
         ResonanceDamping = rws(0, "Anti-resonance damping", U16, 1000, 0, 5000, "us"),
     }
+    0x2060 var "Stall detection enable",
+        "Open loop: 1 detects the loss of synchronism from the back-EMF the current loop sees (inactive below 1 rev/s, where the back-EMF is of the order of the model's errors)" {
+        StallEnable = rws(0, "Stall detection enable", U8, 0, 0, 1, ""),
+    }
+    0x2061 var "Stall detection sensitivity",
+        "Trip when the in-phase back-EMF stays below this % of Ke times the command speed for a quarter of an electrical period; higher values trip at a smaller load angle, acos(x/100)" {
+        StallSensitivity = rws(0, "Stall detection sensitivity", U8, 30, 5, 90, "%"),
+    }
+    0x2062 var "Stall reaction",
+        "0 fault 0x7121 motor blocked (emergency, fault reaction 0x605E), 1 quick stop (0x605A); during stall homing (0x6098 = -1, -2) the stall sets the home position instead" {
+        StallReaction = rws(0, "Stall reaction", U8, 0, 0, 1, ""),
+    }
+    0x2063 var "Estimated load angle",
+        "Open loop: load angle estimated from the back-EMF, in the direction of motion (positive: the rotor lags); 0 while the stall detection is inactive" {
+        _ = EntryDesc::new(0, "Estimated load angle", I16, Access::RO).pdo(PdoMappable::Tx).unit("0.1°").default(0),
+    }
     0x2083 var "Power-up wiggle",
         "Angle alignment by a small shaft movement at power-up" {
         PowerUpWiggle = rws(0, "Power-up wiggle", U8, 0, 0, 1, ""),
@@ -309,6 +328,7 @@ pub struct Params {
     values: [i32; N],
     active: ActiveConfig,
     raw_inputs: u8,
+    load_angle_ddeg: i16,
     command_pulses: u32,
     encoder_counts: u32,
     fault_history_clear: bool,
@@ -333,6 +353,7 @@ impl Params {
                 alias_source: 0,
             },
             raw_inputs: 0,
+            load_angle_ddeg: 0,
             command_pulses: 0,
             encoder_counts: 0,
             fault_history_clear: false,
@@ -416,6 +437,11 @@ impl Params {
         self.raw_inputs = levels & 0x1F;
     }
 
+    /// Sets the estimated load angle reported by 0x2063, 0.1° electrical.
+    pub fn set_load_angle(&mut self, ddeg: i16) {
+        self.load_angle_ddeg = ddeg;
+    }
+
     /// Adds received command pulses (0x2039/0x2040).
     pub fn add_command_pulses(&mut self, delta: u32) {
         self.command_pulses = self.command_pulses.wrapping_add(delta);
@@ -454,6 +480,7 @@ impl Params {
             (None, 0x2042, 0) => self.encoder_counts & 0xFFFF,
             (None, 0x2093, 0) => u32::from(self.fault_history_clear),
             (None, 0x2155, 0) => u32::from(self.raw_inputs),
+            (None, 0x2063, 0) => self.load_angle_ddeg as u32,
             (None, 0x2022, 1) => u32::from(self.calibration.gain_b_e4),
             (None, 0x2022, 2) => self.calibration.offset_ma[0] as u32,
             (None, 0x2022, 3) => self.calibration.offset_ma[1] as u32,
@@ -646,6 +673,9 @@ mod tests {
             (0x2030, 0, 1000, 1, 60000),
             (0x2056, 0, 0xC3, 0, 0xFFFF),
             (0x2058, 0, 1, 0, 10000),
+            (0x2060, 0, 0, 0, 1),
+            (0x2061, 0, 30, 5, 90),
+            (0x2062, 0, 0, 0, 1),
             (0x2137, 0, 120, 0, 150),
             (0x2138, 0, 50, 0, 150),
             (0x2139, 0, 70, 0, 150),

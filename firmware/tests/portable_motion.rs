@@ -38,6 +38,7 @@ impl Rotor {
             velocity: self.v,
             electrical_angle: Angle((libm::floorf(self.x) as i64 * (50i64 << 32) / 4000) as u32),
             voltage_limited: false,
+            ..Feedback::default()
         }
     }
     fn advance(&mut self, r: &CurrentReference) {

@@ -16,6 +16,7 @@
 //! | [`encoder`] | quadrature count, electrical angle, PLL velocity, Z index |
 //! | [`open_loop`] | microstepping, holding current, soft start, command filter |
 //! | [`damping`] | anti-resonance damping of open loop (back-EMF speed estimate) |
+//! | [`stall`] | open-loop stall detection from the back-EMF the current loop sees |
 //! | [`servo`] | position/velocity cascade, CSP interpolation, following error, alignment |
 //! | [`autotune`] | R/L measurement, current-loop gains, open/unbalanced phase |
 #![no_std]
@@ -32,6 +33,7 @@ pub mod num;
 pub mod open_loop;
 pub mod pi;
 pub mod servo;
+pub mod stall;
 pub mod transforms;
 pub mod trig;
 

@@ -186,6 +186,7 @@ impl Axis for KinematicAxis {
             servo_following_error: ((self.demand - self.pos) / UNITS_PER_REV * COUNTS_PER_REV)
                 .round() as i32,
             commutation_pending: false,
+            ..AxisState::default()
         }
     }
 
@@ -317,6 +318,10 @@ pub struct PlantAxis {
     theta0: f64,
     last_count: i64,
     index: Option<i32>,
+    /// Sums of the current loop's v_dq / i_dq since the last servo period (the
+    /// board's `ControlCore` passes their means to the motion layer).
+    v_sum: Dq,
+    i_sum: Dq,
 }
 
 impl PlantAxis {
@@ -374,6 +379,8 @@ impl PlantAxis {
             theta0,
             last_count: last,
             index: None,
+            v_sum: Dq::default(),
+            i_sum: Dq::default(),
         }
     }
 
@@ -463,13 +470,23 @@ impl PlantAxis {
             * f64::from(self.motion.config().pulses_per_rev)
     }
 
-    fn feedback(&self) -> Feedback {
-        Feedback {
+    fn feedback(&mut self) -> Feedback {
+        let k = 1.0 / SERVO_DIV as f32;
+        let mean = |x: Dq| Dq {
+            d: x.d * k,
+            q: x.q * k,
+        };
+        let fb = Feedback {
             position: self.rig.enc.position(),
             velocity: self.rig.enc.velocity(),
             electrical_angle: self.rig.enc.electrical_angle(),
             voltage_limited: self.rig.cl.saturated,
-        }
+            v_dq: mean(self.v_sum),
+            i_dq: mean(self.i_sum),
+        };
+        self.v_sum = Dq::default();
+        self.i_sum = Dq::default();
+        fb
     }
 
     fn units_of_count(&self, n: i64) -> i32 {
@@ -548,6 +565,11 @@ impl PlantAxis {
         // Over-current comparator → break input: every switch off at once (the board's
         // timer break acts within the PWM period); re-armed when the drive no longer
         // asks for power and the currents are below the trip level.
+        let cl = &self.rig.cl;
+        self.v_sum.d += cl.v_dq.d;
+        self.v_sum.q += cl.v_dq.q;
+        self.i_sum.d += cl.i_dq.d;
+        self.i_sum.q += cl.i_dq.q;
         let peak = self.rig.plant.ia.abs().max(self.rig.plant.ib.abs());
         if peak > self.trip_amps {
             self.tripped = true;

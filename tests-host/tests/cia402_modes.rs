@@ -633,6 +633,7 @@ fn random_feedback_and_raw_parameters_never_panic() {
             current_limited: rng.below(2) == 0,
             quick_stop_input: rng.below(50) == 0,
             enable_pending: rng.below(4) == 0,
+            stall: some(&mut rng),
         };
         let c = d.cycle(
             &fb,

@@ -60,6 +60,7 @@ impl Axis {
             velocity: self.rig.enc.velocity(),
             electrical_angle: self.rig.enc.electrical_angle(),
             voltage_limited: self.rig.cl.saturated,
+            ..Feedback::default()
         };
         let s = self.m.step(&fb, self.rig.enc.raw_electrical_angle());
         if let Some(off) = s.offset {

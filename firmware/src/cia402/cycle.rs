@@ -62,6 +62,7 @@ impl Cia402 {
         self.actual_current = fb.current;
         self.digital_inputs = fb.digital_inputs;
         self.enable_pending = fb.enable_pending;
+        self.stall = fb.stall;
         let index = if self.has_index { fb.index } else { None };
         {
             let neg = self.pos_neg();

@@ -1,4 +1,5 @@
-//! Homing (mode 6): methods 1-14, 17-30, 33, 34, 35 and 37.
+//! Homing (mode 6): methods 1-14, 17-30, 33, 34, 35 and 37, and the manufacturer's
+//! stall homing −1 / −2.
 //!
 //! Every switch-based method is described by the *reference edge* `E` it homes on and
 //! the direction of the final approach to it (`final_dir`). The points before `E` seen
@@ -23,6 +24,16 @@
 //! does not use (or, in zone methods, after the reversal) is a homing error, as is an
 //! index method without an encoder index or a method whose inputs are not assigned.
 //! Methods 33/34 search the index directly (0x6099:02); 35/37 take the present position.
+//!
+//! **Stall homing** (−1 in the positive, −2 in the negative direction; open loop with
+//! the stall detection 0x2060 on, `crate::motion`): search at 0x6099:01 until the
+//! motion layer confirms a stall against a hard stop ([`HomingInputs::stall`]: the
+//! position where the stall began). That position is the home position: the demand
+//! stops at once (the rotor stands at the stop; a ramp would drive the field on past
+//! it), returns to it at 0x6099:02 and it reads 0x607C. The stall does not raise the
+//! 0x2062 reaction during the search. A limit switch in the direction of the search
+//! is a homing error. The search speed must lie above the detection's minimum
+//! (1 rev/s, `foc::stall::MIN_SPEED_E`), or no stall is ever seen.
 
 use super::profile::{Motion, MoveStatus};
 
@@ -62,6 +73,8 @@ enum Kind {
     Index,
     /// The present position.
     Here,
+    /// A hard stop in `final_dir`, found by the stall detection.
+    Stall,
 }
 
 /// What a method does (see the module documentation).
@@ -76,7 +89,10 @@ impl Method {
     /// The description of `method`, `None` if unsupported: `Method::spec`, looked up
     /// in a one-byte-per-method table built from it at compile time (`PACKED`).
     pub const fn describe(method: i8) -> Option<Method> {
-        if method < 0 || method as usize >= PACKED.len() {
+        if method < 0 {
+            return Method::spec(method);
+        }
+        if method as usize >= PACKED.len() {
             return None;
         }
         Method::unpack(PACKED[method as usize])
@@ -128,6 +144,8 @@ impl Method {
             33 => (Index, -1, true),
             34 => (Index, 1, true),
             35 | 37 => (Here, 1, false),
+            -1 => (Stall, 1, false),
+            -2 => (Stall, -1, false),
             _ => return None,
         };
         Some(Method {
@@ -158,7 +176,7 @@ impl Method {
                 1 | ((upper as u8) << 4) | (((init_dir > 0) as u8) << 5)
             }
             Kind::Index => 2,
-            Kind::Here => 3,
+            Kind::Here | Kind::Stall => 3,
         };
         0x80 | kind | (((m.final_dir > 0) as u8) << 2) | ((m.index as u8) << 3)
     }
@@ -208,14 +226,14 @@ impl Method {
                         DI_NEG_LIMIT
                     }
             }
-            Kind::Index | Kind::Here => 0,
+            Kind::Index | Kind::Here | Kind::Stall => 0,
         }
     }
 }
 
 /// True if `method` is supported (0x6098 values accepted).
 pub const fn supported(method: i8) -> bool {
-    method >= 0 && (method as usize) < PACKED.len() && PACKED[method as usize] != 0
+    Method::describe(method).is_some()
 }
 
 /// [`Method::spec`] of the methods 0-37, one byte each ([`Method::pack`]).
@@ -261,6 +279,8 @@ enum Step {
     },
     Fine,
     IndexSearch,
+    /// Stall homing: move in `final_dir` at the search speed until a stall.
+    StallSearch,
     Stopping {
         then: After,
     },
@@ -310,6 +330,8 @@ pub struct HomingInputs {
     pub actual: i32,
     /// Index pulse latched this cycle (user units).
     pub index: Option<i32>,
+    /// A stall confirmed this cycle: where it began (user units).
+    pub stall: Option<i32>,
 }
 
 /// The homing engine.
@@ -356,6 +378,12 @@ impl Homing {
         !matches!(self.step, Step::Idle | Step::Done | Step::Error)
     }
 
+    /// True while a stall homing method searches its hard stop (a stall is then the
+    /// reference, not a fault).
+    pub fn seeking_stall(&self) -> bool {
+        self.step == Step::StallSearch
+    }
+
     /// Reference edge found in the last run (user units at detection), for diagnostics.
     pub fn edge(&self) -> Option<i32> {
         self.edge
@@ -397,6 +425,7 @@ impl Homing {
                 return Some(p.offset.wrapping_sub(inp.actual));
             }
             Kind::Index => self.step = Step::IndexSearch,
+            Kind::Stall => self.step = Step::StallSearch,
             Kind::Zone { .. } => {
                 let active = inp.digital_inputs & DI_HOME != 0;
                 self.prev_active = active;
@@ -641,6 +670,19 @@ impl Homing {
             Step::Fine | Step::IndexSearch => {
                 target = self.approach_home(&m, inp, sensed, slow);
             }
+            Step::StallSearch => {
+                if let Some(at) = inp.stall {
+                    self.edge = Some(at);
+                    self.home = at;
+                    motion.stop(0.0, dt);
+                    self.step = Step::Return;
+                    return None;
+                } else if limit_hit {
+                    self.step = Step::Stopping { then: After::Error };
+                } else {
+                    target = m.final_dir as f32 * fast;
+                }
+            }
             Step::Stopping { then } => {
                 if motion.stop(acc, dt) {
                     match then {
@@ -701,8 +743,92 @@ mod tests {
             assert_eq!(supported(m), spec.is_some(), "method {m}");
             n += usize::from(spec.is_some());
         }
-        // 1-14, 17-30, 33, 34, 35, 37.
-        assert_eq!(n, 32);
+        // 1-14, 17-30, 33, 34, 35, 37, and -1, -2.
+        assert_eq!(n, 34);
         assert_eq!(Method::unpack(0), None);
+    }
+
+    fn run(h: &mut Homing, m: &mut Motion, di: u32, stall: Option<i32>) -> Option<i32> {
+        let inp = HomingInputs {
+            digital_inputs: di,
+            actual: m.position(),
+            index: None,
+            stall,
+        };
+        h.cycle(m, &inp, 0.001)
+    }
+
+    #[test]
+    fn stall_homing_takes_the_stall_position_as_home() {
+        for (method, dir) in [(-1i8, 1i32), (-2, -1)] {
+            let p = HomingParams {
+                method,
+                fast: 100_000.0,
+                slow: 10_000.0,
+                acc: 1.0e7,
+                offset: 500,
+                has_index: false,
+                assigned: 0,
+            };
+            let mut m = Motion::default();
+            let mut h = Homing::new();
+            let inp = HomingInputs {
+                digital_inputs: 0,
+                actual: 0,
+                index: None,
+                stall: None,
+            };
+            assert_eq!(h.start(p, &inp), None);
+            assert!(h.seeking_stall());
+            for _ in 0..50 {
+                assert_eq!(run(&mut h, &mut m, 0, None), None);
+            }
+            assert!(
+                m.position() * dir > 4000,
+                "searching in {dir}: {}",
+                m.position()
+            );
+            let at = m.position() - dir * 300;
+            assert_eq!(run(&mut h, &mut m, 0, Some(at)), None);
+            assert!(!h.seeking_stall() && m.velocity() == 0.0, "stopped at once");
+            let mut shift = None;
+            for _ in 0..1000 {
+                shift = shift.or(run(&mut h, &mut m, 0, None));
+            }
+            assert_eq!(shift, Some(500 - at), "home = stall position, reads 0x607C");
+            assert_eq!(m.position(), at);
+            assert_eq!(h.status(), HomingStatus::Attained);
+        }
+    }
+
+    #[test]
+    fn stall_homing_errors_on_a_limit_switch_ahead() {
+        let p = HomingParams {
+            method: -2,
+            fast: 100_000.0,
+            slow: 10_000.0,
+            acc: 1.0e7,
+            offset: 0,
+            has_index: false,
+            assigned: DI_NEG_LIMIT,
+        };
+        let mut m = Motion::default();
+        let mut h = Homing::new();
+        let inp = HomingInputs {
+            digital_inputs: 0,
+            actual: 0,
+            index: None,
+            stall: None,
+        };
+        h.start(p, &inp);
+        for _ in 0..10 {
+            run(&mut h, &mut m, 0, None);
+        }
+        for _ in 0..1000 {
+            run(&mut h, &mut m, DI_NEG_LIMIT, None);
+        }
+        assert_eq!(h.status(), HomingStatus::Error);
+        // A positive method number outside the table stays unsupported.
+        assert!(!supported(-3) && !supported(36) && supported(-1));
     }
 }

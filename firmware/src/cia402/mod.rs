@@ -244,6 +244,9 @@ pub struct DriveFeedback {
     /// The power stage cannot follow set-points yet (the closed loop's commutation
     /// alignment has not run): transition 4 waits (see the module docs).
     pub enable_pending: bool,
+    /// The open loop confirmed a stall during this cycle: the position where it began
+    /// (the reference of stall homing, [`homing`]).
+    pub stall: Option<i32>,
 }
 
 /// Which set-point the servo loops should follow.
@@ -417,6 +420,8 @@ pub struct Cia402 {
     motion: Motion,
     pp: Pp,
     hm: Homing,
+    /// The stall of this cycle's feedback (raw position where it began).
+    stall: Option<i32>,
     cyc: Cyclic,
     probe: TouchProbe,
     pending: Pending,
@@ -529,6 +534,7 @@ impl Cia402 {
             halted: false,
             enable_pending: false,
             enable_waiting: false,
+            stall: None,
             has_index: true,
             assigned_inputs: homing::DI_NEG_LIMIT | homing::DI_POS_LIMIT | homing::DI_HOME,
             rated_current_ma: 3200,
@@ -774,6 +780,11 @@ impl Cia402 {
     /// Homing status.
     pub fn homing_status(&self) -> HomingStatus {
         self.hm.status()
+    }
+    /// A stall homing method searches its hard stop: a stall is its reference, not a
+    /// fault (the drive skips the 0x2062 reaction).
+    pub fn seeking_stall(&self) -> bool {
+        self.mode == mode::HM && self.hm.seeking_stall()
     }
 
     fn pos_neg(&self) -> bool {

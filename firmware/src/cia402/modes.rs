@@ -520,6 +520,7 @@ impl Cia402 {
             digital_inputs: self.digital_inputs,
             actual: self.actual_position,
             index: index.map(|r| self.raw_to_user(r)),
+            stall: self.stall.map(|r| self.raw_to_user(r)),
         };
         let start = cwv & cw::NEW_SETPOINT != 0 && self.prev_cw & cw::NEW_SETPOINT == 0;
         let mut shift = None;

@@ -674,9 +674,9 @@ cia402_objects! {
         { 1 "Feed": u32 RO NO [.default(50_000).unit("inc")] field(units_per_rev) }
         { 2 "Shaft revolutions": u32 RO NO [.default(1)] constant(1) }
     }
-    var 0x6098 "Homing method", "1-14, 17-30, 33, 34, 35, 37.",
+    var 0x6098 "Homing method", "1-14, 17-30, 33, 34, 35, 37; manufacturer-specific stall homing (open loop, 0x2060 = 1): -1 positive, -2 negative direction at 0x6099:01 onto a hard stop, home = where the stall began (+ 0x607C).",
     {
-        { 0 "Homing method": i8 RW RX range(1, 37) [.default(37).saved()] field(params.homing_method)
+        { 0 "Homing method": i8 RW RX range(-2, 37) [.default(37).saved()] field(params.homing_method)
             set(|d, m| {
                 if homing::supported(m) {
                     d.params.homing_method = m;

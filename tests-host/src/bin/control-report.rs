@@ -6,6 +6,9 @@
 //! the plant with a real motor's and board's non-idealities; then the "Cyclic
 //! synchronous torque (CST)" table (`tests_host::plant::torque`): torque step and
 //! torque ripple through the firmware's CiA 402 profile and motion layer.
+    println!();
+//! the plant with a real motor's and board's non-idealities, and the "Stall detection
+//! (open loop)" table (`tests_host::plant::stall`).
 //!
 //! `--plots DIR` also writes `current_step.png`, `csp_tracking_error.png` and
 //! `iq_ripple_vs_speed.png` and `open_loop_resonance.png` (the README's plots) into DIR.
@@ -20,6 +23,8 @@ use tests_host::plant::resonance;
 use tests_host::plant::robustness::{self, Calibration, Conditions, Design};
 use tests_host::plant::scenarios::{self, Figure};
 use tests_host::plant::torque;
+    println!();
+use tests_host::plant::stall;
 use tests_host::plot::{load_font, plot};
 
 fn main() {
@@ -59,6 +64,10 @@ fn main() {
     println!("### Cyclic synchronous torque (CST)");
     println!();
     print_table(&torque::report());
+    println!();
+    println!("### Stall detection (open loop)");
+    println!();
+    print_table(&stall::report());
 
     if let Some(dir) = plots {
         if let Err(e) = std::fs::create_dir_all(&dir) {

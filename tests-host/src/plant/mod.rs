@@ -6,6 +6,7 @@
 //! * [`rig`]: the plant wired to the `foc` controllers as on the board;
 //! * [`scenarios`]: the control-quality scenarios, shared by the tests and the report;
 //! * [`robustness`]: the current loop under the non-idealities of a real motor;
+//! * [`stall`]: open-loop stall detection and stall homing;
 //! * [`torque`]: cyclic synchronous torque (CST) through the firmware's profile and
 //!   motion layer.
 
@@ -15,4 +16,5 @@ pub mod rng;
 pub mod resonance;
 pub mod robustness;
 pub mod scenarios;
+pub mod stall;
 pub mod torque;

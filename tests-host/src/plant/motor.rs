@@ -28,6 +28,9 @@
 //! * **Dead time**, [`PlantConfig::dead_time_v`].
 //! * **Encoder at any speed**, [`Plant::forced_speed`]: a dynamometer holds the shaft
 //!   at a constant speed, so the count pattern need not repeat.
+//! * **Hard stop**, [`Plant::hard_stop`]: beyond a shaft angle a stiff spring with a
+//!   damper pushes back, `T = −k·x − c·ω` while `x > 0` (`x`: penetration, rad) — the
+//!   mechanical end stop of an axis (stall detection, stall homing).
 
 use super::rng::Rng;
 use foc::current_loop::{AdcSample, Sense};
@@ -226,10 +229,49 @@ pub struct Plant {
     /// A dynamometer holds the shaft at this speed, rad/s (the motor's torque then
     /// does not change it).
     pub forced_speed: Option<f64>,
+    /// A mechanical end stop on the shaft (none by default).
+    pub hard_stop: Option<HardStop>,
     stuck: bool,
     /// Duties computed from the last three samples, newest first.
     duties: [Duties; 3],
     rng: Rng,
+}
+
+/// A mechanical end stop: a stiff spring with a damper beyond an angle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HardStop {
+    /// Shaft angle of the stop face, rad.
+    pub at: f64,
+    /// +1: blocks rotation beyond `at` in the positive direction; −1: below `at`.
+    pub side: f64,
+    /// Stiffness, N·m/rad.
+    pub stiffness: f64,
+    /// Damping, N·m·s/rad.
+    pub damping: f64,
+}
+
+impl HardStop {
+    /// A steel stop at `at` on `side` for a rotor of inertia `j`: 2000 N·m/rad (0.1°
+    /// under 3.5 N·m), damping of half the critical value (a short bounce).
+    pub fn steel(at: f64, side: f64, j: f64) -> Self {
+        let k = 2000.0;
+        HardStop {
+            at,
+            side,
+            stiffness: k,
+            damping: (k * j).sqrt(),
+        }
+    }
+
+    /// Torque of the stop on the shaft at angle `th`, speed `w`, N·m.
+    pub fn torque(&self, th: f64, w: f64) -> f64 {
+        let x = (th - self.at) * self.side;
+        if x > 0.0 {
+            -self.side * (self.stiffness * x + self.damping * w * self.side).max(0.0)
+        } else {
+            0.0
+        }
+    }
 }
 
 #[derive(Clone, Copy)]
@@ -259,6 +301,7 @@ impl Plant {
             encoder_frozen: None,
             adc_stuck: [None; 2],
             forced_speed: None,
+            hard_stop: None,
             stuck: true,
             duties: [z; 3],
             rng: Rng::new(cfg.seed),
@@ -373,7 +416,7 @@ impl Plant {
             if self.short[1] { 0.0 } else { ib },
         );
         let t = m.kt * (-ta * s + tb * c) - m.td * 2.0 * s2 * c2;
-        let net = t - self.load;
+        let net = t - self.load + self.stop_torque(th, w);
         let fr = if w > 0.0 {
             m.tc
         } else if w < 0.0 {
@@ -456,7 +499,7 @@ impl Plant {
             self.omega = w;
             return;
         }
-        let net = self.torque() - self.load;
+        let net = self.torque() - self.load + self.stop_torque(self.theta, self.omega);
         if self.stuck {
             if net.abs() > m.tc {
                 self.stuck = false;
@@ -465,12 +508,16 @@ impl Plant {
         }
         self.theta = th;
         self.omega = w;
-        let net = self.torque() - self.load;
+        let net = self.torque() - self.load + self.stop_torque(th, w);
         let crossed = w_old * w <= 0.0 || w.abs() < self.cfg.stick_band;
         if crossed && net.abs() <= m.tc {
             self.stuck = true;
             self.omega = 0.0;
         }
+    }
+
+    fn stop_torque(&self, th: f64, w: f64) -> f64 {
+        self.hard_stop.map_or(0.0, |h| h.torque(th, w))
     }
 
     /// Rotor is held by static friction.

@@ -57,6 +57,8 @@ pub mod setup {
         velocity: 0.0,
         electrical_angle: Angle::ZERO,
         voltage_limited: false,
+        v_dq: foc::transforms::Dq { d: 0.0, q: 0.0 },
+        i_dq: foc::transforms::Dq { d: 0.0, q: 0.0 },
     };
 }
 
