@@ -965,10 +965,7 @@ impl Motion {
     }
 }
 
-mod interp;
 mod torque;
-
-use interp::Interp;
 
 #[cfg(test)]
 mod tests;

@@ -5,10 +5,9 @@
 //! Then the "Robustness" table (`tests_host::plant::robustness`): the current loop on
 //! the plant with a real motor's and board's non-idealities; then the "Cyclic
 //! synchronous torque (CST)" table (`tests_host::plant::torque`): torque step and
-//! torque ripple through the firmware's CiA 402 profile and motion layer.
-    println!();
-//! the plant with a real motor's and board's non-idealities, and the "Stall detection
-//! (open loop)" table (`tests_host::plant::stall`).
+//! torque ripple through the firmware's CiA 402 profile and motion layer; the "Open-loop
+//! resonance" table (`tests_host::plant::resonance`) and the "Stall detection (open
+//! loop)" table (`tests_host::plant::stall`).
 //!
 //! `--plots DIR` also writes `current_step.png`, `csp_tracking_error.png` and
 //! `iq_ripple_vs_speed.png` and `open_loop_resonance.png` (the README's plots) into DIR.
@@ -22,9 +21,8 @@ use tests_host::plant::motor::{ECN57_20, TC86_45};
 use tests_host::plant::resonance;
 use tests_host::plant::robustness::{self, Calibration, Conditions, Design};
 use tests_host::plant::scenarios::{self, Figure};
-use tests_host::plant::torque;
-    println!();
 use tests_host::plant::stall;
+use tests_host::plant::torque;
 use tests_host::plot::{load_font, plot};
 
 fn main() {
