@@ -17,6 +17,7 @@
 //! | [`open_loop`] | microstepping, holding current, soft start, command filter |
 //! | [`servo`] | position/velocity cascade, CSP interpolation, following error, alignment |
 //! | [`autotune`] | R/L measurement, current-loop gains, open/unbalanced phase |
+//! | [`identify`] | load inertia and friction from a closed-loop move |
 #![no_std]
 #![warn(missing_docs)]
 #![deny(clippy::undocumented_unsafe_blocks)]
@@ -25,6 +26,7 @@ pub mod angle;
 pub mod autotune;
 pub mod current_loop;
 pub mod encoder;
+pub mod identify;
 pub mod modulation;
 pub mod num;
 pub mod open_loop;
