@@ -46,6 +46,10 @@ fn main() {
     println!("### Robustness (current loop on a non-ideal plant)");
     println!();
     print_table(&robustness::report());
+    println!();
+    println!("### Servo auto-tuning (closed loop)");
+    println!();
+    print_table(&tests_host::plant::servo_tune::report());
 
     if let Some(dir) = plots {
         if let Err(e) = std::fs::create_dir_all(&dir) {

@@ -5,10 +5,12 @@
 //!   average model, ADC and encoder quantisation, seeded noise, one sample of delay;
 //! * [`rig`]: the plant wired to the `foc` controllers as on the board;
 //! * [`scenarios`]: the control-quality scenarios, shared by the tests and the report;
-//! * [`robustness`]: the current loop under the non-idealities of a real motor.
+//! * [`robustness`]: the current loop under the non-idealities of a real motor;
+//! * [`servo_tune`]: the closed-loop load identification and the tuned servo figures.
 
 pub mod motor;
 pub mod rig;
 pub mod rng;
 pub mod robustness;
 pub mod scenarios;
+pub mod servo_tune;
