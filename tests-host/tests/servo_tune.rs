@@ -3,7 +3,7 @@
 //! for it meets the control-quality goals on each load.
 
 use tests_host::plant::motor::{ECN57_20, TC86_45};
-use tests_host::plant::servo_tune::{csp_tuned, identify, move_90_tuned, LOADS};
+use tests_host::plant::servo_tune::{csp_tuned, csp_voltage, identify, move_90_tuned, LOADS};
 
 #[test]
 fn inertia_identified_within_10_percent() {
@@ -28,6 +28,7 @@ fn tuned_servo_meets_the_goals_on_each_load() {
         let ratio = identify(TC86_45, load).ratio_percent;
         let t = csp_tuned(load, ratio);
         if load <= 5.0 {
+            assert!(csp_voltage(load).0 < 48.0);
             assert!(t.fe_accel <= 20.0, "{load}×: accel FE {}", t.fe_accel);
             assert!(
                 t.fe_const <= 5.0,
@@ -35,8 +36,10 @@ fn tuned_servo_meets_the_goals_on_each_load() {
                 t.fe_const
             );
         } else {
-            // 20×: the 200 rev/s² ramps need 84 % of the peak torque; the goals are
-            // not met (BENCHMARKS.md), the tracking stays bounded.
+            // 20×: the 200 rev/s² ramps at 600 rpm need more voltage than the 48 V
+            // bus gives; the goals are not met (BENCHMARKS.md), the tracking stays
+            // bounded.
+            assert!(csp_voltage(load).0 > 48.0);
             assert!(t.fe_accel <= 200.0, "{load}×: accel FE {}", t.fe_accel);
             assert!(
                 t.fe_const <= 200.0,
