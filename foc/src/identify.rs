@@ -122,12 +122,12 @@ impl Fit {
     /// Adds one sample: torque `y` (N·m), regressors `phi` = (α, ω, s) and instruments
     /// `z` (the same from the demand), each already divided by its scale.
     pub fn push(&mut self, y: f32, phi: [f32; 3], z: [f32; 3]) {
-        for i in 0..3 {
-            for j in 0..3 {
-                self.m[i][j] += z[i] * phi[j];
+        for (i, &zi) in z.iter().enumerate() {
+            for (m, &pj) in self.m[i].iter_mut().zip(&phi) {
+                *m += zi * pj;
             }
-            self.r[i] += z[i] * y;
-            self.zz[i] += z[i] * z[i];
+            self.r[i] += zi * y;
+            self.zz[i] += zi * zi;
             self.pp[i] += phi[i] * phi[i];
         }
         self.n += 1;
@@ -160,7 +160,8 @@ impl Fit {
                 + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
         };
         let det = det3(&a);
-        if !(det.abs() >= MIN_CONDITIONING) {
+        // NaN fails too.
+        if det.abs().partial_cmp(&MIN_CONDITIONING) != Some(core::cmp::Ordering::Greater) {
             return Err(IdentError::IllConditioned);
         }
         // Cramer's rule: column j replaced by the right-hand side.
@@ -298,7 +299,7 @@ impl IdentMove {
             let u = 2.0 * th - t;
             (self.cfg.travel - 0.5 * a * u * u, a * u, -a)
         };
-        let (p, v, acc) = if self.stroke % 2 == 0 {
+        let (p, v, acc) = if self.stroke.is_multiple_of(2) {
             (p, v, acc)
         } else {
             (self.cfg.travel - p, -v, -acc)
