@@ -61,7 +61,7 @@ use core::f32::consts::PI;
 
 /// Corner frequency of the common low-pass of the fit's signals, Hz.
 pub const FIT_CORNER_HZ: f32 = 60.0;
-/// Smallest conditioning (determinant of the normalised normal matrix) accepted.
+/// Smallest conditioning accepted (|det| of the normalised `Σzφᵀ`, see the module docs).
 pub const MIN_CONDITIONING: f32 = 1e-2;
 
 /// Identified mechanical parameters.
