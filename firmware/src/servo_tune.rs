@@ -21,9 +21,21 @@
 //! Level 12 gives the defaults' bandwidth (240 Hz; 120 / 50 / 100 / 60). Stiffer
 //! levels reject load torque faster and amplify the encoder's quantisation more
 //! (the current noise grows with the gain, so with the inertia).
+//!
+//! # The identification move ([`TuneRun`])
+//! [`check_start`] decides whether a move may start: closed loop, Operation enabled,
+//! the axis at rest (below 1 % of a revolution per second) and the travel, with a
+//! 20 % margin for the following error of the move gains on both sides, inside the
+//! software limits 0x607D. A refusal is 0x08000022 (state), a travel that does not
+//! fit 0x06090030. [`TuneRun`] runs [`foc::identify::IdentMove`] from the actual
+//! position; a stop (drive disabled, quick stop, fault: the caller's `running`
+//! false) ends it as failed. Its outcome goes to the parameters with [`apply`].
 
 use crate::motion::BASE_BANDWIDTH_HZ;
 use crate::params::{Param, Params};
+use ecat_slave_stack::od::SdoAbort;
+use foc::identify::{IdentConfig, IdentMove, IdentState};
+use foc::servo::Demand;
 
 /// Velocity bandwidth of the stiffness levels 1..=16, Hz.
 pub const STIFFNESS_HZ: [u16; 16] = [
@@ -76,6 +88,108 @@ pub fn apply(params: &mut Params, ratio_percent: f32) {
     params.set_internal(Param::PosKi, i32::from(g.pos_ki));
     params.set_internal(Param::VelFf, i32::from(g.vel_ff));
     params.set_internal(Param::SpeedKp, i32::from(g.speed_kp));
+}
+
+/// State of a servo tune as 0x2162 reports it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum TuneState {
+    /// No tune since power-up.
+    Idle = 0,
+    /// The move is running.
+    Running = 1,
+    /// Finished; the result is in the parameters.
+    Done = 2,
+    /// The last start was refused.
+    Refused = 3,
+    /// The move was stopped or gave no result.
+    Failed = 4,
+}
+
+/// What [`check_start`] looks at.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StartConditions {
+    /// Closed loop in effect (0x2024 = 2 with an encoder).
+    pub closed_loop: bool,
+    /// CiA 402 state Operation enabled.
+    pub operation_enabled: bool,
+    /// Actual velocity, counts/s.
+    pub velocity: f32,
+    /// Encoder counts per revolution.
+    pub counts_per_rev: u32,
+    /// Actual position, command units.
+    pub position: i32,
+    /// Travel 0x2163, command units.
+    pub travel: u32,
+    /// Software limits 0x607D in effect (min, max), command units.
+    pub limits: Option<(i32, i32)>,
+}
+
+/// Whether a tune may start (see the module docs).
+pub fn check_start(c: &StartConditions) -> Result<(), SdoAbort> {
+    let rest = c.counts_per_rev as f32 * 0.01;
+    let still = c.velocity.is_finite() && c.velocity.abs() <= rest;
+    if !(c.closed_loop && c.operation_enabled && still) {
+        return Err(SdoAbort::StateConflict);
+    }
+    if c.travel == 0 {
+        return Err(SdoAbort::ValueRangeExceeded);
+    }
+    if let Some((lo, hi)) = c.limits {
+        let t = i64::from(c.travel);
+        let p = i64::from(c.position);
+        if p + t + t / 5 > i64::from(hi) || p - t / 5 < i64::from(lo) {
+            return Err(SdoAbort::ValueRangeExceeded);
+        }
+    }
+    Ok(())
+}
+
+/// A running identification move and its outcome.
+#[derive(Debug, Clone, Copy)]
+pub struct TuneRun {
+    ident: IdentMove,
+    j_rotor: f32,
+}
+
+impl TuneRun {
+    /// Starts the move `cfg` at the actual position `start` (counts) for a motor of
+    /// rotor inertia `j_rotor` (kg·m²).
+    pub fn new(cfg: IdentConfig, start: i32, j_rotor: f32) -> Self {
+        TuneRun {
+            ident: IdentMove::new(cfg, start),
+            j_rotor,
+        }
+    }
+
+    /// One servo step (see [`IdentMove::step`]); `running` false (stop, fault,
+    /// disable) fails the tune. `None` once the tune has ended.
+    pub fn step(&mut self, running: bool, iq: f32, vel: f32) -> Option<Demand> {
+        if !running {
+            self.ident.abort();
+        }
+        match self.ident.state {
+            IdentState::Running => Some(self.ident.step(iq, vel)),
+            _ => None,
+        }
+    }
+
+    /// The state 0x2162 reports.
+    pub fn state(&self) -> TuneState {
+        match self.ident.state {
+            IdentState::Running => TuneState::Running,
+            IdentState::Done(_) => TuneState::Done,
+            IdentState::Failed(_) => TuneState::Failed,
+        }
+    }
+
+    /// The identified load ratio (%, 0x2164) and Coulomb friction (mN·m, 0x2165).
+    pub fn result(&self) -> Option<(f32, f32)> {
+        match self.ident.state {
+            IdentState::Done(i) => Some((i.load_ratio_percent(self.j_rotor), i.tc * 1e3)),
+            _ => None,
+        }
+    }
 }
 
 #[cfg(test)]
@@ -144,5 +258,110 @@ mod tests {
         assert_eq!(p.get(Param::LoadInertiaRatio), 5000);
         apply(&mut p, f32::NAN);
         assert_eq!(p.get(Param::LoadInertiaRatio), 0);
+    }
+
+    fn ok_conditions() -> StartConditions {
+        StartConditions {
+            closed_loop: true,
+            operation_enabled: true,
+            velocity: 0.0,
+            counts_per_rev: 4000,
+            position: 0,
+            travel: 12_500,
+            limits: Some((-100_000, 100_000)),
+        }
+    }
+
+    #[test]
+    fn start_refused_in_the_wrong_state_or_beyond_the_limits() {
+        assert_eq!(check_start(&ok_conditions()), Ok(()));
+        let no_limits = StartConditions {
+            limits: None,
+            ..ok_conditions()
+        };
+        assert_eq!(check_start(&no_limits), Ok(()));
+        for c in [
+            StartConditions {
+                closed_loop: false,
+                ..ok_conditions()
+            },
+            StartConditions {
+                operation_enabled: false,
+                ..ok_conditions()
+            },
+            StartConditions {
+                velocity: 100.0,
+                ..ok_conditions()
+            },
+            StartConditions {
+                velocity: f32::NAN,
+                ..ok_conditions()
+            },
+        ] {
+            assert_eq!(check_start(&c), Err(SdoAbort::StateConflict), "{c:?}");
+        }
+        for c in [
+            StartConditions {
+                travel: 0,
+                ..ok_conditions()
+            },
+            // 90 000 + 1.2 × 12 500 > 100 000.
+            StartConditions {
+                position: 90_000,
+                ..ok_conditions()
+            },
+            // The 20 % margin behind the start: −100 000 + 2 500 > −99 000.
+            StartConditions {
+                position: -99_000,
+                ..ok_conditions()
+            },
+            StartConditions {
+                travel: u32::MAX,
+                ..ok_conditions()
+            },
+        ] {
+            assert_eq!(check_start(&c), Err(SdoAbort::ValueRangeExceeded), "{c:?}");
+        }
+    }
+
+    fn ident_cfg() -> IdentConfig {
+        IdentConfig {
+            ts: SERVO_TS,
+            kt: ECN57_20.kt,
+            cpr: 4000,
+            travel: 1000.0,
+            accel: 200.0 * 4000.0,
+            accel_max: 1000.0 * 4000.0,
+            speed_max: 10.0 * 4000.0,
+            iq_target: 2.0,
+            iq_max: 5.0,
+            cycles: 2,
+        }
+    }
+
+    #[test]
+    fn run_identifies_an_ideal_load_and_a_stop_fails_it() {
+        // Ideal shaft with 4 × the rotor inertia following the demand exactly.
+        let c = ident_cfg();
+        let j = ECN57_20.inertia * 5.0;
+        let rad = 2.0 * PI / c.cpr as f32;
+        let mut run = TuneRun::new(c, 0, ECN57_20.inertia);
+        let mut d = run.step(true, 0.0, 0.0).unwrap();
+        while let Some(next) = run.step(true, j * d.acc * rad / c.kt, d.vel + d.acc * c.ts) {
+            d = next;
+        }
+        assert_eq!(run.state(), TuneState::Done);
+        let (ratio, _) = run.result().unwrap();
+        assert!((ratio - 400.0).abs() < 20.0, "{ratio}");
+        let mut p = Params::new(Variant::HybridServo);
+        apply(&mut p, ratio);
+        assert!((p.get(Param::LoadInertiaRatio) - 400).abs() <= 20);
+
+        let mut stopped = TuneRun::new(c, 0, ECN57_20.inertia);
+        assert!(stopped.step(true, 0.0, 0.0).is_some());
+        assert_eq!(stopped.state(), TuneState::Running);
+        assert!(stopped.step(false, 0.0, 0.0).is_none());
+        assert_eq!(stopped.state(), TuneState::Failed);
+        assert_eq!(stopped.result(), None);
     }
 }

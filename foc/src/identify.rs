@@ -101,6 +101,8 @@ pub enum IdentError {
     Saturated,
     /// The travel or the configuration does not allow a move.
     BadConfig,
+    /// The caller ended the move ([`IdentMove::abort`]: stop, fault, disable).
+    Stopped,
 }
 
 /// Running sums of the instrumental-variable fit of `y = J·α + B·ω + Tc·s` (see the
@@ -278,6 +280,13 @@ impl IdentMove {
         // Half a stroke (acceleration or deceleration) in steps, at least 4.
         let t = num::sqrtf(self.cfg.travel / a);
         self.half = ((t / self.cfg.ts) as u32).max(4);
+    }
+
+    /// Ends a running move as [`IdentError::Stopped`] (no effect once finished).
+    pub fn abort(&mut self) {
+        if self.state == IdentState::Running {
+            self.state = IdentState::Failed(IdentError::Stopped);
+        }
     }
 
     /// Acceleration of the present cycle, counts/s².
