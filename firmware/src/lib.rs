@@ -25,6 +25,7 @@ pub mod pdo_defaults;
 pub mod power_gate;
 pub mod sampling;
 pub mod selftest;
+pub mod servo_tune;
 pub mod staged_flash;
 pub mod storage;
 pub mod update;

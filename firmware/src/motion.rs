@@ -30,8 +30,9 @@
 //!   Without a new set-point the demand rests at the last one.
 //!
 //! # Gains (0x2137-0x2140 → [`ServoGains`])
-//! Base gains are [`ServoGains::from_bandwidth`] for the motor's inertia and torque
-//! constant ([`MotorConstants`]) at [`BASE_BANDWIDTH_HZ`] and the peak current 0x2000;
+//! Base gains are [`ServoGains::from_bandwidth`] for the motor's inertia times
+//! `1 + 0x2160/100` (load inertia ratio, [`crate::servo_tune`]) and torque constant
+//! ([`MotorConstants`]) at [`BASE_BANDWIDTH_HZ`] and the peak current 0x2000;
 //! the parameters apply [`ServoGains::scaled`]: 0x2137 scales the position gain
 //! (100 % = ¼ of the base velocity bandwidth), 0x2138 the position integral
 //! (`Kp_base²/10 · x/100`), 0x2139 is the velocity feed-forward in %, 0x2140 scales the
@@ -200,8 +201,10 @@ impl MotionConfig {
         // write is checked, internal sets are clamped): the gains and the holding
         // current need no clamp of their own here.
         let g = |x: Param| p.get(x) as u16;
+        // Rotor inertia × (1 + load ratio 0x2160 %).
+        let load = 1.0 + p.get(Param::LoadInertiaRatio).clamp(0, 5000) as f32 * 0.01;
         let base = ServoGains::from_bandwidth(
-            finite_pos(motor.inertia).max(1e-9),
+            finite_pos(motor.inertia).max(1e-9) * load,
             finite_pos(motor.kt).max(1e-6),
             counts.max(4),
             BASE_BANDWIDTH_HZ,

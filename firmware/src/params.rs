@@ -1,5 +1,6 @@
-//! Vendor parameters 0x2000-0x2156 (drive-requirements §3.3, plus 0x2156 and the stall
-//! detection 0x2060-0x2063): the one table of their
+//! Vendor parameters 0x2000-0x2161 (drive-requirements §3.3, plus 0x2156, the
+//! anti-resonance damping 0x2059, the stall detection 0x2060-0x2063, and 0x2160 and
+//! 0x2161 of the servo tune, [`crate::servo_tune`]): the one table of their
 //! access, default, range, unit and saved flag, and the values.
 //!
 //! The generic SDO checks (`od::check_write`) refuse out-of-range writes from this
@@ -298,6 +299,14 @@ vendor_params! {
     0x2156 var "Stored DIP station number",
         "Station number entered with SW8 on single-bank boards (0 = none); effective after restart" {
         DipStation = rws(0, "Stored DIP station number", U16, 0, 0, 127, ""),
+    }
+    0x2160 var "Load inertia ratio",
+        "Load inertia in % of the rotor inertia; the servo base gains use J·(1 + ratio)" {
+        LoadInertiaRatio = rws(0, "Load inertia ratio", U16, 0, 0, 5000, "%"),
+    }
+    0x2161 var "Stiffness",
+        "Velocity-loop bandwidth level the servo tune sets 0x2137-0x2140 for (1 = 20 Hz .. 16 = 400 Hz)" {
+        Stiffness = rws(0, "Stiffness", U8, 12, 1, 16, ""),
     }
 }
 
@@ -689,6 +698,8 @@ mod tests {
             (0x2152, 5, 0, 0, 0xFFFF),
             (0x2153, 3, 20, 1, 60000),
             (0x2154, 0, 0, 0, 0x1F),
+            (0x2160, 0, 0, 0, 5000),
+            (0x2161, 0, 12, 1, 16),
         ];
         for &(i, s, d, lo, hi) in expect {
             let e = od::find_entry(PACKED, i, s).unwrap();

@@ -19,6 +19,7 @@
 //! | [`stall`] | open-loop stall detection from the back-EMF the current loop sees |
 //! | [`servo`] | position/velocity cascade, CSP interpolation, following error, alignment |
 //! | [`autotune`] | R/L measurement, current-loop gains, open/unbalanced phase |
+//! | [`identify`] | load inertia and friction from a closed-loop move |
 #![no_std]
 #![warn(missing_docs)]
 #![deny(clippy::undocumented_unsafe_blocks)]
@@ -28,6 +29,7 @@ pub mod autotune;
 pub mod current_loop;
 pub mod damping;
 pub mod encoder;
+pub mod identify;
 pub mod modulation;
 pub mod num;
 pub mod open_loop;

@@ -66,6 +66,10 @@ fn main() {
     println!("### Stall detection (open loop)");
     println!();
     print_table(&stall::report());
+    println!();
+    println!("### Servo auto-tuning (closed loop)");
+    println!();
+    print_table(&tests_host::plant::servo_tune::report());
 
     if let Some(dir) = plots {
         if let Err(e) = std::fs::create_dir_all(&dir) {

@@ -8,7 +8,8 @@
 //! * [`robustness`]: the current loop under the non-idealities of a real motor;
 //! * [`stall`]: open-loop stall detection and stall homing;
 //! * [`torque`]: cyclic synchronous torque (CST) through the firmware's profile and
-//!   motion layer.
+//!   motion layer;
+//! * [`servo_tune`]: the closed-loop load identification and the tuned servo figures.
 
 pub mod motor;
 pub mod rig;
@@ -16,5 +17,6 @@ pub mod rng;
 pub mod resonance;
 pub mod robustness;
 pub mod scenarios;
+pub mod servo_tune;
 pub mod stall;
 pub mod torque;

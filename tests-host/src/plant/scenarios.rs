@@ -245,12 +245,17 @@ pub fn move_90() -> Move {
 
 /// [`move_90`] with velocity bandwidth `bw_hz`.
 pub fn move_90_with(bw_hz: f32) -> Move {
-    let mut rig = Rig::new(PlantConfig::new(ECN57_20));
-    let mut servo = Servo::new(rig.servo_gains(bw_hz), TS_SERVO, 1000);
+    let rig = Rig::new(PlantConfig::new(ECN57_20));
+    let servo = Servo::new(rig.servo_gains(bw_hz), TS_SERVO, 1000);
+    move_90_on(rig, servo, 500.0)
+}
+
+/// [`move_90`] on a given rig and servo, acceleration `acc_rev_s2` rev/s².
+pub fn move_90_on(mut rig: Rig, mut servo: Servo, acc_rev_s2: f64) -> Move {
     let cpr = rig.enc.cpr() as f64;
     let p0 = rig.enc.position() as f64;
     let dist = cpr / 4.0;
-    let prof = Trapezoid::new(p0, p0 + dist, 10.0 * cpr, 500.0 * cpr);
+    let prof = Trapezoid::new(p0, p0 + dist, 10.0 * cpr, acc_rev_s2 * cpr);
     let hold = Demand {
         pos: p0 as i32,
         ..Demand::default()
@@ -309,8 +314,13 @@ pub fn csp_tracking() -> Tracking {
 /// [`csp_tracking`] with the interpolator's acceleration filter weight `acc_k`.
 /// Phases are classified by the profile as the drive sees it (1 cycle later).
 pub fn csp_tracking_with(acc_k: f32, bw_hz: f32) -> Tracking {
-    let mut rig = Rig::new(PlantConfig::new(TC86_45));
-    let mut servo = Servo::new(rig.servo_gains(bw_hz), TS_SERVO, 1000);
+    let rig = Rig::new(PlantConfig::new(TC86_45));
+    let servo = Servo::new(rig.servo_gains(bw_hz), TS_SERVO, 1000);
+    csp_tracking_on(rig, servo, acc_k)
+}
+
+/// [`csp_tracking_with`] on a given rig and servo.
+pub fn csp_tracking_on(mut rig: Rig, mut servo: Servo, acc_k: f32) -> Tracking {
     let cpr = rig.enc.cpr() as f64;
     let p0 = rig.enc.position();
     let v = 10.0 * cpr;
