@@ -6,6 +6,7 @@
 //! * [`rig`]: the plant wired to the `foc` controllers as on the board;
 //! * [`scenarios`]: the control-quality scenarios, shared by the tests and the report;
 //! * [`robustness`]: the current loop under the non-idealities of a real motor;
+//! * [`resonance`]: the open-loop speed sweep, with and without the damping;
 //! * [`stall`]: open-loop stall detection and stall homing;
 //! * [`torque`]: cyclic synchronous torque (CST) through the firmware's profile and
 //!   motion layer;
