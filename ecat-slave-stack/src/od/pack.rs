@@ -100,11 +100,26 @@ pub const fn name_list<const O: usize, const NE: usize, const S: usize>(
     out
 }
 
-/// The first slot of `list` holding the same text as slot `k`.
-const fn first_with_name(list: &[&str], k: usize) -> usize {
+/// FNV-1a hash of a name: the search for equal texts compares these first.
+const fn name_hash(s: &str) -> u32 {
+    let b = s.as_bytes();
+    let mut h = 0x811C_9DC5u32;
+    let mut i = 0;
+    while i < b.len() {
+        h = (h ^ b[i] as u32).wrapping_mul(0x0100_0193);
+        i += 1;
+    }
+    h
+}
+
+/// The first slot of `list` holding the same text as slot `k` (`hashes`: the
+/// [`name_hash`] of each slot; texts are compared only where the hashes agree, which
+/// keeps the quadratic search within the constant evaluation's budget).
+const fn first_with_name<const S: usize>(list: &[&str; S], hashes: &[u32; S], k: usize) -> usize {
+    let h = hashes[k];
     let mut j = 0;
     while j < k {
-        if super::str_eq(list[j], list[k]) {
+        if hashes[j] == h && super::str_eq(list[j], list[k]) {
             return j;
         }
         j += 1;
@@ -114,11 +129,17 @@ const fn first_with_name(list: &[&str], k: usize) -> usize {
 
 /// Offset of each name's packed bytes in the name area (equal texts share one).
 pub const fn name_offsets<const S: usize>(list: &[&'static str; S]) -> [u16; S] {
+    let mut hashes = [0u32; S];
+    let mut k = 0;
+    while k < S {
+        hashes[k] = name_hash(list[k]);
+        k += 1;
+    }
     let mut out = [0u16; S];
     let mut at = 0usize;
     let mut k = 0;
     while k < S {
-        let first = first_with_name(list, k);
+        let first = first_with_name(list, &hashes, k);
         if first == k {
             assert!(at <= u16::MAX as usize, "od::pack: names over 64 KiB");
             out[k] = at as u16;
@@ -145,16 +166,22 @@ pub const fn name_bytes<const S: usize>(list: &[&'static str; S], at: &[u16; S])
     end
 }
 
-/// The name area: each distinct name packed once.
+/// The name area: each distinct name packed once. [`name_offsets`] places each
+/// first occurrence at the end of the area so far and a repeat before it, so the
+/// first occurrences are the slots whose offset reaches that end (no second search
+/// for equal texts: the constant evaluation stays linear here).
 pub const fn names<const S: usize, const B: usize>(
     list: &[&'static str; S],
     at: &[u16; S],
 ) -> [u8; B] {
     let mut out = [0u8; B];
+    let mut end = 0usize;
     let mut k = 0;
     while k < S {
-        if first_with_name(list, k) == k {
-            super::pack_into(list[k], &mut out, at[k] as usize);
+        let a = at[k] as usize;
+        if a >= end {
+            super::pack_into(list[k], &mut out, a);
+            end = a + packed_len(list[k]);
         }
         k += 1;
     }
