@@ -383,3 +383,84 @@ fn sources_decode_their_entries() {
     let b = Source::resolve(0x2510_0410).unwrap();
     assert_eq!(b.decode(0x0000_0009), 9);
 }
+
+/// The scope in the drive: armed over the dictionary, sampled by the supervision tick
+/// (a CiA 402 slot, a dictionary read, the internal signals), read back block by
+/// block; normal mode re-arms after the last block.
+#[test]
+fn the_drive_samples_on_its_tick() {
+    use crate::drive::{AxisState, Drive};
+    use crate::identity::Variant;
+    use ecat_slave_stack::esm::EsmState;
+    use ecat_slave_stack::od::Dictionary;
+
+    let mut d = Drive::new(Variant::HybridServo, 1);
+    let w = |d: &mut Drive, index: u16, sub: u8, data: &[u8]| {
+        let e = od::find_entry(crate::dictionary::OBJECTS, index, sub)?;
+        od::check_write(e, data, EsmState::PreOp)?;
+        d.write(index, sub, data, EsmState::PreOp)
+    };
+    w(&mut d, CHANNEL_LIST, 0, &[0]).unwrap();
+    for (sub, ch) in [0x6064_0020u32, 0x2305_0010, 0x2510_0120, 0x2510_0320]
+        .into_iter()
+        .enumerate()
+    {
+        w(&mut d, CHANNEL_LIST, sub as u8 + 1, &ch.to_le_bytes()).unwrap();
+    }
+    w(&mut d, CHANNEL_LIST, 0, &[4]).unwrap();
+    w(&mut d, CONFIG, 1, &2u16.to_le_bytes()).unwrap();
+    w(&mut d, CONFIG, 3, &5000i32.to_le_bytes()).unwrap();
+    w(&mut d, CONFIG, 5, &10u16.to_le_bytes()).unwrap();
+    w(&mut d, CONFIG, 6, &[1]).unwrap();
+    assert_eq!(
+        w(&mut d, SIGNALS, 1, &[0; 4]),
+        Err(SdoAbort::WriteReadOnly)
+    );
+    w(&mut d, CONFIG, 7, &[command::ARM]).unwrap();
+    assert_eq!(d.scope.depth(), 256);
+    let axis = |t: u64| AxisState {
+        position: t as i32 * 100,
+        bus_mv: 24_000 + t as u32,
+        servo_following_error: -(t as i32),
+        ..AxisState::default()
+    };
+    for t in 1..=600u64 {
+        d.set_axis(axis(t));
+        d.tick(t * 1000, 0);
+    }
+    assert_eq!(d.scope.state(), State::Done);
+    let mut b = [0u8; BLOCK_BYTES];
+    let mut status = |d: &mut Drive, sub: u8| {
+        let n = d.read(STATUS, sub, &mut b).unwrap();
+        od::decode_int(DataType::Unsigned16, &b[..n]).unwrap()
+    };
+    assert_eq!(status(&mut d, 2), 256);
+    assert_eq!(status(&mut d, 3), 10);
+    // 256 samples × 4 channels × 4 bytes: blocks 1-8, the last one ends the record.
+    let mut rows = Vec::new();
+    for sub in 1..=BLOCKS as u8 {
+        let n = d.read(DATA, sub, &mut b).unwrap();
+        assert_eq!(n, BLOCK_BYTES);
+        let words: Vec<i32> = b[..n]
+            .chunks_exact(4)
+            .map(|c| i32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        rows.extend(words.chunks(4).map(|c| c.to_vec()));
+        let rearmed = d.scope.state() == State::Armed;
+        assert_eq!(rearmed, sub == BLOCKS as u8, "re-armed after block {sub}");
+    }
+    // Ticks 1, 3, 5, …: the edge through 5000 is tick 51, ten samples before it 31.
+    for (k, row) in rows.iter().enumerate() {
+        let t = 31 + 2 * k as i32;
+        assert_eq!(row[0], t * 100, "0x6064 at sample {k}");
+        assert_eq!(row[1], (24_000 + t) / 10, "0x2305 at sample {k}");
+        assert_eq!(row[2], -t, "0x2510:01 at sample {k}");
+        assert_eq!(row[3], 24_000 + t, "0x2510:03 at sample {k}");
+    }
+    assert_eq!(rows[10][0], 5100);
+    // Disarmed, the tick leaves the record alone.
+    w(&mut d, CONFIG, 7, &[command::STOP]).unwrap();
+    d.tick(601_000, 0);
+    assert_eq!(d.scope.state(), State::Idle);
+    assert_eq!(d.read(DATA, 1, &mut b), Err(SdoAbort::NoDataAvailable));
+}
