@@ -195,7 +195,7 @@ pub const OBJECTS: &[Object] = &[
         "Scope internal signals",
         &[
             Entry::count(4),
-            signal(1, "Motor following error", I32, "inc"),
+            signal(1, "Motor following error", I32, ""),
             signal(2, "Acceleration demand", I32, "inc/s²"),
             signal(3, "Bus voltage", U32, "mV"),
             signal(4, "Drive flags", U16, ""),

@@ -221,12 +221,125 @@ where
     let mut bytes = Vec::with_capacity(total);
     let mut sub = 1u8;
     while bytes.len() < total {
-        let block: heapless::Vec<u8, { scope::BLOCK_BYTES }> =
-            sd.sdo_read(scope::DATA, sub).await?;
+        let block = sdo_upload(sd, scope::DATA, sub).await?;
+        if block.is_empty() {
+            return Err(Error::Internal);
+        }
         bytes.extend_from_slice(&block);
         sub += 1;
     }
     Ok(Record::from_bytes(cfg, st, &bytes))
+}
+
+/// Bytes of the drive's mailboxes (SM0, SM1; the ESI's `MBoxOut` / `MBoxIn`).
+const MBX: usize = 128;
+/// Mailbox header (6) + CoE header (2) before the SDO command byte.
+const SDO_AT: usize = 8;
+
+/// An SDO upload of any length (expedited, normal or segmented) through the mailbox
+/// sync managers, over ethercrab's register access.
+///
+/// Why not `sdo_read`: ethercrab 0.7.1 decodes the command specifier of every
+/// response into an enum without the value 0, which is the upload *segment* response
+/// of ETG.1000.6 / CiA 301 (`000t nnnc`), and drops the data of a normal initiate
+/// response that precedes segments; it reads what fits one mailbox frame only. Here
+/// the requests go to SM0 and the answers come from SM1 (emergencies in between are
+/// skipped) with mailbox counter 0, which the drive never takes for a repeat. Call it
+/// while nothing else uses the mailbox.
+pub async fn sdo_upload<S>(sd: &SubDeviceRef<'_, S>, index: u16, sub: u8) -> Result<Vec<u8>, Error>
+where
+    S: Deref<Target = ethercrab::SubDevice>,
+{
+    let sm0: [u8; 8] = sd.register_read(0x0800u16).await?;
+    let sm1: [u8; 8] = sd.register_read(0x0808u16).await?;
+    let (out_at, in_at) = (
+        u16::from_le_bytes([sm0[0], sm0[1]]),
+        u16::from_le_bytes([sm1[0], sm1[1]]),
+    );
+    if usize::from(u16::from_le_bytes([sm0[2], sm0[3]])) != MBX
+        || usize::from(u16::from_le_bytes([sm1[2], sm1[3]])) != MBX
+    {
+        return Err(Error::Internal);
+    }
+    let [i0, i1] = index.to_le_bytes();
+    let answer = mailbox_exchange(sd, out_at, in_at, [0x40, i0, i1, sub]).await?;
+    let cmd = answer[SDO_AT];
+    if cmd & 0xE0 != 0x40 {
+        return Err(Error::Internal);
+    }
+    if cmd & 0x02 != 0 {
+        // Expedited: 4 − n bytes.
+        let n = if cmd & 0x01 != 0 { 4 - usize::from((cmd >> 2) & 3) } else { 4 };
+        return Ok(answer[SDO_AT + 4..SDO_AT + 4 + n].to_vec());
+    }
+    let size = u32::from_le_bytes([answer[12], answer[13], answer[14], answer[15]]) as usize;
+    let len = usize::from(u16::from_le_bytes([answer[0], answer[1]]));
+    let first = (len.saturating_sub(10)).min(size).min(MBX - 16);
+    let mut data = answer[16..16 + first].to_vec();
+    let mut toggle = false;
+    while data.len() < size {
+        let answer =
+            mailbox_exchange(sd, out_at, in_at, [0x60 | (u8::from(toggle) << 4), 0, 0, 0]).await?;
+        let cmd = answer[SDO_AT];
+        if cmd & 0xE0 != 0 || (cmd & 0x10 != 0) != toggle {
+            return Err(Error::Internal);
+        }
+        let len = usize::from(u16::from_le_bytes([answer[0], answer[1]]));
+        let mut n = len.saturating_sub(3).min(MBX - SDO_AT - 1);
+        if n == 7 {
+            n -= usize::from((cmd >> 1) & 7);
+        }
+        data.extend_from_slice(&answer[SDO_AT + 1..SDO_AT + 1 + n]);
+        if cmd & 0x01 != 0 {
+            break;
+        }
+        toggle = !toggle;
+    }
+    data.truncate(size);
+    Ok(data)
+}
+
+/// One SDO request (`sdo`: command, index, sub-index; no data) written to SM0 and its
+/// SDO answer read from SM1 (an abort becomes [`Error::Mailbox`]).
+async fn mailbox_exchange<S>(
+    sd: &SubDeviceRef<'_, S>,
+    out_at: u16,
+    in_at: u16,
+    sdo: [u8; 4],
+) -> Result<[u8; MBX], Error>
+where
+    S: Deref<Target = ethercrab::SubDevice>,
+{
+    let mut req = [0u8; MBX];
+    // Mailbox header: length 10, address 0, channel 0, type CoE (3) with counter 0;
+    // CoE header: SDO request (service 2).
+    req[..8].copy_from_slice(&[10, 0, 0, 0, 0, 0x03, 0x00, 0x20]);
+    req[SDO_AT..SDO_AT + 4].copy_from_slice(&sdo);
+    sd.register_write(out_at, req).await?;
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(2);
+    loop {
+        let status: u8 = sd.register_read(0x080Du16).await?;
+        if status & 0x08 != 0 {
+            let answer: [u8; MBX] = sd.register_read(in_at).await?;
+            let service = answer[7] >> 4;
+            // SDO response (3), or an abort sent as a request (2); emergencies (1) and
+            // other mailbox types are not the answer.
+            if answer[5] & 0x0F == 0x03 && (service == 3 || service == 2) {
+                if answer[SDO_AT] == 0x80 {
+                    let code = u32::from_le_bytes([answer[12], answer[13], answer[14], answer[15]]);
+                    return Err(Error::Mailbox(ethercrab::error::MailboxError::Aborted {
+                        code: code.into(),
+                        address: u16::from_le_bytes([answer[9], answer[10]]),
+                        sub_index: answer[11],
+                    }));
+                }
+                return Ok(answer);
+            }
+        } else if std::time::Instant::now() > deadline {
+            return Err(Error::Timeout(ethercrab::error::TimeoutError::MailboxResponse));
+        }
+        async_io::Timer::after(std::time::Duration::from_millis(1)).await;
+    }
 }
 
 impl Record {
