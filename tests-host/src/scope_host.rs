@@ -269,7 +269,11 @@ where
     }
     if cmd & 0x02 != 0 {
         // Expedited: 4 − n bytes.
-        let n = if cmd & 0x01 != 0 { 4 - usize::from((cmd >> 2) & 3) } else { 4 };
+        let n = if cmd & 0x01 != 0 {
+            4 - usize::from((cmd >> 2) & 3)
+        } else {
+            4
+        };
         return Ok(answer[SDO_AT + 4..SDO_AT + 4 + n].to_vec());
     }
     let size = u32::from_le_bytes([answer[12], answer[13], answer[14], answer[15]]) as usize;
@@ -336,7 +340,9 @@ where
                 return Ok(answer);
             }
         } else if std::time::Instant::now() > deadline {
-            return Err(Error::Timeout(ethercrab::error::TimeoutError::MailboxResponse));
+            return Err(Error::Timeout(
+                ethercrab::error::TimeoutError::MailboxResponse,
+            ));
         }
         async_io::Timer::after(std::time::Duration::from_millis(1)).await;
     }
@@ -392,12 +398,7 @@ impl Record {
         self.draw(path, title, text).map_err(|e| e.to_string())
     }
 
-    fn draw(
-        &self,
-        path: &Path,
-        title: &str,
-        text: bool,
-    ) -> Result<(), Box<dyn std::error::Error>> {
+    fn draw(&self, path: &Path, title: &str, text: bool) -> Result<(), Box<dyn std::error::Error>> {
         const COLOURS: [RGBColor; 8] = [
             RGBColor(31, 119, 180),
             RGBColor(214, 39, 40),
@@ -418,7 +419,9 @@ impl Record {
         };
         let panels = root.split_evenly((n, 1));
         let x0 = self.time_ms(0);
-        let x1 = self.time_ms(self.rows.len().saturating_sub(1)).max(x0 + 1.0);
+        let x1 = self
+            .time_ms(self.rows.len().saturating_sub(1))
+            .max(x0 + 1.0);
         for (c, panel) in panels.iter().enumerate() {
             let pts: Vec<(f64, f64)> = self
                 .rows

@@ -23,13 +23,20 @@ fn scope_records_a_csp_move_of_virtual_drive_over_a_veth_pair() {
         "running as root, but the network namespace / veth pair could not be created \
          (iproute2 installed? kernel veth and netns support?)",
     );
-    let (drive, _log) = start_virtual_drive(&net, env!("CARGO_BIN_EXE_virtual-drive"), &[])
-        .expect("virtual-drive");
+    let (drive, _log) =
+        start_virtual_drive(&net, env!("CARGO_BIN_EXE_virtual-drive"), &[]).expect("virtual-drive");
     let dir = std::env::temp_dir().join(format!("scope-veth-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("output directory");
     let prefix = dir.join("csp");
     let out = Command::new(env!("CARGO_BIN_EXE_scope"))
-        .args(["--iface", &net.host_if, "--move", "csp", "--distance", "25000"])
+        .args([
+            "--iface",
+            &net.host_if,
+            "--move",
+            "csp",
+            "--distance",
+            "25000",
+        ])
         .args(["--ch", "0x6062", "--ch", "0x6064", "--ch", "0x60F4"])
         .args(["--ch", "0x2510:3", "--divisor", "2", "--pre", "40"])
         .args(["--timeout", "20", "--out"])
@@ -49,7 +56,10 @@ fn scope_records_a_csp_move_of_virtual_drive_over_a_veth_pair() {
     let header: Vec<&str> = lines.next().expect("header").split(',').collect();
     assert_eq!(header.len(), 6, "{header:?}");
     assert_eq!(&header[..2], ["sample", "time_ms"]);
-    for (col, key) in header[2..].iter().zip(["0x6062", "0x6064", "0x60f4", "0x2510:3"]) {
+    for (col, key) in header[2..]
+        .iter()
+        .zip(["0x6062", "0x6064", "0x60f4", "0x2510:3"])
+    {
         assert!(col.starts_with(key), "column {col}, expected {key}");
     }
     let rows: Vec<Vec<f64>> = lines
@@ -79,7 +89,10 @@ fn scope_records_a_csp_move_of_virtual_drive_over_a_veth_pair() {
     assert!(demand[0] < level, "{demand:?}");
     // The actual position follows; the bus voltage (0x2510:03, mV) is the plant's.
     let actual_end = rows.last().expect("samples")[3];
-    assert!((actual_end - (start + 25_000.0)).abs() < 2_000.0, "{actual_end}");
+    assert!(
+        (actual_end - (start + 25_000.0)).abs() < 2_000.0,
+        "{actual_end}"
+    );
     assert!(rows.iter().all(|r| r[5] > 10_000.0), "bus voltage in mV");
     let _ = std::fs::remove_dir_all(&dir);
 }

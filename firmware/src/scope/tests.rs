@@ -412,10 +412,7 @@ fn the_drive_samples_on_its_tick() {
     w(&mut d, CONFIG, 3, &5000i32.to_le_bytes()).unwrap();
     w(&mut d, CONFIG, 5, &10u16.to_le_bytes()).unwrap();
     w(&mut d, CONFIG, 6, &[1]).unwrap();
-    assert_eq!(
-        w(&mut d, SIGNALS, 1, &[0; 4]),
-        Err(SdoAbort::WriteReadOnly)
-    );
+    assert_eq!(w(&mut d, SIGNALS, 1, &[0; 4]), Err(SdoAbort::WriteReadOnly));
     w(&mut d, CONFIG, 7, &[command::ARM]).unwrap();
     assert_eq!(d.scope.depth(), 256);
     let axis = |t: u64| AxisState {

@@ -167,7 +167,9 @@ fn at(what: &'static str) -> impl Fn(ethercrab::error::Error) -> Failure {
 
 /// Inputs of the default TxPDO 0x1A00: statusword and position actual value.
 fn decode(inputs: &[u8]) -> (u16, i32) {
-    let sw = inputs.get(2..4).map_or(0, |b| u16::from_le_bytes([b[0], b[1]]));
+    let sw = inputs
+        .get(2..4)
+        .map_or(0, |b| u16::from_le_bytes([b[0], b[1]]));
     let pos = inputs
         .get(5..9)
         .map_or(0, |b| i32::from_le_bytes([b[0], b[1], b[2], b[3]]));
@@ -220,7 +222,10 @@ async fn record_in_preop(md: &MainDevice<'static>, o: &Options) -> Result<Record
     let st = wait_done(&sd, Instant::now() + o.timeout).await?;
     if st.state != 3 {
         let _ = scope_host::send_command(&sd, command::FORCE).await;
-        return Err(format!("no record before --timeout (scope state {})", st.state));
+        return Err(format!(
+            "no record before --timeout (scope state {})",
+            st.state
+        ));
     }
     scope_host::read_record(&sd, &o.cfg, &st)
         .await
@@ -237,12 +242,8 @@ async fn record_with_move(md: &MainDevice<'static>, o: &Options) -> Result<Recor
     {
         let sd = group.subdevice(md, 0).map_err(at("drive 0"))?;
         let mode: i8 = if o.motion == Move::Csp { 8 } else { 3 };
-        sd.sdo_write(0x6060, 0, mode)
-            .await
-            .map_err(at("0x6060"))?;
-        sd.sdo_write(0x60FF, 0, 0i32)
-            .await
-            .map_err(at("0x60FF"))?;
+        sd.sdo_write(0x6060, 0, mode).await.map_err(at("0x6060"))?;
+        sd.sdo_write(0x60FF, 0, 0i32).await.map_err(at("0x60FF"))?;
     }
     let group = group.into_op(md).await.map_err(at("into_op"))?;
     let (mut sw, mut pos) = (0u16, 0i32);
@@ -308,9 +309,7 @@ async fn record_with_move(md: &MainDevice<'static>, o: &Options) -> Result<Recor
             pv_sent.0 = true;
         }
         if o.motion == Move::Pv && t_ms >= move_ms as f64 && !pv_sent.1 {
-            sd.sdo_write(0x60FF, 0, 0i32)
-                .await
-                .map_err(at("0x60FF"))?;
+            sd.sdo_write(0x60FF, 0, 0i32).await.map_err(at("0x60FF"))?;
             pv_sent.1 = true;
         }
         if t_ms > move_ms as f64 && last_poll.elapsed() > Duration::from_millis(50) {
@@ -333,15 +332,15 @@ async fn record_with_move(md: &MainDevice<'static>, o: &Options) -> Result<Recor
         group.tx_rx(md).await.map_err(at("tx_rx"))?;
         async_io::Timer::after(tick).await;
     }
-    let group = group
-        .into_safe_op(md)
-        .await
-        .map_err(at("into_safe_op"))?;
+    let group = group.into_safe_op(md).await.map_err(at("into_safe_op"))?;
     let group = group.into_pre_op(md).await.map_err(at("into_pre_op"))?;
     let sd = group.subdevice(md, 0).map_err(at("drive 0"))?;
     let st = scope_host::status(&sd).await.map_err(at("0x2502"))?;
     if st.state != 3 {
-        return Err(format!("no record before --timeout (scope state {})", st.state));
+        return Err(format!(
+            "no record before --timeout (scope state {})",
+            st.state
+        ));
     }
     scope_host::read_record(&sd, &cfg, &st)
         .await
