@@ -32,7 +32,7 @@
 //! budget is for the set-points. Disarmed, the tick pays one test of [`Scope::running`].
 //!
 //! The buffer holds [`BUFFER_WORDS`] values: `BUFFER_WORDS / n` samples per channel
-//! with `n` channels (1024 with one, 128 with eight).
+//! with `n` channels (768 with one, 96 with eight).
 //!
 //! # Trigger
 //!
@@ -71,8 +71,9 @@ use ecat_slave_stack::od::{self, Access, DataType, Entry, Object, PdoMappable, S
 
 /// Channels of one record at most.
 pub const CHANNELS: usize = 8;
-/// Values the buffer holds (`i32`, 4 KiB).
-pub const BUFFER_WORDS: usize = 1024;
+/// Values the buffer holds (`i32`, 3 KiB: what the 32 KiB RAM budget leaves beside
+/// the worst-case stack).
+pub const BUFFER_WORDS: usize = 768;
 /// Bytes of one block of 0x2503 (one segmented SDO upload; at most the SDO server's
 /// transfer buffer).
 pub const BLOCK_BYTES: usize = 512;
@@ -80,7 +81,7 @@ pub const BLOCK_BYTES: usize = 512;
 pub const BLOCKS: usize = BUFFER_WORDS * 4 / BLOCK_BYTES;
 
 const _: () = assert!(BLOCK_BYTES <= ecat_slave_stack::coe::sdo::TRANSFER_MAX);
-const _: () = assert!(BLOCKS == 8, "0x2503 describes eight blocks");
+const _: () = assert!(BLOCKS == 6, "0x2503 describes six blocks");
 
 /// 0x2500, the configuration.
 pub const CONFIG: u16 = 0x2500;
@@ -185,8 +186,6 @@ pub const OBJECTS: &[Object] = &[
             Entry::octets(4, "Block 4", BLOCK_BYTES as u16),
             Entry::octets(5, "Block 5", BLOCK_BYTES as u16),
             Entry::octets(6, "Block 6", BLOCK_BYTES as u16),
-            Entry::octets(7, "Block 7", BLOCK_BYTES as u16),
-            Entry::octets(8, "Block 8", BLOCK_BYTES as u16),
         ],
         "The done record, 512 bytes per sub-index: samples oldest first, each the channels' values as INTEGER32 little-endian in channel order; the last block is shorter; no record or a block past its end: abort 0x08000024",
     ),

@@ -38,7 +38,7 @@ fn scope_records_a_csp_move_of_virtual_drive_over_a_veth_pair() {
             "25000",
         ])
         .args(["--ch", "0x6062", "--ch", "0x6064", "--ch", "0x60F4"])
-        .args(["--ch", "0x2510:3", "--divisor", "2", "--pre", "40"])
+        .args(["--ch", "0x2510:3", "--divisor", "3", "--pre", "40"])
         .args(["--timeout", "20", "--out"])
         .arg(&prefix)
         .output()
@@ -65,17 +65,17 @@ fn scope_records_a_csp_move_of_virtual_drive_over_a_veth_pair() {
     let rows: Vec<Vec<f64>> = lines
         .map(|l| l.split(',').map(|v| v.parse().expect("number")).collect())
         .collect();
-    // Four channels: 256 samples per channel, the trigger at sample 40 (t = 0).
-    assert_eq!(rows.len(), 256, "a full record");
+    // Four channels: 192 samples per channel, the trigger at sample 40 (t = 0).
+    assert_eq!(rows.len(), 192, "a full record");
     let trigger = rows
         .iter()
         .position(|r| r[1] == 0.0)
         .expect("a sample at t = 0");
     assert_eq!(trigger, 40, "the trigger after the 40 pre-trigger samples");
-    assert_eq!(rows[41][1], 2.0, "2 ms per sample");
+    assert_eq!(rows[41][1], 3.0, "3 ms per sample");
     // The move ends on its target, start + 25 000, and the position demand rises
     // through the level (start + 5 % of the distance) exactly at the trigger. (The
-    // record starts 80 ms before the trigger, early in the move: the ring keeps the
+    // record starts 120 ms before the trigger, early in the move: the ring keeps the
     // last 40 samples before it.)
     let demand: Vec<f64> = rows.iter().map(|r| r[2]).collect();
     let start = *demand.last().expect("samples") - 25_000.0;

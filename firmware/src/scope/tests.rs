@@ -84,16 +84,16 @@ fn edge_trigger_keeps_the_pre_trigger_samples() {
     one_channel_rising(&mut s);
     w8(&mut s, CONFIG, 7, command::ARM).unwrap();
     assert_eq!(s.state(), State::Armed);
-    assert_eq!(s.depth(), 1024);
+    assert_eq!(s.depth(), 768);
     // Ramp 0, 1, 2, …: the edge through 100 is sample 100.
     let taken = run(&mut s, 5000, |k| vec![k as i32]);
     assert_eq!(s.state(), State::Done);
-    assert_eq!(taken, 100 + 1024 - 10);
-    assert_eq!(rd(&s, STATUS, 2), 1024);
+    assert_eq!(taken, 100 + 768 - 10);
+    assert_eq!(rd(&s, STATUS, 2), 768);
     assert_eq!(rd(&s, STATUS, 3), 10);
     assert_eq!(rd(&s, STATUS, 5), 1);
     let r = record(&s);
-    assert_eq!(r.len(), 1024);
+    assert_eq!(r.len(), 768);
     assert_eq!(r[10][0], 100, "the trigger sample at the trigger position");
     for (k, row) in r.iter().enumerate() {
         assert_eq!(row[0], 90 + k as i32, "oldest first");
@@ -145,11 +145,11 @@ fn falling_either_and_level_conditions() {
     w8(&mut s, CONFIG, 4, 2).unwrap();
     w16(&mut s, CONFIG, 5, 5).unwrap();
     w8(&mut s, CONFIG, 7, command::ARM).unwrap();
-    assert_eq!(s.depth(), 512);
+    assert_eq!(s.depth(), 384);
     let tri = |k: usize| 20 - (k as i32 % 40 - 20).abs() - 10;
     run(&mut s, 5000, |k| vec![k as i32, tri(k)]);
     let r = record(&s);
-    assert_eq!(r.len(), 512);
+    assert_eq!(r.len(), 384);
     assert_eq!(rd(&s, STATUS, 3), 5);
     let t = &r[5];
     assert!(
@@ -168,7 +168,7 @@ fn divisor_samples_every_nth_tick() {
     w16(&mut s, CONFIG, 1, 4).unwrap();
     w8(&mut s, CONFIG, 4, 0).unwrap();
     w8(&mut s, CONFIG, 7, command::ARM).unwrap();
-    assert_eq!(s.depth(), 128);
+    assert_eq!(s.depth(), 96);
     let mut due = Vec::new();
     for tick in 0..12 {
         if s.sample_due() {
@@ -186,7 +186,7 @@ fn divisor_samples_every_nth_tick() {
         tick += 1;
     }
     let r = record(&s);
-    assert_eq!(r.len(), 128);
+    assert_eq!(r.len(), 96);
     assert_eq!(rd(&s, STATUS, 3), 0);
     for (k, row) in r.iter().enumerate() {
         assert_eq!(row, &[4 * k as i32; 8]);
@@ -208,12 +208,12 @@ fn force_trigger_before_the_pre_trigger_fill() {
     w8(&mut s, CONFIG, 7, command::FORCE).unwrap();
     run(&mut s, 5000, |k| vec![30 + k as i32]);
     let r = record(&s);
-    // 30 samples before the forced trigger, then depth − pre = 924 from it.
-    assert_eq!(r.len(), 30 + 924);
+    // 30 samples before the forced trigger, then depth − pre = 668 from it.
+    assert_eq!(r.len(), 30 + 668);
     assert_eq!(rd(&s, STATUS, 3), 30);
     assert_eq!(r[30][0], 30);
     assert_eq!(r[0][0], 0);
-    assert_eq!(rd(&s, STATUS, 2), 954);
+    assert_eq!(rd(&s, STATUS, 2), 698);
 }
 
 #[test]
@@ -223,8 +223,8 @@ fn single_stays_done_normal_rearms_after_the_last_block() {
     w8(&mut s, CONFIG, 4, 0).unwrap();
     w8(&mut s, CONFIG, 7, command::ARM).unwrap();
     run(&mut s, 5000, |k| vec![k as i32; 8]);
-    // 128 samples × 8 channels × 4 bytes = 4096 bytes: blocks 1-8.
-    for sub in 1..=8 {
+    // 96 samples × 8 channels × 4 bytes = 3072 bytes: blocks 1-6.
+    for sub in 1..=6 {
         s.block_read(sub);
     }
     assert_eq!(s.state(), State::Done, "single: done until armed again");
@@ -234,25 +234,25 @@ fn single_stays_done_normal_rearms_after_the_last_block() {
     let mut b = [0u8; BLOCK_BYTES];
     assert_eq!(s.read(DATA, 1, &mut b), Err(SdoAbort::NoDataAvailable));
     w8(&mut s, CONFIG, 6, 1).unwrap();
-    w8(&mut s, CHANNEL_LIST, 0, 3).unwrap();
+    w8(&mut s, CHANNEL_LIST, 0, 5).unwrap();
     w8(&mut s, CONFIG, 7, command::ARM).unwrap();
-    assert_eq!(s.depth(), 341);
-    run(&mut s, 5000, |k| vec![k as i32, 0, 0]);
+    assert_eq!(s.depth(), 153);
+    run(&mut s, 5000, |k| vec![k as i32, 0, 0, 0, 0]);
     assert_eq!(rd(&s, STATUS, 5), 2);
-    // 341 × 3 × 4 = 4092 bytes: the last block is block 8 with 508 bytes.
-    assert_eq!(s.read(DATA, 8, &mut b), Ok(508));
-    assert_eq!(s.read(DATA, 9, &mut b), Err(SdoAbort::SubindexDoesNotExist));
-    for sub in 1..=7 {
+    // 153 × 5 × 4 = 3060 bytes: the last block is block 6 with 500 bytes.
+    assert_eq!(s.read(DATA, 6, &mut b), Ok(500));
+    assert_eq!(s.read(DATA, 7, &mut b), Err(SdoAbort::SubindexDoesNotExist));
+    for sub in 1..=5 {
         s.block_read(sub);
         assert_eq!(s.state(), State::Done);
     }
-    s.block_read(8);
+    s.block_read(6);
     assert_eq!(
         s.state(),
         State::Armed,
         "normal: re-armed after the last block"
     );
-    run(&mut s, 5000, |k| vec![1000 + k as i32, 0, 0]);
+    run(&mut s, 5000, |k| vec![1000 + k as i32, 0, 0, 0, 0]);
     assert_eq!(rd(&s, STATUS, 5), 3);
     assert_eq!(record(&s)[0][0], 1000);
 }
@@ -262,17 +262,17 @@ fn short_record_ends_early_in_the_blocks() {
     let mut s = Scope::new();
     one_channel_rising(&mut s);
     w8(&mut s, CONFIG, 4, 0).unwrap();
-    w16(&mut s, CONFIG, 5, 1000).unwrap();
+    w16(&mut s, CONFIG, 5, 700).unwrap();
     w8(&mut s, CONFIG, 7, command::ARM).unwrap();
-    // Immediate, but the trigger waits for 1000 samples; forced at once instead.
+    // Immediate, but the trigger waits for 700 samples; forced at once instead.
     w8(&mut s, CONFIG, 7, command::FORCE).unwrap();
     run(&mut s, 5000, |k| vec![-(k as i32)]);
-    assert_eq!(rd(&s, STATUS, 2), 24);
+    assert_eq!(rd(&s, STATUS, 2), 68);
     let r = record(&s);
-    assert_eq!(r.len(), 24);
-    assert_eq!(r[23][0], -23);
+    assert_eq!(r.len(), 68);
+    assert_eq!(r[67][0], -67);
     let mut b = [0u8; BLOCK_BYTES];
-    assert_eq!(s.read(DATA, 1, &mut b), Ok(96));
+    assert_eq!(s.read(DATA, 1, &mut b), Ok(272));
     assert_eq!(s.read(DATA, 2, &mut b), Err(SdoAbort::NoDataAvailable));
     let mut small = [0u8; 8];
     assert_eq!(s.read(DATA, 1, &mut small), Err(SdoAbort::ExceedsMailbox));
@@ -287,7 +287,7 @@ fn bad_configuration_gets_the_standard_aborts() {
     assert_eq!(w8(&mut s, CONFIG, 2, 0), Err(SdoAbort::ValueTooLow));
     assert_eq!(w8(&mut s, CONFIG, 2, 9), Err(SdoAbort::ValueTooHigh));
     assert_eq!(w8(&mut s, CONFIG, 4, 6), Err(SdoAbort::ValueTooHigh));
-    assert_eq!(w16(&mut s, CONFIG, 5, 1024), Err(SdoAbort::ValueTooHigh));
+    assert_eq!(w16(&mut s, CONFIG, 5, 768), Err(SdoAbort::ValueTooHigh));
     assert_eq!(w8(&mut s, CONFIG, 6, 2), Err(SdoAbort::ValueTooHigh));
     assert_eq!(w8(&mut s, CONFIG, 7, 3), Err(SdoAbort::ValueTooHigh));
     assert_eq!(w8(&mut s, CHANNEL_LIST, 0, 9), Err(SdoAbort::ValueTooHigh));
@@ -334,11 +334,11 @@ fn bad_configuration_gets_the_standard_aborts() {
         "trigger channel beyond the channels"
     );
     w8(&mut s, CONFIG, 2, 2).unwrap();
-    w16(&mut s, CONFIG, 5, 512).unwrap();
+    w16(&mut s, CONFIG, 5, 384).unwrap();
     assert_eq!(
         w8(&mut s, CONFIG, 7, command::ARM),
         Err(SdoAbort::ParameterIncompatibility),
-        "pre-trigger not below 512 samples per channel"
+        "pre-trigger not below 384 samples per channel"
     );
     assert_eq!(s.state(), State::Idle);
     assert_eq!(
@@ -346,7 +346,7 @@ fn bad_configuration_gets_the_standard_aborts() {
         Err(SdoAbort::StateConflict),
         "force while idle"
     );
-    w16(&mut s, CONFIG, 5, 511).unwrap();
+    w16(&mut s, CONFIG, 5, 383).unwrap();
     w8(&mut s, CONFIG, 7, command::ARM).unwrap();
     // Armed: configuration refused, commands accepted.
     assert_eq!(w16(&mut s, CONFIG, 1, 2), Err(SdoAbort::StateConflict));
@@ -414,7 +414,7 @@ fn the_drive_samples_on_its_tick() {
     w(&mut d, CONFIG, 6, &[1]).unwrap();
     assert_eq!(w(&mut d, SIGNALS, 1, &[0; 4]), Err(SdoAbort::WriteReadOnly));
     w(&mut d, CONFIG, 7, &[command::ARM]).unwrap();
-    assert_eq!(d.scope.depth(), 256);
+    assert_eq!(d.scope.depth(), 192);
     let axis = |t: u64| AxisState {
         position: t as i32 * 100,
         bus_mv: 24_000 + t as u32,
@@ -431,9 +431,9 @@ fn the_drive_samples_on_its_tick() {
         let n = d.read(STATUS, sub, &mut b).unwrap();
         od::decode_int(DataType::Unsigned16, &b[..n]).unwrap()
     };
-    assert_eq!(status(&mut d, 2), 256);
+    assert_eq!(status(&mut d, 2), 192);
     assert_eq!(status(&mut d, 3), 10);
-    // 256 samples × 4 channels × 4 bytes: blocks 1-8, the last one ends the record.
+    // 192 samples × 4 channels × 4 bytes: blocks 1-6, the last one ends the record.
     let mut rows = Vec::new();
     for sub in 1..=BLOCKS as u8 {
         let n = d.read(DATA, sub, &mut b).unwrap();

@@ -19,7 +19,7 @@
 //!
 //! Defaults: channels 0x6062 (position demand), 0x6064 (position actual), 0x60F4
 //! (following error), 0x606C (velocity actual), 0x2303 (phase A current); one sample
-//! every 2 ms; trigger on channel 1, rising edge, 40 samples before it; single. The
+//! every 3 ms; trigger on channel 1, rising edge, 40 samples before it; single. The
 //! level defaults, for a position channel with a move, to the start position plus
 //! 5 % of the distance, else 0. Exit code 2 for bad options, 1 for a failure.
 #![deny(clippy::undocumented_unsafe_blocks)]
@@ -68,7 +68,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         iface: String::new(),
         cfg: ScopeConfig {
             channels: Vec::new(),
-            divisor: 2,
+            divisor: 3,
             trigger_channel: 1,
             level: 0,
             condition: 1,
