@@ -288,6 +288,7 @@ async fn record_with_move(md: &MainDevice<'static>, o: &Options) -> Result<Recor
     let start = Instant::now();
     let mut pv_sent = (false, false);
     let mut last_poll = Instant::now();
+    let mut fault_seen = false;
     let until = Instant::now() + o.timeout;
     let mut target = p0;
     loop {
@@ -322,8 +323,11 @@ async fn record_with_move(md: &MainDevice<'static>, o: &Options) -> Result<Recor
                 break;
             }
         }
-        if sw & 0x08 != 0 {
-            eprintln!("scope: the drive reports a fault (statusword {sw:#06x})");
+        if sw & 0x08 != 0 && !fault_seen {
+            // Reported once; the scope keeps recording (the record may show why).
+            fault_seen = true;
+            let code: u16 = sd.sdo_read(0x603F, 0).await.map_err(at("0x603F"))?;
+            eprintln!("scope: the drive reports fault {code:#06x} (statusword {sw:#06x})");
         }
         async_io::Timer::after(tick).await;
     }
