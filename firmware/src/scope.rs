@@ -369,18 +369,28 @@ const fn default_channels() -> [u32; CHANNELS] {
     c
 }
 
+/// The table's defaults, evaluated at compile time (the power-up writes constants).
+const DEF_DIVISOR: u16 = default_of(CONFIG, 1) as u16;
+const DEF_TRIGGER_CHANNEL: u8 = default_of(CONFIG, 2) as u8;
+const DEF_LEVEL: i32 = default_of(CONFIG, 3) as i32;
+const DEF_CONDITION: u8 = default_of(CONFIG, 4) as u8;
+const DEF_PRETRIGGER: u16 = default_of(CONFIG, 5) as u16;
+const DEF_NORMAL: bool = default_of(CONFIG, 6) == 1;
+const DEF_COUNT: u8 = default_of(CHANNEL_LIST, 0) as u8;
+const DEF_CHANNELS: [u32; CHANNELS] = default_channels();
+
 impl Scope {
     /// Idle, at the defaults of the table.
     pub const fn new() -> Self {
         Scope {
-            divisor: default_of(CONFIG, 1) as u16,
-            trigger_channel: default_of(CONFIG, 2) as u8,
-            level: default_of(CONFIG, 3) as i32,
-            condition: default_of(CONFIG, 4) as u8,
-            pretrigger: default_of(CONFIG, 5) as u16,
-            normal: default_of(CONFIG, 6) == 1,
-            count: default_of(CHANNEL_LIST, 0) as u8,
-            channels: default_channels(),
+            divisor: DEF_DIVISOR,
+            trigger_channel: DEF_TRIGGER_CHANNEL,
+            level: DEF_LEVEL,
+            condition: DEF_CONDITION,
+            pretrigger: DEF_PRETRIGGER,
+            normal: DEF_NORMAL,
+            count: DEF_COUNT,
+            channels: DEF_CHANNELS,
             state: State::Idle,
             sources: [Source::NONE; CHANNELS],
             n: 0,
