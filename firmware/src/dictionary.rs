@@ -9,6 +9,7 @@
 //! | 0x2200 | `ecat_slave_stack::sync` (timing diagnostics; served by the slave runtime) |
 //! | 0x2300-0x2308 | [`crate::monitor`] (monitoring) |
 //! | 0x2400-0x2406 | [`crate::faults`] (fault history) |
+//! | 0x2500-0x2510 | [`crate::scope`] (scope, trace buffer) |
 //! | 0x6000-0x6FFF | [`crate::cia402`] (drive profile) |
 //!
 //! The same table feeds the SDO server, PDO mapping rules, SDO information, the ESI,
@@ -29,6 +30,7 @@ pub const PARTS: &[&[ObjectDesc]] = &[
     ecat_slave_stack::sync::DIAG_OBJECTS,
     crate::faults::OBJECTS,
     crate::monitor::OBJECTS,
+    crate::scope::OBJECTS,
     crate::cia402::objects::OBJECTS,
 ];
 
@@ -48,6 +50,7 @@ pub(crate) const COMM: (u16, u16) = (0x1000, 0x10FF);
 pub(crate) const PARAMS: (u16, u16) = (0x2000, 0x21FF);
 pub(crate) const MONITOR: (u16, u16) = (0x2300, 0x23FF);
 pub(crate) const FAULTS: (u16, u16) = (0x2400, 0x24FF);
+pub(crate) const SCOPE: (u16, u16) = (0x2500, 0x25FF);
 pub(crate) const CIA402: (u16, u16) = (0x6000, 0x6FFF);
 
 /// Object `index` of a module owning `range`: the same answer as
@@ -92,11 +95,12 @@ mod tests {
 
     #[test]
     fn module_ranges_hold_exactly_the_module_tables() {
-        let modules: [(&[ObjectDesc], (u16, u16)); 5] = [
+        let modules: [(&[ObjectDesc], (u16, u16)); 6] = [
             (crate::comm::OBJECTS, COMM),
             (crate::params::OBJECTS, PARAMS),
             (crate::monitor::OBJECTS, MONITOR),
             (crate::faults::OBJECTS, FAULTS),
+            (crate::scope::OBJECTS, SCOPE),
             (crate::cia402::objects::OBJECTS, CIA402),
         ];
         for (own, range) in modules {
@@ -158,8 +162,8 @@ mod tests {
         let total: usize = PARTS.iter().map(|p| p.len()).sum();
         assert_eq!(OBJECTS.len(), total);
         for index in [
-            0x1000, 0x1018, 0x1600, 0x1A00, 0x1C12, 0x1C32, 0x2000, 0x2152, 0x2200, 0x6040, 0x6041,
-            0x607A, 0x6502,
+            0x1000, 0x1018, 0x1600, 0x1A00, 0x1C12, 0x1C32, 0x2000, 0x2152, 0x2200, 0x2500, 0x2503,
+            0x6040, 0x6041, 0x607A, 0x6502,
         ] {
             assert!(od::find(OBJECTS, index).is_some(), "{index:#06x} missing");
         }

@@ -45,6 +45,7 @@ use crate::identity::{Identity, Variant};
 use crate::io::{self, Inputs, OutputStatus};
 use crate::monitor::Monitor;
 use crate::params::{Param, Params};
+use crate::scope::Scope;
 use crate::storage::{LoadReport, SaveReport, SlotStatus, Storage, StorageError};
 use crate::update::FirmwareUpdate;
 use ecat_slave_stack::foe::FoeFiles;
@@ -128,6 +129,8 @@ pub struct Drive<S: ParameterStore = NoStore> {
     pub faults: Faults,
     /// Monitoring objects.
     pub monitor: Monitor,
+    /// The scope (trace buffer, 0x2500-0x2510), sampled by the tick.
+    pub scope: Scope,
     /// Digital inputs (filtered, functions).
     pub inputs: Inputs,
     axis: AxisState,
@@ -214,6 +217,7 @@ macro_rules! power_up_fields {
             cia402: Cia402::new(),
             faults: Faults::default(),
             monitor: Monitor::new(),
+            scope: Scope::new(),
             inputs: Inputs::default(),
             axis: AxisState::default(),
             command: DriveCommand::default(),
@@ -565,7 +569,8 @@ impl<S: ParameterStore> Drive<S> {
     /// [`TICK_STEP_AFTER_US`] — a control step ([`Drive::step`]): the power drive
     /// system, the fault reactions and stop ramps, the profile and homing generators
     /// and the brake advance whether or not frames arrive. A fault this tick detects
-    /// starts its reaction in the same tick. `raw_inputs`: bit n = level of IN n+1.
+    /// starts its reaction in the same tick. Last, the scope's sample when it records
+    /// ([`crate::scope`]). `raw_inputs`: bit n = level of IN n+1.
     pub fn tick(&mut self, now_us: u64, raw_inputs: u8) {
         let now = now_us as Stamp;
         // Whole milliseconds of the clock since the last tick (the clock's millisecond
@@ -631,6 +636,9 @@ impl<S: ParameterStore> Drive<S> {
             );
         if due || fault_news || core::mem::take(&mut self.react_now) {
             self.step_at(now, SetpointArrival::Stale);
+        }
+        if self.scope.running() {
+            self.sample_scope();
         }
     }
 
@@ -899,6 +907,7 @@ impl<S: ParameterStore> Drive<S> {
 
 mod stack;
 mod store;
+mod trace;
 
 use stack::WholeDictionary;
 pub use stack::{is_saved, NoRuntime};

@@ -24,6 +24,7 @@ pub mod params;
 pub mod pdo_defaults;
 pub mod power_gate;
 pub mod sampling;
+pub mod scope;
 pub mod selftest;
 pub mod servo_tune;
 pub mod staged_flash;

@@ -1,7 +1,7 @@
 //! Host-side simulators and tools: the ESC simulator and virtual segment, SPI-level
 //! chip models, the motor plant, the simulated drive (firmware library + ESC + axis),
-//! the raw-socket transport of `virtual-drive`, and the ethercrab seam for in-process
-//! integration tests.
+//! the raw-socket transport of `virtual-drive`, the ethercrab seam for in-process
+//! integration tests, and the host side of the drive's scope.
 #![deny(clippy::undocumented_unsafe_blocks)]
 pub mod counting;
 pub mod esc_sim;
@@ -10,10 +10,12 @@ pub mod ethercrab_seam;
 pub mod fault_inject;
 pub mod file_flash;
 pub mod markdown;
+pub mod netns;
 pub mod plant;
 pub mod plot;
 pub mod raw_master;
 pub mod raw_socket;
+pub mod scope_host;
 pub mod segment;
 pub mod sim_axis;
 pub mod sim_drive;

@@ -59,7 +59,12 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
                 Ok(n)
             };
         }
-        self.read_entry(index, sub, buf)
+        let r = self.read_entry(index, sub, buf);
+        if index == crate::scope::DATA && r.is_ok() {
+            // The normal-mode scope re-arms once its record's last block was read.
+            self.scope.block_read(sub);
+        }
+        r
     }
 
     fn write(
@@ -83,6 +88,7 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
                 Ok(())
             }
             0x2300..=0x23FF => self.monitor.write(index, sub, data),
+            0x2500..=0x25FF => self.scope.write(index, sub, data),
             0x6000..=0x6FFF => self.cia402.write(index, sub, data),
             _ => Err(SdoAbort::WriteReadOnly),
         }
@@ -200,12 +206,18 @@ impl<S: ParameterStore> Drive<S> {
     /// SDO read of a product entry, dispatched on the index range (the dictionary
     /// read and the TxPDO entries outside 0x6xxx share it).
     #[inline(never)]
-    fn read_entry(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+    pub(super) fn read_entry(
+        &self,
+        index: u16,
+        sub: u8,
+        buf: &mut [u8],
+    ) -> Result<usize, SdoAbort> {
         match index {
             0x1000..=0x10FF => self.comm.read(&self.faults, index, sub, buf),
             0x2000..=0x21FF => self.params.read(index, sub, buf),
             0x2300..=0x23FF => self.monitor.read(index, sub, buf),
             0x2400..=0x24FF => self.faults.read(index, sub, buf),
+            0x2500..=0x25FF => self.read_scope(index, sub, buf),
             0x6000..=0x6FFF => self.cia402.read(index, sub, buf),
             _ => Err(SdoAbort::ObjectDoesNotExist),
         }
