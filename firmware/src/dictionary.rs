@@ -37,6 +37,9 @@ pub const PARTS: &[&[ObjectDesc]] = &[
 /// Every object of the drive, sorted by index: the module tables merged at compile
 /// time, names packed with [`VOCABULARY`] and stored once, identical entry tables once
 /// (`ecat_slave_stack::od::pack`; two modules describing one index do not compile).
+// Packing the whole product dictionary at compile time runs past rustc's default
+// const-evaluation lint; it terminates (bounded loops over the tables).
+#[allow(long_running_const_eval)]
 pub static OBJECTS: &[Object] = ecat_slave_stack::packed_dictionary!(PARTS, VOCABULARY);
 
 /// True when the table is well formed (sorted objects, sorted sub-indices).

@@ -67,7 +67,7 @@
 //! The last block is shorter; blocks past the end, and every block while no record is
 //! done, answer 0x08000024 (no data available).
 
-use ecat_slave_stack::od::{self, Access, DataType, Entry, Object, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{self, Access, DataType, EntryDesc, ObjectDesc, PdoMappable, SdoAbort};
 
 /// Channels of one record at most.
 pub const CHANNELS: usize = 8;
@@ -105,22 +105,22 @@ pub mod command {
 }
 
 /// A read-write configuration entry.
-const fn rw(sub: u8, name: &'static str, t: DataType, def: i64, min: i64, max: i64) -> Entry {
-    Entry::new(sub, name, t, Access::RW)
+const fn rw(sub: u8, name: &'static str, t: DataType, def: i64, min: i64, max: i64) -> EntryDesc {
+    EntryDesc::new(sub, name, t, Access::RW)
         .range(min, max)
         .default(def)
 }
 
-const fn ro(sub: u8, name: &'static str, t: DataType) -> Entry {
-    Entry::new(sub, name, t, Access::RO)
+const fn ro(sub: u8, name: &'static str, t: DataType) -> EntryDesc {
+    EntryDesc::new(sub, name, t, Access::RO)
 }
 
-const fn channel(sub: u8, name: &'static str, def: u32) -> Entry {
-    Entry::new(sub, name, DataType::Unsigned32, Access::RW).default(def as i64)
+const fn channel(sub: u8, name: &'static str, def: u32) -> EntryDesc {
+    EntryDesc::new(sub, name, DataType::Unsigned32, Access::RW).default(def as i64)
 }
 
-const fn signal(sub: u8, name: &'static str, t: DataType, unit: &'static str) -> Entry {
-    Entry::new(sub, name, t, Access::RO)
+const fn signal(sub: u8, name: &'static str, t: DataType, unit: &'static str) -> EntryDesc {
+    EntryDesc::new(sub, name, t, Access::RO)
         .pdo(PdoMappable::Tx)
         .unit(unit)
 }
@@ -128,12 +128,12 @@ const fn signal(sub: u8, name: &'static str, t: DataType, unit: &'static str) ->
 use DataType::{Integer32 as I32, Unsigned16 as U16, Unsigned32 as U32, Unsigned8 as U8};
 
 /// The scope's objects, sorted.
-pub const OBJECTS: &[Object] = &[
-    Object::record(
+pub const OBJECTS: &[ObjectDesc] = &[
+    ObjectDesc::record(
         CONFIG,
         "Scope configuration",
         &[
-            Entry::count(7),
+            EntryDesc::count(7),
             rw(1, "Sample divisor", U16, 1, 1, 1000),
             rw(2, "Trigger channel", U8, 1, 1, CHANNELS as i64),
             rw(3, "Trigger level", I32, 0, i32::MIN as i64, i32::MAX as i64),
@@ -144,11 +144,11 @@ pub const OBJECTS: &[Object] = &[
         ],
         "Scope: sub 1 sample every n supervision ticks (1 ms); 2 trigger channel (0x2501 sub); 3 trigger level; 4 condition 0 immediate, 1 rising, 2 falling, 3 either edge, 4 value >= level, 5 value <= level; 5 samples kept before the trigger; 6 mode 0 single, 1 normal (re-arms after the record was read); 7 command 0 stop, 1 arm, 2 force trigger",
     ),
-    Object::array(
+    ObjectDesc::array(
         CHANNEL_LIST,
         "Scope channels",
         &[
-            Entry::new(0, "Number of entries", U8, Access::RW)
+            EntryDesc::new(0, "Number of entries", U8, Access::RW)
                 .range(0, CHANNELS as i64)
                 .default(2),
             channel(1, "Channel 1", 0x6064_0020),
@@ -162,11 +162,11 @@ pub const OBJECTS: &[Object] = &[
         ],
         "Signals recorded: index << 16 | sub-index << 8 | bit length of a PDO-mappable entry of at most 32 bits (0x2510 for the internal signals); sub 0 the number of channels",
     ),
-    Object::record(
+    ObjectDesc::record(
         STATUS,
         "Scope status",
         &[
-            Entry::count(5),
+            EntryDesc::count(5),
             ro(1, "State", U8),
             ro(2, "Samples recorded", U16),
             ro(3, "Trigger position", U16),
@@ -175,25 +175,25 @@ pub const OBJECTS: &[Object] = &[
         ],
         "Scope: sub 1 state 0 idle, 1 armed, 2 triggered, 3 done; 2 samples per channel in the record; 3 sample number of the trigger (oldest = 0); 4 samples per channel the buffer holds (of the record being or last recorded); 5 records completed (wrapping)",
     ),
-    Object::array(
+    ObjectDesc::array(
         DATA,
         "Scope data",
         &[
-            Entry::count(BLOCKS as u8),
-            Entry::octets(1, "Block 1", BLOCK_BYTES as u16),
-            Entry::octets(2, "Block 2", BLOCK_BYTES as u16),
-            Entry::octets(3, "Block 3", BLOCK_BYTES as u16),
-            Entry::octets(4, "Block 4", BLOCK_BYTES as u16),
-            Entry::octets(5, "Block 5", BLOCK_BYTES as u16),
-            Entry::octets(6, "Block 6", BLOCK_BYTES as u16),
+            EntryDesc::count(BLOCKS as u8),
+            EntryDesc::octets(1, "Block 1", BLOCK_BYTES as u16),
+            EntryDesc::octets(2, "Block 2", BLOCK_BYTES as u16),
+            EntryDesc::octets(3, "Block 3", BLOCK_BYTES as u16),
+            EntryDesc::octets(4, "Block 4", BLOCK_BYTES as u16),
+            EntryDesc::octets(5, "Block 5", BLOCK_BYTES as u16),
+            EntryDesc::octets(6, "Block 6", BLOCK_BYTES as u16),
         ],
         "The done record, 512 bytes per sub-index: samples oldest first, each the channels' values as INTEGER32 little-endian in channel order; the last block is shorter; no record or a block past its end: abort 0x08000024",
     ),
-    Object::record(
+    ObjectDesc::record(
         SIGNALS,
         "Scope internal signals",
         &[
-            Entry::count(4),
+            EntryDesc::count(4),
             signal(1, "Motor following error", I32, ""),
             signal(2, "Acceleration demand", I32, "inc/s²"),
             signal(3, "Bus voltage", U32, "mV"),
@@ -249,10 +249,10 @@ impl Source {
         let bits = v as u8;
         let e = od::find_entry(crate::dictionary::OBJECTS, index, sub)
             .map_err(|_| SdoAbort::NotMappable)?;
-        if e.pdo_mappable() == PdoMappable::No || e.bits == 0 || e.bits > 32 {
+        if e.pdo_mappable() == PdoMappable::No || e.bits() == 0 || e.bits() > 32 {
             return Err(SdoAbort::NotMappable);
         }
-        if e.bits != u16::from(bits) {
+        if e.bits() != u16::from(bits) {
             return Err(SdoAbort::ParameterIncompatibility);
         }
         let slot = if (0x6000..=0x6FFF).contains(&index) {
@@ -345,7 +345,7 @@ const fn default_of(index: u16, sub: u8) -> i64 {
             let entries = OBJECTS[o].entries();
             let mut e = 0;
             while e < entries.len() {
-                if entries[e].sub == sub {
+                if entries[e].sub() == sub {
                     if let od::DefaultValue::Int(v) = entries[e].default_value() {
                         return v;
                     }

@@ -49,7 +49,7 @@ impl Channel {
         let e = obj
             .entry(sub)
             .ok_or_else(|| format!("channel '{text}': no sub-index {sub}"))?;
-        if e.pdo_mappable() == od::PdoMappable::No || e.bits == 0 || e.bits > 32 {
+        if e.pdo_mappable() == od::PdoMappable::No || e.bits() == 0 || e.bits() > 32 {
             return Err(format!(
                 "channel '{text}': {} is not a PDO-mappable entry of at most 32 bits",
                 e.name()
@@ -63,7 +63,7 @@ impl Channel {
         Ok(Channel {
             index,
             sub,
-            bits: e.bits as u8,
+            bits: e.bits() as u8,
             name,
             unit: e.unit_text().to_string(),
         })

@@ -11,11 +11,13 @@ use crate::{stack, THUMB};
 /// 128 KiB STM32G431-class part). Firmware update (issue 18) needs two image
 /// partitions and a bootloader, so the product is the 512 KiB STM32G474RE; the update
 /// itself (ed25519, SHA-512, embassy-boot, FoE) added 22 KiB of code and an 8 KiB
-/// stack path (the signature check). The budget is now 144 KiB of flash (the active
-/// partition holds 226 KiB: room for a second flavour of features) and 32 KiB of RAM
-/// for the static RAM plus the static worst-case stack (of 128 KiB). `test` fails
-/// above it.
-pub const FLASH_BUDGET: u64 = 144 * 1024;
+/// stack path (the signature check). That made 144 KiB of flash; the motion features
+/// of issue 20 (cyclic synchronous torque, open-loop stall detection and damping, the
+/// servo tune's inertia and stiffness, the scope) add about 15 KiB of code, so the
+/// budget is now 160 KiB (the active partition holds 226 KiB: room left for a second
+/// flavour of features) and 32 KiB of RAM for the static RAM plus the static
+/// worst-case stack (of 128 KiB). `test` fails above it.
+pub const FLASH_BUDGET: u64 = 160 * 1024;
 pub const RAM_BUDGET: u64 = 32 * 1024;
 /// What the STM32G474RE can hold: flash, the active partition less its update-header
 /// page (`firmware::flash_layout::IMAGE_MAX`, firmware/memory.x: 228 KiB − 2 KiB);

@@ -3,6 +3,8 @@ use super::*;
 use std::vec;
 use std::vec::Vec;
 
+static PACKED: &[od::Object] = ecat_slave_stack::packed_dictionary!(&[OBJECTS]);
+
 fn w8(s: &mut Scope, index: u16, sub: u8, v: u8) -> Result<(), SdoAbort> {
     s.write(index, sub, &[v])
 }
@@ -15,7 +17,7 @@ fn w32(s: &mut Scope, index: u16, sub: u8, v: u32) -> Result<(), SdoAbort> {
 fn rd(s: &Scope, index: u16, sub: u8) -> i64 {
     let mut b = [0u8; 8];
     let n = s.read(index, sub, &mut b).expect("read");
-    let t = od::find_entry(OBJECTS, index, sub).unwrap().data_type;
+    let t = od::find_entry(PACKED, index, sub).unwrap().data_type;
     od::decode_int(t, &b[..n]).unwrap()
 }
 
@@ -65,7 +67,7 @@ fn one_channel_rising(s: &mut Scope) {
 
 #[test]
 fn table_is_well_formed_and_defaults_resolve() {
-    assert!(od::is_well_formed(OBJECTS));
+    assert!(od::is_well_formed(PACKED));
     let s = Scope::new();
     for sub in 1..=CHANNELS as u8 {
         let v = rd(&s, CHANNEL_LIST, sub) as u32;
