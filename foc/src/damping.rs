@@ -210,7 +210,10 @@ impl Damping {
     pub fn tick(&mut self, v_ab: AlphaBeta) {
         self.v_hist.copy_within(0..MAX_DELAY + 1, 1);
         self.v_hist[0] = v_ab;
-        let (a, b) = (self.v_hist[self.delay_whole], self.v_hist[self.delay_whole + 1]);
+        let (a, b) = (
+            self.v_hist[self.delay_whole],
+            self.v_hist[self.delay_whole + 1],
+        );
         let f = self.delay_frac;
         self.v_sum.alpha += a.alpha + f * (b.alpha - a.alpha);
         self.v_sum.beta += a.beta + f * (b.beta - a.beta);

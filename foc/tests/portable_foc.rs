@@ -87,7 +87,6 @@ impl Coils {
     }
 }
 
-
 /// A rotor turning at `omega_m` rad/s (mechanical) in a current vector `i_mag` A that
 /// turns at `omega_c_e` rad/s (electrical): feeds `d` the voltages a motor with `r`,
 /// `l`, `ke` needs, `ticks` current-loop steps of `ts` per update (no delay), for

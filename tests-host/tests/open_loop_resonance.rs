@@ -12,7 +12,11 @@ fn damping_calms_the_low_speed_resonance() {
     for (m, speed) in [(ECN57_20, 1.0), (TC86_45, 0.875)] {
         let off = run_at(m, speed, false);
         let on = run_at(m, speed, true);
-        assert!(!off.lost_steps() && !on.lost_steps(), "{}: {off:?} {on:?}", m.name);
+        assert!(
+            !off.lost_steps() && !on.lost_steps(),
+            "{}: {off:?} {on:?}",
+            m.name
+        );
         assert!(off.ripple_rel() > 1.0, "{}: undamped {off:?}", m.name);
         assert!(
             on.ripple_rel() <= 0.5 * off.ripple_rel(),

@@ -13,9 +13,9 @@
 //! * [`servo_tune`]: the closed-loop load identification and the tuned servo figures.
 
 pub mod motor;
+pub mod resonance;
 pub mod rig;
 pub mod rng;
-pub mod resonance;
 pub mod robustness;
 pub mod scenarios;
 pub mod servo_tune;

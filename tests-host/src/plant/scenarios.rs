@@ -447,7 +447,11 @@ pub(crate) fn open_loop_config(ppr: u32, current: f64) -> OpenLoopConfig {
 }
 
 /// One servo period of open loop: the open-loop step, then the FOC ticks on its angle.
-pub(crate) fn open_loop_period(rig: &mut Rig, ol: &mut OpenLoop, cmd: i32) -> foc::open_loop::OpenLoopOutput {
+pub(crate) fn open_loop_period(
+    rig: &mut Rig,
+    ol: &mut OpenLoop,
+    cmd: i32,
+) -> foc::open_loop::OpenLoopOutput {
     let o = ol.step(cmd);
     rig.cl.id_ref = o.current;
     rig.cl.iq_ref = 0.0;
