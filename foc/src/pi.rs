@@ -76,23 +76,8 @@ impl Pi {
     /// One update with error `e` and feed-forward `ff`; returns the limited output.
     #[inline]
     pub fn update(&mut self, e: f32, ff: f32) -> f32 {
-        let u = self.kp * e + self.x + ff;
         let (lo, hi) = (self.lo, self.hi);
-        let dx = self.ki_ts * e;
-        if u > hi {
-            if dx < 0.0 {
-                self.x += dx;
-            }
-            hi
-        } else if u < lo {
-            if dx > 0.0 {
-                self.x += dx;
-            }
-            lo
-        } else {
-            self.x = num::clamp(self.x + dx, lo, hi);
-            u
-        }
+        self.step_in(e, ff, lo, hi)
     }
 
     /// [`Pi::update`] (no feed-forward) with the output range narrowed to `[lo, hi]`
@@ -106,7 +91,14 @@ impl Pi {
         let lo = num::clamp(lo, self.lo, self.hi);
         let hi = num::clamp(hi, lo, self.hi);
         self.x = num::clamp(self.x, lo, hi);
-        let u = self.kp * e + self.x;
+        self.step_in(e, 0.0, lo, hi)
+    }
+
+    /// The PI step with conditional integration against the output range `[lo, hi]`:
+    /// while the output is limited, the integrator only moves back towards the range.
+    #[inline(always)]
+    fn step_in(&mut self, e: f32, ff: f32, lo: f32, hi: f32) -> f32 {
+        let u = self.kp * e + self.x + ff;
         let dx = self.ki_ts * e;
         if u > hi {
             if dx < 0.0 {
