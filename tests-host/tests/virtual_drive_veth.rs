@@ -15,91 +15,19 @@
 #![deny(clippy::undocumented_unsafe_blocks)]
 
 use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use ethercrab::std::{ethercat_now, tx_rx_task};
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
+use tests_host::netns::{Killed, Netns};
 
 /// One frame store per test (each test has its own master).
 type Storage = PduStorage<16, { PduStorage::element_size(1100) }>;
 static PDU_STORAGE: Storage = PduStorage::new();
 static PDU_STORAGE_PV: Storage = PduStorage::new();
 static PDU_STORAGE_FAULT: Storage = PduStorage::new();
-
-struct Netns {
-    ns: String,
-    host_if: String,
-    drive_if: String,
-}
-
-impl Netns {
-    /// A namespace with one end of a new veth pair; `tag` keeps the names of tests
-    /// running in parallel apart.
-    fn create(tag: char) -> Option<Netns> {
-        let id = std::process::id() % 100_000;
-        let ns = format!("ecsvd{id}{tag}");
-        let host_if = format!("vd{id}{tag}h");
-        let drive_if = format!("vd{id}{tag}d");
-        let ok = |args: &[&str]| {
-            Command::new("ip")
-                .args(args)
-                .status()
-                .is_ok_and(|s| s.success())
-        };
-        if !ok(&["netns", "add", &ns]) {
-            return None;
-        }
-        let n = Netns {
-            ns: ns.clone(),
-            host_if: host_if.clone(),
-            drive_if: drive_if.clone(),
-        };
-        let steps: [&[&str]; 5] = [
-            &[
-                "link", "add", &host_if, "type", "veth", "peer", "name", &drive_if,
-            ],
-            &["link", "set", &drive_if, "netns", &ns],
-            &["link", "set", &host_if, "up"],
-            &["-n", &ns, "link", "set", &drive_if, "up"],
-            &["-n", &ns, "link", "set", "lo", "up"],
-        ];
-        for s in steps {
-            if !ok(s) {
-                return None;
-            }
-        }
-        Some(n)
-    }
-}
-
-impl Drop for Netns {
-    fn drop(&mut self) {
-        let _ = Command::new("ip")
-            .args(["link", "del", &self.host_if])
-            .status();
-        let _ = Command::new("ip").args(["netns", "del", &self.ns]).status();
-    }
-}
-
-struct Killed(Child);
-impl Drop for Killed {
-    fn drop(&mut self) {
-        // SIGTERM first: virtual-drive closes cleanly on it.
-        // SAFETY: plain kill(2) on our own child.
-        unsafe { libc::kill(self.0.id() as i32, libc::SIGTERM) };
-        let deadline = Instant::now() + Duration::from_secs(3);
-        while Instant::now() < deadline {
-            if let Ok(Some(_)) = self.0.try_wait() {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
 
 /// Fails unless running as root (what the veth tests need), with how to run them.
 fn require_root() {
@@ -127,7 +55,7 @@ fn start_virtual_drive_with(
     extra: &[&str],
 ) -> (Netns, Killed, mpsc::Receiver<String>) {
     require_root();
-    let net = Netns::create(tag).expect(
+    let net = Netns::create(&format!("vd{tag}")).expect(
         "running as root, but the network namespace / veth pair could not be created \
          (iproute2 installed? kernel veth and netns support?)",
     );
