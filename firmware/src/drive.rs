@@ -104,6 +104,8 @@ pub struct AxisState {
     pub stall_position: i32,
     /// Estimated load angle of the open loop, 0.1° electrical (0x2063).
     pub load_angle_ddeg: i16,
+    /// The motion layer's servo tune runs ([`crate::servo_tune`]).
+    pub servo_tune: crate::servo_tune::TuneReport,
 }
 
 /// LED levels of the drive (RUN/ERR come from the slave runtime's indicators).
@@ -155,6 +157,8 @@ pub struct Drive<S: ParameterStore = NoStore> {
     last_controlword: u16,
     /// `AxisState::stall_seq` of the last stall handled.
     stall_seen: u32,
+    /// The servo tune (0x2162).
+    servo_tune: crate::servo_tune::TuneControl,
     store: Option<S>,
     load_report: Option<LoadReport>,
     storage_emergency: Option<(u16, [u8; 5])>,
@@ -233,6 +237,7 @@ macro_rules! power_up_fields {
             fault_led: fault_led::FaultLed::new(),
             last_controlword: 0,
             stall_seen: 0,
+            servo_tune: crate::servo_tune::TuneControl::default(),
             store: Some($store),
             load_report: None,
             storage_emergency: None,
@@ -620,6 +625,7 @@ impl<S: ParameterStore> Drive<S> {
         if self.params.take_fault_history_clear() {
             self.faults.clear_history();
         }
+        self.servo_tune_tick(dt_ms);
         let after = match self.cycles_running(now) {
             Some(p) => (TICK_STEP_AFTER_US as u32).max(p + p / 2),
             None => TICK_STEP_AFTER_US as u32,
@@ -908,6 +914,7 @@ impl<S: ParameterStore> Drive<S> {
 mod stack;
 mod store;
 mod trace;
+mod tune;
 
 use stack::WholeDictionary;
 pub use stack::{is_saved, NoRuntime};

@@ -71,6 +71,7 @@ use crate::cia402::{DriveCommand, SetpointKind};
 use crate::drive::AxisState;
 use crate::identity::Variant;
 use crate::params::{Param, Params};
+use crate::servo_tune::TuneSetup;
 use core::num::{NonZeroU32, NonZeroU64};
 use foc::angle::{Angle, CountScale, POLE_PAIRS};
 use foc::open_loop::{OpenLoop, OpenLoopConfig};
@@ -158,6 +159,8 @@ pub struct MotionConfig {
     pub damping_s: f32,
     /// Open-loop stall detection (0x2060 = 1; 0x2061 → threshold), `None` when off.
     pub stall: Option<StallConfig>,
+    /// The servo tune's move (0x2163, the motor; [`crate::servo_tune`]).
+    pub tune: TuneSetup,
 }
 
 fn finite_pos(x: f32) -> f32 {
@@ -236,6 +239,7 @@ impl MotionConfig {
             gains,
             damping_s: p.get(Param::ResonanceDamping) as f32 * 1e-6,
             stall: stall::config_from_params(p, motor, ts),
+            tune: TuneSetup::from_params(p, counts, motor.kt, motor.inertia, load),
         }
     }
 
@@ -436,6 +440,7 @@ pub struct Motion {
     reset_pending: bool,
     current_limited: bool,
     stall: Stall,
+    tune: tune::Tuning,
     open: OpenLoop,
     // Closed-loop command smoothing (moving average in command units), in use when
     // `smooth_on`. Always present so that reconfiguring re-initialises it in place.
@@ -490,6 +495,7 @@ impl Motion {
             vel_k: cfg.ts / (VELOCITY_REPORT_TAU + cfg.ts),
             current_limited: false,
             stall: Stall::new(cfg.stall, cfg.ts),
+            tune: tune::Tuning::default(),
         }
     }
 
@@ -532,7 +538,7 @@ impl Motion {
         let was_closed = self.cfg.closed_loop;
         let old = self.cfg;
         self.cfg = cfg;
-        self.servo.set_gains(cfg.gains);
+        self.apply_gains();
         self.servo
             .set_following_error_limit(cfg.following_error_limit);
         if old.stall != cfg.stall {
@@ -585,6 +591,9 @@ impl Motion {
             // Leaving torque set-points: the velocity loop starts from the current
             // applied last (`foc::servo`, "Torque control with a speed limit").
             self.servo.bumpless_start(self.servo.iq_ref);
+        }
+        if (self.cmd.kind == SetpointKind::Tune) != (cmd.kind == SetpointKind::Tune) {
+            self.tune_setpoints(cmd.kind == SetpointKind::Tune);
         }
         self.cmd = *cmd;
         if !self.enabled {
@@ -777,9 +786,7 @@ impl Motion {
         let lim = self.iq_limit_set * f32::from(lim_pm.min(3000)) * 1e-3 * self.soft_k;
         if lim != self.iq_limit {
             self.iq_limit = lim;
-            let mut g = self.cfg.gains;
-            g.iq_max = lim;
-            self.servo.set_gains(g);
+            self.apply_gains();
         }
         let iq = match self.cmd.kind {
             SetpointKind::Velocity => {
@@ -808,6 +815,7 @@ impl Motion {
                 iq
             }
             SetpointKind::Torque => self.torque_step(pos, vel),
+            SetpointKind::Tune => self.tune_step(pos, vel),
         };
         self.current_limited = lim <= 0.0 || libm::fabsf(iq) >= lim * 0.999;
         let mut id = 0.0;
@@ -965,10 +973,12 @@ impl Motion {
         a.stall_seq = self.stall.seq;
         a.stall_position = self.stall.position;
         a.load_angle_ddeg = self.stall.load_angle_ddeg();
+        a.servo_tune = self.tune.report;
     }
 }
 
 mod torque;
+mod tune;
 
 #[cfg(test)]
 mod tests;

@@ -1,6 +1,6 @@
-//! Vendor parameters 0x2000-0x2161 (drive-requirements §3.3, plus 0x2156, the
-//! anti-resonance damping 0x2059, the stall detection 0x2060-0x2063, and 0x2160 and
-//! 0x2161 of the servo tune, [`crate::servo_tune`]): the one table of their
+//! Vendor parameters 0x2000-0x2165 (drive-requirements §3.3, plus 0x2156, the
+//! anti-resonance damping 0x2059, the stall detection 0x2060-0x2063, and
+//! 0x2160-0x2165 of the servo tune, [`crate::servo_tune`]): the one table of their
 //! access, default, range, unit and saved flag, and the values.
 //!
 //! The generic SDO checks (`od::check_write`) refuse out-of-range writes from this
@@ -25,6 +25,10 @@
 //! * 0x2155 (raw input levels) is filled by the I/O module ([`Params::set_raw_inputs`]).
 //! * 0x2063 (estimated load angle) is filled by the drive from the motion layer's
 //!   stall detector ([`Params::set_load_angle`]).
+//! * 0x2162:01 (servo tune start/stop) is a command the drive carries out
+//!   (`Drive::write`, [`crate::servo_tune::TuneControl`]); it reads 1 while a tune
+//!   runs. 0x2162:02, 0x2164 and 0x2165 are the tune's state and result
+//!   ([`Params::set_servo_tune`]).
 //! * 0x2156 (ours) keeps the station number entered on a single-bank DIP board (SW8
 //!   ON → SW1-SW7 → SW8 OFF, see [`crate::dip::SingleBank`]); the application sets it
 //!   with [`Params::set_internal`] and stores it with a save. It is the DIP address from
@@ -308,6 +312,24 @@ vendor_params! {
         "Velocity-loop bandwidth level the servo tune sets 0x2137-0x2140 for (1 = 20 Hz .. 16 = 400 Hz)" {
         Stiffness = rws(0, "Stiffness", U8, 12, 1, 16, ""),
     }
+    0x2162 record "Servo tune",
+        "Identification move in closed loop (Operation enabled, PP or CSP, at rest): 1 starts, 0 stops; state 0 idle, 1 running, 2 done, 3 refused, 4 failed" {
+        _ = EntryDesc::count(2),
+        _ = EntryDesc::new(1, "Start", U8, Access::RW).range(0, 1).default(0),
+        _ = EntryDesc::new(2, "State", U8, Access::RO).default(0),
+    }
+    0x2163 var "Servo tune travel",
+        "Stroke of the identification move from the start position in the positive direction, 0.1° of the motor shaft" {
+        TuneTravel = rws(0, "Servo tune travel", U16, 900, 100, 36000, "0.1°"),
+    }
+    0x2164 var "Identified inertia ratio",
+        "Load inertia the last servo tune found, % of the rotor inertia (also written to 0x2160)" {
+        _ = EntryDesc::new(0, "Identified inertia ratio", U16, Access::RO).unit("%").default(0),
+    }
+    0x2165 var "Identified friction",
+        "Coulomb friction torque the last servo tune found" {
+        _ = EntryDesc::new(0, "Identified friction", U16, Access::RO).unit("mN·m").default(0),
+    }
 }
 
 /// Short alias of [`Param`], used by the board glue and the integration tests.
@@ -342,6 +364,15 @@ pub struct Params {
     encoder_counts: u32,
     fault_history_clear: bool,
     calibration: Calibration,
+    servo_tune: ServoTuneValues,
+}
+
+/// The run-time values of 0x2162-0x2165.
+#[derive(Debug, Clone, Copy, Default)]
+struct ServoTuneValues {
+    state: u8,
+    ratio_percent: u16,
+    friction_mnm: u16,
 }
 
 impl Params {
@@ -367,6 +398,7 @@ impl Params {
             encoder_counts: 0,
             fault_history_clear: false,
             calibration: Calibration::default(),
+            servo_tune: ServoTuneValues::default(),
         };
         p.latch_power_up();
         p
@@ -466,6 +498,16 @@ impl Params {
         self.calibration = c;
     }
 
+    /// Sets the servo tune's state (0x2162:02) and, with a result, the identified
+    /// inertia ratio (0x2164, %) and friction (0x2165, mN·m).
+    pub fn set_servo_tune(&mut self, state: u8, result: Option<(u16, u16)>) {
+        self.servo_tune.state = state;
+        if let Some((ratio, friction)) = result {
+            self.servo_tune.ratio_percent = ratio;
+            self.servo_tune.friction_mnm = friction;
+        }
+    }
+
     /// True once after 1 was written to 0x2093.
     pub fn take_fault_history_clear(&mut self) -> bool {
         core::mem::take(&mut self.fault_history_clear)
@@ -490,6 +532,10 @@ impl Params {
             (None, 0x2093, 0) => u32::from(self.fault_history_clear),
             (None, 0x2155, 0) => u32::from(self.raw_inputs),
             (None, 0x2063, 0) => self.load_angle_ddeg as u32,
+            (None, 0x2162, 1) => u32::from(self.servo_tune.state == 1),
+            (None, 0x2162, 2) => u32::from(self.servo_tune.state),
+            (None, 0x2164, 0) => u32::from(self.servo_tune.ratio_percent),
+            (None, 0x2165, 0) => u32::from(self.servo_tune.friction_mnm),
             (None, 0x2022, 1) => u32::from(self.calibration.gain_b_e4),
             (None, 0x2022, 2) => self.calibration.offset_ma[0] as u32,
             (None, 0x2022, 3) => self.calibration.offset_ma[1] as u32,
@@ -503,13 +549,19 @@ impl Params {
         crate::dictionary::put_le(entry, u64::from(value), buf)
     }
 
+    /// The value an SDO write of a vendor entry carries, after the stack's checks
+    /// (access, length, range; every entry here is RW or RO and an integer, so the
+    /// ESM state changes nothing). For the entries whose write is a command the
+    /// drive carries out (0x2162:01).
+    pub fn checked_value(index: u16, sub: u8, data: &[u8]) -> Result<i64, SdoAbort> {
+        let entry = crate::dictionary::find_entry_in(crate::dictionary::PARAMS, index, sub)?;
+        od::check_write(entry, data, ecat_slave_stack::esm::EsmState::PreOp)?;
+        od::decode_int(entry.data_type, data).ok_or(SdoAbort::TypeMismatch)
+    }
+
     /// SDO write of a vendor parameter (after the generic checks; repeated here).
     pub fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
-        let entry = crate::dictionary::find_entry_in(crate::dictionary::PARAMS, index, sub)?;
-        // The stack's checks (access, length, range; every entry here is RW or RO and
-        // an integer, so the state argument changes nothing).
-        od::check_write(entry, data, ecat_slave_stack::esm::EsmState::PreOp)?;
-        let v = od::decode_int(entry.data_type, data).ok_or(SdoAbort::TypeMismatch)?;
+        let v = Self::checked_value(index, sub, data)?;
         match (index, sub) {
             (0x2040, 0) => {
                 if v == 1 {

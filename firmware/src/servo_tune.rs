@@ -31,11 +31,11 @@
 //! position; a stop (drive disabled, quick stop, fault: the caller's `running`
 //! false) ends it as failed. Its outcome goes to the parameters with [`apply`].
 
-use crate::motion::BASE_BANDWIDTH_HZ;
+use crate::motion::{MotionConfig, BASE_BANDWIDTH_HZ};
 use crate::params::{Param, Params};
 use ecat_slave_stack::od::SdoAbort;
 use foc::identify::{IdentConfig, IdentMove, IdentState};
-use foc::servo::Demand;
+use foc::servo::{Demand, ServoGains};
 
 /// Velocity bandwidth of the stiffness levels 1..=16, Hz.
 pub const STIFFNESS_HZ: [u16; 16] = [
@@ -91,10 +91,11 @@ pub fn apply(params: &mut Params, ratio_percent: f32) {
 }
 
 /// State of a servo tune as 0x2162 reports it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[repr(u8)]
 pub enum TuneState {
     /// No tune since power-up.
+    #[default]
     Idle = 0,
     /// The move is running.
     Running = 1,
@@ -106,17 +107,103 @@ pub enum TuneState {
     Failed = 4,
 }
 
+/// The move's configuration from the parameters and the motor (part of
+/// [`crate::motion::MotionConfig`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct TuneSetup {
+    /// Stroke 0x2163 in encoder counts.
+    pub travel: f32,
+    /// Torque constant, N·m/A.
+    pub kt: f32,
+    /// Rotor inertia, kg·m².
+    pub j_rotor: f32,
+    /// The factor `1 + 0x2160/100` the base gains were designed with.
+    pub load: f32,
+}
+
+impl TuneSetup {
+    /// Travel 0x2163 (0.1°) at `counts_per_rev`, for a motor of torque constant `kt` and
+    /// rotor inertia `j_rotor`, gains designed for `load` × the rotor inertia.
+    pub fn from_params(p: &Params, counts_per_rev: u32, kt: f32, j_rotor: f32, load: f32) -> Self {
+        TuneSetup {
+            travel: p.get(Param::TuneTravel) as f32 * counts_per_rev as f32 / 3600.0,
+            kt,
+            j_rotor,
+            load,
+        }
+    }
+}
+
+/// Acceleration of the probe cycle, rev/s² (module docs of [`foc::identify`]).
+pub const PROBE_ACCEL: f32 = 50.0;
+/// Highest acceleration of the fitted cycles, rev/s².
+pub const ACCEL_MAX: f32 = 1000.0;
+/// Highest speed of the move, rev/s.
+pub const SPEED_MAX: f32 = 10.0;
+/// Peak current the fitted cycles aim at, fraction of the current limit.
+pub const IQ_TARGET: f32 = 0.4;
+
+/// The identification move for `cfg`: [`PROBE_ACCEL`], [`ACCEL_MAX`], [`SPEED_MAX`],
+/// [`IQ_TARGET`] of the peak current, three fitted cycles.
+pub fn ident_config(cfg: &MotionConfig) -> IdentConfig {
+    let rev = cfg.counts_per_rev as f32;
+    IdentConfig {
+        ts: cfg.ts,
+        kt: cfg.tune.kt,
+        cpr: cfg.counts_per_rev,
+        travel: cfg.tune.travel,
+        accel: PROBE_ACCEL * rev,
+        accel_max: ACCEL_MAX * rev,
+        speed_max: SPEED_MAX * rev,
+        iq_target: IQ_TARGET * cfg.gains.iq_max,
+        iq_max: cfg.gains.iq_max,
+        cycles: 3,
+    }
+}
+
+/// The servo gains of the move: [`foc::identify::move_gains`] of the base gains for
+/// the rotor alone (`cfg.gains` designed for `load` × the rotor inertia, the velocity
+/// loop's gains divided by it).
+pub fn move_gains(cfg: &MotionConfig) -> ServoGains {
+    let load = if cfg.tune.load >= 1.0 {
+        cfg.tune.load
+    } else {
+        1.0
+    };
+    let g = cfg.gains;
+    foc::identify::move_gains(&ServoGains {
+        kv: g.kv / load,
+        ki_vel: g.ki_vel / load,
+        acc_ff: g.acc_ff / load,
+        ..g
+    })
+}
+
+/// What the motion layer reports of its tunes ([`crate::drive::AxisState::servo_tune`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct TuneReport {
+    /// Moves started so far (wrapping).
+    pub runs: u8,
+    /// State of the last one.
+    pub state: TuneState,
+    /// Identified load ratio, % (0x2164), when `state` is [`TuneState::Done`].
+    pub ratio_percent: u16,
+    /// Identified Coulomb friction, mN·m (0x2165), likewise.
+    pub friction_mnm: u16,
+}
+
 /// What [`check_start`] looks at.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StartConditions {
     /// Closed loop in effect (0x2024 = 2 with an encoder).
     pub closed_loop: bool,
-    /// CiA 402 state Operation enabled.
+    /// CiA 402 state Operation enabled in a position mode (PP or CSP) without halt.
     pub operation_enabled: bool,
-    /// Actual velocity, counts/s.
+    /// Velocity demand, command units/s (the axis is commanded to stand; it may hunt
+    /// about its position: a load the gains do not suit yet is what the tune is for).
     pub velocity: f32,
-    /// Encoder counts per revolution.
-    pub counts_per_rev: u32,
+    /// Command units per revolution.
+    pub units_per_rev: u32,
     /// Actual position, command units.
     pub position: i32,
     /// Travel 0x2163, command units.
@@ -127,7 +214,7 @@ pub struct StartConditions {
 
 /// Whether a tune may start (see the module docs).
 pub fn check_start(c: &StartConditions) -> Result<(), SdoAbort> {
-    let rest = c.counts_per_rev as f32 * 0.01;
+    let rest = c.units_per_rev as f32 * 0.01;
     let still = c.velocity.is_finite() && c.velocity.abs() <= rest;
     if !(c.closed_loop && c.operation_enabled && still) {
         return Err(SdoAbort::StateConflict);
@@ -145,39 +232,53 @@ pub fn check_start(c: &StartConditions) -> Result<(), SdoAbort> {
     Ok(())
 }
 
+/// How long a finished move holds its start position with the move's gains before
+/// it reports done, s: the following error of the last stroke settles, so the axis
+/// stands at the start when the drive takes the set-points back.
+pub const SETTLE_S: f32 = 0.1;
+
 /// A running identification move and its outcome.
 #[derive(Debug, Clone, Copy)]
 pub struct TuneRun {
     ident: IdentMove,
     j_rotor: f32,
+    /// Servo steps left of the [`SETTLE_S`] hold after a move with a result.
+    settle_left: u32,
 }
 
 impl TuneRun {
     /// Starts the move `cfg` at the actual position `start` (counts) for a motor of
     /// rotor inertia `j_rotor` (kg·m²).
     pub fn new(cfg: IdentConfig, start: i32, j_rotor: f32) -> Self {
+        let steps = if cfg.ts > 0.0 { SETTLE_S / cfg.ts } else { 0.0 };
         TuneRun {
             ident: IdentMove::new(cfg, start),
             j_rotor,
+            settle_left: foc::num::clamp(steps, 0.0, 1e6) as u32,
         }
     }
 
-    /// One servo step (see [`IdentMove::step`]); `running` false (stop, fault,
-    /// disable) fails the tune. `None` once the tune has ended.
-    pub fn step(&mut self, running: bool, iq: f32, vel: f32) -> Option<Demand> {
-        if !running {
-            self.ident.abort();
+    /// One servo step (see [`IdentMove::step`]): the demand for the next step; once
+    /// the move has ended, the start position at rest (for [`SETTLE_S`] still
+    /// reported running).
+    pub fn step(&mut self, iq: f32, vel: f32) -> Demand {
+        let d = self.ident.step(iq, vel);
+        if matches!(self.ident.state, IdentState::Done(_)) {
+            self.settle_left = self.settle_left.saturating_sub(1);
         }
-        match self.ident.state {
-            IdentState::Running => Some(self.ident.step(iq, vel)),
-            _ => None,
-        }
+        d
+    }
+
+    /// Ends a running move as failed (stop, fault, disable, another set-point).
+    pub fn abort(&mut self) {
+        self.ident.abort();
     }
 
     /// The state 0x2162 reports.
     pub fn state(&self) -> TuneState {
         match self.ident.state {
             IdentState::Running => TuneState::Running,
+            IdentState::Done(_) if self.settle_left > 0 => TuneState::Running,
             IdentState::Done(_) => TuneState::Done,
             IdentState::Failed(_) => TuneState::Failed,
         }
@@ -186,9 +287,113 @@ impl TuneRun {
     /// The identified load ratio (%, 0x2164) and Coulomb friction (mN·m, 0x2165).
     pub fn result(&self) -> Option<(f32, f32)> {
         match self.ident.state {
-            IdentState::Done(i) => Some((i.load_ratio_percent(self.j_rotor), i.tc * 1e3)),
+            IdentState::Done(i) if self.settle_left == 0 => {
+                Some((i.load_ratio_percent(self.j_rotor), i.tc * 1e3))
+            }
             _ => None,
         }
+    }
+
+    /// The report of this run, the `runs`th.
+    pub fn report(&self, runs: u8) -> TuneReport {
+        let (ratio, friction) = self.result().unwrap_or((0.0, 0.0));
+        let u16_of = |x: f32| {
+            if x.is_finite() {
+                foc::num::clamp(x + 0.5, 0.0, 65535.0) as u16
+            } else {
+                0
+            }
+        };
+        TuneReport {
+            runs,
+            state: self.state(),
+            ratio_percent: u16_of(ratio),
+            friction_mnm: u16_of(friction),
+        }
+    }
+}
+
+/// How long an accepted start waits for the motion layer to begin the move, ms.
+pub const START_TIMEOUT_MS: u32 = 50;
+
+/// The drive's side of the tune (0x2162): the start and stop requests, the run the
+/// motion layer reports ([`TuneReport`] in the axis state), the end.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct TuneControl {
+    state: TuneState,
+    /// [`TuneReport::runs`] when the start was accepted: the run is this start's once
+    /// the count has moved.
+    runs_at_start: u8,
+    /// Milliseconds the start has waited for its run.
+    waited_ms: u32,
+}
+
+impl TuneControl {
+    /// The state 0x2162:02 reports.
+    pub fn state(&self) -> TuneState {
+        self.state
+    }
+
+    /// The CiA 402 layer is to run the move's set-points.
+    pub fn running(&self) -> bool {
+        self.state == TuneState::Running
+    }
+
+    /// 0x2162:01 = 1 under the conditions `c`; `report`: the motion layer's latest.
+    /// A tune already running is not restarted (0x08000022); a refusal
+    /// ([`check_start`]) is reported as [`TuneState::Refused`].
+    pub fn start(&mut self, c: &StartConditions, report: &TuneReport) -> Result<(), SdoAbort> {
+        if self.running() {
+            return Err(SdoAbort::StateConflict);
+        }
+        if let Err(e) = check_start(c) {
+            self.state = TuneState::Refused;
+            return Err(e);
+        }
+        *self = TuneControl {
+            state: TuneState::Running,
+            runs_at_start: report.runs,
+            waited_ms: 0,
+        };
+        Ok(())
+    }
+
+    /// 0x2162:01 = 0: a running tune fails (stopped by the user).
+    pub fn stop(&mut self) {
+        if self.running() {
+            self.state = TuneState::Failed;
+        }
+    }
+
+    /// Once per tick (`dt_ms` since the last): the motion layer's `report` and whether
+    /// the CiA 402 layer still runs the move (`active`). Returns the report of a run
+    /// that has just finished with a result (to be applied, [`apply`]). The tune
+    /// fails when its run fails, when the set-points go elsewhere (stop, fault,
+    /// disable, halt, another mode) or when no run begins within
+    /// [`START_TIMEOUT_MS`].
+    pub fn update(&mut self, report: &TuneReport, active: bool, dt_ms: u32) -> Option<TuneReport> {
+        if !self.running() {
+            return None;
+        }
+        if report.runs != self.runs_at_start {
+            match report.state {
+                TuneState::Done => {
+                    self.state = TuneState::Done;
+                    return Some(*report);
+                }
+                TuneState::Running => {}
+                _ => self.state = TuneState::Failed,
+            }
+        } else {
+            self.waited_ms = self.waited_ms.saturating_add(dt_ms);
+            if self.waited_ms > START_TIMEOUT_MS {
+                self.state = TuneState::Failed;
+            }
+        }
+        if !active {
+            self.state = TuneState::Failed;
+        }
+        None
     }
 }
 
@@ -265,7 +470,7 @@ mod tests {
             closed_loop: true,
             operation_enabled: true,
             velocity: 0.0,
-            counts_per_rev: 4000,
+            units_per_rev: 4000,
             position: 0,
             travel: 12_500,
             limits: Some((-100_000, 100_000)),
@@ -340,28 +545,109 @@ mod tests {
     }
 
     #[test]
-    fn run_identifies_an_ideal_load_and_a_stop_fails_it() {
+    fn run_identifies_an_ideal_load_and_an_abort_fails_it() {
         // Ideal shaft with 4 × the rotor inertia following the demand exactly.
         let c = ident_cfg();
         let j = ECN57_20.inertia * 5.0;
         let rad = 2.0 * PI / c.cpr as f32;
         let mut run = TuneRun::new(c, 0, ECN57_20.inertia);
-        let mut d = run.step(true, 0.0, 0.0).unwrap();
-        while let Some(next) = run.step(true, j * d.acc * rad / c.kt, d.vel + d.acc * c.ts) {
-            d = next;
+        let mut d = run.step(0.0, 0.0);
+        let mut n = 0;
+        while run.state() == TuneState::Running {
+            d = run.step(j * d.acc * rad / c.kt, d.vel + d.acc * c.ts);
+            assert!((-1..=1001).contains(&d.pos), "{d:?}");
+            n += 1;
+            assert!(n < 100_000);
         }
         assert_eq!(run.state(), TuneState::Done);
+        // Once ended: the start position at rest.
+        assert_eq!(run.step(0.0, 0.0), Demand::default());
         let (ratio, _) = run.result().unwrap();
         assert!((ratio - 400.0).abs() < 20.0, "{ratio}");
+        let r = run.report(3);
+        assert_eq!((r.runs, r.state), (3, TuneState::Done));
+        assert!((i32::from(r.ratio_percent) - 400).abs() <= 20, "{r:?}");
         let mut p = Params::new(Variant::HybridServo);
         apply(&mut p, ratio);
         assert!((p.get(Param::LoadInertiaRatio) - 400).abs() <= 20);
 
         let mut stopped = TuneRun::new(c, 0, ECN57_20.inertia);
-        assert!(stopped.step(true, 0.0, 0.0).is_some());
+        stopped.step(0.0, 0.0);
         assert_eq!(stopped.state(), TuneState::Running);
-        assert!(stopped.step(false, 0.0, 0.0).is_none());
+        stopped.abort();
         assert_eq!(stopped.state(), TuneState::Failed);
         assert_eq!(stopped.result(), None);
+        assert_eq!(stopped.report(1).ratio_percent, 0);
+        // A configuration without travel fails at once.
+        let bad = TuneRun::new(IdentConfig { travel: 0.0, ..c }, 0, ECN57_20.inertia);
+        assert_eq!(bad.state(), TuneState::Failed);
+    }
+
+    fn report(runs: u8, state: TuneState) -> TuneReport {
+        TuneReport {
+            runs,
+            state,
+            ratio_percent: 480,
+            friction_mnm: 12,
+        }
+    }
+
+    #[test]
+    fn control_follows_its_own_run_to_the_result() {
+        let mut t = TuneControl::default();
+        assert_eq!(t.state(), TuneState::Idle);
+        // The previous run's Done is not this start's.
+        let old = report(4, TuneState::Done);
+        t.start(&ok_conditions(), &old).unwrap();
+        assert!(t.running());
+        assert_eq!(t.update(&old, true, 1), None);
+        assert_eq!(
+            t.start(&ok_conditions(), &old),
+            Err(SdoAbort::StateConflict),
+            "no restart while running"
+        );
+        assert_eq!(t.update(&report(5, TuneState::Running), true, 1), None);
+        assert!(t.running());
+        let done = report(5, TuneState::Done);
+        assert_eq!(t.update(&done, true, 1), Some(done));
+        assert_eq!(t.state(), TuneState::Done);
+        // Reported once.
+        assert_eq!(t.update(&done, true, 1), None);
+        assert_eq!(t.state(), TuneState::Done);
+    }
+
+    #[test]
+    fn control_fails_on_stop_lost_setpoints_failed_run_or_no_run() {
+        let idle = report(0, TuneState::Idle);
+        let running = report(1, TuneState::Running);
+        let mut t = TuneControl::default();
+        t.start(&ok_conditions(), &idle).unwrap();
+        t.stop();
+        assert_eq!(t.state(), TuneState::Failed);
+
+        t.start(&ok_conditions(), &idle).unwrap();
+        assert_eq!(t.update(&running, false, 1), None);
+        assert_eq!(t.state(), TuneState::Failed, "the CiA 402 layer took over");
+
+        t.start(&ok_conditions(), &running).unwrap();
+        assert_eq!(t.update(&report(2, TuneState::Failed), true, 1), None);
+        assert_eq!(t.state(), TuneState::Failed);
+
+        t.start(&ok_conditions(), &running).unwrap();
+        for _ in 0..START_TIMEOUT_MS {
+            t.update(&running, true, 1);
+        }
+        assert!(t.running());
+        t.update(&running, true, 1);
+        assert_eq!(t.state(), TuneState::Failed, "no run began");
+
+        // A refused start is reported as refused, and keeps nothing running.
+        let far = StartConditions {
+            position: 95_000,
+            ..ok_conditions()
+        };
+        assert_eq!(t.start(&far, &running), Err(SdoAbort::ValueRangeExceeded));
+        assert_eq!(t.state(), TuneState::Refused);
+        assert!(!t.running());
     }
 }

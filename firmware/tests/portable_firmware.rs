@@ -58,7 +58,8 @@ qemu_runner::tests! {
                 let r_lo = write(&mut d, o.index, e.sub, &lo[..n]);
                 let r_hi = write(&mut d, o.index, e.sub, &hi[..n]);
                 for r in [r_lo, r_hi] {
-                    assert!(r.is_ok() || r == Err(SdoAbort::LocalControl) || r == Err(SdoAbort::WriteReadOnly),
+                    assert!(r.is_ok() || r == Err(SdoAbort::LocalControl) || r == Err(SdoAbort::WriteReadOnly)
+                        || r == Err(SdoAbort::StateConflict),
                         "{:#06x}:{} edge refused: {:?}", o.index, e.sub, r);
                 }
                 if e.max() < i64::from(u32::MAX) && n == 4 || (n < 4 && e.max() < (1i64 << (8 * n)) - 1) {

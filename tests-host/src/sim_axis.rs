@@ -135,6 +135,9 @@ impl Axis for KinematicAxis {
                         + 2.0 * self.omega * (ff - self.vel)
                 }
                 SetpointKind::Velocity => 4.0 * self.omega * (ff - self.vel),
+                // No motion layer here to run the tune's move: the axis holds (the
+                // drive's tune fails for want of a run).
+                SetpointKind::Tune => -2.0 * self.omega * self.vel,
                 SetpointKind::Torque => {
                     // The torque's acceleration (rated torque = the acceleration
                     // limit), the speed limit `ff` held by a velocity loop past it.

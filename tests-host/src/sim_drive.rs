@@ -265,6 +265,11 @@ impl SimDrive {
             let now_ms = (self.tick_us / 1000) as u32;
             self.glue.raise_board_faults(&mut self.drive, now_ms);
             self.drive.tick(self.tick_us, raw);
+            // Parameters the drive changed itself (a servo tune's result), every
+            // 10 ms as on the board.
+            if (self.tick_us / 1000).is_multiple_of(10) {
+                self.axis.parameters(&self.drive.params);
+            }
             self.publish();
         }
     }

@@ -49,3 +49,228 @@ fn tuned_servo_meets_the_goals_on_each_load() {
         }
     }
 }
+
+/// The drive (`firmware::drive`, its 1 ms tick as on the board without frames) on the
+/// plant axis with the firmware's motion layer (`tests_host::sim_axis::PlantAxis`):
+/// ECN57-20 in closed loop carrying `load` × its rotor inertia, PP, the objects
+/// `extra`.
+mod on_the_drive {
+    use ecat_slave_stack::esm::EsmState;
+    use ecat_slave_stack::od::{Dictionary, SdoAbort};
+    use firmware::cia402::pds::PdsState;
+    use firmware::drive::Drive;
+    use firmware::identity::Variant;
+    use firmware::params::P;
+    use firmware::servo_tune::StiffnessGains;
+    use tests_host::sim_axis::PlantAxis;
+    use tests_host::sim_drive::{Axis, Motor};
+
+    pub struct Bench {
+        pub d: Drive,
+        pub ax: PlantAxis,
+        t_us: u64,
+        steps: u32,
+    }
+
+    impl Bench {
+        pub fn new(load: f64, extra: &[(u16, u8, &[u8])]) -> Self {
+            let mut d: Drive = Drive::new(Variant::HybridServo, 0);
+            let base: [(u16, u8, &[u8]); 3] =
+                [(0x2013, 0, &[0]), (0x2024, 0, &[2]), (0x6060, 0, &[1])];
+            for &(i, s, v) in base.iter().chain(extra) {
+                Dictionary::write(&mut d, i, s, v, EsmState::PreOp)
+                    .unwrap_or_else(|e| panic!("{i:x}: {e:?}"));
+            }
+            let mut ax = PlantAxis::with_plant(Motor::Ecn57_20, true, |pc| {
+                pc.motor.j *= 1.0 + load;
+            });
+            ax.parameters(&d.params);
+            Bench {
+                d,
+                ax,
+                t_us: 0,
+                steps: 0,
+            }
+        }
+
+        /// `n` ticks of 1 ms with the controlword `cw`; `each` sees the bench after
+        /// every tick.
+        pub fn run(&mut self, cw: u16, n: u32, mut each: impl FnMut(&Bench)) {
+            self.d.cia402.set_controlword(cw);
+            for _ in 0..n {
+                self.t_us += 1000;
+                self.d.set_axis(self.ax.state());
+                self.d.tick(self.t_us, 0);
+                let c = *self.d.command();
+                if self.d.steps() != self.steps {
+                    self.steps = self.d.steps();
+                    self.ax.command(&c, f64::from(self.d.segment_s()));
+                }
+                if (self.t_us / 1000).is_multiple_of(10) {
+                    self.ax.parameters(&self.d.params);
+                }
+                self.ax.advance(0.001, &c);
+                each(self);
+            }
+        }
+
+        pub fn enable(&mut self) {
+            self.run(0x06, 5, |_| {});
+            self.run(0x07, 5, |_| {});
+            self.run(0x0F, 50, |_| {});
+            assert_eq!(self.d.cia402.state(), PdsState::OperationEnabled);
+        }
+
+        pub fn write(&mut self, index: u16, sub: u8, v: &[u8]) -> Result<(), SdoAbort> {
+            Dictionary::write(&mut self.d, index, sub, v, EsmState::Op)
+        }
+
+        pub fn read_u16(&mut self, index: u16, sub: u8) -> u16 {
+            let mut b = [0u8; 4];
+            let n = Dictionary::read(&mut self.d, index, sub, &mut b).unwrap();
+            assert!(n <= 2);
+            u16::from_le_bytes([b[0], b[1]])
+        }
+
+        /// Encoder counts of the true rotor position.
+        pub fn counts(&self) -> f64 {
+            self.ax.true_position() * 4000.0 / 50_000.0
+        }
+    }
+
+    /// 0x2162:01 = 1 in PP at rest runs the move; 0x2162:02 reads running, then done;
+    /// 0x2164 is the identified ratio within ±10 % of the true 500 %, 0x2160 and the
+    /// gains of the stiffness are set, the axis never leaves the travel by more than
+    /// its following error and ends at the start, still enabled, without a fault.
+    /// Before, with the gains for the rotor alone, the loaded axis hunts about its
+    /// position; after, it stands.
+    #[test]
+    fn tune_on_the_drive_identifies_the_load_and_sets_the_gains() {
+        let mut b = Bench::new(5.0, &[]);
+        b.enable();
+        let start = b.counts();
+        b.write(0x2162, 1, &[1]).unwrap();
+        assert_eq!(b.read_u16(0x2162, 2), 1, "running");
+        assert_eq!(b.read_u16(0x2162, 1), 1);
+        let (mut lo, mut hi) = (0.0f64, 0.0f64);
+        let mut ms = 0;
+        while b.read_u16(0x2162, 2) == 1 && ms < 5000 {
+            b.run(0x0F, 10, |b| {
+                let x = b.counts() - start;
+                lo = lo.min(x);
+                hi = hi.max(x);
+            });
+            ms += 10;
+        }
+        let ratio = b.read_u16(0x2164, 0);
+        eprintln!(
+            "tune {ms} ms, ratio {ratio} %, friction {} mN·m, travel {lo:.0}..{hi:.0} counts",
+            b.read_u16(0x2165, 0)
+        );
+        assert_eq!(b.read_u16(0x2162, 2), 2, "done");
+        assert_eq!(b.read_u16(0x2162, 1), 0);
+        assert!((f64::from(ratio) / 500.0 - 1.0).abs() <= 0.10, "{ratio} %");
+        assert_eq!(b.d.params.get(P::LoadInertiaRatio), i32::from(ratio));
+        let g = StiffnessGains::for_level(12);
+        assert_eq!(b.d.params.get(P::SpeedKp), i32::from(g.speed_kp));
+        assert_eq!(b.d.params.get(P::PosKp), i32::from(g.pos_kp));
+        // The default travel: 90° = 1000 counts; 20 % margin for the following error.
+        assert!(lo >= -200.0 && hi <= 1200.0 && hi >= 900.0, "{lo}..{hi}");
+        let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+        b.run(0x0F, 200, |b| {
+            lo = lo.min(b.counts());
+            hi = hi.max(b.counts());
+        });
+        // Back at the start (where the axis hunted about it before: ±20 counts), and
+        // standing still with the tuned gains (it hunted by ±10 counts before).
+        eprintln!("after the tune: start {start:.1}, {lo:.1}..{hi:.1} counts");
+        assert!((lo - start).abs() <= 20.0 && (hi - start).abs() <= 20.0);
+        assert!(hi - lo <= 2.0, "{lo}..{hi}");
+        assert_eq!(b.d.cia402.state(), PdsState::OperationEnabled);
+        assert_eq!(b.d.faults.error_code(), 0);
+    }
+
+    /// A quick stop in the middle of the move ends the tune (failed) and stops the axis
+    /// on its ramp where it is: no return jump, inside the travel, no fault; the
+    /// parameters keep their values.
+    #[test]
+    fn quick_stop_during_the_tune_fails_it_and_stops_in_place() {
+        let mut b = Bench::new(5.0, &[]);
+        b.enable();
+        let start = b.counts();
+        b.write(0x2162, 1, &[1]).unwrap();
+        // At the peak speed of the first stroke (probe: 50 rev/s², 90°).
+        b.run(0x0F, 72, |_| {});
+        assert_eq!(b.read_u16(0x2162, 2), 1);
+        let speed = b.d.cia402.velocity_actual();
+        let at_stop = b.counts() - start;
+        let (mut lo, mut hi) = (at_stop, at_stop);
+        b.run(0x0B, 300, |b| {
+            let x = b.counts() - start;
+            lo = lo.min(x);
+            hi = hi.max(x);
+        });
+        eprintln!("quick stop at {at_stop:.0} counts, {speed} units/s, then {lo:.0}..{hi:.0}");
+        assert_eq!(b.read_u16(0x2162, 2), 4, "failed");
+        assert_eq!(b.d.params.get(P::LoadInertiaRatio), 0);
+        assert_eq!(b.read_u16(0x2164, 0), 0);
+        assert!(lo >= -200.0 && hi <= 1200.0, "{lo}..{hi}");
+        // On the quick-stop ramp 0x6085 from that speed: v²/2a (units → counts).
+        let mut buf = [0u8; 4];
+        Dictionary::read(&mut b.d, 0x6085, 0, &mut buf).unwrap();
+        let (v, a) = (f64::from(speed), f64::from(u32::from_le_bytes(buf)));
+        let ramp = v * v / (2.0 * a) * 4000.0 / 50_000.0;
+        assert!(
+            lo >= at_stop - 20.0 && hi <= at_stop + 1.2 * ramp + 20.0,
+            "ramp {ramp:.0}"
+        );
+        assert_eq!(b.d.faults.error_code(), 0);
+        // Stopped: the rotor stands.
+        let x = b.counts();
+        b.run(0x0B, 50, |_| {});
+        assert!((b.counts() - x).abs() <= 2.0);
+    }
+
+    /// The start is refused with the standard aborts: not Operation enabled or open
+    /// loop (0x08000022), travel beyond the software limits (0x06090030), a value
+    /// out of range (0x06090031), the read-only results (0x06010002). 0x2162:02
+    /// reads 3 (refused) after a refusal.
+    #[test]
+    fn start_refusals_get_the_standard_aborts() {
+        let mut b = Bench::new(0.0, &[]);
+        assert_eq!(b.write(0x2162, 1, &[1]), Err(SdoAbort::StateConflict));
+        assert_eq!(b.read_u16(0x2162, 2), 3);
+        assert_eq!(b.write(0x2162, 1, &[2]), Err(SdoAbort::ValueTooHigh));
+        assert_eq!(b.write(0x2162, 2, &[1]), Err(SdoAbort::WriteReadOnly));
+        assert_eq!(b.write(0x2164, 0, &[1, 0]), Err(SdoAbort::WriteReadOnly));
+        assert_eq!(b.write(0x2165, 0, &[1, 0]), Err(SdoAbort::WriteReadOnly));
+        assert_eq!(
+            b.write(0x2163, 0, &99u16.to_le_bytes()),
+            Err(SdoAbort::ValueTooLow)
+        );
+        assert_eq!(
+            b.write(0x2163, 0, &36_001u16.to_le_bytes()),
+            Err(SdoAbort::ValueTooHigh)
+        );
+        // Software limits ±5000 units (0.1 rev) against 90° (12 500 units).
+        b.write(0x607D, 1, &(-5000i32).to_le_bytes()).unwrap();
+        b.write(0x607D, 2, &5000i32.to_le_bytes()).unwrap();
+        b.enable();
+        assert_eq!(b.write(0x2162, 1, &[1]), Err(SdoAbort::ValueRangeExceeded));
+        assert_eq!(b.read_u16(0x2162, 2), 3);
+        // 18° fits.
+        b.write(0x2163, 0, &180u16.to_le_bytes()).unwrap();
+        assert_eq!(b.write(0x2162, 1, &[1]), Ok(()));
+        assert_eq!(
+            b.write(0x2162, 1, &[1]),
+            Err(SdoAbort::StateConflict),
+            "running"
+        );
+        b.write(0x2162, 1, &[0]).unwrap();
+        assert_eq!(b.read_u16(0x2162, 2), 4, "stopped");
+        // Open loop: refused.
+        let mut open = Bench::new(0.0, &[(0x2024, 0, &[1])]);
+        open.enable();
+        assert_eq!(open.write(0x2162, 1, &[1]), Err(SdoAbort::StateConflict));
+    }
+}

@@ -80,6 +80,10 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
                 Some(cmd) => self.run_store(cmd, &mut NoRuntime),
                 None => Ok(()),
             },
+            0x2162 => {
+                let v = Params::checked_value(index, sub, data)?;
+                self.servo_tune_command(v == 1)
+            }
             0x2000..=0x21FF => {
                 self.params.write(index, sub, data)?;
                 self.faults.configure_from(&self.params);

@@ -1,0 +1,85 @@
+//! The servo tune's identification move in the motion layer ([`crate::servo_tune`]).
+//!
+//! The drive hands the move over with [`crate::cia402::SetpointKind::Tune`] set-points (CiA 402
+//! Operation enabled in PP or CSP, 0x2162 = 1 accepted). On the first of them
+//! [`Motion::tune_setpoints`] starts a [`TuneRun`] at the actual position with the
+//! move's servo gains ([`crate::servo_tune::move_gains`]: the velocity loop of the
+//! rotor alone, a soft position loop) and the current limit in effect. Every closed-loop
+//! servo period [`Motion::tune_step`] gives the run the q current of the period just
+//! done and the velocity, and servoes on the demand it returns; the interpolation
+//! rests on the actual position, so that set-points of another kind start from there.
+//! A run that has ended holds its start position (where a completed move ends) with
+//! the normal gains until the set-points change.
+//!
+//! Set-points of another kind end the tune: a running move is aborted (failed), the
+//! normal gains return and the new set-points take over from the actual position
+//! (their generator followed it meanwhile, `Cia402::run_mode`). Open loop has no tune
+//! (the drive refuses the start); tune set-points there hold the position.
+
+use super::Motion;
+use crate::servo_tune::{self, TuneReport, TuneRun, TuneState};
+
+/// The motion layer's tune: the run in progress or the last one, and its report.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Tuning {
+    run: Option<TuneRun>,
+    /// What [`Motion::fill_axis_state`] reports.
+    pub(super) report: TuneReport,
+}
+
+impl Motion {
+    /// Tune set-points begin (`on`) or end (module docs).
+    pub(super) fn tune_setpoints(&mut self, on: bool) {
+        if on {
+            let start = self.actual_axis_counts(&self.last_fb);
+            let mut cfg = servo_tune::ident_config(&self.cfg);
+            cfg.iq_max = self.iq_limit;
+            cfg.iq_target = servo_tune::IQ_TARGET * self.iq_limit;
+            let run = TuneRun::new(cfg, start, self.cfg.tune.j_rotor);
+            let runs = self.tune.report.runs.wrapping_add(1);
+            self.tune = Tuning {
+                run: Some(run),
+                report: run.report(runs),
+            };
+        } else if let Some(run) = &mut self.tune.run {
+            run.abort();
+            self.tune.report = run.report(self.tune.report.runs);
+            self.tune.run = None;
+        }
+        self.apply_gains();
+    }
+
+    /// One closed-loop servo period of the move at the axis position `pos` (counts)
+    /// and velocity `vel` (counts/s): the q current (A, axis direction).
+    pub(super) fn tune_step(&mut self, pos: i32, vel: f32) -> f32 {
+        self.rest_at(pos);
+        let Some(run) = &mut self.tune.run else {
+            return self.servo.step_velocity(0.0, 0.0, vel);
+        };
+        let d = run.step(self.servo.iq_ref, vel);
+        let report = run.report(self.tune.report.runs);
+        let ended =
+            self.tune.report.state == TuneState::Running && report.state != TuneState::Running;
+        self.tune.report = report;
+        if ended {
+            self.apply_gains();
+        }
+        self.demand = (d.pos, d.frac);
+        let iq = self.servo.step(&d, pos, vel);
+        self.following_error = self.servo.following_error;
+        iq
+    }
+
+    /// The servo gains in effect: the configured ones, or the move's while a tune
+    /// runs in closed loop; limited to the current limit in effect.
+    pub(super) fn apply_gains(&mut self) {
+        let moving = self.tune.report.state == TuneState::Running && self.cfg.closed_loop;
+        let mut g = if moving {
+            servo_tune::move_gains(&self.cfg)
+        } else {
+            self.cfg.gains
+        };
+        g.iq_max = self.iq_limit;
+        self.servo.set_gains(g);
+    }
+}
