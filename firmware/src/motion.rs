@@ -495,7 +495,7 @@ impl Motion {
             vel_k: cfg.ts / (VELOCITY_REPORT_TAU + cfg.ts),
             current_limited: false,
             stall: Stall::new(cfg.stall, cfg.ts),
-            tune: tune::Tuning::default(),
+            tune: tune::Tuning::new(),
         }
     }
 
@@ -587,13 +587,8 @@ impl Motion {
         };
         let n = (cycle_s / self.cfg.ts + 0.5) as u32;
         self.cycle_steps = n.max(1);
-        if self.cmd.kind == SetpointKind::Torque && cmd.kind != SetpointKind::Torque {
-            // Leaving torque set-points: the velocity loop starts from the current
-            // applied last (`foc::servo`, "Torque control with a speed limit").
-            self.servo.bumpless_start(self.servo.iq_ref);
-        }
-        if (self.cmd.kind == SetpointKind::Tune) != (cmd.kind == SetpointKind::Tune) {
-            self.tune_setpoints(cmd.kind == SetpointKind::Tune);
+        if self.cmd.kind != cmd.kind {
+            self.kind_changes(cmd.kind);
         }
         self.cmd = *cmd;
         if !self.enabled {
@@ -616,6 +611,19 @@ impl Motion {
             // Open loop and smoothing interpolate in command units (whole units).
             self.interp
                 .target(cmd.position, 0.0, self.cycle_steps, cycle_s);
+        }
+    }
+
+    /// The set-points change kind from `self.cmd.kind` to `to` (out of line: rare).
+    #[inline(never)]
+    fn kind_changes(&mut self, to: SetpointKind) {
+        if self.cmd.kind == SetpointKind::Torque {
+            // Leaving torque set-points: the velocity loop starts from the current
+            // applied last (`foc::servo`, "Torque control with a speed limit").
+            self.servo.bumpless_start(self.servo.iq_ref);
+        }
+        if (self.cmd.kind == SetpointKind::Tune) != (to == SetpointKind::Tune) {
+            self.tune_setpoints(to == SetpointKind::Tune);
         }
     }
 

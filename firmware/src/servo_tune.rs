@@ -22,14 +22,33 @@
 //! levels reject load torque faster and amplify the encoder's quantisation more
 //! (the current noise grows with the gain, so with the inertia).
 //!
-//! # The identification move ([`TuneRun`])
-//! [`check_start`] decides whether a move may start: closed loop, Operation enabled,
-//! the axis at rest (below 1 % of a revolution per second) and the travel, with a
-//! 20 % margin for the following error of the move gains on both sides, inside the
-//! software limits 0x607D. A refusal is 0x08000022 (state), a travel that does not
-//! fit 0x06090030. [`TuneRun`] runs [`foc::identify::IdentMove`] from the actual
-//! position; a stop (drive disabled, quick stop, fault: the caller's `running`
-//! false) ends it as failed. Its outcome goes to the parameters with [`apply`].
+//! # The identification move
+//! * **Start** (0x2162:01 = 1, [`TuneControl::start`], [`check_start`]): closed loop,
+//!   Operation enabled in PP or CSP without halt, the demand at rest (below 1 % of a
+//!   revolution per second; the actual axis may hunt about its position: a load the
+//!   gains do not suit yet is what the tune is for), and the travel 0x2163 (0.1° of
+//!   the shaft, forward from the actual position), with 20 % of it on both sides for
+//!   the following error of the move, inside the software limits 0x607D. A refusal
+//!   is 0x08000022 (state) or 0x06090030 (travel), and 0x2162:02 reads 3.
+//! * **Move** (`crate::motion`, `motion/tune.rs`): the drive hands the set-points to
+//!   the motion layer ([`crate::cia402::SetpointKind::Tune`]); its generator follows
+//!   the actual position and speed, so that any stop ramp starts from the actual
+//!   motion. The motion layer runs a [`TuneRun`] ([`foc::identify::IdentMove`]: a
+//!   probe cycle at [`PROBE_ACCEL`], three fitted cycles at the acceleration that
+//!   gives [`IQ_TARGET`] of the current limit, at most [`ACCEL_MAX`] and
+//!   [`SPEED_MAX`]) with the gains of [`move_gains`], then holds the start for
+//!   [`SETTLE_S`] and reports the result in the axis state ([`TuneReport`]).
+//! * **End** ([`TuneControl::update`], once per tick): a result goes to the
+//!   parameters with [`apply`] (0x2160 and the gains of 0x2161; not saved) and to
+//!   0x2164 (ratio, %) and 0x2165 (Coulomb friction, mN·m), and the mode takes the
+//!   set-points back at rest. A stop (0x2162:01 = 0), halt, quick stop, disable,
+//!   fault or another mode fails the tune (0x2162:02 = 4) and stops the axis on the
+//!   state's own ramp from where it is; so does a run that gives no result (too
+//!   little travel, the current at its limit, an ill-conditioned fit).
+//!
+//! The inertia is what the tune is for (±3 % on the plant, `tests-host`
+//! `servo_tune`); the friction is a by-product: the Coulomb term is of the order of
+//! the fit's noise on a lightly loaded axis, so 0x2165 is indicative.
 
 use crate::motion::{MotionConfig, BASE_BANDWIDTH_HZ};
 use crate::params::{Param, Params};
@@ -250,12 +269,21 @@ impl TuneRun {
     /// Starts the move `cfg` at the actual position `start` (counts) for a motor of
     /// rotor inertia `j_rotor` (kg·m²).
     pub fn new(cfg: IdentConfig, start: i32, j_rotor: f32) -> Self {
-        let steps = if cfg.ts > 0.0 { SETTLE_S / cfg.ts } else { 0.0 };
-        TuneRun {
+        let mut run = TuneRun {
             ident: IdentMove::new(cfg, start),
             j_rotor,
-            settle_left: foc::num::clamp(steps, 0.0, 1e6) as u32,
-        }
+            settle_left: 0,
+        };
+        run.restart(cfg, start, j_rotor);
+        run
+    }
+
+    /// [`TuneRun::new`] in place (the servo interrupt starts runs with it).
+    pub fn restart(&mut self, cfg: IdentConfig, start: i32, j_rotor: f32) {
+        let steps = if cfg.ts > 0.0 { SETTLE_S / cfg.ts } else { 0.0 };
+        self.ident.restart(cfg, start);
+        self.j_rotor = j_rotor;
+        self.settle_left = foc::num::clamp(steps, 0.0, 1e6) as u32;
     }
 
     /// One servo step (see [`IdentMove::step`]): the demand for the next step; once

@@ -135,6 +135,15 @@ impl Fit {
         self.n += 1;
     }
 
+    /// Back to no samples.
+    pub fn clear(&mut self) {
+        self.m = [[0.0; 3]; 3];
+        self.r = [0.0; 3];
+        self.zz = [0.0; 3];
+        self.pp = [0.0; 3];
+        self.n = 0;
+    }
+
     /// Samples accumulated.
     pub fn samples(&self) -> u32 {
         self.n
@@ -239,17 +248,6 @@ pub struct IdentMove {
 impl IdentMove {
     /// A move starting at `start` (counts, the actual position at standstill).
     pub fn new(cfg: IdentConfig, start: i32) -> Self {
-        let ok = cfg.ts > 0.0
-            && cfg.kt > 0.0
-            && cfg.cpr > 0
-            && cfg.travel >= 1.0
-            && cfg.accel > 0.0
-            && cfg.accel_max >= cfg.accel
-            && cfg.speed_max > 0.0
-            && cfg.iq_target > 0.0
-            && cfg.iq_max > 0.0
-            && cfg.travel.is_finite()
-            && cfg.accel_max.is_finite();
         let mut m = IdentMove {
             cfg,
             start,
@@ -262,15 +260,42 @@ impl IdentMove {
             probe: Fit::default(),
             fit: Fit::default(),
             saturated: false,
-            state: if ok {
-                IdentState::Running
-            } else {
-                IdentState::Failed(IdentError::BadConfig)
-            },
+            state: IdentState::Running,
         };
-        m.cfg.cycles = cfg.cycles.clamp(1, 16);
-        m.set_accel(cfg.accel);
+        m.restart(cfg, start);
         m
+    }
+
+    /// [`IdentMove::new`] in place (no copy of the move's ~250 bytes: the servo
+    /// interrupt starts moves with it).
+    pub fn restart(&mut self, cfg: IdentConfig, start: i32) {
+        let ok = cfg.ts > 0.0
+            && cfg.kt > 0.0
+            && cfg.cpr > 0
+            && cfg.travel >= 1.0
+            && cfg.accel > 0.0
+            && cfg.accel_max >= cfg.accel
+            && cfg.speed_max > 0.0
+            && cfg.iq_target > 0.0
+            && cfg.iq_max > 0.0
+            && cfg.travel.is_finite()
+            && cfg.accel_max.is_finite();
+        self.cfg = cfg;
+        self.cfg.cycles = cfg.cycles.clamp(1, 16);
+        self.start = start;
+        self.k = 0;
+        self.stroke = 0;
+        self.dem_vel = 0.0;
+        self.flt = [0.0; 5];
+        self.probe.clear();
+        self.fit.clear();
+        self.saturated = false;
+        self.state = if ok {
+            IdentState::Running
+        } else {
+            IdentState::Failed(IdentError::BadConfig)
+        };
+        self.set_accel(cfg.accel);
     }
 
     fn set_accel(&mut self, a: f32) {

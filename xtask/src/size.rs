@@ -15,10 +15,13 @@ use crate::{stack, THUMB};
 /// of issue 20 (cyclic synchronous torque, open-loop stall detection and damping, the
 /// servo tune's inertia and stiffness, the scope) add about 15 KiB of code, so the
 /// budget is now 160 KiB (the active partition holds 226 KiB: room left for a second
-/// flavour of features) and 32 KiB of RAM for the static RAM plus the static
-/// worst-case stack (of 128 KiB). `test` fails above it.
+/// flavour of features). RAM: 40 KiB for the static RAM plus the static worst-case
+/// stack (of the chip's 128 KiB). It was 32 KiB until the servo tune's move (its fit
+/// state lives in the control state, and the start-up frame that builds the control
+/// state, 8 KiB, is counted as if the interrupts nested on it) and the scope's 3 KiB
+/// buffer took it to 33 KiB. `test` fails above it.
 pub const FLASH_BUDGET: u64 = 160 * 1024;
-pub const RAM_BUDGET: u64 = 32 * 1024;
+pub const RAM_BUDGET: u64 = 40 * 1024;
 /// What the STM32G474RE can hold: flash, the active partition less its update-header
 /// page (`firmware::flash_layout::IMAGE_MAX`, firmware/memory.x: 228 KiB − 2 KiB);
 /// 128 KiB RAM. Above this the image cannot run at all: `test` fails.

@@ -34,8 +34,6 @@ impl Cia402 {
         let cmd = self.run_transitions(fb);
         self.switch_mode();
         let (drive_enabled, kind) = self.run_state(fb, index, dt, setpoint);
-        // The servo tune ends with the first step that does not run it.
-        self.servo_tune &= kind == SetpointKind::Tune;
         if !drive_enabled {
             self.motion.reset(self.actual_position);
         }

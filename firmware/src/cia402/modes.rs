@@ -23,13 +23,17 @@ impl Cia402 {
             self.internal_limit = true;
         }
         let qs_dec = p.quick_stop_deceleration as f32;
-        if self.servo_tune && matches!(self.mode, mode::PP | mode::CSP) && !halt {
-            // The drive's servo tune moves the axis (`crate::servo_tune`): the
-            // generator follows the actual position and speed (the start of any stop
-            // ramp, and of the mode's set-points once the tune ends).
-            self.motion
-                .set(self.actual_position, self.actual_velocity as f32);
-            return SetpointKind::Tune;
+        if self.servo_tune {
+            if matches!(self.mode, mode::PP | mode::CSP) && !halt {
+                // The drive's servo tune moves the axis (`crate::servo_tune`): the
+                // generator follows the actual position and speed (the start of any
+                // stop ramp, and of the mode's set-points once the tune ends).
+                self.motion
+                    .set(self.actual_position, self.actual_velocity as f32);
+                return SetpointKind::Tune;
+            }
+            // Halt or another mode ends it.
+            self.servo_tune = false;
         }
         match self.mode {
             mode::PP => {

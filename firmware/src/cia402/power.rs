@@ -162,6 +162,7 @@ impl Cia402 {
             PdsState::OperationEnabled => {
                 drive_enabled = true;
                 if let Pending::Transition(c) = self.pending {
+                    self.servo_tune = false;
                     let code = if c == Command::Shutdown {
                         self.params.shutdown_option
                     } else {
@@ -179,6 +180,7 @@ impl Cia402 {
                 }
             }
             PdsState::QuickStopActive => {
+                self.servo_tune = false;
                 self.abnormal_stop = true;
                 drive_enabled = true;
                 let code = self.params.quick_stop_option;
@@ -195,6 +197,7 @@ impl Cia402 {
                 }
             }
             PdsState::FaultReactionActive => {
+                self.servo_tune = false;
                 drive_enabled = !fb.power_stage_tripped;
                 let stopped = match (
                     fb.power_stage_tripped,
@@ -208,7 +211,8 @@ impl Cia402 {
                     drive_enabled = false;
                 }
             }
-            _ => {}
+            // The servo tune needs Operation enabled (also in the arms above).
+            _ => self.servo_tune = false,
         }
         (drive_enabled, kind)
     }

@@ -20,31 +20,57 @@ use super::Motion;
 use crate::servo_tune::{self, TuneReport, TuneRun, TuneState};
 
 /// The motion layer's tune: the run in progress or the last one, and its report.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy)]
 pub(super) struct Tuning {
-    run: Option<TuneRun>,
+    /// Restarted in place for each tune (no copy of it on the interrupt's stack).
+    run: TuneRun,
+    /// `run` belongs to the present tune set-points.
+    active: bool,
     /// What [`Motion::fill_axis_state`] reports.
     pub(super) report: TuneReport,
 }
 
+impl Tuning {
+    /// No tune yet.
+    pub(super) fn new() -> Self {
+        let idle = foc::identify::IdentConfig {
+            ts: 0.0,
+            kt: 0.0,
+            cpr: 0,
+            travel: 0.0,
+            accel: 0.0,
+            accel_max: 0.0,
+            speed_max: 0.0,
+            iq_target: 0.0,
+            iq_max: 0.0,
+            cycles: 1,
+        };
+        Tuning {
+            run: TuneRun::new(idle, 0, 0.0),
+            active: false,
+            report: TuneReport::default(),
+        }
+    }
+}
+
 impl Motion {
     /// Tune set-points begin (`on`) or end (module docs).
+    #[inline(never)]
     pub(super) fn tune_setpoints(&mut self, on: bool) {
+        let runs = self.tune.report.runs;
         if on {
             let start = self.actual_axis_counts(&self.last_fb);
             let mut cfg = servo_tune::ident_config(&self.cfg);
             cfg.iq_max = self.iq_limit;
             cfg.iq_target = servo_tune::IQ_TARGET * self.iq_limit;
-            let run = TuneRun::new(cfg, start, self.cfg.tune.j_rotor);
-            let runs = self.tune.report.runs.wrapping_add(1);
-            self.tune = Tuning {
-                run: Some(run),
-                report: run.report(runs),
-            };
-        } else if let Some(run) = &mut self.tune.run {
-            run.abort();
-            self.tune.report = run.report(self.tune.report.runs);
-            self.tune.run = None;
+            let j_rotor = self.cfg.tune.j_rotor;
+            self.tune.run.restart(cfg, start, j_rotor);
+            self.tune.active = true;
+            self.tune.report = self.tune.run.report(runs.wrapping_add(1));
+        } else if self.tune.active {
+            self.tune.run.abort();
+            self.tune.active = false;
+            self.tune.report = self.tune.run.report(runs);
         }
         self.apply_gains();
     }
@@ -53,9 +79,10 @@ impl Motion {
     /// and velocity `vel` (counts/s): the q current (A, axis direction).
     pub(super) fn tune_step(&mut self, pos: i32, vel: f32) -> f32 {
         self.rest_at(pos);
-        let Some(run) = &mut self.tune.run else {
+        if !self.tune.active {
             return self.servo.step_velocity(0.0, 0.0, vel);
-        };
+        }
+        let run = &mut self.tune.run;
         let d = run.step(self.servo.iq_ref, vel);
         let report = run.report(self.tune.report.runs);
         let ended =
