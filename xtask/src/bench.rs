@@ -36,15 +36,6 @@ const OVER_GOAL: &[(&str, &str)] = &[
         "supervised current step",
         "the same compensation inside the supervised step (see \"current loop step\").",
     ),
-    (
-        "CSP cycle (unpack",
-        "cyclic synchronous torque costs the CSP path about 80 instructions (1440 before): \
-         the mode dispatch and the torque demand's bookkeeping in the CiA 402 step (its CSP \
-         part 484 → 509), the torque offset 0x60B2 as the velocity loop's feed-forward in \
-         `set_command` and the servo step, and the measured torque 0x6077 in the pack. Not \
-         recovered yet: 19 over the goal (1.3 %), about 0.2 µs of the 69 µs a LAN9252 \
-         cycle takes (\"Cycle time budget\").",
-    ),
 ];
 
 /// The bound of a goal "≤ N".

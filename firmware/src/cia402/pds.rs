@@ -372,6 +372,13 @@ const EVENTS_FROM: [u16; 8] = {
     m
 };
 
+/// Whether some transition leaves `state` on `event` (guards aside): one look-up in
+/// the per-state event masks.
+#[inline(always)]
+pub fn leaves_on(state: PdsState, event: Event) -> bool {
+    EVENTS_FROM[state as usize & 7] & event.bit() != 0
+}
+
 /// Finds the transition that fires for `event` in `state`; `guard_ok` decides guards.
 pub fn find(
     state: PdsState,
@@ -380,7 +387,7 @@ pub fn find(
 ) -> Option<&'static Transition> {
     let sb = state.bit();
     let eb = event.bit();
-    if EVENTS_FROM[state as usize & 7] & eb == 0 {
+    if !leaves_on(state, event) {
         return None;
     }
     TRANSITIONS

@@ -78,8 +78,20 @@ impl Cia402 {
         }
     }
 
-    /// Fires the transition for `ev`, if any. Returns its number.
+    /// Fires the transition for `ev`, if any. Returns its number. Inline, the check
+    /// whether the state has a transition for `ev` at all (the steady state of every
+    /// cycle, Operation enabled with "enable operation", has none): the search only
+    /// when it does.
+    #[inline(always)]
     pub(super) fn fire(&mut self, ev: Event, fault_now: u16) -> Option<u8> {
+        if !pds::leaves_on(self.state, ev) {
+            return None;
+        }
+        self.fire_found(ev, fault_now)
+    }
+
+    #[inline(never)]
+    fn fire_found(&mut self, ev: Event, fault_now: u16) -> Option<u8> {
         let t = pds::find(self.state, ev, |g| self.guard_ok(g, fault_now))?;
         self.enter(t.to);
         Some(t.number)
