@@ -36,8 +36,9 @@
 //!   motion. The motion layer runs a [`TuneRun`] ([`foc::identify::IdentMove`]: a
 //!   probe cycle at [`PROBE_ACCEL`], three fitted cycles at the acceleration that
 //!   gives [`IQ_TARGET`] of the current limit, at most [`ACCEL_MAX`] and
-//!   [`SPEED_MAX`]) with the gains of [`move_gains`], then holds the start for
-//!   [`SETTLE_S`] and reports the result in the axis state ([`TuneReport`]).
+//!   [`SPEED_MAX`]) with the gains of [`move_gains`], then holds the start until the
+//!   axis stands there ([`SETTLE_S`] within [`SETTLE_WINDOW`], [`settle_gains`]) and
+//!   reports the result in the axis state ([`TuneReport`]).
 //! * **End** ([`TuneControl::update`], once per tick): a result goes to the
 //!   parameters with [`apply`] (0x2160 and the gains of 0x2161; not saved) and to
 //!   0x2164 (ratio, %) and 0x2165 (Coulomb friction, mN·m), and the mode takes the
@@ -198,6 +199,45 @@ pub fn move_gains(cfg: &MotionConfig) -> ServoGains {
     })
 }
 
+/// The configured gains of `cfg` (designed for `load` × the rotor inertia)
+/// redesigned for a load ratio of `ratio_percent`: the velocity loop's gains scale
+/// with the inertia.
+pub fn gains_for_load(cfg: &MotionConfig, ratio_percent: f32) -> ServoGains {
+    let load = if cfg.tune.load >= 1.0 {
+        cfg.tune.load
+    } else {
+        1.0
+    };
+    let k = (1.0 + foc::num::clamp(ratio_percent, 0.0, 5000.0) * 0.01) / load;
+    let g = cfg.gains;
+    ServoGains {
+        kv: g.kv * k,
+        ki_vel: g.ki_vel * k,
+        acc_ff: g.acc_ff * k,
+        ..g
+    }
+}
+
+/// The gains while a finished move settles at its start: the move's ([`move_gains`]:
+/// the rotor's velocity loop, whose bandwidth falls as `1/(1 + ratio)` with the load,
+/// and a soft position loop: no current step from the last stroke's following error,
+/// and encoder noise amplified no more than during the move) plus the velocity
+/// loop's integral for that lower bandwidth (`ki_vel/(1 + ratio)`, the corner in the
+/// same proportion as designed): the move has none, and friction would hold the axis
+/// off the start.
+pub fn settle_gains(cfg: &MotionConfig, ratio_percent: f32) -> ServoGains {
+    let load = if cfg.tune.load >= 1.0 {
+        cfg.tune.load
+    } else {
+        1.0
+    };
+    let found = 1.0 + foc::num::clamp(ratio_percent, 0.0, 5000.0) * 0.01;
+    ServoGains {
+        ki_vel: cfg.gains.ki_vel / load / found,
+        ..move_gains(cfg)
+    }
+}
+
 /// What the motion layer reports of its tunes ([`crate::drive::AxisState::servo_tune`]).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct TuneReport {
@@ -251,18 +291,38 @@ pub fn check_start(c: &StartConditions) -> Result<(), SdoAbort> {
     Ok(())
 }
 
-/// How long a finished move holds its start position with the move's gains before
-/// it reports done, s: the following error of the last stroke settles, so the axis
-/// stands at the start when the drive takes the set-points back.
+/// How long a finished move holds its start position within [`SETTLE_WINDOW`] before
+/// it reports done, s ([`TunePhase::Settling`]): the following error of the last
+/// stroke settles, so the axis stands at the start when the drive takes the
+/// set-points back.
 pub const SETTLE_S: f32 = 0.1;
+/// Position window of the settling, encoder counts.
+pub const SETTLE_WINDOW: i32 = 3;
+/// Longest settling, s: then the tune reports done wherever the axis stands.
+pub const SETTLE_MAX_S: f32 = 1.0;
+
+/// Where a [`TuneRun`] stands.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TunePhase {
+    /// The identification move runs (the move's gains).
+    Moving,
+    /// The move gave the load ratio (%) and holds its start until it has stood
+    /// within [`SETTLE_WINDOW`] for [`SETTLE_S`] ([`settle_gains`]).
+    Settling(f32),
+    /// Over (done or failed).
+    Ended,
+}
 
 /// A running identification move and its outcome.
 #[derive(Debug, Clone, Copy)]
 pub struct TuneRun {
     ident: IdentMove,
     j_rotor: f32,
-    /// Servo steps left of the [`SETTLE_S`] hold after a move with a result.
+    /// Servo steps the axis must still stand in the window ([`SETTLE_S`]).
     settle_left: u32,
+    /// Servo steps of settling left ([`SETTLE_MAX_S`]).
+    settle_max: u32,
+    settle_steps: u32,
 }
 
 impl TuneRun {
@@ -273,6 +333,8 @@ impl TuneRun {
             ident: IdentMove::new(cfg, start),
             j_rotor,
             settle_left: 0,
+            settle_max: 0,
+            settle_steps: 0,
         };
         run.restart(cfg, start, j_rotor);
         run
@@ -280,19 +342,31 @@ impl TuneRun {
 
     /// [`TuneRun::new`] in place (the servo interrupt starts runs with it).
     pub fn restart(&mut self, cfg: IdentConfig, start: i32, j_rotor: f32) {
-        let steps = if cfg.ts > 0.0 { SETTLE_S / cfg.ts } else { 0.0 };
+        let steps = |s: f32| {
+            let n = if cfg.ts > 0.0 { s / cfg.ts } else { 0.0 };
+            foc::num::clamp(n, 1.0, 1e6) as u32
+        };
         self.ident.restart(cfg, start);
         self.j_rotor = j_rotor;
-        self.settle_left = foc::num::clamp(steps, 0.0, 1e6) as u32;
+        self.settle_steps = steps(SETTLE_S);
+        self.settle_left = self.settle_steps;
+        self.settle_max = steps(SETTLE_MAX_S);
     }
 
-    /// One servo step (see [`IdentMove::step`]): the demand for the next step; once
-    /// the move has ended, the start position at rest (for [`SETTLE_S`] still
-    /// reported running).
-    pub fn step(&mut self, iq: f32, vel: f32) -> Demand {
+    /// One servo step (see [`IdentMove::step`]) with the axis at `pos` (counts): the
+    /// demand for the next step; once the move has ended, the start position at
+    /// rest, reported running until the axis has settled there.
+    pub fn step(&mut self, iq: f32, vel: f32, pos: i32) -> Demand {
         let d = self.ident.step(iq, vel);
-        if matches!(self.ident.state, IdentState::Done(_)) {
-            self.settle_left = self.settle_left.saturating_sub(1);
+        if matches!(self.ident.state, IdentState::Done(_)) && self.settle_left > 0 {
+            self.settle_max = self.settle_max.saturating_sub(1);
+            self.settle_left = if self.settle_max == 0 {
+                0
+            } else if d.pos.wrapping_sub(pos).unsigned_abs() <= SETTLE_WINDOW as u32 {
+                self.settle_left - 1
+            } else {
+                self.settle_steps
+            };
         }
         d
     }
@@ -300,6 +374,17 @@ impl TuneRun {
     /// Ends a running move as failed (stop, fault, disable, another set-point).
     pub fn abort(&mut self) {
         self.ident.abort();
+    }
+
+    /// Where the run stands.
+    pub fn phase(&self) -> TunePhase {
+        match self.ident.state {
+            IdentState::Running => TunePhase::Moving,
+            IdentState::Done(i) if self.settle_left > 0 => {
+                TunePhase::Settling(i.load_ratio_percent(self.j_rotor))
+            }
+            _ => TunePhase::Ended,
+        }
     }
 
     /// The state 0x2162 reports.
@@ -579,17 +664,17 @@ mod tests {
         let j = ECN57_20.inertia * 5.0;
         let rad = 2.0 * PI / c.cpr as f32;
         let mut run = TuneRun::new(c, 0, ECN57_20.inertia);
-        let mut d = run.step(0.0, 0.0);
+        let mut d = run.step(0.0, 0.0, 0);
         let mut n = 0;
         while run.state() == TuneState::Running {
-            d = run.step(j * d.acc * rad / c.kt, d.vel + d.acc * c.ts);
+            d = run.step(j * d.acc * rad / c.kt, d.vel + d.acc * c.ts, d.pos);
             assert!((-1..=1001).contains(&d.pos), "{d:?}");
             n += 1;
             assert!(n < 100_000);
         }
         assert_eq!(run.state(), TuneState::Done);
         // Once ended: the start position at rest.
-        assert_eq!(run.step(0.0, 0.0), Demand::default());
+        assert_eq!(run.step(0.0, 0.0, 0), Demand::default());
         let (ratio, _) = run.result().unwrap();
         assert!((ratio - 400.0).abs() < 20.0, "{ratio}");
         let r = run.report(3);
@@ -600,7 +685,7 @@ mod tests {
         assert!((p.get(Param::LoadInertiaRatio) - 400).abs() <= 20);
 
         let mut stopped = TuneRun::new(c, 0, ECN57_20.inertia);
-        stopped.step(0.0, 0.0);
+        stopped.step(0.0, 0.0, 0);
         assert_eq!(stopped.state(), TuneState::Running);
         stopped.abort();
         assert_eq!(stopped.state(), TuneState::Failed);

@@ -50,91 +50,28 @@ fn tuned_servo_meets_the_goals_on_each_load() {
     }
 }
 
-/// The drive (`firmware::drive`, its 1 ms tick as on the board without frames) on the
-/// plant axis with the firmware's motion layer (`tests_host::sim_axis::PlantAxis`):
-/// ECN57-20 in closed loop carrying `load` × its rotor inertia, PP, the objects
-/// `extra`.
+/// The servo tune as the drive runs it (`tests_host::plant::drive_tune`).
 mod on_the_drive {
-    use ecat_slave_stack::esm::EsmState;
     use ecat_slave_stack::od::{Dictionary, SdoAbort};
     use firmware::cia402::pds::PdsState;
-    use firmware::drive::Drive;
-    use firmware::identity::Variant;
     use firmware::params::P;
     use firmware::servo_tune::StiffnessGains;
-    use tests_host::sim_axis::PlantAxis;
-    use tests_host::sim_drive::{Axis, Motor};
+    use tests_host::plant::drive_tune::{tune_on_drive, DriveBench as Bench};
+    use tests_host::sim_drive::Motor;
 
-    pub struct Bench {
-        pub d: Drive,
-        pub ax: PlantAxis,
-        t_us: u64,
-        steps: u32,
-    }
-
-    impl Bench {
-        pub fn new(load: f64, extra: &[(u16, u8, &[u8])]) -> Self {
-            let mut d: Drive = Drive::new(Variant::HybridServo, 0);
-            let base: [(u16, u8, &[u8]); 3] =
-                [(0x2013, 0, &[0]), (0x2024, 0, &[2]), (0x6060, 0, &[1])];
-            for &(i, s, v) in base.iter().chain(extra) {
-                Dictionary::write(&mut d, i, s, v, EsmState::PreOp)
-                    .unwrap_or_else(|e| panic!("{i:x}: {e:?}"));
+    /// Every load on both motors through the drive: done, 0x2164 within ±10 % of the
+    /// true load, the axis back where it started and standing still.
+    #[test]
+    fn tune_on_the_drive_within_10_percent_on_every_load() {
+        for motor in [Motor::Ecn57_20, Motor::Tc86_45] {
+            for load in super::LOADS {
+                let t = tune_on_drive(motor, load);
+                eprintln!("{motor:?} {load}×: {t:?}");
+                assert_eq!(t.state, 2, "{motor:?} {load}×: {t:?}");
+                assert!(t.error_percent.abs() <= 10.0, "{motor:?} {load}×: {t:?}");
+                assert!(t.standstill_after <= 2.0, "{motor:?} {load}×: {t:?}");
+                assert!(t.end_counts.abs() <= 20.0, "{motor:?} {load}×: {t:?}");
             }
-            let mut ax = PlantAxis::with_plant(Motor::Ecn57_20, true, |pc| {
-                pc.motor.j *= 1.0 + load;
-            });
-            ax.parameters(&d.params);
-            Bench {
-                d,
-                ax,
-                t_us: 0,
-                steps: 0,
-            }
-        }
-
-        /// `n` ticks of 1 ms with the controlword `cw`; `each` sees the bench after
-        /// every tick.
-        pub fn run(&mut self, cw: u16, n: u32, mut each: impl FnMut(&Bench)) {
-            self.d.cia402.set_controlword(cw);
-            for _ in 0..n {
-                self.t_us += 1000;
-                self.d.set_axis(self.ax.state());
-                self.d.tick(self.t_us, 0);
-                let c = *self.d.command();
-                if self.d.steps() != self.steps {
-                    self.steps = self.d.steps();
-                    self.ax.command(&c, f64::from(self.d.segment_s()));
-                }
-                if (self.t_us / 1000).is_multiple_of(10) {
-                    self.ax.parameters(&self.d.params);
-                }
-                self.ax.advance(0.001, &c);
-                each(self);
-            }
-        }
-
-        pub fn enable(&mut self) {
-            self.run(0x06, 5, |_| {});
-            self.run(0x07, 5, |_| {});
-            self.run(0x0F, 50, |_| {});
-            assert_eq!(self.d.cia402.state(), PdsState::OperationEnabled);
-        }
-
-        pub fn write(&mut self, index: u16, sub: u8, v: &[u8]) -> Result<(), SdoAbort> {
-            Dictionary::write(&mut self.d, index, sub, v, EsmState::Op)
-        }
-
-        pub fn read_u16(&mut self, index: u16, sub: u8) -> u16 {
-            let mut b = [0u8; 4];
-            let n = Dictionary::read(&mut self.d, index, sub, &mut b).unwrap();
-            assert!(n <= 2);
-            u16::from_le_bytes([b[0], b[1]])
-        }
-
-        /// Encoder counts of the true rotor position.
-        pub fn counts(&self) -> f64 {
-            self.ax.true_position() * 4000.0 / 50_000.0
         }
     }
 
@@ -146,7 +83,7 @@ mod on_the_drive {
     /// position; after, it stands.
     #[test]
     fn tune_on_the_drive_identifies_the_load_and_sets_the_gains() {
-        let mut b = Bench::new(5.0, &[]);
+        let mut b = Bench::new(Motor::Ecn57_20, 5.0, &[]);
         b.enable();
         let start = b.counts();
         b.write(0x2162, 1, &[1]).unwrap();
@@ -175,7 +112,7 @@ mod on_the_drive {
         assert_eq!(b.d.params.get(P::SpeedKp), i32::from(g.speed_kp));
         assert_eq!(b.d.params.get(P::PosKp), i32::from(g.pos_kp));
         // The default travel: 90° = 1000 counts; 20 % margin for the following error.
-        assert!(lo >= -200.0 && hi <= 1200.0 && hi >= 900.0, "{lo}..{hi}");
+        assert!(lo >= -200.0 && (900.0..=1200.0).contains(&hi), "{lo}..{hi}");
         let (mut lo, mut hi) = (f64::MAX, f64::MIN);
         b.run(0x0F, 200, |b| {
             lo = lo.min(b.counts());
@@ -195,7 +132,7 @@ mod on_the_drive {
     /// parameters keep their values.
     #[test]
     fn quick_stop_during_the_tune_fails_it_and_stops_in_place() {
-        let mut b = Bench::new(5.0, &[]);
+        let mut b = Bench::new(Motor::Ecn57_20, 5.0, &[]);
         b.enable();
         let start = b.counts();
         b.write(0x2162, 1, &[1]).unwrap();
@@ -237,7 +174,7 @@ mod on_the_drive {
     /// reads 3 (refused) after a refusal.
     #[test]
     fn start_refusals_get_the_standard_aborts() {
-        let mut b = Bench::new(0.0, &[]);
+        let mut b = Bench::new(Motor::Ecn57_20, 0.0, &[]);
         assert_eq!(b.write(0x2162, 1, &[1]), Err(SdoAbort::StateConflict));
         assert_eq!(b.read_u16(0x2162, 2), 3);
         assert_eq!(b.write(0x2162, 1, &[2]), Err(SdoAbort::ValueTooHigh));
@@ -269,7 +206,7 @@ mod on_the_drive {
         b.write(0x2162, 1, &[0]).unwrap();
         assert_eq!(b.read_u16(0x2162, 2), 4, "stopped");
         // Open loop: refused.
-        let mut open = Bench::new(0.0, &[(0x2024, 0, &[1])]);
+        let mut open = Bench::new(Motor::Ecn57_20, 0.0, &[(0x2024, 0, &[1])]);
         open.enable();
         assert_eq!(open.write(0x2162, 1, &[1]), Err(SdoAbort::StateConflict));
     }

@@ -8,8 +8,9 @@
 //! servo period [`Motion::tune_step`] gives the run the q current of the period just
 //! done and the velocity, and servoes on the demand it returns; the interpolation
 //! rests on the actual position, so that set-points of another kind start from there.
-//! A run that has ended holds its start position (where a completed move ends) with
-//! the normal gains until the set-points change.
+//! A move that has found the load holds its start position (where it ends) with
+//! [`crate::servo_tune::settle_gains`] until the axis stands there, then, reported
+//! done, with the configured gains until the set-points change.
 //!
 //! Set-points of another kind end the tune: a running move is aborted (failed), the
 //! normal gains return and the new set-points take over from the actual position
@@ -17,7 +18,7 @@
 //! (the drive refuses the start); tune set-points there hold the position.
 
 use super::Motion;
-use crate::servo_tune::{self, TuneReport, TuneRun, TuneState};
+use crate::servo_tune::{self, TunePhase, TuneReport, TuneRun};
 
 /// The motion layer's tune: the run in progress or the last one, and its report.
 #[derive(Debug, Clone, Copy)]
@@ -66,6 +67,10 @@ impl Motion {
             let j_rotor = self.cfg.tune.j_rotor;
             self.tune.run.restart(cfg, start, j_rotor);
             self.tune.active = true;
+            // The move's velocity loop is proportional only: its integrator starts
+            // empty (what it held would act as a constant torque the fit has no term
+            // for).
+            self.servo.bumpless_start(0.0);
             self.tune.report = self.tune.run.report(runs.wrapping_add(1));
         } else if self.tune.active {
             self.tune.run.abort();
@@ -83,12 +88,10 @@ impl Motion {
             return self.servo.step_velocity(0.0, 0.0, vel);
         }
         let run = &mut self.tune.run;
-        let d = run.step(self.servo.iq_ref, vel);
-        let report = run.report(self.tune.report.runs);
-        let ended =
-            self.tune.report.state == TuneState::Running && report.state != TuneState::Running;
-        self.tune.report = report;
-        if ended {
+        let phase = run.phase();
+        let d = run.step(self.servo.iq_ref, vel, pos);
+        self.tune.report = run.report(self.tune.report.runs);
+        if run.phase() != phase {
             self.apply_gains();
         }
         self.demand = (d.pos, d.frac);
@@ -97,14 +100,20 @@ impl Motion {
         iq
     }
 
-    /// The servo gains in effect: the configured ones, or the move's while a tune
-    /// runs in closed loop; limited to the current limit in effect.
+    /// The servo gains in effect, limited to the current limit in effect: the
+    /// configured ones; while a tune's move runs in closed loop the move's; while it
+    /// settles the configured ones for the load it found
+    /// ([`crate::servo_tune::TunePhase`]).
     pub(super) fn apply_gains(&mut self) {
-        let moving = self.tune.report.state == TuneState::Running && self.cfg.closed_loop;
-        let mut g = if moving {
-            servo_tune::move_gains(&self.cfg)
+        let phase = if self.tune.active && self.cfg.closed_loop {
+            self.tune.run.phase()
         } else {
-            self.cfg.gains
+            TunePhase::Ended
+        };
+        let mut g = match phase {
+            TunePhase::Moving => servo_tune::move_gains(&self.cfg),
+            TunePhase::Settling(ratio) => servo_tune::settle_gains(&self.cfg, ratio),
+            TunePhase::Ended => self.cfg.gains,
         };
         g.iq_max = self.iq_limit;
         self.servo.set_gains(g);

@@ -10,8 +10,10 @@
 //! * [`stall`]: open-loop stall detection and stall homing;
 //! * [`torque`]: cyclic synchronous torque (CST) through the firmware's profile and
 //!   motion layer;
-//! * [`servo_tune`]: the closed-loop load identification and the tuned servo figures.
+//! * [`servo_tune`]: the closed-loop load identification and the tuned servo figures;
+//! * [`drive_tune`]: the same identification as the drive runs it (0x2162).
 
+pub mod drive_tune;
 pub mod motor;
 pub mod resonance;
 pub mod rig;

@@ -16,6 +16,7 @@
 use super::motor::{MotorParams, PlantConfig, ECN57_20, TC86_45};
 use super::rig::{Rig, TS_SERVO};
 use super::scenarios::{csp_tracking_on, move_90_on, Figure, Move, Tracking, SERVO_BW_HZ};
+use crate::sim_drive::Motor;
 use foc::identify::{move_gains, IdentConfig, IdentMove, IdentState, Identified};
 use foc::servo::{Demand, Servo, ServoGains};
 use std::f64::consts::{PI, SQRT_2};
@@ -173,6 +174,29 @@ fn ident_row(rows: &mut Vec<Figure>, motor: &str, id: &Identification) {
     );
 }
 
+/// The tune as the drive runs it ([`super::drive_tune`]).
+fn drive_row(rows: &mut Vec<Figure>, motor: Motor, load: f64) {
+    let t = super::drive_tune::tune_on_drive(motor, load);
+    let name = match motor {
+        Motor::Ecn57_20 => "ECN57-20",
+        Motor::Tc86_45 => "TC86-45",
+    };
+    row(
+        rows,
+        format!("{name}, load {load}× rotor: tune on the drive (0x2162), 0x2164"),
+        "±10 %",
+        format!(
+            "{} % ({:+.1} %) in {} ms; standstill p-p {:.0} → {:.0} counts",
+            t.ratio_percent,
+            t.error_percent,
+            t.duration_ms,
+            t.standstill_before,
+            t.standstill_after
+        ),
+        t.state == 2 && t.error_percent.abs() <= 10.0,
+    );
+}
+
 /// The figures on every load of [`LOADS`].
 pub fn report() -> Vec<Figure> {
     let mut rows = Vec::new();
@@ -194,8 +218,10 @@ pub fn report() -> Vec<Figure> {
             format!("{:.0} counts", m.overshoot_counts),
             m.overshoot_counts <= 2.0,
         );
+        drive_row(&mut rows, Motor::Ecn57_20, load);
         let b = identify(TC86_45, load);
         ident_row(&mut rows, "TC86-45", &b);
+        drive_row(&mut rows, Motor::Tc86_45, load);
         let t = csp_tuned(load, b.ratio_percent);
         let why = if t.fe_accel > 20.0 || t.fe_const > 5.0 {
             let (v, torque) = csp_voltage(load);
