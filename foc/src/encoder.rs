@@ -65,8 +65,11 @@
 //! not know yet is followed as fast as by the 250 rad/s tracker, to within a count,
 //! and the last count is closed at 80 rad/s. Within the band the loop is linear
 //! and stable (the slow tracker alone), so the nonlinearity cannot sustain a limit
-//! cycle; it acts only while the error exceeds a count. In steady state at constant
-//! speed the error is ±0.04 count (TC86-45 at 8 rev/s), i_q ripple ≤ 8.1 mA from
+//! cycle; it acts only while the error exceeds a count. At 10.013 rev/s (52 Hz
+//! beat) the angle error is 0.34 count peak (0.53 with the 250 rad/s tracker
+//! alone); where the beat is slower than the tracker's 25 Hz it passes. With the
+//! current loop's decoupling on the measured currents
+//! (`crate::current_loop`, "Decoupling") the i_q ripple stays ≤ 8.1 mA from
 //! 0.0013 to 10.13 rev/s, including speeds within 0.0005 rev/s of 10 (BENCHMARKS.md,
 //! "Robustness", and `tests-host/tests/robustness.rs`).
 //!
@@ -103,10 +106,10 @@ pub const MAX_INTERPOLATION: f32 = 2.0;
 ///
 /// Chosen on the plant (i_q* = 0.5 A, shaft at constant speed, i_q peak-to-peak
 /// over 0.013-10.013 rev/s in steps of 0.25 and at 20 speeds near 0, 5 and 10
-/// rev/s, both motors, worst of the two): 50 rad/s gives 7.7 mA, 80 rad/s 8.1 mA,
-/// 120 rad/s 8.5 mA; the linear tracker at 250 rad/s alone gave 31 mA at 10.013
-/// rev/s. 80 keeps the lag of a jerk inside the band (`J/ω³`) twice as small as
-/// 50 would.
+/// rev/s, both motors, worst of the two, the current loop decoupling on the
+/// measured currents): 50 rad/s gives 7.7 mA, 80 rad/s 8.1 mA, 120 rad/s 8.5 mA;
+/// the linear tracker at 250 rad/s alone 12.1 mA (at 10.013 rev/s). 80 keeps the
+/// lag of a jerk inside the band (`J/ω³`) four times smaller than 50 would.
 pub const COMMUTATION_OMEGA: f32 = 80.0;
 
 /// Pole of the tracker added on the error beyond [`FINE_BAND`], rad/s (triple).
