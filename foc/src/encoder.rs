@@ -27,8 +27,7 @@
 //! which follows each edge within its bandwidth (≈ 3 kHz), ripples at the edge
 //! pattern: both reach the current as steps at non-integer speeds, where the count
 //! pattern does not repeat. The current loop therefore takes angle and speed from
-//! a second, slower **commutation tracker** (type 3, all three poles at
-//! −[`COMMUTATION_OMEGA`]):
+//! a second, slower **commutation tracker** (type 3, all three poles at −ω):
 //!
 //! ```text
 //! p̂⁻ = p̂ + Ts·v̂      e = n − p̂⁻      p̂ = p̂⁻ + 3ωTs·e      v̂ ← v̂ + Ts·â + 3ω²Ts·e      â ← â + ω³Ts·e
@@ -36,11 +35,57 @@
 //!
 //! `p̂/n = (3ωs² + 3ω²s + ω³)/(s + ω)³`. Being of type 3 it has no lag at constant
 //! speed nor at constant acceleration; a jerk `J` leaves a position lag of `J/ω³`.
+//!
+//! ## Two bandwidths: the count's quantisation against the motion
+//! The count is the shaft's position floored to a whole count: `n − (θ − ½)` is a
+//! sawtooth of 1 count peak-to-peak whose frequency is the *beat* of the speed
+//! against the sampling, `f_s·|v·Ts − round(v·Ts)|` for speed `v` in counts/s (and,
+//! with amplitude 1/q, its distance to every fraction p/q). At 10.013 rev/s (1.0013
+//! counts per sample) it is 52 Hz; near 10 rev/s it goes down to 0. A linear
+//! tracker passes the sawtooth below its bandwidth and attenuates it only as
+//! `3ω/(2πf)` above (relative degree 1). On the plant (i_q* = 0.5 A, 10 rev/s,
+//! angle error `a·sin 2πft` injected): 0.5 count at 30-300 Hz gives 16-31 mA of i_q
+//! ripple, at 3 Hz and below it is lost in the 4 mA of the ADC quantisation. The
+//! quantisation must therefore reach the angle only below a few hertz, while the
+//! motion (accelerations, shocks) needs tens of hertz.
+//!
+//! The tracker separates the two by the size of the innovation. Its own error seen
+//! through the quantisation is at most ½ count (plus the estimate's error), so an
+//! innovation beyond [`FINE_BAND`] (1 count) is motion the estimate missed. The
+//! correction is
+//!
+//! ```text
+//! g·e + g′·(e − clamp(e, −1, 1))       g = (3ω, 3ω², ω³)·Ts at ω = COMMUTATION_OMEGA
+//!                                      g′ = (3ω′, 3ω′², ω′³)·Ts at ω′ = ACQUISITION_OMEGA
+//! ```
+//!
+//! a linear tracker at [`COMMUTATION_OMEGA`] (80 rad/s, −3 dB ≈ 25 Hz) inside the
+//! band, to which a tracker at [`ACQUISITION_OMEGA`] (250 rad/s) is added on the
+//! part of the error beyond it: a step of acceleration or a speed the tracker does
+//! not know yet is followed as fast as by the 250 rad/s tracker, to within a count,
+//! and the last count is closed at 80 rad/s. Within the band the loop is linear
+//! and stable (the slow tracker alone), so the nonlinearity cannot sustain a limit
+//! cycle; it acts only while the error exceeds a count. At 10.013 rev/s (52 Hz
+//! beat) the angle error is 0.34 count peak (0.53 with the 250 rad/s tracker
+//! alone); where the beat is slower than the tracker's 25 Hz it passes. With the
+//! current loop's decoupling on the measured currents
+//! (`crate::current_loop`, "Decoupling") the i_q ripple stays ≤ 8.1 mA from
+//! 0.0013 to 10.13 rev/s, including speeds within 0.0005 rev/s of 10 (BENCHMARKS.md,
+//! "Robustness", and `tests-host/tests/robustness.rs`).
+//!
+//! Beyond [`TRACKER_LIMIT`] (8 counts) the tracker is re-started on the count at the
+//! PLL's speed: from a stand-still state against a shaft already turning, the PLL
+//! (≈ 3 kHz) has the speed within a millisecond, the tracker would need tens.
+//!
 //! Its angle ([`Encoder::commutation_angle`]) is the count's angle moved by
 //! `p̂ − n`, bounded to ±[`MAX_INTERPOLATION`] counts: whatever the motion (a
 //! shock, an acceleration step), the commutation stays within 9° electrical of the
 //! count, the PLL and the servo loops are not affected. `p̂` is kept relative to the
 //! count, so it keeps its resolution over any number of turns.
+//!
+//! Cost: the band adds a clamp, a subtraction and three multiply-adds to the
+//! tracker's step; the acquisition gains are the fine gains times the constant
+//! ratios `(ω′/ω)ⁱ`, so no state is added.
 
 use crate::angle::{Angle, CountScale, POLE_PAIRS};
 use core::f32::consts::PI;
@@ -56,22 +101,33 @@ fn wrap(n: i32, cpr: u32) -> i32 {
 /// Largest correction of the commutation angle against the count, counts.
 pub const MAX_INTERPOLATION: f32 = 2.0;
 
-/// Pole of the commutation tracker, rad/s (triple; −3 dB ≈ 2·ω = 80 Hz).
+/// Pole of the commutation tracker inside [`FINE_BAND`], rad/s (triple; −3 dB
+/// ≈ 2·ω = 25 Hz).
 ///
-/// Chosen on the plant (i_q* = 0.5 A, shaft at constant speed, i_q peak-to-peak at
-/// 1, 5.07 and 10.13 rev/s and over 0.013-10.013 rev/s in steps of 0.25, both
-/// motors): 200 rad/s lets the TC86-45's ripple grow with speed (24 mA at 10.13
-/// rev/s), 250 rad/s gives 3-5 mA at 1 and 5.07 rev/s and 8.8/10.1 mA at 10.13,
-/// 300-400 rad/s let more of the edge steps through (10-14 mA at 10.13 rev/s).
-/// Where the count pattern beats slower than the tracker's bandwidth (within
-/// ≈ 0.02 rev/s of 10 rev/s: one count per sample with a slip every 19 ms at
-/// 10.013 rev/s) no filter of the count can tell the slip from the motion, and the
-/// ripple is 26-31 mA there (BENCHMARKS.md, "Robustness").
-pub const COMMUTATION_OMEGA: f32 = 250.0;
+/// Chosen on the plant (i_q* = 0.5 A, shaft at constant speed, i_q peak-to-peak
+/// over 0.013-10.013 rev/s in steps of 0.25 and at 20 speeds near 0, 5 and 10
+/// rev/s, both motors, worst of the two, the current loop decoupling on the
+/// measured currents): 50 rad/s gives 7.7 mA, 80 rad/s 8.1 mA, 120 rad/s 8.5 mA;
+/// the linear tracker at 250 rad/s alone 12.1 mA (at 10.013 rev/s). 80 keeps the
+/// lag of a jerk inside the band (`J/ω³`) four times smaller than 50 would.
+pub const COMMUTATION_OMEGA: f32 = 80.0;
+
+/// Pole of the tracker added on the error beyond [`FINE_BAND`], rad/s (triple).
+pub const ACQUISITION_OMEGA: f32 = 250.0;
+
+/// Half-width of the band within which the innovation is taken as the count's
+/// quantisation, counts.
+pub const FINE_BAND: f32 = 1.0;
+
+/// The acquisition gains over the fine gains: `(ω′/ω)`, `(ω′/ω)²`, `(ω′/ω)³`.
+const ACQUISITION_RATIO: [f32; 3] = {
+    let r = ACQUISITION_OMEGA / COMMUTATION_OMEGA;
+    [r, r * r, r * r * r]
+};
 
 /// Bound of the commutation tracker's state against the count, counts (beyond it the
-/// tracker is re-started on the count: a stall or a shock).
-const TRACKER_LIMIT: f32 = 64.0;
+/// tracker is re-started on the count at the PLL's speed: a start, a stall, a shock).
+pub const TRACKER_LIMIT: f32 = 8.0;
 
 /// Encoder configuration.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -131,7 +187,7 @@ pub struct Encoder {
     trk_pos: f32,
     trk_vel: f32,
     trk_acc: f32,
-    /// Its gains times Ts: 3ω·Ts, 3ω²·Ts, ω³·Ts.
+    /// Its fine gains times Ts: 3ω·Ts, 3ω²·Ts, ω³·Ts (ω = [`COMMUTATION_OMEGA`]).
     trk_k: [f32; 3],
     /// Z-index state.
     pub index: IndexState,
@@ -202,7 +258,8 @@ impl Encoder {
     }
 
     /// The commutation tracker's step (module doc) for a count that moved by `delta`:
-    /// the prediction from the last estimate, then its correction by the new count, so
+    /// the prediction from the last estimate, then its correction by the new count
+    /// (fine gains, plus the acquisition gains on the error beyond [`FINE_BAND`]), so
     /// the estimate is the shaft's at this sample.
     #[inline]
     fn track(&mut self, delta: i32) {
@@ -219,10 +276,13 @@ impl Encoder {
             return;
         }
         let [k1, k2, k3] = self.trk_k;
+        let [r1, r2, r3] = ACQUISITION_RATIO;
         let e = -p;
-        self.trk_pos = p + k1 * e;
-        self.trk_vel += self.ts * self.trk_acc + k2 * e;
-        self.trk_acc += k3 * e;
+        // The part of the innovation beyond the count's quantisation (module doc).
+        let o = e - crate::num::clamp(e, -FINE_BAND, FINE_BAND);
+        self.trk_pos = p + k1 * (e + r1 * o);
+        self.trk_vel += self.ts * self.trk_acc + k2 * (e + r2 * o);
+        self.trk_acc += k3 * (e + r3 * o);
     }
 
     /// Index pulse: `raw_at_index` is the counter value latched by the hardware at the

@@ -343,10 +343,12 @@ qemu_runner::tests! {
             }
             last = a;
         }
-        // Steps within 0.1 count of the true advance (the count jumps by 0 or 2 at the
-        // pattern's slips); the angle within 0.6 count of the true shaft.
-        assert!(worst_jump < 0.1, "jump {worst_jump} counts");
-        assert!(worst_error < 0.6, "error {worst_error} counts");
+        // Steps within 0.01 count of the true advance (the count jumps by 0 or 2 at the
+        // pattern's slips; 0.004 measured); the angle within 0.4 count of the true
+        // shaft (0.34 measured: the 52 Hz beat through the 80 rad/s tracker; 0.53 with
+        // a linear tracker at 250 rad/s).
+        assert!(worst_jump < 0.01, "jump {worst_jump} counts");
+        assert!(worst_error < 0.4, "error {worst_error} counts");
         let w = e.commutation_omega_e();
         let w_true = (per_step * 40_000.0 / 4000.0 * 50.0 * 2.0 * core::f64::consts::PI) as f32;
         assert!(near(w, w_true, 0.01 * w_true), "omega {w} vs {w_true}");

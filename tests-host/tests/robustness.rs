@@ -44,11 +44,26 @@ fn encoder_commutation_ripple() {
                 m.name
             );
         }
-        // 10.13 rev/s: ECN57-20 within the goal; the TC86-45 0.2 mA above it
-        // (BENCHMARKS.md says "no"), held here at its present level.
-        let r = 1e3 * iq_ripple(m, &Conditions::IDEAL, Calibration::Off, 10.13);
-        let bound = if m.name == ECN57_20.name { 10.0 } else { 11.0 };
-        assert!(r <= bound, "{} at 10.13 rev/s: {r} mA", m.name);
+        // Near 10 rev/s (1 count per sample) the count pattern beats slowly against
+        // the sampling: 520 Hz at 10.13, 52 Hz at 10.013, 20 Hz at 10.005, 2 Hz at
+        // 10.0005 rev/s, each a sawtooth of a whole count.
+        for v in [10.13, 10.013, 10.005, 10.0005] {
+            let r = 1e3 * iq_ripple(m, &Conditions::IDEAL, Calibration::Off, v);
+            assert!(r <= 10.0, "{} at {v} rev/s: {r} mA", m.name);
+        }
+    }
+}
+
+#[test]
+fn encoder_commutation_ripple_over_the_speed_range() {
+    // The README plot's sweep, 0.013-10.013 rev/s in steps of 0.25: every speed meets
+    // the goal (the "worst" rows of BENCHMARKS.md).
+    for m in MOTORS {
+        let sweep = ripple_sweep(m, &Conditions::IDEAL, Design::Robust(Calibration::Off));
+        assert_eq!(sweep.len(), 41);
+        for (v, r) in sweep {
+            assert!(r <= 10.0, "{} at {v} rev/s: {r} mA", m.name);
+        }
     }
 }
 
@@ -74,8 +89,10 @@ fn calibration_removes_gain_offset_and_dead_time_ripple() {
         let base = 1e3 * iq_ripple(m, &Conditions::IDEAL, Calibration::Off, 5.0);
         let added = 1e3 * iq_ripple(m, &bridge, Calibration::Tuned, 5.0) - base;
         let before = 1e3 * iq_ripple(m, &bridge, Calibration::Off, 5.0) - base;
+        // Uncompensated, the dead time misses the goal (4 mA on the TC86-45 with the
+        // decoupling on the measured currents, 7 mA with it on the references).
         assert!(
-            added <= 3.0 && before > 5.0,
+            added <= 3.0 && before > 3.0,
             "{}: dead time {added} mA (before {before})",
             m.name
         );

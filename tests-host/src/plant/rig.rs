@@ -113,9 +113,10 @@ impl Rig {
     }
 
     /// One PWM period of FOC on the encoder's commutation angle and speed
-    /// (`foc::encoder`, "Angle and speed for the current loop"), as the board's
-    /// closed loop.
+    /// (`foc::encoder`, "Angle and speed for the current loop") with the decoupling
+    /// on the measured currents, as the board's closed loop.
     pub fn tick(&mut self) {
+        self.cl.set_measured_decoupling(true);
         let adc = self.plant.sample();
         self.enc.update(self.plant.encoder_raw());
         let d = self.cl.step(
@@ -127,8 +128,10 @@ impl Rig {
         self.k += 1;
     }
 
-    /// One PWM period of FOC on a given angle and electrical speed (open loop).
+    /// One PWM period of FOC on a given angle and electrical speed (open loop; the
+    /// decoupling on the references).
     pub fn tick_at(&mut self, theta: Angle, omega_e: f32) {
+        self.cl.set_measured_decoupling(false);
         self.tick_with(|cl, _, adc| cl.step(adc, theta, omega_e));
     }
 
