@@ -300,9 +300,13 @@ impl ControlCore {
                     Frame::Encoder => {
                         let (theta, omega) =
                             (self.enc.commutation_angle(), self.enc.commutation_omega_e());
+                        // The measured currents decouple d and q on the rotor's angle
+                        // (`foc::current_loop`, "Decoupling").
+                        self.cl.set_measured_decoupling(true);
                         self.sup.run_step(&mut self.cl, &adc, theta, omega)
                     }
                     Frame::Command { angle, omega_e } => {
+                        self.cl.set_measured_decoupling(false);
                         let d = self.sup.run_step(&mut self.cl, &adc, angle, omega_e);
                         self.damping.tick(self.cl.v_ab);
                         d

@@ -553,8 +553,14 @@ impl PlantAxis {
                     Duties::zero(period)
                 }
                 BridgeMode::Run => match r.frame {
-                    Frame::Encoder => sup.run_step(cl, adc, enc.electrical_angle(), enc.omega_e()),
-                    Frame::Command { angle, omega_e } => sup.run_step(cl, adc, angle, omega_e),
+                    Frame::Encoder => {
+                        cl.set_measured_decoupling(true);
+                        sup.run_step(cl, adc, enc.electrical_angle(), enc.omega_e())
+                    }
+                    Frame::Command { angle, omega_e } => {
+                        cl.set_measured_decoupling(false);
+                        sup.run_step(cl, adc, angle, omega_e)
+                    }
                 },
             };
             // The fast protection (as the board's current-loop interrupt): bridges

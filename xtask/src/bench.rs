@@ -26,11 +26,14 @@ const OVER_GOAL: &[(&str, &str)] = &[
         "current loop step",
         "the step includes the current-sensing calibration's channel-B gain and the \
          dead-time compensation (two current-sign terms, linear through zero; \
-         `foc::current_loop`, \"Dead-time compensation\"), about 29 instructions. They \
-         take the i_q ripple from 8-14 mA of dead time down to ≤ 2 mA and from 76-78 mA of \
-         sensor mismatch down to 3-7 mA (\"Robustness\" below), which is what the motor's \
-         torque ripple and noise follow. The current-loop interrupt stays at about 16 % of \
-         the CPU at 40 kHz (\"Cycle time budget\").",
+         `foc::current_loop`, \"Dead-time compensation\"), about 29 instructions, and the \
+         d/q decoupling on the measured currents on the encoder's angle (\"Decoupling\"), \
+         about 6. They take the i_q ripple from 8-14 mA of dead time down to ≤ 2 mA, from \
+         76-78 mA of sensor mismatch down to 4-7 mA, and near 10 rev/s, where the \
+         encoder's count pattern beats against the commutation, from 26-31 mA down to \
+         6-8 mA (\"Robustness\" below): what the motor's torque ripple and noise follow. \
+         The current-loop interrupt stays at about 16 % of the CPU at 40 kHz (\"Cycle \
+         time budget\").",
     ),
     (
         "supervised current step",
