@@ -554,8 +554,11 @@ impl PlantAxis {
                 }
                 BridgeMode::Run => match r.frame {
                     Frame::Encoder => {
+                        // As the board (`firmware::control_core`): the commutation
+                        // tracker's angle and speed, the measured-current decoupling.
                         cl.set_measured_decoupling(true);
-                        sup.run_step(cl, adc, enc.electrical_angle(), enc.omega_e())
+                        let (theta, omega) = (enc.commutation_angle(), enc.commutation_omega_e());
+                        sup.run_step(cl, adc, theta, omega)
                     }
                     Frame::Command { angle, omega_e } => {
                         cl.set_measured_decoupling(false);
