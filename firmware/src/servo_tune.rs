@@ -181,15 +181,20 @@ pub fn ident_config(cfg: &MotionConfig) -> IdentConfig {
     }
 }
 
+/// The load factor `1 + 0x2160/100` the configured gains were designed for.
+fn designed_load(cfg: &MotionConfig) -> f32 {
+    if cfg.tune.load >= 1.0 {
+        cfg.tune.load
+    } else {
+        1.0
+    }
+}
+
 /// The servo gains of the move: [`foc::identify::move_gains`] of the base gains for
 /// the rotor alone (`cfg.gains` designed for `load` × the rotor inertia, the velocity
 /// loop's gains divided by it).
 pub fn move_gains(cfg: &MotionConfig) -> ServoGains {
-    let load = if cfg.tune.load >= 1.0 {
-        cfg.tune.load
-    } else {
-        1.0
-    };
+    let load = designed_load(cfg);
     let g = cfg.gains;
     foc::identify::move_gains(&ServoGains {
         kv: g.kv / load,
@@ -197,25 +202,6 @@ pub fn move_gains(cfg: &MotionConfig) -> ServoGains {
         acc_ff: g.acc_ff / load,
         ..g
     })
-}
-
-/// The configured gains of `cfg` (designed for `load` × the rotor inertia)
-/// redesigned for a load ratio of `ratio_percent`: the velocity loop's gains scale
-/// with the inertia.
-pub fn gains_for_load(cfg: &MotionConfig, ratio_percent: f32) -> ServoGains {
-    let load = if cfg.tune.load >= 1.0 {
-        cfg.tune.load
-    } else {
-        1.0
-    };
-    let k = (1.0 + foc::num::clamp(ratio_percent, 0.0, 5000.0) * 0.01) / load;
-    let g = cfg.gains;
-    ServoGains {
-        kv: g.kv * k,
-        ki_vel: g.ki_vel * k,
-        acc_ff: g.acc_ff * k,
-        ..g
-    }
 }
 
 /// The gains while a finished move settles at its start: the move's ([`move_gains`]:
@@ -226,14 +212,9 @@ pub fn gains_for_load(cfg: &MotionConfig, ratio_percent: f32) -> ServoGains {
 /// same proportion as designed): the move has none, and friction would hold the axis
 /// off the start.
 pub fn settle_gains(cfg: &MotionConfig, ratio_percent: f32) -> ServoGains {
-    let load = if cfg.tune.load >= 1.0 {
-        cfg.tune.load
-    } else {
-        1.0
-    };
     let found = 1.0 + foc::num::clamp(ratio_percent, 0.0, 5000.0) * 0.01;
     ServoGains {
-        ki_vel: cfg.gains.ki_vel / load / found,
+        ki_vel: cfg.gains.ki_vel / designed_load(cfg) / found,
         ..move_gains(cfg)
     }
 }

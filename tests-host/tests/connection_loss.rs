@@ -795,9 +795,7 @@ fn run_case(mode: Mode, option: i16, loss: Loss) -> Outcome {
             m.snap()
         );
     }
-    // The axis settles from the stop (an abrupt one with 0x6007 = 0 in CSP: the
-    // demand holds where the last set-point left it) before the drift is measured.
-    let settle = 150 * MS;
+    let settle = if option == 2 { 150 * MS } else { 50 * MS };
     m.advance_ns(settle);
     let a = m.snap();
     m.advance_ns(2000 * MS);

@@ -89,16 +89,7 @@ mod on_the_drive {
         b.write(0x2162, 1, &[1]).unwrap();
         assert_eq!(b.read_u16(0x2162, 2), 1, "running");
         assert_eq!(b.read_u16(0x2162, 1), 1);
-        let (mut lo, mut hi) = (0.0f64, 0.0f64);
-        let mut ms = 0;
-        while b.read_u16(0x2162, 2) == 1 && ms < 5000 {
-            b.run(0x0F, 10, |b| {
-                let x = b.counts() - start;
-                lo = lo.min(x);
-                hi = hi.max(x);
-            });
-            ms += 10;
-        }
+        let (ms, (lo, hi)) = b.until_tune_over(start);
         let ratio = b.read_u16(0x2164, 0);
         eprintln!(
             "tune {ms} ms, ratio {ratio} %, friction {} mN·m, travel {lo:.0}..{hi:.0} counts",
@@ -113,15 +104,11 @@ mod on_the_drive {
         assert_eq!(b.d.params.get(P::PosKp), i32::from(g.pos_kp));
         // The default travel: 90° = 1000 counts; 20 % margin for the following error.
         assert!(lo >= -200.0 && (900.0..=1200.0).contains(&hi), "{lo}..{hi}");
-        let (mut lo, mut hi) = (f64::MAX, f64::MIN);
-        b.run(0x0F, 200, |b| {
-            lo = lo.min(b.counts());
-            hi = hi.max(b.counts());
-        });
+        let (lo, hi) = b.range(200, start);
         // Back at the start (where the axis hunted about it before: ±20 counts), and
         // standing still with the tuned gains (it hunted by ±10 counts before).
-        eprintln!("after the tune: start {start:.1}, {lo:.1}..{hi:.1} counts");
-        assert!((lo - start).abs() <= 20.0 && (hi - start).abs() <= 20.0);
+        eprintln!("after the tune: {lo:.1}..{hi:.1} counts from the start");
+        assert!(lo.abs() <= 20.0 && hi.abs() <= 20.0);
         assert!(hi - lo <= 2.0, "{lo}..{hi}");
         assert_eq!(b.d.cia402.state(), PdsState::OperationEnabled);
         assert_eq!(b.d.faults.error_code(), 0);

@@ -99,6 +99,31 @@ impl DriveBench {
     pub fn counts_per_unit(&self) -> f64 {
         COUNTS_PER_UNIT
     }
+
+    /// Lowest and highest rotor position (counts from `from`) over `ms` ticks with the
+    /// drive enabled.
+    pub fn range(&mut self, ms: u32, from: f64) -> (f64, f64) {
+        let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+        self.run(0x0F, ms, |b| {
+            lo = lo.min(b.counts() - from);
+            hi = hi.max(b.counts() - from);
+        });
+        (lo, hi)
+    }
+
+    /// Runs while 0x2162:02 reads "running", at most 5 s; returns the time (ms) and
+    /// the lowest and highest rotor position (counts from `from`) meanwhile.
+    pub fn until_tune_over(&mut self, from: f64) -> (u32, (f64, f64)) {
+        let (mut lo, mut hi) = (0.0f64, 0.0f64);
+        let mut ms = 0;
+        while self.read_u16(0x2162, 2) == 1 && ms < 5000 {
+            let (a, b) = self.range(10, from);
+            lo = lo.min(a);
+            hi = hi.max(b);
+            ms += 10;
+        }
+        (ms, (lo, hi))
+    }
 }
 
 /// What a tune on the drive gave.
@@ -125,11 +150,7 @@ pub struct DriveTune {
 
 /// Peak-to-peak of the rotor over `ms` ticks with the drive enabled.
 fn standstill(b: &mut DriveBench, ms: u32) -> f64 {
-    let (mut lo, mut hi) = (f64::MAX, f64::MIN);
-    b.run(0x0F, ms, |b| {
-        lo = lo.min(b.counts());
-        hi = hi.max(b.counts());
-    });
+    let (lo, hi) = b.range(ms, 0.0);
     hi - lo
 }
 
@@ -140,17 +161,10 @@ pub fn tune_on_drive(motor: Motor, load: f64) -> DriveTune {
     b.enable();
     let before = standstill(&mut b, 200);
     let start = b.counts();
-    let started = b.write(0x2162, 1, &[1]);
-    let (mut lo, mut hi) = (0.0f64, 0.0f64);
-    let mut ms = 0;
-    while started.is_ok() && b.read_u16(0x2162, 2) == 1 && ms < 5000 {
-        b.run(0x0F, 10, |b| {
-            let x = b.counts() - start;
-            lo = lo.min(x);
-            hi = hi.max(x);
-        });
-        ms += 10;
-    }
+    let (ms, travel) = match b.write(0x2162, 1, &[1]) {
+        Ok(()) => b.until_tune_over(start),
+        Err(_) => (0, (0.0, 0.0)),
+    };
     let state = b.read_u16(0x2162, 2);
     let ratio = b.read_u16(0x2164, 0);
     let after = standstill(&mut b, 200);
@@ -159,7 +173,7 @@ pub fn tune_on_drive(motor: Motor, load: f64) -> DriveTune {
         ratio_percent: ratio,
         error_percent: (f64::from(ratio) / (load * 100.0) - 1.0) * 100.0,
         duration_ms: ms,
-        travel_counts: (lo, hi),
+        travel_counts: travel,
         standstill_before: before,
         standstill_after: after,
         end_counts: b.counts() - start,
