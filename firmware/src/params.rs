@@ -25,9 +25,10 @@
 //! * 0x2155 (raw input levels) is filled by the I/O module ([`Params::set_raw_inputs`]).
 //! * 0x2063 (estimated load angle) is filled by the drive from the motion layer's
 //!   stall detector ([`Params::set_load_angle`]).
-//! * 0x2162:01 (servo tune start/stop) is a command the drive carries out
-//!   (`Drive::write`, [`crate::servo_tune::TuneControl`]); it reads 1 while a tune
-//!   runs. 0x2162:02, 0x2164 and 0x2165 are the tune's state and result
+//! * 0x2162:01 (servo tune start/stop) is a command the drive carries out at once
+//!   after the write ([`Params::take_servo_tune_request`], `Drive::write`,
+//!   [`crate::servo_tune::TuneControl`]: a refusal is the write's abort); it reads 1
+//!   while a tune runs. 0x2162:02, 0x2164 and 0x2165 are the tune's state and result
 //!   ([`Params::set_servo_tune`]).
 //! * 0x2156 (ours) keeps the station number entered on a single-bank DIP board (SW8
 //!   ON → SW1-SW7 → SW8 OFF, see [`crate::dip::SingleBank`]); the application sets it
@@ -365,6 +366,7 @@ pub struct Params {
     fault_history_clear: bool,
     calibration: Calibration,
     servo_tune: ServoTuneValues,
+    servo_tune_request: Option<bool>,
 }
 
 /// The run-time values of 0x2162-0x2165.
@@ -399,6 +401,7 @@ impl Params {
             fault_history_clear: false,
             calibration: Calibration::default(),
             servo_tune: ServoTuneValues::default(),
+            servo_tune_request: None,
         };
         p.latch_power_up();
         p
@@ -508,6 +511,11 @@ impl Params {
         }
     }
 
+    /// The last write of 0x2162:01 (`true`: start, `false`: stop) not yet taken.
+    pub fn take_servo_tune_request(&mut self) -> Option<bool> {
+        self.servo_tune_request.take()
+    }
+
     /// True once after 1 was written to 0x2093.
     pub fn take_fault_history_clear(&mut self) -> bool {
         core::mem::take(&mut self.fault_history_clear)
@@ -549,20 +557,18 @@ impl Params {
         crate::dictionary::put_le(entry, u64::from(value), buf)
     }
 
-    /// The value an SDO write of a vendor entry carries, after the stack's checks
-    /// (access, length, range; every entry here is RW or RO and an integer, so the
-    /// ESM state changes nothing). For the entries whose write is a command the
-    /// drive carries out (0x2162:01).
-    pub fn checked_value(index: u16, sub: u8, data: &[u8]) -> Result<i64, SdoAbort> {
-        let entry = crate::dictionary::find_entry_in(crate::dictionary::PARAMS, index, sub)?;
-        od::check_write(entry, data, ecat_slave_stack::esm::EsmState::PreOp)?;
-        od::decode_int(entry.data_type, data).ok_or(SdoAbort::TypeMismatch)
-    }
-
     /// SDO write of a vendor parameter (after the generic checks; repeated here).
     pub fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
-        let v = Self::checked_value(index, sub, data)?;
+        let entry = crate::dictionary::find_entry_in(crate::dictionary::PARAMS, index, sub)?;
+        // The stack's checks (access, length, range; every entry here is RW or RO and
+        // an integer, so the state argument changes nothing).
+        od::check_write(entry, data, ecat_slave_stack::esm::EsmState::PreOp)?;
+        let v = od::decode_int(entry.data_type, data).ok_or(SdoAbort::TypeMismatch)?;
         match (index, sub) {
+            (0x2162, 1) => {
+                self.servo_tune_request = Some(v == 1);
+                return Ok(());
+            }
             (0x2040, 0) => {
                 if v == 1 {
                     self.command_pulses = 0;

@@ -80,12 +80,11 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
                 Some(cmd) => self.run_store(cmd, &mut NoRuntime),
                 None => Ok(()),
             },
-            0x2162 => {
-                let v = Params::checked_value(index, sub, data)?;
-                self.servo_tune_command(v == 1)
-            }
             0x2000..=0x21FF => {
                 self.params.write(index, sub, data)?;
+                if let Some(start) = self.params.take_servo_tune_request() {
+                    return self.servo_tune_command(start);
+                }
                 self.faults.configure_from(&self.params);
                 // 0x2024 decides whether CST is available.
                 self.cia402.set_torque_control(self.torque_control());
