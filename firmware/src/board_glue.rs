@@ -17,7 +17,8 @@
 //! * [`BoardGlue::publish`] — the drive's step → the [`ControlCommand`]: a new
 //!   interpolation segment per change of [`Drive::steps`], the power permission
 //!   ([`Drive::power_permission`]), the auto-tune permission (only with passed
-//!   current-sensor offsets), `drive_enabled` masked by the power permission.
+//!   current-sensor offsets), the scope's servo-rate trace, `drive_enabled` masked by
+//!   the power permission.
 //! * [`BoardGlue::over_current`] / [`BoardGlue::break_rearmed`] — break latch ↔ fault
 //!   1 (over-current): the latch is reported through `AxisState::overcurrent_trip`;
 //!   the break is re-armed only once the drive holds the fault and the command that
@@ -68,6 +69,9 @@ pub struct ControlCommand {
     /// The drive permits the power-up auto-tune ([`Drive::tune_permitted`]) and the
     /// offsets passed.
     pub tune_allowed: bool,
+    /// The scope records at the servo rate ([`Drive::scope_wants_servo_points`]): hand
+    /// over a [`crate::scope::ServoPoint`] every servo period.
+    pub trace: bool,
 }
 
 impl ControlCommand {
@@ -231,6 +235,7 @@ impl BoardGlue {
         }
         self.ctl.power_allowed = drive.power_permission();
         self.ctl.tune_allowed = drive.tune_permitted() && self.ctl.offsets.is_some();
+        self.ctl.trace = drive.scope_wants_servo_points();
         if !self.ctl.power_allowed {
             self.ctl.command.drive_enabled = false;
         }

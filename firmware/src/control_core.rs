@@ -12,8 +12,9 @@
 //!    ([`CommutatedMotion`], held while the power-up auto-tune runs) → current
 //!    reference (in open loop its angle gets the anti-resonance correction,
 //!    `foc::damping`, 0x2059); the index and touch-probe latches become axis positions
-//!    ([`crate::latch`]), and the measurements for the drive ([`Feedback`]) are
-//!    returned for publication;
+//!    ([`crate::latch`]), the measurements for the drive ([`Feedback`]) are
+//!    returned for publication, and, while the scope records at the servo rate, this
+//!    period's [`ServoPoint`] goes to [`ControlHw::trace`];
 //! 3. the bridges: [`bridge_mode`] decides (halted, break latched, fast protection
 //!    tripped, auto-tune, the drive's permission, the motion layer's wish); on, the
 //!    current loop through [`CurrentSupervisor`] (`run_step`, or `tune_step` in
@@ -35,6 +36,7 @@ use crate::latch::{units_at_count, Edges, Seen};
 use crate::motion::{CurrentReference, Frame, MotionConfig};
 use crate::power_gate::{bridge_mode, BridgeMode, GateInputs};
 use crate::sampling::{AnalogScale, RawSample};
+use crate::scope::ServoPoint;
 use foc::current_loop::{robust_bandwidth, AdcSample, CurrentLoop, CurrentLoopConfig, Sense};
 use foc::damping::{Damping, DampingConfig};
 use foc::encoder::{Encoder, EncoderConfig};
@@ -74,6 +76,10 @@ pub trait ControlHw {
     fn disable_outputs(&mut self);
     /// Loads the compare registers.
     fn set_duties(&mut self, d: Duties);
+    /// Hands the drive this servo period's point for the scope at the servo rate
+    /// (only while the command asks for it, [`ControlCommand::trace`]; the board
+    /// queues it in a [`crate::scope::PointRing`]). Without a scope: nothing.
+    fn trace(&mut self, _p: &ServoPoint) {}
 }
 
 /// The board's fixed quantities the control path is built from.
@@ -406,6 +412,9 @@ impl ControlCore {
         self.motion.motion().fill_measured_torque(&mut axis);
         axis.bus_mv = (self.cl.vbus * 1000.0).clamp(0.0, 1.0e6) as u32;
         axis.electrical_angle = (self.enc.electrical_angle().0 >> 16) as u16;
+        if cmd.is_some_and(|k| k.trace) {
+            hw.trace(&ServoPoint::of(&axis));
+        }
         Feedback {
             axis,
             bridges_on: self.bridges_on,
@@ -476,11 +485,13 @@ impl ControlCore {
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
     use crate::cia402::{DriveCommand, SetpointKind};
     use crate::identity::Variant;
     use crate::motion::{ECN57_20, SERVO_TS};
     use crate::params::Params;
+    use std::vec::Vec;
 
     const STAGE: PowerStageConfig = PowerStageConfig {
         pwm_hz: 40_000,
@@ -505,6 +516,7 @@ mod tests {
         on: bool,
         enables: u32,
         duties: Option<Duties>,
+        traced: Vec<ServoPoint>,
     }
 
     impl ControlHw for ModelHw {
@@ -540,6 +552,9 @@ mod tests {
         }
         fn set_duties(&mut self, d: Duties) {
             self.duties = Some(d);
+        }
+        fn trace(&mut self, p: &ServoPoint) {
+            self.traced.push(*p);
         }
     }
 
@@ -584,6 +599,7 @@ mod tests {
             offsets: Some((2048.0, 2048.0)),
             supervisor: sup,
             tune_allowed: false,
+            trace: false,
         };
         (c, cmd)
     }
@@ -616,6 +632,29 @@ mod tests {
         assert_eq!(published, 40 / u32::from(SERVO_DIVIDER));
         assert_eq!((hw.enables, hw.on), (0, false));
         assert!(!c.bridges_on());
+    }
+
+    #[test]
+    fn servo_points_for_the_scope_only_while_the_command_asks() {
+        let (mut c, cmd) = core(Variant::OpenLoop);
+        let mut hw = ModelHw {
+            command: Some(cmd),
+            ..ModelHw::default()
+        };
+        for _ in 0..40 {
+            c.period(&mut hw, REST);
+        }
+        assert!(hw.traced.is_empty());
+        hw.command = Some(ControlCommand { trace: true, ..cmd });
+        let mut published = Vec::new();
+        for _ in 0..40 {
+            if let Some(f) = c.period(&mut hw, REST) {
+                published.push(ServoPoint::of(&f.axis));
+            }
+        }
+        // One point per servo period: what the period published.
+        assert_eq!(hw.traced.len(), 40 / usize::from(SERVO_DIVIDER));
+        assert_eq!(hw.traced, published);
     }
 
     #[test]

@@ -559,6 +559,7 @@ fn start_control(drive: &BoardDrive) -> ControlCommand {
         offsets: None,
         supervisor: scfg,
         tune_allowed: false,
+        trace: false,
     };
     send_command(&ctl);
     ctl
@@ -858,6 +859,7 @@ async fn tick(mut leds: io::Leds<'static>, mut ports: io::Ports<'static>) {
             update_axis(s);
             // Board faults: failed offset check (fault 9), failed alignment (0x8611).
             s.glue.raise_board_faults(&mut s.drive, now);
+            hw::control::drain_trace(|p| s.drive.scope_servo_point(p));
             s.drive.tick(now_us(), raw);
             // Parameter writes that change the motion layer (every 10 ms).
             if n.is_multiple_of(10) {

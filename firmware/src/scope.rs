@@ -31,6 +31,13 @@
 //! values above `i32::MAX` wrap). The master's cycle never samples: its instruction
 //! budget is for the set-points. Disarmed, the tick pays one test of [`Scope::running`].
 //!
+//! With the servo period as time base (0x2500:08 = 1) the control path hands the
+//! drive one [`ServoPoint`] per servo period (100 µs) through a [`PointRing`]: the
+//! internal signals of 0x2510 as the motion layer and the current loop had them in
+//! that period. Every `divisor`-th point is a sample: the 0x2510 channels from the
+//! point ([`internal_signal`]), the other channels as the drive's objects stand (they
+//! change at its tick). The drive takes the queued points at each tick.
+//!
 //! The buffer holds [`BUFFER_WORDS`] values: `BUFFER_WORDS / n` samples per channel
 //! with `n` channels (768 with one, 96 with eight).
 //!
@@ -71,8 +78,7 @@ use ecat_slave_stack::od::{self, Access, DataType, EntryDesc, ObjectDesc, PdoMap
 
 /// Channels of one record at most.
 pub const CHANNELS: usize = 8;
-/// Values the buffer holds (`i32`, 3 KiB: what the 32 KiB RAM budget leaves beside
-/// the worst-case stack).
+/// Values the buffer holds (`i32`, 3 KiB; README "Size" for the RAM budget).
 pub const BUFFER_WORDS: usize = 768;
 /// Bytes of one block of 0x2503 (one segmented SDO upload; at most the SDO server's
 /// transfer buffer).
@@ -125,7 +131,9 @@ const fn signal(sub: u8, name: &'static str, t: DataType, unit: &'static str) ->
         .unit(unit)
 }
 
-use DataType::{Integer32 as I32, Unsigned16 as U16, Unsigned32 as U32, Unsigned8 as U8};
+use DataType::{
+    Integer16 as I16, Integer32 as I32, Unsigned16 as U16, Unsigned32 as U32, Unsigned8 as U8,
+};
 
 /// The scope's objects, sorted.
 pub const OBJECTS: &[ObjectDesc] = &[
@@ -133,7 +141,7 @@ pub const OBJECTS: &[ObjectDesc] = &[
         CONFIG,
         "Scope configuration",
         &[
-            EntryDesc::count(7),
+            EntryDesc::count(8),
             rw(1, "Sample divisor", U16, 1, 1, 1000),
             rw(2, "Trigger channel", U8, 1, 1, CHANNELS as i64),
             rw(3, "Trigger level", I32, 0, i32::MIN as i64, i32::MAX as i64),
@@ -141,8 +149,9 @@ pub const OBJECTS: &[ObjectDesc] = &[
             rw(5, "Pre-trigger samples", U16, 0, 0, BUFFER_WORDS as i64 - 1),
             rw(6, "Trigger mode", U8, 0, 0, 1),
             rw(7, "Command", U8, 0, 0, 2),
+            rw(8, "Time base", U8, 0, 0, 1),
         ],
-        "Scope: sub 1 sample every n supervision ticks (1 ms); 2 trigger channel (0x2501 sub); 3 trigger level; 4 condition 0 immediate, 1 rising, 2 falling, 3 either edge, 4 value >= level, 5 value <= level; 5 samples kept before the trigger; 6 mode 0 single, 1 normal (re-arms after the record was read); 7 command 0 stop, 1 arm, 2 force trigger",
+        "Scope: sub 1 sample every n time-base periods; 2 trigger channel (0x2501 sub); 3 trigger level; 4 condition 0 immediate, 1 rising, 2 falling, 3 either edge, 4 value >= level, 5 value <= level; 5 samples kept before the trigger; 6 mode 0 single, 1 normal (re-arms after the record was read); 7 command 0 stop, 1 arm, 2 force trigger; 8 time base 0 supervision tick (1 ms), 1 servo period (100 us: the internal signals 0x2510 at that rate, the other channels as the last tick left them)",
     ),
     ObjectDesc::array(
         CHANNEL_LIST,
@@ -193,13 +202,19 @@ pub const OBJECTS: &[ObjectDesc] = &[
         SIGNALS,
         "Scope internal signals",
         &[
-            EntryDesc::count(4),
+            EntryDesc::count(10),
             signal(1, "Motor following error", I32, ""),
             signal(2, "Acceleration demand", I32, "inc/s²"),
             signal(3, "Bus voltage", U32, "mV"),
             signal(4, "Drive flags", U16, ""),
+            signal(5, "Motor position", I32, "inc"),
+            signal(6, "Motor velocity", I32, "inc/s"),
+            signal(7, "Current demand", I16, "0.1 %"),
+            signal(8, "Current actual", I16, "0.1 %"),
+            signal(9, "Phase A current", I16, "mA"),
+            signal(10, "Phase B current", I16, "mA"),
         ],
-        "Signals without an object of their own: sub 1 servo demand minus encoder, encoder counts; 2 acceleration feed-forward of the demand; 3 DC bus voltage; 4 bit 0 power stage on, bit 1 drive function enabled, bit 2 at the current limit, bit 3 brake released",
+        "Signals without an object of their own, also at the servo rate (0x2500:08 = 1): sub 1 servo demand minus encoder, encoder counts; 2 acceleration feed-forward of the demand; 3 DC bus voltage; 4 bit 0 power stage on, bit 1 drive function enabled, bit 2 at the current limit, bit 3 brake released; 5 position, 6 velocity of the motor side, command units; 7 q current demand, 8 q current actual, per mille of the rated current; 9, 10 phase currents",
     ),
 ];
 
@@ -305,6 +320,8 @@ pub struct Scope {
     condition: u8,
     pretrigger: u16,
     normal: bool,
+    /// 0x2500:08: samples at the servo rate (`true`) or on the tick.
+    servo_rate: bool,
     count: u8,
     channels: [u32; CHANNELS],
     state: State,
@@ -389,6 +406,7 @@ impl Scope {
             condition: DEF_CONDITION,
             pretrigger: DEF_PRETRIGGER,
             normal: DEF_NORMAL,
+            servo_rate: false,
             count: DEF_COUNT,
             channels: DEF_CHANNELS,
             state: State::Idle,
@@ -420,8 +438,15 @@ impl Scope {
         matches!(self.state, State::Armed | State::Triggered)
     }
 
-    /// Counts one tick of the running scope; true when this tick takes a sample (every
-    /// `divisor`-th, the first tick after arming included).
+    /// Running at the servo rate (0x2500:08 = 1): the samples come from the control
+    /// path's [`ServoPoint`]s, not from the tick.
+    #[inline(always)]
+    pub fn at_servo_rate(&self) -> bool {
+        self.servo_rate && self.running()
+    }
+
+    /// Counts one period of the time base of the running scope; true when this one
+    /// takes a sample (every `divisor`-th, the first after arming included).
     pub fn sample_due(&mut self) -> bool {
         if self.wait > 1 {
             self.wait -= 1;
@@ -582,6 +607,7 @@ impl Scope {
             (CONFIG, 4) => u32::from(self.condition),
             (CONFIG, 5) => u32::from(self.pretrigger),
             (CONFIG, 6) => u32::from(self.normal),
+            (CONFIG, 8) => u32::from(self.servo_rate),
             (CONFIG, _) => u32::from(self.running()),
             (STATUS, 1) => self.state as u32,
             (STATUS, 2) => u32::from(match self.state {
@@ -615,6 +641,7 @@ impl Scope {
             (CONFIG, 4) => self.condition = v as u8,
             (CONFIG, 5) => self.pretrigger = v as u16,
             (CONFIG, 6) => self.normal = v == 1,
+            (CONFIG, 8) => self.servo_rate = v == 1,
             (CHANNEL_LIST, 0) => self.count = v as u8,
             (CHANNEL_LIST, s) => {
                 Source::resolve(v as u32)?;
@@ -641,6 +668,9 @@ impl Scope {
         }
     }
 }
+
+mod servo;
+pub use servo::{internal_signal, PointRing, ServoPoint};
 
 #[cfg(test)]
 mod tests;

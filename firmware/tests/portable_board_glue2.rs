@@ -43,6 +43,7 @@ fn start_command(d: &Drive) -> ControlCommand {
         offsets: None,
         supervisor: SupervisorConfig::from_params(&d.params, 25e-6, 2125),
         tune_allowed: false,
+        trace: false,
     }
 }
 

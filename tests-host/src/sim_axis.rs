@@ -325,6 +325,8 @@ pub struct PlantAxis {
     /// board's `ControlCore` passes their means to the motion layer).
     v_sum: Dq,
     i_sum: Dq,
+    /// Servo points for the scope at the servo rate, `None` while not asked for.
+    trace: Option<Vec<firmware::scope::ServoPoint>>,
 }
 
 impl PlantAxis {
@@ -384,6 +386,7 @@ impl PlantAxis {
             index: None,
             v_sum: Dq::default(),
             i_sum: Dq::default(),
+            trace: None,
         }
     }
 
@@ -396,6 +399,33 @@ impl PlantAxis {
     /// Where the commutation stands.
     pub fn commutation(&self) -> Commutation {
         self.motion.state()
+    }
+
+    /// The axis state the motion layer and the current loop have now (without the
+    /// index latch, which [`Axis::state`] hands over once).
+    fn measured(&self) -> AxisState {
+        let cl = &self.rig.cl;
+        let (angle, id, iq) = match self.reference.frame {
+            Frame::Encoder => (self.rig.enc.electrical_angle(), cl.id_ref, cl.iq_ref),
+            Frame::Command { angle, .. } => (angle, cl.id_ref, cl.iq_ref),
+        };
+        let (s, c) = (foc::trig::sin(angle), foc::trig::cos(angle));
+        let set = inverse_park(Dq { d: id, q: iq }, s, c);
+        let to_milliamps = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
+        let mut a = AxisState {
+            ia_ma: to_milliamps(cl.i_ab.alpha),
+            ib_ma: to_milliamps(cl.i_ab.beta),
+            ia_set_ma: to_milliamps(set.alpha),
+            ib_set_ma: to_milliamps(set.beta),
+            electrical_angle: (self.rig.enc.electrical_angle().0 >> 16) as u16,
+            bus_mv: (self.rig.plant.cfg.vbus * 1000.0) as u32,
+            overcurrent_trip: self.tripped,
+            ..AxisState::default()
+        };
+        self.motion.motion().fill_axis_state(&mut a);
+        self.motion.motion().fill_measured_torque(&mut a);
+        a.commutation_pending = self.motion.enable_pending();
+        a
     }
 
     /// Load torque opposing positive rotation, N·m.
@@ -520,6 +550,10 @@ impl PlantAxis {
             }
             self.rig.cl.id_ref = self.reference.id;
             self.rig.cl.iq_ref = self.reference.iq;
+            if self.trace.is_some() {
+                let p = firmware::scope::ServoPoint::of(&self.measured());
+                self.trace.get_or_insert_with(Vec::new).push(p);
+            }
         }
         let r = self.reference;
         let period = self.rig.plant.cfg.pwm_period;
@@ -646,29 +680,16 @@ impl Axis for PlantAxis {
     }
 
     fn state(&mut self) -> AxisState {
-        let cl = &self.rig.cl;
-        let (angle, id, iq) = match self.reference.frame {
-            Frame::Encoder => (self.rig.enc.electrical_angle(), cl.id_ref, cl.iq_ref),
-            Frame::Command { angle, .. } => (angle, cl.id_ref, cl.iq_ref),
-        };
-        let (s, c) = (foc::trig::sin(angle), foc::trig::cos(angle));
-        let set = inverse_park(Dq { d: id, q: iq }, s, c);
-        let to_milliamps = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
-        let mut a = AxisState {
-            ia_ma: to_milliamps(cl.i_ab.alpha),
-            ib_ma: to_milliamps(cl.i_ab.beta),
-            ia_set_ma: to_milliamps(set.alpha),
-            ib_set_ma: to_milliamps(set.beta),
-            electrical_angle: (self.rig.enc.electrical_angle().0 >> 16) as u16,
-            bus_mv: (self.rig.plant.cfg.vbus * 1000.0) as u32,
-            index: self.index.take(),
-            overcurrent_trip: self.tripped,
-            ..AxisState::default()
-        };
-        self.motion.motion().fill_axis_state(&mut a);
-        self.motion.motion().fill_measured_torque(&mut a);
-        a.commutation_pending = self.motion.enable_pending();
+        let mut a = self.measured();
+        a.index = self.index.take();
         a
+    }
+
+    fn servo_points(&mut self, on: bool, out: &mut Vec<firmware::scope::ServoPoint>) {
+        if let Some(v) = self.trace.as_mut() {
+            out.append(v);
+        }
+        self.trace = on.then(|| self.trace.take().unwrap_or_default());
     }
 
     fn commutation_failures(&self) -> u32 {
@@ -735,6 +756,9 @@ impl Axis for SharedPlant {
     }
     fn true_position(&self) -> Option<f64> {
         Axis::true_position(&*self.0.borrow())
+    }
+    fn servo_points(&mut self, on: bool, out: &mut Vec<firmware::scope::ServoPoint>) {
+        self.0.borrow_mut().servo_points(on, out)
     }
     fn current_control(&mut self, tune_permitted: bool) -> CurrentReport {
         self.0.borrow_mut().current_control(tune_permitted)

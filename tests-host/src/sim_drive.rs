@@ -92,6 +92,26 @@ pub trait Axis {
         let _ = fault;
         false
     }
+    /// The scope at the servo rate (`firmware::scope::ServoPoint`, the board's
+    /// `ControlHw::trace`): with `on`, the model keeps one point per servo period
+    /// from now on; the points kept since the last call go to `out`. Default: a model
+    /// without a servo period keeps none.
+    fn servo_points(&mut self, on: bool, out: &mut Vec<firmware::scope::ServoPoint>) {
+        let _ = (on, out);
+    }
+}
+
+/// The servo periods' points of `axis` to the scope of `drive`, and whether the next
+/// ones are wanted (the board's `hw::control::drain_trace` before the drive's tick).
+pub fn hand_servo_points<S: firmware::drive::ParameterStore>(
+    axis: &mut dyn Axis,
+    drive: &mut firmware::drive::Drive<S>,
+) {
+    let mut points = Vec::new();
+    axis.servo_points(drive.scope_wants_servo_points(), &mut points);
+    for p in &points {
+        drive.scope_servo_point(p);
+    }
 }
 
 /// Settings of the simulated drives.
@@ -163,6 +183,7 @@ impl SimDrive {
             offsets: None,
             supervisor: SupervisorConfig::from_params(p, crate::plant::rig::TS, 2125),
             tune_allowed: false,
+            trace: false,
         });
         // The simulated current sensors have no start-up check: passed at nominal.
         glue.offsets_passed(0.0, 0.0);
@@ -264,6 +285,7 @@ impl SimDrive {
             self.update_axis();
             let now_ms = (self.tick_us / 1000) as u32;
             self.glue.raise_board_faults(&mut self.drive, now_ms);
+            hand_servo_points(&mut *self.axis, &mut self.drive);
             self.drive.tick(self.tick_us, raw);
             // Parameters the drive changed itself (a servo tune's result), every
             // 10 ms as on the board.

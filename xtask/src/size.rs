@@ -13,14 +13,15 @@ use crate::{stack, THUMB};
 /// itself (ed25519, SHA-512, embassy-boot, FoE) added 22 KiB of code and an 8 KiB
 /// stack path (the signature check). That made 144 KiB of flash; the motion features
 /// of issue 20 (cyclic synchronous torque, open-loop stall detection and damping, the
-/// servo tune's inertia and stiffness, the scope) add about 15 KiB of code, so the
-/// budget is now 160 KiB (the active partition holds 226 KiB: room left for a second
-/// flavour of features). RAM: 40 KiB for the static RAM plus the static worst-case
+/// servo tune's inertia and stiffness, the scope) added about 15 KiB of code (160
+/// KiB), the servo tune's move on the drive and the scope at the servo rate another
+/// 7 KiB, so the budget is now 168 KiB (the active partition holds 226 KiB: room left
+/// for a second flavour of features). RAM: 40 KiB for the static RAM plus the static worst-case
 /// stack (of the chip's 128 KiB). It was 32 KiB until the servo tune's move (its fit
 /// state lives in the control state, and the start-up frame that builds the control
 /// state, 8 KiB, is counted as if the interrupts nested on it) and the scope's 3 KiB
 /// buffer took it to 33 KiB. `test` fails above it.
-pub const FLASH_BUDGET: u64 = 160 * 1024;
+pub const FLASH_BUDGET: u64 = 168 * 1024;
 pub const RAM_BUDGET: u64 = 40 * 1024;
 /// What the STM32G474RE can hold: flash, the active partition less its update-header
 /// page (`firmware::flash_layout::IMAGE_MAX`, firmware/memory.x: 228 KiB − 2 KiB);

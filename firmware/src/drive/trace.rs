@@ -1,8 +1,9 @@
 //! The drive's side of the scope ([`crate::scope`]): the sample the supervision tick
-//! takes while the scope records, and the values of the internal signals 0x2510.
+//! takes while the scope records, the samples of the control path's servo periods
+//! at the servo rate, and the values of the internal signals 0x2510.
 
 use super::*;
-use crate::scope::{self, Source};
+use crate::scope::{self, ServoPoint, Source};
 
 impl<S: ParameterStore> Drive<S> {
     /// One tick of the recording scope: every `divisor`-th tick, each channel's value
@@ -10,12 +11,36 @@ impl<S: ParameterStore> Drive<S> {
     /// dictionary read; an entry that cannot be read records 0).
     #[inline(never)]
     pub(super) fn sample_scope(&mut self) {
-        if !self.scope.sample_due() {
+        if self.scope.at_servo_rate() || !self.scope.sample_due() {
             return;
         }
         let mut values = [0i32; scope::CHANNELS];
         for (v, s) in values.iter_mut().zip(self.scope.sources()) {
             *v = self.source_value(s);
+        }
+        self.scope.record(&values);
+    }
+
+    /// The scope records at the servo rate (0x2500:08 = 1): the control path is to
+    /// hand over a [`ServoPoint`] every servo period.
+    pub fn scope_wants_servo_points(&self) -> bool {
+        self.scope.at_servo_rate()
+    }
+
+    /// One servo period's point for the scope at the servo rate (the board's tick
+    /// passes the queued ones before [`Drive::tick`]): every `divisor`-th is a sample,
+    /// the 0x2510 channels from the point, the others as the objects stand.
+    pub fn scope_servo_point(&mut self, p: &ServoPoint) {
+        if !self.scope.at_servo_rate() || !self.scope.sample_due() {
+            return;
+        }
+        let mut values = [0i32; scope::CHANNELS];
+        for (v, s) in values.iter_mut().zip(self.scope.sources()) {
+            *v = if s.index == scope::SIGNALS {
+                s.decode(scope::internal_signal(p, &self.command, s.sub))
+            } else {
+                self.source_value(s)
+            };
         }
         self.scope.record(&values);
     }
@@ -46,23 +71,7 @@ impl<S: ParameterStore> Drive<S> {
             return self.scope.read(index, sub, buf);
         }
         let entry = dictionary::find_entry_in(dictionary::SCOPE, index, sub)?;
-        let c = &self.command;
-        let v: u32 = match sub {
-            1 => self.axis.servo_following_error as u32,
-            2 => sat_i32(c.acceleration) as u32,
-            3 => self.axis.bus_mv,
-            _ => {
-                u32::from(c.power_stage)
-                    | u32::from(c.drive_enabled) << 1
-                    | u32::from(self.axis.current_limited) << 2
-                    | u32::from(c.brake_release) << 3
-            }
-        };
+        let v = scope::internal_signal(&ServoPoint::of(&self.axis), &self.command, sub);
         dictionary::put_le(entry, u64::from(v), buf)
     }
-}
-
-/// `v` rounded toward zero and saturated to `i32` (`as` does both; NaN → 0).
-fn sat_i32(v: f32) -> i32 {
-    v as i32
 }

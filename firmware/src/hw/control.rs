@@ -70,6 +70,7 @@ use firmware::current_supervisor::{CurrentReport, SupervisorConfig};
 use firmware::latch::Edges;
 use firmware::motion::MotionConfig;
 use firmware::sampling::RawSample;
+use firmware::scope::{PointRing, ServoPoint};
 use foc::modulation::Duties;
 
 use crate::board;
@@ -115,6 +116,17 @@ pub static PROBE2_RAW: Exchange<Edges<u32>> = Exchange::new(Edges {
     inactive: 0,
 });
 
+/// Interrupt → supervision tick: the servo periods' points while the scope records
+/// at the servo rate (32 = 3.2 ms, the tick takes them every 1 ms).
+static TRACE: PointRing<32> = PointRing::new();
+
+/// Hands the queued servo points to `f`, oldest first (the tick, before the drive's).
+pub fn drain_trace(mut f: impl FnMut(&ServoPoint)) {
+    while let Some(p) = TRACE.pop() {
+        f(&p);
+    }
+}
+
 /// The control path's view of the board: register access only.
 pub struct BoardHw;
 
@@ -158,6 +170,10 @@ impl ControlHw for BoardHw {
     #[inline(always)]
     fn set_duties(&mut self, d: Duties) {
         pwm::set_compare(d.a1, d.a2, d.b1, d.b2);
+    }
+    #[inline(always)]
+    fn trace(&mut self, p: &ServoPoint) {
+        TRACE.push(p);
     }
 }
 

@@ -73,8 +73,9 @@ fn table_is_well_formed_and_defaults_resolve() {
         let v = rd(&s, CHANNEL_LIST, sub) as u32;
         assert!(Source::resolve(v).is_ok(), "default channel {v:#010x}");
     }
-    assert_eq!(rd(&s, CONFIG, 0), 7);
+    assert_eq!(rd(&s, CONFIG, 0), 8);
     assert_eq!(rd(&s, CONFIG, 1), 1);
+    assert_eq!(rd(&s, CONFIG, 8), 0, "the tick's time base");
     assert_eq!(rd(&s, CHANNEL_LIST, 0), 2);
     assert_eq!(rd(&s, STATUS, 1), State::Idle as i64);
     assert_eq!(rd(&s, DATA, 0), BLOCKS as i64);
@@ -299,7 +300,7 @@ fn bad_configuration_gets_the_standard_aborts() {
     assert_eq!(w8(&mut s, STATUS, 1, 0), Err(SdoAbort::WriteReadOnly));
     assert_eq!(w8(&mut s, CONFIG, 0, 7), Err(SdoAbort::WriteReadOnly));
     assert_eq!(
-        w8(&mut s, CONFIG, 8, 0),
+        w8(&mut s, CONFIG, 9, 0),
         Err(SdoAbort::SubindexDoesNotExist)
     );
     assert_eq!(w8(&mut s, 0x2504, 0, 0), Err(SdoAbort::ObjectDoesNotExist));
@@ -462,4 +463,83 @@ fn the_drive_samples_on_its_tick() {
     d.tick(601_000, 0);
     assert_eq!(d.scope.state(), State::Idle);
     assert_eq!(d.read(DATA, 1, &mut b), Err(SdoAbort::NoDataAvailable));
+}
+
+/// The scope at the servo rate (0x2500:08 = 1): the control path's points are the
+/// samples (every divisor-th), the 0x2510 channels from each point, the others as the
+/// objects stand; the tick takes no sample of its own; the drive asks for points only
+/// while it records so.
+#[test]
+fn the_drive_samples_the_servo_points_at_the_servo_rate() {
+    use crate::drive::{AxisState, Drive};
+    use crate::identity::Variant;
+    use ecat_slave_stack::esm::EsmState;
+    use ecat_slave_stack::od::Dictionary;
+
+    let mut d = Drive::new(Variant::HybridServo, 1);
+    let w = |d: &mut Drive, index: u16, sub: u8, data: &[u8]| {
+        let e = od::find_entry(crate::dictionary::OBJECTS, index, sub)?;
+        od::check_write(e, data, EsmState::PreOp)?;
+        d.write(index, sub, data, EsmState::PreOp)
+    };
+    w(&mut d, CHANNEL_LIST, 0, &[0]).unwrap();
+    for (sub, ch) in [0x2510_0710u32, 0x2510_0520, 0x6064_0020]
+        .into_iter()
+        .enumerate()
+    {
+        w(&mut d, CHANNEL_LIST, sub as u8 + 1, &ch.to_le_bytes()).unwrap();
+    }
+    w(&mut d, CHANNEL_LIST, 0, &[3]).unwrap();
+    assert_eq!(w(&mut d, CONFIG, 8, &[2]), Err(SdoAbort::ValueTooHigh));
+    w(&mut d, CONFIG, 8, &[1]).unwrap();
+    w(&mut d, CONFIG, 1, &3u16.to_le_bytes()).unwrap();
+    w(&mut d, CONFIG, 3, &500i32.to_le_bytes()).unwrap();
+    w(&mut d, CONFIG, 5, &4u16.to_le_bytes()).unwrap();
+    assert!(!d.scope_wants_servo_points(), "not armed yet");
+    w(&mut d, CONFIG, 7, &[command::ARM]).unwrap();
+    assert!(d.scope_wants_servo_points());
+    assert_eq!(
+        w(&mut d, CONFIG, 8, &[0]),
+        Err(SdoAbort::StateConflict),
+        "no change while recording"
+    );
+    d.set_axis(AxisState {
+        position: 777,
+        ..AxisState::default()
+    });
+    // Ten servo points per tick: the current demand steps by 10 per mille a point.
+    let mut k = 0i16;
+    for t in 1..=100u64 {
+        for _ in 0..10 {
+            k += 1;
+            let p = ServoPoint {
+                current_demand: 10 * k,
+                position: 1000 + i32::from(k),
+                ..ServoPoint::default()
+            };
+            d.scope_servo_point(&p);
+        }
+        d.tick(t * 1000, 0);
+        if d.scope.state() == State::Done {
+            break;
+        }
+    }
+    assert_eq!(d.scope.state(), State::Done);
+    assert!(!d.scope_wants_servo_points(), "done");
+    let depth = usize::from(d.scope.depth());
+    assert_eq!(depth, BUFFER_WORDS / 3);
+    let rows = record(&d.scope);
+    assert_eq!(rows.len(), depth);
+    // Points 1, 4, 7, …: the edge through 500 is point 52 (520 ≥ 500 > 490), four
+    // samples before it 40.
+    for (n, row) in rows.iter().enumerate() {
+        let k = 40 + 3 * n as i32;
+        assert_eq!(row[0], 10 * k, "0x2510:07 at sample {n}");
+        assert_eq!(row[1], 1000 + k, "0x2510:05 at sample {n}");
+        assert_eq!(row[2], 777, "0x6064 as the object stands");
+    }
+    // The internal signals read over SDO are the axis state's.
+    let mut b = [0u8; 4];
+    let n = d.read(SIGNALS, 5, &mut b).unwrap();
+    assert_eq!(od::decode_int(DataType::Integer32, &b[..n]), Some(777));
 }

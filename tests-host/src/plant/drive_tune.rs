@@ -48,13 +48,15 @@ impl DriveBench {
     }
 
     /// `n` ticks of 1 ms with the controlword `cw` (the axis gets each step's
-    /// set-points and, every 10 ms, the parameters, as on the board); `each` sees the
-    /// bench after every tick.
+    /// set-points and, every 10 ms, the parameters, the drive the servo points of a
+    /// scope at the servo rate, as on the board); `each` sees the bench after every
+    /// tick.
     pub fn run(&mut self, cw: u16, n: u32, mut each: impl FnMut(&DriveBench)) {
         self.d.cia402.set_controlword(cw);
         for _ in 0..n {
             self.t_us += 1000;
             self.d.set_axis(self.ax.state());
+            crate::sim_drive::hand_servo_points(&mut self.ax, &mut self.d);
             self.d.tick(self.t_us, 0);
             let c = *self.d.command();
             if self.d.steps() != self.steps {
