@@ -112,8 +112,11 @@ pub const CONDITIONS: [(&str, u8); 6] = [
 pub struct ScopeConfig {
     /// Channels, 1 to 8.
     pub channels: Vec<Channel>,
-    /// One sample every `divisor` supervision ticks (1 ms).
+    /// One sample every `divisor` periods of the time base.
     pub divisor: u16,
+    /// Time base: the servo period (100 µs; the internal signals 0x2510 at that
+    /// rate) instead of the supervision tick (1 ms).
+    pub servo_rate: bool,
     /// Trigger channel, 1-based.
     pub trigger_channel: u8,
     /// Trigger level, in the trigger channel's units.
@@ -127,6 +130,15 @@ pub struct ScopeConfig {
 }
 
 impl ScopeConfig {
+    /// Period of the time base, ms.
+    pub fn period_ms(&self) -> f64 {
+        if self.servo_rate {
+            f64::from(firmware::motion::SERVO_TS) * 1e3
+        } else {
+            firmware::drive::TICK_US as f64 * 1e-3
+        }
+    }
+
     /// Samples per channel the drive's buffer holds with these channels.
     pub fn depth(&self) -> usize {
         scope::BUFFER_WORDS / self.channels.len().max(1)
@@ -153,6 +165,8 @@ where
     sd.sdo_write(scope::CONFIG, 4, cfg.condition).await?;
     sd.sdo_write(scope::CONFIG, 5, cfg.pretrigger).await?;
     sd.sdo_write(scope::CONFIG, 6, u8::from(cfg.normal)).await?;
+    sd.sdo_write(scope::CONFIG, 8, u8::from(cfg.servo_rate))
+        .await?;
     Ok(())
 }
 
@@ -358,7 +372,7 @@ impl Record {
             .collect();
         Record {
             channels: cfg.channels.clone(),
-            period_ms: f64::from(cfg.divisor) * firmware::drive::TICK_US as f64 * 1e-3,
+            period_ms: f64::from(cfg.divisor) * cfg.period_ms(),
             trigger: usize::from(st.trigger),
             rows: words
                 .chunks_exact(n)

@@ -3,7 +3,8 @@
 //! pair — and writes the record as CSV and as a PNG plot.
 //!
 //! ```text
-//! scope --iface NAME [--ch INDEX[:SUB]]... [--divisor N] [--trigger-ch N] [--level V]
+//! scope --iface NAME [--ch INDEX[:SUB]]... [--divisor N] [--servo-rate]
+//!       [--trigger-ch N] [--level V]
 //!       [--edge immediate|rising|falling|either|above|below] [--pre N]
 //!       [--mode single|normal] [--move none|csp|pv] [--distance UNITS]
 //!       [--velocity UNITS/S] [--out PREFIX] [--timeout S]
@@ -21,7 +22,9 @@
 //! (following error), 0x606C (velocity actual), 0x2303 (phase A current); one sample
 //! every 3 ms; trigger on channel 1, rising edge, 40 samples before it; single. The
 //! level defaults, for a position channel with a move, to the start position plus
-//! 5 % of the distance, else 0. Exit code 2 for bad options, 1 for a failure.
+//! 5 % of the distance, else 0. `--servo-rate` makes the 100 µs servo period the time
+//! base (the internal signals 0x2510 at that rate, e.g. `--ch 0x2510:7` the q current
+//! demand). Exit code 2 for bad options, 1 for a failure.
 #![deny(clippy::undocumented_unsafe_blocks)]
 
 use std::path::PathBuf;
@@ -53,7 +56,7 @@ struct Options {
     timeout: Duration,
 }
 
-const USAGE: &str = "usage: scope --iface NAME [--ch INDEX[:SUB]]... [--divisor N] \
+const USAGE: &str = "usage: scope --iface NAME [--ch INDEX[:SUB]]... [--divisor N] [--servo-rate] \
 [--trigger-ch N] [--level V] [--edge immediate|rising|falling|either|above|below] [--pre N] \
 [--mode single|normal] [--move none|csp|pv] [--distance UNITS] [--velocity UNITS/S] \
 [--out PREFIX] [--timeout S]";
@@ -69,6 +72,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         cfg: ScopeConfig {
             channels: Vec::new(),
             divisor: 3,
+            servo_rate: false,
             trigger_channel: 1,
             level: 0,
             condition: 1,
@@ -93,6 +97,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
             "--iface" => o.iface = value(a)?,
             "--ch" => o.cfg.channels.push(Channel::parse(&value(a)?)?),
             "--divisor" => o.cfg.divisor = number(a, &value(a)?)?,
+            "--servo-rate" => o.cfg.servo_rate = true,
             "--trigger-ch" => o.cfg.trigger_channel = number(a, &value(a)?)?,
             "--level" => {
                 o.cfg.level = number(a, &value(a)?)?;
