@@ -387,6 +387,21 @@ fn sources_decode_their_entries() {
     assert_eq!(b.decode(0x0000_0009), 9);
 }
 
+/// An SDO download into the drive as the stack does it: the generic checks of the
+/// entry, then the drive's write.
+fn sdo_write(
+    d: &mut crate::drive::Drive,
+    index: u16,
+    sub: u8,
+    data: &[u8],
+) -> Result<(), SdoAbort> {
+    use ecat_slave_stack::esm::EsmState;
+    use ecat_slave_stack::od::Dictionary;
+    let e = od::find_entry(crate::dictionary::OBJECTS, index, sub)?;
+    od::check_write(e, data, EsmState::PreOp)?;
+    d.write(index, sub, data, EsmState::PreOp)
+}
+
 /// The scope in the drive: armed over the dictionary, sampled by the supervision tick
 /// (a CiA 402 slot, a dictionary read, the internal signals), read back block by
 /// block; normal mode re-arms after the last block.
@@ -394,15 +409,10 @@ fn sources_decode_their_entries() {
 fn the_drive_samples_on_its_tick() {
     use crate::drive::{AxisState, Drive};
     use crate::identity::Variant;
-    use ecat_slave_stack::esm::EsmState;
     use ecat_slave_stack::od::Dictionary;
 
     let mut d = Drive::new(Variant::HybridServo, 1);
-    let w = |d: &mut Drive, index: u16, sub: u8, data: &[u8]| {
-        let e = od::find_entry(crate::dictionary::OBJECTS, index, sub)?;
-        od::check_write(e, data, EsmState::PreOp)?;
-        d.write(index, sub, data, EsmState::PreOp)
-    };
+    let w = sdo_write;
     w(&mut d, CHANNEL_LIST, 0, &[0]).unwrap();
     for (sub, ch) in [0x6064_0020u32, 0x2305_0010, 0x2510_0120, 0x2510_0320]
         .into_iter()
@@ -473,15 +483,10 @@ fn the_drive_samples_on_its_tick() {
 fn the_drive_samples_the_servo_points_at_the_servo_rate() {
     use crate::drive::{AxisState, Drive};
     use crate::identity::Variant;
-    use ecat_slave_stack::esm::EsmState;
     use ecat_slave_stack::od::Dictionary;
 
     let mut d = Drive::new(Variant::HybridServo, 1);
-    let w = |d: &mut Drive, index: u16, sub: u8, data: &[u8]| {
-        let e = od::find_entry(crate::dictionary::OBJECTS, index, sub)?;
-        od::check_write(e, data, EsmState::PreOp)?;
-        d.write(index, sub, data, EsmState::PreOp)
-    };
+    let w = sdo_write;
     w(&mut d, CHANNEL_LIST, 0, &[0]).unwrap();
     for (sub, ch) in [0x2510_0710u32, 0x2510_0520, 0x6064_0020]
         .into_iter()
