@@ -163,7 +163,7 @@ impl SupervisorConfig {
         } else {
             25e-6
         };
-        let peak = p.get(Param::PeakCurrent).clamp(100, 20_000) as f32 * 1e-3;
+        let peak = p.settings().peak_current_ma.clamp(100, 20_000) as f32 * 1e-3;
         SupervisorConfig {
             ts,
             pwm_period: pwm_period.max(2),

@@ -294,7 +294,7 @@ impl<S: ParameterStore> Drive<S> {
             .set_resolution(encoder_counts, active.pulses_per_rev);
         self.cia402.set_has_index(self.variant.has_encoder());
         self.cia402
-            .set_rated_current_ma(self.params.get(Param::PeakCurrent) as u32);
+            .set_rated_current_ma(u32::from(self.params.settings().peak_current_ma));
         self.cia402.set_torque_control(self.torque_control());
     }
 
@@ -430,6 +430,11 @@ impl<S: ParameterStore> Drive<S> {
         self.monitor.m.ib_set_ma = a.ib_set_ma;
         self.monitor.m.bus_10mv = (a.bus_mv / 10).min(u32::from(u16::MAX)) as u16;
         self.params.set_load_angle(a.load_angle_ddeg);
+    }
+
+    /// The motor side's measurements last handed to the drive.
+    pub fn axis_state(&self) -> &AxisState {
+        &self.axis
     }
 
     /// The set-points produced by the last cycle.
@@ -820,18 +825,24 @@ impl<S: ParameterStore> Drive<S> {
         }
     }
 
-    /// Output pin levels (bit n = output n+1) and the brake.
+    /// Output pin levels (bit n = output n+1) and whether the drive wants the brake
+    /// released (the runtime adds the power stage's confirmation:
+    /// [`crate::runtime`]).
     pub fn outputs(&self) -> (u8, bool) {
         let op_enabled = self.command.drive_enabled;
+        let master = (
+            self.cia402.digital_outputs(),
+            self.cia402.digital_outputs_mask(),
+        );
+        let brake = io::brake_released(op_enabled, self.faults.any_active(), master);
         let status = OutputStatus {
             alarm: self.faults.alarm(),
             ready: !self.faults.any_active() && self.command.power_stage,
             in_position: self.cia402.statusword() & crate::cia402::sw::TARGET_REACHED != 0,
+            brake_released: brake,
+            enabled: op_enabled,
         };
-        (
-            io::output_levels(&self.params, status),
-            io::brake_released(op_enabled, self.faults.any_active()),
-        )
+        (io::output_levels(&self.params, status, master), brake)
     }
 
     /// One control step of `dt` seconds with set-points of unknown age

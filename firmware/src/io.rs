@@ -7,18 +7,21 @@
 //! (0x2152:n: 1 home, 2 limit−, 4 limit+, 8 fault clear, 16 quick stop, 32 probe) are
 //! active while the input is logically active. Several inputs may share a function (OR).
 //!
-//! Outputs: output n+1 is active when any condition selected by 0x2005:n+1 (bit 0
-//! alarm, bit 1 ready, bit 2 in-position) is true. The pin level is the active state
-//! for an active-high output (0x2008 bit n = 1), inverted otherwise; an output whose
-//! function is *in-position only* (value 4) uses 0x2053 for its active level instead.
-//! The brake output is energised (released) only while the drive holds the motor.
+//! Outputs OUT1-OUT3: output n+1 is active when any condition selected by 0x2005:n+1
+//! (bit 0 alarm, bit 1 ready, bit 2 in-position, bit 3 brake released, bit 4 operation
+//! enabled) is true, or — where the master's mask bit 0x60FE:02 is set — when the
+//! master's bit 0x60FE:01 (bits 16-18) is. The pin level is the active state for an
+//! active-high output (0x2008 bit n = 1), inverted otherwise; an output whose function
+//! is *in-position only* (value 4) uses 0x2053 for its active level instead.
+//! The brake output is energised (released) only while the drive holds the motor and
+//! the master does not set the brake (0x60FE bit 0).
 
 use crate::params::{Param, Params};
 
 /// Number of inputs.
 pub const INPUTS: usize = 5;
-/// Number of function outputs.
-pub const OUTPUTS: usize = 2;
+/// Number of function outputs (OUT1-OUT3).
+pub const OUTPUTS: usize = 3;
 
 /// Input function bits (0x2152).
 pub mod function {
@@ -178,6 +181,10 @@ pub struct OutputStatus {
     pub ready: bool,
     /// Target reached / in position.
     pub in_position: bool,
+    /// The brake is released (its output energised).
+    pub brake_released: bool,
+    /// Operation enabled: the drive holds the motor.
+    pub enabled: bool,
 }
 
 /// Output function bits (0x2005).
@@ -188,21 +195,46 @@ pub mod output {
     pub const READY: u16 = 2;
     /// In position.
     pub const IN_POSITION: u16 = 4;
+    /// Brake released (for an external brake relay).
+    pub const BRAKE: u16 = 8;
+    /// Operation enabled.
+    pub const ENABLED: u16 = 16;
+}
+
+/// 0x60FE:01 / :02 bits of this drive (CiA 402: bit 0 "set brake", bits 16-31
+/// manufacturer-specific): bit 0 engages the brake, bits 16-18 drive OUT1-OUT3.
+pub mod master {
+    /// "Set brake": the brake is engaged whatever the drive wants (it can never be
+    /// released by the master).
+    pub const SET_BRAKE: u32 = 1;
+    /// Bit of OUT1; OUT2 and OUT3 follow.
+    pub const OUT1_SHIFT: u32 = 16;
 }
 
 /// Pin levels (bit n = output n+1 high) from the functions (0x2005), the level byte
-/// (0x2008) and the in-position level (0x2053).
+/// (0x2008), the in-position level (0x2053) and the master's outputs (0x60FE:01 masked
+/// by 0x60FE:02): where the master's mask bit is set, the output shows the master's
+/// bit (as an active state: the level byte applies); elsewhere the function does.
+/// Function 0 is an output only the master drives.
 pub fn output_levels_with(
     functions: [u16; OUTPUTS],
     level_2008: u8,
     in_pos_level_2053: u8,
     s: OutputStatus,
+    master: (u32, u32),
 ) -> u8 {
     let mut pins = 0u8;
     for (n, &f) in functions.iter().enumerate() {
-        let active = (f & output::ALARM != 0 && s.alarm)
-            || (f & output::READY != 0 && s.ready)
-            || (f & output::IN_POSITION != 0 && s.in_position);
+        let bit = 1u32 << (master::OUT1_SHIFT + n as u32);
+        let active = if master.1 & bit != 0 {
+            master.0 & bit != 0
+        } else {
+            (f & output::ALARM != 0 && s.alarm)
+                || (f & output::READY != 0 && s.ready)
+                || (f & output::IN_POSITION != 0 && s.in_position)
+                || (f & output::BRAKE != 0 && s.brake_released)
+                || (f & output::ENABLED != 0 && s.enabled)
+        };
         let active_high = if f == output::IN_POSITION {
             in_pos_level_2053 & 1 != 0
         } else {
@@ -215,23 +247,27 @@ pub fn output_levels_with(
     pins
 }
 
-/// [`output_levels_with`] with the configuration from the parameters.
-pub fn output_levels(p: &Params, s: OutputStatus) -> u8 {
+/// [`output_levels_with`] with the configuration from the parameters and the
+/// master's outputs `(0x60FE:01, 0x60FE:02)`.
+pub fn output_levels(p: &Params, s: OutputStatus, master: (u32, u32)) -> u8 {
     output_levels_with(
         [
             p.get(Param::Out1Function) as u16,
             p.get(Param::Out2Function) as u16,
+            p.get(Param::Out3Function) as u16,
         ],
         p.get(Param::OutputLevel) as u8,
         p.get(Param::InPositionLevel) as u8,
         s,
+        master,
     )
 }
 
-/// Brake output: energised (brake released) only while the motor is held by the
-/// drive (PDS Operation enabled and no fault). A de-energised brake holds the shaft.
-pub fn brake_released(operation_enabled: bool, fault: bool) -> bool {
-    operation_enabled && !fault
+/// The brake may be released: the drive holds the motor, no fault is active, and the
+/// master does not set the brake (0x60FE bit 0 with its mask bit).
+pub fn brake_released(operation_enabled: bool, fault: bool, master: (u32, u32)) -> bool {
+    let set_by_master = master.0 & master.1 & master::SET_BRAKE != 0;
+    operation_enabled && !fault && !set_by_master
 }
 
 #[cfg(test)]
@@ -318,8 +354,7 @@ mod tests {
     fn output_levels_table() {
         let on = OutputStatus {
             alarm: true,
-            ready: false,
-            in_position: false,
+            ..OutputStatus::default()
         };
         let off = OutputStatus::default();
         let ready = OutputStatus { ready: true, ..off };
@@ -328,24 +363,58 @@ mod tests {
             ..off
         };
         // (functions, 2008, 2053, status, pins)
-        let t: &[([u16; 2], u8, u8, OutputStatus, u8)] = &[
-            ([1, 1], 0, 0, off, 0b11), // active-low alarm, inactive → high
-            ([1, 1], 0, 0, on, 0b00),
-            ([1, 1], 0b11, 0, on, 0b11),    // active-high
-            ([1, 2], 0b01, 0, ready, 0b00), // out1 alarm active-high inactive → low; out2 ready active-low active → low
-            ([2, 3], 0b11, 0, ready, 0b11),
-            ([4, 1], 0b11, 0, inpos, 0b00), // in-position uses 2053 = 0: active-low → low; out2 alarm inactive, active-high → low
-            ([4, 1], 0b00, 1, inpos, 0b11), // 2053 = 1: active-high → high; out2 active-low inactive → high
-            ([4, 4], 0, 1, off, 0b00),
+        let t: &[([u16; 3], u8, u8, OutputStatus, u8)] = &[
+            ([1, 1, 0], 0, 0, off, 0b11), // active-low alarm, inactive → high
+            ([1, 1, 0], 0, 0, on, 0b00),
+            ([1, 1, 0], 0b11, 0, on, 0b11),    // active-high
+            ([1, 2, 0], 0b01, 0, ready, 0b00), // out1 alarm active-high inactive → low; out2 ready active-low active → low
+            ([2, 3, 0], 0b11, 0, ready, 0b11),
+            ([4, 1, 0], 0b11, 0, inpos, 0b00), // in-position uses 2053 = 0: active-low → low; out2 alarm inactive, active-high → low
+            ([4, 1, 0], 0b00, 1, inpos, 0b11), // 2053 = 1: active-high → high; out2 active-low inactive → high
+            ([4, 4, 0], 0, 1, off, 0b00),
         ];
         for (i, &(f, l, ip, s, pins)) in t.iter().enumerate() {
-            assert_eq!(output_levels_with(f, l, ip, s), pins, "case {i}");
+            // OUT3 (function 0, active-low) stays inactive: high.
+            assert_eq!(
+                output_levels_with(f, l, ip, s, (0, 0)),
+                pins | 0b100,
+                "case {i}"
+            );
         }
+        // Defaults: OUT3 only the master's, active-high, so low while it is not set.
         let p = Params::new(Variant::HybridServo);
-        assert_eq!(output_levels(&p, on), 0);
-        assert_eq!(output_levels(&p, off), 0b11);
-        assert!(brake_released(true, false));
-        assert!(!brake_released(true, true));
-        assert!(!brake_released(false, false));
+        assert_eq!(output_levels(&p, on, (0, 0)), 0);
+        assert_eq!(output_levels(&p, off, (0, 0)), 0b11);
+        assert!(brake_released(true, false, (0, 0)));
+        assert!(!brake_released(true, true, (0, 0)));
+        assert!(!brake_released(false, false, (0, 0)));
+        // The master sets the brake; without the mask bit it cannot.
+        assert!(!brake_released(true, false, (1, 1)));
+        assert!(brake_released(true, false, (1, 0)));
+        assert!(brake_released(true, false, (0, 1)));
+    }
+
+    #[test]
+    fn master_outputs_and_new_functions() {
+        let off = OutputStatus::default();
+        // OUT3 driven by the master (bit 18 with its mask), active-high.
+        let f = [0, 0, 0];
+        assert_eq!(output_levels_with(f, 0b100, 0, off, (1 << 18, 1 << 18)), 0b100);
+        assert_eq!(output_levels_with(f, 0b100, 0, off, (1 << 18, 0)), 0b000);
+        assert_eq!(output_levels_with(f, 0b100, 0, off, (0, 1 << 18)), 0b000);
+        // The mask overrides the function: an alarm output driven by the master.
+        let alarm = OutputStatus {
+            alarm: true,
+            ..off
+        };
+        assert_eq!(output_levels_with([1, 0, 0], 0b111, 0, alarm, (0, 1 << 16)), 0);
+        // Brake and enabled functions.
+        let st = OutputStatus {
+            brake_released: true,
+            ..off
+        };
+        assert_eq!(output_levels_with([8, 16, 0], 0b111, 0, st, (0, 0)), 0b001);
+        let st = OutputStatus { enabled: true, ..off };
+        assert_eq!(output_levels_with([8, 16, 24], 0b111, 0, st, (0, 0)), 0b110);
     }
 }

@@ -23,6 +23,7 @@ pub mod motion;
 pub mod params;
 pub mod pdo_defaults;
 pub mod power_gate;
+pub mod runtime;
 pub mod sampling;
 pub mod scope;
 pub mod selftest;

@@ -199,7 +199,10 @@ impl MotionConfig {
             n => n as i32,
         }
         .clamp(1, 1 << 24) as u32;
-        let peak = p.get(Param::PeakCurrent).clamp(0, 20_000) as f32 * 1e-3;
+        // Peak and holding current, direction and smoothing: the objects' or the DIP
+        // function switches' (`Params::settings`).
+        let settings = p.settings();
+        let peak = f32::from(settings.peak_current_ma) * 1e-3;
         // Parameter values are always inside their range in the `params` table (every
         // write is checked, internal sets are clamped): the gains and the holding
         // current need no clamp of their own here.
@@ -219,22 +222,18 @@ impl MotionConfig {
             g(Param::VelFf),
             g(Param::SpeedKp).max(1),
         );
-        let filter_s = if p.get(Param::CmdFilterEnable) != 0 {
-            p.get(Param::CmdFilterTime).clamp(0, 1_000_000) as f32 * 1e-6
-        } else {
-            0.0
-        };
+        let filter_s = settings.smoothing_us.min(1_000_000) as f32 * 1e-6;
         MotionConfig {
             ts,
             pulses_per_rev: ppr,
             counts_per_rev: counts,
             closed_loop: counts > 0 && p.get(Param::LoopMode) == 2,
             peak_current: peak,
-            holding_percent: p.get(Param::HoldingCurrent) as u8,
+            holding_percent: settings.holding_percent,
             standby_s: p.get(Param::StandbyTime).clamp(0, 100_000) as f32 * 1e-3,
             soft_start_s: p.get(Param::SoftStart).clamp(0, 100_000) as f32 * 50e-6,
             filter_s,
-            reverse: p.get(Param::DirectionReversal) != 0,
+            reverse: settings.direction_reversed,
             following_error_limit: p.get(Param::FollowingErrorLimit).clamp(1, 1 << 24) as u32,
             gains,
             damping_s: p.get(Param::ResonanceDamping) as f32 * 1e-6,

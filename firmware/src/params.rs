@@ -116,14 +116,15 @@ vendor_params! {
         StandbyTime = rws(0, "Stand-by time", U16, 500, 100, 10000, "ms"),
     }
     0x2005 array "Output function",
-        "bit0 alarm, bit1 ready, bit2 in-position" {
-        _ = EntryDesc::count(2),
-        Out1Function = rws(1, "Output 1 function", U16, 1, 1, 4, ""),
-        Out2Function = rws(2, "Output 2 function", U16, 1, 1, 4, ""),
+        "bit0 alarm, bit1 ready, bit2 in-position, bit3 brake released, bit4 operation enabled; 0 = driven by 0x60FE only" {
+        _ = EntryDesc::count(3),
+        Out1Function = rws(1, "Output 1 function", U16, 1, 0, 31, ""),
+        Out2Function = rws(2, "Output 2 function", U16, 1, 0, 31, ""),
+        Out3Function = rws(3, "Output 3 function", U16, 0, 0, 31, ""),
     }
     0x2008 var "Output level",
         "bit n = 1: output n+1 is active-high" {
-        OutputLevel = rws(0, "Output level", U8, 0, 0, 3, ""),
+        OutputLevel = rws(0, "Output level", U8, 4, 0, 7, ""),
     }
     0x2009 var "Command filter enable",
         "Command smoothing filter on/off" {
@@ -305,6 +306,21 @@ vendor_params! {
         "Station number entered with SW8 on single-bank boards (0 = none); effective after restart" {
         DipStation = rws(0, "Stored DIP station number", U16, 0, 0, 127, ""),
     }
+    0x2157 var "Output state",
+        "Pin levels as driven: bit0-2 OUT1-OUT3, bit 8 brake released, bit 9 green LED, bit 10 red LED, bit 11 RUN LED, bit 12 ERR LED" {
+        _ = EntryDesc::new(0, "Output state", U16, Access::RO).pdo(PdoMappable::Tx),
+    }
+    0x2158 record "DIP switches",
+        "Switch positions read at power-up (bit n = switch n+1 ON) and the motor settings in effect (from the function switches when 0x2025 = 0)" {
+        _ = EntryDesc::count(7),
+        _ = EntryDesc::new(1, "ID bank", U8, Access::RO),
+        _ = EntryDesc::new(2, "Function bank", U8, Access::RO),
+        _ = EntryDesc::new(3, "Station address from the switches", U16, Access::RO),
+        _ = EntryDesc::new(4, "Peak current in effect", U16, Access::RO).unit("mA"),
+        _ = EntryDesc::new(5, "Holding current in effect", U8, Access::RO).unit("%"),
+        _ = EntryDesc::new(6, "Direction reversed in effect", U8, Access::RO),
+        _ = EntryDesc::new(7, "Command smoothing in effect", U32, Access::RO).unit("us"),
+    }
     0x2160 var "Load inertia ratio",
         "Load inertia in % of the rotor inertia; the servo base gains use J·(1 + ratio)" {
         LoadInertiaRatio = rws(0, "Load inertia ratio", U16, 0, 0, 5000, "%"),
@@ -353,6 +369,19 @@ pub struct ActiveConfig {
     pub alias_source: u8,
 }
 
+/// The DIP switches as read at power-up and what they select (0x2158).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct DipReading {
+    /// ID bank, bit n = switch n+1 ON (0 on a single-bank board).
+    pub id_bits: u8,
+    /// Function (or single) bank, bit n = switch n+1 ON.
+    pub function_bits: u8,
+    /// Station address the switches give (0 = none).
+    pub address: u16,
+    /// The function switches' selection (`None`: the board has none in this position).
+    pub functions: Option<crate::dip::DipFunctions>,
+}
+
 /// The vendor parameter values plus the few run-time values of the vendor range.
 #[derive(Debug, Clone)]
 pub struct Params {
@@ -360,6 +389,8 @@ pub struct Params {
     values: [i32; N],
     active: ActiveConfig,
     raw_inputs: u8,
+    output_state: u16,
+    dip: DipReading,
     load_angle_ddeg: i16,
     command_pulses: u32,
     encoder_counts: u32,
@@ -395,6 +426,8 @@ impl Params {
                 alias_source: 0,
             },
             raw_inputs: 0,
+            output_state: 0,
+            dip: DipReading::default(),
             load_angle_ddeg: 0,
             command_pulses: 0,
             encoder_counts: 0,
@@ -481,6 +514,37 @@ impl Params {
         self.raw_inputs = levels & 0x1F;
     }
 
+    /// Sets the pin levels reported by 0x2157 (bit 0-2 OUT1-OUT3, bit 8 brake
+    /// released, bits 9-12 the green, red, RUN and ERR LEDs).
+    pub fn set_output_state(&mut self, state: u16) {
+        self.output_state = state;
+    }
+
+    /// The pin levels reported by 0x2157.
+    pub fn output_state(&self) -> u16 {
+        self.output_state
+    }
+
+    /// Latches the DIP switches read at power-up (0x2158): from now on
+    /// [`Params::settings`] takes the motor settings from the function switches while
+    /// 0x2025 = 0.
+    pub fn set_dip(&mut self, dip: DipReading) {
+        self.dip = dip;
+    }
+
+    /// The DIP switches latched at power-up.
+    pub fn dip(&self) -> DipReading {
+        self.dip
+    }
+
+    /// The motor settings in effect (peak and holding current, direction, command
+    /// smoothing): the function switches' when 0x2025 = 0 and the board has function
+    /// switches in that position, otherwise the objects' ([`crate::dip::settings`]).
+    /// Everything that uses these settings reads them here.
+    pub fn settings(&self) -> crate::dip::Settings {
+        crate::dip::settings(self, self.dip.functions)
+    }
+
     /// Sets the estimated load angle reported by 0x2063, 0.1° electrical.
     pub fn set_load_angle(&mut self, ddeg: i16) {
         self.load_angle_ddeg = ddeg;
@@ -539,6 +603,14 @@ impl Params {
             (None, 0x2042, 0) => self.encoder_counts & 0xFFFF,
             (None, 0x2093, 0) => u32::from(self.fault_history_clear),
             (None, 0x2155, 0) => u32::from(self.raw_inputs),
+            (None, 0x2157, 0) => u32::from(self.output_state),
+            (None, 0x2158, 1) => u32::from(self.dip.id_bits),
+            (None, 0x2158, 2) => u32::from(self.dip.function_bits),
+            (None, 0x2158, 3) => u32::from(self.dip.address),
+            (None, 0x2158, 4) => u32::from(self.settings().peak_current_ma),
+            (None, 0x2158, 5) => u32::from(self.settings().holding_percent),
+            (None, 0x2158, 6) => u32::from(self.settings().direction_reversed),
+            (None, 0x2158, 7) => self.settings().smoothing_us,
             (None, 0x2063, 0) => self.load_angle_ddeg as u32,
             (None, 0x2162, 1) => u32::from(self.servo_tune.state == 1),
             (None, 0x2162, 2) => u32::from(self.servo_tune.state),
@@ -723,9 +795,10 @@ mod tests {
             (0x2000, 0, 3200, 1, 8400),
             (0x2001, 0, 50000, 200, 51200),
             (0x2002, 0, 500, 100, 10000),
-            (0x2005, 1, 1, 1, 4),
-            (0x2005, 2, 1, 1, 4),
-            (0x2008, 0, 0, 0, 3),
+            (0x2005, 1, 1, 0, 31),
+            (0x2005, 2, 1, 0, 31),
+            (0x2005, 3, 0, 0, 31),
+            (0x2008, 0, 4, 0, 7),
             (0x2010, 2, 1000, 50, 25600),
             (0x2013, 0, 1, 0, 1),
             (0x2015, 0, 1000, 200, 32767),
@@ -768,7 +841,7 @@ mod tests {
             );
             assert_eq!(r(&p, i, s), d);
         }
-        assert_eq!(r(&p, 0x2005, 0), 2);
+        assert_eq!(r(&p, 0x2005, 0), 3);
         assert_eq!(r(&p, 0x2152, 0), 5);
         assert_eq!(r(&p, 0x2010, 0), 2);
         let mut buf = [0u8; 4];

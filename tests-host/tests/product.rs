@@ -139,8 +139,9 @@ impl Drive {
             alarm: self.faults.alarm(),
             ready: !self.faults.any_active(),
             in_position: false,
+            ..OutputStatus::default()
         };
-        (led, io::output_levels(&self.params, status))
+        (led, io::output_levels(&self.params, status, (0, 0)))
     }
 
     fn sdo_download(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), u32> {

@@ -807,6 +807,10 @@ impl Cia402 {
     pub fn digital_outputs(&self) -> u32 {
         self.params.digital_outputs & self.params.digital_outputs_mask
     }
+    /// 0x60FE:02: which outputs the master drives.
+    pub fn digital_outputs_mask(&self) -> u32 {
+        self.params.digital_outputs_mask
+    }
     /// Touch probe state.
     pub fn touch_probe(&self) -> &TouchProbe {
         &self.probe

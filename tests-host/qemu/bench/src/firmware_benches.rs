@@ -111,12 +111,13 @@ fn product() {
             alarm: faults.alarm(),
             ready: !faults.any_active(),
             in_position: true,
+            ..OutputStatus::default()
         };
         (
             inputs.digital_inputs_60fd(),
             pwm_off,
             red,
-            io::output_levels(&params, st),
+            io::output_levels(&params, st, (0, 0)),
         )
     });
     black_box(out);

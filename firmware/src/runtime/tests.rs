@@ -1,0 +1,312 @@
+extern crate std;
+
+use std::vec::Vec;
+
+use super::*;
+use crate::dictionary;
+use crate::drive::{AxisState, NoRuntime, NoStore};
+use crate::identity::Variant;
+use ecat_slave_stack::esm::EsmHooks;
+use ecat_slave_stack::od::{self, SdoAbort};
+
+const SPEC: BoardSpec = BoardSpec {
+    dip: dip::Board::TwoBanks,
+    motor: crate::motion::ECN57_20,
+    servo_ts: crate::motion::SERVO_TS,
+    pwm_ts: 25e-6,
+    pwm_arr: 2125,
+};
+
+/// A control path that measures what the test sets and keeps what it is sent.
+#[derive(Default)]
+struct FakePath {
+    axis: AxisState,
+    seq: u32,
+    latched: bool,
+    rearm_ok: bool,
+    sent: Vec<ControlCommand>,
+    rearms: u32,
+}
+
+impl ControlPath for FakePath {
+    fn feedback(&mut self) -> Option<(u32, Feedback)> {
+        self.seq += 1;
+        Some((
+            self.seq,
+            Feedback {
+                axis: self.axis,
+                bridges_on: true,
+                ..Feedback::default()
+            },
+        ))
+    }
+    fn break_latched(&self) -> bool {
+        self.latched
+    }
+    fn send(&mut self, command: &ControlCommand) {
+        self.sent.push(*command);
+    }
+    fn rearm_break(&mut self) -> bool {
+        self.rearms += 1;
+        if self.rearm_ok {
+            self.latched = false;
+        }
+        self.rearm_ok
+    }
+    fn drain_trace(&mut self, _wanted: bool, _sink: &mut dyn FnMut(&ServoPoint)) {}
+}
+
+fn sdo_write(d: &mut Drive, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
+    let e = od::find_entry(dictionary::OBJECTS, index, sub)?;
+    od::check_write(e, data, EsmState::PreOp)?;
+    d.write(index, sub, data, EsmState::PreOp)
+}
+
+fn read_u32(d: &mut Drive, index: u16, sub: u8) -> u32 {
+    let mut b = [0u8; 8];
+    let n = d.read(index, sub, &mut b).expect("read");
+    let mut v = [0u8; 4];
+    v[..n.min(4)].copy_from_slice(&b[..n.min(4)]);
+    u32::from_le_bytes(v)
+}
+
+fn started(spec: BoardSpec, banks: DipBanks, before: impl FnOnce(&mut Drive)) -> (Drive, Runtime, FakePath) {
+    let mut d = Drive::new(Variant::HybridServo, 1);
+    before(&mut d);
+    let mut rt = Runtime::new(spec, &d);
+    let mut path = FakePath {
+        axis: AxisState {
+            bus_mv: 48_000,
+            ..AxisState::default()
+        },
+        ..FakePath::default()
+    };
+    rt.power_up(&mut d, banks, &mut NoRuntime);
+    rt.offsets_checked(&mut d, &mut path, Some((2048.0, 2048.0)));
+    (d, rt, path)
+}
+
+fn ticks(d: &mut Drive, rt: &mut Runtime, path: &mut FakePath, from_ms: u64, n: u64) -> Pins {
+    let mut pins = Pins::default();
+    for k in 0..n {
+        pins = rt.tick(d, path, (from_ms + k) * 1000, 0, 0, None);
+    }
+    pins
+}
+
+fn enable(d: &mut Drive, rt: &mut Runtime, path: &mut FakePath) {
+    for cw in [0x06u16, 0x07, 0x0F] {
+        d.cia402.set_controlword(cw);
+        ticks(d, rt, path, 0, 5);
+    }
+}
+
+#[test]
+fn function_switches_rule_with_control_mode_zero() {
+    // EST-584 bank: SW1-SW3 OFF → 8.4 A, SW4 ON full standstill current, SW5 ON CW,
+    // SW6/SW7 OFF → 25 ms.
+    let banks = DipBanks {
+        id: 0x7E,
+        function: 0b0001_1000,
+    };
+    let (mut d, rt, _) = started(SPEC, banks, |d| {
+        d.params.set_internal(Param::ControlMode, 0)
+    });
+    let m = rt.command().motion;
+    assert!((m.peak_current - 8.4).abs() < 1e-4);
+    assert!(m.reverse);
+    assert_eq!(m.holding_percent, 100);
+    assert!((m.filter_s - 0.025).abs() < 1e-6);
+    // 0x2158 shows the switches and the settings in effect.
+    assert_eq!(read_u32(&mut d, 0x2158, 1), 0x7E);
+    assert_eq!(read_u32(&mut d, 0x2158, 2), 0b0001_1000);
+    assert_eq!(read_u32(&mut d, 0x2158, 3), 1);
+    assert_eq!(read_u32(&mut d, 0x2158, 4), 8400);
+    assert_eq!(read_u32(&mut d, 0x2158, 5), 100);
+    assert_eq!(read_u32(&mut d, 0x2158, 6), 1);
+    assert_eq!(read_u32(&mut d, 0x2158, 7), 25_000);
+    // 0x2000 still reads the object; the torque scaling follows the switches.
+    assert_eq!(read_u32(&mut d, 0x2000, 0), 3200);
+
+    // 0x2025 ≠ 0: the objects rule, the switches are ignored.
+    let (mut d, rt, _) = started(SPEC, banks, |d| {
+        d.params.set_internal(Param::ControlMode, 5)
+    });
+    let m = rt.command().motion;
+    assert!((m.peak_current - 3.2).abs() < 1e-4);
+    assert!(!m.reverse);
+    assert_eq!(read_u32(&mut d, 0x2158, 4), 3200);
+    assert_eq!(read_u32(&mut d, 0x2158, 6), 0);
+    assert_eq!(
+        sdo_write(&mut d, 0x2158, 4, &[0, 0]),
+        Err(SdoAbort::WriteReadOnly)
+    );
+}
+
+#[test]
+fn a_control_mode_change_reaches_the_control_path_within_10_ms() {
+    let banks = DipBanks {
+        id: 0x7F,
+        function: 0b0000_0111, // SW1-SW3 ON: 2.0 A
+    };
+    let (mut d, mut rt, mut path) = started(SPEC, banks, |_| {});
+    assert!((rt.command().motion.peak_current - 3.2).abs() < 1e-4);
+    sdo_write(&mut d, 0x2025, 0, &[0]).unwrap();
+    ticks(&mut d, &mut rt, &mut path, 0, 10);
+    assert!((rt.command().motion.peak_current - 2.0).abs() < 1e-4);
+    assert!((path.sent.last().unwrap().motion.peak_current - 2.0).abs() < 1e-4);
+}
+
+#[test]
+fn single_bank_station_entry_and_power_up() {
+    let spec = BoardSpec {
+        dip: dip::Board::SingleBank,
+        ..SPEC
+    };
+    // Stored station 9, SW8 OFF: functions from SW1-SW7 (DP3CL table: SW1, SW2 ON
+    // → 4.2 A), address 9.
+    let (mut d, mut rt, mut path) = started(spec, DipBanks { id: 0xFF, function: 0b011 }, |d| {
+        d.params.set_internal(Param::DipStation, 9);
+        d.params.set_internal(Param::ControlMode, 0);
+    });
+    assert_eq!(d.params.dip().address, 9);
+    assert_eq!(d.params.dip().id_bits, 0, "no ID bank on this board");
+    assert!((rt.command().motion.peak_current - 4.2).abs() < 1e-4);
+    // SW8 ON, SW1-SW7 = 23, SW8 OFF: 0x2156 = 23 (taken at the next power-up).
+    for (k, bits) in [0x80 | 23u8, 0x80 | 23, 23].into_iter().enumerate() {
+        rt.tick(&mut d, &mut path, k as u64 * 1000, 0, bits, None);
+    }
+    assert_eq!(read_u32(&mut d, 0x2156, 0), 23);
+    assert_eq!(d.params.dip().address, 9, "in effect from the next power-up");
+    // Power-up with SW8 ON: station entry, no function switches: objects rule.
+    let (d, _, _) = started(spec, DipBanks { id: 0, function: 0x80 | 5 }, |d| {
+        d.params.set_internal(Param::ControlMode, 0)
+    });
+    assert_eq!(d.params.dip().functions, None);
+    assert_eq!(d.params.settings().peak_current_ma, 3200);
+}
+
+#[test]
+fn alias_from_the_switches_or_the_objects() {
+    let mut d = Drive::new(Variant::HybridServo, 1);
+    let mut rt = Runtime::new(SPEC, &d);
+    let p = rt.power_up(&mut d, DipBanks { id: 0x7A, function: 0 }, &mut NoRuntime);
+    assert_eq!((p.alias, p.alias_source), (Some(5), AliasSource::Dip));
+    let mut d = Drive::new(Variant::HybridServo, 1);
+    let p = rt.power_up(&mut d, DipBanks { id: 0x7F, function: 0 }, &mut NoRuntime);
+    assert_eq!((p.alias, p.alias_source), (None, AliasSource::Sii));
+}
+
+#[test]
+fn master_outputs_drive_the_pins_and_0x2157() {
+    let (mut d, mut rt, mut path) = started(SPEC, DipBanks::default(), |_| {});
+    let pins = ticks(&mut d, &mut rt, &mut path, 0, 2);
+    assert_eq!(pins.outputs & 0b100, 0, "OUT3 inactive, active-high → low");
+    assert!(pins.green);
+    // OUT3 = 0x60FE bit 18 with its mask bit.
+    sdo_write(&mut d, 0x60FE, 1, &(1u32 << 18).to_le_bytes()).unwrap();
+    let pins = ticks(&mut d, &mut rt, &mut path, 2, 1);
+    assert_eq!(pins.outputs & 0b100, 0, "no mask bit: the master does not drive it");
+    sdo_write(&mut d, 0x60FE, 2, &(1u32 << 18).to_le_bytes()).unwrap();
+    let pins = ticks(&mut d, &mut rt, &mut path, 3, 1);
+    assert_eq!(pins.outputs & 0b100, 0b100);
+    assert_eq!(read_u32(&mut d, 0x2157, 0) & 0x7, u32::from(pins.outputs));
+    assert_eq!(read_u32(&mut d, 0x2157, 0) >> 9 & 1, 1, "green LED");
+}
+
+#[test]
+fn alarm_output_follows_a_fault_and_brake_follows_the_drive() {
+    let (mut d, mut rt, mut path) = started(SPEC, DipBanks::default(), |_| {});
+    let pins = ticks(&mut d, &mut rt, &mut path, 0, 2);
+    // OUT1/OUT2 alarm, active-low: inactive → high.
+    assert_eq!(pins.outputs & 0b11, 0b11);
+    assert!(!pins.brake_released);
+    enable(&mut d, &mut rt, &mut path);
+    let pins = ticks(&mut d, &mut rt, &mut path, 20, 2);
+    assert!(d.command().drive_enabled);
+    assert!(pins.brake_released);
+    assert_eq!(read_u32(&mut d, 0x2157, 0) >> 8 & 1, 1);
+    // The master sets the brake (0x60FE bit 0 with its mask): engaged.
+    sdo_write(&mut d, 0x60FE, 2, &1u32.to_le_bytes()).unwrap();
+    sdo_write(&mut d, 0x60FE, 1, &1u32.to_le_bytes()).unwrap();
+    assert!(!ticks(&mut d, &mut rt, &mut path, 30, 1).brake_released);
+    sdo_write(&mut d, 0x60FE, 1, &0u32.to_le_bytes()).unwrap();
+    assert!(ticks(&mut d, &mut rt, &mut path, 31, 1).brake_released);
+    // Over-voltage: fault, alarm outputs active (low), brake engaged, red LED.
+    path.axis.bus_mv = 70_000;
+    let pins = ticks(&mut d, &mut rt, &mut path, 40, 3);
+    assert!(d.faults.any_active());
+    assert_eq!(pins.outputs & 0b11, 0);
+    assert!(!pins.brake_released);
+    assert_eq!(read_u32(&mut d, 0x2157, 0) >> 8 & 1, 0);
+}
+
+#[test]
+fn brake_never_released_while_the_break_is_latched() {
+    let (mut d, mut rt, mut path) = started(SPEC, DipBanks::default(), |_| {});
+    enable(&mut d, &mut rt, &mut path);
+    assert!(ticks(&mut d, &mut rt, &mut path, 20, 1).brake_released);
+    path.latched = true;
+    for k in 0..5 {
+        let pins = rt.tick(&mut d, &mut path, (30 + k) * 1000, 0, 0, None);
+        assert!(!pins.brake_released, "tick {k}");
+    }
+    assert!(d.faults.is_active(crate::faults::FaultKind::OverCurrent));
+    // The latch is re-armed only after a command without power was sent.
+    assert!(path.rearms > 0);
+    assert!(!path.sent.last().unwrap().power_allowed);
+}
+
+#[test]
+fn counters_follow_the_axis_and_the_command() {
+    let (mut d, mut rt, mut path) = started(SPEC, DipBanks::default(), |_| {});
+    ticks(&mut d, &mut rt, &mut path, 0, 1);
+    // 50 000 command units per revolution, 1000 lines × 4 per revolution.
+    path.axis.position = 12_500;
+    ticks(&mut d, &mut rt, &mut path, 1, 1);
+    let counts = read_u32(&mut d, 0x2041, 0) << 16 | read_u32(&mut d, 0x2042, 0);
+    let cpr = d.params.get(Param::EncoderResolution) as u32 * 4;
+    assert_eq!(counts, cpr / 4);
+    path.axis.position = 0;
+    ticks(&mut d, &mut rt, &mut path, 2, 1);
+    let counts = read_u32(&mut d, 0x2041, 0) << 16 | read_u32(&mut d, 0x2042, 0);
+    assert_eq!(counts, 0, "signed sum back to 0");
+    // Command pulses: the enabled drive's position set-point changes (a PP move).
+    d.on_state_change(EsmState::SafeOp, EsmState::Op);
+    enable(&mut d, &mut rt, &mut path);
+    let before = read_u32(&mut d, 0x2039, 0) << 16 | read_u32(&mut d, 0x2040, 0);
+    sdo_write(&mut d, 0x6060, 0, &[1]).unwrap();
+    sdo_write(&mut d, 0x607A, 0, &5000i32.to_le_bytes()).unwrap();
+    ticks(&mut d, &mut rt, &mut path, 40, 2);
+    d.cia402.set_controlword(0x1F);
+    ticks(&mut d, &mut rt, &mut path, 42, 2000);
+    let after = read_u32(&mut d, 0x2039, 0) << 16 | read_u32(&mut d, 0x2040, 0);
+    assert_eq!(d.command().position, 5000);
+    assert_eq!(after.wrapping_sub(before), 5000, "the move's set-points were counted");
+}
+
+#[test]
+fn watchdog_fed_only_with_samples_ticks_and_control() {
+    let (mut d, mut rt, mut path) = started(SPEC, DipBanks::default(), |_| {});
+    assert!(!rt.feed_watchdog(1, true), "no tick ran yet");
+    ticks(&mut d, &mut rt, &mut path, 0, 1);
+    assert!(!rt.feed_watchdog(1, false), "control state not installed");
+    assert!(rt.feed_watchdog(1, true));
+    ticks(&mut d, &mut rt, &mut path, 1, 1);
+    assert!(!rt.feed_watchdog(1, true), "no new samples");
+    assert!(rt.feed_watchdog(2, true));
+    assert!(!rt.feed_watchdog(3, true), "no tick since the last feed");
+}
+
+#[test]
+fn emergencies_go_to_the_mailbox_before_the_poll() {
+    let (mut d, mut rt, mut path) = started(SPEC, DipBanks::default(), |_| {});
+    path.axis.bus_mv = 70_000;
+    ticks(&mut d, &mut rt, &mut path, 0, 3);
+    let mut sent = Vec::new();
+    rt.before_poll(&mut d, &mut |e| sent.push(e.code));
+    assert!(sent.contains(&0x3210), "{sent:x?}");
+    let work = rt.after_poll(&mut d, &mut path);
+    assert!(!work.reset && !work.confirmed);
+    let _ = NoStore;
+}
