@@ -150,3 +150,112 @@ pub const WATCHDOG_TIMEOUT_US: u32 = 300_000;
 pub const DIP_ROWS: usize = 4;
 /// See [`DIP_ROWS`].
 pub const DIP_COLS: usize = 4;
+
+/// This board as the runtime sees it: the one place the board variant is chosen
+/// (DIP layout, motor, loop periods).
+pub const SPEC: firmware::runtime::BoardSpec = firmware::runtime::BoardSpec {
+    dip: firmware::dip::Board::TwoBanks,
+    motor: MOTOR,
+    servo_ts: firmware::motion::SERVO_TS,
+    pwm_ts: 1.0 / PWM_HZ as f32,
+    pwm_arr: PWM_ARR,
+};
+
+use embassy_stm32::peripherals as pp;
+use embassy_stm32::Peri;
+
+/// The EtherCAT slave controller's pins: SPI2 with its DMA channels, chip select, the
+/// IRQ and SYNC0 lines.
+pub struct EscPins {
+    pub spi: Peri<'static, pp::SPI2>,
+    pub sck: Peri<'static, pp::PB13>,
+    pub mosi: Peri<'static, pp::PB15>,
+    pub miso: Peri<'static, pp::PB14>,
+    pub tx_dma: Peri<'static, pp::DMA1_CH2>,
+    pub rx_dma: Peri<'static, pp::DMA1_CH1>,
+    pub cs: Peri<'static, pp::PB12>,
+    pub irq: Peri<'static, pp::PC2>,
+    pub irq_exti: Peri<'static, pp::EXTI2>,
+    pub sync0: Peri<'static, pp::PC3>,
+    pub sync0_exti: Peri<'static, pp::EXTI3>,
+}
+
+/// The chip's peripherals split by concern ([`split`]).
+pub struct Resources {
+    pub power: crate::hw::pwm::PowerStage<'static>,
+    pub encoder: crate::hw::encoder::EncoderPins<'static>,
+    pub io: crate::hw::io::IoPins<'static>,
+    pub esc: EscPins,
+    /// IN2 (touch probe 2) and its EXTI line.
+    pub in2: (Peri<'static, pp::PB1>, Peri<'static, pp::EXTI1>),
+    pub analog: crate::hw::adc::Analog<'static>,
+    pub flash: Peri<'static, pp::FLASH>,
+    pub iwdg: Peri<'static, pp::IWDG>,
+}
+
+/// The pinout: the one table of which pin does what on the reference board (embassy's
+/// `assign_resources!` idea, written out). Every driver takes its pins from here.
+pub fn split(p: embassy_stm32::Peripherals) -> Resources {
+    Resources {
+        power: crate::hw::pwm::PowerStage {
+            tim1: p.TIM1,
+            a1h: p.PA8,
+            a1l: p.PA7,
+            a2h: p.PA9,
+            a2l: p.PB0,
+            bkin_a: p.PA6,
+            tim8: p.TIM8,
+            b1h: p.PC6,
+            b1l: p.PC10,
+            b2h: p.PC7,
+            b2l: p.PC11,
+            bkin_b: p.PD2,
+        },
+        encoder: crate::hw::encoder::EncoderPins {
+            tim2: p.TIM2,
+            a: p.PA15,
+            b: p.PB3,
+            z: p.PB10,
+            in1: p.PB11,
+        },
+        io: crate::hw::io::IoPins {
+            dip_rows: (p.PA4, p.PA5, p.PB4, p.PB5),
+            dip_cols: (p.PC4, p.PC5, p.PB2, p.PC12),
+            in3: p.PC13,
+            in4: p.PC14,
+            in5: p.PC15,
+            out1: p.PA10,
+            out2: p.PA11,
+            out3: p.PA12,
+            brake: p.PB9,
+            led_green: p.PC8,
+            led_red: p.PC9,
+            led_run: p.PB6,
+            led_err: p.PB7,
+            tp1: p.PC1,
+        },
+        esc: EscPins {
+            spi: p.SPI2,
+            sck: p.PB13,
+            mosi: p.PB15,
+            miso: p.PB14,
+            tx_dma: p.DMA1_CH2,
+            rx_dma: p.DMA1_CH1,
+            cs: p.PB12,
+            irq: p.PC2,
+            irq_exti: p.EXTI2,
+            sync0: p.PC3,
+            sync0_exti: p.EXTI3,
+        },
+        in2: (p.PB1, p.EXTI1),
+        analog: crate::hw::adc::Analog {
+            adc1: p.ADC1,
+            adc2: p.ADC2,
+            ia: p.PA0,
+            ib: p.PA1,
+            vbus: p.PC0,
+        },
+        flash: p.FLASH,
+        iwdg: p.IWDG,
+    }
+}

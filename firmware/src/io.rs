@@ -399,22 +399,28 @@ mod tests {
         let off = OutputStatus::default();
         // OUT3 driven by the master (bit 18 with its mask), active-high.
         let f = [0, 0, 0];
-        assert_eq!(output_levels_with(f, 0b100, 0, off, (1 << 18, 1 << 18)), 0b100);
-        assert_eq!(output_levels_with(f, 0b100, 0, off, (1 << 18, 0)), 0b000);
-        assert_eq!(output_levels_with(f, 0b100, 0, off, (0, 1 << 18)), 0b000);
+        assert_eq!(
+            output_levels_with(f, 0b111, 0, off, (1 << 18, 1 << 18)),
+            0b100
+        );
+        assert_eq!(output_levels_with(f, 0b111, 0, off, (1 << 18, 0)), 0b000);
+        assert_eq!(output_levels_with(f, 0b111, 0, off, (0, 1 << 18)), 0b000);
         // The mask overrides the function: an alarm output driven by the master.
-        let alarm = OutputStatus {
-            alarm: true,
-            ..off
-        };
-        assert_eq!(output_levels_with([1, 0, 0], 0b111, 0, alarm, (0, 1 << 16)), 0);
+        let alarm = OutputStatus { alarm: true, ..off };
+        assert_eq!(
+            output_levels_with([1, 0, 0], 0b111, 0, alarm, (0, 1 << 16)),
+            0
+        );
         // Brake and enabled functions.
         let st = OutputStatus {
             brake_released: true,
             ..off
         };
         assert_eq!(output_levels_with([8, 16, 0], 0b111, 0, st, (0, 0)), 0b001);
-        let st = OutputStatus { enabled: true, ..off };
+        let st = OutputStatus {
+            enabled: true,
+            ..off
+        };
         assert_eq!(output_levels_with([8, 16, 24], 0b111, 0, st, (0, 0)), 0b110);
     }
 }

@@ -292,14 +292,17 @@ impl Runtime {
         ctl: &mut dyn ControlPath,
     ) {
         if let Some((seq, fb)) = ctl.feedback() {
-            self.glue
-                .update_axis(drive, seq, &fb, ctl.break_latched());
+            self.glue.update_axis(drive, seq, &fb, ctl.break_latched());
         }
     }
 
     /// After a drive step (or whenever the permissions may have changed): the command
     /// to the control path.
-    pub fn after_step<S: ParameterStore>(&mut self, drive: &mut Drive<S>, ctl: &mut dyn ControlPath) {
+    pub fn after_step<S: ParameterStore>(
+        &mut self,
+        drive: &mut Drive<S>,
+        ctl: &mut dyn ControlPath,
+    ) {
         let c = *self.glue.publish(drive);
         ctl.send(&c);
     }
@@ -333,7 +336,9 @@ impl Runtime {
         if self.spec.dip == dip::Board::SingleBank {
             if let Some(station) = self.single_bank.update(dip_bits) {
                 // Stored with the next save; the DIP address from the next power-up.
-                drive.params.set_internal(Param::DipStation, i32::from(station));
+                drive
+                    .params
+                    .set_internal(Param::DipStation, i32::from(station));
             }
         }
         if self.ticks.is_multiple_of(10) {
@@ -391,7 +396,8 @@ impl Runtime {
     /// produced new samples (`samples`: its sample counter), its control state is
     /// installed (`control_ready`) and the 1 ms tick ran since the last feed.
     pub fn feed_watchdog(&mut self, samples: u32, control_ready: bool) -> bool {
-        let feed = control_ready && samples != self.samples_at_feed && self.ticks != self.ticks_at_feed;
+        let feed =
+            control_ready && samples != self.samples_at_feed && self.ticks != self.ticks_at_feed;
         if feed {
             self.samples_at_feed = samples;
             self.ticks_at_feed = self.ticks;

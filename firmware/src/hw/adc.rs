@@ -271,3 +271,39 @@ fn ADC1_2() {
     let dt = cortex_m::peripheral::DWT::cycle_count().wrapping_sub(t0);
     ISR_MAX_CYCLES.fetch_max(dt, Ordering::Relaxed);
 }
+
+/// The offsets of the current sensors with the bridges off (`None`: the check
+/// failed, fault 9).
+pub async fn offset_self_check(wdg: &mut crate::hw::safety::Watchdog) -> Option<(f32, f32)> {
+    let mut cal = firmware::sampling::OffsetCalibrator::new(crate::board::OFFSET_SAMPLES);
+    let mut last = crate::hw::control::SAMPLES.sequence();
+    let mut idle = 0u32;
+    // New samples arrive every 25 µs; give up after 10 ms without one.
+    while !cal.is_complete() && idle < 200 {
+        embassy_time::Timer::after_micros(50).await;
+        match crate::hw::control::latest_sample() {
+            Some((seq, s)) if seq != last => {
+                last = seq;
+                idle = 0;
+                cal.add(s);
+            }
+            _ => idle += 1,
+        }
+        wdg.pet();
+    }
+    match cal.finish(&crate::board::ANALOG) {
+        Ok(o) => {
+            defmt::info!(
+                "current-sensor offsets: A {=f32} B {=f32} counts",
+                o.ia,
+                o.ib
+            );
+            Some((o.ia, o.ib))
+        }
+        Err(e) => {
+            crate::hw::safety::raise_fault(crate::hw::safety::FAULT_CURRENT_SENSING);
+            defmt::error!("fault 9, current-sensor self-check: {}", e);
+            None
+        }
+    }
+}

@@ -44,3 +44,30 @@ pub fn config() -> embassy_stm32::Config {
     c.bdma_interrupt_priority = Priority::P1;
     c
 }
+
+/// The chip's set-up after `embassy_stm32::init`, then the first log line.
+pub fn start_chip() {
+    // While a debugger halts the core: PWM counters stop with the bridges forced off
+    // (as if MOE were cleared), and the watchdog pauses.
+    embassy_stm32::pac::DBGMCU.apb2fzr().modify(|w| {
+        w.set_tim1(true);
+        w.set_tim8(true);
+    });
+    embassy_stm32::pac::DBGMCU
+        .apb1lfzr()
+        .modify(|w| w.set_iwdg(true));
+    if let Some(core) = cortex_m::Peripherals::take() {
+        crate::hw::adc::enable_cycle_counter(core.DCB, core.DWT);
+    }
+    // The time driver defaults to priority 0; keep it below the control path.
+    embassy_stm32::interrupt::InterruptExt::set_priority(
+        embassy_stm32::interrupt::TIM5,
+        embassy_stm32::interrupt::Priority::P3,
+    );
+    defmt::info!(
+        "ECS drive firmware {=str} ({=str}), reset cause: {=istr}",
+        env!("CARGO_PKG_VERSION"),
+        crate::hw::esc::ESC_NAME,
+        crate::hw::safety::take_reset_cause()
+    );
+}

@@ -251,3 +251,35 @@ pub fn on_sample(s: RawSample) {
         unsafe { FEEDBACK.write(fb) };
     }
 }
+
+/// The current-loop interrupt and the break latch as the runtime reaches them
+/// ([`firmware::runtime::ControlPath`]): register and exchange access only.
+pub struct BoardPath;
+
+impl firmware::runtime::ControlPath for BoardPath {
+    fn feedback(&mut self) -> Option<(u32, Feedback)> {
+        feedback()
+    }
+    fn break_latched(&self) -> bool {
+        crate::hw::pwm::break_latched() != 0
+    }
+    fn send(&mut self, command: &ControlCommand) {
+        send_command(command);
+    }
+    fn rearm_break(&mut self) -> bool {
+        crate::hw::pwm::rearm()
+    }
+    fn drain_trace(&mut self, _wanted: bool, sink: &mut dyn FnMut(&ServoPoint)) {
+        // The interrupt traces while the command says so (`ControlCommand::trace`).
+        drain_trace(|p| sink(p));
+    }
+}
+
+/// Publishes a command to the current-loop interrupt (not inlined: one copy of the
+/// volatile write for every caller).
+#[inline(never)]
+pub fn send_command(c: &ControlCommand) {
+    // SAFETY: every caller holds the drive's lock (or runs at start-up before the
+    // tasks exist): one writer at a time.
+    unsafe { COMMAND.write(Some(*c)) };
+}

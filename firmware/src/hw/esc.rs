@@ -246,3 +246,34 @@ pub fn probe(esc: &mut Esc) -> Result<(), ecat_slave_stack::EscError> {
     );
     Ok(())
 }
+
+/// [`probe`], logging why the ESC does not answer.
+pub fn probe_logged(esc: &mut Esc) -> bool {
+    match probe(esc) {
+        Ok(()) => true,
+        Err(e) => {
+            defmt::error!(
+                "ESC {=str} not answering: {=istr}",
+                ESC_NAME,
+                crate::hw::log::esc_error(e)
+            );
+            false
+        }
+    }
+}
+
+/// `Slave::init` (after the station alias was set), logged.
+pub fn init_logged(slave: &mut ecat_slave_stack::slave::Slave<Esc>) {
+    match slave.init() {
+        Ok(info) => defmt::info!(
+            "slave runtime: ESC type {=u8:#04x}, {=u8} SMs, {=u8} KiB RAM",
+            info.esc_type,
+            info.sync_managers,
+            info.ram_kib
+        ),
+        Err(e) => {
+            crate::hw::log::ESC_ERRORS.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
+            defmt::error!("slave init: {=istr}", crate::hw::log::esc_error(e));
+        }
+    }
+}

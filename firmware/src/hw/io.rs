@@ -210,3 +210,13 @@ pub fn emergency_indicators() {
     pac::GPIOC.bsrr().write(|w| w.set_bs(9, true));
     pac::GPIOB.bsrr().write(|w| w.set_br(9, true));
 }
+
+/// Drives the outputs, the brake and the LEDs to the levels the runtime's tick chose.
+pub fn write_pins(leds: &mut Leds<'_>, ports: &mut Ports<'_>, pins: &firmware::runtime::Pins) {
+    ports.write_outputs(pins.outputs);
+    ports.set_brake_released(pins.brake_released);
+    set_output(&mut leds.green, pins.green);
+    set_output(&mut leds.red, pins.red);
+    set_output(&mut leds.run, pins.run);
+    set_output(&mut leds.err, pins.err);
+}

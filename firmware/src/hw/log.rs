@@ -170,3 +170,30 @@ pub fn status_line(
         );
     }
 }
+
+/// The power-up's log line: DIP banks, station alias and the parameter load.
+pub fn power_up(up: &firmware::runtime::PowerUp, banks: hw::io::DipBanks) {
+    defmt::info!(
+        "DIP banks: {}, station address {=u16}; alias {} ({})",
+        banks,
+        up.dip.address,
+        up.alias,
+        up.alias_source
+    );
+    defmt::info!(
+        "parameters: {=u16} applied, {=u16} skipped, from slot {}",
+        up.report.applied,
+        up.report.skipped,
+        up.report.source.map(|(slot, seq)| (slot as u8, seq))
+    );
+}
+
+/// The status line's view of the ESM and the bridges.
+pub fn link_status(slave: Option<&ecat_slave_stack::slave::Slave<hw::esc::Esc>>) -> LinkStatus {
+    let (al_status, al_code) = slave.map_or((0, 0), |sl| (sl.esm().status_word(), sl.esm().code()));
+    LinkStatus {
+        al_status,
+        al_code,
+        bridges_on: hw::control::feedback().is_some_and(|(_, f)| f.bridges_on),
+    }
+}

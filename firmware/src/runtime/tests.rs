@@ -70,7 +70,11 @@ fn read_u32(d: &mut Drive, index: u16, sub: u8) -> u32 {
     u32::from_le_bytes(v)
 }
 
-fn started(spec: BoardSpec, banks: DipBanks, before: impl FnOnce(&mut Drive)) -> (Drive, Runtime, FakePath) {
+fn started(
+    spec: BoardSpec,
+    banks: DipBanks,
+    before: impl FnOnce(&mut Drive),
+) -> (Drive, Runtime, FakePath) {
     let mut d = Drive::new(Variant::HybridServo, 1);
     before(&mut d);
     let mut rt = Runtime::new(spec, &d);
@@ -165,10 +169,17 @@ fn single_bank_station_entry_and_power_up() {
     };
     // Stored station 9, SW8 OFF: functions from SW1-SW7 (DP3CL table: SW1, SW2 ON
     // → 4.2 A), address 9.
-    let (mut d, mut rt, mut path) = started(spec, DipBanks { id: 0xFF, function: 0b011 }, |d| {
-        d.params.set_internal(Param::DipStation, 9);
-        d.params.set_internal(Param::ControlMode, 0);
-    });
+    let (mut d, mut rt, mut path) = started(
+        spec,
+        DipBanks {
+            id: 0xFF,
+            function: 0b011,
+        },
+        |d| {
+            d.params.set_internal(Param::DipStation, 9);
+            d.params.set_internal(Param::ControlMode, 0);
+        },
+    );
     assert_eq!(d.params.dip().address, 9);
     assert_eq!(d.params.dip().id_bits, 0, "no ID bank on this board");
     assert!((rt.command().motion.peak_current - 4.2).abs() < 1e-4);
@@ -177,11 +188,20 @@ fn single_bank_station_entry_and_power_up() {
         rt.tick(&mut d, &mut path, k as u64 * 1000, 0, bits, None);
     }
     assert_eq!(read_u32(&mut d, 0x2156, 0), 23);
-    assert_eq!(d.params.dip().address, 9, "in effect from the next power-up");
+    assert_eq!(
+        d.params.dip().address,
+        9,
+        "in effect from the next power-up"
+    );
     // Power-up with SW8 ON: station entry, no function switches: objects rule.
-    let (d, _, _) = started(spec, DipBanks { id: 0, function: 0x80 | 5 }, |d| {
-        d.params.set_internal(Param::ControlMode, 0)
-    });
+    let (d, _, _) = started(
+        spec,
+        DipBanks {
+            id: 0,
+            function: 0x80 | 5,
+        },
+        |d| d.params.set_internal(Param::ControlMode, 0),
+    );
     assert_eq!(d.params.dip().functions, None);
     assert_eq!(d.params.settings().peak_current_ma, 3200);
 }
@@ -190,10 +210,24 @@ fn single_bank_station_entry_and_power_up() {
 fn alias_from_the_switches_or_the_objects() {
     let mut d = Drive::new(Variant::HybridServo, 1);
     let mut rt = Runtime::new(SPEC, &d);
-    let p = rt.power_up(&mut d, DipBanks { id: 0x7A, function: 0 }, &mut NoRuntime);
+    let p = rt.power_up(
+        &mut d,
+        DipBanks {
+            id: 0x7A,
+            function: 0,
+        },
+        &mut NoRuntime,
+    );
     assert_eq!((p.alias, p.alias_source), (Some(5), AliasSource::Dip));
     let mut d = Drive::new(Variant::HybridServo, 1);
-    let p = rt.power_up(&mut d, DipBanks { id: 0x7F, function: 0 }, &mut NoRuntime);
+    let p = rt.power_up(
+        &mut d,
+        DipBanks {
+            id: 0x7F,
+            function: 0,
+        },
+        &mut NoRuntime,
+    );
     assert_eq!((p.alias, p.alias_source), (None, AliasSource::Sii));
 }
 
@@ -206,7 +240,11 @@ fn master_outputs_drive_the_pins_and_0x2157() {
     // OUT3 = 0x60FE bit 18 with its mask bit.
     sdo_write(&mut d, 0x60FE, 1, &(1u32 << 18).to_le_bytes()).unwrap();
     let pins = ticks(&mut d, &mut rt, &mut path, 2, 1);
-    assert_eq!(pins.outputs & 0b100, 0, "no mask bit: the master does not drive it");
+    assert_eq!(
+        pins.outputs & 0b100,
+        0,
+        "no mask bit: the master does not drive it"
+    );
     sdo_write(&mut d, 0x60FE, 2, &(1u32 << 18).to_le_bytes()).unwrap();
     let pins = ticks(&mut d, &mut rt, &mut path, 3, 1);
     assert_eq!(pins.outputs & 0b100, 0b100);
@@ -282,7 +320,11 @@ fn counters_follow_the_axis_and_the_command() {
     ticks(&mut d, &mut rt, &mut path, 42, 2000);
     let after = read_u32(&mut d, 0x2039, 0) << 16 | read_u32(&mut d, 0x2040, 0);
     assert_eq!(d.command().position, 5000);
-    assert_eq!(after.wrapping_sub(before), 5000, "the move's set-points were counted");
+    assert_eq!(
+        after.wrapping_sub(before),
+        5000,
+        "the move's set-points were counted"
+    );
 }
 
 #[test]
