@@ -21,7 +21,7 @@ pub type BoardDrive = Drive<FlashStore<StagedFlash>>;
 
 /// The parameter-record store in the flash region (offsets relative to the region;
 /// the layout of `firmware::storage::region`: parameters, then the fault history).
-const PARAM_STORE: firmware::storage::Storage = firmware::storage::region::PARAMS;
+pub const PARAM_STORE: firmware::storage::Storage = firmware::storage::region::PARAMS;
 const _: () = assert!(firmware::storage::region::SIZE == board::PARAM_FLASH_SIZE);
 
 /// The ESC of this build, as update images name it.
@@ -77,6 +77,8 @@ pub fn start_flash(
 /// state is ≈ 5 KiB, and building it on the stack and moving it would add that
 /// (twice) to the stack peak. Not inlined: start-up code that runs once.
 #[inline(never)]
+// The mutable references come from this module's static slots, not from `chip`.
+#[allow(clippy::mut_from_ref)]
 pub fn place_drive_and_slave(
     chip: Option<&'static hw::flash::ChipFlash>,
     staged: StagedFlash,

@@ -187,7 +187,10 @@ fn record_check(flash: Option<&mut flash::ParamFlash>) -> Verdict {
     };
     let save = u32::from_le_bytes(*b"save").to_le_bytes();
     let staged = crate::with_drive_state(|s| {
-        let probe = st::record_probe(&crate::PARAM_STORE, &mut s.drive.store_mut()?.flash);
+        let probe = st::record_probe(
+            &crate::hw::boot::PARAM_STORE,
+            &mut s.drive.store_mut()?.flash,
+        );
         let result = match s.slave.as_mut() {
             Some(slave) => {
                 let mut rt = slave.runtime_objects(firmware::dictionary::OBJECTS);
@@ -225,7 +228,7 @@ fn record_check(flash: Option<&mut flash::ParamFlash>) -> Verdict {
         let st_flash = &mut s.drive.store_mut()?.flash;
         st_flash.give_back(stage);
         Some(match programmed {
-            Ok(()) => st::record_check(&crate::PARAM_STORE, st_flash, probe),
+            Ok(()) => st::record_check(&crate::hw::boot::PARAM_STORE, st_flash, probe),
             Err(_) => Verdict::Fail("programming the flash failed"),
         })
     })
