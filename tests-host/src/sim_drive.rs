@@ -10,8 +10,11 @@
 //! clock, which steps the drive whether or not frames arrive, and forwarding the
 //! drive's emergencies to the mailbox.
 //!
-//! Between the drive and the axis sits the board's own glue,
-//! [`firmware::board_glue::BoardGlue`] (the same code as `firmware/src/main.rs`): the
+//! Between the drive and the axis sits the board's runtime,
+//! [`firmware::runtime::Runtime`] (what `firmware/src/main.rs`'s tasks call, called
+//! here in the same order: the tick in [`SimDrive::catch_up`], the cycle in
+//! [`SlaveApplication::cycle`], the mailbox work in [`forward_emergencies`]), and
+//! through it the board's glue [`firmware::board_glue::BoardGlue`]: the
 //! axis's measurements become a [`Feedback`] for [`BoardGlue::update_axis`] (index
 //! kept until a drive step consumed it, a failed commutation alignment,
 //! [`Axis::commutation_failures`], → following-error fault 0x8611 at the next tick,
@@ -27,12 +30,11 @@ use ecat_slave_stack::od::{Dictionary, Object, SdoAbort};
 use ecat_slave_stack::pdo::ProcessData;
 use ecat_slave_stack::sii::EscFlavour;
 use ecat_slave_stack::slave::{CycleInfo, SlaveApplication, SlaveConfig};
-use firmware::board_glue::{BoardGlue, ControlCommand, Feedback};
+use firmware::board_glue::{ControlCommand, Feedback};
 use firmware::cia402::DriveCommand;
-use firmware::current_supervisor::SupervisorConfig;
 use firmware::drive::{AxisState, Drive, FlashStore};
 use firmware::identity::{self, Variant};
-use firmware::motion::MotionConfig;
+use firmware::runtime::{BoardSpec, ControlPath, DipBanks, EsmView, Runtime};
 use firmware::storage::region;
 
 use crate::esc_sim::frame::FrameOutcome;
@@ -123,36 +125,144 @@ pub struct SimDriveConfig {
     pub flavour: Flavour,
     /// Parameter flash mirrored to this file (one file per drive: `FILE`, `FILE.2`, …).
     pub flash_file: Option<PathBuf>,
+    /// The DIP banks as they stand at power-up (`virtual-drive --dip-id` /
+    /// `--dip-function`; bit n = switch n+1 ON).
+    pub dips: DipBanks,
 }
+
+impl SimDriveConfig {
+    /// `motor` on `flavour`, no flash file, the DIP switches all ON (no DIP address;
+    /// the function bank's smallest current, used only with 0x2025 = 0).
+    pub fn new(motor: Motor, flavour: Flavour) -> Self {
+        SimDriveConfig {
+            motor,
+            flavour,
+            flash_file: None,
+            dips: DIPS_ALL_ON,
+        }
+    }
+}
+
+/// Every DIP switch ON: no DIP station address; the function bank selects the
+/// smallest current (used only with 0x2025 = 0).
+pub const DIPS_ALL_ON: DipBanks = DipBanks {
+    id: 0xFF,
+    function: 0xFF,
+};
+
+/// The simulated board: the reference board's DIP layout, the ECN57-20, the plant
+/// rig's loop periods.
+pub const SIM_BOARD: BoardSpec = BoardSpec {
+    dip: firmware::dip::Board::TwoBanks,
+    motor: firmware::motion::ECN57_20,
+    servo_ts: firmware::motion::SERVO_TS,
+    pwm_ts: crate::plant::rig::TS,
+    pwm_arr: 2125,
+};
 
 /// The drive's parameter flash.
 pub type SimStore = FlashStore<FileFlash>;
 
-/// One simulated drive: firmware drive application + axis.
+/// One simulated drive: firmware drive application + axis, sequenced by the board's
+/// runtime ([`Runtime`]).
 pub struct SimDrive {
     /// The firmware's drive application.
     pub drive: Drive<SimStore>,
     /// The motor side.
     pub axis: Box<dyn Axis>,
+    /// The board's runtime: what the board's tasks call, called here in the same order.
+    pub rt: Runtime,
+    /// The runtime's view of the axis (the board's current-loop exchange).
+    path: PathState,
     /// Simulated time the axis has reached, µs.
     axis_us: u64,
     /// Simulated time of the last 1 ms tick, µs.
     tick_us: u64,
-    /// The board's glue between the drive and the axis.
-    glue: BoardGlue,
-    /// The glue's segment number the axis has taken the set-points of.
-    seen_cycle: u32,
-    /// Publications of the axis's measurements ([`Feedback`] sequence number).
-    fb_seq: u32,
+    /// The DIP banks at power-up.
+    pub dips: DipBanks,
+    /// The ESM as the LEDs show it (from the slave runtime, when the segment saw it).
+    esm: Option<EsmView>,
     /// 0x1018:04.
     serial: u32,
     /// The boot flash and ESC of the firmware update, when attached.
     boot: Option<(&'static crate::sim_update::SharedFlash, Flavour)>,
     /// What the bootloader did at this start.
     boot_state: Option<Result<embassy_boot::State, String>>,
+}
+
+/// What the simulated control path keeps between calls (the board's exchange
+/// sequence numbers and latches).
+#[derive(Debug, Clone, Copy, Default)]
+struct PathState {
+    /// Publications of the axis's measurements ([`Feedback`] sequence number).
+    fb_seq: u32,
     /// Index pulses the axis has reported (`Feedback::index_seq`) and the last one.
     index_seq: u32,
     index_units: i32,
+    /// The command's segment number the axis has taken the set-points of.
+    seen_cycle: u32,
+    /// The last command's auto-tune permission.
+    tune_allowed: bool,
+    /// The axis reports a tripped power stage (the board's break latch).
+    tripped: bool,
+}
+
+/// The axis as the runtime's [`ControlPath`] (what `hw::control::BoardPath` is on
+/// the board).
+struct SimPath<'a> {
+    axis: &'a mut dyn Axis,
+    st: &'a mut PathState,
+}
+
+impl ControlPath for SimPath<'_> {
+    fn feedback(&mut self) -> Option<(u32, Feedback)> {
+        let axis = self.axis.state();
+        let st = &mut *self.st;
+        if let Some(u) = axis.index {
+            st.index_seq = st.index_seq.wrapping_add(1);
+            st.index_units = u;
+        }
+        st.tripped = axis.overcurrent_trip;
+        let current = self.axis.current_control(st.tune_allowed);
+        st.fb_seq = st.fb_seq.wrapping_add(1).max(1);
+        Some((
+            st.fb_seq,
+            Feedback {
+                axis,
+                index_seq: st.index_seq,
+                index_units: st.index_units,
+                align_failures: self.axis.commutation_failures(),
+                current,
+                ..Feedback::default()
+            },
+        ))
+    }
+    fn break_latched(&self) -> bool {
+        self.st.tripped
+    }
+    fn send(&mut self, c: &ControlCommand) {
+        self.st.tune_allowed = c.tune_allowed;
+        if c.cycle != self.st.seen_cycle {
+            self.st.seen_cycle = c.cycle;
+            self.axis.command(&c.command, f64::from(c.cycle_s));
+        }
+    }
+    fn rearm_break(&mut self) -> bool {
+        // The model's trip is its condition: re-armed once the model no longer
+        // reports it.
+        self.st.tripped = self.axis.state().overcurrent_trip;
+        !self.st.tripped
+    }
+    fn drain_trace(&mut self, wanted: bool, sink: &mut dyn FnMut(&firmware::scope::ServoPoint)) {
+        let mut points = Vec::new();
+        self.axis.servo_points(wanted, &mut points);
+        for p in &points {
+            sink(p);
+        }
+    }
+    fn parameters(&mut self, params: &firmware::params::Params) {
+        self.axis.parameters(params);
+    }
 }
 
 impl SimDrive {
@@ -164,45 +274,36 @@ impl SimDrive {
             flash,
         };
         let drive = Drive::with_store(Variant::HybridServo, serial, store);
-        let p = &drive.params;
-        let mut glue = BoardGlue::new(ControlCommand {
-            cycle: 0,
-            command: *drive.command(),
-            cycle_s: 1e-3,
-            power_allowed: false,
-            config: 0,
-            // The axis takes its configuration from the parameters itself
-            // (`Axis::parameters`); these fields are the board's only.
-            motion: MotionConfig::from_params(
-                p,
-                Variant::HybridServo,
-                &firmware::motion::ECN57_20,
-                firmware::motion::SERVO_TS,
-            ),
-            align_wiggle: false,
-            offsets: None,
-            supervisor: SupervisorConfig::from_params(p, crate::plant::rig::TS, 2125),
-            tune_allowed: false,
-            trace: false,
-        });
-        // The simulated current sensors have no start-up check: passed at nominal.
-        glue.offsets_passed(0.0, 0.0);
-        let mut drive = drive;
-        drive.startup_checks_done(true);
-        SimDrive {
+        let rt = Runtime::new(SIM_BOARD, &drive);
+        let mut d = SimDrive {
             drive,
             axis,
+            rt,
+            path: PathState::default(),
             axis_us: 0,
             tick_us: 0,
-            glue,
-            seen_cycle: 0,
-            fb_seq: 0,
+            dips: DIPS_ALL_ON,
+            esm: None,
             serial,
             boot: None,
             boot_state: None,
-            index_seq: 0,
-            index_units: 0,
-        }
+        };
+        // The simulated current sensors have no start-up check: passed at nominal.
+        let (drive, rt, mut path) = d.parts();
+        rt.offsets_checked(drive, &mut path, Some((0.0, 0.0)));
+        d
+    }
+
+    /// The drive, the runtime and the axis as the runtime's control path.
+    fn parts(&mut self) -> (&mut Drive<SimStore>, &mut Runtime, SimPath<'_>) {
+        (
+            &mut self.drive,
+            &mut self.rt,
+            SimPath {
+                axis: &mut *self.axis,
+                st: &mut self.path,
+            },
+        )
     }
 
     /// Gives the drive its firmware update over the boot flash `shared` (see
@@ -229,7 +330,7 @@ impl SimDrive {
 
     /// A reset of the drive's processor (after an accepted update, as the board does
     /// on Bootstrap → Init): a new drive over the same parameter flash, boot flash
-    /// (the bootloader swaps or reverts first) and motor. Call
+    /// (the bootloader swaps or reverts first), motor and switches. Call
     /// [`restart_requested`] rather, which also restarts the slave runtime.
     fn reset(&mut self) {
         let flash = self
@@ -240,70 +341,60 @@ impl SimDrive {
         let parked =
             crate::sim_axis::boxed_model(Motor::Ecn57_20, crate::sim_axis::AxisModel::Kinematic, 1);
         let axis = std::mem::replace(&mut self.axis, parked);
-        let boot = self.boot;
+        let (boot, dips) = (self.boot, self.dips);
         *self = SimDrive::new(self.serial, flash, axis);
+        self.dips = dips;
         if let Some((shared, esc)) = boot {
             self.attach_update(shared, esc);
         }
     }
 
-    /// The axis's measurements → the drive, through the board's glue
-    /// ([`BoardGlue::update_axis`]).
-    fn update_axis(&mut self) {
-        let axis = self.axis.state();
-        if let Some(u) = axis.index {
-            self.index_seq = self.index_seq.wrapping_add(1);
-            self.index_units = u;
-        }
-        let current = self.axis.current_control(self.glue.command().tune_allowed);
-        self.fb_seq = self.fb_seq.wrapping_add(1).max(1);
-        let fb = Feedback {
-            axis,
-            index_seq: self.index_seq,
-            index_units: self.index_units,
-            align_failures: self.axis.commutation_failures(),
-            current,
-            ..Feedback::default()
-        };
-        self.glue
-            .update_axis(&mut self.drive, self.fb_seq, &fb, axis.overcurrent_trip);
+    /// Power-up through the runtime (as the board's start-up): stored parameters and
+    /// PDO mapping through `runtime_objects`, the DIP banks, the alias; returns the
+    /// alias for the ESC (`None`: keep SII word 4's).
+    pub fn power_up(&mut self, runtime_objects: &mut dyn Dictionary) -> Option<u16> {
+        let dips = self.dips;
+        let up = self.rt.power_up(&mut self.drive, dips, runtime_objects);
+        self.axis.parameters(&self.drive.params);
+        up.alias
+    }
+
+    /// The ESM as the LEDs show it, seen by the segment (kept until the next one).
+    pub fn set_esm(&mut self, esm: EsmView) {
+        self.esm = Some(esm);
+    }
+
+    /// The levels the last tick drove (outputs, brake, LEDs): the board's pins.
+    pub fn pins(&self) -> firmware::runtime::Pins {
+        self.rt.pins()
     }
 
     /// Brings the axis and the 1 ms housekeeping up to `now_us`.
     pub fn catch_up(&mut self, now_us: u64) {
         if now_us > self.axis_us {
             let dt = (now_us - self.axis_us) as f64 * 1e-6;
-            let cmd = self.glue.command().command;
+            let cmd = self.rt.command().command;
             self.axis.advance(dt, &cmd);
             self.axis_us = now_us;
         }
         while self.tick_us + 1000 <= now_us {
             self.tick_us += 1000;
-            // As the board's `tick` task: measurements, board faults, the drive's
-            // tick, the command.
-            let raw = self.axis.raw_inputs();
-            self.update_axis();
-            let now_ms = (self.tick_us / 1000) as u32;
-            self.glue.raise_board_faults(&mut self.drive, now_ms);
-            hand_servo_points(&mut *self.axis, &mut self.drive);
-            self.drive.tick(self.tick_us, raw);
-            // Parameters the drive changed itself (a servo tune's result), every
-            // 10 ms as on the board.
-            if (self.tick_us / 1000).is_multiple_of(10) {
-                self.axis.parameters(&self.drive.params);
-            }
-            self.publish();
+            // The board's `tick` task: the runtime's tick with the raw inputs.
+            let (raw, t, esm) = (self.axis.raw_inputs(), self.tick_us, self.esm);
+            let dip_bits = self.dips.function;
+            let (drive, rt, mut path) = self.parts();
+            rt.tick(drive, &mut path, t, raw, dip_bits, esm);
         }
     }
 
-    /// Hands the set-points of a new control step (tick or cycle) to the axis, as the
-    /// board's `publish_command` does for the current-loop interrupt
-    /// ([`BoardGlue::publish`]).
-    fn publish(&mut self) {
-        let c = *self.glue.publish(&self.drive);
-        if c.cycle != self.seen_cycle {
-            self.seen_cycle = c.cycle;
-            self.axis.command(&c.command, f64::from(c.cycle_s));
+    /// The board's `ecat` task around a mailbox poll: emergencies before (`send`),
+    /// then the command, the update confirmation and whether a reset is due.
+    fn mailbox_work(&mut self, send: &mut dyn FnMut(firmware::faults::Emergency)) {
+        self.rt.before_poll(&mut self.drive, send);
+        let (drive, rt, mut path) = self.parts();
+        rt.after_poll(drive, &mut path);
+        if let Some(Err(e)) = self.drive.persist_history() {
+            eprintln!("simulated drive: fault history not written: {e:?}");
         }
     }
 }
@@ -364,10 +455,12 @@ impl EsmHooks for SimDrive {
 
 impl SlaveApplication for SimDrive {
     fn cycle(&mut self, info: &CycleInfo) {
+        // The board's `cyclic` task: measurements in, the drive's cycle, command out.
         self.catch_up(info.now_us);
-        self.update_axis();
-        self.drive.cycle(info);
-        self.publish();
+        let (drive, rt, mut path) = self.parts();
+        rt.before_step(drive, &mut path);
+        drive.cycle(info);
+        rt.after_step(drive, &mut path);
     }
     fn on_outputs_lost(&mut self, code: AlStatusCode) {
         self.drive.on_outputs_lost(code)
@@ -484,24 +577,25 @@ pub fn restart_requested(seg: &mut Segment<SimDrive>) -> Vec<usize> {
 pub fn restart(seg: &mut Segment<SimDrive>, i: usize) {
     let d = seg.drive_mut(i);
     d.app.reset();
-    if let Err(e) = d.slave.init() {
-        eprintln!(
-            "simulated drive {}: ESC start-up after the reset: {e:?}",
-            i + 1
-        );
-    }
+    power_up_one(d, i);
+}
+
+/// One drive's power-up (the board's start-up order): parameters, DIP banks and
+/// alias through the runtime, then the slave runtime's start with that alias.
+fn power_up_one(d: &mut crate::segment::Drive<SimDrive>, i: usize) {
     let mut runtime = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
-    d.app.drive.power_up(&mut runtime);
-    d.app.axis.parameters(&d.app.drive.params);
+    let alias = d.app.power_up(&mut runtime);
+    d.slave.set_station_alias(alias);
+    if let Err(e) = d.slave.init() {
+        eprintln!("simulated drive {}: ESC start-up: {e:?}", i + 1);
+    }
 }
 
 /// Every drive's power-up: the stored parameters (and PDO mapping) loaded through its
 /// slave runtime, then the axis model set from the parameters.
 pub fn power_up_drives(seg: &mut Segment<SimDrive>) {
-    for d in seg.drives_mut() {
-        let mut runtime = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
-        d.app.drive.power_up(&mut runtime);
-        d.app.axis.parameters(&d.app.drive.params);
+    for (i, d) in seg.drives_mut().iter_mut().enumerate() {
+        power_up_one(d, i);
     }
 }
 
@@ -511,13 +605,12 @@ pub fn power_up_drives(seg: &mut Segment<SimDrive>) {
 /// does these after each `poll`, in thread mode, outside the fault path.
 pub fn forward_emergencies(seg: &mut Segment<SimDrive>) {
     for d in seg.drives_mut() {
-        d.app.drive.confirm_update();
-        while let Some(e) = d.app.drive.pop_emergency() {
-            d.slave.emergency(e.code, e.register, e.data);
-        }
-        if let Some(Err(e)) = d.app.drive.persist_history() {
-            eprintln!("simulated drive: fault history not written: {e:?}");
-        }
+        let slave = &mut d.slave;
+        d.app
+            .mailbox_work(&mut |e| slave.emergency(e.code, e.register, e.data));
+        let esm = slave.esm();
+        d.app
+            .set_esm(EsmView::from_al_status(slave.state(), esm.status_word(), esm.code()));
     }
 }
 

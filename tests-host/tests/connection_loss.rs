@@ -120,6 +120,7 @@ impl Master {
             motor: Motor::Ecn57_20,
             flavour: Flavour::Lan9252,
             flash_file: None,
+            dips: tests_host::sim_drive::DIPS_ALL_ON,
         };
         let mut seg = sim_drive::segment_with(&cfg, 1, AxisModel::Plant).expect("segment");
         let plant = Rc::new(RefCell::new(PlantAxis::new(Motor::Ecn57_20)));

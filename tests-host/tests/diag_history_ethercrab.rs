@@ -166,6 +166,7 @@ fn ethercrab_reads_and_acknowledges_the_diagnosis_history() {
         motor: Motor::Ecn57_20,
         flavour: Flavour::Lan9252,
         flash_file: None,
+        dips: tests_host::sim_drive::DIPS_ALL_ON,
     };
     let seg = sim_drive::segment_with(&cfg, 1, AxisModel::Kinematic).expect("segment");
     let w = Rc::new(RefCell::new(SimWire { seg }));

@@ -668,6 +668,7 @@ fn wired(model: AxisModel) -> Wired {
         motor: Motor::Ecn57_20,
         flavour: Flavour::Lan9252,
         flash_file: None,
+        dips: tests_host::sim_drive::DIPS_ALL_ON,
     };
     let seg = sim_drive::segment_with(&cfg, 1, model).expect("segment");
     Rc::new(RefCell::new(SimWire {

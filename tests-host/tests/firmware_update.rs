@@ -41,6 +41,7 @@ fn master() -> Master {
         motor: Motor::Ecn57_20,
         flavour: Flavour::Lan9252,
         flash_file: None,
+        dips: tests_host::sim_drive::DIPS_ALL_ON,
     };
     let mut seg = sim_drive::segment_with(&cfg, 1, tests_host::sim_axis::AxisModel::Kinematic)
         .expect("segment");

@@ -204,6 +204,7 @@ fn ethercrab_remaps_in_preop_and_exchanges_the_new_image() {
             motor: Motor::Ecn57_20,
             flavour,
             flash_file: None,
+            dips: tests_host::sim_drive::DIPS_ALL_ON,
         };
         let seg = sim_drive::segment_with(&cfg, 1, AxisModel::Kinematic).expect("segment");
         let wire = Rc::new(RefCell::new(DriveWire(seg)));
@@ -380,6 +381,7 @@ fn drive_segment(flavour: Flavour) -> Segment<SimDrive> {
         motor: Motor::Ecn57_20,
         flavour,
         flash_file: None,
+        dips: tests_host::sim_drive::DIPS_ALL_ON,
     };
     sim_drive::segment_with(&cfg, 1, AxisModel::Kinematic).expect("segment")
 }

@@ -137,6 +137,7 @@ fn sixty_four_drives_reach_op_with_the_right_working_counter() {
         motor: Motor::Ecn57_20,
         flavour: Flavour::Lan9252,
         flash_file: None,
+        dips: tests_host::sim_drive::DIPS_ALL_ON,
     };
     let seg = sim_drive::segment_with(&cfg, N, AxisModel::Kinematic).expect("segment");
     let wire = Rc::new(RefCell::new(LrwWire {

@@ -30,6 +30,7 @@ impl Run {
             motor: Motor::Ecn57_20,
             flavour: Flavour::Lan9252,
             flash_file,
+            dips: tests_host::sim_drive::DIPS_ALL_ON,
         };
         let seg = sim_drive::segment(&cfg, 1).expect("segment");
         let mut r = Run {

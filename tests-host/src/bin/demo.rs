@@ -752,6 +752,7 @@ fn main() {
         motor: Motor::Ecn57_20,
         flavour: Flavour::Lan9252,
         flash_file: None,
+        dips: tests_host::sim_drive::DIPS_ALL_ON,
     };
     let seg = match sim_drive::segment(&cfg, 1) {
         Ok(s) => s,

@@ -256,6 +256,7 @@ fn measure(drives: &[usize], cycles: u64) -> Vec<Run> {
         motor: Motor::Ecn57_20,
         flavour: Flavour::Lan9252,
         flash_file: None,
+        dips: tests_host::sim_drive::DIPS_ALL_ON,
     };
     let mut h = match MasterHarness::new(&PDU_STORAGE) {
         Some(h) => h,

@@ -147,6 +147,7 @@ fn main() -> ExitCode {
         motor: opts.motor,
         flavour: opts.flavour,
         flash_file: opts.flash.clone().map(Into::into),
+        dips: tests_host::sim_drive::DIPS_ALL_ON,
     };
     let mut seg = match sim_drive::segment(&cfg, opts.drives) {
         Ok(s) => s,
