@@ -23,7 +23,13 @@ pub const EST584_SMOOTHING_MS: [u16; 4] = [0, 2, 12, 25];
 /// Peak current table of the DP3CL-705 single bank (mA), index = SW1 ON + 2·SW2 ON +
 /// 4·SW3 ON.
 pub const DP3CL705_CURRENT_MA: [u16; 8] = [3000, 2500, 3400, 4200, 5000, 5600, 6400, 7000];
-/// Filter time of the DP3CL-705 single bank (µs), index = SW5 ON·2 + SW6 ON:
+/// Peak current table of the DP3CL-305 single bank (mA), indexed as
+/// [`DP3CL705_CURRENT_MA`].
+pub const DP3CL305_CURRENT_MA: [u16; 8] = [1000, 560, 840, 1400, 1820, 2100, 2660, 3000];
+/// Peak current table of the DP3CL-808 single bank (mA), indexed as
+/// [`DP3CL705_CURRENT_MA`].
+pub const DP3CL808_CURRENT_MA: [u16; 8] = [4400, 2700, 3600, 4600, 5500, 6400, 7300, 8400];
+/// Filter time of the DP3CL single bank (µs), index = SW5 ON·2 + SW6 ON:
 /// OFF/OFF 1.5 ms, OFF/ON 3 ms, ON/OFF 12 ms, ON/ON off.
 pub const DP3CL705_FILTER_US: [u32; 4] = [1500, 3000, 12_000, 0];
 
@@ -77,13 +83,40 @@ pub fn est584_functions(bits: u8) -> DipFunctions {
     }
 }
 
+/// The DP3CL single-bank boards: the same switch layout, a current table each.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dp3cl {
+    /// DP3CL-305 (up to 3.0 A).
+    D305,
+    /// DP3CL-705 (up to 7.0 A).
+    D705,
+    /// DP3CL-808 (up to 8.4 A).
+    D808,
+}
+
+impl Dp3cl {
+    /// The board's peak current table, index = SW1 ON + 2·SW2 ON + 4·SW3 ON.
+    pub const fn current_table(self) -> &'static [u16; 8] {
+        match self {
+            Dp3cl::D305 => &DP3CL305_CURRENT_MA,
+            Dp3cl::D705 => &DP3CL705_CURRENT_MA,
+            Dp3cl::D808 => &DP3CL808_CURRENT_MA,
+        }
+    }
+}
+
 /// Decodes SW1-SW7 of the DP3CL-705 single bank (meaningful while SW8 is OFF).
 pub fn dp3cl705_functions(bits: u8) -> DipFunctions {
+    dp3cl_functions(Dp3cl::D705, bits)
+}
+
+/// Decodes SW1-SW7 of a DP3CL single bank (meaningful while SW8 is OFF).
+pub fn dp3cl_functions(board: Dp3cl, bits: u8) -> DipFunctions {
     let ci =
         usize::from(on(bits, 1)) | usize::from(on(bits, 2)) << 1 | usize::from(on(bits, 3)) << 2;
     let fi = usize::from(on(bits, 5)) << 1 | usize::from(on(bits, 6));
     DipFunctions {
-        peak_current_ma: DP3CL705_CURRENT_MA[ci],
+        peak_current_ma: board.current_table()[ci],
         standstill: if on(bits, 4) {
             Standstill::Full
         } else {
@@ -99,8 +132,9 @@ pub fn dp3cl705_functions(bits: u8) -> DipFunctions {
 pub enum Board {
     /// ID bank (E5) plus function bank (EST-584).
     TwoBanks,
-    /// One bank with SW8 station entry (DP3CL-705).
-    SingleBank,
+    /// One bank with SW8 station entry (the DP3CL boards; the current table of
+    /// which).
+    SingleBank(Dp3cl),
 }
 
 /// DIP-derived values latched at power-up.
@@ -121,12 +155,12 @@ pub fn power_up(board: Board, id_bits: u8, fn_bits: u8, stored_station: u16) -> 
             address: id_bank_address(id_bits),
             functions: Some(est584_functions(fn_bits)),
         },
-        Board::SingleBank => DipConfig {
+        Board::SingleBank(b) => DipConfig {
             address: stored_station,
             functions: if on(fn_bits, 8) {
                 None
             } else {
-                Some(dp3cl705_functions(fn_bits))
+                Some(dp3cl_functions(b, fn_bits))
             },
         },
     }
@@ -318,6 +352,11 @@ mod tests {
         assert_eq!(dp3cl705_functions(0).standstill, Standstill::Half);
         assert_eq!(dp3cl705_functions(0b1000).standstill, Standstill::Full);
         assert!(dp3cl705_functions(0x40).direction_cw);
+        assert_eq!(dp3cl_functions(Dp3cl::D305, 0).peak_current_ma, 1000);
+        assert_eq!(dp3cl_functions(Dp3cl::D305, 0b111).peak_current_ma, 3000);
+        assert_eq!(dp3cl_functions(Dp3cl::D808, 0).peak_current_ma, 4400);
+        assert_eq!(dp3cl_functions(Dp3cl::D808, 0b001).peak_current_ma, 2700);
+        assert_eq!(dp3cl_functions(Dp3cl::D808, 0b111).peak_current_ma, 8400);
         let mut sb = SingleBank::new();
         assert_eq!(sb.update(0x05), None);
         assert_eq!(sb.update(0x80 | 0x05), None);
@@ -327,11 +366,11 @@ mod tests {
         assert_eq!(sb.update(0x23), None);
         assert!(!sb.entering());
         assert_eq!(
-            power_up(Board::SingleBank, 0, 0x80 | 0x11, 9).functions,
+            power_up(Board::SingleBank(Dp3cl::D705), 0, 0x80 | 0x11, 9).functions,
             None
         );
         assert_eq!(
-            power_up(Board::SingleBank, 0, 0x01, 9),
+            power_up(Board::SingleBank(Dp3cl::D705), 0, 0x01, 9),
             DipConfig {
                 address: 9,
                 functions: Some(dp3cl705_functions(1))

@@ -347,7 +347,7 @@ async fn tick(
     loop {
         ticker.next().await;
         let raw = ports.read_inputs();
-        let dip_bits = if board::SPEC.dip == firmware::dip::Board::SingleBank {
+        let dip_bits = if matches!(board::SPEC.dip, firmware::dip::Board::SingleBank(_)) {
             dip.read().function
         } else {
             0

@@ -248,7 +248,7 @@ impl Runtime {
             functions: cfg.functions,
         };
         drive.params.set_dip(reading);
-        if self.spec.dip == dip::Board::SingleBank {
+        if matches!(self.spec.dip, dip::Board::SingleBank(_)) {
             // A bank switched on with SW8 ON is in station entry from the start.
             self.single_bank.update(banks.function);
         }
@@ -333,7 +333,7 @@ impl Runtime {
         });
         drive.tick(now_us, raw_inputs);
         self.count(drive);
-        if self.spec.dip == dip::Board::SingleBank {
+        if matches!(self.spec.dip, dip::Board::SingleBank(_)) {
             if let Some(station) = self.single_bank.update(dip_bits) {
                 // Stored with the next save; the DIP address from the next power-up.
                 drive

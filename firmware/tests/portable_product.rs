@@ -580,7 +580,7 @@ qemu_runner::tests! {
             assert_eq!(f.smoothing_us, smooth[si]);
             assert_eq!(f.direction_cw, bits & 0x10 != 0);
             assert_eq!(f.standstill == dip::Standstill::Full, bits & 0x08 != 0);
-            let cfg = dip::power_up(Board::SingleBank, 0, bits, 42);
+            let cfg = dip::power_up(Board::SingleBank(dip::Dp3cl::D705), 0, bits, 42);
             assert_eq!(cfg.address, 42);
             assert_eq!(cfg.functions.is_none(), bits & 0x80 != 0);
         }
@@ -603,7 +603,7 @@ qemu_runner::tests! {
         ST.save(&mut f, &mut d, firmware::storage::Scope::All).unwrap();
         let (d2, _) = boot(&mut f);
         let stored = d2.params.get(P::DipStation) as u16;
-        let cfg = dip::power_up(Board::SingleBank, 0, 0x15, stored);
+        let cfg = dip::power_up(Board::SingleBank(dip::Dp3cl::D705), 0, 0x15, stored);
         assert_eq!(cfg.address, 0x15);
         let a = d2.params.active();
         assert_eq!(dip::station_alias(a.alias_source, a.alias_value, cfg.address, 0), (0x15, AliasSource::Dip));

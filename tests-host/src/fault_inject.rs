@@ -266,9 +266,75 @@ impl LedLog {
     }
 }
 
+/// Logs each change of a drive's output pins and brake (what the board's tick drives,
+/// [`firmware::runtime::Pins`]) with the time: OUT1-OUT3 levels and whether the brake
+/// is released.
+#[derive(Debug, Clone, Default)]
+pub struct PinLog {
+    last: Vec<Option<(u8, bool)>>,
+}
+
+impl PinLog {
+    /// Compares every drive's pins with the last seen and logs the changes.
+    pub fn observe(&mut self, seg: &Segment<SimDrive>, log: &mut dyn FnMut(String)) {
+        self.last.resize(seg.len(), None);
+        for i in 0..seg.len() {
+            let pins = seg.drive(i).app.pins();
+            let now = (pins.outputs, pins.brake_released);
+            if self.last[i] != Some(now) {
+                self.last[i] = Some(now);
+                log(format!(
+                    "{} drive {}: pins OUT1 {} OUT2 {} OUT3 {}, brake {}",
+                    stamp(seg.now_ns()),
+                    i + 1,
+                    level(pins.outputs, 0),
+                    level(pins.outputs, 1),
+                    level(pins.outputs, 2),
+                    if pins.brake_released {
+                        "released"
+                    } else {
+                        "engaged"
+                    }
+                ));
+            }
+        }
+    }
+}
+
+fn level(bits: u8, n: u8) -> &'static str {
+    if bits & (1 << n) != 0 {
+        "high"
+    } else {
+        "low"
+    }
+}
+
+/// Parses a DIP bank as it stands: eight characters `1` (ON) or `0` (OFF), switch 1
+/// first (`11111110`: switch 8 OFF); returns bit n = switch n+1 ON.
+pub fn parse_dip(s: &str) -> Result<u8, String> {
+    if s.len() != 8 || !s.bytes().all(|b| b == b'0' || b == b'1') {
+        return Err(format!(
+            "DIP bank '{s}': eight characters 1 (ON) or 0 (OFF), switch 1 first"
+        ));
+    }
+    Ok(s.bytes()
+        .enumerate()
+        .fold(0u8, |acc, (i, b)| acc | (u8::from(b == b'1') << i)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn dip_banks() {
+        assert_eq!(parse_dip("11111111"), Ok(0xFF));
+        assert_eq!(parse_dip("01111111"), Ok(0xFE), "switch 1 OFF");
+        assert_eq!(parse_dip("00000001"), Ok(0x80), "switch 8 ON");
+        for bad in ["1111111", "111111111", "1111111x", "", "0xFF"] {
+            assert!(parse_dip(bad).is_err(), "{bad}");
+        }
+    }
 
     #[test]
     fn times() {

@@ -521,6 +521,7 @@ pub fn segment_with(
             };
             let axis = crate::sim_axis::boxed_model(cfg.motor, model, n);
             let mut d = SimDrive::new(0x1000 + i as u32, flash, axis);
+            d.dips = cfg.dips;
             if let Some(p) = &cfg.flash_file {
                 let file = if i == 0 {
                     p.clone()

@@ -164,7 +164,7 @@ fn a_control_mode_change_reaches_the_control_path_within_10_ms() {
 #[test]
 fn single_bank_station_entry_and_power_up() {
     let spec = BoardSpec {
-        dip: dip::Board::SingleBank,
+        dip: dip::Board::SingleBank(dip::Dp3cl::D705),
         ..SPEC
     };
     // Stored station 9, SW8 OFF: functions from SW1-SW7 (DP3CL table: SW1, SW2 ON

@@ -5,7 +5,14 @@
 //! ```text
 //! virtual-drive --iface NAME [--drives N] [--motor ECN57-20|TC86-45]
 //!               [--esc lan9252|et1100] [--flash FILE] [--fault KIND@TIME]...
+//!               [--dip-id BITS] [--dip-function BITS]
 //! ```
+//!
+//! `--dip-id` / `--dip-function` set the board's two DIP banks as they stand at
+//! power-up (eight characters 1 = ON / 0 = OFF, switch 1 first; default all ON): the
+//! ID bank gives the station alias, the function bank the peak and standstill
+//! current, the direction and the smoothing while 0x2025 = 0 (0x2158 shows what they
+//! select). The log shows every change of the output pins and the brake.
 //!
 //! Runs in real time: simulated time follows the wall clock. Prints one line
 //! containing `ready` once it listens; SIGINT/SIGTERM close it cleanly.
@@ -23,7 +30,8 @@ use std::time::{Duration, Instant};
 
 use ecat_slave_stack::od::Dictionary;
 use tests_host::esc_sim::Flavour;
-use tests_host::fault_inject::{self, Injection, LedLog, Schedule};
+use firmware::runtime::DipBanks;
+use tests_host::fault_inject::{self, Injection, LedLog, PinLog, Schedule};
 use tests_host::raw_socket::RawSocket;
 use tests_host::segment::Segment;
 use tests_host::sim_drive::{self, Motor, SimDrive, SimDriveConfig};
@@ -41,12 +49,19 @@ struct Options {
     flavour: Flavour,
     flash: Option<String>,
     faults: Vec<Injection>,
+    dips: DipBanks,
 }
 
 fn usage() -> String {
     let mut u = String::from(
         "usage: virtual-drive --iface NAME [--drives N] [--motor ECN57-20|TC86-45] \
-         [--esc lan9252|et1100] [--flash FILE] [--fault KIND@TIME]...\n\
+         [--esc lan9252|et1100] [--flash FILE] [--fault KIND@TIME]... \
+         [--dip-id BITS] [--dip-function BITS]\n\
+         \n  --dip-id BITS        the ID bank's 8 switches as they stand, 1 = ON, switch 1\n\
+         \x20                      first (default 11111111: no DIP station address)\n\
+         \x20 --dip-function BITS  the function bank likewise: SW1-3 peak current, SW4\n\
+         \x20                      standstill current, SW5 direction, SW6-7 smoothing; used\n\
+         \x20                      while 0x2025 = 0 (default 11111111)\n\
          \n  --fault KIND@TIME  the plant develops a fault TIME after start (e.g. 5s, 250ms);\n\
          \x20                    repeatable. KIND:",
     );
@@ -64,6 +79,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         flavour: Flavour::Lan9252,
         flash: None,
         faults: Vec::new(),
+        dips: sim_drive::DIPS_ALL_ON,
     };
     let mut it = args.iter();
     while let Some(a) = it.next() {
@@ -97,6 +113,10 @@ fn parse(args: &[String]) -> Result<Options, String> {
                 }
             }
             "--flash" => o.flash = Some(value("--flash")?),
+            "--dip-id" => o.dips.id = fault_inject::parse_dip(&value("--dip-id")?)?,
+            "--dip-function" => {
+                o.dips.function = fault_inject::parse_dip(&value("--dip-function")?)?
+            }
             "--fault" => o
                 .faults
                 .push(fault_inject::parse_injection(&value("--fault")?)?),
@@ -147,7 +167,7 @@ fn main() -> ExitCode {
         motor: opts.motor,
         flavour: opts.flavour,
         flash_file: opts.flash.clone().map(Into::into),
-        dips: tests_host::sim_drive::DIPS_ALL_ON,
+        dips: opts.dips,
     };
     let mut seg = match sim_drive::segment(&cfg, opts.drives) {
         Ok(s) => s,
@@ -183,8 +203,10 @@ fn main() -> ExitCode {
     }
     let mut schedule = Schedule::new(opts.faults.clone());
     let mut leds = LedLog::default();
+    let mut pins = PinLog::default();
     let mut log = |line: String| println!("virtual-drive: {line}");
     leds.observe(&seg, &mut log);
+    pins.observe(&seg, &mut log);
 
     let start = Instant::now();
     let mut buf = vec![0u8; 2048];
@@ -199,6 +221,7 @@ fn main() -> ExitCode {
             schedule.apply_due(&mut seg, &mut log);
             restart_after_update(&mut seg, &mut log);
             leds.observe(&seg, &mut log);
+            pins.observe(&seg, &mut log);
         }
         match sock.wait_readable(1_000) {
             Ok(true) => {}

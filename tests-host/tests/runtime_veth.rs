@@ -1,0 +1,295 @@
+//! The board's runtime seen by a real master: `virtual-drive` (which runs the same
+//! `firmware::runtime` as the board's tasks) in a network namespace, ethercrab on the
+//! other end of a veth pair.
+//!
+//! * The DIP function bank (`--dip-function`) sets the current and the direction
+//!   while 0x2025 = 0, and is ignored otherwise; the ID bank (`--dip-id`) gives the
+//!   station alias.
+//! * 0x60FE drives OUT3 (in the pin log and in 0x2157); the alarm outputs follow a
+//!   fault; the brake output follows the drive's enable.
+//!
+//! Needs root (network namespaces, raw sockets) and iproute2, as
+//! `virtual_drive_veth.rs`: without root the tests fail and say how to run them.
+#![deny(clippy::undocumented_unsafe_blocks)]
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+use std::time::Duration;
+
+use ethercrab::std::{ethercat_now, tx_rx_task};
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
+use tests_host::netns::{Killed, Netns};
+
+type Storage = PduStorage<16, { PduStorage::element_size(1100) }>;
+static PDU_DIP_ON: Storage = PduStorage::new();
+static PDU_DIP_OFF: Storage = PduStorage::new();
+static PDU_OUTPUTS: Storage = PduStorage::new();
+
+type Group = SubDeviceGroup<4, 128, ethercrab::subdevice_group::Op>;
+type Failed = (&'static str, ethercrab::error::Error);
+
+fn require_root() {
+    // SAFETY: geteuid has no preconditions.
+    let euid = unsafe { libc::geteuid() };
+    assert_eq!(
+        euid, 0,
+        "the veth tests need root (network namespaces and raw sockets): run them as root, \
+         e.g. `sudo -E env PATH=$PATH cargo test -p tests-host --test runtime_veth` \
+         (CI runs as root)"
+    );
+}
+
+/// `virtual-drive` (1 drive, `extra` options) in a namespace of its own, ready; its
+/// log lines after `ready`.
+fn start(tag: &str, extra: &[&str]) -> (Netns, Killed, mpsc::Receiver<String>) {
+    require_root();
+    let net = Netns::create(&format!("rt{tag}"))
+        .expect("running as root, but the namespace / veth pair could not be created");
+    let child = Command::new("ip")
+        .args(["netns", "exec", &net.ns, env!("CARGO_BIN_EXE_virtual-drive")])
+        .args(["--iface", &net.drive_if, "--drives", "1"])
+        .args(extra)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("start virtual-drive");
+    let mut child = Killed(child);
+    let stdout = child.0.stdout.take().expect("stdout");
+    let (tx, rx) = mpsc::channel::<String>();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            let _ = tx.send(line);
+        }
+    });
+    let ready = rx
+        .recv_timeout(Duration::from_secs(30))
+        .expect("virtual-drive printed nothing");
+    assert!(ready.contains("ready"), "first line: {ready}");
+    (net, child, rx)
+}
+
+fn master(storage: &'static Storage, host_if: &str) -> MainDevice<'static> {
+    let (pdu_tx, pdu_rx, pdu_loop) = storage.try_split().expect("split once");
+    let task = tx_rx_task(host_if, pdu_tx, pdu_rx).expect("raw socket on the host end");
+    std::thread::spawn(move || {
+        let _ = async_io::block_on(task);
+    });
+    MainDevice::new(
+        pdu_loop,
+        Timeouts {
+            wait_loop_delay: Duration::from_millis(2),
+            mailbox_response: Duration::from_millis(2000),
+            // Several virtual drives and masters share the machine in a test run.
+            pdu: Duration::from_millis(300),
+            eeprom: Duration::from_millis(100),
+            ..Timeouts::default()
+        },
+        MainDeviceConfig {
+            dc_static_sync_iterations: 100,
+            ..MainDeviceConfig::default()
+        },
+    )
+}
+
+/// One process-data cycle with controlword `cw` (RxPDO1 starts with 0x6040); returns
+/// the statusword (TxPDO1: 0x603F, 0x6041, …).
+async fn cycle(md: &MainDevice<'static>, group: &Group, cw: u16) -> Result<u16, Failed> {
+    {
+        let sd = group.subdevice(md, 0).map_err(|e| ("drive 0", e))?;
+        sd.outputs_raw_mut()[0..2].copy_from_slice(&cw.to_le_bytes());
+    }
+    group.tx_rx(md).await.map_err(|e| ("tx_rx", e))?;
+    let sd = group.subdevice(md, 0).map_err(|e| ("drive 0", e))?;
+    let i = sd.inputs_raw();
+    Ok(u16::from_le_bytes([i[2], i[3]]))
+}
+
+/// Cycles until Operation enabled (state-driven CiA 402 enable), then `extra` more.
+async fn enable(md: &MainDevice<'static>, group: &Group, extra: u32) -> Result<u16, Failed> {
+    let mut sw = 0u16;
+    let mut enabled = None;
+    for k in 0..3000u32 {
+        let cw = match sw & 0x6F {
+            0x21 => 0x0007,
+            0x23 | 0x27 => 0x000F,
+            _ if sw & 0x4F == 0x40 => 0x0006,
+            _ => 0x0000,
+        };
+        sw = cycle(md, group, cw).await?;
+        if sw & 0x6F == 0x27 && enabled.is_none() {
+            enabled = Some(k);
+        }
+        if enabled.is_some_and(|e| k >= e + extra) {
+            break;
+        }
+        async_io::Timer::after(Duration::from_millis(1)).await;
+    }
+    Ok(sw)
+}
+
+/// What one PV run at +1000 inc/s in open loop showed.
+#[derive(Debug)]
+struct PvRun {
+    /// 0x2158:1..7 read in Pre-Op.
+    dip: [u32; 7],
+    /// The station alias the master read.
+    alias: u16,
+    /// Current set-point amplitude (0x2301 / 0x2302), mA.
+    amplitude_ma: f64,
+    /// Electrical angle change over ≈ 100 ms (0x2300, signed 1/65536 turns).
+    angle_step: i32,
+    /// Statusword after the enable.
+    statusword: u16,
+}
+
+/// `--dip-id 01111111` (S1 OFF: station 1) and `--dip-function 10111111` (SW1 ON,
+/// SW2 OFF, SW3 ON → 4.5 A; SW4 ON full standstill current; SW5 ON reversed; SW6/SW7
+/// ON no smoothing); 0x2025 = `control_mode`, open loop, PV at +1000 inc/s in Op.
+fn pv_run(storage: &'static Storage, tag: &str, control_mode: u8) -> PvRun {
+    let (net, child, _log) = start(tag, &["--dip-id", "01111111", "--dip-function", "10111111"]);
+    let md = master(storage, &net.host_if);
+    let result: Result<PvRun, Failed> = async_io::block_on(async {
+        let group = md
+            .init_single_group::<4, 128>(ethercat_now)
+            .await
+            .map_err(|e| ("init", e))?;
+        let mut dip = [0u32; 7];
+        let alias;
+        {
+            let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
+            alias = sd.alias_address();
+            sd.sdo_write(0x2025, 0, control_mode).await.map_err(|e| ("0x2025", e))?;
+            sd.sdo_write(0x2024, 0, 1u8).await.map_err(|e| ("0x2024", e))?;
+            sd.sdo_write(0x6060, 0, 3i8).await.map_err(|e| ("0x6060", e))?;
+            sd.sdo_write(0x60FF, 0, 1000i32).await.map_err(|e| ("0x60FF", e))?;
+            // The runtime reconfigures every 10 ms.
+            async_io::Timer::after(Duration::from_millis(50)).await;
+            for (k, v) in dip.iter_mut().enumerate() {
+                *v = match k {
+                    0 | 1 | 4 | 5 => u32::from(sd.sdo_read::<u8>(0x2158, k as u8 + 1).await.map_err(|e| ("0x2158", e))?),
+                    2 | 3 => u32::from(sd.sdo_read::<u16>(0x2158, k as u8 + 1).await.map_err(|e| ("0x2158", e))?),
+                    _ => sd.sdo_read::<u32>(0x2158, 7).await.map_err(|e| ("0x2158", e))?,
+                };
+            }
+        }
+        let group = group.into_op(&md).await.map_err(|e| ("into_op", e))?;
+        let statusword = enable(&md, &group, 300).await?;
+        let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
+        let ia: i16 = sd.sdo_read(0x2301, 0).await.map_err(|e| ("0x2301", e))?;
+        let ib: i16 = sd.sdo_read(0x2302, 0).await.map_err(|e| ("0x2302", e))?;
+        let a0: u16 = sd.sdo_read(0x2300, 0).await.map_err(|e| ("0x2300", e))?;
+        for _ in 0..100 {
+            cycle(&md, &group, 0x000F).await?;
+            async_io::Timer::after(Duration::from_millis(1)).await;
+        }
+        let a1: u16 = sd.sdo_read(0x2300, 0).await.map_err(|e| ("0x2300", e))?;
+        Ok(PvRun {
+            dip,
+            alias,
+            amplitude_ma: f64::from(ia).hypot(f64::from(ib)),
+            angle_step: i32::from(a1.wrapping_sub(a0) as i16),
+            statusword,
+        })
+    });
+    drop(child);
+    result.expect("ethercrab over the veth pair")
+}
+
+#[test]
+fn dip_function_switches_set_current_and_direction_with_0x2025_zero() {
+    let on = pv_run(&PDU_DIP_ON, "d", 0);
+    let off = pv_run(&PDU_DIP_OFF, "e", 5);
+    eprintln!("0x2025 = 0: {on:?}\n0x2025 = 5: {off:?}");
+    for r in [&on, &off] {
+        assert_eq!(r.statusword & 0x6F, 0x27, "Operation enabled: {r:?}");
+        assert_eq!(r.alias, 1, "station alias from the ID bank (S1 OFF)");
+        assert_eq!(r.dip[0], 0xFE, "0x2158:1 ID bank");
+        assert_eq!(r.dip[1], 0xFD, "0x2158:2 function bank");
+        assert_eq!(r.dip[2], 1, "0x2158:3 station address");
+    }
+    // The switches rule: 4.5 A, full standstill current, reversed.
+    assert_eq!(&on.dip[3..], &[4500, 100, 1, 0]);
+    assert!(
+        (on.amplitude_ma - 4500.0).abs() < 150.0,
+        "current set-point {} mA with the switches' 4.5 A",
+        on.amplitude_ma
+    );
+    // 0x2025 ≠ 0: the objects (0x2000 = 3.2 A, not reversed).
+    assert_eq!(off.dip[3], 3200);
+    assert_eq!(off.dip[5], 0);
+    assert!(
+        (off.amplitude_ma - 3200.0).abs() < 150.0,
+        "current set-point {} mA with 0x2000 = 3.2 A",
+        off.amplitude_ma
+    );
+    // +1000 inc/s = 1 electrical turn per second: ≈ 6500 / 65536 turn in 100 ms; the
+    // reversal turns the field the other way for the same set-point.
+    assert!(off.angle_step.abs() > 1000 && on.angle_step.abs() > 1000, "{on:?} {off:?}");
+    assert!(
+        on.angle_step.signum() == -off.angle_step.signum(),
+        "direction reversed by SW5: {} vs {}",
+        on.angle_step,
+        off.angle_step
+    );
+}
+
+#[test]
+fn outputs_follow_0x60fe_the_alarm_and_the_brake() {
+    let (net, child, log) = start("o", &["--fault", "bus-overvoltage@3s"]);
+    let md = master(&PDU_OUTPUTS, &net.host_if);
+    type Found = (u16, u16, u16, u16, u16);
+    let result: Result<Found, Failed> = async_io::block_on(async {
+        let group = md
+            .init_single_group::<4, 128>(ethercat_now)
+            .await
+            .map_err(|e| ("init", e))?;
+        let (idle, out3);
+        {
+            let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
+            idle = sd.sdo_read::<u16>(0x2157, 0).await.map_err(|e| ("0x2157", e))?;
+            sd.sdo_write(0x60FE, 2, 1u32 << 18).await.map_err(|e| ("0x60FE:2", e))?;
+            sd.sdo_write(0x60FE, 1, 1u32 << 18).await.map_err(|e| ("0x60FE:1", e))?;
+            async_io::Timer::after(Duration::from_millis(20)).await;
+            out3 = sd.sdo_read::<u16>(0x2157, 0).await.map_err(|e| ("0x2157", e))?;
+            sd.sdo_write(0x6060, 0, 3i8).await.map_err(|e| ("0x6060", e))?;
+            sd.sdo_write(0x60FF, 0, 0i32).await.map_err(|e| ("0x60FF", e))?;
+        }
+        let group = group.into_op(&md).await.map_err(|e| ("into_op", e))?;
+        let sw = enable(&md, &group, 50).await?;
+        assert_eq!(sw & 0x6F, 0x27, "Operation enabled: {sw:#06x}");
+        let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
+        let enabled = sd.sdo_read::<u16>(0x2157, 0).await.map_err(|e| ("0x2157", e))?;
+        // Keep the exchange going past the injected over-voltage (3 s after start).
+        let mut sw = 0;
+        for _ in 0..4000 {
+            sw = cycle(&md, &group, 0x000F).await?;
+            if sw & 0x4F == 0x08 {
+                break;
+            }
+            async_io::Timer::after(Duration::from_millis(1)).await;
+        }
+        for _ in 0..20 {
+            cycle(&md, &group, 0x000F).await?;
+            async_io::Timer::after(Duration::from_millis(1)).await;
+        }
+        let faulted = sd.sdo_read::<u16>(0x2157, 0).await.map_err(|e| ("0x2157", e))?;
+        Ok((idle, out3, enabled, sw, faulted))
+    });
+    drop(child);
+    let (idle, out3, enabled, sw, faulted) = result.expect("ethercrab over the veth pair");
+    eprintln!("0x2157: idle {idle:#06x}, OUT3 set {out3:#06x}, enabled {enabled:#06x}, fault {faulted:#06x} (statusword {sw:#06x})");
+    // Defaults: OUT1/OUT2 alarm, active-low → high while no fault; OUT3 the master's,
+    // active-high; brake engaged; green LED on.
+    assert_eq!(idle & 0x107, 0x003, "idle {idle:#06x}");
+    assert_eq!(idle >> 9 & 1, 1, "green LED");
+    assert_eq!(out3 & 0x107, 0x007, "OUT3 set by 0x60FE: {out3:#06x}");
+    assert_eq!(enabled & 0x100, 0x100, "brake released while enabled: {enabled:#06x}");
+    assert_eq!(sw & 0x4F, 0x08, "the injected over-voltage faulted the drive: {sw:#06x}");
+    assert_eq!(faulted & 0x103, 0x000, "alarm outputs active (low), brake engaged: {faulted:#06x}");
+    let lines: Vec<String> = log.try_iter().collect();
+    let has = |s: &str| lines.iter().any(|l| l.contains(s));
+    assert!(has("pins OUT1 high OUT2 high OUT3 high, brake engaged"), "{lines:#?}");
+    assert!(has("OUT3 high, brake released"), "{lines:#?}");
+    assert!(has("pins OUT1 low OUT2 low OUT3 high, brake engaged"), "{lines:#?}");
+}
