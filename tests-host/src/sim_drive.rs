@@ -610,8 +610,11 @@ pub fn forward_emergencies(seg: &mut Segment<SimDrive>) {
         d.app
             .mailbox_work(&mut |e| slave.emergency(e.code, e.register, e.data));
         let esm = slave.esm();
-        d.app
-            .set_esm(EsmView::from_al_status(slave.state(), esm.status_word(), esm.code()));
+        d.app.set_esm(EsmView::from_al_status(
+            slave.state(),
+            esm.status_word(),
+            esm.code(),
+        ));
     }
 }
 

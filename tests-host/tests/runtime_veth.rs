@@ -26,7 +26,7 @@ static PDU_DIP_ON: Storage = PduStorage::new();
 static PDU_DIP_OFF: Storage = PduStorage::new();
 static PDU_OUTPUTS: Storage = PduStorage::new();
 
-type Group = SubDeviceGroup<4, 128, ethercrab::subdevice_group::Op>;
+type Group = SubDeviceGroup<4, 128, ethercrab::DefaultLock, ethercrab::subdevice_group::Op>;
 type Failed = (&'static str, ethercrab::error::Error);
 
 fn require_root() {
@@ -47,7 +47,12 @@ fn start(tag: &str, extra: &[&str]) -> (Netns, Killed, mpsc::Receiver<String>) {
     let net = Netns::create(&format!("rt{tag}"))
         .expect("running as root, but the namespace / veth pair could not be created");
     let child = Command::new("ip")
-        .args(["netns", "exec", &net.ns, env!("CARGO_BIN_EXE_virtual-drive")])
+        .args([
+            "netns",
+            "exec",
+            &net.ns,
+            env!("CARGO_BIN_EXE_virtual-drive"),
+        ])
         .args(["--iface", &net.drive_if, "--drives", "1"])
         .args(extra)
         .stdout(Stdio::piped())
@@ -139,13 +144,16 @@ struct PvRun {
     amplitude_ma: f64,
     /// Electrical angle change over ≈ 100 ms (0x2300, signed 1/65536 turns).
     angle_step: i32,
+    /// 0x6064 change over the same time.
+    moved: i32,
     /// Statusword after the enable.
     statusword: u16,
 }
 
 /// `--dip-id 01111111` (S1 OFF: station 1) and `--dip-function 10111111` (SW1 ON,
 /// SW2 OFF, SW3 ON → 4.5 A; SW4 ON full standstill current; SW5 ON reversed; SW6/SW7
-/// ON no smoothing); 0x2025 = `control_mode`, open loop, PV at +1000 inc/s in Op.
+/// ON no smoothing); 0x2025 = `control_mode`; PV in Op: at standstill in open loop
+/// (the current set-point is the running current), then at +1000 inc/s in closed loop.
 fn pv_run(storage: &'static Storage, tag: &str, control_mode: u8) -> PvRun {
     let (net, child, _log) = start(tag, &["--dip-id", "01111111", "--dip-function", "10111111"]);
     let md = master(storage, &net.host_if);
@@ -159,36 +167,71 @@ fn pv_run(storage: &'static Storage, tag: &str, control_mode: u8) -> PvRun {
         {
             let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
             alias = sd.alias_address();
-            sd.sdo_write(0x2025, 0, control_mode).await.map_err(|e| ("0x2025", e))?;
-            sd.sdo_write(0x2024, 0, 1u8).await.map_err(|e| ("0x2024", e))?;
-            sd.sdo_write(0x6060, 0, 3i8).await.map_err(|e| ("0x6060", e))?;
-            sd.sdo_write(0x60FF, 0, 1000i32).await.map_err(|e| ("0x60FF", e))?;
+            sd.sdo_write(0x2025, 0, control_mode)
+                .await
+                .map_err(|e| ("0x2025", e))?;
+            sd.sdo_write(0x2024, 0, 1u8)
+                .await
+                .map_err(|e| ("0x2024", e))?;
+            sd.sdo_write(0x6060, 0, 3i8)
+                .await
+                .map_err(|e| ("0x6060", e))?;
+            sd.sdo_write(0x60FF, 0, 0i32)
+                .await
+                .map_err(|e| ("0x60FF", e))?;
             // The runtime reconfigures every 10 ms.
             async_io::Timer::after(Duration::from_millis(50)).await;
             for (k, v) in dip.iter_mut().enumerate() {
                 *v = match k {
-                    0 | 1 | 4 | 5 => u32::from(sd.sdo_read::<u8>(0x2158, k as u8 + 1).await.map_err(|e| ("0x2158", e))?),
-                    2 | 3 => u32::from(sd.sdo_read::<u16>(0x2158, k as u8 + 1).await.map_err(|e| ("0x2158", e))?),
-                    _ => sd.sdo_read::<u32>(0x2158, 7).await.map_err(|e| ("0x2158", e))?,
+                    0 | 1 | 4 | 5 => u32::from(
+                        sd.sdo_read::<u8>(0x2158, k as u8 + 1)
+                            .await
+                            .map_err(|e| ("0x2158", e))?,
+                    ),
+                    2 | 3 => u32::from(
+                        sd.sdo_read::<u16>(0x2158, k as u8 + 1)
+                            .await
+                            .map_err(|e| ("0x2158", e))?,
+                    ),
+                    _ => sd
+                        .sdo_read::<u32>(0x2158, 7)
+                        .await
+                        .map_err(|e| ("0x2158", e))?,
                 };
             }
         }
         let group = group.into_op(&md).await.map_err(|e| ("into_op", e))?;
-        let statusword = enable(&md, &group, 300).await?;
+        // Open loop at standstill: the set-point amplitude is the running current.
+        let statusword = enable(&md, &group, 200).await?;
         let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
         let ia: i16 = sd.sdo_read(0x2301, 0).await.map_err(|e| ("0x2301", e))?;
         let ib: i16 = sd.sdo_read(0x2302, 0).await.map_err(|e| ("0x2302", e))?;
+        // Closed loop at +1000 inc/s: the field turns with the shaft.
+        for _ in 0..20 {
+            cycle(&md, &group, 0x0006).await?;
+            async_io::Timer::after(Duration::from_millis(1)).await;
+        }
+        sd.sdo_write(0x2024, 0, 2u8)
+            .await
+            .map_err(|e| ("0x2024", e))?;
+        sd.sdo_write(0x60FF, 0, 1000i32)
+            .await
+            .map_err(|e| ("0x60FF", e))?;
+        enable(&md, &group, 300).await?;
         let a0: u16 = sd.sdo_read(0x2300, 0).await.map_err(|e| ("0x2300", e))?;
+        let p0: i32 = sd.sdo_read(0x6064, 0).await.map_err(|e| ("0x6064", e))?;
         for _ in 0..100 {
             cycle(&md, &group, 0x000F).await?;
             async_io::Timer::after(Duration::from_millis(1)).await;
         }
         let a1: u16 = sd.sdo_read(0x2300, 0).await.map_err(|e| ("0x2300", e))?;
+        let p1: i32 = sd.sdo_read(0x6064, 0).await.map_err(|e| ("0x6064", e))?;
         Ok(PvRun {
             dip,
             alias,
             amplitude_ma: f64::from(ia).hypot(f64::from(ib)),
             angle_step: i32::from(a1.wrapping_sub(a0) as i16),
+            moved: p1 - p0,
             statusword,
         })
     });
@@ -224,8 +267,13 @@ fn dip_function_switches_set_current_and_direction_with_0x2025_zero() {
         off.amplitude_ma
     );
     // +1000 inc/s = 1 electrical turn per second: ≈ 6500 / 65536 turn in 100 ms; the
-    // reversal turns the field the other way for the same set-point.
-    assert!(off.angle_step.abs() > 1000 && on.angle_step.abs() > 1000, "{on:?} {off:?}");
+    // reversal turns the field (the motor) the other way for the same set-point, and
+    // the master sees the same positive motion.
+    assert!(
+        off.angle_step.abs() > 1000 && on.angle_step.abs() > 1000,
+        "{on:?} {off:?}"
+    );
+    assert!(on.moved > 50 && off.moved > 50, "{on:?} {off:?}");
     assert!(
         on.angle_step.signum() == -off.angle_step.signum(),
         "direction reversed by SW5: {} vs {}",
@@ -247,19 +295,36 @@ fn outputs_follow_0x60fe_the_alarm_and_the_brake() {
         let (idle, out3);
         {
             let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
-            idle = sd.sdo_read::<u16>(0x2157, 0).await.map_err(|e| ("0x2157", e))?;
-            sd.sdo_write(0x60FE, 2, 1u32 << 18).await.map_err(|e| ("0x60FE:2", e))?;
-            sd.sdo_write(0x60FE, 1, 1u32 << 18).await.map_err(|e| ("0x60FE:1", e))?;
+            idle = sd
+                .sdo_read::<u16>(0x2157, 0)
+                .await
+                .map_err(|e| ("0x2157", e))?;
+            sd.sdo_write(0x60FE, 2, 1u32 << 18)
+                .await
+                .map_err(|e| ("0x60FE:2", e))?;
+            sd.sdo_write(0x60FE, 1, 1u32 << 18)
+                .await
+                .map_err(|e| ("0x60FE:1", e))?;
             async_io::Timer::after(Duration::from_millis(20)).await;
-            out3 = sd.sdo_read::<u16>(0x2157, 0).await.map_err(|e| ("0x2157", e))?;
-            sd.sdo_write(0x6060, 0, 3i8).await.map_err(|e| ("0x6060", e))?;
-            sd.sdo_write(0x60FF, 0, 0i32).await.map_err(|e| ("0x60FF", e))?;
+            out3 = sd
+                .sdo_read::<u16>(0x2157, 0)
+                .await
+                .map_err(|e| ("0x2157", e))?;
+            sd.sdo_write(0x6060, 0, 3i8)
+                .await
+                .map_err(|e| ("0x6060", e))?;
+            sd.sdo_write(0x60FF, 0, 0i32)
+                .await
+                .map_err(|e| ("0x60FF", e))?;
         }
         let group = group.into_op(&md).await.map_err(|e| ("into_op", e))?;
         let sw = enable(&md, &group, 50).await?;
         assert_eq!(sw & 0x6F, 0x27, "Operation enabled: {sw:#06x}");
         let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
-        let enabled = sd.sdo_read::<u16>(0x2157, 0).await.map_err(|e| ("0x2157", e))?;
+        let enabled = sd
+            .sdo_read::<u16>(0x2157, 0)
+            .await
+            .map_err(|e| ("0x2157", e))?;
         // Keep the exchange going past the injected over-voltage (3 s after start).
         let mut sw = 0;
         for _ in 0..4000 {
@@ -273,7 +338,10 @@ fn outputs_follow_0x60fe_the_alarm_and_the_brake() {
             cycle(&md, &group, 0x000F).await?;
             async_io::Timer::after(Duration::from_millis(1)).await;
         }
-        let faulted = sd.sdo_read::<u16>(0x2157, 0).await.map_err(|e| ("0x2157", e))?;
+        let faulted = sd
+            .sdo_read::<u16>(0x2157, 0)
+            .await
+            .map_err(|e| ("0x2157", e))?;
         Ok((idle, out3, enabled, sw, faulted))
     });
     drop(child);
@@ -284,12 +352,30 @@ fn outputs_follow_0x60fe_the_alarm_and_the_brake() {
     assert_eq!(idle & 0x107, 0x003, "idle {idle:#06x}");
     assert_eq!(idle >> 9 & 1, 1, "green LED");
     assert_eq!(out3 & 0x107, 0x007, "OUT3 set by 0x60FE: {out3:#06x}");
-    assert_eq!(enabled & 0x100, 0x100, "brake released while enabled: {enabled:#06x}");
-    assert_eq!(sw & 0x4F, 0x08, "the injected over-voltage faulted the drive: {sw:#06x}");
-    assert_eq!(faulted & 0x103, 0x000, "alarm outputs active (low), brake engaged: {faulted:#06x}");
+    assert_eq!(
+        enabled & 0x100,
+        0x100,
+        "brake released while enabled: {enabled:#06x}"
+    );
+    assert_eq!(
+        sw & 0x4F,
+        0x08,
+        "the injected over-voltage faulted the drive: {sw:#06x}"
+    );
+    assert_eq!(
+        faulted & 0x103,
+        0x000,
+        "alarm outputs active (low), brake engaged: {faulted:#06x}"
+    );
     let lines: Vec<String> = log.try_iter().collect();
     let has = |s: &str| lines.iter().any(|l| l.contains(s));
-    assert!(has("pins OUT1 high OUT2 high OUT3 high, brake engaged"), "{lines:#?}");
+    assert!(
+        has("pins OUT1 high OUT2 high OUT3 high, brake engaged"),
+        "{lines:#?}"
+    );
     assert!(has("OUT3 high, brake released"), "{lines:#?}");
-    assert!(has("pins OUT1 low OUT2 low OUT3 high, brake engaged"), "{lines:#?}");
+    assert!(
+        has("pins OUT1 low OUT2 low OUT3 high, brake engaged"),
+        "{lines:#?}"
+    );
 }

@@ -29,8 +29,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use ecat_slave_stack::od::Dictionary;
-use tests_host::esc_sim::Flavour;
 use firmware::runtime::DipBanks;
+use tests_host::esc_sim::Flavour;
 use tests_host::fault_inject::{self, Injection, LedLog, PinLog, Schedule};
 use tests_host::raw_socket::RawSocket;
 use tests_host::segment::Segment;
