@@ -163,6 +163,8 @@ pub struct Drive<S: ParameterStore = NoStore> {
     load_report: Option<LoadReport>,
     storage_emergency: Option<(u16, [u8; 5])>,
     seen_tune_seq: u8,
+    /// The last current auto-tune failed: no retry until 0x2013 is written again.
+    tune_failed: bool,
     seen_follow_seq: u8,
     seen_open_seq: u8,
     seen_trip_seq: u8,
@@ -242,6 +244,7 @@ macro_rules! power_up_fields {
             load_report: None,
             storage_emergency: None,
             seen_tune_seq: 0,
+            tune_failed: false,
             seen_follow_seq: 0,
             seen_open_seq: 0,
             seen_trip_seq: 0,
@@ -484,7 +487,10 @@ impl<S: ParameterStore> Drive<S> {
     /// erase. Call it from thread mode, where the flash is used (the board's `ecat`
     /// task after `poll`); returns true when it confirmed now.
     pub fn confirm_update(&mut self) -> bool {
-        let due = self.startup_checks == Some(true) && !self.command.power_stage;
+        // Not while the current auto-tune may drive the bridges either.
+        let due = self.startup_checks == Some(true)
+            && !self.command.power_stage
+            && self.power_up_tune_over;
         let runtime_up = self.reached_preop;
         match self.update.as_deref_mut() {
             Some(u) => u.confirm(due, runtime_up),
@@ -723,6 +729,39 @@ impl<S: ParameterStore> Drive<S> {
             .saturating_add(c.under_voltage_hysteresis_mv)
             && bus <= c.over_voltage_mv
             && !self.faults.any_active()
+            && !self.tune_failed
+            && self.tune_state_allows()
+    }
+
+    /// The PDS and ESM states in which the current auto-tune may energise the motor:
+    /// the power-up self-test (Not ready to switch on), Switch on disabled or Ready to
+    /// switch on — the power stage off and the brake engaged — and never in Bootstrap.
+    pub(crate) fn tune_state_allows(&self) -> bool {
+        use crate::cia402::pds::PdsState;
+        matches!(
+            self.cia402.state(),
+            PdsState::NotReadyToSwitchOn | PdsState::SwitchOnDisabled | PdsState::ReadyToSwitchOn
+        ) && self.esm != EsmState::Bootstrap
+            && !self.command.power_stage
+            && !self.command.brake_release
+    }
+
+    /// Entering Bootstrap: the power stage goes off now unless a stop ramp runs (the
+    /// 0x6007 reaction of the ESM change), in which case it goes off at its end.
+    fn bootstrap_stop(&mut self) {
+        use crate::cia402::pds::PdsState;
+        if !matches!(
+            self.cia402.state(),
+            PdsState::QuickStopActive | PdsState::FaultReactionActive
+        ) {
+            self.command.power_stage = false;
+            self.command.drive_enabled = false;
+            self.command.brake_release = false;
+            // The PDS leaves the enabled states (disable voltage, as with 0x6007 = 2):
+            // leaving Bootstrap re-energises nothing without a new enable.
+            self.cia402.set_controlword(0);
+            self.react_now = true;
+        }
     }
 
     /// The current-loop supervisor's report (control path → drive; call every tick,
@@ -758,6 +797,8 @@ impl<S: ParameterStore> Drive<S> {
                 }
                 TuneStatus::Failed(e) => {
                     use foc::autotune::{Phase, TuneError};
+                    // No retry by itself: a new 0x2013 write asks for one.
+                    self.tune_failed = true;
                     // A calibration outside its band is the current sensing's fault
                     // (0x5210, detail 2); the others are the motor's.
                     let (kind, detail) = match e {
@@ -912,8 +953,13 @@ impl<S: ParameterStore> Drive<S> {
             self.cia402.raise_fault(self.faults.error_code());
         }
         // (No fault this step raises cuts the power: one reading serves.) In Bootstrap
-        // the power stage stays off whatever the PDS says.
-        if power_cut || self.esm == EsmState::Bootstrap {
+        // the power stage stays off whatever the PDS says, once a running stop ended.
+        let stopping = matches!(
+            self.cia402.state(),
+            crate::cia402::pds::PdsState::QuickStopActive
+                | crate::cia402::pds::PdsState::FaultReactionActive
+        );
+        if power_cut || (self.esm == EsmState::Bootstrap && !stopping) {
             self.command.power_stage = false;
             self.command.drive_enabled = false;
             self.command.brake_release = false;
@@ -931,6 +977,8 @@ use stack::WholeDictionary;
 pub use stack::{is_saved, NoRuntime};
 pub use store::{FlashStore, NoStore, ParameterStore, StagedStore};
 
+#[cfg(test)]
+mod safety_tests;
 #[cfg(test)]
 mod stall_tests;
 #[cfg(test)]

@@ -288,10 +288,11 @@ async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>)
             s.rt.before_poll(s.drive, &mut |e| {
                 slave.emergency(e.code, e.register, e.data)
             });
-            if slave.poll(&mut *s.drive, now).is_err() {
+            let ok = slave.poll(&mut *s.drive, now).is_ok();
+            if !ok {
                 hw::log::ESC_ERRORS.fetch_add(1, Ordering::Relaxed);
             }
-            let work = s.rt.after_poll(s.drive, &mut BoardPath);
+            let work = s.rt.after_poll(s.drive, &mut BoardPath, ok, now);
             if work.confirmed {
                 defmt::info!("firmware: the new image confirmed itself");
             }

@@ -22,6 +22,7 @@
 use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::leds::{ErrCondition, StatusLeds};
 use ecat_slave_stack::od::Dictionary;
+use ecat_slave_stack::slave::SlaveApplication;
 
 use crate::board_glue::{BoardGlue, ControlCommand, Feedback};
 use crate::current_supervisor::SupervisorConfig;
@@ -174,7 +175,14 @@ pub struct Runtime {
     last_command: Option<i32>,
     /// Last actual position in encoder counts (0x2041/0x2042).
     last_counts: Option<i64>,
+    /// The ESC has not answered since (µs), and whether that was reported.
+    esc_failing_since: Option<u64>,
+    esc_loss_reported: bool,
 }
+
+/// An ESC that does not answer for this long (µs) is the loss of the master: the
+/// default process-data watchdog time (100 ms).
+pub const ESC_LOSS_US: u64 = 100_000;
 
 impl Runtime {
     /// The runtime of a drive on board `spec`, with the control path's first command
@@ -205,6 +213,8 @@ impl Runtime {
             single_bank: SingleBank::new(),
             last_command: None,
             last_counts: None,
+            esc_failing_since: None,
+            esc_loss_reported: false,
         }
     }
 
@@ -377,14 +387,29 @@ impl Runtime {
         }
     }
 
-    /// After a mailbox poll, in thread mode (flash allowed): the command (the poll
-    /// may have changed the state), a new image on trial confirms itself, and whether
-    /// an accepted update waits for the reset into the bootloader.
+    /// After a mailbox poll, in thread mode (flash allowed): `poll_ok` tells whether
+    /// the ESC answered; an ESC that has not answered for [`ESC_LOSS_US`] is the loss
+    /// of the master (the 0x6007 reaction, as a process-data watchdog: the master's
+    /// set-points can no longer arrive). Then the command (the poll may have changed
+    /// the state), a new image on trial confirms itself, and whether an accepted update
+    /// waits for the reset into the bootloader.
     pub fn after_poll<S: ParameterStore>(
         &mut self,
         drive: &mut Drive<S>,
         ctl: &mut dyn ControlPath,
+        poll_ok: bool,
+        now_us: u64,
     ) -> AfterPoll {
+        if poll_ok {
+            self.esc_failing_since = None;
+            self.esc_loss_reported = false;
+        } else {
+            let since = *self.esc_failing_since.get_or_insert(now_us);
+            if !self.esc_loss_reported && now_us.saturating_sub(since) >= ESC_LOSS_US {
+                self.esc_loss_reported = true;
+                drive.on_outputs_lost(ecat_slave_stack::al_status::AlStatusCode::SmWatchdog);
+            }
+        }
         self.after_step(drive, ctl);
         AfterPoll {
             confirmed: drive.confirm_update(),

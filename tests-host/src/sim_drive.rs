@@ -182,6 +182,8 @@ pub struct SimDrive {
     pub dips: DipBanks,
     /// The ESM as the LEDs show it (from the slave runtime, when the segment saw it).
     esm: Option<EsmView>,
+    /// The segment's count of failed polls when last looked at.
+    poll_errors_seen: u64,
     /// 0x1018:04.
     serial: u32,
     /// The boot flash and ESC of the firmware update, when attached.
@@ -284,6 +286,7 @@ impl SimDrive {
             tick_us: 0,
             dips: DIPS_ALL_ON,
             esm: None,
+            poll_errors_seen: 0,
             serial,
             boot: None,
             boot_state: None,
@@ -389,10 +392,11 @@ impl SimDrive {
 
     /// The board's `ecat` task around a mailbox poll: emergencies before (`send`),
     /// then the command, the update confirmation and whether a reset is due.
-    fn mailbox_work(&mut self, send: &mut dyn FnMut(firmware::faults::Emergency)) {
+    fn mailbox_work(&mut self, send: &mut dyn FnMut(firmware::faults::Emergency), poll_ok: bool) {
         self.rt.before_poll(&mut self.drive, send);
+        let now = self.tick_us;
         let (drive, rt, mut path) = self.parts();
-        rt.after_poll(drive, &mut path);
+        rt.after_poll(drive, &mut path, poll_ok, now);
         if let Some(Err(e)) = self.drive.persist_history() {
             eprintln!("simulated drive: fault history not written: {e:?}");
         }
@@ -607,8 +611,11 @@ pub fn power_up_drives(seg: &mut Segment<SimDrive>) {
 pub fn forward_emergencies(seg: &mut Segment<SimDrive>) {
     for d in seg.drives_mut() {
         let slave = &mut d.slave;
+        // The segment's polls count their ESC errors (`Drive::poll_errors`).
+        let ok = d.poll_errors == d.app.poll_errors_seen;
+        d.app.poll_errors_seen = d.poll_errors;
         d.app
-            .mailbox_work(&mut |e| slave.emergency(e.code, e.register, e.data));
+            .mailbox_work(&mut |e| slave.emergency(e.code, e.register, e.data), ok);
         let esm = slave.esm();
         d.app.set_esm(EsmView::from_al_status(
             slave.state(),

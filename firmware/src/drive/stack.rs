@@ -81,6 +81,19 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
                 None => Ok(()),
             },
             0x2000..=0x21FF => {
+                if (index, sub) == (0x2013, 0) && data.first() == Some(&1) {
+                    // The current auto-tune energises the motor without an enable: only
+                    // with the power stage off and the brake engaged, never in
+                    // Bootstrap (`Drive::tune_permitted`).
+                    if !self.tune_state_allows() {
+                        return Err(SdoAbort::StateConflict);
+                    }
+                    self.params.write(index, sub, data)?;
+                    // A new request: a failed tune may run again.
+                    self.tune_failed = false;
+                    self.faults.configure_from(&self.params);
+                    return Ok(());
+                }
                 self.params.write(index, sub, data)?;
                 if let Some(start) = self.params.take_servo_tune_request() {
                     return self.servo_tune_command(start);
@@ -275,15 +288,21 @@ impl<S: ParameterStore> EsmHooks for Drive<S> {
         if matches!(to, EsmState::PreOp | EsmState::SafeOp | EsmState::Op) {
             self.reached_preop = true;
         }
-        if to == EsmState::Bootstrap {
-            // Nothing of the motion survives the Bootstrap: the power stage is off.
-            self.command.power_stage = false;
-            self.command.drive_enabled = false;
-            self.command.brake_release = false;
-        }
         if from == EsmState::Op && to != EsmState::Op {
             let code = if to == EsmState::Init { 0xA000 } else { 0xA001 };
             self.left_op(code, [from.bits(), to.bits()]);
+        } else if matches!(to, EsmState::Init | EsmState::Bootstrap)
+            && matches!(from, EsmState::PreOp | EsmState::SafeOp)
+        {
+            // An axis enabled outside Op (by SDO) loses its master's configuration:
+            // the 0x6007 reaction, as for the loss of Op.
+            self.left_op(0xA000, [from.bits(), to.bits()]);
+        }
+        if to == EsmState::Bootstrap {
+            // Nothing of the motion survives the Bootstrap: the power stage goes off
+            // once a running stop has ended (`Drive::control_step`), at once when
+            // nothing stops.
+            self.bootstrap_stop();
         }
         if to == EsmState::Init {
             self.cia402.on_esm_init();

@@ -460,8 +460,11 @@ fn current_report_writes_tune_results_and_raises_its_faults() {
     assert!(!d.tune_permitted(), "a fault withdraws the permission");
     assert_eq!(d.faults.error_code(), 0x5210, "most severe");
     assert_eq!(d.faults.led_code(), Some(9));
-    // Events: a fault reset clears both.
+    // Events: a fault reset clears both. The failed tune is not retried by itself:
+    // a new 0x2013 write asks for it.
     assert!(d.faults.fault_reset());
+    assert!(!d.tune_permitted());
+    sdo_write(&mut d, 0x2013, 0, &[1]).expect("a new request");
     assert!(d.tune_permitted());
     // A calibration outside its band: the current-sensing fault, detail 2, with its
     // emergency; the last good calibration stays readable.

@@ -348,7 +348,37 @@ fn emergencies_go_to_the_mailbox_before_the_poll() {
     let mut sent = Vec::new();
     rt.before_poll(&mut d, &mut |e| sent.push(e.code));
     assert!(sent.contains(&0x3210), "{sent:x?}");
-    let work = rt.after_poll(&mut d, &mut path);
+    let work = rt.after_poll(&mut d, &mut path, true, 0);
     assert!(!work.reset && !work.confirmed);
     let _ = NoStore;
+}
+
+#[test]
+fn an_esc_that_stops_answering_is_the_loss_of_the_master() {
+    use crate::cia402::pds::PdsState;
+    let (mut d, mut rt, mut path) = started(SPEC, DipBanks::default(), |_| {});
+    d.on_state_change(EsmState::SafeOp, EsmState::Op);
+    enable(&mut d, &mut rt, &mut path);
+    assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
+    // PV at speed.
+    sdo_write(&mut d, 0x6060, 0, &[3]).unwrap();
+    sdo_write(&mut d, 0x60FF, 0, &50_000i32.to_le_bytes()).unwrap();
+    ticks(&mut d, &mut rt, &mut path, 20, 200);
+    assert!(d.command().velocity > 0.0);
+    // The ESC fails: every poll errs. Shorter than ESC_LOSS_US: nothing yet.
+    let t0 = 220_000u64;
+    for k in 0..99u64 {
+        rt.after_poll(&mut d, &mut path, false, t0 + k * 1000);
+        rt.tick(&mut d, &mut path, t0 + k * 1000, 0, 0, None);
+    }
+    assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
+    // From ESC_LOSS_US on: the 0x6007 reaction (default 1: fault) on the drive's clock.
+    for k in 99..400u64 {
+        rt.after_poll(&mut d, &mut path, false, t0 + k * 1000);
+        rt.tick(&mut d, &mut path, t0 + k * 1000, 0, 0, None);
+    }
+    assert_eq!(d.cia402.state(), PdsState::Fault);
+    assert!(!d.command().drive_enabled);
+    assert!(!rt.pins().brake_released);
+    assert!(!rt.command().power_allowed);
 }

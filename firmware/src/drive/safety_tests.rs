@@ -1,0 +1,150 @@
+//! The drive's own safety decisions at its edges: when the current auto-tune may
+//! energise the motor, and what leaving Pre-Op for Init or Bootstrap does to an axis
+//! enabled outside Op.
+
+use super::*;
+use crate::cia402::pds::PdsState;
+use crate::current_supervisor::{CurrentReport, TuneStatus};
+use ecat_slave_stack::esm::EsmHooks;
+
+fn sdo_write(d: &mut Drive, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
+    let e = od::find_entry(dictionary::OBJECTS, index, sub)?;
+    od::check_write(e, data, EsmState::PreOp)?;
+    d.write(index, sub, data, EsmState::PreOp)
+}
+
+fn steps(d: &mut Drive, n: usize) {
+    for _ in 0..n {
+        d.run_cycle(0.001);
+    }
+}
+
+fn enable(d: &mut Drive) {
+    d.set_axis(AxisState {
+        bus_mv: 48_000,
+        ..AxisState::default()
+    });
+    for cw in [0x06u16, 0x07, 0x0F] {
+        d.cia402.set_controlword(cw);
+        steps(d, 3);
+    }
+}
+
+fn powered_up(esm: EsmState) -> Drive {
+    let mut d = Drive::new(Variant::HybridServo, 0);
+    d.on_state_change(EsmState::Init, EsmState::PreOp);
+    if esm != EsmState::PreOp {
+        d.on_state_change(EsmState::PreOp, esm);
+    }
+    d.set_axis(AxisState {
+        bus_mv: 48_000,
+        ..AxisState::default()
+    });
+    steps(&mut d, 2);
+    d
+}
+
+#[test]
+fn auto_tune_refused_while_enabled_and_in_bootstrap() {
+    let mut d = powered_up(EsmState::PreOp);
+    // 0 is always accepted (it stops a tune).
+    assert_eq!(sdo_write(&mut d, 0x2013, 0, &[0]), Ok(()));
+    enable(&mut d);
+    assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
+    assert_eq!(
+        sdo_write(&mut d, 0x2013, 0, &[1]),
+        Err(SdoAbort::StateConflict)
+    );
+    assert_eq!(
+        d.params.get(Param::AutoTune),
+        0,
+        "the refused write changed nothing"
+    );
+    assert!(!d.tune_permitted(), "no tune while the power stage is on");
+    // Switched off again: the tune may be asked for.
+    d.cia402.set_controlword(0x06);
+    steps(&mut d, 3);
+    assert_eq!(d.cia402.state(), PdsState::ReadyToSwitchOn);
+    assert!(d.tune_permitted());
+    assert_eq!(sdo_write(&mut d, 0x2013, 0, &[1]), Ok(()));
+    enable(&mut d);
+    assert_eq!(sdo_write(&mut d, 0x2013, 0, &[0]), Ok(()));
+    // Bootstrap: never.
+    let mut d = powered_up(EsmState::PreOp);
+    d.on_state_change(EsmState::PreOp, EsmState::Init);
+    d.on_state_change(EsmState::Init, EsmState::Bootstrap);
+    steps(&mut d, 2);
+    assert!(!d.tune_permitted());
+    assert_eq!(
+        sdo_write(&mut d, 0x2013, 0, &[1]),
+        Err(SdoAbort::StateConflict)
+    );
+}
+
+#[test]
+fn a_failed_tune_does_not_rearm_itself() {
+    let mut d = powered_up(EsmState::PreOp);
+    sdo_write(&mut d, 0x2013, 0, &[1]).unwrap();
+    assert!(d.tune_permitted());
+    let failed = CurrentReport {
+        tune: TuneStatus::Failed(foc::autotune::TuneError::Implausible),
+        tune_seq: 1,
+        ..CurrentReport::default()
+    };
+    d.current_report(&failed);
+    // Whatever the fault mask made of it, once reset the permission does not return
+    // by itself.
+    d.faults.fault_reset();
+    steps(&mut d, 2);
+    assert!(!d.faults.any_active());
+    assert!(!d.tune_permitted(), "no retry without a new request");
+    // A new 0x2013 write asks again.
+    sdo_write(&mut d, 0x2013, 0, &[1]).unwrap();
+    assert!(d.tune_permitted());
+}
+
+#[test]
+fn init_from_an_enabled_pre_op_runs_the_0x6007_reaction() {
+    // Enabled by SDO in Pre-Op, moving in PV; the master takes the ESM to Init.
+    let mut d = powered_up(EsmState::PreOp);
+    sdo_write(&mut d, 0x6060, 0, &[3]).unwrap();
+    sdo_write(&mut d, 0x60FF, 0, &50_000i32.to_le_bytes()).unwrap();
+    enable(&mut d);
+    steps(&mut d, 100);
+    assert!(d.command().velocity > 0.0);
+    d.on_state_change(EsmState::PreOp, EsmState::Init);
+    // 0x6007 = 1 (default): fault reaction on the 0x605E ramp, then Fault.
+    steps(&mut d, 500);
+    assert_eq!(d.cia402.state(), PdsState::Fault);
+    assert!(!d.command().drive_enabled && !d.command().power_stage);
+    assert_eq!(d.command().velocity, 0.0);
+}
+
+#[test]
+fn bootstrap_stops_first_and_never_reenables() {
+    for option in [0i16, 1, 2, 3] {
+        let mut d = powered_up(EsmState::PreOp);
+        sdo_write(&mut d, 0x6007, 0, &option.to_le_bytes()).unwrap();
+        sdo_write(&mut d, 0x6060, 0, &[3]).unwrap();
+        sdo_write(&mut d, 0x60FF, 0, &50_000i32.to_le_bytes()).unwrap();
+        enable(&mut d);
+        steps(&mut d, 100);
+        d.on_state_change(EsmState::PreOp, EsmState::Init);
+        d.on_state_change(EsmState::Init, EsmState::Bootstrap);
+        steps(&mut d, 500);
+        assert!(
+            !d.command().power_stage && !d.command().drive_enabled,
+            "0x6007 = {option}: power off in Bootstrap"
+        );
+        // Back to Init: nothing re-energises, whatever the old controlword was.
+        d.on_state_change(EsmState::Bootstrap, EsmState::Init);
+        d.on_state_change(EsmState::Init, EsmState::PreOp);
+        steps(&mut d, 50);
+        assert!(
+            !d.command().power_stage && !d.command().drive_enabled,
+            "0x6007 = {option}: re-energised after Bootstrap ({:?})",
+            d.cia402.state()
+        );
+        assert!(!d.cia402.state().voltage_enabled(), "0x6007 = {option}");
+    }
+}
