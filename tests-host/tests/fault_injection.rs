@@ -176,7 +176,8 @@ impl Bench {
             while let Some(e) = self.d.drive.pop_emergency() {
                 self.emcy.push(e);
             }
-            self.pins = self.d.drive.outputs().0;
+            // OUT1 and OUT2 (the alarm outputs); OUT3 is the master's (0x60FE).
+            self.pins = self.d.drive.outputs().0 & 0b11;
         }
     }
 
