@@ -719,8 +719,11 @@ impl<S: ParameterStore> Drive<S> {
 
     /// Permission for the power-up current-loop auto-tune
     /// ([`crate::current_supervisor`]): the bus voltage is inside the under/over-voltage
-    /// window and no fault is active. The control path also needs the current-sensor
-    /// offsets to have passed their start-up check.
+    /// window and no fault is active; with 0x2013 = 1 also the power stage off and the
+    /// brake engaged ([`Drive::tune_state_allows`]) and no failed tune since the last
+    /// 0x2013 write. (With 0x2013 = 0 the permission only gates the first enable's
+    /// phase check, which runs with the enable.) The control path also needs the
+    /// current-sensor offsets to have passed their start-up check.
     pub fn tune_permitted(&self) -> bool {
         let c = self.faults.config();
         let bus = self.axis.bus_mv;
@@ -729,18 +732,22 @@ impl<S: ParameterStore> Drive<S> {
             .saturating_add(c.under_voltage_hysteresis_mv)
             && bus <= c.over_voltage_mv
             && !self.faults.any_active()
-            && !self.tune_failed
-            && self.tune_state_allows()
+            && (self.params.get(Param::AutoTune) == 0
+                || (!self.tune_failed && self.tune_state_allows()))
     }
 
     /// The PDS and ESM states in which the current auto-tune may energise the motor:
-    /// the power-up self-test (Not ready to switch on), Switch on disabled or Ready to
-    /// switch on — the power stage off and the brake engaged — and never in Bootstrap.
+    /// the power-up self-test (Not ready to switch on), Switch on disabled, Ready to
+    /// switch on or Fault (it then waits for the reset) — the power stage off and the
+    /// brake engaged — and never in Bootstrap.
     pub(crate) fn tune_state_allows(&self) -> bool {
         use crate::cia402::pds::PdsState;
         matches!(
             self.cia402.state(),
-            PdsState::NotReadyToSwitchOn | PdsState::SwitchOnDisabled | PdsState::ReadyToSwitchOn
+            PdsState::NotReadyToSwitchOn
+                | PdsState::SwitchOnDisabled
+                | PdsState::ReadyToSwitchOn
+                | PdsState::Fault
         ) && self.esm != EsmState::Bootstrap
             && !self.command.power_stage
             && !self.command.brake_release
@@ -797,8 +804,10 @@ impl<S: ParameterStore> Drive<S> {
                 }
                 TuneStatus::Failed(e) => {
                     use foc::autotune::{Phase, TuneError};
-                    // No retry by itself: a new 0x2013 write asks for one.
-                    self.tune_failed = true;
+                    // No retry of the auto-tune by itself: a new 0x2013 write asks
+                    // for one. (With 0x2013 = 0 this was the first enable's phase
+                    // check, which a fault reset re-arms.)
+                    self.tune_failed = self.params.get(Param::AutoTune) == 1;
                     // A calibration outside its band is the current sensing's fault
                     // (0x5210, detail 2); the others are the motor's.
                     let (kind, detail) = match e {

@@ -747,20 +747,25 @@ fn motor_open_at_the_power_up_tune_is_0x7120_and_clears_by_reset() {
     assert_eq!(b.emcy[0].data[3..5], [1, 0], "open phase, phase A");
     assert_eq!(b.sdo_read(0x2021, 0), 1, "nothing measured");
     check_blink(&mut b, 4, 0);
-    // Not latched, an event: the reset clears it; the tune runs again and, the
-    // motor still open, raises the fault again (a new occurrence, one emergency).
+    // Not latched, an event: the reset clears it. The tune does not run again by
+    // itself; a new 0x2013 write asks for it and, the motor still open, it raises the
+    // fault again (a new occurrence, one emergency).
     let n = b.emcy.len();
     b.fault_reset();
     assert_eq!(b.emcy[n].code, 0, "error reset");
+    b.run_ms(100);
+    assert!(!b.d.drive.faults.any_active(), "no retry by itself");
+    b.sdo_write(0x2013, 0, &[1]).unwrap();
     run_until_fault(&mut b, 100);
     b.run_ms(10);
     assert_eq!(b.sdo_read(0x603F, 0), 0x7120);
     assert_eq!(b.emcy.len(), n + 2, "{:x?}", b.emcy);
     assert_eq!(b.emcy[n + 1].code, 0x7120);
     assert_eq!(b.sdo_read(0x2400, 1), 2, "two occurrences in the history");
-    // Motor connected: the reset clears the fault, the re-tune succeeds, the drive
-    // enables and holds.
+    // Motor connected: the reset clears the fault, the re-tune asked for succeeds,
+    // the drive enables and holds.
     b.axis.borrow_mut().open_phase(0, false);
+    b.sdo_write(0x2013, 0, &[1]).unwrap();
     check_recovery(&mut b);
     assert_eq!(b.tune(), TuneStatus::Done);
     assert!(b.sdo_read(0x2021, 0).abs_diff(1800) <= 180);

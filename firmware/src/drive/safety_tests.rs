@@ -47,28 +47,25 @@ fn powered_up(esm: EsmState) -> Drive {
 #[test]
 fn auto_tune_refused_while_enabled_and_in_bootstrap() {
     let mut d = powered_up(EsmState::PreOp);
-    // 0 is always accepted (it stops a tune).
-    assert_eq!(sdo_write(&mut d, 0x2013, 0, &[0]), Ok(()));
+    // 0x2013 = 1 (the default): the tune may run while the power stage is off.
+    assert_eq!(d.params.get(Param::AutoTune), 1);
+    assert!(d.tune_permitted());
     enable(&mut d);
     assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
+    assert!(!d.tune_permitted(), "no tune while the power stage is on");
+    // 0 is always accepted (it stops a tune); 1 is refused while enabled.
+    assert_eq!(sdo_write(&mut d, 0x2013, 0, &[0]), Ok(()));
     assert_eq!(
         sdo_write(&mut d, 0x2013, 0, &[1]),
         Err(SdoAbort::StateConflict)
     );
-    assert_eq!(
-        d.params.get(Param::AutoTune),
-        0,
-        "the refused write changed nothing"
-    );
-    assert!(!d.tune_permitted(), "no tune while the power stage is on");
+    assert_eq!(d.params.get(Param::AutoTune), 0, "the refused write changed nothing");
     // Switched off again: the tune may be asked for.
     d.cia402.set_controlword(0x06);
     steps(&mut d, 3);
     assert_eq!(d.cia402.state(), PdsState::ReadyToSwitchOn);
-    assert!(d.tune_permitted());
     assert_eq!(sdo_write(&mut d, 0x2013, 0, &[1]), Ok(()));
-    enable(&mut d);
-    assert_eq!(sdo_write(&mut d, 0x2013, 0, &[0]), Ok(()));
+    assert!(d.tune_permitted());
     // Bootstrap: never.
     let mut d = powered_up(EsmState::PreOp);
     d.on_state_change(EsmState::PreOp, EsmState::Init);
