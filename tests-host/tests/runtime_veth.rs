@@ -7,6 +7,10 @@
 //!   station alias.
 //! * 0x60FE drives OUT3 (in the pin log and in 0x2157); the alarm outputs follow a
 //!   fault; the brake output follows the drive's enable.
+//! * An axis enabled by SDO in Pre-Op: 0x2013 (current auto-tune) is refused and the
+//!   axis holds; the master taking the ESM to Init stops it (the 0x6007 reaction: the
+//!   brake engages). That it stays at rest and needs a new enable is
+//!   `firmware/src/drive/safety_tests.rs`.
 //!
 //! Needs root (network namespaces, raw sockets) and iproute2, as
 //! `virtual_drive_veth.rs`: without root the tests fail and say how to run them.
@@ -25,6 +29,7 @@ type Storage = PduStorage<16, { PduStorage::element_size(1100) }>;
 static PDU_DIP_ON: Storage = PduStorage::new();
 static PDU_DIP_OFF: Storage = PduStorage::new();
 static PDU_OUTPUTS: Storage = PduStorage::new();
+static PDU_PREOP: Storage = PduStorage::new();
 
 type Group = SubDeviceGroup<4, 128, ethercrab::DefaultLock, ethercrab::subdevice_group::Op>;
 type Failed = (&'static str, ethercrab::error::Error);
@@ -377,5 +382,104 @@ fn outputs_follow_0x60fe_the_alarm_and_the_brake() {
     assert!(
         has("pins OUT1 low OUT2 low OUT3 high, brake engaged"),
         "{lines:#?}"
+    );
+}
+
+#[test]
+fn pre_op_motion_tune_refused_and_init_stops_the_axis() {
+    let (net, child, log) = start("i", &[]);
+    let md = master(&PDU_PREOP, &net.host_if);
+    type Found = (String, u16, i32, i32, i32, u16);
+    let result: Result<Found, Failed> = async_io::block_on(async {
+        let group = md
+            .init_single_group::<4, 128>(ethercat_now)
+            .await
+            .map_err(|e| ("init", e))?;
+        let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
+        sd.sdo_write(0x6060, 0, 3i8)
+            .await
+            .map_err(|e| ("0x6060", e))?;
+        sd.sdo_write(0x60FF, 0, 0i32)
+            .await
+            .map_err(|e| ("0x60FF", e))?;
+        // Enable by SDO in Pre-Op (motion outside Op).
+        let mut sw = 0u16;
+        for _ in 0..300 {
+            let cw: u16 = match sw & 0x6F {
+                0x21 => 0x0007,
+                0x23 | 0x27 => 0x000F,
+                _ if sw & 0x4F == 0x40 => 0x0006,
+                _ => 0x0000,
+            };
+            sd.sdo_write(0x6040, 0, cw)
+                .await
+                .map_err(|e| ("0x6040", e))?;
+            async_io::Timer::after(Duration::from_millis(10)).await;
+            sw = sd.sdo_read(0x6041, 0).await.map_err(|e| ("0x6041", e))?;
+            if sw & 0x6F == 0x27 {
+                break;
+            }
+        }
+        // The current auto-tune is refused while enabled; the axis holds.
+        let refused = match sd.sdo_write(0x2013, 0, 1u8).await {
+            Ok(()) => "accepted".to_string(),
+            Err(e) => format!("{e:?}"),
+        };
+        let p0: i32 = sd.sdo_read(0x6064, 0).await.map_err(|e| ("0x6064", e))?;
+        async_io::Timer::after(Duration::from_millis(100)).await;
+        let p1: i32 = sd.sdo_read(0x6064, 0).await.map_err(|e| ("0x6064", e))?;
+        // Moving; then the master takes the ESM to Init.
+        sd.sdo_write(0x60FF, 0, 20_000i32)
+            .await
+            .map_err(|e| ("0x60FF", e))?;
+        async_io::Timer::after(Duration::from_millis(200)).await;
+        let moving: i32 = sd.sdo_read(0x6064, 0).await.map_err(|e| ("0x6064", e))?;
+        // The master takes the ESM to Init (AL control) and leaves the drive there.
+        sd.register_write(0x0120u16, 0x0001u16)
+            .await
+            .map_err(|e| ("AL control", e))?;
+        let mut st = 0u16;
+        for _ in 0..100 {
+            st = sd
+                .register_read(0x0130u16)
+                .await
+                .map_err(|e| ("AL status", e))?;
+            if st & 0x0F == 0x01 {
+                break;
+            }
+            async_io::Timer::after(Duration::from_millis(10)).await;
+        }
+        async_io::Timer::after(Duration::from_millis(500)).await;
+        Ok((refused, sw, p0, p1, moving, st))
+    });
+    drop(child);
+    let (refused, sw, p0, p1, moving, st) = result.expect("ethercrab over the veth pair");
+    let lines: Vec<String> = log.try_iter().collect();
+    eprintln!(
+        "Pre-Op enable {sw:#06x}; 0x2013 write: {refused}; hold {p0} → {p1}, moving to \
+         {moving}; AL status {st:#06x} after the Init request"
+    );
+    assert_eq!(sw & 0x6F, 0x27, "enabled by SDO in Pre-Op");
+    assert!(
+        refused.contains("InvalidState"),
+        "0x2013 while enabled: {refused}"
+    );
+    assert!(
+        p0.abs_diff(p1) <= 13,
+        "holds while the tune is refused: {p0} → {p1}"
+    );
+    assert!(
+        moving.abs_diff(p1) > 500,
+        "moving in PV before Init: {p1} → {moving}"
+    );
+    assert_eq!(st & 0x0F, 0x01, "Init");
+    // The drive stopped on its own clock (0x6007 = 1: the fault reaction's ramp, then
+    // no power): the brake, released while enabled, is engaged again.
+    let released = lines.iter().position(|l| l.contains("brake released"));
+    let engaged =
+        released.and_then(|r| lines[r..].iter().position(|l| l.contains("brake engaged")));
+    assert!(
+        engaged.is_some(),
+        "brake released, then engaged: {lines:#?}"
     );
 }

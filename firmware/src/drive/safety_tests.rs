@@ -59,7 +59,11 @@ fn auto_tune_refused_while_enabled_and_in_bootstrap() {
         sdo_write(&mut d, 0x2013, 0, &[1]),
         Err(SdoAbort::StateConflict)
     );
-    assert_eq!(d.params.get(Param::AutoTune), 0, "the refused write changed nothing");
+    assert_eq!(
+        d.params.get(Param::AutoTune),
+        0,
+        "the refused write changed nothing"
+    );
     // Switched off again: the tune may be asked for.
     d.cia402.set_controlword(0x06);
     steps(&mut d, 3);
