@@ -868,6 +868,7 @@ impl Dictionary for NoDict {
 
 mod crc;
 mod ram_flash;
+pub mod rate;
 
 pub use ram_flash::{erase_range, read_range, write_range, PagedRamFlash, RamFlash};
 
