@@ -459,6 +459,7 @@ fn expected(g: &Geometry) -> Expected {
         esc: Esc::Lan9252,
         capacity: g.active.size,
         public_key: efw::sign::public_key(&SEED),
+        min_security_version: 0,
     }
 }
 

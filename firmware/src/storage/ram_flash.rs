@@ -68,6 +68,8 @@ pub struct RamFlash<const N: usize> {
     dead: bool,
     /// Byte operations done since the last [`RamFlash::power_on`].
     pub ops: usize,
+    /// Bytes read so far (the work a reader did: tests that bound it per call).
+    pub reads: usize,
 }
 
 impl<const N: usize> Default for RamFlash<N> {
@@ -84,6 +86,7 @@ impl<const N: usize> RamFlash<N> {
             budget: None,
             dead: false,
             ops: 0,
+            reads: 0,
         }
     }
     /// Power is lost after `ops` more byte operations.
@@ -128,6 +131,7 @@ impl<const N: usize> embedded_storage::nor_flash::ReadNorFlash for RamFlash<N> {
         }
         let range = read_range(N, offset, bytes.len())?;
         bytes.copy_from_slice(&self.mem[range]);
+        self.reads += bytes.len();
         Ok(())
     }
     fn capacity(&self) -> usize {
