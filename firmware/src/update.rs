@@ -755,13 +755,15 @@ impl<U: Updater> Update<U> {
             Check::Signature(d) => efw::verify_digest(&h, &d, &self.expected.public_key)
                 .map(|()| Check::Mark)
                 .map_err(foe_error),
-            Check::Mark => self.updater.mark_updated().map(|()| Check::Done).map_err(|e| {
-                match e {
+            Check::Mark => self
+                .updater
+                .mark_updated()
+                .map(|()| Check::Done)
+                .map_err(|e| match e {
                     UpdaterError::NotConfirmed => ErrorCode::AccessDenied,
                     UpdaterError::Signature => ErrorCode::InvalidChecksum,
                     UpdaterError::Flash => ErrorCode::ProgramError,
-                }
-            }),
+                }),
             Check::Done => Ok(Check::Done),
         };
         match next {

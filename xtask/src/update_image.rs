@@ -263,7 +263,10 @@ mod tests {
         ))
         .unwrap();
         let seed = parse_key(&dev).unwrap();
-        assert_eq!(Some(efw::sign::public_key(&seed)), firmware::update::PUBLIC_KEY);
+        assert_eq!(
+            Some(efw::sign::public_key(&seed)),
+            firmware::update::PUBLIC_KEY
+        );
         // A release board trusts it only when asked for.
         let dev_hex = firmware::update::DEV_PUBLIC_KEY_HEX;
         use firmware::update::{trust, Trust};

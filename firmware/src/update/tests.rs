@@ -333,7 +333,10 @@ fn the_last_packets_check_runs_in_bounded_steps() {
     assert_eq!(u.finish_write(), Ok(()));
     assert_eq!(fl.dfu_work().0, before.0, "the finish reads nothing");
     assert!(u.accepted().is_some());
-    assert!(max_read <= VERIFY_STEP as usize, "{max_read} bytes read in one call");
+    assert!(
+        max_read <= VERIFY_STEP as usize,
+        "{max_read} bytes read in one call"
+    );
     assert!(
         max_ops <= flash_layout::PAGE as usize + WRITE_CHUNK,
         "{max_ops} byte operations in one call"
@@ -366,10 +369,7 @@ fn a_changed_repeat_during_the_check_is_refused() {
     while matches!(u.write(off, last), WriteStatus::Busy { .. }) && n < 3 {
         n += 1;
     }
-    assert_eq!(
-        u.write(off + 1, last),
-        WriteStatus::Err(ErrorCode::Illegal)
-    );
+    assert_eq!(u.write(off + 1, last), WriteStatus::Err(ErrorCode::Illegal));
     assert_eq!(u.finish_write(), Err(ErrorCode::Illegal));
     assert!(u.accepted().is_none());
 }
@@ -404,9 +404,16 @@ fn an_image_below_the_kept_security_version_is_refused() {
         "older security version"
     );
     assert_eq!(fl.dfu_work().1, ops, "nothing erased");
-    assert_eq!(u.take_event(), Some(Event::Refused(ErrorCode::AccessDenied)));
+    assert_eq!(
+        u.take_event(),
+        Some(Event::Refused(ErrorCode::AccessDenied))
+    );
     let mut u = fl.update();
-    assert_eq!(send(&mut u, &secured(4, 2, 3)), Ok(()), "same security version, older version");
+    assert_eq!(
+        send(&mut u, &secured(4, 2, 3)),
+        Ok(()),
+        "same security version, older version"
+    );
     // The floor reads back in the information file.
     let n = u.open_read(INFO_FILE, 0, false).unwrap() as usize;
     let mut b = std::vec![0u8; n];
@@ -425,8 +432,14 @@ fn the_trusted_key_follows_the_build_and_is_reported() {
     assert_eq!(trust(None, false, true), Trust::None);
     assert_eq!(trust(None, true, true), Trust::Development(dev));
     assert_eq!(trust(Some(DEV_PUBLIC_KEY_HEX), false, true), Trust::None);
-    assert_eq!(trust(Some(&other), false, true), Trust::Production([0x11; 32]));
-    assert_eq!(trust(Some(&other), false, false), Trust::Production([0x11; 32]));
+    assert_eq!(
+        trust(Some(&other), false, true),
+        Trust::Production([0x11; 32])
+    );
+    assert_eq!(
+        trust(Some(&other), false, false),
+        Trust::Production([0x11; 32])
+    );
 
     let info = |u: &mut dyn FoeFiles| {
         let n = u.open_read(INFO_FILE, 0, false).unwrap() as usize;
@@ -439,7 +452,10 @@ fn the_trusted_key_follows_the_build_and_is_reported() {
     let mut none = fl.update_with(trust(None, false, true));
     assert_eq!(send(&mut none, &f), Err(ErrorCode::AccessDenied));
     let t = info(&mut none);
-    assert!(t.contains("key=none\n") && !t.contains("key-fingerprint"), "{t}");
+    assert!(
+        t.contains("key=none\n") && !t.contains("key-fingerprint"),
+        "{t}"
+    );
     let mut u = fl.update_with(trust(None, true, true));
     let t = info(&mut u);
     let fp: std::string::String = efw::image_digest(&dev)[..8]
