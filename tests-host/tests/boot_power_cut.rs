@@ -181,7 +181,16 @@ struct CutFlash {
     log: Option<Vec<Op>>,
     /// A programmed double word may be programmed again with zeros (STM32G4).
     zero_overwrite: bool,
+    /// Torn double words (offsets): a cut left them partly programmed or partly
+    /// erased, their ECC is wrong and every read that touches them fails (the
+    /// STM32G4's double ECC error), until an erase or a completed programming.
+    torn: Vec<u32>,
+    /// Tear double words at all (off: the flash before ECC was modelled).
+    ecc: bool,
 }
+
+/// The state of a [`CutFlash`]: contents and torn double words.
+type Snapshot = (Vec<u8>, Vec<u32>);
 
 impl CutFlash {
     fn new(size: usize) -> Self {
@@ -192,7 +201,27 @@ impl CutFlash {
             ops: 0,
             log: None,
             zero_overwrite: true,
+            torn: Vec::new(),
+            ecc: true,
         }
+    }
+
+    /// An operation from `addr` was cut after `done` bytes: the double word it
+    /// stopped in is torn (unless it stopped on a double-word boundary).
+    fn tear(&mut self, addr: u32, done: usize) {
+        let at = addr as usize + done;
+        if self.ecc && !at.is_multiple_of(WRITE_SIZE) {
+            let w = (at - at % WRITE_SIZE) as u32;
+            if !self.torn.contains(&w) {
+                self.torn.push(w);
+                self.torn.sort_unstable();
+            }
+        }
+    }
+
+    /// The double words in `from..to` were erased or programmed completely.
+    fn mend(&mut self, from: usize, to: usize) {
+        self.torn.retain(|&w| !(from..to).contains(&(w as usize)));
     }
 
     /// Power is lost after `n` more byte operations.
@@ -247,6 +276,16 @@ impl ReadNorFlash for CutFlash {
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
         self.alive()?;
         let r = read_range(self.mem.len(), offset, bytes.len())?;
+        let first = r.start - r.start % WRITE_SIZE;
+        if self
+            .torn
+            .iter()
+            .any(|&w| (first..r.end).contains(&(w as usize)))
+        {
+            // The double ECC error (an NMI on the chip, a failed read for the
+            // bootloader and the firmware).
+            return Err(NorFlashErrorKind::Other);
+        }
         bytes.copy_from_slice(&self.mem[r]);
         Ok(())
     }
@@ -265,7 +304,9 @@ impl NorFlash for CutFlash {
         let r = erase_range(self.mem.len(), PAGE_SIZE, from, to)?;
         let done = self.start(true, from, r.len());
         self.mem[r.start..r.start + done].fill(0xFF);
+        self.mend(r.start, r.start + done - done % WRITE_SIZE);
         if done < r.len() {
+            self.tear(from, done);
             return Err(NorFlashErrorKind::Other);
         }
         Ok(())
@@ -306,7 +347,9 @@ impl NorFlash for CutFlash {
                 *m &= b;
             }
         }
+        self.mend(r.start, r.start + done - done % WRITE_SIZE);
         if done < bytes.len() {
+            self.tear(offset, done);
             return Err(NorFlashErrorKind::Other);
         }
         Ok(())
@@ -366,14 +409,15 @@ impl Rig {
         self.with(|f| f.mem[p.offset as usize..(p.offset + p.size) as usize].to_vec())
     }
 
-    fn snapshot(&self) -> Vec<u8> {
-        self.with(|f| f.mem.clone())
+    fn snapshot(&self) -> Snapshot {
+        self.with(|f| (f.mem.clone(), f.torn.clone()))
     }
 
     /// Back to the contents of `snapshot`, power on.
-    fn restore(&self, snapshot: &[u8]) {
+    fn restore(&self, snapshot: &Snapshot) {
         self.with(|f| {
-            f.mem.copy_from_slice(snapshot);
+            f.mem.copy_from_slice(&snapshot.0);
+            f.torn.clone_from(&snapshot.1);
             f.power_on();
         });
     }
