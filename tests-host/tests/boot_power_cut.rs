@@ -85,9 +85,15 @@
 //!   than the *active* partition is accepted, and the swap installs only the active
 //!   partition's size of it.
 //!
-//! Not modelled: a real interrupted erase or programming leaves cells half-way, which
-//! the STM32G4's ECC may report (a double error is an NMI when the bootloader reads
-//! it).
+//! - ECC (issue 33): [`CutFlash`] can model the STM32G4's ECC on torn double words
+//!   (a cut inside a double word's programming or erase leaves it failing every read,
+//!   the chip's double ECC error, which the bootloader turns into a failed read:
+//!   `bootloader/src/main.rs`, `NonMaskableInt`). With it, a cut inside one of
+//!   embassy-boot's state words (a progress word, the "progress invalid" word, a
+//!   magic) makes every later `prepare_boot` fail: the bootloader stops (bridges
+//!   off, never configured there) until the state page is erased by a probe
+//!   ([`a_torn_state_word_stops_the_bootloader`]). Cases 1-5 run without the ECC
+//!   model; whether a real torn double word fails its ECC is for a board to show.
 
 use std::cell::RefCell;
 use std::collections::HashSet;
@@ -185,7 +191,8 @@ struct CutFlash {
     /// erased, their ECC is wrong and every read that touches them fails (the
     /// STM32G4's double ECC error), until an erase or a completed programming.
     torn: Vec<u32>,
-    /// Tear double words at all (off: the flash before ECC was modelled).
+    /// Model the ECC of torn double words (off in cases 1-5, which check embassy-boot's
+    /// swap logic: see "Findings" and [`a_torn_state_word_stops_the_bootloader`]).
     ecc: bool,
 }
 
@@ -202,7 +209,7 @@ impl CutFlash {
             log: None,
             zero_overwrite: true,
             torn: Vec::new(),
-            ecc: true,
+            ecc: false,
         }
     }
 
@@ -1183,4 +1190,49 @@ fn a_state_erase_sparing_only_the_magic_would_mix_the_images() {
     let active = rig.read(SMALL.active);
     assert_ne!(active, a.partition);
     assert_ne!(active, b.partition);
+}
+
+/// Finding (issue 33): with the ECC of torn double words modelled, a cut inside a
+/// progress word of the swap leaves that word unreadable, and embassy-boot 0.7's
+/// `prepare_boot` fails at every later boot (it reads every progress word); the
+/// bootloader then stops with the bridges off (`bootloader/src/main.rs`). A cut
+/// between two double words leaves nothing torn, and that boot completes the swap.
+#[test]
+fn a_torn_state_word_stops_the_bootloader() {
+    let rig = Rig::new(SMALL);
+    let (a, b) = images(&SMALL);
+    marked_update(&rig, &a, &b);
+    rig.with(|f| f.ecc = true);
+    let trial = rig.snapshot();
+    rig.with(|f| {
+        f.power_on();
+        f.log = Some(Vec::new());
+    });
+    assert_eq!(rig.prepare_boot(), Ok(State::Swap));
+    let log = rig.with(|f| f.log.take().unwrap_or_default());
+    let progress = log
+        .iter()
+        .find(|o| !o.erase && o.len == WRITE_SIZE && in_partition(o.addr, SMALL.state))
+        .expect("a progress word");
+    // Inside the word: torn, every read of it fails, the bootloader cannot go on.
+    rig.restore(&trial);
+    rig.with(|f| f.cut_power_after(progress.first + 3));
+    assert!(rig.prepare_boot().is_err());
+    rig.power_on();
+    assert!(rig.with(|f| f.torn.contains(&progress.addr)));
+    for _ in 0..3 {
+        assert_eq!(
+            rig.prepare_boot(),
+            Err(BootError::Flash(NorFlashErrorKind::Other))
+        );
+        rig.power_on();
+    }
+    // Before the word: nothing torn, the next boot completes the swap.
+    rig.restore(&trial);
+    rig.with(|f| f.cut_power_after(progress.first));
+    assert!(rig.prepare_boot().is_err());
+    rig.power_on();
+    assert!(rig.with(|f| f.torn.is_empty()));
+    assert_eq!(rig.prepare_boot(), Ok(State::Swap));
+    assert_active_is(&rig, &b, &[&a], &"swap after a cut between words");
 }
