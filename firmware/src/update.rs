@@ -16,10 +16,11 @@
 //!    is done, one bounded step per answer ([`Update::verify_step`]): the last chunk
 //!    written, the header to the DFU partition's header page
 //!    ([`flash_layout::HEADER_OFFSET`]), SHA-512 over the DFU partition
-//!    [`VERIFY_STEP`] bytes at a time, the image signature (ed25519, the same check as
-//!    embassy-boot's `verify_and_mark_updated`), and embassy-boot's `mark_updated`.
-//!    Only then is that DATA acknowledged. No step runs longer than one page erase or
-//!    one signature check (≈ 25 ms), so the thread that polls the slave feeds the
+//!    [`VERIFY_STEP`] bytes at a time, and the image signature (ed25519, the same check
+//!    as embassy-boot's `verify_and_mark_updated`). Then the transfer's end marks the
+//!    partition for the swap (embassy-boot's `mark_updated`, one state-page erase),
+//!    before the last packet is acknowledged. No step runs longer than one page erase
+//!    or one signature check (≈ 25 ms), so the thread that polls the slave feeds the
 //!    300 ms watchdog in between, whatever the image length (at once: ≈ 1.4 ms per
 //!    KiB, ≈ 230 ms for the largest image).
 //! 5. Bootstrap → Init: the drive resets; embassy-boot swaps (power-fail safe) and
@@ -381,9 +382,7 @@ enum Check {
     Hash(u32),
     /// The image signature over the digest.
     Signature([u8; 64]),
-    /// embassy-boot's mark for the swap.
-    Mark,
-    /// Checked and marked.
+    /// Checked: [`FoeFiles::finish_write`] marks it for the swap.
     Done,
 }
 
@@ -726,8 +725,7 @@ impl<U: Updater> Update<U> {
 
     /// One bounded step of the check of a complete image (see the module docs):
     /// at most one page erase plus one chunk write, [`VERIFY_STEP`] bytes read and
-    /// hashed, one ed25519 check, or embassy-boot's mark. `Busy` until the last step,
-    /// which answers `Done`.
+    /// hashed, or one ed25519 check. `Busy` until the last step, which answers `Done`.
     fn verify_step(&mut self) -> WriteStatus {
         let Some(v) = self.verifying.as_mut() else {
             return WriteStatus::Err(ErrorCode::Illegal);
@@ -753,17 +751,8 @@ impl<U: Updater> Update<U> {
                 .map_err(flash_code),
             Check::Hash(at) => self.hash_step(at, h.image_len),
             Check::Signature(d) => efw::verify_digest(&h, &d, &self.expected.public_key)
-                .map(|()| Check::Mark)
-                .map_err(foe_error),
-            Check::Mark => self
-                .updater
-                .mark_updated()
                 .map(|()| Check::Done)
-                .map_err(|e| match e {
-                    UpdaterError::NotConfirmed => ErrorCode::AccessDenied,
-                    UpdaterError::Signature => ErrorCode::InvalidChecksum,
-                    UpdaterError::Flash => ErrorCode::ProgramError,
-                }),
+                .map_err(foe_error),
             Check::Done => Ok(Check::Done),
         };
         match next {
@@ -812,14 +801,22 @@ impl<U: Updater> Update<U> {
         Ok(Check::Signature(digest))
     }
 
-    /// The end of a transfer: the image was checked and marked by the DATA that
-    /// completed it.
+    /// The end of a transfer: the image, checked by the DATA that completed it, is
+    /// marked for the swap (embassy-boot's `mark_updated`: one state-page erase and
+    /// a write). Only a finished transfer marks: one aborted after its check leaves
+    /// the running image as it was.
     fn finish(&mut self) -> Result<Header, ErrorCode> {
         let h = self.header.ok_or(ErrorCode::ProgramError)?;
         match self.verifying.take() {
-            Some(v) if v.check == Check::Done => Ok(h),
-            _ => Err(ErrorCode::ProgramError),
+            Some(v) if v.check == Check::Done => {}
+            _ => return Err(ErrorCode::ProgramError),
         }
+        self.updater.mark_updated().map_err(|e| match e {
+            UpdaterError::NotConfirmed => ErrorCode::AccessDenied,
+            UpdaterError::Signature => ErrorCode::InvalidChecksum,
+            UpdaterError::Flash => ErrorCode::ProgramError,
+        })?;
+        Ok(h)
     }
 
     fn reset_transfer(&mut self) {
