@@ -111,7 +111,7 @@ impl<const N: usize> RamFlash<N> {
     }
     /// Marks the double word of byte `i` torn when the cut at `i` left it half done.
     fn tear(&mut self, i: usize) {
-        if i % 8 == 0 || self.is_torn(word_of(i)) {
+        if i.is_multiple_of(8) || self.is_torn(word_of(i)) {
             return;
         }
         self.torn.rotate_right(1);

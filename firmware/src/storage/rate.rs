@@ -119,7 +119,7 @@ mod tests {
         let (mut records, mut dirty_since, mut worst) = (0u64, None::<u64>, 0u64);
         let mut t = 0u64;
         while t < span_ms {
-            if t % u64::from(period_ms) == 0 && dirty_since.is_none() {
+            if t.is_multiple_of(u64::from(period_ms)) && dirty_since.is_none() {
                 dirty_since = Some(t);
             }
             if let Some(since) = dirty_since {
