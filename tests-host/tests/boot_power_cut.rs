@@ -1124,6 +1124,25 @@ fn real_layout_update_and_revert() {
     assert_active_is(&rig, &b, &[&a], &"confirmed");
 }
 
+/// The first progress word that the swap from the rig's contents writes (a run
+/// without a cut, logged; the rig is left as it was).
+fn first_progress_word(rig: &Rig) -> Op {
+    let start = rig.snapshot();
+    rig.with(|f| {
+        f.power_on();
+        f.log = Some(Vec::new());
+    });
+    assert_eq!(rig.prepare_boot(), Ok(State::Swap));
+    let log = rig.with(|f| f.log.take().unwrap_or_default());
+    let progress = *log
+        .iter()
+        .find(|o| !o.erase && o.len == WRITE_SIZE)
+        .expect("progress");
+    assert!(in_partition(progress.addr, SMALL.state));
+    rig.restore(&start);
+    progress
+}
+
 /// Why [`CutFlash`] lets a programmed double word be programmed again with zeros, as
 /// the STM32G4 does: on a flash that refuses it (as `firmware::storage::RamFlash`
 /// does), a cut inside a progress-word write of the swap, or inside `mark_booted`'s
@@ -1137,18 +1156,7 @@ fn a_flash_without_zero_overwrite_would_not_boot() {
     let trial = rig.snapshot();
 
     // The swap, cut after 3 bytes of its first progress word.
-    rig.with(|f| {
-        f.power_on();
-        f.log = Some(Vec::new());
-    });
-    assert_eq!(rig.prepare_boot(), Ok(State::Swap));
-    let log = rig.with(|f| f.log.take().unwrap_or_default());
-    let progress = log
-        .iter()
-        .find(|o| !o.erase && o.len == WRITE_SIZE)
-        .expect("progress");
-    assert!(in_partition(progress.addr, SMALL.state));
-    rig.restore(&trial);
+    let progress = first_progress_word(&rig);
     rig.with(|f| f.cut_power_after(progress.first + 3));
     assert!(rig.prepare_boot().is_err());
     for _ in 0..3 {
@@ -1204,16 +1212,7 @@ fn a_torn_state_word_stops_the_bootloader() {
     marked_update(&rig, &a, &b);
     rig.with(|f| f.ecc = true);
     let trial = rig.snapshot();
-    rig.with(|f| {
-        f.power_on();
-        f.log = Some(Vec::new());
-    });
-    assert_eq!(rig.prepare_boot(), Ok(State::Swap));
-    let log = rig.with(|f| f.log.take().unwrap_or_default());
-    let progress = log
-        .iter()
-        .find(|o| !o.erase && o.len == WRITE_SIZE && in_partition(o.addr, SMALL.state))
-        .expect("a progress word");
+    let progress = first_progress_word(&rig);
     // Inside the word: torn, every read of it fails, the bootloader cannot go on.
     rig.restore(&trial);
     rig.with(|f| f.cut_power_after(progress.first + 3));
