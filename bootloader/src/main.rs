@@ -32,6 +32,17 @@
 //! If the flash fails (or the option bytes are not in dual-bank mode, DBANK = 1), it
 //! panics and stops; a probe can look, a power cycle tries again.
 //!
+//! ## Flash ECC errors
+//! A double word torn by a power cut may fail the flash's ECC check when read: the
+//! chip raises an NMI (FLASH_ECCR.ECCD) and the read returns garbage. The NMI
+//! handler here notes it and clears ECCD ([`NonMaskableInt`]), and the read that hit
+//! it fails ([`Fed`]'s `read`, `FedError::Ecc`), as the firmware's record reads do
+//! (`firmware::storage::ecc`): embassy-boot never acts on garbage. A failed read makes
+//! `prepare` panic: the bootloader stops (the PWM is never configured here, so the
+//! bridges stay off), and the watchdog, if the firmware started it, resets the chip
+//! to try again. Any other NMI stops the same way. The default handler (an endless
+//! loop with the NMI still pending) is never used.
+//!
 //! ## Flashing
 //! Once per board, with a debug probe: the bootloader, then the first firmware image
 //! (linked at 0x0800_9000). (`cargo xtask size` builds both too, into
@@ -58,7 +69,9 @@
 mod boot {
     use core::cell::RefCell;
 
-    use cortex_m_rt::entry;
+    use core::sync::atomic::{AtomicBool, Ordering};
+
+    use cortex_m_rt::{entry, exception};
     use embassy_boot_stm32::{BootLoader, BootLoaderConfig};
     use embassy_stm32::flash::{Flash, FLASH_BASE, MAX_ERASE_SIZE};
     use embassy_stm32::pac;
@@ -84,6 +97,44 @@ mod boot {
         unsafe { loader.load(FLASH_BASE as u32 + active) }
     }
 
+    /// Set by [`NonMaskableInt`] for a double ECC error; cleared and checked around each
+    /// read of [`Fed`].
+    static ECC_ERROR: AtomicBool = AtomicBool::new(false);
+
+    #[exception]
+    unsafe fn NonMaskableInt() {
+        if pac::FLASH.eccr().read().eccd() {
+            ECC_ERROR.store(true, Ordering::Release);
+            // Cleared by writing 1 (else the NMI comes again at once).
+            pac::FLASH.eccr().modify(|w| w.set_eccd(true));
+        } else {
+            // Not a flash ECC error: stop, as a panic does.
+            loop {
+                core::hint::spin_loop();
+            }
+        }
+    }
+
+    /// Errors of [`Fed`]: the flash's, or a double ECC error during a read.
+    #[derive(Debug)]
+    pub enum FedError<E> {
+        /// The read hit a double ECC error (its bytes are garbage).
+        Ecc,
+        /// The flash driver's error.
+        Flash(E),
+    }
+
+    impl<E: embedded_storage::nor_flash::NorFlashError> embedded_storage::nor_flash::NorFlashError
+        for FedError<E>
+    {
+        fn kind(&self) -> embedded_storage::nor_flash::NorFlashErrorKind {
+            match self {
+                FedError::Ecc => embedded_storage::nor_flash::NorFlashErrorKind::Other,
+                FedError::Flash(e) => e.kind(),
+            }
+        }
+    }
+
     /// The flash, feeding the independent watchdog before every erase page and every
     /// write (each well under the firmware's watchdog period). Feeding a watchdog
     /// that does not run changes nothing.
@@ -96,14 +147,19 @@ mod boot {
     }
 
     impl<F: ErrorType> ErrorType for Fed<F> {
-        type Error = F::Error;
+        type Error = FedError<F::Error>;
     }
 
     impl<F: ReadNorFlash> ReadNorFlash for Fed<F> {
         const READ_SIZE: usize = F::READ_SIZE;
 
         fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
-            self.0.read(offset, bytes)
+            ECC_ERROR.store(false, Ordering::Release);
+            self.0.read(offset, bytes).map_err(FedError::Flash)?;
+            if ECC_ERROR.load(Ordering::Acquire) {
+                return Err(FedError::Ecc);
+            }
+            Ok(())
         }
 
         fn capacity(&self) -> usize {
@@ -119,14 +175,15 @@ mod boot {
             for page in (from..to).step_by(Self::ERASE_SIZE) {
                 feed_watchdog();
                 self.0
-                    .erase(page, (page + Self::ERASE_SIZE as u32).min(to))?;
+                    .erase(page, (page + Self::ERASE_SIZE as u32).min(to))
+                    .map_err(FedError::Flash)?;
             }
             Ok(())
         }
 
         fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
             feed_watchdog();
-            self.0.write(offset, bytes)
+            self.0.write(offset, bytes).map_err(FedError::Flash)
         }
     }
 

@@ -14,7 +14,7 @@
 //! | 17 | 3 | reserved, 0 |
 //! | 20 | 4 | firmware version (major << 16 \| minor << 8 \| patch) |
 //! | 24 | 4 | image length, bytes |
-//! | 28 | 4 | reserved, 0 |
+//! | 28 | 4 | security version (anti-rollback; 0 in files written before it existed) |
 //! | 32 | 64 | image signature: ed25519 over the SHA-512 digest of the image |
 //! | 96 | 64 | header signature: ed25519 over bytes 0..96 |
 //! | 160 | image length | the board image, as it is written to the DFU partition |
@@ -25,6 +25,15 @@
 //! hands it over unchanged. The header signature, with the same key, lets the drive
 //! refuse a foreign or forged file at its first packet, before it erases anything:
 //! the product, the ESC flavour and the length it checks are then authentic.
+//!
+//! The security version is the anti-rollback counter: a drive keeps the highest one it
+//! accepted ([`Expected::min_security_version`]) and refuses a signed file below it
+//! ([`ImageError::Rollback`]), so an old, correctly signed image with a known flaw
+//! cannot be installed again. It is raised by the signer only for a release that
+//! fixes such a flaw; the firmware version may go down at an equal security version.
+//!
+//! The image check can run in bounded steps ([`ImageDigest`], then
+//! [`verify_digest`]), so a drive can spread it over several polls.
 //!
 //! Nothing here panics on any input: every check returns an [`ImageError`].
 
@@ -57,6 +66,7 @@ mod field {
     pub const ESC: usize = 16;
     pub const VERSION: Range<usize> = 20..24;
     pub const IMAGE_LEN: Range<usize> = 24..28;
+    pub const SECURITY_VERSION: Range<usize> = 28..32;
     pub const IMAGE_SIGNATURE: Range<usize> = 32..96;
     pub const HEADER_SIGNATURE: Range<usize> = 96..160;
 }
@@ -110,6 +120,8 @@ pub enum ImageError {
     TooLong,
     /// The image does not match its signature.
     BadImageSignature,
+    /// Its security version is below the lowest the drive accepts (anti-rollback).
+    Rollback,
 }
 
 /// A read/write view of an update image's header (smoltcp style).
@@ -182,6 +194,10 @@ impl<T: AsRef<[u8]>> Frame<T> {
     pub fn image_len(&self) -> u32 {
         u32::from_le_bytes(self.bytes(field::IMAGE_LEN))
     }
+    /// Security version (anti-rollback).
+    pub fn security_version(&self) -> u32 {
+        u32::from_le_bytes(self.bytes(field::SECURITY_VERSION))
+    }
     /// Image signature.
     pub fn image_signature(&self) -> [u8; 64] {
         self.bytes(field::IMAGE_SIGNATURE)
@@ -209,6 +225,8 @@ pub struct Header {
     pub version: u32,
     /// Image length, bytes.
     pub image_len: u32,
+    /// Security version (anti-rollback, see the crate docs).
+    pub security_version: u32,
     /// ed25519 over SHA-512 of the image.
     pub image_signature: [u8; 64],
 }
@@ -229,6 +247,7 @@ impl Header {
             esc: Esc::from_code(f.esc()).ok_or(ImageError::WrongEsc)?,
             version: f.version(),
             image_len: f.image_len(),
+            security_version: f.security_version(),
             image_signature: f.image_signature(),
         })
     }
@@ -245,6 +264,7 @@ impl Header {
         buf[field::ESC] = self.esc as u8;
         buf[field::VERSION].copy_from_slice(&self.version.to_le_bytes());
         buf[field::IMAGE_LEN].copy_from_slice(&self.image_len.to_le_bytes());
+        buf[field::SECURITY_VERSION].copy_from_slice(&self.security_version.to_le_bytes());
         buf[field::IMAGE_SIGNATURE].copy_from_slice(&self.image_signature);
     }
 }
@@ -262,6 +282,8 @@ pub struct Expected {
     pub capacity: u32,
     /// The public key its update images are signed with.
     pub public_key: [u8; 32],
+    /// The lowest security version it accepts (the highest it accepted before).
+    pub min_security_version: u32,
 }
 
 fn verify(key: &[u8; 32], message: &[u8], signature: &[u8; 64]) -> bool {
@@ -290,14 +312,51 @@ pub fn check_header(file: &[u8], expected: &Expected) -> Result<Header, ImageErr
     if h.image_len > expected.capacity {
         return Err(ImageError::TooLong);
     }
+    if h.security_version < expected.min_security_version {
+        return Err(ImageError::Rollback);
+    }
     Ok(h)
+}
+
+/// The SHA-512 digest of an image, fed in pieces of any size ([`ImageDigest::update`]),
+/// so the check of a large image can be split into bounded steps.
+#[derive(Clone, Default)]
+pub struct ImageDigest(Sha512);
+
+impl ImageDigest {
+    /// An empty digest.
+    pub fn new() -> Self {
+        ImageDigest(Sha512::new())
+    }
+    /// Hashes the next `bytes` of the image.
+    pub fn update(&mut self, bytes: &[u8]) {
+        self.0.update(bytes);
+    }
+    /// The digest of everything fed.
+    pub fn finish(self) -> [u8; 64] {
+        self.0.finalize().into()
+    }
+}
+
+/// Checks the digest of the whole image ([`ImageDigest`]) against the header's image
+/// signature: the last, fixed-cost step of [`verify_image`].
+pub fn verify_digest(
+    header: &Header,
+    digest: &[u8; 64],
+    public_key: &[u8; 32],
+) -> Result<(), ImageError> {
+    if verify(public_key, digest, &header.image_signature) {
+        Ok(())
+    } else {
+        Err(ImageError::BadImageSignature)
+    }
 }
 
 /// SHA-512 of `image`: the message of the image signature.
 pub fn image_digest(image: &[u8]) -> [u8; 64] {
-    let mut d = Sha512::new();
+    let mut d = ImageDigest::new();
     d.update(image);
-    d.finalize().into()
+    d.finish()
 }
 
 /// Checks `image` (exactly `header.image_len` bytes) against the header's image
@@ -310,11 +369,7 @@ pub fn verify_image(
     if image.len() != header.image_len as usize {
         return Err(ImageError::Truncated);
     }
-    if verify(public_key, &image_digest(image), &header.image_signature) {
-        Ok(())
-    } else {
-        Err(ImageError::BadImageSignature)
-    }
+    verify_digest(header, &image_digest(image), public_key)
 }
 
 /// Checks a whole update file: [`check_header`], then [`verify_image`].
@@ -361,13 +416,27 @@ pub mod sign {
         SigningKey::from_bytes(seed).verifying_key().to_bytes()
     }
 
-    /// The update file of `image` for `esc`: header (with both signatures) and image.
+    /// The update file of `image` for `esc`: header (with both signatures) and image,
+    /// security version 0.
     pub fn update_file(
         seed: &[u8; 32],
         vendor_id: u32,
         product_code: u32,
         esc: Esc,
         version: u32,
+        image: &[u8],
+    ) -> Vec<u8> {
+        update_file_secured(seed, vendor_id, product_code, esc, version, 0, image)
+    }
+
+    /// [`update_file`] with a security version (anti-rollback, see the crate docs).
+    pub fn update_file_secured(
+        seed: &[u8; 32],
+        vendor_id: u32,
+        product_code: u32,
+        esc: Esc,
+        version: u32,
+        security_version: u32,
         image: &[u8],
     ) -> Vec<u8> {
         let key = SigningKey::from_bytes(seed);
@@ -377,6 +446,7 @@ pub mod sign {
             esc,
             version,
             image_len: image.len() as u32,
+            security_version,
             image_signature: key.sign(&image_digest(image)).to_bytes(),
         };
         let mut signed = [0u8; SIGNED_HEADER_LEN];
@@ -405,6 +475,7 @@ mod tests {
             esc: Esc::Lan9252,
             capacity: 4096,
             public_key: public_key(&SEED),
+            min_security_version: 0,
         }
     }
 
@@ -466,6 +537,53 @@ mod tests {
         let mut format = good.clone();
         format[4] = 2;
         assert_eq!(check_file(&format, &e), Err(ImageError::UnknownFormat));
+    }
+
+    #[test]
+    fn a_security_version_below_the_floor_is_refused() {
+        use super::sign::update_file_secured;
+        let img = image();
+        let e = Expected {
+            min_security_version: 3,
+            ..expected()
+        };
+        for (sv, want) in [
+            (0, Err(ImageError::Rollback)),
+            (2, Err(ImageError::Rollback)),
+            (3, Ok(3)),
+            (7, Ok(7)),
+        ] {
+            let f = update_file_secured(&SEED, 0x0ECA, 0x5702, Esc::Lan9252, 9, sv, &img);
+            assert_eq!(
+                check_file(&f, &e).map(|h| h.security_version),
+                want,
+                "sv {sv}"
+            );
+        }
+        // The field is signed: raising it in the file breaks the header signature.
+        let mut f = update_file_secured(&SEED, 0x0ECA, 0x5702, Esc::Lan9252, 9, 1, &img);
+        f[28] = 3;
+        assert_eq!(check_file(&f, &e), Err(ImageError::BadHeaderSignature));
+    }
+
+    #[test]
+    fn the_digest_in_pieces_is_the_digest_of_the_whole() {
+        let img = image();
+        let f = file(Esc::Lan9252, &img);
+        let h = check_header(&f, &expected()).unwrap();
+        for piece in [1usize, 7, 64, 333, 1000] {
+            let mut d = ImageDigest::new();
+            for c in img.chunks(piece) {
+                d.update(c);
+            }
+            let d = d.finish();
+            assert_eq!(d, image_digest(&img));
+            assert_eq!(verify_digest(&h, &d, &public_key(&SEED)), Ok(()));
+        }
+        assert_eq!(
+            verify_digest(&h, &image_digest(&img[1..]), &public_key(&SEED)),
+            Err(ImageError::BadImageSignature)
+        );
     }
 
     #[test]

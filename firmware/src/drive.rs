@@ -162,6 +162,8 @@ pub struct Drive<S: ParameterStore = NoStore> {
     store: Option<S>,
     load_report: Option<LoadReport>,
     storage_emergency: Option<(u16, [u8; 5])>,
+    /// The rate limit of the fault-history records (`crate::storage::rate`).
+    history_rate: crate::storage::rate::HistoryRate,
     seen_tune_seq: u8,
     /// The last current auto-tune failed: no retry until 0x2013 is written again.
     tune_failed: bool,
@@ -243,6 +245,7 @@ macro_rules! power_up_fields {
             store: Some($store),
             load_report: None,
             storage_emergency: None,
+            history_rate: crate::storage::rate::HistoryRate::new(),
             seen_tune_seq: 0,
             tune_failed: false,
             seen_follow_seq: 0,
@@ -367,13 +370,18 @@ impl<S: ParameterStore> Drive<S> {
     /// path keep running, also with the power stage on). Call it only while no staged
     /// parameter record waits for programming (the stage is shared).
     ///
-    /// `None`: nothing to do (or no history memory); `Some(result)` of the write. The
-    /// history counts as written either way (a failed write is reported once, not
+    /// Rate-limited ([`crate::storage::rate`]: ≥ 10 s between records, at most
+    /// 8 + hours / 2 records): a change waits (still dirty) until the limit lets it
+    /// through, at most 2 h; the history in RAM is complete meanwhile.
+    ///
+    /// `None`: nothing to do now (or no history memory); `Some(result)` of the write.
+    /// The history counts as written either way (a failed write is reported once, not
     /// retried every tick; the next change writes again).
     pub fn persist_history(&mut self) -> Option<Result<(), StorageError>> {
-        if !self.faults.history_dirty() {
+        if !self.faults.history_dirty() || !self.history_rate.may_write(self.now_ms) {
             return None;
         }
+        self.history_rate.wrote();
         self.faults.history_written();
         let mut buf = [0u8; crate::faults::HISTORY_PAYLOAD_MAX];
         let n = self

@@ -219,8 +219,8 @@ impl<R: ReadNorFlash, const N: usize, const ERASE: usize> NorFlash
 
 /// Programs a finished image into `flash`: erase the range, write everything after
 /// the first `header_len` bytes (skipping units that are still erased), then the
-/// header — the record becomes valid only with its last write, as when the storage
-/// writes the flash itself. Blocking; nothing to do for an empty image.
+/// header, its first double word last — the record becomes valid only with its last
+/// write, as when the storage writes the flash itself. Blocking; nothing to do for an empty image.
 pub fn commit<F: NorFlash, const N: usize>(
     flash: &mut F,
     st: &Stage<N>,
@@ -237,8 +237,14 @@ pub fn commit<F: NorFlash, const N: usize>(
             flash.write(from + (head + i * WRITE_UNIT) as u32, chunk)?;
         }
     }
-    if head > 0 {
-        flash.write(from, &st.bytes[..head])?;
+    // The header's first double word (the magic) last, as the storage writes it
+    // (`crate::storage::COMMIT_WORD`).
+    let commit = crate::storage::COMMIT_WORD.min(head);
+    if head > commit {
+        flash.write(from + commit as u32, &st.bytes[commit..head])?;
+    }
+    if commit > 0 {
+        flash.write(from, &st.bytes[..commit])?;
     }
     Ok(())
 }

@@ -28,10 +28,16 @@
 //!
 //! # Power-loss safety
 //! A save always goes to the slot that does *not* hold the newest valid record: erase,
-//! write the payload, and write the 32-byte header **last** (the header is the commit).
+//! write the payload, and write the 32-byte header **last** (the header is the commit),
+//! its first double word (the magic, [`COMMIT_WORD`]) after the other three.
 //! A cut during the erase or the payload leaves that slot without a valid header; a cut
-//! inside the header leaves a CRC that does not match. Either way the other slot is
-//! untouched, so the old set survives. Load validates both slots and takes the valid
+//! inside the header leaves no magic or a torn magic word. Either way the other slot is
+//! untouched, so the old set survives.
+//!
+//! Reads are fallible: a double word torn by a cut may fail its ECC check (the
+//! STM32G4's double ECC error, which the board turns into a failed read,
+//! [`ecc`]), and any failed read of a slot makes that slot corrupt
+//! ([`Storage::slot_status`]); the other slot is used. Load validates both slots and takes the valid
 //! one with the newer sequence number; an erased slot is normal (first boot), a
 //! non-erased invalid slot is reported ([`LoadReport::emergency`]).
 //!
@@ -53,6 +59,9 @@ pub const FORMAT_VERSION: u16 = 1;
 /// Header length; also the write/read granularity the storage needs (WRITE_SIZE and
 /// READ_SIZE must divide it).
 pub const HEADER_LEN: usize = 32;
+/// The header's first double word (magic, format, flags): written last, it commits a
+/// record (when the flash's write unit divides it; else the header is one write).
+pub const COMMIT_WORD: usize = 8;
 /// Largest value stored per entry (longer values are skipped).
 pub const MAX_VALUE_LEN: usize = 64;
 const CHUNK: usize = 64;
@@ -729,8 +738,23 @@ impl Storage {
         let mut crc = w.crc;
         crc.update(&head[..16]);
         head[16..20].copy_from_slice(&crc.finish().to_le_bytes());
+        // The magic's double word last: a cut in the header's other words leaves no
+        // magic, a cut in the magic's word a torn word (an ECC error on the chip):
+        // either way no record, until the very last write.
+        // (A flash whose write unit is larger writes the header at once.)
+        let at = self.slot_address(target);
+        let commit = if COMMIT_WORD.is_multiple_of(F::WRITE_SIZE) {
+            COMMIT_WORD
+        } else {
+            0
+        };
+        if commit > 0 {
+            flash
+                .write(at + commit as u32, &head[commit..])
+                .map_err(flash_error)?;
+        }
         flash
-            .write(self.slot_address(target), &head)
+            .write(at, &head[..if commit > 0 { commit } else { HEADER_LEN }])
             .map_err(flash_error)?;
         Ok(payload_len)
     }
@@ -867,7 +891,9 @@ impl Dictionary for NoDict {
 }
 
 mod crc;
+pub mod ecc;
 mod ram_flash;
+pub mod rate;
 
 pub use ram_flash::{erase_range, read_range, write_range, PagedRamFlash, RamFlash};
 

@@ -5,16 +5,24 @@
 //! 1. The master takes the drive Init → Bootstrap (the power stage stays off there) and
 //!    writes a `*.efw` file over FoE ([`Update`] is the drive's [`FoeFiles`]).
 //! 2. The first [`efw::HEADER_LEN`] bytes are the header: format, header signature
-//!    with the drive's public key ([`PUBLIC_KEY`]), vendor and product code, ESC
-//!    flavour, and an image length that fits [`flash_layout::IMAGE_MAX`]. Anything
+//!    with the key the build trusts ([`TRUST`]), vendor and product code, ESC
+//!    flavour, an image length that fits [`flash_layout::IMAGE_MAX`], and a security
+//!    version not below the running image's (anti-rollback, see below). Anything
 //!    else is refused with an FoE error before a byte of the DFU partition is erased.
 //! 3. The image goes to the DFU partition through embassy-boot's
 //!    `write_firmware`, in writes of [`WRITE_CHUNK`] bytes (the FoE data of a packet
 //!    is not a multiple of the flash's 8-byte unit).
-//! 4. After the last packet the header goes to the DFU partition's header page
-//!    ([`flash_layout::HEADER_OFFSET`]), and embassy-boot's `verify_and_mark_updated`
-//!    checks the image signature (ed25519 over SHA-512 of the image) and marks the
-//!    partition for the swap. Only then is the last packet acknowledged.
+//! 4. The DATA that completes the image starts its check, answered FoE BUSY until it
+//!    is done, one bounded step per answer ([`Update::verify_step`]): the last chunk
+//!    written, the header to the DFU partition's header page
+//!    ([`flash_layout::HEADER_OFFSET`]), SHA-512 over the DFU partition
+//!    [`VERIFY_STEP`] bytes at a time, and the image signature (ed25519, the same check
+//!    as embassy-boot's `verify_and_mark_updated`). Then the transfer's end marks the
+//!    partition for the swap (embassy-boot's `mark_updated`, one state-page erase),
+//!    before the last packet is acknowledged. No step runs longer than one page erase
+//!    or one signature check (≈ 25 ms), so the thread that polls the slave feeds the
+//!    300 ms watchdog in between, whatever the image length (at once: ≈ 1.4 ms per
+//!    KiB, ≈ 230 ms for the largest image).
 //! 5. Bootstrap → Init: the drive resets; embassy-boot swaps (power-fail safe) and
 //!    starts the new image on trial ([`BootState::Trial`]).
 //! 6. The new image confirms itself (`mark_booted`, [`Update::confirm`]) once its
@@ -27,28 +35,110 @@
 //! accepted one (it would rewrite the partition marked for the swap); the refusal
 //! says so (FoE "access denied").
 //!
+//! # Anti-rollback
+//! The update header carries a security version (`efw`). The lowest one the drive
+//! accepts is the running image's, read from the header page of the active
+//! partition: the swap installs that page with the image, and only an image that
+//! confirmed itself stays there (an unconfirmed one is reverted with its page). So
+//! the floor is the highest security version the drive accepted and kept, persisted
+//! in flash with the image itself. A file below it is refused with FoE "access
+//! denied" (0x8002) before anything is erased. The bootloader (embassy-boot) checks
+//! no signature or version: it only swaps what the firmware marked.
+//!
+//! # The trusted key
+//! [`TRUST`]: a build with `ECS_UPDATE_PUBLIC_KEY` (64 hex digits) trusts that key
+//! ("production"). Without it, a debug build trusts the repository's development key
+//! (`keys/`, its secret half is public); a **release** build trusts no key and refuses
+//! every update file (FoE "access denied"), unless the development key is asked for
+//! explicitly: the cargo feature `dev-key` or `ECS_UPDATE_ALLOW_DEV_KEY=1` at build
+//! time. The same holds when `ECS_UPDATE_PUBLIC_KEY` is the development key itself.
+//!
 //! # The information file
 //! Reading [`INFO_FILE`] over FoE returns a few `key=value` lines about the running
 //! image: vendor and product, ESC, version, build (the first 8 bytes of its image
 //! signature, in hex: unique to the signed image), image length, whether its header
 //! carries a valid signature of [`PUBLIC_KEY`] (an image flashed by probe-rs has no
-//! header: its version is then the build's own, `build=none`, `signature=none`), and
-//! the boot state, so a tool can check an update.
+//! header: its version is then the build's own, `build=none`, `signature=none`), the
+//! security version the drive accepts at least, the key it trusts (`key=development`,
+//! `production` or `none`, and `key-fingerprint=`, the first 8 bytes of the SHA-512 of
+//! the public key in hex), and the boot state, so a tool can check an update.
 
 use crate::flash_layout;
 use ecat_slave_stack::foe::{ErrorCode, FoeFiles, WriteStatus};
 use efw::{Esc, Expected, Header, ImageError, HEADER_LEN};
 
-/// The public key update images must be signed with: the repository's development
-/// key (`keys/dev-signing-key.hex`) unless the build sets `ECS_UPDATE_PUBLIC_KEY`
-/// (64 hex digits) for a manufacturer's own key (see the README).
-pub const PUBLIC_KEY: [u8; 32] = public_key();
+/// The key update files must be signed with (see the module docs, "The trusted
+/// key"): from `ECS_UPDATE_PUBLIC_KEY`, the cargo feature `dev-key`,
+/// `ECS_UPDATE_ALLOW_DEV_KEY` and the build profile.
+pub const TRUST: Trust = trust(
+    option_env!("ECS_UPDATE_PUBLIC_KEY"),
+    cfg!(feature = "dev-key") || is_one(option_env!("ECS_UPDATE_ALLOW_DEV_KEY")),
+    !cfg!(debug_assertions),
+);
 
-const fn public_key() -> [u8; 32] {
-    let hex = match option_env!("ECS_UPDATE_PUBLIC_KEY") {
-        Some(k) => k,
-        None => DEV_PUBLIC_KEY_HEX,
+/// The public key of [`TRUST`] (`None`: every update file is refused).
+pub const PUBLIC_KEY: Option<[u8; 32]> = TRUST.key();
+
+/// The key a build trusts for update files.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Trust {
+    /// The repository's development key (`keys/`): anyone can sign with it.
+    Development([u8; 32]),
+    /// A manufacturer's own key (`ECS_UPDATE_PUBLIC_KEY`).
+    Production([u8; 32]),
+    /// No key: a release build that was not given one (every file is refused).
+    None,
+}
+
+impl Trust {
+    /// The public key, if any.
+    pub const fn key(self) -> Option<[u8; 32]> {
+        match self {
+            Trust::Development(k) | Trust::Production(k) => Some(k),
+            Trust::None => None,
+        }
+    }
+    /// Its name in [`INFO_FILE`].
+    pub const fn name(self) -> &'static str {
+        match self {
+            Trust::Development(_) => "development",
+            Trust::Production(_) => "production",
+            Trust::None => "none",
+        }
+    }
+}
+
+/// The decision of [`TRUST`]: `env_key` (`ECS_UPDATE_PUBLIC_KEY`, 64 hex digits),
+/// `allow_dev` (feature `dev-key` or `ECS_UPDATE_ALLOW_DEV_KEY=1`), `release` (a
+/// build without debug assertions). A release build trusts the development key only
+/// when `allow_dev`.
+pub const fn trust(env_key: Option<&str>, allow_dev: bool, release: bool) -> Trust {
+    let dev = parse_key(DEV_PUBLIC_KEY_HEX);
+    let key = match env_key {
+        Some(k) => parse_key(k),
+        None => dev,
     };
+    let mut same = true;
+    let mut i = 0;
+    while i < 32 {
+        same &= key[i] == dev[i];
+        i += 1;
+    }
+    if !same {
+        Trust::Production(key)
+    } else if release && !allow_dev {
+        Trust::None
+    } else {
+        Trust::Development(key)
+    }
+}
+
+/// `Some("1")`.
+const fn is_one(v: Option<&str>) -> bool {
+    matches!(v, Some(s) if s.len() == 1 && s.as_bytes()[0] == b'1')
+}
+
+const fn parse_key(hex: &str) -> [u8; 32] {
     let b = hex.as_bytes();
     assert!(b.len() == 64, "ECS_UPDATE_PUBLIC_KEY: 64 hex digits");
     let mut out = [0u8; 32];
@@ -79,6 +169,9 @@ pub const INFO_FILE: &[u8] = b"firmware.info";
 /// Image bytes collected before a write to the DFU partition (a multiple of the
 /// STM32G4's 8-byte write unit).
 pub const WRITE_CHUNK: usize = 256;
+/// Image bytes hashed per FoE BUSY answer while the image is checked (≈ 6 ms of
+/// SHA-512 at 170 MHz).
+pub const VERIFY_STEP: u32 = 4096;
 
 /// Where the running image stands with embassy-boot (0x2320 reports it).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -123,14 +216,11 @@ pub trait Updater {
     /// Writes `data` (a multiple of 8 bytes, into erased flash) at `offset` of the DFU
     /// partition.
     fn write(&mut self, offset: u32, data: &[u8]) -> Result<(), UpdaterError>;
-    /// Checks the first `len` bytes of the DFU partition against `signature` and
-    /// marks them for the swap.
-    fn verify_and_mark_updated(
-        &mut self,
-        key: &[u8; 32],
-        signature: &[u8; 64],
-        len: u32,
-    ) -> Result<(), UpdaterError>;
+    /// Reads `buf.len()` bytes at `offset` of the DFU partition.
+    fn read(&mut self, offset: u32, buf: &mut [u8]) -> Result<(), UpdaterError>;
+    /// Marks the DFU partition for the swap (the image was checked before);
+    /// [`UpdaterError::NotConfirmed`] while the running image is on trial.
+    fn mark_updated(&mut self) -> Result<(), UpdaterError>;
     /// The boot state.
     fn boot_state(&mut self) -> Result<BootState, UpdaterError>;
     /// Confirms the running image.
@@ -139,9 +229,11 @@ pub trait Updater {
     fn read_running_header(&mut self, buf: &mut [u8; HEADER_LEN]) -> Result<(), UpdaterError>;
 }
 
-/// [`Updater`] over embassy-boot: its firmware updater (DFU and state partitions:
-/// verification, marking, boot state), the DFU partition once more for the writes,
-/// and the active partition, read for the running image's header.
+/// [`Updater`] over embassy-boot: its firmware state (the state partition: marking,
+/// boot state), the DFU partition for the writes and the check's reads, and the
+/// active partition, read for the running image's header. The image check itself is
+/// [`Update`]'s, in steps (embassy-boot's `verify_and_mark_updated` would hash the
+/// whole image in one call).
 ///
 /// The image is written page by page here rather than by embassy-boot's
 /// `write_firmware`: that one erases a page only when it is not the last page it
@@ -153,14 +245,14 @@ where
     DFU: embedded_storage::nor_flash::NorFlash,
     STATE: embedded_storage::nor_flash::NorFlash,
 {
-    fw: embassy_boot::BlockingFirmwareUpdater<'d, DFU, STATE>,
+    state: embassy_boot::BlockingFirmwareState<'d, STATE>,
     dfu: DFU,
     active: ACTIVE,
 }
 
 impl<'d, DFU, STATE, ACTIVE> EmbassyUpdater<'d, DFU, STATE, ACTIVE>
 where
-    DFU: embedded_storage::nor_flash::NorFlash + Clone,
+    DFU: embedded_storage::nor_flash::NorFlash,
     STATE: embedded_storage::nor_flash::NorFlash,
     ACTIVE: embedded_storage::nor_flash::ReadNorFlash,
 {
@@ -169,13 +261,7 @@ where
     /// (partitions of one flash, e.g. embassy's `BlockingPartition`).
     pub fn new(dfu: DFU, state: STATE, active: ACTIVE, aligned: &'d mut [u8]) -> Self {
         EmbassyUpdater {
-            fw: embassy_boot::BlockingFirmwareUpdater::new(
-                embassy_boot::FirmwareUpdaterConfig {
-                    dfu: dfu.clone(),
-                    state,
-                },
-                aligned,
-            ),
+            state: embassy_boot::BlockingFirmwareState::new(state, aligned),
             dfu,
             active,
         }
@@ -192,7 +278,7 @@ fn updater_error(e: embassy_boot::FirmwareUpdaterError) -> UpdaterError {
 
 impl<DFU, STATE, ACTIVE> Updater for EmbassyUpdater<'_, DFU, STATE, ACTIVE>
 where
-    DFU: embedded_storage::nor_flash::NorFlash + Clone,
+    DFU: embedded_storage::nor_flash::NorFlash,
     STATE: embedded_storage::nor_flash::NorFlash,
     ACTIVE: embedded_storage::nor_flash::ReadNorFlash,
 {
@@ -213,22 +299,21 @@ where
             .map_err(|_| UpdaterError::Flash)
     }
 
-    fn verify_and_mark_updated(
-        &mut self,
-        key: &[u8; 32],
-        signature: &[u8; 64],
-        len: u32,
-    ) -> Result<(), UpdaterError> {
-        if len > self.capacity() {
-            return Err(UpdaterError::Flash);
+    fn read(&mut self, offset: u32, buf: &mut [u8]) -> Result<(), UpdaterError> {
+        self.dfu.read(offset, buf).map_err(|_| UpdaterError::Flash)
+    }
+
+    fn mark_updated(&mut self) -> Result<(), UpdaterError> {
+        // embassy-boot's rule (its `verify_booted`): no swap is marked over an image
+        // that is still on trial.
+        match self.state.get_state().map_err(updater_error)? {
+            embassy_boot::State::Swap => Err(UpdaterError::NotConfirmed),
+            _ => self.state.mark_updated().map_err(updater_error),
         }
-        self.fw
-            .verify_and_mark_updated(key, signature, len)
-            .map_err(updater_error)
     }
 
     fn boot_state(&mut self) -> Result<BootState, UpdaterError> {
-        Ok(match self.fw.get_state().map_err(updater_error)? {
+        Ok(match self.state.get_state().map_err(updater_error)? {
             embassy_boot::State::Swap => BootState::Trial,
             embassy_boot::State::Revert => BootState::Reverted,
             embassy_boot::State::Boot | embassy_boot::State::DfuDetach => BootState::Confirmed,
@@ -236,7 +321,7 @@ where
     }
 
     fn mark_booted(&mut self) -> Result<(), UpdaterError> {
-        self.fw.mark_booted().map_err(updater_error)
+        self.state.mark_booted().map_err(updater_error)
     }
 
     fn read_running_header(&mut self, buf: &mut [u8; HEADER_LEN]) -> Result<(), UpdaterError> {
@@ -269,7 +354,7 @@ pub enum Event {
 /// The running image, from its header page.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Running {
-    /// The header, when the page holds one signed with [`PUBLIC_KEY`] for this product
+    /// The header, when the page holds one signed with the trusted key for this product
     /// (`None`: an image flashed without an update file, e.g. by probe-rs).
     pub header: Option<Header>,
     /// Boot state at start-up.
@@ -285,9 +370,36 @@ enum Rx {
     Failed(ErrorCode),
 }
 
+/// The step of the image check that the next BUSY answer runs
+/// ([`Update::verify_step`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Check {
+    /// The last, short chunk to the DFU partition.
+    Flush,
+    /// The header page: erased (one step), then the header written.
+    Header,
+    /// SHA-512 of the image, this many bytes done.
+    Hash(u32),
+    /// The image signature over the digest.
+    Signature([u8; 64]),
+    /// Checked: [`FoeFiles::finish_write`] marks it for the swap.
+    Done,
+}
+
+/// The check of a complete image, run while the DATA that completed it is answered
+/// BUSY (that DATA: `offset`, `len`; its repeats only carry the check on).
+#[derive(Clone)]
+struct Verifying {
+    offset: u32,
+    len: usize,
+    check: Check,
+    digest: efw::ImageDigest,
+}
+
 /// The drive's FoE files and update state over an [`Updater`].
 pub struct Update<U> {
     updater: U,
+    trust: Trust,
     expected: Expected,
     running: Running,
     confirmed: bool,
@@ -308,13 +420,14 @@ pub struct Update<U> {
     /// The header bytes that passed their checks (kept while the DATA that completes
     /// them is answered BUSY: a resend with other bytes is checked again).
     header_ok: Option<[u8; HEADER_LEN]>,
+    verifying: Option<Verifying>,
     accepted: Option<Header>,
     event: Option<Event>,
     info: [u8; INFO_LEN],
     info_len: usize,
 }
 
-const INFO_LEN: usize = 224;
+const INFO_LEN: usize = 320;
 
 /// The update as the drive holds it (object-safe: the drive keeps a
 /// `&'static mut dyn FirmwareUpdate`, whatever flash is behind it).
@@ -394,29 +507,46 @@ pub const fn foe_error(e: ImageError) -> ErrorCode {
         }
         ImageError::TooLong => ErrorCode::DiskFull,
         ImageError::Truncated => ErrorCode::ProgramError,
+        ImageError::Rollback => ErrorCode::AccessDenied,
     }
 }
 
 impl<U: Updater> Update<U> {
     /// The update of a drive with this identity (`vendor_id`, `product_code`, `esc`)
-    /// over `updater`; reads the running image's header and the boot state. An
-    /// image the bootloader reverted to confirms itself at once (it ran before).
-    pub fn new(mut updater: U, vendor_id: u32, product_code: u32, esc: Esc) -> Self {
-        let expected = Expected {
+    /// over `updater`, trusting the build's key ([`TRUST`]); reads the running
+    /// image's header and the boot state. An image the bootloader reverted to
+    /// confirms itself at once (it ran before).
+    pub fn new(updater: U, vendor_id: u32, product_code: u32, esc: Esc) -> Self {
+        Self::with_trust(updater, vendor_id, product_code, esc, TRUST)
+    }
+
+    /// [`Update::new`] trusting `trust` (tests, tools).
+    pub fn with_trust(
+        mut updater: U,
+        vendor_id: u32,
+        product_code: u32,
+        esc: Esc,
+        trust: Trust,
+    ) -> Self {
+        let mut expected = Expected {
             vendor_id,
             product_code,
             esc,
             capacity: flash_layout::IMAGE_MAX.min(updater.capacity()),
-            public_key: PUBLIC_KEY,
+            public_key: trust.key().unwrap_or([0; 32]),
+            min_security_version: 0,
         };
         let mut page = [0xFFu8; HEADER_LEN];
-        let header = match updater.read_running_header(&mut page) {
-            Ok(()) => efw::check_header(&page, &expected).ok(),
-            Err(_) => None,
+        let header = match (trust.key(), updater.read_running_header(&mut page)) {
+            (Some(_), Ok(())) => efw::check_header(&page, &expected).ok(),
+            _ => None,
         };
+        // Anti-rollback: never below the running image (see the module docs).
+        expected.min_security_version = header.map_or(0, |h| h.security_version);
         let boot = updater.boot_state().unwrap_or(BootState::Confirmed);
         let mut u = Update {
             updater,
+            trust,
             expected,
             running: Running { header, boot },
             confirmed: boot == BootState::Confirmed,
@@ -431,6 +561,7 @@ impl<U: Updater> Update<U> {
             erased_end: 0,
             header_page_erased: false,
             header_ok: None,
+            verifying: None,
             accepted: None,
             event: None,
             info: [0; INFO_LEN],
@@ -587,31 +718,105 @@ impl<U: Updater> Update<U> {
         self.take_image_bytes(data)
     }
 
+    /// The lowest security version this drive accepts (the running image's).
+    pub fn min_security_version(&self) -> u32 {
+        self.expected.min_security_version
+    }
+
+    /// One bounded step of the check of a complete image (see the module docs):
+    /// at most one page erase plus one chunk write, [`VERIFY_STEP`] bytes read and
+    /// hashed, or one ed25519 check. `Busy` until the last step, which answers `Done`.
+    fn verify_step(&mut self) -> WriteStatus {
+        let Some(v) = self.verifying.as_mut() else {
+            return WriteStatus::Err(ErrorCode::Illegal);
+        };
+        let Some(h) = self.header else {
+            return WriteStatus::Err(ErrorCode::ProgramError);
+        };
+        let check = v.check;
+        let next = match check {
+            Check::Flush => self.flush().map(|()| Check::Header).map_err(flash_code),
+            Check::Header if !self.header_page_erased => self
+                .updater
+                .erase_page(flash_layout::HEADER_OFFSET)
+                .map(|()| {
+                    self.header_page_erased = true;
+                    Check::Header
+                })
+                .map_err(flash_code),
+            Check::Header => self
+                .updater
+                .write(flash_layout::HEADER_OFFSET, &self.head)
+                .map(|()| Check::Hash(0))
+                .map_err(flash_code),
+            Check::Hash(at) => self.hash_step(at, h.image_len),
+            Check::Signature(d) => efw::verify_digest(&h, &d, &self.expected.public_key)
+                .map(|()| Check::Done)
+                .map_err(foe_error),
+            Check::Done => Ok(Check::Done),
+        };
+        match next {
+            Ok(c) => {
+                if let Some(v) = self.verifying.as_mut() {
+                    v.check = c;
+                }
+                if c == Check::Done {
+                    WriteStatus::Done
+                } else {
+                    WriteStatus::Busy {
+                        done_percent: self.done_percent(),
+                    }
+                }
+            }
+            Err(code) => {
+                self.verifying = None;
+                WriteStatus::Err(self.fail(code))
+            }
+        }
+    }
+
+    /// Hashes the image from `at`, [`VERIFY_STEP`] bytes at most, read through the
+    /// write chunk (free once the last chunk is written).
+    fn hash_step(&mut self, at: u32, len: u32) -> Result<Check, ErrorCode> {
+        let end = at.saturating_add(VERIFY_STEP).min(len);
+        let mut pos = at;
+        while pos < end {
+            let n = ((end - pos) as usize).min(WRITE_CHUNK);
+            let buf = &mut self.chunk[..n];
+            self.updater.read(pos, buf).map_err(flash_code)?;
+            if let Some(v) = self.verifying.as_mut() {
+                v.digest.update(buf);
+            }
+            pos += n as u32;
+        }
+        self.chunk.fill(0xFF);
+        if pos < len {
+            return Ok(Check::Hash(pos));
+        }
+        let digest = self
+            .verifying
+            .as_ref()
+            .map(|v| v.digest.clone().finish())
+            .ok_or(ErrorCode::ProgramError)?;
+        Ok(Check::Signature(digest))
+    }
+
+    /// The end of a transfer: the image, checked by the DATA that completed it, is
+    /// marked for the swap (embassy-boot's `mark_updated`: one state-page erase and
+    /// a write). Only a finished transfer marks: one aborted after its check leaves
+    /// the running image as it was.
     fn finish(&mut self) -> Result<Header, ErrorCode> {
         let h = self.header.ok_or(ErrorCode::ProgramError)?;
-        if self.received != h.image_len {
-            return Err(ErrorCode::ProgramError);
+        match self.verifying.take() {
+            Some(v) if v.check == Check::Done => {}
+            _ => return Err(ErrorCode::ProgramError),
         }
-        self.flush().map_err(|_| ErrorCode::ProgramError)?;
-        if !self.header_page_erased {
-            self.updater
-                .erase_page(flash_layout::HEADER_OFFSET)
-                .map_err(|_| ErrorCode::ProgramError)?;
-            self.header_page_erased = true;
-        }
-        self.updater
-            .write(flash_layout::HEADER_OFFSET, &self.head)
-            .map_err(|_| ErrorCode::ProgramError)?;
-        match self.updater.verify_and_mark_updated(
-            &self.expected.public_key,
-            &h.image_signature,
-            h.image_len,
-        ) {
-            Ok(()) => Ok(h),
-            Err(UpdaterError::Signature) => Err(ErrorCode::InvalidChecksum),
-            Err(UpdaterError::NotConfirmed) => Err(ErrorCode::AccessDenied),
-            Err(UpdaterError::Flash) => Err(ErrorCode::ProgramError),
-        }
+        self.updater.mark_updated().map_err(|e| match e {
+            UpdaterError::NotConfirmed => ErrorCode::AccessDenied,
+            UpdaterError::Signature => ErrorCode::InvalidChecksum,
+            UpdaterError::Flash => ErrorCode::ProgramError,
+        })?;
+        Ok(h)
     }
 
     fn reset_transfer(&mut self) {
@@ -624,6 +829,7 @@ impl<U: Updater> Update<U> {
         self.erased_end = 0;
         self.header_page_erased = false;
         self.header_ok = None;
+        self.verifying = None;
     }
 
     /// Checks the header before anything is erased, when this DATA completes it. The
@@ -697,9 +903,27 @@ impl<U: Updater> Update<U> {
                 crate::identity::SOFTWARE_VERSION
             ),
         };
+        let _ = writeln!(
+            b,
+            "security-version={}\nkey={}",
+            self.expected.min_security_version,
+            self.trust.name()
+        );
+        if let Some(k) = self.trust.key() {
+            let _ = write!(b, "key-fingerprint=");
+            for x in &efw::image_digest(&k)[..8] {
+                let _ = write!(b, "{x:02x}");
+            }
+            let _ = writeln!(b);
+        }
         let _ = writeln!(b, "boot={}", boot.name());
         b.1
     }
+}
+
+/// The FoE answer of a failed flash step of the check.
+fn flash_code(_: UpdaterError) -> ErrorCode {
+    ErrorCode::ProgramError
 }
 
 /// `name` ends in `.efw` (any case, after any path).
@@ -719,6 +943,10 @@ impl<U: Updater> FoeFiles for Update<U> {
         if !in_boot {
             return Err(ErrorCode::BootstrapOnly);
         }
+        if self.trust.key().is_none() {
+            // A release build given no key (module docs, "The trusted key").
+            return Err(self.fail(ErrorCode::AccessDenied));
+        }
         if !self.confirmed {
             return Err(self.fail(ErrorCode::AccessDenied));
         }
@@ -731,11 +959,19 @@ impl<U: Updater> FoeFiles for Update<U> {
         Ok(())
     }
 
-    fn write(&mut self, _offset: u32, data: &[u8]) -> WriteStatus {
+    fn write(&mut self, offset: u32, data: &[u8]) -> WriteStatus {
         match self.rx {
             Rx::Receiving => {}
             Rx::Failed(code) => return WriteStatus::Err(code),
             Rx::Idle => return WriteStatus::Err(ErrorCode::Illegal),
+        }
+        if let Some(v) = &self.verifying {
+            // The repeats of the DATA that completed the image carry its check on.
+            if offset != v.offset || data.len() != v.len {
+                self.verifying = None;
+                return WriteStatus::Err(self.fail(ErrorCode::Illegal));
+            }
+            return self.verify_step();
         }
         if let Err(code) = self.check_completed_header(data) {
             return WriteStatus::Err(self.fail(code));
@@ -756,9 +992,23 @@ impl<U: Updater> FoeFiles for Update<U> {
                 Err(_) => WriteStatus::Err(self.fail(ErrorCode::ProgramError)),
             };
         }
-        match self.take(data) {
-            Ok(()) => WriteStatus::Done,
-            Err(code) => WriteStatus::Err(self.fail(code)),
+        if let Err(code) = self.take(data) {
+            return WriteStatus::Err(self.fail(code));
+        }
+        match self.header {
+            Some(h) if self.received == h.image_len => {
+                // The image is complete: its check starts, in steps (BUSY meanwhile).
+                self.verifying = Some(Verifying {
+                    offset,
+                    len: data.len(),
+                    check: Check::Flush,
+                    digest: efw::ImageDigest::new(),
+                });
+                WriteStatus::Busy {
+                    done_percent: self.done_percent(),
+                }
+            }
+            _ => WriteStatus::Done,
         }
     }
 

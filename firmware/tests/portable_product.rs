@@ -467,8 +467,10 @@ qemu_runner::tests! {
                 assert_eq!(d2.fingerprint()[..11], fp[..11]);
                 assert_eq!(r2.emergency(), None);
             }
-            // Only cuts after the CRC (header bytes 16..20) reached flash keep the new set.
-            assert_eq!(saw_new, HEADER_LEN - 20 + 1);
+            // The record's last write is the magic's double word: a cut inside it
+            // tears the word (the flash model's ECC error: the slot is corrupt), so
+            // only the complete save keeps the new set.
+            assert_eq!(saw_new, 1);
         }
     }
 

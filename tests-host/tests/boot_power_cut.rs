@@ -85,9 +85,15 @@
 //!   than the *active* partition is accepted, and the swap installs only the active
 //!   partition's size of it.
 //!
-//! Not modelled: a real interrupted erase or programming leaves cells half-way, which
-//! the STM32G4's ECC may report (a double error is an NMI when the bootloader reads
-//! it).
+//! - ECC (issue 33): [`CutFlash`] can model the STM32G4's ECC on torn double words
+//!   (a cut inside a double word's programming or erase leaves it failing every read,
+//!   the chip's double ECC error, which the bootloader turns into a failed read:
+//!   `bootloader/src/main.rs`, `NonMaskableInt`). With it, a cut inside one of
+//!   embassy-boot's state words (a progress word, the "progress invalid" word, a
+//!   magic) makes every later `prepare_boot` fail: the bootloader stops (bridges
+//!   off, never configured there) until the state page is erased by a probe
+//!   ([`a_torn_state_word_stops_the_bootloader`]). Cases 1-5 run without the ECC
+//!   model; whether a real torn double word fails its ECC is for a board to show.
 
 use std::cell::RefCell;
 use std::collections::HashSet;
@@ -181,7 +187,17 @@ struct CutFlash {
     log: Option<Vec<Op>>,
     /// A programmed double word may be programmed again with zeros (STM32G4).
     zero_overwrite: bool,
+    /// Torn double words (offsets): a cut left them partly programmed or partly
+    /// erased, their ECC is wrong and every read that touches them fails (the
+    /// STM32G4's double ECC error), until an erase or a completed programming.
+    torn: Vec<u32>,
+    /// Model the ECC of torn double words (off in cases 1-5, which check embassy-boot's
+    /// swap logic: see "Findings" and [`a_torn_state_word_stops_the_bootloader`]).
+    ecc: bool,
 }
+
+/// The state of a [`CutFlash`]: contents and torn double words.
+type Snapshot = (Vec<u8>, Vec<u32>);
 
 impl CutFlash {
     fn new(size: usize) -> Self {
@@ -192,7 +208,27 @@ impl CutFlash {
             ops: 0,
             log: None,
             zero_overwrite: true,
+            torn: Vec::new(),
+            ecc: false,
         }
+    }
+
+    /// An operation from `addr` was cut after `done` bytes: the double word it
+    /// stopped in is torn (unless it stopped on a double-word boundary).
+    fn tear(&mut self, addr: u32, done: usize) {
+        let at = addr as usize + done;
+        if self.ecc && !at.is_multiple_of(WRITE_SIZE) {
+            let w = (at - at % WRITE_SIZE) as u32;
+            if !self.torn.contains(&w) {
+                self.torn.push(w);
+                self.torn.sort_unstable();
+            }
+        }
+    }
+
+    /// The double words in `from..to` were erased or programmed completely.
+    fn mend(&mut self, from: usize, to: usize) {
+        self.torn.retain(|&w| !(from..to).contains(&(w as usize)));
     }
 
     /// Power is lost after `n` more byte operations.
@@ -247,6 +283,16 @@ impl ReadNorFlash for CutFlash {
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
         self.alive()?;
         let r = read_range(self.mem.len(), offset, bytes.len())?;
+        let first = r.start - r.start % WRITE_SIZE;
+        if self
+            .torn
+            .iter()
+            .any(|&w| (first..r.end).contains(&(w as usize)))
+        {
+            // The double ECC error (an NMI on the chip, a failed read for the
+            // bootloader and the firmware).
+            return Err(NorFlashErrorKind::Other);
+        }
         bytes.copy_from_slice(&self.mem[r]);
         Ok(())
     }
@@ -265,7 +311,9 @@ impl NorFlash for CutFlash {
         let r = erase_range(self.mem.len(), PAGE_SIZE, from, to)?;
         let done = self.start(true, from, r.len());
         self.mem[r.start..r.start + done].fill(0xFF);
+        self.mend(r.start, r.start + done - done % WRITE_SIZE);
         if done < r.len() {
+            self.tear(from, done);
             return Err(NorFlashErrorKind::Other);
         }
         Ok(())
@@ -306,7 +354,9 @@ impl NorFlash for CutFlash {
                 *m &= b;
             }
         }
+        self.mend(r.start, r.start + done - done % WRITE_SIZE);
         if done < bytes.len() {
+            self.tear(offset, done);
             return Err(NorFlashErrorKind::Other);
         }
         Ok(())
@@ -366,14 +416,15 @@ impl Rig {
         self.with(|f| f.mem[p.offset as usize..(p.offset + p.size) as usize].to_vec())
     }
 
-    fn snapshot(&self) -> Vec<u8> {
-        self.with(|f| f.mem.clone())
+    fn snapshot(&self) -> Snapshot {
+        self.with(|f| (f.mem.clone(), f.torn.clone()))
     }
 
     /// Back to the contents of `snapshot`, power on.
-    fn restore(&self, snapshot: &[u8]) {
+    fn restore(&self, snapshot: &Snapshot) {
         self.with(|f| {
-            f.mem.copy_from_slice(snapshot);
+            f.mem.copy_from_slice(&snapshot.0);
+            f.torn.clone_from(&snapshot.1);
             f.power_on();
         });
     }
@@ -459,6 +510,7 @@ fn expected(g: &Geometry) -> Expected {
         esc: Esc::Lan9252,
         capacity: g.active.size,
         public_key: efw::sign::public_key(&SEED),
+        min_security_version: 0,
     }
 }
 
@@ -1072,6 +1124,25 @@ fn real_layout_update_and_revert() {
     assert_active_is(&rig, &b, &[&a], &"confirmed");
 }
 
+/// The first progress word that the swap from the rig's contents writes (a run
+/// without a cut, logged; the rig is left as it was).
+fn first_progress_word(rig: &Rig) -> Op {
+    let start = rig.snapshot();
+    rig.with(|f| {
+        f.power_on();
+        f.log = Some(Vec::new());
+    });
+    assert_eq!(rig.prepare_boot(), Ok(State::Swap));
+    let log = rig.with(|f| f.log.take().unwrap_or_default());
+    let progress = *log
+        .iter()
+        .find(|o| !o.erase && o.len == WRITE_SIZE)
+        .expect("progress");
+    assert!(in_partition(progress.addr, SMALL.state));
+    rig.restore(&start);
+    progress
+}
+
 /// Why [`CutFlash`] lets a programmed double word be programmed again with zeros, as
 /// the STM32G4 does: on a flash that refuses it (as `firmware::storage::RamFlash`
 /// does), a cut inside a progress-word write of the swap, or inside `mark_booted`'s
@@ -1085,18 +1156,7 @@ fn a_flash_without_zero_overwrite_would_not_boot() {
     let trial = rig.snapshot();
 
     // The swap, cut after 3 bytes of its first progress word.
-    rig.with(|f| {
-        f.power_on();
-        f.log = Some(Vec::new());
-    });
-    assert_eq!(rig.prepare_boot(), Ok(State::Swap));
-    let log = rig.with(|f| f.log.take().unwrap_or_default());
-    let progress = log
-        .iter()
-        .find(|o| !o.erase && o.len == WRITE_SIZE)
-        .expect("progress");
-    assert!(in_partition(progress.addr, SMALL.state));
-    rig.restore(&trial);
+    let progress = first_progress_word(&rig);
     rig.with(|f| f.cut_power_after(progress.first + 3));
     assert!(rig.prepare_boot().is_err());
     for _ in 0..3 {
@@ -1138,4 +1198,40 @@ fn a_state_erase_sparing_only_the_magic_would_mix_the_images() {
     let active = rig.read(SMALL.active);
     assert_ne!(active, a.partition);
     assert_ne!(active, b.partition);
+}
+
+/// Finding (issue 33): with the ECC of torn double words modelled, a cut inside a
+/// progress word of the swap leaves that word unreadable, and embassy-boot 0.7's
+/// `prepare_boot` fails at every later boot (it reads every progress word); the
+/// bootloader then stops with the bridges off (`bootloader/src/main.rs`). A cut
+/// between two double words leaves nothing torn, and that boot completes the swap.
+#[test]
+fn a_torn_state_word_stops_the_bootloader() {
+    let rig = Rig::new(SMALL);
+    let (a, b) = images(&SMALL);
+    marked_update(&rig, &a, &b);
+    rig.with(|f| f.ecc = true);
+    let trial = rig.snapshot();
+    let progress = first_progress_word(&rig);
+    // Inside the word: torn, every read of it fails, the bootloader cannot go on.
+    rig.restore(&trial);
+    rig.with(|f| f.cut_power_after(progress.first + 3));
+    assert!(rig.prepare_boot().is_err());
+    rig.power_on();
+    assert!(rig.with(|f| f.torn.contains(&progress.addr)));
+    for _ in 0..3 {
+        assert_eq!(
+            rig.prepare_boot(),
+            Err(BootError::Flash(NorFlashErrorKind::Other))
+        );
+        rig.power_on();
+    }
+    // Before the word: nothing torn, the next boot completes the swap.
+    rig.restore(&trial);
+    rig.with(|f| f.cut_power_after(progress.first));
+    assert!(rig.prepare_boot().is_err());
+    rig.power_on();
+    assert!(rig.with(|f| f.torn.is_empty()));
+    assert_eq!(rig.prepare_boot(), Ok(State::Swap));
+    assert_active_is(&rig, &b, &[&a], &"swap after a cut between words");
 }

@@ -54,11 +54,12 @@ fn foe_update_time(md: &mut String, rows: &[(String, u64)], overhead: u64) {
             .find(|(n, _)| n.starts_with(prefix))
             .map(|(_, c)| c.saturating_sub(overhead))
     };
-    let (Some(header), Some(plain), Some(flush), Some(last)) = (
+    let (Some(header), Some(plain), Some(flush), Some(hash4k), Some(sig)) = (
         count("FoE DATA 116 B completing the header"),
         count("FoE DATA 116 B, buffered"),
         count("FoE DATA 116 B with a 256 B write"),
-        count("FoE last DATA"),
+        count("FoE last DATA repeat: SHA-512"),
+        count("FoE last DATA repeat: ed25519"),
     ) else {
         md.push_str("\n(The FoE rows are missing: no update time.)\n");
         return;
@@ -73,13 +74,15 @@ fn foe_update_time(md: &mut String, rows: &[(String, u64)], overhead: u64) {
     let chunks = (image / 256.0).ceil();
     let pages = (image / 2048.0).ceil() + 1.0;
     let ms = |instr: f64| instr * CYCLES_PER_INSTRUCTION / (MHZ * 1000.0);
-    // The last row hashes 4 KiB and verifies one signature (as the header row does).
-    let hash_per_kib = last.saturating_sub(header) as f64 / 4.0;
-    let verify_ms = ms(header as f64 + 100.0 * hash_per_kib);
+    // The check of the complete image, in steps (`firmware::update`): 4 KiB hashed
+    // per BUSY answer, then the image signature.
+    let hash_per_kib = hash4k as f64 / 4.0;
+    let steps = (image / 4096.0).ceil() + 4.0;
+    let verify_ms = ms(sig as f64 + 100.0 * hash_per_kib);
     let cpu_ms = ms(packets * plain as f64 + chunks * (flush - plain.min(flush)) as f64)
         + ms(header as f64)
         + verify_ms;
-    let mailbox_ms = 2.0 * MAILBOX_CYCLE_MS * (packets + pages);
+    let mailbox_ms = 2.0 * MAILBOX_CYCLE_MS * (packets + pages + steps);
     let program_ms = image / 8.0 * PROGRAM_US_PER_8B / 1000.0;
     let erase_ms = pages * ERASE_MS_PER_PAGE;
     let total_s = (mailbox_ms + program_ms + erase_ms + cpu_ms) / 1000.0;
@@ -90,17 +93,18 @@ fn foe_update_time(md: &mut String, rows: &[(String, u64)], overhead: u64) {
          answer, through the product's backend (`firmware::update`) and embassy-boot: \
          **{plain}** when the data is only buffered, **{flush}** when it completes a \
          256-byte chunk that goes to the DFU partition (RAM flash here). The DATA that \
-         completes the header costs {header} (its ed25519 signature check); the last one \
-         {last} for a 4 KiB image (embassy-boot's SHA-512 over the partition and the \
-         image signature), so ≈ {hash_per_kib:.0} instructions per KiB hashed.\n\n\
+         completes the header costs {header} (its ed25519 signature check). The DATA \
+         that completes the image is answered BUSY while its check runs, one step per \
+         answer: {hash4k} for 4 KiB of SHA-512 (≈ {hash_per_kib:.0} instructions per \
+         KiB), {sig} for the image signature and the mark for the swap.\n\n\
          A 100 KiB image at a 1 ms mailbox cycle (each DATA and each BUSY one request \
          and one answer, 2 cycles), with the STM32G4's flash timing ({PROGRAM_US_PER_8B} µs \
          per 8 bytes programmed, {ERASE_MS_PER_PAGE} ms per 2 KiB page erased; \
          data-sheet figures, unverified on the board) and {CYCLES_PER_INSTRUCTION} cycles \
-         per instruction at {MHZ} MHz: {packets} DATA and {pages} BUSY answers = \
+         per instruction at {MHZ} MHz: {packets} DATA and {pages} + {steps} BUSY answers = \
          {mailbox_ms:.0} ms of mailbox cycles, {program_ms:.0} ms programming, \
-         {erase_ms:.0} ms erasing, {cpu_ms:.0} ms of processor time (of which the final \
-         verification {verify_ms:.0} ms, before the last ACK) — **about {total_s:.1} s**, \
+         {erase_ms:.0} ms erasing, {cpu_ms:.0} ms of processor time (of which the \
+         image check {verify_ms:.0} ms, in steps before the last ACK) — **about {total_s:.1} s**, \
          the flash's own time included and not overlapped. After Bootstrap → Init comes \
          embassy-boot's swap of the 114 pages of the active partition (several page \
          erases and programs per page: of the order of 10 s, the drive dark meanwhile).\n"

@@ -7,7 +7,13 @@
 //! `ECS_SIGNING_KEY_FILE` (64 hex digits), or the repository's development key
 //! `keys/dev-signing-key.hex`. The public key the board builds embed
 //! ([`firmware::update::PUBLIC_KEY`]) must belong to that key: the command refuses
-//! to write files the boards would refuse.
+//! to write files the boards would refuse. A release board trusts the development
+//! key only when built with `ECS_UPDATE_ALLOW_DEV_KEY=1` (or the firmware's cargo
+//! feature `dev-key`): without `ECS_UPDATE_PUBLIC_KEY` set, the command asks for it.
+//!
+//! The header's security version (anti-rollback, [`efw`]) is `ECS_SECURITY_VERSION`
+//! (a decimal `u32`, default 0): raise it for a release that fixes a security flaw,
+//! and the drives that accepted it refuse every older file.
 
 use std::path::Path;
 
@@ -128,14 +134,41 @@ pub fn run(
     build: impl Fn(&str) -> Result<String, String>,
 ) -> Result<(), String> {
     let (seed, key_name) = signing_key(root)?;
-    if efw::sign::public_key(&seed) != firmware::update::PUBLIC_KEY {
-        return Err(format!(
-            "the key {key_name} does not belong to the public key the board embeds \
-             (ECS_UPDATE_PUBLIC_KEY or keys/dev-public-key.hex): the boards would refuse \
-             these files"
-        ));
+    // What the release board built now trusts (firmware::update, "The trusted key").
+    let env_key = std::env::var("ECS_UPDATE_PUBLIC_KEY").ok();
+    if env_key
+        .as_deref()
+        .is_some_and(|k| k.len() != 64 || !k.bytes().all(|c| c.is_ascii_hexdigit()))
+    {
+        return Err("ECS_UPDATE_PUBLIC_KEY: not 64 hex digits".into());
+    }
+    let allow_dev = std::env::var("ECS_UPDATE_ALLOW_DEV_KEY").is_ok_and(|v| v == "1");
+    match firmware::update::trust(env_key.as_deref(), allow_dev, true).key() {
+        None => {
+            return Err(format!(
+                "a release board built without ECS_UPDATE_PUBLIC_KEY trusts no update key: \
+                 set ECS_UPDATE_PUBLIC_KEY to the public key of {key_name}, or \
+                 ECS_UPDATE_ALLOW_DEV_KEY=1 to build boards that trust the public \
+                 development key"
+            ))
+        }
+        Some(k) if k != efw::sign::public_key(&seed) => {
+            return Err(format!(
+                "the key {key_name} does not belong to the public key the board embeds \
+                 (ECS_UPDATE_PUBLIC_KEY or keys/dev-public-key.hex): the boards would \
+                 refuse these files"
+            ))
+        }
+        Some(_) => {}
     }
     let version = version_word(firmware::identity::SOFTWARE_VERSION)?;
+    let security_version = match std::env::var("ECS_SECURITY_VERSION") {
+        Ok(v) => v
+            .trim()
+            .parse::<u32>()
+            .map_err(|_| format!("ECS_SECURITY_VERSION: not a u32: {v}"))?,
+        Err(_) => 0,
+    };
     let variant = firmware::identity::BOARD_VARIANT;
     let out_dir = root.join("target/update");
     std::fs::create_dir_all(&out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
@@ -143,18 +176,20 @@ pub fn run(
         let elf_path = build(flavour)?;
         let elf = std::fs::read(&elf_path).map_err(|e| format!("{elf_path}: {e}"))?;
         let image = flash_image(&elf, ACTIVE.start(), IMAGE_MAX)?;
-        let file = efw::sign::update_file(
+        let file = efw::sign::update_file_secured(
             &seed,
             firmware::identity::VENDOR_ID,
             variant.product_code(),
             esc,
             version,
+            security_version,
             &image,
         );
         let path = out_dir.join(format!("ecs-{}.efw", esc.name()));
         std::fs::write(&path, &file).map_err(|e| format!("{}: {e}", path.display()))?;
         println!(
-            "update image ({flavour}): {} — version {}, image {} B of {} B, signed with {key_name}",
+            "update image ({flavour}): {} — version {}, security version {security_version}, \
+             image {} B of {} B, signed with {key_name}",
             path.display(),
             firmware::identity::SOFTWARE_VERSION,
             image.len(),
@@ -228,6 +263,15 @@ mod tests {
         ))
         .unwrap();
         let seed = parse_key(&dev).unwrap();
-        assert_eq!(efw::sign::public_key(&seed), firmware::update::PUBLIC_KEY);
+        assert_eq!(
+            Some(efw::sign::public_key(&seed)),
+            firmware::update::PUBLIC_KEY
+        );
+        // A release board trusts it only when asked for.
+        let dev_hex = firmware::update::DEV_PUBLIC_KEY_HEX;
+        use firmware::update::{trust, Trust};
+        assert_eq!(trust(None, false, true), Trust::None);
+        assert_eq!(trust(Some(dev_hex), false, true), Trust::None);
+        assert!(matches!(trust(None, true, true), Trust::Development(_)));
     }
 }

@@ -65,7 +65,7 @@ pub fn start_flash(
     // SAFETY: start-up calls this once, and nothing else takes a reference to
     // STAGE_MEM: this one is unique.
     let stage: &'static mut Stage = unsafe { &mut *core::ptr::addr_of_mut!(STAGE_MEM) };
-    let mut staged = StagedFlash::new(hw::flash::MappedRegion, stage, param_flash.is_some());
+    let mut staged = StagedFlash::new(hw::flash::ecc_region(), stage, param_flash.is_some());
     if param_flash.is_some() {
         hw::log::param_region(&PARAM_STORE, &mut staged);
     }

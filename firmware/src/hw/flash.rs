@@ -120,10 +120,34 @@ const REGION_ADDR: u32 = 0x0800_0000 + board::PARAM_FLASH_OFFSET;
 pub type Stage = firmware::staged_flash::Stage<STAGE_LEN>;
 
 /// The parameter store's view of the flash (`drive::FlashStore<StagedFlash>`): reads
-/// from the memory-mapped region, erases and writes into a [`Stage`], programmed by
-/// [`commit`] in thread mode outside the drive's lock (see
-/// `firmware::staged_flash` and main.rs, "Who owns what").
-pub type StagedFlash = firmware::staged_flash::StagedFlash<'static, MappedRegion, STAGE_LEN, PAGE>;
+/// from the memory-mapped region (a read that hits a double ECC error fails:
+/// [`BoardEcc`]), erases and writes into a [`Stage`], programmed by [`commit`] in
+/// thread mode outside the drive's lock (see `firmware::staged_flash` and main.rs,
+/// "Who owns what").
+pub type StagedFlash = firmware::staged_flash::StagedFlash<'static, EccRegion, STAGE_LEN, PAGE>;
+
+/// The memory-mapped record region, its reads checked for double ECC errors
+/// (`firmware::storage::ecc`).
+pub type EccRegion = firmware::storage::ecc::EccChecked<MappedRegion, BoardEcc>;
+
+/// The record region's reader for [`StagedFlash`].
+pub const fn ecc_region() -> EccRegion {
+    firmware::storage::ecc::EccChecked::new(MappedRegion, BoardEcc)
+}
+
+/// The NMI handler's note of a double ECC error in the record region
+/// (`hw::safety::ECC_RECORD_ERROR`).
+pub struct BoardEcc;
+
+impl firmware::storage::ecc::EccMonitor for BoardEcc {
+    fn clear(&mut self) {
+        crate::hw::safety::ECC_RECORD_ERROR.store(false, core::sync::atomic::Ordering::Release);
+    }
+    fn double_error(&mut self) -> bool {
+        // The NMI runs between the loads of the copy and this check.
+        crate::hw::safety::ECC_RECORD_ERROR.load(core::sync::atomic::Ordering::Acquire)
+    }
+}
 
 /// Read-only view of the parameter region through the memory map (no driver needed,
 /// so the staged view can read while the driver is owned by the thread that

@@ -13,6 +13,14 @@
 //!   was started, a system reset is requested at once. The next start logs the reset
 //!   cause. All of it goes straight to registers, so it works whatever state the
 //!   drivers were in.
+//! * NMI ([`NonMaskableInt`]): a double ECC error of the flash (FLASH_ECCR.ECCD)
+//!   while reading the record region is a failed read of that record
+//!   (`firmware::storage::ecc`): noted in [`ECC_RECORD_ERROR`] for the read in
+//!   progress (`hw::flash::MappedRegion`), ECCD cleared, and the handler returns —
+//!   the storage takes the record for corrupt and uses the other one. Any other NMI
+//!   (an ECC error in program flash or the update partitions, a clock failure) goes
+//!   the HardFault way: bridges off, halt, watchdog reset. Never the default
+//!   handler's endless loop with the bridges as they were.
 //! * Faults found by the board code (fault 9 at start-up, over-current) go to the
 //!   drive's fault module (main.rs: `over_current`, `offset_self_check`), which
 //!   drives the PDS fault, the emergency and the red LED. [`raise_fault`] /
@@ -181,6 +189,39 @@ unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
         ef.lr()
     );
     fatal_end(exit)
+}
+
+/// Set by [`NonMaskableInt`] for a double ECC error in the record region; cleared
+/// and checked around each record read (`hw::flash::MappedRegion`).
+pub static ECC_RECORD_ERROR: AtomicBool = AtomicBool::new(false);
+
+/// Bytes per bank in dual-bank mode (512 KiB flash).
+const BANK_SIZE: u32 = firmware::flash_layout::FLASH_SIZE / 2;
+
+#[exception]
+unsafe fn NonMaskableInt() {
+    use firmware::storage::ecc::{ecc_offset, nmi_action, NmiAction};
+    let eccr = pac::FLASH.eccr().read();
+    // ADDR_ECC: the failing double word's byte address in its bank (RM0440,
+    // FLASH_ECCR), BK_ECC its bank.
+    let offset = ecc_offset(eccr.bk_ecc(), eccr.addr_ecc(), BANK_SIZE);
+    let records = board::PARAM_FLASH_OFFSET..board::PARAM_FLASH_OFFSET + board::PARAM_FLASH_SIZE;
+    match nmi_action(eccr.eccd(), offset, records) {
+        NmiAction::RecordReadError => {
+            ECC_RECORD_ERROR.store(true, Ordering::Release);
+            // ECCD is cleared by writing 1 (the NMI would come again at once).
+            pac::FLASH.eccr().modify(|w| w.set_eccd(true));
+        }
+        NmiAction::Stop => {
+            let exit = fatal_stop();
+            defmt::error!(
+                "NMI: flash ECC {=bool} at {=u32:#010x}",
+                eccr.eccd(),
+                offset
+            );
+            fatal_end(exit)
+        }
+    }
 }
 
 /// Why the chip last reset, from RCC_CSR (read once at start-up, then cleared). The

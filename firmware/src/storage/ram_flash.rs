@@ -60,6 +60,11 @@ pub fn write_range(
 /// as on the chip. It can lose power after a given number of byte operations (erase or
 /// write): the operation in progress stops there and every later one fails until
 /// [`RamFlash::power_on`].
+///
+/// ECC, as the STM32G4's per double word: a cut that leaves a double word partly
+/// programmed or partly erased ("torn") leaves its ECC wrong, and every later read
+/// that touches it fails (`Other`, the chip's double ECC error) until it is erased
+/// (the board turns the NMI into the same failed read: [`crate::storage::ecc`]).
 #[derive(Clone)]
 pub struct RamFlash<const N: usize> {
     /// The memory.
@@ -68,6 +73,18 @@ pub struct RamFlash<const N: usize> {
     dead: bool,
     /// Byte operations done since the last [`RamFlash::power_on`].
     pub ops: usize,
+    /// Bytes read so far (the work a reader did: tests that bound it per call).
+    pub reads: usize,
+    /// Torn double words (offsets; the oldest is forgotten when more are torn).
+    torn: [Option<u32>; TORN_MAX],
+}
+
+/// Torn double words a [`RamFlash`] remembers.
+const TORN_MAX: usize = 8;
+
+/// Its double word of byte offset `i`.
+const fn word_of(i: usize) -> u32 {
+    (i & !7) as u32
 }
 
 impl<const N: usize> Default for RamFlash<N> {
@@ -84,6 +101,28 @@ impl<const N: usize> RamFlash<N> {
             budget: None,
             dead: false,
             ops: 0,
+            reads: 0,
+            torn: [None; TORN_MAX],
+        }
+    }
+    /// True when the double word at `offset` (a multiple of 8) is torn.
+    pub fn is_torn(&self, offset: u32) -> bool {
+        self.torn.contains(&Some(offset))
+    }
+    /// Marks the double word of byte `i` torn when the cut at `i` left it half done.
+    fn tear(&mut self, i: usize) {
+        if i.is_multiple_of(8) || self.is_torn(word_of(i)) {
+            return;
+        }
+        self.torn.rotate_right(1);
+        self.torn[0] = Some(word_of(i));
+    }
+    /// The double words of `range` have a good ECC again (erased or programmed).
+    fn mend(&mut self, range: core::ops::Range<usize>) {
+        for t in self.torn.iter_mut() {
+            if t.is_some_and(|w| range.contains(&(w as usize))) {
+                *t = None;
+            }
         }
     }
     /// Power is lost after `ops` more byte operations.
@@ -127,7 +166,13 @@ impl<const N: usize> embedded_storage::nor_flash::ReadNorFlash for RamFlash<N> {
             return Err(NorFlashErrorKind::Other);
         }
         let range = read_range(N, offset, bytes.len())?;
+        let (first, end) = (word_of(range.start), range.end as u32);
+        if self.torn.iter().flatten().any(|&w| w >= first && w < end) {
+            // The double ECC error: the chip's NMI, a failed read here.
+            return Err(NorFlashErrorKind::Other);
+        }
         bytes.copy_from_slice(&self.mem[range]);
+        self.reads += bytes.len();
         Ok(())
     }
     fn capacity(&self) -> usize {
@@ -139,18 +184,28 @@ impl<const N: usize> NorFlash for RamFlash<N> {
     const WRITE_SIZE: usize = 8;
     const ERASE_SIZE: usize = 32;
     fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-        for i in erase_range(N, Self::ERASE_SIZE, from, to)? {
-            self.step()?;
+        let range = erase_range(N, Self::ERASE_SIZE, from, to)?;
+        for i in range.clone() {
+            if let Err(e) = self.step() {
+                self.mend(range.start..word_of(i) as usize);
+                self.tear(i);
+                return Err(e);
+            }
             self.mem[i] = 0xFF;
         }
+        self.mend(range);
         Ok(())
     }
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
         let range = write_range(&self.mem, Self::WRITE_SIZE, offset, bytes.len())?;
-        for (i, &b) in range.zip(bytes) {
-            self.step()?;
+        for (i, &b) in range.clone().zip(bytes) {
+            if let Err(e) = self.step() {
+                self.tear(i);
+                return Err(e);
+            }
             self.mem[i] = b;
         }
+        self.mend(range);
         Ok(())
     }
 }

@@ -33,6 +33,10 @@ impl Flashes {
     }
 
     fn update(&self) -> Update<impl Updater + '_> {
+        self.update_with(TRUST)
+    }
+
+    fn update_with(&self, trust: Trust) -> Update<impl Updater + '_> {
         let aligned = Box::leak(Box::new([0u8; 8]));
         let u = EmbassyUpdater::new(
             BlockingPartition::new(&self.dfu, 0, DFU_SIZE as u32),
@@ -40,7 +44,15 @@ impl Flashes {
             BlockingPartition::new(&self.active, 0, ACTIVE_SIZE as u32),
             aligned,
         );
-        Update::new(u, VENDOR, PRODUCT, Esc::Lan9252)
+        Update::with_trust(u, VENDOR, PRODUCT, Esc::Lan9252, trust)
+    }
+
+    /// DFU bytes read and DFU byte operations (erased + programmed) so far.
+    fn dfu_work(&self) -> (usize, usize) {
+        self.dfu.lock(|f| {
+            let f = f.borrow();
+            (f.0.reads, f.0.ops)
+        })
     }
 
     /// A reset: embassy-boot's `prepare_boot` (swap or revert).
@@ -104,13 +116,16 @@ fn each_erase_is_one_busy_answer() {
     let img = image(20_000, 9);
     // The header page, then ⌈20 000 / 2048⌉ = 10 image pages (the last one erased
     // at the finish if the last chunk is short).
+    // Then the check of the complete image: taken, last chunk, header, ⌈20 000 /
+    // VERIFY_STEP⌉ = 5 hash steps (the signature answers Done).
     let busy = send_counting(&mut fl.update(), &file(Esc::Lan9252, 1, &img)).unwrap();
-    assert!((10..=11).contains(&busy), "{busy}");
+    let check = 3 + 20_000usize.div_ceil(VERIFY_STEP as usize);
+    assert!((10 + check..=11 + check).contains(&busy), "{busy}");
 }
 
 #[test]
 fn the_dev_key_pair_belongs_together() {
-    assert_eq!(efw::sign::public_key(&seed()), PUBLIC_KEY);
+    assert_eq!(Some(efw::sign::public_key(&seed())), PUBLIC_KEY);
 }
 
 #[test]
@@ -279,4 +294,196 @@ fn the_info_file_describes_the_running_image() {
     let mut u = fl.update();
     assert_eq!(u.open_read(b"other", 0, false), Err(ErrorCode::NotFound));
     assert_eq!(u.open_read(INFO_FILE, 1, false), Err(ErrorCode::NoRights));
+}
+
+/// issue 33: the check of the image (SHA-512 over the DFU partition, the ed25519
+/// image signature) is spread over the BUSY answers of the DATA that
+/// completes it: no FoE call reads more than `VERIFY_STEP` bytes or erases more than
+/// one page, whatever the image length, and the finish reads nothing. Before, the
+/// finish hashed the whole image in one call (≈ 230 ms for the largest image).
+#[test]
+fn the_last_packets_check_runs_in_bounded_steps() {
+    let fl = Flashes::new();
+    let len = 60_000usize;
+    let f = file(Esc::Lan9252, 4, &image(len, 3));
+    let mut u = fl.update();
+    u.open_write(b"ecs-lan9252.efw", 0, true).unwrap();
+    let (mut off, mut calls, mut last_busy) = (0u32, 0usize, 0usize);
+    let (mut max_read, mut max_ops) = (0usize, 0usize);
+    let chunks: Vec<&[u8]> = f.chunks(116).collect();
+    for (i, c) in chunks.iter().enumerate() {
+        loop {
+            let before = fl.dfu_work();
+            let r = u.write(off, c);
+            let after = fl.dfu_work();
+            calls += 1;
+            max_read = max_read.max(after.0 - before.0);
+            max_ops = max_ops.max(after.1 - before.1);
+            match r {
+                WriteStatus::Done => break,
+                WriteStatus::Busy { .. } if i + 1 == chunks.len() => last_busy += 1,
+                WriteStatus::Busy { .. } => {}
+                WriteStatus::Err(e) => panic!("refused: {e:?}"),
+            }
+            assert!(calls < 100_000, "BUSY for ever");
+        }
+        off += c.len() as u32;
+    }
+    let before = fl.dfu_work();
+    assert_eq!(u.finish_write(), Ok(()));
+    assert_eq!(fl.dfu_work().0, before.0, "the finish reads nothing");
+    assert!(u.accepted().is_some());
+    assert!(
+        max_read <= VERIFY_STEP as usize,
+        "{max_read} bytes read in one call"
+    );
+    assert!(
+        max_ops <= flash_layout::PAGE as usize + WRITE_CHUNK,
+        "{max_ops} byte operations in one call"
+    );
+    // Taken, flush, header, ⌈60 000 / 4096⌉ = 15 hash steps (signature: Done).
+    assert!(
+        last_busy >= len.div_ceil(VERIFY_STEP as usize) + 3,
+        "{last_busy} BUSY answers for the last DATA"
+    );
+    fl.boot();
+    assert!(fl.active_starts_with(&image(len, 3)));
+}
+
+/// A repeat of the completing DATA with another offset or length ends the transfer.
+#[test]
+fn a_changed_repeat_during_the_check_is_refused() {
+    let fl = Flashes::new();
+    let f = file(Esc::Lan9252, 4, &image(1000, 3));
+    let mut u = fl.update();
+    u.open_write(b"ecs-lan9252.efw", 0, true).unwrap();
+    let mut off = 0u32;
+    let chunks: Vec<&[u8]> = f.chunks(116).collect();
+    for c in &chunks[..chunks.len() - 1] {
+        while u.write(off, c) != WriteStatus::Done {}
+        off += c.len() as u32;
+    }
+    let last = chunks[chunks.len() - 1];
+    // Erases until the data is taken, then the check's first BUSY.
+    let mut n = 0;
+    while matches!(u.write(off, last), WriteStatus::Busy { .. }) && n < 3 {
+        n += 1;
+    }
+    assert_eq!(u.write(off + 1, last), WriteStatus::Err(ErrorCode::Illegal));
+    assert_eq!(u.finish_write(), Err(ErrorCode::Illegal));
+    assert!(u.accepted().is_none());
+}
+
+/// issue 33, anti-rollback: after an image with security version 2 confirmed
+/// itself, a correctly signed file with security version 1 is refused with FoE
+/// "access denied" before anything is erased; 2 and above are taken.
+#[test]
+fn an_image_below_the_kept_security_version_is_refused() {
+    let fl = Flashes::new();
+    let secured = |version: u32, sv: u32, salt: u8| {
+        efw::sign::update_file_secured(
+            &seed(),
+            VENDOR,
+            PRODUCT,
+            Esc::Lan9252,
+            version,
+            sv,
+            &image(3000, salt),
+        )
+    };
+    assert_eq!(send(&mut fl.update(), &secured(5, 2, 1)), Ok(()));
+    fl.boot();
+    let mut u = fl.update();
+    assert!(u.confirm(true, true));
+    let mut u = fl.update();
+    assert_eq!(u.min_security_version(), 2);
+    let ops = fl.dfu_work().1;
+    assert_eq!(
+        send(&mut u, &secured(9, 1, 2)),
+        Err(ErrorCode::AccessDenied),
+        "older security version"
+    );
+    assert_eq!(fl.dfu_work().1, ops, "nothing erased");
+    assert_eq!(
+        u.take_event(),
+        Some(Event::Refused(ErrorCode::AccessDenied))
+    );
+    let mut u = fl.update();
+    assert_eq!(
+        send(&mut u, &secured(4, 2, 3)),
+        Ok(()),
+        "same security version, older version"
+    );
+    // The floor reads back in the information file.
+    let n = u.open_read(INFO_FILE, 0, false).unwrap() as usize;
+    let mut b = std::vec![0u8; n];
+    u.read(0, &mut b);
+    let t = std::string::String::from_utf8(b).unwrap();
+    assert!(t.contains("security-version=2\n"), "{t}");
+}
+
+/// issue 33: a release build trusts the development key only when asked for; one
+/// without a key refuses every file and says so in `firmware.info`.
+#[test]
+fn the_trusted_key_follows_the_build_and_is_reported() {
+    let dev = efw::sign::public_key(&seed());
+    let other = "11".repeat(32);
+    assert_eq!(trust(None, false, false), Trust::Development(dev));
+    assert_eq!(trust(None, false, true), Trust::None);
+    assert_eq!(trust(None, true, true), Trust::Development(dev));
+    assert_eq!(trust(Some(DEV_PUBLIC_KEY_HEX), false, true), Trust::None);
+    assert_eq!(
+        trust(Some(&other), false, true),
+        Trust::Production([0x11; 32])
+    );
+    assert_eq!(
+        trust(Some(&other), false, false),
+        Trust::Production([0x11; 32])
+    );
+
+    let info = |u: &mut dyn FoeFiles| {
+        let n = u.open_read(INFO_FILE, 0, false).unwrap() as usize;
+        let mut b = std::vec![0u8; n];
+        assert_eq!(u.read(0, &mut b), n);
+        std::string::String::from_utf8(b).unwrap()
+    };
+    let fl = Flashes::new();
+    let f = file(Esc::Lan9252, 1, &image(900, 1));
+    let mut none = fl.update_with(trust(None, false, true));
+    assert_eq!(send(&mut none, &f), Err(ErrorCode::AccessDenied));
+    let t = info(&mut none);
+    assert!(
+        t.contains("key=none\n") && !t.contains("key-fingerprint"),
+        "{t}"
+    );
+    let mut u = fl.update_with(trust(None, true, true));
+    let t = info(&mut u);
+    let fp: std::string::String = efw::image_digest(&dev)[..8]
+        .iter()
+        .map(|x| std::format!("{x:02x}"))
+        .collect();
+    assert!(t.contains("key=development\n"), "{t}");
+    assert!(t.contains(&std::format!("key-fingerprint={fp}\n")), "{t}");
+    assert_eq!(send(&mut u, &f), Ok(()));
+    let t = info(&mut fl.update_with(Trust::Production([0x11; 32])));
+    assert!(t.contains("key=production\n"), "{t}");
+}
+
+/// A transfer aborted after its image was checked (the completing DATA answered
+/// Done, no finish) marks nothing: the next boot keeps the running image.
+#[test]
+fn a_transfer_aborted_after_the_check_marks_nothing() {
+    let fl = Flashes::new();
+    let f = file(Esc::Lan9252, 4, &image(3000, 5));
+    let mut u = fl.update();
+    u.open_write(b"ecs-lan9252.efw", 0, true).unwrap();
+    let mut off = 0u32;
+    for c in f.chunks(116) {
+        while u.write(off, c) != WriteStatus::Done {}
+        off += c.len() as u32;
+    }
+    u.abort();
+    assert!(u.accepted().is_none());
+    assert_eq!(fl.boot(), embassy_boot::State::Boot);
+    assert!(!fl.active_starts_with(&image(3000, 5)));
 }

@@ -143,6 +143,8 @@ pub fn run() {
     );
     let seg = 116;
     let last = FILE.len().div_ceil(seg) as u32;
+    // The number of the next repeat of the last DATA (its check's steps, from 1).
+    let mut repeats = 1;
     for (k, data) in FILE.chunks(seg).enumerate() {
         let packet = k as u32 + 1;
         let req = Repr::Data { packet, data };
@@ -157,14 +159,40 @@ pub fn run() {
                 4,
             ),
             p if p == last => (
-                Some("FoE last DATA: 4 KiB image, SHA-512 + ed25519 (embassy-boot verify) → ACK"),
-                4,
+                Some("FoE last DATA: 4 KiB image complete, taken → BUSY (the check follows)"),
+                6,
             ),
             _ => (None, 0),
         };
         if let Some(n) = name {
             let op = crate::bench(n, || exchange(black_box(&req)));
             assert_eq!(op, want, "packet {packet}");
+        }
+        if packet == last {
+            // The image check, one step per repeat of the last DATA
+            // (`firmware::update`): last chunk, header, SHA-512 of the 4 KiB image
+            // (each → BUSY), the image signature and embassy-boot's mark (→ ACK).
+            for (step, row, want) in [
+                (
+                    3,
+                    "FoE last DATA repeat: SHA-512 of 4 KiB of image → BUSY",
+                    6,
+                ),
+                (
+                    4,
+                    "FoE last DATA repeat: ed25519 image signature + mark → ACK",
+                    4,
+                ),
+            ] {
+                while step > repeats {
+                    assert_eq!(exchange(&req), 6, "check step {repeats}");
+                    repeats += 1;
+                }
+                let op = crate::bench(row, || exchange(black_box(&req)));
+                assert_eq!(op, want, "{row}");
+                repeats += 1;
+            }
+            continue;
         }
         // The rest of the packet: sent again after BUSY (a page erase), not measured.
         loop {
