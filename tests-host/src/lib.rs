@@ -15,6 +15,7 @@ pub mod plant;
 pub mod plot;
 pub mod raw_master;
 pub mod raw_socket;
+pub mod realtime;
 pub mod scope_host;
 pub mod segment;
 pub mod sim_axis;

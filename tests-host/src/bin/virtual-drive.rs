@@ -19,15 +19,18 @@
 
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use ecat_slave_stack::od::Dictionary;
 use tests_host::esc_sim::Flavour;
 use tests_host::fault_inject::{self, Injection, LedLog, Schedule};
 use tests_host::raw_socket::RawSocket;
+use tests_host::realtime::{self, Irq, WireStats};
 use tests_host::segment::Segment;
 use tests_host::sim_drive::{self, Motor, SimDrive, SimDriveConfig};
 
+/// Set by SIGINT / SIGTERM; both threads end within a wait.
 static STOP: AtomicBool = AtomicBool::new(false);
 
 extern "C" fn on_signal(_: libc::c_int) {
@@ -185,60 +188,69 @@ fn main() -> ExitCode {
     let mut log = |line: String| println!("virtual-drive: {line}");
     leds.observe(&seg, &mut log);
 
+    // The wire thread answers frames; this thread is the drives' microcontrollers.
     let start = Instant::now();
-    let mut buf = vec![0u8; 2048];
-    let (mut frames, mut send_errors) = (0u64, 0u64);
+    let irq = Arc::new(Irq::default());
+    let wire_stats = Arc::new(WireStats::default());
+    let wire = match realtime::spawn_wire(
+        sock,
+        seg.escs(),
+        seg.config().hop_ns,
+        start,
+        &STOP,
+        irq.clone(),
+        wire_stats.clone(),
+    ) {
+        Ok(w) => w,
+        Err(e) => {
+            eprintln!("virtual-drive: cannot start the frame thread: {e}");
+            return ExitCode::from(1);
+        }
+    };
     let mut last_report = Instant::now();
     while !STOP.load(Ordering::SeqCst) {
-        // Real time: simulated time catches up with the wall clock.
-        let wall_ns = start.elapsed().as_nanos() as u64;
-        if wall_ns > seg.now_ns() {
-            let dt = wall_ns - seg.now_ns();
-            sim_drive::advance(&mut seg, dt);
-            schedule.apply_due(&mut seg, &mut log);
-            restart_after_update(&mut seg, &mut log);
-            leds.observe(&seg, &mut log);
-        }
-        match sock.wait_readable(1_000) {
-            Ok(true) => {}
-            Ok(false) => continue,
-            Err(e) => {
-                eprintln!("virtual-drive: poll: {e}");
-                break;
-            }
-        }
-        loop {
-            match sock.recv(&mut buf) {
-                Ok(Some(n)) => {
-                    let frame = &mut buf[..n];
-                    sim_drive::process(&mut seg, frame);
-                    restart_after_update(&mut seg, &mut log);
-                    leds.observe(&seg, &mut log);
-                    frames += 1;
-                    if sock.send(frame).is_err() {
-                        send_errors += 1;
-                    }
-                }
-                Ok(None) => break,
-                Err(e) => {
-                    eprintln!("virtual-drive: receive: {e}");
-                    STOP.store(true, Ordering::SeqCst);
-                    break;
-                }
-            }
-        }
+        let now_ns = start.elapsed().as_nanos() as u64;
+        realtime::step(&mut seg, now_ns);
+        schedule.apply_due(&mut seg, &mut log);
+        restart_after_update(&mut seg, &mut log);
+        leds.observe(&seg, &mut log);
         if last_report.elapsed() > Duration::from_secs(10) {
             last_report = Instant::now();
             let states: Vec<String> = (0..seg.len())
                 .map(|i| format!("{:#04x}", seg.al_status(i).0))
                 .collect();
             println!(
-                "virtual-drive: {frames} frames, AL status [{}]",
+                "virtual-drive: {} frames, AL status [{}]",
+                wire_stats.frames.load(Ordering::Relaxed),
                 states.join(" ")
             );
         }
+        if wire.is_finished() {
+            break;
+        }
+        let deadline = realtime::next_deadline_ns(&seg);
+        irq.wait_until(realtime::instant_at(start, deadline));
     }
+    STOP.store(true, Ordering::SeqCst);
+    let mut code = ExitCode::SUCCESS;
+    match wire.join() {
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => {
+            eprintln!("virtual-drive: {e}");
+            code = ExitCode::from(1);
+        }
+        Err(_) => {
+            eprintln!("virtual-drive: the frame thread panicked");
+            code = ExitCode::from(1);
+        }
+    }
+    let frames = wire_stats.frames.load(Ordering::Relaxed);
+    let send_errors = wire_stats.send_errors.load(Ordering::Relaxed);
     sim_drive::shutdown(&mut seg);
-    println!("virtual-drive: stopped after {frames} frames ({send_errors} send errors)");
-    ExitCode::SUCCESS
+    println!(
+        "virtual-drive: stopped after {frames} frames ({send_errors} send errors, longest \
+         answer {:.3} ms)",
+        wire_stats.longest_ns.load(Ordering::Relaxed) as f64 * 1e-6
+    );
+    code
 }

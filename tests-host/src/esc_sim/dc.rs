@@ -98,8 +98,24 @@ impl EscSim {
 
     // ---------------------------------------------------------------- time
 
+    /// Simulated time (ns) of the next SYNC0 pulse, `None` while the SYNC unit is
+    /// off: the instant a real-time runner wakes the application for its SYNC0
+    /// interrupt. A pulse already due gives the current time.
+    pub fn next_sync0_ns(&self) -> Option<u64> {
+        if !self.sync0.active {
+            return None;
+        }
+        let st = self.system_time_at(self.now_ns);
+        Some(self.now_ns + self.sync0.next.saturating_sub(st))
+    }
+
     /// Advances simulated time to `t_ns` (never backwards): generates SYNC0 pulses,
     /// runs the process-data and PDI watchdogs, and ends a pending EEPROM busy phase.
+    ///
+    /// The pulses due since the last call are counted in [`super::SimStats::sync0_pulses`]
+    /// but raise one SYNC0 event, as a DC unit's pulses happen at their times
+    /// whatever the microcontroller does: one whose interrupt was still pending sees
+    /// one interrupt, never a burst of them.
     pub fn advance_to(&mut self, t_ns: u64) {
         if t_ns < self.now_ns {
             return;

@@ -33,8 +33,7 @@ use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::{EscAccess, EscError};
 use sii::SII_CTRL_BUSY;
 use sm::SmRuntime;
-use std::cell::RefCell;
-use std::rc::Rc;
+use std::sync::{Arc, Mutex, MutexGuard};
 
 /// Which chip is simulated. Decides the ESC information registers, the number of
 /// FMMUs/SyncManagers, the process RAM size and the SII read size.
@@ -858,32 +857,38 @@ impl RamOp<'_> {
 
 pub(crate) use sm::SmOp;
 
-/// A simulator shared between the wire side (the segment) and the PDI side (the
-/// firmware, directly or through an SPI chip model). Single-threaded.
+/// A simulator shared between the wire side (the segment, or `virtual-drive`'s frame
+/// thread) and the PDI side (the firmware, directly or through an SPI chip model).
+///
+/// Each side holds the lock for one access only (one datagram frame on the wire
+/// side, one register or RAM access on the PDI side), as the chip serialises its
+/// ECAT and PDI accesses: so the wire side never waits for the application, only
+/// for the access in progress.
 #[derive(Clone)]
-pub struct SharedEsc(pub Rc<RefCell<EscSim>>);
+pub struct SharedEsc(pub Arc<Mutex<EscSim>>);
 
 impl SharedEsc {
     /// Wraps a simulator.
     pub fn new(esc: EscSim) -> Self {
-        SharedEsc(Rc::new(RefCell::new(esc)))
+        SharedEsc(Arc::new(Mutex::new(esc)))
     }
-    /// Borrows the simulator.
-    pub fn borrow(&self) -> std::cell::Ref<'_, EscSim> {
-        self.0.borrow()
+    /// The simulator, for reading.
+    pub fn borrow(&self) -> MutexGuard<'_, EscSim> {
+        self.borrow_mut()
     }
-    /// Borrows the simulator mutably.
-    pub fn borrow_mut(&self) -> std::cell::RefMut<'_, EscSim> {
-        self.0.borrow_mut()
+    /// The simulator, for changing (a panic of another holder does not poison it:
+    /// the memory stays as that access left it).
+    pub fn borrow_mut(&self) -> MutexGuard<'_, EscSim> {
+        self.0.lock().unwrap_or_else(|e| e.into_inner())
     }
 }
 
 impl EscAccess for SharedEsc {
     fn read(&mut self, addr: u16, buf: &mut [u8]) -> Result<(), EscError> {
-        EscAccess::read(&mut *self.0.borrow_mut(), addr, buf)
+        EscAccess::read(&mut *self.borrow_mut(), addr, buf)
     }
     fn write(&mut self, addr: u16, data: &[u8]) -> Result<(), EscError> {
-        EscAccess::write(&mut *self.0.borrow_mut(), addr, data)
+        EscAccess::write(&mut *self.borrow_mut(), addr, data)
     }
 }
 

@@ -1,0 +1,176 @@
+//! Real time for `virtual-drive`: the ESC answers frames like hardware, the
+//! microcontroller side runs beside it.
+//!
+//! On a board the ESC processes every frame in hardware whatever the MCU does; the
+//! MCU reaches the ESC memory over SPI, one access at a time, and learns of events
+//! through the PDI interrupt line (SYNC0, SyncManager, AL control). `virtual-drive`
+//! splits the same way:
+//!
+//! * the **wire thread** ([`spawn_wire`]) owns the raw socket. It sleeps until a
+//!   frame arrives, moves the ESC simulators' clocks to the wall clock, runs the
+//!   frame through them ([`process_frame`]) and sends it back at once, then raises
+//!   the interrupt line ([`Irq`]). It never waits for the application or the plant,
+//!   only for a PDI access in progress ([`SharedEsc`] holds its lock for one
+//!   access).
+//! * the **application thread** (the caller of [`step`]) runs the MCU side of every
+//!   drive — the slave runtime's `poll` / cycle, the drive's 1 ms tick and the axis
+//!   model ([`SimDrive::catch_up`]), the work after each poll
+//!   ([`sim_drive::forward_emergencies`]) — against the same simulators. It sleeps
+//!   until the interrupt line rises or the next deadline ([`next_deadline_ns`]: the
+//!   next SYNC0 pulse of any drive, the next 1 ms tick), whichever comes first.
+//!
+//! Nothing busy-waits: with no master the process wakes once per tick. When the
+//! application thread falls behind (a loaded machine), frames are still answered;
+//! on its next wake the missed SYNC0 pulses raise one event (as a DC unit's pulses
+//! happen at their times: the drive runs one cycle, not a burst), the drive's ticks
+//! run up to the present on its own clock, and the axis moves on in one step.
+//!
+//! [`step`] takes the time as an argument, so the in-process tests drive it with
+//! simulated time.
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use crate::esc_sim::frame::process_frame;
+use crate::esc_sim::SharedEsc;
+use crate::raw_socket::RawSocket;
+use crate::segment::Segment;
+use crate::sim_drive::{self, SimDrive};
+
+/// Period of the drive's supervision tick ([`SimDrive::catch_up`]), ns.
+pub const TICK_NS: u64 = 1_000_000;
+
+/// The PDI interrupt line from the wire thread to the application thread.
+#[derive(Default)]
+pub struct Irq {
+    pending: Mutex<bool>,
+    cv: Condvar,
+}
+
+impl Irq {
+    /// Raises the line (a frame was processed).
+    pub fn raise(&self) {
+        *self.pending.lock().unwrap_or_else(|e| e.into_inner()) = true;
+        self.cv.notify_one();
+    }
+
+    /// Sleeps until the line is raised or `deadline`; takes the line down. True when
+    /// it was raised.
+    pub fn wait_until(&self, deadline: Instant) -> bool {
+        let mut p = self.pending.lock().unwrap_or_else(|e| e.into_inner());
+        while !*p {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return false;
+            }
+            p = match self.cv.wait_timeout(p, left) {
+                Ok((g, _)) => g,
+                Err(e) => e.into_inner().0,
+            };
+        }
+        *p = false;
+        true
+    }
+}
+
+/// Counters of the wire thread, readable while it runs.
+#[derive(Debug, Default)]
+pub struct WireStats {
+    /// Frames answered.
+    pub frames: AtomicU64,
+    /// Frames whose answer could not be sent.
+    pub send_errors: AtomicU64,
+    /// Longest time from a frame's receipt to its answer being sent, ns.
+    pub longest_ns: AtomicU64,
+}
+
+/// How long the wire thread sleeps in one wait when no frame comes: the bound on
+/// how late it sees `stop`.
+const WIRE_WAIT_US: u64 = 20_000;
+
+/// Starts the wire thread: frames from `sock` through `escs` (in line order, `hop_ns`
+/// per hop) at the wall-clock time since `start`, answered at once, `irq` raised
+/// after each. Ends when `stop` is set (within [`WIRE_WAIT_US`]) or the socket
+/// fails (the error).
+pub fn spawn_wire(
+    sock: RawSocket,
+    escs: Vec<SharedEsc>,
+    hop_ns: u64,
+    start: Instant,
+    stop: &'static AtomicBool,
+    irq: Arc<Irq>,
+    stats: Arc<WireStats>,
+) -> std::io::Result<JoinHandle<Result<(), String>>> {
+    std::thread::Builder::new()
+        .name("ecat-wire".into())
+        .spawn(move || {
+            let mut buf = vec![0u8; 2048];
+            while !stop.load(Ordering::SeqCst) {
+                match sock.wait_readable(WIRE_WAIT_US) {
+                    Ok(true) => {}
+                    Ok(false) => continue,
+                    Err(e) => return Err(format!("poll: {e}")),
+                }
+                loop {
+                    let n = match sock.recv(&mut buf) {
+                        Ok(Some(n)) => n,
+                        Ok(None) => break,
+                        Err(e) => return Err(format!("receive: {e}")),
+                    };
+                    let received = Instant::now();
+                    let now_ns = received.duration_since(start).as_nanos() as u64;
+                    let frame = &mut buf[..n];
+                    {
+                        let mut chain: Vec<_> = escs.iter().map(|e| e.borrow_mut()).collect();
+                        for esc in chain.iter_mut() {
+                            esc.advance_to(now_ns);
+                        }
+                        process_frame(&mut chain, frame, now_ns, hop_ns);
+                    }
+                    if sock.send(frame).is_err() {
+                        stats.send_errors.fetch_add(1, Ordering::Relaxed);
+                    }
+                    let took = received.elapsed().as_nanos() as u64;
+                    stats.longest_ns.fetch_max(took, Ordering::Relaxed);
+                    stats.frames.fetch_add(1, Ordering::Relaxed);
+                    irq.raise();
+                }
+            }
+            Ok(())
+        })
+}
+
+/// The application side at time `now_ns`: the ESCs' clocks move on (SYNC0,
+/// watchdogs: one event for any number of pulses due), every slave polls (its cycle
+/// runs on a SYNC0 or SyncManager event), every drive's ticks and axis catch up to
+/// `now_ns` ([`SimDrive::catch_up`]), then the work after the poll
+/// ([`sim_drive::forward_emergencies`]). A time not ahead of the segment's polls
+/// without moving time.
+pub fn step(seg: &mut Segment<SimDrive>, now_ns: u64) {
+    if now_ns > seg.now_ns() {
+        seg.advance_to(now_ns);
+    } else {
+        seg.poll_all();
+    }
+    let now_us = seg.now_ns() / 1000;
+    for d in seg.drives_mut() {
+        d.app.catch_up(now_us);
+    }
+    sim_drive::forward_emergencies(seg);
+}
+
+/// When the application next has work without a frame: the next SYNC0 pulse of any
+/// drive or the next 1 ms tick after the segment's time, ns.
+pub fn next_deadline_ns<A: ecat_slave_stack::slave::SlaveApplication>(seg: &Segment<A>) -> u64 {
+    let tick = (seg.now_ns() / TICK_NS + 1) * TICK_NS;
+    (0..seg.len())
+        .filter_map(|i| seg.esc(i).next_sync0_ns())
+        .fold(tick, u64::min)
+}
+
+/// `t_ns` since `start` as an instant.
+pub fn instant_at(start: Instant, t_ns: u64) -> Instant {
+    start + Duration::from_nanos(t_ns)
+}
