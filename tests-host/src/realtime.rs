@@ -75,6 +75,23 @@ impl Irq {
     }
 }
 
+/// Gives the calling thread the real-time policy SCHED_FIFO at `priority` (1-99), so
+/// that it runs as soon as it wakes whatever else the machine does (root or
+/// CAP_SYS_NICE needed; the kernel's real-time throttling still leaves the rest of
+/// the machine 5 % of every second).
+pub fn set_fifo(priority: i32) -> std::io::Result<()> {
+    let param = libc::sched_param {
+        sched_priority: priority,
+    };
+    // SAFETY: pid 0 is the calling thread; `param` is valid for the call.
+    let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+    if rc == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
+}
+
 /// Counters of the wire thread, readable while it runs.
 #[derive(Debug, Default)]
 pub struct WireStats {
@@ -92,9 +109,13 @@ const WIRE_WAIT_US: u64 = 20_000;
 
 /// Starts the wire thread: frames from `sock` through `escs` (in line order, `hop_ns`
 /// per hop) at the wall-clock time since `start`, answered at once, `irq` raised
-/// after each. Ends when `stop` is set (within [`WIRE_WAIT_US`]) or the socket
-/// fails (the error).
+/// after each. With `fifo`, the thread first asks for that SCHED_FIFO priority
+/// ([`set_fifo`]); `on_start` gets the outcome. Ends when `stop` is set (within
+/// [`WIRE_WAIT_US`]) or the socket fails (the error).
+#[allow(clippy::too_many_arguments)]
 pub fn spawn_wire(
+    fifo: Option<i32>,
+    on_start: impl FnOnce(Option<std::io::Result<()>>) + Send + 'static,
     sock: RawSocket,
     escs: Vec<SharedEsc>,
     hop_ns: u64,
@@ -106,6 +127,7 @@ pub fn spawn_wire(
     std::thread::Builder::new()
         .name("ecat-wire".into())
         .spawn(move || {
+            on_start(fifo.map(set_fifo));
             let mut buf = vec![0u8; 2048];
             while !stop.load(Ordering::SeqCst) {
                 match sock.wait_readable(WIRE_WAIT_US) {

@@ -33,7 +33,7 @@ use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
 use ecat_slave_stack::sii::{self, DeviceDescription};
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
 use ecat_slave_stack::{sync, EscAccess, EscError};
-use std::sync::MutexGuard;
+use crate::pi_mutex::PiGuard;
 
 /// How the slave runtime reaches the ESC.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -243,7 +243,7 @@ impl<A: SlaveApplication> Segment<A> {
         &mut self.drives
     }
     /// The simulator of drive `i`.
-    pub fn esc(&self, i: usize) -> MutexGuard<'_, EscSim> {
+    pub fn esc(&self, i: usize) -> PiGuard<'_, EscSim> {
         self.drives[i].esc.borrow_mut()
     }
 
@@ -258,7 +258,7 @@ impl<A: SlaveApplication> Segment<A> {
     /// every slave and advances simulated time by one frame time.
     pub fn process(&mut self, frame: &mut [u8]) -> FrameOutcome {
         let outcome = {
-            let mut escs: Vec<MutexGuard<'_, EscSim>> =
+            let mut escs: Vec<PiGuard<'_, EscSim>> =
                 self.drives.iter().map(|d| d.esc.borrow_mut()).collect();
             process_frame(&mut escs, frame, self.now_ns, self.cfg.hop_ns)
         };

@@ -4,11 +4,18 @@
 //!
 //! ```text
 //! virtual-drive --iface NAME [--drives N] [--motor ECN57-20|TC86-45]
-//!               [--esc lan9252|et1100] [--flash FILE] [--fault KIND@TIME]...
+//!               [--esc lan9252|et1100] [--flash FILE] [--rt-priority 1..99|off]
+//!               [--fault KIND@TIME]...
 //! ```
 //!
-//! Runs in real time: simulated time follows the wall clock. Prints one line
-//! containing `ready` once it listens; SIGINT/SIGTERM close it cleanly.
+//! Runs in real time: simulated time follows the wall clock. As on a board, where
+//! the ESC answers every frame in hardware whatever the MCU is doing, one thread
+//! answers the frames at once against the simulated ESCs and another runs the drives
+//! (slave runtimes, drive ticks, axis models) beside it: see
+//! [`tests_host::realtime`]. The frame thread runs at SCHED_FIFO priority 20 when the
+//! process may (`--rt-priority`). Neither thread busy-waits: with no master the
+//! process wakes once per 1 ms tick. Prints one line containing `ready` once it
+//! listens; SIGINT/SIGTERM close it within a few ms.
 //!
 //! `--fault KIND@TIME` (repeatable) makes every drive's plant develop a fault TIME
 //! after the start (`5s`, `250ms`): see `tests_host::fault_inject` for the kinds; the
@@ -44,12 +51,21 @@ struct Options {
     flavour: Flavour,
     flash: Option<String>,
     faults: Vec<Injection>,
+    /// SCHED_FIFO priority of the frame thread (`None`: normal priority).
+    rt_priority: Option<i32>,
 }
+
+/// SCHED_FIFO priority of the frame thread unless `--rt-priority` says otherwise.
+const DEFAULT_RT_PRIORITY: i32 = 20;
 
 fn usage() -> String {
     let mut u = String::from(
         "usage: virtual-drive --iface NAME [--drives N] [--motor ECN57-20|TC86-45] \
-         [--esc lan9252|et1100] [--flash FILE] [--fault KIND@TIME]...\n\
+         [--esc lan9252|et1100] [--flash FILE] [--rt-priority 1..99|off] \
+         [--fault KIND@TIME]...\n\
+         \n  --rt-priority P    SCHED_FIFO priority of the thread that answers frames\n\
+         \x20                    (default 20; needs root or CAP_SYS_NICE, else normal);\n\
+         \x20                    off: normal priority\n\
          \n  --fault KIND@TIME  the plant develops a fault TIME after start (e.g. 5s, 250ms);\n\
          \x20                    repeatable. KIND:",
     );
@@ -67,6 +83,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         flavour: Flavour::Lan9252,
         flash: None,
         faults: Vec::new(),
+        rt_priority: Some(DEFAULT_RT_PRIORITY),
     };
     let mut it = args.iter();
     while let Some(a) = it.next() {
@@ -100,6 +117,15 @@ fn parse(args: &[String]) -> Result<Options, String> {
                 }
             }
             "--flash" => o.flash = Some(value("--flash")?),
+            "--rt-priority" => {
+                o.rt_priority = match value("--rt-priority")?.as_str() {
+                    "off" => None,
+                    p => match p.parse() {
+                        Ok(n @ 1..=99) => Some(n),
+                        _ => return Err("--rt-priority needs 1..99 or off".into()),
+                    },
+                }
+            }
             "--fault" => o
                 .faults
                 .push(fault_inject::parse_injection(&value("--fault")?)?),
@@ -193,6 +219,14 @@ fn main() -> ExitCode {
     let irq = Arc::new(Irq::default());
     let wire_stats = Arc::new(WireStats::default());
     let wire = match realtime::spawn_wire(
+        opts.rt_priority,
+        |fifo| match fifo {
+            Some(Ok(())) => {}
+            Some(Err(e)) => println!(
+                "virtual-drive: frame thread at normal priority (SCHED_FIFO refused: {e})"
+            ),
+            None => println!("virtual-drive: frame thread at normal priority (--rt-priority off)"),
+        },
         sock,
         seg.escs(),
         seg.config().hop_ns,

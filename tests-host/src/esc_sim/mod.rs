@@ -33,7 +33,8 @@ use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::{EscAccess, EscError};
 use sii::SII_CTRL_BUSY;
 use sm::SmRuntime;
-use std::sync::{Arc, Mutex, MutexGuard};
+use crate::pi_mutex::{PiGuard, PiMutex};
+use std::sync::Arc;
 
 /// Which chip is simulated. Decides the ESC information registers, the number of
 /// FMMUs/SyncManagers, the process RAM size and the SII read size.
@@ -860,26 +861,27 @@ pub(crate) use sm::SmOp;
 /// A simulator shared between the wire side (the segment, or `virtual-drive`'s frame
 /// thread) and the PDI side (the firmware, directly or through an SPI chip model).
 ///
-/// Each side holds the lock for one access only (one datagram frame on the wire
-/// side, one register or RAM access on the PDI side), as the chip serialises its
-/// ECAT and PDI accesses: so the wire side never waits for the application, only
-/// for the access in progress.
+/// Each side holds the lock for one access only (one frame on the wire side, one
+/// register or RAM access on the PDI side), as the chip serialises its ECAT and PDI
+/// accesses: so the wire side never waits for the application, only for the access
+/// in progress (the lock has priority inheritance, [`PiMutex`]). One thread holds at
+/// most one simulator's lock at a time, except the wire side, which takes a line's in
+/// order.
 #[derive(Clone)]
-pub struct SharedEsc(pub Arc<Mutex<EscSim>>);
+pub struct SharedEsc(pub Arc<PiMutex<EscSim>>);
 
 impl SharedEsc {
     /// Wraps a simulator.
     pub fn new(esc: EscSim) -> Self {
-        SharedEsc(Arc::new(Mutex::new(esc)))
+        SharedEsc(Arc::new(PiMutex::new(esc)))
     }
     /// The simulator, for reading.
-    pub fn borrow(&self) -> MutexGuard<'_, EscSim> {
-        self.borrow_mut()
+    pub fn borrow(&self) -> PiGuard<'_, EscSim> {
+        self.0.lock()
     }
-    /// The simulator, for changing (a panic of another holder does not poison it:
-    /// the memory stays as that access left it).
-    pub fn borrow_mut(&self) -> MutexGuard<'_, EscSim> {
-        self.0.lock().unwrap_or_else(|e| e.into_inner())
+    /// The simulator, for changing.
+    pub fn borrow_mut(&self) -> PiGuard<'_, EscSim> {
+        self.0.lock()
     }
 }
 

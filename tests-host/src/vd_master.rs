@@ -1,0 +1,282 @@
+//! A strict master against `virtual-drive` over a veth pair: how the real-time
+//! behaviour of the virtual drive is measured (`tests/virtual_drive_realtime.rs`, the
+//! `vd-bench` program behind the "Virtual drive in real time" section of
+//! BENCHMARKS.md).
+//!
+//! [`run`] starts `virtual-drive` in a network namespace ([`crate::netns`]), measures
+//! its CPU time while idle (no master), then brings every drive to Op with ethercrab
+//! set up strictly: a 2 ms PDU timeout and no resend
+//! ([`ethercrab::RetryBehaviour::None`]), so one frame answered late fails the
+//! set-up; DC SYNC0 at 1 ms; then runs the cyclic exchange, timing every round trip
+//! and checking every working counter. CPU time is the child process's user + system
+//! time from `/proc/PID/stat` (all its threads), not wall time.
+
+use std::time::{Duration, Instant};
+
+use ethercrab::error::{Error, TimeoutError};
+use ethercrab::std::{ethercat_now, tx_rx_task};
+use ethercrab::subdevice_group::DcConfiguration;
+use ethercrab::{DcSync, MainDevice, MainDeviceConfig, PduStorage, RetryBehaviour, Timeouts};
+
+use crate::netns::{self, Killed, Netns};
+
+/// Frames in flight of one master.
+pub type Storage = PduStorage<16, { PduStorage::element_size(1500) }>;
+
+/// Most drives a run handles.
+pub const MAX_DRIVES: usize = 128;
+const MAX_PDI: usize = 8192;
+
+/// What one run asks for.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// Path of the `virtual-drive` program.
+    pub program: String,
+    /// Namespace tag (keeps parallel runs apart).
+    pub tag: String,
+    /// Drives simulated.
+    pub drives: usize,
+    /// Further options of `virtual-drive`.
+    pub extra: Vec<String>,
+    /// Idle time measured before the master starts.
+    pub idle: Duration,
+    /// Cycles in Op (1 ms DC cycle).
+    pub cycles: usize,
+    /// PDU timeout of the master (no resend).
+    pub pdu_timeout: Duration,
+}
+
+/// What one run measured.
+#[derive(Debug, Clone, Default)]
+pub struct Report {
+    /// Drives the master found.
+    pub found: usize,
+    /// CPU time of `virtual-drive` during the idle phase, s, and the phase's length, s.
+    pub idle_cpu_s: (f64, f64),
+    /// CPU time of `virtual-drive` during the cyclic phase, s, and its length, s.
+    pub cyclic_cpu_s: (f64, f64),
+    /// Cyclic exchanges run.
+    pub cycles: usize,
+    /// Exchanges that timed out (lost frames; nothing is resent).
+    pub lost: usize,
+    /// Exchanges whose working counter was not 3 per drive.
+    pub wrong_wkc: usize,
+    /// Round trip of every answered exchange, µs, sorted.
+    pub rtt_us: Vec<f64>,
+    /// Cycles from the Op request until every drive reported Op.
+    pub cycles_to_op: usize,
+    /// Longest time `virtual-drive` took from a frame's receipt to its answer, µs
+    /// (from its last line).
+    pub longest_answer_us: f64,
+    /// Whether `virtual-drive` ended cleanly on SIGTERM, and how long it took.
+    pub sigterm: (bool, Duration),
+}
+
+impl Report {
+    /// The `p`-th percentile of the round trips, µs (0 without any).
+    pub fn rtt_percentile(&self, p: f64) -> f64 {
+        if self.rtt_us.is_empty() {
+            return 0.0;
+        }
+        let k = ((p / 100.0) * (self.rtt_us.len() - 1) as f64).round() as usize;
+        self.rtt_us[k.min(self.rtt_us.len() - 1)]
+    }
+    /// The longest round trip, µs.
+    pub fn rtt_max(&self) -> f64 {
+        self.rtt_us.last().copied().unwrap_or(0.0)
+    }
+}
+
+/// User + system CPU time of process `pid` (all threads, exited ones included), s.
+pub fn process_cpu_s(pid: u32) -> Option<f64> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // Fields after the command name (which may hold spaces) in parentheses.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    // utime and stime are fields 14 and 15 of the line, 12 and 13 after the name.
+    let ticks: u64 = f.get(11)?.parse::<u64>().ok()? + f.get(12)?.parse::<u64>().ok()?;
+    // SAFETY: sysconf has no preconditions.
+    let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) }.max(1) as f64;
+    Some(ticks as f64 / hz)
+}
+
+/// A running `virtual-drive` in its namespace.
+pub struct Running {
+    /// The namespace and veth pair (removed on drop).
+    pub net: Netns,
+    /// The process (stopped on drop).
+    pub child: Killed,
+    /// Its output after the `ready` line.
+    pub lines: std::sync::mpsc::Receiver<String>,
+}
+
+impl Running {
+    /// Starts `program --drives N extra…` in a new namespace tagged `tag`.
+    pub fn start(program: &str, tag: &str, drives: usize, extra: &[String]) -> Result<Self, String> {
+        let net = Netns::create(tag).ok_or(
+            "the network namespace / veth pair could not be created (root? iproute2?)",
+        )?;
+        let n = drives.to_string();
+        let mut args: Vec<&str> = vec!["--drives", &n];
+        args.extend(extra.iter().map(String::as_str));
+        let (child, lines) = netns::start_virtual_drive(&net, program, &args)?;
+        Ok(Running { net, child, lines })
+    }
+    /// The process id of `virtual-drive` (`ip netns exec` runs it in its place).
+    pub fn pid(&self) -> u32 {
+        self.child.0.id()
+    }
+    /// Sends SIGTERM and waits up to `limit` for the process to end: its exit status
+    /// (`None`: still running at the limit, then killed), how long it took, and the
+    /// lines it printed meanwhile.
+    pub fn terminate(mut self, limit: Duration) -> (Option<std::process::ExitStatus>, Duration, Vec<String>) {
+        let t0 = Instant::now();
+        // SAFETY: plain kill(2) on our own child.
+        unsafe { libc::kill(self.pid() as i32, libc::SIGTERM) };
+        let mut status = None;
+        while t0.elapsed() < limit {
+            if let Ok(Some(s)) = self.child.0.try_wait() {
+                status = Some(s);
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let took = t0.elapsed();
+        let lines = self.lines.try_iter().collect();
+        (status, took, lines)
+    }
+    /// Its CPU time so far, s.
+    pub fn cpu_s(&self) -> Result<f64, String> {
+        process_cpu_s(self.pid()).ok_or_else(|| "no /proc entry for virtual-drive".to_string())
+    }
+}
+
+/// The strict master on `host_if` (its frame task on a thread of its own).
+pub fn strict_master(
+    storage: &'static Storage,
+    host_if: &str,
+    pdu_timeout: Duration,
+) -> Result<MainDevice<'static>, String> {
+    let (pdu_tx, pdu_rx, pdu_loop) = storage
+        .try_split()
+        .map_err(|_| "frame storage used twice".to_string())?;
+    let task = tx_rx_task(host_if, pdu_tx, pdu_rx).map_err(|e| format!("raw socket: {e}"))?;
+    std::thread::spawn(move || {
+        let _ = async_io::block_on(task);
+    });
+    Ok(MainDevice::new(
+        pdu_loop,
+        Timeouts {
+            pdu: pdu_timeout,
+            eeprom: Duration::from_millis(100),
+            wait_loop_delay: Duration::from_millis(1),
+            mailbox_response: Duration::from_millis(1000),
+            ..Timeouts::default()
+        },
+        MainDeviceConfig {
+            dc_static_sync_iterations: 1000,
+            retry_behaviour: RetryBehaviour::None,
+        },
+    ))
+}
+
+/// Runs `plan` with `storage` (one per run: ethercrab splits it once).
+pub fn run(plan: &Plan, storage: &'static Storage) -> Result<Report, String> {
+    let vd = Running::start(&plan.program, &plan.tag, plan.drives, &plan.extra)?;
+    let mut rep = Report::default();
+    let (c0, t0) = (vd.cpu_s()?, Instant::now());
+    std::thread::sleep(plan.idle);
+    rep.idle_cpu_s = (vd.cpu_s()? - c0, t0.elapsed().as_secs_f64());
+    let md = strict_master(storage, &vd.net.host_if, plan.pdu_timeout)?;
+    let cycles = plan.cycles;
+    let expected = 3 * plan.drives as u16;
+    let mut stage = "start";
+    let r: Result<(), Error> = async_io::block_on(async {
+        stage = "scan and PDO set-up (init_single_group)";
+        let mut group = md
+            .init_single_group::<MAX_DRIVES, MAX_PDI>(ethercat_now)
+            .await?;
+        rep.found = group.len();
+        for mut sd in group.iter_mut(&md) {
+            sd.set_dc_sync(DcSync::Sync0);
+        }
+        stage = "Pre-Op with process data";
+        let group = group.into_pre_op_pdi(&md).await?;
+        stage = "DC system time";
+        for _ in 0..100 {
+            group.tx_rx_sync_system_time(&md).await?;
+            async_io::Timer::after(Duration::from_millis(1)).await;
+        }
+        stage = "SYNC0 set-up";
+        let group = group
+            .configure_dc_sync(
+                &md,
+                DcConfiguration {
+                    start_delay: Duration::from_millis(20),
+                    sync0_period: Duration::from_millis(1),
+                    sync0_shift: Duration::from_micros(500),
+                },
+            )
+            .await?;
+        stage = "Safe-Op";
+        let group = group.into_safe_op(&md).await?;
+        stage = "Op";
+        let group = group.request_into_op(&md).await?;
+        loop {
+            let r = group.tx_rx_dc(&md).await?;
+            rep.cycles_to_op += 1;
+            if r.all_op() {
+                break;
+            }
+            if rep.cycles_to_op > 5000 {
+                return Err(Error::Timeout(TimeoutError::StateTransition));
+            }
+            async_io::Timer::after(r.extra.next_cycle_wait).await;
+        }
+        stage = "cyclic";
+        let (c1, t1) = (process_cpu_s(vd.pid()).unwrap_or(0.0), Instant::now());
+        for _ in 0..cycles {
+            let sent = Instant::now();
+            match group.tx_rx_dc(&md).await {
+                Ok(r) => {
+                    rep.rtt_us.push(sent.elapsed().as_secs_f64() * 1e6);
+                    if r.working_counter != expected {
+                        rep.wrong_wkc += 1;
+                    }
+                    async_io::Timer::after(r.extra.next_cycle_wait).await;
+                }
+                Err(Error::Timeout(TimeoutError::Pdu)) => {
+                    rep.lost += 1;
+                    async_io::Timer::after(Duration::from_millis(1)).await;
+                }
+                Err(e) => return Err(e),
+            }
+            rep.cycles += 1;
+        }
+        rep.cyclic_cpu_s = (
+            process_cpu_s(vd.pid()).unwrap_or(0.0) - c1,
+            t1.elapsed().as_secs_f64(),
+        );
+        Ok(())
+    });
+    rep.rtt_us.sort_by(f64::total_cmp);
+    let (status, took, lines) = vd.terminate(Duration::from_secs(5));
+    rep.sigterm = (status.is_some_and(|s| s.success()), took);
+    rep.longest_answer_us = lines
+        .iter()
+        .find_map(|l| {
+            let ms = l.split("longest answer ").nth(1)?.split(' ').next()?;
+            ms.parse::<f64>().ok()
+        })
+        .map_or(0.0, |ms| ms * 1e3);
+    if let Err(e) = r {
+        return Err(format!(
+            "ethercrab ({:?} PDU timeout, no resend) against {} drive(s): {e:?} in {stage}; \
+             virtual-drive said: {}",
+            plan.pdu_timeout,
+            plan.drives,
+            lines.join(" / ")
+        ));
+    }
+    Ok(rep)
+}
