@@ -92,6 +92,87 @@ pub fn set_fifo(priority: i32) -> std::io::Result<()> {
     }
 }
 
+/// Back to the normal policy (SCHED_OTHER) for the calling thread.
+pub fn set_normal() {
+    let param = libc::sched_param { sched_priority: 0 };
+    // SAFETY: pid 0 is the calling thread; `param` is valid for the call.
+    unsafe { libc::sched_setscheduler(0, libc::SCHED_OTHER, &param) };
+}
+
+/// CPU time of the calling thread, s.
+pub fn thread_cpu_s() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is valid for the call.
+    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+}
+
+/// The application thread's scheduling: SCHED_FIFO (below the frame thread) while it
+/// uses at most [`AppPriority::HIGH`] of a core, so that its SYNC0 cycles are not
+/// delayed by other load on the machine (a locked drive reports 0x002C after 2 ms
+/// without SYNC0, as a board's MCU would if it stalled); the normal policy while it
+/// needs more (a heavy simulation never takes a whole core from the rest of the
+/// machine), back to SCHED_FIFO once it needs at most [`AppPriority::LOW`].
+pub struct AppPriority {
+    priority: Option<i32>,
+    fifo: bool,
+    since: Instant,
+    cpu: f64,
+}
+
+impl AppPriority {
+    /// Share of a core above which the thread leaves SCHED_FIFO.
+    pub const HIGH: f64 = 0.8;
+    /// Share of a core below which it returns to SCHED_FIFO.
+    pub const LOW: f64 = 0.5;
+
+    /// Starts with SCHED_FIFO at `priority` for the calling thread (none: normal
+    /// policy throughout); the outcome of the first request.
+    pub fn new(priority: Option<i32>) -> (Self, Option<std::io::Result<()>>) {
+        let r = priority.map(set_fifo);
+        let fifo = matches!(r, Some(Ok(())));
+        let me = AppPriority {
+            priority: priority.filter(|_| fifo),
+            fifo,
+            since: Instant::now(),
+            cpu: thread_cpu_s(),
+        };
+        (me, r)
+    }
+
+    /// Once a second: measures the thread's share of a core and changes the policy
+    /// when it crossed a bound; a line saying so.
+    pub fn update(&mut self) -> Option<String> {
+        let prio = self.priority?;
+        let wall = self.since.elapsed().as_secs_f64();
+        if wall < 1.0 {
+            return None;
+        }
+        let cpu = thread_cpu_s();
+        let share = (cpu - self.cpu) / wall;
+        (self.since, self.cpu) = (Instant::now(), cpu);
+        if self.fifo && share > Self::HIGH {
+            set_normal();
+            self.fifo = false;
+            Some(format!(
+                "drives' thread at {:.0} % of a core: normal priority from now on",
+                share * 100.0
+            ))
+        } else if !self.fifo && share < Self::LOW && set_fifo(prio).is_ok() {
+            self.fifo = true;
+            Some(format!(
+                "drives' thread at {:.0} % of a core: SCHED_FIFO {prio} again",
+                share * 100.0
+            ))
+        } else {
+            None
+        }
+    }
+}
+
 /// Counters of the wire thread, readable while it runs.
 #[derive(Debug, Default)]
 pub struct WireStats {
@@ -165,12 +246,23 @@ pub fn spawn_wire(
 }
 
 /// The application side at time `now_ns`: the ESCs' clocks move on (SYNC0,
-/// watchdogs: one event for any number of pulses due), every slave polls (its cycle
+/// watchdogs: one event for any number of pulses due; the first pulse due is
+/// handled at its own time), every slave polls (its cycle
 /// runs on a SYNC0 or SyncManager event), every drive's ticks and axis catch up to
 /// `now_ns` ([`SimDrive::catch_up`]), then the work after the poll
 /// ([`sim_drive::forward_emergencies`]). A time not ahead of the segment's polls
 /// without moving time.
 pub fn step(seg: &mut Segment<SimDrive>, now_ns: u64) {
+    // A SYNC0 pulse due by now runs the cycles at the pulse's own time, as the
+    // board's SYNC0 interrupt does: a late wake of this thread does not count against
+    // the drives' SYNC0 monitoring.
+    let pulse = (0..seg.len())
+        .filter_map(|i| seg.esc(i).next_sync0_ns())
+        .filter(|&t| t <= now_ns)
+        .min();
+    if let Some(t) = pulse {
+        seg.advance_to(t);
+    }
     if now_ns > seg.now_ns() {
         seg.advance_to(now_ns);
     } else {

@@ -1,7 +1,12 @@
-//! A strict master against `virtual-drive` over a veth pair: how the real-time
+//! Strict masters against `virtual-drive` over a veth pair: how the real-time
 //! behaviour of the virtual drive is measured (`tests/virtual_drive_realtime.rs`, the
 //! `vd-bench` program behind the "Virtual drive in real time" section of
 //! BENCHMARKS.md).
+//!
+//! [`soem_style`] is a synchronous raw-datagram master ([`SocketMaster`]) doing what
+//! SOEM's `ecx_config_init` / `ecx_config_map_group` / `ecx_configdc` /
+//! `ecx_dcsync0` do, one frame at a time with a 2 ms timeout and no resend, then
+//! the cyclic LRW every 1 ms; every frame that does not come back counts.
 //!
 //! [`run`] starts `virtual-drive` in a network namespace ([`crate::netns`]), measures
 //! its CPU time while idle (no master), then brings every drive to Op with ethercrab
@@ -19,6 +24,7 @@ use ethercrab::subdevice_group::DcConfiguration;
 use ethercrab::{DcSync, MainDevice, MainDeviceConfig, PduStorage, RetryBehaviour, Timeouts};
 
 use crate::netns::{self, Killed, Netns};
+use crate::raw_master::{SocketMaster, Transport};
 
 /// Frames in flight of one master.
 pub type Storage = PduStorage<16, { PduStorage::element_size(1500) }>;
@@ -70,6 +76,8 @@ pub struct Report {
     pub longest_answer_us: f64,
     /// Whether `virtual-drive` ended cleanly on SIGTERM, and how long it took.
     pub sigterm: (bool, Duration),
+    /// Every drive still in Op at the last exchange.
+    pub op_at_end: bool,
 }
 
 impl Report {
@@ -243,10 +251,12 @@ pub fn run(plan: &Plan, storage: &'static Storage) -> Result<Report, String> {
                     if r.working_counter != expected {
                         rep.wrong_wkc += 1;
                     }
+                    rep.op_at_end = r.all_op();
                     async_io::Timer::after(r.extra.next_cycle_wait).await;
                 }
                 Err(Error::Timeout(TimeoutError::Pdu)) => {
                     rep.lost += 1;
+                    rep.op_at_end = false;
                     async_io::Timer::after(Duration::from_millis(1)).await;
                 }
                 Err(e) => return Err(e),
@@ -277,6 +287,157 @@ pub fn run(plan: &Plan, storage: &'static Storage) -> Result<Report, String> {
             plan.drives,
             lines.join(" / ")
         ));
+    }
+    Ok(rep)
+}
+
+/// Bytes of the product's default mapping (0x1600 outputs / 0x1A00 inputs).
+pub const OUT_BYTES: usize = 12;
+/// See [`OUT_BYTES`].
+pub const IN_BYTES: usize = 19;
+
+/// What [`soem_style`] saw.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SoemReport {
+    /// Frames sent during the set-up, and how many did not come back.
+    pub setup_frames: (u64, u64),
+    /// LRWs sent in Op, and how many came back with working counter 3 per drive.
+    pub lrw: (u64, u64),
+    /// Frames lost in Op (LRWs and AL status reads).
+    pub lost_in_op: u64,
+    /// Frames that came back but not for the exchange waiting (late answers).
+    pub stray: u64,
+    /// AL status and status code of every drive after the cycles.
+    pub al_after: [(u16, u16); 4],
+}
+
+/// A SOEM-style set-up of `drives` drives on `iface` (stations 0x1001…), every frame
+/// waited for `timeout` and never resent, DC SYNC0 at 1 ms, Op (each state change
+/// given up to 20 s: the drives' power-up work may run slower than real time on a
+/// loaded machine or in a debug build); then `cycles` LRWs at 1 ms. Runs on the calling thread, at SCHED_FIFO priority 10 when the process
+/// may (so that other load on the machine does not make the master miss its own
+/// timeouts); back to normal priority after. An error names the step that failed.
+pub fn soem_style(
+    iface: &str,
+    drives: u16,
+    timeout: Duration,
+    cycles: u64,
+) -> Result<SoemReport, String> {
+    let _ = crate::realtime::set_fifo(10);
+    let r = soem_steps(iface, drives, timeout, cycles);
+    crate::realtime::set_normal();
+    r
+}
+
+fn soem_steps(
+    iface: &str,
+    drives: u16,
+    timeout: Duration,
+    cycles: u64,
+) -> Result<SoemReport, String> {
+    let mut m = SocketMaster::open(iface, timeout).map_err(|e| e.to_string())?;
+    let mut rep = SoemReport::default();
+    let lost = |m: &SocketMaster, step: &str| -> Result<(), String> {
+        if m.lost == 0 {
+            Ok(())
+        } else {
+            Err(format!("{step}: {} frame(s) not back within {timeout:?}", m.lost))
+        }
+    };
+    let stations = || (0..drives).map(|i| 0x1001 + i);
+    // ecx_config_init: Init + ack to all, count, station addresses, identity.
+    m.bwr(0x0120, &0x0011u16.to_le_bytes());
+    let (_, found) = m.brd(0x0000, 2);
+    if found != drives {
+        return Err(format!("{found} drive(s) answered the count, {drives} expected"));
+    }
+    for (pos, st) in stations().enumerate() {
+        if m.apwr(pos as u16, 0x0010, &st.to_le_bytes()) != 1 {
+            return Err(format!("station address of position {pos}"));
+        }
+        let product = m.sii_read(st, 0x000A);
+        if product != Some(firmware::identity::Variant::HybridServo.product_code()) {
+            return Err(format!("SII product code of {st:#06x}: {product:x?}"));
+        }
+        m.configure_mailbox(st, (0x1000, 128, 0x1080, 128));
+        m.request_state(st, 0x0002);
+    }
+    for st in stations() {
+        let s = m.wait_state(st, 0x02, 20_000_000_000, 1_000_000, |_| {});
+        if s != (0x02, 0) {
+            return Err(format!("Pre-Op of {st:#06x}: AL status {s:x?}"));
+        }
+        // ecx_readPDOmap starts with the SM types over SDO.
+        m.sdo_upload(st, 0x1C00, 3)
+            .map_err(|e| format!("SDO 0x1C00:03 of {st:#06x}: {e:?}"))?;
+    }
+    lost(&m, "Pre-Op")?;
+    // ecx_config_map_group: SMs and FMMUs, Safe-Op; ecx_configdc, ecx_dcsync0.
+    let per = OUT_BYTES + IN_BYTES;
+    for (k, st) in stations().enumerate() {
+        if m.process_data_sms(st, (k * per) as u32, OUT_BYTES, IN_BYTES) != 2 {
+            return Err(format!("SyncManagers / FMMUs of {st:#06x}"));
+        }
+    }
+    for st in stations() {
+        m.soem_configdc(st, 789_000_000_000);
+        m.soem_dcsync(st, 1_000_000, 0, 0x03);
+        m.request_state(st, 0x0004);
+    }
+    for st in stations() {
+        let s = m.wait_state(st, 0x04, 20_000_000_000, 1_000_000, |_| {});
+        if s != (0x04, 0) {
+            return Err(format!("Safe-Op of {st:#06x}: AL status {s:x?}"));
+        }
+    }
+    lost(&m, "Safe-Op")?;
+    // Process data before and during the Op request, as SOEM's applications do, in
+    // the middle between two SYNC0 pulses (SOEM's examples align their cycle to the
+    // DC time, `ec_sync`): the next pulse's system time (0x0990) against the system
+    // time now (0x0910) gives the pulse on the master's clock.
+    let wkc = 3 * drives;
+    let t0 = m.link.now_ns();
+    let st = m.fprd_u64(0x1001, 0x0910);
+    let t1 = m.link.now_ns();
+    let next = m.fprd_u64(0x1001, 0x0990);
+    let pulse = (t0 + t1) / 2 + next.saturating_sub(st);
+    m.start_cyclic(1_000_000, usize::from(drives) * per, wkc);
+    if let Some(c) = m.cyclic.as_mut() {
+        let aim = pulse + 500_000;
+        let now = m.link.now_ns();
+        c.next_ns = if aim >= now {
+            aim - (aim - now) / 1_000_000 * 1_000_000
+        } else {
+            aim + (now - aim).div_ceil(1_000_000) * 1_000_000
+        };
+    }
+    m.wait(20_000_000, 1_000_000);
+    for st in stations() {
+        m.request_state(st, 0x0008);
+    }
+    for st in stations() {
+        let s = m.wait_state(st, 0x08, 20_000_000_000, 1_000_000, |_| {});
+        if s != (0x08, 0) {
+            return Err(format!("Op of {st:#06x}: AL status {s:x?}"));
+        }
+    }
+    lost(&m, "Op")?;
+    rep.setup_frames = (m.frames, m.lost);
+    let counts = |m: &SocketMaster| m.cyclic.map_or((0, 0), |c| (c.sent, c.good));
+    let (c0, l0) = (counts(&m), m.lost);
+    m.wait(cycles * 1_000_000, 1_000_000);
+    let c1 = counts(&m);
+    rep.lrw = (c1.0 - c0.0, c1.1 - c0.1);
+    rep.lost_in_op = m.lost - l0;
+    rep.stray = m.stray;
+    for (k, st) in stations().enumerate() {
+        let s = m.al_status(st);
+        if let Some(a) = rep.al_after.get_mut(k) {
+            *a = s;
+        }
+    }
+    for st in stations() {
+        m.request_state(st, 0x0001);
     }
     Ok(rep)
 }

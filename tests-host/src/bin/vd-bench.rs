@@ -118,9 +118,10 @@ fn report(rows: &[(usize, Result<Report, String>)], cycles: usize, idle: f64) ->
         md,
         "| drives | axis model | idle CPU per drive (goal {GOAL_IDLE}) | CPU per drive in Op | \
          cycles | lost frames (goal 0) | wrong WKC (goal 0) | round trip p50 | p99 | max \
-         (goal {GOAL_RTT}) | longest answer inside virtual-drive | SIGTERM to exit |"
+         (goal {GOAL_RTT}) | longest answer inside virtual-drive | all in Op at the end \
+         | SIGTERM to exit |"
     );
-    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for (n, r) in rows {
         match r {
             Ok(r) => {
@@ -128,7 +129,7 @@ fn report(rows: &[(usize, Result<Report, String>)], cycles: usize, idle: f64) ->
                 let _ = writeln!(
                     md,
                     "| {n} | {} | {:.2} % | {:.2} % | {} | {} | {} | {:.0} µs | {:.0} µs | {:.0} µs \
-                     | {:.0} µs | {} |",
+                     | {:.0} µs | {} | {} |",
                     model(*n),
                     pct(r.idle_cpu_s),
                     pct(r.cyclic_cpu_s),
@@ -139,6 +140,7 @@ fn report(rows: &[(usize, Result<Report, String>)], cycles: usize, idle: f64) ->
                     r.rtt_percentile(99.0),
                     r.rtt_max(),
                     r.longest_answer_us,
+                    if r.op_at_end { "yes" } else { "no" },
                     if r.sigterm.0 {
                         format!("{:.0} ms", r.sigterm.1.as_secs_f64() * 1e3)
                     } else {
@@ -147,7 +149,7 @@ fn report(rows: &[(usize, Result<Report, String>)], cycles: usize, idle: f64) ->
                 );
             }
             Err(e) => {
-                let _ = writeln!(md, "| {n} | {} | failed: {e} |||||||||", model(*n));
+                let _ = writeln!(md, "| {n} | {} | failed: {e} ||||||||||", model(*n));
             }
         }
     }

@@ -13,7 +13,8 @@
 //! answers the frames at once against the simulated ESCs and another runs the drives
 //! (slave runtimes, drive ticks, axis models) beside it: see
 //! [`tests_host::realtime`]. The frame thread runs at SCHED_FIFO priority 20 when the
-//! process may (`--rt-priority`). Neither thread busy-waits: with no master the
+//! process may (`--rt-priority`), the drives' thread at 19 while it needs less than
+//! 80 % of a core ([`tests_host::realtime::AppPriority`]). Neither thread busy-waits: with no master the
 //! process wakes once per 1 ms tick. Prints one line containing `ready` once it
 //! listens; SIGINT/SIGTERM close it within a few ms.
 //!
@@ -65,7 +66,8 @@ fn usage() -> String {
          [--fault KIND@TIME]...\n\
          \n  --rt-priority P    SCHED_FIFO priority of the thread that answers frames\n\
          \x20                    (default 20; needs root or CAP_SYS_NICE, else normal);\n\
-         \x20                    off: normal priority\n\
+         \x20                    the drives' thread runs at P-1 while it needs < 80 %\n\
+         \x20                    of a core. off: normal priority\n\
          \n  --fault KIND@TIME  the plant develops a fault TIME after start (e.g. 5s, 250ms);\n\
          \x20                    repeatable. KIND:",
     );
@@ -241,10 +243,21 @@ fn main() -> ExitCode {
             return ExitCode::from(1);
         }
     };
+    // The drives' thread just below the frame thread (see `AppPriority`).
+    let (mut app_priority, _) = realtime::AppPriority::new(opts.rt_priority.map(|p| p.max(2) - 1));
     let mut last_report = Instant::now();
+    // The drives' thread: how late it woke for a deadline at worst, its longest step.
+    let (mut deadline, mut raised, mut late_ns, mut step_ns) = (0u64, true, 0u64, 0u64);
     while !STOP.load(Ordering::SeqCst) {
+        if let Some(line) = app_priority.update() {
+            log(line);
+        }
         let now_ns = start.elapsed().as_nanos() as u64;
+        if !raised {
+            late_ns = late_ns.max(now_ns.saturating_sub(deadline));
+        }
         realtime::step(&mut seg, now_ns);
+        step_ns = step_ns.max((start.elapsed().as_nanos() as u64).saturating_sub(now_ns));
         schedule.apply_due(&mut seg, &mut log);
         restart_after_update(&mut seg, &mut log);
         leds.observe(&seg, &mut log);
@@ -262,8 +275,8 @@ fn main() -> ExitCode {
         if wire.is_finished() {
             break;
         }
-        let deadline = realtime::next_deadline_ns(&seg);
-        irq.wait_until(realtime::instant_at(start, deadline));
+        deadline = realtime::next_deadline_ns(&seg);
+        raised = irq.wait_until(realtime::instant_at(start, deadline));
     }
     STOP.store(true, Ordering::SeqCst);
     let mut code = ExitCode::SUCCESS;
@@ -283,8 +296,10 @@ fn main() -> ExitCode {
     sim_drive::shutdown(&mut seg);
     println!(
         "virtual-drive: stopped after {frames} frames ({send_errors} send errors, longest \
-         answer {:.3} ms)",
-        wire_stats.longest_ns.load(Ordering::Relaxed) as f64 * 1e-6
+         answer {:.3} ms; drives' thread: latest wake {:.3} ms, longest step {:.3} ms)",
+        wire_stats.longest_ns.load(Ordering::Relaxed) as f64 * 1e-6,
+        late_ns as f64 * 1e-6,
+        step_ns as f64 * 1e-6
     );
     code
 }
