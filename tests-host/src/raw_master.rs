@@ -87,6 +87,8 @@ pub struct SocketTransport {
     pub lost: u64,
     /// Frames received that were not the one awaited (dropped).
     pub stray: u64,
+    /// Round trip of every exchange answered, ns.
+    pub rtt_ns: Vec<u64>,
 }
 
 impl SocketTransport {
@@ -101,6 +103,7 @@ impl SocketTransport {
             buf: vec![0u8; 2048],
             lost: 0,
             stray: 0,
+            rtt_ns: Vec::new(),
         })
     }
 
@@ -134,13 +137,15 @@ impl Transport for SocketTransport {
         if let Some(b) = f.get_mut(FIRST_INDEX) {
             *b = self.tag;
         }
+        let sent = Instant::now();
         if self.sock.send(&f).is_err() {
             self.lost += 1;
             return None;
         }
-        let back = self.receive(self.tag, Instant::now() + self.timeout);
-        if back.is_none() {
-            self.lost += 1;
+        let back = self.receive(self.tag, sent + self.timeout);
+        match back {
+            Some(_) => self.rtt_ns.push(sent.elapsed().as_nanos() as u64),
+            None => self.lost += 1,
         }
         back
     }
@@ -196,6 +201,10 @@ pub struct Cyclic {
     pub good: u64,
     /// Expected working counter.
     pub wkc: u16,
+    /// Most bytes per LRW frame (a longer image goes out as several LRWs in a row,
+    /// each expecting its share of `wkc`; choose it so that the frames split the
+    /// image at slave boundaries). 0: one LRW.
+    pub chunk: usize,
 }
 
 /// Raw-datagram master over a [`Transport`]. It dereferences to its transport: the
@@ -280,6 +289,7 @@ impl<T: Transport> Master<T> {
             sent: 0,
             good: 0,
             wkc,
+            chunk: 0,
         });
         self.service_cyclic();
     }
@@ -291,9 +301,17 @@ impl<T: Transport> Master<T> {
         };
         let now = self.link.now_ns();
         if now >= c.next_ns {
-            let d = self.frame(FrameBuilder::new().logical(Command::Lrw, 0, &vec![0u8; c.len]));
+            let step = if c.chunk == 0 { c.len } else { c.chunk };
+            let mut good = true;
+            for at in (0..c.len).step_by(step.max(1)) {
+                let n = step.min(c.len - at);
+                let want = (u64::from(c.wkc) * n as u64 / c.len.max(1) as u64) as u16;
+                let fb = FrameBuilder::new().logical(Command::Lrw, at as u32, &vec![0u8; n]);
+                let d = self.frame(fb);
+                good &= d.first().is_some_and(|v| v.wkc == want);
+            }
             c.sent += 1;
-            if d.first().is_some_and(|v| v.wkc == c.wkc) {
+            if good {
                 c.good += 1;
             }
             c.next_ns += c.period_ns;

@@ -21,6 +21,7 @@ use crate::esc_sim::frame::{
     datagrams, process_frame, DatagramView, FrameBuilder, FrameOutcome, Wire,
 };
 use crate::esc_sim::{EscSim, Flavour, SharedEsc};
+use crate::pi_mutex::PiGuard;
 use crate::spi_models::{Et1100Model, Lan9252Model};
 use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
@@ -33,7 +34,6 @@ use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
 use ecat_slave_stack::sii::{self, DeviceDescription};
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
 use ecat_slave_stack::{sync, EscAccess, EscError};
-use crate::pi_mutex::PiGuard;
 
 /// How the slave runtime reaches the ESC.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

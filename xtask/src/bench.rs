@@ -351,9 +351,8 @@ fn virtual_drive_realtime() -> Result<(), String> {
     if !ok {
         return Err("building virtual-drive / vd-bench failed".into());
     }
-    let (ok, _) = run_capture(
-        Command::new("target/release/vd-bench").arg("docs/benchmarks-notes.md"),
-    );
+    let (ok, _) =
+        run_capture(Command::new("target/release/vd-bench").arg("docs/benchmarks-notes.md"));
     if !ok {
         return Err("vd-bench failed (it needs root)".into());
     }

@@ -345,8 +345,7 @@ fn measure(chip: &Chip, maps: Option<(&[u32], &[u32])>) -> Result<CycleTraffic, 
         let hop = seg.config().hop_ns;
         {
             let escs: Vec<_> = seg.drives_mut().iter().map(|d| d.esc.clone()).collect();
-            let mut refs: Vec<_> =
-                escs.iter().map(|e| e.borrow_mut()).collect();
+            let mut refs: Vec<_> = escs.iter().map(|e| e.borrow_mut()).collect();
             process_frame(&mut refs, &mut frame, now_ns, hop);
         }
         let wkc: Vec<u16> = datagrams(&frame)

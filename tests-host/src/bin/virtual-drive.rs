@@ -224,9 +224,9 @@ fn main() -> ExitCode {
         opts.rt_priority,
         |fifo| match fifo {
             Some(Ok(())) => {}
-            Some(Err(e)) => println!(
-                "virtual-drive: frame thread at normal priority (SCHED_FIFO refused: {e})"
-            ),
+            Some(Err(e)) => {
+                println!("virtual-drive: frame thread at normal priority (SCHED_FIFO refused: {e})")
+            }
             None => println!("virtual-drive: frame thread at normal priority (--rt-priority off)"),
         },
         sock,

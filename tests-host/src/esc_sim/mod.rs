@@ -29,11 +29,11 @@ mod sm;
 
 pub use sii::sii_crc8;
 
+use crate::pi_mutex::{PiGuard, PiMutex};
 use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::{EscAccess, EscError};
 use sii::SII_CTRL_BUSY;
 use sm::SmRuntime;
-use crate::pi_mutex::{PiGuard, PiMutex};
 use std::sync::Arc;
 
 /// Which chip is simulated. Decides the ESC information registers, the number of
