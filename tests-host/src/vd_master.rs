@@ -193,13 +193,47 @@ pub const MASTER_PRIORITY: i32 = 30;
 /// Drives per LRW frame of the cyclic exchange (992 bytes with the default maps).
 const DRIVES_PER_FRAME: usize = 32;
 
+/// SCHED_FIFO at [`MASTER_PRIORITY`] for the calling thread (when the process may)
+/// until dropped.
+struct MasterPriority;
+
+impl MasterPriority {
+    fn take() -> Self {
+        let _ = crate::realtime::set_fifo(MASTER_PRIORITY);
+        MasterPriority
+    }
+}
+
+impl Drop for MasterPriority {
+    fn drop(&mut self) {
+        crate::realtime::set_normal();
+    }
+}
+
+/// Waits (up to 20 s each, polling every 1 ms) until every station is in `state`.
+fn all_in(
+    m: &mut SocketMaster,
+    stations: impl Iterator<Item = u16>,
+    state: u16,
+    name: &str,
+) -> Result<(), String> {
+    for st in stations {
+        let s = m.wait_state(st, state, 20_000_000_000, 1_000_000, |_| {});
+        if s != (state, 0) {
+            return Err(format!("{name} of {st:#06x}: AL status {s:x?}"));
+        }
+    }
+    Ok(())
+}
+
 /// A SOEM-style set-up of `drives` drives on `iface` (stations 0x1001…), every frame
 /// waited for `timeout` and never resent, DC SYNC0 at 1 ms, Op (each state change
 /// given up to 20 s: the drives' power-up work may run slower than real time on a
 /// loaded machine or in a debug build); then `cycles` LRWs at 1 ms (one frame per
-/// 32 drives), measuring the CPU time of process `pid` meanwhile when given. Runs on the calling thread, at SCHED_FIFO [`MASTER_PRIORITY`] when the process
-/// may (so that other load on the machine does not make the master miss its own
-/// timeouts); back to normal priority after. An error names the step that failed.
+/// 32 drives), measuring the CPU time of process `pid` meanwhile when given. Runs on
+/// the calling thread, at SCHED_FIFO [`MASTER_PRIORITY`] when the process may (so
+/// that other load on the machine does not make the master miss its own timeouts);
+/// back to normal priority after. An error names the step that failed.
 pub fn soem_style(
     iface: &str,
     drives: u16,
@@ -207,19 +241,7 @@ pub fn soem_style(
     cycles: u64,
     pid: Option<u32>,
 ) -> Result<SoemReport, String> {
-    let _ = crate::realtime::set_fifo(MASTER_PRIORITY);
-    let r = soem_steps(iface, drives, timeout, cycles, pid);
-    crate::realtime::set_normal();
-    r
-}
-
-fn soem_steps(
-    iface: &str,
-    drives: u16,
-    timeout: Duration,
-    cycles: u64,
-    pid: Option<u32>,
-) -> Result<SoemReport, String> {
+    let _priority = MasterPriority::take();
     let mut m = SocketMaster::open(iface, timeout).map_err(|e| e.to_string())?;
     let mut rep = SoemReport::default();
     let lost = |m: &SocketMaster, step: &str| -> Result<(), String> {
@@ -252,11 +274,8 @@ fn soem_steps(
         m.configure_mailbox(st, (0x1000, 128, 0x1080, 128));
         m.request_state(st, 0x0002);
     }
+    all_in(&mut m, stations(), 0x02, "Pre-Op")?;
     for st in stations() {
-        let s = m.wait_state(st, 0x02, 20_000_000_000, 1_000_000, |_| {});
-        if s != (0x02, 0) {
-            return Err(format!("Pre-Op of {st:#06x}: AL status {s:x?}"));
-        }
         // ecx_readPDOmap starts with the SM types over SDO.
         m.sdo_upload(st, 0x1C00, 3)
             .map_err(|e| format!("SDO 0x1C00:03 of {st:#06x}: {e:?}"))?;
@@ -274,12 +293,7 @@ fn soem_steps(
         m.soem_dcsync(st, 1_000_000, 0, 0x03);
         m.request_state(st, 0x0004);
     }
-    for st in stations() {
-        let s = m.wait_state(st, 0x04, 20_000_000_000, 1_000_000, |_| {});
-        if s != (0x04, 0) {
-            return Err(format!("Safe-Op of {st:#06x}: AL status {s:x?}"));
-        }
-    }
+    all_in(&mut m, stations(), 0x04, "Safe-Op")?;
     lost(&m, "Safe-Op")?;
     // Process data before and during the Op request, as SOEM's applications do, in
     // the middle between two SYNC0 pulses (SOEM's examples align their cycle to the
@@ -306,12 +320,7 @@ fn soem_steps(
     for st in stations() {
         m.request_state(st, 0x0008);
     }
-    for st in stations() {
-        let s = m.wait_state(st, 0x08, 20_000_000_000, 1_000_000, |_| {});
-        if s != (0x08, 0) {
-            return Err(format!("Op of {st:#06x}: AL status {s:x?}"));
-        }
-    }
+    all_in(&mut m, stations(), 0x08, "Op")?;
     lost(&m, "Op")?;
     rep.setup_frames = (m.frames, m.lost);
     let counts = |m: &SocketMaster| m.cyclic.map_or((0, 0), |c| (c.sent, c.good));

@@ -27,7 +27,7 @@ use ecat_slave_stack::od::{self, Dictionary};
 use ecat_slave_stack::pdo::entry;
 use firmware::identity::{self, Variant};
 use tests_host::esc_sim::frame::{datagrams, process_frame, Command, FrameBuilder};
-use tests_host::esc_sim::{EscSim, Flavour};
+use tests_host::esc_sim::Flavour;
 use tests_host::file_flash::FileFlash;
 use tests_host::segment::{sii_image, Pdi, PdiPath, Segment, SegmentConfig};
 use tests_host::sim_drive::{self, AxisModel, Motor, SimDrive};
