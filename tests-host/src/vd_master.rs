@@ -83,7 +83,11 @@ impl Running {
             std::thread::sleep(Duration::from_millis(1));
         }
         let took = t0.elapsed();
-        let lines = self.lines.try_iter().collect();
+        // Everything it printed, up to the end of its output.
+        let mut lines = Vec::new();
+        while let Ok(l) = self.lines.recv_timeout(Duration::from_millis(500)) {
+            lines.push(l);
+        }
         (status, took, lines)
     }
     /// Its CPU time so far, s.
@@ -93,13 +97,14 @@ impl Running {
 }
 
 /// What [`measure`] measured.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct Measured {
     /// CPU time of `virtual-drive` during the idle phase (no master), s, and the
     /// phase's length, s.
     pub idle_cpu_s: (f64, f64),
-    /// The SOEM-style master's run (CPU of the cyclic phase included).
-    pub run: SoemReport,
+    /// The SOEM-style master's run (CPU of the cyclic phase included), or the step
+    /// that failed with what `virtual-drive` printed.
+    pub run: Result<SoemReport, String>,
     /// Longest time `virtual-drive` took from a frame's receipt to its answer, µs
     /// (from its last line).
     pub longest_answer_us: f64,
@@ -120,10 +125,15 @@ pub fn measure(
     cycles: u64,
 ) -> Result<Measured, String> {
     let vd = Running::start(program, tag, usize::from(drives), &[])?;
-    let mut m = Measured::default();
     let (c0, t0) = (vd.cpu_s()?, Instant::now());
     std::thread::sleep(idle);
-    m.idle_cpu_s = (vd.cpu_s()? - c0, t0.elapsed().as_secs_f64());
+    let mut m = Measured {
+        idle_cpu_s: (vd.cpu_s()? - c0, t0.elapsed().as_secs_f64()),
+        run: Err(String::new()),
+        longest_answer_us: 0.0,
+        sigterm: (false, Duration::ZERO),
+        log: Vec::new(),
+    };
     let r = soem_style(
         &vd.net.host_if,
         drives,
@@ -140,8 +150,8 @@ pub fn measure(
             ms.parse::<f64>().ok()
         })
         .map_or(0.0, |ms| ms * 1e3);
+    m.run = r.map_err(|e| format!("{e}; virtual-drive said: {}", lines.join(" / ")));
     m.log = lines;
-    m.run = r.map_err(|e| format!("{e}; virtual-drive said: {}", m.log.join(" / ")))?;
     Ok(m)
 }
 

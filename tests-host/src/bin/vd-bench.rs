@@ -65,6 +65,9 @@ fn main() {
         match &r {
             Err(e) => eprintln!("vd-bench: {e}"),
             Ok(m) => {
+                if let Err(e) = &m.run {
+                    eprintln!("vd-bench: {e}");
+                }
                 for l in m.log.iter().filter(|l| !l.contains("LEDs RUN Off")) {
                     eprintln!("  {l}");
                 }
@@ -126,10 +129,25 @@ fn report(rows: &[(u16, Result<Measured, String>)], cycles: u64, idle: f64) -> S
     );
     let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|---|");
     for (n, r) in rows {
-        match r {
-            Ok(m) => {
-                let r = &m.run;
-                let pct = |(cpu, wall): (f64, f64)| 100.0 * cpu / wall.max(1e-9) / f64::from(*n);
+        let m = match r {
+            Ok(m) => m,
+            Err(e) => {
+                let _ = writeln!(
+                    md,
+                    "| {n} | {} | failed to start: {e} |||||||||||",
+                    model(*n)
+                );
+                continue;
+            }
+        };
+        let pct = |(cpu, wall): (f64, f64)| 100.0 * cpu / wall.max(1e-9) / f64::from(*n);
+        let sigterm = if m.sigterm.0 {
+            format!("{:.0} ms", m.sigterm.1.as_secs_f64() * 1e3)
+        } else {
+            "did not end".into()
+        };
+        match &m.run {
+            Ok(r) => {
                 let mut states: Vec<String> = r
                     .al_after
                     .iter()
@@ -140,7 +158,7 @@ fn report(rows: &[(u16, Result<Measured, String>)], cycles: u64, idle: f64) -> S
                 let _ = writeln!(
                     md,
                     "| {n} | {} | {:.2} % | {:.2} % | {} | {} of {} | {:.0} µs | {:.0} µs | \
-                     {:.0} µs | {:.0} µs | {} | {} |",
+                     {:.0} µs | {:.0} µs | {} | {sigterm} |",
                     model(*n),
                     pct(m.idle_cpu_s),
                     pct(r.cyclic_cpu_s),
@@ -152,16 +170,17 @@ fn report(rows: &[(u16, Result<Measured, String>)], cycles: u64, idle: f64) -> S
                     r.rtt_max(),
                     m.longest_answer_us,
                     states.join(", "),
-                    if m.sigterm.0 {
-                        format!("{:.0} ms", m.sigterm.1.as_secs_f64() * 1e3)
-                    } else {
-                        "did not end".into()
-                    }
                 );
             }
             Err(e) => {
                 let e = e.split("; virtual-drive said").next().unwrap_or(e);
-                let _ = writeln!(md, "| {n} | {} | failed: {e} ||||||||||", model(*n));
+                let _ = writeln!(
+                    md,
+                    "| {n} | {} | {:.2} % | master failed: {e} ||||||| {:.0} µs | | {sigterm} |",
+                    model(*n),
+                    pct(m.idle_cpu_s),
+                    m.longest_answer_us
+                );
             }
         }
     }
