@@ -253,15 +253,21 @@ pub fn spawn_wire(
 /// ([`sim_drive::forward_emergencies`]). A time not ahead of the segment's polls
 /// without moving time.
 pub fn step(seg: &mut Segment<SimDrive>, now_ns: u64) {
-    // A SYNC0 pulse due by now runs the cycles at the pulse's own time, as the
-    // board's SYNC0 interrupt does: a late wake of this thread does not count against
-    // the drives' SYNC0 monitoring.
+    // A SYNC0 pulse runs the cycles at the pulse's own time, as the board's SYNC0
+    // interrupt does: a late wake of this thread does not count against the drives'
+    // SYNC0 monitoring. Either one the frame thread already raised (pending) or the
+    // next one due by now.
     let pulse = (0..seg.len())
-        .filter_map(|i| seg.esc(i).next_sync0_ns())
-        .filter(|&t| t <= now_ns)
+        .filter_map(|i| {
+            let e = seg.esc(i);
+            e.sync0_pending_since()
+                .or_else(|| e.next_sync0_ns().filter(|&t| t <= now_ns))
+        })
         .min();
-    if let Some(t) = pulse {
-        seg.advance_to(t);
+    match pulse {
+        Some(t) if t > seg.now_ns() => seg.advance_to(t),
+        Some(_) => seg.poll_all(),
+        None => {}
     }
     if now_ns > seg.now_ns() {
         seg.advance_to(now_ns);

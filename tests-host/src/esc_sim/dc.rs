@@ -62,6 +62,7 @@ impl EscSim {
                 active: true,
                 next: start,
                 cycle,
+                last_ns: 0,
             };
             let now = self.system_time_at(self.now_ns.max(self.timing.port0_ns));
             self.mem[status] = 0x01;
@@ -75,6 +76,14 @@ impl EscSim {
             self.sync0.active = false;
             self.mem[status] = 0;
         }
+    }
+
+    /// Simulated time (ns) of the latest SYNC0 pulse while its AL event is still
+    /// pending (the PDI has not read 0x098E yet): when the microcontroller's SYNC0
+    /// interrupt would have run.
+    pub fn sync0_pending_since(&self) -> Option<u64> {
+        let req = get_u32(&self.mem, reg::AL_EVENT_REQUEST.addr() as usize);
+        (req & reg::al_event::SYNC0 != 0).then_some(self.sync0.last_ns)
     }
 
     // ---------------------------------------------------------------- watchdogs
@@ -133,6 +142,12 @@ impl EscSim {
                 } else {
                     (st - self.sync0.next) / self.sync0.cycle as u64 + 1
                 };
+                // The latest of the pulses due, on the simulated clock.
+                let last = self
+                    .sync0
+                    .next
+                    .wrapping_add((pulses - 1).wrapping_mul(self.sync0.cycle as u64));
+                self.sync0.last_ns = t_ns - st.wrapping_sub(last).min(t_ns);
                 self.sync0.next = self
                     .sync0
                     .next

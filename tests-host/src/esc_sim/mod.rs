@@ -154,6 +154,8 @@ struct Sync0 {
     active: bool,
     next: u64,
     cycle: u32,
+    /// Simulated time of the latest pulse, ns.
+    last_ns: u64,
 }
 
 /// One simulated ESC.
