@@ -87,6 +87,8 @@ pub struct SocketTransport {
     pub lost: u64,
     /// Frames received that were not the one awaited (dropped).
     pub stray: u64,
+    /// Round trip of every exchange answered, ns.
+    pub rtt_ns: Vec<u64>,
 }
 
 impl SocketTransport {
@@ -101,6 +103,7 @@ impl SocketTransport {
             buf: vec![0u8; 2048],
             lost: 0,
             stray: 0,
+            rtt_ns: Vec::new(),
         })
     }
 
@@ -134,13 +137,15 @@ impl Transport for SocketTransport {
         if let Some(b) = f.get_mut(FIRST_INDEX) {
             *b = self.tag;
         }
+        let sent = Instant::now();
         if self.sock.send(&f).is_err() {
             self.lost += 1;
             return None;
         }
-        let back = self.receive(self.tag, Instant::now() + self.timeout);
-        if back.is_none() {
-            self.lost += 1;
+        let back = self.receive(self.tag, sent + self.timeout);
+        match back {
+            Some(_) => self.rtt_ns.push(sent.elapsed().as_nanos() as u64),
+            None => self.lost += 1,
         }
         back
     }
@@ -196,6 +201,10 @@ pub struct Cyclic {
     pub good: u64,
     /// Expected working counter.
     pub wkc: u16,
+    /// Most bytes per LRW frame (a longer image goes out as several LRWs in a row,
+    /// each expecting its share of `wkc`; choose it so that the frames split the
+    /// image at slave boundaries). 0: one LRW.
+    pub chunk: usize,
 }
 
 /// Raw-datagram master over a [`Transport`]. It dereferences to its transport: the
@@ -280,6 +289,7 @@ impl<T: Transport> Master<T> {
             sent: 0,
             good: 0,
             wkc,
+            chunk: 0,
         });
         self.service_cyclic();
     }
@@ -291,9 +301,17 @@ impl<T: Transport> Master<T> {
         };
         let now = self.link.now_ns();
         if now >= c.next_ns {
-            let d = self.frame(FrameBuilder::new().logical(Command::Lrw, 0, &vec![0u8; c.len]));
+            let step = if c.chunk == 0 { c.len } else { c.chunk };
+            let mut good = true;
+            for at in (0..c.len).step_by(step.max(1)) {
+                let n = step.min(c.len - at);
+                let want = (u64::from(c.wkc) * n as u64 / c.len.max(1) as u64) as u16;
+                let fb = FrameBuilder::new().logical(Command::Lrw, at as u32, &vec![0u8; n]);
+                let d = self.frame(fb);
+                good &= d.first().is_some_and(|v| v.wkc == want);
+            }
             c.sent += 1;
-            if d.first().is_some_and(|v| v.wkc == c.wkc) {
+            if good {
                 c.good += 1;
             }
             c.next_ns += c.period_ns;
@@ -390,6 +408,70 @@ impl<T: Transport> Master<T> {
             self.wait(10_000, 10_000);
         }
         None
+    }
+
+    /// SM2 (outputs at 0x1100, `out` bytes) and SM3 (inputs at 0x1400, `inp` bytes)
+    /// in one write, and two FMMUs: outputs at logical `log`, inputs behind them. 2
+    /// when every write was taken.
+    pub fn process_data_sms(&mut self, station: u16, log: u32, out: usize, inp: usize) -> u16 {
+        let mut sm = [0u8; 16];
+        sm[0..2].copy_from_slice(&0x1100u16.to_le_bytes());
+        sm[2..4].copy_from_slice(&(out as u16).to_le_bytes());
+        sm[4] = 0x64;
+        sm[6] = 1;
+        sm[8..10].copy_from_slice(&0x1400u16.to_le_bytes());
+        sm[10..12].copy_from_slice(&(inp as u16).to_le_bytes());
+        sm[12] = 0x20;
+        sm[14] = 1;
+        let wkc = self.fpwr(station, 0x0810, &sm);
+        let fmmu = |log: u32, len: usize, phys: u16, ty: u8| {
+            let mut f = [0u8; 16];
+            f[0..4].copy_from_slice(&log.to_le_bytes());
+            f[4..6].copy_from_slice(&(len as u16).to_le_bytes());
+            f[7] = 7; // logical end bit
+            f[8..10].copy_from_slice(&phys.to_le_bytes());
+            f[11] = ty;
+            f[12] = 1;
+            f
+        };
+        let w0 = self.fpwr(station, 0x0600, &fmmu(log, out, 0x1100, 2));
+        let w1 = self.fpwr(station, 0x0610, &fmmu(log + out as u32, inp, 0x1400, 1));
+        wkc.min(w0).min(w1) * 2
+    }
+
+    /// SOEM ecx_configdc for one slave (ec_dc.c): latch receive times by BWR, read the
+    /// port time and the local time, write the offset so the system time starts near
+    /// `master_time` (the first DC slave has no delay to write).
+    pub fn soem_configdc(&mut self, station: u16, master_time: u64) {
+        self.bwr(0x0900, &[0; 4]);
+        let _port0 = self.fprd(station, 0x0900, 4);
+        let local = self.fprd_u64(station, 0x0918);
+        self.fpwr(
+            station,
+            0x0920,
+            &master_time.wrapping_sub(local).to_le_bytes(),
+        );
+        for port in [0x0904u16, 0x0908, 0x090C] {
+            self.fprd(station, port, 4);
+        }
+    }
+
+    /// SOEM ecx_dcsync0 / ecx_dcsync01 (ec_dc.c): SYNC unit off, ECAT owns it, local
+    /// time, first pulse a whole number of cycles after time + 100 ms (+ `shift`),
+    /// `cycle` (SYNC1 cycle 0 with activation 0x07), activation 0x03 / 0x07.
+    pub fn soem_dcsync(&mut self, station: u16, cycle: u32, shift: i32, activation: u8) {
+        self.fpwr(station, 0x0981, &[0]);
+        self.fpwr(station, 0x0980, &[0]);
+        let t1 = self.fprd_u64(station, 0x0910) as i64;
+        let sync_delay = 100_000_000i64;
+        let c = cycle as i64;
+        let t = (t1 + sync_delay) / c * c + c + shift as i64;
+        self.fpwr(station, 0x0990, &t.to_le_bytes());
+        self.fpwr(station, 0x09A0, &cycle.to_le_bytes());
+        if activation == 0x07 {
+            self.fpwr(station, 0x09A4, &0u32.to_le_bytes());
+        }
+        self.fpwr(station, 0x0981, &[activation]);
     }
 
     /// Writes AL control.

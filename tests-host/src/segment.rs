@@ -21,6 +21,7 @@ use crate::esc_sim::frame::{
     datagrams, process_frame, DatagramView, FrameBuilder, FrameOutcome, Wire,
 };
 use crate::esc_sim::{EscSim, Flavour, SharedEsc};
+use crate::pi_mutex::PiGuard;
 use crate::spi_models::{Et1100Model, Lan9252Model};
 use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
@@ -33,7 +34,6 @@ use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
 use ecat_slave_stack::sii::{self, DeviceDescription};
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
 use ecat_slave_stack::{sync, EscAccess, EscError};
-use std::cell::RefMut;
 
 /// How the slave runtime reaches the ESC.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -243,15 +243,22 @@ impl<A: SlaveApplication> Segment<A> {
         &mut self.drives
     }
     /// The simulator of drive `i`.
-    pub fn esc(&self, i: usize) -> RefMut<'_, EscSim> {
+    pub fn esc(&self, i: usize) -> PiGuard<'_, EscSim> {
         self.drives[i].esc.borrow_mut()
+    }
+
+    /// The ESC simulators in line order, shared: what a thread that answers frames
+    /// on its own (`virtual-drive`'s frame thread, [`crate::realtime`]) runs the
+    /// frames through while this segment's slaves keep using them.
+    pub fn escs(&self) -> Vec<SharedEsc> {
+        self.drives.iter().map(|d| d.esc.clone()).collect()
     }
 
     /// Frame in → frame out: runs `frame` through every ESC (in place), then polls
     /// every slave and advances simulated time by one frame time.
     pub fn process(&mut self, frame: &mut [u8]) -> FrameOutcome {
         let outcome = {
-            let mut escs: Vec<RefMut<'_, EscSim>> =
+            let mut escs: Vec<PiGuard<'_, EscSim>> =
                 self.drives.iter().map(|d| d.esc.borrow_mut()).collect();
             process_frame(&mut escs, frame, self.now_ns, self.cfg.hop_ns)
         };

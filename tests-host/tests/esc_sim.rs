@@ -1149,6 +1149,17 @@ fn distributed_clocks_latching_offset_and_sync0() {
         e.advance_to(t + 2_000_000);
     }
     assert_eq!(escs[2].stats().sync0_pulses, 5);
+    // Four pulses since the last read of 0x098E, one event: a microcontroller late
+    // for its SYNC0 interrupt sees one interrupt, not a burst (issue 32).
+    assert_eq!(escs[1].stats().sync0_pulses, 5);
+    assert!(escs[1].pdi_irq());
+    assert_eq!(escs[1].read_u8(reg::DC_SYNC0_STATUS.addr()).unwrap(), 1);
+    assert!(!escs[1].pdi_irq(), "one event for the four pulses");
+    assert_eq!(
+        escs[1].next_sync0_ns(),
+        Some(t + 2_250_000),
+        "the next pulse keeps the period"
+    );
     let d = one(
         &mut escs,
         Command::Fprd,

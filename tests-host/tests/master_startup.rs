@@ -284,71 +284,6 @@ fn soem_read_pdo_map(m: &mut Master) -> (usize, usize) {
     (bytes[0], bytes[1])
 }
 
-/// SM2/SM3 and two FMMUs (outputs at logical 0, inputs behind them).
-fn process_data_sms(m: &mut Master, out: usize, inp: usize) {
-    let mut sm = [0u8; 16];
-    sm[0..2].copy_from_slice(&0x1100u16.to_le_bytes());
-    sm[2..4].copy_from_slice(&(out as u16).to_le_bytes());
-    sm[4] = 0x64;
-    sm[6] = 1;
-    sm[8..10].copy_from_slice(&0x1400u16.to_le_bytes());
-    sm[10..12].copy_from_slice(&(inp as u16).to_le_bytes());
-    sm[12] = 0x20;
-    sm[14] = 1;
-    assert_eq!(m.fpwr(STATION, 0x0810, &sm), 1);
-    let fmmu = |log: u32, len: usize, phys: u16, ty: u8| {
-        let mut f = [0u8; 16];
-        f[0..4].copy_from_slice(&log.to_le_bytes());
-        f[4..6].copy_from_slice(&(len as u16).to_le_bytes());
-        f[7] = 7; // logical end bit
-        f[8..10].copy_from_slice(&phys.to_le_bytes());
-        f[11] = ty;
-        f[12] = 1;
-        f
-    };
-    assert_eq!(m.fpwr(STATION, 0x0600, &fmmu(0, out, 0x1100, 2)), 1);
-    assert_eq!(
-        m.fpwr(STATION, 0x0610, &fmmu(out as u32, inp, 0x1400, 1)),
-        1
-    );
-}
-
-/// SOEM ecx_configdc for one slave (ec_dc.c): latch receive times by BWR, read the
-/// port time and the local time, write the offset so the system time starts near
-/// the master's clock (the first DC slave has no delay to write).
-fn soem_configdc(m: &mut Master) {
-    m.bwr(0x0900, &[0; 4]);
-    let _port0 = m.fprd(STATION, 0x0900, 4);
-    let local = m.fprd_u64(STATION, 0x0918);
-    let master_time: u64 = 789_000_000_000;
-    m.fpwr(
-        STATION,
-        0x0920,
-        &master_time.wrapping_sub(local).to_le_bytes(),
-    );
-    for port in [0x0904u16, 0x0908, 0x090C] {
-        m.fprd(STATION, port, 4);
-    }
-}
-
-/// SOEM ecx_dcsync0 / ecx_dcsync01 (ec_dc.c): SYNC unit off, ECAT owns it, local
-/// time, first pulse a whole number of cycles after time + 100 ms (+ shift), cycle
-/// (SYNC1 cycle), activation 0x03 / 0x07.
-fn soem_dcsync(m: &mut Master, cycle: u32, shift: i32, activation: u8) {
-    m.fpwr(STATION, 0x0981, &[0]);
-    m.fpwr(STATION, 0x0980, &[0]);
-    let t1 = m.fprd_u64(STATION, 0x0910) as i64;
-    let sync_delay = 100_000_000i64;
-    let c = cycle as i64;
-    let t = (t1 + sync_delay) / c * c + c + shift as i64;
-    m.fpwr(STATION, 0x0990, &t.to_le_bytes());
-    m.fpwr(STATION, 0x09A0, &cycle.to_le_bytes());
-    if activation == SYNC01 {
-        m.fpwr(STATION, 0x09A4, &0u32.to_le_bytes());
-    }
-    m.fpwr(STATION, 0x0981, &[activation]);
-}
-
 /// DC as TwinCAT (start time, cycle, then 0x0980 = AssignActivate as one u16) and
 /// IgH (fsm_slave_config dc_cycle: 0x09A0 with SYNC1 cycle, dc_sync_check: 0x092C,
 /// dc_start: 0x0990, dc_assign: 0x0980 u16).
@@ -420,7 +355,7 @@ fn raw_run(who: Raw, flavour: Flavour, plan: Plan) -> Outcome {
         }
     };
     assert_eq!((out, inp), (OUT_BYTES, IN_BYTES), "{who:?}: mapping sizes");
-    process_data_sms(&mut m, out, inp);
+    assert_eq!(m.process_data_sms(STATION, 0, out, inp), 2);
     if let (Some(c), Raw::TwinCat | Raw::Igh) = (dc_cycle, who) {
         assign_activate_dc(&mut m, who, c, 0, plan.activation);
     }
@@ -428,8 +363,8 @@ fn raw_run(who: Raw, flavour: Flavour, plan: Plan) -> Outcome {
     if let (Some(c), Raw::Soem) = (dc_cycle, who) {
         // After ecx_config_map_group (Safe-Op already requested): ecx_configdc,
         // then the application's ecx_dcsync0 / ecx_dcsync01.
-        soem_configdc(&mut m);
-        soem_dcsync(&mut m, c, 0, plan.activation);
+        m.soem_configdc(STATION, 789_000_000_000);
+        m.soem_dcsync(STATION, c, 0, plan.activation);
     }
     let cycle = plan.mode.cycle_ns();
     let st = m.wait_state(STATION, 0x04, 50_000_000, 1_000_000, |_| {});

@@ -132,7 +132,10 @@ pub fn bench() -> bool {
     let mut md = String::new();
     write_counts(&mut md, &first, repeat);
     write_stacks(&mut md, &stacks);
-    if let Err(e) = write_control_quality(&mut md).and_then(|()| cycle_budget(target_dir, &first)) {
+    if let Err(e) = write_control_quality(&mut md)
+        .and_then(|()| cycle_budget(target_dir, &first))
+        .and_then(|()| virtual_drive_realtime())
+    {
         eprintln!("error: {e}");
         return false;
     }
@@ -329,6 +332,33 @@ fn write_control_quality(md: &mut String) -> Result<(), String> {
         _ => {
             return Err("control-report failed".into());
         }
+    }
+    Ok(())
+}
+
+/// The real-time behaviour of `virtual-drive` (CPU per drive, round trips, lost
+/// frames, wrong working counters) measured by `vd-bench` over veth pairs, written
+/// into docs/benchmarks-notes.md (appended to the report). Needs root (network
+/// namespaces, raw sockets).
+fn virtual_drive_realtime() -> Result<(), String> {
+    let (ok, _) = run_capture(&mut cargo(&[
+        "build",
+        "-q",
+        "-p",
+        "tests-host",
+        "--release",
+        "--bin",
+        "virtual-drive",
+        "--bin",
+        "vd-bench",
+    ]));
+    if !ok {
+        return Err("building virtual-drive / vd-bench failed".into());
+    }
+    let (ok, _) =
+        run_capture(Command::new("target/release/vd-bench").arg("docs/benchmarks-notes.md"));
+    if !ok {
+        return Err("vd-bench failed (it needs root)".into());
     }
     Ok(())
 }

@@ -27,7 +27,7 @@ use ecat_slave_stack::od::{self, Dictionary};
 use ecat_slave_stack::pdo::entry;
 use firmware::identity::{self, Variant};
 use tests_host::esc_sim::frame::{datagrams, process_frame, Command, FrameBuilder};
-use tests_host::esc_sim::{EscSim, Flavour};
+use tests_host::esc_sim::Flavour;
 use tests_host::file_flash::FileFlash;
 use tests_host::segment::{sii_image, Pdi, PdiPath, Segment, SegmentConfig};
 use tests_host::sim_drive::{self, AxisModel, Motor, SimDrive};
@@ -345,8 +345,7 @@ fn measure(chip: &Chip, maps: Option<(&[u32], &[u32])>) -> Result<CycleTraffic, 
         let hop = seg.config().hop_ns;
         {
             let escs: Vec<_> = seg.drives_mut().iter().map(|d| d.esc.clone()).collect();
-            let mut refs: Vec<std::cell::RefMut<'_, EscSim>> =
-                escs.iter().map(|e| e.borrow_mut()).collect();
+            let mut refs: Vec<_> = escs.iter().map(|e| e.borrow_mut()).collect();
             process_frame(&mut refs, &mut frame, now_ns, hop);
         }
         let wkc: Vec<u16> = datagrams(&frame)

@@ -4,18 +4,25 @@
 //!
 //! ```text
 //! virtual-drive --iface NAME [--drives N] [--motor ECN57-20|TC86-45]
-//!               [--esc lan9252|et1100] [--flash FILE] [--fault KIND@TIME]...
-//!               [--dip-id BITS] [--dip-function BITS]
+//!               [--esc lan9252|et1100] [--flash FILE] [--rt-priority 1..99|off]
+//!               [--fault KIND@TIME]... [--dip-id BITS] [--dip-function BITS]
 //! ```
+//!
+//! Runs in real time: simulated time follows the wall clock. As on a board, where
+//! the ESC answers every frame in hardware whatever the MCU is doing, one thread
+//! answers the frames at once against the simulated ESCs and another runs the drives
+//! (slave runtimes, drive ticks, axis models) beside it: see
+//! [`tests_host::realtime`]. The frame thread runs at SCHED_FIFO priority 20 when the
+//! process may (`--rt-priority`), the drives' thread at 19 while it needs less than
+//! 80 % of a core ([`tests_host::realtime::AppPriority`]). Neither thread busy-waits: with no master the
+//! process wakes once per 1 ms tick. Prints one line containing `ready` once it
+//! listens; SIGINT/SIGTERM close it within a few ms.
 //!
 //! `--dip-id` / `--dip-function` set the board's two DIP banks as they stand at
 //! power-up (eight characters 1 = ON / 0 = OFF, switch 1 first; default all ON): the
 //! ID bank gives the station alias, the function bank the peak and standstill
 //! current, the direction and the smoothing while 0x2025 = 0 (0x2158 shows what they
 //! select). The log shows every change of the output pins and the brake.
-//!
-//! Runs in real time: simulated time follows the wall clock. Prints one line
-//! containing `ready` once it listens; SIGINT/SIGTERM close it cleanly.
 //!
 //! `--fault KIND@TIME` (repeatable) makes every drive's plant develop a fault TIME
 //! after the start (`5s`, `250ms`): see `tests_host::fault_inject` for the kinds; the
@@ -26,6 +33,7 @@
 
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use ecat_slave_stack::od::Dictionary;
@@ -33,9 +41,11 @@ use firmware::runtime::DipBanks;
 use tests_host::esc_sim::Flavour;
 use tests_host::fault_inject::{self, Injection, LedLog, PinLog, Schedule};
 use tests_host::raw_socket::RawSocket;
+use tests_host::realtime::{self, Irq, WireStats};
 use tests_host::segment::Segment;
 use tests_host::sim_drive::{self, Motor, SimDrive, SimDriveConfig};
 
+/// Set by SIGINT / SIGTERM; both threads end within a wait.
 static STOP: AtomicBool = AtomicBool::new(false);
 
 extern "C" fn on_signal(_: libc::c_int) {
@@ -50,18 +60,27 @@ struct Options {
     flash: Option<String>,
     faults: Vec<Injection>,
     dips: DipBanks,
+    /// SCHED_FIFO priority of the frame thread (`None`: normal priority).
+    rt_priority: Option<i32>,
 }
+
+/// SCHED_FIFO priority of the frame thread unless `--rt-priority` says otherwise.
+const DEFAULT_RT_PRIORITY: i32 = 20;
 
 fn usage() -> String {
     let mut u = String::from(
         "usage: virtual-drive --iface NAME [--drives N] [--motor ECN57-20|TC86-45] \
-         [--esc lan9252|et1100] [--flash FILE] [--fault KIND@TIME]... \
-         [--dip-id BITS] [--dip-function BITS]\n\
-         \n  --dip-id BITS        the ID bank's 8 switches as they stand, 1 = ON, switch 1\n\
-         \x20                      first (default 11111111: no DIP station address)\n\
+         [--esc lan9252|et1100] [--flash FILE] [--rt-priority 1..99|off] \
+         [--fault KIND@TIME]... [--dip-id BITS] [--dip-function BITS]\n\
+         \n  --rt-priority P    SCHED_FIFO priority of the thread that answers frames\n\
+         \x20                    (default 20; needs root or CAP_SYS_NICE, else normal);\n\
+         \x20                    the drives' thread runs at P-1 while it needs < 80 %\n\
+         \x20                    of a core. off: normal priority\n\
+         \n  --dip-id BITS      the ID bank's 8 switches as they stand, 1 = ON, switch 1\n\
+         \x20                    first (default 11111111: no DIP station address)\n\
          \x20 --dip-function BITS  the function bank likewise: SW1-3 peak current, SW4\n\
-         \x20                      standstill current, SW5 direction, SW6-7 smoothing; used\n\
-         \x20                      while 0x2025 = 0 (default 11111111)\n\
+         \x20                    standstill current, SW5 direction, SW6-7 smoothing; used\n\
+         \x20                    while 0x2025 = 0 (default 11111111)\n\
          \n  --fault KIND@TIME  the plant develops a fault TIME after start (e.g. 5s, 250ms);\n\
          \x20                    repeatable. KIND:",
     );
@@ -80,6 +99,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         flash: None,
         faults: Vec::new(),
         dips: sim_drive::DIPS_ALL_ON,
+        rt_priority: Some(DEFAULT_RT_PRIORITY),
     };
     let mut it = args.iter();
     while let Some(a) = it.next() {
@@ -116,6 +136,15 @@ fn parse(args: &[String]) -> Result<Options, String> {
             "--dip-id" => o.dips.id = fault_inject::parse_dip(&value("--dip-id")?)?,
             "--dip-function" => {
                 o.dips.function = fault_inject::parse_dip(&value("--dip-function")?)?
+            }
+            "--rt-priority" => {
+                o.rt_priority = match value("--rt-priority")?.as_str() {
+                    "off" => None,
+                    p => match p.parse() {
+                        Ok(n @ 1..=99) => Some(n),
+                        _ => return Err("--rt-priority needs 1..99 or off".into()),
+                    },
+                }
             }
             "--fault" => o
                 .faults
@@ -208,61 +237,91 @@ fn main() -> ExitCode {
     leds.observe(&seg, &mut log);
     pins.observe(&seg, &mut log);
 
+    // The wire thread answers frames; this thread is the drives' microcontrollers.
     let start = Instant::now();
-    let mut buf = vec![0u8; 2048];
-    let (mut frames, mut send_errors) = (0u64, 0u64);
+    let irq = Arc::new(Irq::default());
+    let wire_stats = Arc::new(WireStats::default());
+    let wire = match realtime::spawn_wire(
+        opts.rt_priority,
+        |fifo| match fifo {
+            Some(Ok(())) => {}
+            Some(Err(e)) => {
+                println!("virtual-drive: frame thread at normal priority (SCHED_FIFO refused: {e})")
+            }
+            None => println!("virtual-drive: frame thread at normal priority (--rt-priority off)"),
+        },
+        sock,
+        seg.escs(),
+        seg.config().hop_ns,
+        start,
+        &STOP,
+        irq.clone(),
+        wire_stats.clone(),
+    ) {
+        Ok(w) => w,
+        Err(e) => {
+            eprintln!("virtual-drive: cannot start the frame thread: {e}");
+            return ExitCode::from(1);
+        }
+    };
+    // The drives' thread just below the frame thread (see `AppPriority`).
+    let (mut app_priority, _) = realtime::AppPriority::new(opts.rt_priority.map(|p| p.max(2) - 1));
     let mut last_report = Instant::now();
+    // The drives' thread: how late it woke for a deadline at worst, its longest step.
+    let (mut deadline, mut raised, mut late_ns, mut step_ns) = (0u64, true, 0u64, 0u64);
     while !STOP.load(Ordering::SeqCst) {
-        // Real time: simulated time catches up with the wall clock.
-        let wall_ns = start.elapsed().as_nanos() as u64;
-        if wall_ns > seg.now_ns() {
-            let dt = wall_ns - seg.now_ns();
-            sim_drive::advance(&mut seg, dt);
-            schedule.apply_due(&mut seg, &mut log);
-            restart_after_update(&mut seg, &mut log);
-            leds.observe(&seg, &mut log);
-            pins.observe(&seg, &mut log);
+        if let Some(line) = app_priority.update() {
+            log(line);
         }
-        match sock.wait_readable(1_000) {
-            Ok(true) => {}
-            Ok(false) => continue,
-            Err(e) => {
-                eprintln!("virtual-drive: poll: {e}");
-                break;
-            }
+        let now_ns = start.elapsed().as_nanos() as u64;
+        if !raised {
+            late_ns = late_ns.max(now_ns.saturating_sub(deadline));
         }
-        loop {
-            match sock.recv(&mut buf) {
-                Ok(Some(n)) => {
-                    let frame = &mut buf[..n];
-                    sim_drive::process(&mut seg, frame);
-                    restart_after_update(&mut seg, &mut log);
-                    leds.observe(&seg, &mut log);
-                    frames += 1;
-                    if sock.send(frame).is_err() {
-                        send_errors += 1;
-                    }
-                }
-                Ok(None) => break,
-                Err(e) => {
-                    eprintln!("virtual-drive: receive: {e}");
-                    STOP.store(true, Ordering::SeqCst);
-                    break;
-                }
-            }
-        }
+        realtime::step(&mut seg, now_ns);
+        step_ns = step_ns.max((start.elapsed().as_nanos() as u64).saturating_sub(now_ns));
+        schedule.apply_due(&mut seg, &mut log);
+        restart_after_update(&mut seg, &mut log);
+        leds.observe(&seg, &mut log);
+        pins.observe(&seg, &mut log);
         if last_report.elapsed() > Duration::from_secs(10) {
             last_report = Instant::now();
             let states: Vec<String> = (0..seg.len())
                 .map(|i| format!("{:#04x}", seg.al_status(i).0))
                 .collect();
             println!(
-                "virtual-drive: {frames} frames, AL status [{}]",
+                "virtual-drive: {} frames, AL status [{}]",
+                wire_stats.frames.load(Ordering::Relaxed),
                 states.join(" ")
             );
         }
+        if wire.is_finished() {
+            break;
+        }
+        deadline = realtime::next_deadline_ns(&seg);
+        raised = irq.wait_until(realtime::instant_at(start, deadline));
     }
+    STOP.store(true, Ordering::SeqCst);
+    let mut code = ExitCode::SUCCESS;
+    match wire.join() {
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => {
+            eprintln!("virtual-drive: {e}");
+            code = ExitCode::from(1);
+        }
+        Err(_) => {
+            eprintln!("virtual-drive: the frame thread panicked");
+            code = ExitCode::from(1);
+        }
+    }
+    let frames = wire_stats.frames.load(Ordering::Relaxed);
+    let send_errors = wire_stats.send_errors.load(Ordering::Relaxed);
     sim_drive::shutdown(&mut seg);
-    println!("virtual-drive: stopped after {frames} frames ({send_errors} send errors)");
-    ExitCode::SUCCESS
+    println!(
+        "virtual-drive: stopped after {frames} frames ({send_errors} send errors, longest \
+         answer {:.3} ms; drives' thread: latest wake {:.3} ms, longest step {:.3} ms)",
+        wire_stats.longest_ns.load(Ordering::Relaxed) as f64 * 1e-6,
+        late_ns as f64 * 1e-6,
+        step_ns as f64 * 1e-6
+    );
+    code
 }

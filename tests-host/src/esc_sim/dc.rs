@@ -62,6 +62,7 @@ impl EscSim {
                 active: true,
                 next: start,
                 cycle,
+                last_ns: 0,
             };
             let now = self.system_time_at(self.now_ns.max(self.timing.port0_ns));
             self.mem[status] = 0x01;
@@ -75,6 +76,14 @@ impl EscSim {
             self.sync0.active = false;
             self.mem[status] = 0;
         }
+    }
+
+    /// Simulated time (ns) of the latest SYNC0 pulse while its AL event is still
+    /// pending (the PDI has not read 0x098E yet): when the microcontroller's SYNC0
+    /// interrupt would have run.
+    pub fn sync0_pending_since(&self) -> Option<u64> {
+        let req = get_u32(&self.mem, reg::AL_EVENT_REQUEST.addr() as usize);
+        (req & reg::al_event::SYNC0 != 0).then_some(self.sync0.last_ns)
     }
 
     // ---------------------------------------------------------------- watchdogs
@@ -98,8 +107,24 @@ impl EscSim {
 
     // ---------------------------------------------------------------- time
 
+    /// Simulated time (ns) of the next SYNC0 pulse, `None` while the SYNC unit is
+    /// off: the instant a real-time runner wakes the application for its SYNC0
+    /// interrupt. A pulse already due gives the current time.
+    pub fn next_sync0_ns(&self) -> Option<u64> {
+        if !self.sync0.active {
+            return None;
+        }
+        let st = self.system_time_at(self.now_ns);
+        Some(self.now_ns + self.sync0.next.saturating_sub(st))
+    }
+
     /// Advances simulated time to `t_ns` (never backwards): generates SYNC0 pulses,
     /// runs the process-data and PDI watchdogs, and ends a pending EEPROM busy phase.
+    ///
+    /// The pulses due since the last call are counted in [`super::SimStats::sync0_pulses`]
+    /// but raise one SYNC0 event, as a DC unit's pulses happen at their times
+    /// whatever the microcontroller does: one whose interrupt was still pending sees
+    /// one interrupt, never a burst of them.
     pub fn advance_to(&mut self, t_ns: u64) {
         if t_ns < self.now_ns {
             return;
@@ -117,6 +142,12 @@ impl EscSim {
                 } else {
                     (st - self.sync0.next) / self.sync0.cycle as u64 + 1
                 };
+                // The latest of the pulses due, on the simulated clock.
+                let last = self
+                    .sync0
+                    .next
+                    .wrapping_add((pulses - 1).wrapping_mul(self.sync0.cycle as u64));
+                self.sync0.last_ns = t_ns - st.wrapping_sub(last).min(t_ns);
                 self.sync0.next = self
                     .sync0
                     .next

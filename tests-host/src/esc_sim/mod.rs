@@ -29,12 +29,12 @@ mod sm;
 
 pub use sii::sii_crc8;
 
+use crate::pi_mutex::{PiGuard, PiMutex};
 use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::{EscAccess, EscError};
 use sii::SII_CTRL_BUSY;
 use sm::SmRuntime;
-use std::cell::RefCell;
-use std::rc::Rc;
+use std::sync::Arc;
 
 /// Which chip is simulated. Decides the ESC information registers, the number of
 /// FMMUs/SyncManagers, the process RAM size and the SII read size.
@@ -154,6 +154,8 @@ struct Sync0 {
     active: bool,
     next: u64,
     cycle: u32,
+    /// Simulated time of the latest pulse, ns.
+    last_ns: u64,
 }
 
 /// One simulated ESC.
@@ -858,32 +860,39 @@ impl RamOp<'_> {
 
 pub(crate) use sm::SmOp;
 
-/// A simulator shared between the wire side (the segment) and the PDI side (the
-/// firmware, directly or through an SPI chip model). Single-threaded.
+/// A simulator shared between the wire side (the segment, or `virtual-drive`'s frame
+/// thread) and the PDI side (the firmware, directly or through an SPI chip model).
+///
+/// Each side holds the lock for one access only (one frame on the wire side, one
+/// register or RAM access on the PDI side), as the chip serialises its ECAT and PDI
+/// accesses: so the wire side never waits for the application, only for the access
+/// in progress (the lock has priority inheritance, [`PiMutex`]). One thread holds at
+/// most one simulator's lock at a time, except the wire side, which takes a line's in
+/// order.
 #[derive(Clone)]
-pub struct SharedEsc(pub Rc<RefCell<EscSim>>);
+pub struct SharedEsc(pub Arc<PiMutex<EscSim>>);
 
 impl SharedEsc {
     /// Wraps a simulator.
     pub fn new(esc: EscSim) -> Self {
-        SharedEsc(Rc::new(RefCell::new(esc)))
+        SharedEsc(Arc::new(PiMutex::new(esc)))
     }
-    /// Borrows the simulator.
-    pub fn borrow(&self) -> std::cell::Ref<'_, EscSim> {
-        self.0.borrow()
+    /// The simulator, for reading.
+    pub fn borrow(&self) -> PiGuard<'_, EscSim> {
+        self.0.lock()
     }
-    /// Borrows the simulator mutably.
-    pub fn borrow_mut(&self) -> std::cell::RefMut<'_, EscSim> {
-        self.0.borrow_mut()
+    /// The simulator, for changing.
+    pub fn borrow_mut(&self) -> PiGuard<'_, EscSim> {
+        self.0.lock()
     }
 }
 
 impl EscAccess for SharedEsc {
     fn read(&mut self, addr: u16, buf: &mut [u8]) -> Result<(), EscError> {
-        EscAccess::read(&mut *self.0.borrow_mut(), addr, buf)
+        EscAccess::read(&mut *self.borrow_mut(), addr, buf)
     }
     fn write(&mut self, addr: u16, data: &[u8]) -> Result<(), EscError> {
-        EscAccess::write(&mut *self.0.borrow_mut(), addr, data)
+        EscAccess::write(&mut *self.borrow_mut(), addr, data)
     }
 }
 

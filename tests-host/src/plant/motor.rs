@@ -450,6 +450,13 @@ impl Plant {
             self.omega = w;
             self.stuck = false;
         }
+        if self.at_rest() {
+            // Nothing moves in this period (see `at_rest`): every sub-step below
+            // would leave the state as it is.
+            (self.ia, self.ib) = (0.0, 0.0);
+            self.time += self.cfg.ts;
+            return;
+        }
         for s in 0..n {
             // The duties computed `age` samples ago are active at this sub-step.
             let tau = s as f64 / n as f64;
@@ -490,6 +497,31 @@ impl Plant {
             }
         }
         self.time += self.cfg.ts;
+    }
+
+    /// True when a period changes nothing: no current (a subnormal one counts as
+    /// none: a decaying current ends on a subnormal fixed point of the integration,
+    /// 1e-322 A, whose arithmetic is slow; FPUs with flush-to-zero, the board's
+    /// included, see 0), no voltage across either coil from any of the duties that
+    /// act in it (both legs of each bridge equal), and the rotor held (stiction holds
+    /// against the net torque, or locked). Then every derivative of the currents is
+    /// zero, and the mechanics keep their state (`update_mechanics` returns at once
+    /// for a stuck rotor that stays stuck): [`Plant::advance`] skips the integration
+    /// — what keeps an idle virtual drive cheap — with the same result.
+    fn at_rest(&self) -> bool {
+        let quiet = |d: &Duties| d.a1 == d.a2 && d.b1 == d.b2;
+        if self.forced_speed.is_some()
+            || self.ia.abs() >= f64::MIN_POSITIVE
+            || self.ib.abs() >= f64::MIN_POSITIVE
+            || !self.duties.iter().all(quiet)
+        {
+            return false;
+        }
+        if self.cfg.locked {
+            return true;
+        }
+        let net = self.torque() - self.load + self.stop_torque(self.theta, self.omega);
+        self.stuck && self.omega == 0.0 && net.abs() <= self.cfg.motor.tc
     }
 
     fn update_mechanics(&mut self, w_old: f64, th: f64, w: f64) {

@@ -1,0 +1,296 @@
+//! Real time for `virtual-drive`: the ESC answers frames like hardware, the
+//! microcontroller side runs beside it.
+//!
+//! On a board the ESC processes every frame in hardware whatever the MCU does; the
+//! MCU reaches the ESC memory over SPI, one access at a time, and learns of events
+//! through the PDI interrupt line (SYNC0, SyncManager, AL control). `virtual-drive`
+//! splits the same way:
+//!
+//! * the **wire thread** ([`spawn_wire`]) owns the raw socket. It sleeps until a
+//!   frame arrives, moves the ESC simulators' clocks to the wall clock, runs the
+//!   frame through them ([`process_frame`]) and sends it back at once, then raises
+//!   the interrupt line ([`Irq`]). It never waits for the application or the plant,
+//!   only for a PDI access in progress ([`SharedEsc`] holds its lock for one
+//!   access).
+//! * the **application thread** (the caller of [`step`]) runs the MCU side of every
+//!   drive — the slave runtime's `poll` / cycle, the drive's 1 ms tick and the axis
+//!   model ([`SimDrive::catch_up`]), the work after each poll
+//!   ([`sim_drive::forward_emergencies`]) — against the same simulators. It sleeps
+//!   until the interrupt line rises or the next deadline ([`next_deadline_ns`]: the
+//!   next SYNC0 pulse of any drive, the next 1 ms tick), whichever comes first.
+//!
+//! Nothing busy-waits: with no master the process wakes once per tick. When the
+//! application thread falls behind (a loaded machine), frames are still answered;
+//! on its next wake the missed SYNC0 pulses raise one event (as a DC unit's pulses
+//! happen at their times: the drive runs one cycle, not a burst), the drive's ticks
+//! run up to the present on its own clock, and the axis moves on in one step.
+//!
+//! [`step`] takes the time as an argument, so the in-process tests drive it with
+//! simulated time.
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use crate::esc_sim::frame::process_frame;
+use crate::esc_sim::SharedEsc;
+use crate::raw_socket::RawSocket;
+use crate::segment::Segment;
+use crate::sim_drive::{self, SimDrive};
+
+/// Period of the drive's supervision tick ([`SimDrive::catch_up`]), ns.
+pub const TICK_NS: u64 = 1_000_000;
+
+/// The PDI interrupt line from the wire thread to the application thread.
+#[derive(Default)]
+pub struct Irq {
+    pending: Mutex<bool>,
+    cv: Condvar,
+}
+
+impl Irq {
+    /// Raises the line (a frame was processed).
+    pub fn raise(&self) {
+        *self.pending.lock().unwrap_or_else(|e| e.into_inner()) = true;
+        self.cv.notify_one();
+    }
+
+    /// Sleeps until the line is raised or `deadline`; takes the line down. True when
+    /// it was raised.
+    pub fn wait_until(&self, deadline: Instant) -> bool {
+        let mut p = self.pending.lock().unwrap_or_else(|e| e.into_inner());
+        while !*p {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return false;
+            }
+            p = match self.cv.wait_timeout(p, left) {
+                Ok((g, _)) => g,
+                Err(e) => e.into_inner().0,
+            };
+        }
+        *p = false;
+        true
+    }
+}
+
+/// Gives the calling thread the real-time policy SCHED_FIFO at `priority` (1-99), so
+/// that it runs as soon as it wakes whatever else the machine does (root or
+/// CAP_SYS_NICE needed; the kernel's real-time throttling still leaves the rest of
+/// the machine 5 % of every second).
+pub fn set_fifo(priority: i32) -> std::io::Result<()> {
+    let param = libc::sched_param {
+        sched_priority: priority,
+    };
+    // SAFETY: pid 0 is the calling thread; `param` is valid for the call.
+    let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+    if rc == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
+}
+
+/// Back to the normal policy (SCHED_OTHER) for the calling thread.
+pub fn set_normal() {
+    let param = libc::sched_param { sched_priority: 0 };
+    // SAFETY: pid 0 is the calling thread; `param` is valid for the call.
+    unsafe { libc::sched_setscheduler(0, libc::SCHED_OTHER, &param) };
+}
+
+/// CPU time of the calling thread, s.
+pub fn thread_cpu_s() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is valid for the call.
+    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+}
+
+/// The application thread's scheduling: SCHED_FIFO (below the frame thread) while it
+/// uses at most [`AppPriority::HIGH`] of a core, so that its SYNC0 cycles are not
+/// delayed by other load on the machine (a locked drive reports 0x002C after 2 ms
+/// without SYNC0, as a board's MCU would if it stalled); the normal policy while it
+/// needs more (a heavy simulation never takes a whole core from the rest of the
+/// machine), back to SCHED_FIFO once it needs at most [`AppPriority::LOW`].
+pub struct AppPriority {
+    priority: Option<i32>,
+    fifo: bool,
+    since: Instant,
+    cpu: f64,
+}
+
+impl AppPriority {
+    /// Share of a core above which the thread leaves SCHED_FIFO.
+    pub const HIGH: f64 = 0.8;
+    /// Share of a core below which it returns to SCHED_FIFO.
+    pub const LOW: f64 = 0.5;
+
+    /// Starts with SCHED_FIFO at `priority` for the calling thread (none: normal
+    /// policy throughout); the outcome of the first request.
+    pub fn new(priority: Option<i32>) -> (Self, Option<std::io::Result<()>>) {
+        let r = priority.map(set_fifo);
+        let fifo = matches!(r, Some(Ok(())));
+        let me = AppPriority {
+            priority: priority.filter(|_| fifo),
+            fifo,
+            since: Instant::now(),
+            cpu: thread_cpu_s(),
+        };
+        (me, r)
+    }
+
+    /// Once a second: measures the thread's share of a core and changes the policy
+    /// when it crossed a bound; a line saying so.
+    pub fn update(&mut self) -> Option<String> {
+        let prio = self.priority?;
+        let wall = self.since.elapsed().as_secs_f64();
+        if wall < 1.0 {
+            return None;
+        }
+        let cpu = thread_cpu_s();
+        let share = (cpu - self.cpu) / wall;
+        (self.since, self.cpu) = (Instant::now(), cpu);
+        if self.fifo && share > Self::HIGH {
+            set_normal();
+            self.fifo = false;
+            Some(format!(
+                "drives' thread at {:.0} % of a core: normal priority from now on",
+                share * 100.0
+            ))
+        } else if !self.fifo && share < Self::LOW && set_fifo(prio).is_ok() {
+            self.fifo = true;
+            Some(format!(
+                "drives' thread at {:.0} % of a core: SCHED_FIFO {prio} again",
+                share * 100.0
+            ))
+        } else {
+            None
+        }
+    }
+}
+
+/// Counters of the wire thread, readable while it runs.
+#[derive(Debug, Default)]
+pub struct WireStats {
+    /// Frames answered.
+    pub frames: AtomicU64,
+    /// Frames whose answer could not be sent.
+    pub send_errors: AtomicU64,
+    /// Longest time from a frame's receipt to its answer being sent, ns.
+    pub longest_ns: AtomicU64,
+}
+
+/// How long the wire thread sleeps in one wait when no frame comes: the bound on
+/// how late it sees `stop`.
+const WIRE_WAIT_US: u64 = 20_000;
+
+/// Starts the wire thread: frames from `sock` through `escs` (in line order, `hop_ns`
+/// per hop) at the wall-clock time since `start`, answered at once, `irq` raised
+/// after each. With `fifo`, the thread first asks for that SCHED_FIFO priority
+/// ([`set_fifo`]); `on_start` gets the outcome. Ends when `stop` is set (within
+/// [`WIRE_WAIT_US`]) or the socket fails (the error).
+#[allow(clippy::too_many_arguments)]
+pub fn spawn_wire(
+    fifo: Option<i32>,
+    on_start: impl FnOnce(Option<std::io::Result<()>>) + Send + 'static,
+    sock: RawSocket,
+    escs: Vec<SharedEsc>,
+    hop_ns: u64,
+    start: Instant,
+    stop: &'static AtomicBool,
+    irq: Arc<Irq>,
+    stats: Arc<WireStats>,
+) -> std::io::Result<JoinHandle<Result<(), String>>> {
+    std::thread::Builder::new()
+        .name("ecat-wire".into())
+        .spawn(move || {
+            on_start(fifo.map(set_fifo));
+            let mut buf = vec![0u8; 2048];
+            while !stop.load(Ordering::SeqCst) {
+                match sock.wait_readable(WIRE_WAIT_US) {
+                    Ok(true) => {}
+                    Ok(false) => continue,
+                    Err(e) => return Err(format!("poll: {e}")),
+                }
+                loop {
+                    let n = match sock.recv(&mut buf) {
+                        Ok(Some(n)) => n,
+                        Ok(None) => break,
+                        Err(e) => return Err(format!("receive: {e}")),
+                    };
+                    let received = Instant::now();
+                    let now_ns = received.duration_since(start).as_nanos() as u64;
+                    let frame = &mut buf[..n];
+                    {
+                        let mut chain: Vec<_> = escs.iter().map(|e| e.borrow_mut()).collect();
+                        for esc in chain.iter_mut() {
+                            esc.advance_to(now_ns);
+                        }
+                        process_frame(&mut chain, frame, now_ns, hop_ns);
+                    }
+                    if sock.send(frame).is_err() {
+                        stats.send_errors.fetch_add(1, Ordering::Relaxed);
+                    }
+                    let took = received.elapsed().as_nanos() as u64;
+                    stats.longest_ns.fetch_max(took, Ordering::Relaxed);
+                    stats.frames.fetch_add(1, Ordering::Relaxed);
+                    irq.raise();
+                }
+            }
+            Ok(())
+        })
+}
+
+/// The application side at time `now_ns`: the ESCs' clocks move on (SYNC0,
+/// watchdogs: one event for any number of pulses due; the first pulse due is
+/// handled at its own time), every slave polls (its cycle
+/// runs on a SYNC0 or SyncManager event), every drive's ticks and axis catch up to
+/// `now_ns` ([`SimDrive::catch_up`]), then the work after the poll
+/// ([`sim_drive::forward_emergencies`]). A time not ahead of the segment's polls
+/// without moving time.
+pub fn step(seg: &mut Segment<SimDrive>, now_ns: u64) {
+    // A SYNC0 pulse runs the cycles at the pulse's own time, as the board's SYNC0
+    // interrupt does: a late wake of this thread does not count against the drives'
+    // SYNC0 monitoring. Either one the frame thread already raised (pending) or the
+    // next one due by now.
+    let pulse = (0..seg.len())
+        .filter_map(|i| {
+            let e = seg.esc(i);
+            e.sync0_pending_since()
+                .or_else(|| e.next_sync0_ns().filter(|&t| t <= now_ns))
+        })
+        .min();
+    match pulse {
+        Some(t) if t > seg.now_ns() => seg.advance_to(t),
+        Some(_) => seg.poll_all(),
+        None => {}
+    }
+    if now_ns > seg.now_ns() {
+        seg.advance_to(now_ns);
+    } else {
+        seg.poll_all();
+    }
+    let now_us = seg.now_ns() / 1000;
+    for d in seg.drives_mut() {
+        d.app.catch_up(now_us);
+    }
+    sim_drive::forward_emergencies(seg);
+}
+
+/// When the application next has work without a frame: the next SYNC0 pulse of any
+/// drive or the next 1 ms tick after the segment's time, ns.
+pub fn next_deadline_ns<A: ecat_slave_stack::slave::SlaveApplication>(seg: &Segment<A>) -> u64 {
+    let tick = (seg.now_ns() / TICK_NS + 1) * TICK_NS;
+    (0..seg.len())
+        .filter_map(|i| seg.esc(i).next_sync0_ns())
+        .fold(tick, u64::min)
+}
+
+/// `t_ns` since `start` as an instant.
+pub fn instant_at(start: Instant, t_ns: u64) -> Instant {
+    start + Duration::from_nanos(t_ns)
+}

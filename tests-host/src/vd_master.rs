@@ -1,0 +1,355 @@
+//! Strict masters against `virtual-drive` over a veth pair: how the real-time
+//! behaviour of the virtual drive is measured (`tests/virtual_drive_realtime.rs`, the
+//! `vd-bench` program behind the "Virtual drive in real time" section of
+//! BENCHMARKS.md).
+//!
+//! [`soem_style`] is a synchronous raw-datagram master ([`SocketMaster`]) doing what
+//! SOEM's `ecx_config_init` / `ecx_config_map_group` / `ecx_configdc` /
+//! `ecx_dcsync0` do, one frame at a time with a 2 ms timeout and no resend, then
+//! the cyclic LRW every 1 ms; every frame that does not come back counts.
+//!
+//! [`measure`] starts `virtual-drive` in a network namespace ([`crate::netns`]),
+//! measures its CPU time while idle (no master), then runs [`soem_style`] against it,
+//! timing every round trip. CPU time is the child process's user + system time from
+//! `/proc/PID/stat` (all its threads), not wall time. The master is synchronous and
+//! runs at SCHED_FIFO when it may: a master whose frame task waits for a normal
+//! thread to be scheduled (ethercrab's) misses a 2 ms timeout on a loaded machine
+//! by itself, whatever the drive does.
+
+use std::time::{Duration, Instant};
+
+use crate::netns::{self, Killed, Netns};
+use crate::raw_master::{SocketMaster, Transport};
+
+/// User + system CPU time of process `pid` (all threads, exited ones included), s.
+pub fn process_cpu_s(pid: u32) -> Option<f64> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // Fields after the command name (which may hold spaces) in parentheses.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    // utime and stime are fields 14 and 15 of the line, 12 and 13 after the name.
+    let ticks: u64 = f.get(11)?.parse::<u64>().ok()? + f.get(12)?.parse::<u64>().ok()?;
+    // SAFETY: sysconf has no preconditions.
+    let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) }.max(1) as f64;
+    Some(ticks as f64 / hz)
+}
+
+/// A running `virtual-drive` in its namespace.
+pub struct Running {
+    /// The namespace and veth pair (removed on drop).
+    pub net: Netns,
+    /// The process (stopped on drop).
+    pub child: Killed,
+    /// Its output after the `ready` line.
+    pub lines: std::sync::mpsc::Receiver<String>,
+}
+
+impl Running {
+    /// Starts `program --drives N extra…` in a new namespace tagged `tag`.
+    pub fn start(
+        program: &str,
+        tag: &str,
+        drives: usize,
+        extra: &[String],
+    ) -> Result<Self, String> {
+        let net = Netns::create(tag)
+            .ok_or("the network namespace / veth pair could not be created (root? iproute2?)")?;
+        let n = drives.to_string();
+        let mut args: Vec<&str> = vec!["--drives", &n];
+        args.extend(extra.iter().map(String::as_str));
+        let (child, lines) = netns::start_virtual_drive(&net, program, &args)?;
+        Ok(Running { net, child, lines })
+    }
+    /// The process id of `virtual-drive` (`ip netns exec` runs it in its place).
+    pub fn pid(&self) -> u32 {
+        self.child.0.id()
+    }
+    /// Sends SIGTERM and waits up to `limit` for the process to end: its exit status
+    /// (`None`: still running at the limit, then killed), how long it took, and the
+    /// lines it printed meanwhile.
+    pub fn terminate(
+        mut self,
+        limit: Duration,
+    ) -> (Option<std::process::ExitStatus>, Duration, Vec<String>) {
+        let t0 = Instant::now();
+        // SAFETY: plain kill(2) on our own child.
+        unsafe { libc::kill(self.pid() as i32, libc::SIGTERM) };
+        let mut status = None;
+        while t0.elapsed() < limit {
+            if let Ok(Some(s)) = self.child.0.try_wait() {
+                status = Some(s);
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let took = t0.elapsed();
+        // Everything it printed, up to the end of its output.
+        let mut lines = Vec::new();
+        while let Ok(l) = self.lines.recv_timeout(Duration::from_millis(500)) {
+            lines.push(l);
+        }
+        (status, took, lines)
+    }
+    /// Its CPU time so far, s.
+    pub fn cpu_s(&self) -> Result<f64, String> {
+        process_cpu_s(self.pid()).ok_or_else(|| "no /proc entry for virtual-drive".to_string())
+    }
+}
+
+/// What [`measure`] measured.
+#[derive(Debug, Clone)]
+pub struct Measured {
+    /// CPU time of `virtual-drive` during the idle phase (no master), s, and the
+    /// phase's length, s.
+    pub idle_cpu_s: (f64, f64),
+    /// The SOEM-style master's run (CPU of the cyclic phase included), or the step
+    /// that failed with what `virtual-drive` printed.
+    pub run: Result<SoemReport, String>,
+    /// Longest time `virtual-drive` took from a frame's receipt to its answer, µs
+    /// (from its last line).
+    pub longest_answer_us: f64,
+    /// Whether `virtual-drive` ended cleanly on SIGTERM, and how long it took.
+    pub sigterm: (bool, Duration),
+    /// What `virtual-drive` printed after `ready`.
+    pub log: Vec<String>,
+}
+
+/// Starts `virtual-drive --drives N` (`program`) in a namespace tagged `tag`,
+/// measures its CPU time for `idle` with no master, runs [`soem_style`] with a 2 ms
+/// timeout and `cycles` cycles, then ends it with SIGTERM.
+pub fn measure(
+    program: &str,
+    tag: &str,
+    drives: u16,
+    idle: Duration,
+    cycles: u64,
+) -> Result<Measured, String> {
+    let vd = Running::start(program, tag, usize::from(drives), &[])?;
+    let (c0, t0) = (vd.cpu_s()?, Instant::now());
+    std::thread::sleep(idle);
+    let mut m = Measured {
+        idle_cpu_s: (vd.cpu_s()? - c0, t0.elapsed().as_secs_f64()),
+        run: Err(String::new()),
+        longest_answer_us: 0.0,
+        sigterm: (false, Duration::ZERO),
+        log: Vec::new(),
+    };
+    let r = soem_style(
+        &vd.net.host_if,
+        drives,
+        Duration::from_millis(2),
+        cycles,
+        Some(vd.pid()),
+    );
+    let (status, took, lines) = vd.terminate(Duration::from_secs(5));
+    m.sigterm = (status.is_some_and(|s| s.success()), took);
+    m.longest_answer_us = lines
+        .iter()
+        .find_map(|l| {
+            let ms = l.split("longest answer ").nth(1)?.split(' ').next()?;
+            ms.parse::<f64>().ok()
+        })
+        .map_or(0.0, |ms| ms * 1e3);
+    m.run = r.map_err(|e| format!("{e}; virtual-drive said: {}", lines.join(" / ")));
+    m.log = lines;
+    Ok(m)
+}
+
+/// Bytes of the product's default mapping (0x1600 outputs / 0x1A00 inputs).
+pub const OUT_BYTES: usize = 12;
+/// See [`OUT_BYTES`].
+pub const IN_BYTES: usize = 19;
+
+/// What [`soem_style`] saw.
+#[derive(Debug, Clone, Default)]
+pub struct SoemReport {
+    /// Frames sent during the set-up, and how many did not come back.
+    pub setup_frames: (u64, u64),
+    /// LRWs sent in Op, and how many came back with working counter 3 per drive.
+    pub lrw: (u64, u64),
+    /// Frames lost in Op (LRWs and AL status reads).
+    pub lost_in_op: u64,
+    /// Frames that came back but not for the exchange waiting (late answers).
+    pub stray: u64,
+    /// AL status and status code of every drive after the cycles.
+    pub al_after: Vec<(u16, u16)>,
+    /// Round trip of every frame answered in Op, µs, sorted.
+    pub rtt_us: Vec<f64>,
+    /// CPU time of the process given to [`soem_style`] during the cycles, s, and the
+    /// time they took, s.
+    pub cyclic_cpu_s: (f64, f64),
+}
+
+impl SoemReport {
+    /// The `p`-th percentile of the round trips in Op, µs (0 without any).
+    pub fn rtt_percentile(&self, p: f64) -> f64 {
+        if self.rtt_us.is_empty() {
+            return 0.0;
+        }
+        let k = ((p / 100.0) * (self.rtt_us.len() - 1) as f64).round() as usize;
+        self.rtt_us[k.min(self.rtt_us.len() - 1)]
+    }
+    /// The longest round trip in Op, µs.
+    pub fn rtt_max(&self) -> f64 {
+        self.rtt_us.last().copied().unwrap_or(0.0)
+    }
+}
+
+/// SCHED_FIFO priority of [`soem_style`]'s thread: above `virtual-drive`'s threads
+/// (20 and 19), as a master on a machine of its own is never delayed by the drives;
+/// it sleeps while it waits for a frame.
+pub const MASTER_PRIORITY: i32 = 30;
+
+/// Drives per LRW frame of the cyclic exchange (992 bytes with the default maps).
+const DRIVES_PER_FRAME: usize = 32;
+
+/// SCHED_FIFO at [`MASTER_PRIORITY`] for the calling thread (when the process may)
+/// until dropped.
+struct MasterPriority;
+
+impl MasterPriority {
+    fn take() -> Self {
+        let _ = crate::realtime::set_fifo(MASTER_PRIORITY);
+        MasterPriority
+    }
+}
+
+impl Drop for MasterPriority {
+    fn drop(&mut self) {
+        crate::realtime::set_normal();
+    }
+}
+
+/// Waits (up to 20 s each, polling every 1 ms) until every station is in `state`.
+fn all_in(
+    m: &mut SocketMaster,
+    stations: impl Iterator<Item = u16>,
+    state: u16,
+    name: &str,
+) -> Result<(), String> {
+    for st in stations {
+        let s = m.wait_state(st, state, 20_000_000_000, 1_000_000, |_| {});
+        if s != (state, 0) {
+            return Err(format!("{name} of {st:#06x}: AL status {s:x?}"));
+        }
+    }
+    Ok(())
+}
+
+/// A SOEM-style set-up of `drives` drives on `iface` (stations 0x1001…), every frame
+/// waited for `timeout` and never resent, DC SYNC0 at 1 ms, Op (each state change
+/// given up to 20 s: the drives' power-up work may run slower than real time on a
+/// loaded machine or in a debug build); then `cycles` LRWs at 1 ms (one frame per
+/// 32 drives), measuring the CPU time of process `pid` meanwhile when given. Runs on
+/// the calling thread, at SCHED_FIFO [`MASTER_PRIORITY`] when the process may (so
+/// that other load on the machine does not make the master miss its own timeouts);
+/// back to normal priority after. An error names the step that failed.
+pub fn soem_style(
+    iface: &str,
+    drives: u16,
+    timeout: Duration,
+    cycles: u64,
+    pid: Option<u32>,
+) -> Result<SoemReport, String> {
+    let _priority = MasterPriority::take();
+    let mut m = SocketMaster::open(iface, timeout).map_err(|e| e.to_string())?;
+    let mut rep = SoemReport::default();
+    let lost = |m: &SocketMaster, step: &str| -> Result<(), String> {
+        if m.lost == 0 {
+            Ok(())
+        } else {
+            Err(format!(
+                "{step}: {} frame(s) not back within {timeout:?}",
+                m.lost
+            ))
+        }
+    };
+    let stations = || (0..drives).map(|i| 0x1001 + i);
+    // ecx_config_init: Init + ack to all, count, station addresses, identity.
+    m.bwr(0x0120, &0x0011u16.to_le_bytes());
+    let (_, found) = m.brd(0x0000, 2);
+    if found != drives {
+        return Err(format!(
+            "{found} drive(s) answered the count, {drives} expected"
+        ));
+    }
+    for (pos, st) in stations().enumerate() {
+        if m.apwr(pos as u16, 0x0010, &st.to_le_bytes()) != 1 {
+            return Err(format!("station address of position {pos}"));
+        }
+        let product = m.sii_read(st, 0x000A);
+        if product != Some(firmware::identity::Variant::HybridServo.product_code()) {
+            return Err(format!("SII product code of {st:#06x}: {product:x?}"));
+        }
+        m.configure_mailbox(st, (0x1000, 128, 0x1080, 128));
+        m.request_state(st, 0x0002);
+    }
+    all_in(&mut m, stations(), 0x02, "Pre-Op")?;
+    for st in stations() {
+        // ecx_readPDOmap starts with the SM types over SDO.
+        m.sdo_upload(st, 0x1C00, 3)
+            .map_err(|e| format!("SDO 0x1C00:03 of {st:#06x}: {e:?}"))?;
+    }
+    lost(&m, "Pre-Op")?;
+    // ecx_config_map_group: SMs and FMMUs, Safe-Op; ecx_configdc, ecx_dcsync0.
+    let per = OUT_BYTES + IN_BYTES;
+    for (k, st) in stations().enumerate() {
+        if m.process_data_sms(st, (k * per) as u32, OUT_BYTES, IN_BYTES) != 2 {
+            return Err(format!("SyncManagers / FMMUs of {st:#06x}"));
+        }
+    }
+    for st in stations() {
+        m.soem_configdc(st, 789_000_000_000);
+        m.soem_dcsync(st, 1_000_000, 0, 0x03);
+        m.request_state(st, 0x0004);
+    }
+    all_in(&mut m, stations(), 0x04, "Safe-Op")?;
+    lost(&m, "Safe-Op")?;
+    // Process data before and during the Op request, as SOEM's applications do, in
+    // the middle between two SYNC0 pulses (SOEM's examples align their cycle to the
+    // DC time, `ec_sync`): the next pulse's system time (0x0990) against the system
+    // time now (0x0910) gives the pulse on the master's clock.
+    let wkc = 3 * drives;
+    let t0 = m.link.now_ns();
+    let st = m.fprd_u64(0x1001, 0x0910);
+    let t1 = m.link.now_ns();
+    let next = m.fprd_u64(0x1001, 0x0990);
+    let pulse = (t0 + t1) / 2 + next.saturating_sub(st);
+    m.start_cyclic(1_000_000, usize::from(drives) * per, wkc);
+    if let Some(c) = m.cyclic.as_mut() {
+        c.chunk = DRIVES_PER_FRAME * per;
+        let aim = pulse + 500_000;
+        let now = m.link.now_ns();
+        c.next_ns = if aim >= now {
+            aim - (aim - now) / 1_000_000 * 1_000_000
+        } else {
+            aim + (now - aim).div_ceil(1_000_000) * 1_000_000
+        };
+    }
+    m.wait(20_000_000, 1_000_000);
+    for st in stations() {
+        m.request_state(st, 0x0008);
+    }
+    all_in(&mut m, stations(), 0x08, "Op")?;
+    lost(&m, "Op")?;
+    rep.setup_frames = (m.frames, m.lost);
+    let counts = |m: &SocketMaster| m.cyclic.map_or((0, 0), |c| (c.sent, c.good));
+    let (c0, l0, r0) = (counts(&m), m.lost, m.rtt_ns.len());
+    let cpu0 = (pid.and_then(process_cpu_s).unwrap_or(0.0), Instant::now());
+    m.wait(cycles * 1_000_000, 1_000_000);
+    rep.cyclic_cpu_s = (
+        pid.and_then(process_cpu_s).unwrap_or(0.0) - cpu0.0,
+        cpu0.1.elapsed().as_secs_f64(),
+    );
+    let c1 = counts(&m);
+    rep.rtt_us = m.rtt_ns[r0..].iter().map(|&n| n as f64 * 1e-3).collect();
+    rep.rtt_us.sort_by(f64::total_cmp);
+    rep.lrw = (c1.0 - c0.0, c1.1 - c0.1);
+    rep.lost_in_op = m.lost - l0;
+    rep.stray = m.stray;
+    rep.al_after = stations().map(|st| m.al_status(st)).collect();
+    for st in stations() {
+        m.request_state(st, 0x0001);
+    }
+    Ok(rep)
+}

@@ -1,0 +1,107 @@
+//! `virtual-drive` answers frames like hardware (issue 32): over a veth pair, a
+//! SOEM-style master that waits 2 ms for each frame and never resends sets up a
+//! drive with the plant model (DC SYNC0 at 1 ms, every drive reaches Op) and runs
+//! 1000 cycles without a lost frame or a wrong working counter; with no master the process uses little CPU
+//! (its CPU time, not wall time, with a generous bound: the machine is shared);
+//! SIGTERM ends it promptly and cleanly.
+//!
+//! Needs root (network namespaces, raw sockets, and SCHED_FIFO for the frame thread
+//! and the master) and iproute2, as `tests/virtual_drive_veth.rs`: without root the
+//! tests fail and say how to run them; CI runs as root.
+#![deny(clippy::undocumented_unsafe_blocks)]
+
+use std::time::Duration;
+
+use tests_host::vd_master::{soem_style, Running};
+
+fn require_root() {
+    assert!(
+        tests_host::netns::is_root(),
+        "the veth tests need root (network namespaces, raw sockets): run them as root, \
+         e.g. `sudo -E env PATH=$PATH cargo test -p tests-host --test virtual_drive_realtime` \
+         (CI runs as root)"
+    );
+}
+
+const PROGRAM: &str = env!("CARGO_BIN_EXE_virtual-drive");
+
+/// How long SIGTERM may take to end the process: its threads wait at most 20 ms at
+/// a time; the rest is allowance for a loaded machine.
+const SIGTERM_LIMIT: Duration = Duration::from_secs(2);
+
+fn stop(vd: Running, what: &str) {
+    let (status, took, lines) = vd.terminate(SIGTERM_LIMIT);
+    let status = status.unwrap_or_else(|| {
+        panic!("{what}: virtual-drive still running {took:?} after SIGTERM; said {lines:?}")
+    });
+    assert!(
+        status.success(),
+        "{what}: exit status {status}; said {lines:?}"
+    );
+    eprintln!("{what}: SIGTERM → exit in {took:?}; {}", lines.join(" / "));
+}
+
+fn strict_master_run(tag: &str, drives: u16) {
+    require_root();
+    let vd = Running::start(PROGRAM, tag, usize::from(drives), &[]).expect("virtual-drive");
+    let rep = soem_style(
+        &vd.net.host_if,
+        drives,
+        Duration::from_millis(2),
+        1000,
+        None,
+    )
+    .unwrap_or_else(|e| panic!("{drives} drive(s), 2 ms timeout, no resend: {e}"));
+    eprintln!(
+        "{drives} drive(s): set-up {:?}, LRWs {:?}, lost in Op {}, round trip p99 {:.0} µs, \
+         max {:.0} µs",
+        rep.setup_frames,
+        rep.lrw,
+        rep.lost_in_op,
+        rep.rtt_percentile(99.0),
+        rep.rtt_max()
+    );
+    stop(vd, &format!("{drives} drive(s) after the cycles"));
+    assert_eq!(rep.setup_frames.1, 0, "frames lost in the set-up");
+    assert!(rep.lrw.0 >= 990, "LRWs sent in 1000 ms: {}", rep.lrw.0);
+    assert_eq!(
+        rep.lrw.1,
+        rep.lrw.0,
+        "LRWs with working counter {}",
+        3 * drives
+    );
+    assert_eq!(rep.lost_in_op, 0, "frames lost in Op");
+    // Whether every drive kept DC Op depends on the drives' thread keeping its SYNC0
+    // cycles within 2 ms (0x002C / 0x001A otherwise): measured, not asserted here
+    // (a debug build on a shared machine); see BENCHMARKS.md. The frames are the
+    // hardware's part and are asserted above.
+    eprintln!(
+        "{drives} drive(s): AL status after the cycles {:x?}",
+        rep.al_after
+    );
+}
+
+#[test]
+fn strict_master_sets_up_one_drive_and_runs_1000_cycles_without_a_lost_frame() {
+    strict_master_run("rt1", 1);
+}
+
+#[test]
+fn idle_virtual_drive_sleeps_and_ends_on_sigterm() {
+    require_root();
+    let vd = Running::start(PROGRAM, "rti", 1, &[]).expect("virtual-drive");
+    std::thread::sleep(Duration::from_millis(500));
+    let c0 = vd.cpu_s().expect("CPU time");
+    let t0 = std::time::Instant::now();
+    std::thread::sleep(Duration::from_secs(3));
+    let cpu = vd.cpu_s().expect("CPU time") - c0;
+    let wall = t0.elapsed().as_secs_f64();
+    eprintln!("idle: {cpu:.3} s CPU in {wall:.3} s");
+    // The drive's 1 ms tick and the axis model at rest: a few % of a core (see
+    // BENCHMARKS.md, "Virtual drive in real time"); busy-waiting would be ~100 %.
+    assert!(
+        cpu < 0.3 * wall,
+        "idle virtual-drive used {cpu:.3} s of CPU in {wall:.3} s"
+    );
+    stop(vd, "idle");
+}
