@@ -456,7 +456,8 @@ fn motor_rows(motor: MotorParams) -> Vec<Figure> {
         dead_time_v: 0.5,
         ..Conditions::IDEAL
     };
-    let base = 1e3 * iq_ripple(motor, &ideal, Tuned, 5.0);
+    // The base: the loop on the true motor constants without dead time.
+    let base = 1e3 * iq_ripple(motor, &ideal, Off, 5.0);
     let r = 1e3 * iq_ripple(motor, &c, Tuned, 5.0) - base;
     let before = 1e3 * iq_ripple(motor, &c, Off, 5.0) - base;
     rows.push(figure(
