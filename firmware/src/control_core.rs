@@ -758,8 +758,9 @@ mod tests {
                 *i = v / r + (*i - v / r) * e;
             }
             self.pending = match (hw.on, hw.duties) {
-                (true, Some(d)) => Modulator::new(STAGE.pwm_arr)
-                    .voltages(&d, STAGE.analog.volts(REST.vbus)),
+                (true, Some(d)) => {
+                    Modulator::new(STAGE.pwm_arr).voltages(&d, STAGE.analog.volts(REST.vbus))
+                }
                 _ => (0.0, 0.0),
             };
         }
@@ -795,7 +796,10 @@ mod tests {
                 fb = Some(f);
             }
             bench.advance(&hw);
-            if fb.as_ref().is_some_and(|f| f.current.tune == TuneStatus::Done) {
+            if fb
+                .as_ref()
+                .is_some_and(|f| f.current.tune == TuneStatus::Done)
+            {
                 break;
             }
         }
@@ -827,7 +831,10 @@ mod tests {
         // And the channels' gains are the ones 0x2022:01 gives.
         let g = c.cl.channel_gains();
         assert_eq!(g, cal.channel_gains());
-        assert!((g[1] / g[0] * 1e4 - f32::from(cal.gain_b_e4)).abs() < 1.0, "{g:?}");
+        assert!(
+            (g[1] / g[0] * 1e4 - f32::from(cal.gain_b_e4)).abs() < 1.0,
+            "{g:?}"
+        );
     }
 
     #[test]

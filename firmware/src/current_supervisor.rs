@@ -249,7 +249,8 @@ impl Calibration {
     /// (A per count; 0 without a scale).
     pub fn offset_trim(&self, amps_per_count: f32) -> [f32; 2] {
         if amps_per_count > 0.0 {
-            self.offset_ma.map(|ma| f32::from(ma) * 1e-3 / amps_per_count)
+            self.offset_ma
+                .map(|ma| f32::from(ma) * 1e-3 / amps_per_count)
         } else {
             [0.0; 2]
         }
@@ -736,10 +737,7 @@ fn apply_calibration(cl: &mut CurrentLoop, before: &Calibration, new: &Calibrati
         before.offset_trim(s.amps_per_count),
         new.offset_trim(s.amps_per_count),
     );
-    cl.set_offsets(
-        s.offset_a - old[0] + trim[0],
-        s.offset_b - old[1] + trim[1],
-    );
+    cl.set_offsets(s.offset_a - old[0] + trim[0], s.offset_b - old[1] + trim[1]);
     let [a, b] = new.channel_gains();
     cl.set_channel_gains(a, b);
     if vbus > 1.0 {

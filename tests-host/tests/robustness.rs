@@ -154,7 +154,12 @@ fn d_current_ripple_at_the_beat_makes_no_torque_ripple() {
     // d-axis voltage; the measured decoupling keeps the d current it drives out of the
     // q axis (`foc::current_loop`, "Decoupling"): i_q stays quiet, i_d carries it.
     for m in MOTORS {
-        let s = spin(m, &Conditions::IDEAL, Design::Robust(Calibration::Tuned), 10.013);
+        let s = spin(
+            m,
+            &Conditions::IDEAL,
+            Design::Robust(Calibration::Tuned),
+            10.013,
+        );
         assert!(
             s.iq_pp <= 0.010 && s.id_pp <= 0.1,
             "{}: i_d {} A, i_q {} A p-p",
@@ -169,7 +174,12 @@ fn d_current_ripple_at_the_beat_makes_no_torque_ripple() {
 fn all_conditions_combined() {
     for m in MOTORS {
         let o = step_overshoot(m, &Conditions::ALL, Calibration::Tuned);
-        let s = spin(m, &Conditions::ALL, Design::Robust(Calibration::Tuned), 5.07);
+        let s = spin(
+            m,
+            &Conditions::ALL,
+            Design::Robust(Calibration::Tuned),
+            5.07,
+        );
         let (l_err, _) = tuned_l_error(m, &Conditions::ALL);
         assert!(
             combined_met(o, s, l_err),

@@ -125,7 +125,6 @@ pub fn tuned_l_error(motor: MotorParams, c: &Conditions) -> (f64, f64) {
     ((r.l as f64 / truth - 1.0) * 100.0, r.delay as f64)
 }
 
-
 /// Whether a run applies the auto-tune's calibration (offsets, channel gain, dead
 /// time, L) before it measures, as the drive does after its power-up tune.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -422,11 +421,7 @@ fn motor_rows(motor: MotorParams) -> Vec<Figure> {
     rows.push(figure(
         format!("{name}: i_d / i_q ripple p-p on the encoder after the tune, 10.013 rev/s"),
         "— (i_d makes no torque: `foc::current_loop`, \"Decoupling\")",
-        format!(
-            "{:.0} mA / {:.1} mA",
-            1e3 * beat.id_pp,
-            1e3 * beat.iq_pp
-        ),
+        format!("{:.0} mA / {:.1} mA", 1e3 * beat.id_pp, 1e3 * beat.iq_pp),
         true,
     ));
     let sensors = spin(motor, &SENSORS, Robust(Tuned), 5.0);
