@@ -15,21 +15,12 @@ fn step_overshoot_within_5_percent_over_inductance_and_delay() {
     for m in MOTORS {
         for delay in DELAYS {
             for l in L_SCALES {
-                let c = Conditions {
-                    l_scale: l,
-                    delay,
-                    ..Conditions::IDEAL
-                };
-                let o = step_overshoot(m, &c, Calibration::Tuned);
+                let o = step_overshoot(m, &Conditions::delayed(delay, l), Calibration::Tuned);
                 assert!(o <= 5.0, "{}: L × {l}, delay {delay}: {o} %", m.name);
             }
         }
         // The baseline design overshoots there: the conditions are real.
-        let c = Conditions {
-            l_scale: 0.7,
-            ..Conditions::IDEAL
-        };
-        let before = step_overshoot_of(m, &c, Design::Baseline);
+        let before = step_overshoot_of(m, &Conditions::delayed(1.0, 0.7), Design::Baseline);
         assert!(before > 10.0, "{}: baseline at L × 0.7: {before} %", m.name);
     }
 }
@@ -41,12 +32,7 @@ fn tuned_inductance_does_not_depend_on_the_delay() {
     for m in MOTORS {
         for delay in L_DELAYS {
             for l in L_SCALES {
-                let c = Conditions {
-                    l_scale: l,
-                    delay,
-                    ..Conditions::IDEAL
-                };
-                let (e, d) = tuned_l_error(m, &c);
+                let (e, d) = tuned_l_error(m, &Conditions::delayed(delay, l));
                 assert!(e.abs() <= 2.0, "{}: L × {l}, delay {delay}: {e} %", m.name);
                 assert!(
                     (d - delay).abs() <= 0.1,

@@ -66,6 +66,16 @@ impl Conditions {
         dead_time_v: 0.5,
     };
 
+    /// The ideal plant with `delay` samples of delay and the true L `l_scale` × the
+    /// motor data.
+    pub const fn delayed(delay: f64, l_scale: f64) -> Conditions {
+        Conditions {
+            l_scale,
+            delay,
+            ..Conditions::IDEAL
+        }
+    }
+
     /// The plant configuration of `motor` under these conditions.
     pub fn plant(&self, motor: MotorParams) -> PlantConfig {
         let mut cfg = PlantConfig::new(motor);
@@ -337,21 +347,9 @@ fn motor_rows(motor: MotorParams) -> Vec<Figure> {
     for delay in DELAYS {
         let o: Vec<f64> = L_SCALES
             .iter()
-            .map(|&l| {
-                let c = Conditions {
-                    l_scale: l,
-                    delay,
-                    ..Conditions::IDEAL
-                };
-                step_overshoot(motor, &c, Tuned)
-            })
+            .map(|&l| step_overshoot(motor, &Conditions::delayed(delay, l), Tuned))
             .collect();
-        let c = Conditions {
-            l_scale: 0.7,
-            delay,
-            ..Conditions::IDEAL
-        };
-        let before = step_overshoot_of(motor, &c, Baseline);
+        let before = step_overshoot_of(motor, &Conditions::delayed(delay, 0.7), Baseline);
         let worst = o.iter().copied().fold(0.0, f64::max);
         rows.push(figure(
             format!(
@@ -368,12 +366,7 @@ fn motor_rows(motor: MotorParams) -> Vec<Figure> {
     let mut delays = Vec::new();
     for delay in L_DELAYS {
         for l in L_SCALES {
-            let c = Conditions {
-                l_scale: l,
-                delay,
-                ..Conditions::IDEAL
-            };
-            let (e, d) = tuned_l_error(motor, &c);
+            let (e, d) = tuned_l_error(motor, &Conditions::delayed(delay, l));
             worst_l = worst_l.max(e.abs());
             if l == 1.0 {
                 at_one.push(e);
