@@ -31,17 +31,18 @@
 //!    the loop's own interrupt is longer than the tune's, its delay can differ).
 //!
 //!    **Error of L** (the incremental inductance around the DC current, over the
-//!    swing `±h·s/2`, 0.27 A p-p on the ECN57-20 at 24 V):
+//!    swing `h·s` p-p, 1.1 A on the ECN57-20 at 48 V):
 //!    * the delay: none for `0 ≤ D ≤ p` (the samples are on the edge);
 //!    * the DC part `V_dc − R·i − V_dt`: it slopes the rising and falling edges
-//!      alike and cancels in the alternating sum to first order; what is left is the
-//!      `R·(i − I₂)` of the triangle, `≤ R·h·Ts/(2L)` relative (0.1 % here);
-//!    * the ADC: ±1 LSB on each `Δi` of `(h − p)·s` (400 mA here, 4.9 mA LSB), a
-//!      systematic ≤ 1.2 % only if the pattern never dithers; the sensor noise dithers it
-//!      and the mean over the `N` ≈ 100 half periods of 20 ms leaves ≈ 0.2 %;
+//!      alike and cancels in the alternating sum to first order; the `R·(i − I₂)` of
+//!      the triangle only bends the edges, of the order `(R·h·Ts/L)²` (< 0.2 % here);
+//!    * the ADC: ±1 LSB on each `Δi` of `(h − p)·s` (0.8 A here, 4.9 mA LSB), a
+//!      systematic ≤ 0.6 % only if the pattern never dithers; the sensor noise dithers
+//!      it and the mean over the `N` ≈ 100 half periods of 20 ms leaves ≈ 0.1 %;
 //!    * the channel gain: `L` is in the units of the (calibrated) channel, like R;
-//!    * L(i): the curvature over the swing, second order (< 0.5 % for a 30 % drop
-//!      to rated current).
+//!    * L(i): the mean over the swing instead of the value at I₂, second order in the
+//!      swing (−1.0 % on the plant's ECN57-20, whose L falls 30 % to rated current,
+//!      with L 30 % below the data and 1.5 samples of delay).
 //!
 //!    On the plant (`tests-host` `robustness`, the "Robustness" rows of
 //!    BENCHMARKS.md) the tuned L is within ±0.5 % of the true incremental inductance
