@@ -359,7 +359,11 @@ impl ControlCore {
                 }
             }
             if let Some((a, b)) = k.offsets {
+                // One owner of the offsets: the start-up calibration plus the tune's
+                // trim, the one 0x2022 reports (`crate::current_supervisor`).
                 let cfg = self.cl.config().sense;
+                let t = self.sup.offset_trim(cfg.amps_per_count);
+                let (a, b) = (a + t[0], b + t[1]);
                 if cfg.offset_a != a || cfg.offset_b != b {
                     self.cl.set_offsets(a, b);
                 }
@@ -721,6 +725,115 @@ mod tests {
         assert_eq!(
             fb.index_units,
             units_at_count(m.config(), m.position_units(), 40)
+        );
+    }
+
+    /// Two RL coils behind the bridges (no rotor), one period of delay, and current
+    /// sensors whose true zero is off the start-up offsets by `zero_error` counts.
+    struct CoilBench {
+        i: [f32; 2],
+        pending: (f32, f32),
+        zero_error: [f32; 2],
+    }
+
+    impl CoilBench {
+        fn sample(&self) -> RawSample {
+            let a = STAGE.analog;
+            let raw = |k: usize| {
+                (2048.0 + self.zero_error[k] + self.i[k] / a.amps_per_count).round() as u16
+            };
+            RawSample {
+                ia: raw(0),
+                ib: raw(1),
+                vbus: REST.vbus,
+            }
+        }
+
+        /// One period: the voltages computed in the previous one act now.
+        fn advance(&mut self, hw: &ModelHw) {
+            let (r, l, ts) = (0.5f32, 1.6e-3f32, 1.0 / STAGE.pwm_hz as f32);
+            let (va, vb) = self.pending;
+            let e = libm::expf(-r / l * ts);
+            for (i, v) in self.i.iter_mut().zip([va, vb]) {
+                *i = v / r + (*i - v / r) * e;
+            }
+            self.pending = match (hw.on, hw.duties) {
+                (true, Some(d)) => {
+                    Modulator::new(STAGE.pwm_arr).voltages(&d, STAGE.analog.volts(REST.vbus))
+                }
+                _ => (0.0, 0.0),
+            };
+        }
+    }
+
+    #[test]
+    fn the_loop_uses_the_offsets_0x2022_reports_after_the_tune() {
+        use crate::current_supervisor::TuneStatus;
+        let (mut c, cmd) = core(Variant::OpenLoop);
+        let cmd = ControlCommand {
+            tune_allowed: true,
+            command: DriveCommand {
+                drive_enabled: false,
+                ..cmd.command
+            },
+            ..cmd
+        };
+        assert!(cmd.supervisor.auto_tune, "0x2013 = 1 by default");
+        let mut hw = ModelHw {
+            command: Some(cmd),
+            ..ModelHw::default()
+        };
+        // The start-up calibration (bridges off) said 2048; with the bridges switching
+        // the zero reads 5 counts higher on A, 4 lower on B (30 / −24 mA).
+        let mut bench = CoilBench {
+            i: [0.0; 2],
+            pending: (0.0, 0.0),
+            zero_error: [5.0, -4.0],
+        };
+        let mut fb = None;
+        for _ in 0..40_000 * 2 {
+            if let Some(f) = c.period(&mut hw, bench.sample()) {
+                fb = Some(f);
+            }
+            bench.advance(&hw);
+            if fb
+                .as_ref()
+                .is_some_and(|f| f.current.tune == TuneStatus::Done)
+            {
+                break;
+            }
+        }
+        let fb = fb.expect("feedback");
+        assert_eq!(fb.current.tune, TuneStatus::Done);
+        let cal = fb.current.tuned.calibration;
+        assert!(
+            (cal.offset_ma[0] - 30).abs() <= 4 && (cal.offset_ma[1] + 24).abs() <= 4,
+            "{cal:?}"
+        );
+        // Many servo periods later, with the start-up offsets still in every command,
+        // the loop uses the start-up offsets plus exactly what 0x2022 reports.
+        for _ in 0..400 {
+            c.period(&mut hw, bench.sample());
+            bench.advance(&hw);
+        }
+        let apc = STAGE.analog.amps_per_count;
+        let s = c.cl.config().sense;
+        let want = [
+            2048.0 + f32::from(cal.offset_ma[0]) * 1e-3 / apc,
+            2048.0 + f32::from(cal.offset_ma[1]) * 1e-3 / apc,
+        ];
+        assert!(
+            (s.offset_a - want[0]).abs() < 1e-3 && (s.offset_b - want[1]).abs() < 1e-3,
+            "loop {} / {}, 0x2022 says {want:?}",
+            s.offset_a,
+            s.offset_b
+        );
+        // And the channels' gains are the ones 0x2022:01 gives.
+        let g = c.cl.channel_gains();
+        assert_eq!(g, cal.channel_gains());
+        assert!(
+            (g[1] / g[0] * 1e4 - f32::from(cal.gain_b_e4)).abs() < 1.0,
+            "{g:?}"
         );
     }
 

@@ -28,9 +28,16 @@
 //! V/(A·s)`, `L = 0x2021 µH`; the drive writes 0x2020/0x2021/0x2015/0x2016 from the
 //! [`CurrentReport`]. The tune's current-sensing calibration is applied at the same
 //! moment ([`Calibration`]): the channel offsets re-measured with the bridges
-//! switching, channel B's gain scaled to channel A's, and the dead-time
-//! compensation of the measured loss (`foc::current_loop`, "Dead-time
-//! compensation"); the drive reports it in 0x2022. A calibration outside its
+//! switching, both channels' gains referred to their mean (`foc::autotune`, "Channel
+//! gains": 0x2022:01 is B's gain over A's, A's own is `1/√(0x2022:01)`), and the
+//! dead-time compensation of the measured loss (`foc::current_loop`, "Dead-time
+//! compensation"); the drive reports it in 0x2022. The loop uses exactly the values
+//! 0x2022 reports (the integer ones). **Offsets:** the start-up calibration
+//! (bridges off, `crate::sampling`) and the tune's combine: the loop's offset of each
+//! channel is the start-up offset plus the tune's trim, 0x2022:02/03
+//! ([`Calibration::offset_trim`]); `ControlCore` keeps that sum whenever it
+//! re-applies the start-up offsets. A later tune measures against that sum and adds
+//! its result to the trim. A calibration outside its
 //! plausible band fails the tune with [`TuneError::Sensing`], the current-sensing
 //! fault 0x5210 (detail 2) with its emergency; the loop then keeps the power-up
 //! calibration.
@@ -238,6 +245,27 @@ pub struct Calibration {
 }
 
 impl Calibration {
+    /// The offsets the loop adds to the start-up offsets, counts of `amps_per_count`
+    /// (A per count; 0 without a scale).
+    pub fn offset_trim(&self, amps_per_count: f32) -> [f32; 2] {
+        if amps_per_count > 0.0 {
+            self.offset_ma
+                .map(|ma| f32::from(ma) * 1e-3 / amps_per_count)
+        } else {
+            [0.0; 2]
+        }
+    }
+
+    /// Each channel's gain (A, B) from channel B's relative gain: both referred to
+    /// their geometric mean (`foc::autotune`, "Channel gains"). `[1, 1]` before a tune.
+    pub fn channel_gains(&self) -> [f32; 2] {
+        if self.gain_b_e4 == 0 {
+            return [1.0; 2];
+        }
+        let g = foc::num::sqrtf(f32::from(self.gain_b_e4) * 1e-4);
+        [1.0 / g, g]
+    }
+
     /// The integer form of a tune's results.
     pub fn from_tune(r: &foc::autotune::TuneResult) -> Self {
         let round = |x: f32, lo: f32, hi: f32| {
@@ -428,6 +456,12 @@ impl CurrentSupervisor {
         }
     }
 
+    /// The offset trim of the tune's calibration (0x2022:02/03) in counts of
+    /// `amps_per_count`: what the loop adds to the start-up offsets (0 before a tune).
+    pub fn offset_trim(&self, amps_per_count: f32) -> [f32; 2] {
+        self.tuned.calibration.offset_trim(amps_per_count)
+    }
+
     /// The phase resistance the last finished tune measured, Ω (`None` before one).
     pub fn tuned_resistance(&self) -> Option<f32> {
         match self.status {
@@ -470,17 +504,24 @@ impl CurrentSupervisor {
         let d = cl.voltage_step(adc, va, vb);
         match t.state {
             TuneState::Done(r) => {
+                // The tune measured the offsets against the ones the loop uses: the
+                // start-up offsets plus the trim of an earlier tune (0 before one).
+                let before = self.tuned.calibration;
+                let mut calibration = Calibration::from_tune(&r);
+                for (o, b) in calibration.offset_ma.iter_mut().zip(before.offset_ma) {
+                    *o = o.saturating_add(b);
+                }
                 self.tuned = TunedValues {
                     r_mohm: r.resistance_mohm(),
                     l_uh: r.inductance_uh(),
                     kp: r.kp_param(),
                     ki: r.ki_param(),
-                    calibration: Calibration::from_tune(&r),
+                    calibration,
                 };
                 let ke = cl.config().ke;
                 cl.set_gains(kp_from_param(self.tuned.kp), ki_from_param(self.tuned.ki));
                 cl.set_motor(f32::from(self.tuned.l_uh) * 1e-6, ke);
-                apply_calibration(cl, &r, sense.vbus(adc));
+                apply_calibration(cl, &before, &calibration, sense.vbus(adc));
                 cl.reset();
                 self.finish(TuneStatus::Done);
             }
@@ -686,20 +727,22 @@ impl CurrentSupervisor {
     }
 }
 
-/// Applies a finished tune's current-sensing calibration to the loop: the offsets
-/// (A, added to the power-up ones in counts), channel B's relative gain, and the
-/// dead-time compensation as a fraction of the bus voltage `vbus` (V) at the tune.
-fn apply_calibration(cl: &mut CurrentLoop, r: &foc::autotune::TuneResult, vbus: f32) {
+/// Applies a finished tune's current-sensing calibration `new` (what 0x2022 reports)
+/// to the loop, which used `before` (the previous tune's, or none): the offsets
+/// (the start-up ones plus [`Calibration::offset_trim`]), both channels' gains, and
+/// the dead-time compensation as a fraction of the bus voltage `vbus` (V) at the tune.
+fn apply_calibration(cl: &mut CurrentLoop, before: &Calibration, new: &Calibration, vbus: f32) {
     let s = cl.config().sense;
-    if s.amps_per_count > 0.0 {
-        cl.set_offsets(
-            s.offset_a + r.offset[0] / s.amps_per_count,
-            s.offset_b + r.offset[1] / s.amps_per_count,
-        );
-    }
-    cl.set_gain_b(r.gain_b);
+    let (old, trim) = (
+        before.offset_trim(s.amps_per_count),
+        new.offset_trim(s.amps_per_count),
+    );
+    cl.set_offsets(s.offset_a - old[0] + trim[0], s.offset_b - old[1] + trim[1]);
+    let [a, b] = new.channel_gains();
+    cl.set_channel_gains(a, b);
     if vbus > 1.0 {
-        cl.set_dead_time(r.dead_time_v / vbus, foc::current_loop::DEAD_TIME_BAND);
+        let v_dt = f32::from(new.dead_time_mv) * 1e-3;
+        cl.set_dead_time(v_dt / vbus, foc::current_loop::DEAD_TIME_BAND);
     }
 }
 

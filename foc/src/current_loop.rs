@@ -4,7 +4,7 @@
 //! compare values out.
 //!
 //! ```text
-//! i_A, i_B = (raw − offset)·A_per_count      V_bus = raw·V_per_count
+//! i_X = (raw − offset_X)·A_per_count·g_X     V_bus = raw·V_per_count
 //! (i_d, i_q) = Park(i_A, i_B, θe)
 //! v_d = PI_d(i_d* − i_d) − ωe·L·i_q                  (decoupling feed-forward)
 //! v_q = PI_q(i_q* − i_q) + ωe·L·i_d + Ke·ωe/50       (+ back-EMF feed-forward)
@@ -75,6 +75,19 @@
 //! 1.5 samples later: a phase error of `1.5·ωe·Ts` (0.12 rad at 500 Hz electrical)
 //! in the cancelled term, i.e. 12 % of the coupling is left at 10 rev/s.
 //!
+//! **Where the angle error goes: i_d.** The back-EMF error `E·δ` is a d-axis
+//! voltage whatever the decoupling does; the decoupling only decides whether the
+//! d current it drives also reaches q. With the measured currents it does not, so
+//! near the speeds where the count pattern beats slowly against the sampling
+//! (10.013 rev/s, 1 count per sample) i_d carries it: 57 mA p-p on the ECN57-20 and
+//! 70 mA on the TC86-45 on the plant after the tune, against 5-7 mA of i_q
+//! (BENCHMARKS.md, "Robustness"). This is the intended place: i_d makes no torque
+//! (the torque is `Kt·i_q`; a hybrid stepper's d and q inductances are nearly equal,
+//! so i_d adds next to no reluctance torque), the copper loss of 60 mA p-p on a 0.5 A reference is
+//! 1 % of it, and the alternative, decoupling on the references, puts 26-31 mA of
+//! it back into i_q and the torque. Only a better angle would shrink it (a finer
+//! encoder: `δ` is half a count).
+//!
 //! On a **commanded** angle (open loop, alignment) the decoupling stays on the
 //! references ([`CurrentLoop::set_measured_decoupling`], off by default): there
 //! the rotor lags the frame by its load angle, the coupling of the current errors
@@ -94,7 +107,8 @@
 //!
 //! Cost on a Cortex-M4F: 319 executed instructions per step (QEMU instruction count,
 //! `current loop step` benchmark, unsaturated path; the voltage limit adds ~25 when
-//! active), of which about 29 are the channel-B gain and the dead-time compensation:
+//! active), of which about 29 are the dead-time compensation and the channel gains
+//! (each channel's gain is folded into its amperes per count, [`CurrentLoop::set_channel_gains`]):
 //! over the 300 of the budget, for the ripple they remove (BENCHMARKS.md). Everything is `f32` on the FPU; no library calls, one division (by V_bus).
 
 use crate::angle::Angle;
@@ -193,8 +207,10 @@ pub struct CurrentLoop {
     // Precomputed: Ke per electrical rad/s (Ke/50) and Ts·latency.
     ke_e: f32,
     advance: f32,
-    /// Relative gain of the phase-B channel against phase A (calibration, 1 = equal).
-    gain_b: f32,
+    /// Calibrated gain of each current channel (A, B; 1 = as the sensing says).
+    gain: [f32; 2],
+    /// Amperes per count of each channel with its gain (precomputed for the step).
+    amps: [f32; 2],
     /// Dead-time loss as a fraction of the bus voltage.
     dead_time: f32,
     /// 1 / the current band of the dead-time compensation, 1/A.
@@ -228,7 +244,8 @@ impl CurrentLoop {
             cfg,
             ke_e: cfg.ke * (1.0 / crate::angle::POLE_PAIRS as f32),
             advance: cfg.ts * cfg.latency,
-            gain_b: 1.0,
+            gain: [1.0; 2],
+            amps: [cfg.sense.amps_per_count; 2],
             dead_time: 0.0,
             dead_time_slope: 1.0 / DEAD_TIME_BAND,
             measured_decoupling: false,
@@ -271,12 +288,28 @@ impl CurrentLoop {
         self.cfg.sense.offset_b = offset_b;
     }
 
-    /// Phase-B channel gain relative to phase A (the calibration's `1/ratio`); values
-    /// outside 0.5..2 or not finite are ignored.
+    /// Phase-B channel gain relative to phase A (the calibration's `1/ratio`), phase
+    /// A's gain kept; values outside 0.5..2 or not finite are ignored.
     pub fn set_gain_b(&mut self, gain_b: f32) {
-        if gain_b.is_finite() && (0.5..=2.0).contains(&gain_b) {
-            self.gain_b = gain_b;
+        self.set_channel_gains(self.gain[0], self.gain[0] * gain_b);
+    }
+
+    /// The calibrated gain of each current channel (`foc::autotune`, "Channel
+    /// gains"): the channel's reading is multiplied by it. A pair with a value outside
+    /// 0.5..2 or not finite is ignored. [`Sense`] (and [`Self::voltage_step`]) stays
+    /// uncalibrated.
+    pub fn set_channel_gains(&mut self, a: f32, b: f32) {
+        let ok = |g: f32| g.is_finite() && (0.5..=2.0).contains(&g);
+        if ok(a) && ok(b) {
+            self.gain = [a, b];
+            let apc = self.cfg.sense.amps_per_count;
+            self.amps = [apc * a, apc * b];
         }
+    }
+
+    /// The calibrated channel gains (A, B).
+    pub fn channel_gains(&self) -> [f32; 2] {
+        self.gain
     }
 
     /// Dead-time compensation: the loss as a fraction of the bus voltage (0 = off;
@@ -311,10 +344,10 @@ impl CurrentLoop {
     #[inline]
     pub fn step(&mut self, adc: &AdcSample, theta_e: Angle, omega_e: f32) -> Duties {
         let cfg = &self.cfg;
-        let raw = cfg.sense.currents(adc);
+        // The sensing with each channel's calibrated gain.
         let i_ab = AlphaBeta {
-            alpha: raw.alpha,
-            beta: raw.beta * self.gain_b,
+            alpha: (adc.ia as f32 - cfg.sense.offset_a) * self.amps[0],
+            beta: (adc.ib as f32 - cfg.sense.offset_b) * self.amps[1],
         };
         let vbus = cfg.sense.vbus(adc);
         let (s, c) = (trig::sin(theta_e), trig::cos(theta_e));

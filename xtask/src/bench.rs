@@ -24,9 +24,10 @@ const GOALS: &[(&str, &str)] = &[
 const OVER_GOAL: &[(&str, &str)] = &[
     (
         "current loop step",
-        "the step includes the current-sensing calibration's channel-B gain and the \
-         dead-time compensation (two current-sign terms, linear through zero; \
-         `foc::current_loop`, \"Dead-time compensation\"), about 29 instructions, and the \
+        "the step includes the dead-time compensation (two current-sign terms, linear \
+         through zero; `foc::current_loop`, \"Dead-time compensation\") and the \
+         current-sensing calibration's channel gains (folded into each channel's amperes \
+         per count), about 28 instructions, and the \
          d/q decoupling on the measured currents on the encoder's angle (\"Decoupling\"), \
          about 6. They take the i_q ripple from 8-14 mA of dead time down to ≤ 2 mA, from \
          76-78 mA of sensor mismatch down to 4-7 mA, and near 10 rev/s, where the \

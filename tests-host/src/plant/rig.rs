@@ -159,7 +159,7 @@ impl Rig {
 
     /// Applies an auto-tune's results as the drive does after its power-up tune:
     /// current-loop gains of the robust design, L and Ke for the feed-forward, the
-    /// offsets and channel-B gain, and the dead-time compensation.
+    /// offsets and channel gains, and the dead-time compensation.
     pub fn apply_tune(&mut self, r: &foc::autotune::TuneResult) {
         let (kp, ki) = CurrentLoopConfig::gains_for(r.r, r.l, WC);
         self.cl.set_gains(kp, ki);
@@ -170,7 +170,7 @@ impl Rig {
             s.offset_a + r.offset[0] / s.amps_per_count,
             s.offset_b + r.offset[1] / s.amps_per_count,
         );
-        self.cl.set_gain_b(r.gain_b);
+        self.cl.set_channel_gains(r.gain[0], r.gain[1]);
         let vbus = self.plant.cfg.vbus as f32;
         self.cl
             .set_dead_time(r.dead_time_v / vbus, foc::current_loop::DEAD_TIME_BAND);

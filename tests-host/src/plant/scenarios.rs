@@ -396,6 +396,10 @@ pub fn autotune_on(cfg: PlantConfig) -> Tune {
     autotune_with(cfg, |_| {})
 }
 
+/// The auto-tune's test current in the plant runs, fraction of the rated current (the
+/// drive's `TEST_CURRENT_FRACTION` of its peak current 0x2000).
+pub const TUNE_CURRENT_FRACTION: f64 = 0.8;
+
 /// [`autotune_on`]; `prepare` adjusts the rig first (fault or non-ideality
 /// injection).
 pub fn autotune_with(cfg: PlantConfig, prepare: impl FnOnce(&mut Rig)) -> Tune {
@@ -405,7 +409,7 @@ pub fn autotune_with(cfg: PlantConfig, prepare: impl FnOnce(&mut Rig)) -> Tune {
     let mut tune = Autotune::new(AutotuneConfig::new(
         TS,
         cfg.pwm_period,
-        (0.8 * motor.i_rated) as f32,
+        (TUNE_CURRENT_FRACTION * motor.i_rated) as f32,
     ));
     let max = (2.5 / TS as f64) as u64;
     while !tune.finished() && rig.k < max {
