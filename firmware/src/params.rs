@@ -321,6 +321,10 @@ vendor_params! {
         _ = EntryDesc::new(6, "Direction reversed in effect", U8, Access::RO),
         _ = EntryDesc::new(7, "Command smoothing in effect", U32, Access::RO).unit("us"),
     }
+    0x2159 var "Brake release delay",
+        "Time the power stage must have been on before the brake output releases" {
+        BrakeReleaseDelay = rws(0, "Brake release delay", U16, 0, 0, 2000, "ms"),
+    }
     0x2160 var "Load inertia ratio",
         "Load inertia in % of the rotor inertia; the servo base gains use J·(1 + ratio)" {
         LoadInertiaRatio = rws(0, "Load inertia ratio", U16, 0, 0, 5000, "%"),

@@ -175,6 +175,11 @@ pub struct Runtime {
     last_command: Option<i32>,
     /// Last actual position in encoder counts (0x2041/0x2042).
     last_counts: Option<i64>,
+    /// The control path has reported its bridges on since this tick (ms), `None`:
+    /// off.
+    bridges_on_since: Option<u32>,
+    /// The bridges were on at the last measurement.
+    bridges_on: bool,
     /// The ESC has not answered since (µs), and whether that was reported.
     esc_failing_since: Option<u64>,
     esc_loss_reported: bool,
@@ -215,6 +220,8 @@ impl Runtime {
             last_counts: None,
             esc_failing_since: None,
             esc_loss_reported: false,
+            bridges_on_since: None,
+            bridges_on: false,
         }
     }
 
@@ -302,6 +309,7 @@ impl Runtime {
         ctl: &mut dyn ControlPath,
     ) {
         if let Some((seq, fb)) = ctl.feedback() {
+            self.bridges_on = fb.bridges_on;
             self.glue.update_axis(drive, seq, &fb, ctl.break_latched());
         }
     }
@@ -363,10 +371,21 @@ impl Runtime {
         let leds = drive.leds(now_ms);
         let (run, err) = self.status.levels(now_ms);
         let (outputs, brake) = drive.outputs();
+        // The brake releases only once the control path has reported its bridges on
+        // for the release delay 0x2159 (the motor holds the load before the brake
+        // lets go), never while the power stage is latched off.
+        let latched = ctl.break_latched();
+        let on_since = match (self.bridges_on && !latched, self.bridges_on_since) {
+            (true, Some(t)) => Some(t),
+            (true, None) => Some(now_ms),
+            (false, _) => None,
+        };
+        self.bridges_on_since = on_since;
+        let delay = drive.params.get(Param::BrakeReleaseDelay) as u32;
+        let held = on_since.is_some_and(|t| now_ms.wrapping_sub(t) >= delay);
         self.pins = Pins {
             outputs,
-            // Never released while the power stage is latched off.
-            brake_released: brake && !ctl.break_latched(),
+            brake_released: brake && held,
             green: leds.green,
             red: leds.red,
             run,

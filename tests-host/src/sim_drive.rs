@@ -207,6 +207,8 @@ struct PathState {
     tune_allowed: bool,
     /// The axis reports a tripped power stage (the board's break latch).
     tripped: bool,
+    /// The last command switches the model's bridges on.
+    powered: bool,
 }
 
 /// The axis as the runtime's [`ControlPath`] (what `hw::control::BoardPath` is on
@@ -235,6 +237,8 @@ impl ControlPath for SimPath<'_> {
                 index_units: st.index_units,
                 align_failures: self.axis.commutation_failures(),
                 current,
+                // The model's bridges follow the command at once.
+                bridges_on: st.powered && !st.tripped,
                 ..Feedback::default()
             },
         ))
@@ -244,6 +248,7 @@ impl ControlPath for SimPath<'_> {
     }
     fn send(&mut self, c: &ControlCommand) {
         self.st.tune_allowed = c.tune_allowed;
+        self.st.powered = c.permits_power() && c.command.power_stage;
         if c.cycle != self.st.seen_cycle {
             self.st.seen_cycle = c.cycle;
             self.axis.command(&c.command, f64::from(c.cycle_s));

@@ -26,6 +26,8 @@ struct FakePath {
     rearm_ok: bool,
     sent: Vec<ControlCommand>,
     rearms: u32,
+    /// The bridges do not switch on (a power stage that fails to start).
+    bridges_dead: bool,
 }
 
 impl ControlPath for FakePath {
@@ -35,7 +37,8 @@ impl ControlPath for FakePath {
             self.seq,
             Feedback {
                 axis: self.axis,
-                bridges_on: true,
+                bridges_on: !self.bridges_dead
+                    && self.sent.last().is_some_and(|c| c.permits_power()),
                 ..Feedback::default()
             },
         ))
@@ -381,4 +384,41 @@ fn an_esc_that_stops_answering_is_the_loss_of_the_master() {
     assert!(!d.command().drive_enabled);
     assert!(!rt.pins().brake_released);
     assert!(!rt.command().power_allowed);
+}
+
+#[test]
+fn brake_released_only_after_the_bridges_are_on_for_the_delay() {
+    let (mut d, mut rt, mut path) = started(SPEC, DipBanks::default(), |_| {});
+    // A power stage that does not start: enabled, but the brake holds.
+    path.bridges_dead = true;
+    enable(&mut d, &mut rt, &mut path);
+    assert!(d.command().drive_enabled);
+    for k in 0..50 {
+        let pins = rt.tick(&mut d, &mut path, (100 + k) * 1000, 0, 0, None);
+        assert!(
+            !pins.brake_released,
+            "bridges off: brake engaged (tick {k})"
+        );
+    }
+    // The bridges come on; 0x2159 = 30 ms: the brake releases 30 ms later.
+    sdo_write(&mut d, 0x2159, 0, &30u16.to_le_bytes()).unwrap();
+    path.bridges_dead = false;
+    let mut released_at = None;
+    for k in 0..100u64 {
+        let pins = rt.tick(&mut d, &mut path, (200 + k) * 1000, 0, 0, None);
+        if pins.brake_released && released_at.is_none() {
+            released_at = Some(k);
+        }
+    }
+    let k = released_at.expect("released");
+    assert!(
+        (30..=32).contains(&k),
+        "released {k} ms after the bridges came on"
+    );
+    // The bridges drop out: engaged at once.
+    path.bridges_dead = true;
+    assert!(
+        !rt.tick(&mut d, &mut path, 400_000, 0, 0, None)
+            .brake_released
+    );
 }
