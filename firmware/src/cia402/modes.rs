@@ -267,7 +267,17 @@ impl Cia402 {
         }
         let (mut demand, moving) = self.cyc.demand(velocity_offset);
         let mut vel = moving;
-        let d = demand.wrapping_sub(cur);
+        let mut d = demand.wrapping_sub(cur);
+        // The demand never moves faster than min(0x607F, 0x6080): a jump of the target
+        // is followed at that speed (statusword bit 11, internal limit), not at once.
+        let step = self.params.vmax() * dt;
+        if (d as f32).abs() > step {
+            let limited = if d > 0 { step } else { -step };
+            demand = cur.wrapping_add(limited as i32);
+            d = limited as i32;
+            vel = limited / dt;
+            self.internal_limit = true;
+        }
         if (pos_lim && d > 0) || (neg_lim && d < 0) {
             self.abnormal_stop = true;
             demand = cur;

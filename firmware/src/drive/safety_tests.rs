@@ -149,3 +149,43 @@ fn bootstrap_stops_first_and_never_reenables() {
         assert!(!d.cia402.state().voltage_enabled(), "0x6007 = {option}");
     }
 }
+
+#[test]
+fn a_csp_target_jump_is_followed_no_faster_than_0x6080() {
+    let mut d = powered_up(EsmState::PreOp);
+    d.on_state_change(EsmState::PreOp, EsmState::SafeOp);
+    d.on_state_change(EsmState::SafeOp, EsmState::Op);
+    sdo_write(&mut d, 0x6060, 0, &[8]).unwrap();
+    // 10 rev/s at 50 000 inc/rev.
+    sdo_write(&mut d, 0x6080, 0, &500_000u32.to_le_bytes()).unwrap();
+    enable(&mut d);
+    assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
+    let start = d.command().position;
+    // A jump of 100 revolutions in one set-point.
+    let target = start.wrapping_add(5_000_000);
+    sdo_write(&mut d, 0x607A, 0, &target.to_le_bytes()).unwrap();
+    let mut last = start;
+    let mut fastest = 0u32;
+    for _ in 0..12_000 {
+        let c = d.run_cycle(0.001);
+        fastest = fastest.max(c.position.wrapping_sub(last).unsigned_abs());
+        last = c.position;
+        assert!(
+            c.velocity.abs() <= 500_000.0 * 1.001,
+            "demand speed {}",
+            c.velocity
+        );
+        // An axis that follows its demand.
+        d.set_axis(AxisState {
+            bus_mv: 48_000,
+            position: c.position,
+            ..AxisState::default()
+        });
+    }
+    assert!(
+        fastest <= 500,
+        "fastest step {fastest} inc per 1 ms (limit 500)"
+    );
+    assert_eq!(last, target, "reached the target at the limited speed");
+    assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
+}
