@@ -282,9 +282,10 @@ impl BoardGlue {
     /// a following-error fault (0x8611) once per newly failed commutation alignment.
     pub fn raise_board_faults<S: ParameterStore>(&mut self, drive: &mut Drive<S>, now_ms: u32) {
         if self.offset_fault {
+            // Not maskable: the bridges stay blocked without a passed check.
             drive
                 .faults
-                .raise(FaultKind::PhaseSensing, Snapshot::default(), now_ms);
+                .raise_unmaskable(FaultKind::PhaseSensing, Snapshot::default(), now_ms);
         }
         if core::mem::take(&mut self.align_fault) {
             drive

@@ -849,7 +849,10 @@ impl<S: ParameterStore> Drive<S> {
                     bus_dv: r.trip_bus_dv,
                     ..self.snapshot()
                 };
-                self.faults.raise(kind, snap, self.now_ms);
+                // The trip has already latched the bridges off: reported whatever
+                // 0x2056 says (a masked detection would leave the drive enabled with
+                // no torque and nothing to see).
+                self.faults.raise_unmaskable(kind, snap, self.now_ms);
             }
         }
         if r.open_seq != self.seen_open_seq {

@@ -398,6 +398,25 @@ impl Faults {
         if !self.enabled(kind) {
             return false;
         }
+        self.raise_always(kind, code, detail, snap, now_ms)
+    }
+
+    /// [`Faults::raise`] whatever 0x2056 says: for detections whose cause has already
+    /// taken the torque away (a failed start-up current-sensor check, a latched trip of
+    /// the current loop's fast protection). Masking those would leave the drive
+    /// enabled with no torque and nothing reported.
+    pub fn raise_unmaskable(&mut self, kind: FaultKind, snap: Snapshot, now_ms: u32) -> bool {
+        self.raise_always(kind, kind.code(), [0, 0], snap, now_ms)
+    }
+
+    fn raise_always(
+        &mut self,
+        kind: FaultKind,
+        code: u16,
+        detail: [u8; 2],
+        snap: Snapshot,
+        now_ms: u32,
+    ) -> bool {
         let k = kind as usize;
         self.present[k] = true;
         if self.active & (1 << k) != 0 {
