@@ -67,11 +67,15 @@
 //!   fault of the motor side (following error 0x8611), which ends it in Fault; any
 //!   other command (shutdown, disable voltage, quick stop) ends it at once. Open loop
 //!   and drives without encoder never report it (no wait).
-//! * CST (0x6060 = 10) needs the closed loop (an encoder and 0x2024 = 2,
-//!   [`Cia402::set_torque_control`]): 0x6502 shows bit 9 only then, and 0x6060 = 10
-//!   is refused otherwise like any unsupported mode (SDO abort 0x06090030; an RxPDO
-//!   value is not taken over). Losing the closed loop while 0x6060 = 10 sets 0x6060
-//!   to 0 (no mode): the axis stops on the 0x6085 ramp in position control and holds.
+//! * CST (0x6060 = 10) and PT (0x6060 = 4) need the closed loop (an encoder and
+//!   0x2024 = 2, [`Cia402::set_torque_control`]): 0x6502 shows bits 3 and 9 only then,
+//!   and 0x6060 = 4 / 10 is refused otherwise like any unsupported mode (SDO abort
+//!   0x06090030; an RxPDO value is not taken over). Losing the closed loop while in a
+//!   torque mode sets 0x6060 to 0 (no mode): the axis stops on the 0x6085 ramp in
+//!   position control and holds.
+//! * PT runs the CST demand below (0x6071 set by SDO or PDO, the ramp 0x6087, the
+//!   profile type 0x6088 = 0 linear); statusword bit 10 (target reached) is set when
+//!   the demand has reached the limited target, or, halted, once the axis is at rest.
 //! * CST demand: 0x6071 + 0x60B2, limited to ±0x6072, approached at 0x6087 per mille
 //!   per second (0 = no slope limit: the demand steps). On entering CST while enabled,
 //!   and at transitions 4 and 16, the demand starts from the torque the servo loops
@@ -115,6 +119,8 @@ pub mod mode {
     pub const PP: i8 = 1;
     /// Profile velocity.
     pub const PV: i8 = 3;
+    /// Profile torque (closed loop only).
+    pub const PT: i8 = 4;
     /// Homing.
     pub const HM: i8 = 6;
     /// Cyclic synchronous position.
@@ -125,11 +131,16 @@ pub mod mode {
     pub const CST: i8 = 10;
 }
 
-/// 0x6502 in closed loop: PP (bit 0), PV (bit 2), HM (bit 5), CSP (bit 7), CSV (bit 8),
-/// CST (bit 9).
-pub const SUPPORTED_MODES: u32 = SUPPORTED_MODES_OPEN_LOOP | (1 << 9);
+/// 0x6502 in closed loop: PP (bit 0), PV (bit 2), PT (bit 3), HM (bit 5), CSP (bit 7),
+/// CSV (bit 8), CST (bit 9).
+pub const SUPPORTED_MODES: u32 = SUPPORTED_MODES_OPEN_LOOP | (1 << 3) | (1 << 9);
 
-/// 0x6502 without torque control (open loop, no encoder): no CST.
+/// True for the torque modes, PT and CST (closed loop only).
+pub const fn is_torque_mode(m: i8) -> bool {
+    m == mode::PT || m == mode::CST
+}
+
+/// 0x6502 without torque control (open loop, no encoder): no PT, no CST.
 pub const SUPPORTED_MODES_OPEN_LOOP: u32 = (1 << 0) | (1 << 2) | (1 << 5) | (1 << 7) | (1 << 8);
 
 /// True if `m` may be written to 0x6060 with the modes `supported` (a 0x6502 value):
@@ -578,7 +589,7 @@ impl Cia402 {
     /// to 0 (see the module docs).
     pub fn set_torque_control(&mut self, available: bool) {
         self.torque_control = available;
-        if !available && self.mode_request == mode::CST {
+        if !available && is_torque_mode(self.mode_request) {
             self.mode_request = mode::NONE;
         }
     }
@@ -777,7 +788,7 @@ impl Cia402 {
     /// 0x6074 torque demand: in CST the demand after the slope and 0x6072, else the
     /// servo loops' demand (per mille, user sign).
     pub fn torque_demand(&self) -> i16 {
-        if self.mode == mode::CST && self.state == PdsState::OperationEnabled {
+        if is_torque_mode(self.mode) && self.state == PdsState::OperationEnabled {
             modes::round_i16(self.torque_demand)
         } else {
             self.servo_torque_user()

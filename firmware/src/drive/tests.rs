@@ -115,7 +115,7 @@ fn cst_follows_the_loop_mode_and_torques_come_from_the_axis() {
     // The hybrid servo in closed loop: CST; 0x2024 = 1 takes it away again and
     // leaves no mode.
     let mut d = Drive::new(Variant::HybridServo, 0);
-    assert_eq!(sdo_read_u32(&mut d, 0x6502, 0), 0x3A5);
+    assert_eq!(sdo_read_u32(&mut d, 0x6502, 0), 0x3AD);
     sdo_write(&mut d, 0x6060, 0, &[10]).unwrap();
     sdo_write(&mut d, 0x2024, 0, &[1]).unwrap();
     assert_eq!(sdo_read_u32(&mut d, 0x6502, 0), 0x1A5);
