@@ -102,6 +102,7 @@ pub mod pds;
 mod power;
 pub mod probe;
 pub mod profile;
+pub mod scaling;
 mod statusword;
 
 use homing::{Homing, HomingInputs, HomingParams, HomingStatus};
@@ -484,7 +485,8 @@ pub struct Cia402 {
     /// The servo tune runs its move ([`Cia402::set_servo_tune`]).
     servo_tune: bool,
     encoder_increments: u32,
-    units_per_rev: u32,
+    /// 0x6091-0x6093, the views of the command units per revolution (0x2001).
+    pub(crate) scaling: scaling::Scaling,
 }
 
 impl Default for Cia402 {
@@ -559,7 +561,7 @@ impl Cia402 {
             torque_control: true,
             servo_tune: false,
             encoder_increments: 4000,
-            units_per_rev: 50_000,
+            scaling: scaling::Scaling::new(50_000),
         }
     }
 
@@ -632,11 +634,24 @@ impl Cia402 {
     pub fn rated_torque_mnm(&self) -> u32 {
         (self.torque_constant * self.rated_current_ma as f32 + 0.5) as u32
     }
-    /// Encoder increments per motor revolution (0x608F:01) and command units per
-    /// revolution (0x2001, shown as feed in 0x6092:01).
-    pub fn set_resolution(&mut self, encoder_increments: u32, units_per_rev: u32) {
+    /// Encoder increments per motor revolution (0x608F:01, the position factor's
+    /// reference).
+    pub fn set_resolution(&mut self, encoder_increments: u32) {
         self.encoder_increments = encoder_increments;
-        self.units_per_rev = units_per_rev;
+    }
+    /// 0x2001 (command units per revolution, as written) changed: 0x6091-0x6093 show
+    /// it ([`scaling`]).
+    pub fn set_scaling_units(&mut self, units: u32) {
+        self.scaling.set_units(units);
+    }
+    /// The whole number of command units per revolution the last write of 0x6091-0x6093
+    /// gave, for 0x2001; [`Cia402::settle_scaling`] once 0x2001 took it.
+    pub fn scaling_candidate(&self) -> Option<u32> {
+        self.scaling.candidate()
+    }
+    /// 0x2001 took [`Cia402::scaling_candidate`].
+    pub fn settle_scaling(&mut self) {
+        self.scaling.settle();
     }
 
     // ----- ESM coupling -----

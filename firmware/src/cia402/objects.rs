@@ -393,6 +393,12 @@ pub fn tx_slot(index: u16, sub: u8) -> Option<u8> {
     slot_of(TX_SLOTS, index, sub)
 }
 
+/// A write of 0x6091-0x6093 (see [`super::scaling`]).
+fn scale(d: &mut Cia402, index: u16, sub: u8, v: u32) {
+    let increments = d.encoder_increments;
+    d.scaling.set(index, sub, v, increments);
+}
+
 /// The little-endian value of the first (up to 4) bytes of `data`, zero-extended.
 fn u32_from_le_prefix(data: &[u8]) -> u32 {
     let mut b = [0u8; 4];
@@ -666,17 +672,23 @@ cia402_objects! {
         { 1 "Encoder increments": u32 RO NO [.default(4000)] field(encoder_increments) }
         { 2 "Motor revolutions": u32 RO NO [.default(1)] constant(1) }
     }
-    array 0x6091 "Gear ratio", "Fixed 1:1 (scaling is set by 0x2001).",
+    array 0x6091 "Gear ratio", "Motor revolutions per shaft revolutions; with 0x6092 it sets 0x2001 = feed · shaft revolutions (0x6091:02) / (0x6092:02 · motor revolutions) once that is a whole number 0x2001 takes (effective after restart).",
     {
         { count(2) range(2, 2) }
-        { 1 "Motor revolutions": u32 RO NO [.default(1)] constant(1) }
-        { 2 "Shaft revolutions": u32 RO NO [.default(1)] constant(1) }
+        { 1 "Motor revolutions": u32 RW NO range(1, u32::MAX) [.default(1).saved()] get(|d| d.scaling.gear[0]) set(|d, v| scale(d, 0x6091, 1, v)) }
+        { 2 "Shaft revolutions": u32 RW NO range(1, u32::MAX) [.default(1).saved()] get(|d| d.scaling.gear[1]) set(|d, v| scale(d, 0x6091, 2, v)) }
     }
-    array 0x6092 "Feed constant", "Command units per revolution (0x2001).",
+    array 0x6092 "Feed constant", "Command units per shaft revolutions (see 0x6091); a write of 0x2001 sets it to (0x2001, 1) and the gear ratio to 1:1.",
     {
         { count(2) range(2, 2) }
-        { 1 "Feed": u32 RO NO [.default(50_000).unit("inc")] field(units_per_rev) }
-        { 2 "Shaft revolutions": u32 RO NO [.default(1)] constant(1) }
+        { 1 "Feed": u32 RW NO range(1, u32::MAX) [.default(50_000).unit("inc").saved()] get(|d| d.scaling.feed[0]) set(|d, v| scale(d, 0x6092, 1, v)) }
+        { 2 "Shaft revolutions": u32 RW NO range(1, u32::MAX) [.default(1).saved()] get(|d| d.scaling.feed[1]) set(|d, v| scale(d, 0x6092, 2, v)) }
+    }
+    array 0x6093 "Position factor", "Encoder increments (0x608F:01) per command unit as numerator / divisor; derived from 0x2001, or as written: a write sets 0x2001 = 0x608F:01 · divisor / numerator once that is a whole number 0x2001 takes (gear 1:1, feed (0x2001, 1)).",
+    {
+        { count(2) range(2, 2) }
+        { 1 "Numerator": u32 RW NO range(1, u32::MAX) [] get(|d| d.scaling.factor(d.encoder_increments)[0]) set(|d, v| scale(d, 0x6093, 1, v)) }
+        { 2 "Divisor": u32 RW NO range(1, u32::MAX) [] get(|d| d.scaling.factor(d.encoder_increments)[1]) set(|d, v| scale(d, 0x6093, 2, v)) }
     }
     var 0x6098 "Homing method", "1-14, 17-30, 33, 34, 35, 37; manufacturer-specific stall homing (open loop, 0x2060 = 1): -1 positive, -2 negative direction at 0x6099:01 onto a hard stop, home = where the stall began (+ 0x607C).",
     {
