@@ -1,6 +1,6 @@
 //! Cyclic synchronous torque (CST): mode dispatch, slope, limit, offset, the speed
 //! limit in the command, the stops, availability (0x6502) and the SDO rules of the
-//! torque objects.
+//! torque objects; profile torque (PT); the enable without a mode.
 
 extern crate std;
 use super::*;
@@ -309,4 +309,20 @@ fn interpolation_sub_mode_and_the_mappable_option_objects() {
     assert_eq!(d.value(0x6066, 0), Some(250));
     d.set_rx(rx_slot_of(0x6068), &40u16.to_le_bytes());
     assert_eq!(d.value(0x6068, 0), Some(40));
+}
+
+/// Enabled with 0x6060 = 0: no fault, the axis holds where it is in position control
+/// (a moving axis stops on the quick-stop ramp first), no mode bits.
+#[test]
+fn enabled_without_a_mode_holds_position() {
+    let mut d = enabled(mode::NONE);
+    let c = d.cycle(&fb_at(0, 0), DT);
+    assert_eq!(d.state(), PdsState::OperationEnabled);
+    assert_eq!((c.kind, c.velocity), (SetpointKind::Position, 0.0));
+    assert!(c.drive_enabled);
+    assert_eq!(
+        d.statusword() & (sw::TARGET_REACHED | sw::BIT12 | sw::BIT13),
+        0
+    );
+    assert_eq!(d.value(0x603F, 0), Some(0));
 }

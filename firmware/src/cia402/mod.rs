@@ -73,6 +73,13 @@
 //!   0x06090030; an RxPDO value is not taken over). Losing the closed loop while in a
 //!   torque mode sets 0x6060 to 0 (no mode): the axis stops on the 0x6085 ramp in
 //!   position control and holds.
+//! * Operation enabled with 0x6060 = 0 (no mode) is accepted: the axis holds its
+//!   position in position control (a stop on the 0x6085 ramp first if it was moving)
+//!   until a mode is chosen, and statusword bits 10, 12 and 13 stay clear. This is
+//!   deliberate, where some drives raise an alarm: CiA 402 leaves the behaviour
+//!   without a mode to the manufacturer, and masters that enable before they write
+//!   0x6060, or pass through 0 while switching modes, keep working; the axis is
+//!   never left without a set-point.
 //! * PT runs the CST demand below (0x6071 set by SDO or PDO, the ramp 0x6087, the
 //!   profile type 0x6088 = 0 linear); statusword bit 10 (target reached) is set when
 //!   the demand has reached the limited target, or, halted, once the axis is at rest.
