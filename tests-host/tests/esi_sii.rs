@@ -220,6 +220,13 @@ fn runtime() -> Runtime {
     Runtime(PdoConfig::new(PDO_DEFAULTS))
 }
 
+/// The maps an assignment object (0x1C12 / 0x1C13) lists, read through the runtime.
+fn assignment(rt: &mut Runtime, index: u16) -> Vec<u16> {
+    (1..=read_u32(rt, index, 0) as u8)
+        .map(|s| read_u32(rt, index, s) as u16)
+        .collect()
+}
+
 // ---------------------------------------------------------------- expected values
 
 /// ETG.2000 base type names, independent of the writer's table.
@@ -686,9 +693,7 @@ fn esi_pdos_equal_the_default_maps_read_through_the_mapping_objects() {
                 ("RxPdo", 0x1600u16, 0x1C12u16, "2"),
                 ("TxPdo", 0x1A00, 0x1C13, "3"),
             ] {
-                let assigned: Vec<u16> = (1..=read_u32(&mut rt, assign, 0) as u8)
-                    .map(|s| read_u32(&mut rt, assign, s) as u16)
-                    .collect();
+                let assigned = assignment(&mut rt, assign);
                 let xs = children(dev, tag);
                 let mut listed = Vec::new();
                 let mut assigned_bits = 0;
@@ -1133,16 +1138,12 @@ fn esi_default_assignment_equals_the_dictionary_and_the_sii() {
                 for (tag, kind, assign, sm) in
                     [("RxPdo", 51u16, 0x1C12u16, 2u8), ("TxPdo", 50, 0x1C13, 3)]
                 {
-                    let dictionary: Vec<u16> = (1..=read_u32(&mut rt, assign, 0) as u8)
-                        .map(|s| read_u32(&mut rt, assign, s) as u16)
-                        .collect();
+                    let dictionary = assignment(&mut rt, assign);
                     let xs = children(dev, tag);
                     let in_esi: Vec<u16> = xs
                         .iter()
                         .filter(|x| x.attribute("Sm").is_some())
-                        .inspect(|x| {
-                            assert_eq!(x.attribute("Sm"), Some(sm.to_string().as_str()))
-                        })
+                        .inspect(|x| assert_eq!(x.attribute("Sm"), Some(sm.to_string().as_str())))
                         .map(|x| num(text(*x, "Index")) as u16)
                         .collect();
                     let in_sii: Vec<u16> = sii_pdos(&img, kind)
@@ -1271,9 +1272,7 @@ fn sii_pdo_categories_match_the_esi_pdos() {
             for (tag, kind, assign, sm) in
                 [("TxPdo", 50u16, 0x1C13u16, 3u8), ("RxPdo", 51, 0x1C12, 2)]
             {
-                let assigned: Vec<u16> = (1..=read_u32(&mut rt, assign, 0) as u8)
-                    .map(|s| read_u32(&mut rt, assign, s) as u16)
-                    .collect();
+                let assigned = assignment(&mut rt, assign);
                 let xs = children(dev, tag);
                 let pdos = sii_pdos(&img, kind);
                 assert_eq!(pdos.len(), xs.len(), "{what}: {tag} count");

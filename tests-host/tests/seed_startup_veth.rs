@@ -21,8 +21,8 @@
 
 use std::time::Duration;
 
-use ethercrab::std::{ethercat_now, tx_rx_task};
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
+use ethercrab::std::ethercat_now;
+use ethercrab::{MainDevice, PduStorage};
 use tests_host::netns::{self, Killed, Netns};
 
 type Storage = PduStorage<16, { PduStorage::element_size(1100) }>;
@@ -169,27 +169,9 @@ fn start(tag: &str) -> (Netns, Killed) {
     (net, child)
 }
 
+/// The master of [`tests_host::netns::veth_master`].
 fn master(storage: &'static Storage, host_if: &str) -> MainDevice<'static> {
-    let (pdu_tx, pdu_rx, pdu_loop) = storage.try_split().expect("split once");
-    let task = tx_rx_task(host_if, pdu_tx, pdu_rx).expect("raw socket on the host end");
-    std::thread::spawn(move || {
-        let _ = async_io::block_on(task);
-    });
-    MainDevice::new(
-        pdu_loop,
-        Timeouts {
-            wait_loop_delay: Duration::from_millis(2),
-            mailbox_response: Duration::from_millis(2000),
-            // Shared machine, several veth tests at once (see virtual_drive_veth.rs).
-            pdu: Duration::from_millis(300),
-            eeprom: Duration::from_millis(100),
-            ..Timeouts::default()
-        },
-        MainDeviceConfig {
-            dc_static_sync_iterations: 100,
-            ..MainDeviceConfig::default()
-        },
-    )
+    tests_host::netns::veth_master(storage, host_if)
 }
 
 /// What a row saw: Op cycles' working counters, the statusword and 0x6061 of the last

@@ -44,7 +44,9 @@
 //!   sets bit 13 and raises fault 0x8611; 0x6065 = 0xFFFFFFFF switches it off.
 //! * The master's commands stop (SM watchdog, Op left, SYNC0 lost): 0x6007
 //!   ([`AbortConnection`], [`Cia402::on_connection_lost`]); with 1, the default,
-//!   fault 0x8100 and the reaction 0x605E.
+//!   a fault whose 0x603F is the loss's own code, the one its emergency carries
+//!   (0x8700 process-data watchdog, 0xA000 / 0xA001 Op left to Init / Safe-Op or
+//!   Pre-Op, ...), and the reaction 0x605E.
 //! * Fault reaction: the ramp starts at the demand position with the lower of the
 //!   demand and the actual speed (a jump of the target or a dragged shaft is not
 //!   ramped down from an absurd demand speed).
@@ -164,7 +166,8 @@ pub const fn mode_supported(m: i8, supported: u32) -> bool {
 pub enum AbortConnection {
     /// 0: no action; the drive keeps its state and its last set-points.
     NoAction = 0,
-    /// 1 (default): fault 0x8100, the fault reaction 0x605E, then Fault.
+    /// 1 (default): fault with the code of the loss (0x603F = the emergency's code:
+    /// 0x8700, 0xA000, 0xA001, ...), the fault reaction 0x605E, then Fault.
     Fault = 1,
     /// 2: disable voltage (power off at once, brake engaged).
     DisableVoltage = 2,
@@ -187,8 +190,6 @@ impl AbortConnection {
 
 /// Error code (0x603F) of a following error.
 pub const ERR_FOLLOWING: u16 = 0x8611;
-/// Error code used when the ESM leaves Op while the drive function is enabled.
-pub const ERR_COMMUNICATION: u16 = 0x8100;
 
 /// Statusword bits.
 pub mod sw {
@@ -669,7 +670,8 @@ impl Cia402 {
     /// replaced by the command the reaction needs (no master commands arrive any more;
     /// a master that comes back must enable again):
     /// * 1 fault: Operation enabled / Quick stop active → Fault reaction active
-    ///   (0x603F = [`ERR_COMMUNICATION`], reaction 0x605E, then Fault);
+    ///   (0x603F = `code`, the code of the loss the emergency carries, reaction
+    ///   0x605E, then Fault);
     /// * 2 disable voltage: → Switch on disabled at once (power off, brake engaged);
     /// * 3 quick stop: Operation enabled → Quick stop active (ramp 0x605A); the
     ///   controlword holds "quick stop", so the stop runs to its end;
@@ -677,7 +679,7 @@ impl Cia402 {
     ///
     /// The reaction then runs on the drive's own clock ([`Cia402::step`] from the
     /// supervision tick): no frame is needed to finish it.
-    pub fn on_connection_lost(&mut self) -> AbortConnection {
+    pub fn on_connection_lost(&mut self, code: u16) -> AbortConnection {
         let option = AbortConnection::from_code(self.params.abort_connection_option);
         let cmd = match option {
             AbortConnection::NoAction => return option,
@@ -688,7 +690,7 @@ impl Cia402 {
         self.prev_cw = cmd;
         match (self.state, option) {
             (PdsState::OperationEnabled | PdsState::QuickStopActive, AbortConnection::Fault) => {
-                self.fault_detected(ERR_COMMUNICATION)
+                self.fault_detected(code)
             }
             (PdsState::OperationEnabled, AbortConnection::QuickStop) => {
                 self.enter(PdsState::QuickStopActive)

@@ -44,7 +44,7 @@ fn gcd(mut a: u64, mut b: u64) -> u64 {
 
 /// `n / d` when it is a whole number that fits a `u32` (and `d` is not 0).
 fn whole(n: u64, d: u64) -> Option<u32> {
-    if d == 0 || n % d != 0 {
+    if d == 0 || !n.is_multiple_of(d) {
         return None;
     }
     u32::try_from(n / d).ok()

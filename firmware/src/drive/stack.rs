@@ -258,7 +258,7 @@ impl<S: ParameterStore> Drive<S> {
             before,
             PdsState::OperationEnabled | PdsState::QuickStopActive
         ) && !self.cia402.enable_waiting();
-        let option = self.cia402.on_connection_lost();
+        let option = self.cia402.on_connection_lost(code);
         // The master's cycles are over: the reaction starts at the next tick. A PDS
         // that lost its voltage here (0x6007 = 2) shows it at once (statusword, power
         // off, brake engaged): a step of no length.
