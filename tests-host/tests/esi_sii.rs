@@ -1105,7 +1105,7 @@ fn without_alternatives(xml: &str) -> String {
     let doc = Document::parse(xml).unwrap();
     let mut cut: Vec<_> = doc
         .descendants()
-        .filter(|n| (n.has_tag_name("RxPdo") || n.has_tag_name("TxPdo")))
+        .filter(|n| n.has_tag_name("RxPdo") || n.has_tag_name("TxPdo"))
         .filter(|n| n.attribute("Sm").is_none())
         .map(|n| n.range())
         .collect();

@@ -37,7 +37,6 @@ enum V {
     U16(u16),
     I16(i16),
     U32(u32),
-    I32(i32),
 }
 
 /// `(index, sub, value)`.
@@ -208,7 +207,6 @@ fn replay(tag: &str, storage: &'static Storage, list: &[Step], l: &Layout, mode:
                     V::U16(x) => sd.sdo_write(index, sub, x).await,
                     V::I16(x) => sd.sdo_write(index, sub, x).await,
                     V::U32(x) => sd.sdo_write(index, sub, x).await,
-                    V::I32(x) => sd.sdo_write(index, sub, x).await,
                 }
                 .map_err(at(&what))?;
             }
