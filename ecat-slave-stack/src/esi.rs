@@ -7,7 +7,9 @@
 //! `Dictionary`: `DataTypes` for every base type, string length, array and record
 //! used, and one `Object` per entry of the object table passed in — index, name,
 //! type, bit size, default data, access, PDO mapping), `Fmmu`, `Sm`, `RxPdo`/`TxPdo`
-//! (default mappings, entry names and types looked up in the object table), `Mailbox`
+//! (default mappings, entry names and types looked up in the object table; `Sm` only
+//! on the PDOs assigned by default, `Exclude` between PDOs that map a common object),
+//! `Mailbox`
 //! (CoE flags from the same [`CoeDetails`](crate::sii::CoeDetails) as the SII general
 //! category), `Dc` op modes and `Eeprom` (ByteSize and ConfigData = SII words 0-6).
 //!
@@ -87,7 +89,9 @@ impl PdoMap {
 /// The default PDOs of the stack's PDO defaults (`crate::pdo::PdoDefaults`): every
 /// non-empty or assigned mapping object 0x1600-0x1603 / 0x1A00-0x1A03, named after
 /// its object in `objects`, assigned to the device's outputs / inputs SyncManager when
-/// 0x1C12 / 0x1C13 list it. Mapping objects are configurable (not fixed).
+/// 0x1C12 / 0x1C13 list it. Mapping objects are configurable (not `Fixed`: the SDO
+/// server takes a new mapping in Pre-Op) and none is `Mandatory` (a master may assign
+/// an alternative instead of the default).
 pub fn pdo_maps(
     desc: &DeviceDescription,
     objects: &[Object],
@@ -471,16 +475,24 @@ fn write_objects<W: Write>(out: &mut W, objects: &[Object]) -> fmt::Result {
     out.write_str("</Objects>\n")
 }
 
-/// The SyncManager a PDO can go to: its default assignment, else the device's
-/// SyncManager of the PDO's direction (an RxPDO can only go to the outputs SM, a
-/// TxPDO only to the inputs SM). The ESI's `Sm` attribute.
-pub fn pdo_sync_manager(desc: &DeviceDescription, p: &PdoMap) -> Option<u8> {
-    let kind = if p.is_rx() {
-        SmType::Outputs
-    } else {
-        SmType::Inputs
+/// The PDOs of `pdos` that `p` excludes (ETG.2000 `Exclude`): the other PDOs of its
+/// direction that map one of its objects (same index and sub-index, padding aside).
+/// Assigned together they would carry one object twice in a frame — for an RxPDO,
+/// two values for one object in one cycle — so a configurator offers them as
+/// alternatives. Mapped entries are compared as written in the maps, in the order of
+/// `pdos`.
+pub fn excludes<'a>(pdos: &'a [PdoMap], p: &'a PdoMap) -> impl Iterator<Item = u16> + 'a {
+    let objects = |m: &'a PdoMap| {
+        m.entries
+            .iter()
+            .map(|v| PdoEntry::decode(*v))
+            .filter(|e| e.index != 0)
+            .map(|e| (e.index, e.sub))
     };
-    p.sm.or(desc.sync_manager(kind).map(|(n, _)| n))
+    pdos.iter()
+        .filter(move |q| q.index != p.index && q.is_rx() == p.is_rx())
+        .filter(move |q| objects(q).any(|o| objects(p).any(|x| x == o)))
+        .map(|q| q.index)
 }
 
 /// A mapped entry as the ESI and the SII PDO categories name it: the object's name
@@ -499,10 +511,14 @@ pub fn pdo_entry_name(objects: &[Object], e: PdoEntry) -> Option<(Name, &Entry)>
     Some((name, entry))
 }
 
+/// One `RxPdo` / `TxPdo`. `Sm` only on a PDO assigned by default (ETG.2000: the
+/// attribute is the default assignment; a configurator assigns every PDO that carries
+/// it), so the ESI assigns exactly what 0x1C12 / 0x1C13 and the SII assign; the
+/// alternatives carry none and name, with `Exclude`, the PDOs they cannot go with.
 fn write_pdo<W: Write>(
     out: &mut W,
-    desc: &DeviceDescription,
     objects: &[Object],
+    pdos: &[PdoMap],
     p: &PdoMap,
 ) -> fmt::Result {
     let tag = if p.is_rx() { "RxPdo" } else { "TxPdo" };
@@ -513,7 +529,7 @@ fn write_pdo<W: Write>(
     if p.mandatory {
         out.write_str(" Mandatory=\"1\"")?;
     }
-    if let Some(sm) = pdo_sync_manager(desc, p) {
+    if let Some(sm) = p.sm {
         write!(out, " Sm=\"{sm}\"")?;
     }
     writeln!(
@@ -522,6 +538,9 @@ fn write_pdo<W: Write>(
         p.index,
         Esc(p.name)
     )?;
+    for x in excludes(pdos, p) {
+        writeln!(out, "<Exclude>#x{x:04X}</Exclude>")?;
+    }
     for e in p.entries.iter().map(|v| PdoEntry::decode(*v)) {
         match pdo_entry_name(objects, e) {
             Some((name, entry)) => {
@@ -689,10 +708,10 @@ fn write_device<W: Write>(d: &EsiDevice<'_>, out: &mut W) -> fmt::Result {
     }
     write_sync_managers(out, desc)?;
     for p in pdos.iter().filter(|p| p.is_rx()) {
-        write_pdo(out, desc, objects, p)?;
+        write_pdo(out, objects, pdos, p)?;
     }
     for p in pdos.iter().filter(|p| p.is_tx()) {
-        write_pdo(out, desc, objects, p)?;
+        write_pdo(out, objects, pdos, p)?;
     }
     let c = desc.coe;
     writeln!(

@@ -765,8 +765,10 @@ qemu_runner::tests! {
         let mut out = Buf::<32768>::new();
         esi::write(&DESC, OBJECTS, &maps, &mut out).unwrap();
         let x = out.as_str();
-        // Not assigned by default, but an RxPDO can only go to SM2: Sm="2" all the same.
-        assert!(x.contains("<RxPdo Sm=\"2\"><Index>#x1602</Index><Name>RxPDO</Name>"));
+        // Not assigned by default: no Sm (ETG.2000: Sm is the default assignment), and
+        // it maps 0x6040 as 0x1600 does, so the two exclude each other.
+        assert!(x.contains("<RxPdo Sm=\"2\"><Index>#x1600</Index><Name>RxPDO 1</Name>\n<Exclude>#x1602</Exclude>"));
+        assert!(x.contains("<RxPdo><Index>#x1602</Index><Name>RxPDO</Name>\n<Exclude>#x1600</Exclude>"));
         assert!(x.contains("<TxPdo Sm=\"3\"><Index>#x1A00</Index>"));
     }
 

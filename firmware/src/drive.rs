@@ -290,14 +290,12 @@ impl<S: ParameterStore> Drive<S> {
     /// loading the stored record, and after parameter changes that take effect at once).
     pub fn apply_parameters(&mut self) {
         self.faults.configure_from(&self.params);
-        let active = self.params.active();
         let encoder_counts = if self.variant.has_encoder() {
             (self.params.get(Param::EncoderResolution) as u32).saturating_mul(4)
         } else {
             0
         };
-        self.cia402
-            .set_resolution(encoder_counts, active.pulses_per_rev);
+        self.cia402.set_resolution(encoder_counts);
         self.cia402.set_has_index(self.variant.has_encoder());
         self.cia402
             .set_rated_current_ma(u32::from(self.params.settings().peak_current_ma));

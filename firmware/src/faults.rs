@@ -7,10 +7,10 @@
 //! | fault | 603F | 1001 bits | red LED | latched | 0x2056 bit | reaction |
 //! |---|---|---|---|---|---|---|
 //! | over-current / phase short | 0x2310 | 0, 1 (current) | 1 | yes | 0 (always on, see below) | power off at once |
-//! | over-voltage (> 55 V) | 0x3210 | 0, 2 (voltage) | 2 | yes | 1 | power off at once |
+//! | over-voltage (> 0x2054, 55 V by default) | 0x3210 | 0, 2 (voltage) | 2 | yes | 1 | power off at once |
 //! | phase / current-sensing | 0x5210 | 0, 1 (current) | 9 | no | 3 | power off at once |
 //! | motor open / poor contact | 0x7120 | 0, 5 (profile) | 4 | no | 2 | power off at once |
-//! | under-voltage (< 12 V) | 0x3220 | 0, 2 (voltage) | 3 | no | 6 | 0x605E ramp |
+//! | under-voltage (< 0x2055, 12 V by default; 0 = off) | 0x3220 | 0, 2 (voltage) | 3 | no | 6 | 0x605E ramp |
 //! | position following error | 0x8611 | 0, 5 (profile) | 7 | no | 7 | 0x605E ramp |
 //! | EtherCAT (watchdog, sync, ESM, PDO length) | caller's code (0x8700, 0xA000, 0xA001, 0x8210, 0x8220) | 0, 4 (communication) | — (ERR LED) | no | — | 0x605E ramp (0x6007 = 1) |
 //! | motor blocked (open-loop stall, 0x2060-0x2062) | 0x7121 | 0, 5 (profile) | 5 | no | — (0x2060) | 0x605E ramp |
@@ -336,9 +336,12 @@ impl Faults {
         self.clear_allowed = clear_allowed;
     }
 
-    /// Applies 0x2056 / 0x2057 from the parameters.
+    /// Applies 0x2054-0x2057 from the parameters: the bus-voltage thresholds (0x2055
+    /// = 0: no under-voltage detection) and the mask and clear permission.
     pub fn configure_from(&mut self, p: &crate::params::Params) {
         use crate::params::Param;
+        self.cfg.over_voltage_mv = p.get(Param::OverVoltageThreshold).max(0) as u32 * 1000;
+        self.cfg.under_voltage_mv = p.get(Param::UnderVoltageThreshold).max(0) as u32 * 1000;
         self.configure(
             p.get(Param::FaultMask) as u16,
             p.get(Param::FaultClearAllowed) == 1,
@@ -495,7 +498,11 @@ impl Faults {
         } else {
             self.condition_gone(FaultKind::OverVoltage);
         }
-        if mv < self.cfg.under_voltage_mv {
+        if self.cfg.under_voltage_mv == 0 {
+            // Switched off by 0x2055 = 0.
+            self.uv_armed = false;
+            self.condition_gone(FaultKind::UnderVoltage);
+        } else if mv < self.cfg.under_voltage_mv {
             if self.uv_armed {
                 self.raise(FaultKind::UnderVoltage, snap, now_ms);
             }

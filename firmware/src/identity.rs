@@ -74,6 +74,14 @@ impl Variant {
             Self::OpenLoop => 1,
         }
     }
+    /// Highest peak current 0x2000 the variant accepts, mA (the hybrid servo's motor
+    /// side is rated 8.0 A peak, the open-loop stepper 8.4 A).
+    pub const fn max_peak_current_ma(self) -> u16 {
+        match self {
+            Self::HybridServo => 8000,
+            Self::OpenLoop => 8400,
+        }
+    }
     /// True when the variant has encoder feedback.
     pub const fn has_encoder(self) -> bool {
         matches!(self, Self::HybridServo)

@@ -104,7 +104,7 @@ macro_rules! param_slots {
 
 vendor_params! {
     0x2000 var "Peak current",
-        "Peak phase current while running" {
+        "Peak phase current while running (at most 8400 mA on ECS-OL, 8000 mA on ECS-HS)" {
         PeakCurrent = rws(0, "Peak current", U16, 3200, 1, 8400, "mA"),
     }
     0x2001 var "Pulses per revolution",
@@ -211,6 +211,14 @@ vendor_params! {
     0x2053 var "In-position output level",
         "1: an in-position output is active-high" {
         InPositionLevel = rws(0, "In-position output level", U8, 0, 0, 1, ""),
+    }
+    0x2054 var "Over-voltage threshold",
+        "Bus voltage above which the over-voltage fault 0x3210 is raised (the power stage's own trip stays at 55 V)" {
+        OverVoltageThreshold = rws(0, "Over-voltage threshold", U16, 55, 20, 55, "V"),
+    }
+    0x2055 var "Under-voltage threshold",
+        "Bus voltage below which the under-voltage fault 0x3220 is raised once the bus has been above it; 0 switches the detection off (as does 0x2056 bit 6)" {
+        UnderVoltageThreshold = rws(0, "Under-voltage threshold", U16, 12, 0, 20, "V"),
     }
     0x2056 var "Fault detection mask",
         "bit = 1 enables the detection (see faults module)" {
@@ -669,6 +677,9 @@ impl Params {
             (0x2024, 0) if v > i64::from(self.variant.max_loop_mode()) => {
                 return Err(SdoAbort::ValueTooHigh);
             }
+            (0x2000, 0) if v > i64::from(self.variant.max_peak_current_ma()) => {
+                return Err(SdoAbort::ValueTooHigh);
+            }
             _ => {}
         }
         let slot = slot_of(index, sub)
@@ -742,7 +753,14 @@ mod tests {
     fn every_parameter_default_and_range_edges() {
         for &(index, sub) in KEYS.iter() {
             let e = od::find_entry(PACKED, index, sub).unwrap();
-            let mut p = Params::new(Variant::HybridServo);
+            // The table's 0x2000 range is the widest of the variants' (the open-loop
+            // drive's 8.4 A; the hybrid servo's 8.0 A: `peak_current_limit_per_variant`).
+            let variant = if index == 0x2000 {
+                Variant::OpenLoop
+            } else {
+                Variant::HybridServo
+            };
+            let mut p = Params::new(variant);
             p.set_internal(Param::AutoTune, 0);
             let DefaultValue::Int(def) = e.default_value() else {
                 panic!("{index:x} no default")
@@ -793,6 +811,21 @@ mod tests {
     }
 
     #[test]
+    fn peak_current_limit_per_variant() {
+        for (v, max) in [(Variant::HybridServo, 8000u16), (Variant::OpenLoop, 8400)] {
+            let mut p = Params::new(v);
+            assert_eq!(
+                p.write(0x2000, 0, &(max + 1).to_le_bytes()),
+                Err(SdoAbort::ValueTooHigh),
+                "{v:?}"
+            );
+            assert_eq!(p.get(Param::PeakCurrent), 3200, "{v:?}: unchanged");
+            p.write(0x2000, 0, &max.to_le_bytes()).unwrap();
+            assert_eq!(p.get(Param::PeakCurrent), i32::from(max));
+        }
+    }
+
+    #[test]
     fn spec_table_values() {
         let p = Params::new(Variant::HybridServo);
         let expect: &[(u16, u8, i64, i64, i64)] = &[
@@ -815,6 +848,8 @@ mod tests {
             (0x2026, 0, 50, 0, 100),
             (0x2029, 0, 1000, 200, 60000),
             (0x2030, 0, 1000, 1, 60000),
+            (0x2054, 0, 55, 20, 55),
+            (0x2055, 0, 12, 0, 20),
             (0x2056, 0, 0xC3, 0, 0xFFFF),
             (0x2058, 0, 1, 0, 10000),
             (0x2060, 0, 0, 0, 1),

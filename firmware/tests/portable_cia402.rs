@@ -5,7 +5,7 @@
 use firmware::cia402::pds::{PdsState, TRANSITIONS};
 use firmware::cia402::{
     mode, sw, AbortConnection, Cia402, DriveCommand, DriveFeedback, EdgeLatch, SetpointArrival,
-    ERR_COMMUNICATION, ERR_FOLLOWING,
+    ERR_FOLLOWING,
 };
 
 const DT: f32 = 0.001;
@@ -415,20 +415,20 @@ qemu_runner::tests! {
 
     fn esm_coupling() {
         let (mut d, mut ax) = reach(PdsState::OperationEnabled);
-        assert_eq!(d.on_connection_lost(), AbortConnection::Fault);
+        assert_eq!(d.on_connection_lost(0x8700), AbortConnection::Fault);
         steps(&mut d, &mut ax, 5);
         assert_eq!(d.state(), PdsState::Fault);
-        assert_eq!(d.error_code(), ERR_COMMUNICATION);
+        assert_eq!(d.error_code(), 0x8700);
         // Init keeps the fault (0x603F tells what happened); a fault reset clears it.
         d.on_esm_init();
         assert_eq!(d.state(), PdsState::Fault);
-        assert_eq!(d.error_code(), ERR_COMMUNICATION);
+        assert_eq!(d.error_code(), 0x8700);
         cw(&mut d, &mut ax, 0x0080);
         assert_eq!(d.state(), PdsState::SwitchOnDisabled);
         step(&mut d, &mut ax);
         assert_eq!(d.statusword() & 0x4F, 0x40);
         let (mut d, mut ax) = reach(PdsState::SwitchedOn);
-        d.on_connection_lost();
+        d.on_connection_lost(0x8700);
         step(&mut d, &mut ax);
         assert_eq!(d.state(), PdsState::SwitchOnDisabled);
         // Init from Switched on: Switch on disabled, controlword cleared.
@@ -452,7 +452,7 @@ qemu_runner::tests! {
             d.params.profile_acceleration = 10_000_000;
             steps(&mut d, &mut ax, 100);
             assert_eq!(ax.vel, 100_000);
-            let got = d.on_connection_lost();
+            let got = d.on_connection_lost(0x8700);
             assert_eq!(got as i16, option);
             let mut stop_ms = None;
             for k in 0..2000 {
@@ -471,7 +471,7 @@ qemu_runner::tests! {
                 AbortConnection::Fault => {
                     // 0x605E = 2 (default): quick-stop ramp 0.1 s, then Fault.
                     assert_eq!(d.state(), PdsState::Fault);
-                    assert_eq!(d.error_code(), ERR_COMMUNICATION);
+                    assert_eq!(d.error_code(), 0x8700);
                     let t = stop_ms.expect("stopped");
                     assert!((100..=102).contains(&t), "ramp took {t} ms");
                 }
@@ -504,7 +504,7 @@ qemu_runner::tests! {
         d.params.quick_stop_option = 6;
         d.params.target_velocity = 50_000;
         steps(&mut d, &mut ax, 200);
-        d.on_connection_lost();
+        d.on_connection_lost(0x8700);
         steps(&mut d, &mut ax, 500);
         assert_eq!(d.state(), PdsState::QuickStopActive);
         let at = ax.pos;
@@ -522,7 +522,7 @@ qemu_runner::tests! {
         d.params.profile_acceleration = 10_000_000;
         d.params.quick_stop_deceleration = 1_000_000;
         steps(&mut d, &mut ax, 100);
-        d.on_connection_lost();
+        d.on_connection_lost(0x8700);
         d.on_esm_init();
         let c = step(&mut d, &mut ax);
         assert_eq!(d.state(), PdsState::FaultReactionActive);
@@ -613,7 +613,7 @@ qemu_runner::tests! {
         d.set_mode(2); // velocity mode (vl) is not supported: ignored
         step(&mut d, &mut ax);
         assert_eq!(d.mode_display(), mode::PV);
-        assert_eq!(d.value(0x6502, 0), Some(0x3A5));
+        assert_eq!(d.value(0x6502, 0), Some(0x3AD));
         d.set_torque_control(false);
         assert_eq!(d.value(0x6502, 0), Some(0x1A5));
     }
@@ -1361,7 +1361,7 @@ qemu_runner::tests! {
                     c
                 }
                 _ => {
-                    d.on_connection_lost();
+                    d.on_connection_lost(0x8700);
                     assert_eq!(d.state(), PdsState::SwitchOnDisabled);
                     assert_eq!(d.error_code(), 0);
                     step_cw(&mut d, &mut ax, 0x000F)

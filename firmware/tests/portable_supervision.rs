@@ -13,8 +13,8 @@ use ecat_slave_stack::esm::{EsmHooks, EsmState};
 use ecat_slave_stack::od::{Dictionary, SdoAbort};
 use ecat_slave_stack::slave::{CycleInfo, SlaveApplication};
 use ecat_slave_stack::sync::SyncMode;
+use firmware::cia402::mode;
 use firmware::cia402::pds::PdsState;
-use firmware::cia402::{mode, ERR_COMMUNICATION};
 use firmware::current_supervisor::{CurrentReport, Trip};
 use firmware::drive::{AxisState, Drive, ERR_COMMUNICATION_LOST};
 use firmware::faults::Emergency;
@@ -178,7 +178,7 @@ qemu_runner::tests! {
                     }
                     1 => {
                         assert_eq!(st, PdsState::Fault, "{case:?}");
-                        assert_eq!(r.d.cia402.error_code(), ERR_COMMUNICATION, "{case:?}");
+                        assert_eq!(r.d.cia402.error_code(), first, "{case:?}: 0x603F = the emergency");
                         assert_eq!(e.len(), 1, "{case:?}: {e:?}");
                         assert_eq!(e[0].code, first, "{case:?}");
                         assert_eq!(e[0].register & 0x11, 0x11, "{case:?}: generic + communication");

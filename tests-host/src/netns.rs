@@ -120,3 +120,33 @@ pub fn start_virtual_drive(
     }
     Ok((child, rx))
 }
+
+/// An ethercrab master on the host end `host_if` of a veth pair, its frame task on a
+/// thread of its own, with the timeouts of a shared machine: several veth tests run at
+/// once, virtual drives and masters side by side, and ethercrab's 30 ms PDU and 10 ms
+/// EEPROM timeouts were seen to expire during init.
+pub fn veth_master<const N: usize, const DATA: usize>(
+    storage: &'static ethercrab::PduStorage<N, DATA>,
+    host_if: &str,
+) -> ethercrab::MainDevice<'static> {
+    let (pdu_tx, pdu_rx, pdu_loop) = storage.try_split().expect("split once");
+    let task =
+        ethercrab::std::tx_rx_task(host_if, pdu_tx, pdu_rx).expect("raw socket on the host end");
+    std::thread::spawn(move || {
+        let _ = async_io::block_on(task);
+    });
+    ethercrab::MainDevice::new(
+        pdu_loop,
+        ethercrab::Timeouts {
+            wait_loop_delay: Duration::from_millis(2),
+            mailbox_response: Duration::from_millis(2000),
+            pdu: Duration::from_millis(300),
+            eeprom: Duration::from_millis(100),
+            ..ethercrab::Timeouts::default()
+        },
+        ethercrab::MainDeviceConfig {
+            dc_static_sync_iterations: 100,
+            ..ethercrab::MainDeviceConfig::default()
+        },
+    )
+}

@@ -495,7 +495,7 @@ fn random_garbage_never_panics_and_states_stay_consistent() {
             }
             3 if rng.below(100) == 0 => {
                 d.params.abort_connection_option = rng.below(4) as i16;
-                d.on_connection_lost();
+                d.on_connection_lost(0x8700);
             }
             4 if rng.below(100) == 0 => d.on_esm_init(),
             _ => {}

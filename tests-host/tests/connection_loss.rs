@@ -856,7 +856,7 @@ fn run_case(mode: Mode, option: i16, loss: Loss) -> Outcome {
     );
     let (sw_ok, want_err) = match option {
         0 => (sw_enabled(sw), 0),
-        1 => (sw_fault(sw), 0x8100),
+        1 => (sw_fault(sw), loss.emergency()),
         _ => (sw_disabled(sw), 0),
     };
     assert!(

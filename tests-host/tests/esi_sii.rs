@@ -220,6 +220,13 @@ fn runtime() -> Runtime {
     Runtime(PdoConfig::new(PDO_DEFAULTS))
 }
 
+/// The maps an assignment object (0x1C12 / 0x1C13) lists, read through the runtime.
+fn assignment(rt: &mut Runtime, index: u16) -> Vec<u16> {
+    (1..=read_u32(rt, index, 0) as u8)
+        .map(|s| read_u32(rt, index, s) as u16)
+        .collect()
+}
+
 // ---------------------------------------------------------------- expected values
 
 /// ETG.2000 base type names, independent of the writer's table.
@@ -686,9 +693,7 @@ fn esi_pdos_equal_the_default_maps_read_through_the_mapping_objects() {
                 ("RxPdo", 0x1600u16, 0x1C12u16, "2"),
                 ("TxPdo", 0x1A00, 0x1C13, "3"),
             ] {
-                let assigned: Vec<u16> = (1..=read_u32(&mut rt, assign, 0) as u8)
-                    .map(|s| read_u32(&mut rt, assign, s) as u16)
-                    .collect();
+                let assigned = assignment(&mut rt, assign);
                 let xs = children(dev, tag);
                 let mut listed = Vec::new();
                 let mut assigned_bits = 0;
@@ -707,9 +712,10 @@ fn esi_pdos_equal_the_default_maps_read_through_the_mapping_objects() {
                         continue;
                     };
                     listed.push(map);
-                    // Every PDO names the only SyncManager it can go to (strict
-                    // parsers require `Sm`); the default assignment is 0x1C12/0x1C13.
-                    assert_eq!(x.attribute("Sm"), Some(sm), "{what}: {map:#06x} Sm");
+                    // `Sm` is the default assignment (ETG.2000): on the PDOs
+                    // 0x1C12 / 0x1C13 list, on no other.
+                    let want_sm = is_assigned.then_some(sm);
+                    assert_eq!(x.attribute("Sm"), want_sm, "{what}: {map:#06x} Sm");
                     let es = children(*x, "Entry");
                     assert_eq!(es.len(), entries.len(), "{what}: {map:#06x} entries");
                     for (e, val) in es.iter().zip(&entries) {
@@ -1091,12 +1097,98 @@ fn coe_details_match_what_the_mailbox_server_implements() {
     assert_eq!(download(7, 0x1601, 0, &[6]), c.pdo_config);
 }
 
+/// The document without the PDOs that carry no `Sm` (the alternatives): the
+/// `ethercat-esi` crate models a PDO with a mandatory SyncManager, where ETG.2000
+/// makes `Sm` optional and means by it the default assignment. What is left is the
+/// default configuration, which the crate can represent.
+fn without_alternatives(xml: &str) -> String {
+    let doc = Document::parse(xml).unwrap();
+    let mut cut: Vec<_> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("RxPdo") || n.has_tag_name("TxPdo"))
+        .filter(|n| n.attribute("Sm").is_none())
+        .map(|n| n.range())
+        .collect();
+    assert!(!cut.is_empty(), "the ESI offers alternative PDOs");
+    cut.sort_by_key(|r| std::cmp::Reverse(r.start));
+    let mut out = xml.to_string();
+    for r in cut {
+        out.replace_range(r, "");
+    }
+    out
+}
+
+/// The ESI's default assignment (the PDOs with `Sm`, in document order) equals
+/// 0x1C12 / 0x1C13 read through the dictionary and the SII PDO categories' SM bytes,
+/// for both ESC flavours, both variants, generated and committed; the alternatives'
+/// `Exclude` lists are symmetric, name only PDOs of the document, and no two PDOs of
+/// the default assignment exclude each other.
+#[test]
+fn esi_default_assignment_equals_the_dictionary_and_the_sii() {
+    for (esc, _) in FLAVOURS {
+        let path = repo_path(&format!("docs/esi/{}", drive_docs::esi_file_name(esc)));
+        let committed = std::fs::read_to_string(&path).expect("committed ESI file");
+        for (which, xml) in [("committed", committed), ("generated", esi(esc))] {
+            let doc = Document::parse(&xml).unwrap();
+            for (v, _) in VARIANTS {
+                let what = format!("{esc:?} {which} {v:?}");
+                let dev = device_of(&doc, v);
+                let img = image(v, esc);
+                let mut rt = runtime();
+                for (tag, kind, assign, sm) in
+                    [("RxPdo", 51u16, 0x1C12u16, 2u8), ("TxPdo", 50, 0x1C13, 3)]
+                {
+                    let dictionary = assignment(&mut rt, assign);
+                    let xs = children(dev, tag);
+                    let in_esi: Vec<u16> = xs
+                        .iter()
+                        .filter(|x| x.attribute("Sm").is_some())
+                        .inspect(|x| assert_eq!(x.attribute("Sm"), Some(sm.to_string().as_str())))
+                        .map(|x| num(text(*x, "Index")) as u16)
+                        .collect();
+                    let in_sii: Vec<u16> = sii_pdos(&img, kind)
+                        .iter()
+                        .filter(|p| p.1 != 0xFF)
+                        .inspect(|p| assert_eq!(p.1, sm, "{what}: SII SM byte"))
+                        .map(|p| p.0)
+                        .collect();
+                    assert!(!dictionary.is_empty(), "{what}: {tag}");
+                    assert_eq!(in_esi, dictionary, "{what}: {tag} ESI vs {assign:#06x}");
+                    assert_eq!(in_sii, dictionary, "{what}: {tag} SII vs {assign:#06x}");
+                    assert!(xs.len() > dictionary.len() || tag == "TxPdo", "{what}");
+                    let index = |x: &Node| num(text(*x, "Index")) as u16;
+                    let excl = |x: &Node| -> Vec<u16> {
+                        children(*x, "Exclude")
+                            .iter()
+                            .map(|e| num(e.text().unwrap()) as u16)
+                            .collect()
+                    };
+                    for x in &xs {
+                        for e in excl(x) {
+                            let other = xs
+                                .iter()
+                                .find(|y| index(y) == e)
+                                .unwrap_or_else(|| panic!("{what}: excludes {e:#06x}"));
+                            assert!(excl(other).contains(&index(x)), "{what}: symmetric");
+                            assert!(
+                                !(dictionary.contains(&e) && dictionary.contains(&index(x))),
+                                "{what}: the default assignment excludes itself"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn the_ethercat_esi_crate_parses_both_esi_files() {
     for (esc, _) in FLAVOURS {
         let path = repo_path(&format!("docs/esi/{}", drive_docs::esi_file_name(esc)));
         let committed = std::fs::read_to_string(&path).expect("committed ESI file");
         for (what, xml) in [("committed", committed), ("generated", esi(esc))] {
+            let xml = without_alternatives(&xml);
             let info = ethercat_esi::EtherCatInfo::from_xml_str(&xml)
                 .unwrap_or_else(|e| panic!("{esc:?} {what}: ethercat-esi: {e}"));
             assert_eq!(info.vendor.id, identity::VENDOR_ID, "{esc:?} {what}");
@@ -1111,7 +1203,10 @@ fn the_ethercat_esi_crate_parses_both_esi_files() {
                 assert_eq!(d.sm.len(), 4, "{esc:?} {what} {v:?}: SMs");
                 let maps = drive_docs::pdo_maps(v, esc);
                 for (list, rx, sm) in [(&d.rx_pdo, true, 2u8), (&d.tx_pdo, false, 3)] {
-                    let want: Vec<_> = maps.iter().filter(|m| m.is_rx() == rx).collect();
+                    let want: Vec<_> = maps
+                        .iter()
+                        .filter(|m| m.is_rx() == rx && m.sm.is_some())
+                        .collect();
                     assert_eq!(list.len(), want.len(), "{esc:?} {what} {v:?}: PDOs");
                     for (p, m) in list.iter().zip(want) {
                         assert_eq!(u16::from(p.idx), m.index);
@@ -1177,9 +1272,7 @@ fn sii_pdo_categories_match_the_esi_pdos() {
             for (tag, kind, assign, sm) in
                 [("TxPdo", 50u16, 0x1C13u16, 3u8), ("RxPdo", 51, 0x1C12, 2)]
             {
-                let assigned: Vec<u16> = (1..=read_u32(&mut rt, assign, 0) as u8)
-                    .map(|s| read_u32(&mut rt, assign, s) as u16)
-                    .collect();
+                let assigned = assignment(&mut rt, assign);
                 let xs = children(dev, tag);
                 let pdos = sii_pdos(&img, kind);
                 assert_eq!(pdos.len(), xs.len(), "{what}: {tag} count");

@@ -301,3 +301,66 @@ fn the_stacks_own_object_tables_give_a_valid_document() {
         .count();
     assert_eq!(n, crate::pdo::OBJECTS.len());
 }
+
+/// Alternatives: a PDO not assigned by default carries no `Sm` (the ESI assigns what
+/// the defaults assign), and PDOs of one direction that map a common object exclude
+/// each other, both ways; a PDO sharing nothing (or only padding) excludes none.
+#[test]
+fn alternatives_carry_no_sm_and_exclude_what_they_share() {
+    static A: [u32; 2] = [crate::pdo::entry(0x6040, 0, 16), 0x0000_0010];
+    static B: [u32; 1] = [crate::pdo::entry(0x6040, 0, 16)];
+    static C: [u32; 1] = [0x0000_0010];
+    static T: [u32; 1] = [crate::pdo::entry(0x6041, 0, 16)];
+    let map = |index, sm, entries| PdoMap {
+        index,
+        name: Name::plain("P"),
+        sm,
+        fixed: false,
+        mandatory: false,
+        entries,
+    };
+    let pdos = [
+        map(0x1600, Some(2), &A[..]),
+        map(0x1601, None, &B[..]),
+        map(0x1602, None, &C[..]),
+        map(0x1A00, Some(3), &T[..]),
+        map(0x1A01, None, &T[..]),
+    ];
+    let ex = |i: usize| excludes(&pdos, &pdos[i]).collect::<Vec<_>>();
+    assert_eq!(ex(0), [0x1601]);
+    assert_eq!(ex(1), [0x1600]);
+    assert_eq!(ex(2), [] as [u16; 0], "padding alone shares nothing");
+    assert_eq!(ex(3), [0x1A01]);
+    assert_eq!(ex(4), [0x1A00]);
+    let mut xml = String::new();
+    write(&DESC, OBJECTS, &pdos, &mut xml).unwrap();
+    let doc = roxmltree::Document::parse(&xml).unwrap();
+    let dev = child(
+        child(child(doc.root_element(), "Descriptions"), "Devices"),
+        "Device",
+    );
+    for (x, p) in dev
+        .children()
+        .filter(|c| c.has_tag_name("RxPdo") || c.has_tag_name("TxPdo"))
+        .zip(&pdos)
+    {
+        let sm = p.sm.map(|s| s.to_string());
+        assert_eq!(x.attribute("Sm"), sm.as_deref(), "{:#06x}", p.index);
+        // ETG.2000 PdoType order: Index, Name, Exclude*, Entry*.
+        let tags: Vec<_> = x
+            .children()
+            .filter(|c| c.is_element())
+            .map(|c| c.tag_name().name())
+            .collect();
+        let n_ex = tags.iter().filter(|t| **t == "Exclude").count();
+        assert_eq!(&tags[..2], ["Index", "Name"]);
+        assert!(tags[2..2 + n_ex].iter().all(|t| *t == "Exclude"));
+        assert!(tags[2 + n_ex..].iter().all(|t| *t == "Entry"));
+        let listed: Vec<_> = x
+            .children()
+            .filter(|c| c.has_tag_name("Exclude"))
+            .map(|c| u16::from_str_radix(&c.text().unwrap()[2..], 16).unwrap())
+            .collect();
+        assert_eq!(listed, excludes(&pdos, p).collect::<Vec<_>>());
+    }
+}

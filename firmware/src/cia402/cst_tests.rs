@@ -1,6 +1,6 @@
 //! Cyclic synchronous torque (CST): mode dispatch, slope, limit, offset, the speed
 //! limit in the command, the stops, availability (0x6502) and the SDO rules of the
-//! torque objects.
+//! torque objects; profile torque (PT); the enable without a mode.
 
 extern crate std;
 use super::*;
@@ -194,7 +194,7 @@ fn cst_needs_the_closed_loop() {
     d.set_rx(slot, &[10]);
     assert_eq!(d.mode_request(), 0);
     d.set_torque_control(true);
-    assert_eq!(d.value(0x6502, 0), Some(0x3A5));
+    assert_eq!(d.value(0x6502, 0), Some(0x3AD));
     d.write(0x6060, 0, &[10]).unwrap();
     // Losing the closed loop while CST is requested: no mode, the axis stops.
     let mut d = enabled(mode::CST);
@@ -243,4 +243,86 @@ fn rated_torque_is_kt_times_the_rated_current() {
     assert_eq!(d.value(0x6076, 0), Some(3180));
     d.set_torque_constant(f32::NAN);
     assert_eq!(d.value(0x6076, 0), Some(0));
+}
+
+/// Profile torque (0x6060 = 4): the CST demand on the ramp 0x6087, statusword bit 10
+/// when the demand has reached the limited target (not bit 12), closed loop only,
+/// 0x6088 only linear (0).
+#[test]
+fn pt_ramps_to_the_target_torque_and_reports_target_reached() {
+    let mut d = enabled(mode::PT);
+    assert_eq!(d.value(0x6061, 0), Some(4));
+    sdo_u32(&mut d, 0x6087, 100_000).unwrap();
+    sdo_i16(&mut d, 0x6071, 250).unwrap();
+    let mut t = std::vec::Vec::new();
+    for _ in 0..4 {
+        let c = d.cycle(&fb_at(0, 0), DT);
+        assert_eq!(c.kind, SetpointKind::Torque);
+        t.push((c.torque, d.statusword() & sw::TARGET_REACHED != 0));
+    }
+    assert_eq!(t, [(100, false), (200, false), (250, true), (250, true)]);
+    assert_eq!(d.statusword() & sw::BIT12, 0, "bit 12 is reserved in PT");
+    assert_eq!(d.value(0x6074, 0), Some(250));
+    // A new target: not reached until the ramp gets there; limited by 0x6072.
+    d.write(0x6072, 0, &200u16.to_le_bytes()).unwrap();
+    sdo_i16(&mut d, 0x6071, -900).unwrap();
+    let c = d.cycle(&fb_at(0, 0), DT);
+    assert_eq!(c.torque, 150);
+    assert_eq!(d.statusword() & sw::TARGET_REACHED, 0);
+    for _ in 0..4 {
+        d.cycle(&fb_at(0, 0), DT);
+    }
+    assert_eq!(d.value(0x6074, 0), Some(-200));
+    assert_ne!(d.statusword() & sw::TARGET_REACHED, 0);
+    // Halt: velocity control to rest, then target reached.
+    d.set_controlword(0x010F);
+    let c = d.cycle(&fb_at(0, 0), DT);
+    assert_eq!(c.kind, SetpointKind::Velocity);
+    assert_ne!(d.statusword() & sw::TARGET_REACHED, 0, "halted at rest");
+    // 0x6088: only the linear ramp.
+    assert_eq!(sdo_i16(&mut d, 0x6088, 1), Err(SdoAbort::ValueTooHigh));
+    assert_eq!(sdo_i16(&mut d, 0x6088, -1), Err(SdoAbort::ValueTooLow));
+    sdo_i16(&mut d, 0x6088, 0).unwrap();
+    assert_eq!(d.value(0x6088, 0), Some(0));
+    // Open loop: PT refused like CST, and withdrawn while requested.
+    d.set_torque_control(false);
+    assert_eq!(d.mode_request(), 0);
+    assert_eq!(d.write(0x6060, 0, &[4]), Err(SdoAbort::ValueRangeExceeded));
+    d.set_rx(rx_slot_of(0x6060), &[4]);
+    assert_eq!(d.mode_request(), 0);
+}
+
+/// 0x60C0: linear interpolation only; 0x605A, 0x6066, 0x6068 RxPDO-mappable, a PDO
+/// value clamped to the SDO range.
+#[test]
+fn interpolation_sub_mode_and_the_mappable_option_objects() {
+    let mut d = Cia402::new();
+    assert_eq!(d.value(0x60C0, 0), Some(0));
+    assert_eq!(sdo_i16(&mut d, 0x60C0, -1), Err(SdoAbort::ValueTooLow));
+    assert_eq!(sdo_i16(&mut d, 0x60C0, 1), Err(SdoAbort::ValueTooHigh));
+    sdo_i16(&mut d, 0x60C0, 0).unwrap();
+    d.set_rx(rx_slot_of(0x605A), &9i16.to_le_bytes());
+    assert_eq!(d.value(0x605A, 0), Some(8), "clamped to 0-8");
+    d.set_rx(rx_slot_of(0x605A), &5i16.to_le_bytes());
+    assert_eq!(d.value(0x605A, 0), Some(5));
+    d.set_rx(rx_slot_of(0x6066), &250u16.to_le_bytes());
+    assert_eq!(d.value(0x6066, 0), Some(250));
+    d.set_rx(rx_slot_of(0x6068), &40u16.to_le_bytes());
+    assert_eq!(d.value(0x6068, 0), Some(40));
+}
+
+/// Enabled with 0x6060 = 0: no fault, the axis holds where it is in position control
+/// (a moving axis stops on the quick-stop ramp first), no mode bits.
+#[test]
+fn enabled_without_a_mode_holds_position() {
+    let mut d = enabled(mode::NONE);
+    let c = d.cycle(&fb_at(0, 0), DT);
+    assert_eq!(d.state(), PdsState::OperationEnabled);
+    assert_eq!((c.kind, c.velocity), (SetpointKind::Position, 0.0));
+    assert!(c.drive_enabled);
+    assert_eq!(
+        d.statusword() & (sw::TARGET_REACHED | sw::BIT12 | sw::BIT13),
+        0
+    );
+    assert_eq!(d.value(0x603F, 0), Some(0));
 }

@@ -44,7 +44,9 @@
 //!   sets bit 13 and raises fault 0x8611; 0x6065 = 0xFFFFFFFF switches it off.
 //! * The master's commands stop (SM watchdog, Op left, SYNC0 lost): 0x6007
 //!   ([`AbortConnection`], [`Cia402::on_connection_lost`]); with 1, the default,
-//!   fault 0x8100 and the reaction 0x605E.
+//!   a fault whose 0x603F is the loss's own code, the one its emergency carries
+//!   (0x8700 process-data watchdog, 0xA000 / 0xA001 Op left to Init / Safe-Op or
+//!   Pre-Op, ...), and the reaction 0x605E.
 //! * Fault reaction: the ramp starts at the demand position with the lower of the
 //!   demand and the actual speed (a jump of the target or a dragged shaft is not
 //!   ramped down from an absurd demand speed).
@@ -67,11 +69,22 @@
 //!   fault of the motor side (following error 0x8611), which ends it in Fault; any
 //!   other command (shutdown, disable voltage, quick stop) ends it at once. Open loop
 //!   and drives without encoder never report it (no wait).
-//! * CST (0x6060 = 10) needs the closed loop (an encoder and 0x2024 = 2,
-//!   [`Cia402::set_torque_control`]): 0x6502 shows bit 9 only then, and 0x6060 = 10
-//!   is refused otherwise like any unsupported mode (SDO abort 0x06090030; an RxPDO
-//!   value is not taken over). Losing the closed loop while 0x6060 = 10 sets 0x6060
-//!   to 0 (no mode): the axis stops on the 0x6085 ramp in position control and holds.
+//! * CST (0x6060 = 10) and PT (0x6060 = 4) need the closed loop (an encoder and
+//!   0x2024 = 2, [`Cia402::set_torque_control`]): 0x6502 shows bits 3 and 9 only then,
+//!   and 0x6060 = 4 / 10 is refused otherwise like any unsupported mode (SDO abort
+//!   0x06090030; an RxPDO value is not taken over). Losing the closed loop while in a
+//!   torque mode sets 0x6060 to 0 (no mode): the axis stops on the 0x6085 ramp in
+//!   position control and holds.
+//! * Operation enabled with 0x6060 = 0 (no mode) is accepted: the axis holds its
+//!   position in position control (a stop on the 0x6085 ramp first if it was moving)
+//!   until a mode is chosen, and statusword bits 10, 12 and 13 stay clear. This is
+//!   deliberate, where some drives raise an alarm: CiA 402 leaves the behaviour
+//!   without a mode to the manufacturer, and masters that enable before they write
+//!   0x6060, or pass through 0 while switching modes, keep working; the axis is
+//!   never left without a set-point.
+//! * PT runs the CST demand below (0x6071 set by SDO or PDO, the ramp 0x6087, the
+//!   profile type 0x6088 = 0 linear); statusword bit 10 (target reached) is set when
+//!   the demand has reached the limited target, or, halted, once the axis is at rest.
 //! * CST demand: 0x6071 + 0x60B2, limited to ±0x6072, approached at 0x6087 per mille
 //!   per second (0 = no slope limit: the demand steps). On entering CST while enabled,
 //!   and at transitions 4 and 16, the demand starts from the torque the servo loops
@@ -98,6 +111,7 @@ pub mod pds;
 mod power;
 pub mod probe;
 pub mod profile;
+pub mod scaling;
 mod statusword;
 
 use homing::{Homing, HomingInputs, HomingParams, HomingStatus};
@@ -115,6 +129,8 @@ pub mod mode {
     pub const PP: i8 = 1;
     /// Profile velocity.
     pub const PV: i8 = 3;
+    /// Profile torque (closed loop only).
+    pub const PT: i8 = 4;
     /// Homing.
     pub const HM: i8 = 6;
     /// Cyclic synchronous position.
@@ -125,11 +141,16 @@ pub mod mode {
     pub const CST: i8 = 10;
 }
 
-/// 0x6502 in closed loop: PP (bit 0), PV (bit 2), HM (bit 5), CSP (bit 7), CSV (bit 8),
-/// CST (bit 9).
-pub const SUPPORTED_MODES: u32 = SUPPORTED_MODES_OPEN_LOOP | (1 << 9);
+/// 0x6502 in closed loop: PP (bit 0), PV (bit 2), PT (bit 3), HM (bit 5), CSP (bit 7),
+/// CSV (bit 8), CST (bit 9).
+pub const SUPPORTED_MODES: u32 = SUPPORTED_MODES_OPEN_LOOP | (1 << 3) | (1 << 9);
 
-/// 0x6502 without torque control (open loop, no encoder): no CST.
+/// True for the torque modes, PT and CST (closed loop only).
+pub const fn is_torque_mode(m: i8) -> bool {
+    m == mode::PT || m == mode::CST
+}
+
+/// 0x6502 without torque control (open loop, no encoder): no PT, no CST.
 pub const SUPPORTED_MODES_OPEN_LOOP: u32 = (1 << 0) | (1 << 2) | (1 << 5) | (1 << 7) | (1 << 8);
 
 /// True if `m` may be written to 0x6060 with the modes `supported` (a 0x6502 value):
@@ -145,7 +166,8 @@ pub const fn mode_supported(m: i8, supported: u32) -> bool {
 pub enum AbortConnection {
     /// 0: no action; the drive keeps its state and its last set-points.
     NoAction = 0,
-    /// 1 (default): fault 0x8100, the fault reaction 0x605E, then Fault.
+    /// 1 (default): fault with the code of the loss (0x603F = the emergency's code:
+    /// 0x8700, 0xA000, 0xA001, ...), the fault reaction 0x605E, then Fault.
     Fault = 1,
     /// 2: disable voltage (power off at once, brake engaged).
     DisableVoltage = 2,
@@ -168,8 +190,6 @@ impl AbortConnection {
 
 /// Error code (0x603F) of a following error.
 pub const ERR_FOLLOWING: u16 = 0x8611;
-/// Error code used when the ESM leaves Op while the drive function is enabled.
-pub const ERR_COMMUNICATION: u16 = 0x8100;
 
 /// Statusword bits.
 pub mod sw {
@@ -473,7 +493,8 @@ pub struct Cia402 {
     /// The servo tune runs its move ([`Cia402::set_servo_tune`]).
     servo_tune: bool,
     encoder_increments: u32,
-    units_per_rev: u32,
+    /// 0x6091-0x6093, the views of the command units per revolution (0x2001).
+    pub(crate) scaling: scaling::Scaling,
 }
 
 impl Default for Cia402 {
@@ -548,7 +569,7 @@ impl Cia402 {
             torque_control: true,
             servo_tune: false,
             encoder_increments: 4000,
-            units_per_rev: 50_000,
+            scaling: scaling::Scaling::new(50_000),
         }
     }
 
@@ -578,7 +599,7 @@ impl Cia402 {
     /// to 0 (see the module docs).
     pub fn set_torque_control(&mut self, available: bool) {
         self.torque_control = available;
-        if !available && self.mode_request == mode::CST {
+        if !available && is_torque_mode(self.mode_request) {
             self.mode_request = mode::NONE;
         }
     }
@@ -621,11 +642,24 @@ impl Cia402 {
     pub fn rated_torque_mnm(&self) -> u32 {
         (self.torque_constant * self.rated_current_ma as f32 + 0.5) as u32
     }
-    /// Encoder increments per motor revolution (0x608F:01) and command units per
-    /// revolution (0x2001, shown as feed in 0x6092:01).
-    pub fn set_resolution(&mut self, encoder_increments: u32, units_per_rev: u32) {
+    /// Encoder increments per motor revolution (0x608F:01, the position factor's
+    /// reference).
+    pub fn set_resolution(&mut self, encoder_increments: u32) {
         self.encoder_increments = encoder_increments;
-        self.units_per_rev = units_per_rev;
+    }
+    /// 0x2001 (command units per revolution, as written) changed: 0x6091-0x6093 show
+    /// it ([`scaling`]).
+    pub fn set_scaling_units(&mut self, units: u32) {
+        self.scaling.set_units(units);
+    }
+    /// The whole number of command units per revolution the last write of 0x6091-0x6093
+    /// gave, for 0x2001; [`Cia402::settle_scaling`] once 0x2001 took it.
+    pub fn scaling_candidate(&self) -> Option<u32> {
+        self.scaling.candidate()
+    }
+    /// 0x2001 took [`Cia402::scaling_candidate`].
+    pub fn settle_scaling(&mut self) {
+        self.scaling.settle();
     }
 
     // ----- ESM coupling -----
@@ -636,7 +670,8 @@ impl Cia402 {
     /// replaced by the command the reaction needs (no master commands arrive any more;
     /// a master that comes back must enable again):
     /// * 1 fault: Operation enabled / Quick stop active → Fault reaction active
-    ///   (0x603F = [`ERR_COMMUNICATION`], reaction 0x605E, then Fault);
+    ///   (0x603F = `code`, the code of the loss the emergency carries, reaction
+    ///   0x605E, then Fault);
     /// * 2 disable voltage: → Switch on disabled at once (power off, brake engaged);
     /// * 3 quick stop: Operation enabled → Quick stop active (ramp 0x605A); the
     ///   controlword holds "quick stop", so the stop runs to its end;
@@ -644,7 +679,7 @@ impl Cia402 {
     ///
     /// The reaction then runs on the drive's own clock ([`Cia402::step`] from the
     /// supervision tick): no frame is needed to finish it.
-    pub fn on_connection_lost(&mut self) -> AbortConnection {
+    pub fn on_connection_lost(&mut self, code: u16) -> AbortConnection {
         let option = AbortConnection::from_code(self.params.abort_connection_option);
         let cmd = match option {
             AbortConnection::NoAction => return option,
@@ -655,7 +690,7 @@ impl Cia402 {
         self.prev_cw = cmd;
         match (self.state, option) {
             (PdsState::OperationEnabled | PdsState::QuickStopActive, AbortConnection::Fault) => {
-                self.fault_detected(ERR_COMMUNICATION)
+                self.fault_detected(code)
             }
             (PdsState::OperationEnabled, AbortConnection::QuickStop) => {
                 self.enter(PdsState::QuickStopActive)
@@ -777,7 +812,7 @@ impl Cia402 {
     /// 0x6074 torque demand: in CST the demand after the slope and 0x6072, else the
     /// servo loops' demand (per mille, user sign).
     pub fn torque_demand(&self) -> i16 {
-        if self.mode == mode::CST && self.state == PdsState::OperationEnabled {
+        if is_torque_mode(self.mode) && self.state == PdsState::OperationEnabled {
             modes::round_i16(self.torque_demand)
         } else {
             self.servo_torque_user()

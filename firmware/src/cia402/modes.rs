@@ -83,7 +83,7 @@ impl Cia402 {
                     SetpointKind::Position
                 }
             }
-            mode::CST => self.run_cst(halt, pos_lim, neg_lim, dt),
+            mode::CST | mode::PT => self.run_cst(halt, pos_lim, neg_lim, dt),
             _ => {
                 self.motion.stop(qs_dec, dt);
                 SetpointKind::Position
@@ -91,7 +91,7 @@ impl Cia402 {
         }
     }
 
-    /// CST: the torque demand 0x6071 + 0x60B2, limited to ±0x6072 and moved at the
+    /// PT and CST: the torque demand 0x6071 + 0x60B2, limited to ±0x6072 and moved at the
     /// slope 0x6087; the motion generator shows the actual position and speed (the
     /// start of any stop ramp). Halt, a hardware limit switch or a software position
     /// limit in the direction of the torque or of the motion stop the axis in velocity
@@ -132,6 +132,8 @@ impl Cia402 {
             self.motion.stop(dec, dt);
             self.torque_demand = f32::from(self.servo_torque_user());
             self.torque_cmd = 0;
+            // PT: halted once at rest (statusword bit 10).
+            self.target_reached = halt && self.motion.velocity() == 0.0;
             return SetpointKind::Velocity;
         }
         if wanted != target {
@@ -145,6 +147,8 @@ impl Cia402 {
             d + foc::num::clamp(target - d, -slope, slope)
         };
         self.torque_cmd = round_i16(self.torque_demand);
+        // PT: the demand has reached the (limited) target (statusword bit 10).
+        self.target_reached = self.torque_demand == target;
         self.motion
             .set(self.actual_position, self.actual_velocity as f32);
         SetpointKind::Torque

@@ -393,6 +393,12 @@ pub fn tx_slot(index: u16, sub: u8) -> Option<u8> {
     slot_of(TX_SLOTS, index, sub)
 }
 
+/// A write of 0x6091-0x6093 (see [`super::scaling`]).
+fn scale(d: &mut Cia402, index: u16, sub: u8, v: u32) {
+    let increments = d.encoder_increments;
+    d.scaling.set(index, sub, v, increments);
+}
+
 /// The little-endian value of the first (up to 4) bytes of `data`, zero-extended.
 fn u32_from_le_prefix(data: &[u8]) -> u32 {
     let mut b = [0u8; 4];
@@ -483,7 +489,7 @@ cia402_objects! {
     }
     var 0x605A "Quick stop option code", "0 disable drive function; 1/2/3/4 slow-down / quick-stop / max-deceleration ramp then switch on disabled; 5-8 the same and stay in quick stop active.",
     {
-        { 0 "Quick stop option code": i16 RW NO range(0, 8) [.default(2).saved()] field(params.quick_stop_option) }
+        { 0 "Quick stop option code": i16 RW RX range(0, 8) [.default(2).saved()] field(params.quick_stop_option) }
     }
     var 0x605B "Shutdown option code", "Transition 8: 0 disable drive function; 1 slow down with 0x6084, then disable.",
     {
@@ -501,7 +507,7 @@ cia402_objects! {
     {
         { 0 "Fault reaction option code": i16 RW NO range(0, 4) [.default(2).saved()] field(params.fault_reaction_option) }
     }
-    var 0x6060 "Modes of operation", "Requested mode: 0 none, 1 PP, 3 PV, 6 HM, 8 CSP, 9 CSV, 10 CST (closed loop only: refused with 0x06090030 while 0x6502 bit 9 is clear; an RxPDO value is not taken over).",
+    var 0x6060 "Modes of operation", "Requested mode: 0 none, 1 PP, 3 PV, 4 PT, 6 HM, 8 CSP, 9 CSV, 10 CST (PT and CST closed loop only: refused with 0x06090030 while 0x6502 bit 9 is clear; an RxPDO value is not taken over).",
     {
         { 0 "Modes of operation": i8 RW RX range(0, 10) [.default(0)] field(mode_request)
             set(|d, m| d.set_mode(m))
@@ -529,7 +535,7 @@ cia402_objects! {
     }
     var 0x6066 "Following error time out", "Time the following error may exceed 0x6065 before statusword bit 13 and fault 0x8611.",
     {
-        { 0 "Following error time out": u16 RW NO [.default(100).unit("ms").saved()] field(params.following_error_timeout) }
+        { 0 "Following error time out": u16 RW RX [.default(100).unit("ms").saved()] field(params.following_error_timeout) }
     }
     var 0x6067 "Position window", "Target reached window.",
     {
@@ -537,7 +543,7 @@ cia402_objects! {
     }
     var 0x6068 "Position window time", "Time in the window before target reached.",
     {
-        { 0 "Position window time": u16 RW NO [.default(0).unit("ms").saved()] field(params.position_window_time) }
+        { 0 "Position window time": u16 RW RX [.default(0).unit("ms").saved()] field(params.position_window_time) }
     }
     var 0x606B "Velocity demand value", "Velocity of the trajectory generator.",
     {
@@ -652,9 +658,13 @@ cia402_objects! {
         { 0 "Motion profile type": i16 RW NO range(0, 3) [.default(0).saved()] field(params.motion_profile_type)
             check(|_, t| valid_if(t == 0 || t == 3)) }
     }
-    var 0x6087 "Torque slope", "Rate at which the CST demand approaches its target, per mille of rated torque per second; 0 = no slope limit (the demand steps).",
+    var 0x6087 "Torque slope", "Rate at which the PT / CST demand approaches its target, per mille of rated torque per second; 0 = no slope limit (the demand steps).",
     {
         { 0 "Torque slope": u32 RW RX [.default(0).unit("0.1 %/s").saved()] field(params.torque_slope) }
+    }
+    var 0x6088 "Torque profile type", "Shape of the PT / CST demand's approach to its target: 0 linear ramp at 0x6087 (the only type; others refused).",
+    {
+        { 0 "Torque profile type": i16 RW NO range(0, 0) [.default(0).saved()] field(params.torque_profile_type) }
     }
     array 0x608F "Position encoder resolution", "Encoder increments per motor revolution.",
     {
@@ -662,17 +672,23 @@ cia402_objects! {
         { 1 "Encoder increments": u32 RO NO [.default(4000)] field(encoder_increments) }
         { 2 "Motor revolutions": u32 RO NO [.default(1)] constant(1) }
     }
-    array 0x6091 "Gear ratio", "Fixed 1:1 (scaling is set by 0x2001).",
+    array 0x6091 "Gear ratio", "Motor revolutions per shaft revolutions; with 0x6092 it sets 0x2001 = feed · shaft revolutions (0x6091:02) / (0x6092:02 · motor revolutions) once that is a whole number 0x2001 takes (effective after restart).",
     {
         { count(2) range(2, 2) }
-        { 1 "Motor revolutions": u32 RO NO [.default(1)] constant(1) }
-        { 2 "Shaft revolutions": u32 RO NO [.default(1)] constant(1) }
+        { 1 "Motor revolutions": u32 RW NO range(1, u32::MAX) [.default(1).saved()] get(|d| d.scaling.gear[0]) set(|d, v| scale(d, 0x6091, 1, v)) }
+        { 2 "Shaft revolutions": u32 RW NO range(1, u32::MAX) [.default(1).saved()] get(|d| d.scaling.gear[1]) set(|d, v| scale(d, 0x6091, 2, v)) }
     }
-    array 0x6092 "Feed constant", "Command units per revolution (0x2001).",
+    array 0x6092 "Feed constant", "Command units per shaft revolutions (see 0x6091); a write of 0x2001 sets it to (0x2001, 1) and the gear ratio to 1:1.",
     {
         { count(2) range(2, 2) }
-        { 1 "Feed": u32 RO NO [.default(50_000).unit("inc")] field(units_per_rev) }
-        { 2 "Shaft revolutions": u32 RO NO [.default(1)] constant(1) }
+        { 1 "Feed": u32 RW NO range(1, u32::MAX) [.default(50_000).unit("inc").saved()] get(|d| d.scaling.feed[0]) set(|d, v| scale(d, 0x6092, 1, v)) }
+        { 2 "Shaft revolutions": u32 RW NO range(1, u32::MAX) [.default(1).saved()] get(|d| d.scaling.feed[1]) set(|d, v| scale(d, 0x6092, 2, v)) }
+    }
+    array 0x6093 "Position factor", "Encoder increments (0x608F:01) per command unit as numerator / divisor; derived from 0x2001, or as written: a write sets 0x2001 = 0x608F:01 · divisor / numerator once that is a whole number 0x2001 takes (gear 1:1, feed (0x2001, 1)).",
+    {
+        { count(2) range(2, 2) }
+        { 1 "Numerator": u32 RW NO range(1, u32::MAX) [] get(|d| d.scaling.factor(d.encoder_increments)[0]) set(|d, v| scale(d, 0x6093, 1, v)) }
+        { 2 "Divisor": u32 RW NO range(1, u32::MAX) [] get(|d| d.scaling.factor(d.encoder_increments)[1]) set(|d, v| scale(d, 0x6093, 2, v)) }
     }
     var 0x6098 "Homing method", "1-14, 17-30, 33, 34, 35, 37; manufacturer-specific stall homing (open loop, 0x2060 = 1): -1 positive, -2 negative direction at 0x6099:01 onto a hard stop, home = where the stall began (+ 0x607C).",
     {
@@ -732,6 +748,10 @@ cia402_objects! {
     {
         { 0 "Touch probe 2 negative edge": i32 RO TX [.unit("inc")] get(|d| d.probe.value(3)) }
     }
+    var 0x60C0 "Interpolation sub mode select", "CSP set-points are interpolated linearly between cycles (0 = linear interpolation, the only sub mode; others refused).",
+    {
+        { 0 "Interpolation sub mode select": i16 RW NO range(0, 0) [.default(0).saved()] field(params.interpolation_submode) }
+    }
     record 0x60C2 "Interpolation time period", "Period = value · 10^index s; must equal the sync cycle.",
     {
         { count(2) range(2, 2) }
@@ -772,7 +792,7 @@ cia402_objects! {
     {
         { 0 "Target velocity": i32 RW RX [.default(0).unit("inc/s")] field(params.target_velocity) }
     }
-    var 0x6502 "Supported drive modes", "Bit 0 PP, 2 PV, 5 HM, 7 CSP, 8 CSV; bit 9 CST only in closed loop (an encoder and 0x2024 = 2).",
+    var 0x6502 "Supported drive modes", "Bit 0 PP, 2 PV, 5 HM, 7 CSP, 8 CSV; bits 3 PT and 9 CST only in closed loop (an encoder and 0x2024 = 2).",
     {
         { 0 "Supported drive modes": u32 RO NO [.default(SUPPORTED_MODES as i64)] get(|d| d.supported_modes()) }
     }

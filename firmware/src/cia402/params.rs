@@ -68,6 +68,10 @@ pub struct Params {
     pub motion_profile_type: i16,
     /// 0x6087 torque slope (per mille/s, 0 = no slope limit).
     pub torque_slope: u32,
+    /// 0x6088 torque profile type (0 = linear, the only one).
+    pub torque_profile_type: i16,
+    /// 0x60C0 interpolation sub mode select (0 = linear, the only one).
+    pub interpolation_submode: i16,
     /// 0x6098 homing method.
     pub homing_method: i8,
     /// 0x6099:01 speed during search for switch.
@@ -133,6 +137,8 @@ impl Params {
         quick_stop_deceleration: 2_000_000,
         motion_profile_type: 0,
         torque_slope: 0,
+        torque_profile_type: 0,
+        interpolation_submode: 0,
         homing_method: 37,
         homing_speed_switch: 20_000,
         homing_speed_zero: 2_000,

@@ -78,6 +78,7 @@ impl Cia402 {
                         }
                     }
                 },
+                mode::PT if self.target_reached => s |= sw::TARGET_REACHED,
                 mode::CSP | mode::CSV | mode::CST => {
                     if !self.halted && !self.abnormal_stop && self.pending == Pending::None {
                         s |= sw::BIT12;

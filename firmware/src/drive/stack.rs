@@ -95,6 +95,11 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
                     return Ok(());
                 }
                 self.params.write(index, sub, data)?;
+                if index == 0x2001 {
+                    // 0x6091-0x6093 show the new value.
+                    let units = self.params.get(crate::params::Param::PulsesPerRev) as u32;
+                    self.cia402.set_scaling_units(units);
+                }
                 if let Some(start) = self.params.take_servo_tune_request() {
                     return self.servo_tune_command(start);
                 }
@@ -105,6 +110,17 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
             }
             0x2300..=0x23FF => self.monitor.write(index, sub, data),
             0x2500..=0x25FF => self.scope.write(index, sub, data),
+            0x6091..=0x6093 => {
+                // The scaling views: a whole result goes to 0x2001 (its range
+                // decides), then the other views follow (`cia402::scaling`).
+                self.cia402.write(index, sub, data)?;
+                if let Some(units) = self.cia402.scaling_candidate() {
+                    if self.params.write(0x2001, 0, &units.to_le_bytes()).is_ok() {
+                        self.cia402.settle_scaling();
+                    }
+                }
+                Ok(())
+            }
             0x6000..=0x6FFF => self.cia402.write(index, sub, data),
             _ => Err(SdoAbort::WriteReadOnly),
         }
@@ -255,7 +271,7 @@ impl<S: ParameterStore> Drive<S> {
             before,
             PdsState::OperationEnabled | PdsState::QuickStopActive
         ) && !self.cia402.enable_waiting();
-        let option = self.cia402.on_connection_lost();
+        let option = self.cia402.on_connection_lost(code);
         // The master's cycles are over: the reaction starts at the next tick. A PDS
         // that lost its voltage here (0x6007 = 2) shows it at once (statusword, power
         // off, brake engaged): a step of no length.

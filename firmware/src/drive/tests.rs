@@ -115,7 +115,7 @@ fn cst_follows_the_loop_mode_and_torques_come_from_the_axis() {
     // The hybrid servo in closed loop: CST; 0x2024 = 1 takes it away again and
     // leaves no mode.
     let mut d = Drive::new(Variant::HybridServo, 0);
-    assert_eq!(sdo_read_u32(&mut d, 0x6502, 0), 0x3A5);
+    assert_eq!(sdo_read_u32(&mut d, 0x6502, 0), 0x3AD);
     sdo_write(&mut d, 0x6060, 0, &[10]).unwrap();
     sdo_write(&mut d, 0x2024, 0, &[1]).unwrap();
     assert_eq!(sdo_read_u32(&mut d, 0x6502, 0), 0x1A5);
@@ -1015,4 +1015,48 @@ fn sdo_read_u32_any<S: ParameterStore>(d: &mut Drive<S>, index: u16, sub: u8) ->
     let mut v = [0u8; 4];
     v[..n.min(4)].copy_from_slice(&b[..n.min(4)]);
     u32::from_le_bytes(v)
+}
+
+/// 0x6091 / 0x6092 / 0x6093 and 0x2001 are views of one value: a write that gives a
+/// whole number in 0x2001's range sets 0x2001 (pending, effective after restart), the
+/// other views follow; one that does not is stored and leaves 0x2001; 0 is refused.
+#[test]
+fn gear_feed_and_position_factor_follow_0x2001() {
+    let mut d = Drive::new(Variant::HybridServo, 0);
+    // 1000-line encoder: 4000 increments per revolution; 0x2001 = 50 000.
+    assert_eq!(sdo_read_u32(&mut d, 0x608F, 1), 4000);
+    let factor = |d: &mut Drive| (sdo_read_u32(d, 0x6093, 1), sdo_read_u32(d, 0x6093, 2));
+    assert_eq!(factor(&mut d), (2, 25));
+    assert_eq!(sdo_read_u32(&mut d, 0x6092, 1), 50_000);
+    // Feed 20 000 per shaft revolution, gear 2 motor : 1 shaft → 10 000 per motor rev.
+    sdo_write(&mut d, 0x6092, 1, &20_000u32.to_le_bytes()).unwrap();
+    sdo_write(&mut d, 0x6091, 1, &2u32.to_le_bytes()).unwrap();
+    assert_eq!(sdo_read_u32(&mut d, 0x2001, 0), 10_000);
+    assert_eq!(factor(&mut d), (2, 5));
+    // 20 000 / 3 is not whole: stored, 0x2001 keeps 10 000.
+    sdo_write(&mut d, 0x6091, 1, &3u32.to_le_bytes()).unwrap();
+    assert_eq!(sdo_read_u32(&mut d, 0x6091, 1), 3);
+    assert_eq!(sdo_read_u32(&mut d, 0x2001, 0), 10_000);
+    // 20 000 / 200 = 100: whole, but 0x2001's range (200-51 200) refuses it.
+    sdo_write(&mut d, 0x6091, 1, &200u32.to_le_bytes()).unwrap();
+    assert_eq!(
+        sdo_read_u32(&mut d, 0x2001, 0),
+        10_000,
+        "100 < 0x2001's minimum"
+    );
+    assert_eq!(
+        sdo_write(&mut d, 0x6091, 1, &0u32.to_le_bytes()),
+        Err(SdoAbort::ValueTooLow)
+    );
+    // The factor: 4000 increments per 8000 units → 0x2001 = 8000, gear 1:1.
+    sdo_write(&mut d, 0x6093, 1, &4000u32.to_le_bytes()).unwrap();
+    sdo_write(&mut d, 0x6093, 2, &8000u32.to_le_bytes()).unwrap();
+    assert_eq!(sdo_read_u32(&mut d, 0x2001, 0), 8000);
+    assert_eq!(sdo_read_u32(&mut d, 0x6091, 1), 1);
+    assert_eq!(sdo_read_u32(&mut d, 0x6092, 1), 8000);
+    assert_eq!(factor(&mut d), (4000, 8000));
+    // 0x2001 written: gear 1:1, feed (0x2001, 1), the factor derived.
+    sdo_write(&mut d, 0x2001, 0, &12_800u32.to_le_bytes()).unwrap();
+    assert_eq!(sdo_read_u32(&mut d, 0x6092, 1), 12_800);
+    assert_eq!(factor(&mut d), (5, 16));
 }

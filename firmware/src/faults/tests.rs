@@ -272,3 +272,40 @@ fn emergency_queue_never_overflows() {
     assert_eq!(n, 8);
     assert_eq!(f.count(), 50);
 }
+
+/// 0x2054 / 0x2055 set the bus-voltage thresholds; 0x2055 = 0 switches the
+/// under-voltage detection off; out-of-range values are refused and change nothing.
+#[test]
+fn voltage_thresholds_from_the_parameters() {
+    use crate::identity::Variant;
+    use crate::params::Params;
+    let mut p = Params::new(Variant::OpenLoop);
+    let mut f = Faults::default();
+    f.configure_from(&p);
+    assert_eq!(f.config(), FaultConfig::DEFAULT, "the defaults agree");
+    assert_eq!(
+        p.write(0x2054, 0, &56u16.to_le_bytes()),
+        Err(od::SdoAbort::ValueTooHigh)
+    );
+    assert_eq!(
+        p.write(0x2055, 0, &21u16.to_le_bytes()),
+        Err(od::SdoAbort::ValueTooHigh)
+    );
+    p.write(0x2054, 0, &36u16.to_le_bytes()).unwrap();
+    p.write(0x2055, 0, &18u16.to_le_bytes()).unwrap();
+    f.configure_from(&p);
+    f.check_bus_voltage(24_000, S, 0);
+    assert!(!f.any_active());
+    f.check_bus_voltage(17_999, S, 0);
+    assert!(f.is_active(FaultKind::UnderVoltage));
+    f.check_bus_voltage(36_001, S, 0);
+    assert!(f.is_active(FaultKind::OverVoltage));
+    // Under-voltage off: a sagging bus raises nothing, an active one is gone.
+    let mut f = Faults::default();
+    p.write(0x2055, 0, &0u16.to_le_bytes()).unwrap();
+    f.configure_from(&p);
+    for mv in [24_000, 5_000, 0] {
+        f.check_bus_voltage(mv, S, 0);
+    }
+    assert!(!f.any_active());
+}

@@ -270,7 +270,7 @@ fn sdo_errors() {
     d.write(0x607D, 1, &(-1000i32).to_le_bytes()).unwrap();
     assert_eq!(d.value(0x607D, 1), Some(-1000));
     assert_eq!(d.read(0x6502, 0, &mut buf), Ok(4));
-    assert_eq!(u32::from_le_bytes(buf), 0x3A5);
+    assert_eq!(u32::from_le_bytes(buf), 0x3AD);
 }
 
 #[test]
