@@ -759,14 +759,20 @@ impl<S: ParameterStore> Drive<S> {
             && !self.command.brake_release
     }
 
+    /// A stop ramp runs (quick stop or fault reaction).
+    #[cold]
+    fn stopping(&self) -> bool {
+        use crate::cia402::pds::PdsState;
+        matches!(
+            self.cia402.state(),
+            PdsState::QuickStopActive | PdsState::FaultReactionActive
+        )
+    }
+
     /// Entering Bootstrap: the power stage goes off now unless a stop ramp runs (the
     /// 0x6007 reaction of the ESM change), in which case it goes off at its end.
     fn bootstrap_stop(&mut self) {
-        use crate::cia402::pds::PdsState;
-        if !matches!(
-            self.cia402.state(),
-            PdsState::QuickStopActive | PdsState::FaultReactionActive
-        ) {
+        if !self.stopping() {
             self.command.power_stage = false;
             self.command.drive_enabled = false;
             self.command.brake_release = false;
@@ -972,12 +978,7 @@ impl<S: ParameterStore> Drive<S> {
         }
         // (No fault this step raises cuts the power: one reading serves.) In Bootstrap
         // the power stage stays off whatever the PDS says, once a running stop ended.
-        let stopping = matches!(
-            self.cia402.state(),
-            crate::cia402::pds::PdsState::QuickStopActive
-                | crate::cia402::pds::PdsState::FaultReactionActive
-        );
-        if power_cut || (self.esm == EsmState::Bootstrap && !stopping) {
+        if power_cut || (self.esm == EsmState::Bootstrap && !self.stopping()) {
             self.command.power_stage = false;
             self.command.drive_enabled = false;
             self.command.brake_release = false;

@@ -255,12 +255,20 @@ impl Cia402 {
             } else {
                 self.cyc.to
             };
-            self.cyc.to = target;
-            // Run-on only for a segment the axis can follow (not a jump of the target).
-            self.cyc.extrapolate = fresh && {
-                let dist = target.wrapping_sub(self.cyc.from) as f32;
-                dist.abs() <= self.params.vmax() * self.cyc.period
-            };
+            // A segment goes no further than min(0x607F, 0x6080) allows in its period:
+            // a jump of the target is followed at that speed (statusword bit 11,
+            // internal limit), segment by segment, not at once; no run-on then.
+            let dist = target.wrapping_sub(self.cyc.from) as f32;
+            let reach = self.params.vmax() * self.cyc.period;
+            if dist.abs() <= reach {
+                self.cyc.to = target;
+                self.cyc.extrapolate = fresh;
+            } else {
+                let step = if dist > 0.0 { reach } else { -reach };
+                self.cyc.to = self.cyc.from.wrapping_add(step as i32);
+                self.cyc.extrapolate = false;
+                self.internal_limit = true;
+            }
             self.cyc.elapsed = match (setpoint, self.cyc.interpolate) {
                 // The boundary step itself is the segment's first step.
                 (SetpointArrival::PerCycle, true) => dt,
@@ -271,17 +279,7 @@ impl Cia402 {
         }
         let (mut demand, moving) = self.cyc.demand(velocity_offset);
         let mut vel = moving;
-        let mut d = demand.wrapping_sub(cur);
-        // The demand never moves faster than min(0x607F, 0x6080): a jump of the target
-        // is followed at that speed (statusword bit 11, internal limit), not at once.
-        let step = self.params.vmax() * dt;
-        if (d as f32).abs() > step {
-            let limited = if d > 0 { step } else { -step };
-            demand = cur.wrapping_add(limited as i32);
-            d = limited as i32;
-            vel = limited / dt;
-            self.internal_limit = true;
-        }
+        let d = demand.wrapping_sub(cur);
         if (pos_lim && d > 0) || (neg_lim && d < 0) {
             self.abnormal_stop = true;
             demand = cur;
