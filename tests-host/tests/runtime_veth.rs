@@ -16,14 +16,12 @@
 //! `virtual_drive_veth.rs`: without root the tests fail and say how to run them.
 #![deny(clippy::undocumented_unsafe_blocks)]
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
 use std::sync::mpsc;
 use std::time::Duration;
 
-use ethercrab::std::{ethercat_now, tx_rx_task};
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceGroup, Timeouts};
-use tests_host::netns::{Killed, Netns};
+use ethercrab::std::ethercat_now;
+use ethercrab::{MainDevice, PduStorage, SubDeviceGroup};
+use tests_host::netns::{start_virtual_drive, veth_master, Killed, Netns};
 
 type Storage = PduStorage<16, { PduStorage::element_size(1100) }>;
 static PDU_DIP_ON: Storage = PduStorage::new();
@@ -35,10 +33,8 @@ type Group = SubDeviceGroup<4, 128, ethercrab::DefaultLock, ethercrab::subdevice
 type Failed = (&'static str, ethercrab::error::Error);
 
 fn require_root() {
-    // SAFETY: geteuid has no preconditions.
-    let euid = unsafe { libc::geteuid() };
-    assert_eq!(
-        euid, 0,
+    assert!(
+        tests_host::netns::is_root(),
         "the veth tests need root (network namespaces and raw sockets): run them as root, \
          e.g. `sudo -E env PATH=$PATH cargo test -p tests-host --test runtime_veth` \
          (CI runs as root)"
@@ -51,55 +47,27 @@ fn start(tag: &str, extra: &[&str]) -> (Netns, Killed, mpsc::Receiver<String>) {
     require_root();
     let net = Netns::create(&format!("rt{tag}"))
         .expect("running as root, but the namespace / veth pair could not be created");
-    let child = Command::new("ip")
-        .args([
-            "netns",
-            "exec",
-            &net.ns,
-            env!("CARGO_BIN_EXE_virtual-drive"),
-        ])
-        .args(["--iface", &net.drive_if, "--drives", "1"])
-        .args(extra)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("start virtual-drive");
-    let mut child = Killed(child);
-    let stdout = child.0.stdout.take().expect("stdout");
-    let (tx, rx) = mpsc::channel::<String>();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-            let _ = tx.send(line);
-        }
-    });
-    let ready = rx
-        .recv_timeout(Duration::from_secs(30))
-        .expect("virtual-drive printed nothing");
-    assert!(ready.contains("ready"), "first line: {ready}");
+    let mut args = vec!["--drives", "1"];
+    args.extend_from_slice(extra);
+    let (child, rx) = start_virtual_drive(&net, env!("CARGO_BIN_EXE_virtual-drive"), &args)
+        .expect("virtual-drive");
     (net, child, rx)
 }
 
 fn master(storage: &'static Storage, host_if: &str) -> MainDevice<'static> {
-    let (pdu_tx, pdu_rx, pdu_loop) = storage.try_split().expect("split once");
-    let task = tx_rx_task(host_if, pdu_tx, pdu_rx).expect("raw socket on the host end");
-    std::thread::spawn(move || {
-        let _ = async_io::block_on(task);
-    });
-    MainDevice::new(
-        pdu_loop,
-        Timeouts {
-            wait_loop_delay: Duration::from_millis(2),
-            mailbox_response: Duration::from_millis(2000),
-            // Several virtual drives and masters share the machine in a test run.
-            pdu: Duration::from_millis(300),
-            eeprom: Duration::from_millis(100),
-            ..Timeouts::default()
-        },
-        MainDeviceConfig {
-            dc_static_sync_iterations: 100,
-            ..MainDeviceConfig::default()
-        },
-    )
+    veth_master(storage, host_if)
+}
+
+/// PV (0x6060 = 3) with target velocity `$v` (0x60FF) over SDO.
+macro_rules! pv_mode {
+    ($sd:expr, $v:expr) => {
+        $sd.sdo_write(0x6060, 0, 3i8)
+            .await
+            .map_err(|e| ("0x6060", e))?;
+        $sd.sdo_write(0x60FF, 0, $v)
+            .await
+            .map_err(|e| ("0x60FF", e))?;
+    };
 }
 
 /// One process-data cycle with controlword `cw` (RxPDO1 starts with 0x6040); returns
@@ -178,12 +146,7 @@ fn pv_run(storage: &'static Storage, tag: &str, control_mode: u8) -> PvRun {
             sd.sdo_write(0x2024, 0, 1u8)
                 .await
                 .map_err(|e| ("0x2024", e))?;
-            sd.sdo_write(0x6060, 0, 3i8)
-                .await
-                .map_err(|e| ("0x6060", e))?;
-            sd.sdo_write(0x60FF, 0, 0i32)
-                .await
-                .map_err(|e| ("0x60FF", e))?;
+            pv_mode!(sd, 0i32);
             // The runtime reconfigures every 10 ms.
             async_io::Timer::after(Duration::from_millis(50)).await;
             for (k, v) in dip.iter_mut().enumerate() {
@@ -315,12 +278,7 @@ fn outputs_follow_0x60fe_the_alarm_and_the_brake() {
                 .sdo_read::<u16>(0x2157, 0)
                 .await
                 .map_err(|e| ("0x2157", e))?;
-            sd.sdo_write(0x6060, 0, 3i8)
-                .await
-                .map_err(|e| ("0x6060", e))?;
-            sd.sdo_write(0x60FF, 0, 0i32)
-                .await
-                .map_err(|e| ("0x60FF", e))?;
+            pv_mode!(sd, 0i32);
         }
         let group = group.into_op(&md).await.map_err(|e| ("into_op", e))?;
         let sw = enable(&md, &group, 50).await?;
@@ -396,12 +354,7 @@ fn pre_op_motion_tune_refused_and_init_stops_the_axis() {
             .await
             .map_err(|e| ("init", e))?;
         let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
-        sd.sdo_write(0x6060, 0, 3i8)
-            .await
-            .map_err(|e| ("0x6060", e))?;
-        sd.sdo_write(0x60FF, 0, 0i32)
-            .await
-            .map_err(|e| ("0x60FF", e))?;
+        pv_mode!(sd, 0i32);
         // Enable by SDO in Pre-Op (motion outside Op).
         let mut sw = 0u16;
         for _ in 0..300 {

@@ -2,31 +2,15 @@
 //! energise the motor, and what leaving Pre-Op for Init or Bootstrap does to an axis
 //! enabled outside Op.
 
+use super::tests::{enable, sdo_write};
 use super::*;
 use crate::cia402::pds::PdsState;
 use crate::current_supervisor::{CurrentReport, TuneStatus};
 use ecat_slave_stack::esm::EsmHooks;
 
-fn sdo_write(d: &mut Drive, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
-    let e = od::find_entry(dictionary::OBJECTS, index, sub)?;
-    od::check_write(e, data, EsmState::PreOp)?;
-    d.write(index, sub, data, EsmState::PreOp)
-}
-
 fn steps(d: &mut Drive, n: usize) {
     for _ in 0..n {
         d.run_cycle(0.001);
-    }
-}
-
-fn enable(d: &mut Drive) {
-    d.set_axis(AxisState {
-        bus_mv: 48_000,
-        ..AxisState::default()
-    });
-    for cw in [0x06u16, 0x07, 0x0F] {
-        d.cia402.set_controlword(cw);
-        steps(d, 3);
     }
 }
 

@@ -2,7 +2,7 @@ use super::stack::{other_tx_entries, other_tx_entry, OTHER_TX_SLOT};
 use super::*;
 use crate::cia402::pds::PdsState;
 
-fn sdo_write(d: &mut Drive, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
+pub(super) fn sdo_write(d: &mut Drive, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
     let e = od::find_entry(dictionary::OBJECTS, index, sub)?;
     od::check_write(e, data, EsmState::PreOp)?;
     d.write(index, sub, data, EsmState::PreOp)
@@ -90,7 +90,7 @@ fn save_without_parameter_memory_is_refused() {
     );
 }
 
-fn enable(d: &mut Drive) {
+pub(super) fn enable(d: &mut Drive) {
     d.set_axis(AxisState {
         bus_mv: 48_000,
         ..AxisState::default()
