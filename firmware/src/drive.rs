@@ -660,6 +660,15 @@ impl<S: ParameterStore> Drive<S> {
         if due || fault_news || core::mem::take(&mut self.react_now) {
             self.step_at(now, SetpointArrival::Stale);
         }
+        if self.cia402.take_following_error_fault() {
+            // The CiA 402 following-error supervision (0x6065 / 0x6066) faulted the
+            // PDS: the fault module reports it like every other fault (emergency,
+            // history, red LED 7, alarm output); an event, so a reset clears it.
+            let snap = self.snapshot();
+            self.faults
+                .raise(FaultKind::FollowingError, snap, self.now_ms);
+            self.faults.condition_gone(FaultKind::FollowingError);
+        }
         if self.scope.running() {
             self.sample_scope();
         }

@@ -33,6 +33,13 @@ impl Cia402 {
                 self.fe_time += dt;
                 if self.fe_time * 1000.0 > self.params.following_error_timeout as f32 {
                     self.fe_flag = true;
+                    if !matches!(
+                        self.state,
+                        crate::cia402::pds::PdsState::Fault
+                            | crate::cia402::pds::PdsState::FaultReactionActive
+                    ) {
+                        self.fe_fault_news = true;
+                    }
                     self.fault_detected(ERR_FOLLOWING);
                 }
             } else {

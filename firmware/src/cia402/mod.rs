@@ -472,6 +472,9 @@ pub struct Cia402 {
     // Supervision.
     fe_time: f32,
     fe_flag: bool,
+    /// A following-error fault (0x6065 / 0x6066) not yet taken by the drive's fault
+    /// module ([`Cia402::take_following_error_fault`]).
+    fe_fault_news: bool,
     window_time: f32,
     vel_window_time: f32,
     target_reached: bool,
@@ -553,6 +556,7 @@ impl Cia402 {
             statusword: 0,
             fe_time: 0.0,
             fe_flag: false,
+            fe_fault_news: false,
             window_time: 0.0,
             vel_window_time: 0.0,
             target_reached: false,
@@ -841,6 +845,11 @@ impl Cia402 {
     /// 0x60FE:01 masked by 0x60FE:02: the outputs the master drives.
     pub fn digital_outputs(&self) -> u32 {
         self.params.digital_outputs & self.params.digital_outputs_mask
+    }
+    /// True once after the 0x6065 / 0x6066 supervision raised fault 0x8611: the drive
+    /// reports it through its fault module (emergency, history, LED, alarm output).
+    pub fn take_following_error_fault(&mut self) -> bool {
+        core::mem::take(&mut self.fe_fault_news)
     }
     /// 0x60FE:02: which outputs the master drives.
     pub fn digital_outputs_mask(&self) -> u32 {

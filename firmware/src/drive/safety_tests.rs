@@ -2,7 +2,7 @@
 //! energise the motor, and what leaving Pre-Op for Init or Bootstrap does to an axis
 //! enabled outside Op.
 
-use super::tests::{enable, sdo_write};
+use super::tests::{enable, sdo_read_u32, sdo_write};
 use super::*;
 use crate::cia402::pds::PdsState;
 use crate::current_supervisor::{CurrentReport, TuneStatus};
@@ -172,4 +172,34 @@ fn a_csp_target_jump_is_followed_no_faster_than_0x6080() {
     );
     assert_eq!(last, target, "reached the target at the limited speed");
     assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
+}
+
+#[test]
+fn the_0x6065_following_error_goes_through_the_fault_module() {
+    let mut d = powered_up(EsmState::PreOp);
+    d.on_state_change(EsmState::PreOp, EsmState::SafeOp);
+    d.on_state_change(EsmState::SafeOp, EsmState::Op);
+    sdo_write(&mut d, 0x6060, 0, &[8]).unwrap();
+    sdo_write(&mut d, 0x6065, 0, &500u32.to_le_bytes()).unwrap();
+    sdo_write(&mut d, 0x6066, 0, &5u16.to_le_bytes()).unwrap();
+    enable(&mut d);
+    while d.pop_emergency().is_some() {}
+    // The target runs away from an axis that stands still.
+    let target = d.command().position.wrapping_add(50_000);
+    sdo_write(&mut d, 0x607A, 0, &target.to_le_bytes()).unwrap();
+    let mut t = 100_000u64;
+    for _ in 0..50 {
+        d.run_cycle(0.001);
+        t += 1000;
+        d.tick(t, 0);
+    }
+    assert_eq!(d.cia402.error_code(), 0x8611);
+    let e = d
+        .pop_emergency()
+        .expect("an emergency for the 0x6065 fault");
+    assert_eq!(e.code, 0x8611);
+    assert!(d.pop_emergency().is_none(), "one emergency");
+    assert_eq!(d.faults.led_code(), Some(7));
+    assert!(d.faults.alarm());
+    assert_eq!(sdo_read_u32(&mut d, 0x2400, 2), 0x8611, "history");
 }

@@ -8,7 +8,7 @@ pub(super) fn sdo_write(d: &mut Drive, index: u16, sub: u8, data: &[u8]) -> Resu
     d.write(index, sub, data, EsmState::PreOp)
 }
 
-fn sdo_read_u32(d: &mut Drive, index: u16, sub: u8) -> u32 {
+pub(super) fn sdo_read_u32(d: &mut Drive, index: u16, sub: u8) -> u32 {
     let mut b = [0u8; 8];
     let n = d.read(index, sub, &mut b).expect("read");
     let mut v = [0u8; 4];
