@@ -203,3 +203,48 @@ fn the_0x6065_following_error_goes_through_the_fault_module() {
     assert!(d.faults.alarm());
     assert_eq!(sdo_read_u32(&mut d, 0x2400, 2), 0x8611, "history");
 }
+
+#[test]
+fn masked_trips_are_still_reported() {
+    use crate::board_glue::{BoardGlue, ControlCommand};
+    use crate::current_supervisor::Trip;
+    // Every maskable detection off.
+    let mut d = powered_up(EsmState::PreOp);
+    sdo_write(&mut d, 0x2056, 0, &0u16.to_le_bytes()).unwrap();
+    // A fast over-voltage trip of the current loop.
+    let trip = CurrentReport {
+        trip: Trip::OverVoltage,
+        trip_seq: 1,
+        ..CurrentReport::default()
+    };
+    d.current_report(&trip);
+    assert!(d.faults.is_active(crate::faults::FaultKind::OverVoltage));
+    assert_eq!(d.pop_emergency().map(|e| e.code), Some(0x3210));
+    // A failed start-up offset check.
+    let mut d = powered_up(EsmState::PreOp);
+    sdo_write(&mut d, 0x2056, 0, &0u16.to_le_bytes()).unwrap();
+    let mut glue = BoardGlue::new(ControlCommand {
+        cycle: 0,
+        command: *d.command(),
+        cycle_s: 1e-3,
+        power_allowed: false,
+        config: 0,
+        motion: crate::motion::MotionConfig::from_params(
+            &d.params,
+            d.variant,
+            &crate::motion::ECN57_20,
+            crate::motion::SERVO_TS,
+        ),
+        align_wiggle: false,
+        offsets: None,
+        supervisor: crate::current_supervisor::SupervisorConfig::from_params(
+            &d.params, 25e-6, 2125,
+        ),
+        tune_allowed: false,
+        trace: false,
+    });
+    glue.offset_check_failed();
+    glue.raise_board_faults(&mut d, 5);
+    assert!(d.faults.is_active(crate::faults::FaultKind::PhaseSensing));
+    assert_eq!(d.pop_emergency().map(|e| e.code), Some(0x5210));
+}
