@@ -519,11 +519,13 @@ fn following_error_from_a_load_the_motor_cannot_hold_recovers_after_reset() {
 #[test]
 fn masked_bus_faults_are_not_reported() {
     let mut b = Bench::new();
-    // Only over-current (not maskable) and following error enabled.
+    // Only over-current (not maskable) and following error enabled; the over-voltage
+    // detection at 50 V (0x2054), below the power stage's own 55 V trip.
     b.sdo_write(0x2056, 0, &0x0081u16.to_le_bytes()).unwrap();
+    b.sdo_write(0x2054, 0, &50u16.to_le_bytes()).unwrap();
     b.enable();
     let t = b.now_ms();
-    b.axis.borrow_mut().set_bus_voltage(57.0);
+    b.axis.borrow_mut().set_bus_voltage(52.0);
     b.run_ms(500);
     b.axis.borrow_mut().set_bus_voltage(10.0);
     b.run_ms(500);
@@ -534,10 +536,26 @@ fn masked_bus_faults_are_not_reported() {
     assert_eq!(b.pins, PINS_HEALTHY);
     assert_eq!(b.red_between(t, b.now_ms()), vec![(false, t, b.now_ms())]);
     // Over-voltage detection back on while the bus is still high: reported now.
-    b.axis.borrow_mut().set_bus_voltage(57.0);
+    b.axis.borrow_mut().set_bus_voltage(52.0);
     b.sdo_write(0x2056, 0, &0x0083u16.to_le_bytes()).unwrap();
     run_until_fault(&mut b, 5);
     check_fault_reaction(&mut b, FaultKind::OverVoltage, 0x3210, 0x05);
+}
+
+/// The power stage's own over-voltage trip (55 V) switches the bridges off: that is
+/// reported whatever 0x2056 says, never an enabled drive with no torque.
+#[test]
+fn a_fast_trip_is_reported_with_its_detection_masked() {
+    let mut b = Bench::new();
+    b.sdo_write(0x2056, 0, &0x0081u16.to_le_bytes()).unwrap();
+    b.enable();
+    b.axis.borrow_mut().set_bus_voltage(57.0);
+    run_until_fault(&mut b, 20);
+    b.run_ms(30);
+    assert_eq!(b.sdo_read(0x603F, 0), 0x3210);
+    assert_eq!(b.emcy.first().map(|e| e.code), Some(0x3210));
+    assert_ne!(b.state(), PdsState::OperationEnabled);
+    assert!(!b.d.drive.outputs().1, "brake engaged");
 }
 
 #[test]
