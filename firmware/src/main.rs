@@ -306,11 +306,10 @@ async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>)
         if let Some(stage) = staged {
             let failed = hw::records::commit_logged(flash.as_mut(), stage);
             with_drive_state(|s| {
-                if failed {
-                    let reg = s.drive.faults.error_register() | 1;
-                    if let Some(slave) = s.slave.as_deref_mut() {
-                        slave.emergency(firmware::storage::EMCY_RECORD_CORRUPT, reg, [0; 5]);
-                    }
+                if let Some(slave) = s.slave.as_deref_mut() {
+                    s.rt.record_committed(s.drive, !failed, &mut |e| {
+                        slave.emergency(e.code, e.register, e.data)
+                    });
                 }
                 if let Some(st) = s.drive.store_mut() {
                     st.flash.give_back(stage);

@@ -12,7 +12,7 @@
 //! | supervisor, once | [`Runtime::offsets_checked`] | the current-sensor check → power permission or fault 9 |
 //! | cyclic (SYNC0) | [`Runtime::before_step`] / [`Runtime::after_step`] | measurements in, set-points out around the master's cycle |
 //! | 1 ms tick (the drive's own clock) | [`Runtime::tick`] | break latch ↔ fault 1, board faults, the drive's tick, counters, DIP station entry, configuration of the control path, outputs, brake, LEDs |
-//! | EtherCAT poll (thread) | [`Runtime::before_poll`] / [`Runtime::after_poll`] | emergencies to the mailbox, update confirmation, reset into the bootloader |
+//! | EtherCAT poll (thread) | [`Runtime::before_poll`] / [`Runtime::after_poll`], [`Runtime::record_committed`] | emergencies to the mailbox, ESC loss, update confirmation, reset into the bootloader, a failed flash record |
 //! | supervisor, 100 Hz | [`Runtime::feed_watchdog`] | whether the watchdog may be fed |
 //!
 //! The hardware is reached through [`ControlPath`] (the current-loop interrupt's
@@ -433,6 +433,24 @@ impl Runtime {
         AfterPoll {
             confirmed: drive.confirm_update(),
             reset: drive.reset_requested(),
+        }
+    }
+
+    /// A staged flash record (a 'save', the fault history) was programmed after the
+    /// poll, outside the lock: a failed programming is reported as an emergency
+    /// (0x5530, non-volatile memory) through `send`; the drive keeps its RAM copy.
+    pub fn record_committed<S: ParameterStore>(
+        &mut self,
+        drive: &Drive<S>,
+        ok: bool,
+        send: &mut dyn FnMut(Emergency),
+    ) {
+        if !ok {
+            send(Emergency {
+                code: crate::storage::EMCY_RECORD_CORRUPT,
+                register: drive.faults.error_register() | 1,
+                data: [0; 5],
+            });
         }
     }
 

@@ -134,12 +134,18 @@ fn bootstrap_stops_first_and_never_reenables() {
     }
 }
 
-#[test]
-fn a_csp_target_jump_is_followed_no_faster_than_0x6080() {
+/// A drive in Op with CSP (0x6060 = 8) selected, not enabled yet.
+fn csp_in_op() -> Drive {
     let mut d = powered_up(EsmState::PreOp);
     d.on_state_change(EsmState::PreOp, EsmState::SafeOp);
     d.on_state_change(EsmState::SafeOp, EsmState::Op);
     sdo_write(&mut d, 0x6060, 0, &[8]).unwrap();
+    d
+}
+
+#[test]
+fn a_csp_target_jump_is_followed_no_faster_than_0x6080() {
+    let mut d = csp_in_op();
     // 10 rev/s at 50 000 inc/rev.
     sdo_write(&mut d, 0x6080, 0, &500_000u32.to_le_bytes()).unwrap();
     enable(&mut d);
@@ -176,10 +182,7 @@ fn a_csp_target_jump_is_followed_no_faster_than_0x6080() {
 
 #[test]
 fn the_0x6065_following_error_goes_through_the_fault_module() {
-    let mut d = powered_up(EsmState::PreOp);
-    d.on_state_change(EsmState::PreOp, EsmState::SafeOp);
-    d.on_state_change(EsmState::SafeOp, EsmState::Op);
-    sdo_write(&mut d, 0x6060, 0, &[8]).unwrap();
+    let mut d = csp_in_op();
     sdo_write(&mut d, 0x6065, 0, &500u32.to_le_bytes()).unwrap();
     sdo_write(&mut d, 0x6066, 0, &5u16.to_le_bytes()).unwrap();
     enable(&mut d);

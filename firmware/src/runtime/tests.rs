@@ -422,3 +422,13 @@ fn brake_released_only_after_the_bridges_are_on_for_the_delay() {
             .brake_released
     );
 }
+
+#[test]
+fn a_failed_flash_record_is_an_emergency() {
+    let (d, mut rt, _) = started(SPEC, DipBanks::default(), |_| {});
+    let mut sent = Vec::new();
+    rt.record_committed(&d, true, &mut |e| sent.push(e.code));
+    assert!(sent.is_empty());
+    rt.record_committed(&d, false, &mut |e| sent.push(e.code));
+    assert_eq!(sent, [crate::storage::EMCY_RECORD_CORRUPT]);
+}
