@@ -7,13 +7,13 @@
 //! ([`crate::slave`]) runs the checks of each transition (SyncManagers, mapping, sync)
 //! between [`Esm::request`] and [`Esm::finish`].
 //!
-//! Rules (digest §2, drive-requirements §2.1):
+//! Rules (ETG.1000.6, the EtherCAT state machine):
 //! * upward steps one at a time (I→P→S→O), downward steps may skip;
 //! * refused transitions (I→S, I→O, P→O, P→B, S→B, O→B, B→P/S/O) answer 0x0011 and
 //!   stay in the current state with the error indication set; a state code outside
 //!   {1, 2, 3, 4, 8} answers 0x0012 the same way. A refusal while in Op falls back to
 //!   Safe-Op (outputs never keep running under an error indication);
-//! * Bootstrap (digest §2.4) is an option ([`Esm::with_bootstrap`], off by default):
+//! * Bootstrap (ETG.1000.6) is an option ([`Esm::with_bootstrap`], off by default):
 //!   off, Init→Boot answers 0x0013 and stays in Init; on, Init→Boot is allowed (the
 //!   runtime checks SM0/SM1 against the bootstrap mailbox, else 0x0015 and Init) and
 //!   Boot→Init is allowed; every other way into or out of Boot stays refused with
@@ -121,7 +121,7 @@ pub enum Rule {
 
 use EsmState::{Bootstrap as B, Init as I, Op as O, PreOp as P, SafeOp as S};
 
-/// The transition table of digest §2.1 for a slave without Bootstrap: (from, to,
+/// The transition table of ETG.1000.6 for a slave without Bootstrap: (from, to,
 /// rule), every pair of the five states exactly once. With Bootstrap enabled the
 /// (Init, Bootstrap) entry becomes [`Rule::Allowed`] ([`rule_with`]).
 pub const TRANSITIONS: &[(EsmState, EsmState, Rule)] = &[
@@ -188,7 +188,7 @@ pub const fn refusal_state_with(current: EsmState, bootstrap: bool) -> EsmState 
 }
 
 /// The state an AL status code leaves the slave in when a check or a supervision of
-/// the runtime fails, for the codes of drive-requirements §2.1 (other codes: the
+/// the runtime fails, for the AL status codes of ETG.1000.6 (other codes: the
 /// current state, Op falling to Safe-Op). Never higher than `current`.
 pub fn error_state(code: AlStatusCode, current: EsmState) -> EsmState {
     use AlStatusCode as C;

@@ -135,7 +135,7 @@ impl Assign {
     }
 }
 
-/// The product's default mapping and assignment (drive-requirements §3.2).
+/// The product's default mapping and assignment (`docs/object-dictionary.md`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PdoDefaults {
     /// Contents of 0x1600-0x1603 (at most 16 entries each).

@@ -1,6 +1,6 @@
 //! SyncManager register views and the checks of the ESM transitions.
 //!
-//! [`SmRegs`] is the 8-byte register block of one SyncManager (digest §1.10) as read
+//! [`SmRegs`] is the 8-byte register block of one SyncManager (ETG.1000.4, registers 0x0800 + 8·n) as read
 //! from `0x0800 + 8·n`. The validation functions are pure: the runtime reads the
 //! registers and passes them in.
 //!
@@ -161,7 +161,7 @@ pub struct MailboxLimits {
 }
 
 impl MailboxLimits {
-    /// The Xinje limits (drive-requirements §2): SM0 32-256, SM1 40-256 bytes.
+    /// The product's mailbox limits: SM0 32-256, SM1 40-256 bytes.
     pub const XINJE: MailboxLimits = MailboxLimits {
         sm0_len: (32, 256),
         sm1_len: (40, 256),

@@ -31,7 +31,7 @@
 //! ±50 % of the configured cycle is "good"; 4 good intervals in a row = **locked**.
 //! Not locked within 1 s of the S→O request → 0x002D (Pre-Op). Once locked: no SYNC0
 //! for max(2 × cycle, 1 ms) → 0x002C (Safe-Op); 4 bad intervals in a row → lock lost
-//! 0x0032 (Safe-Op). SM-event-missed accounting (digest §2.3): at each SYNC0 in Op,
+//! 0x0032 (Safe-Op). SM-event-missed accounting (ETG.1020, 0x1C32:0B / 0x1C32:0C): at each SYNC0 in Op,
 //! +3 if no SM2 event arrived since the previous SYNC0, −1 (down to 0) otherwise
 //! (0x1C32:0B); above the limit 0x10F1:02 → 0x001A (Safe-Op). A cycle whose
 //! computation outlasts the cycle time counts in 0x1C32:0C. 0x1C32:20 is set while

@@ -3,7 +3,7 @@
 //! and versions, 0x1010 store, 0x1011 restore defaults, 0x1018 identity, 0x10F1 error
 //! settings.
 //!
-//! Store / restore (drive-requirements §3.1):
+//! Store / restore (CiA 301, 0x1010 / 0x1011):
 //! * 'save' (0x65766173) written to 0x1010:01-04 → [`StoreCommand::Save`];
 //! * 'load' (0x64616F6C) written to 0x1011:01-04 → [`StoreCommand::RestoreDefaults`];
 //! * 'load' written to 0x1010:04 (E5 behaviour) → restore defaults of all parameters;

@@ -74,7 +74,7 @@
 //!
 //! [`FOLLOW_TIME_S`] of uninterrupted counting is one detection (reported once until
 //! the bridges have been off). Thresholds, from the motor model
-//! (`/work/shared/spec/motor-model.md`): the longest legitimate saturation is a
+//! (the motor model of `tests-host/src/plant/motor.rs`): the longest legitimate saturation is a
 //! current reversal at the lowest bus voltage — ECN57-20 (1.8 mH, 0.4 Ω) from −8.4 A
 //! to +8.4 A at 12 V (11.4 V usable): `L·ΔI/(V − R·I) ≈ 3.8 ms`; TC86-45 (3 mH): ≈ 6.3 ms.
 //! 20 ms is three times the worst case. 0.3 A is above the sensors' noise (±0.25 A

@@ -1,4 +1,4 @@
-//! DIP switches and the station alias (drive-requirements §5).
+//! DIP switches and the station alias (0x2150-0x2158 in `docs/object-dictionary.md`).
 //!
 //! Switch states are passed as a byte: bit n set = switch n+1 is **ON** (as the board
 //! reads it after its own electrical polarity).

@@ -1,4 +1,4 @@
-//! The red fault LED and the green power LED (drive-requirements §6).
+//! The red fault LED and the green power LED (blink codes: `docs/guide/drive-behaviour.md`).
 //!
 //! While a fault with a flash code N is active the red LED gives N pulses of 150 ms
 //! on / 150 ms off, then stays dark until 3 s after the burst began, and repeats. The

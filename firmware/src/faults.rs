@@ -1,4 +1,4 @@
-//! Faults and protections (drive-requirements §6): detection from measured values,
+//! Faults and protections (`docs/safety.md`): detection from measured values,
 //! the 0x603F error code, the 0x1001 error register, one emergency per occurrence,
 //! the PDS fault request, the alarm output, latching (0x2057), masking (0x2056), and
 //! the history of the last six faults with a snapshot (objects 0x2400-0x2406), kept

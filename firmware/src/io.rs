@@ -1,4 +1,4 @@
-//! Digital inputs and outputs (drive-requirements §3.3, 0x2005/0x2008/0x2053 and
+//! Digital inputs and outputs (0x2005/0x2008/0x2053 and
 //! 0x2152-0x2155; CiA 402 0x60FD bit assembly).
 //!
 //! Inputs IN1-IN5: the raw electrical level (0x2155) goes through a digital filter (a

@@ -1,4 +1,4 @@
-//! Vendor parameters 0x2000-0x2165 (drive-requirements §3.3, plus 0x2156, the
+//! Vendor parameters 0x2000-0x2165 (`docs/object-dictionary.md`; 0x2156, the
 //! anti-resonance damping 0x2059, the stall detection 0x2060-0x2063, and
 //! 0x2160-0x2165 of the servo tune, [`crate::servo_tune`]): the one table of their
 //! access, default, range, unit and saved flag, and the values.

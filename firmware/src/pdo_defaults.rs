@@ -1,4 +1,4 @@
-//! The product's default PDO mapping and assignment (drive-requirements §3.2): the
+//! The product's default PDO mapping and assignment (`docs/object-dictionary.md`, 0x1600 / 0x1A00): the
 //! values of 0x1600-0x1603, 0x1A00-0x1A03, 0x1C12 and 0x1C13 at power-up and after
 //! 'load'. The slave runtime starts from [`PDO_DEFAULTS`]; the ESI's `RxPdo`/`TxPdo`
 //! are generated from the same constant, so the file and the drive cannot disagree.
@@ -71,7 +71,7 @@ pub const TX_PDO1: &[u32] = &[
     entry(0x60FD, 0, 32),
 ];
 
-/// The default mapping and assignment of drive-requirements §3.2.
+/// The default mapping and assignment (0x1600 / 0x1A00, 0x1C12 / 0x1C13).
 pub const PDO_DEFAULTS: PdoDefaults = PdoDefaults {
     rx: [RX_PDO1, RX_PDO2, RX_PDO3, RX_PDO4],
     tx: [TX_PDO1, &[], &[], &[]],

@@ -78,7 +78,7 @@ use ecat_slave_stack::od::{self, Access, DataType, EntryDesc, ObjectDesc, PdoMap
 
 /// Channels of one record at most.
 pub const CHANNELS: usize = 8;
-/// Values the buffer holds (`i32`, 3 KiB; README "Size" for the RAM budget).
+/// Values the buffer holds (`i32`, 3 KiB; BENCHMARKS.md "Images" for the RAM budget).
 pub const BUFFER_WORDS: usize = 768;
 /// Bytes of one block of 0x2503 (one segmented SDO upload; at most the SDO server's
 /// transfer buffer).

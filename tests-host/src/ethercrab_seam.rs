@@ -1,6 +1,6 @@
 //! ethercrab 0.7 as an in-process master on a simulated segment.
 //!
-//! The transport seam (master-interop.md): ethercrab's `PduStorage` is split once per
+//! The transport seam (as ethercrab 0.7 requires): ethercrab's `PduStorage` is split once per
 //! process into `(PduTx, PduRx, PduLoop)`. [`SimNetwork`] is the "network": a future
 //! that, on every poll, registers its waker (`replace_waker`), takes every
 //! `next_sendable_frame()`, copies the frame out in `send_blocking`, lets the

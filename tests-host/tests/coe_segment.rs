@@ -2,7 +2,7 @@
 //!
 //! * ethercrab 0.7 in-process: expedited and normal upload, expedited download, aborts
 //!   (ethercrab's segmented upload and non-expedited download are broken, see
-//!   master-interop.md, so those are not exercised with it).
+//!   the masters' sources, so those are not exercised with it).
 //! * Master-side mailbox frames written into SM0 and read from SM1 with raw datagrams:
 //!   segmented download and upload, complete access (including the runtime's own
 //!   0x1C12), SDO information with fragments, emergencies, repeated requests.

@@ -99,7 +99,7 @@ fn device_of<'a, 'i>(doc: &'a Document<'i>, variant: Variant) -> Node<'a, 'i> {
 
 // ---------------------------------------------------------------- SII reader
 
-/// CRC-8 of the spec (§7.2): polynomial 0x07, init 0xFF, MSB first, no final XOR.
+/// The SII checksum (ETG.1000.6 / ETG.2010): polynomial 0x07, init 0xFF, MSB first, no final XOR.
 fn crc8(data: &[u8]) -> u8 {
     let mut crc = 0xFFu8;
     for b in data {

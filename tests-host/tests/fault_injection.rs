@@ -1,4 +1,4 @@
-//! Faults injected into the plant simulation (drive-requirements §6, issue 8).
+//! Faults injected into the plant simulation (`docs/safety.md`).
 //!
 //! A [`SimDrive`] (the firmware's drive application with its parameter flash) drives a
 //! [`PlantAxis`] (motor + power-stage plant, `foc` current loop and encoder at 40 kHz,

@@ -6,7 +6,7 @@
 //! |---|---|---|
 //! | ethercrab | the real ethercrab 0.7 in-process (`set_dc_sync`, `configure_dc_sync`) | ethercrab `src/subdevice_group/mod.rs` (`configure_dc_sync`, `into_safe_op`) |
 //! | SOEM | the datagrams SOEM sends, replayed | SOEM `src/ec_config.c` (`ecx_config_init`, `ecx_config_map_group`; `ethercatconfig.c` in 1.4), `src/ec_dc.c` (`ecx_configdc`, `ecx_dcsync0`, `ecx_dcsync01`; `ethercatdc.c` in 1.4) |
-//! | TwinCAT | its ESI-driven init commands, replayed | no public source: the start-up list TwinCAT builds from the ESI (master-interop.md) |
+//! | TwinCAT | its ESI-driven init commands, replayed | no public source: the start-up list TwinCAT builds from the ESI (ETG.2000 InitCmds) |
 //! | IgH | the datagrams of its slave configuration state machine, replayed | IgH `master/fsm_slave_config.c` (state order), `master/fsm_pdo.c` (PDO SDOs), `master/slave_config.c` (`ecrt_slave_config_dc`) |
 //!
 //! Modes: free run, SM-synchronous, DC SYNC0 at 1 ms / 250 µs / 125 µs. Every row

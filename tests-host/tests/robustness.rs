@@ -69,7 +69,7 @@ fn encoder_commutation_ripple() {
 
 #[test]
 fn encoder_commutation_ripple_over_the_speed_range() {
-    // The README plot's sweep, 0.013-10.013 rev/s in steps of 0.25: every speed meets
+    // The tuning guide's plot's sweep, 0.013-10.013 rev/s in steps of 0.25: every speed meets
     // the goal (the "worst" rows of BENCHMARKS.md).
     for m in MOTORS {
         let sweep = ripple_sweep(m, &Conditions::IDEAL, Design::Robust(Calibration::Tuned));

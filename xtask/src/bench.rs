@@ -136,6 +136,12 @@ pub fn bench() -> bool {
     if let Err(e) = write_control_quality(&mut md)
         .and_then(|()| cycle_budget(target_dir, &first))
         .and_then(|()| virtual_drive_realtime())
+        .and_then(|()| {
+            crate::size::images_md().map(|t| {
+                md.push('\n');
+                md.push_str(&t);
+            })
+        })
     {
         eprintln!("error: {e}");
         return false;
@@ -292,8 +298,8 @@ fn write_stacks(md: &mut String, stacks: &[(String, u64)]) {
          exception frames with FPU context, 2 × 104 bytes): **{nested} bytes** of library \
          stack. Start-up, before the interrupts run, needs {} bytes on its own. The board's \
          task bodies come on top: `cargo xtask size` adds them up from the firmware ELF \
-         (static worst case, README \"Static stack report\"), and the board paints its \
-         stack and reports the peak at run time (README \"Stack\").",
+         (static worst case, docs/board/bring-up.md, \"Static stack report\"), and the board paints its \
+         stack and reports the peak at run time (docs/board/bring-up.md, \"Stack\").",
         worst[2], worst[1], worst[0], worst[3]
     );
 }
@@ -327,7 +333,7 @@ fn write_control_quality(md: &mut String) -> Result<(), String> {
             }
             md.push_str(
                 "\nPlots: `target/plots/current_step.png`, `target/plots/csp_tracking_error.png`, \
-                 `target/plots/iq_ripple_vs_speed.png` (README, \"Quiet current on a real motor\").\n",
+                 `target/plots/iq_ripple_vs_speed.png` (docs/guide/tuning.md, \"Quiet current on a real motor\").\n",
             );
         }
         _ => {

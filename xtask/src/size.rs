@@ -240,3 +240,65 @@ fn elf_usage(elf: &str) -> Result<(u64, u64), String> {
     }
     Ok((flash, ram))
 }
+
+/// The "Images" section of BENCHMARKS.md: flash, static RAM and the static worst-case
+/// stack of both board images and the bootloader, against their budgets, and the
+/// stack report of the LAN9252 image (what `cargo xtask size` prints).
+pub fn images_md() -> Result<String, String> {
+    let mut md = String::from(
+        "## Images: flash, RAM and stack\n\n\
+         The release images as `cargo xtask size` builds and measures them (fat LTO, \
+         opt-level \"s\"): flash = `.vector_table + .text + .rodata + .data`, static RAM = \
+         `.data + .bss + .uninit`, stack = the static worst case of `xtask/src/stack/` \
+         (every interrupt level nested on the deepest thread path). `cargo xtask test` \
+         fails above the budget.\n\n\
+         | image | flash | static RAM | stack (worst case) | RAM + stack | budget |\n\
+         |---|---|---|---|---|---|\n",
+    );
+    let mut lan_report = String::new();
+    for flavour in FIRMWARE_FLAVOURS {
+        let elf = build_board_elf(flavour)?;
+        let (flash, ram) = elf_usage(&elf)?;
+        let report = stack::analyse(Path::new(&elf))?;
+        md.push_str(&format!(
+            "| firmware, {flavour} | {flash} B ({:.1} KiB) | {ram} B | {} B | {} B ({:.1} KiB) | {} KiB / {} KiB |\n",
+            flash as f64 / 1024.0,
+            report.worst,
+            ram + report.worst,
+            (ram + report.worst) as f64 / 1024.0,
+            FLASH_BUDGET / 1024,
+            RAM_BUDGET / 1024,
+        ));
+        if lan_report.is_empty() {
+            lan_report = report.text;
+        }
+    }
+    let elf = format!("target/bootloader/{THUMB}/release/bootloader");
+    if run_status(&mut cargo(&[
+        "build",
+        "-p",
+        "bootloader",
+        "--release",
+        "--target",
+        THUMB,
+        "--target-dir",
+        "target/bootloader",
+    ])) {
+        let (flash, ram) = elf_usage(&elf)?;
+        let report = stack::analyse(Path::new(&elf))?;
+        md.push_str(&format!(
+            "| bootloader | {flash} B ({:.1} KiB) | {ram} B | {} B | {} B | {} KiB partition |\n",
+            flash as f64 / 1024.0,
+            report.worst,
+            ram + report.worst,
+            BOOTLOADER_FLASH / 1024,
+        ));
+    } else {
+        return Err("bootloader build failed".into());
+    }
+    md.push_str(&format!(
+        "\nStatic stack report of the {} image:\n\n```text\n{}```\n",
+        FIRMWARE_FLAVOURS[0], lan_report
+    ));
+    Ok(md)
+}

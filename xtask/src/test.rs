@@ -171,7 +171,7 @@ fn clippy_steps(t: &mut Tally) {
             "warnings",
         ])),
     );
-    // The board image in both flavours, and the self-test image (README, "Board
+    // The board image in both flavours, and the self-test image (docs/board/bring-up.md, "Board
     // self-test") in both.
     t.step(
         "clippy (bootloader)",

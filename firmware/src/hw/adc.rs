@@ -36,7 +36,7 @@
 //!
 //! The trigger latency of the asynchronous ADC clock (a few ADC cycles, RM0440 ADC
 //! chapter, trigger latency) comes on top; TP1 on a scope shows the whole chain
-//! (README, "Measuring interrupt timing"). The window lies at the centre of the
+//! (docs/board/bring-up.md, "Measuring interrupt timing"). The window lies at the centre of the
 //! period, where the in-line phase current passes its period average (symmetric
 //! ripple), and the conversions end far inside the half period (asserted below).
 use core::sync::atomic::{AtomicU32, Ordering};

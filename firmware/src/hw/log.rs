@@ -1,6 +1,6 @@
 //! What the board logs over defmt: the texts of its error values, the start-up report
 //! of the parameter-record slots, the event counters and the status line (once a
-//! second, see README "The first lines of the log").
+//! second, see docs/board/bring-up.md, "Flashing with probe-rs").
 //!
 //! The texts are interned by defmt (`{=istr}`): they stay in the ELF's .defmt section
 //! for the host decoder, not in flash, and no `core::fmt` (which `Debug2Format` would

@@ -25,7 +25,7 @@
 //! NVIC priorities: 0 is the most urgent; the G4 implements 4 priority bits. Thread
 //! mode (the embassy thread executor) is below every interrupt. Budgets are per
 //! activation at 170 MHz; "to be measured" means it needs the board (TP1 + scope or
-//! DWT CYCCNT, see the README section) — QEMU has no timing model.
+//! DWT CYCCNT, see docs/board/bring-up.md) — QEMU has no timing model.
 //!
 //! | what | runs in | priority | rate | worst-case budget |
 //! |---|---|---|---|---|

@@ -10,7 +10,7 @@
 //! loop)" table (`tests_host::plant::stall`).
 //!
 //! `--plots DIR` also writes `current_step.png`, `csp_tracking_error.png` and
-//! `iq_ripple_vs_speed.png` and `open_loop_resonance.png` (the README's plots) into DIR.
+//! `iq_ripple_vs_speed.png` and `open_loop_resonance.png` (the tuning guide's plots, docs/guide/tuning.md) into DIR.
 //! Text in the plots uses DejaVu Sans from /usr/share/fonts if it is installed;
 //! without it the plots are drawn without text.
 #![deny(clippy::undocumented_unsafe_blocks)]

@@ -8,7 +8,7 @@
 //!   [`ecat_slave_stack::EscAccess`], so the firmware talks to it exactly as to a chip
 //!   (the SPI chip models can also wrap it).
 //!
-//! What is modelled (digest §1): access rights per side (e.g. AL control is written by
+//! What is modelled (ETG.1000.4): access rights per side (e.g. AL control is written by
 //! the master, AL status by the PDI; SM start/length/control only while the SM is
 //! disabled), SyncManager mailbox (1-buffer) and 3-buffer semantics with their status
 //! bits and AL/ECAT events, AL control → AL event bit 0 with the "mailbox" behaviour

@@ -2,7 +2,7 @@
 //! area loaded at power-up and on reload, and the read / write / reload commands.
 use super::{get_u16, get_u32, put_u16, reg, EscSim};
 
-/// The SII checksum: CRC-8, polynomial 0x07, init 0xFF, MSB first (digest §7.2).
+/// The SII checksum: CRC-8, polynomial 0x07, init 0xFF, MSB first (ETG.1000.6 / ETG.2010).
 pub fn sii_crc8(bytes: &[u8]) -> u8 {
     let mut crc: u8 = 0xFF;
     for &b in bytes {

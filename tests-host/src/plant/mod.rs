@@ -1,7 +1,7 @@
 //! Motor and power-stage simulation for the control-quality tests and the
 //! `control-report` binary.
 //!
-//! * [`motor`]: the model of `shared/spec/motor-model.md` (both motors), H-bridge
+//! * [`motor`]: the two-phase hybrid stepper model of `motor.rs` (both motors), H-bridge
 //!   average model, ADC and encoder quantisation, seeded noise, one sample of delay;
 //! * [`rig`]: the plant wired to the `foc` controllers as on the board;
 //! * [`scenarios`]: the control-quality scenarios, shared by the tests and the report;

@@ -1,4 +1,4 @@
-//! The motor and power-stage model of `shared/spec/motor-model.md`.
+//! The motor and power-stage model: a two-phase hybrid stepper in the stationary frame.
 //!
 //! State `(i_A, i_B, θ, ω)`, per phase `L·di/dt = v − R·i − e`,
 //! `e_A = −Ke·ω·sin θe`, `e_B = +Ke·ω·cos θe`, torque

@@ -83,7 +83,7 @@ pub fn run_with(motor: MotorParams, speed: f64, damping: Option<DampingConfig>) 
 pub fn run_on(cfg: PlantConfig, speed: f64, damping: Option<DampingConfig>) -> SweepPoint {
     let motor = cfg.motor;
     let mut rig = Rig::new(cfg);
-    // The dead-time compensation the power-up tune sets (README, "Quiet current").
+    // The dead-time compensation the power-up tune sets (docs/guide/tuning.md, "Quiet current").
     rig.cl.set_dead_time(
         (cfg.dead_time_v / cfg.vbus) as f32,
         foc::current_loop::DEAD_TIME_BAND,

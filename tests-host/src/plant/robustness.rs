@@ -282,7 +282,7 @@ fn spin_rig(mut rig: Rig, design: Design, rev_s: f64) -> Spin {
     }
 }
 
-/// i_q ripple against speed, `(rev/s, mA p-p)`, for the README plot: 0.013 to
+/// i_q ripple against speed, `(rev/s, mA p-p)`, for the tuning guide's plot: 0.013 to
 /// 10.013 rev/s in steps of 0.25 (speeds whose count pattern does not repeat).
 pub fn ripple_sweep(motor: MotorParams, c: &Conditions, design: Design) -> Vec<(f64, f64)> {
     (0..=40)

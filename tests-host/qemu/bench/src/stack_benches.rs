@@ -5,7 +5,7 @@
 //! into BENCHMARKS.md. Same build as the instruction counts (profile `bench-qemu`, LTO),
 //! so the frames are those of optimised code; the board's release build (opt-level
 //! "s") inlines differently, which is why the board also paints its stack and reports
-//! the peak at run time (README "Stack").
+//! the peak at run time (docs/board/bring-up.md, "Stack").
 //!
 //! The paths are the deepest the board runs in each context: the mailbox (SDO upload,
 //! SDO information, download) with the whole drive dictionary behind it, the parameter

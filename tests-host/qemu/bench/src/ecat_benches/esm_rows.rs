@@ -2,7 +2,7 @@
 //!
 //! The ESC is a plain RAM array behind `EscAccess` (no SPI cost: the rows count the
 //! stack's own instructions). The dictionary carries the CiA 402 objects of the
-//! default maps of drive-requirements §3.2 and a few more for the 32-byte images.
+//! default maps (0x1600 / 0x1A00) and a few more for the 32-byte images.
 
 use core::hint::black_box;
 
@@ -96,7 +96,7 @@ const SOURCE: &[ObjectDesc] = objects![
     0x60FD Unsigned32 Tx, 0x60FF Integer32 Rx,
 ];
 
-/// RxPDO1 / TxPDO1 of drive-requirements §3.2.
+/// RxPDO1 / TxPDO1, the default maps.
 const RX1: &[u32] = &[
     entry(0x6040, 0, 16),
     entry(0x607A, 0, 32),
