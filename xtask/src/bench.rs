@@ -161,6 +161,42 @@ pub fn bench() -> bool {
     repeat
 }
 
+/// `cargo xtask bench images`: rebuilds the board images and replaces only the
+/// "Images" section of `BENCHMARKS.md` (the rest as the last full run wrote it).
+pub fn images_only() -> bool {
+    const HEADING: &str = "## Images: flash, RAM and stack";
+    let table = match crate::size::images_md() {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return false;
+        }
+    };
+    let old = fs::read_to_string("BENCHMARKS.md").unwrap_or_default();
+    let mut out = String::new();
+    let mut lines = old.lines().peekable();
+    let mut placed = false;
+    while let Some(l) = lines.next() {
+        if l == HEADING {
+            while lines.peek().is_some_and(|n| !n.starts_with("## ")) {
+                lines.next();
+            }
+        } else {
+            out.push_str(l);
+            out.push('\n');
+            continue;
+        }
+        out.push_str(&table);
+        out.push('\n');
+        placed = true;
+    }
+    if !placed {
+        out.push('\n');
+        out.push_str(&table);
+    }
+    fs::write("BENCHMARKS.md", out).is_ok()
+}
+
 /// The benchmark image and the instruction-count plugin: their paths.
 fn build_image(target_dir: &str) -> Option<(String, String)> {
     if !run_status(&mut cargo(&[

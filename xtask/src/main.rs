@@ -5,7 +5,7 @@
 //!   host tests, the harness self-test, the QEMU tests of every logic crate, the
 //!   firmware release builds with their flash/RAM budget, the bootloader release build
 //!   in its partition; ends with `N passed, N failed`. Clippy covers the bootloader.
-//! * `bench`  — instruction counts of the hot paths under QEMU (TCG plugin) and the
+//! * `bench`  — (`bench images`: only the image sizes) instruction counts of the hot paths under QEMU (TCG plugin) and the
 //!   control-quality figures of the plant simulation → `BENCHMARKS.md`.
 //! * `demo`   — the simulated-drive commissioning demo (no hardware).
 //! * `esi`    — writes the ESI XML files and the SII images into `docs/esi/`.
@@ -40,6 +40,7 @@ fn main() -> ExitCode {
     let rest = &args.get(1..).unwrap_or(&[]);
     let ok = match args.first().map(String::as_str) {
         Some("test") => test::test(),
+        Some("bench") if rest.first().map(String::as_str) == Some("images") => bench::images_only(),
         Some("bench") => bench::bench(),
         Some("demo") => run_status(
             cargo(&[

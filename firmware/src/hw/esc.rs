@@ -3,7 +3,8 @@
 //!
 //! * `esc-lan9252` → [`ecat_slave_stack::lan9252::Lan9252`] (the default board, also
 //!   chosen when neither feature is given, e.g. by a plain `cargo flash`);
-//! * `esc-et1100` (without `esc-lan9252`) → [`ecat_slave_stack::et1100::Et1100`].
+//! * `esc-et1100` → [`ecat_slave_stack::et1100::Et1100`]. Both at once is a build
+//!   error (below).
 //!
 //! [`EscSpi`] is the embedded-hal 1.0 `SpiDevice` both drivers take: software chip
 //! select on PB12 around each transaction; data phases of [`DMA_MIN_LEN`] bytes or
@@ -25,8 +26,11 @@ use crate::board;
 /// Shortest data phase moved by DMA.
 pub const DMA_MIN_LEN: usize = 8;
 
+#[cfg(all(feature = "esc-lan9252", feature = "esc-et1100"))]
+compile_error!("features `esc-lan9252` and `esc-et1100` exclude each other: the board has one ESC");
+
 /// The ESC driver of this build is the ET1100 one (see [`Esc`]).
-const ET1100: bool = cfg!(all(feature = "esc-et1100", not(feature = "esc-lan9252")));
+const ET1100: bool = cfg!(feature = "esc-et1100");
 /// Operation kinds whose long data phases go by DMA in this build: the ones its ESC
 /// driver issues with [`DMA_MIN_LEN`] bytes or more (LAN9252: `Read` and `Write`;
 /// ET1100: `Write` and `TransferInPlace`; neither sends a long `Transfer`, only
@@ -181,14 +185,14 @@ pub fn cs_pin(
 }
 
 /// The ESC driver of this build.
-#[cfg(not(all(feature = "esc-et1100", not(feature = "esc-lan9252"))))]
+#[cfg(not(feature = "esc-et1100"))]
 pub type Esc = ecat_slave_stack::lan9252::Lan9252<EscSpi>;
 /// The ESC driver of this build.
-#[cfg(all(feature = "esc-et1100", not(feature = "esc-lan9252")))]
+#[cfg(feature = "esc-et1100")]
 pub type Esc = ecat_slave_stack::et1100::Et1100<EscSpi>;
 
 /// Name of the ESC of this build, for logs.
-pub const ESC_NAME: &str = if cfg!(all(feature = "esc-et1100", not(feature = "esc-lan9252"))) {
+pub const ESC_NAME: &str = if cfg!(feature = "esc-et1100") {
     "ET1100"
 } else {
     "LAN9252"
@@ -196,7 +200,7 @@ pub const ESC_NAME: &str = if cfg!(all(feature = "esc-et1100", not(feature = "es
 
 /// ESC type register value of this build's chip (the self-test's identity check).
 #[cfg(feature = "selftest")]
-pub const ESC_TYPE: u8 = if cfg!(all(feature = "esc-et1100", not(feature = "esc-lan9252"))) {
+pub const ESC_TYPE: u8 = if cfg!(feature = "esc-et1100") {
     ecat_slave_stack::et1100::ET1100_TYPE
 } else {
     ecat_slave_stack::lan9252::LAN9252_TYPE
@@ -217,7 +221,7 @@ pub fn probe(esc: &mut Esc) -> Result<(), ecat_slave_stack::EscError> {
     esc.init(&mut embassy_time::Delay)?;
     // LAN9252: drive the IRQ pin (open drain, active low; the board pulls it up).
     // The ET1100's PDI IRQ is set up by its SII configuration.
-    #[cfg(not(all(feature = "esc-et1100", not(feature = "esc-lan9252"))))]
+    #[cfg(not(feature = "esc-et1100"))]
     esc.configure_irq(ecat_slave_stack::lan9252::IrqConfig {
         enable: true,
         active_high: false,
@@ -227,7 +231,7 @@ pub fn probe(esc: &mut Esc) -> Result<(), ecat_slave_stack::EscError> {
     let ty = esc.get(ecat_slave_stack::registers::ESC_TYPE)?;
     let rev = esc.get(ecat_slave_stack::registers::ESC_REVISION)?;
     let build = esc.get(ecat_slave_stack::registers::ESC_BUILD)?;
-    #[cfg(not(all(feature = "esc-et1100", not(feature = "esc-lan9252"))))]
+    #[cfg(not(feature = "esc-et1100"))]
     defmt::info!(
         "ESC {=str}: ID_REV {=u32:#010x}, type {=u8:#04x} rev {=u8} build {=u16}",
         ESC_NAME,
@@ -236,7 +240,7 @@ pub fn probe(esc: &mut Esc) -> Result<(), ecat_slave_stack::EscError> {
         rev,
         build
     );
-    #[cfg(all(feature = "esc-et1100", not(feature = "esc-lan9252")))]
+    #[cfg(feature = "esc-et1100")]
     defmt::info!(
         "ESC {=str}: type {=u8:#04x} rev {=u8} build {=u16}",
         ESC_NAME,
