@@ -1,7 +1,7 @@
 //! ESI (EtherCAT Slave Information, ETG.2000) XML from the device description and
 //! the object dictionary.
 //!
-//! [`write`] emits one `EtherCATInfo` document for one device:
+//! [`write()`] emits one `EtherCATInfo` document for one device:
 //! `Vendor`, `Descriptions/Groups`, `Descriptions/Devices/Device` with `Type`
 //! (ProductCode, RevisionNo), `Name`, `GroupType`, `Profile` (ProfileNo and the whole
 //! `Dictionary`: `DataTypes` for every base type, string length, array and record
@@ -608,7 +608,7 @@ pub fn write<W: Write>(
 }
 
 /// Writes one ESI document holding several devices of one vendor (e.g. the variants
-/// of a product), each validated as in [`write`]: one `Group` per distinct group type,
+/// of a product), each validated as in [`write()`]: one `Group` per distinct group type,
 /// then the `Device` elements in the order given. An empty list, or devices of
 /// different vendor ID or vendor name, is refused with
 /// `EsiError::Description(SiiError::InvalidDescription)`.

@@ -343,7 +343,7 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
 
     /// Writes a 32-bit system register (serial write, 7 bytes). Out of line: one copy
     /// for the register accesses of set-up and mailbox paths (the process-RAM paths use
-    /// [`Self::write_reg_inline`]).
+    /// `write_reg_inline`).
     #[inline(never)]
     pub fn write_reg(&mut self, addr: u16, v: u32) -> Result<(), EscError> {
         self.write_reg_inline(addr, v)

@@ -6,6 +6,26 @@
 //! [`esm`] (state machine), [`od`] (object dictionary description and checks),
 //! [`mailbox`] with [`coe`] (SDO, SDO information, emergency) and [`foe`] (file
 //! access, firmware download in Bootstrap).
+//!
+//! # Example
+//!
+//! The state machine's transition rules as ETG.1000.6 states them: Init → Pre-Op is
+//! allowed, Init → Op is refused with AL status 0x0011, and Bootstrap is only
+//! reachable from Init on a slave that offers it.
+//!
+//! ```
+//! use ecat_slave_stack::al_status::AlStatusCode;
+//! use ecat_slave_stack::esm::{rule, rule_with, EsmState, Rule};
+//!
+//! assert_eq!(rule(EsmState::Init, EsmState::PreOp), Rule::Allowed);
+//! assert_eq!(
+//!     rule(EsmState::Init, EsmState::Op),
+//!     Rule::Refused(AlStatusCode::InvalidStateChange)
+//! );
+//! assert_eq!(rule_with(EsmState::Init, EsmState::Bootstrap, true), Rule::Allowed);
+//! assert_eq!(rule_with(EsmState::PreOp, EsmState::Bootstrap, true),
+//!     Rule::Refused(AlStatusCode::InvalidStateChange));
+//! ```
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_op_in_unsafe_fn)]
 #![deny(clippy::undocumented_unsafe_blocks)]

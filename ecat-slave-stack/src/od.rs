@@ -43,7 +43,7 @@ pub struct Strings {
 impl Strings {
     /// The packed names `names` of a dictionary, packed with the vocabulary `words`,
     /// and its text defaults `texts` (made by [`crate::packed_dictionary!`] or
-    /// [`pack::leak`]).
+    /// `pack::leak`).
     pub const fn new(names: &'static [u8], words: &'static [u8], texts: &'static str) -> Self {
         Strings {
             names,
@@ -734,10 +734,10 @@ pub enum OdListType {
     /// Objects with at least one TxPDO-mappable entry.
     TxPdoMappable = 3,
     /// Objects to store for a device replacement (backup): in this stack, objects with
-    /// at least one entry marked [`Entry::saved`].
+    /// at least one entry marked [`Entry::is_saved`].
     Backup = 4,
     /// Start-up parameters ("settings"): in this stack, also the objects with at least one
-    /// [`Entry::saved`] entry — the parameters a master may write at start-up are exactly
+    /// [`Entry::is_saved`] entry — the parameters a master may write at start-up are exactly
     /// the ones the drive stores.
     Settings = 5,
 }

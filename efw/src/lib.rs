@@ -19,6 +19,25 @@
 //! | 96 | 64 | header signature: ed25519 over bytes 0..96 |
 //! | 160 | image length | the board image, as it is written to the DFU partition |
 //!
+//! # Example
+//!
+//! Anything that is not an update image is refused before a byte of it is trusted:
+//!
+//! ```
+//! use efw::{check_header, Esc, Expected, ImageError};
+//!
+//! let drive = Expected {
+//!     vendor_id: 0x0000_0F00,
+//!     product_code: 0x0000_0001,
+//!     esc: Esc::Lan9252,
+//!     capacity: 230 * 1024,
+//!     public_key: [0; 32],
+//!     min_security_version: 0,
+//! };
+//! assert_eq!(check_header(b"ECS", &drive).unwrap_err(), ImageError::Truncated);
+//! assert_eq!(check_header(&[0u8; 200], &drive).unwrap_err(), ImageError::BadMagic);
+//! ```
+//!
 //! The image signature is exactly what embassy-boot's
 //! `FirmwareUpdater::verify_and_mark_updated` checks over the DFU partition (ed25519
 //! over the 64-byte SHA-512 digest of the first `image length` bytes), so the drive
@@ -39,6 +58,7 @@
 
 #![no_std]
 #![forbid(unsafe_code)]
+#![warn(missing_docs)]
 #![deny(clippy::undocumented_unsafe_blocks)]
 
 #[cfg(feature = "std")]

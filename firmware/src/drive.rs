@@ -735,7 +735,7 @@ impl<S: ParameterStore> Drive<S> {
     /// Permission for the power-up current-loop auto-tune
     /// ([`crate::current_supervisor`]): the bus voltage is inside the under/over-voltage
     /// window and no fault is active; with 0x2013 = 1 also the power stage off and the
-    /// brake engaged ([`Drive::tune_state_allows`]) and no failed tune since the last
+    /// brake engaged (`Drive::tune_state_allows`) and no failed tune since the last
     /// 0x2013 write. (With 0x2013 = 0 the permission only gates the first enable's
     /// phase check, which runs with the enable.) The control path also needs the
     /// current-sensor offsets to have passed their start-up check.

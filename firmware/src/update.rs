@@ -13,7 +13,7 @@
 //!    `write_firmware`, in writes of [`WRITE_CHUNK`] bytes (the FoE data of a packet
 //!    is not a multiple of the flash's 8-byte unit).
 //! 4. The DATA that completes the image starts its check, answered FoE BUSY until it
-//!    is done, one bounded step per answer ([`Update::verify_step`]): the last chunk
+//!    is done, one bounded step per answer (`Update::verify_step`): the last chunk
 //!    written, the header to the DFU partition's header page
 //!    ([`flash_layout::HEADER_OFFSET`]), SHA-512 over the DFU partition
 //!    [`VERIFY_STEP`] bytes at a time, and the image signature (ed25519, the same check

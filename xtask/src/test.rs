@@ -153,6 +153,24 @@ fn clippy_steps(t: &mut Tally) {
         ])),
     );
     t.step(
+        "rustdoc (libraries: no broken or private doc links)",
+        run_status(
+            cargo(&[
+                "doc",
+                "--no-deps",
+                "-p",
+                "foc",
+                "-p",
+                "ecat-slave-stack",
+                "-p",
+                "firmware",
+                "-p",
+                "efw",
+            ])
+            .env("RUSTDOCFLAGS", "-D warnings"),
+        ),
+    );
+    t.step(
         "clippy (bare-metal libraries)",
         run_status(&mut cargo(&[
             "clippy",

@@ -17,7 +17,7 @@
 //! Only the packed statics are referenced at run time; the source tables, their plain
 //! names and the helper arrays below exist during compilation only. The packed table
 //! describes exactly what the source tables describe (tested for the product
-//! dictionary entry by entry). The same steps run on the host with [`leak`] (feature
+//! dictionary entry by entry). The same steps run on the host with `leak` (feature
 //! `alloc`) for documentation generators that describe variants of a dictionary.
 //!
 //! [`packed_dictionary!`]: crate::packed_dictionary
