@@ -330,9 +330,11 @@ impl<T: Copy> Exchange<T> {
     /// zero bytes are not a valid value (const evaluation), so an early read sees
     /// zeros, never an invalid value; [`Exchange::reset`] gives the cell its start value.
     pub const fn zeroed() -> Self {
-        // SAFETY: evaluated at compile time, where a zero `T` that is not a valid
-        // value is an error.
-        let v: T = unsafe { core::mem::zeroed() };
+        // The inline `const` block is evaluated at compile time for every `T` this is
+        // instantiated with, also when `zeroed` itself is called at run time; there a
+        // zero `T` that is not a valid value fails the build.
+        // SAFETY: compile-time evaluation rejects an invalid zero value (above).
+        let v: T = const { unsafe { core::mem::zeroed() } };
         Self::new(v)
     }
 
