@@ -141,7 +141,7 @@ impl Default for SlaveConfig {
     fn default() -> Self {
         SlaveConfig {
             station_alias: None,
-            mailbox_limits: MailboxLimits::XINJE,
+            mailbox_limits: MailboxLimits::ANY,
             pdo_defaults: PdoDefaults::EMPTY,
             calc_copy_ns: (0, 0),
             min_cycle_ns: sync::MIN_CYCLE_NS,

@@ -4,8 +4,8 @@
 //! from `0x0800 + 8·n`. The validation functions are pure: the runtime reads the
 //! registers and passes them in.
 //!
-//! * [`validate_mailbox`] (I→P): SM0 32-256 bytes, SM1 40-256 bytes (the Xinje
-//!   limits), even start addresses, inside process RAM, no overlap with each other or
+//! * [`validate_mailbox`] (I→P): SM0 and SM1 lengths within the product's
+//!   [`MailboxLimits`] (by default what the mailbox server can hold), even start addresses, inside process RAM, no overlap with each other or
 //!   with an SM2/SM3 area the master has configured, mode/direction 0x26 / 0x22
 //!   (mailbox mode, write resp. read, AL event interrupt), enabled → else 0x0016.
 //! * [`validate_process_data`] (P→S): SM2/SM3 start inside process RAM with room for
@@ -161,16 +161,25 @@ pub struct MailboxLimits {
 }
 
 impl MailboxLimits {
-    /// The product's mailbox limits: SM0 32-256, SM1 40-256 bytes.
-    pub const XINJE: MailboxLimits = MailboxLimits {
-        sm0_len: (32, 256),
-        sm1_len: (40, 256),
+    /// Every length the mailbox server can hold:
+    /// [`crate::mailbox::MIN_MAILBOX_SIZE`]…[`crate::mailbox::MAX_MAILBOX_SIZE`] bytes
+    /// for both mailboxes. A product narrows it in its
+    /// [`crate::slave::SlaveConfig`].
+    pub const ANY: MailboxLimits = MailboxLimits {
+        sm0_len: (
+            crate::mailbox::MIN_MAILBOX_SIZE as u16,
+            crate::mailbox::MAX_MAILBOX_SIZE as u16,
+        ),
+        sm1_len: (
+            crate::mailbox::MIN_MAILBOX_SIZE as u16,
+            crate::mailbox::MAX_MAILBOX_SIZE as u16,
+        ),
     };
 }
 
 impl Default for MailboxLimits {
     fn default() -> Self {
-        Self::XINJE
+        Self::ANY
     }
 }
 
@@ -439,7 +448,7 @@ mod tests {
         let sm2 = sm(0x1100, 12, 0x64);
         let sm3 = sm(0x1400, 19, 0x20);
         assert_eq!(
-            validate_mailbox(&sm0, &sm1, &[sm2, sm3], &MailboxLimits::XINJE, RAM),
+            validate_mailbox(&sm0, &sm1, &[sm2, sm3], &MailboxLimits::ANY, RAM),
             Ok(())
         );
         assert_eq!(

@@ -744,9 +744,9 @@ qemu_runner::tests! {
     fn every_invalid_mailbox_config_gives_0x0016_in_init() {
         // (SM0 start, len, control, enable), (SM1 ...)
         let cases: &[(SmCfg, SmCfg)] = &[
-            ((0x1000, 30, 0x26, true), (0x1080, 128, 0x22, true)),   // SM0 too short
+            ((0x1000, 14, 0x26, true), (0x1080, 128, 0x22, true)),   // SM0 too short
             ((0x1000, 258, 0x26, true), (0x1200, 128, 0x22, true)),  // SM0 too long
-            ((0x1000, 128, 0x26, true), (0x1080, 38, 0x22, true)),   // SM1 too short
+            ((0x1000, 128, 0x26, true), (0x1080, 14, 0x22, true)),   // SM1 too short
             ((0x1000, 128, 0x26, true), (0x1080, 258, 0x22, true)),  // SM1 too long
             ((0x1001, 128, 0x26, true), (0x1100, 128, 0x22, true)),  // odd SM0 start
             ((0x1000, 128, 0x26, true), (0x1081, 128, 0x22, true)),  // odd SM1 start

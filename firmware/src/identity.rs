@@ -133,10 +133,20 @@ pub const EEPROM_BYTES: u16 = 2048;
 pub const BOOTSTRAP: Option<ecat_slave_stack::sm::BootMailbox> =
     Some(ecat_slave_stack::sm::BootMailbox::STANDARD);
 
+/// The mailbox lengths the product accepts at Init → Pre-Op: SM0 32-256, SM1 40-256
+/// bytes, the limits of the drives this product replaces (a master configured for them
+/// stays within them). The stack's own default is every length its server can hold.
+pub const MAILBOX_LIMITS: ecat_slave_stack::sm::MailboxLimits =
+    ecat_slave_stack::sm::MailboxLimits {
+        sm0_len: (32, 256),
+        sm1_len: (40, 256),
+    };
+
 /// The slave runtime's configuration of the product (the board's and the
-/// simulation's): the default PDO maps and the Bootstrap mailbox.
+/// simulation's): the mailbox limits, the default PDO maps and the Bootstrap mailbox.
 pub fn slave_config() -> ecat_slave_stack::slave::SlaveConfig {
     ecat_slave_stack::slave::SlaveConfig {
+        mailbox_limits: MAILBOX_LIMITS,
         pdo_defaults: crate::pdo_defaults::PDO_DEFAULTS,
         bootstrap: BOOTSTRAP,
         ..ecat_slave_stack::slave::SlaveConfig::default()
@@ -232,6 +242,40 @@ pub fn serial_from_unique_id(uid: &[u8; 12]) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_product_refuses_mailboxes_shorter_than_its_limits() {
+        use ecat_slave_stack::al_status::AlStatusCode;
+        use ecat_slave_stack::sm::{validate_mailbox, RamWindow, SmRegs};
+        let sm = |start: u16, len: u16, control: u8| SmRegs {
+            start,
+            len,
+            control,
+            status: 0,
+            activate: 1,
+            pdi_control: 0,
+        };
+        let ram = RamWindow::from_kib(4);
+        let cfg = slave_config();
+        assert_eq!(cfg.mailbox_limits, MAILBOX_LIMITS);
+        let check = |l0: u16, l1: u16| {
+            validate_mailbox(
+                &sm(0x1000, l0, 0x26),
+                &sm(0x1080, l1, 0x22),
+                &[],
+                &cfg.mailbox_limits,
+                ram,
+            )
+        };
+        assert_eq!(check(32, 40), Ok(()));
+        assert_eq!(check(30, 128), Err(AlStatusCode::InvalidMailboxConfig));
+        assert_eq!(check(128, 32), Err(AlStatusCode::InvalidMailboxConfig));
+        // The stack alone takes them (its default is what its server can hold).
+        let any = ecat_slave_stack::sm::MailboxLimits::default();
+        let stack_only =
+            validate_mailbox(&sm(0x1000, 30, 0x26), &sm(0x1080, 32, 0x22), &[], &any, ram);
+        assert_eq!(stack_only, Ok(()));
+    }
 
     #[test]
     fn variants_differ_and_names_fit() {

@@ -508,8 +508,8 @@ fn invalid_mailbox_configuration_0x0016() {
                 [0x80, 0x10, 0x80, 0, 0x20, 0, 1, 0],
             ),
             ("SM0 odd start", [0x01, 0x10, 0x80, 0, 0x26, 0, 1, 0], SM1),
-            ("SM0 too short", [0x00, 0x10, 16, 0, 0x26, 0, 1, 0], SM1),
-            ("SM1 too short", SM0, [0x80, 0x10, 32, 0, 0x22, 0, 1, 0]),
+            ("SM0 too short", [0x00, 0x10, 14, 0, 0x26, 0, 1, 0], SM1),
+            ("SM1 too short", SM0, [0x80, 0x10, 14, 0, 0x22, 0, 1, 0]),
             ("overlap", SM0, [0x40, 0x10, 0x80, 0, 0x22, 0, 1, 0]),
             (
                 "beyond process RAM",
