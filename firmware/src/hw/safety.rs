@@ -195,16 +195,17 @@ unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
 /// and checked around each record read (`hw::flash::MappedRegion`).
 pub static ECC_RECORD_ERROR: AtomicBool = AtomicBool::new(false);
 
-/// Bytes per bank in dual-bank mode (512 KiB flash).
-const BANK_SIZE: u32 = firmware::flash_layout::FLASH_SIZE / 2;
-
 #[exception]
 unsafe fn NonMaskableInt() {
     use firmware::storage::ecc::{ecc_offset, nmi_action, NmiAction};
     let eccr = pac::FLASH.eccr().read();
     // ADDR_ECC: the failing double word's byte address in its bank (RM0440,
     // FLASH_ECCR), BK_ECC its bank.
-    let offset = ecc_offset(eccr.bk_ecc(), eccr.addr_ecc(), BANK_SIZE);
+    let offset = ecc_offset(
+        eccr.bk_ecc(),
+        eccr.addr_ecc(),
+        firmware::flash_layout::BANK_SIZE,
+    );
     let records = board::PARAM_FLASH_OFFSET..board::PARAM_FLASH_OFFSET + board::PARAM_FLASH_SIZE;
     match nmi_action(eccr.eccd(), offset, records) {
         NmiAction::RecordReadError => {
