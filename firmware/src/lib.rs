@@ -16,6 +16,7 @@ pub mod flash_layout;
 pub mod flash_region;
 pub mod identity;
 pub mod io;
+pub mod irq_priority;
 pub mod latch;
 pub mod mem;
 pub mod monitor;

@@ -53,7 +53,7 @@ use core::sync::atomic::{AtomicU8, Ordering};
 
 use embassy_stm32::gpio::{AfType, AnyPin, Flex, OutputType, Pull, Speed};
 use embassy_stm32::interrupt;
-use embassy_stm32::interrupt::{InterruptExt, Priority};
+use embassy_stm32::interrupt::InterruptExt;
 use embassy_stm32::pac;
 use embassy_stm32::pac::timer::vals;
 use embassy_stm32::peripherals::{PA6, PA7, PA8, PA9, PB0, PC10, PC11, PC6, PC7, PD2, TIM1, TIM8};
@@ -218,8 +218,11 @@ pub fn init(p: PowerStage<'static>) {
         t.sr().write(|w| w.0 = 0);
         t.dier().modify(|w| w.set_bie(true));
     }
-    interrupt::TIM1_BRK_TIM15.set_priority(Priority::P1);
-    interrupt::TIM8_BRK.set_priority(Priority::P1);
+    // Above the current loop: a break in the middle of its step takes the other
+    // bridge off at once.
+    let level = crate::hw::lock::priority(firmware::irq_priority::BREAK);
+    interrupt::TIM1_BRK_TIM15.set_priority(level);
+    interrupt::TIM8_BRK.set_priority(level);
     // SAFETY: unmasking the break interrupts breaks no critical section: their
     // handlers (below) touch only the TIM1/TIM8 registers and atomics.
     unsafe {
@@ -316,6 +319,13 @@ pub fn enable_outputs() -> bool {
     // sets the halted state and clears MOE, so MOE is not set after a halt.
     for t in [pac::TIM1, pac::TIM8] {
         t.bdtr().modify(|w| w.set_moe(true));
+    }
+    // The break interrupt runs above the current loop that calls this: a break
+    // between the check above and the MOE writes has latched and switched off, and
+    // the writes may have switched the other bridge on again. Look once more.
+    if BREAK_LATCH.load(Ordering::Acquire) != 0 {
+        disable_outputs();
+        return false;
     }
     true
 }

@@ -248,7 +248,7 @@ fn force_break() -> BreakObservation {
     for t in [pac::TIM1, pac::TIM8] {
         t.egr().write(|w| w.set_bg(0, true));
     }
-    // The break interrupts (priority 1) run at once; give them a few cycles.
+    // The break interrupts (above everything else) run at once; give them a few cycles.
     cortex_m::asm::delay(1000);
     let outputs_off_after_force = [pac::TIM1, pac::TIM8]
         .iter()
