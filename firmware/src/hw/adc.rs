@@ -275,7 +275,7 @@ fn ADC1_2() {
 }
 
 /// The offsets of the current sensors with the bridges off (`None`: the check
-/// failed, fault 9).
+/// failed: the current-sensing fault).
 pub async fn offset_self_check(wdg: &mut crate::hw::safety::Watchdog) -> Option<(f32, f32)> {
     let mut cal = firmware::sampling::OffsetCalibrator::new(crate::board::OFFSET_SAMPLES);
     let mut last = crate::hw::control::SAMPLES.sequence();
@@ -303,8 +303,8 @@ pub async fn offset_self_check(wdg: &mut crate::hw::safety::Watchdog) -> Option<
             Some((o.ia, o.ib))
         }
         Err(e) => {
-            crate::hw::safety::raise_fault(crate::hw::safety::FAULT_CURRENT_SENSING);
-            defmt::error!("fault 9, current-sensor self-check: {}", e);
+            crate::hw::safety::raise_fault(firmware::sampling::OffsetFault::KIND);
+            defmt::error!("current-sensor self-check failed: {}", e);
             None
         }
     }

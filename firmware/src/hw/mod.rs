@@ -43,7 +43,7 @@
 //! | embassy time driver | `TIM5` ISR | 4 | alarms | < 2 µs |
 //! | EtherCAT: ESC IRQ (or every 1 ms) → `Slave::poll` (AL control, ESM, mailbox/SDO, watchdog supervision; the cycle in SM-synchronous / free-run mode), emergencies forwarded | thread executor, holding the priority-ceiling lock | thread (ceiling 3) | ESC IRQ, ≥ 1 kHz | one SDO ≈ 2 × 128-byte SPI transfers + dictionary access; a 'save' adds the record serialisation (≈ 1.7 KiB of dictionary reads); delays the cyclic path by at most this; to be measured |
 //! | parameter storage: staged record → flash (erase ≈ 20 ms per 2 KiB page, ≤ 40 ms max; program ≈ 85 µs per 8 bytes) | thread executor, after `poll`, **no lock** | thread | on 'save' / 'load' | ≤ 4 × 40 ms + 20 ms; the cyclic path and the ISRs keep running (bank 2 read-while-write); the thread tasks pause — the watchdog (300 ms) covers it |
-//! | 1 ms supervision tick, the drive's own clock: raw inputs → `Drive::tick` (filter, protections, fault 1 / 9 from the board, a failed commutation alignment → following error 0x8611, and — unless a cycle just did it — the control step: PDS, fault reactions, ramps, generators, brake, in every ESM state), outputs + brake from `Drive::outputs`, LEDs (`Drive::leds`, RUN/ERR from the ESM state and AL status code) | interrupt executor `UART4` (so a flash commit in thread mode never stops it; lock held for the drive part) | 3 | 1 kHz | < 20 µs; the control step ≈ 1 k instructions (QEMU count), to be measured |
+//! | 1 ms supervision tick, the drive's own clock: raw inputs → `Drive::tick` (filter, protections, over-current and current-sensing faults from the board, a failed commutation alignment → following error 0x8611, and — unless a cycle just did it — the control step: PDS, fault reactions, ramps, generators, brake, in every ESM state), outputs + brake from `Drive::outputs`, LEDs (`Drive::leds`, RUN/ERR from the ESM state and AL status code) | interrupt executor `UART4` (so a flash commit in thread mode never stops it; lock held for the drive part) | 3 | 1 kHz | < 20 µs; the control step ≈ 1 k instructions (QEMU count), to be measured |
 //! | supervisor: offset self-check at start, watchdog feeding, status line | thread executor | thread | 100 Hz | < 100 µs per tick |
 //!
 //! ## Who owns what
@@ -91,8 +91,8 @@
 //!   `AxisState::probe1/probe2` until a drive step has run (`publish_command` clears
 //!   them), exactly as the index pulse.
 //! * **Decisions** between the drive and the interrupt — latches pending for a step,
-//!   probe polarity, alignment failures → 0x8611, the failed offset check → fault 9,
-//!   the power and tune permissions, break latch ↔ fault 1 and its re-arm — are the
+//!   probe polarity, alignment failures → 0x8611, the failed offset check → current-sensing fault,
+//!   the power and tune permissions, break latch ↔ over-current fault and its re-arm — are the
 //!   library's `firmware::board_glue::BoardGlue` (held in [`DriveState`]), run by host and
 //!   QEMU tests and by the simulator (`tests-host`). This file wires tasks to it.
 //!

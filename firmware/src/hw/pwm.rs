@@ -392,7 +392,7 @@ fn on_break(bit: u8, t: pac::timer::TimAdv) {
         w.0 = !0;
         w.set_bif(0, false);
     });
-    crate::hw::safety::raise_fault(crate::hw::safety::FAULT_OVER_CURRENT);
+    crate::hw::safety::raise_fault(firmware::faults::FaultKind::OverCurrent);
 }
 
 // Vector names checked by `#[interrupt]` against the device's interrupt enum.

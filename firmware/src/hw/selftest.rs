@@ -255,7 +255,7 @@ fn force_break() -> BreakObservation {
         .all(|t| !t.bdtr().read().moe());
     let latched_after_force = pwm::break_latched() == 0b11;
     let rearmed = pwm::rearm() && pwm::break_latched() == 0;
-    // The break handler raised fault 1 (over-current) for the red LED: that is the
+    // The break handler raised the over-current fault for the red LED: that is the
     // forced break, not a fault of the board.
     super::safety::clear_fault_after_selftest();
     BreakObservation {
