@@ -1,6 +1,7 @@
 #![no_std]
 #![deny(clippy::undocumented_unsafe_blocks)]
 pub mod board_glue;
+pub mod boot_state;
 pub mod cia402;
 pub mod comm;
 pub mod commutation;
