@@ -229,18 +229,46 @@ pub const TABLE: [FaultInfo; KINDS] = [
     },
 ];
 
-/// Bit n set: [`FaultKind`] n cuts the power at once ([`FaultKind::cuts_power`]).
-const POWER_CUT_MASK: u8 = {
-    let mut m = 0u8;
-    let mut i = 0;
-    while i < KINDS {
-        if TABLE[i].cuts_power {
-            m |= 1 << i;
+// The columns the drive uses at run time, taken out of [`TABLE`] at compile time: the
+// board image holds these small arrays and masks, not the table's documentation
+// strings.
+
+/// One column of [`TABLE`] as an array indexed by the kind number.
+macro_rules! column {
+    ($field:ident: $t:ty) => {{
+        let mut a: [$t; KINDS] = [0; KINDS];
+        let mut i = 0;
+        while i < KINDS {
+            a[i] = TABLE[i].$field;
+            i += 1;
         }
-        i += 1;
-    }
-    m
-};
+        a
+    }};
+}
+
+/// A yes/no column of [`TABLE`] as a mask: bit n set for kind n.
+macro_rules! kinds_where {
+    ($field:ident) => {{
+        let mut m = 0u8;
+        let mut i = 0;
+        while i < KINDS {
+            if TABLE[i].$field {
+                m |= 1 << i;
+            }
+            i += 1;
+        }
+        m
+    }};
+}
+
+const CODES: [u16; KINDS] = column!(code: u16);
+const REGISTERS: [u8; KINDS] = column!(register: u8);
+const FLASHES: [u8; KINDS] = column!(flashes: u8);
+const MASK_BITS: [u8; KINDS] = column!(mask_bit: u8);
+/// Bit n set: [`FaultKind`] n cuts the power at once ([`FaultKind::cuts_power`]).
+const POWER_CUT_MASK: u8 = kinds_where!(cuts_power);
+const LATCHED_MASK: u8 = kinds_where!(latched);
+const PROTECTIVE_MASK: u8 = kinds_where!(protective);
 
 /// Number of fault kinds.
 pub const KINDS: usize = 8;
@@ -261,21 +289,22 @@ impl FaultKind {
         FaultKind::Ecat,
         FaultKind::MotorBlocked,
     ];
-    /// Its row of [`TABLE`].
+    /// Its row of [`TABLE`] (documentation and host tools; the drive's own code uses
+    /// the accessors below).
     pub const fn info(self) -> &'static FaultInfo {
         &TABLE[self as usize]
     }
     /// 0x603F code (EtherCAT faults carry the caller's code instead).
     pub const fn code(self) -> u16 {
-        self.info().code
+        CODES[self as usize]
     }
     /// Bits of 0x1001 (bit 0 generic always included).
     pub const fn error_register(self) -> u8 {
-        self.info().register
+        REGISTERS[self as usize]
     }
     /// Red LED flash count (`None`: shown by the EtherCAT ERR LED instead).
     pub const fn flashes(self) -> Option<u8> {
-        match self.info().flashes {
+        match FLASHES[self as usize] {
             0 => None,
             n => Some(n),
         }
@@ -283,15 +312,19 @@ impl FaultKind {
     /// The power stage goes off at once ([`FaultInfo::cuts_power`]); the other
     /// faults stop the motor with the fault reaction 0x605E first.
     pub const fn cuts_power(self) -> bool {
-        self.info().cuts_power
+        POWER_CUT_MASK & (1 << self as u8) != 0
     }
     /// Needs a power cycle (or 0x2057 = 1) to clear.
     pub const fn latched(self) -> bool {
-        self.info().latched
+        LATCHED_MASK & (1 << self as u8) != 0
+    }
+    /// Protects the hardware or the load ([`FaultInfo::protective`]).
+    pub const fn protective(self) -> bool {
+        PROTECTIVE_MASK & (1 << self as u8) != 0
     }
     /// Enable bit in 0x2056 (`None`: cannot be masked).
     pub const fn mask_bit(self) -> Option<u8> {
-        match self.info().mask_bit {
+        match MASK_BITS[self as usize] {
             NO_MASK => None,
             b => Some(b),
         }
@@ -517,7 +550,7 @@ impl Faults {
     /// would leave the drive enabled with no torque and nothing reported; any other
     /// kind follows 0x2056 as [`Faults::raise`] does.
     pub fn raise_unmaskable(&mut self, kind: FaultKind, snap: Snapshot, now_ms: u32) -> bool {
-        if !kind.info().protective {
+        if !kind.protective() {
             return self.raise(kind, snap, now_ms);
         }
         self.raise_always(kind, kind.code(), [0, 0], snap, now_ms)

@@ -322,6 +322,16 @@ fn the_fault_table_is_consistent() {
         // Latched faults are the protective ones that a hardware trip latches.
         assert!(!r.latched || r.protective, "{}", r.name);
         assert_eq!(POWER_CUT_MASK & (1 << i) != 0, r.cuts_power);
+        // The run-time columns are the table's.
+        assert_eq!(
+            (k.code(), k.error_register(), k.flashes().unwrap_or(0)),
+            (r.code, r.register, r.flashes)
+        );
+        assert_eq!(
+            (k.cuts_power(), k.latched(), k.protective()),
+            (r.cuts_power, r.latched, r.protective)
+        );
+        assert_eq!(k.mask_bit().unwrap_or(NO_MASK), r.mask_bit);
         for (j, o) in TABLE.iter().enumerate().skip(i + 1) {
             assert_ne!(r.code, o.code, "{} / {}", r.name, o.name);
             assert!(

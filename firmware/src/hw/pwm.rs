@@ -324,10 +324,17 @@ pub fn enable_outputs() -> bool {
     // between the check above and the MOE writes has latched and switched off, and
     // the writes may have switched the other bridge on again. Look once more.
     if BREAK_LATCH.load(Ordering::Acquire) != 0 {
-        disable_outputs();
-        return false;
+        return break_won();
     }
     true
+}
+
+/// [`enable_outputs`] lost the race with a break: both bridges off again.
+#[cold]
+#[inline(never)]
+fn break_won() -> bool {
+    disable_outputs();
+    false
 }
 
 /// Switches both bridges off (outputs to idle level: all switches off), then centres
