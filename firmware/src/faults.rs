@@ -764,7 +764,9 @@ impl Faults {
         FaultKind::ALL.into_iter().find(|&k| self.is_active(k))
     }
 
-    /// 0x603F: code of the most severe active fault, 0 when none.
+    /// 0x603F: code of the most severe active fault, 0 when none. Out of line (several
+    /// callers; the code size stays down).
+    #[inline(never)]
     pub fn error_code(&self) -> u16 {
         match self.most_severe() {
             Some(FaultKind::Ecat) => self.ecat_code,

@@ -35,6 +35,21 @@ use run::{cargo, run_status};
 
 const THUMB: &str = "thumbv7em-none-eabihf";
 
+/// `drive-docs CMD OUT` (tests-host): a file generated from the drive's one description.
+fn drive_docs(cmd: &str, out: &str) -> bool {
+    run_status(&mut cargo(&[
+        "run",
+        "-p",
+        "tests-host",
+        "--release",
+        "--bin",
+        "drive-docs",
+        "--",
+        cmd,
+        out,
+    ]))
+}
+
 fn main() -> ExitCode {
     let args: Vec<String> = env::args().skip(1).collect();
     let root = root();
@@ -55,39 +70,9 @@ fn main() -> ExitCode {
             ])
             .args(*rest),
         ),
-        Some("esi") => run_status(&mut cargo(&[
-            "run",
-            "-p",
-            "tests-host",
-            "--release",
-            "--bin",
-            "drive-docs",
-            "--",
-            "esi",
-            "docs/esi",
-        ])),
-        Some("od-doc") => run_status(&mut cargo(&[
-            "run",
-            "-p",
-            "tests-host",
-            "--release",
-            "--bin",
-            "drive-docs",
-            "--",
-            "od-doc",
-            "docs/object-dictionary.md",
-        ])),
-        Some("faults-doc") => run_status(&mut cargo(&[
-            "run",
-            "-p",
-            "tests-host",
-            "--release",
-            "--bin",
-            "drive-docs",
-            "--",
-            "faults-doc",
-            "docs/faults.md",
-        ])),
+        Some("esi") => drive_docs("esi", "docs/esi"),
+        Some("od-doc") => drive_docs("od-doc", "docs/object-dictionary.md"),
+        Some("faults-doc") => drive_docs("faults-doc", "docs/faults.md"),
         Some("size") => size::size_report().is_ok_and(|f| f.chip && f.bootloader),
         // The static stack analysis of a given ELF (no build).
         Some("stack") => match rest.first().map(|p| stack::analyse(Path::new(p))) {

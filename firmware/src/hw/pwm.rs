@@ -296,11 +296,9 @@ fn configure(t: pac::timer::TimAdv) {
 /// Energises both bridges (MOE = 1) at zero volts (duties centred in the active
 /// compare registers first, module docs), unless a break is latched or the drive is
 /// halted (`hw::safety::HALT`: a panic or HardFault). Returns whether the outputs are
-/// on. Called only by the current-loop interrupt.
+/// on. Called only by the current-loop interrupt, rarely (at an enable): out of line.
+#[inline(never)]
 pub fn enable_outputs() -> bool {
-    if BREAK_LATCH.load(Ordering::Acquire) != 0 || crate::hw::safety::HALT.is_halted() {
-        return false;
-    }
     let half = board::PWM_ARR / 2;
     for t in [pac::TIM1, pac::TIM8] {
         // MOE is 0 here, so writing the active registers cannot glitch an output.
@@ -315,26 +313,20 @@ pub fn enable_outputs() -> bool {
             w.set_ocpe(1, true);
         });
     }
-    // A HardFault between the check above and here never returns to us: its handler
-    // sets the halted state and clears MOE, so MOE is not set after a halt.
-    for t in [pac::TIM1, pac::TIM8] {
-        t.bdtr().modify(|w| w.set_moe(true));
-    }
-    // The break interrupt runs above the current loop that calls this: a break
-    // between the check above and the MOE writes has latched and switched off, and
-    // the writes may have switched the other bridge on again. Look once more.
-    if BREAK_LATCH.load(Ordering::Acquire) != 0 {
-        return break_won();
-    }
-    true
-}
-
-/// [`enable_outputs`] lost the race with a break: both bridges off again.
-#[cold]
-#[inline(never)]
-fn break_won() -> bool {
-    disable_outputs();
-    false
+    // The break interrupts run above the current loop that calls this: the latch
+    // check and the MOE writes are one step for them (PRIMASK for a few cycles; the
+    // hardware break switches its bridge off regardless), so a break never finds the
+    // other bridge switched on again after it. A HardFault in here never returns to
+    // us: its handler sets the halted state and clears MOE.
+    cortex_m::interrupt::free(|_| {
+        if BREAK_LATCH.load(Ordering::Acquire) != 0 || crate::hw::safety::HALT.is_halted() {
+            return false;
+        }
+        for t in [pac::TIM1, pac::TIM8] {
+            t.bdtr().modify(|w| w.set_moe(true));
+        }
+        true
+    })
 }
 
 /// Switches both bridges off (outputs to idle level: all switches off), then centres
