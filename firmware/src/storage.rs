@@ -521,17 +521,19 @@ impl Storage {
     /// (a 'save' runs this under the drive's lock: one payload less to read and check).
     pub fn newest<F: NorFlash>(&self, flash: &mut F) -> Option<(usize, u32, u32)> {
         self.check(flash).ok()?;
-        let h = [0, 1].map(|i| self.read_header(flash, i).ok().flatten());
-        let order = match (h[0], h[1]) {
-            (Some(a), Some(b)) if newer(b.sequence, a.sequence) => [1, 0],
-            _ => [0, 1],
-        };
-        order.into_iter().find_map(|i| {
-            let hd = h[i]?;
-            let head = header_bytes(self.magic, hd.sequence, hd.payload_len);
-            let crc = self.payload_crc(flash, i, hd.payload_len, &head).ok()?;
-            (crc == hd.crc).then_some((i, hd.sequence, hd.payload_len))
-        })
+        let seq = |flash: &mut F, i| Some(self.read_header(flash, i).ok()??.sequence);
+        let (s0, s1) = (seq(flash, 0), seq(flash, 1));
+        let first = usize::from(matches!((s0, s1), (Some(a), Some(b)) if newer(b, a)));
+        [first, 1 - first]
+            .into_iter()
+            .filter(|&i| [s0, s1][i].is_some())
+            .find_map(|i| match self.slot_status(flash, i) {
+                SlotStatus::Valid {
+                    sequence,
+                    payload_len,
+                } => Some((i, sequence, payload_len)),
+                _ => None,
+            })
     }
 
     /// Both slots' status and the slot holding the newest valid record.
