@@ -516,8 +516,8 @@ impl Storage {
     }
 
     /// The newest valid record (slot, sequence, payload length), as [`Storage::scan`]
-    /// finds it, with as little reading as it can: both headers, then the payload CRC
-    /// of the newer record only, and of the other one only when the newer is not valid
+    /// finds it, with less reading: both headers, then the check (payload CRC) of the
+    /// newer record only, and of the other one only when the newer is not valid
     /// (a 'save' runs this under the drive's lock: one payload less to read and check).
     pub fn newest<F: NorFlash>(&self, flash: &mut F) -> Option<(usize, u32, u32)> {
         self.check(flash).ok()?;
