@@ -37,10 +37,15 @@
 //! chip raises an NMI (FLASH_ECCR.ECCD) and the read returns garbage. The NMI
 //! handler here notes it and clears ECCD ([`NonMaskableInt`]), and the read that hit
 //! it fails ([`Fed`]'s `read`, `FedError::Ecc`), as the firmware's record reads do
-//! (`firmware::storage::ecc`): embassy-boot never acts on garbage. A failed read makes
-//! `prepare` panic: the bootloader stops (the PWM is never configured here, so the
-//! bridges stay off), and the watchdog, if the firmware started it, resets the chip
-//! to try again. Any other NMI stops the same way. The default handler (an endless
+//! (`firmware::storage::ecc`): embassy-boot never acts on garbage. In the boot-state
+//! page a torn double word reads as erased — the write it belonged to did not
+//! complete — and a page found torn is erased once no swapped image awaits its
+//! confirmation (`firmware::boot_state`, tested with the power-cut model in
+//! `tests-host/tests/boot_power_cut.rs`): the last good image boots. A failed read
+//! anywhere else (the images) makes the preparation fail and the bootloader panic: it
+//! stops (the PWM is never configured here, so the bridges stay off), and the
+//! watchdog, if the firmware started it, resets the chip to try again. Any other NMI
+//! stops the same way. The default handler (an endless
 //! loop with the NMI still pending) is never used.
 //!
 //! ## Flashing
@@ -72,7 +77,7 @@ mod boot {
     use core::sync::atomic::{AtomicBool, Ordering};
 
     use cortex_m_rt::{entry, exception};
-    use embassy_boot_stm32::{BootLoader, BootLoaderConfig};
+    use embassy_boot_stm32::{AlignedBuffer, BootLoader, BootLoaderConfig};
     use embassy_stm32::flash::{Flash, FLASH_BASE, MAX_ERASE_SIZE};
     use embassy_stm32::pac;
     use embassy_sync::blocking_mutex::raw::NoopRawMutex;
@@ -88,9 +93,17 @@ mod boot {
         // The partitions from layout.x's __bootloader_* symbols (offsets).
         let config = BootLoaderConfig::from_linkerfile_blocking(&flash, &flash, &flash);
         let active = config.active.offset();
-        // Swap or revert if the boot state says so (resumes an interrupted one); the
-        // copy buffer is one erase page.
-        let loader = BootLoader::prepare::<_, _, _, MAX_ERASE_SIZE>(config);
+        let mut state = config.state;
+        // Swap or revert if the boot state says so (resumes an interrupted one), with
+        // torn state words read as erased (`firmware::boot_state`); the copy buffer
+        // is one erase page.
+        let mut buf = AlignedBuffer([0; MAX_ERASE_SIZE]);
+        let Ok(found) =
+            firmware::boot_state::prepare_boot(config.active, config.dfu, &mut state, &mut buf.0)
+        else {
+            panic!("boot prepare error")
+        };
+        let loader = BootLoader { state: found };
         // SAFETY: the active partition holds a cortex-m-rt image linked at its start
         // (firmware/memory.x), beginning with its vector table; `load` points VTOR there, and
         // sets the stack pointer and jumps to the reset vector from it.

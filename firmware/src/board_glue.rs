@@ -23,7 +23,7 @@
 //!   1 (over-current): the latch is reported through `AxisState::overcurrent_trip`;
 //!   the break is re-armed only once the drive holds the fault and the command that
 //!   withdraws the power permission has been published.
-//! * [`BoardGlue::raise_board_faults`] — a failed start-up offset check is fault 9
+//! * [`BoardGlue::raise_board_faults`] — a failed start-up offset check is the current-sensing fault
 //!   (phase sensing, 0x5210) at every tick until restart; each failed commutation
 //!   alignment is one following-error fault (0x8611).
 //!
@@ -123,9 +123,9 @@ pub struct BoardGlue {
     ctl: ControlCommand,
     /// [`Drive::steps`] when the last command was built.
     seen_steps: u32,
-    /// The break latch was reported to the drive as an over-current (fault 1).
+    /// The break latch was reported to the drive as an over-current fault.
     oc_reported: bool,
-    /// The start-up offset self-check failed (fault 9, kept until restart).
+    /// The start-up offset self-check failed (the current-sensing fault, kept until restart).
     offset_fault: bool,
     /// Index pulses seen (`Feedback::index_seq`) and one not yet given to a step.
     index_seen: u32,
@@ -167,7 +167,7 @@ impl BoardGlue {
         self.ctl.offsets = Some((ia, ib));
     }
 
-    /// The start-up current-sensor check failed: fault 9 at every
+    /// The start-up current-sensor check failed: the current-sensing fault at every
     /// [`BoardGlue::raise_board_faults`] until restart.
     pub fn offset_check_failed(&mut self) {
         self.offset_fault = true;
@@ -242,7 +242,7 @@ impl BoardGlue {
         &self.ctl
     }
 
-    /// The break latch (hardware over-current) against the drive's fault 1. A new
+    /// The break latch (hardware over-current) against the drive's over-current fault. A new
     /// latch is noted (the drive sees it as `AxisState::overcurrent_trip` through
     /// [`BoardGlue::update_axis`] and latches the fault). Once the drive holds the
     /// fault, returns the command to publish before the break may be re-armed: it
@@ -269,7 +269,7 @@ impl BoardGlue {
     }
 
     /// The break was re-armed (its inputs are inactive again): the over-current
-    /// condition is gone, so a fault reset clears the drive's fault 1.
+    /// condition is gone, so a fault reset clears the drive's over-current fault.
     pub fn break_rearmed<S: ParameterStore>(&mut self, drive: &mut Drive<S>) {
         if self.oc_reported {
             self.oc_reported = false;
@@ -278,7 +278,7 @@ impl BoardGlue {
     }
 
     /// The board's own faults, once per 1 ms tick (`now_ms`: the drive's clock): the
-    /// failed start-up offset check (fault 9, at every tick: it cannot be reset), and
+    /// failed start-up offset check (the current-sensing fault, at every tick: it cannot be reset), and
     /// a following-error fault (0x8611) once per newly failed commutation alignment.
     pub fn raise_board_faults<S: ParameterStore>(&mut self, drive: &mut Drive<S>, now_ms: u32) {
         if self.offset_fault {

@@ -10,7 +10,7 @@
 //! restored, a corrupt record) have their own code and text. Time stamps are local:
 //! milliseconds since power-up, in ns.
 
-use crate::faults::{Emergency, FaultKind, KINDS};
+use crate::faults::{Emergency, FaultKind, KINDS, TABLE};
 use ecat_slave_stack::diag::{emergency_code, DiagMessage, DiagText, Param, Severity};
 
 /// Messages the history holds (0x10F3:01).
@@ -45,48 +45,8 @@ pub const TEXT_UPDATE_CONFIRMED: u16 = 0x0142;
 /// Text ID of "unconfirmed firmware reverted".
 pub const TEXT_UPDATE_REVERTED: u16 = 0x0143;
 
-/// Every text, by ID.
-pub const TEXTS: &[Text] = &[
-    Text {
-        id: fault_text_id(FaultKind::OverCurrent),
-        severity: Severity::Error,
-        text: "Over-current or phase short (bus %d x 0.1 V, detail %d)",
-    },
-    Text {
-        id: fault_text_id(FaultKind::OverVoltage),
-        severity: Severity::Error,
-        text: "Bus over-voltage (bus %d x 0.1 V, detail %d)",
-    },
-    Text {
-        id: fault_text_id(FaultKind::PhaseSensing),
-        severity: Severity::Error,
-        text: "Phase or current-sensing fault (bus %d x 0.1 V, reference %d mA)",
-    },
-    Text {
-        id: fault_text_id(FaultKind::MotorOpen),
-        severity: Severity::Error,
-        text: "Motor open or poor contact (bus %d x 0.1 V, reason and phase %X)",
-    },
-    Text {
-        id: fault_text_id(FaultKind::UnderVoltage),
-        severity: Severity::Error,
-        text: "Bus under-voltage (bus %d x 0.1 V, detail %d)",
-    },
-    Text {
-        id: fault_text_id(FaultKind::FollowingError),
-        severity: Severity::Error,
-        text: "Position following error (bus %d x 0.1 V, detail %d)",
-    },
-    Text {
-        id: fault_text_id(FaultKind::Ecat),
-        severity: Severity::Error,
-        text: "EtherCAT communication fault (bus %d x 0.1 V, AL status / states %X)",
-    },
-    Text {
-        id: fault_text_id(FaultKind::MotorBlocked),
-        severity: Severity::Error,
-        text: "Motor blocked, open-loop stall (bus %d x 0.1 V, load angle %d x 0.1 deg)",
-    },
+/// The texts that are not a fault kind's.
+const OTHER_TEXTS: [Text; 8] = [
     Text {
         id: TEXT_COMMUNICATION_STOP,
         severity: Severity::Warning,
@@ -129,7 +89,27 @@ pub const TEXTS: &[Text] = &[
     },
 ];
 
-const _: () = assert!(KINDS == 8, "one text per fault kind");
+/// The fault kinds' texts (from [`crate::faults::TABLE`]) and then the others.
+const ALL_TEXTS: [Text; KINDS + OTHER_TEXTS.len()] = {
+    let mut all = [OTHER_TEXTS[0]; KINDS + OTHER_TEXTS.len()];
+    let mut i = 0;
+    while i < KINDS {
+        all[i] = Text {
+            id: fault_text_id(FaultKind::ALL[i]),
+            severity: Severity::Error,
+            text: TABLE[i].text,
+        };
+        i += 1;
+    }
+    while i < all.len() {
+        all[i] = OTHER_TEXTS[i - KINDS];
+        i += 1;
+    }
+    all
+};
+
+/// Every text, by ID.
+pub const TEXTS: &[Text] = &ALL_TEXTS;
 
 /// The text of `id`.
 pub fn text(id: u16) -> Option<&'static Text> {

@@ -4,16 +4,11 @@
 //! the history of the last six faults with a snapshot (objects 0x2400-0x2406), kept
 //! in flash across power cycles.
 //!
-//! | fault | 603F | 1001 bits | red LED | latched | 0x2056 bit | reaction |
-//! |---|---|---|---|---|---|---|
-//! | over-current / phase short | 0x2310 | 0, 1 (current) | 1 | yes | 0 (always on, see below) | power off at once |
-//! | over-voltage (> 0x2054, 55 V by default) | 0x3210 | 0, 2 (voltage) | 2 | yes | 1 | power off at once |
-//! | phase / current-sensing | 0x5210 | 0, 1 (current) | 9 | no | 3 | power off at once |
-//! | motor open / poor contact | 0x7120 | 0, 5 (profile) | 4 | no | 2 | power off at once |
-//! | under-voltage (< 0x2055, 12 V by default; 0 = off) | 0x3220 | 0, 2 (voltage) | 3 | no | 6 | 0x605E ramp |
-//! | position following error | 0x8611 | 0, 5 (profile) | 7 | no | 7 | 0x605E ramp |
-//! | EtherCAT (watchdog, sync, ESM, PDO length) | caller's code (0x8700, 0xA000, 0xA001, 0x8210, 0x8220) | 0, 4 (communication) | — (ERR LED) | no | — | 0x605E ramp (0x6007 = 1) |
-//! | motor blocked (open-loop stall, 0x2060-0x2062) | 0x7121 | 0, 5 (profile) | 5 | no | — (0x2060) | 0x605E ramp |
+//! Every fault kind's code, error-register bits, red-LED flashes, reaction, latching,
+//! 0x2056 bit, protection class and text are stated once, in [`TABLE`]; everything
+//! else (the [`FaultKind`] accessors, the diagnosis texts of [`crate::diagnosis`],
+//! the board's status line, `virtual-drive --help`, `docs/faults.md` by
+//! `cargo xtask faults-doc`) is derived from it.
 //!
 //! **Reaction** ([`FaultKind::cuts_power`]): "power off at once" withdraws the power
 //! stage in the same supervision tick (the motor coasts, the brake engages); the
@@ -26,16 +21,13 @@
 //! keep their meaning. It is an event of the stall detector ([`crate::motion`]); its
 //! condition is gone at once, so a fault reset clears it.
 //!
-//! **0x2056** (default 0x00C3): a set bit *enables* the detection. The default thus
-//! enables over-current, over-voltage, under-voltage and following error, and leaves
-//! the two power-up checks (motor open, current sensing) off. Over-current protection
-//! cannot be switched off: bit 0 is ignored (the PWM must stop on a short whatever
-//! the mask says).
+//! **0x2056** (default 0x00C3): a set bit *enables* the detection of the kind whose
+//! row names it; a kind without a bit cannot be masked there. A protective kind
+//! ([`FaultInfo::protective`]) is reported whatever the mask says when its cause has
+//! already taken the torque away.
 //!
-//! **Latching**: a latched fault (over-current, over-voltage) survives fault reset
-//! until power is cycled, unless 0x2057 = 1. Every fault also stays until its
-//! condition is gone (under-voltage clears 0.5 V above the threshold; it is only
-//! detected once the bus has been above that level since power-up). Fault reset
+//! **Latching**: a latched fault survives fault reset until power is cycled, unless
+//! 0x2057 = 1. Every fault also stays until its condition is gone. Fault reset
 //! comes from the controlword bit 7 edge (CiA 402 helper) or a fault-clear input edge
 //! (I/O): both call [`Faults::fault_reset`].
 //!
@@ -94,18 +86,189 @@ pub enum FaultKind {
     MotorBlocked = 7,
 }
 
-/// Bit n set: [`FaultKind`] n cuts the power at once ([`FaultKind::cuts_power`]).
-const POWER_CUT_MASK: u8 = {
-    let mut m = 0u8;
-    let mut i = 0;
-    while i < KINDS {
-        if FaultKind::ALL[i].cuts_power() {
-            m |= 1 << FaultKind::ALL[i] as u8;
+/// One row of the fault table ([`TABLE`]): what the drive states about a fault kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FaultInfo {
+    /// Short name (docs, logs).
+    pub name: &'static str,
+    /// What detects it and when (docs).
+    pub detection: &'static str,
+    /// 0x603F and emergency code (EtherCAT faults carry the caller's code; this is
+    /// the watchdog's).
+    pub code: u16,
+    /// Bits of 0x1001 (bit 0 generic included).
+    pub register: u8,
+    /// Red LED flash count; 0: shown by the EtherCAT ERR LED instead.
+    pub flashes: u8,
+    /// Reaction: the power stage goes off at once (the bridges cannot, or must not,
+    /// drive the motor any more); else the fault reaction 0x605E runs first.
+    pub cuts_power: bool,
+    /// Needs a power cycle (or 0x2057 = 1) to clear.
+    pub latched: bool,
+    /// Enable bit in 0x2056; [`NO_MASK`]: cannot be masked there.
+    pub mask_bit: u8,
+    /// Protects the hardware or the load: a detection of this kind whose cause has
+    /// already taken the torque away (a latched hardware trip, a failed current-sensor
+    /// check) is reported whatever 0x2056 says ([`Faults::raise_unmaskable`]), so it
+    /// can never be masked into "enabled with no torque".
+    pub protective: bool,
+    /// The diagnosis text (0x10F3, the ESI's `<DiagMessages>`): the two parameters
+    /// are the bus voltage (0.1 V) and the emergency's detail bytes.
+    pub text: &'static str,
+}
+
+/// [`FaultInfo::mask_bit`] of a kind 0x2056 cannot switch off.
+pub const NO_MASK: u8 = 0xFF;
+
+/// The fault table, one row per [`FaultKind`] in its order (most severe first).
+pub const TABLE: [FaultInfo; KINDS] = [
+    FaultInfo {
+        name: "over-current / phase short",
+        detection: "phase current above the limit in the 1 ms tick; the break inputs \
+                    and the current loop's fast trip switch the bridges off in hardware",
+        code: 0x2310,
+        register: 0x03,
+        flashes: 1,
+        cuts_power: true,
+        latched: true,
+        // The PWM must stop on a short whatever 0x2056 says (bit 0 is ignored).
+        mask_bit: NO_MASK,
+        protective: true,
+        text: "Over-current or phase short (bus %d x 0.1 V, detail %d)",
+    },
+    FaultInfo {
+        name: "over-voltage",
+        detection: "bus voltage above 0x2054 (55 V by default); the current loop's \
+                    fast trip latches the bridges off at 55 V",
+        code: 0x3210,
+        register: 0x05,
+        flashes: 2,
+        // Braking would pump the bus higher.
+        cuts_power: true,
+        latched: true,
+        mask_bit: 1,
+        protective: true,
+        text: "Bus over-voltage (bus %d x 0.1 V, detail %d)",
+    },
+    FaultInfo {
+        name: "phase / current sensing",
+        detection: "start-up current-sensor offset check; current that does not follow \
+                    its reference while running; a calibration outside its band",
+        code: 0x5210,
+        register: 0x03,
+        flashes: 9,
+        cuts_power: true,
+        latched: false,
+        mask_bit: 3,
+        protective: true,
+        text: "Phase or current-sensing fault (bus %d x 0.1 V, reference %d mA)",
+    },
+    FaultInfo {
+        name: "motor open / poor contact",
+        detection: "power-up current tune (open phase, unbalanced, implausible); no \
+                    current in a phase while running",
+        code: 0x7120,
+        register: 0x21,
+        flashes: 4,
+        cuts_power: true,
+        latched: false,
+        mask_bit: 2,
+        protective: false,
+        text: "Motor open or poor contact (bus %d x 0.1 V, reason and phase %X)",
+    },
+    FaultInfo {
+        name: "under-voltage",
+        detection: "bus voltage below 0x2055 (12 V by default; 0 = off) once it has \
+                    been 0.5 V above it since power-up; clears 0.5 V above",
+        code: 0x3220,
+        register: 0x05,
+        flashes: 3,
+        cuts_power: false,
+        latched: false,
+        mask_bit: 6,
+        protective: false,
+        text: "Bus under-voltage (bus %d x 0.1 V, detail %d)",
+    },
+    FaultInfo {
+        name: "position following error",
+        detection: "following error above 0x2030; a failed commutation alignment",
+        code: 0x8611,
+        register: 0x21,
+        flashes: 7,
+        cuts_power: false,
+        latched: false,
+        mask_bit: 7,
+        protective: false,
+        text: "Position following error (bus %d x 0.1 V, detail %d)",
+    },
+    FaultInfo {
+        name: "EtherCAT communication",
+        detection: "watchdog (0x8700), sync, ESM transition (0xA000, 0xA001), PDO \
+                    length (0x8210, 0x8220): the caller's code; reaction 0x6007 = 1",
+        code: 0x8700,
+        register: 0x11,
+        flashes: 0,
+        cuts_power: false,
+        latched: false,
+        mask_bit: NO_MASK,
+        protective: false,
+        text: "EtherCAT communication fault (bus %d x 0.1 V, AL status / states %X)",
+    },
+    FaultInfo {
+        name: "motor blocked",
+        detection: "open-loop stall detection (0x2060-0x2062; switched by 0x2060); an \
+                    event: a fault reset clears it",
+        code: 0x7121,
+        register: 0x21,
+        flashes: 5,
+        cuts_power: false,
+        latched: false,
+        mask_bit: NO_MASK,
+        protective: false,
+        text: "Motor blocked, open-loop stall (bus %d x 0.1 V, load angle %d x 0.1 deg)",
+    },
+];
+
+// The columns the drive uses at run time, taken out of [`TABLE`] at compile time: the
+// board image holds these small arrays and masks, not the table's documentation
+// strings.
+
+/// One column of [`TABLE`] as an array indexed by the kind number.
+macro_rules! column {
+    ($field:ident: $t:ty) => {{
+        let mut a: [$t; KINDS] = [0; KINDS];
+        let mut i = 0;
+        while i < KINDS {
+            a[i] = TABLE[i].$field;
+            i += 1;
         }
-        i += 1;
-    }
-    m
-};
+        a
+    }};
+}
+
+/// A yes/no column of [`TABLE`] as a mask: bit n set for kind n.
+macro_rules! kinds_where {
+    ($field:ident) => {{
+        let mut m = 0u8;
+        let mut i = 0;
+        while i < KINDS {
+            if TABLE[i].$field {
+                m |= 1 << i;
+            }
+            i += 1;
+        }
+        m
+    }};
+}
+
+const CODES: [u16; KINDS] = column!(code: u16);
+const REGISTERS: [u8; KINDS] = column!(register: u8);
+const FLASHES: [u8; KINDS] = column!(flashes: u8);
+const MASK_BITS: [u8; KINDS] = column!(mask_bit: u8);
+/// Bit n set: [`FaultKind`] n cuts the power at once ([`FaultKind::cuts_power`]).
+const POWER_CUT_MASK: u8 = kinds_where!(cuts_power);
+const LATCHED_MASK: u8 = kinds_where!(latched);
+const PROTECTIVE_MASK: u8 = kinds_where!(protective);
 
 /// Number of fault kinds.
 pub const KINDS: usize = 8;
@@ -126,65 +289,44 @@ impl FaultKind {
         FaultKind::Ecat,
         FaultKind::MotorBlocked,
     ];
+    /// Its row of [`TABLE`] (documentation and host tools; the drive's own code uses
+    /// the accessors below).
+    pub const fn info(self) -> &'static FaultInfo {
+        &TABLE[self as usize]
+    }
     /// 0x603F code (EtherCAT faults carry the caller's code instead).
     pub const fn code(self) -> u16 {
-        match self {
-            Self::OverCurrent => 0x2310,
-            Self::OverVoltage => 0x3210,
-            Self::PhaseSensing => 0x5210,
-            Self::MotorOpen => 0x7120,
-            Self::UnderVoltage => 0x3220,
-            Self::FollowingError => 0x8611,
-            Self::Ecat => 0x8700,
-            Self::MotorBlocked => 0x7121,
-        }
+        CODES[self as usize]
     }
     /// Bits of 0x1001 (bit 0 generic always included).
     pub const fn error_register(self) -> u8 {
-        match self {
-            Self::OverCurrent | Self::PhaseSensing => 0x03,
-            Self::OverVoltage | Self::UnderVoltage => 0x05,
-            Self::MotorOpen | Self::FollowingError | Self::MotorBlocked => 0x21,
-            Self::Ecat => 0x11,
-        }
+        REGISTERS[self as usize]
     }
     /// Red LED flash count (`None`: shown by the EtherCAT ERR LED instead).
     pub const fn flashes(self) -> Option<u8> {
-        match self {
-            Self::OverCurrent => Some(1),
-            Self::OverVoltage => Some(2),
-            Self::UnderVoltage => Some(3),
-            Self::MotorOpen => Some(4),
-            Self::FollowingError => Some(7),
-            Self::PhaseSensing => Some(9),
-            Self::MotorBlocked => Some(5),
-            Self::Ecat => None,
+        match FLASHES[self as usize] {
+            0 => None,
+            n => Some(n),
         }
     }
-    /// The power stage goes off at once (the bridges cannot, or must not, drive the
-    /// motor any more): over-current, over-voltage (braking would pump the bus
-    /// higher), current sensing and motor open (the current is not under control).
-    /// The other faults stop the motor with the fault reaction 0x605E first.
+    /// The power stage goes off at once ([`FaultInfo::cuts_power`]); the other
+    /// faults stop the motor with the fault reaction 0x605E first.
     pub const fn cuts_power(self) -> bool {
-        matches!(
-            self,
-            Self::OverCurrent | Self::OverVoltage | Self::PhaseSensing | Self::MotorOpen
-        )
+        POWER_CUT_MASK & (1 << self as u8) != 0
     }
     /// Needs a power cycle (or 0x2057 = 1) to clear.
     pub const fn latched(self) -> bool {
-        matches!(self, Self::OverCurrent | Self::OverVoltage)
+        LATCHED_MASK & (1 << self as u8) != 0
+    }
+    /// Protects the hardware or the load ([`FaultInfo::protective`]).
+    pub const fn protective(self) -> bool {
+        PROTECTIVE_MASK & (1 << self as u8) != 0
     }
     /// Enable bit in 0x2056 (`None`: cannot be masked).
     pub const fn mask_bit(self) -> Option<u8> {
-        match self {
-            Self::OverCurrent => Some(0),
-            Self::OverVoltage => Some(1),
-            Self::MotorOpen => Some(2),
-            Self::PhaseSensing => Some(3),
-            Self::UnderVoltage => Some(6),
-            Self::FollowingError => Some(7),
-            Self::Ecat | Self::MotorBlocked => None,
+        match MASK_BITS[self as usize] {
+            NO_MASK => None,
+            b => Some(b),
         }
     }
 }
@@ -355,10 +497,7 @@ impl Faults {
 
     /// True when detection of `kind` is enabled by 0x2056.
     pub fn enabled(&self, kind: FaultKind) -> bool {
-        match kind {
-            FaultKind::OverCurrent => true,
-            k => k.mask_bit().is_none_or(|b| self.mask & (1 << b) != 0),
-        }
+        kind.mask_bit().is_none_or(|b| self.mask & (1 << b) != 0)
     }
 
     /// Reports that the condition of `kind` is present. Returns true when this is a
@@ -404,11 +543,16 @@ impl Faults {
         self.raise_always(kind, code, detail, snap, now_ms)
     }
 
-    /// [`Faults::raise`] whatever 0x2056 says: for detections whose cause has already
-    /// taken the torque away (a failed start-up current-sensor check, a latched trip of
-    /// the current loop's fast protection). Masking those would leave the drive
-    /// enabled with no torque and nothing reported.
+    /// [`Faults::raise`] for a detection whose cause has already taken the torque away
+    /// (a failed start-up current-sensor check, a latched trip of the current loop's
+    /// fast protection): for a kind the table marks protective
+    /// ([`FaultInfo::protective`]) it is reported whatever 0x2056 says — masking it
+    /// would leave the drive enabled with no torque and nothing reported; any other
+    /// kind follows 0x2056 as [`Faults::raise`] does.
     pub fn raise_unmaskable(&mut self, kind: FaultKind, snap: Snapshot, now_ms: u32) -> bool {
+        if !kind.protective() {
+            return self.raise(kind, snap, now_ms);
+        }
         self.raise_always(kind, kind.code(), [0, 0], snap, now_ms)
     }
 
@@ -620,7 +764,9 @@ impl Faults {
         FaultKind::ALL.into_iter().find(|&k| self.is_active(k))
     }
 
-    /// 0x603F: code of the most severe active fault, 0 when none.
+    /// 0x603F: code of the most severe active fault, 0 when none. Out of line (several
+    /// callers; the code size stays down).
+    #[inline(never)]
     pub fn error_code(&self) -> u16 {
         match self.most_severe() {
             Some(FaultKind::Ecat) => self.ecat_code,

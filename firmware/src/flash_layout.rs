@@ -41,6 +41,13 @@ pub const FLASH_BASE: u32 = 0x0800_0000;
 pub const FLASH_SIZE: u32 = 512 * 1024;
 /// Erase page (dual-bank mode).
 pub const PAGE: u32 = 2048;
+/// Bytes per bank in dual-bank mode: the flash's two halves.
+pub const BANK_SIZE: u32 = FLASH_SIZE / 2;
+/// The address after bank 1. The running firmware's code must end below it: the
+/// records and the DFU partition (bank 2) are erased and programmed while the code
+/// runs from bank 1 (read-while-write). `cargo xtask size` fails an image that
+/// reaches past it.
+pub const BANK1_END: u32 = FLASH_BASE + BANK_SIZE;
 
 /// The bootloader.
 pub const BOOTLOADER: Partition = Partition {

@@ -29,6 +29,7 @@
 #![warn(missing_docs)]
 #![deny(clippy::undocumented_unsafe_blocks)]
 pub mod board_glue;
+pub mod boot_state;
 pub mod cia402;
 pub mod comm;
 pub mod commutation;
@@ -44,6 +45,7 @@ pub mod flash_layout;
 pub mod flash_region;
 pub mod identity;
 pub mod io;
+pub mod irq_priority;
 pub mod latch;
 pub mod mem;
 pub mod monitor;

@@ -53,7 +53,7 @@ bind_interrupts!(struct Irqs {
     DMA1_CHANNEL2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
 });
 
-/// The interrupt executor of the cyclic path (vector `UART4`, priority 2).
+/// The interrupt executor of the cyclic path (vector `UART4`, `firmware::irq_priority::CYCLIC`).
 static EXECUTOR_CYCLIC: InterruptExecutor = InterruptExecutor::new();
 
 /// `#[interrupt]` (cortex-m-rt's, re-exported by embassy-stm32) checks the name

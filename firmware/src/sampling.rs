@@ -11,8 +11,8 @@
 //! * [`OffsetCalibrator`] — with the PWM outputs off, the phase currents are zero, so
 //!   the mean of N samples is the sensor's zero-current offset. A mean outside the
 //!   window of the [`AnalogScale`], or samples spread wider than the window allows,
-//!   is fault 9 of the drive requirements ("phase / current-sensing fault",
-//!   603F = 0x5210), reported as an [`OffsetFault`].
+//!   is the phase / current-sensing fault ([`OffsetFault::KIND`]), reported as an
+//!   [`OffsetFault`].
 //! * [`AnalogScale`] — raw counts → amperes / volts.
 
 /// One set of raw ADC counts taken at the same PWM centre.
@@ -103,10 +103,9 @@ pub enum OffsetFault {
 }
 
 impl OffsetFault {
-    /// The drive fault number (red LED flash count) of every offset fault.
-    pub const FAULT_NUMBER: u8 = 9;
-    /// Its CiA 402 error code (603F): measurement circuit.
-    pub const ERROR_CODE: u16 = 0x5210;
+    /// The drive fault of every offset fault (its code, LED flashes and reaction are
+    /// the fault table's, [`crate::faults::TABLE`]).
+    pub const KIND: crate::faults::FaultKind = crate::faults::FaultKind::PhaseSensing;
 }
 
 #[derive(Debug, Clone, Copy)]

@@ -25,12 +25,12 @@ qemu_runner::tests! {
         assert!((o.ib - 2060.0).abs() < 1e-3);
     }
 
-    fn too_few_samples_is_fault_9() {
+    fn too_few_samples_is_the_current_sensing_fault() {
         let mut c = OffsetCalibrator::new(8);
         assert!(!c.add(s(2048, 2048)));
         assert_eq!(c.finish(&SCALE), Err(OffsetFault::TooFewSamples { got: 1, wanted: 8 }));
-        assert_eq!(OffsetFault::FAULT_NUMBER, 9);
-        assert_eq!(OffsetFault::ERROR_CODE, 0x5210);
+        assert_eq!(OffsetFault::KIND.flashes(), Some(9));
+        assert_eq!(OffsetFault::KIND.code(), 0x5210);
     }
 
     fn zero_wanted_still_needs_one_sample() {

@@ -18,6 +18,7 @@
 
 use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::leds::{run_pattern, ErrCondition, Pattern};
+use firmware::faults::{FaultKind, Faults};
 
 use crate::segment::Segment;
 use crate::sim_drive::SimDrive;
@@ -72,36 +73,86 @@ impl InjectedFault {
         Self::ALL.into_iter().find(|k| k.name() == name)
     }
 
-    /// What the plant does and what the drive reports (for `--help` and the log).
-    pub const fn effect(self) -> &'static str {
+    /// The fault the drive reports for it (closed loop for the encoder loss).
+    pub const fn reported(self) -> FaultKind {
+        match self {
+            InjectedFault::OpenPhaseA | InjectedFault::OpenPhaseB => FaultKind::MotorOpen,
+            InjectedFault::PhaseShort => FaultKind::OverCurrent,
+            InjectedFault::BusOvervoltage => FaultKind::OverVoltage,
+            InjectedFault::BusUndervoltage => FaultKind::UnderVoltage,
+            InjectedFault::EncoderLoss => FaultKind::FollowingError,
+        }
+    }
+
+    /// What the plant does, and when the drive can see it.
+    pub const fn plant(self) -> &'static str {
         match self {
             InjectedFault::OpenPhaseA | InjectedFault::OpenPhaseB => {
-                "phase current 0; with 0x2056 bit 2 on (saved; off by default): at start \
-                 (TIME 0s) the power-up tune, or the phase check of the first enable, \
-                 reports motor open 0x7120, 4 red flashes, power off; while running, the \
-                 current loop reports it once the drive demands 0.6 A or more in that \
-                 phase (a load or a fast acceleration; the virtual axis has no load)"
+                "phase current 0; at start (TIME 0s) the power-up tune, or the phase check \
+                 of the first enable, finds it; while running, the current loop finds it \
+                 once the drive demands 0.6 A or more in that phase (a load or a fast \
+                 acceleration; the virtual axis has no load)"
             }
-            InjectedFault::PhaseShort => {
-                "phase A shorted; while the power stage is on: 0x2310, 1 red flash, \
-                 power off at once, latched (0x2057)"
-            }
-            InjectedFault::BusOvervoltage => {
-                "bus 60 V; 0x3210, 2 red flashes, power off at once, latched (0x2057)"
-            }
-            InjectedFault::BusUndervoltage => {
-                "bus 9 V; 0x3220, 3 red flashes, 0x605E fault reaction then Fault, not \
-                 latched (the injected bus stays low)"
-            }
+            InjectedFault::PhaseShort => "phase A shorted; found while the power stage is on",
+            InjectedFault::BusOvervoltage => "bus 60 V",
+            InjectedFault::BusUndervoltage => "bus 9 V (the injected bus stays low)",
             InjectedFault::EncoderLoss => {
-                "encoder counter stops; closed loop (0x2024 = 2): the rotor stalls on \
-                 the frozen commutation angle, and once the axis is commanded to move \
-                 (any mode) the following error passes 0x2030: 0x8611, 7 red flashes, \
-                 Fault; open loop: the motor keeps running and 0x6064 stops, so 0x60F4 \
-                 grows against the window 0x6065 in PP, CSP and HM"
+                "encoder counter stops; closed loop (0x2024 = 2): the rotor stalls on the \
+                 frozen commutation angle, and once the axis is commanded to move (any \
+                 mode) the following error passes 0x2030; open loop: the motor keeps \
+                 running and 0x6064 stops, so 0x60F4 grows against the window 0x6065 in \
+                 PP, CSP and HM"
             }
         }
     }
+
+    /// What the plant does and what the drive reports (for `--help` and the log):
+    /// [`InjectedFault::plant`], then the fault table's row of
+    /// [`InjectedFault::reported`] ([`report_text`]).
+    pub fn effect(self) -> String {
+        format!(
+            "{}; the drive reports {}",
+            self.plant(),
+            report_text(self.reported())
+        )
+    }
+}
+
+/// What the drive reports for `kind`, from its row of the fault table
+/// (`firmware::faults::TABLE`): name, code, red flashes, reaction, latching, 0x2056
+/// bit and whether the default mask enables it.
+pub fn report_text(kind: FaultKind) -> String {
+    let i = kind.info();
+    let flashes = match i.flashes {
+        0 => "the ERR LED".to_string(),
+        1 => "1 red flash".to_string(),
+        n => format!("{n} red flashes"),
+    };
+    let reaction = if i.cuts_power {
+        "power off at once"
+    } else {
+        "0x605E fault reaction then Fault"
+    };
+    let latched = if i.latched {
+        "latched (0x2057)"
+    } else {
+        "not latched"
+    };
+    let mask = match kind.mask_bit() {
+        None => "cannot be masked".to_string(),
+        Some(b) => format!(
+            "0x2056 bit {b} ({} by default)",
+            if Faults::default().enabled(kind) {
+                "on"
+            } else {
+                "off"
+            }
+        ),
+    };
+    format!(
+        "{} {:#06x}, {flashes}, {reaction}, {latched}, {mask}",
+        i.name, i.code
+    )
 }
 
 /// One `--fault KIND@TIME`.

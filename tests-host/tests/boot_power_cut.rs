@@ -92,8 +92,13 @@
 //!   embassy-boot's state words (a progress word, the "progress invalid" word, a
 //!   magic) makes every later `prepare_boot` fail: the bootloader stops (bridges
 //!   off, never configured there) until the state page is erased by a probe
-//!   ([`a_torn_state_word_stops_the_bootloader`]). Cases 1-5 run without the ECC
-//!   model; whether a real torn double word fails its ECC is for a board to show.
+//!   ([`a_torn_state_word_stops_the_bootloader`]). The drive's bootloader therefore
+//!   reads a torn state word as erased and erases a state page it found torn
+//!   (`firmware::boot_state`): a cut inside any state write or erase of a swap, a
+//!   revert, the confirmation or the marking of an update boots a whole image, and
+//!   the state is readable afterwards ([`a_torn_state_word_boots_a_whole_image`]).
+//!   Cases 1-5 run without the ECC model; whether a real torn double word fails its
+//!   ECC is for a board to show.
 
 use std::cell::RefCell;
 use std::collections::HashSet;
@@ -396,6 +401,18 @@ impl Rig {
         });
         let mut buf = AlignedBuffer([0u8; BOOT_BUF]);
         boot.prepare_boot(&mut buf.0)
+    }
+
+    /// What the drive's bootloader does at reset: the same call
+    /// (`firmware::boot_state::prepare_boot`, torn state words read as erased).
+    fn bootloader(&self) -> Result<State, BootError> {
+        let mut buf = AlignedBuffer([0u8; BOOT_BUF]);
+        firmware::boot_state::prepare_boot(
+            self.part(self.g.active),
+            self.part(self.g.dfu),
+            &mut self.part(self.g.state),
+            &mut buf.0,
+        )
     }
 
     /// The state the application reads (`get_state`).
@@ -1234,4 +1251,106 @@ fn a_torn_state_word_stops_the_bootloader() {
     assert!(rig.with(|f| f.torn.is_empty()));
     assert_eq!(rig.prepare_boot(), Ok(State::Swap));
     assert_active_is(&rig, &b, &[&a], &"swap after a cut between words");
+}
+
+/// Issue 33, the fix of [`a_torn_state_word_stops_the_bootloader`]: with the ECC of
+/// torn double words modelled, a cut inside any state-partition write or erase of the
+/// swap, of the confirmation after it (`mark_booted`), of the revert, or of the
+/// marking of an update (`mark_updated`) leaves a torn word in the state page. The
+/// drive's bootloader (`firmware::boot_state::prepare_boot`) reads it as erased and
+/// boots a whole image — B after a cut swap, A after a cut revert or marking, one of
+/// the two after a cut confirmation — and no torn word stays in the state page: the
+/// firmware reads its state.
+#[test]
+fn a_torn_state_word_boots_a_whole_image() {
+    let rig = Rig::new(SMALL);
+    let (a, b) = images(&SMALL);
+    marked_update(&rig, &a, &b);
+    rig.with(|f| f.ecc = true);
+    let marked = rig.snapshot();
+    assert_eq!(rig.bootloader(), Ok(State::Swap));
+    let swapped = rig.snapshot();
+    // B in ACTIVE, A in the DFU pages, the state erased ("boot"): the marking of a
+    // second update.
+    rig.with(|f| {
+        let st = SMALL.state.offset as usize;
+        f.mem[st..st + SMALL.state.size as usize].fill(0xFF);
+    });
+    let unmarked = rig.snapshot();
+    let mark_updated = |r: &Rig| {
+        let mut aligned = [0u8; WRITE_SIZE];
+        BlockingFirmwareState::new(r.part(r.g.state), &mut aligned)
+            .mark_updated()
+            .is_ok()
+    };
+    type Scenario<'a> = (
+        &'a str,
+        &'a Snapshot,
+        &'a dyn Fn(&Rig) -> bool,
+        Option<&'a Image>,
+    );
+    let scenarios: [Scenario; 4] = [
+        ("swap", &marked, &|r: &Rig| r.bootloader().is_ok(), Some(&b)),
+        (
+            "confirmation",
+            &swapped,
+            &|r: &Rig| r.mark_booted().is_ok(),
+            None,
+        ),
+        (
+            "revert",
+            &swapped,
+            &|r: &Rig| r.bootloader().is_ok(),
+            Some(&a),
+        ),
+        ("marking", &unmarked, &mark_updated, Some(&b)),
+    ];
+    let mut torn_runs = 0;
+    for (name, start, op, expect) in scenarios {
+        // The state-partition operations of an uncut run.
+        rig.restore(start);
+        rig.with(|f| f.log = Some(Vec::new()));
+        assert!(op(&rig), "{name} without a cut");
+        let ops: Vec<Op> = rig
+            .with(|f| f.log.take().unwrap_or_default())
+            .into_iter()
+            .filter(|o| in_partition(o.addr, SMALL.state))
+            .collect();
+        assert!(!ops.is_empty(), "{name}: no state operation");
+        for o in ops {
+            // Inside its first, second and last double word, and its middle.
+            let mut at = vec![3, 11, o.len / 2 + 5, o.len - 3];
+            at.retain(|&k| k < o.len && k % WRITE_SIZE != 0);
+            for k in at {
+                let when = format!("{name}: cut {k} bytes into {}", rig.place(o.addr));
+                rig.restore(start);
+                rig.with(|f| f.cut_power_after(o.first + k));
+                assert!(!op(&rig), "{when}: reports success");
+                rig.power_on();
+                let torn = rig.with(|f| f.torn.iter().any(|&w| in_partition(w, SMALL.state)));
+                torn_runs += usize::from(torn);
+                assert!(rig.bootloader().is_ok(), "{when}: the bootloader fails");
+                assert!(
+                    rig.with(|f| f.torn.iter().all(|&w| !in_partition(w, SMALL.state))),
+                    "{when}: a torn word stays in the state page"
+                );
+                let _ = rig.state();
+                // Which image runs: the expected one, or (a cut confirmation) one of
+                // the two, whole.
+                let active = rig.read(SMALL.active);
+                let (image, others) = if active == a.partition {
+                    (&a, &b)
+                } else {
+                    (&b, &a)
+                };
+                if let Some(e) = expect {
+                    assert_active_is(&rig, e, &[others], &when);
+                } else {
+                    assert_active_is(&rig, image, &[others], &when);
+                }
+            }
+        }
+    }
+    // The cuts did tear state words (the model is on).
+    assert!(torn_runs > 10, "{torn_runs} torn runs");
 }

@@ -9,7 +9,8 @@
 //! the builder's parser; its PDO categories (0x32 TxPDO, 0x33 RxPDO) equal the
 //! ESI's TxPdo/RxPdo, and its order string the ESI type. A third-party parser
 //! (`ethercat-esi` 0.2) reads both committed ESI files. Also: the committed
-//! docs/object-dictionary.md and docs/esi/ are what the generators produce today.
+//! docs/object-dictionary.md, docs/faults.md and docs/esi/ are what the generators
+//! produce today.
 
 #[path = "../src/bin/drive-docs.rs"]
 #[allow(dead_code)]
@@ -960,6 +961,29 @@ fn committed_object_dictionary_md_is_up_to_date() {
         );
     }
     assert!(generated.contains("| 0x1018 | 2 | Product code |"));
+}
+
+#[test]
+fn committed_faults_md_is_up_to_date() {
+    let committed = std::fs::read_to_string(repo_path("docs/faults.md")).unwrap_or_default();
+    let generated = drive_docs::faults_reference();
+    assert!(
+        committed == generated,
+        "docs/faults.md is out of date: run `cargo xtask faults-doc` and commit it ({})",
+        first_difference(&committed, &generated)
+    );
+    // One row per kind, with the table's code.
+    for k in firmware::faults::FaultKind::ALL {
+        assert!(
+            generated.contains(&format!(
+                "\n| {} | {} | 0x{:04X} |",
+                k as u8,
+                k.info().name,
+                k.code()
+            )),
+            "{k:?} missing"
+        );
+    }
 }
 
 #[test]

@@ -631,10 +631,10 @@ fn current_sensor_offset_fault_from_the_plant_adc() {
     check_fault_reaction(
         &mut b,
         FaultKind::PhaseSensing,
-        OffsetFault::ERROR_CODE,
+        OffsetFault::KIND.code(),
         0x03,
     );
-    check_blink(&mut b, u32::from(OffsetFault::FAULT_NUMBER), t);
+    check_blink(&mut b, u32::from(OffsetFault::KIND.flashes().unwrap()), t);
     check_reset_refused(&mut b, 0x5210);
     b.controlword(0x0006, 5);
     b.controlword(0x000F, 10);

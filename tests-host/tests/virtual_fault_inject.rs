@@ -356,5 +356,17 @@ fn bad_fault_option_exits_with_code_2() {
     let err = String::from_utf8_lossy(&out.stderr);
     for k in InjectedFault::ALL {
         assert!(err.contains(k.name()), "--help lists {}", k.name());
+        // What the drive reports comes from the fault table.
+        assert!(err.contains(&k.effect()), "--help: {}", k.effect());
+        let i = k.reported().info();
+        let report = tests_host::fault_inject::report_text(k.reported());
+        assert!(report.contains(&format!("{:#06x}", i.code)), "{report}");
+        assert!(report.contains(i.name), "{report}");
+        assert_eq!(report.contains("latched (0x2057)"), i.latched, "{report}");
+        assert_eq!(
+            report.contains("power off at once"),
+            i.cuts_power,
+            "{report}"
+        );
     }
 }

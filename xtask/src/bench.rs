@@ -304,11 +304,11 @@ fn write_stacks(md: &mut String, stacks: &[(String, u64)]) {
     md.push_str("| path | context on the board | bytes |\n|---|---|---|\n");
     let context = |name: &str| {
         if name.starts_with("current-loop") {
-            "ADC1_2 interrupt (priority 0)"
+            "ADC1_2 interrupt (current-loop level, below the break)"
         } else if name.starts_with("start-up") {
             "start-up (before the interrupts run)"
         } else if name.starts_with("CSP") {
-            "cyclic executor (priority 2) / 1 ms tick"
+            "cyclic executor (cyclic level) / 1 ms tick"
         } else {
             "thread mode (mailbox, storage tasks)"
         }

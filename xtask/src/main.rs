@@ -10,6 +10,8 @@
 //! * `demo`   — the simulated-drive commissioning demo (no hardware).
 //! * `esi`    — writes the ESI XML files and the SII images into `docs/esi/`.
 //! * `od-doc` — writes the object dictionary reference (`docs/object-dictionary.md`).
+//! * `faults-doc` — writes the fault table (`docs/faults.md`) from
+//!   `firmware::faults::TABLE`.
 //! * `size`   — builds the board firmware and prints its flash/RAM use and its static
 //!   worst-case stack (`stack/`); then the same for the bootloader, against its
 //!   32 KiB partition; `stack <ELF>` prints that analysis for one ELF.
@@ -33,6 +35,21 @@ use run::{cargo, run_status};
 
 const THUMB: &str = "thumbv7em-none-eabihf";
 
+/// `drive-docs CMD OUT` (tests-host): a file generated from the drive's one description.
+fn drive_docs(cmd: &str, out: &str) -> bool {
+    run_status(&mut cargo(&[
+        "run",
+        "-p",
+        "tests-host",
+        "--release",
+        "--bin",
+        "drive-docs",
+        "--",
+        cmd,
+        out,
+    ]))
+}
+
 fn main() -> ExitCode {
     let args: Vec<String> = env::args().skip(1).collect();
     let root = root();
@@ -54,28 +71,9 @@ fn main() -> ExitCode {
             ])
             .args(*rest),
         ),
-        Some("esi") => run_status(&mut cargo(&[
-            "run",
-            "-p",
-            "tests-host",
-            "--release",
-            "--bin",
-            "drive-docs",
-            "--",
-            "esi",
-            "docs/esi",
-        ])),
-        Some("od-doc") => run_status(&mut cargo(&[
-            "run",
-            "-p",
-            "tests-host",
-            "--release",
-            "--bin",
-            "drive-docs",
-            "--",
-            "od-doc",
-            "docs/object-dictionary.md",
-        ])),
+        Some("esi") => drive_docs("esi", "docs/esi"),
+        Some("od-doc") => drive_docs("od-doc", "docs/object-dictionary.md"),
+        Some("faults-doc") => drive_docs("faults-doc", "docs/faults.md"),
         Some("size") => size::size_report().is_ok_and(|f| f.chip && f.bootloader),
         // The static stack analysis of a given ELF (no build).
         Some("stack") => match rest.first().map(|p| stack::analyse(Path::new(p))) {
@@ -118,7 +116,7 @@ fn main() -> ExitCode {
             }
         },
         _ => {
-            eprintln!("usage: cargo xtask <test|bench|demo|esi|od-doc|size|flash|update-image|public-key>");
+            eprintln!("usage: cargo xtask <test|bench|demo|esi|od-doc|faults-doc|size|flash|update-image|public-key>");
             false
         }
     };

@@ -33,8 +33,12 @@ pub const BOOTLOADER_FLASH: u64 = 32 * 1024;
 /// Where each image's vector table must be: the bootloader at the flash base (the
 /// reset vector), the firmware at the start of the active partition (the bootloader
 /// starts it there). A memory.x at the workspace root would silently move them.
-const BOOTLOADER_ORIGIN: u64 = 0x0800_0000;
-const FIRMWARE_ORIGIN: u64 = 0x0800_9000;
+const BOOTLOADER_ORIGIN: u64 = firmware::flash_layout::BOOTLOADER.start() as u64;
+const FIRMWARE_ORIGIN: u64 = firmware::flash_layout::ACTIVE.start() as u64;
+/// The address after flash bank 1 (`firmware::flash_layout::BANK1_END`, from the
+/// layout): the firmware's code must end below it, or a record or DFU write (bank 2)
+/// would stall the code it runs (read-while-write).
+const BANK1_END: u64 = firmware::flash_layout::BANK1_END as u64;
 /// Board firmware flavours (ESC chip), built and size-checked by `test`.
 pub const FIRMWARE_FLAVOURS: &[&str] = &["esc-lan9252", "esc-et1100"];
 
@@ -86,6 +90,17 @@ pub fn size_report() -> Result<Fit, String> {
         let in_budget = flash <= FLASH_BUDGET && ram <= RAM_BUDGET;
         within &= flash <= FLASH_CHIP && ram <= RAM_CHIP;
         within &= linked_at(&elf, FIRMWARE_ORIGIN)?;
+        let end = flash_end(&elf)?;
+        let in_bank1 = ends_in_bank1(end);
+        within &= in_bank1;
+        println!(
+            "firmware ({flavour}): flash image ends at {end:#010x}, bank 1 ends at {BANK1_END:#010x} — {}",
+            if in_bank1 {
+                "in bank 1"
+            } else {
+                "REACHES BANK 2 (read-while-write broken)"
+            }
+        );
         budget &= in_budget;
         println!(
             "firmware ({flavour}): flash {flash} B ({:.1} KiB; product budget {} KiB), RAM {ram} B ({:.1} KiB; budget {} KiB) — {}  [{elf}]",
@@ -202,6 +217,42 @@ fn linked_at(elf: &str, origin: u64) -> Result<bool, String> {
     }
 }
 
+/// The address after the last byte the ELF loads into flash: the largest physical
+/// (load) address + file size of its `LOAD` segments in flash (`.data`'s image
+/// included, which the start-up code copies to RAM).
+fn flash_end(elf: &str) -> Result<u64, String> {
+    let out = Command::new("readelf")
+        .args(["-lW", elf])
+        .output()
+        .map_err(|e| format!("readelf: {e}"))?;
+    if !out.status.success() {
+        return Err(format!("readelf -l {elf} failed"));
+    }
+    load_end(&String::from_utf8_lossy(&out.stdout))
+        .ok_or_else(|| format!("{elf}: no LOAD segment in flash"))
+}
+
+/// [`flash_end`] from the text of `readelf -lW`.
+fn load_end(readelf: &str) -> Option<u64> {
+    let hex = |t: &str| u64::from_str_radix(t.trim_start_matches("0x"), 16).ok();
+    readelf
+        .lines()
+        .filter_map(|line| {
+            let cols: Vec<&str> = line.split_whitespace().collect();
+            if cols.first() != Some(&"LOAD") || cols.len() < 5 {
+                return None;
+            }
+            let (phys, size) = (hex(cols[3])?, hex(cols[4])?);
+            (size > 0 && (0x0800_0000..0x1000_0000).contains(&phys)).then_some(phys + size)
+        })
+        .max()
+}
+
+/// Whether a firmware image ending at `end` (exclusive) stays in flash bank 1.
+fn ends_in_bank1(end: u64) -> bool {
+    end <= BANK1_END
+}
+
 /// Flash = sections loaded into flash (.vector_table, .text, .rodata, .data image);
 /// RAM = .data + .bss + .uninit (static RAM; the stack takes the rest).
 fn elf_usage(elf: &str) -> Result<(u64, u64), String> {
@@ -301,4 +352,43 @@ pub fn images_md() -> Result<String, String> {
         FIRMWARE_FLAVOURS[0], lan_report
     ));
     Ok(md)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const READELF: &str = "
+Program Headers:
+  Type           Offset   VirtAddr   PhysAddr   FileSiz MemSiz  Flg Align
+  LOAD           0x000114 0x08009000 0x08009000 0x001d8 0x001d8 R   0x4
+  LOAD           0x0002f0 0x080091d8 0x080091d8 0x2390c 0x2390c R E 0x8
+  LOAD           0x023c00 0x0802cae8 0x0802cae8 0x06050 0x06050 R   0x8
+  LOAD           0x029c50 0x20000000 0x08032b38 0x00050 0x00050 RW  0x8
+  LOAD           0x029ca0 0x20000060 0x20000060 0x00000 0x052e0 RW  0x20
+  GNU_STACK      0x000000 0x00000000 0x00000000 0x00000 0x00000 RW  0
+";
+
+    #[test]
+    fn the_flash_end_is_the_data_image_end() {
+        // .data's load image (PhysAddr 0x08032b38 + 0x50) is the last thing in flash;
+        // .bss (in RAM, nothing in the file) does not count.
+        assert_eq!(load_end(READELF), Some(0x0803_2b88));
+        assert_eq!(load_end("no segments"), None);
+    }
+
+    #[test]
+    fn bank_1_ends_where_the_layout_halves_the_flash() {
+        assert_eq!(BANK1_END, 0x0804_0000);
+        assert!(ends_in_bank1(0x0803_2b88));
+        assert!(ends_in_bank1(BANK1_END));
+        assert!(!ends_in_bank1(BANK1_END + 1));
+        // An image that fills the active partition (which runs into bank 2) fails.
+        let full = READELF.replace(
+            "0x0802cae8 0x0802cae8 0x06050",
+            "0x0802cae8 0x0802cae8 0x16050",
+        );
+        assert!(!ends_in_bank1(load_end(&full).unwrap()));
+        assert!(u64::from(firmware::flash_layout::ACTIVE.end()) > BANK1_END);
+    }
 }

@@ -309,3 +309,74 @@ fn voltage_thresholds_from_the_parameters() {
     }
     assert!(!f.any_active());
 }
+
+#[test]
+fn the_fault_table_is_consistent() {
+    for (i, r) in TABLE.iter().enumerate() {
+        let k = FaultKind::ALL[i];
+        assert_eq!(k as usize, i, "rows in kind order");
+        assert_eq!(k.info(), r);
+        assert_eq!(r.register & 0x01, 0x01, "{}: generic bit", r.name);
+        // A protective fault takes the power away at once.
+        assert!(!r.protective || r.cuts_power, "{}", r.name);
+        // Latched faults are the protective ones that a hardware trip latches.
+        assert!(!r.latched || r.protective, "{}", r.name);
+        assert_eq!(POWER_CUT_MASK & (1 << i) != 0, r.cuts_power);
+        // The run-time columns are the table's.
+        assert_eq!(
+            (k.code(), k.error_register(), k.flashes().unwrap_or(0)),
+            (r.code, r.register, r.flashes)
+        );
+        assert_eq!(
+            (k.cuts_power(), k.latched(), k.protective()),
+            (r.cuts_power, r.latched, r.protective)
+        );
+        assert_eq!(k.mask_bit().unwrap_or(NO_MASK), r.mask_bit);
+        for (j, o) in TABLE.iter().enumerate().skip(i + 1) {
+            assert_ne!(r.code, o.code, "{} / {}", r.name, o.name);
+            assert!(
+                r.flashes == 0 || r.flashes != o.flashes,
+                "{} / {}",
+                r.name,
+                o.name
+            );
+            assert!(
+                r.mask_bit == NO_MASK || r.mask_bit != o.mask_bit,
+                "{} / {} ({j})",
+                r.name,
+                o.name
+            );
+        }
+        assert!(r.mask_bit == NO_MASK || r.mask_bit < 16);
+        // The diagnosis text is the table's.
+        let t = crate::diagnosis::text(crate::diagnosis::fault_text_id(k)).expect("text");
+        assert_eq!(t.text, r.text);
+    }
+}
+
+#[test]
+fn a_protective_detection_cannot_be_masked_into_no_torque() {
+    for k in FaultKind::ALL {
+        let mut f = Faults::default();
+        f.configure(0, false);
+        let raised = f.raise_unmaskable(k, S, 0);
+        assert_eq!(
+            raised,
+            k.info().protective || k.mask_bit().is_none(),
+            "{:?}: protective detections report whatever 0x2056 says",
+            k
+        );
+        if raised {
+            assert!(f.power_cut() || !k.cuts_power());
+            assert_eq!(f.pop_emergency().map(|e| e.code), Some(k.code()));
+        }
+    }
+    // The over-current, over-voltage and current-sensing rows are protective.
+    for k in [
+        FaultKind::OverCurrent,
+        FaultKind::OverVoltage,
+        FaultKind::PhaseSensing,
+    ] {
+        assert!(k.info().protective, "{k:?}");
+    }
+}

@@ -10,7 +10,7 @@
 //!   finishes last: I_A (24.5 + 12.5) then V_BUS (47.5 + 12.5) = 97 ADC cycles / 42.5 MHz
 //!   ≈ 2.28 µs after the trigger ([`TIMING`]); ADC2's I_B ends after 37 cycles
 //!   (≈ 0.87 µs). So only ADC1's end-of-injected-sequence (JEOS) interrupt is enabled:
-//!   `ADC1_2` at priority 0, the highest in the system — the current-loop slot.
+//!   `ADC1_2` at `firmware::irq_priority::CURRENT_LOOP`, below only the break interrupts.
 //!
 //! Power-up, calibration (single-ended and differential) and enabling follow
 //! embassy-stm32's `Adc::new` register by register (`power_up`); the injected
@@ -43,7 +43,7 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use embassy_stm32::gpio::Flex;
 use embassy_stm32::interrupt;
-use embassy_stm32::interrupt::{InterruptExt, Priority};
+use embassy_stm32::interrupt::InterruptExt;
 use embassy_stm32::pac;
 use embassy_stm32::pac::adc::vals::{Adcaldif, Difsel, Exten, SampleTime};
 use embassy_stm32::pac::adccommon::vals::Presc;
@@ -135,7 +135,9 @@ pub fn init(p: Analog<'static>) {
         });
     }
     a1.ier().modify(|w| w.set_jeosie(true));
-    interrupt::ADC1_2.set_priority(Priority::P0);
+    interrupt::ADC1_2.set_priority(crate::hw::lock::priority(
+        firmware::irq_priority::CURRENT_LOOP,
+    ));
     // SAFETY: unmasking ADC1_2 breaks no critical section: its handler (below) uses
     // only the ADC, timer and GPIO registers, atomics, and the state it owns or shares
     // through the lock-free exchange cells (`hw::control`).
@@ -273,7 +275,7 @@ fn ADC1_2() {
 }
 
 /// The offsets of the current sensors with the bridges off (`None`: the check
-/// failed, fault 9).
+/// failed: the current-sensing fault).
 pub async fn offset_self_check(wdg: &mut crate::hw::safety::Watchdog) -> Option<(f32, f32)> {
     let mut cal = firmware::sampling::OffsetCalibrator::new(crate::board::OFFSET_SAMPLES);
     let mut last = crate::hw::control::SAMPLES.sequence();
@@ -301,8 +303,8 @@ pub async fn offset_self_check(wdg: &mut crate::hw::safety::Watchdog) -> Option<
             Some((o.ia, o.ib))
         }
         Err(e) => {
-            crate::hw::safety::raise_fault(crate::hw::safety::FAULT_CURRENT_SENSING);
-            defmt::error!("fault 9, current-sensor self-check: {}", e);
+            crate::hw::safety::raise_fault(firmware::sampling::OffsetFault::KIND);
+            defmt::error!("current-sensor self-check failed: {}", e);
             None
         }
     }

@@ -1,7 +1,6 @@
 //! The system clock: PLL → 170 MHz from the 24 MHz crystal (or the internal 16 MHz
 //! HSI, [`board::CLOCK_FROM_HSE`]), range 1 boost mode, the ADC1/2 kernel clock, and
 //! the priority of the DMA completion interrupts.
-use embassy_stm32::interrupt::Priority;
 use embassy_stm32::rcc;
 use embassy_stm32::time::Hertz;
 
@@ -41,7 +40,7 @@ pub fn config() -> embassy_stm32::Config {
     // ADC1/2 kernel clock = SYSCLK (the driver divides it by 4 → 42.5 MHz).
     c.rcc.mux.adc12sel = rcc::mux::Adcsel::SYS;
     // DMA completion must preempt the cyclic path that waits for it.
-    c.bdma_interrupt_priority = Priority::P1;
+    c.bdma_interrupt_priority = crate::hw::lock::priority(firmware::irq_priority::SPI_DMA);
     c
 }
 
@@ -62,7 +61,7 @@ pub fn start_chip() {
     // The time driver defaults to priority 0; keep it below the control path.
     embassy_stm32::interrupt::InterruptExt::set_priority(
         embassy_stm32::interrupt::TIM5,
-        embassy_stm32::interrupt::Priority::P3,
+        crate::hw::lock::priority(firmware::irq_priority::TIME_DRIVER),
     );
     defmt::info!(
         "ECS drive firmware {=str} ({=str}), reset cause: {=istr}",

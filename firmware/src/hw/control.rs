@@ -1,4 +1,4 @@
-//! The motor-control path inside the current-loop interrupt (`ADC1_2`, priority 0)
+//! The motor-control path inside the current-loop interrupt (`ADC1_2`, `firmware::irq_priority::CURRENT_LOOP`)
 //! and the lock-free exchange with the cyclic path.
 //!
 //! Every PWM period (40 kHz) [`on_sample`] publishes the raw sample ([`SAMPLES`]:
@@ -108,7 +108,7 @@ fn feedback_start(f: &mut Feedback) {
 }
 
 /// `touch_probe2` task → interrupt: encoder counts (TIM2) latched at the IN2 edges.
-/// One writer (that task, priority 2); the interrupt preempts it, never the reverse.
+/// One writer (that task, the cyclic level); the interrupt preempts it, never the reverse.
 pub static PROBE2_RAW: Exchange<Edges<u32>> = Exchange::new(Edges {
     active_seq: 0,
     active: 0,

@@ -3,19 +3,42 @@
 //! supervisor): a priority-ceiling lock.
 //!
 //! Locking raises BASEPRI to the cyclic path's priority: the cyclic executor and
-//! everything less urgent (EXTI wakers, the time driver) wait, while the current-loop
-//! interrupt (priority 0) and the break / SPI-DMA interrupts (priority 1) keep
-//! running — unlike a critical section, which would delay the current loop. The
+//! everything less urgent (EXTI wakers, the time driver) wait, while the break
+//! interrupts, the current-loop interrupt and the SPI-DMA interrupts (the levels above
+//! [`firmware::irq_priority::CYCLIC`]) keep running — unlike a critical section, which
+//! would delay the current loop. The
 //! cyclic path itself runs at the ceiling, so nothing that takes this lock can
 //! preempt it: the lock never blocks, it only defers. Nested use restores the outer
 //! BASEPRI.
 //!
-//! Nothing at priority 0 or 1 may take this lock (it would not exclude the others).
+//! Nothing above the cyclic level may take this lock (it would not exclude the others).
 use embassy_stm32::interrupt::Priority;
 use embassy_sync::blocking_mutex::raw::RawMutex;
 
 /// Priority of the cyclic interrupt executor (and of the ESC IRQ / SYNC0 EXTI lines).
-pub const CYCLIC_PRIORITY: Priority = Priority::P2;
+pub const CYCLIC_PRIORITY: Priority = priority(firmware::irq_priority::CYCLIC);
+
+/// The embassy priority of a level of [`firmware::irq_priority`].
+pub const fn priority(level: u8) -> Priority {
+    match level {
+        0 => Priority::P0,
+        1 => Priority::P1,
+        2 => Priority::P2,
+        3 => Priority::P3,
+        4 => Priority::P4,
+        _ => Priority::P15,
+    }
+}
+
+// Every level of the table maps to its own register value.
+const _: () = {
+    let all = firmware::irq_priority::ALL;
+    let mut i = 0;
+    while i < all.len() {
+        assert!(priority(all[i].1) as u8 == firmware::irq_priority::register(all[i].1));
+        i += 1;
+    }
+};
 
 /// Priority-ceiling raw mutex (see the module docs).
 pub struct CyclicCeiling(());

@@ -22,25 +22,28 @@
 //!
 //! ## Tasks, interrupts and priorities
 //!
-//! NVIC priorities: 0 is the most urgent; the G4 implements 4 priority bits. Thread
+//! NVIC priorities (stated once in `firmware::irq_priority`): 0 is the most urgent;
+//! the G4 implements 4 priority bits. The break interrupts run above the current
+//! loop, so a break in the middle of a current-loop step takes the other bridge off
+//! at once. Thread
 //! mode (the embassy thread executor) is below every interrupt. Budgets are per
 //! activation at 170 MHz; "to be measured" means it needs the board (TP1 + scope or
 //! DWT CYCCNT, see docs/board/bring-up.md) — QEMU has no timing model.
 //!
 //! | what | runs in | priority | rate | worst-case budget |
 //! |---|---|---|---|---|
-//! | current loop: ADC1 JEOS → I_A, I_B, V_BUS → encoder update → `foc::current_loop::CurrentLoop::step` → TIM1/TIM8 compare (`hw::control`) | `ADC1_2` ISR | 0 | 40 kHz (PWM centre) | ≤ 12.5 µs (half a PWM period); current step ≈ 320 instructions (QEMU count) ≈ 2-3 µs; to be measured (`ISR max` in the status line) |
-//! | motion layer: `firmware::commutation::CommutatedMotion::step` — at the first closed-loop enable after power-up the commutation alignment (`foc::servo::Alignment`, 0.25 s, 0.65 s with the 0x2083 wiggle; offset → encoder), then `firmware::motion::Motion::step` (interpolation, servo / open loop → current reference); index, touch probe 1 (TIM2 CH4 capture) and touch probe 2 (from the task below) → positions (`firmware::latch`); feedback published | same ISR, every 4th period | 0 | 10 kHz | together with the current step ≤ 12.5 µs; to be measured |
+//! | current loop: ADC1 JEOS → I_A, I_B, V_BUS → encoder update → `foc::current_loop::CurrentLoop::step` → TIM1/TIM8 compare (`hw::control`) | `ADC1_2` ISR | 1 | 40 kHz (PWM centre) | ≤ 12.5 µs (half a PWM period); current step ≈ 320 instructions (QEMU count) ≈ 2-3 µs; to be measured (`ISR max` in the status line) |
+//! | motion layer: `firmware::commutation::CommutatedMotion::step` — at the first closed-loop enable after power-up the commutation alignment (`foc::servo::Alignment`, 0.25 s, 0.65 s with the 0x2083 wiggle; offset → encoder), then `firmware::motion::Motion::step` (interpolation, servo / open loop → current reference); index, touch probe 1 (TIM2 CH4 capture) and touch probe 2 (from the task below) → positions (`firmware::latch`); feedback published | same ISR, every 4th period | 1 | 10 kHz | together with the current step ≤ 12.5 µs; to be measured |
 //! | over-current: break input → TIM1/TIM8 MOE off | hardware | — | event | break filter ≈ 24 ns + gate driver |
-//! | break bookkeeping: other bridge off, latch | `TIM1_BRK_TIM15`, `TIM8_BRK` ISRs | 1 | event | < 1 µs, to be measured |
-//! | SPI DMA completion (ESC transfers) | `DMA1_CHANNEL1/2` ISRs (embassy) | 1 | per transfer | < 1 µs, to be measured |
-//! | cyclic path: SYNC0 → `Slave::cycle` (SM2 read, `Drive` = CiA 402 cycle, SM3 write) → set-points to the ISR | interrupt executor on `UART4` (vector unused: its pins carry TIM8) | 2 | DC sync rate (≥ 125 µs cycle) | ≤ 50 % of the cycle; SPI ≈ 0.4 µs/byte at 21.25 MHz + CSP cycle (≈ 1.5 k instructions); to be measured |
-//! | touch probe 2 (IN2 edge → encoder count + edge direction → `hw::control::PROBE2_RAW`) | interrupt executor `UART4` | 2 | event | < 2 µs latency (the latch error), to be measured |
-//! | EXTI1/2/3 wakers (IN2, ESC IRQ, SYNC0) | `EXTI1..3` ISRs (embassy) | 2 | event | < 1 µs |
-//! | embassy time driver | `TIM5` ISR | 3 | alarms | < 2 µs |
-//! | EtherCAT: ESC IRQ (or every 1 ms) → `Slave::poll` (AL control, ESM, mailbox/SDO, watchdog supervision; the cycle in SM-synchronous / free-run mode), emergencies forwarded | thread executor, holding the priority-ceiling lock | thread (ceiling 2) | ESC IRQ, ≥ 1 kHz | one SDO ≈ 2 × 128-byte SPI transfers + dictionary access; a 'save' adds the record serialisation (≈ 1.7 KiB of dictionary reads); delays the cyclic path by at most this; to be measured |
+//! | break bookkeeping: other bridge off, latch | `TIM1_BRK_TIM15`, `TIM8_BRK` ISRs | 0 | event | < 1 µs, to be measured |
+//! | SPI DMA completion (ESC transfers) | `DMA1_CHANNEL1/2` ISRs (embassy) | 2 | per transfer | < 1 µs, to be measured |
+//! | cyclic path: SYNC0 → `Slave::cycle` (SM2 read, `Drive` = CiA 402 cycle, SM3 write) → set-points to the ISR | interrupt executor on `UART4` (vector unused: its pins carry TIM8) | 3 | DC sync rate (≥ 125 µs cycle) | ≤ 50 % of the cycle; SPI ≈ 0.4 µs/byte at 21.25 MHz + CSP cycle (≈ 1.5 k instructions); to be measured |
+//! | touch probe 2 (IN2 edge → encoder count + edge direction → `hw::control::PROBE2_RAW`) | interrupt executor `UART4` | 3 | event | < 2 µs latency (the latch error), to be measured |
+//! | EXTI1/2/3 wakers (IN2, ESC IRQ, SYNC0) | `EXTI1..3` ISRs (embassy) | 3 | event | < 1 µs |
+//! | embassy time driver | `TIM5` ISR | 4 | alarms | < 2 µs |
+//! | EtherCAT: ESC IRQ (or every 1 ms) → `Slave::poll` (AL control, ESM, mailbox/SDO, watchdog supervision; the cycle in SM-synchronous / free-run mode), emergencies forwarded | thread executor, holding the priority-ceiling lock | thread (ceiling 3) | ESC IRQ, ≥ 1 kHz | one SDO ≈ 2 × 128-byte SPI transfers + dictionary access; a 'save' adds the record serialisation (≈ 1.7 KiB of dictionary reads); delays the cyclic path by at most this; to be measured |
 //! | parameter storage: staged record → flash (erase ≈ 20 ms per 2 KiB page, ≤ 40 ms max; program ≈ 85 µs per 8 bytes) | thread executor, after `poll`, **no lock** | thread | on 'save' / 'load' | ≤ 4 × 40 ms + 20 ms; the cyclic path and the ISRs keep running (bank 2 read-while-write); the thread tasks pause — the watchdog (300 ms) covers it |
-//! | 1 ms supervision tick, the drive's own clock: raw inputs → `Drive::tick` (filter, protections, fault 1 / 9 from the board, a failed commutation alignment → following error 0x8611, and — unless a cycle just did it — the control step: PDS, fault reactions, ramps, generators, brake, in every ESM state), outputs + brake from `Drive::outputs`, LEDs (`Drive::leds`, RUN/ERR from the ESM state and AL status code) | interrupt executor `UART4` (so a flash commit in thread mode never stops it; lock held for the drive part) | 2 | 1 kHz | < 20 µs; the control step ≈ 1 k instructions (QEMU count), to be measured |
+//! | 1 ms supervision tick, the drive's own clock: raw inputs → `Drive::tick` (filter, protections, over-current and current-sensing faults from the board, a failed commutation alignment → following error 0x8611, and — unless a cycle just did it — the control step: PDS, fault reactions, ramps, generators, brake, in every ESM state), outputs + brake from `Drive::outputs`, LEDs (`Drive::leds`, RUN/ERR from the ESM state and AL status code) | interrupt executor `UART4` (so a flash commit in thread mode never stops it; lock held for the drive part) | 3 | 1 kHz | < 20 µs; the control step ≈ 1 k instructions (QEMU count), to be measured |
 //! | supervisor: offset self-check at start, watchdog feeding, status line | thread executor | thread | 100 Hz | < 100 µs per tick |
 //!
 //! ## Who owns what
@@ -49,7 +52,8 @@
 //!   [`DriveState`] value in a blocking `Mutex<CyclicCeiling, RefCell<..>>`
 //!   ([`hw::lock`]): locking raises BASEPRI to the cyclic priority, so the thread-mode
 //!   tasks exclude the cyclic path while they hold it, and the current loop
-//!   (priority 0) and the DMA / break interrupts (priority 1) are never delayed by it.
+//!   and the break and DMA interrupts (levels above the cyclic one) are never delayed
+//!   by it.
 //!   We did not split Slave and Drive: `poll` and `cycle` both need both.
 //! * `Slave::poll` runs in **thread mode** (task `ecat`), `Slave::cycle` on the
 //!   **interrupt executor** (task `cyclic`, SYNC0; each SYNC0 is run once, by
@@ -87,8 +91,8 @@
 //!   `AxisState::probe1/probe2` until a drive step has run (`publish_command` clears
 //!   them), exactly as the index pulse.
 //! * **Decisions** between the drive and the interrupt — latches pending for a step,
-//!   probe polarity, alignment failures → 0x8611, the failed offset check → fault 9,
-//!   the power and tune permissions, break latch ↔ fault 1 and its re-arm — are the
+//!   probe polarity, alignment failures → 0x8611, the failed offset check → current-sensing fault,
+//!   the power and tune permissions, break latch ↔ over-current fault and its re-arm — are the
 //!   library's `firmware::board_glue::BoardGlue` (held in [`DriveState`]), run by host and
 //!   QEMU tests and by the simulator (`tests-host`). This file wires tasks to it.
 //!

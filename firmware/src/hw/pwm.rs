@@ -53,7 +53,7 @@ use core::sync::atomic::{AtomicU8, Ordering};
 
 use embassy_stm32::gpio::{AfType, AnyPin, Flex, OutputType, Pull, Speed};
 use embassy_stm32::interrupt;
-use embassy_stm32::interrupt::{InterruptExt, Priority};
+use embassy_stm32::interrupt::InterruptExt;
 use embassy_stm32::pac;
 use embassy_stm32::pac::timer::vals;
 use embassy_stm32::peripherals::{PA6, PA7, PA8, PA9, PB0, PC10, PC11, PC6, PC7, PD2, TIM1, TIM8};
@@ -218,8 +218,11 @@ pub fn init(p: PowerStage<'static>) {
         t.sr().write(|w| w.0 = 0);
         t.dier().modify(|w| w.set_bie(true));
     }
-    interrupt::TIM1_BRK_TIM15.set_priority(Priority::P1);
-    interrupt::TIM8_BRK.set_priority(Priority::P1);
+    // Above the current loop: a break in the middle of its step takes the other
+    // bridge off at once.
+    let level = crate::hw::lock::priority(firmware::irq_priority::BREAK);
+    interrupt::TIM1_BRK_TIM15.set_priority(level);
+    interrupt::TIM8_BRK.set_priority(level);
     // SAFETY: unmasking the break interrupts breaks no critical section: their
     // handlers (below) touch only the TIM1/TIM8 registers and atomics.
     unsafe {
@@ -293,11 +296,9 @@ fn configure(t: pac::timer::TimAdv) {
 /// Energises both bridges (MOE = 1) at zero volts (duties centred in the active
 /// compare registers first, module docs), unless a break is latched or the drive is
 /// halted (`hw::safety::HALT`: a panic or HardFault). Returns whether the outputs are
-/// on. Called only by the current-loop interrupt.
+/// on. Called only by the current-loop interrupt, rarely (at an enable): out of line.
+#[inline(never)]
 pub fn enable_outputs() -> bool {
-    if BREAK_LATCH.load(Ordering::Acquire) != 0 || crate::hw::safety::HALT.is_halted() {
-        return false;
-    }
     let half = board::PWM_ARR / 2;
     for t in [pac::TIM1, pac::TIM8] {
         // MOE is 0 here, so writing the active registers cannot glitch an output.
@@ -312,12 +313,20 @@ pub fn enable_outputs() -> bool {
             w.set_ocpe(1, true);
         });
     }
-    // A HardFault between the check above and here never returns to us: its handler
-    // sets the halted state and clears MOE, so MOE is not set after a halt.
-    for t in [pac::TIM1, pac::TIM8] {
-        t.bdtr().modify(|w| w.set_moe(true));
-    }
-    true
+    // The break interrupts run above the current loop that calls this: the latch
+    // check and the MOE writes are one step for them (PRIMASK for a few cycles; the
+    // hardware break switches its bridge off regardless), so a break never finds the
+    // other bridge switched on again after it. A HardFault in here never returns to
+    // us: its handler sets the halted state and clears MOE.
+    cortex_m::interrupt::free(|_| {
+        if BREAK_LATCH.load(Ordering::Acquire) != 0 || crate::hw::safety::HALT.is_halted() {
+            return false;
+        }
+        for t in [pac::TIM1, pac::TIM8] {
+            t.bdtr().modify(|w| w.set_moe(true));
+        }
+        true
+    })
 }
 
 /// Switches both bridges off (outputs to idle level: all switches off), then centres
@@ -382,7 +391,7 @@ fn on_break(bit: u8, t: pac::timer::TimAdv) {
         w.0 = !0;
         w.set_bif(0, false);
     });
-    crate::hw::safety::raise_fault(crate::hw::safety::FAULT_OVER_CURRENT);
+    crate::hw::safety::raise_fault(firmware::faults::FaultKind::OverCurrent);
 }
 
 // Vector names checked by `#[interrupt]` against the device's interrupt enum.

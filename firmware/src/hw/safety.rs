@@ -21,7 +21,8 @@
 //!   (an ECC error in program flash or the update partitions, a clock failure) goes
 //!   the HardFault way: bridges off, halt, watchdog reset. Never the default
 //!   handler's endless loop with the bridges as they were.
-//! * Faults found by the board code (fault 9 at start-up, over-current) go to the
+//! * Faults found by the board code (the current-sensor check at start-up,
+//!   over-current) go to the
 //!   drive's fault module (main.rs: `over_current`, `offset_self_check`), which
 //!   drives the PDS fault, the emergency and the red LED. [`raise_fault`] /
 //!   [`active_fault`] keep the most severe such fault since reset (status line).
@@ -36,6 +37,7 @@ use embassy_stm32::Peri;
 
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::InterruptExt;
+use firmware::faults::FaultKind;
 use firmware::power_gate::{Halt, HaltExit};
 
 use crate::board;
@@ -96,17 +98,13 @@ impl Watchdog {
     }
 }
 
-/// Drive fault number: over-current / phase short (red LED: 1 flash).
-pub const FAULT_OVER_CURRENT: u8 = 1;
-/// Drive fault number: phase / current-sensing fault (red LED: 9 flashes).
-pub const FAULT_CURRENT_SENSING: u8 = firmware::sampling::OffsetFault::FAULT_NUMBER;
-
-/// The most severe fault raised so far (0 = none). Lower numbers are more severe
-/// (the requirements' fault table is ordered that way).
+/// The most severe fault raised so far: its [`FaultKind`] number + 1 (0 = none).
+/// Lower kind numbers are more severe (the fault table is ordered that way).
 static ACTIVE_FAULT: AtomicU8 = AtomicU8::new(0);
 
-/// Raises drive fault `n` (1..=9); keeps the most severe one.
-pub fn raise_fault(n: u8) {
+/// Raises `kind`; keeps the most severe one.
+pub fn raise_fault(kind: FaultKind) {
+    let n = kind as u8 + 1;
     let _ = ACTIVE_FAULT.fetch_update(Ordering::AcqRel, Ordering::Acquire, |cur| {
         if cur == 0 || n < cur {
             Some(n)
@@ -116,16 +114,18 @@ pub fn raise_fault(n: u8) {
     });
 }
 
-/// Clears the fault the self-test's forced break raised (fault 1 from the break
+/// Clears the fault the self-test's forced break raised (over-current from the break
 /// interrupt): that break was the test's, not the board's.
 #[cfg(feature = "selftest")]
 pub fn clear_fault_after_selftest() {
     ACTIVE_FAULT.store(0, Ordering::Release);
 }
 
-/// The fault shown on the red LED (0 = none).
+/// The red-LED flash count of the most severe fault raised (0 = none).
 pub fn active_fault() -> u8 {
-    ACTIVE_FAULT.load(Ordering::Acquire)
+    FaultKind::from_number(ACTIVE_FAULT.load(Ordering::Acquire).wrapping_sub(1))
+        .and_then(FaultKind::flashes)
+        .unwrap_or(0)
 }
 
 /// Bridges off, brake engaged, red LED on. Callable from any context.
@@ -195,16 +195,17 @@ unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
 /// and checked around each record read (`hw::flash::MappedRegion`).
 pub static ECC_RECORD_ERROR: AtomicBool = AtomicBool::new(false);
 
-/// Bytes per bank in dual-bank mode (512 KiB flash).
-const BANK_SIZE: u32 = firmware::flash_layout::FLASH_SIZE / 2;
-
 #[exception]
 unsafe fn NonMaskableInt() {
     use firmware::storage::ecc::{ecc_offset, nmi_action, NmiAction};
     let eccr = pac::FLASH.eccr().read();
     // ADDR_ECC: the failing double word's byte address in its bank (RM0440,
     // FLASH_ECCR), BK_ECC its bank.
-    let offset = ecc_offset(eccr.bk_ecc(), eccr.addr_ecc(), BANK_SIZE);
+    let offset = ecc_offset(
+        eccr.bk_ecc(),
+        eccr.addr_ecc(),
+        firmware::flash_layout::BANK_SIZE,
+    );
     let records = board::PARAM_FLASH_OFFSET..board::PARAM_FLASH_OFFSET + board::PARAM_FLASH_SIZE;
     match nmi_action(eccr.eccd(), offset, records) {
         NmiAction::RecordReadError => {

@@ -248,14 +248,14 @@ fn force_break() -> BreakObservation {
     for t in [pac::TIM1, pac::TIM8] {
         t.egr().write(|w| w.set_bg(0, true));
     }
-    // The break interrupts (priority 1) run at once; give them a few cycles.
+    // The break interrupts (above everything else) run at once; give them a few cycles.
     cortex_m::asm::delay(1000);
     let outputs_off_after_force = [pac::TIM1, pac::TIM8]
         .iter()
         .all(|t| !t.bdtr().read().moe());
     let latched_after_force = pwm::break_latched() == 0b11;
     let rearmed = pwm::rearm() && pwm::break_latched() == 0;
-    // The break handler raised fault 1 (over-current) for the red LED: that is the
+    // The break handler raised the over-current fault for the red LED: that is the
     // forced break, not a fault of the board.
     super::safety::clear_fault_after_selftest();
     BreakObservation {

@@ -131,3 +131,43 @@ fn a_torn_double_word_fails_its_reads_and_the_other_record_is_used() {
         assert_eq!(out[..40], [3; 40]);
     }
 }
+
+/// issue 33 (the lock held during a 'save'): starting a new record reads the two
+/// headers and the payload of the newest record only — not the older record's
+/// payload as a full scan of both slots does — and still picks the same slot and
+/// sequence as the scan, also when the newer record is corrupt.
+#[test]
+fn a_new_record_checks_only_the_newest_payload() {
+    let h = region::HISTORY;
+    let mut f = RamFlash::<{ region::SIZE as usize }>::new();
+    h.write_bytes(&mut f, &[1; 400]).unwrap();
+    h.write_bytes(&mut f, &[2; 400]).unwrap();
+    let read = |f: &mut RamFlash<{ region::SIZE as usize }>| core::mem::take(&mut f.reads);
+    read(&mut f);
+    let (_, scanned) = h.scan(&mut f);
+    let scan_bytes = read(&mut f);
+    assert_eq!(h.newest(&mut f), scanned);
+    assert_eq!(scanned.map(|(slot, seq, _)| (slot, seq)), Some((1, 2)));
+    let newest_bytes = read(&mut f);
+    // The two headers (the newer one read again by its check) and one 400-byte
+    // payload (read in whole 32-byte units).
+    assert!(newest_bytes <= 3 * HEADER_LEN + 416, "{newest_bytes}");
+    // The older payload is not read (less the one header read twice).
+    assert!(
+        scan_bytes >= newest_bytes + 416 - HEADER_LEN,
+        "{scan_bytes} vs {newest_bytes}"
+    );
+    // A new record reads no more than that.
+    let r = h.write_bytes(&mut f, &[3; 400]).unwrap();
+    assert!(read(&mut f) <= newest_bytes);
+    assert_eq!((r.slot, r.sequence), (0, 3));
+    // The newer record's payload corrupt (its header intact): the older one is
+    // found, as the scan finds it, and the next record goes over the corrupt one.
+    let at = (h.slot_address(0) + HEADER_LEN as u32) as usize;
+    f.mem[at + 10] ^= 0x01;
+    let (_, scanned) = h.scan(&mut f);
+    assert_eq!(scanned.map(|(slot, seq, _)| (slot, seq)), Some((1, 2)));
+    assert_eq!(h.newest(&mut f), scanned);
+    let r = h.write_bytes(&mut f, &[4; 400]).unwrap();
+    assert_eq!((r.slot, r.sequence), (0, 3));
+}

@@ -72,29 +72,34 @@ use {
 // What the analysis must know about the firmware (keep in step with the sources)
 // ---------------------------------------------------------------------------------------
 
-/// NVIC priorities the firmware programs (0 = most urgent). Mirrors:
-/// * `firmware/src/hw/adc.rs`: `interrupt::ADC1_2.set_priority(Priority::P0)`;
-/// * `firmware/src/hw/pwm.rs`: `TIM1_BRK_TIM15` and `TIM8_BRK` `.set_priority(Priority::P1)`;
-/// * `firmware/src/hw/clock.rs` `config`: `c.bdma_interrupt_priority = Priority::P1` (every
-///   DMA channel interrupt embassy binds: `DMA1_CHANNEL1`, `DMA1_CHANNEL2` in `bind_interrupts!`);
-/// * `firmware/src/main.rs`: `EXTI1/2/3` and `UART4` (the cyclic interrupt executor) at
-///   `CYCLIC_PRIORITY` (= `Priority::P2`, `firmware/src/hw/lock.rs`), `TIM5` (the embassy
-///   time driver) `.set_priority(Priority::P3)`.
+/// NVIC priorities the firmware programs (0 = most urgent), from the table it sets
+/// them from (`firmware::irq_priority`):
+/// * `BREAK`: `TIM1_BRK_TIM15`, `TIM8_BRK` (`firmware/src/hw/pwm.rs`);
+/// * `CURRENT_LOOP`: `ADC1_2` (`firmware/src/hw/adc.rs`);
+/// * `SPI_DMA`: every DMA channel interrupt embassy binds (`firmware/src/hw/clock.rs`
+///   `config`, `bdma_interrupt_priority`: `DMA1_CHANNEL1`, `DMA1_CHANNEL2` in
+///   `bind_interrupts!`);
+/// * `CYCLIC`: `EXTI1/2/3` and `UART4` (the cyclic interrupt executor,
+///   `firmware/src/main.rs`);
+/// * `TIME_DRIVER`: `TIM5` (the embassy time driver, `firmware/src/hw/clock.rs`).
 ///
 /// A name ending in `*` is a prefix. Every other handler in the vector table keeps the
 /// reset priority 0 (NVIC IPR / SHPR reset value); NMI (-2) and HardFault (-1) are fixed.
-pub const IRQ_PRIORITIES: &[(&str, i32)] = &[
-    ("ADC1_2", 0),
-    ("TIM1_BRK_TIM15", 1),
-    ("TIM8_BRK", 1),
-    ("DMA1_CHANNEL*", 1),
-    ("DMA2_CHANNEL*", 1),
-    ("UART4", 2),
-    ("EXTI1", 2),
-    ("EXTI2", 2),
-    ("EXTI3", 2),
-    ("TIM5", 3),
-];
+pub const IRQ_PRIORITIES: &[(&str, i32)] = {
+    use firmware::irq_priority::{BREAK, CURRENT_LOOP, CYCLIC, SPI_DMA, TIME_DRIVER};
+    &[
+        ("TIM1_BRK_TIM15", BREAK as i32),
+        ("TIM8_BRK", BREAK as i32),
+        ("ADC1_2", CURRENT_LOOP as i32),
+        ("DMA1_CHANNEL*", SPI_DMA as i32),
+        ("DMA2_CHANNEL*", SPI_DMA as i32),
+        ("UART4", CYCLIC as i32),
+        ("EXTI1", CYCLIC as i32),
+        ("EXTI2", CYCLIC as i32),
+        ("EXTI3", CYCLIC as i32),
+        ("TIM5", TIME_DRIVER as i32),
+    ]
+};
 
 /// The interrupt executor: its vector and the tasks it polls (`firmware/src/main.rs`:
 /// `EXECUTOR_CYCLIC.start(interrupt::UART4)`, `cyclic_spawner` spawns of `cyclic`,

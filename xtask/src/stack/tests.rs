@@ -343,7 +343,7 @@ fn whole_analysis_of_a_synthetic_image() {
     ]);
     let elf = Elf::parse(bytes.clone()).unwrap();
     let r = analyse_elf(&elf).unwrap();
-    // thread: Reset 8 + f 36; P0: ADC1_2 8 + g 16; one exception frame.
+    // thread: Reset 8 + f 36; ADC1_2 (its level) 8 + g 16; one exception frame.
     assert_eq!(r.worst, 44 + 24 + EXCEPTION_FRAME, "{}", r.text);
     assert!(r.bounded);
     assert!(r.text.contains("f (1)"), "{}", r.text);
@@ -378,9 +378,14 @@ fn whole_analysis_of_a_synthetic_image() {
 
 #[test]
 fn priorities() {
-    assert_eq!(priority_of(&["ADC1_2"]), Some(0));
-    assert_eq!(priority_of(&["DMA1_CHANNEL2"]), Some(1));
-    assert_eq!(priority_of(&["EXTI1", "EXTI2", "EXTI3"]), Some(2));
-    assert_eq!(priority_of(&["TIM5"]), Some(3));
+    // The firmware's table (`firmware::irq_priority`): the break above the current
+    // loop.
+    assert_eq!(priority_of(&["TIM1_BRK_TIM15"]), Some(0));
+    assert_eq!(priority_of(&["TIM8_BRK"]), Some(0));
+    assert_eq!(priority_of(&["ADC1_2"]), Some(1));
+    assert_eq!(priority_of(&["DMA1_CHANNEL2"]), Some(2));
+    assert_eq!(priority_of(&["EXTI1", "EXTI2", "EXTI3"]), Some(3));
+    assert_eq!(priority_of(&["ADC1_2", "TIM8_BRK"]), Some(0));
+    assert_eq!(priority_of(&["TIM5"]), Some(4));
     assert_eq!(priority_of(&["DefaultHandler", "USART1"]), None);
 }
