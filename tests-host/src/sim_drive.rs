@@ -101,6 +101,18 @@ pub trait Axis {
     fn servo_points(&mut self, on: bool, out: &mut Vec<firmware::scope::ServoPoint>) {
         let _ = (on, out);
     }
+    /// With `on`, the model may skip work while the axis rests (e.g.
+    /// [`crate::sim_axis::PlantAxis::set_rest_skip`]; `virtual-drive` turns it on).
+    /// Default: nothing to skip.
+    fn skip_rest(&mut self, on: bool) {
+        let _ = on;
+    }
+    /// The axis rests and stays so until a new command: not controlled, still
+    /// (`virtual-drive` then wakes less often, [`crate::realtime::IDLE_TICKS`]).
+    /// Default: never claimed.
+    fn resting(&self) -> bool {
+        false
+    }
 }
 
 /// The servo periods' points of `axis` to the scope of `drive`, and whether the next

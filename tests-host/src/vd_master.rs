@@ -114,8 +114,12 @@ pub struct Measured {
     pub log: Vec<String>,
 }
 
+/// Time given to `virtual-drive`'s start-up (the drives' power-up, the plant's
+/// current-loop tune) before [`measure`] measures it idle.
+pub const SETTLE: Duration = Duration::from_secs(2);
+
 /// Starts `virtual-drive --drives N` (`program`) in a namespace tagged `tag`,
-/// measures its CPU time for `idle` with no master, runs [`soem_style`] with a 2 ms
+/// measures its CPU time for `idle` with no master after [`SETTLE`], runs [`soem_style`] with a 2 ms
 /// timeout and `cycles` cycles, then ends it with SIGTERM.
 pub fn measure(
     program: &str,
@@ -125,6 +129,7 @@ pub fn measure(
     cycles: u64,
 ) -> Result<Measured, String> {
     let vd = Running::start(program, tag, usize::from(drives), &[])?;
+    std::thread::sleep(SETTLE);
     let (c0, t0) = (vd.cpu_s()?, Instant::now());
     std::thread::sleep(idle);
     let mut m = Measured {
@@ -171,7 +176,8 @@ pub struct SoemReport {
     pub lost_in_op: u64,
     /// Frames that came back but not for the exchange waiting (late answers).
     pub stray: u64,
-    /// AL status and status code of every drive after the cycles.
+    /// AL status and status code of every drive after the cycles (read while the
+    /// cyclic exchange still runs).
     pub al_after: Vec<(u16, u16)>,
     /// Round trip of every frame answered in Op, µs, sorted.
     pub rtt_us: Vec<f64>,
@@ -347,7 +353,15 @@ pub fn soem_style(
     rep.lrw = (c1.0 - c0.0, c1.1 - c0.1);
     rep.lost_in_op = m.lost - l0;
     rep.stray = m.stray;
-    rep.al_after = stations().map(|st| m.al_status(st)).collect();
+    // Read while the cyclic exchange goes on: a drive whose outputs stop coming
+    // leaves Op (0x001A) within a few SYNC0 pulses, as it should.
+    rep.al_after = stations()
+        .map(|st| {
+            let s = m.al_status(st);
+            m.wait(50_000, 50_000);
+            s
+        })
+        .collect();
     for st in stations() {
         m.request_state(st, 0x0001);
     }

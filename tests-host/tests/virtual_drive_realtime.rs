@@ -95,17 +95,19 @@ fn strict_master_sets_up_one_drive_and_runs_1000_cycles_without_a_lost_frame() {
 fn idle_virtual_drive_sleeps_and_ends_on_sigterm() {
     require_root();
     let vd = Running::start(PROGRAM, "rti", 1, &[]).expect("virtual-drive");
-    std::thread::sleep(Duration::from_millis(500));
+    std::thread::sleep(tests_host::vd_master::SETTLE);
     let c0 = vd.cpu_s().expect("CPU time");
     let t0 = std::time::Instant::now();
     std::thread::sleep(Duration::from_secs(3));
     let cpu = vd.cpu_s().expect("CPU time") - c0;
     let wall = t0.elapsed().as_secs_f64();
     eprintln!("idle: {cpu:.3} s CPU in {wall:.3} s");
-    // The drive's 1 ms tick and the axis model at rest: a few % of a core (see
-    // BENCHMARKS.md, "Virtual drive in real time"); busy-waiting would be ~100 %.
+    // The drive's 1 ms ticks, ten at a time, and the axis model skipping its PWM
+    // periods at rest: below 1 % of a core in a release build (see BENCHMARKS.md,
+    // "Virtual drive in real time"); a tick per wake would be a few %, busy-waiting
+    // ~100 %. The bound leaves room for a debug build on a loaded machine.
     assert!(
-        cpu < 0.3 * wall,
+        cpu < 0.1 * wall,
         "idle virtual-drive used {cpu:.3} s of CPU in {wall:.3} s"
     );
     stop(vd, "idle");
