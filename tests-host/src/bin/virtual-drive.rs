@@ -8,7 +8,9 @@
 //!               [--fault KIND@TIME]... [--dip-id BITS] [--dip-function BITS]
 //! ```
 //!
-//! Runs in real time: simulated time follows the wall clock. As on a board, where
+//! Runs in real time: simulated time follows the wall clock, from the end of the
+//! drives' power-up (run first in simulated time, as fast as the machine goes: the
+//! plant models tune their current loops; [`tests_host::realtime::power_up`]). As on a board, where
 //! the ESC answers every frame in hardware whatever the MCU is doing, one thread
 //! answers the frames at once against the simulated ESCs and another runs the drives
 //! (slave runtimes, drive ticks, axis models) beside it: see
@@ -213,6 +215,9 @@ fn main() -> ExitCode {
         // Without --flash the update's partitions live in memory (lost at exit).
         sim_drive::attach_updates_in_memory(&mut seg, opts.flavour);
     }
+    // The drives power up (the plant models tune their current loops) before the
+    // frames are answered; real time then goes on from the simulated time reached.
+    let booted_ns = realtime::power_up(&mut seg);
     // SAFETY: installing a handler that only stores to an atomic.
     unsafe {
         libc::signal(libc::SIGINT, on_signal as *const () as libc::sighandler_t);
@@ -242,7 +247,10 @@ fn main() -> ExitCode {
     pins.observe(&seg, &mut log);
 
     // The wire thread answers frames; this thread is the drives' microcontrollers.
-    let start = Instant::now();
+    let now = Instant::now();
+    let start = now
+        .checked_sub(Duration::from_nanos(booted_ns))
+        .unwrap_or(now);
     let irq = Arc::new(Irq::default());
     let wire_stats = Arc::new(WireStats::default());
     let wire = match realtime::spawn_wire(
