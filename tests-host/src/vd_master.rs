@@ -114,8 +114,8 @@ pub struct Measured {
     pub log: Vec<String>,
 }
 
-/// Time given to `virtual-drive`'s start-up (the drives' power-up, the plant's
-/// current-loop tune) before [`measure`] measures it idle.
+/// Time after `virtual-drive`'s `ready` before [`measure`] measures it idle (the
+/// drives' power-up runs before `ready`; what is left of the start settles).
 pub const SETTLE: Duration = Duration::from_secs(2);
 
 /// Starts `virtual-drive --drives N` (`program`) in a namespace tagged `tag`,
