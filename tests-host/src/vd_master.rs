@@ -176,8 +176,8 @@ pub struct SoemReport {
     pub lost_in_op: u64,
     /// Frames that came back but not for the exchange waiting (late answers).
     pub stray: u64,
-    /// AL status and status code of every drive after the cycles (read while the
-    /// cyclic exchange still runs).
+    /// AL status and status code of every drive right after the cycles (LRWs between
+    /// the reads).
     pub al_after: Vec<(u16, u16)>,
     /// Round trip of every frame answered in Op, µs, sorted.
     pub rtt_us: Vec<f64>,
@@ -353,8 +353,8 @@ pub fn soem_style(
     rep.lrw = (c1.0 - c0.0, c1.1 - c0.1);
     rep.lost_in_op = m.lost - l0;
     rep.stray = m.stray;
-    // Read while the cyclic exchange goes on: a drive whose outputs stop coming
-    // leaves Op (0x001A) within a few SYNC0 pulses, as it should.
+    // LRWs between the reads: a drive whose outputs stop coming leaves Op (0x001A)
+    // within a few SYNC0 pulses, as it should.
     rep.al_after = stations()
         .map(|st| {
             let s = m.al_status(st);

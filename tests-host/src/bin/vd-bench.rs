@@ -113,9 +113,10 @@ fn report(rows: &[(u16, Result<Measured, String>)], cycles: u64, idle: f64) -> S
          slave runtimes, drive ticks and axis models) per drive, as a share of one core; \
          round trips are those of every frame in the cyclic phase as the master sees them; \
          'longest answer' is virtual-drive's own time from a frame's receipt to its \
-         answer. 'AL status after' is read once the cycles are over, while the master \
-         still sends its LRWs (a drive whose outputs stop leaves Op with 0x001A within a \
-         few SYNC0 pulses). The drives are in Op but not enabled (axes at rest). Axis model: the \
+         answer. 'AL status after' is read right after the cycles, with LRWs only between \
+         these reads: 0x001A there is a drive seeing the cyclic exchange end (no \
+         outputs at two SYNC0 pulses); the WKC column says whether it held Op during \
+         the cycles. The drives are in Op but not enabled (axes at rest). Axis model: the \
          electrical plant (40 kHz current loop) up to {} drives, the kinematic model \
          beyond.\n",
         tests_host::sim_axis::PLANT_MAX_DRIVES,
