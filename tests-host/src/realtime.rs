@@ -267,6 +267,7 @@ pub fn step(seg: &mut Segment<SimDrive>, now_ns: u64) {
                 .or_else(|| e.next_sync0_ns().filter(|&t| t <= now_ns))
         })
         .min();
+    let polls: Vec<u64> = seg.drives_mut().iter().map(|d| d.polls).collect();
     if let Some(t) = pulse {
         seg.advance_pending(t);
     }
@@ -275,7 +276,14 @@ pub fn step(seg: &mut Segment<SimDrive>, now_ns: u64) {
     for d in seg.drives_mut() {
         d.app.catch_up(now_us);
     }
-    sim_drive::forward_emergencies(seg);
+    // The work after each poll, for the drives polled in this step.
+    let polled: Vec<bool> = seg
+        .drives_mut()
+        .iter()
+        .zip(&polls)
+        .map(|(d, &p)| d.polls != p)
+        .collect();
+    sim_drive::forward_emergencies_where(seg, |i| polled[i]);
 }
 
 /// Ticks run per wake while every axis rests ([`crate::sim_drive::Axis::resting`])

@@ -114,6 +114,8 @@ pub struct Drive<A> {
     pub poll_errors: u64,
     /// Simulated time of the last `poll()`, ns.
     pub polled_ns: u64,
+    /// `poll()` calls so far.
+    pub polls: u64,
 }
 
 /// Longest time between two polls of a slave by [`Segment::poll_pending`] when its
@@ -208,6 +210,7 @@ impl<A: SlaveApplication> Segment<A> {
                 app,
                 poll_errors: 0,
                 polled_ns: 0,
+                polls: 0,
             });
         }
         Ok(Segment {
@@ -306,6 +309,7 @@ impl<A: SlaveApplication> Segment<A> {
                 continue;
             }
             d.polled_ns = self.now_ns;
+            d.polls += 1;
             if d.slave.poll(&mut d.app, now_us).is_err() {
                 d.poll_errors += 1;
             }

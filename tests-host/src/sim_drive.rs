@@ -626,7 +626,15 @@ pub fn power_up_drives(seg: &mut Segment<SimDrive>) {
 /// image on trial confirm itself ([`Drive::confirm_update`]): the board's `ecat` task
 /// does these after each `poll`, in thread mode, outside the fault path.
 pub fn forward_emergencies(seg: &mut Segment<SimDrive>) {
-    for d in seg.drives_mut() {
+    forward_emergencies_where(seg, |_| true);
+}
+
+/// [`forward_emergencies`] for the drives (positions) `which` selects (the board's
+/// `ecat` task does this work around each of its polls: `crate::realtime::step` does
+/// it for the drives it polled).
+pub fn forward_emergencies_where(seg: &mut Segment<SimDrive>, which: impl Fn(usize) -> bool) {
+    let drives = seg.drives_mut().iter_mut().enumerate();
+    for (_, d) in drives.filter(|(i, _)| which(*i)) {
         let slave = &mut d.slave;
         // The segment's polls count their ESC errors (`Drive::poll_errors`).
         let ok = d.poll_errors == d.app.poll_errors_seen;
