@@ -124,7 +124,12 @@ fn report(rows: &[(u16, Result<Measured, String>)], cycles: u64, idle: f64) -> S
     );
     let _ = writeln!(
         md,
-        "Machine: 2-core VM shared with other builds, release build.\n"
+        "Machine: 2-core VM shared with other builds, release build; load average at \
+         the end of the runs (1, 5, 15 min): {}.\n",
+        std::fs::read_to_string("/proc/loadavg")
+            .ok()
+            .map(|l| l.split_whitespace().take(3).collect::<Vec<_>>().join(", "))
+            .unwrap_or_else(|| "unknown".into())
     );
     let _ = writeln!(
         md,
