@@ -135,6 +135,9 @@ pub struct Drive<S: ParameterStore = NoStore> {
     pub scope: Scope,
     /// Digital inputs (filtered, functions).
     pub inputs: Inputs,
+    /// Positions latched by the edges of the input function "probe" at the ticks,
+    /// for touch probe 1, until a drive step takes them.
+    probe_tick: crate::cia402::EdgeLatch,
     axis: AxisState,
     command: DriveCommand,
     esm: EsmState,
@@ -227,6 +230,7 @@ macro_rules! power_up_fields {
             monitor: Monitor::new(),
             scope: Scope::new(),
             inputs: Inputs::default(),
+            probe_tick: crate::cia402::EdgeLatch::default(),
             axis: AxisState::default(),
             command: DriveCommand::default(),
             esm: EsmState::Init,
@@ -617,6 +621,11 @@ impl<S: ParameterStore> Drive<S> {
         self.inputs
             .update(raw_inputs, dt_ms.saturating_mul(1000), &self.params);
         self.params.set_raw_inputs(self.inputs.raw());
+        // Input function "probe" (0x2152 bit 5): an edge latches the position at this
+        // tick for touch probe 1, beside IN1's capture.
+        if let Some(active) = self.inputs.probe_edge() {
+            self.probe_tick = self.probe_tick.or(active, self.axis.position);
+        }
         let snap = self.snapshot();
         let now_ms = self.now_ms;
         if self.axis.bus_mv > 0 {
@@ -948,7 +957,10 @@ impl<S: ParameterStore> Drive<S> {
             current: self.axis.torque_permille,
             digital_inputs: self.inputs.digital_inputs_60fd(),
             index: self.axis.index,
-            probe1: self.axis.probe1,
+            probe1: self
+                .axis
+                .probe1
+                .merge(core::mem::take(&mut self.probe_tick)),
             probe2: self.axis.probe2,
             fault: self.faults.error_code(),
             power_stage_tripped: power_cut,

@@ -6,6 +6,8 @@
 //! (0x2154 bit n inverts input n+1) gives the logical level; each input's function bits
 //! (0x2152:n: 1 home, 2 limit−, 4 limit+, 8 fault clear, 16 quick stop, 32 probe) are
 //! active while the input is logically active. Several inputs may share a function (OR).
+//! The edges of "probe" latch the position at that tick for touch probe 1
+//! (`crate::cia402::probe`), beside IN1's capture.
 //!
 //! Outputs OUT1-OUT3: output n+1 is active when any condition selected by 0x2005:n+1
 //! (bit 0 alarm, bit 1 ready, bit 2 in-position, bit 3 brake released, bit 4 operation
@@ -160,6 +162,12 @@ impl Inputs {
     /// Probe input level.
     pub fn probe(&self) -> bool {
         self.is(function::PROBE)
+    }
+    /// The probe function's edge in this update: `Some(true)` when it became active,
+    /// `Some(false)` when it ended (touch probe 1's rising / falling edge).
+    pub fn probe_edge(&self) -> Option<bool> {
+        let now = self.probe();
+        (now != (self.prev_functions & function::PROBE != 0)).then_some(now)
     }
 
     /// 0x60FD value: bit 0 negative limit, bit 1 positive limit, bit 2 home, bits

@@ -381,8 +381,12 @@ impl<T: Transport> Master<T> {
     /// and runs `after`; a real link sleeps.
     pub fn wait(&mut self, dt_ns: u64, step_ns: u64) {
         let end = self.link.now_ns() + dt_ns;
-        while self.link.now_ns() < end {
+        loop {
+            // One reading of the clock per round: a real link's moves on meanwhile.
             let now = self.link.now_ns();
+            if now >= end {
+                break;
+            }
             let mut s = (end - now).min(step_ns.max(1));
             if let Some(c) = self.cyclic {
                 s = s.min(c.next_ns.saturating_sub(now).max(1));

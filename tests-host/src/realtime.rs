@@ -19,7 +19,9 @@
 //!   until the interrupt line rises or the next deadline ([`next_deadline_ns`]: the
 //!   next SYNC0 pulse of any drive, the next 1 ms tick), whichever comes first.
 //!
-//! Nothing busy-waits: with no master the process wakes once per tick. When the
+//! Nothing busy-waits: with no master the process wakes once per tick, once per
+//! [`IDLE_TICKS`] ticks while every axis rests (the plant model then skips its PWM
+//! periods too: [`crate::sim_axis::PlantAxis::set_rest_skip`]). When the
 //! application thread falls behind (a loaded machine), frames are still answered;
 //! on its next wake the missed SYNC0 pulses raise one event (as a DC unit's pulses
 //! happen at their times: the drive runs one cycle, not a burst), the drive's ticks
@@ -247,8 +249,9 @@ pub fn spawn_wire(
 
 /// The application side at time `now_ns`: the ESCs' clocks move on (SYNC0,
 /// watchdogs: one event for any number of pulses due; the first pulse due is
-/// handled at its own time), every slave polls (its cycle
-/// runs on a SYNC0 or SyncManager event), every drive's ticks and axis catch up to
+/// handled at its own time), the slaves poll as on the board — each one whose ESC
+/// raises its interrupt, every one at least once per millisecond
+/// ([`Segment::poll_pending`]; its cycle runs on a SYNC0 or SyncManager event), every drive's ticks and axis catch up to
 /// `now_ns` ([`SimDrive::catch_up`]), then the work after the poll
 /// ([`sim_drive::forward_emergencies`]). A time not ahead of the segment's polls
 /// without moving time.
@@ -264,30 +267,57 @@ pub fn step(seg: &mut Segment<SimDrive>, now_ns: u64) {
                 .or_else(|| e.next_sync0_ns().filter(|&t| t <= now_ns))
         })
         .min();
-    match pulse {
-        Some(t) if t > seg.now_ns() => seg.advance_to(t),
-        Some(_) => seg.poll_all(),
-        None => {}
+    let polls: Vec<u64> = seg.drives_mut().iter().map(|d| d.polls).collect();
+    if let Some(t) = pulse {
+        seg.advance_pending(t);
     }
-    if now_ns > seg.now_ns() {
-        seg.advance_to(now_ns);
-    } else {
-        seg.poll_all();
-    }
+    seg.advance_pending(now_ns);
     let now_us = seg.now_ns() / 1000;
     for d in seg.drives_mut() {
         d.app.catch_up(now_us);
     }
-    sim_drive::forward_emergencies(seg);
+    // The work after each poll, for the drives polled in this step.
+    let polled: Vec<bool> = seg
+        .drives_mut()
+        .iter()
+        .zip(&polls)
+        .map(|(d, &p)| d.polls != p)
+        .collect();
+    sim_drive::forward_emergencies_where(seg, |i| polled[i]);
 }
 
-/// When the application next has work without a frame: the next SYNC0 pulse of any
-/// drive or the next 1 ms tick after the segment's time, ns.
-pub fn next_deadline_ns<A: ecat_slave_stack::slave::SlaveApplication>(seg: &Segment<A>) -> u64 {
-    let tick = (seg.now_ns() / TICK_NS + 1) * TICK_NS;
+/// Ticks run per wake while every axis rests ([`crate::sim_drive::Axis::resting`])
+/// and no frame comes: the ticks still run on the drive's clock, 1 ms apart, but
+/// `IDLE_TICKS` of them at once.
+pub const IDLE_TICKS: u64 = 10;
+
+/// When the application next has work without a frame, ns: the next SYNC0 pulse of
+/// any drive or the next 1 ms tick after the segment's time — the
+/// [`IDLE_TICKS`]-th while every axis rests.
+pub fn next_deadline_ns(seg: &mut Segment<SimDrive>) -> u64 {
+    let idle = seg.drives_mut().iter().all(|d| d.app.axis.resting());
+    let ticks = if idle { IDLE_TICKS } else { 1 };
+    let tick = (seg.now_ns() / TICK_NS + ticks) * TICK_NS;
     (0..seg.len())
         .filter_map(|i| seg.esc(i).next_sync0_ns())
         .fold(tick, u64::min)
+}
+
+/// Longest power-up [`power_up`] runs, ns of simulated time.
+pub const POWER_UP_MAX_NS: u64 = 3_000_000_000;
+
+/// The drives' power-up before the frames are answered: [`step`] 1 ms at a time, in
+/// simulated time as fast as the machine goes, until every axis rests
+/// ([`crate::sim_drive::Axis::resting`]: the plant model's current-loop tune is done)
+/// or [`POWER_UP_MAX_NS`]. Returns the simulated time reached, ns. Without it the
+/// tune of four plant models would take the drives' thread a whole core for the
+/// first half second, while a master sets them up.
+pub fn power_up(seg: &mut Segment<SimDrive>) -> u64 {
+    while seg.now_ns() < POWER_UP_MAX_NS && !seg.drives_mut().iter().all(|d| d.app.axis.resting()) {
+        let t = seg.now_ns() + TICK_NS;
+        step(seg, t);
+    }
+    seg.now_ns()
 }
 
 /// `t_ns` since `start` as an instant.

@@ -112,7 +112,16 @@ pub struct Drive<A> {
     pub app: A,
     /// ESC access errors returned by `poll()` (should stay 0).
     pub poll_errors: u64,
+    /// Simulated time of the last `poll()`, ns.
+    pub polled_ns: u64,
+    /// `poll()` calls so far.
+    pub polls: u64,
 }
+
+/// Longest time between two polls of a slave by [`Segment::poll_pending`] when its
+/// ESC raises no interrupt, ns: the board's `ecat` task polls on each IRQ edge and at
+/// least every millisecond.
+pub const POLL_EVERY_NS: u64 = 1_000_000;
 
 /// Segment settings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -200,6 +209,8 @@ impl<A: SlaveApplication> Segment<A> {
                 slave,
                 app,
                 poll_errors: 0,
+                polled_ns: 0,
+                polls: 0,
             });
         }
         Ok(Segment {
@@ -277,13 +288,45 @@ impl<A: SlaveApplication> Segment<A> {
 
     /// Runs every slave's `poll()` once at the current simulated time.
     pub fn poll_all(&mut self) {
+        self.poll_where(|_, _| true);
+    }
+
+    /// Runs `poll()` at the current simulated time for every slave whose ESC raises its
+    /// interrupt line (an AL event it has not masked) or that was last polled
+    /// [`POLL_EVERY_NS`] ago or more: what the board's `ecat` task does (a poll on each
+    /// IRQ edge, at least one per millisecond). A segment of many drives then spends
+    /// its time on the drives a frame concerned.
+    pub fn poll_pending(&mut self) {
+        let now = self.now_ns;
+        self.poll_where(|d, esc_irq| esc_irq || now.saturating_sub(d.polled_ns) >= POLL_EVERY_NS);
+    }
+
+    fn poll_where(&mut self, due: impl Fn(&Drive<A>, bool) -> bool) {
         let now_us = self.now_ns / 1000;
         for d in &mut self.drives {
+            let irq = d.esc.borrow().pdi_irq();
+            if !due(d, irq) {
+                continue;
+            }
+            d.polled_ns = self.now_ns;
+            d.polls += 1;
             if d.slave.poll(&mut d.app, now_us).is_err() {
                 d.poll_errors += 1;
             }
             d.slave.esc_mut().trim_logs();
         }
+    }
+
+    /// Moves simulated time to `t_ns` (nothing if that is not ahead) and runs
+    /// [`Segment::poll_pending`].
+    pub fn advance_pending(&mut self, t_ns: u64) {
+        if t_ns > self.now_ns {
+            self.now_ns = t_ns;
+            for d in &self.drives {
+                d.esc.borrow_mut().advance_to(t_ns);
+            }
+        }
+        self.poll_pending();
     }
 
     /// Advances simulated time by `dt_ns` (ESC timers, SYNC0, watchdogs), then polls

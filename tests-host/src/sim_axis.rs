@@ -197,6 +197,11 @@ impl Axis for KinematicAxis {
         Some(self.pos)
     }
 
+    /// Not controlled and (practically) still.
+    fn resting(&self) -> bool {
+        !self.enabled && self.vel.abs() < 1e-3
+    }
+
     /// The kinematic model has a bus voltage but no phases.
     fn inject(&mut self, fault: InjectedFault) -> bool {
         let v = match fault {
@@ -327,7 +332,15 @@ pub struct PlantAxis {
     i_sum: Dq,
     /// Servo points for the scope at the servo rate, `None` while not asked for.
     trace: Option<Vec<firmware::scope::ServoPoint>>,
+    /// [`PlantAxis::set_rest_skip`].
+    rest_skip: bool,
+    /// Servo periods in a row at rest with the same state (noise aside), and that state.
+    rest: (u32, Option<AxisState>),
 }
+
+/// Servo periods at rest with an unchanged state after which [`PlantAxis`] skips the
+/// PWM periods (when allowed: [`PlantAxis::set_rest_skip`]): 1 ms.
+pub const REST_PERIODS: u32 = 10;
 
 impl PlantAxis {
     /// An axis of `motor` at rest, default vendor parameters, commutation aligned.
@@ -387,7 +400,64 @@ impl PlantAxis {
             v_sum: Dq::default(),
             i_sum: Dq::default(),
             trace: None,
+            rest_skip: false,
+            rest: (0, None),
         }
+    }
+
+    /// With `on`, [`Axis::advance`] skips the PWM periods while the axis rests
+    /// ([`PlantAxis::resting`]): the drive asks for no power (command off, no power
+    /// reference, no tune or phase check, no trip), the plant is at rest (no current,
+    /// the rotor held), no scope trace is taken, and the axis state apart from the
+    /// measured currents has stayed the same for [`REST_PERIODS`] servo periods.
+    /// Nothing in the model would change then but the noise of the current sensors
+    /// (the measured currents keep their last sample); the period counter moves on.
+    /// What keeps an idle `virtual-drive` cheap. Off by default: the tests' runs keep
+    /// every sample.
+    pub fn set_rest_skip(&mut self, on: bool) {
+        self.rest_skip = on;
+        self.rest = (0, None);
+    }
+
+    /// The PWM periods are being skipped (see [`PlantAxis::set_rest_skip`]).
+    pub fn resting(&self) -> bool {
+        self.rest_skip
+            && self.rest.0 >= REST_PERIODS
+            && self.power_off()
+            && self.rig.plant.at_rest()
+    }
+
+    /// Nothing asks for power: command off, no power reference, no tune or check, no
+    /// trip, no scope trace.
+    fn power_off(&self) -> bool {
+        !self.reference.power
+            && !self.cmd.power_stage
+            && !self.cmd.drive_enabled
+            && !self.supervisor.tuning()
+            && !self.supervisor.tripped()
+            && !self.tripped
+            && self.trace.is_none()
+    }
+
+    /// At a servo period: counts the periods at rest with the same state, the
+    /// measured currents and what follows from them aside.
+    fn watch_rest(&mut self) {
+        if !(self.power_off() && self.rig.plant.at_rest() && self.rig.enc.omega_e().abs() < 1e-3) {
+            self.rest = (0, None);
+            return;
+        }
+        let mut a = self.measured();
+        (a.ia_ma, a.ib_ma, a.ia_set_ma, a.ib_set_ma) = (0, 0, 0, 0);
+        (a.current_permille, a.torque_permille, a.load_angle_ddeg) = (0, 0, 0);
+        let same = self.rest.1 == Some(a);
+        self.rest = (
+            if same {
+                self.rest.0.saturating_add(1)
+            } else {
+                0
+            },
+            Some(a),
+        );
     }
 
     /// 0x2083: the alignment sweeps the field and checks the encoder (as the board's
@@ -554,6 +624,9 @@ impl PlantAxis {
                 let p = firmware::scope::ServoPoint::of(&self.measured());
                 self.trace.get_or_insert_with(Vec::new).push(p);
             }
+            if self.rest_skip {
+                self.watch_rest();
+            }
         }
         let r = self.reference;
         let period = self.rig.plant.cfg.pwm_period;
@@ -646,9 +719,19 @@ impl Axis for PlantAxis {
             self.seen_cmd = *cmd;
             self.cmd = *cmd;
             self.motion.set_command(cmd, 1e-3);
+            self.rest = (0, None);
         }
         self.t_left += dt_s;
         let ts = f64::from(TS);
+        if self.resting() {
+            // Whole PWM periods skipped (`set_rest_skip`): the plant's and the
+            // periods' clocks move on, nothing else would change.
+            let n = (self.t_left / ts + 0.001).floor().max(0.0);
+            self.t_left -= n * ts;
+            self.rig.k += n as u64;
+            self.rig.plant.time += n * self.rig.plant.cfg.ts;
+            return;
+        }
         while self.t_left >= ts * 0.999 {
             self.t_left -= ts;
             self.tick();
@@ -656,9 +739,20 @@ impl Axis for PlantAxis {
     }
 
     fn command(&mut self, cmd: &DriveCommand, cycle_s: f64) {
+        if *cmd != self.cmd {
+            self.rest = (0, None);
+        }
         self.seen_cmd = *cmd;
         self.cmd = *cmd;
         self.motion.set_command(cmd, cycle_s as f32);
+    }
+
+    fn skip_rest(&mut self, on: bool) {
+        self.set_rest_skip(on);
+    }
+
+    fn resting(&self) -> bool {
+        PlantAxis::resting(self)
     }
 
     fn parameters(&mut self, p: &Params) {
@@ -667,10 +761,12 @@ impl Axis for PlantAxis {
         if cfg != *self.motion.config() || wiggle != self.wiggle {
             self.wiggle = wiggle;
             self.motion.configure(cfg, wiggle);
+            self.rest = (0, None);
         }
         let sup = SupervisorConfig::from_params(p, TS, self.rig.plant.cfg.pwm_period);
         if sup != *self.supervisor.config() {
             self.supervisor.configure(sup);
+            self.rest = (0, None);
         }
     }
 
@@ -698,6 +794,7 @@ impl Axis for PlantAxis {
 
     /// The electrical plant models every kind.
     fn inject(&mut self, fault: InjectedFault) -> bool {
+        self.rest = (0, None);
         match fault {
             InjectedFault::OpenPhaseA => self.open_phase(0, true),
             InjectedFault::OpenPhaseB => self.open_phase(1, true),
@@ -768,5 +865,11 @@ impl Axis for SharedPlant {
     }
     fn inject(&mut self, fault: InjectedFault) -> bool {
         self.0.borrow_mut().inject(fault)
+    }
+    fn skip_rest(&mut self, on: bool) {
+        self.0.borrow_mut().set_rest_skip(on)
+    }
+    fn resting(&self) -> bool {
+        self.0.borrow().resting()
     }
 }

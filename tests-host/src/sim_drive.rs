@@ -101,6 +101,18 @@ pub trait Axis {
     fn servo_points(&mut self, on: bool, out: &mut Vec<firmware::scope::ServoPoint>) {
         let _ = (on, out);
     }
+    /// With `on`, the model may skip work while the axis rests (e.g.
+    /// [`crate::sim_axis::PlantAxis::set_rest_skip`]; `virtual-drive` turns it on).
+    /// Default: nothing to skip.
+    fn skip_rest(&mut self, on: bool) {
+        let _ = on;
+    }
+    /// The axis rests and stays so until a new command: not controlled, still
+    /// (`virtual-drive` then wakes less often, [`crate::realtime::IDLE_TICKS`]).
+    /// Default: never claimed.
+    fn resting(&self) -> bool {
+        false
+    }
 }
 
 /// The servo periods' points of `axis` to the scope of `drive`, and whether the next
@@ -614,7 +626,15 @@ pub fn power_up_drives(seg: &mut Segment<SimDrive>) {
 /// image on trial confirm itself ([`Drive::confirm_update`]): the board's `ecat` task
 /// does these after each `poll`, in thread mode, outside the fault path.
 pub fn forward_emergencies(seg: &mut Segment<SimDrive>) {
-    for d in seg.drives_mut() {
+    forward_emergencies_where(seg, |_| true);
+}
+
+/// [`forward_emergencies`] for the drives (positions) `which` selects (the board's
+/// `ecat` task does this work around each of its polls: `crate::realtime::step` does
+/// it for the drives it polled).
+pub fn forward_emergencies_where(seg: &mut Segment<SimDrive>, which: impl Fn(usize) -> bool) {
+    let drives = seg.drives_mut().iter_mut().enumerate();
+    for (_, d) in drives.filter(|(i, _)| which(*i)) {
         let slave = &mut d.slave;
         // The segment's polls count their ESC errors (`Drive::poll_errors`).
         let ok = d.poll_errors == d.app.poll_errors_seen;

@@ -114,8 +114,12 @@ pub struct Measured {
     pub log: Vec<String>,
 }
 
+/// Time after `virtual-drive`'s `ready` before [`measure`] measures it idle (the
+/// drives' power-up runs before `ready`; what is left of the start settles).
+pub const SETTLE: Duration = Duration::from_secs(2);
+
 /// Starts `virtual-drive --drives N` (`program`) in a namespace tagged `tag`,
-/// measures its CPU time for `idle` with no master, runs [`soem_style`] with a 2 ms
+/// measures its CPU time for `idle` with no master after [`SETTLE`], runs [`soem_style`] with a 2 ms
 /// timeout and `cycles` cycles, then ends it with SIGTERM.
 pub fn measure(
     program: &str,
@@ -125,6 +129,7 @@ pub fn measure(
     cycles: u64,
 ) -> Result<Measured, String> {
     let vd = Running::start(program, tag, usize::from(drives), &[])?;
+    std::thread::sleep(SETTLE);
     let (c0, t0) = (vd.cpu_s()?, Instant::now());
     std::thread::sleep(idle);
     let mut m = Measured {
@@ -171,7 +176,8 @@ pub struct SoemReport {
     pub lost_in_op: u64,
     /// Frames that came back but not for the exchange waiting (late answers).
     pub stray: u64,
-    /// AL status and status code of every drive after the cycles.
+    /// AL status and status code of every drive right after the cycles (LRWs between
+    /// the reads).
     pub al_after: Vec<(u16, u16)>,
     /// Round trip of every frame answered in Op, µs, sorted.
     pub rtt_us: Vec<f64>,
@@ -336,7 +342,12 @@ pub fn soem_style(
     let counts = |m: &SocketMaster| m.cyclic.map_or((0, 0), |c| (c.sent, c.good));
     let (c0, l0, r0) = (counts(&m), m.lost, m.rtt_ns.len());
     let cpu0 = (pid.and_then(process_cpu_s).unwrap_or(0.0), Instant::now());
-    m.wait(cycles * 1_000_000, 1_000_000);
+    // `cycles` LRWs, however long the host keeps the master itself from running (given
+    // up after three times their time and a second).
+    let limit = Instant::now() + Duration::from_millis(3 * cycles + 1000);
+    while counts(&m).0 < c0.0 + cycles && Instant::now() < limit {
+        m.wait(1_000_000, 1_000_000);
+    }
     rep.cyclic_cpu_s = (
         pid.and_then(process_cpu_s).unwrap_or(0.0) - cpu0.0,
         cpu0.1.elapsed().as_secs_f64(),
@@ -347,7 +358,15 @@ pub fn soem_style(
     rep.lrw = (c1.0 - c0.0, c1.1 - c0.1);
     rep.lost_in_op = m.lost - l0;
     rep.stray = m.stray;
-    rep.al_after = stations().map(|st| m.al_status(st)).collect();
+    // LRWs between the reads: a drive whose outputs stop coming leaves Op (0x001A)
+    // within a few SYNC0 pulses, as it should.
+    rep.al_after = stations()
+        .map(|st| {
+            let s = m.al_status(st);
+            m.wait(50_000, 50_000);
+            s
+        })
+        .collect();
     for st in stations() {
         m.request_state(st, 0x0001);
     }

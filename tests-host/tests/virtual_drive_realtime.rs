@@ -1,6 +1,6 @@
 //! `virtual-drive` answers frames like hardware (issue 32): over a veth pair, a
-//! SOEM-style master that waits 2 ms for each frame and never resends sets up a
-//! drive with the plant model (DC SYNC0 at 1 ms, every drive reaches Op) and runs
+//! SOEM-style master that waits 2 ms for each frame and never resends sets up one
+//! and four drives with the plant model (DC SYNC0 at 1 ms, every drive reaches Op) and runs
 //! 1000 cycles without a lost frame or a wrong working counter; with no master the process uses little CPU
 //! (its CPU time, not wall time, with a generous bound: the machine is shared);
 //! SIGTERM ends it promptly and cleanly.
@@ -63,7 +63,7 @@ fn strict_master_run(tag: &str, drives: u16) {
     );
     stop(vd, &format!("{drives} drive(s) after the cycles"));
     assert_eq!(rep.setup_frames.1, 0, "frames lost in the set-up");
-    assert!(rep.lrw.0 >= 990, "LRWs sent in 1000 ms: {}", rep.lrw.0);
+    assert!(rep.lrw.0 >= 1000, "LRWs sent: {}", rep.lrw.0);
     assert_eq!(
         rep.lrw.1,
         rep.lrw.0,
@@ -81,31 +81,45 @@ fn strict_master_run(tag: &str, drives: u16) {
     );
 }
 
-/// A real-time measurement (a 2 ms deadline on every frame): it holds on a quiet
-/// machine, and lost 1-3 frames of 1000 while other builds ran on this 2-core machine.
-/// `cargo xtask bench` (vd-bench) measures the same run for BENCHMARKS.md; run this
-/// by hand with `--ignored` on a quiet machine.
+/// A 2 ms deadline on every frame: the frames are answered by their own thread
+/// whatever the drives' thread does (`tests_host::realtime`). Measured on the 2-core
+/// development VM while other builds ran (load 4-6): 12 of 14 runs of this file
+/// passed; in the two others the host ran none of the SCHED_FIFO threads (the
+/// master's included: it sent its LRWs late) for several milliseconds, and 6 LRWs or
+/// one set-up frame missed the 2 ms. Hence ignored: run it with `--ignored` on a
+/// machine that is not overloaded. `cargo xtask bench` (vd-bench) measures the same
+/// run with 1, 4 and 128 drives for BENCHMARKS.md.
 #[test]
-#[ignore = "real-time measurement: a 2 ms deadline per frame depends on the machine's load; measured by `cargo xtask bench` (vd-bench)"]
+#[ignore = "real-time: a 2 ms deadline per frame; an overloaded host that stalls its SCHED_FIFO threads for milliseconds fails it (about 1 run in 7 on the 2-core VM under build load); measured by `cargo xtask bench` (vd-bench)"]
 fn strict_master_sets_up_one_drive_and_runs_1000_cycles_without_a_lost_frame() {
     strict_master_run("rt1", 1);
+}
+
+/// The same with four drives, each with the electrical plant model (the most
+/// `virtual-drive` runs the plant model for).
+#[test]
+#[ignore = "real-time: a 2 ms deadline per frame; an overloaded host that stalls its SCHED_FIFO threads for milliseconds fails it (about 1 run in 7 on the 2-core VM under build load); measured by `cargo xtask bench` (vd-bench)"]
+fn strict_master_sets_up_four_plant_drives_and_runs_1000_cycles_without_a_lost_frame() {
+    strict_master_run("rt4", 4);
 }
 
 #[test]
 fn idle_virtual_drive_sleeps_and_ends_on_sigterm() {
     require_root();
     let vd = Running::start(PROGRAM, "rti", 1, &[]).expect("virtual-drive");
-    std::thread::sleep(Duration::from_millis(500));
+    std::thread::sleep(tests_host::vd_master::SETTLE);
     let c0 = vd.cpu_s().expect("CPU time");
     let t0 = std::time::Instant::now();
     std::thread::sleep(Duration::from_secs(3));
     let cpu = vd.cpu_s().expect("CPU time") - c0;
     let wall = t0.elapsed().as_secs_f64();
     eprintln!("idle: {cpu:.3} s CPU in {wall:.3} s");
-    // The drive's 1 ms tick and the axis model at rest: a few % of a core (see
-    // BENCHMARKS.md, "Virtual drive in real time"); busy-waiting would be ~100 %.
+    // The drive's 1 ms ticks, ten at a time, and the axis model skipping its PWM
+    // periods at rest: below 1 % of a core in a release build (see BENCHMARKS.md,
+    // "Virtual drive in real time"); a tick per wake would be a few %, busy-waiting
+    // ~100 %. The bound leaves room for a debug build on a loaded machine.
     assert!(
-        cpu < 0.3 * wall,
+        cpu < 0.1 * wall,
         "idle virtual-drive used {cpu:.3} s of CPU in {wall:.3} s"
     );
     stop(vd, "idle");

@@ -2,7 +2,9 @@
 //!
 //! Two channels. Each latches the position of its trigger — the channel's digital input
 //! (probe 1: input 1, probe 2: input 2; the positions are latched by hardware and
-//! reported in [`super::DriveFeedback`]) or the encoder index pulse — on the rising
+//! reported in [`super::DriveFeedback`]; probe 1 also takes the edges of any input
+//! assigned the function "probe", 0x2152 bit 5, latched at the drive's 1 ms tick) or
+//! the encoder index pulse — on the rising
 //! and/or falling edge, once ("first event") or on every event ("continuous"). Values
 //! and status bits change in the very cycle in which the event is reported.
 //!
@@ -22,6 +24,31 @@ pub struct EdgeLatch {
     pub rising: Option<i32>,
     /// Position at a falling edge.
     pub falling: Option<i32>,
+}
+
+impl EdgeLatch {
+    /// This latch with position `p` at a rising (`rising`) or falling edge where it
+    /// has none yet.
+    pub fn or(self, rising: bool, p: i32) -> Self {
+        self.merge(if rising {
+            EdgeLatch {
+                rising: Some(p),
+                falling: None,
+            }
+        } else {
+            EdgeLatch {
+                rising: None,
+                falling: Some(p),
+            }
+        })
+    }
+    /// Per edge, this latch's position, else `other`'s.
+    pub fn merge(self, other: Self) -> Self {
+        EdgeLatch {
+            rising: self.rising.or(other.rising),
+            falling: self.falling.or(other.falling),
+        }
+    }
 }
 
 /// Touch-probe state.

@@ -432,3 +432,66 @@ fn a_failed_flash_record_is_an_emergency() {
     rt.record_committed(&d, false, &mut |e| sent.push(e.code));
     assert_eq!(sent, [crate::storage::EMCY_RECORD_CORRUPT]);
 }
+
+/// Ticks with the raw input levels `raw` (bit n = IN n+1).
+fn ticks_with(d: &mut Drive, rt: &mut Runtime, path: &mut FakePath, from_ms: u64, n: u64, raw: u8) {
+    for k in 0..n {
+        rt.tick(d, path, (from_ms + k) * 1000, raw, 0, None);
+    }
+}
+
+#[test]
+fn an_input_assigned_probe_latches_the_position_for_touch_probe_1() {
+    let (mut d, mut rt, mut path) = started(SPEC, DipBanks::default(), |_| {});
+    // Touch probe 1 on, input trigger, rising and falling edge, first event.
+    sdo_write(&mut d, 0x60B8, 0, &0x0031u16.to_le_bytes()).unwrap();
+    path.axis.position = 1234;
+    ticks_with(&mut d, &mut rt, &mut path, 0, 5, 0);
+    // IN4 without the probe function: its edges latch nothing.
+    ticks_with(&mut d, &mut rt, &mut path, 5, 5, 0b1000);
+    ticks_with(&mut d, &mut rt, &mut path, 10, 5, 0);
+    assert_eq!(
+        read_u32(&mut d, 0x60B9, 0) & 0x7,
+        0x1,
+        "enabled, nothing stored"
+    );
+    // IN4 assigned "probe" (0x2152:04 = 32): the rising edge stores the position of
+    // the tick at which the filtered input changed.
+    sdo_write(&mut d, 0x2152, 4, &32u16.to_le_bytes()).unwrap();
+    ticks_with(&mut d, &mut rt, &mut path, 15, 5, 0);
+    ticks_with(&mut d, &mut rt, &mut path, 20, 5, 0b1000);
+    let at_rise = read_u32(&mut d, 0x6064, 0);
+    assert_eq!(
+        read_u32(&mut d, 0x60B9, 0) & 0x7,
+        0x3,
+        "rising value stored"
+    );
+    assert_eq!(read_u32(&mut d, 0x60BA, 0), at_rise);
+    // The axis moves, the input drops: the falling value is the new position; the
+    // rising one (first event) stays.
+    path.axis.position = 5678;
+    ticks_with(&mut d, &mut rt, &mut path, 25, 3, 0b1000);
+    let at_fall = read_u32(&mut d, 0x6064, 0);
+    assert_ne!(at_fall, at_rise);
+    ticks_with(&mut d, &mut rt, &mut path, 28, 5, 0);
+    assert_eq!(read_u32(&mut d, 0x60B9, 0) & 0x7, 0x7, "both values stored");
+    assert_eq!(read_u32(&mut d, 0x60BB, 0), at_fall);
+    assert_eq!(read_u32(&mut d, 0x60BA, 0), at_rise);
+    // Input polarity (0x2154 bit 3) swaps the edges: the probe function is active
+    // while the input is low; re-armed by switching the channel off and on.
+    sdo_write(&mut d, 0x2154, 0, &[0x08]).unwrap();
+    sdo_write(&mut d, 0x60B8, 0, &0x0000u16.to_le_bytes()).unwrap();
+    ticks_with(&mut d, &mut rt, &mut path, 33, 2, 0b1000);
+    sdo_write(&mut d, 0x60B8, 0, &0x0011u16.to_le_bytes()).unwrap();
+    path.axis.position = 9000;
+    ticks_with(&mut d, &mut rt, &mut path, 35, 3, 0b1000);
+    assert_eq!(read_u32(&mut d, 0x60B9, 0) & 0x7, 0x1, "no edge yet");
+    let at_low = read_u32(&mut d, 0x6064, 0);
+    ticks_with(&mut d, &mut rt, &mut path, 38, 3, 0);
+    assert_eq!(
+        read_u32(&mut d, 0x60B9, 0) & 0x7,
+        0x3,
+        "falling level = rising edge"
+    );
+    assert_eq!(read_u32(&mut d, 0x60BA, 0), at_low);
+}

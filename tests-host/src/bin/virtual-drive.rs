@@ -8,7 +8,9 @@
 //!               [--fault KIND@TIME]... [--dip-id BITS] [--dip-function BITS]
 //! ```
 //!
-//! Runs in real time: simulated time follows the wall clock. As on a board, where
+//! Runs in real time: simulated time follows the wall clock, from the end of the
+//! drives' power-up (run first in simulated time, as fast as the machine goes: the
+//! plant models tune their current loops; [`tests_host::realtime::power_up`]). As on a board, where
 //! the ESC answers every frame in hardware whatever the MCU is doing, one thread
 //! answers the frames at once against the simulated ESCs and another runs the drives
 //! (slave runtimes, drive ticks, axis models) beside it: see
@@ -205,10 +207,17 @@ fn main() -> ExitCode {
             return ExitCode::from(1);
         }
     };
+    // Real time: the plant models may skip their work while the axes rest.
+    for d in seg.drives_mut() {
+        d.app.axis.skip_rest(true);
+    }
     if cfg.flash_file.is_none() {
         // Without --flash the update's partitions live in memory (lost at exit).
         sim_drive::attach_updates_in_memory(&mut seg, opts.flavour);
     }
+    // The drives power up (the plant models tune their current loops) before the
+    // frames are answered; real time then goes on from the simulated time reached.
+    let booted_ns = realtime::power_up(&mut seg);
     // SAFETY: installing a handler that only stores to an atomic.
     unsafe {
         libc::signal(libc::SIGINT, on_signal as *const () as libc::sighandler_t);
@@ -238,7 +247,10 @@ fn main() -> ExitCode {
     pins.observe(&seg, &mut log);
 
     // The wire thread answers frames; this thread is the drives' microcontrollers.
-    let start = Instant::now();
+    let now = Instant::now();
+    let start = now
+        .checked_sub(Duration::from_nanos(booted_ns))
+        .unwrap_or(now);
     let irq = Arc::new(Irq::default());
     let wire_stats = Arc::new(WireStats::default());
     let wire = match realtime::spawn_wire(
@@ -269,6 +281,7 @@ fn main() -> ExitCode {
     let mut last_report = Instant::now();
     // The drives' thread: how late it woke for a deadline at worst, its longest step.
     let (mut deadline, mut raised, mut late_ns, mut step_ns) = (0u64, true, 0u64, 0u64);
+    let mut observed_tick = 0;
     while !STOP.load(Ordering::SeqCst) {
         if let Some(line) = app_priority.update() {
             log(line);
@@ -281,8 +294,13 @@ fn main() -> ExitCode {
         step_ns = step_ns.max((start.elapsed().as_nanos() as u64).saturating_sub(now_ns));
         schedule.apply_due(&mut seg, &mut log);
         restart_after_update(&mut seg, &mut log);
-        leds.observe(&seg, &mut log);
-        pins.observe(&seg, &mut log);
+        // LEDs and pins change in the drives' 1 ms ticks: looked at once per tick.
+        let tick = seg.now_ns() / realtime::TICK_NS;
+        if tick != observed_tick {
+            observed_tick = tick;
+            leds.observe(&seg, &mut log);
+            pins.observe(&seg, &mut log);
+        }
         if last_report.elapsed() > Duration::from_secs(10) {
             last_report = Instant::now();
             let states: Vec<String> = (0..seg.len())
@@ -297,7 +315,7 @@ fn main() -> ExitCode {
         if wire.is_finished() {
             break;
         }
-        deadline = realtime::next_deadline_ns(&seg);
+        deadline = realtime::next_deadline_ns(&mut seg);
         raised = irq.wait_until(realtime::instant_at(start, deadline));
     }
     STOP.store(true, Ordering::SeqCst);

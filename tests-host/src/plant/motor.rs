@@ -508,7 +508,7 @@ impl Plant {
     /// zero, and the mechanics keep their state (`update_mechanics` returns at once
     /// for a stuck rotor that stays stuck): [`Plant::advance`] skips the integration
     /// — what keeps an idle virtual drive cheap — with the same result.
-    fn at_rest(&self) -> bool {
+    pub fn at_rest(&self) -> bool {
         let quiet = |d: &Duties| d.a1 == d.a2 && d.b1 == d.b2;
         if self.forced_speed.is_some()
             || self.ia.abs() >= f64::MIN_POSITIVE
