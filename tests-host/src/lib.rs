@@ -3,6 +3,7 @@
 //! the raw-socket transport of `virtual-drive`, the ethercrab seam for in-process
 //! integration tests, and the host side of the drive's scope.
 #![deny(clippy::undocumented_unsafe_blocks)]
+pub mod coe_client;
 pub mod counting;
 pub mod esc_sim;
 
