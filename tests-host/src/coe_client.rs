@@ -166,7 +166,12 @@ impl Mailbox {
     where
         S: Deref<Target = ethercrab::SubDevice>,
     {
-        self.send(sd, service::SDO_REQUEST, req).await?;
+        // An SDO request is at least 8 bytes (command, index, sub-index, data).
+        let mut body = req.to_vec();
+        if body.len() < 8 {
+            body.resize(8, 0);
+        }
+        self.send(sd, service::SDO_REQUEST, &body).await?;
         let a = self.receive(sd, service::SDO_RESPONSE, emcy).await?;
         if a[SDO_AT] == 0x80 {
             let code = u32::from_le_bytes([a[12], a[13], a[14], a[15]]);
@@ -234,7 +239,6 @@ impl Mailbox {
         if (1..=4).contains(&data.len()) {
             req[0] = 0x23 | (((4 - data.len()) as u8) << 2);
             req.extend_from_slice(data);
-            req.resize(8, 0);
         } else {
             req[0] = 0x21;
             req.extend_from_slice(&(data.len() as u32).to_le_bytes());
