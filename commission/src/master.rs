@@ -422,6 +422,11 @@ impl Session<'_> {
                         if let Ok(al) = al {
                             let st = u16::from_le_bytes([al[0], al[1]]);
                             let code = u16::from_le_bytes([al[4], al[5]]);
+                            if st & 0x1F != 0x08 && !self.paused.get() {
+                                // Out of Op (e.g. a watchdog on a loaded host): back
+                                // to Op, the error acknowledged.
+                                let _ = sd.register_write(0x0120u16, 0x0018u16).await;
+                            }
                             let mut v = self.shared.view();
                             if let Some(d) = v.drives.get_mut(k) {
                                 d.esm = texts::esm(st);
@@ -536,7 +541,7 @@ impl Session<'_> {
                 let (index, sig) = if load { (0x1011, *b"load") } else { (0x1010, *b"save") };
                 mbx.download(&sd, index, 1, &sig, emcy).await.map_err(err)?;
                 Ok(json!(if load {
-                    "defaults restored (in force after the next power-up or 0x1011 handling)"
+                    "defaults stored; they apply from the next power-up (CiA 301 0x1011)"
                 } else {
                     "parameters saved"
                 }))

@@ -84,7 +84,8 @@ function drawLive() {
   const key = pick.join(",");
   if (!livePlot || livePlot.key !== key) {
     if (livePlot) livePlot.destroy();
-    livePlot = new uPlot({ width: 900, height: 320, series, axes: [{ label: "s" }, ...pick.map((p, i) => ({ scale: p, side: i ? 1 : 3 }))] }, data, $("#live-plot"));
+    livePlot = new uPlot({ width: 900, height: 320, series, scales: { x: { time: false } },
+      axes: [{ label: "s since the tool started" }, ...pick.map((p, i) => ({ scale: p, side: i ? 1 : 3, size: 70 }))] }, data, $("#live-plot"));
     livePlot.key = key;
   } else {
     livePlot.setData(data);
@@ -173,9 +174,9 @@ $("#scope-run").addEventListener("click", async () => {
   const data = [rec.time_ms, ...rec.labels.map((_, c) => rec.rows.map((row) => row[c]))];
   const colours = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf"];
   const series = [{ label: "ms from the trigger" }, ...rec.labels.map((l, c) => ({ label: l, stroke: colours[c % 8], scale: "s" + c }))];
-  const axes = [{ label: "ms from the trigger" }, ...rec.labels.map((_, c) => ({ scale: "s" + c, side: c % 2 ? 1 : 3, show: c < 2 }))];
+  const axes = [{ label: "ms from the trigger" }, ...rec.labels.map((_, c) => ({ scale: "s" + c, side: c % 2 ? 1 : 3, show: c < 2, size: 70 }))];
   if (scopePlot) scopePlot.destroy();
-  scopePlot = new uPlot({ width: 900, height: 360, series, axes, cursor: { drag: { x: true, y: false } } }, data, $("#scope-plot"));
+  scopePlot = new uPlot({ width: 900, height: 360, series, axes, scales: { x: { time: false } }, cursor: { drag: { x: true, y: false } } }, data, $("#scope-plot"));
   say($("#scope-msg"), `${rec.rows.length} samples${rec.forced ? " (no trigger: forced)" : ""}; drag to zoom, double-click to zoom out`, true);
 });
 $("#scope-csv").addEventListener("click", () => {
