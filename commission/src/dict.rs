@@ -170,7 +170,11 @@ pub fn format_value(t: u16, v: &[u8]) -> String {
         0x0009 => String::from_utf8_lossy(v)
             .trim_end_matches('\0')
             .to_string(),
-        _ => v.iter().map(|b| format!("{b:02x}")).collect::<Vec<_>>().join(" "),
+        _ => v
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect::<Vec<_>>()
+            .join(" "),
     }
 }
 
@@ -219,8 +223,12 @@ mod tests {
         assert_eq!(format_value(0x0003, &[0xFE, 0xFF]), "-2");
         assert_eq!(parse_value(0x0007, 32, "0x10").unwrap(), vec![16, 0, 0, 0]);
         assert_eq!(format_value(0x0009, b"1.2\0"), "1.2");
-        assert!(parse_value(0x0005, 8, "256").unwrap_err().contains("does not fit"));
-        assert!(parse_value(0x0004, 32, "x1").unwrap_err().contains("whole number"));
+        assert!(parse_value(0x0005, 8, "256")
+            .unwrap_err()
+            .contains("does not fit"));
+        assert!(parse_value(0x0004, 32, "x1")
+            .unwrap_err()
+            .contains("whole number"));
     }
 
     #[test]
@@ -233,7 +241,10 @@ mod tests {
         d.extend_from_slice(b"Current [mA]");
         let e = parse_entry(&d).unwrap();
         assert_eq!(e.default.as_deref(), Some("3200"));
-        assert_eq!((e.min.as_deref(), e.max.as_deref()), (Some("100"), Some("6000")));
+        assert_eq!(
+            (e.min.as_deref(), e.max.as_deref()),
+            (Some("100"), Some("6000"))
+        );
         assert_eq!(e.name, "Current [mA]");
         assert_eq!(e.access_text, "rw");
     }

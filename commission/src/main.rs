@@ -69,7 +69,8 @@ fn options() -> Result<Options, String> {
 
 /// Whether `iface` has a link (carrier).
 fn has_link(iface: &str) -> bool {
-    std::fs::read_to_string(format!("/sys/class/net/{iface}/carrier")).is_ok_and(|c| c.trim() == "1")
+    std::fs::read_to_string(format!("/sys/class/net/{iface}/carrier"))
+        .is_ok_and(|c| c.trim() == "1")
 }
 
 fn main() -> ExitCode {
@@ -100,7 +101,9 @@ fn main() -> ExitCode {
                 return ExitCode::FAILURE;
             }
             if !tests_host::netns::is_root() {
-                eprintln!("ecs-commission: --virtual needs root (network namespace and raw socket)");
+                eprintln!(
+                    "ecs-commission: --virtual needs root (network namespace and raw socket)"
+                );
                 return ExitCode::FAILURE;
             }
             match tests_host::vd_master::Running::start(&program, "cm", n, &[]) {

@@ -35,7 +35,8 @@ use crate::texts;
 /// Drives the tool handles on one segment.
 pub const MAX_DRIVES: usize = 8;
 const PDI: usize = 512;
-type Group = SubDeviceGroup<MAX_DRIVES, PDI, ethercrab::DefaultLock, ethercrab::subdevice_group::Op>;
+type Group =
+    SubDeviceGroup<MAX_DRIVES, PDI, ethercrab::DefaultLock, ethercrab::subdevice_group::Op>;
 
 /// Cycle time of the process data.
 const CYCLE: Duration = Duration::from_millis(2);
@@ -234,7 +235,11 @@ fn e2s(what: &str) -> impl Fn(ethercrab::error::Error) -> String + '_ {
 }
 
 /// One session: the segment up to Op, then cycles and requests until an update ends it.
-async fn session(md: &MainDevice<'static>, shared: &Shared, jobs: &Receiver<Job>) -> Result<(), String> {
+async fn session(
+    md: &MainDevice<'static>,
+    shared: &Shared,
+    jobs: &Receiver<Job>,
+) -> Result<(), String> {
     shared.view().status = "scanning the segment".into();
     let group = md
         .init_single_group::<MAX_DRIVES, PDI>(ethercat_now)
@@ -246,11 +251,15 @@ async fn session(md: &MainDevice<'static>, shared: &Shared, jobs: &Receiver<Job>
     for (k, sd) in group.iter(md).enumerate() {
         let mbx = Mailbox::of(&sd).await.map_err(e2s("mailbox"))?;
         // PV process data: 0x1C12 = {0x1602}.
-        mbx.download(&sd, 0x1C12, 0, &[0], &mut emcy).await.map_err(e2s("0x1C12"))?;
+        mbx.download(&sd, 0x1C12, 0, &[0], &mut emcy)
+            .await
+            .map_err(e2s("0x1C12"))?;
         mbx.download(&sd, 0x1C12, 1, &0x1602u16.to_le_bytes(), &mut emcy)
             .await
             .map_err(e2s("0x1C12"))?;
-        mbx.download(&sd, 0x1C12, 0, &[1], &mut emcy).await.map_err(e2s("0x1C12"))?;
+        mbx.download(&sd, 0x1C12, 0, &[1], &mut emcy)
+            .await
+            .map_err(e2s("0x1C12"))?;
         let version = mbx
             .upload(&sd, 0x100A, 0, &mut emcy)
             .await
@@ -278,7 +287,10 @@ async fn session(md: &MainDevice<'static>, shared: &Shared, jobs: &Receiver<Job>
         if v.update.state == "running" {
             let versions: Vec<String> = v.drives.iter().map(|d| d.version.clone()).collect();
             v.update.state = "done".into();
-            v.update.answer = format!("update done; the drive reports version {}", versions.join(", "));
+            v.update.answer = format!(
+                "update done; the drive reports version {}",
+                versions.join(", ")
+            );
         }
         v.status = "taking the drives to Op".into();
     }
@@ -372,7 +384,9 @@ impl Session<'_> {
                 if i.len() < 19 {
                     continue;
                 }
-                let Some(d) = v.drives.get_mut(k) else { continue };
+                let Some(d) = v.drives.get_mut(k) else {
+                    continue;
+                };
                 let ec = u16::from_le_bytes([i[0], i[1]]);
                 d.statusword = u16::from_le_bytes([i[2], i[3]]);
                 d.cia402 = texts::cia402(d.statusword);
@@ -415,7 +429,9 @@ impl Session<'_> {
                 Err(TryRecvError::Empty) if polled.elapsed() > Duration::from_millis(200) => {
                     polled = Instant::now();
                     for (k, sd) in self.group.iter(self.md).enumerate() {
-                        let Some(mbx) = self.mailboxes.get(k) else { continue };
+                        let Some(mbx) = self.mailboxes.get(k) else {
+                            continue;
+                        };
                         let _ = mbx.poll_emergencies(&sd, &mut emcy).await;
                         self.record_emergencies(&mut emcy, k);
                         let al: Result<[u8; 6], _> = sd.register_read(0x0130u16).await;
@@ -507,8 +523,12 @@ impl Session<'_> {
                         sub,
                         value_info: 0x70,
                     };
-                    let Ok(d) = mbx.info(&sd, req, emcy).await else { continue };
-                    let Some(e) = dict::parse_entry(&d) else { continue };
+                    let Ok(d) = mbx.info(&sd, req, emcy).await else {
+                        continue;
+                    };
+                    let Some(e) = dict::parse_entry(&d) else {
+                        continue;
+                    };
                     let value = if e.access & 0x07 != 0 {
                         mbx.upload(&sd, index, sub, emcy)
                             .await
@@ -519,9 +539,11 @@ impl Session<'_> {
                     };
                     entries.push((e, value));
                 }
-                Ok(json!({"object": obj, "entries": entries.iter().map(|(e, v)| json!({
+                Ok(
+                    json!({"object": obj, "entries": entries.iter().map(|(e, v)| json!({
                     "entry": e, "value": v.as_ref().ok(), "error": v.as_ref().err()
-                })).collect::<Vec<_>>()}))
+                })).collect::<Vec<_>>()}),
+                )
             }
             Cmd::Write(_, index, sub, text) => {
                 let req = info::Repr::EntryDescription {
@@ -532,13 +554,19 @@ impl Session<'_> {
                 let d = mbx.info(&sd, req, emcy).await.map_err(err)?;
                 let e = dict::parse_entry(&d).ok_or("bad entry description")?;
                 let bytes = dict::parse_value(e.data_type, e.bits, &text)?;
-                mbx.download(&sd, index, sub, &bytes, emcy).await.map_err(err)?;
+                mbx.download(&sd, index, sub, &bytes, emcy)
+                    .await
+                    .map_err(err)?;
                 let back = mbx.upload(&sd, index, sub, emcy).await.map_err(err)?;
                 Ok(json!(dict::format_value(e.data_type, &back)))
             }
             Cmd::Store(_, load) => {
                 // "save" / "load" signatures of CiA 301.
-                let (index, sig) = if load { (0x1011, *b"load") } else { (0x1010, *b"save") };
+                let (index, sig) = if load {
+                    (0x1011, *b"load")
+                } else {
+                    (0x1010, *b"save")
+                };
                 mbx.download(&sd, index, 1, &sig, emcy).await.map_err(err)?;
                 Ok(json!(if load {
                     "defaults stored; they apply from the next power-up (CiA 301 0x1011)"
@@ -550,17 +578,22 @@ impl Session<'_> {
                 let n = firmware::diagnosis::HISTORY_LEN as u8;
                 let mut out = Vec::new();
                 for sub in 6..6 + n {
-                    let Ok(b) = mbx.upload(&sd, 0x10F3, sub, emcy).await else { break };
+                    let Ok(b) = mbx.upload(&sd, 0x10F3, sub, emcy).await else {
+                        break;
+                    };
                     if let Some(m) = ecat_slave_stack::diag::DiagMessage::parse(&b) {
                         if m.code == 0 && m.text_id == 0 {
                             continue;
                         }
-                        out.push((m.time_ns, json!({
-                            "time_ms": m.time_ns / 1_000_000,
-                            "code": format!("{:#010x}", m.code),
-                            "severity": format!("{:?}", m.severity),
-                            "text": texts::message(&m),
-                        })));
+                        out.push((
+                            m.time_ns,
+                            json!({
+                                "time_ms": m.time_ns / 1_000_000,
+                                "code": format!("{:#010x}", m.code),
+                                "severity": format!("{:?}", m.severity),
+                                "text": texts::message(&m),
+                            }),
+                        ));
                     }
                 }
                 out.sort_by_key(|(t, _)| *t);
@@ -716,7 +749,11 @@ impl Session<'_> {
             }
             if t0.elapsed() > Duration::from_secs(5) || st & 0x10 != 0 {
                 let code = u16::from_le_bytes([al[4], al[5]]);
-                return Err(format!("{} refused: {}", texts::esm(want), texts::al_code(code)));
+                return Err(format!(
+                    "{} refused: {}",
+                    texts::esm(want),
+                    texts::al_code(code)
+                ));
             }
             async_io::Timer::after(Duration::from_millis(5)).await;
         }
@@ -759,7 +796,9 @@ impl Session<'_> {
         let back = self.al_request(sd, 0x0011, 0x01).await;
         match r {
             Ok(()) => back,
-            Err(FoeFailure::Refused(code, text)) => Err(format!("the drive refused the file: FoE error {code:#x}: {text}")),
+            Err(FoeFailure::Refused(code, text)) => Err(format!(
+                "the drive refused the file: FoE error {code:#x}: {text}"
+            )),
             Err(FoeFailure::Transport(e)) => Err(format!("FoE: {}", texts::error(&e))),
         }
     }

@@ -68,7 +68,10 @@ pub fn active_fault(code: u16) -> (String, String) {
             let short = text.split(" (").next().unwrap_or(text);
             (format!("{code:#06x} {short}"), led(k))
         }
-        None => (format!("{code:#06x} EtherCAT communication fault"), led(FaultKind::Ecat)),
+        None => (
+            format!("{code:#06x} EtherCAT communication fault"),
+            led(FaultKind::Ecat),
+        ),
     }
 }
 
@@ -111,7 +114,9 @@ pub fn emergency(e: &[u8; 8]) -> String {
         register: e[2],
         data,
     };
-    let fault = code != 0 && fault_kind(code).is_some() || code & 0xFF00 == 0xA000 || code & 0xFF00 == 0x8200;
+    let fault = code != 0 && fault_kind(code).is_some()
+        || code & 0xFF00 == 0xA000
+        || code & 0xFF00 == 0x8200;
     message(&firmware::diagnosis::message_for_emergency(&emcy, fault, 0))
 }
 
@@ -124,7 +129,9 @@ pub fn abort(code: u32) -> String {
 /// An ethercrab error in words (aborts with their text).
 pub fn error(e: &ethercrab::error::Error) -> String {
     match e {
-        ethercrab::error::Error::Mailbox(ethercrab::error::MailboxError::Aborted { code, .. }) => {
+        ethercrab::error::Error::Mailbox(ethercrab::error::MailboxError::Aborted {
+            code, ..
+        }) => {
             let raw: u32 = (*code).into();
             abort(raw)
         }
@@ -147,7 +154,16 @@ mod tests {
         assert!(abort(0x0609_0031).contains("0x06090031"));
         assert_ne!(abort(0x0609_0031), abort(0x0609_0032));
         // An under-voltage emergency: bus 180 (0.1 V), detail 7.
-        let e = [0x00, 0x32, 0x04, FaultKind::UnderVoltage as u8, 180, 0, 7, 0];
+        let e = [
+            0x00,
+            0x32,
+            0x04,
+            FaultKind::UnderVoltage as u8,
+            180,
+            0,
+            7,
+            0,
+        ];
         let t = emergency(&e);
         assert!(t.contains("180") && t.contains('7'), "{t}");
     }

@@ -25,11 +25,23 @@ struct App {
 
 /// Every file of the page, served from the binary.
 const FILES: [(&str, &str, &str); 5] = [
-    ("index.html", "text/html; charset=utf-8", include_str!("../web/index.html")),
+    (
+        "index.html",
+        "text/html; charset=utf-8",
+        include_str!("../web/index.html"),
+    ),
     ("app.js", "text/javascript", include_str!("../web/app.js")),
     ("style.css", "text/css", include_str!("../web/style.css")),
-    ("uPlot.iife.min.js", "text/javascript", include_str!("../web/uplot/uPlot.iife.min.js")),
-    ("uPlot.min.css", "text/css", include_str!("../web/uplot/uPlot.min.css")),
+    (
+        "uPlot.iife.min.js",
+        "text/javascript",
+        include_str!("../web/uplot/uPlot.iife.min.js"),
+    ),
+    (
+        "uPlot.min.css",
+        "text/css",
+        include_str!("../web/uplot/uPlot.min.css"),
+    ),
 ];
 
 async fn file(Path(name): Path<String>) -> Response {
@@ -44,7 +56,12 @@ async fn index() -> Response {
 }
 
 async fn state(State(app): State<App>) -> Json<Value> {
-    let v = app.shared.view.lock().unwrap_or_else(|p| p.into_inner()).clone();
+    let v = app
+        .shared
+        .view
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .clone();
     Json(json!(v))
 }
 
@@ -52,7 +69,11 @@ async fn state(State(app): State<App>) -> Json<Value> {
 async fn ask(app: &App, cmd: Cmd) -> Response {
     let (tx, rx) = tokio::sync::oneshot::channel();
     if app.jobs.send((cmd, tx)).is_err() {
-        return (StatusCode::SERVICE_UNAVAILABLE, Json(json!({"error": "the master stopped"}))).into_response();
+        return (
+            StatusCode::SERVICE_UNAVAILABLE,
+            Json(json!({"error": "the master stopped"})),
+        )
+            .into_response();
     }
     match rx.await {
         Ok(Ok(v)) => Json(json!({ "ok": v })).into_response(),
@@ -185,7 +206,8 @@ pub async fn serve(addr: SocketAddr, shared: Arc<Shared>, jobs: Sender<Job>) -> 
     let local = listener.local_addr().map_err(|e| e.to_string())?;
     println!("ecs-commission: page on http://{local}/");
     let stop = async {
-        let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()).ok();
+        let mut term =
+            tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()).ok();
         tokio::select! {
             _ = tokio::signal::ctrl_c() => {}
             _ = async { match term.as_mut() { Some(t) => { t.recv().await; } None => std::future::pending::<()>().await } } => {}

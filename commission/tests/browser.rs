@@ -105,7 +105,9 @@ impl Browser {
                 .stdout(Stdio::null())
                 .stderr(Stdio::null())
                 .spawn()
-                .expect("chromedriver (Debian package chromium-driver; `cargo xtask test` installs it)"),
+                .expect(
+                    "chromedriver (Debian package chromium-driver; `cargo xtask test` installs it)",
+                ),
         );
         wait_for("chromedriver", Duration::from_secs(20), || {
             TcpStream::connect(("127.0.0.1", port)).is_ok()
@@ -232,7 +234,8 @@ impl Browser {
     fn pointer(&self, css: &str, down: bool) {
         let e = self.find(css);
         let origin = json!({ "element-6066-11e4-a52e-4f735466cecf": e });
-        let mut actions = vec![json!({"type": "pointerMove", "duration": 0, "origin": origin, "x": 0, "y": 0})];
+        let mut actions =
+            vec![json!({"type": "pointerMove", "duration": 0, "origin": origin, "x": 0, "y": 0})];
         actions.push(json!({"type": if down { "pointerDown" } else { "pointerUp" }, "button": 0}));
         self.call(
             "POST",
@@ -347,7 +350,13 @@ fn commissioning_in_a_browser_against_virtual_drive() {
 
     // The tool with one virtual drive, on a free port.
     let mut tool = Command::new(env!("CARGO_BIN_EXE_ecs-commission"))
-        .args(["--virtual", "1", "--listen", "127.0.0.1:0", "--virtual-drive"])
+        .args([
+            "--virtual",
+            "1",
+            "--listen",
+            "127.0.0.1:0",
+            "--virtual-drive",
+        ])
         .arg(virtual_drive())
         .stdout(Stdio::piped())
         .spawn()
@@ -355,7 +364,9 @@ fn commissioning_in_a_browser_against_virtual_drive() {
     let out = tool.stdout.take().expect("stdout");
     let tool = Proc(tool);
     let mut line = String::new();
-    BufReader::new(out).read_line(&mut line).expect("its first line");
+    BufReader::new(out)
+        .read_line(&mut line)
+        .expect("its first line");
     let url = line
         .split("page on ")
         .nth(1)
@@ -392,14 +403,22 @@ fn commissioning_in_a_browser_against_virtual_drive() {
     b.click("button.write[data-sub='0']");
     b.wait_text("#dict-msg", "= 2500 (read back)", Duration::from_secs(10));
     let read = |p: u16| {
-        http(p, "GET", "/api/objects?drive=0&index=0x2000", None)["ok"]["entries"][0]["value"].clone()
+        http(p, "GET", "/api/objects?drive=0&index=0x2000", None)["ok"]["entries"][0]["value"]
+            .clone()
     };
     assert_eq!(read(page_port), json!("2500"), "0x2000 after the edit");
     b.type_into("input.edit[data-index='8192'][data-sub='0']", "9000");
     b.click("button.write[data-sub='0']");
     let msg = b.wait_text("#dict-msg", "refused", Duration::from_secs(10));
-    assert!(msg.contains("0x06090031") && msg.contains("too high"), "{msg}");
-    assert_eq!(read(page_port), json!("2500"), "0x2000 unchanged by the refused edit");
+    assert!(
+        msg.contains("0x06090031") && msg.contains("too high"),
+        "{msg}"
+    );
+    assert_eq!(
+        read(page_port),
+        json!("2500"),
+        "0x2000 unchanged by the refused edit"
+    );
     b.screenshot("dictionary");
 
     // Enable and jog, the dead-man.
@@ -461,7 +480,11 @@ fn commissioning_in_a_browser_against_virtual_drive() {
     b.wait_text("#dict-msg", "defaults stored", Duration::from_secs(10));
     b.view("faults");
     b.click("#faults-read");
-    b.wait_text("#faults-history tbody", "Parameters restored to defaults", Duration::from_secs(20));
+    b.wait_text(
+        "#faults-history tbody",
+        "Parameters restored to defaults",
+        Duration::from_secs(20),
+    );
     b.screenshot("faults");
 
     // Firmware update over FoE: version 2.3.0, signed with the development key.
@@ -485,7 +508,6 @@ fn commissioning_in_a_browser_against_virtual_drive() {
     assert!(answer.contains("update done"), "{answer}");
     assert_eq!(drive0(page_port)["version"], json!("2.3.0"));
     b.screenshot("update");
-
 
     drop(b);
     drop(tool);

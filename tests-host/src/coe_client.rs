@@ -76,7 +76,12 @@ impl Mailbox {
     }
 
     /// Writes one CoE frame (`coe_service` and the bytes after the CoE header) to SM0.
-    async fn send<S>(&self, sd: &SubDeviceRef<'_, S>, coe_service: u8, body: &[u8]) -> Result<(), Error>
+    async fn send<S>(
+        &self,
+        sd: &SubDeviceRef<'_, S>,
+        coe_service: u8,
+        body: &[u8],
+    ) -> Result<(), Error>
     where
         S: Deref<Target = ethercrab::SubDevice>,
     {
@@ -86,7 +91,12 @@ impl Mailbox {
     }
 
     /// Writes one mailbox message of type `kind` (3 CoE, 4 FoE) with `data` to SM0.
-    async fn send_raw<S>(&self, sd: &SubDeviceRef<'_, S>, kind: u8, data: &[u8]) -> Result<(), Error>
+    async fn send_raw<S>(
+        &self,
+        sd: &SubDeviceRef<'_, S>,
+        kind: u8,
+        data: &[u8],
+    ) -> Result<(), Error>
     where
         S: Deref<Target = ethercrab::SubDevice>,
     {
@@ -126,7 +136,11 @@ impl Mailbox {
 
     /// Reads every frame waiting in SM1: emergencies go to `emcy`, anything else (a
     /// late answer) is dropped.
-    pub async fn poll_emergencies<S>(&self, sd: &SubDeviceRef<'_, S>, emcy: &mut Vec<Emergency>) -> Result<(), Error>
+    pub async fn poll_emergencies<S>(
+        &self,
+        sd: &SubDeviceRef<'_, S>,
+        emcy: &mut Vec<Emergency>,
+    ) -> Result<(), Error>
     where
         S: Deref<Target = ethercrab::SubDevice>,
     {
@@ -138,7 +152,12 @@ impl Mailbox {
 
     /// The next CoE frame of service `want` (or, for SDO responses, an abort sent as
     /// a request) from SM1; emergencies in between go to `emcy`.
-    async fn receive<S>(&self, sd: &SubDeviceRef<'_, S>, want: u8, emcy: &mut Vec<Emergency>) -> Result<[u8; MBX], Error>
+    async fn receive<S>(
+        &self,
+        sd: &SubDeviceRef<'_, S>,
+        want: u8,
+        emcy: &mut Vec<Emergency>,
+    ) -> Result<[u8; MBX], Error>
     where
         S: Deref<Target = ethercrab::SubDevice>,
     {
@@ -148,7 +167,8 @@ impl Mailbox {
                 let service = f[7] >> 4;
                 if !Self::keep_emergency(&f, emcy)
                     && f[5] & 0x0F == 0x03
-                    && (service == want || (want == service::SDO_RESPONSE && service == service::SDO_REQUEST))
+                    && (service == want
+                        || (want == service::SDO_RESPONSE && service == service::SDO_REQUEST))
                 {
                     return Ok(f);
                 }
@@ -162,7 +182,12 @@ impl Mailbox {
 
     /// One SDO request (the bytes after the CoE header) and its answer; an abort
     /// becomes [`Error::Mailbox`].
-    async fn sdo<S>(&self, sd: &SubDeviceRef<'_, S>, req: &[u8], emcy: &mut Vec<Emergency>) -> Result<[u8; MBX], Error>
+    async fn sdo<S>(
+        &self,
+        sd: &SubDeviceRef<'_, S>,
+        req: &[u8],
+        emcy: &mut Vec<Emergency>,
+    ) -> Result<[u8; MBX], Error>
     where
         S: Deref<Target = ethercrab::SubDevice>,
     {
@@ -181,7 +206,13 @@ impl Mailbox {
     }
 
     /// An SDO upload of any length.
-    pub async fn upload<S>(&self, sd: &SubDeviceRef<'_, S>, index: u16, sub: u8, emcy: &mut Vec<Emergency>) -> Result<Vec<u8>, Error>
+    pub async fn upload<S>(
+        &self,
+        sd: &SubDeviceRef<'_, S>,
+        index: u16,
+        sub: u8,
+        emcy: &mut Vec<Emergency>,
+    ) -> Result<Vec<u8>, Error>
     where
         S: Deref<Target = ethercrab::SubDevice>,
     {
@@ -230,7 +261,14 @@ impl Mailbox {
 
     /// An SDO download of `data` (expedited up to 4 bytes, else one normal transfer
     /// of at most 112 bytes).
-    pub async fn download<S>(&self, sd: &SubDeviceRef<'_, S>, index: u16, sub: u8, data: &[u8], emcy: &mut Vec<Emergency>) -> Result<(), Error>
+    pub async fn download<S>(
+        &self,
+        sd: &SubDeviceRef<'_, S>,
+        index: u16,
+        sub: u8,
+        data: &[u8],
+        emcy: &mut Vec<Emergency>,
+    ) -> Result<(), Error>
     where
         S: Deref<Target = ethercrab::SubDevice>,
     {
@@ -254,7 +292,12 @@ impl Mailbox {
     /// An SDO information request and its answer: the service data of all fragments
     /// joined (after the information header); the drive's error becomes
     /// [`Error::Mailbox`].
-    pub async fn info<S>(&self, sd: &SubDeviceRef<'_, S>, req: info::Repr, emcy: &mut Vec<Emergency>) -> Result<Vec<u8>, Error>
+    pub async fn info<S>(
+        &self,
+        sd: &SubDeviceRef<'_, S>,
+        req: info::Repr,
+        emcy: &mut Vec<Emergency>,
+    ) -> Result<Vec<u8>, Error>
     where
         S: Deref<Target = ethercrab::SubDevice>,
     {
@@ -277,7 +320,9 @@ impl Mailbox {
             let frame = info::Frame::new(&f[SDO_AT..end]);
             if frame.opcode() == info::opcode::ERROR {
                 let d = frame.data();
-                let code = d.get(..4).map_or(0, |c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]));
+                let code = d
+                    .get(..4)
+                    .map_or(0, |c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]));
                 return Err(aborted(code, index, sub));
             }
             data.extend_from_slice(frame.data());
@@ -306,7 +351,11 @@ impl From<Error> for FoeFailure {
 impl Mailbox {
     /// The next FoE message from SM1 (after the mailbox header); emergencies go to
     /// `emcy`, other messages are dropped.
-    async fn receive_foe<S>(&self, sd: &SubDeviceRef<'_, S>, emcy: &mut Vec<Emergency>) -> Result<Vec<u8>, Error>
+    async fn receive_foe<S>(
+        &self,
+        sd: &SubDeviceRef<'_, S>,
+        emcy: &mut Vec<Emergency>,
+    ) -> Result<Vec<u8>, Error>
     where
         S: Deref<Target = ethercrab::SubDevice>,
     {
@@ -342,26 +391,30 @@ impl Mailbox {
         use ecat_slave_stack::foe::{ErrorCode, Frame, Repr, OVERHEAD};
         let segment = MBX - OVERHEAD;
         // The answer to `req`: Some(acknowledged packet), None for BUSY.
-        let exchange = async |req: Repr<'_>, emcy: &mut Vec<Emergency>| -> Result<Option<u32>, FoeFailure> {
-            let mut b = vec![0u8; req.buffer_len()];
-            req.emit(&mut Frame::new_unchecked(&mut b[..]));
-            self.send_raw(sd, FOE, &b).await?;
-            let a = self.receive_foe(sd, emcy).await?;
-            let f = Frame::new_checked(&a[..]).map_err(|_| FoeFailure::Transport(Error::Internal))?;
-            match Repr::parse(&f).map_err(|_| FoeFailure::Transport(Error::Internal))? {
-                Repr::Ack { packet } => Ok(Some(packet)),
-                Repr::Busy { .. } => Ok(None),
-                Repr::Error { code, text } => {
-                    let words = if text.is_empty() {
-                        ErrorCode::from_code(code).map_or("", ErrorCode::text).to_string()
-                    } else {
-                        String::from_utf8_lossy(text).into_owned()
-                    };
-                    Err(FoeFailure::Refused(code, words))
+        let exchange =
+            async |req: Repr<'_>, emcy: &mut Vec<Emergency>| -> Result<Option<u32>, FoeFailure> {
+                let mut b = vec![0u8; req.buffer_len()];
+                req.emit(&mut Frame::new_unchecked(&mut b[..]));
+                self.send_raw(sd, FOE, &b).await?;
+                let a = self.receive_foe(sd, emcy).await?;
+                let f = Frame::new_checked(&a[..])
+                    .map_err(|_| FoeFailure::Transport(Error::Internal))?;
+                match Repr::parse(&f).map_err(|_| FoeFailure::Transport(Error::Internal))? {
+                    Repr::Ack { packet } => Ok(Some(packet)),
+                    Repr::Busy { .. } => Ok(None),
+                    Repr::Error { code, text } => {
+                        let words = if text.is_empty() {
+                            ErrorCode::from_code(code)
+                                .map_or("", ErrorCode::text)
+                                .to_string()
+                        } else {
+                            String::from_utf8_lossy(text).into_owned()
+                        };
+                        Err(FoeFailure::Refused(code, words))
+                    }
+                    _ => Err(FoeFailure::Transport(Error::Internal)),
                 }
-                _ => Err(FoeFailure::Transport(Error::Internal)),
-            }
-        };
+            };
         if exchange(Repr::Write { password, name }, emcy).await? != Some(0) {
             return Err(FoeFailure::Transport(Error::Internal));
         }
