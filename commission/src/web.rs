@@ -213,8 +213,9 @@ pub async fn serve(addr: SocketAddr, shared: Arc<Shared>, jobs: Sender<Job>) -> 
             _ = async { match term.as_mut() { Some(t) => { t.recv().await; } None => std::future::pending::<()>().await } } => {}
         }
     };
-    axum::serve(listener, router)
-        .with_graceful_shutdown(stop)
-        .await
-        .map_err(|e| e.to_string())
+    // On a signal the tool ends at once (the drives' hold runs out by itself).
+    tokio::select! {
+        r = axum::serve(listener, router) => r.map_err(|e| e.to_string()),
+        () = stop => Ok(()),
+    }
 }

@@ -21,23 +21,7 @@ use std::time::{Duration, Instant};
 use serde_json::{json, Value};
 
 /// A child process ended (SIGTERM, then SIGKILL) when dropped.
-struct Proc(Child);
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        // SAFETY: plain kill(2) on our own child.
-        unsafe { libc::kill(self.0.id() as i32, libc::SIGTERM) };
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while Instant::now() < deadline {
-            if let Ok(Some(_)) = self.0.try_wait() {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
+use tests_host::netns::Killed as Proc;
 
 /// One HTTP/1.1 request to 127.0.0.1:`port`; the JSON answer (`Null` when none).
 fn http(port: u16, method: &str, path: &str, body: Option<&Value>) -> Value {
