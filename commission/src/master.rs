@@ -102,6 +102,8 @@ pub struct EmcyView {
 /// The firmware update's progress and the drive's answer.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct UpdateView {
+    /// The drive updated.
+    pub drive: usize,
     /// "", "running", "done", "failed".
     pub state: String,
     /// Bytes acknowledged.
@@ -631,7 +633,7 @@ impl Session<'_> {
                 }
                 Ok(Value::Object(out))
             }
-            Cmd::Update(_, file) => self.update(&sd, mbx, &file, emcy).await,
+            Cmd::Update(_, file) => self.update(k, &sd, mbx, &file, emcy).await,
         }
     }
 
@@ -703,6 +705,7 @@ impl Session<'_> {
 
     async fn update<S: Deref<Target = ethercrab::SubDevice>>(
         &self,
+        k: usize,
         sd: &ethercrab::SubDeviceRef<'_, S>,
         mbx: Mailbox,
         file: &[u8],
@@ -712,6 +715,7 @@ impl Session<'_> {
         *self.shared.hold() = None;
         let set = |state: &str, sent: usize, answer: String| {
             self.shared.view().update = UpdateView {
+                drive: k,
                 state: state.into(),
                 sent,
                 total: file.len(),

@@ -1,7 +1,7 @@
 //! `ecs-commission` in a real browser: headless Chromium (Debian's `chromium` and
 //! `chromium-driver`, installed by `cargo xtask test`) driven over WebDriver (plain
 //! HTTP to chromedriver), against `virtual-drive` in a network namespace
-//! (`ecs-commission --virtual 1`).
+//! (`ecs-commission --virtual 2`: two drives on one segment).
 //!
 //! The page loads and lists the drive; a parameter edit round-trips; an out-of-range
 //! edit shows the drive's abort text and changes nothing; enable + jog moves the axis,
@@ -336,7 +336,7 @@ fn commissioning_in_a_browser_against_virtual_drive() {
     let mut tool = Command::new(env!("CARGO_BIN_EXE_ecs-commission"))
         .args([
             "--virtual",
-            "1",
+            "2",
             "--listen",
             "127.0.0.1:0",
             "--virtual-drive",
@@ -371,6 +371,24 @@ fn commissioning_in_a_browser_against_virtual_drive() {
     b.wait_text("#segment tbody", "ECS-HS", Duration::from_secs(30));
     b.wait_text("#segment tbody", "Op", Duration::from_secs(30));
     b.wait_text("#segment tbody", "no error", Duration::from_secs(10));
+    // Two drives on the segment, both in Op.
+    let mut last = Value::Null;
+    let t0 = Instant::now();
+    while !last["drives"].as_array().is_some_and(|d| {
+        d.len() == 2
+            && d.iter()
+                .all(|d| d["esm"] == json!("Op") && d["al_code"] == json!(0))
+    }) {
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "two drives in Op: {last}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+        last = state(page_port);
+        last["live"] = Value::Null;
+    }
+    let rows = b.js("return document.querySelectorAll('#segment tbody tr').length");
+    assert_eq!(rows, json!(2), "both drives listed");
     b.screenshot("segment");
 
     // Dictionary: the list from SDO information, an edit that round-trips, an
@@ -491,6 +509,11 @@ fn commissioning_in_a_browser_against_virtual_drive() {
     let answer = b.wait_text("#update-answer", "version 2.3.0", Duration::from_secs(90));
     assert!(answer.contains("update done"), "{answer}");
     assert_eq!(drive0(page_port)["version"], json!("2.3.0"));
+    assert_eq!(
+        state(page_port)["drives"][1]["version"],
+        json!(env!("CARGO_PKG_VERSION")),
+        "the other drive keeps its firmware"
+    );
     b.screenshot("update");
 
     drop(b);
