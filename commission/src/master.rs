@@ -287,11 +287,15 @@ async fn session(
         v.drives = drives;
         v.live.clear();
         if v.update.state == "running" {
-            let versions: Vec<String> = v.drives.iter().map(|d| d.version.clone()).collect();
+            let version = v
+                .drives
+                .get(v.update.drive)
+                .map(|d| d.version.clone())
+                .unwrap_or_default();
             v.update.state = "done".into();
             v.update.answer = format!(
-                "update done; the drive reports version {}",
-                versions.join(", ")
+                "update done; drive {} reports version {version}",
+                v.update.drive
             );
         }
         v.status = "taking the drives to Op".into();
