@@ -43,7 +43,7 @@ function render() {
     <td>${esc(d.name)}</td><td>${d.identity.map((v) => hex(v, 8)).join(" / ")}</td><td>${esc(d.version)}</td>
     <td>${esc(d.esm)}</td><td>${hex(d.al_code, 4)} ${esc(d.al_text)}</td>
     <td>${esc(d.cia402)} (${hex(d.statusword, 4)})</td><td>${d.actual_position}</td>
-    <td class="fault">${esc(d.fault) || "none"}</td><td>${esc(d.led)}</td></tr>`).join("");
+    ${d.fault ? `<td class="fault">${esc(d.fault)}</td>` : "<td>none</td>"}<td>${esc(d.led)}</td></tr>`).join("");
   const d = view.drives[drive];
   if (d) {
     $("#jog-state").textContent = d.cia402;
