@@ -2,14 +2,15 @@
 //!
 //! ```text
 //! ecs-commission --iface NAME [--listen ADDR:PORT]
-//! ecs-commission --virtual N [--virtual-drive PATH] [--listen ADDR:PORT]
+//! ecs-commission --virtual N [--virtual-drive PATH] [--fault KIND@TIME]... [--listen ADDR:PORT]
 //! ```
 //!
 //! Runs an ethercrab master on the network interface `NAME` (raw socket: root or
 //! CAP_NET_RAW) and serves the page on 127.0.0.1:8036 (another address only with
 //! `--listen`). `--virtual N` starts `virtual-drive --drives N` in a network
 //! namespace of its own (root) and commissions those drives: the quick start without
-//! hardware. See docs/commissioning-tool.md.
+//! hardware; `--fault KIND@TIME` makes the virtual drives' plant develop a fault
+//! (`virtual-drive --fault`). See docs/commissioning-tool.md.
 
 mod dict;
 mod master;
@@ -24,17 +25,20 @@ struct Options {
     iface: Option<String>,
     virtual_drives: Option<usize>,
     virtual_drive: Option<String>,
+    /// `--fault KIND@TIME` options handed to `virtual-drive`.
+    faults: Vec<String>,
     listen: SocketAddr,
 }
 
 const USAGE: &str = "usage: ecs-commission --iface NAME [--listen ADDR:PORT]\n       \
-ecs-commission --virtual N [--virtual-drive PATH] [--listen ADDR:PORT]";
+ecs-commission --virtual N [--virtual-drive PATH] [--fault KIND@TIME]... [--listen ADDR:PORT]";
 
 fn options() -> Result<Options, String> {
     let mut o = Options {
         iface: None,
         virtual_drives: None,
         virtual_drive: None,
+        faults: Vec::new(),
         listen: SocketAddr::from(([127, 0, 0, 1], 8036)),
     };
     let mut args = std::env::args().skip(1);
@@ -52,6 +56,11 @@ fn options() -> Result<Options, String> {
                 o.virtual_drives = Some(n);
             }
             "--virtual-drive" => o.virtual_drive = Some(value("--virtual-drive")?),
+            "--fault" => {
+                let f = value("--fault")?;
+                o.faults.push("--fault".into());
+                o.faults.push(f);
+            }
             "--listen" => {
                 o.listen = value("--listen")?
                     .parse()
@@ -60,6 +69,9 @@ fn options() -> Result<Options, String> {
             "-h" | "--help" => return Err(USAGE.into()),
             other => return Err(format!("unknown argument '{other}'\n{USAGE}")),
         }
+    }
+    if o.iface.is_some() && !o.faults.is_empty() {
+        return Err("--fault is for --virtual drives".into());
     }
     if o.iface.is_some() == o.virtual_drives.is_some() {
         return Err(format!("give --iface or --virtual\n{USAGE}"));
@@ -106,7 +118,7 @@ fn main() -> ExitCode {
                 );
                 return ExitCode::FAILURE;
             }
-            match tests_host::vd_master::Running::start(&program, "cm", n, &[]) {
+            match tests_host::vd_master::Running::start(&program, "cm", n, &o.faults) {
                 Ok(r) => {
                     let i = r.net.host_if.clone();
                     _vd = Some(r);

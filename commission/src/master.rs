@@ -173,6 +173,23 @@ pub enum Cmd {
     Update(usize, Vec<u8>),
 }
 
+impl Cmd {
+    /// The drive the request is for.
+    fn drive(&self) -> usize {
+        match self {
+            Cmd::Objects(k)
+            | Cmd::Object(k, _)
+            | Cmd::Write(k, ..)
+            | Cmd::Store(k, _)
+            | Cmd::History(k)
+            | Cmd::Scope(k, _)
+            | Cmd::Tune(k, _)
+            | Cmd::TuneResults(k)
+            | Cmd::Update(k, _) => *k,
+        }
+    }
+}
+
 /// A scope capture as the page asks for it.
 #[derive(Debug, Clone, serde::Deserialize)]
 pub struct ScopeRequest {
@@ -420,8 +437,9 @@ impl Session<'_> {
             match jobs.try_recv() {
                 Ok((cmd, reply)) => {
                     let update = matches!(cmd, Cmd::Update(..));
+                    let k = cmd.drive();
                     let r = self.handle(cmd, &mut emcy).await;
-                    self.record_emergencies(&mut emcy, 0);
+                    self.record_emergencies(&mut emcy, k);
                     let _ = reply.send(r);
                     if update {
                         self.end.set(true);
@@ -482,17 +500,7 @@ impl Session<'_> {
     }
 
     async fn handle(&self, cmd: Cmd, emcy: &mut Vec<Emergency>) -> Reply {
-        let k = match &cmd {
-            Cmd::Objects(k)
-            | Cmd::Object(k, _)
-            | Cmd::Write(k, ..)
-            | Cmd::Store(k, _)
-            | Cmd::History(k)
-            | Cmd::Scope(k, _)
-            | Cmd::Tune(k, _)
-            | Cmd::TuneResults(k)
-            | Cmd::Update(k, _) => *k,
-        };
+        let k = cmd.drive();
         let sd = self
             .group
             .subdevice(self.md, k)

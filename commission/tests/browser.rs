@@ -321,26 +321,36 @@ fn at_rest(page_port: u16) -> i64 {
     last
 }
 
-#[test]
-fn commissioning_in_a_browser_against_virtual_drive() {
+/// A temporary directory of the test `tag`, removed when dropped.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(tag: &str) -> TempDir {
+        let dir = std::env::temp_dir().join(format!("ecs-commission-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("temporary directory");
+        TempDir(dir)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// `ecs-commission --virtual N extra…` on a free port: the process, the page's URL
+/// and port.
+fn start_tool(drives: &str, extra: &[&str]) -> (Proc, String, u16) {
     assert!(
         tests_host::netns::is_root(),
         "this test needs root (network namespace and raw socket for virtual-drive): \
          `sudo -E env PATH=$PATH cargo test -p commission --test browser` (CI runs as root)"
     );
-    let dir = std::env::temp_dir().join(format!("ecs-commission-test-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("temporary directory");
-
-    // The tool with one virtual drive, on a free port.
     let mut tool = Command::new(env!("CARGO_BIN_EXE_ecs-commission"))
-        .args([
-            "--virtual",
-            "2",
-            "--listen",
-            "127.0.0.1:0",
-            "--virtual-drive",
-        ])
+        .args(["--virtual", drives, "--listen", "127.0.0.1:0"])
+        .args(extra)
+        .arg("--virtual-drive")
         .arg(virtual_drive())
         .stdout(Stdio::piped())
         .spawn()
@@ -357,12 +367,62 @@ fn commissioning_in_a_browser_against_virtual_drive() {
         .map(str::trim)
         .unwrap_or_else(|| panic!("ecs-commission said: {line}"))
         .to_string();
-    let page_port: u16 = url
+    let port: u16 = url
         .trim_end_matches('/')
         .rsplit(':')
         .next()
         .and_then(|p| p.parse().ok())
         .expect("port");
+    (tool, url, port)
+}
+
+#[test]
+fn an_emergency_arrives_with_its_text_and_led_code() {
+    // The plant's bus voltage rises 2 s after the start: the drive trips on
+    // over-voltage and sends its emergency.
+    let (tool, url, page_port) = start_tool("1", &["--fault", "bus-overvoltage@2s"]);
+    let dir = TempDir::new("emcy");
+    let b = Browser::start(&dir.0.join("profile"));
+    b.go(&url);
+    b.wait_text(
+        "#segment tbody",
+        "Bus over-voltage",
+        Duration::from_secs(30),
+    );
+    b.wait_text(
+        "#segment tbody",
+        "red LED: 2 flashes",
+        Duration::from_secs(5),
+    );
+    b.view("faults");
+    b.wait_text(
+        "#emcy-list tbody",
+        "Bus over-voltage",
+        Duration::from_secs(30),
+    );
+    b.click("#faults-read");
+    b.wait_text(
+        "#faults-history tbody",
+        "Bus over-voltage",
+        Duration::from_secs(20),
+    );
+    b.screenshot("emergency");
+    let s = state(page_port);
+    assert!(
+        s["emergencies"][0]["code"] == json!("0x3210"),
+        "{}",
+        s["emergencies"]
+    );
+    drop(b);
+    drop(tool);
+}
+
+#[test]
+fn commissioning_in_a_browser_against_virtual_drive() {
+    // The tool with two virtual drives, on a free port.
+    let (tool, url, page_port) = start_tool("2", &[]);
+    let tmp = TempDir::new("browser");
+    let dir = tmp.0.clone();
 
     let b = Browser::start(&dir.join("profile"));
 
@@ -518,5 +578,4 @@ fn commissioning_in_a_browser_against_virtual_drive() {
 
     drop(b);
     drop(tool);
-    let _ = std::fs::remove_dir_all(&dir);
 }
