@@ -94,7 +94,7 @@ fn main() -> ExitCode {
         }
     };
     // `--virtual`: the drives in a namespace of their own, kept for the tool's life.
-    let mut _vd = None;
+    let mut vd_running = None;
     let iface = match (&o.iface, o.virtual_drives) {
         (Some(i), _) => i.clone(),
         (None, Some(n)) => {
@@ -121,7 +121,7 @@ fn main() -> ExitCode {
             match tests_host::vd_master::Running::start(&program, "cm", n, &o.faults) {
                 Ok(r) => {
                     let i = r.net.host_if.clone();
-                    _vd = Some(r);
+                    vd_running = Some(r);
                     i
                 }
                 Err(e) => {
@@ -167,7 +167,12 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    match rt.block_on(web::serve(o.listen, shared, tx)) {
+    let r = rt.block_on(web::serve(o.listen, shared, tx));
+    // The virtual drives end before their namespace goes.
+    if let Some(vd) = vd_running {
+        vd.terminate(std::time::Duration::from_secs(3));
+    }
+    match r {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("ecs-commission: {e}");
