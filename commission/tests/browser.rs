@@ -542,12 +542,37 @@ fn commissioning_in_a_browser_against_virtual_drive() {
     b.find("#live-plot canvas");
     b.screenshot("plots");
 
-    // Scope.
+    // Scope: triggered by the position rising through a level while the axis jogs
+    // (the hold renewed here, as the page does).
     b.view("scope");
+    let level = at_rest(page_port) + 1500;
+    b.type_into("#scope-channels", "0x6064, 0x6041");
+    b.js("document.querySelector('#scope-cond').value = 'rising'; return 0");
+    b.type_into("#scope-level", &level.to_string());
+    b.type_into("#scope-pre", "100");
+    b.type_into("#scope-div", "2");
+    let jogging = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+    let jog = {
+        let jogging = jogging.clone();
+        std::thread::spawn(move || {
+            let hold = json!({"drive": 0, "enable": true, "dir": 1, "speed": 4000});
+            for _ in 0..300 {
+                if !jogging.load(std::sync::atomic::Ordering::Relaxed) {
+                    break;
+                }
+                http(page_port, "POST", "/api/hold", Some(&hold));
+                std::thread::sleep(Duration::from_millis(100));
+            }
+        })
+    };
     b.click("#scope-run");
-    b.wait_text("#scope-msg", "samples", Duration::from_secs(30));
+    let msg = b.wait_text("#scope-msg", "samples", Duration::from_secs(30));
+    jogging.store(false, std::sync::atomic::Ordering::Relaxed);
+    let _ = jog.join();
+    assert!(!msg.contains("forced"), "the trigger fired: {msg}");
     b.find("#scope-plot canvas");
     b.screenshot("scope");
+    at_rest(page_port);
 
     // Tuning results.
     b.view("tune");
