@@ -574,11 +574,26 @@ fn commissioning_in_a_browser_against_virtual_drive() {
     b.screenshot("scope");
     at_rest(page_port);
 
-    // Tuning results.
+    // Servo tune: enabled at rest, the tuning view switches to profile position and
+    // starts it; the results show "done" (0x2162:02 = 2) and the identified ratio.
+    b.view("jog");
+    b.click("#enable");
+    b.wait_text("#jog-state", "OperationEnabled", Duration::from_secs(10));
     b.view("tune");
-    b.click("#tune-results");
-    b.wait_text("#tune-out", "stiffness", Duration::from_secs(10));
+    b.click("#tune-servo");
+    b.wait_text("#tune-msg", "tune started", Duration::from_secs(10));
+    wait_for("the servo tune done", Duration::from_secs(30), || {
+        b.click("#tune-results");
+        std::thread::sleep(Duration::from_millis(200));
+        b.text("#tune-out")
+            .contains("servo tune state 0x2162:02: 2")
+    });
     b.screenshot("tuning");
+    b.view("jog");
+    b.click("#enable");
+    wait_for("the drive off", Duration::from_secs(10), || {
+        drive0(page_port)["cia402"] != json!("OperationEnabled")
+    });
 
     // Restoring the defaults (0x1011) is a message of the history; the faults view
     // shows it with its text.

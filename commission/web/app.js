@@ -204,11 +204,12 @@ setInterval(() => { if (hold.enable) sendHold(); }, 100);
 $("#enable").addEventListener("change", (e) => {
   hold.enable = e.target.checked;
   hold.dir = 0;
+  mode = 3;
   sendHold();
 });
 for (const [id, dir] of [["#jog-minus", -1], ["#jog-plus", 1]]) {
   const b = $(id);
-  b.addEventListener("pointerdown", () => { if (hold.enable) { hold.dir = dir; sendHold(); } });
+  b.addEventListener("pointerdown", () => { if (hold.enable) { hold.dir = dir; mode = 3; sendHold(); } });
   for (const ev of ["pointerup", "pointerleave", "pointercancel"]) {
     b.addEventListener(ev, () => { if (hold.dir) { hold.dir = 0; sendHold(); } });
   }
