@@ -1,8 +1,10 @@
 //! Host-side simulators and tools: the ESC simulator and virtual segment, SPI-level
 //! chip models, the motor plant, the simulated drive (firmware library + ESC + axis),
 //! the raw-socket transport of `virtual-drive`, the ethercrab seam for in-process
-//! integration tests, and the host side of the drive's scope.
+//! integration tests, the host side of the drive's scope, and a CoE / FoE client on the
+//! drives' mailboxes over ethercrab (also used by the commissioning tool).
 #![deny(clippy::undocumented_unsafe_blocks)]
+pub mod coe_client;
 pub mod counting;
 pub mod esc_sim;
 

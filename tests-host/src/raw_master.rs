@@ -650,6 +650,19 @@ impl<T: Transport> Master<T> {
         password: u32,
         file: &[u8],
     ) -> Result<FoeStats, FoeError> {
+        self.foe_write_with(station, name, password, file, &mut |_| {})
+    }
+
+    /// [`Self::foe_write`], calling `progress` with the bytes acknowledged so far after
+    /// every acknowledged DATA.
+    pub fn foe_write_with(
+        &mut self,
+        station: u16,
+        name: &[u8],
+        password: u32,
+        file: &[u8],
+        progress: &mut dyn FnMut(usize),
+    ) -> Result<FoeStats, FoeError> {
         use ecat_slave_stack::foe::{Frame, Repr, OVERHEAD};
         let frames0 = self.frames;
         let segment = self.mbx.1 as usize - OVERHEAD;
@@ -691,6 +704,7 @@ impl<T: Transport> Master<T> {
                 }
             }
             stats.packets += 1;
+            progress((stats.packets as usize * segment).min(file.len()));
             packet += 1;
             if data.len() < segment {
                 break;

@@ -60,7 +60,8 @@ impl Tally {
     }
 }
 
-/// Installs what is missing: the rustup target, qemu-system-arm (apt-get, as root).
+/// Installs what is missing: the rustup target, qemu-system-arm, chromium and
+/// chromium-driver (apt-get, as root).
 pub fn ensure_tools() -> Result<(), String> {
     let installed = Command::new("rustup")
         .args(["target", "list", "--installed"])
@@ -76,11 +77,25 @@ pub fn ensure_tools() -> Result<(), String> {
     if !has_target && !run_status(Command::new("rustup").args(["target", "add", THUMB])) {
         return Err(format!("could not install the rustup target {THUMB}"));
     }
-    let has_qemu = Command::new("qemu-system-arm")
-        .arg("--version")
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !has_qemu {
+    let has = |program: &str| {
+        Command::new(program)
+            .arg("--version")
+            .output()
+            .is_ok_and(|o| o.status.success())
+    };
+    // (program, Debian package): QEMU for the portable tests, Chromium and its
+    // WebDriver for the commissioning tool's browser test.
+    let wanted = [
+        ("qemu-system-arm", "qemu-system-arm"),
+        ("chromium", "chromium"),
+        ("chromedriver", "chromium-driver"),
+    ];
+    let missing: Vec<&str> = wanted
+        .iter()
+        .filter(|(program, _)| !has(program))
+        .map(|&(_, package)| package)
+        .collect();
+    if !missing.is_empty() {
         let root = Command::new("id")
             .arg("-u")
             .output()
@@ -89,16 +104,19 @@ pub fn ensure_tools() -> Result<(), String> {
             let ok = run_status(Command::new("apt-get").args(["update", "-q"]))
                 && run_status(
                     Command::new("apt-get")
-                        .args(["install", "-y", "-q", "qemu-system-arm"])
+                        .args(["install", "-y", "-q"])
+                        .args(&missing)
                         .env("DEBIAN_FRONTEND", "noninteractive"),
                 );
             if !ok {
-                return Err("apt-get install qemu-system-arm failed".into());
+                return Err(format!("apt-get install {} failed", missing.join(" ")));
             }
         } else {
-            return Err(
-                "qemu-system-arm is missing: run `sudo apt-get install -y qemu-system-arm`".into(),
-            );
+            return Err(format!(
+                "{} missing: run `sudo apt-get install -y {}`",
+                missing.join(", "),
+                missing.join(" ")
+            ));
         }
     }
     Ok(())
