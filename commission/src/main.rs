@@ -10,7 +10,7 @@
 //! `--listen`). `--virtual N` starts `virtual-drive --drives N` in a network
 //! namespace of its own (root) and commissions those drives: the quick start without
 //! hardware; `--fault KIND@TIME` makes the virtual drives' plant develop a fault
-//! (`virtual-drive --fault`). See docs/commissioning-tool.md.
+//! (`virtual-drive --fault`). See docs/guide/commissioning-tool.md.
 
 mod dict;
 mod master;

@@ -140,6 +140,7 @@ fn quoted_repository_paths_exist() {
         "bootloader/",
         "docs/",
         "keys/",
+        "commission/",
     ];
     let r = root();
     let mut bad = Vec::new();
