@@ -774,6 +774,10 @@ cia402_objects! {
     {
         { 0 "Following error actual value": i32 RO TX [.unit("inc")] field(following_error) }
     }
+    var 0x60FA "Control effort", "Output of the position controller, command units/s: closed loop, the position loop's velocity command (feed-forward, proportional and integral parts) in the position modes, 0 in the velocity and torque modes; open loop, the commanded velocity; 0 while disabled.",
+    {
+        { 0 "Control effort": i32 RO TX [.unit("inc/s")] field(control_effort) }
+    }
     var 0x60FC "Position demand internal value", "Position demand, motor side.",
     {
         { 0 "Position demand internal value": i32 RO TX [.unit("inc")] get(|d| d.position_demand_internal()) }
