@@ -139,12 +139,14 @@ impl FaultKind {
             Self::MotorBlocked => 0x7121,
         }
     }
-    /// Bits of 0x1001 (bit 0 generic always included).
+    /// Bits of 0x1001 (bit 0 generic always included). Bit 7 (manufacturer-specific)
+    /// marks a drive alarm: every fault but the EtherCAT one, which bit 4 reports
+    /// (the DP3CL's use of the two bits).
     pub const fn error_register(self) -> u8 {
         match self {
-            Self::OverCurrent | Self::PhaseSensing => 0x03,
-            Self::OverVoltage | Self::UnderVoltage => 0x05,
-            Self::MotorOpen | Self::FollowingError | Self::MotorBlocked => 0x21,
+            Self::OverCurrent | Self::PhaseSensing => 0x83,
+            Self::OverVoltage | Self::UnderVoltage => 0x85,
+            Self::MotorOpen | Self::FollowingError | Self::MotorBlocked => 0xA1,
             Self::Ecat => 0x11,
         }
     }
