@@ -6,14 +6,14 @@
 //!
 //! | fault | 603F | 1001 bits | red LED | latched | 0x2056 bit | reaction |
 //! |---|---|---|---|---|---|---|
-//! | over-current / phase short | 0x2310 | 0, 1 (current) | 1 | yes | 0 (always on, see below) | power off at once |
-//! | over-voltage (> 0x2054, 55 V by default) | 0x3210 | 0, 2 (voltage) | 2 | yes | 1 | power off at once |
-//! | phase / current-sensing | 0x5210 | 0, 1 (current) | 9 | no | 3 | power off at once |
-//! | motor open / poor contact | 0x7120 | 0, 5 (profile) | 4 | no | 2 | power off at once |
-//! | under-voltage (< 0x2055, 12 V by default; 0 = off) | 0x3220 | 0, 2 (voltage) | 3 | no | 6 | 0x605E ramp |
-//! | position following error | 0x8611 | 0, 5 (profile) | 7 | no | 7 | 0x605E ramp |
+//! | over-current / phase short | 0x2310 | 0, 1 (current), 7 (drive alarm) | 1 | yes | 0 (always on, see below) | power off at once |
+//! | over-voltage (> 0x2054, 55 V by default) | 0x3210 | 0, 2 (voltage), 7 (drive alarm) | 2 | yes | 1 | power off at once |
+//! | phase / current-sensing | 0x5210 | 0, 1 (current), 7 (drive alarm) | 9 | no | 3 | power off at once |
+//! | motor open / poor contact | 0x7120 | 0, 5 (profile), 7 (drive alarm) | 4 | no | 2 | power off at once |
+//! | under-voltage (< 0x2055, 12 V by default; 0 = off) | 0x3220 | 0, 2 (voltage), 7 (drive alarm) | 3 | no | 6 | 0x605E ramp |
+//! | position following error | 0x8611 | 0, 5 (profile), 7 (drive alarm) | 7 | no | 7 | 0x605E ramp |
 //! | EtherCAT (watchdog, sync, ESM, PDO length) | caller's code (0x8700, 0xA000, 0xA001, 0x8210, 0x8220) | 0, 4 (communication) | — (ERR LED) | no | — | 0x605E ramp (0x6007 = 1) |
-//! | motor blocked (open-loop stall, 0x2060-0x2062) | 0x7121 | 0, 5 (profile) | 5 | no | — (0x2060) | 0x605E ramp |
+//! | motor blocked (open-loop stall, 0x2060-0x2062) | 0x7121 | 0, 5 (profile), 7 (drive alarm) | 5 | no | — (0x2060) | 0x605E ramp |
 //!
 //! **Reaction** ([`FaultKind::cuts_power`]): "power off at once" withdraws the power
 //! stage in the same supervision tick (the motor coasts, the brake engages); the

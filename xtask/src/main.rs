@@ -10,6 +10,8 @@
 //! * `demo`   — the simulated-drive commissioning demo (no hardware).
 //! * `esi`    — writes the ESI XML files and the SII images into `docs/esi/`.
 //! * `od-doc` — writes the object dictionary reference (`docs/object-dictionary.md`).
+//! * `migration` — writes the migration guides from the replaced drives
+//!   (`docs/migration/*.md`, from `tests-host/src/migration/`).
 //! * `size`   — builds the board firmware and prints its flash/RAM use and its static
 //!   worst-case stack (`stack/`); then the same for the bootloader, against its
 //!   32 KiB partition; `stack <ELF>` prints that analysis for one ELF.
@@ -75,6 +77,17 @@ fn main() -> ExitCode {
             "od-doc",
             "docs/object-dictionary.md",
         ])),
+        Some("migration") => run_status(&mut cargo(&[
+            "run",
+            "-p",
+            "tests-host",
+            "--release",
+            "--bin",
+            "drive-docs",
+            "--",
+            "migration",
+            "docs/migration",
+        ])),
         Some("size") => size::size_report().is_ok_and(|f| f.chip && f.bootloader),
         // The static stack analysis of a given ELF (no build).
         Some("stack") => match rest.first().map(|p| stack::analyse(Path::new(p))) {
@@ -117,7 +130,7 @@ fn main() -> ExitCode {
             }
         },
         _ => {
-            eprintln!("usage: cargo xtask <test|bench|demo|esi|od-doc|size|flash|update-image|public-key>");
+            eprintln!("usage: cargo xtask <test|bench|demo|esi|od-doc|migration|size|flash|update-image|public-key>");
             false
         }
     };

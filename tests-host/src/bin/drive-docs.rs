@@ -3,6 +3,7 @@
 //! ```text
 //! drive-docs esi DIR      ESI XML files and SII EEPROM images into DIR
 //! drive-docs od-doc FILE  Markdown reference of the object dictionary into FILE
+//! drive-docs migration DIR  the migration guides (`tests_host::migration`) into DIR
 //! ```
 //!
 //! `esi DIR` writes, per ESC flavour of the board (LAN9252, ET1100), one ESI file
@@ -399,6 +400,22 @@ pub fn od_reference() -> String {
     s
 }
 
+/// The migration guides (file name, text) over the hybrid-servo dictionary (the
+/// variants have the same objects); an error names every row whose equivalent does
+/// not match the dictionary.
+pub fn migration_guides() -> Result<Vec<(String, String)>, String> {
+    use tests_host::migration::{problems, render, GUIDES};
+    let objects = variant_objects(Variant::HybridServo);
+    let bad: Vec<String> = GUIDES.iter().flat_map(|g| problems(g, objects)).collect();
+    if !bad.is_empty() {
+        return Err(bad.join("\n"));
+    }
+    Ok(GUIDES
+        .iter()
+        .map(|g| (g.file.to_string(), render(g, objects)))
+        .collect())
+}
+
 fn write_file(path: &Path, data: &[u8]) -> Result<(), String> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
@@ -418,7 +435,13 @@ fn run(args: &[String]) -> Result<(), String> {
             Ok(())
         }
         [cmd, file] if cmd == "od-doc" => write_file(Path::new(file), od_reference().as_bytes()),
-        _ => Err("usage: drive-docs esi DIR | drive-docs od-doc FILE".into()),
+        [cmd, dir] if cmd == "migration" => {
+            for (name, text) in migration_guides()? {
+                write_file(&Path::new(dir).join(name), text.as_bytes())?;
+            }
+            Ok(())
+        }
+        _ => Err("usage: drive-docs esi DIR | drive-docs od-doc FILE | drive-docs migration DIR".into()),
     }
 }
 
