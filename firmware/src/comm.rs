@@ -514,7 +514,11 @@ mod tests {
         assert_eq!(rd(&c, &f, 0x1003, 0), 0);
         f.raise(FaultKind::UnderVoltage, Snapshot::default(), 0);
         f.raise(FaultKind::OverCurrent, Snapshot::default(), 1);
-        assert_eq!(rd(&c, &f, 0x1001, 0), 0x87, "generic, current, voltage, drive alarm");
+        assert_eq!(
+            rd(&c, &f, 0x1001, 0),
+            0x87,
+            "generic, current, voltage, drive alarm"
+        );
         assert_eq!(rd(&c, &f, 0x1003, 0), 2);
         assert_eq!(rd(&c, &f, 0x1003, 1), 0x2310);
         assert_eq!(rd(&c, &f, 0x1003, 2), 0x3220 | 4 << 16);

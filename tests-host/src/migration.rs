@@ -172,7 +172,13 @@ fn cells(objects: &'static [Object], here: Here) -> [String; 5] {
                     u => u.to_string(),
                 },
             ],
-            Err(_) => [format!("0x{index:04X}:{sub:02X}"), "MISSING".into(), dash(), dash(), dash()],
+            Err(_) => [
+                format!("0x{index:04X}:{sub:02X}"),
+                "MISSING".into(),
+                dash(),
+                dash(),
+                dash(),
+            ],
         },
         Here::Object(index) => match od::find(objects, index) {
             Some(o) => [
@@ -182,7 +188,13 @@ fn cells(objects: &'static [Object], here: Here) -> [String; 5] {
                 dash(),
                 dash(),
             ],
-            None => [format!("0x{index:04X}"), "MISSING".into(), dash(), dash(), dash()],
+            None => [
+                format!("0x{index:04X}"),
+                "MISSING".into(),
+                dash(),
+                dash(),
+                dash(),
+            ],
         },
         Here::Fault(k) => {
             let led = k
@@ -262,7 +274,11 @@ pub fn render(g: &Guide, objects: &'static [Object]) -> String {
     }
     if !g.startup.is_empty() {
         let _ = writeln!(s, "## The master's start-up list\n");
-        let _ = writeln!(s, "| written for the {} | here | why |\n|---|---|---|", g.drive);
+        let _ = writeln!(
+            s,
+            "| written for the {} | here | why |\n|---|---|---|",
+            g.drive
+        );
         for c in g.startup {
             let _ = writeln!(s, "| {} | {} | {} |", cell(c.was), cell(c.now), cell(c.why));
         }
@@ -292,7 +308,12 @@ pub fn problems(g: &Guide, objects: &'static [Object]) -> Vec<String> {
 }
 
 /// A row.
-pub const fn row(there: &'static str, meaning: &'static str, here: Here, note: &'static str) -> Row {
+pub const fn row(
+    there: &'static str,
+    meaning: &'static str,
+    here: Here,
+    note: &'static str,
+) -> Row {
     Row {
         there,
         meaning,

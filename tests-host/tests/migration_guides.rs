@@ -24,9 +24,12 @@ fn committed_guides_are_up_to_date() {
     assert_eq!(guides.len(), 4);
     let hint = "run `cargo xtask migration` and commit docs/migration";
     for (name, text) in &guides {
-        let committed = std::fs::read_to_string(repo_path("docs/migration").join(name))
-            .unwrap_or_default();
-        assert!(&committed == text, "docs/migration/{name} is out of date: {hint}");
+        let committed =
+            std::fs::read_to_string(repo_path("docs/migration").join(name)).unwrap_or_default();
+        assert!(
+            &committed == text,
+            "docs/migration/{name} is out of date: {hint}"
+        );
     }
     let mut present: Vec<String> = std::fs::read_dir(repo_path("docs/migration"))
         .expect("docs/migration")
@@ -36,7 +39,10 @@ fn committed_guides_are_up_to_date() {
     present.sort();
     let mut want: Vec<String> = guides.iter().map(|(n, _)| n.clone()).collect();
     want.sort();
-    assert_eq!(present, want, "files in docs/migration that no guide writes");
+    assert_eq!(
+        present, want,
+        "files in docs/migration that no guide writes"
+    );
 }
 
 #[test]
@@ -61,9 +67,18 @@ fn every_named_entry_exists_with_the_stated_access_and_mapping() {
 fn the_checker_refuses_wrong_rows() {
     let objects = drive_docs::variant_objects(Variant::HybridServo);
     // Right.
-    assert_eq!(check(objects, Here::Entry(0x6040, 0, Acc::Rw, PdoMappable::Rx)), None);
-    assert_eq!(check(objects, Here::Entry(0x60FA, 0, Acc::Ro, PdoMappable::Tx)), None);
-    assert_eq!(check(objects, Here::Entry(0x2000, 0, Acc::Rw, PdoMappable::Rx)), None);
+    assert_eq!(
+        check(objects, Here::Entry(0x6040, 0, Acc::Rw, PdoMappable::Rx)),
+        None
+    );
+    assert_eq!(
+        check(objects, Here::Entry(0x60FA, 0, Acc::Ro, PdoMappable::Tx)),
+        None
+    );
+    assert_eq!(
+        check(objects, Here::Entry(0x2000, 0, Acc::Rw, PdoMappable::Rx)),
+        None
+    );
     // Wrong access, wrong mapping, missing entry, missing object, unknown AL code.
     assert!(check(objects, Here::Entry(0x6041, 0, Acc::Rw, PdoMappable::Tx)).is_some());
     assert!(check(objects, Here::Entry(0x2001, 0, Acc::Rw, PdoMappable::Rx)).is_some());
@@ -76,7 +91,10 @@ fn the_checker_refuses_wrong_rows() {
 fn dip_tables_the_guides_call_the_same_are_the_firmwares() {
     use firmware::dip;
     // EST-584: SW1-SW3 peak current (A), SW6-SW7 smoothing (ms), in the manual's order.
-    assert_eq!(dip::EST584_CURRENT_MA, [2000, 3500, 4500, 5200, 5800, 6700, 7700, 8400]);
+    assert_eq!(
+        dip::EST584_CURRENT_MA,
+        [2000, 3500, 4500, 5200, 5800, 6700, 7700, 8400]
+    );
     assert_eq!(dip::EST584_SMOOTHING_MS, [0, 2, 12, 25]);
     // E5 ID bank: all ON = 0, S1 OFF = 1, all OFF = 127.
     assert_eq!(dip::id_bank_address(0x7F), 0);

@@ -801,13 +801,14 @@ impl Cia402 {
     pub fn error_code(&self) -> u16 {
         self.error_code
     }
-    /// 0x6064.
+    /// 0x6064 (in the position range 0x607B when one is set).
     pub fn position_actual(&self) -> i32 {
-        self.actual_position
+        self.params.wrap_position(self.actual_position)
     }
-    /// 0x6062 position demand value (user units).
+    /// 0x6062 position demand value (user units, in the position range 0x607B when one
+    /// is set).
     pub fn position_demand(&self) -> i32 {
-        self.motion.position()
+        self.params.wrap_position(self.motion.position())
     }
     /// 0x60FC position demand internal value (raw).
     pub fn position_demand_internal(&self) -> i32 {

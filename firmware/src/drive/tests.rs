@@ -92,7 +92,11 @@ fn mapped_peak_current_takes_the_sdo_range_check() {
                 "{variant:?}: SDO {bad}"
             );
             ProcessData::set_rx(&mut d, slot, bad);
-            assert_eq!(sdo_read_u32(&mut d, 0x2000, 0), 4000, "{variant:?}: PDO {bad}");
+            assert_eq!(
+                sdo_read_u32(&mut d, 0x2000, 0),
+                4000,
+                "{variant:?}: PDO {bad}"
+            );
         }
         ProcessData::set_rx(&mut d, slot, u64::from(max));
         assert_eq!(sdo_read_u32(&mut d, 0x2000, 0), u32::from(max));

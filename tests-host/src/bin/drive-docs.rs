@@ -441,7 +441,9 @@ fn run(args: &[String]) -> Result<(), String> {
             }
             Ok(())
         }
-        _ => Err("usage: drive-docs esi DIR | drive-docs od-doc FILE | drive-docs migration DIR".into()),
+        _ => Err(
+            "usage: drive-docs esi DIR | drive-docs od-doc FILE | drive-docs migration DIR".into(),
+        ),
     }
 }
 

@@ -1,7 +1,7 @@
 //! ECON E5-CAT-HS68D hybrid servo → this drive (ECS-HS). The vendor parameters are
 //! shared with the EST-584 ([`PARAMS`]): both ECON drives use the same table.
 
-use super::{row, ro, rw, rw_tx, rx, tx, Change, Guide, Here, Row, Section};
+use super::{ro, row, rw, rw_tx, rx, tx, Change, Guide, Here, Row, Section};
 use firmware::faults::FaultKind;
 
 /// CiA 301 and PDO objects of the ECON drives' manuals.
@@ -24,16 +24,34 @@ pub(super) const COMM: &[Row] = &[
 pub(super) const CIA402: &[Row] = &[
     row("0x603F", "error code", tx(0x603F, 0), ""),
     row("0x6040", "controlword", rx(0x6040, 0), ""),
-    row("0x6041", "statusword", tx(0x6041, 0), "Bits 8, 14, 15 as on the E5."),
-    row("0x605A", "quick stop option code", rx(0x605A, 0), "Range 0-8 (CiA 402)."),
-    row("0x6060", "modes of operation: 1 PP, 3 PV, 6 HM, 8 CSP", rx(0x6060, 0),
-        "Also 4 PT, 9 CSV, 10 CST (PT and CST in closed loop only, see 0x6502)."),
+    row(
+        "0x6041",
+        "statusword",
+        tx(0x6041, 0),
+        "Bits 8, 14, 15 as on the E5.",
+    ),
+    row(
+        "0x605A",
+        "quick stop option code",
+        rx(0x605A, 0),
+        "Range 0-8 (CiA 402).",
+    ),
+    row(
+        "0x6060",
+        "modes of operation: 1 PP, 3 PV, 6 HM, 8 CSP",
+        rx(0x6060, 0),
+        "Also 4 PT, 9 CSV, 10 CST (PT and CST in closed loop only, see 0x6502).",
+    ),
     row("0x6061", "mode display", tx(0x6061, 0), ""),
     row("0x6062", "command position", tx(0x6062, 0), ""),
     row("0x6064", "actual position", tx(0x6064, 0), ""),
     row("0x606B", "command speed", tx(0x606B, 0), ""),
-    row("0x606C", "actual speed, rpm", tx(0x606C, 0),
-        "Command units per second here, not rpm: rpm = 0x606C · 60 / 0x2001. Read-only."),
+    row(
+        "0x606C",
+        "actual speed, rpm",
+        tx(0x606C, 0),
+        "Command units per second here, not rpm: rpm = 0x606C · 60 / 0x2001. Read-only.",
+    ),
     row("0x607A", "target position (PP, CSP)", rx(0x607A, 0), ""),
     row("0x607C", "homing offset", rx(0x607C, 0), ""),
     row("0x6081", "PP travel speed", rx(0x6081, 0), ""),
@@ -41,17 +59,42 @@ pub(super) const CIA402: &[Row] = &[
     row("0x6083", "acceleration", rx(0x6083, 0), ""),
     row("0x6084", "deceleration", rx(0x6084, 0), ""),
     row("0x6085", "quick-stop deceleration", rx(0x6085, 0), ""),
-    row("0x6098", "homing method", rx(0x6098, 0), "Methods 1-14, 17-30, 33-35, 37 and stall homing -1/-2 (open loop)."),
-    row("0x6099:01", "homing speed, search for the switch", rx(0x6099, 1), ""),
-    row("0x6099:02", "homing speed, search for zero", rx(0x6099, 2), ""),
+    row(
+        "0x6098",
+        "homing method",
+        rx(0x6098, 0),
+        "Methods 1-14, 17-30, 33-35, 37 and stall homing -1/-2 (open loop).",
+    ),
+    row(
+        "0x6099:01",
+        "homing speed, search for the switch",
+        rx(0x6099, 1),
+        "",
+    ),
+    row(
+        "0x6099:02",
+        "homing speed, search for zero",
+        rx(0x6099, 2),
+        "",
+    ),
     row("0x609A", "homing acceleration", rx(0x609A, 0), ""),
     row("0x60B0", "position offset (CSP)", rx(0x60B0, 0), ""),
     row("0x60B8", "touch probe function", rx(0x60B8, 0), ""),
     row("0x60B9", "touch probe status", tx(0x60B9, 0), ""),
     row("0x60BA", "probe 1 rising-edge position", tx(0x60BA, 0), ""),
     row("0x60F4", "following error", tx(0x60F4, 0), ""),
-    row("0x60FD", "inputs: bit 0 negative limit, 1 positive limit, 2 home", tx(0x60FD, 0), "Same bits."),
-    row("0x60FF", "target speed (PV)", rx(0x60FF, 0), "Command units per second."),
+    row(
+        "0x60FD",
+        "inputs: bit 0 negative limit, 1 positive limit, 2 home",
+        tx(0x60FD, 0),
+        "Same bits.",
+    ),
+    row(
+        "0x60FF",
+        "target speed (PV)",
+        rx(0x60FF, 0),
+        "Command units per second.",
+    ),
 ];
 
 /// The vendor parameters of the ECON drives (same indices here).
@@ -116,16 +159,36 @@ pub(super) const LEDS: &[Row] = &[
 ];
 
 const DIP: &[Row] = &[
-    row("S1-S7", "station ID, binary, a switch OFF adds 1, 2, 4 … 64; all ON = 0 (no ID)", Here::Text("ID bank: the same code"),
-        "Read at power-up; used when 0x2151 = 0."),
+    row(
+        "S1-S7",
+        "station ID, binary, a switch OFF adds 1, 2, 4 … 64; all ON = 0 (no ID)",
+        Here::Text("ID bank: the same code"),
+        "Read at power-up; used when 0x2151 = 0.",
+    ),
     row("S8", "reserved", Here::None, "Ignored here too."),
 ];
 
 const STARTUP: &[Change] = &[
-    Change { was: "0x1010:04 = 'load'", now: "keep", why: "Same answer." },
-    Change { was: "0x2000 peak current, 0x2001 pulses per revolution", now: "keep", why: "Same index, unit and range (0x2000 at most 8000 mA on ECS-HS)." },
-    Change { was: "0x1C12 / 0x1C13 and 0x1600-0x1603 / 0x1A00-0x1A01", now: "keep", why: "Same default maps; up to 16 entries and 64 bytes per direction." },
-    Change { was: "speeds read from 0x606C in rpm", now: "convert: rpm = 0x606C · 60 / 0x2001", why: "0x606C is in command units per second." },
+    Change {
+        was: "0x1010:04 = 'load'",
+        now: "keep",
+        why: "Same answer.",
+    },
+    Change {
+        was: "0x2000 peak current, 0x2001 pulses per revolution",
+        now: "keep",
+        why: "Same index, unit and range (0x2000 at most 8000 mA on ECS-HS).",
+    },
+    Change {
+        was: "0x1C12 / 0x1C13 and 0x1600-0x1603 / 0x1A00-0x1A01",
+        now: "keep",
+        why: "Same default maps; up to 16 entries and 64 bytes per direction.",
+    },
+    Change {
+        was: "speeds read from 0x606C in rpm",
+        now: "convert: rpm = 0x606C · 60 / 0x2001",
+        why: "0x606C is in command units per second.",
+    },
 ];
 
 /// The guide.

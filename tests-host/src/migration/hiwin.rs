@@ -6,19 +6,79 @@ use super::{row, rw, Change, Guide, Here, Row, Section};
 use firmware::faults::FaultKind;
 
 const ETHERCAT: &[Row] = &[
-    row("RUN LED", "EtherCAT state", Here::Text("RUN LED (ETG.1300)"), "Same patterns."),
-    row("ERR LED", "EtherCAT errors", Here::Al(0x001B), "Watchdog: double flash; see the ERR row of the other guides for the rest."),
-    row("L/A IN, L/A OUT", "link / activity", Here::Text("the ESC's link LEDs"), ""),
-    row("rotary switch, 0-255", "station alias", Here::Text("DIP ID bank or the single bank, 0-127"), "Used when 0x2151 = 0."),
-    row("alias in the EEPROM, 0-65535", "station alias", rw(0x2150, 0), "0x2151 = 1 selects it; or the SII alias word when the switches read 0."),
-    row("SyncManagers: 4, FMMUs: 3", "ESC resources", Here::Object(0x1C00), "Same: SM0/1 mailbox, SM2/3 process data."),
-    row("DC SYNC0", "synchronisation", Here::Object(0x1C32), "Also SM2-synchronous."),
+    row(
+        "RUN LED",
+        "EtherCAT state",
+        Here::Text("RUN LED (ETG.1300)"),
+        "Same patterns.",
+    ),
+    row(
+        "ERR LED",
+        "EtherCAT errors",
+        Here::Al(0x001B),
+        "Watchdog: double flash; see the ERR row of the other guides for the rest.",
+    ),
+    row(
+        "L/A IN, L/A OUT",
+        "link / activity",
+        Here::Text("the ESC's link LEDs"),
+        "",
+    ),
+    row(
+        "rotary switch, 0-255",
+        "station alias",
+        Here::Text("DIP ID bank or the single bank, 0-127"),
+        "Used when 0x2151 = 0.",
+    ),
+    row(
+        "alias in the EEPROM, 0-65535",
+        "station alias",
+        rw(0x2150, 0),
+        "0x2151 = 1 selects it; or the SII alias word when the switches read 0.",
+    ),
+    row(
+        "SyncManagers: 4, FMMUs: 3",
+        "ESC resources",
+        Here::Object(0x1C00),
+        "Same: SM0/1 mailbox, SM2/3 process data.",
+    ),
+    row(
+        "DC SYNC0",
+        "synchronisation",
+        Here::Object(0x1C32),
+        "Also SM2-synchronous.",
+    ),
     row("FreeRun", "synchronisation", Here::Object(0x1C32), ""),
-    row("cycle 250, 500, 1000, 2000, 4000 µs", "cycle times", Here::Object(0x1C32), "125 µs to 4 ms in steps of 125 µs."),
-    row("RxPDO: 8 objects, 32 bytes", "mapping limits", Here::Object(0x1600), "4 mapping objects, 16 entries each, 64 bytes in all."),
-    row("TxPDO: 8 objects, 32 bytes", "mapping limits", Here::Object(0x1A00), "4 mapping objects, 16 entries each, 64 bytes in all."),
-    row("SDO abort codes", "CiA 301 abort codes", Here::Text("the same CiA 301 codes"), ""),
-    row("emergency message", "CiA 301 emergency", Here::Object(0x1003), "Emergencies carry the 0x603F code and 0x1001; history in 0x1003 and 0x10F3."),
+    row(
+        "cycle 250, 500, 1000, 2000, 4000 µs",
+        "cycle times",
+        Here::Object(0x1C32),
+        "125 µs to 4 ms in steps of 125 µs.",
+    ),
+    row(
+        "RxPDO: 8 objects, 32 bytes",
+        "mapping limits",
+        Here::Object(0x1600),
+        "4 mapping objects, 16 entries each, 64 bytes in all.",
+    ),
+    row(
+        "TxPDO: 8 objects, 32 bytes",
+        "mapping limits",
+        Here::Object(0x1A00),
+        "4 mapping objects, 16 entries each, 64 bytes in all.",
+    ),
+    row(
+        "SDO abort codes",
+        "CiA 301 abort codes",
+        Here::Text("the same CiA 301 codes"),
+        "",
+    ),
+    row(
+        "emergency message",
+        "CiA 301 emergency",
+        Here::Object(0x1003),
+        "Emergencies carry the 0x603F code and 0x1001; history in 0x1003 and 0x10F3.",
+    ),
 ];
 
 const PDS: &[Row] = &[
@@ -32,9 +92,21 @@ const PDS: &[Row] = &[
 ];
 
 const STARTUP: &[Change] = &[
-    Change { was: "0x1C32:02 cycle time", now: "keep", why: "Every cycle of the E1 is one of this drive's." },
-    Change { was: "PDOs with up to 8 entries", now: "keep", why: "Up to 16 entries per mapping object here." },
-    Change { was: "0x6060 = 4 (profile torque)", now: "keep (ECS-HS, 0x2024 = 2)", why: "PT runs in closed loop with 0x6087 / 0x6088." },
+    Change {
+        was: "0x1C32:02 cycle time",
+        now: "keep",
+        why: "Every cycle of the E1 is one of this drive's.",
+    },
+    Change {
+        was: "PDOs with up to 8 entries",
+        now: "keep",
+        why: "Up to 16 entries per mapping object here.",
+    },
+    Change {
+        was: "0x6060 = 4 (profile torque)",
+        now: "keep (ECS-HS, 0x2024 = 2)",
+        why: "PT runs in closed loop with 0x6087 / 0x6088.",
+    },
 ];
 
 /// The guide.
@@ -46,8 +118,14 @@ pub(super) const GUIDE: Guide = Guide {
               written from cover the EtherCAT side (indicators, alias, ESM and PDS, \
               synchronisation, PDO limits); the servo parameters are not among them.",
     sections: &[
-        Section { title: "EtherCAT side", rows: ETHERCAT },
-        Section { title: "Drive profile", rows: PDS },
+        Section {
+            title: "EtherCAT side",
+            rows: ETHERCAT,
+        },
+        Section {
+            title: "Drive profile",
+            rows: PDS,
+        },
     ],
     startup: STARTUP,
     notes: &[
