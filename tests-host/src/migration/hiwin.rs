@@ -59,13 +59,13 @@ const ETHERCAT: &[Row] = &[
         "RxPDO: 8 objects, 32 bytes",
         "mapping limits",
         Here::Object(0x1600),
-        "4 mapping objects, 16 entries each, 64 bytes in all.",
+        "4 mapping objects, 16 entries each, 64 bytes per direction.",
     ),
     row(
         "TxPDO: 8 objects, 32 bytes",
         "mapping limits",
         Here::Object(0x1A00),
-        "4 mapping objects, 16 entries each, 64 bytes in all.",
+        "4 mapping objects, 16 entries each, 64 bytes per direction.",
     ),
     row(
         "SDO abort codes",
