@@ -989,7 +989,7 @@ qemu_runner::tests! {
         d.params.profile_velocity = 1_000_000;
         d.params.profile_acceleration = 10_000_000;
         d.params.profile_deceleration = 10_000_000;
-        let mut pp = |d: &mut Cia402, ax: &mut Axis, option: u16, target: i32| {
+        let pp = |d: &mut Cia402, ax: &mut Axis, option: u16, target: i32| {
             d.write(0x60F2, 0, &option.to_le_bytes()).unwrap();
             d.params.target_position = target;
             cw(d, ax, 0x003F);
