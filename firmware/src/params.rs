@@ -366,7 +366,7 @@ pub use Param as P;
 
 const N: usize = KEYS.len();
 
-fn slot_of(index: u16, sub: u8) -> Option<usize> {
+pub(crate) fn slot_of(index: u16, sub: u8) -> Option<usize> {
     KEYS.binary_search(&(index, sub)).ok()
 }
 

@@ -801,6 +801,11 @@ impl Cia402 {
     pub fn error_code(&self) -> u16 {
         self.error_code
     }
+    /// Touch probe value `k` (0x60BA + k), in the position range 0x607B when one is set.
+    #[inline(never)]
+    pub(crate) fn probe_position(&self, k: usize) -> i32 {
+        self.params.wrap_position(self.probe.value(k))
+    }
     /// 0x6064 (in the position range 0x607B when one is set).
     pub fn position_actual(&self) -> i32 {
         self.params.wrap_position(self.actual_position)

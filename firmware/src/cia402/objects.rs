@@ -740,19 +740,19 @@ cia402_objects! {
     }
     var 0x60BA "Touch probe 1 positive edge", "Position latched at the rising edge of probe 1.",
     {
-        { 0 "Touch probe 1 positive edge": i32 RO TX [.unit("inc")] get(|d| d.params.wrap_position(d.probe.value(0))) }
+        { 0 "Touch probe 1 positive edge": i32 RO TX [.unit("inc")] get(|d| d.probe_position(0)) }
     }
     var 0x60BB "Touch probe 1 negative edge", "Position latched at the falling edge of probe 1.",
     {
-        { 0 "Touch probe 1 negative edge": i32 RO TX [.unit("inc")] get(|d| d.params.wrap_position(d.probe.value(1))) }
+        { 0 "Touch probe 1 negative edge": i32 RO TX [.unit("inc")] get(|d| d.probe_position(1)) }
     }
     var 0x60BC "Touch probe 2 positive edge", "Position latched at the rising edge of probe 2.",
     {
-        { 0 "Touch probe 2 positive edge": i32 RO TX [.unit("inc")] get(|d| d.params.wrap_position(d.probe.value(2))) }
+        { 0 "Touch probe 2 positive edge": i32 RO TX [.unit("inc")] get(|d| d.probe_position(2)) }
     }
     var 0x60BD "Touch probe 2 negative edge", "Position latched at the falling edge of probe 2.",
     {
-        { 0 "Touch probe 2 negative edge": i32 RO TX [.unit("inc")] get(|d| d.params.wrap_position(d.probe.value(3))) }
+        { 0 "Touch probe 2 negative edge": i32 RO TX [.unit("inc")] get(|d| d.probe_position(3)) }
     }
     var 0x60C0 "Interpolation sub mode select", "CSP set-points are interpolated linearly between cycles (0 = linear interpolation, the only sub mode; others refused).",
     {

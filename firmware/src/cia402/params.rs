@@ -185,6 +185,7 @@ impl Params {
     }
     /// The software position limits 0x607D in effect: min < max, not the type limits,
     /// and no position range 0x607B (a wrapping axis has no ends to limit).
+    #[inline(never)]
     pub(super) fn sw_limits(&self) -> Option<(i32, i32)> {
         if self.sw_limit_min < self.sw_limit_max
             && (self.sw_limit_min != i32::MIN || self.sw_limit_max != i32::MAX)
@@ -202,6 +203,7 @@ impl Params {
         (span > 1 && span < 1 << 32).then_some((self.range_min, span))
     }
     /// `x` wrapped into the position range 0x607B (unchanged without one).
+    #[inline(never)]
     pub(super) fn wrap_position(&self, x: i32) -> i32 {
         match self.position_range() {
             Some((min, span)) => {
