@@ -55,39 +55,9 @@ fn main() -> ExitCode {
             ])
             .args(*rest),
         ),
-        Some("esi") => run_status(&mut cargo(&[
-            "run",
-            "-p",
-            "tests-host",
-            "--release",
-            "--bin",
-            "drive-docs",
-            "--",
-            "esi",
-            "docs/esi",
-        ])),
-        Some("od-doc") => run_status(&mut cargo(&[
-            "run",
-            "-p",
-            "tests-host",
-            "--release",
-            "--bin",
-            "drive-docs",
-            "--",
-            "od-doc",
-            "docs/object-dictionary.md",
-        ])),
-        Some("migration") => run_status(&mut cargo(&[
-            "run",
-            "-p",
-            "tests-host",
-            "--release",
-            "--bin",
-            "drive-docs",
-            "--",
-            "migration",
-            "docs/migration",
-        ])),
+        Some("esi") => drive_docs("esi", "docs/esi"),
+        Some("od-doc") => drive_docs("od-doc", "docs/object-dictionary.md"),
+        Some("migration") => drive_docs("migration", "docs/migration"),
         Some("size") => size::size_report().is_ok_and(|f| f.chip && f.bootloader),
         // The static stack analysis of a given ELF (no build).
         Some("stack") => match rest.first().map(|p| stack::analyse(Path::new(p))) {
@@ -167,6 +137,21 @@ fn flash(extra: &[String]) -> bool {
         ])
         .args(extra),
     )
+}
+
+/// `drive-docs COMMAND PATH` (the generated documentation, `tests-host`), release build.
+fn drive_docs(command: &str, path: &str) -> bool {
+    run_status(&mut cargo(&[
+        "run",
+        "-p",
+        "tests-host",
+        "--release",
+        "--bin",
+        "drive-docs",
+        "--",
+        command,
+        path,
+    ]))
 }
 
 fn root() -> PathBuf {
