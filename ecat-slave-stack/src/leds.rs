@@ -131,16 +131,21 @@ impl ErrCondition {
 
     /// Derives the condition from AL status (0x0130) and AL status code (0x0134):
     /// no error indication (bit 4) or code 0 → none; 0x001B (SM watchdog) → watchdog
-    /// timeout; 0x001A, 0x002C, 0x002D, 0x0032 (sync / PLL errors the slave detected
-    /// itself) → local error; 0x0050, 0x0051, 0x0014 (EEPROM / firmware) → booting
-    /// error; any other code → invalid configuration.
+    /// timeout; the codes of a state change the slave made by itself (ETG.1000.6) →
+    /// local error: 0x001A sync error, 0x002A background watchdog, 0x002C fatal sync
+    /// error, 0x002D no sync, 0x0032 PLL error, 0x0033 / 0x0034 DC sync I/O error /
+    /// timeout, 0x0052 external hardware not ready, 0x0060 restarted locally, 0x0080 /
+    /// 0x0081 supply voltage too low / high; 0x0050, 0x0051, 0x0014 (EEPROM /
+    /// firmware) → booting error; any other code (a refused request: state, sync
+    /// manager, mapping, sync configuration) → invalid configuration.
     pub const fn from_al_status(al_status: u16, al_status_code: u16) -> Self {
         if al_status & 0x10 == 0 || al_status_code == 0 {
             return ErrCondition::None;
         }
         match al_status_code {
             0x001B => ErrCondition::WatchdogTimeout,
-            0x001A | 0x002C | 0x002D | 0x0032 => ErrCondition::LocalError,
+            0x001A | 0x002A | 0x002C | 0x002D | 0x0032 | 0x0033 | 0x0034 | 0x0052 | 0x0060
+            | 0x0080 | 0x0081 => ErrCondition::LocalError,
             0x0014 | 0x0050 | 0x0051 => ErrCondition::BootingError,
             _ => ErrCondition::InvalidConfiguration,
         }

@@ -884,6 +884,15 @@ qemu_runner::tests! {
         assert_eq!(ErrCondition::from_al_status(0x14, 0x001A), ErrCondition::LocalError);
         assert_eq!(ErrCondition::from_al_status(0x14, 0x002D), ErrCondition::LocalError);
         assert_eq!(ErrCondition::from_al_status(0x14, 0x0032), ErrCondition::LocalError);
+        // Every other state change the slave makes by itself is a local error too.
+        for code in [0x002A, 0x0033, 0x0034, 0x0052, 0x0060, 0x0080, 0x0081] {
+            assert_eq!(ErrCondition::from_al_status(0x12, code), ErrCondition::LocalError, "{code:#06x}");
+        }
+        // Refused requests: invalid configuration (blinking).
+        for code in [0x0011, 0x0017, 0x001D, 0x001E, 0x0024, 0x0025, 0x0028, 0x0030, 0x0035] {
+            assert_eq!(ErrCondition::from_al_status(0x12, code), ErrCondition::InvalidConfiguration, "{code:#06x}");
+            assert_eq!(ErrCondition::from_al_status(0x12, code).pattern(), Pattern::Blinking);
+        }
         assert_eq!(ErrCondition::from_al_status(0x11, 0x0051), ErrCondition::BootingError);
         assert_eq!(ErrCondition::from_al_status(0x12, 0x0011), ErrCondition::InvalidConfiguration);
         assert_eq!(ErrCondition::from_al_status(0x12, 0xFFFF), ErrCondition::InvalidConfiguration);

@@ -85,7 +85,7 @@ pub const OBJECTS: &[ObjectDesc] = &[
                 .pdo(PdoMappable::Tx)
                 .default(0),
         ],
-        "b0 generic, b1 current, b2 voltage, b4 communication, b5 profile",
+        "b0 generic, b1 current, b2 voltage, b4 communication (EtherCAT), b5 profile, b7 drive alarm (any fault but the EtherCAT one)",
     ),
     ObjectDesc::array(
         0x1003,
@@ -514,7 +514,11 @@ mod tests {
         assert_eq!(rd(&c, &f, 0x1003, 0), 0);
         f.raise(FaultKind::UnderVoltage, Snapshot::default(), 0);
         f.raise(FaultKind::OverCurrent, Snapshot::default(), 1);
-        assert_eq!(rd(&c, &f, 0x1001, 0), 0x07);
+        assert_eq!(
+            rd(&c, &f, 0x1001, 0),
+            0x87,
+            "generic, current, voltage, drive alarm"
+        );
         assert_eq!(rd(&c, &f, 0x1003, 0), 2);
         assert_eq!(rd(&c, &f, 0x1003, 1), 0x2310);
         assert_eq!(rd(&c, &f, 0x1003, 2), 0x3220 | 4 << 16);
@@ -529,7 +533,7 @@ mod tests {
         );
         assert_eq!(sdo_write(&mut c, &mut f, 0x1003, 0, 0), Ok(None));
         assert_eq!(rd(&c, &f, 0x1003, 0), 0);
-        assert_eq!(rd(&c, &f, 0x1001, 0), 0x07, "active faults stay");
+        assert_eq!(rd(&c, &f, 0x1001, 0), 0x87, "active faults stay");
     }
 
     #[test]

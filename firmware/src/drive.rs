@@ -74,6 +74,9 @@ pub struct AxisState {
     /// mille of the peak current 0x2000 (= torque per mille of the rated torque 0x6076);
     /// 0 without an encoder.
     pub torque_permille: i16,
+    /// Output of the position controller (0x60FA), command units/s
+    /// ([`crate::motion::Motion::control_effort`]).
+    pub control_effort: i32,
     /// Electrical angle, 1/65536 turn.
     pub electrical_angle: u16,
     /// DC bus voltage, mV.
@@ -952,6 +955,7 @@ impl<S: ParameterStore> Drive<S> {
         let fb = DriveFeedback {
             position: self.axis.position,
             velocity: self.axis.velocity,
+            control_effort: self.axis.control_effort,
             torque: self.axis.torque_permille,
             torque_demand: self.axis.current_permille,
             current: self.axis.torque_permille,

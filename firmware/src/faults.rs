@@ -96,7 +96,8 @@ pub struct FaultInfo {
     /// 0x603F and emergency code (EtherCAT faults carry the caller's code; this is
     /// the watchdog's).
     pub code: u16,
-    /// Bits of 0x1001 (bit 0 generic included).
+    /// Bits of 0x1001 (bit 0 generic included; bit 7, manufacturer-specific, marks a
+    /// drive alarm: every fault but the EtherCAT one, which bit 4 reports).
     pub register: u8,
     /// Red LED flash count; 0: shown by the EtherCAT ERR LED instead.
     pub flashes: u8,
@@ -127,7 +128,7 @@ pub const TABLE: [FaultInfo; KINDS] = [
         detection: "phase current above the limit in the 1 ms tick; the break inputs \
                     and the current loop's fast trip switch the bridges off in hardware",
         code: 0x2310,
-        register: 0x03,
+        register: 0x83,
         flashes: 1,
         cuts_power: true,
         latched: true,
@@ -141,7 +142,7 @@ pub const TABLE: [FaultInfo; KINDS] = [
         detection: "bus voltage above 0x2054 (55 V by default); the current loop's \
                     fast trip latches the bridges off at 55 V",
         code: 0x3210,
-        register: 0x05,
+        register: 0x85,
         flashes: 2,
         // Braking would pump the bus higher.
         cuts_power: true,
@@ -155,7 +156,7 @@ pub const TABLE: [FaultInfo; KINDS] = [
         detection: "start-up current-sensor offset check; current that does not follow \
                     its reference while running; a calibration outside its band",
         code: 0x5210,
-        register: 0x03,
+        register: 0x83,
         flashes: 9,
         cuts_power: true,
         latched: false,
@@ -168,7 +169,7 @@ pub const TABLE: [FaultInfo; KINDS] = [
         detection: "power-up current tune (open phase, unbalanced, implausible); no \
                     current in a phase while running",
         code: 0x7120,
-        register: 0x21,
+        register: 0xA1,
         flashes: 4,
         cuts_power: true,
         latched: false,
@@ -181,7 +182,7 @@ pub const TABLE: [FaultInfo; KINDS] = [
         detection: "bus voltage below 0x2055 (12 V by default; 0 = off) once it has \
                     been 0.5 V above it since power-up; clears 0.5 V above",
         code: 0x3220,
-        register: 0x05,
+        register: 0x85,
         flashes: 3,
         cuts_power: false,
         latched: false,
@@ -193,7 +194,7 @@ pub const TABLE: [FaultInfo; KINDS] = [
         name: "position following error",
         detection: "following error above 0x2030; a failed commutation alignment",
         code: 0x8611,
-        register: 0x21,
+        register: 0xA1,
         flashes: 7,
         cuts_power: false,
         latched: false,
@@ -219,7 +220,7 @@ pub const TABLE: [FaultInfo; KINDS] = [
         detection: "open-loop stall detection (0x2060-0x2062; switched by 0x2060); an \
                     event: a fault reset clears it",
         code: 0x7121,
-        register: 0x21,
+        register: 0xA1,
         flashes: 5,
         cuts_power: false,
         latched: false,
@@ -298,7 +299,9 @@ impl FaultKind {
     pub const fn code(self) -> u16 {
         CODES[self as usize]
     }
-    /// Bits of 0x1001 (bit 0 generic always included).
+    /// Bits of 0x1001 (bit 0 generic always included). Bit 7 (manufacturer-specific)
+    /// marks a drive alarm: every fault but the EtherCAT one, which bit 4 reports
+    /// (the DP3CL's use of the two bits).
     pub const fn error_register(self) -> u8 {
         REGISTERS[self as usize]
     }

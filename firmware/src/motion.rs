@@ -911,6 +911,19 @@ impl Motion {
         }
     }
 
+    /// Output of the position controller (CiA 402 0x60FA), command units/s: closed
+    /// loop, the servo's position-loop velocity command; open loop (the commanded
+    /// position is the position), the commanded velocity; 0 while disabled.
+    pub fn control_effort(&self) -> f32 {
+        if !self.enabled {
+            0.0
+        } else if self.cfg.closed_loop {
+            self.dir as f32 * self.servo.velocity_command * self.scale.units_per_count()
+        } else {
+            self.open_vel_units
+        }
+    }
+
     /// Actual velocity in command units/s.
     pub fn velocity_units(&self) -> f32 {
         self.vel_report
@@ -977,6 +990,8 @@ impl Motion {
         } else {
             0
         };
+        let effort = self.control_effort();
+        a.control_effort = if effort.is_finite() { effort as i32 } else { 0 };
         a.stall_seq = self.stall.seq;
         a.stall_position = self.stall.position;
         a.load_angle_ddeg = self.stall.load_angle_ddeg();

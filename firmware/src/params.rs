@@ -104,8 +104,8 @@ macro_rules! param_slots {
 
 vendor_params! {
     0x2000 var "Peak current",
-        "Peak phase current while running (at most 8400 mA on ECS-OL, 8000 mA on ECS-HS)" {
-        PeakCurrent = rws(0, "Peak current", U16, 3200, 1, 8400, "mA"),
+        "Peak phase current while running (at most 8400 mA on ECS-OL, 8000 mA on ECS-HS); RxPDO-mappable: a mapped value the SDO write would refuse is not taken over" {
+        PeakCurrent = rws(0, "Peak current", U16, 3200, 1, 8400, "mA").pdo(PdoMappable::Rx),
     }
     0x2001 var "Pulses per revolution",
         "Command units per motor revolution; effective after restart" {
@@ -366,7 +366,7 @@ pub use Param as P;
 
 const N: usize = KEYS.len();
 
-fn slot_of(index: u16, sub: u8) -> Option<usize> {
+pub(crate) fn slot_of(index: u16, sub: u8) -> Option<usize> {
     KEYS.binary_search(&(index, sub)).ok()
 }
 

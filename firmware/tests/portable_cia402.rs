@@ -335,7 +335,7 @@ qemu_runner::tests! {
                 assert_eq!(d.state(), PdsState::SwitchOnDisabled, "opt {opt}"); // 12
             } else {
                 assert_eq!(d.state(), PdsState::QuickStopActive, "opt {opt}");
-                assert!(d.statusword() & sw::TARGET_REACHED != 0);
+                assert!(d.statusword() & sw::TARGET_REACHED != 0, "sw {:#x} pos {} demand {}", d.statusword(), ax.pos, d.position_demand());
                 let pos = ax.pos;
                 steps(&mut d, &mut ax, 50);
                 assert_eq!(ax.pos, pos, "held at standstill");
@@ -940,6 +940,76 @@ qemu_runner::tests! {
         let s = cw(&mut d, &mut ax, 0x000F);
         assert_eq!(ax.pos, -1000);
         assert!(s & sw::INTERNAL_LIMIT != 0);
+    }
+
+    fn position_range_wraps_positions_and_targets() {
+        // Without 0x607B (the type limits): positions are not wrapped.
+        let mut d = Cia402::new();
+        let mut ax = Axis::new(72_500);
+        assert_eq!(d.value(0x607B, 1), Some(i64::from(i32::MIN)));
+        assert_eq!(d.value(0x607B, 2), Some(i64::from(i32::MAX)));
+        step(&mut d, &mut ax);
+        assert_eq!(d.value(0x6064, 0), Some(72_500));
+        // A rotary axis of 36 000 units: 0x6064 and 0x6062 are shown in [0, 35 999].
+        d.write(0x607B, 1, &0i32.to_le_bytes()).unwrap();
+        d.write(0x607B, 2, &35_999i32.to_le_bytes()).unwrap();
+        step(&mut d, &mut ax);
+        assert_eq!(d.value(0x6064, 0), Some(500));
+        let slot = firmware::cia402::objects::tx_slot(0x6064, 0).unwrap();
+        assert_eq!(d.get_tx_raw(slot), 500);
+        let mut ax = Axis::new(-100);
+        step(&mut d, &mut ax);
+        assert_eq!(d.position_actual(), 35_900);
+        // CSP: the master's targets wrap at the end of the range; the axis goes on
+        // the shortest way (forward through 35 999 → 0), not back round the range.
+        // (The master copies 0x6064 into 0x607A before the enable.)
+        d.params.target_position = 35_900;
+        enable(&mut d, &mut ax, mode::CSP);
+        for t in [35_950, 0, 50, 100] {
+            d.params.target_position = t;
+            cw(&mut d, &mut ax, 0x000F);
+            assert_eq!(d.position_demand(), t, "demand {} axis {}", d.position_demand(), ax.pos);
+        }
+        cw(&mut d, &mut ax, 0x000F);
+        assert_eq!(ax.pos, 100, "continuous: -100 + 200");
+        assert_eq!(d.position_actual(), 100);
+        // The software limits 0x607D are not applied on a wrapping axis.
+        d.params.sw_limit_min = 0;
+        d.params.sw_limit_max = 1000;
+        d.params.target_position = 2000;
+        let s = cw(&mut d, &mut ax, 0x000F);
+        assert_eq!(ax.pos, 2000);
+        assert!(s & sw::INTERNAL_LIMIT == 0);
+        // (At rest before the mode switch.)
+        steps(&mut d, &mut ax, 3);
+        d.params.sw_limit_min = i32::MIN;
+        d.params.sw_limit_max = i32::MAX;
+        // PP absolute targets: 0x60F2 bits 6-7 choose the way.
+        d.set_mode(mode::PP);
+        d.params.profile_velocity = 1_000_000;
+        d.params.profile_acceleration = 10_000_000;
+        d.params.profile_deceleration = 10_000_000;
+        let pp = |d: &mut Cia402, ax: &mut Axis, option: u16, target: i32| {
+            d.write(0x60F2, 0, &option.to_le_bytes()).unwrap();
+            d.params.target_position = target;
+            cw(d, ax, 0x003F);
+            cw(d, ax, 0x002F);
+            steps(d, ax, 200);
+            assert!(d.statusword() & sw::TARGET_REACHED != 0, "sw {:#x} pos {} demand {}", d.statusword(), ax.pos, d.position_demand());
+            assert_eq!(d.position_actual(), target);
+            ax.pos
+        };
+        assert_eq!(pp(&mut d, &mut ax, 0xC0, 35_000), -1000, "shortest: back 3000");
+        assert_eq!(pp(&mut d, &mut ax, 0x80, 34_000), 34_000, "positive only: 35 000 forward");
+        assert_eq!(pp(&mut d, &mut ax, 0x40, 35_000), -1000, "negative only: 35 000 back");
+        assert_eq!(pp(&mut d, &mut ax, 0x00, 1000), -35_000, "inside the range: 34 000 back");
+        // 0x60F2: bits 0-1 (0-2) and 6-7; other bits and 3 in bits 0-1 refused.
+        for ok in [0x00u16, 0x02, 0x41, 0xC2] {
+            assert!(d.write(0x60F2, 0, &ok.to_le_bytes()).is_ok(), "{ok:#x}");
+        }
+        for bad in [0x03u16, 0x04, 0x20, 0xC3, 0x100] {
+            assert!(d.write(0x60F2, 0, &bad.to_le_bytes()).is_err(), "{bad:#x}");
+        }
     }
 
     fn polarity_inverts_positions_and_velocities() {

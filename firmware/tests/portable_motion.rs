@@ -281,6 +281,60 @@ qemu_runner::tests! {
         assert!(state(&m).servo_following_error.abs() < 10);
     }
 
+    fn control_effort_is_the_position_loop_output() {
+        let cfg = default_cfg();
+        let kp = cfg.gains.kp_pos;
+        let mut m = Motion::new(cfg);
+        let mut r = Rotor::new(0.0);
+        // Disabled: no position controller runs.
+        m.set_command(&cmd(false, 5000), 0.001);
+        m.step(&r.feedback());
+        assert_eq!(state(&m).control_effort, 0);
+        cycle(&mut m, &mut r, &cmd(true, 0));
+        // The rotor is held 80 counts (1000 units) behind the demand: the effort is the
+        // proportional part kp·e (counts/s → units/s at 12.5 units per count) plus the
+        // integral, which only adds to it, in the direction of the error.
+        for target in [1000, -1000] {
+            let mut m = Motion::new(cfg);
+            cycle(&mut m, &mut Rotor::new(0.0), &cmd(true, 0));
+            let mut c = cmd(true, target);
+            let mut effort = 0;
+            for _ in 0..3 {
+                m.set_command(&c, 0.001);
+                for _ in 0..N {
+                    let _ = m.step(&Rotor::new(0.0).feedback());
+                }
+                effort = state(&m).control_effort;
+                c.velocity = 0.0;
+            }
+            let p_part = kp * 80.0 * 12.5 * target.signum() as f32;
+            let e = effort as f32;
+            assert!(e * p_part > 0.0, "target {target}: effort {effort}");
+            assert!(e.abs() >= p_part.abs() * 0.99, "target {target}: {e} vs {p_part}");
+            assert!(e.abs() <= p_part.abs() * 1.5, "target {target}: {e} vs {p_part}");
+        }
+        // Velocity set-points: the position loop does not run.
+        let mut c = cmd(true, 0);
+        c.kind = SetpointKind::Velocity;
+        c.velocity = 25_000.0;
+        cycle(&mut m, &mut r, &c);
+        assert_eq!(state(&m).control_effort, 0);
+        // Open loop: the commanded position is the position; the effort is its speed.
+        let mut cfg = default_cfg();
+        cfg.closed_loop = false;
+        cfg.counts_per_rev = 0;
+        let mut m = Motion::new(cfg);
+        let fb = Feedback::default();
+        for k in 0..20 {
+            m.set_command(&cmd(true, k * 100), 0.001);
+            for _ in 0..N {
+                m.step(&fb);
+            }
+        }
+        let e = state(&m).control_effort;
+        assert!((e - 100_000).abs() <= 100, "open loop effort {e}");
+    }
+
     fn torque_setpoints_give_the_q_current_with_the_speed_limit() {
         let mut m = Motion::new(default_cfg());
         let mut r = Rotor::new(100.0);

@@ -150,6 +150,10 @@ pub struct Servo {
     pub fault: bool,
     /// Last current reference, A.
     pub iq_ref: f32,
+    /// Last output of the position loop (the velocity command of [`Servo::step`]:
+    /// feed-forward, proportional and integral parts), counts/s; 0 after a velocity or
+    /// torque step (no position loop runs).
+    pub velocity_command: f32,
     /// The last [`Servo::step_torque`] took torque off the demand (speed limit).
     pub speed_limited: bool,
     /// Torque feed-forward added inside the velocity PI of [`Servo::step`] and
@@ -169,6 +173,7 @@ impl Servo {
             following_error: 0.0,
             fault: false,
             iq_ref: 0.0,
+            velocity_command: 0.0,
             speed_limited: false,
             iq_offset: 0.0,
         }
@@ -211,6 +216,7 @@ impl Servo {
         self.pos_int = 0.0;
         self.vel_pi.preset(iq_now);
         self.following_error = 0.0;
+        self.velocity_command = 0.0;
         self.iq_ref = iq_now;
     }
 
@@ -223,6 +229,7 @@ impl Servo {
     pub fn step_velocity(&mut self, vel_dem: f32, acc_dem: f32, vel: f32) -> f32 {
         self.pos_int = 0.0;
         self.following_error = 0.0;
+        self.velocity_command = 0.0;
         let iq = self
             .vel_pi
             .update(vel_dem - vel, self.gains.acc_ff * acc_dem + self.iq_offset);
@@ -244,6 +251,7 @@ impl Servo {
         let vel = finite(vel);
         self.pos_int = 0.0;
         self.following_error = 0.0;
+        self.velocity_command = 0.0;
         let iq = if it >= 0.0 {
             self.vel_pi.update_within(v_max - vel, -lim, it)
         } else {
@@ -274,6 +282,7 @@ impl Servo {
         let lim = 1e3 + self.fe_limit as f32 * 4.0;
         self.pos_int = crate::num::clamp(self.pos_int, -lim, lim);
         let v_cmd = g.vel_ff * d.vel + g.kp_pos * e + self.pos_int;
+        self.velocity_command = v_cmd;
         let iq = self
             .vel_pi
             .update(v_cmd - vel, g.acc_ff * d.acc + self.iq_offset);

@@ -12,6 +12,7 @@ pub mod ethercrab_seam;
 pub mod fault_inject;
 pub mod file_flash;
 pub mod markdown;
+pub mod migration;
 pub mod netns;
 pub mod pi_mutex;
 pub mod plant;

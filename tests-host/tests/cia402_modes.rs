@@ -610,6 +610,7 @@ fn random_feedback_and_raw_parameters_never_panic() {
         let fb = DriveFeedback {
             position: rng.next() as i32,
             velocity: rng.next() as i32,
+            control_effort: rng.next() as i32,
             torque: rng.next() as i16,
             torque_demand: rng.next() as i16,
             current: rng.next() as i16,

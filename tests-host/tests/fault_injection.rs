@@ -373,7 +373,7 @@ fn over_voltage_is_latched_until_0x2057_allows_the_reset() {
     b.axis.borrow_mut().set_bus_voltage(56.0);
     let t_fault = run_until_fault(&mut b, 10);
     assert!(t_fault <= t_inject + 2, "detected at the next tick");
-    check_fault_reaction(&mut b, FaultKind::OverVoltage, 0x3210, 0x05);
+    check_fault_reaction(&mut b, FaultKind::OverVoltage, 0x3210, 0x85);
     assert_eq!(b.emcy[0].data[1..3], 560u16.to_le_bytes());
     assert_eq!(b.sdo_read(0x2401, 4), 560);
     let t0 = check_blink(&mut b, 2, t_inject);
@@ -421,7 +421,7 @@ fn under_voltage_recovers_after_the_voltage_is_back_and_a_reset() {
     b.axis.borrow_mut().set_bus_voltage(10.0);
     let t_fault = run_until_fault(&mut b, 10);
     assert!(t_fault <= t_inject + 2);
-    check_fault_reaction(&mut b, FaultKind::UnderVoltage, 0x3220, 0x05);
+    check_fault_reaction(&mut b, FaultKind::UnderVoltage, 0x3220, 0x85);
     assert_eq!(b.sdo_read(0x2401, 4), 100);
     check_blink(&mut b, 3, t_inject);
     // Not latched, but the condition is still there.
@@ -477,7 +477,7 @@ fn phase_short_trips_the_power_stage_within_a_pwm_period_and_latches() {
     );
     // Re-armed once the drive withdrew the power (0 V on the short): no current.
     assert!(trace[k + zero..].iter().all(|t| t.0 < 0.1));
-    check_fault_reaction(&mut b, FaultKind::OverCurrent, 0x2310, 0x03);
+    check_fault_reaction(&mut b, FaultKind::OverCurrent, 0x2310, 0x83);
     check_blink(&mut b, 1, t_inject);
     // Latched: the short removed, the latch re-armed, the reset still refused.
     b.axis.borrow_mut().inject_phase_short(0, false);
@@ -506,7 +506,7 @@ fn following_error_from_a_load_the_motor_cannot_hold_recovers_after_reset() {
         t_fault > t_inject + 2,
         "the shaft needs time to fall behind"
     );
-    check_fault_reaction(&mut b, FaultKind::FollowingError, 0x8611, 0x21);
+    check_fault_reaction(&mut b, FaultKind::FollowingError, 0x8611, 0xA1);
     let fe = b.sdo_read(0x2401, 5) as i32;
     assert!(fe.unsigned_abs() > limit, "snapshot following error {fe}");
     assert_eq!(b.emcy[0].data[1..3], 480u16.to_le_bytes());
@@ -539,7 +539,7 @@ fn masked_bus_faults_are_not_reported() {
     b.axis.borrow_mut().set_bus_voltage(52.0);
     b.sdo_write(0x2056, 0, &0x0083u16.to_le_bytes()).unwrap();
     run_until_fault(&mut b, 5);
-    check_fault_reaction(&mut b, FaultKind::OverVoltage, 0x3210, 0x05);
+    check_fault_reaction(&mut b, FaultKind::OverVoltage, 0x3210, 0x85);
 }
 
 /// The power stage's own over-voltage trip (55 V) switches the bridges off: that is
@@ -632,7 +632,7 @@ fn current_sensor_offset_fault_from_the_plant_adc() {
         &mut b,
         FaultKind::PhaseSensing,
         OffsetFault::KIND.code(),
-        0x03,
+        0x83,
     );
     check_blink(&mut b, u32::from(OffsetFault::KIND.flashes().unwrap()), t);
     check_reset_refused(&mut b, 0x5210);
@@ -761,7 +761,7 @@ fn motor_open_at_the_power_up_tune_is_0x7120_and_clears_by_reset() {
     let t_fault = run_until_fault(&mut b, 500);
     // The tune gives up at the end of the first settling time (40 ms).
     assert!((40..=45).contains(&t_fault), "fault at {t_fault} ms");
-    check_fault_reaction(&mut b, FaultKind::MotorOpen, 0x7120, 0x21);
+    check_fault_reaction(&mut b, FaultKind::MotorOpen, 0x7120, 0xA1);
     assert_eq!(b.emcy[0].data[3..5], [1, 0], "open phase, phase A");
     assert_eq!(b.sdo_read(0x2021, 0), 1, "nothing measured");
     check_blink(&mut b, 4, 0);
@@ -816,7 +816,7 @@ fn first_enable_phase_check_finds_an_open_phase_without_the_tune() {
         "within 15 ms of the enable: {}",
         t_fault - t_enable
     );
-    check_fault_reaction(&mut b, FaultKind::MotorOpen, 0x7120, 0x21);
+    check_fault_reaction(&mut b, FaultKind::MotorOpen, 0x7120, 0xA1);
     assert_eq!(b.emcy[0].data[3..5], [1, 1], "open phase, phase B");
     check_blink(&mut b, 4, t_enable);
     assert_eq!(
@@ -877,7 +877,7 @@ fn open_phase_while_running_is_motor_open_0x7120() {
         "within 100 ms: {}",
         t_fault - t_inject
     );
-    check_fault_reaction(&mut b, FaultKind::MotorOpen, 0x7120, 0x21);
+    check_fault_reaction(&mut b, FaultKind::MotorOpen, 0x7120, 0xA1);
     assert_eq!(
         [b.emcy[0].data[3], b.emcy[0].data[4]],
         [4, 0],
@@ -921,7 +921,7 @@ fn current_that_cannot_follow_while_running_is_0x5210_with_nine_flashes() {
         "after 20 ms, within 60 ms: {}",
         t_fault - t_inject
     );
-    check_fault_reaction(&mut b, FaultKind::PhaseSensing, 0x5210, 0x03);
+    check_fault_reaction(&mut b, FaultKind::PhaseSensing, 0x5210, 0x83);
     check_blink(&mut b, 9, t_inject);
     // Not latched: with the phase repaired a reset clears it.
     b.axis.borrow_mut().rig.plant.cfg.r_scale[0] = 1.0;
@@ -944,7 +944,7 @@ fn stuck_current_sensor_under_load_ends_in_the_over_current_trip() {
     b.axis.borrow_mut().set_load(0.0);
     assert!(t_fault <= t_inject + 5, "{}", t_fault - t_inject);
     assert!(b.axis.borrow().tripped() || b.axis.borrow().supervisor.tripped());
-    check_fault_reaction(&mut b, FaultKind::OverCurrent, 0x2310, 0x03);
+    check_fault_reaction(&mut b, FaultKind::OverCurrent, 0x2310, 0x83);
 }
 
 #[test]

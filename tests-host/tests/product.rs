@@ -522,7 +522,7 @@ fn every_fault_code_emergency_led_pds_output_and_recovery() {
         Case {
             kind: FaultKind::OverCurrent,
             code: 0x2310,
-            register: 0x03,
+            register: 0x83,
             flashes: 1,
             latched: true,
             bad: (0, 24_000, 12_000, 0, 0),
@@ -530,7 +530,7 @@ fn every_fault_code_emergency_led_pds_output_and_recovery() {
         Case {
             kind: FaultKind::OverVoltage,
             code: 0x3210,
-            register: 0x05,
+            register: 0x85,
             flashes: 2,
             latched: true,
             bad: (0, 56_000, 0, 0, 0),
@@ -538,7 +538,7 @@ fn every_fault_code_emergency_led_pds_output_and_recovery() {
         Case {
             kind: FaultKind::UnderVoltage,
             code: 0x3220,
-            register: 0x05,
+            register: 0x85,
             flashes: 3,
             latched: false,
             bad: (0, 10_000, 0, 0, 0),
@@ -546,7 +546,7 @@ fn every_fault_code_emergency_led_pds_output_and_recovery() {
         Case {
             kind: FaultKind::FollowingError,
             code: 0x8611,
-            register: 0x21,
+            register: 0xA1,
             flashes: 7,
             latched: false,
             bad: (0, 24_000, 0, 0, 5000),

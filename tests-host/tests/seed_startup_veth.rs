@@ -5,11 +5,13 @@
 //! the drive to Op, enables it through the mapped controlword and checks the image:
 //!
 //! * DP3CL style (open-loop bus stepper's CSP list): 0x6091 / 0x6092 gear and feed,
-//!   0x60C0 linear interpolation, 0x6065 / 0x6066 following error, 0x605A; RxPDO 0x1600
-//!   = 6040, 6060, 607A, 60B8, 6066, 6068, 605A; TxPDO 0x1A00 = 603F, 6041, 6061,
-//!   6064, 606C, 60F4, 6077, 60FD. CSP, the target following the actual position.
+//!   0x60C0 linear interpolation, 0x6065 / 0x6066 following error, 0x605A, a position
+//!   range 0x607B of 0-9999; RxPDO 0x1600 = 6040, 6060, 607A, 60B8, 6066, 6068, 605A;
+//!   TxPDO 0x1A00 = 603F, 6041, 6061, 6064, 606C, 60F4, 6077, 60FD, 60FA. CSP, the
+//!   target following the actual position (in the range).
 //! * E5 style (hybrid servo's PP list): 0x2000 peak current, 0x2001 pulses per
-//!   revolution, 0x6093 position factor, profile values; 0x1C12 = {0x1601} (PP map);
+//!   revolution, 0x6093 position factor, profile values; 0x1C12 = {0x1601, 0x1603}
+//!   (PP map, and 0x1603 = 2000: the peak current by PDO);
 //!   0x1C13 = {0x1A00, 0x1A01} with 0x1A01 = 606C, 6077. PP by the mapped 0x6060.
 //!
 //! Every row: each write answered without abort, Op with the working counter 3,
@@ -37,6 +39,7 @@ enum V {
     U16(u16),
     I16(i16),
     U32(u32),
+    I32(i32),
 }
 
 /// `(index, sub, value)`.
@@ -56,6 +59,8 @@ const DP3CL: &[Step] = &[
     (0x6065, 0, V::U32(20_000)),
     (0x6066, 0, V::U16(200)),
     (0x605A, 0, V::I16(2)),
+    (0x607B, 1, V::I32(0)),
+    (0x607B, 2, V::I32(9_999)),
     (0x6060, 0, V::I8(8)),
     (0x1C12, 0, V::U8(0)),
     (0x1600, 0, V::U8(0)),
@@ -79,7 +84,8 @@ const DP3CL: &[Step] = &[
     (0x1A00, 6, map(0x60F4, 0, 32)),
     (0x1A00, 7, map(0x6077, 0, 16)),
     (0x1A00, 8, map(0x60FD, 0, 32)),
-    (0x1A00, 0, V::U8(8)),
+    (0x1A00, 9, map(0x60FA, 0, 32)),
+    (0x1A00, 0, V::U8(9)),
     (0x1C13, 1, V::U16(0x1A00)),
     (0x1C13, 0, V::U8(1)),
 ];
@@ -96,7 +102,11 @@ const E5: &[Step] = &[
     (0x6068, 0, V::U16(10)),
     (0x1C12, 0, V::U8(0)),
     (0x1C12, 1, V::U16(0x1601)),
-    (0x1C12, 0, V::U8(1)),
+    (0x1603, 0, V::U8(0)),
+    (0x1603, 1, map(0x2000, 0, 16)),
+    (0x1603, 0, V::U8(1)),
+    (0x1C12, 2, V::U16(0x1603)),
+    (0x1C12, 0, V::U8(2)),
     (0x1C13, 0, V::U8(0)),
     (0x1A01, 0, V::U8(0)),
     (0x1A01, 1, map(0x606C, 0, 32)),
@@ -124,10 +134,11 @@ struct Layout {
 }
 
 /// 6040 @0, 6060 @2, 607A @3, 60B8 @7, 6066 @9, 6068 @11, 605A @13 → 15 bytes;
-/// 603F @0, 6041 @2, 6061 @4, 6064 @5, 606C @9, 60F4 @13, 6077 @17, 60FD @19 → 23.
+/// 603F @0, 6041 @2, 6061 @4, 6064 @5, 606C @9, 60F4 @13, 6077 @17, 60FD @19,
+/// 60FA @23 → 27.
 const DP3CL_LAYOUT: Layout = Layout {
     out_bytes: 15,
-    in_bytes: 23,
+    in_bytes: 27,
     controlword: 0,
     mode: Some(2),
     target: 3,
@@ -137,10 +148,11 @@ const DP3CL_LAYOUT: Layout = Layout {
     written: &[(9, 0x6066, 150), (11, 0x6068, 7), (13, 0x605A, 6)],
 };
 
-/// 6040 @0, 607A @2, 6081 @6, 6083 @10, 6084 @14, 6060 @18 → 19 bytes; 0x1A00 (19
-/// bytes: 603F @0, 6041 @2, 6061 @4, 6064 @5, ...) + 606C @19, 6077 @23 → 25.
+/// 0x1601 (6040 @0, 607A @2, 6081 @6, 6083 @10, 6084 @14, 6060 @18) + 0x1603 (2000
+/// @19) → 21 bytes; 0x1A00 (19 bytes: 603F @0, 6041 @2, 6061 @4, 6064 @5, ...) + 606C
+/// @19, 6077 @23 → 25.
 const E5_LAYOUT: Layout = Layout {
-    out_bytes: 19,
+    out_bytes: 21,
     in_bytes: 25,
     controlword: 0,
     mode: Some(18),
@@ -148,7 +160,7 @@ const E5_LAYOUT: Layout = Layout {
     statusword: 2,
     mode_display: 4,
     actual: 5,
-    written: &[],
+    written: &[(19, 0x2000, 3500)],
 };
 
 fn start(tag: &str) -> (Netns, Killed) {
@@ -207,6 +219,7 @@ fn replay(tag: &str, storage: &'static Storage, list: &[Step], l: &Layout, mode:
                     V::U16(x) => sd.sdo_write(index, sub, x).await,
                     V::I16(x) => sd.sdo_write(index, sub, x).await,
                     V::U32(x) => sd.sdo_write(index, sub, x).await,
+                    V::I32(x) => sd.sdo_write(index, sub, x).await,
                 }
                 .map_err(at(&what))?;
             }

@@ -12,6 +12,8 @@
 //! * `od-doc` — writes the object dictionary reference (`docs/object-dictionary.md`).
 //! * `faults-doc` — writes the fault table (`docs/faults.md`) from
 //!   `firmware::faults::TABLE`.
+//! * `migration` — writes the migration guides from the replaced drives
+//!   (`docs/migration/*.md`, from `tests-host/src/migration/`).
 //! * `size`   — builds the board firmware and prints its flash/RAM use and its static
 //!   worst-case stack (`stack/`); then the same for the bootloader, against its
 //!   32 KiB partition; `stack <ELF>` prints that analysis for one ELF.
@@ -74,6 +76,7 @@ fn main() -> ExitCode {
         Some("esi") => drive_docs("esi", "docs/esi"),
         Some("od-doc") => drive_docs("od-doc", "docs/object-dictionary.md"),
         Some("faults-doc") => drive_docs("faults-doc", "docs/faults.md"),
+        Some("migration") => drive_docs("migration", "docs/migration"),
         Some("size") => size::size_report().is_ok_and(|f| f.chip && f.bootloader),
         // The static stack analysis of a given ELF (no build).
         Some("stack") => match rest.first().map(|p| stack::analyse(Path::new(p))) {
@@ -116,7 +119,7 @@ fn main() -> ExitCode {
             }
         },
         _ => {
-            eprintln!("usage: cargo xtask <test|bench|demo|esi|od-doc|faults-doc|size|flash|update-image|public-key>");
+            eprintln!("usage: cargo xtask <test|bench|demo|esi|od-doc|faults-doc|migration|size|flash|update-image|public-key>");
             false
         }
     };

@@ -56,6 +56,7 @@ impl Cia402 {
         self.raw_position = fb.position;
         self.actual_position = self.raw_to_user(fb.position);
         self.actual_velocity = pol(self.vel_neg(), fb.velocity);
+        self.control_effort = pol(self.pos_neg(), fb.control_effort);
         // Raw (motor-side) torques; the objects apply the polarity when read.
         self.actual_torque = fb.torque;
         self.servo_torque = fb.torque_demand;

@@ -232,6 +232,8 @@ pub struct DriveFeedback {
     pub position: i32,
     /// Actual velocity (command units/s).
     pub velocity: i32,
+    /// Output of the position controller, command units/s, motor side (0x60FA).
+    pub control_effort: i32,
     /// Actual torque, per mille of rated torque (0x6077): the measured q current
     /// (encoder frame) per mille of the rated current.
     pub torque: i16,
@@ -457,6 +459,7 @@ pub struct Cia402 {
     raw_position: i32,
     actual_position: i32,
     actual_velocity: i32,
+    control_effort: i32,
     actual_torque: i16,
     actual_current: i16,
     /// The servo loops' torque demand (last feedback, raw sign).
@@ -546,6 +549,7 @@ impl Cia402 {
             raw_position: 0,
             actual_position: 0,
             actual_velocity: 0,
+            control_effort: 0,
             actual_torque: 0,
             actual_current: 0,
             servo_torque: 0,
@@ -797,13 +801,19 @@ impl Cia402 {
     pub fn error_code(&self) -> u16 {
         self.error_code
     }
-    /// 0x6064.
-    pub fn position_actual(&self) -> i32 {
-        self.actual_position
+    /// Touch probe value `k` (0x60BA + k), in the position range 0x607B when one is set.
+    #[inline(never)]
+    pub(crate) fn probe_position(&self, k: usize) -> i32 {
+        self.params.wrap_position(self.probe.value(k))
     }
-    /// 0x6062 position demand value (user units).
+    /// 0x6064 (in the position range 0x607B when one is set).
+    pub fn position_actual(&self) -> i32 {
+        self.params.wrap_position(self.actual_position)
+    }
+    /// 0x6062 position demand value (user units, in the position range 0x607B when one
+    /// is set).
     pub fn position_demand(&self) -> i32 {
-        self.motion.position()
+        self.params.wrap_position(self.motion.position())
     }
     /// 0x60FC position demand internal value (raw).
     pub fn position_demand_internal(&self) -> i32 {

@@ -223,6 +223,8 @@ impl Cia402 {
                 self.internal_limit = true;
             }
         }
+        // A target of the position range 0x607B: the shortest way from the demand.
+        let target = p.target_in_range(self.motion.position(), target, 3);
         let velocity_offset = p.velocity_offset as f32;
         let cur = self.motion.position();
         let nominal = p.interpolation_period_s();
@@ -368,7 +370,13 @@ impl Cia402 {
                 };
                 reference.wrapping_add(p.target_position)
             } else {
-                p.target_position
+                // From where the axis will be when this set-point starts.
+                let from = self
+                    .pp
+                    .buffered
+                    .or(self.pp.active)
+                    .map_or(m.position(), |s| s.target);
+                p.target_in_range(from, p.target_position, p.positioning_option >> 6)
             };
             let sp = Setpoint {
                 target,

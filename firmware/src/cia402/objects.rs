@@ -527,7 +527,7 @@ cia402_objects! {
     }
     var 0x6064 "Position actual value", "Actual position in command units.",
     {
-        { 0 "Position actual value": i32 RO TX [.unit("inc")] field(actual_position) }
+        { 0 "Position actual value": i32 RO TX [.unit("inc")] get(|d| d.position_actual()) }
     }
     var 0x6065 "Following error window", "Allowed |0x60F4|; 0xFFFFFFFF switches the supervision off.",
     {
@@ -601,11 +601,17 @@ cia402_objects! {
     {
         { 0 "Target position": i32 RW RX [.default(0).unit("inc")] field(params.target_position) }
     }
+    array 0x607B "Position range limit", "When min < max (and the range is narrower than the type's), positions wrap in [min, max]: 0x6062, 0x6064 and the touch probe values are shown in it; a CSP target moves the shortest way, a PP absolute target as 0x60F2 bits 6-7 choose; 0x607D is not applied then.",
+    {
+        { count(2) range(2, 2) }
+        { 1 "Min position range limit": i32 RW NO [.default(i32::MIN as i64).unit("inc").saved()] field(params.range_min) }
+        { 2 "Max position range limit": i32 RW NO [.default(i32::MAX as i64).unit("inc").saved()] field(params.range_max) }
+    }
     var 0x607C "Home offset", "Position actual value given to the home position when homing ends.",
     {
         { 0 "Home offset": i32 RW RX [.default(0).unit("inc").saved()] field(params.home_offset) }
     }
-    array 0x607D "Software position limit", "Demand positions are limited to [min, max] when min < max (the type limits mean off).",
+    array 0x607D "Software position limit", "Demand positions are limited to [min, max] when min < max (the type limits mean off) and no position range 0x607B is in effect.",
     {
         { count(2) range(2, 2) }
         { 1 "Min position limit": i32 RW NO [.default(i32::MIN as i64).unit("inc").saved()] field(params.sw_limit_min) }
@@ -734,19 +740,19 @@ cia402_objects! {
     }
     var 0x60BA "Touch probe 1 positive edge", "Position latched at the rising edge of probe 1.",
     {
-        { 0 "Touch probe 1 positive edge": i32 RO TX [.unit("inc")] get(|d| d.probe.value(0)) }
+        { 0 "Touch probe 1 positive edge": i32 RO TX [.unit("inc")] get(|d| d.probe_position(0)) }
     }
     var 0x60BB "Touch probe 1 negative edge", "Position latched at the falling edge of probe 1.",
     {
-        { 0 "Touch probe 1 negative edge": i32 RO TX [.unit("inc")] get(|d| d.probe.value(1)) }
+        { 0 "Touch probe 1 negative edge": i32 RO TX [.unit("inc")] get(|d| d.probe_position(1)) }
     }
     var 0x60BC "Touch probe 2 positive edge", "Position latched at the rising edge of probe 2.",
     {
-        { 0 "Touch probe 2 positive edge": i32 RO TX [.unit("inc")] get(|d| d.probe.value(2)) }
+        { 0 "Touch probe 2 positive edge": i32 RO TX [.unit("inc")] get(|d| d.probe_position(2)) }
     }
     var 0x60BD "Touch probe 2 negative edge", "Position latched at the falling edge of probe 2.",
     {
-        { 0 "Touch probe 2 negative edge": i32 RO TX [.unit("inc")] get(|d| d.probe.value(3)) }
+        { 0 "Touch probe 2 negative edge": i32 RO TX [.unit("inc")] get(|d| d.probe_position(3)) }
     }
     var 0x60C0 "Interpolation sub mode select", "CSP set-points are interpolated linearly between cycles (0 = linear interpolation, the only sub mode; others refused).",
     {
@@ -766,13 +772,18 @@ cia402_objects! {
     {
         { 0 "Max deceleration": u32 RW NO range(1, u32::MAX) [.default(100_000_000).unit("inc/s²").saved()] field(params.max_deceleration) }
     }
-    var 0x60F2 "Positioning option code", "Bits 0-1, PP relative moves: 0 from the previous target, 1 from the position demand value, 2 from the position actual value.",
+    var 0x60F2 "Positioning option code", "Bits 0-1, PP relative moves: 0 from the previous target, 1 from the position demand value, 2 from the position actual value; bits 6-7, PP absolute targets with a position range 0x607B: 0 inside the range, 1 negative direction only, 2 positive direction only, 3 the shortest way. Other bits refused.",
     {
-        { 0 "Positioning option code": u16 RW NO range(0, 2) [.default(0).saved()] field(params.positioning_option) }
+        { 0 "Positioning option code": u16 RW NO range(0, 0xC2) [.default(0).saved()] field(params.positioning_option)
+            check(|_, v| valid_if(v & !0xC3 == 0 && v & 3 != 3)) }
     }
     var 0x60F4 "Following error actual value", "0x6062 − 0x6064.",
     {
         { 0 "Following error actual value": i32 RO TX [.unit("inc")] field(following_error) }
+    }
+    var 0x60FA "Control effort", "Output of the position controller, command units/s: closed loop, the position loop's velocity command (feed-forward, proportional and integral parts) in the position modes, 0 in the velocity and torque modes; open loop, the commanded velocity; 0 while disabled.",
+    {
+        { 0 "Control effort": i32 RO TX [.unit("inc/s")] field(control_effort) }
     }
     var 0x60FC "Position demand internal value", "Position demand, motor side.",
     {

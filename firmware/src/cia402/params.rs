@@ -42,6 +42,10 @@ pub struct Params {
     pub max_current: u16,
     /// 0x607A target position.
     pub target_position: i32,
+    /// 0x607B:01 min position range limit.
+    pub range_min: i32,
+    /// 0x607B:02 max position range limit.
+    pub range_max: i32,
     /// 0x607C home offset.
     pub home_offset: i32,
     /// 0x607D:01 min software position limit.
@@ -124,6 +128,8 @@ impl Params {
         max_torque: 1000,
         max_current: 1000,
         target_position: 0,
+        range_min: i32::MIN,
+        range_max: i32::MAX,
         home_offset: 0,
         sw_limit_min: i32::MIN,
         sw_limit_max: i32::MAX,
@@ -177,14 +183,56 @@ impl Params {
             _ => None,
         }
     }
+    /// The software position limits 0x607D in effect: min < max, not the type limits,
+    /// and no position range 0x607B (a wrapping axis has no ends to limit).
+    #[inline(never)]
     pub(super) fn sw_limits(&self) -> Option<(i32, i32)> {
         if self.sw_limit_min < self.sw_limit_max
             && (self.sw_limit_min != i32::MIN || self.sw_limit_max != i32::MAX)
+            && self.position_range().is_none()
         {
             Some((self.sw_limit_min, self.sw_limit_max))
         } else {
             None
         }
+    }
+    /// The position range 0x607B in effect: (min, number of positions) when min < max
+    /// and the range is narrower than the type's (which wraps by itself).
+    pub(super) fn position_range(&self) -> Option<(i32, i64)> {
+        let span = i64::from(self.range_max) - i64::from(self.range_min) + 1;
+        (span > 1 && span < 1 << 32).then_some((self.range_min, span))
+    }
+    /// `x` wrapped into the position range 0x607B (unchanged without one).
+    #[inline(never)]
+    pub(super) fn wrap_position(&self, x: i32) -> i32 {
+        match self.position_range() {
+            Some((min, span)) => {
+                min.wrapping_add((i64::from(x) - i64::from(min)).rem_euclid(span) as i32)
+            }
+            None => x,
+        }
+    }
+    /// The continuous position an absolute target `t` of the range 0x607B means when
+    /// the axis stands at the continuous position `from`: `way` 0 inside the range
+    /// (never across its ends, as a linear axis), 1 negative direction only, 2 positive
+    /// direction only, 3 the shortest way (0x60F2 bits 6-7). `t` without a range.
+    pub(super) fn target_in_range(&self, from: i32, t: i32, way: u16) -> i32 {
+        let Some((_, span)) = self.position_range() else {
+            return t;
+        };
+        let mut d = i64::from(self.wrap_position(t)) - i64::from(self.wrap_position(from));
+        match way {
+            1 if d > 0 => d -= span,
+            2 if d < 0 => d += span,
+            3 => {
+                d = d.rem_euclid(span);
+                if d > span / 2 {
+                    d -= span;
+                }
+            }
+            _ => {}
+        }
+        from.wrapping_add(d as i32)
     }
     /// Interpolation period of 0x60C2 in seconds (0 if unset).
     pub fn interpolation_period_s(&self) -> f32 {

@@ -186,6 +186,11 @@ pub(super) fn other_tx_entries() -> impl Iterator<Item = (u16, u8)> {
         .take(OTHER_TX_MAX)
 }
 
+/// Slots of RxPDO-mappable vendor parameters (such as 0x2000) start here, numbered
+/// as `params::KEYS`; a mapped value goes through the SDO write (same checks: a value
+/// the SDO write would refuse is not taken over).
+pub(super) const OTHER_RX_SLOT: u16 = 0x8000;
+
 /// Entry number `n` of [`other_tx_entries`]: a plain walk (the chain's generic
 /// `Iterator::nth` is three times as large).
 #[inline(never)]
@@ -200,7 +205,14 @@ pub(super) fn other_tx_entry(n: usize) -> Option<(u16, u8)> {
 
 impl<S: ParameterStore> ProcessData for Drive<S> {
     fn rx_slot(&self, index: u16, sub: u8) -> Option<u16> {
-        ProcessData::rx_slot(&self.cia402, index, sub)
+        if (0x6000..=0x6FFF).contains(&index) {
+            return ProcessData::rx_slot(&self.cia402, index, sub);
+        }
+        let e = dictionary::find_entry_in(dictionary::PARAMS, index, sub).ok()?;
+        if !e.pdo_mappable().rx() {
+            return None;
+        }
+        crate::params::slot_of(index, sub).map(|n| OTHER_RX_SLOT + n as u16)
     }
 
     fn tx_slot(&self, index: u16, sub: u8) -> Option<u16> {
@@ -214,7 +226,10 @@ impl<S: ParameterStore> ProcessData for Drive<S> {
 
     #[inline]
     fn set_rx(&mut self, slot: u16, raw: u64) {
-        ProcessData::set_rx(&mut self.cia402, slot, raw);
+        if slot < OTHER_RX_SLOT {
+            return ProcessData::set_rx(&mut self.cia402, slot, raw);
+        }
+        self.set_rx_other(slot - OTHER_RX_SLOT, raw);
     }
 
     #[inline]
@@ -235,6 +250,23 @@ impl<S: ParameterStore> ProcessData for Drive<S> {
 }
 
 impl<S: ParameterStore> Drive<S> {
+    /// An RxPDO entry outside 0x6xxx (a vendor parameter): the SDO write's checks
+    /// decide; a refused value is not taken over (a PDO write cannot be answered with
+    /// an abort).
+    #[inline(never)]
+    fn set_rx_other(&mut self, n: u16, raw: u64) {
+        let Some(&(index, sub)) = crate::params::KEYS.get(usize::from(n)) else {
+            return;
+        };
+        if let Ok(e) = dictionary::find_entry_in(dictionary::PARAMS, index, sub) {
+            if e.pdo_mappable().rx() {
+                let bytes = raw.to_le_bytes();
+                let len = e.byte_len().min(8);
+                let _ = Dictionary::write(self, index, sub, &bytes[..len], EsmState::Op);
+            }
+        }
+    }
+
     /// SDO read of a product entry, dispatched on the index range (the dictionary
     /// read and the TxPDO entries outside 0x6xxx share it).
     #[inline(never)]

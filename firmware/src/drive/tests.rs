@@ -76,6 +76,36 @@ fn out_of_range_vendor_write_is_refused_and_value_kept() {
 }
 
 #[test]
+fn mapped_peak_current_takes_the_sdo_range_check() {
+    for (variant, max) in [(Variant::HybridServo, 8000u16), (Variant::OpenLoop, 8400)] {
+        let mut d = Drive::new(variant, 0);
+        let slot = ProcessData::rx_slot(&d, 0x2000, 0).expect("0x2000 RxPDO-mappable");
+        assert_eq!(ProcessData::rx_slot(&d, 0x2001, 0), None, "0x2001 is not");
+        ProcessData::set_rx(&mut d, slot, 4000);
+        assert_eq!(sdo_read_u32(&mut d, 0x2000, 0), 4000);
+        // What the SDO write refuses (above the variant's maximum, below 1) is not
+        // taken over: the value stays.
+        for bad in [u64::from(max) + 1, 0, 0xFFFF] {
+            assert!(
+                sdo_write(&mut d, 0x2000, 0, &(bad as u16).to_le_bytes()).is_err(),
+                "{variant:?}: SDO {bad}"
+            );
+            ProcessData::set_rx(&mut d, slot, bad);
+            assert_eq!(
+                sdo_read_u32(&mut d, 0x2000, 0),
+                4000,
+                "{variant:?}: PDO {bad}"
+            );
+        }
+        ProcessData::set_rx(&mut d, slot, u64::from(max));
+        assert_eq!(sdo_read_u32(&mut d, 0x2000, 0), u32::from(max));
+        // Slots past the mappable entries change nothing.
+        ProcessData::set_rx(&mut d, slot + 1, 1234);
+        assert_eq!(sdo_read_u32(&mut d, 0x2000, 0), u32::from(max));
+    }
+}
+
+#[test]
 fn save_without_parameter_memory_is_refused() {
     let mut d = Drive::new(Variant::HybridServo, 0);
     let save = crate::comm::SAVE.to_le_bytes();

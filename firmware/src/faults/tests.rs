@@ -26,12 +26,12 @@ fn table_well_formed() {
 #[test]
 fn each_fault_code_register_emcy_led_pds_alarm() {
     let cases: &[(FaultKind, u16, u8, Option<u8>, bool)] = &[
-        (FaultKind::OverCurrent, 0x2310, 0x03, Some(1), true),
-        (FaultKind::OverVoltage, 0x3210, 0x05, Some(2), true),
-        (FaultKind::UnderVoltage, 0x3220, 0x05, Some(3), false),
-        (FaultKind::MotorOpen, 0x7120, 0x21, Some(4), false),
-        (FaultKind::FollowingError, 0x8611, 0x21, Some(7), false),
-        (FaultKind::PhaseSensing, 0x5210, 0x03, Some(9), false),
+        (FaultKind::OverCurrent, 0x2310, 0x83, Some(1), true),
+        (FaultKind::OverVoltage, 0x3210, 0x85, Some(2), true),
+        (FaultKind::UnderVoltage, 0x3220, 0x85, Some(3), false),
+        (FaultKind::MotorOpen, 0x7120, 0xA1, Some(4), false),
+        (FaultKind::FollowingError, 0x8611, 0xA1, Some(7), false),
+        (FaultKind::PhaseSensing, 0x5210, 0x83, Some(9), false),
     ];
     for &(k, code, reg, led, latched) in cases {
         let mut f = all_enabled();
@@ -144,7 +144,7 @@ fn masking() {
     assert_eq!(f.pop_emergency().map(|e| e.code), Some(0x2310));
     assert_eq!(
         f.pop_emergency().map(|e| (e.code, e.register, e.data[3])),
-        Some((0xA001, 0x13, 4))
+        Some((0xA001, 0x93, 4))
     );
 }
 

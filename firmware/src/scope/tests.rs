@@ -309,7 +309,7 @@ fn bad_configuration_gets_the_standard_aborts() {
         (0u32, SdoAbort::NotMappable),
         (0x6040_0010, SdoAbort::NotMappable), // controlword: Rx, mappable → accepted below
         (0x1000_0020, SdoAbort::NotMappable), // device type: not mappable
-        (0x2000_0010, SdoAbort::NotMappable), // a parameter: not mappable
+        (0x2001_0020, SdoAbort::NotMappable), // a parameter: not mappable
         (0x6064_0010, SdoAbort::ParameterIncompatibility), // 32-bit entry as 16
         (0x6064_0120, SdoAbort::NotMappable), // no sub-index 1
         (0x7000_0020, SdoAbort::NotMappable), // no object

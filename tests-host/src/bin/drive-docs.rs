@@ -4,6 +4,7 @@
 //! drive-docs esi DIR      ESI XML files and SII EEPROM images into DIR
 //! drive-docs od-doc FILE  Markdown reference of the object dictionary into FILE
 //! drive-docs faults-doc FILE  Markdown table of the drive's faults into FILE
+//! drive-docs migration DIR  the migration guides (`tests_host::migration`) into DIR
 //! ```
 //!
 //! `esi DIR` writes, per ESC flavour of the board (LAN9252, ET1100), one ESI file
@@ -482,6 +483,22 @@ pub fn faults_reference() -> String {
     s
 }
 
+/// The migration guides (file name, text) over the hybrid-servo dictionary (the
+/// variants have the same objects); an error names every row whose equivalent does
+/// not match the dictionary.
+pub fn migration_guides() -> Result<Vec<(String, String)>, String> {
+    use tests_host::migration::{problems, render, GUIDES};
+    let objects = variant_objects(Variant::HybridServo);
+    let bad: Vec<String> = GUIDES.iter().flat_map(|g| problems(g, objects)).collect();
+    if !bad.is_empty() {
+        return Err(bad.join("\n"));
+    }
+    Ok(GUIDES
+        .iter()
+        .map(|g| (g.file.to_string(), render(g, objects)))
+        .collect())
+}
+
 fn write_file(path: &Path, data: &[u8]) -> Result<(), String> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
@@ -504,8 +521,14 @@ fn run(args: &[String]) -> Result<(), String> {
         [cmd, file] if cmd == "faults-doc" => {
             write_file(Path::new(file), faults_reference().as_bytes())
         }
+        [cmd, dir] if cmd == "migration" => {
+            for (name, text) in migration_guides()? {
+                write_file(&Path::new(dir).join(name), text.as_bytes())?;
+            }
+            Ok(())
+        }
         _ => Err(
-            "usage: drive-docs esi DIR | drive-docs od-doc FILE | drive-docs faults-doc FILE"
+            "usage: drive-docs esi DIR | drive-docs od-doc FILE | drive-docs faults-doc FILE | drive-docs migration DIR"
                 .into(),
         ),
     }

@@ -74,6 +74,7 @@ impl CstAxis {
         let fb = DriveFeedback {
             position: s.position,
             velocity: s.velocity,
+            control_effort: s.control_effort,
             torque: s.torque_permille,
             torque_demand: s.current_permille,
             current: s.torque_permille,

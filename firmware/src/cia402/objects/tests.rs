@@ -193,6 +193,24 @@ fn tx_slots_and_sdo_read_agree() {
 }
 
 #[test]
+fn control_effort_follows_the_feedback_and_the_position_polarity() {
+    let mut d = Cia402::new();
+    let fb = crate::cia402::DriveFeedback {
+        control_effort: 12_345,
+        ..Default::default()
+    };
+    d.cycle(&fb, 0.001);
+    assert_eq!(d.value(0x60FA, 0), Some(12_345));
+    let slot = tx_slot(0x60FA, 0).expect("0x60FA is TxPDO-mappable");
+    assert_eq!(d.get_tx_raw(slot) as i32, 12_345);
+    assert_eq!(d.write(0x60FA, 0, &[0; 4]), Err(SdoAbort::WriteReadOnly));
+    // Position polarity (0x607E bit 7) turns the controller's output with the position.
+    d.write(0x607E, 0, &[0x80]).unwrap();
+    d.cycle(&fb, 0.001);
+    assert_eq!(d.value(0x60FA, 0), Some(-12_345));
+}
+
+#[test]
 fn stack_process_data_trait() {
     use ecat_slave_stack::pdo::ProcessData;
     let mut d = Cia402::new();
