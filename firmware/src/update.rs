@@ -860,64 +860,102 @@ impl<U: Updater> Update<U> {
     }
 
     fn build_info(&mut self) -> usize {
-        use core::fmt::Write as _;
-        struct Buf<'a>(&'a mut [u8], usize);
-        impl core::fmt::Write for Buf<'_> {
-            fn write_str(&mut self, s: &str) -> core::fmt::Result {
-                let end = self.1 + s.len();
-                let dst = self.0.get_mut(self.1..end).ok_or(core::fmt::Error)?;
-                dst.copy_from_slice(s.as_bytes());
-                self.1 = end;
-                Ok(())
-            }
-        }
         let e = self.expected;
         let boot = self.boot_state();
-        let mut b = Buf(&mut self.info, 0);
-        let _ = write!(
-            b,
-            "vendor=0x{:08X}\nproduct=0x{:08X}\nesc={}\n",
-            e.vendor_id,
-            e.product_code,
-            e.esc.name()
-        );
-        let _ = match self.running.header {
+        let running = self.running.header;
+        let (security, trust) = (self.expected.min_security_version, self.trust);
+        let mut b = Text {
+            buf: &mut self.info,
+            len: 0,
+        };
+        b.str("vendor=0x").hex(e.vendor_id, 8, true);
+        b.str("\nproduct=0x").hex(e.product_code, 8, true);
+        b.str("\nesc=").str(e.esc.name()).str("\n");
+        match running {
             Some(h) => {
-                let _ = write!(
-                    b,
-                    "version={}.{}.{}\nbuild=",
-                    h.version >> 16,
-                    (h.version >> 8) & 0xFF,
-                    h.version & 0xFF
-                );
+                b.str("version=").dec(h.version >> 16).str(".");
+                b.dec((h.version >> 8) & 0xFF)
+                    .str(".")
+                    .dec(h.version & 0xFF);
                 // The build: the start of the image signature, unique to the signed
                 // image.
-                for x in &h.image_signature[..8] {
-                    let _ = write!(b, "{x:02x}");
-                }
-                write!(b, "\nimage-length={}\nsignature=valid\n", h.image_len)
+                b.str("\nbuild=").bytes_hex(&h.image_signature[..8]);
+                b.str("\nimage-length=").dec(h.image_len);
+                b.str("\nsignature=valid\n");
             }
-            None => write!(
-                b,
-                "version={}\nbuild=none\nsignature=none\n",
-                crate::identity::SOFTWARE_VERSION
-            ),
-        };
-        let _ = writeln!(
-            b,
-            "security-version={}\nkey={}",
-            self.expected.min_security_version,
-            self.trust.name()
-        );
-        if let Some(k) = self.trust.key() {
-            let _ = write!(b, "key-fingerprint=");
-            for x in &efw::image_digest(&k)[..8] {
-                let _ = write!(b, "{x:02x}");
+            None => {
+                b.str("version=").str(crate::identity::SOFTWARE_VERSION);
+                b.str("\nbuild=none\nsignature=none\n");
             }
-            let _ = writeln!(b);
         }
-        let _ = writeln!(b, "boot={}", boot.name());
-        b.1
+        b.str("security-version=").dec(security);
+        b.str("\nkey=").str(trust.name()).str("\n");
+        if let Some(k) = trust.key() {
+            b.str("key-fingerprint=")
+                .bytes_hex(&efw::image_digest(&k)[..8])
+                .str("\n");
+        }
+        b.str("boot=").str(boot.name()).str("\n");
+        b.len
+    }
+}
+
+/// A text written into a fixed buffer, cut at its end (`firmware.info`): the few
+/// number formats it needs without `core::fmt` in the image.
+struct Text<'a> {
+    buf: &'a mut [u8],
+    len: usize,
+}
+
+impl Text<'_> {
+    fn byte(&mut self, c: u8) -> &mut Self {
+        if let Some(d) = self.buf.get_mut(self.len) {
+            *d = c;
+            self.len += 1;
+        }
+        self
+    }
+    fn str(&mut self, s: &str) -> &mut Self {
+        for &c in s.as_bytes() {
+            self.byte(c);
+        }
+        self
+    }
+    /// `v` in decimal.
+    fn dec(&mut self, v: u32) -> &mut Self {
+        let mut digits = [0u8; 10];
+        let (mut n, mut i) = (v, digits.len());
+        loop {
+            i -= 1;
+            digits[i] = b'0' + (n % 10) as u8;
+            n /= 10;
+            if n == 0 {
+                break;
+            }
+        }
+        for &c in &digits[i..] {
+            self.byte(c);
+        }
+        self
+    }
+    /// The low `digits` hex digits of `v`, most significant first.
+    fn hex(&mut self, v: u32, digits: u32, upper: bool) -> &mut Self {
+        let set: &[u8; 16] = if upper {
+            b"0123456789ABCDEF"
+        } else {
+            b"0123456789abcdef"
+        };
+        for i in (0..digits).rev() {
+            self.byte(set[((v >> (4 * i)) & 0xF) as usize]);
+        }
+        self
+    }
+    /// Each byte as two lower-case hex digits.
+    fn bytes_hex(&mut self, bytes: &[u8]) -> &mut Self {
+        for &x in bytes {
+            self.hex(u32::from(x), 2, false);
+        }
+        self
     }
 }
 
