@@ -908,7 +908,7 @@ impl<S: ParameterStore> Drive<S> {
             self.cia402.digital_outputs(),
             self.cia402.digital_outputs_mask(),
         );
-        let brake = io::brake_released(op_enabled, self.faults.any_active(), master);
+        let brake = io::brake_released(op_enabled, self.faults.power_cut(), master);
         let status = OutputStatus {
             alarm: self.faults.alarm(),
             ready: !self.faults.any_active() && self.command.power_stage,
