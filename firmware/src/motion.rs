@@ -788,9 +788,13 @@ impl Motion {
     fn step_closed(&mut self, fb: &Feedback) -> CurrentReference {
         let pos = self.actual_axis_counts(fb);
         let vel = self.dir as f32 * fb.velocity;
-        // Current limit: 0x6072 / 0x6073 (per mille of the rated = peak current), soft start.
+        // Current limit: 0x6072 / 0x6073 (per mille of the rated = peak current, never
+        // above the peak current), soft start.
         let lim_pm = self.cmd.torque_limit.min(self.cmd.current_limit);
-        let lim = self.iq_limit_set * f32::from(lim_pm.min(3000)) * 1e-3 * self.soft_k;
+        let lim = self.iq_limit_set
+            * f32::from(lim_pm.min(crate::cia402::PEAK_PERMILLE))
+            * 1e-3
+            * self.soft_k;
         if lim != self.iq_limit {
             self.iq_limit = lim;
             self.apply_gains();

@@ -124,8 +124,8 @@ impl Cia402 {
             position: self.user_to_raw(self.motion.position()),
             velocity,
             acceleration: sign * acc,
-            torque_limit: self.params.max_torque,
-            current_limit: self.params.max_current,
+            torque_limit: self.params.torque_limit(),
+            current_limit: self.params.current_limit(),
             torque: i32::from(pol16(self.vel_neg(), self.torque_cmd)),
             brake_release: motor_enabled,
         }

@@ -115,7 +115,7 @@ pub mod scaling;
 mod statusword;
 
 use homing::{Homing, HomingInputs, HomingParams, HomingStatus};
-pub use params::Params;
+pub use params::{Params, PEAK_PERMILLE};
 use pds::{Command, Event, Guard, PdsState};
 pub use probe::EdgeLatch;
 use probe::TouchProbe;
@@ -364,6 +364,10 @@ struct Cyclic {
     /// [`SetpointArrival::Stale`]): the demand may run on for one period past `to`.
     extrapolate: bool,
     started: bool,
+    /// Velocity of the current segment (position change over its period, no 0x60B1),
+    /// and the target it was built for: the acceleration limits' state.
+    v: f32,
+    last_target: i32,
 }
 
 impl Cyclic {

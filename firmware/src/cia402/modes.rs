@@ -72,10 +72,14 @@ impl Cia402 {
                         self.abnormal_stop = true;
                         v = 0.0;
                     }
-                    // Direct set-point every cycle (no ramp); the position integrates it
-                    // from the actual position (see PV).
+                    // Direct set-point every cycle, its changes limited by 0x60C5 /
+                    // 0x60C6 (statusword bit 11 while limited); the position integrates
+                    // it from the actual position (see PV).
                     self.motion.rebase(self.actual_position);
-                    self.motion.run_at(v, dt);
+                    let (acc, dec) = (p.max_acceleration as f32, p.max_deceleration as f32);
+                    if !self.motion.ramp_velocity(v, acc, dec, dt) {
+                        self.internal_limit = true;
+                    }
                     self.clamp_sw_limit();
                     SetpointKind::Velocity
                 } else {
@@ -107,7 +111,7 @@ impl Cia402 {
         dt: f32,
     ) -> SetpointKind {
         let p = &self.params;
-        let tmax = f32::from(p.max_torque);
+        let tmax = f32::from(p.torque_limit());
         let wanted = (i32::from(p.target_torque) + i32::from(p.torque_offset)) as f32;
         let target = foc::num::clamp(wanted, -tmax, tmax);
         let v = self.motion.velocity();
@@ -240,6 +244,8 @@ impl Cia402 {
                 interpolate: false,
                 extrapolate: false,
                 started: true,
+                v: 0.0,
+                last_target: cur,
             };
         }
         self.cyc.since_fresh += dt;
@@ -255,19 +261,27 @@ impl Cia402 {
             } else {
                 self.cyc.to
             };
-            // A segment goes no further than min(0x607F, 0x6080) allows in its period:
-            // a jump of the target is followed at that speed (statusword bit 11,
-            // internal limit), segment by segment, not at once; no run-on then.
+            // A segment's speed is at most min(0x607F, 0x6080) and changes from the
+            // last segment's by at most 0x60C5 / 0x60C6 over its period: a jump of the
+            // target is followed on that profile (statusword bit 11, internal limit),
+            // segment by segment, not at once; no run-on then.
             let dist = target.wrapping_sub(self.cyc.from) as f32;
-            let reach = self.params.vmax() * self.cyc.period;
-            if dist.abs() <= reach {
-                self.cyc.to = target;
-                self.cyc.extrapolate = fresh;
-            } else {
-                let step = if dist > 0.0 { reach } else { -reach };
-                self.cyc.to = self.cyc.from.wrapping_add(step as i32);
-                self.cyc.extrapolate = false;
-                self.internal_limit = true;
+            let t = self.cyc.period;
+            let vt = target.wrapping_sub(self.cyc.last_target) as f32 / t;
+            self.cyc.last_target = target;
+            match self.params.csp_segment_speed(dist, t, self.cyc.v, vt) {
+                None => {
+                    self.cyc.to = target;
+                    self.cyc.extrapolate = fresh;
+                    self.cyc.v = dist / t;
+                }
+                Some(v) => {
+                    // The limited speed (not its whole increments) carries over.
+                    self.cyc.to = self.cyc.from.wrapping_add(libm::roundf(v * t) as i32);
+                    self.cyc.extrapolate = false;
+                    self.internal_limit = true;
+                    self.cyc.v = v;
+                }
             }
             self.cyc.elapsed = match (setpoint, self.cyc.interpolate) {
                 // The boundary step itself is the segment's first step.
@@ -286,6 +300,7 @@ impl Cia402 {
             vel = 0.0;
             self.cyc.to = cur;
             self.cyc.from = cur;
+            self.cyc.v = 0.0;
         }
         self.motion.set(demand, vel);
     }

@@ -452,7 +452,10 @@ fn disable_engages_the_brake_then_holds_through_the_close_delay() {
     let mut off_at = None;
     for k in 0..100u64 {
         let pins = rt.tick(&mut d, &mut path, (30 + k) * 1000, 0, 0, None);
-        assert!(!pins.brake_released, "brake engaged from the disable on ({k})");
+        assert!(
+            !pins.brake_released,
+            "brake engaged from the disable on ({k})"
+        );
         assert_eq!(read_u32(&mut d, 0x2157, 0) >> 8 & 1, 0);
         if holding(&path) {
             assert!(off_at.is_none(), "no hold after the bridges went off ({k})");
@@ -464,7 +467,10 @@ fn disable_engages_the_brake_then_holds_through_the_close_delay() {
     }
     assert!(!d.command().drive_enabled);
     let k = off_at.expect("the bridges go off");
-    assert!((40..=41).contains(&k), "held {k} ms after the brake engaged");
+    assert!(
+        (40..=41).contains(&k),
+        "held {k} ms after the brake engaged"
+    );
 }
 
 #[test]
@@ -505,7 +511,10 @@ fn a_fault_ramp_keeps_the_brake_released_and_closes_it_at_its_end() {
     }
     assert!(ramp_ticks > 5, "a ramp ran ({ramp_ticks} ticks)");
     let k = off_at.expect("the bridges go off");
-    assert!((20..=21).contains(&k), "held {k} ms after the brake engaged");
+    assert!(
+        (20..=21).contains(&k),
+        "held {k} ms after the brake engaged"
+    );
 }
 
 #[test]
