@@ -276,7 +276,11 @@ fn run_limited(d: &mut Drive, n: usize) -> DriveCommand {
     for k in 0..n {
         let c = d.run_cycle(0.001);
         let dv = c.velocity - last.velocity;
-        assert!(c.velocity.abs() <= 500_000.0 * 1.001, "speed {} ({k})", c.velocity);
+        assert!(
+            c.velocity.abs() <= 500_000.0 * 1.001,
+            "speed {} ({k})",
+            c.velocity
+        );
         // Away from standstill 0x60C5, towards it 0x60C6 (1 ms steps), give or take
         // one whole increment per step (1000 inc/s).
         let speeding_up =
@@ -317,7 +321,11 @@ fn a_csv_setpoint_jump_is_limited_by_0x6080_and_the_acceleration_limits() {
     // 100 rev/s asked at once: 10 rev/s reached at 200 rev/s² (50 ms).
     sdo_write(&mut d, 0x60FF, 0, &5_000_000i32.to_le_bytes()).unwrap();
     let c = run_limited(&mut d, 30);
-    assert!(c.velocity > 250_000.0 && c.velocity < 350_000.0, "{}", c.velocity);
+    assert!(
+        c.velocity > 250_000.0 && c.velocity < 350_000.0,
+        "{}",
+        c.velocity
+    );
     assert_ne!(d.cia402.statusword() & 1 << 11, 0, "internal limit");
     let c = run_limited(&mut d, 40);
     assert!((c.velocity - 500_000.0).abs() < 1.0, "{}", c.velocity);
