@@ -111,9 +111,12 @@ impl Cia402 {
         self.prev_demand_vel = if drive_enabled { v } else { 0.0 };
         let sign = if self.vel_neg() { -1.0 } else { 1.0 };
         let motor_enabled = drive_enabled || self.enable_waiting;
-        // Torque control: the velocity is the speed limit (a magnitude).
+        // Torque control: the velocity is the speed limit (a magnitude); the servo
+        // tune's move: its speed limit min(0x607F, 0x6080).
         let velocity = if kind == SetpointKind::Torque {
             self.params.max_motor_speed as f32
+        } else if kind == SetpointKind::Tune {
+            self.params.vmax()
         } else {
             sign * v
         };

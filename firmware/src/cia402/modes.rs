@@ -24,7 +24,16 @@ impl Cia402 {
         }
         let qs_dec = p.quick_stop_deceleration as f32;
         if self.servo_tune {
-            if matches!(self.mode, mode::PP | mode::CSP) && !halt {
+            // A limit switch, or the axis outside the software limits, ends the move.
+            let outside = p
+                .sw_limits()
+                .is_some_and(|(lo, hi)| self.actual_position >= hi || self.actual_position <= lo);
+            if matches!(self.mode, mode::PP | mode::CSP)
+                && !halt
+                && !pos_lim
+                && !neg_lim
+                && !outside
+            {
                 // The drive's servo tune moves the axis (`crate::servo_tune`): the
                 // generator follows the actual position and speed (the start of any
                 // stop ramp, and of the mode's set-points once the tune ends).
@@ -587,6 +596,7 @@ impl Cia402 {
                 offset: p.home_offset,
                 has_index: self.has_index,
                 assigned: self.assigned_inputs,
+                stall_min_speed: self.stall_homing,
             };
             shift = self.hm.start(hp, &inp);
         } else {

@@ -394,3 +394,50 @@ fn the_fault_ramp_starts_from_the_limited_motion_not_the_jumped_target() {
     let bound = (v * v / (2.0 * 2_000_000.0)) as i32 + 1_000;
     assert!(travel > 0 && travel <= bound, "{travel} > {bound}");
 }
+
+#[test]
+fn the_servo_tune_refuses_a_limit_switch_and_ends_at_one() {
+    let mut d = powered_up(EsmState::PreOp);
+    assert_eq!(d.params.get(Param::LoopMode), 2, "closed loop");
+    sdo_write(&mut d, 0x6060, 0, &[1]).unwrap();
+    enable(&mut d);
+    assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
+    let mut t = 100_000u64;
+    let mut ticks = |d: &mut Drive, raw: u8, n: u32| {
+        for _ in 0..n {
+            t += 1000;
+            d.tick(t, raw);
+        }
+    };
+    // IN3 (positive limit switch, 0x60FD bit 1) active: the start is refused.
+    ticks(&mut d, 0b100, 5);
+    assert_ne!(d.inputs.digital_inputs_60fd() & 0b10, 0);
+    assert_eq!(
+        sdo_write(&mut d, 0x2162, 1, &[1]),
+        Err(SdoAbort::StateConflict)
+    );
+    assert_eq!(sdo_read_u32(&mut d, 0x2162, 2), 3, "refused");
+    // Released: the tune starts; the switch again ends the move (failed).
+    ticks(&mut d, 0, 5);
+    assert_eq!(sdo_write(&mut d, 0x2162, 1, &[1]), Ok(()));
+    ticks(&mut d, 0, 2);
+    assert!(d.cia402.servo_tune(), "the move has the set-points");
+    ticks(&mut d, 0b100, 5);
+    assert!(!d.cia402.servo_tune(), "the limit switch ended the move");
+    assert_eq!(sdo_read_u32(&mut d, 0x2162, 2), 4, "failed");
+    assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
+}
+
+#[test]
+fn the_servo_tune_move_is_limited_to_0x6080() {
+    let mut d = powered_up(EsmState::PreOp);
+    sdo_write(&mut d, 0x6060, 0, &[1]).unwrap();
+    // 2 rev/s (50 000 inc/rev), below the move's own 10 rev/s.
+    sdo_write(&mut d, 0x6080, 0, &100_000u32.to_le_bytes()).unwrap();
+    enable(&mut d);
+    assert_eq!(sdo_write(&mut d, 0x2162, 1, &[1]), Ok(()));
+    let c = d.run_cycle(0.001);
+    assert_eq!(c.kind, crate::cia402::SetpointKind::Tune);
+    // The move's speed limit to the motion layer, command units/s.
+    assert_eq!(c.velocity, 100_000.0);
+}
