@@ -321,7 +321,23 @@ impl Runtime {
     ) {
         if let Some((seq, fb)) = ctl.feedback() {
             self.bridges_on = fb.bridges_on;
-            self.glue.update_axis(drive, seq, &fb, ctl.break_latched());
+            let latched = ctl.break_latched();
+            self.glue.update_axis(drive, seq, &fb, latched);
+            if !fb.bridges_on || latched {
+                // The power stage is lost: the brake at once.
+                self.engage_brake(drive);
+            }
+        }
+    }
+
+    /// The brake output engages now, between ticks (0x2157 with it; the board's pin
+    /// follows at its next tick): the power stage is lost or the drive has stopped
+    /// holding the motor.
+    fn engage_brake<S: ParameterStore>(&mut self, drive: &mut Drive<S>) {
+        if self.pins.brake_released {
+            self.pins.brake_released = false;
+            self.brake_engaged_at = Some(self.now_ms);
+            drive.params.set_output_state(self.pins.word());
         }
     }
 
@@ -335,6 +351,9 @@ impl Runtime {
         let hold = self.brake_hold(drive, ctl.break_latched());
         self.glue.set_hold(hold);
         let c = *self.glue.publish(drive);
+        if hold.is_some() || !c.permits_power() {
+            self.engage_brake(drive);
+        }
         ctl.send(&c);
     }
 

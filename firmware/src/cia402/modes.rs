@@ -259,13 +259,14 @@ impl Cia402 {
         }
         self.cyc.since_fresh += dt;
         self.cyc.elapsed += dt;
+        let was_interpolating = self.cyc.interpolate;
         let new_segment = self.csp_segment_due(setpoint, nominal, dt);
         if new_segment {
             // An interpolated segment starts where the last one's demand is now (on
             // time that is its target; early or after a run-on, no step); a direct one
             // from the last target (its velocity is the set-points' difference).
             let fresh = setpoint == SetpointArrival::Fresh;
-            self.cyc.from = if fresh && self.cyc.interpolate {
+            self.cyc.from = if fresh && (self.cyc.interpolate || was_interpolating) {
                 self.cyc.demand(0.0).0
             } else {
                 self.cyc.to
@@ -273,9 +274,16 @@ impl Cia402 {
             // A segment's speed is at most min(0x607F, 0x6080) and changes from the
             // last segment's by at most 0x60C5 / 0x60C6 over its period: a jump of the
             // target is followed on that profile (statusword bit 11, internal limit),
-            // segment by segment, not at once; no run-on then.
+            // segment by segment, not at once; no run-on then. With set-points on
+            // their own clock (fresh), a limited segment interpolates over the longer
+            // of its period and the time since the last set-point, so that the speed
+            // holds whatever the master's jitter.
             let dist = target.wrapping_sub(self.cyc.from) as f32;
-            let t = self.cyc.period;
+            let t = if fresh {
+                self.cyc.period.max(self.cyc.last_gap)
+            } else {
+                self.cyc.period
+            };
             let vt = target.wrapping_sub(self.cyc.last_target) as f32 / t;
             self.cyc.last_target = target;
             match self.params.csp_segment_speed(dist, t, self.cyc.v, vt) {
@@ -290,6 +298,10 @@ impl Cia402 {
                     self.cyc.extrapolate = false;
                     self.internal_limit = true;
                     self.cyc.v = v;
+                    if fresh {
+                        self.cyc.period = t;
+                        self.cyc.interpolate = true;
+                    }
                 }
             }
             self.cyc.elapsed = match (setpoint, self.cyc.interpolate) {

@@ -441,3 +441,40 @@ fn the_servo_tune_move_is_limited_to_0x6080() {
     // The move's speed limit to the motion layer, command units/s.
     assert_eq!(c.velocity, 100_000.0);
 }
+
+#[test]
+fn scratch_fresh_jitter() {
+    extern crate std;
+    use crate::cia402::SetpointArrival;
+    let mut d = csp_in_op();
+    sdo_write(&mut d, 0x6080, 0, &500_000u32.to_le_bytes()).unwrap();
+    sdo_write(&mut d, 0x60C5, 0, &5_000_000u32.to_le_bytes()).unwrap();
+    sdo_write(&mut d, 0x60C6, 0, &5_000_000u32.to_le_bytes()).unwrap();
+    enable(&mut d);
+    let start = d.command().position;
+    let target = start.wrapping_add(5_000_000);
+    sdo_write(&mut d, 0x607A, 0, &target.to_le_bytes()).unwrap();
+    let mut t_cyc = 1_000_000u64;
+    let mut t_tick = 1_000_000u64;
+    let mut k = 0u64;
+    while t_cyc < 1_400_000 {
+        if t_tick <= t_cyc {
+            d.tick(t_tick, 0);
+            t_tick += 1000;
+        } else {
+            let c = d.step(t_cyc, SetpointArrival::Fresh);
+            if k % 20 == 0 {
+                std::eprintln!("t {} pos {} vel {}", t_cyc, c.position - start, c.velocity);
+            }
+            k += 1;
+            t_cyc += 1100 + (k * 7919 % 300);
+        }
+        let c = *d.command();
+        d.set_axis(AxisState {
+            bus_mv: 48_000,
+            position: c.position,
+            velocity: c.velocity as i32,
+            ..AxisState::default()
+        });
+    }
+}
