@@ -592,6 +592,10 @@ mod tests {
                 ..ok_conditions()
             },
             StartConditions {
+                limit_switch: true,
+                ..ok_conditions()
+            },
+            StartConditions {
                 operation_enabled: false,
                 ..ok_conditions()
             },
