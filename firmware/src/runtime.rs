@@ -10,7 +10,7 @@
 //! |---|---|---|
 //! | start-up, once | [`Runtime::power_up`] | DIP banks → settings, stored parameters, station alias |
 //! | supervisor, once | [`Runtime::offsets_checked`] | the current-sensor check → power permission or fault 9 |
-//! | cyclic (SYNC0) | [`Runtime::before_step`] / [`Runtime::after_step`] | measurements in, set-points out around the master's cycle |
+//! | cyclic (SYNC0) | [`Runtime::before_step`] / [`Runtime::after_step`] | measurements in, set-points out around the master's cycle; the brake-close hold (the power stays on until the brake has held for 0x215A), the brake at once when the power stage is lost |
 //! | 1 ms tick (the drive's own clock) | [`Runtime::tick`] | break latch ↔ fault 1, board faults, the drive's tick, counters, DIP station entry, configuration of the control path, outputs, brake, LEDs |
 //! | EtherCAT poll (thread) | [`Runtime::before_poll`] / [`Runtime::after_poll`], [`Runtime::record_committed`] | emergencies to the mailbox, ESC loss, update confirmation, reset into the bootloader, a failed flash record |
 //! | supervisor, 100 Hz | [`Runtime::feed_watchdog`] | whether the watchdog may be fed |
