@@ -294,7 +294,7 @@ impl Cia402 {
                 }
                 Some(v) => {
                     // The limited speed (not its whole increments) carries over.
-                    self.cyc.to = self.cyc.from.wrapping_add(libm::roundf(v * t) as i32);
+                    self.cyc.to = self.cyc.from.wrapping_add(round_i32(v * t));
                     self.cyc.extrapolate = false;
                     self.internal_limit = true;
                     self.cyc.v = v;
@@ -634,6 +634,11 @@ impl Cia402 {
         self.target_reached =
             done && inwin && self.window_time * 1000.0 >= p.position_window_time as f32;
     }
+}
+
+/// `x` rounded to the nearest whole number (halves away from zero), saturated.
+fn round_i32(x: f32) -> i32 {
+    (x + if x < 0.0 { -0.5 } else { 0.5 }) as i32
 }
 
 /// `x` rounded to the nearest whole number (halves away from zero), saturated.

@@ -4,6 +4,7 @@
 //! position limits, the interpolation period).
 
 use super::AbortConnection;
+use foc::num::clamp;
 
 /// The peak current 0x2000 in per mille of the rated current 0x6075 (which follows
 /// it): no torque or current limit goes above it.
@@ -186,14 +187,15 @@ impl Params {
         }
         // The largest speed whose stop, one 0x60C6 step per period, ends within |dist|.
         let dt = dec * t;
-        let brake = dt * (libm::sqrtf(2.0 * dist.abs() / (dt * t) + 0.25) - 0.5);
-        let vt = vt.clamp(-vmax, vmax);
+        let brake = dt * (foc::num::sqrtf(2.0 * dist.abs() / (dt * t) + 0.25) - 0.5);
+        // (`foc::num::clamp`: `f32::clamp`'s panic would bring float formatting in.)
+        let vt = clamp(vt, -vmax, vmax);
         let v = if dist >= 0.0 {
             (vt + brake).min(want)
         } else {
             (vt - brake).max(want)
         };
-        Some(v.clamp(v0 - down, v0 + up).clamp(-vmax, vmax))
+        Some(clamp(clamp(v, v0 - down, v0 + up), -vmax, vmax))
     }
     pub(super) fn vmax(&self) -> f32 {
         self.max_profile_velocity.min(self.max_motor_speed) as f32
