@@ -182,7 +182,7 @@ impl Params {
         let (acc, dec) = (self.max_acceleration as f32, self.max_deceleration as f32);
         let up = if v0 >= 0.0 { acc } else { dec } * t;
         let down = if v0 <= 0.0 { acc } else { dec } * t;
-        if !(t > 0.0) || (want.abs() <= vmax && want <= v0 + up && want >= v0 - down) {
+        if t.is_nan() || t <= 0.0 || (want.abs() <= vmax && want <= v0 + up && want >= v0 - down) {
             return None;
         }
         // The largest speed whose stop, one 0x60C6 step per period, ends within |dist|.
