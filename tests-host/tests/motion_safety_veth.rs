@@ -59,23 +59,45 @@ fn entry(index: u16, sub: u8, bits: u8) -> u32 {
     u32::from(index) << 16 | u32::from(sub) << 8 | u32::from(bits)
 }
 
+/// An SDO write over ethercrab; its error labelled with the object.
+macro_rules! sdo_write {
+    ($sd:expr, $index:expr, $sub:expr, $value:expr) => {
+        $sd.sdo_write($index, $sub, $value)
+            .await
+            .map_err(|e| (stringify!($index), e))?
+    };
+}
+
 /// TxPDO: 0x1A00 (19 bytes) and 0x1A01 = {0x606C, 0x2157} (bytes 19..25), by SDO
 /// in Pre-Op.
 macro_rules! map_velocity_and_outputs {
     ($sd:expr) => {{
-        let w = |e| ("TxPDO mapping", e);
-        $sd.sdo_write(0x1A01, 0, 0u8).await.map_err(w)?;
-        $sd.sdo_write(0x1A01, 1, entry(0x606C, 0, 32))
+        sdo_write!($sd, 0x1A01, 0, 0u8);
+        sdo_write!($sd, 0x1A01, 1, entry(0x606C, 0, 32));
+        sdo_write!($sd, 0x1A01, 2, entry(0x2157, 0, 16));
+        sdo_write!($sd, 0x1A01, 0, 2u8);
+        sdo_write!($sd, 0x1C13, 0, 0u8);
+        sdo_write!($sd, 0x1C13, 1, 0x1A00u16);
+        sdo_write!($sd, 0x1C13, 2, 0x1A01u16);
+        sdo_write!($sd, 0x1C13, 0, 2u8);
+    }};
+}
+
+/// The group in Pre-Op with the TxPDO of `map_velocity_and_outputs!` and CSP
+/// (0x6060 = 8), then `$extra` with the drive as `$sd`.
+macro_rules! csp_group {
+    ($md:expr, |$sd:ident| $extra:block) => {{
+        let group = $md
+            .init_single_group::<4, 128>(ethercat_now)
             .await
-            .map_err(w)?;
-        $sd.sdo_write(0x1A01, 2, entry(0x2157, 0, 16))
-            .await
-            .map_err(w)?;
-        $sd.sdo_write(0x1A01, 0, 2u8).await.map_err(w)?;
-        $sd.sdo_write(0x1C13, 0, 0u8).await.map_err(w)?;
-        $sd.sdo_write(0x1C13, 1, 0x1A00u16).await.map_err(w)?;
-        $sd.sdo_write(0x1C13, 2, 0x1A01u16).await.map_err(w)?;
-        $sd.sdo_write(0x1C13, 0, 2u8).await.map_err(w)?;
+            .map_err(|e| ("init", e))?;
+        {
+            let $sd = group.subdevice(&$md, 0).map_err(|e| ("drive 0", e))?;
+            map_velocity_and_outputs!($sd);
+            sdo_write!($sd, 0x6060, 0, 8i8);
+            $extra
+        }
+        group
     }};
 }
 
@@ -159,32 +181,17 @@ fn a_csp_jump_of_100_revolutions_is_never_followed_faster_than_0x6080() {
     let (net, child, _log) = start("c", &[]);
     let md = veth_master(&PDU_CSP, &net.host_if);
     let result: Result<(Sample, Vec<Sample>), Failed> = async_io::block_on(async {
-        let group = md
-            .init_single_group::<4, 128>(ethercat_now)
-            .await
-            .map_err(|e| ("init", e))?;
-        {
-            let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
-            map_velocity_and_outputs!(sd);
-            sd.sdo_write(0x6060, 0, 8i8)
-                .await
-                .map_err(|e| ("0x6060", e))?;
+        let group = csp_group!(md, |sd| {
             // The model's limit switches (±4 rev) not wired: IN2 / IN3 no function.
             for sub in [2u8, 3] {
-                sd.sdo_write(0x2152, sub, 0u16)
-                    .await
-                    .map_err(|e| ("0x2152", e))?;
+                sdo_write!(sd, 0x2152, sub, 0u16);
             }
-            sd.sdo_write(0x6080, 0, VMAX as u32)
-                .await
-                .map_err(|e| ("0x6080", e))?;
+            sdo_write!(sd, 0x6080, 0, VMAX as u32);
             // 20 rev/s² both ways: 0.1 s to the speed limit.
             for index in [0x60C5u16, 0x60C6] {
-                sd.sdo_write(index, 0, 20 * PER_REV as u32)
-                    .await
-                    .map_err(|e| ("0x60C5/6", e))?;
+                sdo_write!(sd, index, 0, 20 * PER_REV as u32);
             }
-        }
+        });
         let group = group.into_op(&md).await.map_err(|e| ("into_op", e))?;
         let mut seen = Vec::new();
         let at = enable(&md, &group, 300, &mut seen).await?;
@@ -211,17 +218,6 @@ fn a_csp_jump_of_100_revolutions_is_never_followed_faster_than_0x6080() {
     );
     assert_eq!(last.statusword & 0x6F, 0x27, "still enabled, no fault");
     assert_ne!(last.statusword & 1 << 11, 0, "internal limit while limited");
-    // 0x606C, the measured speed, averaged over 200 cycles (≈ 0.25 s: the model's
-    // speed ripple about the demand, with the master's and the simulation's timing
-    // jitter on a loaded machine, averages out; the samples bunch with the master's
-    // timing, so their mean is not a time average): at most 0x6080 + 10 %.
-    for w in run.windows(200) {
-        let mean = w.iter().map(|s| f64::from(s.velocity)).sum::<f64>() / 200.0;
-        assert!(
-            mean <= f64::from(VMAX) * 1.1,
-            "0x606C {mean:.0} inc/s on average over 200 cycles, above 0x6080 = {VMAX}"
-        );
-    }
     // 0x6064: over every window of at least 200 ms, no faster than 0x6080 (plus the
     // position's lag behind the demand at the start, 1000 inc).
     for (k, a) in run.iter().enumerate() {
@@ -237,7 +233,17 @@ fn a_csp_jump_of_100_revolutions_is_never_followed_faster_than_0x6080() {
             }
         }
     }
-    // It did follow, at the limit: most of 10 rev/s over the run.
+    // 0x606C, the measured speed, after the 0.1 s acceleration: its median is
+    // 0x6080 (single samples ripple about it: the simulated axis under the master's
+    // and the simulation's timing jitter on a loaded machine).
+    let mut speeds: Vec<i32> = run.iter().skip(200).map(|s| s.velocity).collect();
+    speeds.sort_unstable();
+    let median = f64::from(speeds[speeds.len() / 2]);
+    assert!(
+        (0.9..=1.05).contains(&(median / f64::from(VMAX))),
+        "0x606C median {median} inc/s, 0x6080 = {VMAX}"
+    );
+    // It did follow, at the limit: most of 0x6080 over the run.
     assert!(
         f64::from(moved) > 0.8 * f64::from(VMAX) * (elapsed - 0.2),
         "moved {moved} inc in {elapsed:.3} s"
@@ -278,32 +284,22 @@ fn bootstrap_and_back_does_not_reenable_the_axis() {
             .await
             .map_err(|e| ("init", e))?;
         let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
-        sd.sdo_write(0x6060, 0, 3i8)
-            .await
-            .map_err(|e| ("0x6060", e))?;
-        sd.sdo_write(0x60FF, 0, 0i32)
-            .await
-            .map_err(|e| ("0x60FF", e))?;
+        sdo_write!(sd, 0x6060, 0, 3i8);
+        sdo_write!(sd, 0x60FF, 0, 0i32);
         // 0x6007 = 0: leaving Pre-Op does not stop the axis, so Bootstrap meets it
         // enabled and moving.
-        sd.sdo_write(0x6007, 0, 0i16)
-            .await
-            .map_err(|e| ("0x6007", e))?;
+        sdo_write!(sd, 0x6007, 0, 0i16);
         // Enabled by SDO in Pre-Op, then moving.
         let mut sw = 0u16;
         for _ in 0..300 {
-            sd.sdo_write(0x6040, 0, towards_enabled(sw))
-                .await
-                .map_err(|e| ("0x6040", e))?;
+            sdo_write!(sd, 0x6040, 0, towards_enabled(sw));
             async_io::Timer::after(Duration::from_millis(10)).await;
             sw = sd.sdo_read(0x6041, 0).await.map_err(|e| ("0x6041", e))?;
             if sw & 0x6F == 0x27 {
                 break;
             }
         }
-        sd.sdo_write(0x60FF, 0, 20_000i32)
-            .await
-            .map_err(|e| ("0x60FF", e))?;
+        sdo_write!(sd, 0x60FF, 0, 20_000i32);
         async_io::Timer::after(Duration::from_millis(200)).await;
         let moving: i32 = sd.sdo_read(0x6064, 0).await.map_err(|e| ("0x6064", e))?;
         // Init, Bootstrap (the standard mailbox is the boot mailbox), Init, Pre-Op.
@@ -364,23 +360,10 @@ fn the_brake_never_shows_released_while_the_bridges_are_off() {
     let (net, child, log) = start("k", &["--fault", "bus-overvoltage@6s"]);
     let md = veth_master(&PDU_BRAKE, &net.host_if);
     let result: Result<(Vec<Sample>, u16), Failed> = async_io::block_on(async {
-        let group = md
-            .init_single_group::<4, 128>(ethercat_now)
-            .await
-            .map_err(|e| ("init", e))?;
-        {
-            let sd = group.subdevice(&md, 0).map_err(|e| ("drive 0", e))?;
-            map_velocity_and_outputs!(sd);
-            sd.sdo_write(0x6060, 0, 8i8)
-                .await
-                .map_err(|e| ("0x6060", e))?;
-            sd.sdo_write(0x2159, 0, 20u16)
-                .await
-                .map_err(|e| ("0x2159", e))?;
-            sd.sdo_write(0x215A, 0, 50u16)
-                .await
-                .map_err(|e| ("0x215A", e))?;
-        }
+        let group = csp_group!(md, |sd| {
+            sdo_write!(sd, 0x2159, 0, 20u16);
+            sdo_write!(sd, 0x215A, 0, 50u16);
+        });
         let group = group.into_op(&md).await.map_err(|e| ("into_op", e))?;
         let mut seen = Vec::new();
         // Enable, disable (shutdown), enable again, then hold until the injected
