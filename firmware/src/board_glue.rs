@@ -136,6 +136,8 @@ pub struct BoardGlue {
     /// Failed commutation alignments already seen, and one not yet raised as a fault.
     align_failures: u32,
     align_fault: bool,
+    /// The runtime's brake-close hold ([`BoardGlue::set_hold`]).
+    hold: Option<DriveCommand>,
 }
 
 impl BoardGlue {
@@ -153,6 +155,7 @@ impl BoardGlue {
             probe2: ProbeInput::default(),
             align_failures: 0,
             align_fault: false,
+            hold: None,
         }
     }
 
@@ -219,6 +222,14 @@ impl BoardGlue {
         axis
     }
 
+    /// While `Some`, the power authority ([`crate::runtime`]) keeps the motor holding
+    /// through the brake-close delay: every [`BoardGlue::publish`] sends these
+    /// set-points with the power permitted, whatever the drive's step says, and no
+    /// auto-tune.
+    pub fn set_hold(&mut self, hold: Option<DriveCommand>) {
+        self.hold = hold;
+    }
+
     /// The command for the control path after the drive may have stepped: a new
     /// step ([`Drive::steps`] moved) starts a new interpolation segment of
     /// [`Drive::segment_s`] and ends the pending index and probe latches; the power and
@@ -236,7 +247,11 @@ impl BoardGlue {
         self.ctl.power_allowed = drive.power_permission();
         self.ctl.tune_allowed = drive.tune_permitted() && self.ctl.offsets.is_some();
         self.ctl.trace = drive.scope_wants_servo_points();
-        if !self.ctl.power_allowed {
+        if let Some(hold) = self.hold {
+            self.ctl.command = hold;
+            self.ctl.power_allowed = true;
+            self.ctl.tune_allowed = false;
+        } else if !self.ctl.power_allowed {
             self.ctl.command.drive_enabled = false;
         }
         &self.ctl

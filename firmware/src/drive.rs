@@ -306,7 +306,21 @@ impl<S: ParameterStore> Drive<S> {
         self.cia402.set_has_index(self.variant.has_encoder());
         self.cia402
             .set_rated_current_ma(u32::from(self.params.settings().peak_current_ma));
+        self.control_config_changed();
+    }
+
+    /// 0x2024 / 0x2060 / 0x2001 may have changed: CST's availability (closed loop)
+    /// and stall homing's precondition (open loop with the stall detection 0x2060 on;
+    /// the detection judges from 1 rev/s, so 0x6099:01 must reach 0x2001 units/s).
+    pub(crate) fn control_config_changed(&mut self) {
         self.cia402.set_torque_control(self.torque_control());
+        let stall = !self.torque_control() && self.params.get(Param::StallEnable) != 0;
+        let ppr = match self.params.active().pulses_per_rev {
+            0 => self.params.get(Param::PulsesPerRev),
+            n => n as i32,
+        };
+        self.cia402
+            .set_stall_homing(stall.then_some(ppr.max(1) as f32));
     }
 
     /// The closed loop is configured (an encoder and 0x2024 = 2): the motor side
@@ -920,7 +934,7 @@ impl<S: ParameterStore> Drive<S> {
             self.cia402.digital_outputs(),
             self.cia402.digital_outputs_mask(),
         );
-        let brake = io::brake_released(op_enabled, self.faults.any_active(), master);
+        let brake = io::brake_released(op_enabled, self.faults.power_cut(), master);
         let status = OutputStatus {
             alarm: self.faults.alarm(),
             ready: !self.faults.any_active() && self.command.power_stage,

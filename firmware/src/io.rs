@@ -271,11 +271,12 @@ pub fn output_levels(p: &Params, s: OutputStatus, master: (u32, u32)) -> u8 {
     )
 }
 
-/// The brake may be released: the drive holds the motor, no fault is active, and the
-/// master does not set the brake (0x60FE bit 0 with its mask bit).
-pub fn brake_released(operation_enabled: bool, fault: bool, master: (u32, u32)) -> bool {
+/// The brake may be released: the drive holds the motor (also through a fault
+/// reaction's stop ramp), no fault that cuts the power is active, and the master does
+/// not set the brake (0x60FE bit 0 with its mask bit).
+pub fn brake_released(operation_enabled: bool, power_cut: bool, master: (u32, u32)) -> bool {
     let set_by_master = master.0 & master.1 & master::SET_BRAKE != 0;
-    operation_enabled && !fault && !set_by_master
+    operation_enabled && !power_cut && !set_by_master
 }
 
 #[cfg(test)]

@@ -587,7 +587,7 @@ impl Motion {
         let n = (cycle_s / self.cfg.ts + 0.5) as u32;
         self.cycle_steps = n.max(1);
         if self.cmd.kind != cmd.kind {
-            self.kind_changes(cmd.kind);
+            self.kind_changes(cmd);
         }
         self.cmd = *cmd;
         if !self.enabled {
@@ -615,14 +615,17 @@ impl Motion {
 
     /// The set-points change kind from `self.cmd.kind` to `to` (out of line: rare).
     #[inline(never)]
-    fn kind_changes(&mut self, to: SetpointKind) {
+    fn kind_changes(&mut self, cmd: &DriveCommand) {
+        let to = cmd.kind;
         if self.cmd.kind == SetpointKind::Torque {
             // Leaving torque set-points: the velocity loop starts from the current
             // applied last (`foc::servo`, "Torque control with a speed limit").
             self.servo.bumpless_start(self.servo.iq_ref);
         }
         if (self.cmd.kind == SetpointKind::Tune) != (to == SetpointKind::Tune) {
-            self.tune_setpoints(to == SetpointKind::Tune);
+            // The move's speed limit: the command's velocity (command units/s).
+            let limit = cmd.velocity * self.scale.counts_per_unit();
+            self.tune_setpoints(to == SetpointKind::Tune, limit);
         }
     }
 
@@ -788,9 +791,13 @@ impl Motion {
     fn step_closed(&mut self, fb: &Feedback) -> CurrentReference {
         let pos = self.actual_axis_counts(fb);
         let vel = self.dir as f32 * fb.velocity;
-        // Current limit: 0x6072 / 0x6073 (per mille of the rated = peak current), soft start.
+        // Current limit: 0x6072 / 0x6073 (per mille of the rated = peak current, never
+        // above the peak current), soft start.
         let lim_pm = self.cmd.torque_limit.min(self.cmd.current_limit);
-        let lim = self.iq_limit_set * f32::from(lim_pm.min(3000)) * 1e-3 * self.soft_k;
+        let lim = self.iq_limit_set
+            * f32::from(lim_pm.min(crate::cia402::PEAK_PERMILLE))
+            * 1e-3
+            * self.soft_k;
         if lim != self.iq_limit {
             self.iq_limit = lim;
             self.apply_gains();

@@ -333,6 +333,10 @@ vendor_params! {
         "Time the power stage must have been on before the brake output releases" {
         BrakeReleaseDelay = rws(0, "Brake release delay", U16, 0, 0, 2000, "ms"),
     }
+    0x215A var "Brake close delay",
+        "Time the motor keeps holding at standstill after the brake output engages, before the power stage goes off" {
+        BrakeCloseDelay = rws(0, "Brake close delay", U16, 0, 0, 2000, "ms"),
+    }
     0x2160 var "Load inertia ratio",
         "Load inertia in % of the rotor inertia; the servo base gains use J·(1 + ratio)" {
         LoadInertiaRatio = rws(0, "Load inertia ratio", U16, 0, 0, 5000, "%"),

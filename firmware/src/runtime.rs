@@ -10,7 +10,7 @@
 //! |---|---|---|
 //! | start-up, once | [`Runtime::power_up`] | DIP banks → settings, stored parameters, station alias |
 //! | supervisor, once | [`Runtime::offsets_checked`] | the current-sensor check → power permission or fault 9 |
-//! | cyclic (SYNC0) | [`Runtime::before_step`] / [`Runtime::after_step`] | measurements in, set-points out around the master's cycle |
+//! | cyclic (SYNC0) | [`Runtime::before_step`] / [`Runtime::after_step`] | measurements in, set-points out around the master's cycle; the brake-close hold (the power stays on until the brake has held for 0x215A), the brake at once when the power stage is lost |
 //! | 1 ms tick (the drive's own clock) | [`Runtime::tick`] | break latch ↔ fault 1, board faults, the drive's tick, counters, DIP station entry, configuration of the control path, outputs, brake, LEDs |
 //! | EtherCAT poll (thread) | [`Runtime::before_poll`] / [`Runtime::after_poll`], [`Runtime::record_committed`] | emergencies to the mailbox, ESC loss, update confirmation, reset into the bootloader, a failed flash record |
 //! | supervisor, 100 Hz | [`Runtime::feed_watchdog`] | whether the watchdog may be fed |
@@ -25,6 +25,7 @@ use ecat_slave_stack::od::Dictionary;
 use ecat_slave_stack::slave::SlaveApplication;
 
 use crate::board_glue::{BoardGlue, ControlCommand, Feedback};
+use crate::cia402::{DriveCommand, SetpointKind};
 use crate::current_supervisor::SupervisorConfig;
 use crate::dip::{self, AliasSource, SingleBank};
 use crate::drive::{Drive, ParameterStore};
@@ -183,6 +184,13 @@ pub struct Runtime {
     /// The ESC has not answered since (µs), and whether that was reported.
     esc_failing_since: Option<u64>,
     esc_loss_reported: bool,
+    /// The last tick's time (ms).
+    now_ms: u32,
+    /// The brake output engaged at this tick (ms) after being released.
+    brake_engaged_at: Option<u32>,
+    /// The last command with which the drive held the motor (the brake-close hold's
+    /// position).
+    last_enabled: DriveCommand,
 }
 
 /// An ESC that does not answer for this long (µs) is the loss of the master: the
@@ -222,6 +230,9 @@ impl Runtime {
             esc_loss_reported: false,
             bridges_on_since: None,
             bridges_on: false,
+            now_ms: 0,
+            brake_engaged_at: None,
+            last_enabled: DriveCommand::default(),
         }
     }
 
@@ -310,7 +321,23 @@ impl Runtime {
     ) {
         if let Some((seq, fb)) = ctl.feedback() {
             self.bridges_on = fb.bridges_on;
-            self.glue.update_axis(drive, seq, &fb, ctl.break_latched());
+            let latched = ctl.break_latched();
+            self.glue.update_axis(drive, seq, &fb, latched);
+            if !fb.bridges_on || latched {
+                // The power stage is lost: the brake at once.
+                self.engage_brake(drive);
+            }
+        }
+    }
+
+    /// The brake output engages now, between ticks (0x2157 with it; the board's pin
+    /// follows at its next tick): the power stage is lost or the drive has stopped
+    /// holding the motor.
+    fn engage_brake<S: ParameterStore>(&mut self, drive: &mut Drive<S>) {
+        if self.pins.brake_released {
+            self.pins.brake_released = false;
+            self.brake_engaged_at = Some(self.now_ms);
+            drive.params.set_output_state(self.pins.word());
         }
     }
 
@@ -321,8 +348,50 @@ impl Runtime {
         drive: &mut Drive<S>,
         ctl: &mut dyn ControlPath,
     ) {
+        let hold = self.brake_hold(drive, ctl.break_latched());
+        self.glue.set_hold(hold);
         let c = *self.glue.publish(drive);
+        if hold.is_some() || !c.permits_power() {
+            self.engage_brake(drive);
+        }
         ctl.send(&c);
+    }
+
+    /// The power authority's brake-close sequence, decided before every command:
+    /// when the drive stops holding the motor (shutdown, disable voltage, the end of a
+    /// quick stop or of a fault reaction's ramp, Bootstrap) while the brake output is
+    /// released or engaged less than the brake-close delay 0x215A ago, the motor keeps
+    /// holding at standstill — the last enabled step's position, no speed, no torque
+    /// feed-forward — with the power permitted, so the bridges go off only once the
+    /// brake holds. No hold when the power stage is lost (bridges reported off, break
+    /// latched, a fault that cuts the power): then the brake engages at once and the
+    /// bridges stay off.
+    fn brake_hold<S: ParameterStore>(
+        &mut self,
+        drive: &Drive<S>,
+        latched: bool,
+    ) -> Option<DriveCommand> {
+        let cmd = drive.command();
+        if cmd.drive_enabled && drive.power_permission() {
+            self.last_enabled = *cmd;
+            return None;
+        }
+        let lost = !self.bridges_on || latched || drive.faults.power_cut();
+        let delay = drive.params.get(Param::BrakeCloseDelay) as u32;
+        let closing = self.pins.brake_released
+            || self
+                .brake_engaged_at
+                .is_some_and(|t| self.now_ms.wrapping_sub(t) < delay);
+        (closing && !lost).then_some(DriveCommand {
+            power_stage: true,
+            drive_enabled: true,
+            kind: SetpointKind::Position,
+            velocity: 0.0,
+            acceleration: 0.0,
+            torque: 0,
+            brake_release: false,
+            ..self.last_enabled
+        })
     }
 
     /// The 1 ms supervision tick on the drive's own clock, in every ESM state:
@@ -343,6 +412,7 @@ impl Runtime {
     ) -> Pins {
         self.ticks = self.ticks.wrapping_add(1);
         let now_ms = (now_us / 1000) as u32;
+        self.now_ms = now_ms;
         self.over_current(drive, ctl);
         self.before_step(drive, ctl);
         self.glue.raise_board_faults(drive, now_ms);
@@ -383,9 +453,14 @@ impl Runtime {
         self.bridges_on_since = on_since;
         let delay = drive.params.get(Param::BrakeReleaseDelay) as u32;
         let held = on_since.is_some_and(|t| now_ms.wrapping_sub(t) >= delay);
+        let released = brake && held;
+        if self.pins.brake_released && !released {
+            // The close delay 0x215A runs from here ([`Runtime::brake_hold`]).
+            self.brake_engaged_at = Some(now_ms);
+        }
         self.pins = Pins {
             outputs,
-            brake_released: brake && held,
+            brake_released: released,
             green: leds.green,
             red: leds.red,
             run,

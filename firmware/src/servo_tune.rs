@@ -28,8 +28,12 @@
 //!   revolution per second; the actual axis may hunt about its position: a load the
 //!   gains do not suit yet is what the tune is for), and the travel 0x2163 (0.1° of
 //!   the shaft, forward from the actual position), with 20 % of it on both sides for
-//!   the following error of the move, inside the software limits 0x607D. A refusal
-//!   is 0x08000022 (state) or 0x06090030 (travel), and 0x2162:02 reads 3.
+//!   the following error of the move, inside the software limits 0x607D, and no
+//!   hardware limit switch active (0x60FD bits 0/1). A refusal is 0x08000022 (state,
+//!   a limit switch) or 0x06090030 (travel), and 0x2162:02 reads 3. The move's speed
+//!   is at most min([`SPEED_MAX`], 0x607F, 0x6080); a limit switch or the axis
+//!   outside 0x607D during the move ends it (failed), and the mode stops the axis
+//!   from where it is.
 //! * **Move** (`crate::motion`, `motion/tune.rs`): the drive hands the set-points to
 //!   the motion layer ([`crate::cia402::SetpointKind::Tune`]); its generator follows
 //!   the actual position and speed, so that any stop ramp starts from the actual
@@ -250,13 +254,15 @@ pub struct StartConditions {
     pub travel: u32,
     /// Software limits 0x607D in effect (min, max), command units.
     pub limits: Option<(i32, i32)>,
+    /// A hardware limit switch is active (0x60FD bit 0 or 1).
+    pub limit_switch: bool,
 }
 
 /// Whether a tune may start (see the module docs).
 pub fn check_start(c: &StartConditions) -> Result<(), SdoAbort> {
     let rest = c.units_per_rev as f32 * 0.01;
     let still = c.velocity.is_finite() && c.velocity.abs() <= rest;
-    if !(c.closed_loop && c.operation_enabled && still) {
+    if !(c.closed_loop && c.operation_enabled && still) || c.limit_switch {
         return Err(SdoAbort::StateConflict);
     }
     if c.travel == 0 {
@@ -568,6 +574,7 @@ mod tests {
             position: 0,
             travel: 12_500,
             limits: Some((-100_000, 100_000)),
+            limit_switch: false,
         }
     }
 
@@ -582,6 +589,10 @@ mod tests {
         for c in [
             StartConditions {
                 closed_loop: false,
+                ..ok_conditions()
+            },
+            StartConditions {
+                limit_switch: true,
                 ..ok_conditions()
             },
             StartConditions {

@@ -837,6 +837,9 @@ qemu_runner::tests! {
     fn csp_follows_targets_with_offset_and_interpolation() {
         let mut d = Cia402::new();
         let mut ax = Axis::new(100);
+        // The set-points jump (100 → 0 → 107): no acceleration limit 0x60C5 / 0x60C6.
+        d.params.max_acceleration = u32::MAX;
+        d.params.max_deceleration = u32::MAX;
         enable(&mut d, &mut ax, mode::CSP);
         d.params.position_offset = 10;
         let mut t = 90;
@@ -853,8 +856,10 @@ qemu_runner::tests! {
         let s = cw(&mut d, &mut ax, 0x010F);
         assert!(s & sw::BIT12 == 0);
         cw(&mut d, &mut ax, 0x000F);
-        // Sync cycle 1 ms, control cycle 250 µs: linear interpolation inside the period.
+        // Sync cycle 1 ms, control cycle 250 µs: linear interpolation inside the period
+        // (from standstill to 0.4 inc/µs at once: no acceleration limit).
         let mut d = Cia402::new();
+        d.params.max_acceleration = u32::MAX;
         let mut ax = Axis::new(0);
         enable(&mut d, &mut ax, mode::CSP);
         let mut seen = [0i32; 12];
@@ -928,6 +933,9 @@ qemu_runner::tests! {
         let mut ax = Axis::new(0);
         d.params.sw_limit_min = -1000;
         d.params.sw_limit_max = 2000;
+        // The CSP target jumps to the limit at once: no acceleration limit.
+        d.params.max_acceleration = u32::MAX;
+        d.params.max_deceleration = u32::MAX;
         enable(&mut d, &mut ax, mode::PP);
         d.params.target_position = 50_000;
         cw(&mut d, &mut ax, 0x003F);

@@ -322,20 +322,22 @@ impl LedLog {
 /// is released.
 #[derive(Debug, Clone, Default)]
 pub struct PinLog {
-    last: Vec<Option<(u8, bool)>>,
+    last: Vec<Option<(u8, bool, bool)>>,
 }
 
 impl PinLog {
-    /// Compares every drive's pins with the last seen and logs the changes.
+    /// Compares every drive's pins (and its model's bridges) with the last seen and logs
+    /// the changes.
     pub fn observe(&mut self, seg: &Segment<SimDrive>, log: &mut dyn FnMut(String)) {
         self.last.resize(seg.len(), None);
         for i in 0..seg.len() {
             let pins = seg.drive(i).app.pins();
-            let now = (pins.outputs, pins.brake_released);
+            let bridges = seg.drive(i).app.bridges_on();
+            let now = (pins.outputs, pins.brake_released, bridges);
             if self.last[i] != Some(now) {
                 self.last[i] = Some(now);
                 log(format!(
-                    "{} drive {}: pins OUT1 {} OUT2 {} OUT3 {}, brake {}",
+                    "{} drive {}: pins OUT1 {} OUT2 {} OUT3 {}, brake {}, bridges {}",
                     stamp(seg.now_ns()),
                     i + 1,
                     level(pins.outputs, 0),
@@ -345,7 +347,8 @@ impl PinLog {
                         "released"
                     } else {
                         "engaged"
-                    }
+                    },
+                    if bridges { "on" } else { "off" }
                 ));
             }
         }

@@ -389,6 +389,12 @@ impl SimDrive {
         self.rt.pins()
     }
 
+    /// The model's bridges are on (the last command permits the power stage and no
+    /// trip is latched): what `Feedback::bridges_on` reports.
+    pub fn bridges_on(&self) -> bool {
+        self.path.powered && !self.path.tripped
+    }
+
     /// Brings the axis and the 1 ms housekeeping up to `now_us`.
     pub fn catch_up(&mut self, now_us: u64) {
         if now_us > self.axis_us {

@@ -112,9 +112,12 @@ impl Cia402 {
         self.prev_demand_vel = if drive_enabled { v } else { 0.0 };
         let sign = if self.vel_neg() { -1.0 } else { 1.0 };
         let motor_enabled = drive_enabled || self.enable_waiting;
-        // Torque control: the velocity is the speed limit (a magnitude).
+        // Torque control: the velocity is the speed limit (a magnitude); the servo
+        // tune's move: its speed limit min(0x607F, 0x6080).
         let velocity = if kind == SetpointKind::Torque {
             self.params.max_motor_speed as f32
+        } else if kind == SetpointKind::Tune {
+            self.params.vmax()
         } else {
             sign * v
         };
@@ -125,8 +128,8 @@ impl Cia402 {
             position: self.user_to_raw(self.motion.position()),
             velocity,
             acceleration: sign * acc,
-            torque_limit: self.params.max_torque,
-            current_limit: self.params.max_current,
+            torque_limit: self.params.torque_limit(),
+            current_limit: self.params.current_limit(),
             torque: i32::from(pol16(self.vel_neg(), self.torque_cmd)),
             brake_release: motor_enabled,
         }

@@ -33,7 +33,9 @@
 //! it), returns to it at 0x6099:02 and it reads 0x607C. The stall does not raise the
 //! 0x2062 reaction during the search. A limit switch in the direction of the search
 //! is a homing error. The search speed must lie above the detection's minimum
-//! (1 rev/s, `foc::stall::MIN_SPEED_E`), or no stall is ever seen.
+//! (1 rev/s, `foc::stall::MIN_SPEED_E`), or no stall is ever seen: a start without
+//! the detection (closed loop or 0x2060 = 0) or with 0x6099:01 below that minimum
+//! ([`HomingParams::stall_min_speed`]) is a homing error at once, with no motion.
 
 use super::profile::{Motion, MoveStatus};
 
@@ -319,6 +321,9 @@ pub struct HomingParams {
     pub has_index: bool,
     /// 0x60FD bits that are assigned to physical inputs.
     pub assigned: u32,
+    /// Stall homing's lowest search speed (command units/s), `None`: no stall
+    /// detection (closed loop, or 0x2060 = 0).
+    pub stall_min_speed: Option<f32>,
 }
 
 /// What one homing cycle sees.
@@ -405,7 +410,10 @@ impl Homing {
             return None;
         };
         self.method = Some(m);
-        if (m.needs_index() && !p.has_index) || m.needs_inputs() & !p.assigned != 0 {
+        // Stall homing needs the detection and a search speed it can judge.
+        let stall_unfit =
+            matches!(m.kind, Kind::Stall) && !p.stall_min_speed.is_some_and(|v| p.fast >= v);
+        if (m.needs_index() && !p.has_index) || m.needs_inputs() & !p.assigned != 0 || stall_unfit {
             self.fail_now();
             return None;
         }
@@ -759,6 +767,32 @@ mod tests {
     }
 
     #[test]
+    fn stall_homing_without_its_preconditions_is_an_error_at_once() {
+        let inp = HomingInputs {
+            digital_inputs: 0,
+            actual: 0,
+            index: None,
+            stall: None,
+        };
+        for (min, fast) in [(None, 100_000.0), (Some(50_000.0), 40_000.0)] {
+            let p = HomingParams {
+                method: -1,
+                fast,
+                slow: 10_000.0,
+                acc: 1.0e7,
+                offset: 0,
+                has_index: false,
+                assigned: 0,
+                stall_min_speed: min,
+            };
+            let mut h = Homing::new();
+            assert_eq!(h.start(p, &inp), None);
+            assert_eq!(h.status(), HomingStatus::Error, "{min:?}, {fast}");
+            assert!(!h.seeking_stall());
+        }
+    }
+
+    #[test]
     fn stall_homing_takes_the_stall_position_as_home() {
         for (method, dir) in [(-1i8, 1i32), (-2, -1)] {
             let p = HomingParams {
@@ -769,6 +803,7 @@ mod tests {
                 offset: 500,
                 has_index: false,
                 assigned: 0,
+                stall_min_speed: Some(50_000.0),
             };
             let mut m = Motion::default();
             let mut h = Homing::new();
@@ -811,6 +846,7 @@ mod tests {
             offset: 0,
             has_index: false,
             assigned: DI_NEG_LIMIT,
+            stall_min_speed: Some(50_000.0),
         };
         let mut m = Motion::default();
         let mut h = Homing::new();

@@ -49,7 +49,8 @@ impl Cia402 {
             self.fe_time = 0.0;
         }
         if fb.current_limited
-            || (self.params.max_torque > 0 && fb.torque.unsigned_abs() >= self.params.max_torque)
+            || (self.params.max_torque > 0
+                && fb.torque.unsigned_abs() >= self.params.torque_limit())
         {
             self.internal_limit = true;
         }

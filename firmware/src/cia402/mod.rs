@@ -115,7 +115,7 @@ pub mod scaling;
 mod statusword;
 
 use homing::{Homing, HomingInputs, HomingParams, HomingStatus};
-pub use params::Params;
+pub use params::{Params, PEAK_PERMILLE};
 use pds::{Command, Event, Guard, PdsState};
 pub use probe::EdgeLatch;
 use probe::TouchProbe;
@@ -366,6 +366,10 @@ struct Cyclic {
     /// [`SetpointArrival::Stale`]): the demand may run on for one period past `to`.
     extrapolate: bool,
     started: bool,
+    /// Velocity of the current segment (position change over its period, no 0x60B1),
+    /// and the target it was built for: the acceleration limits' state.
+    v: f32,
+    last_target: i32,
 }
 
 impl Cyclic {
@@ -491,6 +495,8 @@ pub struct Cia402 {
     // Configuration from the application.
     has_index: bool,
     assigned_inputs: u32,
+    /// Stall homing's precondition ([`Cia402::set_stall_homing`]).
+    stall_homing: Option<f32>,
     rated_current_ma: u32,
     /// Torque constant of the motor, N·m/A (0x6076 = this · 0x6075).
     torque_constant: f32,
@@ -572,6 +578,7 @@ impl Cia402 {
             stall: None,
             has_index: true,
             assigned_inputs: homing::DI_NEG_LIMIT | homing::DI_POS_LIMIT | homing::DI_HOME,
+            stall_homing: None,
             rated_current_ma: 3200,
             torque_constant: crate::motion::ECN57_20.kt,
             torque_control: true,
@@ -587,6 +594,13 @@ impl Cia402 {
     /// index homing methods end in homing error and index touch probes never trigger.
     pub fn set_has_index(&mut self, yes: bool) {
         self.has_index = yes;
+    }
+    /// Stall homing (0x6098 = -1 / -2) is possible — open loop with the stall
+    /// detection on — and its search speed 0x6099:01 must be at least this (command
+    /// units/s: the detection's minimum speed); `None`: not possible. Otherwise the
+    /// start is a homing error at once (statusword bit 13), with no motion.
+    pub fn set_stall_homing(&mut self, min_speed: Option<f32>) {
+        self.stall_homing = min_speed;
     }
     /// Which 0x60FD bits (limit and home switches) are assigned to inputs (0x2152).
     pub fn set_assigned_inputs(&mut self, mask: u32) {

@@ -24,7 +24,16 @@ impl Cia402 {
         }
         let qs_dec = p.quick_stop_deceleration as f32;
         if self.servo_tune {
-            if matches!(self.mode, mode::PP | mode::CSP) && !halt {
+            // A limit switch, or the axis outside the software limits, ends the move.
+            let outside = p
+                .sw_limits()
+                .is_some_and(|(lo, hi)| self.actual_position >= hi || self.actual_position <= lo);
+            if matches!(self.mode, mode::PP | mode::CSP)
+                && !halt
+                && !pos_lim
+                && !neg_lim
+                && !outside
+            {
                 // The drive's servo tune moves the axis (`crate::servo_tune`): the
                 // generator follows the actual position and speed (the start of any
                 // stop ramp, and of the mode's set-points once the tune ends).
@@ -72,10 +81,14 @@ impl Cia402 {
                         self.abnormal_stop = true;
                         v = 0.0;
                     }
-                    // Direct set-point every cycle (no ramp); the position integrates it
-                    // from the actual position (see PV).
+                    // Direct set-point every cycle, its changes limited by 0x60C5 /
+                    // 0x60C6 (statusword bit 11 while limited); the position integrates
+                    // it from the actual position (see PV).
                     self.motion.rebase(self.actual_position);
-                    self.motion.run_at(v, dt);
+                    let (acc, dec) = (p.max_acceleration as f32, p.max_deceleration as f32);
+                    if !self.motion.ramp_velocity(v, acc, dec, dt) {
+                        self.internal_limit = true;
+                    }
                     self.clamp_sw_limit();
                     SetpointKind::Velocity
                 } else {
@@ -107,7 +120,7 @@ impl Cia402 {
         dt: f32,
     ) -> SetpointKind {
         let p = &self.params;
-        let tmax = f32::from(p.max_torque);
+        let tmax = f32::from(p.torque_limit());
         let wanted = (i32::from(p.target_torque) + i32::from(p.torque_offset)) as f32;
         let target = foc::num::clamp(wanted, -tmax, tmax);
         let v = self.motion.velocity();
@@ -242,34 +255,56 @@ impl Cia402 {
                 interpolate: false,
                 extrapolate: false,
                 started: true,
+                v: 0.0,
+                last_target: cur,
             };
         }
         self.cyc.since_fresh += dt;
         self.cyc.elapsed += dt;
+        let was_interpolating = self.cyc.interpolate;
         let new_segment = self.csp_segment_due(setpoint, nominal, dt);
         if new_segment {
             // An interpolated segment starts where the last one's demand is now (on
             // time that is its target; early or after a run-on, no step); a direct one
             // from the last target (its velocity is the set-points' difference).
             let fresh = setpoint == SetpointArrival::Fresh;
-            self.cyc.from = if fresh && self.cyc.interpolate {
+            self.cyc.from = if fresh && (self.cyc.interpolate || was_interpolating) {
                 self.cyc.demand(0.0).0
             } else {
                 self.cyc.to
             };
-            // A segment goes no further than min(0x607F, 0x6080) allows in its period:
-            // a jump of the target is followed at that speed (statusword bit 11,
-            // internal limit), segment by segment, not at once; no run-on then.
+            // A segment's speed is at most min(0x607F, 0x6080) and changes from the
+            // last segment's by at most 0x60C5 / 0x60C6 over its period: a jump of the
+            // target is followed on that profile (statusword bit 11, internal limit),
+            // segment by segment, not at once; no run-on then. With set-points on
+            // their own clock (fresh), a limited segment interpolates over the longer
+            // of its period and the time since the last set-point, so that the speed
+            // holds whatever the master's jitter.
             let dist = target.wrapping_sub(self.cyc.from) as f32;
-            let reach = self.params.vmax() * self.cyc.period;
-            if dist.abs() <= reach {
-                self.cyc.to = target;
-                self.cyc.extrapolate = fresh;
+            let t = if fresh {
+                self.cyc.period.max(self.cyc.last_gap)
             } else {
-                let step = if dist > 0.0 { reach } else { -reach };
-                self.cyc.to = self.cyc.from.wrapping_add(step as i32);
-                self.cyc.extrapolate = false;
-                self.internal_limit = true;
+                self.cyc.period
+            };
+            let vt = target.wrapping_sub(self.cyc.last_target) as f32 / t;
+            self.cyc.last_target = target;
+            match self.params.csp_segment_speed(dist, t, self.cyc.v, vt) {
+                None => {
+                    self.cyc.to = target;
+                    self.cyc.extrapolate = fresh;
+                    self.cyc.v = dist / t;
+                }
+                Some(v) => {
+                    // The limited speed (not its whole increments) carries over.
+                    self.cyc.to = self.cyc.from.wrapping_add(round_i32(v * t));
+                    self.cyc.extrapolate = false;
+                    self.internal_limit = true;
+                    self.cyc.v = v;
+                    if fresh {
+                        self.cyc.period = t;
+                        self.cyc.interpolate = true;
+                    }
+                }
             }
             self.cyc.elapsed = match (setpoint, self.cyc.interpolate) {
                 // The boundary step itself is the segment's first step.
@@ -288,6 +323,7 @@ impl Cia402 {
             vel = 0.0;
             self.cyc.to = cur;
             self.cyc.from = cur;
+            self.cyc.v = 0.0;
         }
         self.motion.set(demand, vel);
     }
@@ -580,6 +616,7 @@ impl Cia402 {
                 offset: p.home_offset,
                 has_index: self.has_index,
                 assigned: self.assigned_inputs,
+                stall_min_speed: self.stall_homing,
             };
             shift = self.hm.start(hp, &inp);
         } else {
@@ -605,6 +642,11 @@ impl Cia402 {
         self.target_reached =
             done && inwin && self.window_time * 1000.0 >= p.position_window_time as f32;
     }
+}
+
+/// `x` rounded to the nearest whole number (halves away from zero), saturated.
+fn round_i32(x: f32) -> i32 {
+    (x + if x < 0.0 { -0.5 } else { 0.5 }) as i32
 }
 
 /// `x` rounded to the nearest whole number (halves away from zero), saturated.

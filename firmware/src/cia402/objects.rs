@@ -569,11 +569,11 @@ cia402_objects! {
     {
         { 0 "Target torque": i16 RW RX range(-3000, 3000) [.default(0).unit("0.1 %")] field(params.target_torque) }
     }
-    var 0x6072 "Max torque", "Torque limit for the servo loops (closed loop) and of the CST demand, per mille of rated torque.",
+    var 0x6072 "Max torque", "Torque limit for the servo loops (closed loop) and of the CST demand, per mille of rated torque; values above 1000 (the peak current 0x2000) act as 1000.",
     {
         { 0 "Max torque": u16 RW RX range(0, 3000) [.default(1000).unit("0.1 %").saved()] field(params.max_torque) }
     }
-    var 0x6073 "Max current", "Current limit, per mille of the rated current 0x6075.",
+    var 0x6073 "Max current", "Current limit, per mille of the rated current 0x6075; values above 1000 (the peak current 0x2000) act as 1000.",
     {
         { 0 "Max current": u16 RW NO range(0, 3000) [.default(1000).unit("0.1 %").saved()] field(params.max_current) }
     }

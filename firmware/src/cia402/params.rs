@@ -4,6 +4,11 @@
 //! position limits, the interpolation period).
 
 use super::AbortConnection;
+use foc::num::clamp;
+
+/// The peak current 0x2000 in per mille of the rated current 0x6075 (which follows
+/// it): no torque or current limit goes above it.
+pub const PEAK_PERMILLE: u16 = 1000;
 
 /// The writable CiA 402 parameters (values of the RW objects).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -162,6 +167,42 @@ impl Params {
         target_velocity: 0,
     };
 
+    /// The torque limit in effect: 0x6072, at most the peak current 0x2000 (1000 ‰:
+    /// the rated current 0x6075 is the peak current).
+    pub(super) fn torque_limit(&self) -> u16 {
+        self.max_torque.min(PEAK_PERMILLE)
+    }
+    /// The current limit in effect: 0x6073, at most the peak current 0x2000.
+    pub(super) fn current_limit(&self) -> u16 {
+        self.max_current.min(PEAK_PERMILLE)
+    }
+    /// CSP: the speed of a segment of period `t` (s) that should cover `dist` when the
+    /// last segment ran at `v0` and the target itself moves at `vt` (command units,
+    /// /s). `None`: `dist / t` is inside the limits (the segment reaches its target);
+    /// else the limited speed: at most [`Params::vmax`], changed from `v0` by at most
+    /// 0x60C5 × `t` away from standstill and 0x60C6 × `t` towards it, and no faster
+    /// than the target's speed plus the speed from which 0x60C6 stops at it.
+    pub(super) fn csp_segment_speed(&self, dist: f32, t: f32, v0: f32, vt: f32) -> Option<f32> {
+        let want = dist / t;
+        let vmax = self.vmax();
+        let (acc, dec) = (self.max_acceleration as f32, self.max_deceleration as f32);
+        let up = if v0 >= 0.0 { acc } else { dec } * t;
+        let down = if v0 <= 0.0 { acc } else { dec } * t;
+        if t.is_nan() || t <= 0.0 || (want.abs() <= vmax && want <= v0 + up && want >= v0 - down) {
+            return None;
+        }
+        // The largest speed whose stop, one 0x60C6 step per period, ends within |dist|.
+        let dt = dec * t;
+        let brake = dt * (foc::num::sqrtf(2.0 * dist.abs() / (dt * t) + 0.25) - 0.5);
+        // (`foc::num::clamp`: `f32::clamp`'s panic would bring float formatting in.)
+        let vt = clamp(vt, -vmax, vmax);
+        let v = if dist >= 0.0 {
+            (vt + brake).min(want)
+        } else {
+            (vt - brake).max(want)
+        };
+        Some(clamp(clamp(v, v0 - down, v0 + up), -vmax, vmax))
+    }
     pub(super) fn vmax(&self) -> f32 {
         self.max_profile_velocity.min(self.max_motor_speed) as f32
     }

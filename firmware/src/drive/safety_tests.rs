@@ -251,3 +251,193 @@ fn masked_trips_are_still_reported() {
     assert!(d.faults.is_active(crate::faults::FaultKind::PhaseSensing));
     assert_eq!(d.pop_emergency().map(|e| e.code), Some(0x5210));
 }
+
+/// An axis that follows its demand exactly (position and speed).
+fn follow(d: &mut Drive, c: &DriveCommand) {
+    d.set_axis(AxisState {
+        bus_mv: 48_000,
+        position: c.position,
+        velocity: c.velocity as i32,
+        ..AxisState::default()
+    });
+}
+
+/// 0x6080 = 10 rev/s, 0x60C5 = 200 rev/s², 0x60C6 = 400 rev/s² (50 000 inc/rev).
+fn limited(d: &mut Drive) {
+    sdo_write(d, 0x6080, 0, &500_000u32.to_le_bytes()).unwrap();
+    sdo_write(d, 0x60C5, 0, &10_000_000u32.to_le_bytes()).unwrap();
+    sdo_write(d, 0x60C6, 0, &20_000_000u32.to_le_bytes()).unwrap();
+}
+
+/// Runs `n` 1 ms cycles of a following axis; checks every step against the limits of
+/// [`limited`] and returns the last command.
+fn run_limited(d: &mut Drive, n: usize) -> DriveCommand {
+    let mut last = *d.command();
+    for k in 0..n {
+        let c = d.run_cycle(0.001);
+        let dv = c.velocity - last.velocity;
+        assert!(
+            c.velocity.abs() <= 500_000.0 * 1.001,
+            "speed {} ({k})",
+            c.velocity
+        );
+        // Away from standstill 0x60C5, towards it 0x60C6 (1 ms steps), give or take
+        // one whole increment per step (1000 inc/s).
+        let speeding_up =
+            c.velocity.abs() > last.velocity.abs() && c.velocity * last.velocity >= 0.0;
+        let a = if speeding_up { 10_000.0 } else { 20_000.0 };
+        assert!(dv.abs() <= a + 1_000.0, "speed step {dv} at {k}");
+        let dp = c.position.wrapping_sub(last.position).unsigned_abs();
+        assert!(dp <= 500, "position step {dp} at {k}");
+        follow(d, &c);
+        last = c;
+    }
+    last
+}
+
+#[test]
+fn torque_and_current_limits_never_exceed_the_peak_current() {
+    let mut d = powered_up(EsmState::PreOp);
+    // 0x6072 / 0x6073 accept up to 3000 ‰; the peak current 0x2000 is 1000 ‰.
+    sdo_write(&mut d, 0x6072, 0, &3000u16.to_le_bytes()).unwrap();
+    sdo_write(&mut d, 0x6073, 0, &2500u16.to_le_bytes()).unwrap();
+    enable(&mut d);
+    let c = d.run_cycle(0.001);
+    assert_eq!((c.torque_limit, c.current_limit), (1000, 1000));
+    // Below the peak current they apply as written.
+    sdo_write(&mut d, 0x6072, 0, &400u16.to_le_bytes()).unwrap();
+    sdo_write(&mut d, 0x6073, 0, &700u16.to_le_bytes()).unwrap();
+    let c = d.run_cycle(0.001);
+    assert_eq!((c.torque_limit, c.current_limit), (400, 700));
+}
+
+#[test]
+fn a_csv_setpoint_jump_is_limited_by_0x6080_and_the_acceleration_limits() {
+    let mut d = csp_in_op();
+    sdo_write(&mut d, 0x6060, 0, &[9]).unwrap();
+    limited(&mut d);
+    enable(&mut d);
+    assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
+    // 100 rev/s asked at once: 10 rev/s reached at 200 rev/s² (50 ms).
+    sdo_write(&mut d, 0x60FF, 0, &5_000_000i32.to_le_bytes()).unwrap();
+    let c = run_limited(&mut d, 30);
+    assert!(
+        c.velocity > 250_000.0 && c.velocity < 350_000.0,
+        "{}",
+        c.velocity
+    );
+    assert_ne!(d.cia402.statusword() & 1 << 11, 0, "internal limit");
+    let c = run_limited(&mut d, 40);
+    assert!((c.velocity - 500_000.0).abs() < 1.0, "{}", c.velocity);
+    // Stop asked at once: down at 400 rev/s² (25 ms).
+    sdo_write(&mut d, 0x60FF, 0, &0i32.to_le_bytes()).unwrap();
+    let c = run_limited(&mut d, 20);
+    assert!(c.velocity > 50_000.0, "{}", c.velocity);
+    let c = run_limited(&mut d, 10);
+    assert_eq!(c.velocity, 0.0);
+    assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
+}
+
+#[test]
+fn a_csp_target_jump_respects_the_acceleration_limits_and_lands_on_it() {
+    let mut d = csp_in_op();
+    limited(&mut d);
+    enable(&mut d);
+    let start = d.command().position;
+    // A jump of 100 revolutions, then of 1 revolution back.
+    let target = start.wrapping_add(5_000_000);
+    sdo_write(&mut d, 0x607A, 0, &target.to_le_bytes()).unwrap();
+    let mut max_pos = start;
+    for _ in 0..11_000 {
+        let c = run_limited(&mut d, 1);
+        max_pos = max_pos.max(c.position);
+    }
+    assert_eq!(d.command().position, target, "reached");
+    // At most one deceleration step past it: 0x60C6 × (1 ms)² = 20 inc.
+    assert!(max_pos.wrapping_sub(target) <= 20, "overshoot to {max_pos}");
+    let back = target.wrapping_sub(50_000);
+    sdo_write(&mut d, 0x607A, 0, &back.to_le_bytes()).unwrap();
+    let c = run_limited(&mut d, 500);
+    assert_eq!((c.position, c.velocity), (back, 0.0));
+    // Set-points inside the limits are followed exactly: 5 rev/s reached in 50 ms.
+    let mut p = back;
+    for k in 0..200i32 {
+        let v = 250_000.0f32.min(5_000.0 * k as f32);
+        p = p.wrapping_add((v * 0.001) as i32);
+        sdo_write(&mut d, 0x607A, 0, &p.to_le_bytes()).unwrap();
+        let c = run_limited(&mut d, 1);
+        assert_eq!(c.position, p, "followed at {k}");
+    }
+    assert_eq!(d.cia402.statusword() & 1 << 11, 0, "no internal limit");
+}
+
+#[test]
+fn the_fault_ramp_starts_from_the_limited_motion_not_the_jumped_target() {
+    let mut d = csp_in_op();
+    limited(&mut d);
+    // Fault reaction: quick-stop ramp, 0x6085 = 40 rev/s².
+    sdo_write(&mut d, 0x6085, 0, &2_000_000u32.to_le_bytes()).unwrap();
+    enable(&mut d);
+    let start = d.command().position;
+    let target = start.wrapping_add(5_000_000);
+    sdo_write(&mut d, 0x607A, 0, &target.to_le_bytes()).unwrap();
+    let c = run_limited(&mut d, 1_000);
+    let v = c.velocity;
+    assert!((v - 500_000.0).abs() < 1.0, "at the speed limit: {v}");
+    // The master is lost: fault, 0x605E = 2.
+    d.on_outputs_lost(ecat_slave_stack::al_status::AlStatusCode::SmWatchdog);
+    let at = c.position;
+    let c = run_limited(&mut d, 1_000);
+    assert_eq!(d.cia402.state(), PdsState::Fault);
+    // Stopped within v² / 2a of where the axis was (not at the jumped target).
+    let travel = c.position.wrapping_sub(at);
+    let bound = (v * v / (2.0 * 2_000_000.0)) as i32 + 1_000;
+    assert!(travel > 0 && travel <= bound, "{travel} > {bound}");
+}
+
+#[test]
+fn the_servo_tune_refuses_a_limit_switch_and_ends_at_one() {
+    let mut d = powered_up(EsmState::PreOp);
+    assert_eq!(d.params.get(Param::LoopMode), 2, "closed loop");
+    sdo_write(&mut d, 0x6060, 0, &[1]).unwrap();
+    enable(&mut d);
+    assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
+    let mut t = 100_000u64;
+    let mut ticks = |d: &mut Drive, raw: u8, n: u32| {
+        for _ in 0..n {
+            t += 1000;
+            d.tick(t, raw);
+        }
+    };
+    // IN3 (positive limit switch, 0x60FD bit 1) active: the start is refused.
+    ticks(&mut d, 0b100, 5);
+    assert_ne!(d.inputs.digital_inputs_60fd() & 0b10, 0);
+    assert_eq!(
+        sdo_write(&mut d, 0x2162, 1, &[1]),
+        Err(SdoAbort::StateConflict)
+    );
+    assert_eq!(sdo_read_u32(&mut d, 0x2162, 2), 3, "refused");
+    // Released: the tune starts; the switch again ends the move (failed).
+    ticks(&mut d, 0, 5);
+    assert_eq!(sdo_write(&mut d, 0x2162, 1, &[1]), Ok(()));
+    ticks(&mut d, 0, 2);
+    assert!(d.cia402.servo_tune(), "the move has the set-points");
+    ticks(&mut d, 0b100, 5);
+    assert!(!d.cia402.servo_tune(), "the limit switch ended the move");
+    assert_eq!(sdo_read_u32(&mut d, 0x2162, 2), 4, "failed");
+    assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
+}
+
+#[test]
+fn the_servo_tune_move_is_limited_to_0x6080() {
+    let mut d = powered_up(EsmState::PreOp);
+    sdo_write(&mut d, 0x6060, 0, &[1]).unwrap();
+    // 2 rev/s (50 000 inc/rev), below the move's own 10 rev/s.
+    sdo_write(&mut d, 0x6080, 0, &100_000u32.to_le_bytes()).unwrap();
+    enable(&mut d);
+    assert_eq!(sdo_write(&mut d, 0x2162, 1, &[1]), Ok(()));
+    let c = d.run_cycle(0.001);
+    assert_eq!(c.kind, crate::cia402::SetpointKind::Tune);
+    // The move's speed limit to the motion layer, command units/s.
+    assert_eq!(c.velocity, 100_000.0);
+}

@@ -104,8 +104,9 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
                     return self.servo_tune_command(start);
                 }
                 self.faults.configure_from(&self.params);
-                // 0x2024 decides whether CST is available.
-                self.cia402.set_torque_control(self.torque_control());
+                // 0x2024 decides whether CST is available, 0x2024 / 0x2060 whether
+                // stall homing is.
+                self.control_config_changed();
                 Ok(())
             }
             0x2300..=0x23FF => self.monitor.write(index, sub, data),

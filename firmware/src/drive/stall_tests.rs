@@ -122,11 +122,53 @@ fn stall_with_reaction_1_is_a_quick_stop_without_fault() {
 }
 
 #[test]
+fn stall_homing_without_its_preconditions_is_a_homing_error_with_no_motion() {
+    // (0x2060, 0x6099:01): detection off; a search below its 1 rev/s (50 000 inc/s).
+    for (detection, search) in [(0u8, 60_000u32), (1, 20_000)] {
+        let mut d = Drive::new(Variant::OpenLoop, 0);
+        sdo_write(&mut d, 0x2060, 0, &[detection]).unwrap();
+        sdo_write(&mut d, 0x6099, 1, &search.to_le_bytes()).unwrap();
+        sdo_write(&mut d, 0x6098, 0, &[-1i8 as u8]).unwrap();
+        sdo_write(&mut d, 0x6060, 0, &[6]).unwrap();
+        enable(&mut d);
+        let start = d.command().position;
+        d.cia402.set_controlword(0x1F);
+        for _ in 0..200 {
+            d.run_cycle(0.001);
+            d.set_axis(axis(d.command().position, 0, 0));
+        }
+        let case = (detection, search);
+        assert_eq!(d.cia402.homing_status(), HomingStatus::Error, "{case:?}");
+        assert_ne!(
+            d.cia402.statusword() & 1 << 13,
+            0,
+            "homing error bit {case:?}"
+        );
+        assert_eq!(d.command().position, start, "no motion {case:?}");
+        assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
+    }
+    // A closed loop (hybrid servo, 0x2024 = 2) has no stall detection.
+    let mut d = Drive::new(Variant::HybridServo, 0);
+    sdo_write(&mut d, 0x2060, 0, &[1]).unwrap();
+    sdo_write(&mut d, 0x6099, 1, &60_000u32.to_le_bytes()).unwrap();
+    sdo_write(&mut d, 0x6098, 0, &[-2i8 as u8]).unwrap();
+    sdo_write(&mut d, 0x6060, 0, &[6]).unwrap();
+    enable(&mut d);
+    d.cia402.set_controlword(0x1F);
+    for _ in 0..20 {
+        d.run_cycle(0.001);
+    }
+    assert_eq!(d.cia402.homing_status(), HomingStatus::Error);
+}
+
+#[test]
 fn stall_homing_sets_home_at_the_stall_without_a_fault() {
     let mut d = open_loop_drive();
     sdo_write(&mut d, 0x6098, 0, &[-3i8 as u8]).expect_err("not a method");
     sdo_write(&mut d, 0x6098, 0, &[-1i8 as u8]).expect("stall homing +");
     sdo_write(&mut d, 0x607C, 0, &250i32.to_le_bytes()).expect("offset");
+    // Search at 1.2 rev/s: above the detection's 1 rev/s.
+    sdo_write(&mut d, 0x6099, 1, &60_000u32.to_le_bytes()).expect("search speed");
     sdo_write(&mut d, 0x6060, 0, &[6]).expect("HM");
     enable(&mut d);
     d.cia402.set_controlword(0x1F);

@@ -36,6 +36,9 @@ impl<S: ParameterStore> Drive<S> {
             position: self.axis.position,
             travel,
             limits: self.cia402.raw_position_limits(),
+            limit_switch: self.inputs.digital_inputs_60fd()
+                & (crate::cia402::homing::DI_POS_LIMIT | crate::cia402::homing::DI_NEG_LIMIT)
+                != 0,
         };
         let r = self.servo_tune.start(&c, &self.axis.servo_tune);
         self.servo_tune_publish(None);

@@ -55,15 +55,19 @@ impl Tuning {
 }
 
 impl Motion {
-    /// Tune set-points begin (`on`) or end (module docs).
+    /// Tune set-points begin (`on`, the move no faster than `speed_limit` counts/s)
+    /// or end (module docs).
     #[inline(never)]
-    pub(super) fn tune_setpoints(&mut self, on: bool) {
+    pub(super) fn tune_setpoints(&mut self, on: bool, speed_limit: f32) {
         let runs = self.tune.report.runs;
         if on {
             let start = self.actual_axis_counts(&self.last_fb);
             let mut cfg = servo_tune::ident_config(&self.cfg);
             cfg.iq_max = self.iq_limit;
             cfg.iq_target = servo_tune::IQ_TARGET * self.iq_limit;
+            if speed_limit.is_finite() && speed_limit > 0.0 {
+                cfg.speed_max = cfg.speed_max.min(speed_limit);
+            }
             let j_rotor = self.cfg.tune.j_rotor;
             self.tune.run.restart(cfg, start, j_rotor);
             self.tune.active = true;

@@ -495,3 +495,111 @@ fn an_input_assigned_probe_latches_the_position_for_touch_probe_1() {
     );
     assert_eq!(read_u32(&mut d, 0x60BA, 0), at_low);
 }
+
+/// Whether the last command sent lets the motor hold (bridges permitted, drive enabled).
+fn holding(path: &FakePath) -> bool {
+    path.sent
+        .last()
+        .is_some_and(|c| c.permits_power() && c.motion_command().drive_enabled)
+}
+
+#[test]
+fn disable_engages_the_brake_then_holds_through_the_close_delay() {
+    let (mut d, mut rt, mut path) = started(SPEC, DipBanks::default(), |_| {});
+    sdo_write(&mut d, 0x215A, 0, &40u16.to_le_bytes()).unwrap();
+    enable(&mut d, &mut rt, &mut path);
+    assert!(ticks(&mut d, &mut rt, &mut path, 20, 5).brake_released);
+    let hold_at = path.sent.last().unwrap().command.position;
+    // Shutdown (0x605B = 0: the drive function ends at once).
+    d.cia402.set_controlword(0x06);
+    let mut off_at = None;
+    for k in 0..100u64 {
+        let pins = rt.tick(&mut d, &mut path, (30 + k) * 1000, 0, 0, None);
+        assert!(
+            !pins.brake_released,
+            "brake engaged from the disable on ({k})"
+        );
+        assert_eq!(read_u32(&mut d, 0x2157, 0) >> 8 & 1, 0);
+        if holding(&path) {
+            assert!(off_at.is_none(), "no hold after the bridges went off ({k})");
+            let c = path.sent.last().unwrap().command;
+            assert_eq!((c.position, c.velocity), (hold_at, 0.0), "at standstill");
+        } else {
+            off_at.get_or_insert(k);
+        }
+    }
+    assert!(!d.command().drive_enabled);
+    let k = off_at.expect("the bridges go off");
+    assert!(
+        (40..=41).contains(&k),
+        "held {k} ms after the brake engaged"
+    );
+}
+
+#[test]
+fn a_fault_ramp_keeps_the_brake_released_and_closes_it_at_its_end() {
+    use crate::cia402::pds::PdsState;
+    let (mut d, mut rt, mut path) = started(SPEC, DipBanks::default(), |_| {});
+    sdo_write(&mut d, 0x215A, 0, &20u16.to_le_bytes()).unwrap();
+    d.on_state_change(EsmState::SafeOp, EsmState::Op);
+    enable(&mut d, &mut rt, &mut path);
+    sdo_write(&mut d, 0x6060, 0, &[3]).unwrap();
+    sdo_write(&mut d, 0x60FF, 0, &50_000i32.to_le_bytes()).unwrap();
+    // The axis turns at the demand (the ramp starts from the actual speed).
+    path.axis.velocity = 50_000;
+    ticks(&mut d, &mut rt, &mut path, 20, 200);
+    assert!(rt.pins().brake_released);
+    // The master is lost: fault 0x8700, reaction 0x605E = 2 (quick-stop ramp).
+    d.on_outputs_lost(ecat_slave_stack::al_status::AlStatusCode::SmWatchdog);
+    let (mut ramp_ticks, mut ended_at, mut off_at) = (0, None, None);
+    for k in 0..500u64 {
+        let pins = rt.tick(&mut d, &mut path, (220 + k) * 1000, 0, 0, None);
+        match d.cia402.state() {
+            PdsState::FaultReactionActive => {
+                ramp_ticks += 1;
+                assert!(pins.brake_released, "not at the start of the ramp ({k})");
+                assert!(holding(&path));
+            }
+            PdsState::Fault => {
+                let end = *ended_at.get_or_insert(k);
+                assert!(!pins.brake_released, "engaged at the end of the ramp ({k})");
+                if holding(&path) {
+                    assert!(off_at.is_none());
+                } else {
+                    off_at.get_or_insert(k - end);
+                }
+            }
+            s => panic!("{s:?}"),
+        }
+    }
+    assert!(ramp_ticks > 5, "a ramp ran ({ramp_ticks} ticks)");
+    let k = off_at.expect("the bridges go off");
+    assert!(
+        (20..=21).contains(&k),
+        "held {k} ms after the brake engaged"
+    );
+}
+
+#[test]
+fn a_lost_power_stage_engages_the_brake_at_once_with_no_hold() {
+    let (mut d, mut rt, mut path) = started(SPEC, DipBanks::default(), |_| {});
+    sdo_write(&mut d, 0x215A, 0, &100u16.to_le_bytes()).unwrap();
+    enable(&mut d, &mut rt, &mut path);
+    assert!(ticks(&mut d, &mut rt, &mut path, 20, 2).brake_released);
+    // The break latches: the over-current cuts the power, brake and bridges at once.
+    path.latched = true;
+    let pins = rt.tick(&mut d, &mut path, 30_000, 0, 0, None);
+    assert!(!pins.brake_released);
+    assert!(!holding(&path), "no hold with the break latched");
+    // The bridges drop out on their own while enabled, then the drive is disabled:
+    // the brake is already engaged and nothing holds the power on.
+    let (mut d, mut rt, mut path) = started(SPEC, DipBanks::default(), |_| {});
+    sdo_write(&mut d, 0x215A, 0, &100u16.to_le_bytes()).unwrap();
+    enable(&mut d, &mut rt, &mut path);
+    assert!(ticks(&mut d, &mut rt, &mut path, 20, 2).brake_released);
+    path.bridges_dead = true;
+    assert!(!ticks(&mut d, &mut rt, &mut path, 30, 1).brake_released);
+    d.cia402.set_controlword(0x06);
+    ticks(&mut d, &mut rt, &mut path, 31, 1);
+    assert!(!rt.command().power_allowed, "no hold without bridges");
+}
