@@ -15,13 +15,17 @@ use crate::{stack, THUMB};
 /// of issue 20 (cyclic synchronous torque, open-loop stall detection and damping, the
 /// servo tune's inertia and stiffness, the scope) added about 15 KiB of code (160
 /// KiB), the servo tune's move on the drive and the scope at the servo rate another
-/// 7 KiB, so the budget is now 168 KiB (the active partition holds 226 KiB: room left
-/// for a second flavour of features). RAM: 40 KiB for the static RAM plus the static worst-case
+/// 7 KiB, so the budget became 168 KiB (the active partition holds 226 KiB: room left
+/// for a second flavour of features). The runtime, safety and drop-in work of issues
+/// 32-34 (DIP function bank and outputs wired, one fault table, the brake-close hold,
+/// CSV/CSP acceleration limits, 0x607B, 0x60FA, the probe input) added about 3 KiB, so
+/// the budget is now 176 KiB; the hard limits are the end of flash bank 1 (the
+/// read-while-write argument, checked below) and the partition. RAM: 40 KiB for the static RAM plus the static worst-case
 /// stack (of the chip's 128 KiB). It was 32 KiB until the servo tune's move (its fit
 /// state lives in the control state, and the start-up frame that builds the control
 /// state, 8 KiB, is counted as if the interrupts nested on it) and the scope's 3 KiB
 /// buffer took it to 33 KiB. `test` fails above it.
-pub const FLASH_BUDGET: u64 = 168 * 1024;
+pub const FLASH_BUDGET: u64 = 176 * 1024;
 pub const RAM_BUDGET: u64 = 40 * 1024;
 /// What the STM32G474RE can hold: flash, the active partition less its update-header
 /// page (`firmware::flash_layout::IMAGE_MAX`, firmware/memory.x: 228 KiB − 2 KiB);
