@@ -970,7 +970,10 @@ qemu_runner::tests! {
         assert_eq!(d.position_actual(), 35_900);
         // CSP: the master's targets wrap at the end of the range; the axis goes on
         // the shortest way (forward through 35 999 → 0), not back round the range.
-        // (The master copies 0x6064 into 0x607A before the enable.)
+        // (The master copies 0x6064 into 0x607A before the enable.) The set-points
+        // jump: no acceleration limit 0x60C5 / 0x60C6.
+        d.params.max_acceleration = u32::MAX;
+        d.params.max_deceleration = u32::MAX;
         d.params.target_position = 35_900;
         enable(&mut d, &mut ax, mode::CSP);
         for t in [35_950, 0, 50, 100] {
