@@ -379,6 +379,7 @@ fn start_tool(drives: &str, extra: &[&str]) -> (Proc, String, u16) {
 
 #[test]
 fn an_emergency_arrives_with_its_text_and_led_code() {
+    let _one = tests_host::netns::one_at_a_time();
     // The plant's bus voltage rises 2 s after the start: the drive trips on
     // over-voltage and sends its emergency.
     let (tool, url, page_port) = start_tool("1", &["--fault", "bus-overvoltage@2s"]);
@@ -420,6 +421,7 @@ fn an_emergency_arrives_with_its_text_and_led_code() {
 
 #[test]
 fn commissioning_in_a_browser_against_virtual_drive() {
+    let _one = tests_host::netns::one_at_a_time();
     // The tool with two virtual drives, on a free port.
     let (tool, url, page_port) = start_tool("2", &[]);
     let tmp = TempDir::new("browser");

@@ -150,3 +150,13 @@ pub fn veth_master<const N: usize, const DATA: usize>(
         },
     )
 }
+
+/// The veth tests of one test program, one at a time: held for the whole test. Two
+/// `virtual-drive` processes (each with its real-time frame and drives' threads) and
+/// two masters at once on a 2-core machine starve a master's own thread, and its scan
+/// then times out (seen as ethercrab `Timeout(Pdu)` at `init_single_group`), which
+/// says nothing about the drive.
+pub fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
+    static ONE: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    ONE.lock().unwrap_or_else(|e| e.into_inner())
+}

@@ -209,6 +209,7 @@ fn pv_run(storage: &'static Storage, tag: &str, control_mode: u8) -> PvRun {
 
 #[test]
 fn dip_function_switches_set_current_and_direction_with_0x2025_zero() {
+    let _one = tests_host::netns::one_at_a_time();
     let on = pv_run(&PDU_DIP_ON, "d", 0);
     let off = pv_run(&PDU_DIP_OFF, "e", 5);
     eprintln!("0x2025 = 0: {on:?}\n0x2025 = 5: {off:?}");
@@ -252,6 +253,7 @@ fn dip_function_switches_set_current_and_direction_with_0x2025_zero() {
 
 #[test]
 fn outputs_follow_0x60fe_the_alarm_and_the_brake() {
+    let _one = tests_host::netns::one_at_a_time();
     let (net, child, log) = start("o", &["--fault", "bus-overvoltage@3s"]);
     let md = master(&PDU_OUTPUTS, &net.host_if);
     type Found = (u16, u16, u16, u16, u16);
@@ -345,6 +347,7 @@ fn outputs_follow_0x60fe_the_alarm_and_the_brake() {
 
 #[test]
 fn pre_op_motion_tune_refused_and_init_stops_the_axis() {
+    let _one = tests_host::netns::one_at_a_time();
     let (net, child, log) = start("i", &[]);
     let md = master(&PDU_PREOP, &net.host_if);
     type Found = (String, u16, i32, i32, i32, u16);

@@ -208,7 +208,7 @@ fn replay(tag: &str, storage: &'static Storage, list: &[Step], l: &Layout, mode:
         let group = md
             .init_single_group::<4, 128>(ethercat_now)
             .await
-            .map_err(at("init"))?;
+            .map_err(at("scan"))?;
         {
             let sd = group.subdevice(&md, 0).map_err(at("drive 0"))?;
             for &(index, sub, v) in list {
@@ -323,6 +323,7 @@ fn check(tag: &str, s: &Seen, mode: i8, ppr: u32) {
 
 #[test]
 fn dp3cl_style_startup_list_reaches_op_in_csp() {
+    let _one = tests_host::netns::one_at_a_time();
     let s = replay("sd", &PDU_DP3CL, DP3CL, &DP3CL_LAYOUT, 8);
     // Feed 10 000 per shaft revolution at gear 1:1: 0x2001 = 10 000.
     check("DP3CL", &s, 8, 10_000);
@@ -330,6 +331,7 @@ fn dp3cl_style_startup_list_reaches_op_in_csp() {
 
 #[test]
 fn e5_style_startup_list_reaches_op_in_pp() {
+    let _one = tests_host::netns::one_at_a_time();
     let s = replay("se", &PDU_E5, E5, &E5_LAYOUT, 1);
     // 4000 encoder increments per 20 000 units: 0x2001 = 20 000 (the factor's write
     // after the 0x2001 write of the list).

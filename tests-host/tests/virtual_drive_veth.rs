@@ -97,6 +97,7 @@ fn master(storage: &'static Storage, host_if: &str) -> MainDevice<'static> {
 
 #[test]
 fn ethercrab_brings_virtual_drive_to_op_over_a_veth_pair() {
+    let _one = tests_host::netns::one_at_a_time();
     let (net, child) = start_virtual_drive('o', 2);
     let md = master(&PDU_STORAGE, &net.host_if);
     let result: Result<(usize, Vec<u16>, u32), ethercrab::error::Error> =
@@ -144,6 +145,7 @@ fn ethercrab_brings_virtual_drive_to_op_over_a_veth_pair() {
 /// scheduler), and 0x6064 no longer changes (two reads 200 ms apart).
 #[test]
 fn silent_master_stops_virtual_drive_in_pv_over_a_veth_pair() {
+    let _one = tests_host::netns::one_at_a_time();
     let (net, child) = start_virtual_drive('p', 1);
     let md = master(&PDU_STORAGE_PV, &net.host_if);
     type Found = (u16, u16, u16, i32, i32, Duration);
@@ -251,6 +253,7 @@ fn silent_master_stops_virtual_drive_in_pv_over_a_veth_pair() {
 /// red LED's two flashes.
 #[test]
 fn injected_bus_overvoltage_is_reported_over_sdo_on_a_veth_pair() {
+    let _one = tests_host::netns::one_at_a_time();
     let (net, child, log) = start_virtual_drive_with('f', 1, &["--fault", "bus-overvoltage@1s"]);
     let md = master(&PDU_STORAGE_FAULT, &net.host_if);
     type Found = (u16, u16, u8, [u8; 28]);
