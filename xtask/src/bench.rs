@@ -37,6 +37,14 @@ const OVER_GOAL: &[(&str, &str)] = &[
          time budget\").",
     ),
     (
+        "CSP cycle (unpack",
+        "1490 before the CSP set-points were limited by the acceleration limits \
+         0x60C5 / 0x60C6 (a set-point jump is followed within 0x6080 and the acceleration \
+         limits, `Params::csp_segment_speed`) and the position range 0x607B was added \
+         (positions shown wrapped); not optimised yet. What it costs of a cycle: \
+         \"Cycle time budget\" below.",
+    ),
+    (
         "supervised current step",
         "the same compensation inside the supervised step (see \"current loop step\").",
     ),
