@@ -160,3 +160,24 @@ pub fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
     static ONE: std::sync::Mutex<()> = std::sync::Mutex::new(());
     ONE.lock().unwrap_or_else(|e| e.into_inner())
 }
+
+/// One `virtual-drive` (`program`, 1 drive, `extra` options) in a namespace of its own
+/// named after `tag`, ready; its log lines after `ready`. Panics with the reason when
+/// not root or when the namespace cannot be made (a veth test needs both).
+pub fn start_one_drive(
+    tag: &str,
+    program: &str,
+    extra: &[&str],
+) -> (Netns, Killed, std::sync::mpsc::Receiver<String>) {
+    assert!(
+        is_root(),
+        "the veth tests need root (network namespaces and raw sockets): run them as root, \
+         e.g. `sudo -E env PATH=$PATH cargo test -p tests-host` (CI runs as root)"
+    );
+    let net = Netns::create(tag)
+        .expect("running as root, but the namespace / veth pair could not be created");
+    let mut args = vec!["--drives", "1"];
+    args.extend_from_slice(extra);
+    let (child, rx) = start_virtual_drive(&net, program, &args).expect("virtual-drive");
+    (net, child, rx)
+}

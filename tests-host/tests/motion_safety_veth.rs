@@ -20,7 +20,7 @@ use std::time::{Duration, Instant};
 
 use ethercrab::std::ethercat_now;
 use ethercrab::{MainDevice, PduStorage, SubDeviceGroup};
-use tests_host::netns::{start_virtual_drive, veth_master, Killed, Netns};
+use tests_host::netns::{start_one_drive, veth_master, Killed, Netns};
 
 type Storage = PduStorage<16, { PduStorage::element_size(1100) }>;
 static PDU_CSP: Storage = PduStorage::new();
@@ -35,24 +35,15 @@ const PER_REV: i32 = 50_000;
 /// 0x6080 in the CSP test: 2 rev/s.
 const VMAX: i32 = 2 * PER_REV;
 
-/// One test at a time: each runs a real-time simulation and a 1 ms master, which
-/// share the machine's cores badly.
-static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
+/// `virtual-drive` (1 drive, `extra` options), ready; its log lines after `ready`. The
+/// tests run one at a time (`one_at_a_time`): each runs a real-time simulation and a
+/// 1 ms master, which share the machine's cores badly.
 fn start(tag: &str, extra: &[&str]) -> (Netns, Killed, mpsc::Receiver<String>) {
-    assert!(
-        tests_host::netns::is_root(),
-        "the veth tests need root (network namespaces and raw sockets): run them as root, \
-         e.g. `sudo -E env PATH=$PATH cargo test -p tests-host --test motion_safety_veth` \
-         (CI runs as root)"
-    );
-    let net = Netns::create(&format!("ms{tag}"))
-        .expect("running as root, but the namespace / veth pair could not be created");
-    let mut args = vec!["--drives", "1"];
-    args.extend_from_slice(extra);
-    let (child, rx) = start_virtual_drive(&net, env!("CARGO_BIN_EXE_virtual-drive"), &args)
-        .expect("virtual-drive");
-    (net, child, rx)
+    start_one_drive(
+        &format!("ms{tag}"),
+        env!("CARGO_BIN_EXE_virtual-drive"),
+        extra,
+    )
 }
 
 fn entry(index: u16, sub: u8, bits: u8) -> u32 {
@@ -177,7 +168,7 @@ async fn enable(
 
 #[test]
 fn a_csp_jump_of_100_revolutions_is_never_followed_faster_than_0x6080() {
-    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _one = tests_host::netns::one_at_a_time();
     let (net, child, _log) = start("c", &[]);
     let md = veth_master(&PDU_CSP, &net.host_if);
     let result: Result<(Sample, Vec<Sample>), Failed> = async_io::block_on(async {
@@ -274,7 +265,7 @@ macro_rules! esm_to {
 
 #[test]
 fn bootstrap_and_back_does_not_reenable_the_axis() {
-    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _one = tests_host::netns::one_at_a_time();
     let (net, child, _log) = start("b", &[]);
     let md = veth_master(&PDU_BOOT, &net.host_if);
     type Found = (u16, i32, [u16; 3], u16, i32, i32, u16);
@@ -356,7 +347,7 @@ fn pin_events(lines: &[String]) -> Vec<(f64, bool, bool)> {
 
 #[test]
 fn the_brake_never_shows_released_while_the_bridges_are_off() {
-    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _one = tests_host::netns::one_at_a_time();
     let (net, child, log) = start("k", &["--fault", "bus-overvoltage@6s"]);
     let md = veth_master(&PDU_BRAKE, &net.host_if);
     let result: Result<(Vec<Sample>, u16), Failed> = async_io::block_on(async {

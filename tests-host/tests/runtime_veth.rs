@@ -21,7 +21,7 @@ use std::time::Duration;
 
 use ethercrab::std::ethercat_now;
 use ethercrab::{MainDevice, PduStorage, SubDeviceGroup};
-use tests_host::netns::{start_virtual_drive, veth_master, Killed, Netns};
+use tests_host::netns::{start_one_drive, veth_master, Killed, Netns};
 
 type Storage = PduStorage<16, { PduStorage::element_size(1100) }>;
 static PDU_DIP_ON: Storage = PduStorage::new();
@@ -32,26 +32,14 @@ static PDU_PREOP: Storage = PduStorage::new();
 type Group = SubDeviceGroup<4, 128, ethercrab::DefaultLock, ethercrab::subdevice_group::Op>;
 type Failed = (&'static str, ethercrab::error::Error);
 
-fn require_root() {
-    assert!(
-        tests_host::netns::is_root(),
-        "the veth tests need root (network namespaces and raw sockets): run them as root, \
-         e.g. `sudo -E env PATH=$PATH cargo test -p tests-host --test runtime_veth` \
-         (CI runs as root)"
-    );
-}
-
 /// `virtual-drive` (1 drive, `extra` options) in a namespace of its own, ready; its
 /// log lines after `ready`.
 fn start(tag: &str, extra: &[&str]) -> (Netns, Killed, mpsc::Receiver<String>) {
-    require_root();
-    let net = Netns::create(&format!("rt{tag}"))
-        .expect("running as root, but the namespace / veth pair could not be created");
-    let mut args = vec!["--drives", "1"];
-    args.extend_from_slice(extra);
-    let (child, rx) = start_virtual_drive(&net, env!("CARGO_BIN_EXE_virtual-drive"), &args)
-        .expect("virtual-drive");
-    (net, child, rx)
+    start_one_drive(
+        &format!("rt{tag}"),
+        env!("CARGO_BIN_EXE_virtual-drive"),
+        extra,
+    )
 }
 
 fn master(storage: &'static Storage, host_if: &str) -> MainDevice<'static> {

@@ -83,6 +83,24 @@ pub fn build_board_elf(flavour: &str) -> Result<String, String> {
     Ok(elf)
 }
 
+/// Builds the bootloader in release and returns the path of its ELF.
+fn build_bootloader_elf() -> Result<String, String> {
+    let target_dir = "target/bootloader";
+    if !run_status(&mut cargo(&[
+        "build",
+        "-p",
+        "bootloader",
+        "--release",
+        "--target",
+        THUMB,
+        "--target-dir",
+        target_dir,
+    ])) {
+        return Err("bootloader build failed".into());
+    }
+    Ok(format!("{target_dir}/{THUMB}/release/bootloader"))
+}
+
 /// Builds every firmware flavour and the bootloader in release and prints flash/RAM
 /// use and the static worst-case stack.
 pub fn size_report() -> Result<Fit, String> {
@@ -158,20 +176,7 @@ pub fn size_report() -> Result<Fit, String> {
 /// Builds the bootloader in release and prints its flash/RAM use against its
 /// partition; whether it fits.
 fn bootloader_size() -> Result<bool, String> {
-    let target_dir = "target/bootloader";
-    if !run_status(&mut cargo(&[
-        "build",
-        "-p",
-        "bootloader",
-        "--release",
-        "--target",
-        THUMB,
-        "--target-dir",
-        target_dir,
-    ])) {
-        return Err("bootloader build failed".into());
-    }
-    let elf = format!("{target_dir}/{THUMB}/release/bootloader");
+    let elf = build_bootloader_elf()?;
     let (flash, ram) = elf_usage(&elf)?;
     let mut fits = flash <= BOOTLOADER_FLASH && linked_at(&elf, BOOTLOADER_ORIGIN)?;
     let stack = match stack::analyse(Path::new(&elf)) {
@@ -328,17 +333,8 @@ pub fn images_md() -> Result<String, String> {
             lan_report = report.text;
         }
     }
-    let elf = format!("target/bootloader/{THUMB}/release/bootloader");
-    if run_status(&mut cargo(&[
-        "build",
-        "-p",
-        "bootloader",
-        "--release",
-        "--target",
-        THUMB,
-        "--target-dir",
-        "target/bootloader",
-    ])) {
+    {
+        let elf = build_bootloader_elf()?;
         let (flash, ram) = elf_usage(&elf)?;
         let report = stack::analyse(Path::new(&elf))?;
         md.push_str(&format!(
@@ -348,8 +344,6 @@ pub fn images_md() -> Result<String, String> {
             ram + report.worst,
             BOOTLOADER_FLASH / 1024,
         ));
-    } else {
-        return Err("bootloader build failed".into());
     }
     md.push_str(&format!(
         "\nStatic stack report of the {} image:\n\n```text\n{}```\n",
