@@ -210,14 +210,17 @@ fn a_csp_jump_of_100_revolutions_is_never_followed_faster_than_0x6080() {
     assert_eq!(last.statusword & 0x6F, 0x27, "still enabled, no fault");
     assert_ne!(last.statusword & 1 << 11, 0, "internal limit while limited");
     // 0x6064: over every window of at least 200 ms, no faster than 0x6080 (plus the
-    // position's lag behind the demand at the start, 1000 inc).
+    // position's lag behind the demand at the start, 1000 inc, and 5 % for the window
+    // being timed by the master's clock: its samples arrive with the host's jitter,
+    // seen as 1 % over on a busy CI host; the jump followed unlimited would be ten
+    // times 0x6080).
     for (k, a) in run.iter().enumerate() {
         for b in &run[k..] {
             let dt = b.at.duration_since(a.at).as_secs_f64();
             if dt >= 0.2 {
                 let dp = f64::from(b.position.wrapping_sub(a.position));
                 assert!(
-                    dp <= f64::from(VMAX) * dt + 1000.0,
+                    dp <= f64::from(VMAX) * dt * 1.05 + 1000.0,
                     "{dp} inc in {dt:.3} s: faster than 0x6080"
                 );
                 break;
