@@ -1,16 +1,11 @@
 //! The product's object dictionary: one sorted table made at compile time from the
 //! tables of the modules that own the values.
 //!
-//! | range | owner |
-//! |---|---|
-//! | 0x1000-0x10FF | [`crate::comm`] (device type, names, store/restore, identity, error settings) |
-//! | 0x1600-0x1C33 | `ecat_slave_stack::pdo` (mapping, assignment, sync manager parameters; served by the slave runtime) |
-//! | 0x2000-0x21FF | [`crate::params`] (vendor parameters) |
-//! | 0x2200 | `ecat_slave_stack::sync` (timing diagnostics; served by the slave runtime) |
-//! | 0x2300-0x2308 | [`crate::monitor`] (monitoring) |
-//! | 0x2400-0x2406 | [`crate::faults`] (fault history) |
-//! | 0x2500-0x2510 | [`crate::scope`] (scope, trace buffer) |
-//! | 0x6000-0x6FFF | [`crate::cia402`] (drive profile) |
+//! Which module owns which index range is stated once, in [`OWNERS`]; the SDO and PDO
+//! dispatch ([`owner_of`]) and the modules' own look-ups ([`find_entry_in`]) use it.
+//! The objects the slave runtime serves itself (mapping, assignment, sync manager
+//! parameters, timing diagnostics) are the stack's to name
+//! (`ecat_slave_stack::pdo::is_pdo_index`, `ecat_slave_stack::sync::is_sync_index`).
 //!
 //! The same table feeds the SDO server, PDO mapping rules, SDO information, the ESI,
 //! the SII and the generated reference (`cargo xtask od-doc`), so they cannot disagree.
@@ -47,21 +42,62 @@ pub fn is_well_formed() -> bool {
     od::is_well_formed(OBJECTS)
 }
 
-/// Index ranges of the modules that look their entries up here: every object of
-/// [`OBJECTS`] inside a range is one of that module's (tested below).
-pub(crate) const COMM: (u16, u16) = (0x1000, 0x10FF);
-pub(crate) const PARAMS: (u16, u16) = (0x2000, 0x21FF);
-pub(crate) const MONITOR: (u16, u16) = (0x2300, 0x23FF);
-pub(crate) const FAULTS: (u16, u16) = (0x2400, 0x24FF);
-pub(crate) const SCOPE: (u16, u16) = (0x2500, 0x25FF);
-pub(crate) const CIA402: (u16, u16) = (0x6000, 0x6FFF);
+/// The module that serves an object's SDO and PDO access.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Owner {
+    /// [`crate::comm`]: device type, names, store / restore, identity, error settings.
+    Comm,
+    /// The slave runtime (`ecat_slave_stack`): PDO mapping and assignment, sync manager
+    /// parameters, timing diagnostics.
+    SlaveRuntime,
+    /// [`crate::params`]: the vendor parameters.
+    Params,
+    /// [`crate::monitor`]: monitoring values.
+    Monitor,
+    /// [`crate::faults`]: the fault history.
+    Faults,
+    /// [`crate::scope`]: scope and trace buffer.
+    Scope,
+    /// [`crate::cia402`]: the drive profile.
+    Cia402,
+}
 
-/// Object `index` of a module owning `range`: the same answer as
+/// The product modules' index ranges, in ascending order: the one owner table. Every
+/// object of [`OBJECTS`] inside a range is one of that module's (tested below).
+pub const OWNERS: &[(u16, u16, Owner)] = &[
+    (0x1000, 0x10FF, Owner::Comm),
+    (0x2000, 0x21FF, Owner::Params),
+    (0x2300, 0x23FF, Owner::Monitor),
+    (0x2400, 0x24FF, Owner::Faults),
+    (0x2500, 0x25FF, Owner::Scope),
+    (0x6000, 0x6FFF, Owner::Cia402),
+];
+
+/// The owner of `index`: the slave runtime's objects first, then [`OWNERS`].
+pub fn owner_of(index: u16) -> Option<Owner> {
+    if ecat_slave_stack::pdo::is_pdo_index(index) || ecat_slave_stack::sync::is_sync_index(index) {
+        return Some(Owner::SlaveRuntime);
+    }
+    OWNERS
+        .iter()
+        .find(|&&(lo, hi, _)| (lo..=hi).contains(&index))
+        .map(|&(_, _, owner)| owner)
+}
+
+// The owners as the modules name themselves in their look-ups.
+pub(crate) const COMM: Owner = Owner::Comm;
+pub(crate) const PARAMS: Owner = Owner::Params;
+pub(crate) const MONITOR: Owner = Owner::Monitor;
+pub(crate) const FAULTS: Owner = Owner::Faults;
+pub(crate) const SCOPE: Owner = Owner::Scope;
+pub(crate) const CIA402: Owner = Owner::Cia402;
+
+/// Object `index` of the module `owner`: the same answer as
 /// `od::find(module::OBJECTS, index)`, without a second copy of the module's table in
 /// flash (a module's `const OBJECTS` used at run time is its own array beside
 /// [`OBJECTS`]).
-pub(crate) fn find_in(range: (u16, u16), index: u16) -> Option<&'static Object> {
-    if index < range.0 || index > range.1 {
+pub(crate) fn find_in(owner: Owner, index: u16) -> Option<&'static Object> {
+    if owner_of(index) != Some(owner) {
         return None;
     }
     od::find(OBJECTS, index)
@@ -79,14 +115,10 @@ pub(crate) fn put_le(entry: &Entry, v: u64, buf: &mut [u8]) -> Result<usize, Sdo
     Ok(len)
 }
 
-/// Entry `index:sub` of a module owning `range` (as `od::find_entry(module::OBJECTS,
+/// Entry `index:sub` of the module `owner` (as `od::find_entry(module::OBJECTS,
 /// ..)`: no object → `ObjectDoesNotExist`, no sub-index → `SubindexDoesNotExist`).
-pub(crate) fn find_entry_in(
-    range: (u16, u16),
-    index: u16,
-    sub: u8,
-) -> Result<&'static Entry, SdoAbort> {
-    let obj = find_in(range, index).ok_or(SdoAbort::ObjectDoesNotExist)?;
+pub(crate) fn find_entry_in(owner: Owner, index: u16, sub: u8) -> Result<&'static Entry, SdoAbort> {
+    let obj = find_in(owner, index).ok_or(SdoAbort::ObjectDoesNotExist)?;
     obj.entry(sub).ok_or(SdoAbort::SubindexDoesNotExist)
 }
 
@@ -98,7 +130,7 @@ mod tests {
 
     #[test]
     fn module_ranges_hold_exactly_the_module_tables() {
-        let modules: [(&[ObjectDesc], (u16, u16)); 6] = [
+        let modules: [(&[ObjectDesc], Owner); 6] = [
             (crate::comm::OBJECTS, COMM),
             (crate::params::OBJECTS, PARAMS),
             (crate::monitor::OBJECTS, MONITOR),
@@ -106,13 +138,13 @@ mod tests {
             (crate::scope::OBJECTS, SCOPE),
             (crate::cia402::objects::OBJECTS, CIA402),
         ];
-        for (own, range) in modules {
+        for (own, owner) in modules {
             for o in own {
-                assert!((range.0..=range.1).contains(&o.index), "{:#06x}", o.index);
+                assert_eq!(owner_of(o.index), Some(owner), "{:#06x}", o.index);
             }
             for index in 0..=u16::MAX {
                 let mine = own.iter().find(|o| o.index == index);
-                let found = find_in(range, index);
+                let found = find_in(owner, index);
                 assert_eq!(mine.is_some(), found.is_some(), "{index:#06x}");
                 if let (Some(a), Some(b)) = (mine, found) {
                     assert_eq!(a.name(), b.name());
@@ -122,7 +154,7 @@ mod tests {
                             a.entry(sub)
                                 .map(|e| (e.sub(), e.name().to_string()))
                                 .ok_or(SdoAbort::SubindexDoesNotExist),
-                            find_entry_in(range, index, sub).map(|e| (e.sub, e.name().to_string())),
+                            find_entry_in(owner, index, sub).map(|e| (e.sub, e.name().to_string())),
                             "{index:#06x}:{sub}"
                         );
                     }
@@ -130,12 +162,36 @@ mod tests {
                 if mine.is_none() {
                     for sub in [0, 1, 255] {
                         assert_eq!(
-                            find_entry_in(range, index, sub).err(),
+                            find_entry_in(owner, index, sub).err(),
                             Some(SdoAbort::ObjectDoesNotExist)
                         );
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn every_object_has_one_owner_and_the_table_is_ordered() {
+        for w in OWNERS.windows(2) {
+            assert!(w[0].1 < w[1].0, "{:#06x}", w[1].0);
+        }
+        for part in [
+            ecat_slave_stack::pdo::OBJECTS,
+            ecat_slave_stack::sync::DIAG_OBJECTS,
+        ] {
+            for o in part {
+                assert_eq!(
+                    owner_of(o.index),
+                    Some(Owner::SlaveRuntime),
+                    "{:#06x}",
+                    o.index
+                );
+                assert!(!OWNERS.iter().any(|r| (r.0..=r.1).contains(&o.index)));
+            }
+        }
+        for o in OBJECTS {
+            assert!(owner_of(o.index).is_some(), "{:#06x} has no owner", o.index);
         }
     }
 

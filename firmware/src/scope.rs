@@ -270,7 +270,7 @@ impl Source {
         if e.bits() != u16::from(bits) {
             return Err(SdoAbort::ParameterIncompatibility);
         }
-        let slot = if (0x6000..=0x6FFF).contains(&index) {
+        let slot = if crate::dictionary::owner_of(index) == Some(crate::dictionary::Owner::Cia402) {
             crate::cia402::objects::tx_slot(index, sub)
         } else {
             None

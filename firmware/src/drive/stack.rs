@@ -3,6 +3,7 @@
 //! hooks and the application cycle ([`SlaveApplication`]).
 
 use super::*;
+use crate::dictionary::Owner;
 
 /// The whole dictionary as 'save' sees it: the drive's objects plus those the slave
 /// runtime serves (mapping, assignment, sync).
@@ -12,7 +13,7 @@ pub(super) struct WholeDictionary<'a, S: ParameterStore> {
 }
 
 pub(super) fn is_runtime_index(index: u16) -> bool {
-    ecat_slave_stack::pdo::is_pdo_index(index) || ecat_slave_stack::sync::is_sync_index(index)
+    dictionary::owner_of(index) == Some(Owner::SlaveRuntime)
 }
 
 impl<S: ParameterStore> Dictionary for WholeDictionary<'_, S> {
@@ -74,13 +75,13 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
         data: &[u8],
         _state: EsmState,
     ) -> Result<(), SdoAbort> {
-        match index {
-            0x1000..=0x10FF => match self.comm.write(&mut self.faults, index, sub, data)? {
+        match dictionary::owner_of(index) {
+            Some(Owner::Comm) => match self.comm.write(&mut self.faults, index, sub, data)? {
                 // Without the runtime's objects a save would miss the PDO mapping.
                 Some(cmd) => self.run_store(cmd, &mut NoRuntime),
                 None => Ok(()),
             },
-            0x2000..=0x21FF => {
+            Some(Owner::Params) => {
                 if (index, sub) == (0x2013, 0) && data.first() == Some(&1) {
                     // The current auto-tune energises the motor without an enable: only
                     // with the power stage off and the brake engaged, never in
@@ -109,9 +110,9 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
                 self.control_config_changed();
                 Ok(())
             }
-            0x2300..=0x23FF => self.monitor.write(index, sub, data),
-            0x2500..=0x25FF => self.scope.write(index, sub, data),
-            0x6091..=0x6093 => {
+            Some(Owner::Monitor) => self.monitor.write(index, sub, data),
+            Some(Owner::Scope) => self.scope.write(index, sub, data),
+            Some(Owner::Cia402) if (0x6091..=0x6093).contains(&index) => {
                 // The scaling views: a whole result goes to 0x2001 (its range
                 // decides), then the other views follow (`cia402::scaling`).
                 self.cia402.write(index, sub, data)?;
@@ -122,8 +123,8 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
                 }
                 Ok(())
             }
-            0x6000..=0x6FFF => self.cia402.write(index, sub, data),
-            _ => Err(SdoAbort::WriteReadOnly),
+            Some(Owner::Cia402) => self.cia402.write(index, sub, data),
+            Some(Owner::Faults | Owner::SlaveRuntime) | None => Err(SdoAbort::WriteReadOnly),
         }
     }
 
@@ -135,7 +136,7 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
         state: EsmState,
         runtime: &mut dyn Dictionary,
     ) -> Result<(), SdoAbort> {
-        if (0x1000..=0x10FF).contains(&index) {
+        if dictionary::owner_of(index) == Some(Owner::Comm) {
             if let Some(cmd) = self.comm.write(&mut self.faults, index, sub, data)? {
                 return self.run_store(cmd, runtime);
             }
@@ -177,7 +178,7 @@ const OTHER_TX_MAX: usize = 32;
 pub(super) fn other_tx_entries() -> impl Iterator<Item = (u16, u8)> {
     dictionary::OBJECTS
         .iter()
-        .filter(|o| !(0x6000..=0x6FFF).contains(&o.index))
+        .filter(|o| dictionary::owner_of(o.index) != Some(Owner::Cia402))
         .flat_map(|o| {
             o.entries()
                 .iter()
@@ -206,7 +207,7 @@ pub(super) fn other_tx_entry(n: usize) -> Option<(u16, u8)> {
 
 impl<S: ParameterStore> ProcessData for Drive<S> {
     fn rx_slot(&self, index: u16, sub: u8) -> Option<u16> {
-        if (0x6000..=0x6FFF).contains(&index) {
+        if dictionary::owner_of(index) == Some(Owner::Cia402) {
             return ProcessData::rx_slot(&self.cia402, index, sub);
         }
         let e = dictionary::find_entry_in(dictionary::PARAMS, index, sub).ok()?;
@@ -217,7 +218,7 @@ impl<S: ParameterStore> ProcessData for Drive<S> {
     }
 
     fn tx_slot(&self, index: u16, sub: u8) -> Option<u16> {
-        if (0x6000..=0x6FFF).contains(&index) {
+        if dictionary::owner_of(index) == Some(Owner::Cia402) {
             return ProcessData::tx_slot(&self.cia402, index, sub);
         }
         other_tx_entries()
@@ -277,14 +278,14 @@ impl<S: ParameterStore> Drive<S> {
         sub: u8,
         buf: &mut [u8],
     ) -> Result<usize, SdoAbort> {
-        match index {
-            0x1000..=0x10FF => self.comm.read(&self.faults, index, sub, buf),
-            0x2000..=0x21FF => self.params.read(index, sub, buf),
-            0x2300..=0x23FF => self.monitor.read(index, sub, buf),
-            0x2400..=0x24FF => self.faults.read(index, sub, buf),
-            0x2500..=0x25FF => self.read_scope(index, sub, buf),
-            0x6000..=0x6FFF => self.cia402.read(index, sub, buf),
-            _ => Err(SdoAbort::ObjectDoesNotExist),
+        match dictionary::owner_of(index) {
+            Some(Owner::Comm) => self.comm.read(&self.faults, index, sub, buf),
+            Some(Owner::Params) => self.params.read(index, sub, buf),
+            Some(Owner::Monitor) => self.monitor.read(index, sub, buf),
+            Some(Owner::Faults) => self.faults.read(index, sub, buf),
+            Some(Owner::Scope) => self.read_scope(index, sub, buf),
+            Some(Owner::Cia402) => self.cia402.read(index, sub, buf),
+            Some(Owner::SlaveRuntime) | None => Err(SdoAbort::ObjectDoesNotExist),
         }
     }
 
