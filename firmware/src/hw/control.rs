@@ -24,9 +24,9 @@
 //! holds the actual position (`firmware::cia402`, transition 4).
 //!
 //! Motion runs in the same interrupt (not a lower-priority one) because its step is
-//! short — 255 instructions for `Motion::step`, 146 for `set_command` once per cycle,
-//! 290 for the current step (QEMU instruction counts, BENCHMARKS.md), so a servo
-//! period is ≈ 0.8 k instructions ≈ 5 µs at 170 MHz before memory wait states, to be
+//! short: the rows "servo step (motion layer)", "motion set_command" and "current loop
+//! step" of BENCHMARKS.md (QEMU instruction counts) add up to well under a thousand
+//! instructions per servo period, a few µs at 170 MHz before memory wait states, to be
 //! measured (`ISR max` in the status line is the worst period, which is a servo
 //! period) — and the current reference must be in place before the next current
 //! step; splitting would need another exchange cell and a fourth priority level.

@@ -32,12 +32,12 @@
 //!
 //! | what | runs in | priority | rate | worst-case budget |
 //! |---|---|---|---|---|
-//! | current loop: ADC1 JEOS → I_A, I_B, V_BUS → encoder update → `foc::current_loop::CurrentLoop::step` → TIM1/TIM8 compare (`hw::control`) | `ADC1_2` ISR | 1 | 40 kHz (PWM centre) | ≤ 12.5 µs (half a PWM period); current step ≈ 320 instructions (QEMU count) ≈ 2-3 µs; to be measured (`ISR max` in the status line) |
+//! | current loop: ADC1 JEOS → I_A, I_B, V_BUS → encoder update → `foc::current_loop::CurrentLoop::step` → TIM1/TIM8 compare (`hw::control`) | `ADC1_2` ISR | 1 | 40 kHz (PWM centre) | ≤ 12.5 µs (half a PWM period); the current step's instruction count is BENCHMARKS.md's "current loop step" row; to be measured (`ISR max` in the status line) |
 //! | motion layer: `firmware::commutation::CommutatedMotion::step` — at the first closed-loop enable after power-up the commutation alignment (`foc::servo::Alignment`, 0.25 s, 0.65 s with the 0x2083 wiggle; offset → encoder), then `firmware::motion::Motion::step` (interpolation, servo / open loop → current reference); index, touch probe 1 (TIM2 CH4 capture) and touch probe 2 (from the task below) → positions (`firmware::latch`); feedback published | same ISR, every 4th period | 1 | 10 kHz | together with the current step ≤ 12.5 µs; to be measured |
 //! | over-current: break input → TIM1/TIM8 MOE off | hardware | — | event | break filter ≈ 24 ns + gate driver |
 //! | break bookkeeping: other bridge off, latch | `TIM1_BRK_TIM15`, `TIM8_BRK` ISRs | 0 | event | < 1 µs, to be measured |
 //! | SPI DMA completion (ESC transfers) | `DMA1_CHANNEL1/2` ISRs (embassy) | 2 | per transfer | < 1 µs, to be measured |
-//! | cyclic path: SYNC0 → `Slave::cycle` (SM2 read, `Drive` = CiA 402 cycle, SM3 write) → set-points to the ISR | interrupt executor on `UART4` (vector unused: its pins carry TIM8) | 3 | DC sync rate (≥ 125 µs cycle) | ≤ 50 % of the cycle; SPI ≈ 0.4 µs/byte at 21.25 MHz + CSP cycle (≈ 1.5 k instructions); to be measured |
+//! | cyclic path: SYNC0 → `Slave::cycle` (SM2 read, `Drive` = CiA 402 cycle, SM3 write) → set-points to the ISR | interrupt executor on `UART4` (vector unused: its pins carry TIM8) | 3 | DC sync rate (≥ 125 µs cycle) | ≤ 50 % of the cycle; SPI ≈ 0.4 µs/byte at 21.25 MHz + the CSP cycle (BENCHMARKS.md's "CSP cycle" row); to be measured |
 //! | touch probe 2 (IN2 edge → encoder count + edge direction → `hw::control::PROBE2_RAW`) | interrupt executor `UART4` | 3 | event | < 2 µs latency (the latch error), to be measured |
 //! | EXTI1/2/3 wakers (IN2, ESC IRQ, SYNC0) | `EXTI1..3` ISRs (embassy) | 3 | event | < 1 µs |
 //! | embassy time driver | `TIM5` ISR | 4 | alarms | < 2 µs |
