@@ -419,7 +419,7 @@ fn virtual_drive_realtime() -> Result<(), String> {
 fn cycle_budget(target_dir: &str, first: &[(String, u64)]) -> Result<(), String> {
     // Cycle time budget: SPI traffic from the chip models + this run's instruction
     // counts, written into docs/benchmarks-notes.md (appended below).
-    if Path::new("tests-host/src/bin/cycle-budget.rs").exists() {
+    if Path::new("tests-host/src/bin/cycle-budget").exists() {
         let counts_file = format!("{target_dir}/instructions.tsv");
         let tsv: String = first.iter().map(|(n, c)| format!("{n}\t{c}\n")).collect();
         if fs::write(&counts_file, tsv).is_err() {

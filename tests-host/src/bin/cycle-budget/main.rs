@@ -33,6 +33,10 @@ use tests_host::segment::{sii_image, Pdi, PdiPath, Segment, SegmentConfig};
 use tests_host::sim_drive::{self, AxisModel, Motor, SimDrive};
 use tests_host::spi_models::Transaction;
 
+mod traffic;
+
+use traffic::*;
+
 const SECTION: &str = "## Cycle time budget";
 
 /// CPU clock of the STM32G474, Hz.
@@ -159,250 +163,6 @@ const TX32: &[(u16, u8)] = &[
     (0x60BB, 0),
     (0x60BC, 0),
 ];
-
-/// One simulated drive on `flavour` with its PDI through driver + SPI model.
-fn spi_segment(flavour: Flavour) -> Result<Segment<SimDrive>, String> {
-    let desc =
-        identity::device_description(Variant::HybridServo, sim_drive::esc_flavour(flavour), 0);
-    let sii = sii_image(&desc).map_err(|e| format!("SII image: {e:?}"))?;
-    let axis = tests_host::sim_axis::boxed_model(Motor::Ecn57_20, AxisModel::Kinematic, 1);
-    let app = SimDrive::new(0x1000, FileFlash::in_memory(), axis);
-    let mut seg = Segment::new(
-        SegmentConfig::new(flavour).with_pdi(PdiPath::Spi),
-        &sii,
-        vec![app],
-        sim_drive::slave_config(),
-        None,
-    )
-    .map_err(|e| format!("ESC start-up: {e:?}"))?;
-    sim_drive::power_up_drives(&mut seg);
-    Ok(seg)
-}
-
-fn fpwr(seg: &mut Segment<SimDrive>, ado: u16, data: &[u8]) -> u16 {
-    let d = seg.raw(FrameBuilder::new().physical(Command::Fpwr, 0x1000, ado, data));
-    d.first().map_or(0, |d| d.wkc)
-}
-
-fn al_request(seg: &mut Segment<SimDrive>, state: u16) -> (u16, u16) {
-    fpwr(seg, 0x0120, &state.to_le_bytes());
-    sim_drive::advance(seg, 1_000);
-    seg.al_status(0)
-}
-
-fn sm(seg: &mut Segment<SimDrive>, n: u16, start: u16, len: u16, control: u8) {
-    let mut b = [0u8; 8];
-    b[0..2].copy_from_slice(&start.to_le_bytes());
-    b[2..4].copy_from_slice(&len.to_le_bytes());
-    b[4] = control;
-    b[6] = 1;
-    fpwr(seg, 0x0806 + 8 * n, &[0]);
-    fpwr(seg, 0x0800 + 8 * n, &b);
-}
-
-/// Writes a map (sub 0 = 0, entries, sub 0 = n) through the runtime's objects.
-fn write_map(seg: &mut Segment<SimDrive>, index: u16, entries: &[u32]) -> Result<(), String> {
-    let d = seg.drive_mut(0);
-    let mut rt = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
-    let e = |r: Result<(), od::SdoAbort>| r.map_err(|a| format!("{index:#06x}: {a:?}"));
-    e(rt.write(index, 0, &[0], EsmState::PreOp))?;
-    for (k, v) in entries.iter().enumerate() {
-        e(rt.write(index, k as u8 + 1, &v.to_le_bytes(), EsmState::PreOp))?;
-    }
-    e(rt.write(index, 0, &[entries.len() as u8], EsmState::PreOp))
-}
-
-fn spi_log(pdi: &mut Pdi) -> Option<&mut Vec<Transaction>> {
-    match pdi {
-        Pdi::Lan9252(d) => Some(&mut d.spi_mut().log),
-        Pdi::Et1100(d) => Some(&mut d.spi_mut().log),
-        Pdi::Direct(_) => None,
-    }
-}
-
-/// What one transaction does, from its MOSI header.
-fn describe(flavour: Flavour, t: &Transaction) -> String {
-    let m = &t.mosi;
-    match flavour {
-        Flavour::Lan9252 => {
-            if m.len() < 3 {
-                return format!("{m:02x?}");
-            }
-            let addr = (u16::from(m[1]) << 8 | u16::from(m[2])) & 0x3FFF;
-            let op = match m[0] {
-                0x02 => "write",
-                0x03 => "read",
-                0x0B => "fast read",
-                _ => "?",
-            };
-            let name = match addr {
-                0x000..=0x01F => "PRAM read FIFO",
-                0x020..=0x03F => "PRAM write FIFO",
-                0x058 => "INT_STS",
-                0x300 => "ECAT_CSR_DATA",
-                0x304 => "ECAT_CSR_CMD",
-                0x308 => "PRAM_RD_ADDR_LEN",
-                0x30C => "PRAM_RD_CMD",
-                0x310 => "PRAM_WR_ADDR_LEN",
-                0x314 => "PRAM_WR_CMD",
-                _ => "",
-            };
-            format!("{op} {addr:#05x} {name}")
-        }
-        Flavour::Et1100 => {
-            if m.len() < 2 {
-                return format!("{m:02x?}");
-            }
-            let mut addr = u16::from(m[0]) << 5 | u16::from(m[1]) >> 3;
-            let mut cmd = m[1] & 7;
-            if cmd == 0b110 && m.len() >= 3 {
-                addr |= u16::from(m[2] >> 5) << 13;
-                cmd = (m[2] >> 2) & 7;
-            }
-            let op = match cmd {
-                0b000 => "NOP (AL event)",
-                0b010 => "read",
-                0b011 => "read (wait state)",
-                0b100 => "write",
-                _ => "?",
-            };
-            format!("{op} {addr:#06x}")
-        }
-    }
-}
-
-/// True for the transaction that writes the inputs (SM3 at 0x1400).
-fn writes_inputs(flavour: Flavour, t: &Transaction) -> bool {
-    let d = describe(flavour, t);
-    match flavour {
-        Flavour::Lan9252 => d.contains("PRAM_WR_ADDR_LEN"),
-        Flavour::Et1100 => d == "write 0x1400",
-    }
-}
-
-/// SPI traffic of one process-data cycle.
-struct CycleTraffic {
-    transactions: Vec<Transaction>,
-    idle: Vec<Transaction>,
-    rx_bytes: usize,
-    /// Polls from the SM2 write to the inputs written.
-    polls: u32,
-}
-
-impl CycleTraffic {
-    fn bytes(&self) -> usize {
-        self.transactions.iter().map(|t| t.mosi.len()).sum()
-    }
-}
-
-/// Brings the drive to Op with the given maps (None: defaults) and measures one
-/// steady-state SM2 cycle.
-fn measure(chip: &Chip, maps: Option<(&[u32], &[u32])>) -> Result<CycleTraffic, String> {
-    let mut seg = spi_segment(chip.flavour)?;
-    let d =
-        seg.raw(FrameBuilder::new().physical(Command::Apwr, 0, 0x0010, &0x1000u16.to_le_bytes()));
-    if d.first().map(|d| d.wkc) != Some(1) {
-        return Err("station address not written".into());
-    }
-    sm(&mut seg, 0, 0x1000, 128, 0x26);
-    sm(&mut seg, 1, 0x1080, 128, 0x22);
-    if al_request(&mut seg, 2) != (2, 0) {
-        return Err(format!("Pre-Op refused: {:?}", seg.al_status(0)));
-    }
-    let (rx_bytes, tx_bytes) = match maps {
-        None => (12usize, 19usize),
-        Some((rx, tx)) => {
-            write_map(&mut seg, 0x1600, rx)?;
-            write_map(&mut seg, 0x1A00, tx)?;
-            (32, 32)
-        }
-    };
-    sm(&mut seg, 2, 0x1100, rx_bytes as u16, 0x64);
-    sm(&mut seg, 3, 0x1400, tx_bytes as u16, 0x20);
-    if al_request(&mut seg, 4) != (4, 0) {
-        return Err(format!("Safe-Op refused: {:?}", seg.al_status(0)));
-    }
-    let outputs = |k: u32| {
-        let mut o = vec![0u8; rx_bytes];
-        o[0..2].copy_from_slice(&0x000Fu16.to_le_bytes());
-        o[2..6].copy_from_slice(&(50 * k as i32).to_le_bytes());
-        o
-    };
-    fpwr(&mut seg, 0x1100, &outputs(0));
-    if al_request(&mut seg, 8) != (8, 0) {
-        return Err(format!("Op refused: {:?}", seg.al_status(0)));
-    }
-    let mut last = None;
-    for k in 1..=5u32 {
-        // Move to the next 1 ms cycle, then the master's frame and one poll.
-        let to_next = 1_000_000 - seg.now_ns() % 1_000_000;
-        sim_drive::advance(&mut seg, to_next);
-        let mut frame = FrameBuilder::new()
-            .physical(Command::Fpwr, 0x1000, 0x1100, &outputs(k))
-            .physical(Command::Fprd, 0x1000, 0x1400, &vec![0; tx_bytes])
-            .build();
-        let now_ns = seg.now_ns();
-        let hop = seg.config().hop_ns;
-        {
-            let escs: Vec<_> = seg.drives_mut().iter().map(|d| d.esc.clone()).collect();
-            let mut refs: Vec<_> = escs.iter().map(|e| e.borrow_mut()).collect();
-            process_frame(&mut refs, &mut frame, now_ns, hop);
-        }
-        let wkc: Vec<u16> = datagrams(&frame)
-            .unwrap_or_default()
-            .iter()
-            .map(|d| d.wkc)
-            .collect();
-        if wkc != [1, 1] {
-            return Err(format!("cycle {k}: working counters {wkc:?}"));
-        }
-        // Polls until the inputs are written (the ET1100 driver may answer the first
-        // poll with the AL event bytes of its previous access, see the notes).
-        let d = seg.drive_mut(0);
-        if let Some(l) = spi_log(d.slave.esc_mut()) {
-            l.clear();
-        }
-        let mut cycle = Vec::new();
-        let mut polls = 0;
-        while polls < 4 && !cycle.iter().any(|t| writes_inputs(chip.flavour, t)) {
-            d.slave
-                .poll(&mut d.app, now_ns / 1000)
-                .map_err(|e| format!("poll: {e:?}"))?;
-            polls += 1;
-            cycle.extend(
-                spi_log(d.slave.esc_mut())
-                    .map(std::mem::take)
-                    .unwrap_or_default(),
-            );
-        }
-        // A poll without any event (what the runtime does between cycles).
-        d.slave
-            .poll(&mut d.app, now_ns / 1000 + 1)
-            .map_err(|e| format!("poll: {e:?}"))?;
-        let idle = spi_log(d.slave.esc_mut())
-            .map(std::mem::take)
-            .unwrap_or_default();
-        last = Some((cycle, idle, polls));
-        if seg.al_status(0) != (8, 0) {
-            return Err(format!("left Op: {:?}", seg.al_status(0)));
-        }
-    }
-    let (transactions, idle, polls) = last.ok_or("no cycle measured")?;
-    // The cycle ran: the inputs were written.
-    if !transactions.iter().any(|t| writes_inputs(chip.flavour, t)) {
-        return Err(format!("inputs not written after {polls} polls"));
-    }
-    let violations = seg.drive_mut(0).slave.esc_mut().spi_violations();
-    if !violations.is_empty() {
-        return Err(format!("SPI protocol violations: {violations:?}"));
-    }
-    Ok(CycleTraffic {
-        transactions,
-        idle,
-        rx_bytes,
-        polls,
-    })
-}
 
 /// Instruction counts: `--counts FILE` (raw, with the overhead row) or BENCHMARKS.md.
 fn load_counts(file: Option<&str>) -> Result<Vec<(String, u64)>, String> {
@@ -734,7 +494,14 @@ fn shortest_cycle_section(
         }
     }
     let _ = writeln!(w);
-    for (name, cycle, total) in &best_default {
+    shortest_cycle_notes(w, c, &best_default);
+    Ok(())
+}
+
+/// The notes under the shortest-cycle table: the default-map answer per chip, the
+/// ET1100 poll note, the CSP cycle against its goal.
+fn shortest_cycle_notes(w: &mut String, c: &Counts, best_default: &[(&str, f64, f64)]) {
+    for (name, cycle, total) in best_default {
         let _ = writeln!(
             w,
             "- **{name}, default maps, SPI clock a 170 MHz G474 can make: {} µs of work per cycle → \
@@ -761,7 +528,6 @@ fn shortest_cycle_section(
             ", not yet met"
         }
     );
-    Ok(())
 }
 
 /// Fraction of the CPU taken by the interrupts (current loop + encoder at the PWM
