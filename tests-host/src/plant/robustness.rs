@@ -340,10 +340,20 @@ fn joined(xs: impl IntoIterator<Item = f64>, digits: usize) -> String {
 }
 
 fn motor_rows(motor: MotorParams) -> Vec<Figure> {
-    use Calibration::{Off, Tuned};
-    use Design::{Baseline, Robust};
-    let name = motor.name;
     let mut rows = Vec::new();
+    step_rows(motor, &mut rows);
+    tuned_l_rows(motor, &mut rows);
+    ripple_rows(motor, &mut rows);
+    sensor_rows(motor, &mut rows);
+    combined_rows(motor, &mut rows);
+    rows
+}
+
+/// Step overshoot after the tune against the loop delay and the true L.
+fn step_rows(motor: MotorParams, rows: &mut Vec<Figure>) {
+    use Calibration::Tuned;
+    use Design::Baseline;
+    let name = motor.name;
     for delay in DELAYS {
         let o: Vec<f64> = L_SCALES
             .iter()
@@ -361,6 +371,11 @@ fn motor_rows(motor: MotorParams) -> Vec<Figure> {
             worst <= 5.0,
         ));
     }
+}
+
+/// The tuned L against the true L over the loop delays.
+fn tuned_l_rows(motor: MotorParams, rows: &mut Vec<Figure>) {
+    let name = motor.name;
     let mut worst_l = 0.0f64;
     let mut at_one = Vec::new();
     let mut delays = Vec::new();
@@ -387,6 +402,13 @@ fn motor_rows(motor: MotorParams) -> Vec<Figure> {
         ),
         worst_l <= 10.0,
     ));
+}
+
+/// i_q ripple on the encoder after the tune: fixed speeds, the sweep, i_d beside i_q.
+fn ripple_rows(motor: MotorParams, rows: &mut Vec<Figure>) {
+    use Calibration::Tuned;
+    use Design::{Baseline, Robust};
+    let name = motor.name;
     let ideal = Conditions::IDEAL;
     for v in [1.0, 5.07, 10.13] {
         let r = 1e3 * iq_ripple(motor, &ideal, Tuned, v);
@@ -417,6 +439,14 @@ fn motor_rows(motor: MotorParams) -> Vec<Figure> {
         format!("{:.0} mA / {:.1} mA", 1e3 * beat.id_pp, 1e3 * beat.iq_pp),
         true,
     ));
+}
+
+/// Sensor gains and offsets, and dead time: ripple and steady error, tuned.
+fn sensor_rows(motor: MotorParams, rows: &mut Vec<Figure>) {
+    use Calibration::{Off, Tuned};
+    use Design::Robust;
+    let name = motor.name;
+    let ideal = Conditions::IDEAL;
     let sensors = spin(motor, &SENSORS, Robust(Tuned), 5.0);
     let before = spin(motor, &SENSORS, Robust(Off), 5.0);
     rows.push(figure(
@@ -454,6 +484,13 @@ fn motor_rows(motor: MotorParams) -> Vec<Figure> {
         format!("{r:.1} mA (uncompensated {before:.0} mA)"),
         r <= 3.0,
     ));
+}
+
+/// Every imperfection at once: step, ripple, steady error, tuned L; the torque ripple.
+fn combined_rows(motor: MotorParams, rows: &mut Vec<Figure>) {
+    use Calibration::Tuned;
+    use Design::{Baseline, Robust};
+    let name = motor.name;
     let all = Conditions::ALL;
     let o = step_overshoot(motor, &all, Tuned);
     let o_before = step_overshoot_of(motor, &all, Baseline);
@@ -487,7 +524,6 @@ fn motor_rows(motor: MotorParams) -> Vec<Figure> {
         ),
         true,
     ));
-    rows
 }
 
 /// The goal of the combined row: overshoot / ripple / steady error / tuned L against
