@@ -66,8 +66,9 @@ fn number<T: std::str::FromStr>(name: &str, v: &str) -> Result<T, String> {
         .map_err(|_| format!("{name}: '{v}' is not a valid number"))
 }
 
-fn parse(args: &[String]) -> Result<Options, String> {
-    let mut o = Options {
+/// The options before the command line: the default channels come in [`checked`].
+fn defaults() -> Options {
+    Options {
         iface: String::new(),
         cfg: ScopeConfig {
             channels: Vec::new(),
@@ -85,7 +86,11 @@ fn parse(args: &[String]) -> Result<Options, String> {
         velocity: 50_000,
         out: PathBuf::from("scope"),
         timeout: Duration::from_secs(10),
-    };
+    }
+}
+
+fn parse(args: &[String]) -> Result<Options, String> {
+    let mut o = defaults();
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let mut value = |name: &str| {
@@ -135,6 +140,11 @@ fn parse(args: &[String]) -> Result<Options, String> {
             other => return Err(format!("unknown argument '{other}'\n{USAGE}")),
         }
     }
+    checked(o)
+}
+
+/// `o` with the default channels when none was given, or what is wrong with it.
+fn checked(mut o: Options) -> Result<Options, String> {
     if o.iface.is_empty() {
         return Err(format!("--iface is required\n{USAGE}"));
     }
@@ -237,6 +247,53 @@ async fn record_in_preop(md: &MainDevice<'static>, o: &Options) -> Result<Record
         .map_err(at("0x2503"))
 }
 
+/// The group in Op.
+type OpGroup =
+    ethercrab::SubDeviceGroup<4, 128, ethercrab::DefaultLock, ethercrab::subdevice_group::Op>;
+
+/// Writes controlword `cw` and target `target` into the outputs of drive 0.
+fn set_outputs(
+    md: &MainDevice<'static>,
+    group: &OpGroup,
+    cw: u16,
+    target: i32,
+) -> Result<(), Failure> {
+    let sd = group.subdevice(md, 0).map_err(at("drive 0"))?;
+    let mut out = sd.outputs_raw_mut();
+    out[0..2].copy_from_slice(&cw.to_le_bytes());
+    out[2..6].copy_from_slice(&target.to_le_bytes());
+    Ok(())
+}
+
+/// One cycle: the outputs, the exchange, the statusword and position that came back.
+async fn exchange(
+    md: &MainDevice<'static>,
+    group: &OpGroup,
+    cw: u16,
+    target: i32,
+) -> Result<(u16, i32), Failure> {
+    set_outputs(md, group, cw, target)?;
+    group.tx_rx(md).await.map_err(at("tx_rx"))?;
+    Ok(decode(
+        &group.subdevice(md, 0).map_err(at("drive 0"))?.inputs_raw(),
+    ))
+}
+
+/// Enables drive 0 (the drive's power-up self-test may take a few seconds first);
+/// returns the position it holds.
+async fn enable(md: &MainDevice<'static>, group: &OpGroup) -> Result<i32, Failure> {
+    let (mut sw, mut pos) = (0u16, 0i32);
+    let deadline = Instant::now() + Duration::from_secs(8);
+    while sw & 0x6F != 0x27 {
+        if Instant::now() > deadline {
+            return Err(format!("enable: statusword {sw:#06x} after 8 s"));
+        }
+        (sw, pos) = exchange(md, group, enable_controlword(sw), pos).await?;
+        async_io::Timer::after(Duration::from_millis(1)).await;
+    }
+    Ok(pos)
+}
+
 /// Op: enable in CSP or PV, arm at standstill, move, wait for the record, Pre-Op, read.
 async fn record_with_move(md: &MainDevice<'static>, o: &Options) -> Result<Record, Failure> {
     let mut cfg = o.cfg.clone();
@@ -251,26 +308,7 @@ async fn record_with_move(md: &MainDevice<'static>, o: &Options) -> Result<Recor
         sd.sdo_write(0x60FF, 0, 0i32).await.map_err(at("0x60FF"))?;
     }
     let group = group.into_op(md).await.map_err(at("into_op"))?;
-    let (mut sw, mut pos) = (0u16, 0i32);
-    let cycle = |cw: u16, target: i32| {
-        let sd = group.subdevice(md, 0).expect("drive 0");
-        let mut out = sd.outputs_raw_mut();
-        out[0..2].copy_from_slice(&cw.to_le_bytes());
-        out[2..6].copy_from_slice(&target.to_le_bytes());
-    };
-    let tick = Duration::from_millis(1);
-    // Enable (the drive's power-up self-test may take a few seconds first).
-    let deadline = Instant::now() + Duration::from_secs(8);
-    while sw & 0x6F != 0x27 {
-        if Instant::now() > deadline {
-            return Err(format!("enable: statusword {sw:#06x} after 8 s"));
-        }
-        cycle(enable_controlword(sw), pos);
-        group.tx_rx(md).await.map_err(at("tx_rx"))?;
-        (sw, pos) = decode(&group.subdevice(md, 0).map_err(at("drive 0"))?.inputs_raw());
-        async_io::Timer::after(tick).await;
-    }
-    let p0 = pos;
+    let p0 = enable(md, &group).await?;
     if !o.level_given && o.motion == Move::Csp {
         if let Some(ch) = cfg.channels.get(usize::from(cfg.trigger_channel) - 1) {
             if is_position(ch) {
@@ -287,7 +325,36 @@ async fn record_with_move(md: &MainDevice<'static>, o: &Options) -> Result<Recor
             .await
             .map_err(at("arm"))?;
     }
-    // Standstill long enough for the pre-trigger samples, the move, then holding.
+    let target = run_move(md, &group, o, &cfg, p0).await?;
+    for _ in 0..20 {
+        exchange(md, &group, 0x0006, target).await?;
+        async_io::Timer::after(Duration::from_millis(1)).await;
+    }
+    let group = group.into_safe_op(md).await.map_err(at("into_safe_op"))?;
+    let group = group.into_pre_op(md).await.map_err(at("into_pre_op"))?;
+    let sd = group.subdevice(md, 0).map_err(at("drive 0"))?;
+    let st = scope_host::status(&sd).await.map_err(at("0x2502"))?;
+    if st.state != 3 {
+        return Err(format!(
+            "no record before --timeout (scope state {})",
+            st.state
+        ));
+    }
+    scope_host::read_record(&sd, &cfg, &st)
+        .await
+        .map_err(at("0x2503"))
+}
+
+/// Standstill long enough for the pre-trigger samples, the move (a CSP S-curve of
+/// `--distance` or a PV run at `--velocity`), then holding until the record is done or
+/// `--timeout`. Returns the last target.
+async fn run_move(
+    md: &MainDevice<'static>,
+    group: &OpGroup,
+    o: &Options,
+    cfg: &ScopeConfig,
+    p0: i32,
+) -> Result<i32, Failure> {
     let pre_ms = u64::from(cfg.pretrigger) * u64::from(cfg.divisor) + 50;
     let move_ms = 300u64;
     let start = Instant::now();
@@ -304,9 +371,7 @@ async fn record_with_move(md: &MainDevice<'static>, o: &Options) -> Result<Recor
             let p = f64::from(o.distance) * (s - (tau * s).sin() / tau);
             target = p0.saturating_add(p.round() as i32);
         }
-        cycle(0x000F, target);
-        group.tx_rx(md).await.map_err(at("tx_rx"))?;
-        (sw, _) = decode(&group.subdevice(md, 0).map_err(at("drive 0"))?.inputs_raw());
+        let (sw, _) = exchange(md, group, 0x000F, target).await?;
         let sd = group.subdevice(md, 0).map_err(at("drive 0"))?;
         if o.motion == Move::Pv && t_ms >= 0.0 && !pv_sent.0 {
             sd.sdo_write(0x60FF, 0, o.velocity)
@@ -325,7 +390,7 @@ async fn record_with_move(md: &MainDevice<'static>, o: &Options) -> Result<Recor
                 .await
                 .map_err(at("0x2502"))?;
             if st == 3 || Instant::now() > until {
-                break;
+                return Ok(target);
             }
         }
         if sw & 0x08 != 0 && !fault_seen {
@@ -334,26 +399,8 @@ async fn record_with_move(md: &MainDevice<'static>, o: &Options) -> Result<Recor
             let code: u16 = sd.sdo_read(0x603F, 0).await.map_err(at("0x603F"))?;
             eprintln!("scope: the drive reports fault {code:#06x} (statusword {sw:#06x})");
         }
-        async_io::Timer::after(tick).await;
+        async_io::Timer::after(Duration::from_millis(1)).await;
     }
-    for _ in 0..20 {
-        cycle(0x0006, target);
-        group.tx_rx(md).await.map_err(at("tx_rx"))?;
-        async_io::Timer::after(tick).await;
-    }
-    let group = group.into_safe_op(md).await.map_err(at("into_safe_op"))?;
-    let group = group.into_pre_op(md).await.map_err(at("into_pre_op"))?;
-    let sd = group.subdevice(md, 0).map_err(at("drive 0"))?;
-    let st = scope_host::status(&sd).await.map_err(at("0x2502"))?;
-    if st.state != 3 {
-        return Err(format!(
-            "no record before --timeout (scope state {})",
-            st.state
-        ));
-    }
-    scope_host::read_record(&sd, &cfg, &st)
-        .await
-        .map_err(at("0x2503"))
 }
 
 fn main() -> ExitCode {
