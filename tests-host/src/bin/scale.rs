@@ -96,6 +96,14 @@ struct Run {
     total_s: f64,
 }
 
+/// The group in Op.
+type OpGroup = ethercrab::SubDeviceGroup<
+    MAX_DRIVES,
+    MAX_PDI,
+    ethercrab::DefaultLock,
+    ethercrab::subdevice_group::Op,
+>;
+
 async fn scenario(
     md: Rc<MainDevice<'static>>,
     wire: Rc<RefCell<TimedWire>>,
@@ -113,70 +121,12 @@ async fn scenario(
         drives: n,
         ..Run::default()
     };
-    // The PDI of N drives may need several LRW datagrams (one per frame); a drive
-    // whose image straddles two of them counts in both. Expected working counter of
-    // one tx_rx = Σ over the LRW chunks of (2 per drive whose outputs it touches + 1 per
-    // drive whose inputs it touches), from each drive's place in ethercrab's PDI.
-    let mut segs = Vec::new();
-    for sd in group.iter(&md) {
-        let i = sd.inputs_raw();
-        let ip = (i.as_ptr() as usize, i.len());
-        drop(i);
-        let o = sd.outputs_raw_mut();
-        segs.push((ip, (o.as_ptr() as usize, o.len())));
-    }
-    let base = segs.iter().flat_map(|(i, o)| [i.0, o.0]).min().unwrap_or(0);
-    wire.borrow_mut().lrw.clear();
-    group.tx_rx(&md).await?;
-    let chunks = std::mem::take(&mut wire.borrow_mut().lrw);
-    let start = chunks.first().map_or(0, |c| c.0);
-    let overlaps = |(p, len): (usize, usize), (a, l): (u32, usize)| {
-        let s0 = (p - base) as u64 + start as u64;
-        let c0 = a as u64;
-        len > 0 && s0 < c0 + l as u64 && c0 < s0 + len as u64
-    };
-    let expected_wkc: u16 = chunks
-        .iter()
-        .map(|&c| {
-            segs.iter()
-                .map(|&(i, o)| 2 * overlaps(o, c) as u16 + overlaps(i, c) as u16)
-                .sum::<u16>()
-        })
-        .sum();
-    run.lrw_chunks = chunks.len();
-    let step = |k: u64| -> u16 {
-        match k {
-            0..=2 => 0x0006,
-            3..=5 => 0x0007,
-            _ => 0x000F,
-        }
-    };
+    let (expected_wkc, lrw_chunks) = expected_working_counter(&md, &group, &wire).await?;
+    run.lrw_chunks = lrw_chunks;
     // Enable first (not timed), then the timed cycles.
     let mut target = vec![0i32; n];
-    let cycle = |k: u64, target: &mut Vec<i32>| {
-        let cw = step(k);
-        for (i, sd) in group.iter(&md).enumerate() {
-            if k > 8 {
-                // One revolution per second (50 000 units) in CSP.
-                target[i] += 50;
-            } else {
-                // Follow the actual position until enabled (inputs and outputs share
-                // one lock: read before writing).
-                let inp = sd.inputs_raw();
-                if inp.len() >= 9 {
-                    target[i] = i32::from_le_bytes([inp[5], inp[6], inp[7], inp[8]]);
-                }
-            }
-            let mut o = sd.outputs_raw_mut();
-            if o.len() < OUT_BYTES {
-                continue;
-            }
-            o[0..2].copy_from_slice(&cw.to_le_bytes());
-            o[2..6].copy_from_slice(&target[i].to_le_bytes());
-        }
-    };
     for k in 0..10 {
-        cycle(k, &mut target);
+        set_outputs(&md, &group, k, &mut target);
         group.tx_rx(&md).await?;
         let left = CYCLE_NS - sim_now_ns() % CYCLE_NS;
         wire.borrow_mut().advance(left);
@@ -184,7 +134,7 @@ async fn scenario(
     wire.borrow_mut().busy_s = 0.0;
     let t_cpu = thread_cpu_s();
     for k in 10..10 + cycles {
-        cycle(k, &mut target);
+        set_outputs(&md, &group, k, &mut target);
         let r = group.tx_rx(&md).await?;
         run.cycles += 1;
         if r.working_counter == expected_wkc {
@@ -208,6 +158,73 @@ async fn scenario(
     let group = group.into_pre_op(&md).await?;
     let _ = group.into_init(&md).await?;
     Ok(run)
+}
+
+/// The expected working counter of one `tx_rx` and the number of LRW datagrams it
+/// takes. The PDI of N drives may need several LRW datagrams (one per frame); a drive
+/// whose image straddles two of them counts in both. Expected working counter = Σ over
+/// the LRW chunks of (2 per drive whose outputs it touches + 1 per drive whose inputs
+/// it touches), from each drive's place in ethercrab's PDI.
+async fn expected_working_counter(
+    md: &MainDevice<'static>,
+    group: &OpGroup,
+    wire: &RefCell<TimedWire>,
+) -> Result<(u16, usize), ethercrab::error::Error> {
+    let mut segs = Vec::new();
+    for sd in group.iter(md) {
+        let i = sd.inputs_raw();
+        let ip = (i.as_ptr() as usize, i.len());
+        drop(i);
+        let o = sd.outputs_raw_mut();
+        segs.push((ip, (o.as_ptr() as usize, o.len())));
+    }
+    let base = segs.iter().flat_map(|(i, o)| [i.0, o.0]).min().unwrap_or(0);
+    wire.borrow_mut().lrw.clear();
+    group.tx_rx(md).await?;
+    let chunks = std::mem::take(&mut wire.borrow_mut().lrw);
+    let start = chunks.first().map_or(0, |c| c.0);
+    let overlaps = |(p, len): (usize, usize), (a, l): (u32, usize)| {
+        let s0 = (p - base) as u64 + start as u64;
+        let c0 = a as u64;
+        len > 0 && s0 < c0 + l as u64 && c0 < s0 + len as u64
+    };
+    let expected_wkc: u16 = chunks
+        .iter()
+        .map(|&c| {
+            segs.iter()
+                .map(|&(i, o)| 2 * overlaps(o, c) as u16 + overlaps(i, c) as u16)
+                .sum::<u16>()
+        })
+        .sum();
+    Ok((expected_wkc, chunks.len()))
+}
+
+/// The outputs of cycle `k`: the CiA 402 enable sequence, then a CSP target moving
+/// one revolution per second (50 000 units).
+fn set_outputs(md: &MainDevice<'static>, group: &OpGroup, k: u64, target: &mut [i32]) {
+    let cw: u16 = match k {
+        0..=2 => 0x0006,
+        3..=5 => 0x0007,
+        _ => 0x000F,
+    };
+    for (i, sd) in group.iter(md).enumerate() {
+        if k > 8 {
+            target[i] += 50;
+        } else {
+            // Follow the actual position until enabled (inputs and outputs share
+            // one lock: read before writing).
+            let inp = sd.inputs_raw();
+            if inp.len() >= 9 {
+                target[i] = i32::from_le_bytes([inp[5], inp[6], inp[7], inp[8]]);
+            }
+        }
+        let mut o = sd.outputs_raw_mut();
+        if o.len() < OUT_BYTES {
+            continue;
+        }
+        o[0..2].copy_from_slice(&cw.to_le_bytes());
+        o[2..6].copy_from_slice(&target[i].to_le_bytes());
+    }
 }
 
 fn main() {
