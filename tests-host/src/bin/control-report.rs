@@ -72,45 +72,50 @@ fn main() {
     print_table(&tests_host::plant::servo_tune::report());
 
     if let Some(dir) = plots {
-        if let Err(e) = std::fs::create_dir_all(&dir) {
-            eprintln!("cannot create {}: {e}", dir.display());
-            std::process::exit(1);
-        }
-        let text = load_font();
-        let step = scenarios::current_step(ECN57_20, 8);
-        let p1 = dir.join("current_step.png");
-        let r1 = plot(
-            &p1,
-            "ECN57-20, 0.5 A q-current step, 40 kHz (mean of 8 seeds)",
-            "time after the reference step (µs)",
-            "i_q (A)",
-            &[
-                ("reference", &step.reference, RED),
-                ("i_q (plant)", &step.trace, BLUE),
-            ],
-            text,
-        );
-        let csp = scenarios::csp_tracking();
-        let p2 = dir.join("csp_tracking_error.png");
-        let r2 = plot(
-            &p2,
-            "TC86-45, 600 rpm CSP (1 ms set-points): following error",
-            "time (ms)",
-            "following error (counts)",
-            &[("following error", &csp.trace, BLUE)],
-            text,
-        );
-        let p3 = dir.join("iq_ripple_vs_speed.png");
-        let r3 = ripple_plot(&p3, text);
-        let p4 = dir.join("open_loop_resonance.png");
-        let r4 = resonance_plot(&p4, &sweeps, text);
-        for (p, r) in [(p1, r1), (p2, r2), (p3, r3), (p4, r4)] {
-            match r {
-                Ok(()) => eprintln!("wrote {}", p.display()),
-                Err(e) => {
-                    eprintln!("plot {} failed: {e}", p.display());
-                    std::process::exit(1);
-                }
+        write_plots(&dir, &sweeps);
+    }
+}
+
+/// The report's PNG plots into `dir`; exits the process when one fails.
+fn write_plots(dir: &std::path::Path, sweeps: &[resonance::MotorSweep]) {
+    if let Err(e) = std::fs::create_dir_all(dir) {
+        eprintln!("cannot create {}: {e}", dir.display());
+        std::process::exit(1);
+    }
+    let text = load_font();
+    let step = scenarios::current_step(ECN57_20, 8);
+    let p1 = dir.join("current_step.png");
+    let r1 = plot(
+        &p1,
+        "ECN57-20, 0.5 A q-current step, 40 kHz (mean of 8 seeds)",
+        "time after the reference step (µs)",
+        "i_q (A)",
+        &[
+            ("reference", &step.reference, RED),
+            ("i_q (plant)", &step.trace, BLUE),
+        ],
+        text,
+    );
+    let csp = scenarios::csp_tracking();
+    let p2 = dir.join("csp_tracking_error.png");
+    let r2 = plot(
+        &p2,
+        "TC86-45, 600 rpm CSP (1 ms set-points): following error",
+        "time (ms)",
+        "following error (counts)",
+        &[("following error", &csp.trace, BLUE)],
+        text,
+    );
+    let p3 = dir.join("iq_ripple_vs_speed.png");
+    let r3 = ripple_plot(&p3, text);
+    let p4 = dir.join("open_loop_resonance.png");
+    let r4 = resonance_plot(&p4, sweeps, text);
+    for (p, r) in [(p1, r1), (p2, r2), (p3, r3), (p4, r4)] {
+        match r {
+            Ok(()) => eprintln!("wrote {}", p.display()),
+            Err(e) => {
+                eprintln!("plot {} failed: {e}", p.display());
+                std::process::exit(1);
             }
         }
     }

@@ -379,6 +379,12 @@ fn report(runs: &[Run], cycles: u64) -> String {
         );
     }
     let _ = writeln!(md);
+    conclusion(&mut md, runs, best);
+    md
+}
+
+/// The sentence under the table: the largest N that kept real time on one core.
+fn conclusion(md: &mut String, runs: &[Run], best: Option<usize>) {
     match best {
         Some(n) => {
             let next = runs.iter().find(|r| r.drives > n).map(|r| {
@@ -406,5 +412,4 @@ fn report(runs: &[Run], cycles: u64) -> String {
             );
         }
     }
-    md
 }
