@@ -106,6 +106,40 @@ impl<B: EscAccess> Et1100Model<B> {
             }
         };
     }
+
+    /// One byte of the data phase: written bytes are collected, read bytes come from the
+    /// ESC (the read protocol's rules checked).
+    fn data_byte(&mut self, mosi: u8) -> u8 {
+        let i = self.index;
+        self.index += 1;
+        let a = self.addr.wrapping_add(i as u16);
+        if self.command == cmd::WRITE {
+            self.write_buf.push(mosi);
+            return 0x00;
+        }
+        if i == 0 && self.command == cmd::READ && self.require_read_delay && !self.delay_seen {
+            self.violations
+                .push("0b010 read without wait time before the data".into());
+        }
+        if self.terminated {
+            self.violations
+                .push(format!("byte clocked after read termination at {a:#06x}"));
+            return 0x00;
+        }
+        match mosi {
+            0xFF => self.terminated = true,
+            0x00 => {}
+            b => self.violations.push(format!(
+                "MOSI {b:#04x} during read data (must be 0x00 or 0xFF)"
+            )),
+        }
+        let mut b = [0u8; 1];
+        if let Err(e) = self.esc.read(a, &mut b) {
+            self.violations
+                .push(format!("ESC read {a:#06x} failed: {e:?}"));
+        }
+        b[0]
+    }
 }
 
 impl<B: EscAccess> ByteDevice for Et1100Model<B> {
@@ -178,41 +212,7 @@ impl<B: EscAccess> ByteDevice for Et1100Model<B> {
                 self.phase = Phase::Data;
                 0x00
             }
-            Phase::Data => {
-                let i = self.index;
-                self.index += 1;
-                let a = self.addr.wrapping_add(i as u16);
-                if self.command == cmd::WRITE {
-                    self.write_buf.push(mosi);
-                    return 0x00;
-                }
-                if i == 0
-                    && self.command == cmd::READ
-                    && self.require_read_delay
-                    && !self.delay_seen
-                {
-                    self.violations
-                        .push("0b010 read without wait time before the data".into());
-                }
-                if self.terminated {
-                    self.violations
-                        .push(format!("byte clocked after read termination at {a:#06x}"));
-                    return 0x00;
-                }
-                match mosi {
-                    0xFF => self.terminated = true,
-                    0x00 => {}
-                    b => self.violations.push(format!(
-                        "MOSI {b:#04x} during read data (must be 0x00 or 0xFF)"
-                    )),
-                }
-                let mut b = [0u8; 1];
-                if let Err(e) = self.esc.read(a, &mut b) {
-                    self.violations
-                        .push(format!("ESC read {a:#06x} failed: {e:?}"));
-                }
-                b[0]
-            }
+            Phase::Data => self.data_byte(mosi),
             Phase::Ignore => 0x00,
         }
     }

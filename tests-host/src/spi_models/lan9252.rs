@@ -376,45 +376,52 @@ impl<B: EscAccess> Lan9252Model<B> {
         self.csr_busy_left = self.faults.csr_busy_polls;
     }
 
+    /// A word into the PRAM write FIFO (0x020-0x03F).
+    fn write_fifo(&mut self, v: u32) {
+        if !self.wr.active || self.wr.moved >= self.wr.total_words {
+            self.violation("write FIFO overrun (no PRAM write active)".into());
+            return;
+        }
+        let w = self.wr.moved;
+        let lanes: Vec<(usize, u16)> = self.wr.lanes(w).collect();
+        if let (Some(&(l0, a0)), Some(&(l1, _))) = (lanes.first(), lanes.last()) {
+            let b = v.to_le_bytes();
+            self.esc_write(a0, &b[l0..=l1]);
+        }
+        self.wr.moved += 1;
+        if self.wr.moved == self.wr.total_words {
+            self.wr.active = false;
+            self.wr.settling = if self.faults.pram_write_stuck_busy {
+                1
+            } else {
+                self.faults.pram_write_busy_reads
+            };
+        }
+    }
+
+    /// RESET_CTL written: a digital reset clears the PDI side, an EtherCAT reset is
+    /// counted.
+    fn reset(&mut self, v: u32) {
+        if v & chip::RESET_DIGITAL != 0 {
+            self.digital_resets += 1;
+            self.irq_cfg = 0;
+            self.int_en = 0;
+            self.rd = Pram::default();
+            self.wr = Pram::default();
+            self.csr_busy_left = 0;
+            self.reset_reads_left = self.faults.reset_busy_reads;
+        }
+        if v & chip::RESET_ETHERCAT != 0 {
+            self.ecat_resets += 1;
+        }
+    }
+
     fn write_reg(&mut self, a: u16, v: u32) {
         match a {
-            0x020..=0x03F => {
-                if !self.wr.active || self.wr.moved >= self.wr.total_words {
-                    self.violation("write FIFO overrun (no PRAM write active)".into());
-                    return;
-                }
-                let w = self.wr.moved;
-                let lanes: Vec<(usize, u16)> = self.wr.lanes(w).collect();
-                if let (Some(&(l0, a0)), Some(&(l1, _))) = (lanes.first(), lanes.last()) {
-                    let b = v.to_le_bytes();
-                    self.esc_write(a0, &b[l0..=l1]);
-                }
-                self.wr.moved += 1;
-                if self.wr.moved == self.wr.total_words {
-                    self.wr.active = false;
-                    self.wr.settling = if self.faults.pram_write_stuck_busy {
-                        1
-                    } else {
-                        self.faults.pram_write_busy_reads
-                    };
-                }
-            }
+            0x020..=0x03F => self.write_fifo(v),
             reg::IRQ_CFG => self.irq_cfg = v,
             reg::INT_EN => self.int_en = v,
-            reg::RESET_CTL => {
-                if v & chip::RESET_DIGITAL != 0 {
-                    self.digital_resets += 1;
-                    self.irq_cfg = 0;
-                    self.int_en = 0;
-                    self.rd = Pram::default();
-                    self.wr = Pram::default();
-                    self.csr_busy_left = 0;
-                    self.reset_reads_left = self.faults.reset_busy_reads;
-                }
-                if v & chip::RESET_ETHERCAT != 0 {
-                    self.ecat_resets += 1;
-                }
-            }
+            reg::RESET_CTL => self.reset(v),
             reg::ECAT_CSR_DATA => {
                 if self.csr_busy_left > 0 || self.faults.csr_stuck_busy {
                     self.violation("ECAT_CSR_DATA written while CSR busy".into());
