@@ -511,8 +511,7 @@ impl Autotune {
         let v = quant(num::clamp(u, -vmax, vmax));
         if self.t == self.settle_steps
             && first
-            && i.abs().partial_cmp(&(0.2 * target.abs()))
-                != Some(core::cmp::Ordering::Greater)
+            && i.abs().partial_cmp(&(0.2 * target.abs())) != Some(core::cmp::Ordering::Greater)
         {
             self.state = TuneState::Failed(TuneError::OpenPhase(phase));
             return 0.0;
