@@ -12,10 +12,10 @@ impl Cia402 {
         setpoint: SetpointArrival,
     ) -> SetpointKind {
         let cwv = self.controlword;
-        let halt = cwv & cw::HALT != 0;
+        let halt = cwv.halt();
         let p = &self.params;
         let di = self.digital_inputs;
-        let homing = self.mode == mode::HM;
+        let homing = self.mode == OperationMode::Hm;
         // Hardware limits (not while homing: homing uses them as references).
         let pos_lim = !homing && di & homing::DI_POS_LIMIT != 0;
         let neg_lim = !homing && di & homing::DI_NEG_LIMIT != 0;
@@ -27,21 +27,21 @@ impl Cia402 {
             return SetpointKind::Tune;
         }
         match self.mode {
-            mode::PP => {
+            OperationMode::Pp => {
                 self.run_pp(halt, pos_lim, neg_lim, dt);
                 SetpointKind::Position
             }
-            mode::PV => {
+            OperationMode::Pv => {
                 self.run_pv(halt, pos_lim, neg_lim, dt);
                 SetpointKind::Velocity
             }
-            mode::HM => {
+            OperationMode::Hm => {
                 self.run_hm(halt, index, dt);
                 SetpointKind::Position
             }
-            mode::CSP | mode::CSV => self.run_cyclic(halt, pos_lim, neg_lim, dt, setpoint),
-            mode::CST | mode::PT => self.run_cst(halt, pos_lim, neg_lim, dt),
-            _ => {
+            OperationMode::Csp | OperationMode::Csv => self.run_cyclic(halt, pos_lim, neg_lim, dt, setpoint),
+            OperationMode::Cst | OperationMode::Pt => self.run_cst(halt, pos_lim, neg_lim, dt),
+            OperationMode::None => {
                 self.motion.stop(qs_dec, dt);
                 SetpointKind::Position
             }
@@ -56,7 +56,7 @@ impl Cia402 {
             .params
             .sw_limits()
             .is_some_and(|(lo, hi)| self.actual_position >= hi || self.actual_position <= lo);
-        if matches!(self.mode, mode::PP | mode::CSP) && !stopped && !outside {
+        if matches!(self.mode, OperationMode::Pp | OperationMode::Csp) && !stopped && !outside {
             // The drive's servo tune moves the axis: the generator follows the actual
             // position and speed (the start of any stop ramp, and of the mode's
             // set-points once the tune ends).
@@ -81,7 +81,7 @@ impl Cia402 {
         setpoint: SetpointArrival,
     ) -> SetpointKind {
         let p = &self.params;
-        let csv = self.mode == mode::CSV;
+        let csv = self.mode == OperationMode::Csv;
         // 0x60B2: torque feed-forward of the servo loops.
         self.torque_cmd = p.torque_offset;
         if halt {
@@ -426,7 +426,7 @@ impl Cia402 {
     pub(super) fn pp_accept_setpoint(&mut self, m: &Motion) {
         let cwv = self.controlword;
         let p = &self.params;
-        let rising = cwv & cw::NEW_SETPOINT != 0 && self.prev_cw & cw::NEW_SETPOINT == 0;
+        let rising = cwv.new_setpoint_edge(self.prev_cw);
         let params_ok =
             p.profile_velocity != 0 && p.profile_acceleration != 0 && p.profile_deceleration != 0;
         if rising && params_ok {
@@ -435,7 +435,7 @@ impl Cia402 {
                 .buffered
                 .or(self.pp.active)
                 .map_or(self.pp.last_target, |s| s.target);
-            let target = if cwv & cw::RELATIVE != 0 {
+            let target = if cwv.relative() {
                 let reference = match p.positioning_option & 0x3 {
                     1 => m.position(),
                     2 => self.actual_position,
@@ -458,7 +458,7 @@ impl Cia402 {
                 dec: p.dec(p.profile_deceleration),
             };
             self.pp.clamped = false;
-            if self.pp.active.is_none() || cwv & cw::CHANGE_IMMEDIATELY != 0 {
+            if self.pp.active.is_none() || cwv.change_immediately() {
                 if let Some(a) = self.pp.active {
                     self.pp.last_target = a.target;
                 }
@@ -470,7 +470,7 @@ impl Cia402 {
                 self.pp.ack = true;
             }
         }
-        if cwv & cw::NEW_SETPOINT == 0 && self.pp.buffered.is_none() {
+        if !cwv.new_setpoint() && self.pp.buffered.is_none() {
             self.pp.ack = false;
         }
     }
@@ -536,7 +536,7 @@ impl Cia402 {
             self.abnormal_stop = true;
         }
         if let Some(a) = self.pp.active {
-            let through = cwv & cw::CHANGE_ON_SETPOINT != 0
+            let through = cwv.change_on_setpoint()
                 && self.pp.buffered.is_some_and(|b| {
                     let d1 = a.target.wrapping_sub(m.position());
                     let d2 = b.target.wrapping_sub(a.target);
@@ -632,9 +632,9 @@ impl Cia402 {
             index: index.map(|r| self.raw_to_user(r)),
             stall: self.stall.map(|r| self.raw_to_user(r)),
         };
-        let start = cwv & cw::NEW_SETPOINT != 0 && self.prev_cw & cw::NEW_SETPOINT == 0;
+        let start = cwv.new_setpoint_edge(self.prev_cw);
         let mut shift = None;
-        if halt || cwv & cw::NEW_SETPOINT == 0 {
+        if halt || !cwv.homing_start() {
             // Halt or bit 4 cleared: interrupt (stop, status "interrupted").
             let dec = if halt {
                 self.halted = true;

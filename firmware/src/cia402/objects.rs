@@ -27,7 +27,7 @@
 //!   `check(|d, v| ..)` (the object's own SDO rule after the range check, returning the
 //!   abort code).
 
-use super::{homing, mode_supported, probe, Cia402, SUPPORTED_MODES};
+use super::{homing, mode_supported, probe, Cia402, Controlword, SUPPORTED_MODES};
 use ecat_slave_stack::od::{self, Access, DataType, EntryDesc, ObjectDesc, PdoMappable, SdoAbort};
 
 const RO: Access = Access::RO;
@@ -375,11 +375,11 @@ cia402_objects! {
     }
     var 0x6040 "Controlword", "PDS commands (bits 0-3, 7 fault reset), mode-specific bits 4-6 and 9, bit 8 halt.",
     {
-        { 0 "Controlword": u16 RW RX [.default(0)] field(controlword) }
+        { 0 "Controlword": u16 RW RX [.default(0)] get(|d| d.controlword.raw()) set(|d, v| d.controlword = Controlword::from_raw(v)) }
     }
     var 0x6041 "Statusword", "PDS state, voltage enabled, warning, remote, target reached, internal limit, mode bits, E5 bits 8/14/15.",
     {
-        { 0 "Statusword": u16 RO TX [] field(statusword) }
+        { 0 "Statusword": u16 RO TX [] get(|d| d.statusword.raw()) }
     }
     var 0x605A "Quick stop option code", "0 disable drive function; 1/2/3/4 slow-down / quick-stop / max-deceleration ramp then switch on disabled; 5-8 the same and stay in quick stop active.",
     {
@@ -403,13 +403,13 @@ cia402_objects! {
     }
     var 0x6060 "Modes of operation", "Requested mode: 0 none, 1 PP, 3 PV, 4 PT, 6 HM, 8 CSP, 9 CSV, 10 CST (PT and CST closed loop only: refused with 0x06090030 while 0x6502 bit 9 is clear; an RxPDO value is not taken over).",
     {
-        { 0 "Modes of operation": i8 RW RX range(0, 10) [.default(0)] field(mode_request)
+        { 0 "Modes of operation": i8 RW RX range(0, 10) [.default(0)] get(|d| d.mode_request.code())
             set(|d, m| d.set_mode(m))
             check(|d, m| valid_if(mode_supported(m, d.supported_modes()))) }
     }
     var 0x6061 "Modes of operation display", "Mode that is running (changes when the switch is done).",
     {
-        { 0 "Modes of operation display": i8 RO TX [.default(0)] field(mode) }
+        { 0 "Modes of operation display": i8 RO TX [.default(0)] get(|d| d.mode.code()) }
     }
     var 0x6062 "Position demand value", "Output of the trajectory generator / CSP interpolation.",
     {
