@@ -507,7 +507,9 @@ impl Autotune {
         };
         let e = target - i;
         let u = self.pi.output_unlimited(e);
-        self.pi.integrate(e, u, !(u.abs() < vmax), -vmax, vmax);
+        // Limited: at or beyond ±vmax (or not a number).
+        let limited = u.abs().partial_cmp(&vmax) != Some(core::cmp::Ordering::Less);
+        self.pi.integrate(e, u, limited, -vmax, vmax);
         let v = quant(num::clamp(u, -vmax, vmax));
         if self.t == self.settle_steps
             && first

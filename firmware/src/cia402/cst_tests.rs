@@ -50,7 +50,10 @@ fn cst_commands_the_target_torque_with_the_speed_limit() {
     assert_eq!(c.torque, 300);
     assert_eq!(c.velocity, 250_000.0, "the speed limit 0x6080");
     // Target torque used: bit 12; no internal limit.
-    assert_eq!(d.statusword() & (sw::DRIVE_FOLLOWS | sw::INTERNAL_LIMIT), sw::DRIVE_FOLLOWS);
+    assert_eq!(
+        d.statusword() & (sw::DRIVE_FOLLOWS | sw::INTERNAL_LIMIT),
+        sw::DRIVE_FOLLOWS
+    );
     assert_eq!(d.value(0x6074, 0), Some(300));
     assert_eq!(d.value(0x6061, 0), Some(10));
     // The generator shows the actual speed (0x606B = 0x606C): a stop starts there.
@@ -261,7 +264,11 @@ fn pt_ramps_to_the_target_torque_and_reports_target_reached() {
         t.push((c.torque, d.statusword() & sw::TARGET_REACHED != 0));
     }
     assert_eq!(t, [(100, false), (200, false), (250, true), (250, true)]);
-    assert_eq!(d.statusword() & sw::DRIVE_FOLLOWS, 0, "bit 12 is reserved in PT");
+    assert_eq!(
+        d.statusword() & sw::DRIVE_FOLLOWS,
+        0,
+        "bit 12 is reserved in PT"
+    );
     assert_eq!(d.value(0x6074, 0), Some(250));
     // A new target: not reached until the ramp gets there; limited by 0x6072.
     d.write(0x6072, 0, &200u16.to_le_bytes()).unwrap();

@@ -39,7 +39,9 @@ impl Cia402 {
                 self.run_hm(halt, index, dt);
                 SetpointKind::Position
             }
-            OperationMode::Csp | OperationMode::Csv => self.run_cyclic(halt, pos_lim, neg_lim, dt, setpoint),
+            OperationMode::Csp | OperationMode::Csv => {
+                self.run_cyclic(halt, pos_lim, neg_lim, dt, setpoint)
+            }
             OperationMode::Cst | OperationMode::Pt => self.run_cst(halt, pos_lim, neg_lim, dt),
             OperationMode::None => {
                 self.motion.stop(qs_dec, dt);

@@ -46,12 +46,10 @@ impl Cia402 {
                 .with(sw::SETPOINT_ACKNOWLEDGE, self.pp.ack)
                 .with(sw::SETPOINT_FREE, !self.pp.ack)
                 .with(sw::FOLLOWING_ERROR, self.fe_flag),
-            OperationMode::Pv => s
-                .with(sw::TARGET_REACHED, self.target_reached)
-                .with(
-                    sw::SPEED_ZERO,
-                    self.actual_velocity.unsigned_abs() <= self.params.velocity_threshold as u32,
-                ),
+            OperationMode::Pv => s.with(sw::TARGET_REACHED, self.target_reached).with(
+                sw::SPEED_ZERO,
+                self.actual_velocity.unsigned_abs() <= self.params.velocity_threshold as u32,
+            ),
             OperationMode::Hm => match self.hm.status() {
                 HomingStatus::Idle => s.with(sw::TARGET_REACHED, at_rest()),
                 HomingStatus::InProgress => s,
