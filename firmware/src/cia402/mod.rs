@@ -128,10 +128,16 @@ pub use words::{mode, mode_supported, sw, Controlword, OperationMode, Statusword
 
 /// 0x6502 in closed loop: PP (bit 0), PV (bit 2), PT (bit 3), HM (bit 5), CSP (bit 7),
 /// CSV (bit 8), CST (bit 9).
-pub const SUPPORTED_MODES: u32 = SUPPORTED_MODES_OPEN_LOOP | (1 << 3) | (1 << 9);
+pub const SUPPORTED_MODES: u32 = SUPPORTED_MODES_OPEN_LOOP
+    | OperationMode::Pt.supported_bit()
+    | OperationMode::Cst.supported_bit();
 
 /// 0x6502 without torque control (open loop, no encoder): no PT, no CST.
-pub const SUPPORTED_MODES_OPEN_LOOP: u32 = (1 << 0) | (1 << 2) | (1 << 5) | (1 << 7) | (1 << 8);
+pub const SUPPORTED_MODES_OPEN_LOOP: u32 = OperationMode::Pp.supported_bit()
+    | OperationMode::Pv.supported_bit()
+    | OperationMode::Hm.supported_bit()
+    | OperationMode::Csp.supported_bit()
+    | OperationMode::Csv.supported_bit();
 
 /// 0x6007 abort connection option code: what the drive does when the master's
 /// commands stop ([`Cia402::on_connection_lost`]). Stored by 'save'.

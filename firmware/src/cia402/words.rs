@@ -38,19 +38,37 @@ impl OperationMode {
         self as i8
     }
 
+    /// Every mode, in the order of their values.
+    pub const ALL: [OperationMode; 8] = [
+        OperationMode::None,
+        OperationMode::Pp,
+        OperationMode::Pv,
+        OperationMode::Pt,
+        OperationMode::Hm,
+        OperationMode::Csp,
+        OperationMode::Csv,
+        OperationMode::Cst,
+    ];
+
     /// The mode of a wire value, `None` for a value the drive does not implement.
     pub const fn from_code(code: i8) -> Option<OperationMode> {
-        Some(match code {
-            0 => OperationMode::None,
-            1 => OperationMode::Pp,
-            3 => OperationMode::Pv,
-            4 => OperationMode::Pt,
-            6 => OperationMode::Hm,
-            8 => OperationMode::Csp,
-            9 => OperationMode::Csv,
-            10 => OperationMode::Cst,
-            _ => return None,
-        })
+        let mut i = 0;
+        while i < Self::ALL.len() {
+            if Self::ALL[i].code() == code {
+                return Some(Self::ALL[i]);
+            }
+            i += 1;
+        }
+        None
+    }
+
+    /// The mode's bit in 0x6502 (supported drive modes): bit `value − 1`; 0 for
+    /// [`OperationMode::None`].
+    pub const fn supported_bit(self) -> u32 {
+        match self {
+            OperationMode::None => 0,
+            m => 1 << (m.code() - 1),
+        }
     }
 
     /// True for the torque modes, PT and CST (closed loop only).
@@ -323,6 +341,8 @@ mod tests {
         assert_eq!(OperationMode::try_from(7), Err(7), "ip is not implemented");
         assert!(OperationMode::Pt.is_torque() && OperationMode::Cst.is_torque());
         assert!(!OperationMode::Csp.is_torque() && OperationMode::Csp.is_position());
+        assert_eq!(OperationMode::Cst.supported_bit(), 1 << 9);
+        assert_eq!(OperationMode::None.supported_bit(), 0);
     }
 
     #[test]
