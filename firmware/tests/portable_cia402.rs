@@ -626,16 +626,16 @@ qemu_runner::tests! {
         d.params.profile_acceleration = 1_000_000;
         d.params.profile_deceleration = 1_000_000;
         let s = cw(&mut d, &mut ax, 0x000F);
-        assert!(s & sw::TARGET_REACHED != 0 && s & sw::BIT12 == 0 && s & sw::SETPOINT_FREE != 0);
+        assert!(s & sw::TARGET_REACHED != 0 && s & sw::SETPOINT_ACKNOWLEDGE == 0 && s & sw::SETPOINT_FREE != 0);
         d.params.target_position = 10_000;
         let s = cw(&mut d, &mut ax, 0x003F); // new set-point, change immediately
-        assert!(s & sw::BIT12 != 0, "acknowledged in the same cycle");
+        assert!(s & sw::SETPOINT_ACKNOWLEDGE != 0, "acknowledged in the same cycle");
         assert!(s & sw::TARGET_REACHED == 0);
         assert!(s & sw::SETPOINT_FREE == 0);
         let s = cw(&mut d, &mut ax, 0x003F);
-        assert!(s & sw::BIT12 != 0, "held while bit 4 is high");
+        assert!(s & sw::SETPOINT_ACKNOWLEDGE != 0, "held while bit 4 is high");
         let s = cw(&mut d, &mut ax, 0x002F);
-        assert!(s & sw::BIT12 == 0, "cleared when bit 4 drops");
+        assert!(s & sw::SETPOINT_ACKNOWLEDGE == 0, "cleared when bit 4 drops");
         assert!(s & sw::SETPOINT_FREE != 0);
         let mut n = 0;
         while d.statusword() & sw::TARGET_REACHED == 0 {
@@ -670,9 +670,9 @@ qemu_runner::tests! {
             steps(&mut d, &mut ax, 10);
             d.params.target_position = 40_000;
             let s = cw(&mut d, &mut ax, 0x001F | b9);
-            assert!(s & sw::BIT12 != 0);
+            assert!(s & sw::SETPOINT_ACKNOWLEDGE != 0);
             let s = cw(&mut d, &mut ax, 0x000F | b9);
-            assert!(s & sw::BIT12 != 0, "buffer full: acknowledge stays");
+            assert!(s & sw::SETPOINT_ACKNOWLEDGE != 0, "buffer full: acknowledge stays");
             assert!(s & sw::SETPOINT_FREE == 0);
             // A third set-point is not accepted while the buffer is full.
             d.params.target_position = -5;
@@ -688,7 +688,7 @@ qemu_runner::tests! {
                 n += 1;
                 assert!(n < 5000);
             }
-            assert!(d.statusword() & sw::BIT12 == 0, "buffer empty again");
+            assert!(d.statusword() & sw::SETPOINT_ACKNOWLEDGE == 0, "buffer empty again");
             if through {
                 assert!(min_v_mid >= 90_000, "passed through at speed: {min_v_mid}");
             } else {
@@ -737,7 +737,7 @@ qemu_runner::tests! {
         d.params.target_position = 1000;
         let s = cw(&mut d, &mut ax, 0x003F);
         assert!(s & sw::PARAM_ZERO != 0);
-        assert!(s & sw::BIT12 == 0);
+        assert!(s & sw::SETPOINT_ACKNOWLEDGE == 0);
         steps(&mut d, &mut ax, 50);
         assert_eq!(ax.pos, 0);
         d.params.profile_acceleration = 100_000;
@@ -802,14 +802,14 @@ qemu_runner::tests! {
         d.params.velocity_window = 100;
         d.params.velocity_threshold = 10;
         let s = cw(&mut d, &mut ax, 0x000F);
-        assert!(s & sw::BIT12 != 0, "speed zero");
+        assert!(s & sw::SPEED_ZERO != 0, "speed zero");
         d.params.target_velocity = 20_000;
         let mut n = 0;
         while cw(&mut d, &mut ax, 0x000F) & sw::TARGET_REACHED == 0 {
             n += 1;
             assert!(n < 1000);
             if n > 2 {
-                assert!(d.statusword() & sw::BIT12 == 0);
+                assert!(d.statusword() & sw::SPEED_ZERO == 0);
             }
         }
         // 20 000 / 100 000 = 200 ms.
@@ -847,14 +847,14 @@ qemu_runner::tests! {
             t += 7;
             d.params.target_position = t;
             let s = cw(&mut d, &mut ax, 0x000F);
-            assert!(s & sw::BIT12 != 0, "drive follows command");
+            assert!(s & sw::DRIVE_FOLLOWS != 0, "drive follows command");
             assert_eq!(ax.pos, t + 10, "cycle {i}");
             assert_eq!(d.position_demand(), t + 10);
         }
         assert!((ax.vel - 7000).abs() <= 1, "{}", ax.vel);
         // Halt: not following.
         let s = cw(&mut d, &mut ax, 0x010F);
-        assert!(s & sw::BIT12 == 0);
+        assert!(s & sw::DRIVE_FOLLOWS == 0);
         cw(&mut d, &mut ax, 0x000F);
         // Sync cycle 1 ms, control cycle 250 µs: linear interpolation inside the period
         // (from standstill to 0.4 inc/µs at once: no acceleration limit).
@@ -897,7 +897,7 @@ qemu_runner::tests! {
         d.params.velocity_offset = 500;
         for _ in 0..100 {
             let s = cw(&mut d, &mut ax, 0x000F);
-            assert!(s & sw::BIT12 != 0);
+            assert!(s & sw::DRIVE_FOLLOWS != 0);
         }
         assert_eq!(ax.vel, 10_500);
         assert!((ax.pos - 1050).abs() <= 11, "{}", ax.pos);
@@ -1122,7 +1122,7 @@ qemu_runner::tests! {
         let target = d.params.target_position;
         let s = cw(&mut d, &mut ax, 0x3F);
         assert_eq!(d.mode_display(), mode::PP);
-        assert!(s & sw::BIT12 != 0);
+        assert!(s & sw::SETPOINT_ACKNOWLEDGE != 0);
         assert!((ax.vel - 30_000).abs() <= 1_000, "{}", ax.vel);
         let mut n = 0;
         while cw(&mut d, &mut ax, 0x2F) & sw::TARGET_REACHED == 0 {
@@ -1285,7 +1285,7 @@ qemu_runner::tests! {
             let mut n = 0;
             loop {
                 let s = cw(&mut d, &mut ax, 0x001F);
-                assert!(s & sw::BIT13 == 0, "method {method} start {start}: homing error");
+                assert!(s & sw::HOMING_ERROR == 0, "method {method} start {start}: homing error");
                 if s & 0x3400 == 0x1400 {
                     break;
                 }
@@ -1313,7 +1313,7 @@ qemu_runner::tests! {
         d.params.homing_method = 19;
         enable(&mut d, &mut ax, mode::HM);
         let s = cw(&mut d, &mut ax, 0x001F);
-        assert!(s & sw::BIT13 != 0);
+        assert!(s & sw::HOMING_ERROR != 0);
         // Home switch never found: runs into the limit switch.
         let mut d = Cia402::new();
         let mut ax = Axis::new(0);
@@ -1322,7 +1322,7 @@ qemu_runner::tests! {
         d.params.homing_speed_switch = 10_000;
         enable(&mut d, &mut ax, mode::HM);
         let mut n = 0;
-        while cw(&mut d, &mut ax, 0x001F) & sw::BIT13 == 0 {
+        while cw(&mut d, &mut ax, 0x001F) & sw::HOMING_ERROR == 0 {
             n += 1;
             assert!(n < 5000);
         }

@@ -112,6 +112,7 @@
 //! rad/s at 40 kHz) an ECN57-20 (0.4 Ω, 1.8 mH) gives Kp = 1656, Ki = 368.
 
 use crate::num;
+use crate::pi::Pi;
 
 /// Phase being measured.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -392,7 +393,8 @@ pub struct Autotune {
     settle_steps: u32,
     avg_steps: u32,
     toggle_steps: u32,
-    x: f32,
+    /// The DC regulator (`kp_init`, `kp_init·wi_init`; its limit is passed per step).
+    pi: Pi,
     sum_v: f32,
     sum_i: f32,
     n: u32,
@@ -437,7 +439,7 @@ impl Autotune {
             settle_steps: steps(cfg.settle),
             avg_steps: steps(cfg.average),
             toggle_steps: steps(cfg.toggle_time).max(4 * cfg.toggle_half),
-            x: 0.0,
+            pi: Pi::new(cfg.kp_init, cfg.kp_init * cfg.wi_init, ts, 0.0),
             sum_v: 0.0,
             sum_i: 0.0,
             n: 0,
@@ -473,9 +475,6 @@ impl Autotune {
             self.measure_offsets(ia, ib);
             return (0.0, 0.0);
         }
-        let q = 2.0 * num::pos(vbus) / self.cfg.pwm_period as f32;
-        let quant = |v: f32| quantize(v, q);
-        let vmax = num::pos(self.cfg.max_modulation * vbus);
         let (phase, i) = match self.state {
             TuneState::Dc1(p) | TuneState::Dc2(p) | TuneState::Toggle(p) => {
                 (p, if p == Phase::A { ia } else { ib })
@@ -484,116 +483,124 @@ impl Autotune {
         };
         self.t = self.t.saturating_add(1);
         let v = match self.state {
-            TuneState::Dc1(_) | TuneState::Dc2(_) => {
-                let first = matches!(self.state, TuneState::Dc1(_));
-                let target = if first {
-                    0.5 * self.cfg.test_current
-                } else {
-                    self.cfg.test_current
-                };
-                let e = target - i;
-                let ki_ts = self.cfg.kp_init * self.cfg.wi_init * self.cfg.ts;
-                let u = self.cfg.kp_init * e + self.x;
-                if u.abs() < vmax || u * e < 0.0 {
-                    self.x = num::clamp(self.x + ki_ts * e, -vmax, vmax);
-                }
-                let v = quant(num::clamp(u, -vmax, vmax));
-                if self.t == self.settle_steps
-                    && first
-                    && i.abs().partial_cmp(&(0.2 * target.abs()))
-                        != Some(core::cmp::Ordering::Greater)
-                {
-                    self.state = TuneState::Failed(TuneError::OpenPhase(phase));
-                    return (0.0, 0.0);
-                }
-                if self.t > self.settle_steps {
-                    // The voltage applied now reaches the coil one sample later;
-                    // at steady state that does not matter for the averages.
-                    self.sum_v += v;
-                    self.sum_i += i;
-                    self.n += 1;
-                }
-                if self.t >= self.settle_steps.saturating_add(self.avg_steps) {
-                    let n = self.n.max(1) as f32;
-                    let (va, im) = (self.sum_v / n, self.sum_i / n);
-                    self.sum_v = 0.0;
-                    self.sum_i = 0.0;
-                    self.n = 0;
-                    self.t = 0;
-                    self.vt = quant(num::pos(self.cfg.toggle_modulation * vbus));
-                    self.sum_di = 0.0;
-                    self.n_di = 0;
-                    self.sum_c = 0.0;
-                    self.n_c = 0;
-                    if first {
-                        self.v1 = va;
-                        self.i1 = im;
-                        self.v_dc = quant(va);
-                        self.second_toggle = false;
-                        self.state = TuneState::Toggle(phase);
-                    } else {
-                        let di = im - self.i1;
-                        let r = if di.abs() > 1e-6 {
-                            (va - self.v1) / di
-                        } else {
-                            0.0
-                        };
-                        self.res.r_phase[phase as usize] = r;
-                        self.res.dead_time_v += 0.5 * (va - r * im);
-                        self.v_dc = quant(va);
-                        self.second_toggle = true;
-                        self.state = TuneState::Toggle(phase);
-                    }
-                }
-                v
-            }
-            TuneState::Toggle(_) => {
-                // Sample k = t−1 (0-based). Half periods: the first is h/2 long so the
-                // triangle is centred on I₂, then half period m (m ≥ 0) is commanded
-                // from k = h0 + m·h, negative for even m. (h ≥ delay + 3 since `new`;
-                // the `max` tells the compiler it is not 0.)
-                let h = self.cfg.toggle_half.max(1);
-                let p = self.cfg.delay + 1;
-                let k = self.t - 1;
-                let h0 = h / 2;
-                let sign = if k < h0 || ((k - h0) / h) % 2 == 1 {
-                    1.0
-                } else {
-                    -1.0
-                };
-                if k >= h0 {
-                    let (m, j) = ((k - h0) / h, (k - h0) % h);
-                    // Sign of the half period that ends at a change (m − 1 when j = 0).
-                    let ended = if m % 2 == 1 { -1.0 } else { 1.0 };
-                    if j == 0 {
-                        if m > 0 {
-                            // The edge of half period m − 1: from p after its change to now.
-                            self.sum_di += ended * (i - self.i_start);
-                            self.n_di += 1;
-                        }
-                        self.i_mark = i;
-                    } else if j == p && m > 0 {
-                        // Across the corner after the change at h0 + m·h: the old edge
-                        // (sign of half period m − 1) for D samples, the new one for p − D.
-                        self.sum_c += ended * (i - self.i_mark);
-                        self.n_c += 1;
-                    }
-                    if j == p {
-                        self.i_start = i;
-                    }
-                }
-                if self.t >= self.toggle_steps && k > h0 && (k - h0).is_multiple_of(2 * h) {
-                    self.finish_phase(phase);
-                    0.0
-                } else {
-                    self.v_dc + sign * self.vt
-                }
-            }
+            TuneState::Dc1(_) | TuneState::Dc2(_) => self.dc_step(phase, i, vbus),
+            TuneState::Toggle(_) => self.toggle_step(phase, i),
             _ => 0.0,
         };
         match phase {
             Phase::A => (v, 0.0),
             Phase::B => (0.0, v),
+        }
+    }
+
+    /// A step of DC point 1 or 2 on `phase` (current `i`, bus voltage `vbus`): the
+    /// regulator, then the averages. Returns the phase voltage.
+    fn dc_step(&mut self, phase: Phase, i: f32, vbus: f32) -> f32 {
+        let q = 2.0 * num::pos(vbus) / self.cfg.pwm_period as f32;
+        let quant = |v: f32| quantize(v, q);
+        let vmax = num::pos(self.cfg.max_modulation * vbus);
+        let first = matches!(self.state, TuneState::Dc1(_));
+        let target = if first {
+            0.5 * self.cfg.test_current
+        } else {
+            self.cfg.test_current
+        };
+        let e = target - i;
+        let u = self.pi.output_unlimited(e);
+        // Limited: at or beyond ±vmax (or not a number).
+        let limited = u.abs().partial_cmp(&vmax) != Some(core::cmp::Ordering::Less);
+        self.pi.integrate(e, u, limited, -vmax, vmax);
+        let v = quant(num::clamp(u, -vmax, vmax));
+        if self.t == self.settle_steps
+            && first
+            && i.abs().partial_cmp(&(0.2 * target.abs())) != Some(core::cmp::Ordering::Greater)
+        {
+            self.state = TuneState::Failed(TuneError::OpenPhase(phase));
+            return 0.0;
+        }
+        if self.t > self.settle_steps {
+            // The voltage applied now reaches the coil one sample later;
+            // at steady state that does not matter for the averages.
+            self.sum_v += v;
+            self.sum_i += i;
+            self.n += 1;
+        }
+        if self.t >= self.settle_steps.saturating_add(self.avg_steps) {
+            let n = self.n.max(1) as f32;
+            let (va, im) = (self.sum_v / n, self.sum_i / n);
+            self.sum_v = 0.0;
+            self.sum_i = 0.0;
+            self.n = 0;
+            self.t = 0;
+            self.vt = quant(num::pos(self.cfg.toggle_modulation * vbus));
+            self.sum_di = 0.0;
+            self.n_di = 0;
+            self.sum_c = 0.0;
+            self.n_c = 0;
+            if first {
+                self.v1 = va;
+                self.i1 = im;
+                self.v_dc = quant(va);
+                self.second_toggle = false;
+                self.state = TuneState::Toggle(phase);
+            } else {
+                let di = im - self.i1;
+                let r = if di.abs() > 1e-6 {
+                    (va - self.v1) / di
+                } else {
+                    0.0
+                };
+                self.res.r_phase[phase as usize] = r;
+                self.res.dead_time_v += 0.5 * (va - r * im);
+                self.v_dc = quant(va);
+                self.second_toggle = true;
+                self.state = TuneState::Toggle(phase);
+            }
+        }
+        v
+    }
+
+    /// A step of the toggling on `phase` (current `i`). Returns the phase voltage.
+    fn toggle_step(&mut self, phase: Phase, i: f32) -> f32 {
+        // Sample k = t−1 (0-based). Half periods: the first is h/2 long so the
+        // triangle is centred on I₂, then half period m (m ≥ 0) is commanded
+        // from k = h0 + m·h, negative for even m. (h ≥ delay + 3 since `new`;
+        // the `max` tells the compiler it is not 0.)
+        let h = self.cfg.toggle_half.max(1);
+        let p = self.cfg.delay + 1;
+        let k = self.t - 1;
+        let h0 = h / 2;
+        let sign = if k < h0 || ((k - h0) / h) % 2 == 1 {
+            1.0
+        } else {
+            -1.0
+        };
+        if k >= h0 {
+            let (m, j) = ((k - h0) / h, (k - h0) % h);
+            // Sign of the half period that ends at a change (m − 1 when j = 0).
+            let ended = if m % 2 == 1 { -1.0 } else { 1.0 };
+            if j == 0 {
+                if m > 0 {
+                    // The edge of half period m − 1: from p after its change to now.
+                    self.sum_di += ended * (i - self.i_start);
+                    self.n_di += 1;
+                }
+                self.i_mark = i;
+            } else if j == p && m > 0 {
+                // Across the corner after the change at h0 + m·h: the old edge
+                // (sign of half period m − 1) for D samples, the new one for p − D.
+                self.sum_c += ended * (i - self.i_mark);
+                self.n_c += 1;
+            }
+            if j == p {
+                self.i_start = i;
+            }
+        }
+        if self.t >= self.toggle_steps && k > h0 && (k - h0).is_multiple_of(2 * h) {
+            self.finish_phase(phase);
+            0.0
+        } else {
+            self.v_dc + sign * self.vt
         }
     }
 
@@ -648,7 +655,7 @@ impl Autotune {
             return;
         }
         self.res.l_phase[phase as usize] = l;
-        self.x = 0.0;
+        self.pi.reset();
         match phase {
             Phase::A => self.state = TuneState::Dc1(Phase::B),
             Phase::B => self.state = TuneState::Offsets,

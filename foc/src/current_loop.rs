@@ -369,15 +369,10 @@ impl CurrentLoop {
         let ud = self.pi_d.output_unlimited(ed) + ff_d;
         let uq = self.pi_q.output_unlimited(eq) + ff_q;
         let (vd, vq, sat) = limit_circle(ud, uq, vmax);
-        // Conditional integration: while limited, only integrate towards the inside.
-        let dxd = self.pi_d.ki_ts * ed;
-        let dxq = self.pi_q.ki_ts * eq;
-        if !sat || dxd * ud < 0.0 {
-            self.pi_d.x = num::clamp(self.pi_d.x + dxd, -vmax, vmax);
-        }
-        if !sat || dxq * uq < 0.0 {
-            self.pi_q.x = num::clamp(self.pi_q.x + dxq, -vmax, vmax);
-        }
+        // Conditional integration (`Pi::integrate`): while the circle limits the
+        // vector, each axis only integrates towards the inside.
+        self.pi_d.integrate(ed, ud, sat, -vmax, vmax);
+        self.pi_q.integrate(eq, uq, sat, -vmax, vmax);
 
         let (s2, c2) = rotate_small2(s, c, omega_e * self.advance);
         let v_dq = Dq { d: vd, q: vq };

@@ -11,7 +11,8 @@
 //! Anti-windup: when the output is at a limit and the error would drive it further
 //! into the limit, the integrator is frozen (clamping / conditional integration). The
 //! integrator itself is also kept inside the output range, so leaving saturation is
-//! immediate. Transfer function while unsaturated:
+//! immediate (the rule is [`Pi::integrate`], shared by every PI of the crate).
+//! Transfer function while unsaturated:
 //! `U(z)/E(z) = Kp + Ki·Ts / (z − 1)`.
 //!
 //! Units are the caller's: for the current loop `e` in A, `u` in V, `Kp` in V/A and
@@ -99,20 +100,29 @@ impl Pi {
     #[inline(always)]
     fn step_in(&mut self, e: f32, ff: f32, lo: f32, hi: f32) -> f32 {
         let u = self.kp * e + self.x + ff;
-        let dx = self.ki_ts * e;
-        if u > hi {
-            if dx < 0.0 {
-                self.x += dx;
-            }
-            hi
+        let (y, limited) = if u > hi {
+            (hi, true)
         } else if u < lo {
-            if dx > 0.0 {
-                self.x += dx;
-            }
-            lo
+            (lo, true)
         } else {
+            (u, false)
+        };
+        self.integrate(e, u, limited, lo, hi);
+        y
+    }
+
+    /// The anti-windup rule every PI of the crate uses (this one, the current loop's
+    /// d/q pair under its voltage circle, the auto-tune's DC regulator): the
+    /// integrator takes its step `Ki·Ts·e` while the output `u` (unlimited, with its
+    /// feed-forward) is not `limited`, or, while it is, when the step points against
+    /// `u` (back towards the inside of a limit centred on zero); it is kept inside
+    /// `[lo, hi]`. For a caller that forms the output itself (a vector limit, a range
+    /// that changes every step).
+    #[inline(always)]
+    pub fn integrate(&mut self, e: f32, u: f32, limited: bool, lo: f32, hi: f32) {
+        let dx = self.ki_ts * e;
+        if !limited || dx * u < 0.0 {
             self.x = num::clamp(self.x + dx, lo, hi);
-            u
         }
     }
 

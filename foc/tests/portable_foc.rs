@@ -756,6 +756,29 @@ qemu_runner::tests! {
         assert_eq!(pi.update_within(100.0, -50.0, 50.0), 10.0);
     }
 
+    fn pi_integrate_is_one_rule_for_every_limit() {
+        // Not limited: Ki·Ts·e, kept inside the range.
+        let mut pi = Pi::new(1.0, 1000.0, 1e-3, 10.0);
+        pi.integrate(2.0, 3.0, false, -10.0, 10.0);
+        assert!(near(pi.x, 2.0, 1e-6), "{}", pi.x);
+        pi.integrate(100.0, 3.0, false, -10.0, 10.0);
+        assert_eq!(pi.x, 10.0);
+        // Limited: frozen while the step points the way of the output, moves when it
+        // points back (the current loop's circle, the auto-tune's ±vmax).
+        pi.integrate(1.0, 12.0, true, -10.0, 10.0);
+        assert_eq!(pi.x, 10.0);
+        pi.integrate(-1.0, 12.0, true, -10.0, 10.0);
+        assert!(near(pi.x, 9.0, 1e-6), "{}", pi.x);
+        pi.integrate(1.0, -12.0, true, -10.0, 10.0);
+        assert!(near(pi.x, 10.0, 1e-6), "{}", pi.x);
+        // The update's limits use it: a feed-forward beyond the upper limit with an
+        // error pulling back hard leaves the integrator inside the range.
+        let mut p = Pi::new(1.0, 1000.0, 1e-3, 10.0);
+        p.preset(-9.0);
+        assert_eq!(p.update(-5.0, 40.0), 10.0);
+        assert_eq!(p.x, -10.0);
+    }
+
     fn servo_gain_parameters_scale_the_base() {
         let g = ServoGains::from_bandwidth(4.8e-5, 0.283, 4000, 250.0, 7.0);
         let same = g.scaled(100, 0, 100, 100);

@@ -307,7 +307,7 @@ fn homing_every_method_from_many_starts_on_a_first_order_axis() {
             loop {
                 let s = cw(&mut d, &mut ax, 0x1F);
                 assert_eq!(
-                    s & sw::BIT13,
+                    s & sw::HOMING_ERROR,
                     0,
                     "method {method} start {start}: error at {}",
                     ax.pos()
@@ -356,15 +356,15 @@ fn pp_sequence_on_first_order_axis_with_window_time() {
         let target = rng.below(200_000) as i32 - 100_000;
         sdo_u32(&mut d, 0x607A, 0, target as u32);
         let s = cw(&mut d, &mut ax, 0x3F);
-        assert_ne!(s & sw::BIT12, 0);
+        assert_ne!(s & sw::SETPOINT_ACKNOWLEDGE, 0);
         assert_eq!(s & sw::TARGET_REACHED, 0);
         let s = cw(&mut d, &mut ax, 0x2F);
-        assert_eq!(s & sw::BIT12, 0);
+        assert_eq!(s & sw::SETPOINT_ACKNOWLEDGE, 0);
         let mut n = 0;
         let mut in_window_since: Option<usize> = None;
         loop {
             let s = cw(&mut d, &mut ax, 0x2F);
-            assert_eq!(s & sw::BIT13, 0, "following error");
+            assert_eq!(s & sw::FOLLOWING_ERROR, 0, "following error");
             assert!(d.following_error().abs() <= 2_000);
             if (ax.pos() - target).abs() <= 20 && d.position_demand() == target {
                 in_window_since.get_or_insert(n);
@@ -681,7 +681,7 @@ fn homing_on_a_narrow_switch_zone_and_starts_on_the_edges() {
             let mut n = 0;
             while cw(&mut d, &mut ax, 0x1F) & 0x3400 != 0x1400 {
                 assert_eq!(
-                    d.statusword() & sw::BIT13,
+                    d.statusword() & sw::HOMING_ERROR,
                     0,
                     "method {method} start {start}"
                 );

@@ -50,7 +50,10 @@ fn cst_commands_the_target_torque_with_the_speed_limit() {
     assert_eq!(c.torque, 300);
     assert_eq!(c.velocity, 250_000.0, "the speed limit 0x6080");
     // Target torque used: bit 12; no internal limit.
-    assert_eq!(d.statusword() & (sw::BIT12 | sw::INTERNAL_LIMIT), sw::BIT12);
+    assert_eq!(
+        d.statusword() & (sw::DRIVE_FOLLOWS | sw::INTERNAL_LIMIT),
+        sw::DRIVE_FOLLOWS
+    );
     assert_eq!(d.value(0x6074, 0), Some(300));
     assert_eq!(d.value(0x6061, 0), Some(10));
     // The generator shows the actual speed (0x606B = 0x606C): a stop starts there.
@@ -140,7 +143,7 @@ fn cst_halt_and_quick_stop_ramp_from_the_actual_speed() {
     assert_eq!(c.kind, SetpointKind::Velocity);
     assert!((c.velocity - 99_500.0).abs() < 1.0, "{}", c.velocity);
     assert_eq!(c.torque, 0);
-    assert!(d.statusword() & sw::BIT12 == 0 && d.statusword() & sw::ABNORMAL_STOP != 0);
+    assert!(d.statusword() & sw::DRIVE_FOLLOWS == 0 && d.statusword() & sw::ABNORMAL_STOP != 0);
     // Released: torque control again, from the servo torque (no slope: the target).
     d.set_controlword(0x000F);
     let c = d.cycle(&fb_at(90_000, 400), DT);
@@ -261,7 +264,11 @@ fn pt_ramps_to_the_target_torque_and_reports_target_reached() {
         t.push((c.torque, d.statusword() & sw::TARGET_REACHED != 0));
     }
     assert_eq!(t, [(100, false), (200, false), (250, true), (250, true)]);
-    assert_eq!(d.statusword() & sw::BIT12, 0, "bit 12 is reserved in PT");
+    assert_eq!(
+        d.statusword() & sw::DRIVE_FOLLOWS,
+        0,
+        "bit 12 is reserved in PT"
+    );
     assert_eq!(d.value(0x6074, 0), Some(250));
     // A new target: not reached until the ramp gets there; limited by 0x6072.
     d.write(0x6072, 0, &200u16.to_le_bytes()).unwrap();
@@ -321,7 +328,7 @@ fn enabled_without_a_mode_holds_position() {
     assert_eq!((c.kind, c.velocity), (SetpointKind::Position, 0.0));
     assert!(c.drive_enabled);
     assert_eq!(
-        d.statusword() & (sw::TARGET_REACHED | sw::BIT12 | sw::BIT13),
+        d.statusword() & (sw::TARGET_REACHED | sw::DRIVE_FOLLOWS | sw::FOLLOWING_ERROR),
         0
     );
     assert_eq!(d.value(0x603F, 0), Some(0));

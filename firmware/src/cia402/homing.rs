@@ -617,6 +617,51 @@ impl Homing {
         0.0
     }
 
+    /// [`Step::Locate`] in `dir` (at the speed `fast`): stop once the home signal's
+    /// side is known; a limit switch reverses a zone method that started this way,
+    /// else it is an error. Returns the velocity to move towards (0 = stop).
+    fn locate(&mut self, m: &Method, dir: i8, sensed: Sensed, fast: f32) -> f32 {
+        if sensed.side.is_some() {
+            self.step = Step::Stopping {
+                then: After::Replan,
+            };
+        } else if sensed.limit_hit {
+            let reversing = matches!(m.kind, Kind::Zone { init_dir, .. } if init_dir == dir);
+            if reversing {
+                self.region = if dir > 0 {
+                    Region::Above
+                } else {
+                    Region::Below
+                };
+                self.step = Step::Stopping {
+                    then: After::Replan,
+                };
+            } else {
+                self.step = Step::Stopping { then: After::Error };
+            }
+        } else {
+            return dir as f32 * fast;
+        }
+        0.0
+    }
+
+    /// The step that follows a stop (the axis is at rest).
+    fn after_stop(&mut self, m: &Method, then: After) {
+        match then {
+            After::Replan => self.plan(),
+            After::SeekP { fast: f } => {
+                self.step = Step::Seek {
+                    dir: -m.final_dir,
+                    fast: f,
+                    to_p: true,
+                }
+            }
+            After::Fine => self.step = Step::Fine,
+            After::Return => self.step = Step::Return,
+            After::Error => self.fail_now(),
+        }
+    }
+
     /// One cycle. Drives `motion` (user units) and returns `Some(delta)` when the home
     /// position has been set: the caller shifts actual and demand positions by `delta`.
     pub fn cycle(&mut self, motion: &mut Motion, inp: &HomingInputs, dt: f32) -> Option<i32> {
@@ -637,30 +682,7 @@ impl Homing {
         let mut target = 0.0;
         match self.step {
             Step::Idle | Step::Done | Step::Error => {}
-            Step::Locate { dir } => {
-                if side.is_some() {
-                    self.step = Step::Stopping {
-                        then: After::Replan,
-                    };
-                } else if limit_hit {
-                    let reversing =
-                        matches!(m.kind, Kind::Zone { init_dir, .. } if init_dir == dir);
-                    if reversing {
-                        self.region = if dir > 0 {
-                            Region::Above
-                        } else {
-                            Region::Below
-                        };
-                        self.step = Step::Stopping {
-                            then: After::Replan,
-                        };
-                    } else {
-                        self.step = Step::Stopping { then: After::Error };
-                    }
-                } else {
-                    target = dir as f32 * fast;
-                }
-            }
+            Step::Locate { dir } => target = self.locate(&m, dir, sensed, fast),
             Step::Seek { dir, fast: f, to_p } => {
                 if side == Some(to_p) {
                     let then = if to_p {
@@ -693,19 +715,7 @@ impl Homing {
             }
             Step::Stopping { then } => {
                 if motion.stop(acc, dt) {
-                    match then {
-                        After::Replan => self.plan(),
-                        After::SeekP { fast: f } => {
-                            self.step = Step::Seek {
-                                dir: -m.final_dir,
-                                fast: f,
-                                to_p: true,
-                            }
-                        }
-                        After::Fine => self.step = Step::Fine,
-                        After::Return => self.step = Step::Return,
-                        After::Error => self.fail_now(),
-                    }
+                    self.after_stop(&m, then);
                 }
                 return None;
             }
@@ -739,132 +749,4 @@ struct Sensed {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn packed_table_is_the_spec_for_every_method_value() {
-        let mut n = 0;
-        for m in i8::MIN..=i8::MAX {
-            let spec = Method::spec(m);
-            assert_eq!(Method::describe(m), spec, "method {m}");
-            assert_eq!(supported(m), spec.is_some(), "method {m}");
-            n += usize::from(spec.is_some());
-        }
-        // 1-14, 17-30, 33, 34, 35, 37, and -1, -2.
-        assert_eq!(n, 34);
-        assert_eq!(Method::unpack(0), None);
-    }
-
-    fn run(h: &mut Homing, m: &mut Motion, di: u32, stall: Option<i32>) -> Option<i32> {
-        let inp = HomingInputs {
-            digital_inputs: di,
-            actual: m.position(),
-            index: None,
-            stall,
-        };
-        h.cycle(m, &inp, 0.001)
-    }
-
-    #[test]
-    fn stall_homing_without_its_preconditions_is_an_error_at_once() {
-        let inp = HomingInputs {
-            digital_inputs: 0,
-            actual: 0,
-            index: None,
-            stall: None,
-        };
-        for (min, fast) in [(None, 100_000.0), (Some(50_000.0), 40_000.0)] {
-            let p = HomingParams {
-                method: -1,
-                fast,
-                slow: 10_000.0,
-                acc: 1.0e7,
-                offset: 0,
-                has_index: false,
-                assigned: 0,
-                stall_min_speed: min,
-            };
-            let mut h = Homing::new();
-            assert_eq!(h.start(p, &inp), None);
-            assert_eq!(h.status(), HomingStatus::Error, "{min:?}, {fast}");
-            assert!(!h.seeking_stall());
-        }
-    }
-
-    #[test]
-    fn stall_homing_takes_the_stall_position_as_home() {
-        for (method, dir) in [(-1i8, 1i32), (-2, -1)] {
-            let p = HomingParams {
-                method,
-                fast: 100_000.0,
-                slow: 10_000.0,
-                acc: 1.0e7,
-                offset: 500,
-                has_index: false,
-                assigned: 0,
-                stall_min_speed: Some(50_000.0),
-            };
-            let mut m = Motion::default();
-            let mut h = Homing::new();
-            let inp = HomingInputs {
-                digital_inputs: 0,
-                actual: 0,
-                index: None,
-                stall: None,
-            };
-            assert_eq!(h.start(p, &inp), None);
-            assert!(h.seeking_stall());
-            for _ in 0..50 {
-                assert_eq!(run(&mut h, &mut m, 0, None), None);
-            }
-            assert!(
-                m.position() * dir > 4000,
-                "searching in {dir}: {}",
-                m.position()
-            );
-            let at = m.position() - dir * 300;
-            assert_eq!(run(&mut h, &mut m, 0, Some(at)), None);
-            assert!(!h.seeking_stall() && m.velocity() == 0.0, "stopped at once");
-            let mut shift = None;
-            for _ in 0..1000 {
-                shift = shift.or(run(&mut h, &mut m, 0, None));
-            }
-            assert_eq!(shift, Some(500 - at), "home = stall position, reads 0x607C");
-            assert_eq!(m.position(), at);
-            assert_eq!(h.status(), HomingStatus::Attained);
-        }
-    }
-
-    #[test]
-    fn stall_homing_errors_on_a_limit_switch_ahead() {
-        let p = HomingParams {
-            method: -2,
-            fast: 100_000.0,
-            slow: 10_000.0,
-            acc: 1.0e7,
-            offset: 0,
-            has_index: false,
-            assigned: DI_NEG_LIMIT,
-            stall_min_speed: Some(50_000.0),
-        };
-        let mut m = Motion::default();
-        let mut h = Homing::new();
-        let inp = HomingInputs {
-            digital_inputs: 0,
-            actual: 0,
-            index: None,
-            stall: None,
-        };
-        h.start(p, &inp);
-        for _ in 0..10 {
-            run(&mut h, &mut m, 0, None);
-        }
-        for _ in 0..1000 {
-            run(&mut h, &mut m, DI_NEG_LIMIT, None);
-        }
-        assert_eq!(h.status(), HomingStatus::Error);
-        // A positive method number outside the table stays unsupported.
-        assert!(!supported(-3) && !supported(36) && supported(-1));
-    }
-}
+mod tests;

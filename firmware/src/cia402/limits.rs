@@ -27,7 +27,7 @@ impl Cia402 {
     #[inline(always)]
     pub(super) fn supervise(&mut self, fb: &DriveFeedback, drive_enabled: bool, dt: f32) {
         self.following_error = self.motion.position().wrapping_sub(self.actual_position);
-        let position_mode = matches!(self.mode, mode::PP | mode::HM | mode::CSP);
+        let position_mode = self.mode.is_position();
         if drive_enabled && position_mode && self.params.following_error_window != u32::MAX {
             if self.following_error.unsigned_abs() > self.params.following_error_window {
                 self.fe_time += dt;

@@ -14,7 +14,9 @@
 //!
 //! Submodules: [`pds`] (states and the transition table), [`profile`] (trajectory
 //! generator), [`homing`], [`probe`] (touch probe), [`objects`] (dictionary entries,
-//! SDO read/write, PDO slots). The step itself: `cycle` (its order), `power` (the
+//! SDO read/write, PDO slots), `words` (the mode of operation, controlword and
+//! statusword as types), `access` (the values read by objects and the application).
+//! The step itself: `cycle` (its order), `power` (the
 //! power drive system in a step), `modes` (the mode dispatch and generators),
 //! `limits` (software limits, following error), `statusword`.
 //!
@@ -99,6 +101,7 @@
 //!   (the PDS stops) on the ramps of the option codes, as in the other modes.
 //!   0x60B2 is also the torque feed-forward of CSP and CSV.
 
+mod access;
 #[cfg(test)]
 mod cst_tests;
 mod cycle;
@@ -113,6 +116,7 @@ pub mod probe;
 pub mod profile;
 pub mod scaling;
 mod statusword;
+mod words;
 
 use homing::{Homing, HomingInputs, HomingParams, HomingStatus};
 pub use params::{Params, PEAK_PERMILLE};
@@ -120,44 +124,20 @@ use pds::{Command, Event, Guard, PdsState};
 pub use probe::EdgeLatch;
 use probe::TouchProbe;
 use profile::{Motion, MoveStatus, Smoother};
-
-/// Mode of operation values (0x6060 / 0x6061).
-pub mod mode {
-    /// No mode.
-    pub const NONE: i8 = 0;
-    /// Profile position.
-    pub const PP: i8 = 1;
-    /// Profile velocity.
-    pub const PV: i8 = 3;
-    /// Profile torque (closed loop only).
-    pub const PT: i8 = 4;
-    /// Homing.
-    pub const HM: i8 = 6;
-    /// Cyclic synchronous position.
-    pub const CSP: i8 = 8;
-    /// Cyclic synchronous velocity.
-    pub const CSV: i8 = 9;
-    /// Cyclic synchronous torque (closed loop only).
-    pub const CST: i8 = 10;
-}
+pub use words::{mode, mode_supported, sw, Controlword, OperationMode, Statusword};
 
 /// 0x6502 in closed loop: PP (bit 0), PV (bit 2), PT (bit 3), HM (bit 5), CSP (bit 7),
 /// CSV (bit 8), CST (bit 9).
-pub const SUPPORTED_MODES: u32 = SUPPORTED_MODES_OPEN_LOOP | (1 << 3) | (1 << 9);
-
-/// True for the torque modes, PT and CST (closed loop only).
-pub const fn is_torque_mode(m: i8) -> bool {
-    m == mode::PT || m == mode::CST
-}
+pub const SUPPORTED_MODES: u32 = SUPPORTED_MODES_OPEN_LOOP
+    | OperationMode::Pt.supported_bit()
+    | OperationMode::Cst.supported_bit();
 
 /// 0x6502 without torque control (open loop, no encoder): no PT, no CST.
-pub const SUPPORTED_MODES_OPEN_LOOP: u32 = (1 << 0) | (1 << 2) | (1 << 5) | (1 << 7) | (1 << 8);
-
-/// True if `m` may be written to 0x6060 with the modes `supported` (a 0x6502 value):
-/// 0 or a mode whose bit is set.
-pub const fn mode_supported(m: i8, supported: u32) -> bool {
-    m == 0 || (m >= 1 && m <= 32 && supported & (1 << (m - 1)) != 0)
-}
+pub const SUPPORTED_MODES_OPEN_LOOP: u32 = OperationMode::Pp.supported_bit()
+    | OperationMode::Pv.supported_bit()
+    | OperationMode::Hm.supported_bit()
+    | OperationMode::Csp.supported_bit()
+    | OperationMode::Csv.supported_bit();
 
 /// 0x6007 abort connection option code: what the drive does when the master's
 /// commands stop ([`Cia402::on_connection_lost`]). Stored by 'save'.
@@ -190,40 +170,6 @@ impl AbortConnection {
 
 /// Error code (0x603F) of a following error.
 pub const ERR_FOLLOWING: u16 = 0x8611;
-
-/// Statusword bits.
-pub mod sw {
-    /// Voltage enabled.
-    pub const VOLTAGE_ENABLED: u16 = 1 << 4;
-    /// Warning.
-    pub const WARNING: u16 = 1 << 7;
-    /// Manufacturer (E5): abnormal stop (limit switch, quick stop, halt).
-    pub const ABNORMAL_STOP: u16 = 1 << 8;
-    /// Remote: the controlword is processed.
-    pub const REMOTE: u16 = 1 << 9;
-    /// Target reached.
-    pub const TARGET_REACHED: u16 = 1 << 10;
-    /// Internal limit active.
-    pub const INTERNAL_LIMIT: u16 = 1 << 11;
-    /// Mode specific: PP set-point acknowledge, PV speed zero, HM attained, CSx follows.
-    pub const BIT12: u16 = 1 << 12;
-    /// Mode specific: following error (PP, CSP), homing error (HM).
-    pub const BIT13: u16 = 1 << 13;
-    /// Manufacturer (E5): a motion parameter (0x6081 / 0x6083 / 0x6084) is zero.
-    pub const PARAM_ZERO: u16 = 1 << 14;
-    /// Manufacturer (E5): a new set-point can be accepted (PP).
-    pub const SETPOINT_FREE: u16 = 1 << 15;
-}
-
-/// Controlword bits used here besides the PDS command bits.
-mod cw {
-    pub const NEW_SETPOINT: u16 = 1 << 4;
-    pub const CHANGE_IMMEDIATELY: u16 = 1 << 5;
-    pub const RELATIVE: u16 = 1 << 6;
-    pub const FAULT_RESET: u16 = 1 << 7;
-    pub const HALT: u16 = 1 << 8;
-    pub const CHANGE_ON_SETPOINT: u16 = 1 << 9;
-}
 
 /// What the drive measured this cycle (raw, motor-side values).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -442,11 +388,11 @@ pub struct Cia402 {
     /// The writable parameters.
     pub params: Params,
     state: PdsState,
-    controlword: u16,
-    prev_cw: u16,
+    controlword: Controlword,
+    prev_cw: Controlword,
     prev_demand_vel: f32,
-    mode_request: i8,
-    mode: i8,
+    mode_request: OperationMode,
+    mode: OperationMode,
     motion: Motion,
     pp: Pp,
     hm: Homing,
@@ -475,7 +421,7 @@ pub struct Cia402 {
     torque_cmd: i16,
     digital_inputs: u32,
     following_error: i32,
-    statusword: u16,
+    statusword: Statusword,
     // Supervision.
     fe_time: f32,
     fe_flag: bool,
@@ -537,11 +483,11 @@ impl Cia402 {
         Cia402 {
             params: Params::DEFAULT,
             state: PdsState::NotReadyToSwitchOn,
-            controlword: 0,
-            prev_cw: 0,
+            controlword: Controlword::from_raw(0),
+            prev_cw: Controlword::from_raw(0),
             prev_demand_vel: 0.0,
-            mode_request: 0,
-            mode: 0,
+            mode_request: OperationMode::None,
+            mode: OperationMode::None,
             motion: Motion::at(0),
             pp: Pp::default(),
             hm: Homing::new(),
@@ -563,7 +509,7 @@ impl Cia402 {
             torque_cmd: 0,
             digital_inputs: 0,
             following_error: 0,
-            statusword: 0,
+            statusword: Statusword::from_raw(0),
             fe_time: 0.0,
             fe_flag: false,
             fe_fault_news: false,
@@ -621,8 +567,8 @@ impl Cia402 {
     /// to 0 (see the module docs).
     pub fn set_torque_control(&mut self, available: bool) {
         self.torque_control = available;
-        if !available && is_torque_mode(self.mode_request) {
-            self.mode_request = mode::NONE;
+        if !available && self.mode_request.is_torque() {
+            self.mode_request = OperationMode::None;
         }
     }
     /// The servo tune's move (`crate::servo_tune`) takes over the set-points (`on`):
@@ -708,8 +654,8 @@ impl Cia402 {
             AbortConnection::Fault | AbortConnection::DisableVoltage => 0,
             AbortConnection::QuickStop => pds::QUICK_STOP_COMMAND,
         };
-        self.controlword = cmd;
-        self.prev_cw = cmd;
+        self.controlword = Controlword::from_raw(cmd);
+        self.prev_cw = self.controlword;
         match (self.state, option) {
             (PdsState::OperationEnabled | PdsState::QuickStopActive, AbortConnection::Fault) => {
                 self.fault_detected(code)
@@ -745,8 +691,8 @@ impl Cia402 {
         ) {
             return;
         }
-        self.controlword = 0;
-        self.prev_cw = 0;
+        self.controlword = Controlword::from_raw(0);
+        self.prev_cw = self.controlword;
         self.init_done = !self.self_test;
         self.enter(if self.self_test {
             PdsState::NotReadyToSwitchOn
@@ -771,138 +717,5 @@ impl Cia402 {
     /// reset clears it unless [`DriveFeedback::fault`] still reports a condition.
     pub fn raise_fault(&mut self, code: u16) {
         self.fault_detected(code);
-    }
-
-    // ----- values -----
-
-    /// PDS state.
-    pub fn state(&self) -> PdsState {
-        self.state
-    }
-    /// The last cycle's command enables the motor side only so that it can get ready
-    /// (Switched on, "enable operation" commanded, [`DriveFeedback::enable_pending`]):
-    /// the drive function is not enabled yet.
-    pub fn enable_waiting(&self) -> bool {
-        self.enable_waiting
-    }
-    /// 0x6041 as computed in the last cycle.
-    pub fn statusword(&self) -> u16 {
-        self.statusword
-    }
-    /// 0x6040.
-    pub fn controlword(&self) -> u16 {
-        self.controlword
-    }
-    /// Writes 0x6040 (acts in the next cycle).
-    pub fn set_controlword(&mut self, cw: u16) {
-        self.controlword = cw;
-    }
-    /// 0x6060.
-    pub fn mode_request(&self) -> i8 {
-        self.mode_request
-    }
-    /// Writes 0x6060; unsupported values are ignored (the SDO path refuses them).
-    pub fn set_mode(&mut self, m: i8) {
-        if mode_supported(m, self.supported_modes()) {
-            self.mode_request = m;
-        }
-    }
-    /// 0x6061.
-    pub fn mode_display(&self) -> i8 {
-        self.mode
-    }
-    /// 0x603F.
-    pub fn error_code(&self) -> u16 {
-        self.error_code
-    }
-    /// Touch probe value `k` (0x60BA + k), in the position range 0x607B when one is set.
-    #[inline(never)]
-    pub(crate) fn probe_position(&self, k: usize) -> i32 {
-        self.params.wrap_position(self.probe.value(k))
-    }
-    /// 0x6064 (in the position range 0x607B when one is set).
-    pub fn position_actual(&self) -> i32 {
-        self.params.wrap_position(self.actual_position)
-    }
-    /// 0x6062 position demand value (user units, in the position range 0x607B when one
-    /// is set).
-    pub fn position_demand(&self) -> i32 {
-        self.params.wrap_position(self.motion.position())
-    }
-    /// 0x60FC position demand internal value (raw).
-    pub fn position_demand_internal(&self) -> i32 {
-        self.user_to_raw(self.motion.position())
-    }
-    /// 0x606B velocity demand value.
-    pub fn velocity_demand(&self) -> i32 {
-        self.motion.velocity() as i32
-    }
-    /// 0x6074 torque demand: in CST the demand after the slope and 0x6072, else the
-    /// servo loops' demand (per mille, user sign).
-    pub fn torque_demand(&self) -> i16 {
-        if is_torque_mode(self.mode) && self.state == PdsState::OperationEnabled {
-            modes::round_i16(self.torque_demand)
-        } else {
-            self.servo_torque_user()
-        }
-    }
-    /// 0x6077 (user sign: 0x607E bit 6 turns torques round with velocities).
-    pub fn torque_actual(&self) -> i16 {
-        pol16(self.vel_neg(), self.actual_torque)
-    }
-    /// The servo loops' torque demand, user sign.
-    fn servo_torque_user(&self) -> i16 {
-        pol16(self.vel_neg(), self.servo_torque)
-    }
-    /// 0x606C.
-    pub fn velocity_actual(&self) -> i32 {
-        self.actual_velocity
-    }
-    /// 0x60F4.
-    pub fn following_error(&self) -> i32 {
-        self.following_error
-    }
-    /// 0x60FD.
-    pub fn digital_inputs(&self) -> u32 {
-        self.digital_inputs
-    }
-    /// 0x60FE:01 masked by 0x60FE:02: the outputs the master drives.
-    pub fn digital_outputs(&self) -> u32 {
-        self.params.digital_outputs & self.params.digital_outputs_mask
-    }
-    /// True once after the 0x6065 / 0x6066 supervision raised fault 0x8611: the drive
-    /// reports it through its fault module (emergency, history, LED, alarm output).
-    pub fn take_following_error_fault(&mut self) -> bool {
-        core::mem::take(&mut self.fe_fault_news)
-    }
-    /// 0x60FE:02: which outputs the master drives.
-    pub fn digital_outputs_mask(&self) -> u32 {
-        self.params.digital_outputs_mask
-    }
-    /// Touch probe state.
-    pub fn touch_probe(&self) -> &TouchProbe {
-        &self.probe
-    }
-    /// Homing status.
-    pub fn homing_status(&self) -> HomingStatus {
-        self.hm.status()
-    }
-    /// A stall homing method searches its hard stop: a stall is its reference, not a
-    /// fault (the drive skips the 0x2062 reaction).
-    pub fn seeking_stall(&self) -> bool {
-        self.mode == mode::HM && self.hm.seeking_stall()
-    }
-
-    fn pos_neg(&self) -> bool {
-        self.params.polarity & 0x80 != 0
-    }
-    fn vel_neg(&self) -> bool {
-        self.params.polarity & 0x40 != 0
-    }
-    fn raw_to_user(&self, raw: i32) -> i32 {
-        pol(self.pos_neg(), raw).wrapping_add(self.shift)
-    }
-    fn user_to_raw(&self, user: i32) -> i32 {
-        pol(self.pos_neg(), user.wrapping_sub(self.shift))
     }
 }

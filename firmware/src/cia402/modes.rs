@@ -12,10 +12,10 @@ impl Cia402 {
         setpoint: SetpointArrival,
     ) -> SetpointKind {
         let cwv = self.controlword;
-        let halt = cwv & cw::HALT != 0;
+        let halt = cwv.halt();
         let p = &self.params;
         let di = self.digital_inputs;
-        let homing = self.mode == mode::HM;
+        let homing = self.mode == OperationMode::Hm;
         // Hardware limits (not while homing: homing uses them as references).
         let pos_lim = !homing && di & homing::DI_POS_LIMIT != 0;
         let neg_lim = !homing && di & homing::DI_NEG_LIMIT != 0;
@@ -23,85 +23,107 @@ impl Cia402 {
             self.internal_limit = true;
         }
         let qs_dec = p.quick_stop_deceleration as f32;
-        if self.servo_tune {
-            // A limit switch, or the axis outside the software limits, ends the move.
-            let outside = p
-                .sw_limits()
-                .is_some_and(|(lo, hi)| self.actual_position >= hi || self.actual_position <= lo);
-            if matches!(self.mode, mode::PP | mode::CSP)
-                && !halt
-                && !pos_lim
-                && !neg_lim
-                && !outside
-            {
-                // The drive's servo tune moves the axis (`crate::servo_tune`): the
-                // generator follows the actual position and speed (the start of any
-                // stop ramp, and of the mode's set-points once the tune ends).
-                self.motion
-                    .set(self.actual_position, self.actual_velocity as f32);
-                return SetpointKind::Tune;
-            }
-            // Halt or another mode ends it.
-            self.servo_tune = false;
+        if self.servo_tune && self.servo_tune_moves(halt || pos_lim || neg_lim) {
+            return SetpointKind::Tune;
         }
         match self.mode {
-            mode::PP => {
+            OperationMode::Pp => {
                 self.run_pp(halt, pos_lim, neg_lim, dt);
                 SetpointKind::Position
             }
-            mode::PV => {
+            OperationMode::Pv => {
                 self.run_pv(halt, pos_lim, neg_lim, dt);
                 SetpointKind::Velocity
             }
-            mode::HM => {
+            OperationMode::Hm => {
                 self.run_hm(halt, index, dt);
                 SetpointKind::Position
             }
-            mode::CSP | mode::CSV => {
-                let csv = self.mode == mode::CSV;
-                // 0x60B2: torque feed-forward of the servo loops.
-                self.torque_cmd = p.torque_offset;
-                if halt {
-                    self.halted = true;
-                    self.abnormal_stop = true;
-                    self.cyc.started = false;
-                    self.motion
-                        .stop(p.option_decel(p.halt_option).unwrap_or(0.0), dt);
-                    return if csv {
-                        SetpointKind::Velocity
-                    } else {
-                        SetpointKind::Position
-                    };
-                }
-                if csv {
-                    let vmax = p.vmax();
-                    let mut v = (p.target_velocity.saturating_add(p.velocity_offset) as f32)
-                        .clamp(-vmax, vmax);
-                    if (pos_lim && v > 0.0) || (neg_lim && v < 0.0) {
-                        self.abnormal_stop = true;
-                        v = 0.0;
-                    }
-                    // Direct set-point every cycle, its changes limited by 0x60C5 /
-                    // 0x60C6 (statusword bit 11 while limited); the position integrates
-                    // it from the actual position (see PV).
-                    self.motion.rebase(self.actual_position);
-                    let (acc, dec) = (p.max_acceleration as f32, p.max_deceleration as f32);
-                    if !self.motion.ramp_velocity(v, acc, dec, dt) {
-                        self.internal_limit = true;
-                    }
-                    self.clamp_sw_limit();
-                    SetpointKind::Velocity
-                } else {
-                    self.run_csp(pos_lim, neg_lim, dt, setpoint);
-                    SetpointKind::Position
-                }
+            OperationMode::Csp | OperationMode::Csv => {
+                self.run_cyclic(halt, pos_lim, neg_lim, dt, setpoint)
             }
-            mode::CST | mode::PT => self.run_cst(halt, pos_lim, neg_lim, dt),
-            _ => {
+            OperationMode::Cst | OperationMode::Pt => self.run_cst(halt, pos_lim, neg_lim, dt),
+            OperationMode::None => {
                 self.motion.stop(qs_dec, dt);
                 SetpointKind::Position
             }
         }
+    }
+
+    /// The servo tune's move goes on (`crate::servo_tune`) in PP and CSP unless
+    /// `stopped` (halt, a limit switch) or the axis is outside the software limits;
+    /// otherwise it ends here.
+    fn servo_tune_moves(&mut self, stopped: bool) -> bool {
+        let outside = self
+            .params
+            .sw_limits()
+            .is_some_and(|(lo, hi)| self.actual_position >= hi || self.actual_position <= lo);
+        if matches!(self.mode, OperationMode::Pp | OperationMode::Csp) && !stopped && !outside {
+            // The drive's servo tune moves the axis: the generator follows the actual
+            // position and speed (the start of any stop ramp, and of the mode's
+            // set-points once the tune ends).
+            self.motion
+                .set(self.actual_position, self.actual_velocity as f32);
+            return true;
+        }
+        // Halt or another mode ends it.
+        self.servo_tune = false;
+        false
+    }
+
+    /// CSP and CSV: 0x60B2 as the torque feed-forward, halt on the 0x605D ramp, else
+    /// the mode's set-point. (Inlined: the CSP cycle's path, `cargo xtask bench`.)
+    #[inline(always)]
+    fn run_cyclic(
+        &mut self,
+        halt: bool,
+        pos_lim: bool,
+        neg_lim: bool,
+        dt: f32,
+        setpoint: SetpointArrival,
+    ) -> SetpointKind {
+        let p = &self.params;
+        let csv = self.mode == OperationMode::Csv;
+        // 0x60B2: torque feed-forward of the servo loops.
+        self.torque_cmd = p.torque_offset;
+        if halt {
+            self.halted = true;
+            self.abnormal_stop = true;
+            self.cyc.started = false;
+            self.motion
+                .stop(p.option_decel(p.halt_option).unwrap_or(0.0), dt);
+            return if csv {
+                SetpointKind::Velocity
+            } else {
+                SetpointKind::Position
+            };
+        }
+        if csv {
+            self.run_csv(pos_lim, neg_lim, dt);
+            SetpointKind::Velocity
+        } else {
+            self.run_csp(pos_lim, neg_lim, dt, setpoint);
+            SetpointKind::Position
+        }
+    }
+
+    /// CSV: 0x60FF + 0x60B1 as a direct set-point every cycle, its changes limited by
+    /// 0x60C5 / 0x60C6 (statusword bit 11 while limited); the position integrates it
+    /// from the actual position (see PV).
+    fn run_csv(&mut self, pos_lim: bool, neg_lim: bool, dt: f32) {
+        let p = &self.params;
+        let vmax = p.vmax();
+        let mut v = (p.target_velocity.saturating_add(p.velocity_offset) as f32).clamp(-vmax, vmax);
+        if (pos_lim && v > 0.0) || (neg_lim && v < 0.0) {
+            self.abnormal_stop = true;
+            v = 0.0;
+        }
+        self.motion.rebase(self.actual_position);
+        let (acc, dec) = (p.max_acceleration as f32, p.max_deceleration as f32);
+        if !self.motion.ramp_velocity(v, acc, dec, dt) {
+            self.internal_limit = true;
+        }
+        self.clamp_sw_limit();
     }
 
     /// PT and CST: the torque demand 0x6071 + 0x60B2, limited to ±0x6072 and moved at the
@@ -218,6 +240,9 @@ impl Cia402 {
         };
     }
 
+    /// CSP: 0x607A + 0x60B0 (within the software limits and the position range) as
+    /// segments interpolated or taken directly (see [`Cia402::step`]); a hardware limit
+    /// switch in the direction of the demand holds the axis.
     pub(super) fn run_csp(
         &mut self,
         pos_lim: bool,
@@ -264,55 +289,7 @@ impl Cia402 {
         let was_interpolating = self.cyc.interpolate;
         let new_segment = self.csp_segment_due(setpoint, nominal, dt);
         if new_segment {
-            // An interpolated segment starts where the last one's demand is now (on
-            // time that is its target; early or after a run-on, no step); a direct one
-            // from the last target (its velocity is the set-points' difference).
-            let fresh = setpoint == SetpointArrival::Fresh;
-            self.cyc.from = if fresh && (self.cyc.interpolate || was_interpolating) {
-                self.cyc.demand(0.0).0
-            } else {
-                self.cyc.to
-            };
-            // A segment's speed is at most min(0x607F, 0x6080) and changes from the
-            // last segment's by at most 0x60C5 / 0x60C6 over its period: a jump of the
-            // target is followed on that profile (statusword bit 11, internal limit),
-            // segment by segment, not at once; no run-on then. With set-points on
-            // their own clock (fresh), a limited segment interpolates over the longer
-            // of its period and the time since the last set-point, so that the speed
-            // holds whatever the master's jitter.
-            let dist = target.wrapping_sub(self.cyc.from) as f32;
-            let t = if fresh {
-                self.cyc.period.max(self.cyc.last_gap)
-            } else {
-                self.cyc.period
-            };
-            let vt = target.wrapping_sub(self.cyc.last_target) as f32 / t;
-            self.cyc.last_target = target;
-            match self.params.csp_segment_speed(dist, t, self.cyc.v, vt) {
-                None => {
-                    self.cyc.to = target;
-                    self.cyc.extrapolate = fresh;
-                    self.cyc.v = dist / t;
-                }
-                Some(v) => {
-                    // The limited speed (not its whole increments) carries over.
-                    self.cyc.to = self.cyc.from.wrapping_add(round_i32(v * t));
-                    self.cyc.extrapolate = false;
-                    self.internal_limit = true;
-                    self.cyc.v = v;
-                    if fresh {
-                        self.cyc.period = t;
-                        self.cyc.interpolate = true;
-                    }
-                }
-            }
-            self.cyc.elapsed = match (setpoint, self.cyc.interpolate) {
-                // The boundary step itself is the segment's first step.
-                (SetpointArrival::PerCycle, true) => dt,
-                // Every step is a boundary: the next one that is not is a new segment.
-                (SetpointArrival::PerCycle, false) => 1.0e9,
-                _ => 0.0,
-            };
+            self.csp_segment(target, setpoint, was_interpolating, dt);
         }
         let (mut demand, moving) = self.cyc.demand(velocity_offset);
         let mut vel = moving;
@@ -326,6 +303,68 @@ impl Cia402 {
             self.cyc.v = 0.0;
         }
         self.motion.set(demand, vel);
+    }
+
+    /// CSP: a new segment towards `target` (this step's set-point arrival `setpoint`;
+    /// `was_interpolating`: the last segment was interpolated), its speed limited by
+    /// `Params::csp_segment_speed`. (Inlined: the CSP cycle's path.)
+    #[inline(always)]
+    fn csp_segment(
+        &mut self,
+        target: i32,
+        setpoint: SetpointArrival,
+        was_interpolating: bool,
+        dt: f32,
+    ) {
+        // An interpolated segment starts where the last one's demand is now (on
+        // time that is its target; early or after a run-on, no step); a direct one
+        // from the last target (its velocity is the set-points' difference).
+        let fresh = setpoint == SetpointArrival::Fresh;
+        self.cyc.from = if fresh && (self.cyc.interpolate || was_interpolating) {
+            self.cyc.demand(0.0).0
+        } else {
+            self.cyc.to
+        };
+        // A segment's speed is at most min(0x607F, 0x6080) and changes from the
+        // last segment's by at most 0x60C5 / 0x60C6 over its period: a jump of the
+        // target is followed on that profile (statusword bit 11, internal limit),
+        // segment by segment, not at once; no run-on then. With set-points on
+        // their own clock (fresh), a limited segment interpolates over the longer
+        // of its period and the time since the last set-point, so that the speed
+        // holds whatever the master's jitter.
+        let dist = target.wrapping_sub(self.cyc.from) as f32;
+        let t = if fresh {
+            self.cyc.period.max(self.cyc.last_gap)
+        } else {
+            self.cyc.period
+        };
+        let vt = target.wrapping_sub(self.cyc.last_target) as f32 / t;
+        self.cyc.last_target = target;
+        match self.params.csp_segment_speed(dist, t, self.cyc.v, vt) {
+            None => {
+                self.cyc.to = target;
+                self.cyc.extrapolate = fresh;
+                self.cyc.v = dist / t;
+            }
+            Some(v) => {
+                // The limited speed (not its whole increments) carries over.
+                self.cyc.to = self.cyc.from.wrapping_add(round_i32(v * t));
+                self.cyc.extrapolate = false;
+                self.internal_limit = true;
+                self.cyc.v = v;
+                if fresh {
+                    self.cyc.period = t;
+                    self.cyc.interpolate = true;
+                }
+            }
+        }
+        self.cyc.elapsed = match (setpoint, self.cyc.interpolate) {
+            // The boundary step itself is the segment's first step.
+            (SetpointArrival::PerCycle, true) => dt,
+            // Every step is a boundary: the next one that is not is a new segment.
+            (SetpointArrival::PerCycle, false) => 1.0e9,
+            _ => 0.0,
+        };
     }
 
     /// CSP: whether this step starts a new segment, and if so its period and kind
@@ -389,7 +428,7 @@ impl Cia402 {
     pub(super) fn pp_accept_setpoint(&mut self, m: &Motion) {
         let cwv = self.controlword;
         let p = &self.params;
-        let rising = cwv & cw::NEW_SETPOINT != 0 && self.prev_cw & cw::NEW_SETPOINT == 0;
+        let rising = cwv.new_setpoint_edge(self.prev_cw);
         let params_ok =
             p.profile_velocity != 0 && p.profile_acceleration != 0 && p.profile_deceleration != 0;
         if rising && params_ok {
@@ -398,7 +437,7 @@ impl Cia402 {
                 .buffered
                 .or(self.pp.active)
                 .map_or(self.pp.last_target, |s| s.target);
-            let target = if cwv & cw::RELATIVE != 0 {
+            let target = if cwv.relative() {
                 let reference = match p.positioning_option & 0x3 {
                     1 => m.position(),
                     2 => self.actual_position,
@@ -421,7 +460,7 @@ impl Cia402 {
                 dec: p.dec(p.profile_deceleration),
             };
             self.pp.clamped = false;
-            if self.pp.active.is_none() || cwv & cw::CHANGE_IMMEDIATELY != 0 {
+            if self.pp.active.is_none() || cwv.change_immediately() {
                 if let Some(a) = self.pp.active {
                     self.pp.last_target = a.target;
                 }
@@ -433,26 +472,15 @@ impl Cia402 {
                 self.pp.ack = true;
             }
         }
-        if cwv & cw::NEW_SETPOINT == 0 && self.pp.buffered.is_none() {
+        if !cwv.new_setpoint() && self.pp.buffered.is_none() {
             self.pp.ack = false;
         }
     }
 
-    /// The PP set-point handling and trapezoid on `m`; returns true when `m` stands still
-    /// after a halt or with no set-point left.
-    pub(super) fn pp_generate(
-        &mut self,
-        m: &mut Motion,
-        halt: bool,
-        pos_lim: bool,
-        neg_lim: bool,
-        dt: f32,
-    ) -> bool {
-        self.pp_accept_setpoint(m);
-        let cwv = self.controlword;
-        let p = &self.params;
-        // Software limits: clamp the running targets.
-        if let Some((lo, hi)) = p.sw_limits() {
+    /// PP: the software limits clamp the running and the buffered target (statusword
+    /// bit 11 while a target is clamped).
+    fn pp_clamp_targets(&mut self) {
+        if let Some((lo, hi)) = self.params.sw_limits() {
             for sp in [self.pp.active.as_mut(), self.pp.buffered.as_mut()]
                 .into_iter()
                 .flatten()
@@ -469,6 +497,22 @@ impl Cia402 {
         if self.pp.clamped {
             self.internal_limit = true;
         }
+    }
+
+    /// The PP set-point handling and trapezoid on `m`; returns true when `m` stands still
+    /// after a halt or with no set-point left.
+    pub(super) fn pp_generate(
+        &mut self,
+        m: &mut Motion,
+        halt: bool,
+        pos_lim: bool,
+        neg_lim: bool,
+        dt: f32,
+    ) -> bool {
+        self.pp_accept_setpoint(m);
+        let cwv = self.controlword;
+        self.pp_clamp_targets();
+        let p = &self.params;
         let qs_dec = p.quick_stop_deceleration as f32;
         if halt {
             self.halted = true;
@@ -494,7 +538,7 @@ impl Cia402 {
             self.abnormal_stop = true;
         }
         if let Some(a) = self.pp.active {
-            let through = cwv & cw::CHANGE_ON_SETPOINT != 0
+            let through = cwv.change_on_setpoint()
                 && self.pp.buffered.is_some_and(|b| {
                     let d1 = a.target.wrapping_sub(m.position());
                     let d2 = b.target.wrapping_sub(a.target);
@@ -590,9 +634,9 @@ impl Cia402 {
             index: index.map(|r| self.raw_to_user(r)),
             stall: self.stall.map(|r| self.raw_to_user(r)),
         };
-        let start = cwv & cw::NEW_SETPOINT != 0 && self.prev_cw & cw::NEW_SETPOINT == 0;
+        let start = cwv.new_setpoint_edge(self.prev_cw);
         let mut shift = None;
-        if halt || cwv & cw::NEW_SETPOINT == 0 {
+        if halt || !cwv.homing_start() {
             // Halt or bit 4 cleared: interrupt (stop, status "interrupted").
             let dec = if halt {
                 self.halted = true;

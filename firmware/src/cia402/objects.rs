@@ -27,7 +27,7 @@
 //!   `check(|d, v| ..)` (the object's own SDO rule after the range check, returning the
 //!   abort code).
 
-use super::{homing, mode_supported, probe, Cia402, SUPPORTED_MODES};
+use super::{homing, mode_supported, probe, Cia402, Controlword, SUPPORTED_MODES};
 use ecat_slave_stack::od::{self, Access, DataType, EntryDesc, ObjectDesc, PdoMappable, SdoAbort};
 
 const RO: Access = Access::RO;
@@ -325,74 +325,6 @@ fn entry_position(index: u16, sub: u8) -> Option<usize> {
     ENTRY_KEYS.iter().position(|&key| key == (index, sub))
 }
 
-/// Number of entries of [`OBJECTS`] mappable in the direction `rx` (else tx).
-const fn mappable_count(rx: bool) -> usize {
-    let mut n = 0;
-    let mut o = 0;
-    while o < OBJECTS.len() {
-        let entries = OBJECTS[o].entries();
-        let mut e = 0;
-        while e < entries.len() {
-            let pdo = entries[e].pdo_mappable();
-            if (rx && pdo.rx()) || (!rx && pdo.tx()) {
-                n += 1;
-            }
-            e += 1;
-        }
-        o += 1;
-    }
-    n
-}
-
-/// `(index, sub-index)` of the entries mappable in the direction `rx`, in table order.
-const fn mappable_keys<const N: usize>(rx: bool) -> [(u16, u8); N] {
-    let mut keys = [(0, 0); N];
-    let mut n = 0;
-    let mut o = 0;
-    while o < OBJECTS.len() {
-        let entries = OBJECTS[o].entries();
-        let mut e = 0;
-        while e < entries.len() {
-            let pdo = entries[e].pdo_mappable();
-            if (rx && pdo.rx()) || (!rx && pdo.tx()) {
-                keys[n] = (OBJECTS[o].index, entries[e].sub());
-                n += 1;
-            }
-            e += 1;
-        }
-        o += 1;
-    }
-    keys
-}
-
-const RX_SLOT_KEYS: [(u16, u8); mappable_count(true)] = mappable_keys(true);
-const TX_SLOT_KEYS: [(u16, u8); mappable_count(false)] = mappable_keys(false);
-
-/// RxPDO-mappable entries; the position in this table is the slot id.
-pub const RX_SLOTS: &[(u16, u8)] = &RX_SLOT_KEYS;
-
-/// TxPDO-mappable entries; the position in this table is the slot id.
-pub const TX_SLOTS: &[(u16, u8)] = &TX_SLOT_KEYS;
-
-const _: () = assert!(RX_SLOTS.len() <= 256 && TX_SLOTS.len() <= 256);
-
-fn slot_of(table: &[(u16, u8)], index: u16, sub: u8) -> Option<u8> {
-    table
-        .iter()
-        .position(|&e| e == (index, sub))
-        .map(|i| i as u8)
-}
-
-/// Slot id of an RxPDO-mappable entry.
-pub fn rx_slot(index: u16, sub: u8) -> Option<u8> {
-    slot_of(RX_SLOTS, index, sub)
-}
-
-/// Slot id of a TxPDO-mappable entry.
-pub fn tx_slot(index: u16, sub: u8) -> Option<u8> {
-    slot_of(TX_SLOTS, index, sub)
-}
-
 /// A write of 0x6091-0x6093 (see [`super::scaling`]).
 fn scale(d: &mut Cia402, index: u16, sub: u8, v: u32) {
     let increments = d.encoder_increments;
@@ -429,44 +361,6 @@ impl Cia402 {
         let v = od::decode_int(e.data_type, data).ok_or(SdoAbort::TypeMismatch)?;
         self.write_value(index, sub, v)
     }
-
-    /// Cyclic path: stores an RxPDO entry by slot id from its little-endian bytes
-    /// (see [`Cia402::set_rx_raw`]).
-    #[inline]
-    pub fn set_rx(&mut self, slot: u8, data: &[u8]) {
-        self.set_rx_raw(slot, u32_from_le_prefix(data));
-    }
-    /// Cyclic path: writes a TxPDO entry by slot id (little-endian, as many bytes as
-    /// fit in `buf`, at most 4) and returns the number written.
-    #[inline]
-    pub fn get_tx(&self, slot: u8, buf: &mut [u8]) -> usize {
-        let b = self.get_tx_raw(slot).to_le_bytes();
-        let n = buf.len().min(4);
-        buf[..n].copy_from_slice(&b[..n]);
-        n
-    }
-}
-
-/// The cyclic path of the stack: slots are the indices of [`RX_SLOTS`] / [`TX_SLOTS`].
-/// (The drive's own `ProcessData` dispatches to these when it combines several
-/// modules' objects.)
-impl ecat_slave_stack::pdo::ProcessData for Cia402 {
-    fn rx_slot(&self, index: u16, sub: u8) -> Option<u16> {
-        rx_slot(index, sub).map(u16::from)
-    }
-    fn tx_slot(&self, index: u16, sub: u8) -> Option<u16> {
-        tx_slot(index, sub).map(u16::from)
-    }
-    #[inline]
-    fn set_rx(&mut self, slot: u16, raw: u64) {
-        if let Ok(s) = u8::try_from(slot) {
-            self.set_rx_raw(s, raw as u32);
-        }
-    }
-    #[inline]
-    fn get_tx(&self, slot: u16) -> u64 {
-        u8::try_from(slot).map_or(0, |s| self.get_tx_raw(s) as u64)
-    }
 }
 
 // The table. Sorted by index; see the module documentation for the columns.
@@ -481,11 +375,11 @@ cia402_objects! {
     }
     var 0x6040 "Controlword", "PDS commands (bits 0-3, 7 fault reset), mode-specific bits 4-6 and 9, bit 8 halt.",
     {
-        { 0 "Controlword": u16 RW RX [.default(0)] field(controlword) }
+        { 0 "Controlword": u16 RW RX [.default(0)] get(|d| d.controlword.raw()) set(|d, v| d.controlword = Controlword::from_raw(v)) }
     }
     var 0x6041 "Statusword", "PDS state, voltage enabled, warning, remote, target reached, internal limit, mode bits, E5 bits 8/14/15.",
     {
-        { 0 "Statusword": u16 RO TX [] field(statusword) }
+        { 0 "Statusword": u16 RO TX [] get(|d| d.statusword.raw()) }
     }
     var 0x605A "Quick stop option code", "0 disable drive function; 1/2/3/4 slow-down / quick-stop / max-deceleration ramp then switch on disabled; 5-8 the same and stay in quick stop active.",
     {
@@ -509,13 +403,13 @@ cia402_objects! {
     }
     var 0x6060 "Modes of operation", "Requested mode: 0 none, 1 PP, 3 PV, 4 PT, 6 HM, 8 CSP, 9 CSV, 10 CST (PT and CST closed loop only: refused with 0x06090030 while 0x6502 bit 9 is clear; an RxPDO value is not taken over).",
     {
-        { 0 "Modes of operation": i8 RW RX range(0, 10) [.default(0)] field(mode_request)
+        { 0 "Modes of operation": i8 RW RX range(0, 10) [.default(0)] get(|d| d.mode_request.code())
             set(|d, m| d.set_mode(m))
             check(|d, m| valid_if(mode_supported(m, d.supported_modes()))) }
     }
     var 0x6061 "Modes of operation display", "Mode that is running (changes when the switch is done).",
     {
-        { 0 "Modes of operation display": i8 RO TX [.default(0)] field(mode) }
+        { 0 "Modes of operation display": i8 RO TX [.default(0)] get(|d| d.mode.code()) }
     }
     var 0x6062 "Position demand value", "Output of the trajectory generator / CSP interpolation.",
     {
@@ -808,6 +702,9 @@ cia402_objects! {
         { 0 "Supported drive modes": u32 RO NO [.default(SUPPORTED_MODES as i64)] get(|d| d.supported_modes()) }
     }
 }
+
+mod slots;
+pub use slots::{rx_slot, tx_slot, RX_SLOTS, TX_SLOTS};
 
 #[cfg(test)]
 mod tests;

@@ -109,7 +109,7 @@ impl Cia402 {
             self.fault_detected(fb.fault);
         }
         let cwv = self.controlword;
-        let reset_edge = cwv & cw::FAULT_RESET != 0 && self.prev_cw & cw::FAULT_RESET == 0;
+        let reset_edge = cwv.fault_reset_edge(self.prev_cw);
         if reset_edge
             && self.state == PdsState::Fault
             && self.fire(Event::FaultResetEdge, fb.fault).is_some()
@@ -117,7 +117,7 @@ impl Cia402 {
             self.error_code = 0;
             self.fe_flag = false;
         }
-        let mut cmd = Command::decode(cwv);
+        let mut cmd = cwv.command();
         if fb.quick_stop_input
             && matches!(
                 cmd,

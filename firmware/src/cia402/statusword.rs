@@ -3,97 +3,74 @@
 use super::*;
 
 impl Cia402 {
-    pub(super) fn build_statusword(&self, fb: &DriveFeedback) -> u16 {
+    pub(super) fn build_statusword(&self, fb: &DriveFeedback) -> Statusword {
         let st = self.state;
-        let mut s = st.statusword_bits();
+        let s = Statusword::of_state(st);
         if st == PdsState::NotReadyToSwitchOn {
             return s;
         }
-        s |= sw::REMOTE;
-        if st.voltage_enabled() {
-            s |= sw::VOLTAGE_ENABLED;
-        }
-        if fb.warning {
-            s |= sw::WARNING;
-        }
-        if self.internal_limit {
-            s |= sw::INTERNAL_LIMIT;
-        }
-        if self.abnormal_stop {
-            s |= sw::ABNORMAL_STOP;
-        }
         let p = &self.params;
         let param_zero = match self.mode {
-            mode::PP => {
+            OperationMode::Pp => {
                 p.profile_velocity == 0
                     || p.profile_acceleration == 0
                     || p.profile_deceleration == 0
             }
-            mode::PV => p.profile_acceleration == 0 || p.profile_deceleration == 0,
+            OperationMode::Pv => p.profile_acceleration == 0 || p.profile_deceleration == 0,
             _ => false,
         };
-        if param_zero {
-            s |= sw::PARAM_ZERO;
-        }
+        let s = s
+            .with(sw::REMOTE, true)
+            .with(sw::VOLTAGE_ENABLED, st.voltage_enabled())
+            .with(sw::WARNING, fb.warning)
+            .with(sw::INTERNAL_LIMIT, self.internal_limit)
+            .with(sw::ABNORMAL_STOP, self.abnormal_stop)
+            .with(sw::PARAM_ZERO, param_zero);
         match st {
-            PdsState::OperationEnabled => match self.mode {
-                mode::PP => {
-                    if self.target_reached {
-                        s |= sw::TARGET_REACHED;
-                    }
-                    if self.pp.ack {
-                        s |= sw::BIT12;
-                    } else {
-                        s |= sw::SETPOINT_FREE;
-                    }
-                    if self.fe_flag {
-                        s |= sw::BIT13;
-                    }
-                }
-                mode::PV => {
-                    if self.target_reached {
-                        s |= sw::TARGET_REACHED;
-                    }
-                    if self.actual_velocity.unsigned_abs() <= p.velocity_threshold as u32 {
-                        s |= sw::BIT12;
-                    }
-                }
-                mode::HM => match self.hm.status() {
-                    HomingStatus::Idle => {
-                        if self.motion.velocity() == 0.0 {
-                            s |= sw::TARGET_REACHED;
-                        }
-                    }
-                    HomingStatus::InProgress => {}
-                    HomingStatus::Attained => {
-                        s |= sw::BIT12;
-                        if self.target_reached {
-                            s |= sw::TARGET_REACHED;
-                        }
-                    }
-                    HomingStatus::Error => {
-                        s |= sw::BIT13;
-                        if self.motion.velocity() == 0.0 {
-                            s |= sw::TARGET_REACHED;
-                        }
-                    }
-                },
-                mode::PT if self.target_reached => s |= sw::TARGET_REACHED,
-                mode::CSP | mode::CSV | mode::CST => {
-                    if !self.halted && !self.abnormal_stop && self.pending == Pending::None {
-                        s |= sw::BIT12;
-                    }
-                    if self.mode == mode::CSP && self.fe_flag {
-                        s |= sw::BIT13;
-                    }
-                }
-                _ => {}
-            },
-            PdsState::QuickStopActive if self.target_reached && self.motion.velocity() == 0.0 => {
-                s |= sw::TARGET_REACHED;
-            }
-            _ => {}
+            PdsState::OperationEnabled => self.mode_bits(s),
+            PdsState::QuickStopActive => s.with(
+                sw::TARGET_REACHED,
+                self.target_reached && self.motion.velocity() == 0.0,
+            ),
+            _ => s,
         }
-        s
+    }
+
+    /// The mode-specific bits (10, 12, 13, 15) in Operation enabled; none without a
+    /// mode.
+    fn mode_bits(&self, s: Statusword) -> Statusword {
+        let at_rest = || self.motion.velocity() == 0.0;
+        match self.mode {
+            OperationMode::Pp => s
+                .with(sw::TARGET_REACHED, self.target_reached)
+                .with(sw::SETPOINT_ACKNOWLEDGE, self.pp.ack)
+                .with(sw::SETPOINT_FREE, !self.pp.ack)
+                .with(sw::FOLLOWING_ERROR, self.fe_flag),
+            OperationMode::Pv => s.with(sw::TARGET_REACHED, self.target_reached).with(
+                sw::SPEED_ZERO,
+                self.actual_velocity.unsigned_abs() <= self.params.velocity_threshold as u32,
+            ),
+            OperationMode::Hm => match self.hm.status() {
+                HomingStatus::Idle => s.with(sw::TARGET_REACHED, at_rest()),
+                HomingStatus::InProgress => s,
+                HomingStatus::Attained => s
+                    .with(sw::HOMING_ATTAINED, true)
+                    .with(sw::TARGET_REACHED, self.target_reached),
+                HomingStatus::Error => s
+                    .with(sw::HOMING_ERROR, true)
+                    .with(sw::TARGET_REACHED, at_rest()),
+            },
+            OperationMode::Pt => s.with(sw::TARGET_REACHED, self.target_reached),
+            OperationMode::Csp | OperationMode::Csv | OperationMode::Cst => s
+                .with(
+                    sw::DRIVE_FOLLOWS,
+                    !self.halted && !self.abnormal_stop && self.pending == Pending::None,
+                )
+                .with(
+                    sw::FOLLOWING_ERROR,
+                    self.mode == OperationMode::Csp && self.fe_flag,
+                ),
+            OperationMode::None => s,
+        }
     }
 }
