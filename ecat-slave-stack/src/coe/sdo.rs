@@ -53,8 +53,7 @@ pub const TRANSFER_TIMEOUT_US: u64 = 1_000_000;
 /// Length of an initiate / abort frame after the mailbox header (CoE header + 8).
 pub const INITIATE_LEN: usize = COE_HEADER_LEN + 8;
 
-mod wire;
-pub use wire::*;
+pub use crate::wire::sdo::*;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Transfer {

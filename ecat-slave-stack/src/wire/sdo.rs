@@ -1,8 +1,8 @@
 //! The SDO wire format: a zero-copy [`Frame`] view with its [`field`] offsets and
 //! [`cmd`] bits, the master's [`Request`] and this server's [`Response`].
 
-use crate::coe::{Header, Service, HEADER_LEN as COE_HEADER_LEN};
-use crate::mailbox::ErrorDetail;
+use super::coe::{Header, Service, HEADER_LEN as COE_HEADER_LEN};
+use super::mailbox::ErrorDetail;
 use crate::od::SdoAbort;
 
 /// Byte offsets of the SDO frame after the CoE header.
