@@ -136,6 +136,14 @@ impl<T: AsRef<[u8]>> Frame<T> {
     pub fn sub(&self) -> u8 {
         self.buffer.as_ref()[field::SUB]
     }
+    /// Index, sub-index and the complete access flag of an initiate frame.
+    pub fn address(&self) -> Address {
+        Address {
+            index: self.index(),
+            sub: self.sub(),
+            complete_access: self.command() & cmd::COMPLETE_ACCESS != 0,
+        }
+    }
     /// The 4 data bytes of an initiate or abort frame.
     pub fn data4(&self) -> [u8; 4] {
         let b = &self.buffer.as_ref()[field::DATA];
@@ -182,45 +190,54 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> Frame<T> {
     }
 }
 
+/// The entry an SDO request addresses, or with complete access the object from this
+/// sub-index on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Address {
+    /// Index.
+    pub index: u16,
+    /// Sub-index.
+    pub sub: u8,
+    /// Complete access.
+    pub complete_access: bool,
+}
+
+/// An initiate download request (expedited: `data` is the value; normal: `size` is the
+/// complete size and `data` the part carried in this frame).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct InitiateDownload<'a> {
+    /// The entry or object written.
+    pub address: Address,
+    /// Expedited transfer.
+    pub expedited: bool,
+    /// Size indicated (expedited: `data.len()` is exact).
+    pub size_indicated: bool,
+    /// Complete size (normal transfer).
+    pub size: u32,
+    /// Data carried in this frame.
+    pub data: &'a [u8],
+}
+
+/// A download segment request.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DownloadSegment<'a> {
+    /// Toggle bit.
+    pub toggle: bool,
+    /// Last segment.
+    pub last: bool,
+    /// Data of this segment.
+    pub data: &'a [u8],
+}
+
 /// An SDO request from the master.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Request<'a> {
-    /// Initiate download (expedited: `data` is the value; normal: `size` is the complete
-    /// size and `data` the part carried in this frame).
-    InitiateDownload {
-        /// Index.
-        index: u16,
-        /// Sub-index.
-        sub: u8,
-        /// Complete access.
-        complete_access: bool,
-        /// Expedited transfer.
-        expedited: bool,
-        /// Size indicated (expedited: `data.len()` is exact).
-        size_indicated: bool,
-        /// Complete size (normal transfer).
-        size: u32,
-        /// Data carried in this frame.
-        data: &'a [u8],
-    },
+    /// Initiate download.
+    InitiateDownload(InitiateDownload<'a>),
     /// Download segment.
-    DownloadSegment {
-        /// Toggle bit.
-        toggle: bool,
-        /// Last segment.
-        last: bool,
-        /// Data of this segment.
-        data: &'a [u8],
-    },
-    /// Initiate upload.
-    InitiateUpload {
-        /// Index.
-        index: u16,
-        /// Sub-index.
-        sub: u8,
-        /// Complete access.
-        complete_access: bool,
-    },
+    DownloadSegment(DownloadSegment<'a>),
+    /// Initiate upload of this entry or object.
+    InitiateUpload(Address),
     /// Upload segment.
     UploadSegment {
         /// Toggle bit.
@@ -260,11 +277,11 @@ impl<'a> Request<'a> {
                 } else {
                     7 - ((c >> 1) & 7) as usize
                 };
-                Ok(Request::DownloadSegment {
+                Ok(Request::DownloadSegment(DownloadSegment {
                     toggle: c & cmd::TOGGLE != 0,
                     last: c & cmd::LAST != 0,
                     data: &seg[..n],
-                })
+                }))
             }
             1 => {
                 let expedited = c & cmd::EXPEDITED != 0;
@@ -279,21 +296,15 @@ impl<'a> Request<'a> {
                 } else {
                     &b[field::NORMAL_DATA]
                 };
-                Ok(Request::InitiateDownload {
-                    index: f.index(),
-                    sub: f.sub(),
-                    complete_access: c & cmd::COMPLETE_ACCESS != 0,
+                Ok(Request::InitiateDownload(InitiateDownload {
+                    address: f.address(),
                     expedited,
                     size_indicated,
                     size: f.data_u32(),
                     data,
-                })
+                }))
             }
-            2 => Ok(Request::InitiateUpload {
-                index: f.index(),
-                sub: f.sub(),
-                complete_access: c & cmd::COMPLETE_ACCESS != 0,
-            }),
+            2 => Ok(Request::InitiateUpload(f.address())),
             3 => Ok(Request::UploadSegment {
                 toggle: c & cmd::TOGGLE != 0,
             }),
