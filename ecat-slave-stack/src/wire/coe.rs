@@ -74,7 +74,7 @@ impl Header {
         let v = u16::from_le_bytes([b[0], b[1]]);
         Some(Header {
             number: v & 0x01FF,
-            service: Service::from_bits((v >> 12) as u8),
+            service: Service::from_bits(b[1] >> 4),
         })
     }
     /// The raw u16.

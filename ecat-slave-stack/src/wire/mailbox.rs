@@ -150,7 +150,7 @@ impl<T: AsRef<[u8]>> Frame<T> {
     /// after this the accessors cannot panic.
     pub fn check_len(&self) -> Result<(), WireError> {
         let b = self.buffer.as_ref();
-        if b.len() < HEADER_LEN || b.len() - HEADER_LEN < self.length() as usize {
+        if b.len() < HEADER_LEN || b.len() - HEADER_LEN < usize::from(self.length()) {
             return Err(WireError::Truncated);
         }
         Ok(())
@@ -195,7 +195,7 @@ impl<T: AsRef<[u8]>> Frame<T> {
     /// The mailbox data: `length` bytes after the header (clamped to the buffer).
     pub fn payload(&self) -> &[u8] {
         let b = self.buffer.as_ref();
-        let end = (HEADER_LEN + self.length() as usize).min(b.len());
+        let end = (HEADER_LEN + usize::from(self.length())).min(b.len());
         b.get(HEADER_LEN..end).unwrap_or(&[])
     }
 }

@@ -11,6 +11,13 @@
 //! * [`emcy`]: the emergency message.
 //! * [`foe`]: the FoE header, opcodes and error codes.
 
+#![deny(
+    clippy::cast_possible_truncation,
+    clippy::cast_sign_loss,
+    clippy::cast_possible_wrap,
+    clippy::cast_lossless
+)]
+
 pub mod coe;
 pub mod emcy;
 pub mod foe;

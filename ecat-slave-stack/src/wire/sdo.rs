@@ -275,7 +275,7 @@ impl<'a> Request<'a> {
                 let n = if seg.len() > 7 {
                     seg.len()
                 } else {
-                    7 - ((c >> 1) & 7) as usize
+                    7 - usize::from((c >> 1) & 7)
                 };
                 Ok(Request::DownloadSegment(DownloadSegment {
                     toggle: c & cmd::TOGGLE != 0,
@@ -288,7 +288,7 @@ impl<'a> Request<'a> {
                 let size_indicated = c & cmd::SIZE_INDICATED != 0;
                 let data: &'a [u8] = if expedited {
                     let n = if size_indicated {
-                        4 - ((c >> 2) & 3) as usize
+                        4 - usize::from((c >> 2) & 3)
                     } else {
                         4
                     };
@@ -432,7 +432,7 @@ impl<'a> Response<'a> {
                 let n = if seg.len() > 7 {
                     seg.len()
                 } else {
-                    7 - ((c >> 1) & 7) as usize
+                    7 - usize::from((c >> 1) & 7)
                 };
                 Response::UploadSegment {
                     toggle: c & cmd::TOGGLE != 0,
@@ -445,7 +445,7 @@ impl<'a> Response<'a> {
             },
             2 if c & cmd::EXPEDITED != 0 => {
                 let n = if c & cmd::SIZE_INDICATED != 0 {
-                    4 - ((c >> 2) & 3) as usize
+                    4 - usize::from((c >> 2) & 3)
                 } else {
                     4
                 };
@@ -517,7 +517,7 @@ impl<'a> Response<'a> {
                 let c = cmd::UPLOAD_RESPONSE
                     | cmd::EXPEDITED
                     | cmd::SIZE_INDICATED
-                    | (((4 - len) as u8 & 3) << 2);
+                    | ((u8::try_from(4 - len).unwrap_or(0) & 3) << 2);
                 (c, index, sub, d)
             }
             Response::Upload {
@@ -536,7 +536,7 @@ impl<'a> Response<'a> {
             Response::Abort { index, sub, code } => (cmd::ABORT, index, sub, code.to_le_bytes()),
             Response::UploadSegment { toggle, last, data } => {
                 // A segment has no index field: command and 7 or more data bytes.
-                let pad = (7 - data.len().min(7)) as u8;
+                let pad = u8::try_from(7 - data.len().min(7)).unwrap_or(0);
                 frame.set_command(flag(toggle, cmd::TOGGLE) | (pad << 1) | flag(last, cmd::LAST));
                 let (d, rest) = frame.segment_data_mut()[..n - 1].split_at_mut(data.len());
                 d.copy_from_slice(data);
