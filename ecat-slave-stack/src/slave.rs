@@ -502,15 +502,13 @@ impl<E: EscAccess> Slave<E> {
         self.repeat_ack = sm1.repeat_request();
         // Make sure neither mailbox SM is deactivated from the PDI side; start the
         // repeat handshake from the master's current toggle value.
+        self.esc.write_u8(
+            reg::sm_register(0) + reg::sm::PDI_CONTROL,
+            sm::PdiControl::new(false, false).0,
+        )?;
+        let ack = sm::PdiControl::new(false, self.repeat_ack);
         self.esc
-            .write_u8(reg::sm_register(0) + reg::sm::PDI_CONTROL, 0)?;
-        let ack = if self.repeat_ack {
-            sm::pdi_control::REPEAT_ACK
-        } else {
-            0
-        };
-        self.esc
-            .write_u8(reg::sm_register(1) + reg::sm::PDI_CONTROL, ack)
+            .write_u8(reg::sm_register(1) + reg::sm::PDI_CONTROL, ack.0)
     }
 
     fn start_process_data<A: SlaveApplication>(

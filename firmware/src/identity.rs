@@ -246,14 +246,16 @@ mod tests {
     #[test]
     fn the_product_refuses_mailboxes_shorter_than_its_limits() {
         use ecat_slave_stack::al_status::AlStatusCode;
-        use ecat_slave_stack::sm::{validate_mailbox, RamWindow, SmRegs};
+        use ecat_slave_stack::sm::{
+            validate_mailbox, Activate, Control, PdiControl, RamWindow, SmRegs, Status,
+        };
         let sm = |start: u16, len: u16, control: u8| SmRegs {
             start,
             len,
-            control,
-            status: 0,
-            activate: 1,
-            pdi_control: 0,
+            control: Control(control),
+            status: Status(0),
+            activate: Activate(1),
+            pdi_control: PdiControl(0),
         };
         let ram = RamWindow::from_kib(4);
         let cfg = slave_config();
