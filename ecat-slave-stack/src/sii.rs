@@ -27,12 +27,11 @@
 //!   push-pull active low, SPI_SEL active low, normal data-out sampling.
 //!
 //! Both: 0x0141 = 0x0C (device emulation off — the µC runs the ESM —, no enhanced link
-//! detection, DC SYNC-out and latch-in units on); 0x0151 = [`SYNC_LATCH_CONFIG`]
-//! (0x0E: SYNC0 pin is an output, driven with [`SYNC0_DRIVE`] = push-pull active high,
-//! and is mapped to AL event bit 2; SYNC1/LATCH1 pin as latch input); SYNC pulse length
-//! 1000 × 10 ns = 10 µs unless described otherwise. [`SYNC0_DRIVE`] is the one
-//! definition of the SYNC0 polarity: the board firmware waits for the edge it names
-//! (`firmware::identity::SYNC0_ACTIVE_EDGE`).
+//! detection, DC SYNC-out and latch-in units on); 0x0151 = [`sync_latch_config`] of
+//! the product's [`DeviceDescription::sync0_drive`] (SYNC0 pin is an output driven
+//! that way and mapped to AL event bit 2; SYNC1/LATCH1 pin as latch input); SYNC pulse
+//! length as described ([`DeviceDescription::sync_pulse_length`]). The drive is the
+//! product's choice (its board waits for the edge it names), not the stack's.
 
 mod build;
 mod read;
@@ -148,13 +147,13 @@ impl EscFlavour {
         }
     }
     /// SII word 1: PDI configuration (0x0150) and SYNC/latch configuration (0x0151,
-    /// [`SYNC_LATCH_CONFIG`], the same for both flavours).
-    pub const fn pdi_config(self) -> u16 {
-        let pdi: u16 = match self {
+    /// [`sync_latch_config`] of `sync0`, the same for both flavours).
+    pub const fn pdi_config(self, sync0: SyncDrive) -> u16 {
+        let pdi: u8 = match self {
             EscFlavour::Lan9252 => 0x00,
             EscFlavour::Et1100 => 0x03,
         };
-        (SYNC_LATCH_CONFIG as u16) << 8 | pdi
+        u16::from_le_bytes([pdi, sync_latch_config(sync0)])
     }
     /// SII word 3: extended PDI configuration (0x0152:0x0153); unused for both.
     pub const fn pdi_config2(self) -> u16 {
@@ -211,10 +210,6 @@ impl SyncDrive {
     }
 }
 
-/// SYNC0 pin drive of this product (both ESC flavours): the one definition of the
-/// SYNC0 polarity, used for the SII's 0x0151 value and by the board firmware.
-pub const SYNC0_DRIVE: SyncDrive = SyncDrive::PushPullActiveHigh;
-
 /// Bits of register 0x0151 (SYNC/latch PDI configuration) besides the drive fields.
 pub mod sync_latch {
     /// Bit 2: the SYNC0/LATCH0 pin is the SYNC0 output (0: LATCH0 input).
@@ -225,10 +220,11 @@ pub mod sync_latch {
     pub const SYNC1_OUTPUT: u8 = 1 << 6;
 }
 
-/// Value of 0x0151 in SII word 1 (high byte): SYNC0 output with [`SYNC0_DRIVE`],
-/// mapped to the AL event; SYNC1/LATCH1 as latch input.
-pub const SYNC_LATCH_CONFIG: u8 =
-    SYNC0_DRIVE.code() | sync_latch::SYNC0_OUTPUT | sync_latch::SYNC0_AL_EVENT;
+/// Value of 0x0151 in SII word 1 (high byte): SYNC0 output driven as `sync0`, mapped
+/// to the AL event; SYNC1/LATCH1 as latch input.
+pub const fn sync_latch_config(sync0: SyncDrive) -> u8 {
+    sync0.code() | sync_latch::SYNC0_OUTPUT | sync_latch::SYNC0_AL_EVENT
+}
 
 /// What a SyncManager is for (SII category 41 type byte, ESI `Sm` text).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -404,6 +400,9 @@ pub struct DeviceDescription {
     pub esc: EscFlavour,
     /// SYNC pulse length in 10 ns units (SII word 2 → 0x0982).
     pub sync_pulse_length: u16,
+    /// How the ESC drives the SYNC0 pin (SII word 1 → 0x0151, [`sync_latch_config`]):
+    /// the board's SYNC0 input waits for the edge this names.
+    pub sync0_drive: SyncDrive,
     /// Configured station alias (SII word 4 → 0x0012).
     pub station_alias: u16,
     /// Mailbox protocols (SII word 0x1C); this stack: [`MBOX_COE`].
@@ -530,7 +529,7 @@ impl DeviceDescription {
         let mut b = [0u8; 16];
         let words = [
             self.esc.pdi_control(),
-            self.esc.pdi_config(),
+            self.esc.pdi_config(self.sync0_drive),
             self.sync_pulse_length,
             self.esc.pdi_config2(),
             self.station_alias,

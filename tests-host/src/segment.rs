@@ -536,6 +536,7 @@ pub fn test_description(flavour: Flavour) -> DeviceDescription {
             Flavour::Et1100 => sii::EscFlavour::Et1100,
         },
         sync_pulse_length: 1000,
+        sync0_drive: sii::SyncDrive::PushPullActiveHigh,
         station_alias: 0,
         mailbox_protocols: sii::MBOX_COE,
         mailbox_data_link_layer: true,

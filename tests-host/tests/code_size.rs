@@ -41,7 +41,10 @@ const ALLOWED: &[(&str, Option<&str>)] = &[
     ("firmware/src/control_core.rs", Some("servo_step")),
     ("firmware/src/update.rs", None),
     ("firmware/src/faults.rs", None),
-    ("firmware/src/cia402/statusword.rs", Some("build_statusword")),
+    (
+        "firmware/src/cia402/statusword.rs",
+        Some("build_statusword"),
+    ),
     ("firmware/src/cia402/objects.rs", None),
     ("firmware/src/cia402/homing.rs", Some("cycle")),
     ("firmware/src/cia402/mod.rs", None),
