@@ -37,7 +37,8 @@
 //! transfer is aborted when the mailbox stops (→ Init) and after
 //! [`SlaveConfig::foe_timeout_us`] without a request.
 //!
-//! Objects 0x1600-0x1C33 and 0x2200 are served by the runtime itself (its
+//! Objects 0x1600-0x1C33 and the timing diagnostics object
+//! ([`SlaveConfig::timing_diag_index`]) are served by the runtime itself (its
 //! [`PdoConfig`] and [`SyncState`]); every other index goes to the application's
 //! [`Dictionary`] ([`CommDictionary`]).
 
@@ -138,6 +139,9 @@ pub struct SlaveConfig {
     /// A FoE transfer without a request for this long is aborted, µs (default
     /// [`crate::foe::DEFAULT_TIMEOUT_US`], 10 s; applied by [`Slave::init`]).
     pub foe_timeout_us: u64,
+    /// Index at which the runtime serves the timing diagnostics object (the product
+    /// lists [`sync::timing_diag_object`] of the same index); `None` (default): none.
+    pub timing_diag_index: Option<u16>,
 }
 
 impl Default for SlaveConfig {
@@ -150,6 +154,7 @@ impl Default for SlaveConfig {
             min_cycle_ns: sync::MIN_CYCLE_NS,
             bootstrap: None,
             foe_timeout_us: crate::foe::DEFAULT_TIMEOUT_US,
+            timing_diag_index: None,
         }
     }
 }
@@ -221,6 +226,7 @@ impl<E: EscAccess> Slave<E> {
             pdo: PdoConfig::new(cfg.pdo_defaults),
             sync: SyncState {
                 min_cycle_ns: cfg.min_cycle_ns,
+                diag_index: cfg.timing_diag_index,
                 ..SyncState::new(cfg.calc_copy_ns)
             },
             plan: CopyPlan::EMPTY,

@@ -1,5 +1,6 @@
 //! Synchronisation: free-run, SM2-synchronous and DC SYNC0 operation, the objects
-//! 0x1C32 / 0x1C33, SYNC0 supervision and the timing diagnostics object 0x2200.
+//! 0x1C32 / 0x1C33, SYNC0 supervision and the timing diagnostics object (at the
+//! index the product chooses in its range, [`SyncState::diag_index`]).
 //!
 //! # Modes
 //! * **Free run** (0x1C32:01 = 0): the application cycle runs on a local timer with
@@ -37,8 +38,10 @@
 //! computation outlasts the cycle time counts in 0x1C32:0C. 0x1C32:20 is set while
 //! the missed counter is above the limit or 0x1C32:0C is non-zero.
 //!
-//! # Timing diagnostics 0x2200 (read-only, µs, reset on P→S and by writing 1 to
-//! 0x1C32:08)
+//! # Timing diagnostics (read-only, µs, reset on P→S and by writing 1 to 0x1C32:08)
+//! The product lists [`timing_diag_object`] of its index in its dictionary and passes
+//! the same index in `SlaveConfig::timing_diag_index`; without one the runtime serves
+//! no diagnostics object.
 //! | sub | name | meaning |
 //! |---|---|---|
 //! | 1 | PDI period | time between the last two process-data cycles |
@@ -58,8 +61,6 @@ use crate::registers::DcActivation;
 pub const SM2_SYNC: u16 = 0x1C32;
 /// SM3 (inputs) sync parameters.
 pub const SM3_SYNC: u16 = 0x1C33;
-/// Timing diagnostics object (vendor range).
-pub const TIMING_DIAG: u16 = 0x2200;
 /// Supported sync types (0x1C32:04): free run, SM-synchronous, DC SYNC0.
 pub const SUPPORTED_TYPES: u16 = 0x0007;
 /// Smallest DC cycle accepted, ns.
@@ -310,7 +311,7 @@ pub struct SyncParams {
     pub sync_error: bool,
 }
 
-/// Timing diagnostics (0x2200), µs.
+/// Timing diagnostics, µs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct TimingDiag {
     /// :01 PDI period.
@@ -353,8 +354,11 @@ pub struct SyncState {
     pub sm3: SyncParams,
     /// SYNC0 lock supervision.
     pub sup: Sync0Supervisor,
-    /// 0x2200.
+    /// The timing diagnostics object's values.
     pub diag: TimingDiag,
+    /// Index of the timing diagnostics object (the product's choice); `None`: not
+    /// served.
+    pub diag_index: Option<u16>,
     /// Time of the last SM2 event (µs).
     pub last_sm2: Option<u64>,
     /// Time of the last process-data cycle (µs).
@@ -476,9 +480,15 @@ impl SyncState {
         self.sm3.cycle_too_small = self.sm2.cycle_too_small;
     }
 
-    /// Reads 0x1C32 / 0x1C33 / 0x2200.
+    /// True for the indices this state serves: 0x1C32, 0x1C33 and the timing
+    /// diagnostics object.
+    pub fn serves(&self, index: u16) -> bool {
+        is_sync_index(index) || self.diag_index == Some(index)
+    }
+
+    /// Reads 0x1C32 / 0x1C33 / the timing diagnostics.
     pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        if index == TIMING_DIAG {
+        if self.diag_index == Some(index) {
             let d = &self.diag;
             let v = match sub {
                 0 => return put(buf, &[6]),
@@ -537,7 +547,7 @@ impl SyncState {
         data: &[u8],
         state: EsmState,
     ) -> Result<(), SdoAbort> {
-        if index == TIMING_DIAG {
+        if self.diag_index == Some(index) {
             return if sub <= 6 {
                 Err(SdoAbort::WriteReadOnly)
             } else {
@@ -592,9 +602,10 @@ impl SyncState {
     }
 }
 
-/// True for the indices this module serves.
+/// True for the sync parameter objects 0x1C32 / 0x1C33 (the timing diagnostics
+/// object is at the product's index: [`SyncState::serves`]).
 pub const fn is_sync_index(index: u16) -> bool {
-    matches!(index, SM2_SYNC | SM3_SYNC | TIMING_DIAG)
+    matches!(index, SM2_SYNC | SM3_SYNC)
 }
 
 macro_rules! sync_entries {
@@ -674,8 +685,11 @@ const DIAG_ENTRIES: &[EntryDesc] = &[
     EntryDesc::new(6, "Computation time", DataType::Unsigned32, Access::RO).unit("us"),
 ];
 
-/// The timing diagnostics object 0x2200 (to be listed in the product's 0x2000 range).
-pub const DIAG_OBJECTS: &[ObjectDesc] = &[ObjectDesc::record(TIMING_DIAG, "Timing diagnostics", DIAG_ENTRIES, "Measured periods and times of the cyclic path in µs; reset on Pre-Op→Safe-Op and by 0x1C32:08 = 1")];
+/// The timing diagnostics object at `index` (the product's choice in its range; the
+/// same index goes into `SlaveConfig::timing_diag_index`).
+pub const fn timing_diag_object(index: u16) -> ObjectDesc {
+    ObjectDesc::record(index, "Timing diagnostics", DIAG_ENTRIES, "Measured periods and times of the cyclic path in µs; reset on Pre-Op→Safe-Op and by 0x1C32:08 = 1")
+}
 
 #[cfg(test)]
 mod tests;

@@ -6,7 +6,7 @@
 //! | 0x1000-0x10FF | [`crate::comm`] (device type, names, store/restore, identity, error settings) |
 //! | 0x1600-0x1C33 | `ecat_slave_stack::pdo` (mapping, assignment, sync manager parameters; served by the slave runtime) |
 //! | 0x2000-0x21FF | [`crate::params`] (vendor parameters) |
-//! | 0x2200 | `ecat_slave_stack::sync` (timing diagnostics; served by the slave runtime) |
+//! | 0x2200 | `ecat_slave_stack::sync` (timing diagnostics at `identity::TIMING_DIAG`; served by the slave runtime) |
 //! | 0x2300-0x2308 | [`crate::monitor`] (monitoring) |
 //! | 0x2400-0x2406 | [`crate::faults`] (fault history) |
 //! | 0x2500-0x2510 | [`crate::scope`] (scope, trace buffer) |
@@ -27,7 +27,9 @@ pub const PARTS: &[&[ObjectDesc]] = &[
     crate::comm::OBJECTS,
     ecat_slave_stack::pdo::OBJECTS,
     crate::params::OBJECTS,
-    ecat_slave_stack::sync::DIAG_OBJECTS,
+    &[ecat_slave_stack::sync::timing_diag_object(
+        crate::identity::TIMING_DIAG,
+    )],
     crate::faults::OBJECTS,
     crate::monitor::OBJECTS,
     crate::scope::OBJECTS,

@@ -142,13 +142,19 @@ pub const MAILBOX_LIMITS: ecat_slave_stack::sm::MailboxLimits =
         sm1_len: (40, 256),
     };
 
+/// Index of the timing diagnostics object the slave runtime serves
+/// (`ecat_slave_stack::sync::timing_diag_object`, listed in [`crate::dictionary`]).
+pub const TIMING_DIAG: u16 = 0x2200;
+
 /// The slave runtime's configuration of the product (the board's and the
-/// simulation's): the mailbox limits, the default PDO maps and the Bootstrap mailbox.
+/// simulation's): the mailbox limits, the default PDO maps, the Bootstrap mailbox and
+/// the timing diagnostics object.
 pub fn slave_config() -> ecat_slave_stack::slave::SlaveConfig {
     ecat_slave_stack::slave::SlaveConfig {
         mailbox_limits: MAILBOX_LIMITS,
         pdo_defaults: crate::pdo_defaults::PDO_DEFAULTS,
         bootstrap: BOOTSTRAP,
+        timing_diag_index: Some(TIMING_DIAG),
         ..ecat_slave_stack::slave::SlaveConfig::default()
     }
 }

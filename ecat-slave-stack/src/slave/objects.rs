@@ -19,14 +19,14 @@ impl<A: Dictionary + ?Sized> Dictionary for CommDictionary<'_, A> {
         self.app.objects()
     }
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        if is_runtime_index(index) {
+        if is_runtime_index(self.sync, index) {
             self.runtime().read(index, sub, buf)
         } else {
             self.app.read(index, sub, buf)
         }
     }
     fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
-        if is_runtime_index(index) {
+        if is_runtime_index(self.sync, index) {
             self.runtime().write(index, sub, data, state)
         } else {
             let mut runtime = RuntimeObjects {
@@ -52,9 +52,10 @@ impl<A: Dictionary + ?Sized> CommDictionary<'_, A> {
     }
 }
 
-/// True for the indices the runtime serves itself (mapping, assignment, sync).
-fn is_runtime_index(index: u16) -> bool {
-    pdo::is_pdo_index(index) || sync::is_sync_index(index)
+/// True for the indices the runtime serves itself (mapping, assignment, sync, timing
+/// diagnostics).
+fn is_runtime_index(sync: &SyncState, index: u16) -> bool {
+    pdo::is_pdo_index(index) || sync.serves(index)
 }
 
 /// The objects the runtime serves itself (mapping, assignment, sync parameters,
@@ -78,7 +79,7 @@ impl Dictionary for RuntimeObjects<'_> {
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
         if pdo::is_pdo_index(index) {
             self.pdo.read(index, sub, buf)
-        } else if sync::is_sync_index(index) {
+        } else if self.sync.serves(index) {
             self.sync.read(index, sub, buf)
         } else {
             Err(SdoAbort::ObjectDoesNotExist)
@@ -88,7 +89,7 @@ impl Dictionary for RuntimeObjects<'_> {
     fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
         if pdo::is_pdo_index(index) {
             self.pdo.write(index, sub, data, state, self.objects)
-        } else if sync::is_sync_index(index) {
+        } else if self.sync.serves(index) {
             self.sync.write(index, sub, data, state)
         } else {
             Err(SdoAbort::ObjectDoesNotExist)

@@ -12,7 +12,9 @@ pub(super) struct WholeDictionary<'a, S: ParameterStore> {
 }
 
 pub(super) fn is_runtime_index(index: u16) -> bool {
-    ecat_slave_stack::pdo::is_pdo_index(index) || ecat_slave_stack::sync::is_sync_index(index)
+    ecat_slave_stack::pdo::is_pdo_index(index)
+        || ecat_slave_stack::sync::is_sync_index(index)
+        || index == crate::identity::TIMING_DIAG
 }
 
 impl<S: ParameterStore> Dictionary for WholeDictionary<'_, S> {
