@@ -248,13 +248,16 @@ pub fn on_request(
                 return Ok(err(out, SdoAbort::ObjectDoesNotExist));
             };
             let mut head = [0u8; HEAD_MAX];
-            head[0..2].copy_from_slice(&index.to_le_bytes());
-            head[2..4].copy_from_slice(&object_data_type(obj).to_le_bytes());
-            head[4] = obj.max_sub();
-            head[5] = obj.code() as u8;
+            let head_len = ObjectDescriptionHead {
+                index,
+                data_type: object_data_type(obj),
+                max_sub: obj.max_sub(),
+                object_code: obj.code() as u8,
+            }
+            .emit(&mut head);
             let body = Body::Bytes {
                 head,
-                head_len: 6,
+                head_len: head_len as u8,
                 name: obj.name(),
                 tail: [&[], &[], &[]],
             };
@@ -285,12 +288,7 @@ pub fn on_request(
 
 fn entry_body(index: u16, e: &'static Entry, request: u8) -> Body {
     let mut head = [0u8; HEAD_MAX];
-    head[0..2].copy_from_slice(&index.to_le_bytes());
-    head[2] = e.sub;
-    head[4..6].copy_from_slice(&e.data_type.code().to_le_bytes());
-    head[6..8].copy_from_slice(&e.bits().to_le_bytes());
-    head[8..10].copy_from_slice(&entry_access_word(e).to_le_bytes());
-    let mut len = 10usize;
+    let mut len = EntryDescriptionHead::LEN;
     let mut vi = request & value_info::ECHOED;
     let n = e.byte_len();
     let numeric = od::has_numeric_range(e.data_type) && (1..=8).contains(&n);
@@ -312,7 +310,15 @@ fn entry_body(index: u16, e: &'static Entry, request: u8) -> Body {
             }
         }
     }
-    head[3] = vi;
+    EntryDescriptionHead {
+        index,
+        sub: e.sub,
+        value_info: vi,
+        data_type: e.data_type.code(),
+        bit_length: e.bits(),
+        access: entry_access_word(e),
+    }
+    .emit(&mut head);
     let tail: [&'static [u8]; 3] = if e.unit_text().is_empty() {
         [&[], &[], &[]]
     } else {
@@ -329,6 +335,33 @@ fn entry_body(index: u16, e: &'static Entry, request: u8) -> Body {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn description_heads_bytes() {
+        let mut b = [0xEEu8; 12];
+        let o = ObjectDescriptionHead {
+            index: 0x1C12,
+            data_type: 0x0006,
+            max_sub: 4,
+            object_code: 8,
+        };
+        assert_eq!(o.emit(&mut b), 6);
+        assert_eq!(b[..7], [0x12, 0x1C, 0x06, 0x00, 4, 8, 0xEE]);
+        assert_eq!(o.emit(&mut b[..5]), 0);
+        let e = EntryDescriptionHead {
+            index: 0x6040,
+            sub: 0,
+            value_info: 0x70,
+            data_type: 0x0006,
+            bit_length: 16,
+            access: 0x023F,
+        };
+        assert_eq!(e.emit(&mut b), 10);
+        assert_eq!(b[..11], [0x40, 0x60, 0, 0x70, 6, 0, 16, 0, 0x3F, 0x02, 0xEE]);
+        let mut short = [0u8; 9];
+        assert_eq!(e.emit(&mut short), 0);
+        assert_eq!(short, [0; 9]);
+    }
 
     #[test]
     fn info_frame_view_and_error() {

@@ -131,6 +131,72 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> Frame<T> {
     }
 }
 
+/// The fixed part of a get-object-description response, before the object's name:
+/// u16 index, u16 data type, u8 maximum sub-index, u8 object code.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ObjectDescriptionHead {
+    /// Index.
+    pub index: u16,
+    /// Data type code.
+    pub data_type: u16,
+    /// Maximum sub-index.
+    pub max_sub: u8,
+    /// Object code (7 VAR, 8 ARRAY, 9 RECORD).
+    pub object_code: u8,
+}
+
+impl ObjectDescriptionHead {
+    /// Length of the emitted head.
+    pub const LEN: usize = 6;
+    /// Writes the head into the start of `out`; returns [`Self::LEN`], or 0 (nothing
+    /// written) when `out` is shorter.
+    pub fn emit(&self, out: &mut [u8]) -> usize {
+        let Some(b) = out.get_mut(..Self::LEN) else {
+            return 0;
+        };
+        let [i0, i1] = self.index.to_le_bytes();
+        let [t0, t1] = self.data_type.to_le_bytes();
+        b.copy_from_slice(&[i0, i1, t0, t1, self.max_sub, self.object_code]);
+        Self::LEN
+    }
+}
+
+/// The fixed part of a get-entry-description response, before the value fields
+/// (default, minimum, maximum as `value_info` says) and the entry's name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct EntryDescriptionHead {
+    /// Index.
+    pub index: u16,
+    /// Sub-index.
+    pub sub: u8,
+    /// Value info: which value fields follow ([`value_info`] flags).
+    pub value_info: u8,
+    /// Data type code.
+    pub data_type: u16,
+    /// Length in bits.
+    pub bit_length: u16,
+    /// Access word (read/write per state, PDO mappable, backup, setting).
+    pub access: u16,
+}
+
+impl EntryDescriptionHead {
+    /// Length of the emitted head.
+    pub const LEN: usize = 10;
+    /// Writes the head into the start of `out`; returns [`Self::LEN`], or 0 (nothing
+    /// written) when `out` is shorter.
+    pub fn emit(&self, out: &mut [u8]) -> usize {
+        let Some(b) = out.get_mut(..Self::LEN) else {
+            return 0;
+        };
+        let [i0, i1] = self.index.to_le_bytes();
+        let [t0, t1] = self.data_type.to_le_bytes();
+        let [l0, l1] = self.bit_length.to_le_bytes();
+        let [a0, a1] = self.access.to_le_bytes();
+        b.copy_from_slice(&[i0, i1, self.sub, self.value_info, t0, t1, l0, l1, a0, a1]);
+        Self::LEN
+    }
+}
+
 /// Why a buffer could not be read as an SDO information frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum WireError {
