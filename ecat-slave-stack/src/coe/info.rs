@@ -357,7 +357,10 @@ mod tests {
             access: 0x023F,
         };
         assert_eq!(e.emit(&mut b), 10);
-        assert_eq!(b[..11], [0x40, 0x60, 0, 0x70, 6, 0, 16, 0, 0x3F, 0x02, 0xEE]);
+        assert_eq!(
+            b[..11],
+            [0x40, 0x60, 0, 0x70, 6, 0, 16, 0, 0x3F, 0x02, 0xEE]
+        );
         let mut short = [0u8; 9];
         assert_eq!(e.emit(&mut short), 0);
         assert_eq!(short, [0; 9]);

@@ -263,6 +263,31 @@ pub enum Request<'a> {
     },
 }
 
+/// The data of a segment frame `b` with command `c`: a frame longer than the minimum
+/// carries data up to its end; a minimum frame (7 data bytes) says in bits 3:1 how many
+/// of them are unused.
+fn segment_data(c: u8, b: &[u8]) -> &[u8] {
+    let seg = b.get(field::SEGMENT_DATA).unwrap_or_default();
+    let n = if seg.len() > 7 {
+        seg.len()
+    } else {
+        7 - usize::from((c >> 1) & 7)
+    };
+    seg.get(..n).unwrap_or(seg)
+}
+
+/// The data of an expedited frame `b` with command `c`: 4 bytes, less the unused ones
+/// bits 3:2 give when the size is indicated.
+fn expedited_data(c: u8, b: &[u8]) -> &[u8] {
+    let n = if c & cmd::SIZE_INDICATED != 0 {
+        4 - usize::from((c >> 2) & 3)
+    } else {
+        4
+    };
+    b.get(field::DATA.start..field::DATA.start + n)
+        .unwrap_or_default()
+}
+
 impl<'a> Request<'a> {
     /// Parses the SDO part of a request (after the CoE header). `Err` = too short for the
     /// command it carries.
@@ -270,29 +295,16 @@ impl<'a> Request<'a> {
         let f = Frame::new_checked(b)?;
         let c = f.command();
         match c >> 5 {
-            0 => {
-                let seg: &'a [u8] = &b[field::SEGMENT_DATA];
-                let n = if seg.len() > 7 {
-                    seg.len()
-                } else {
-                    7 - usize::from((c >> 1) & 7)
-                };
-                Ok(Request::DownloadSegment(DownloadSegment {
-                    toggle: c & cmd::TOGGLE != 0,
-                    last: c & cmd::LAST != 0,
-                    data: &seg[..n],
-                }))
-            }
+            0 => Ok(Request::DownloadSegment(DownloadSegment {
+                toggle: c & cmd::TOGGLE != 0,
+                last: c & cmd::LAST != 0,
+                data: segment_data(c, b),
+            })),
             1 => {
                 let expedited = c & cmd::EXPEDITED != 0;
                 let size_indicated = c & cmd::SIZE_INDICATED != 0;
                 let data: &'a [u8] = if expedited {
-                    let n = if size_indicated {
-                        4 - usize::from((c >> 2) & 3)
-                    } else {
-                        4
-                    };
-                    &b[field::DATA.start..field::DATA.start + n]
+                    expedited_data(c, b)
                 } else {
                     &b[field::NORMAL_DATA]
                 };
@@ -427,34 +439,19 @@ impl<'a> Response<'a> {
         let (index, sub) = (frame.index(), frame.sub());
         let ca = c & cmd::COMPLETE_ACCESS != 0;
         Ok(match c >> 5 {
-            0 => {
-                let seg: &'a [u8] = &b[field::SEGMENT_DATA];
-                let n = if seg.len() > 7 {
-                    seg.len()
-                } else {
-                    7 - usize::from((c >> 1) & 7)
-                };
-                Response::UploadSegment {
-                    toggle: c & cmd::TOGGLE != 0,
-                    last: c & cmd::LAST != 0,
-                    data: &seg[..n],
-                }
-            }
+            0 => Response::UploadSegment {
+                toggle: c & cmd::TOGGLE != 0,
+                last: c & cmd::LAST != 0,
+                data: segment_data(c, b),
+            },
             1 => Response::DownloadSegment {
                 toggle: c & cmd::TOGGLE != 0,
             },
-            2 if c & cmd::EXPEDITED != 0 => {
-                let n = if c & cmd::SIZE_INDICATED != 0 {
-                    4 - usize::from((c >> 2) & 3)
-                } else {
-                    4
-                };
-                Response::UploadExpedited {
-                    index,
-                    sub,
-                    data: &b[field::DATA.start..field::DATA.start + n],
-                }
-            }
+            2 if c & cmd::EXPEDITED != 0 => Response::UploadExpedited {
+                index,
+                sub,
+                data: expedited_data(c, b),
+            },
             2 => Response::Upload {
                 index,
                 sub,
