@@ -86,7 +86,8 @@ impl MailboxType {
 pub enum ErrorDetail {
     /// Syntax of the 6-byte header is wrong (buffer shorter than a header).
     Syntax = 0x0001,
-    /// The mailbox protocol is not supported (no handler for it, see [`Handlers`]).
+    /// The mailbox protocol is not supported (no handler for it, see
+    /// [`Handlers`](crate::mailbox::Handlers)).
     UnsupportedProtocol = 0x0002,
     /// Channel field is not 0.
     InvalidChannel = 0x0003,

@@ -205,7 +205,8 @@ pub enum WireError {
 }
 
 /// An SDO information request, or the error response (the frames of a whole message;
-/// responses other than the error are written fragment by fragment by [`InfoJob`]).
+/// responses other than the error are written fragment by fragment by
+/// [`InfoJob`](crate::coe::info::InfoJob)).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Repr {
     /// Get OD list request (0x01).
