@@ -52,6 +52,7 @@ pub mod sii;
 pub mod slave;
 pub mod sm;
 pub mod sync;
+pub mod wire;
 
 pub use al_status::AlStatusCode;
 pub use esc::{EscAccess, EscError};

@@ -34,6 +34,9 @@ use crate::al_status::AlStatusCode;
 use crate::esm::EsmState;
 use crate::od::{self, Access, DataType, EntryDesc, Object, ObjectDesc, SdoAbort};
 
+mod copy;
+pub use copy::{extract, insert, pack, unpack, CopyPlan, DirPlan, PlanEntry};
+
 /// Entries per mapping object.
 pub const MAX_ENTRIES: usize = 16;
 /// Maps per direction.
@@ -332,45 +335,7 @@ impl PdoConfig {
         objects: &'static [Object],
     ) -> Result<(), SdoAbort> {
         if let Some((dir, i)) = map_slot(index) {
-            if sub > MAX_ENTRIES as u8 {
-                return Err(SdoAbort::SubindexDoesNotExist);
-            }
-            if state != EsmState::PreOp {
-                return Err(SdoAbort::StateConflict);
-            }
-            if sub == 0 {
-                let [n] = exact::<1>(data)?;
-                if n as usize > MAX_ENTRIES {
-                    return Err(SdoAbort::ValueTooHigh);
-                }
-                let mut m = self.maps(dir)[i];
-                m.n = n;
-                for e in m.entries() {
-                    check_entry(*e, dir, objects)?;
-                }
-                if m.bits() > (MAX_BYTES * 8) as u32 {
-                    return Err(SdoAbort::PdoLengthExceeded);
-                }
-                if self.assigned_bits_with(dir, Some((i, &m))) > (MAX_BYTES * 8) as u32 {
-                    return Err(SdoAbort::PdoLengthExceeded);
-                }
-                match dir {
-                    Dir::Rx => self.rx[i] = m,
-                    Dir::Tx => self.tx[i] = m,
-                }
-                return Ok(());
-            }
-            let v = u32::from_le_bytes(exact::<4>(data)?);
-            if self.maps(dir)[i].n != 0 {
-                return Err(SdoAbort::SubindexZeroFirst);
-            }
-            check_entry(v, dir, objects)?;
-            let slot = &mut match dir {
-                Dir::Rx => &mut self.rx,
-                Dir::Tx => &mut self.tx,
-            }[i];
-            slot.e[sub as usize - 1] = v;
-            return Ok(());
+            return self.write_map(dir, i, sub, data, state, objects);
         }
         match index {
             SM_COMM_TYPE => {
@@ -380,52 +345,112 @@ impl PdoConfig {
                     Err(SdoAbort::WriteReadOnly)
                 }
             }
-            RX_ASSIGN | TX_ASSIGN => {
-                let dir = if index == RX_ASSIGN { Dir::Rx } else { Dir::Tx };
-                if sub > MAPS as u8 {
-                    return Err(SdoAbort::SubindexDoesNotExist);
-                }
-                if state != EsmState::PreOp {
-                    return Err(SdoAbort::StateConflict);
-                }
-                if sub == 0 {
-                    let [n] = exact::<1>(data)?;
-                    if n as usize > MAPS {
-                        return Err(SdoAbort::ValueTooHigh);
-                    }
-                    let mut a = *self.assign(dir);
-                    a.n = n;
-                    let list = a.entries();
-                    for (k, idx) in list.iter().enumerate() {
-                        if !matches!(map_slot(*idx), Some((d, _)) if d == dir) {
-                            return Err(SdoAbort::ValueRangeExceeded);
-                        }
-                        if list[..k].contains(idx) {
-                            return Err(SdoAbort::ParameterIncompatibility);
-                        }
-                    }
-                    let old = *self.assign(dir);
-                    self.set_assign(dir, a);
-                    if self.assigned_bits(dir) > (MAX_BYTES * 8) as u32 {
-                        self.set_assign(dir, old);
-                        return Err(SdoAbort::PdoLengthExceeded);
-                    }
-                    return Ok(());
-                }
-                let v = u16::from_le_bytes(exact::<2>(data)?);
-                if self.assign(dir).n != 0 {
-                    return Err(SdoAbort::SubindexZeroFirst);
-                }
-                if !matches!(map_slot(v), Some((d, _)) if d == dir) {
-                    return Err(SdoAbort::ValueRangeExceeded);
-                }
-                let mut a = *self.assign(dir);
-                a.e[sub as usize - 1] = v;
-                self.set_assign(dir, a);
-                Ok(())
-            }
+            RX_ASSIGN => self.write_assign(Dir::Rx, sub, data, state),
+            TX_ASSIGN => self.write_assign(Dir::Tx, sub, data, state),
             _ => Err(SdoAbort::ObjectDoesNotExist),
         }
+    }
+
+    /// Writes sub-index `sub` of the mapping object `i` of direction `dir`.
+    fn write_map(
+        &mut self,
+        dir: Dir,
+        i: usize,
+        sub: u8,
+        data: &[u8],
+        state: EsmState,
+        objects: &'static [Object],
+    ) -> Result<(), SdoAbort> {
+        if sub > MAX_ENTRIES as u8 {
+            return Err(SdoAbort::SubindexDoesNotExist);
+        }
+        if state != EsmState::PreOp {
+            return Err(SdoAbort::StateConflict);
+        }
+        if sub == 0 {
+            let [n] = exact::<1>(data)?;
+            if n as usize > MAX_ENTRIES {
+                return Err(SdoAbort::ValueTooHigh);
+            }
+            let mut m = self.maps(dir)[i];
+            m.n = n;
+            for e in m.entries() {
+                check_entry(*e, dir, objects)?;
+            }
+            if m.bits() > (MAX_BYTES * 8) as u32 {
+                return Err(SdoAbort::PdoLengthExceeded);
+            }
+            if self.assigned_bits_with(dir, Some((i, &m))) > (MAX_BYTES * 8) as u32 {
+                return Err(SdoAbort::PdoLengthExceeded);
+            }
+            match dir {
+                Dir::Rx => self.rx[i] = m,
+                Dir::Tx => self.tx[i] = m,
+            }
+            return Ok(());
+        }
+        let v = u32::from_le_bytes(exact::<4>(data)?);
+        if self.maps(dir)[i].n != 0 {
+            return Err(SdoAbort::SubindexZeroFirst);
+        }
+        check_entry(v, dir, objects)?;
+        let slot = &mut match dir {
+            Dir::Rx => &mut self.rx,
+            Dir::Tx => &mut self.tx,
+        }[i];
+        slot.e[sub as usize - 1] = v;
+        Ok(())
+    }
+
+    /// Writes sub-index `sub` of the assignment object of direction `dir`.
+    fn write_assign(
+        &mut self,
+        dir: Dir,
+        sub: u8,
+        data: &[u8],
+        state: EsmState,
+    ) -> Result<(), SdoAbort> {
+        if sub > MAPS as u8 {
+            return Err(SdoAbort::SubindexDoesNotExist);
+        }
+        if state != EsmState::PreOp {
+            return Err(SdoAbort::StateConflict);
+        }
+        if sub == 0 {
+            let [n] = exact::<1>(data)?;
+            if n as usize > MAPS {
+                return Err(SdoAbort::ValueTooHigh);
+            }
+            let mut a = *self.assign(dir);
+            a.n = n;
+            let list = a.entries();
+            for (k, idx) in list.iter().enumerate() {
+                if !matches!(map_slot(*idx), Some((d, _)) if d == dir) {
+                    return Err(SdoAbort::ValueRangeExceeded);
+                }
+                if list[..k].contains(idx) {
+                    return Err(SdoAbort::ParameterIncompatibility);
+                }
+            }
+            let old = *self.assign(dir);
+            self.set_assign(dir, a);
+            if self.assigned_bits(dir) > (MAX_BYTES * 8) as u32 {
+                self.set_assign(dir, old);
+                return Err(SdoAbort::PdoLengthExceeded);
+            }
+            return Ok(());
+        }
+        let v = u16::from_le_bytes(exact::<2>(data)?);
+        if self.assign(dir).n != 0 {
+            return Err(SdoAbort::SubindexZeroFirst);
+        }
+        if !matches!(map_slot(v), Some((d, _)) if d == dir) {
+            return Err(SdoAbort::ValueRangeExceeded);
+        }
+        let mut a = *self.assign(dir);
+        a.e[sub as usize - 1] = v;
+        self.set_assign(dir, a);
+        Ok(())
     }
 
     fn set_assign(&mut self, dir: Dir, a: Assign) {
@@ -510,199 +535,6 @@ pub const fn map_slot(index: u16) -> Option<(Dir, usize)> {
 /// True for the indices this module serves.
 pub const fn is_pdo_index(index: u16) -> bool {
     map_slot(index).is_some() || matches!(index, SM_COMM_TYPE | RX_ASSIGN | TX_ASSIGN)
-}
-
-/// One mapped entry of a plan.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct PlanEntry {
-    /// Application slot.
-    pub slot: u16,
-    /// Bit offset in the process image.
-    pub bit_offset: u16,
-    /// Length in bits (1-64).
-    pub bits: u8,
-}
-
-/// The compiled plan of one direction.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct DirPlan {
-    entries: [PlanEntry; MAX_PLAN_ENTRIES],
-    n: u8,
-    bytes: u16,
-}
-
-impl DirPlan {
-    /// No entries, 0 bytes.
-    pub const EMPTY: DirPlan = DirPlan {
-        entries: [PlanEntry {
-            slot: 0,
-            bit_offset: 0,
-            bits: 0,
-        }; MAX_PLAN_ENTRIES],
-        n: 0,
-        bytes: 0,
-    };
-    /// The mapped entries (padding excluded).
-    pub fn entries(&self) -> &[PlanEntry] {
-        &self.entries[..(self.n as usize).min(MAX_PLAN_ENTRIES)]
-    }
-    /// Size of the process image in bytes.
-    pub const fn bytes(&self) -> u16 {
-        self.bytes
-    }
-}
-
-/// The compiled plans of both directions.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct CopyPlan {
-    /// RxPDO (SM2 → application).
-    pub rx: DirPlan,
-    /// TxPDO (application → SM3).
-    pub tx: DirPlan,
-}
-
-impl CopyPlan {
-    /// Nothing mapped.
-    pub const EMPTY: CopyPlan = CopyPlan {
-        rx: DirPlan::EMPTY,
-        tx: DirPlan::EMPTY,
-    };
-}
-
-#[inline]
-fn mask(bits: u8) -> u64 {
-    if bits >= 64 {
-        u64::MAX
-    } else {
-        (1u64 << bits) - 1
-    }
-}
-
-/// Extracts `bits` bits at `bit_offset` (little-endian bit order) from `data`; bytes
-/// beyond `data` read as 0.
-#[inline(always)]
-pub fn extract(data: &[u8], bit_offset: u16, bits: u8) -> u64 {
-    let byte = (bit_offset / 8) as usize;
-    let shift = (bit_offset % 8) as u32;
-    if shift == 0 {
-        // Byte-aligned 8/16/32-bit entries: direct loads, the common case.
-        match bits {
-            8 => {
-                if let Some(v) = data.get(byte) {
-                    return *v as u64;
-                }
-            }
-            16 => {
-                if let Some(&[a, b]) = data.get(byte..byte + 2) {
-                    return u16::from_le_bytes([a, b]) as u64;
-                }
-            }
-            32 => {
-                if let Some(&[a, b, c, d]) = data.get(byte..byte + 4) {
-                    return u32::from_le_bytes([a, b, c, d]) as u64;
-                }
-            }
-            _ => {}
-        }
-    }
-    extract_bits(data, bit_offset, bits)
-}
-
-/// [`extract`] for any offset and length: out of line, so that the byte-aligned
-/// fast path stays small enough to inline into the copy loops.
-#[inline(never)]
-fn extract_bits(data: &[u8], bit_offset: u16, bits: u8) -> u64 {
-    let byte = (bit_offset / 8) as usize;
-    let shift = (bit_offset % 8) as u32;
-    let mut b = [0u8; 16];
-    let end = (byte + 9).min(data.len());
-    if byte < end {
-        b[..end - byte].copy_from_slice(&data[byte..end]);
-    }
-    let lo = u64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]);
-    let v = if shift == 0 {
-        lo
-    } else {
-        (lo >> shift) | ((b[8] as u64) << (64 - shift))
-    };
-    v & mask(bits)
-}
-
-/// Inserts the low `bits` bits of `value` at `bit_offset` into `data`; bits beyond
-/// `data` are dropped, the other bits of `data` are kept.
-#[inline(always)]
-pub fn insert(data: &mut [u8], bit_offset: u16, bits: u8, value: u64) {
-    let byte = (bit_offset / 8) as usize;
-    let shift = (bit_offset % 8) as u32;
-    if shift == 0 {
-        match bits {
-            8 => {
-                if let Some(d) = data.get_mut(byte) {
-                    *d = value as u8;
-                    return;
-                }
-            }
-            16 => {
-                if let Some(d) = data.get_mut(byte..byte + 2) {
-                    d.copy_from_slice(&(value as u16).to_le_bytes());
-                    return;
-                }
-            }
-            32 => {
-                if let Some(d) = data.get_mut(byte..byte + 4) {
-                    d.copy_from_slice(&(value as u32).to_le_bytes());
-                    return;
-                }
-            }
-            _ => {}
-        }
-    }
-    insert_bits(data, bit_offset, bits, value);
-}
-
-/// [`insert`] for any offset and length (out of line, as [`extract_bits`]).
-#[inline(never)]
-fn insert_bits(data: &mut [u8], bit_offset: u16, bits: u8, value: u64) {
-    let byte = (bit_offset / 8) as usize;
-    let shift = (bit_offset % 8) as u32;
-    let m = mask(bits);
-    let v = value & m;
-    for k in 0..=(bits as u32 + shift).div_ceil(8) as usize {
-        let Some(d) = data.get_mut(byte + k) else {
-            break;
-        };
-        let pos = (k as i32) * 8 - shift as i32;
-        let (mk, vk) = if pos >= 0 {
-            let p = pos as u32;
-            (
-                m.checked_shr(p).unwrap_or(0) as u8,
-                v.checked_shr(p).unwrap_or(0) as u8,
-            )
-        } else {
-            (
-                ((m << (-pos) as u32) & 0xFF) as u8,
-                ((v << (-pos) as u32) & 0xFF) as u8,
-            )
-        };
-        *d = (*d & !mk) | vk;
-    }
-}
-
-/// Copies the outputs of `sm2` into the application through the plan.
-#[inline]
-pub fn unpack<P: ProcessData + ?Sized>(plan: &DirPlan, sm2: &[u8], app: &mut P) {
-    for e in plan.entries() {
-        app.set_rx(e.slot, extract(sm2, e.bit_offset, e.bits));
-    }
-}
-
-/// Copies the application's inputs into `sm3` through the plan (padding bits keep
-/// their contents: zero the buffer once).
-#[inline]
-pub fn pack<P: ProcessData + ?Sized>(plan: &DirPlan, app: &P, sm3: &mut [u8]) {
-    for e in plan.entries() {
-        insert(sm3, e.bit_offset, e.bits, app.get_tx(e.slot));
-    }
 }
 
 macro_rules! map_entries {
@@ -809,93 +641,4 @@ pub const OBJECTS: &[ObjectDesc] = &[
 ];
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn read_every_sub_index_and_the_errors() {
-        const RX0: &[u32] = &[entry(0x6040, 0, 16), entry(0x607A, 0, 32)];
-        const TX3: &[u32] = &[entry(0x6041, 0, 16)];
-        let c = PdoConfig::new(PdoDefaults {
-            rx: [RX0, &[], &[], &[]],
-            tx: [&[], &[], &[], TX3],
-            rx_assign: &[0x1600],
-            tx_assign: &[0x1A03, 0x1A01],
-        });
-        let rd = |index: u16, sub: u8| {
-            let mut b = [0xEEu8; 8];
-            c.read(index, sub, &mut b).map(|n| b[..n].to_vec())
-        };
-        assert_eq!(rd(0x1600, 0), Ok(vec![2]));
-        assert_eq!(rd(0x1600, 1), Ok(0x6040_0010u32.to_le_bytes().to_vec()));
-        assert_eq!(rd(0x1600, 2), Ok(0x607A_0020u32.to_le_bytes().to_vec()));
-        // Entries behind the count still read (their stored value), up to 16.
-        assert_eq!(rd(0x1600, 16), Ok(vec![0; 4]));
-        assert_eq!(rd(0x1A03, 0), Ok(vec![1]));
-        assert_eq!(rd(0x1A03, 1), Ok(0x6041_0010u32.to_le_bytes().to_vec()));
-        for sub in [17, 0x80, 0xFF] {
-            assert_eq!(rd(0x1603, sub), Err(SdoAbort::SubindexDoesNotExist));
-        }
-        assert_eq!(rd(SM_COMM_TYPE, 0), Ok(vec![4]));
-        for sub in 1..=4 {
-            assert_eq!(rd(SM_COMM_TYPE, sub), Ok(vec![sub]));
-        }
-        assert_eq!(rd(RX_ASSIGN, 0), Ok(vec![1]));
-        assert_eq!(rd(RX_ASSIGN, 1), Ok(vec![0x00, 0x16]));
-        assert_eq!(rd(TX_ASSIGN, 0), Ok(vec![2]));
-        assert_eq!(rd(TX_ASSIGN, 2), Ok(vec![0x01, 0x1A]));
-        assert_eq!(rd(TX_ASSIGN, 4), Ok(vec![0, 0]));
-        for index in [SM_COMM_TYPE, RX_ASSIGN, TX_ASSIGN] {
-            for sub in [5, 0xFF] {
-                assert_eq!(rd(index, sub), Err(SdoAbort::SubindexDoesNotExist));
-            }
-        }
-        for index in [0x1604, 0x15FF, 0x1A04, 0x1C11, 0x1C14, 0x0000, 0xFFFF] {
-            assert_eq!(rd(index, 0), Err(SdoAbort::ObjectDoesNotExist));
-        }
-        // A buffer too short for the value: the mailbox-size abort, nothing panics.
-        let mut short = [0u8; 3];
-        assert_eq!(c.read(0x1600, 1, &mut short), Err(SdoAbort::ExceedsMailbox));
-        assert_eq!(c.read(RX_ASSIGN, 0, &mut []), Err(SdoAbort::ExceedsMailbox));
-        assert_eq!(
-            c.read(TX_ASSIGN, 1, &mut short[..1]),
-            Err(SdoAbort::ExceedsMailbox)
-        );
-    }
-
-    #[test]
-    fn objects_are_well_formed() {
-        assert!(od::is_well_formed(crate::packed_dictionary!(&[OBJECTS])));
-        assert!(OBJECTS.windows(2).all(|w| w[0].index < w[1].index));
-    }
-
-    #[test]
-    fn extract_insert_round_trip_at_every_offset() {
-        for bits in 1u8..=64 {
-            for off in 0u16..24 {
-                let mut buf = [0xA5u8; 16];
-                let v = 0x0123_4567_89AB_CDEFu64 & mask(bits);
-                insert(&mut buf, off, bits, v);
-                assert_eq!(extract(&buf, off, bits), v, "bits {bits} off {off}");
-                // Bits outside the field are untouched.
-                let mut ref_buf = [0xA5u8; 16];
-                insert(&mut ref_buf, off, bits, extract(&[0xA5u8; 16], off, bits));
-                for i in 0..128u16 {
-                    if i < off || i >= off + bits as u16 {
-                        assert_eq!(extract(&buf, i, 1), extract(&ref_buf, i, 1));
-                    }
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn extract_beyond_buffer_is_zero_and_insert_drops() {
-        let buf = [0xFFu8; 2];
-        assert_eq!(extract(&buf, 8, 16), 0xFF);
-        assert_eq!(extract(&buf, 40, 8), 0);
-        let mut b = [0u8; 2];
-        insert(&mut b, 12, 16, 0xFFFF);
-        assert_eq!(b, [0x00, 0xF0]);
-    }
-}
+mod tests;

@@ -27,17 +27,15 @@
 //!   push-pull active low, SPI_SEL active low, normal data-out sampling.
 //!
 //! Both: 0x0141 = 0x0C (device emulation off — the µC runs the ESM —, no enhanced link
-//! detection, DC SYNC-out and latch-in units on); 0x0151 = [`SYNC_LATCH_CONFIG`]
-//! (0x0E: SYNC0 pin is an output, driven with [`SYNC0_DRIVE`] = push-pull active high,
-//! and is mapped to AL event bit 2; SYNC1/LATCH1 pin as latch input); SYNC pulse length
-//! 1000 × 10 ns = 10 µs unless described otherwise. [`SYNC0_DRIVE`] is the one
-//! definition of the SYNC0 polarity: the board firmware waits for the edge it names
-//! (`firmware::identity::SYNC0_ACTIVE_EDGE`).
+//! detection, DC SYNC-out and latch-in units on); 0x0151 = [`sync_latch_config`] of
+//! the product's [`DeviceDescription::sync0_drive`] (SYNC0 pin is an output driven
+//! that way and mapped to AL event bit 2; SYNC1/LATCH1 pin as latch input); SYNC pulse
+//! length as described ([`DeviceDescription::sync_pulse_length`]). The drive is the
+//! product's choice (its board waits for the edge it names), not the stack's.
 
-use crate::esi::{self, PdoEntry, PdoMap};
-use crate::od::{Name, Object};
-
+mod build;
 mod read;
+pub use build::*;
 pub use read::*;
 
 /// Mailbox protocol bit of SII word 0x1C: CoE.
@@ -149,13 +147,13 @@ impl EscFlavour {
         }
     }
     /// SII word 1: PDI configuration (0x0150) and SYNC/latch configuration (0x0151,
-    /// [`SYNC_LATCH_CONFIG`], the same for both flavours).
-    pub const fn pdi_config(self) -> u16 {
-        let pdi: u16 = match self {
+    /// [`sync_latch_config`] of `sync0`, the same for both flavours).
+    pub const fn pdi_config(self, sync0: SyncDrive) -> u16 {
+        let pdi: u8 = match self {
             EscFlavour::Lan9252 => 0x00,
             EscFlavour::Et1100 => 0x03,
         };
-        (SYNC_LATCH_CONFIG as u16) << 8 | pdi
+        u16::from_le_bytes([pdi, sync_latch_config(sync0)])
     }
     /// SII word 3: extended PDI configuration (0x0152:0x0153); unused for both.
     pub const fn pdi_config2(self) -> u16 {
@@ -212,10 +210,6 @@ impl SyncDrive {
     }
 }
 
-/// SYNC0 pin drive of this product (both ESC flavours): the one definition of the
-/// SYNC0 polarity, used for the SII's 0x0151 value and by the board firmware.
-pub const SYNC0_DRIVE: SyncDrive = SyncDrive::PushPullActiveHigh;
-
 /// Bits of register 0x0151 (SYNC/latch PDI configuration) besides the drive fields.
 pub mod sync_latch {
     /// Bit 2: the SYNC0/LATCH0 pin is the SYNC0 output (0: LATCH0 input).
@@ -226,10 +220,11 @@ pub mod sync_latch {
     pub const SYNC1_OUTPUT: u8 = 1 << 6;
 }
 
-/// Value of 0x0151 in SII word 1 (high byte): SYNC0 output with [`SYNC0_DRIVE`],
-/// mapped to the AL event; SYNC1/LATCH1 as latch input.
-pub const SYNC_LATCH_CONFIG: u8 =
-    SYNC0_DRIVE.code() | sync_latch::SYNC0_OUTPUT | sync_latch::SYNC0_AL_EVENT;
+/// Value of 0x0151 in SII word 1 (high byte): SYNC0 output driven as `sync0`, mapped
+/// to the AL event; SYNC1/LATCH1 as latch input.
+pub const fn sync_latch_config(sync0: SyncDrive) -> u8 {
+    sync0.code() | sync_latch::SYNC0_OUTPUT | sync_latch::SYNC0_AL_EVENT
+}
 
 /// What a SyncManager is for (SII category 41 type byte, ESI `Sm` text).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -405,6 +400,9 @@ pub struct DeviceDescription {
     pub esc: EscFlavour,
     /// SYNC pulse length in 10 ns units (SII word 2 → 0x0982).
     pub sync_pulse_length: u16,
+    /// How the ESC drives the SYNC0 pin (SII word 1 → 0x0151, [`sync_latch_config`]):
+    /// the board's SYNC0 input waits for the edge this names.
+    pub sync0_drive: SyncDrive,
     /// Configured station alias (SII word 4 → 0x0012).
     pub station_alias: u16,
     /// Mailbox protocols (SII word 0x1C); this stack: [`MBOX_COE`].
@@ -531,7 +529,7 @@ impl DeviceDescription {
         let mut b = [0u8; 16];
         let words = [
             self.esc.pdi_control(),
-            self.esc.pdi_config(),
+            self.esc.pdi_config(self.sync0_drive),
             self.sync_pulse_length,
             self.esc.pdi_config2(),
             self.station_alias,
@@ -586,323 +584,4 @@ pub enum SiiError {
     MissingMailbox,
     /// Another inconsistency (see [`DeviceDescription::validate`]).
     InvalidDescription,
-}
-
-/// Up to this many distinct strings.
-const MAX_STRINGS: usize = 80;
-
-/// The string table: distinct non-empty strings in order of first use.
-struct Strings {
-    list: [Name; MAX_STRINGS],
-    n: usize,
-}
-
-impl Strings {
-    fn new() -> Self {
-        Strings {
-            list: [Name::plain(""); MAX_STRINGS],
-            n: 0,
-        }
-    }
-    fn add(&mut self, s: Name) -> Result<(), SiiError> {
-        if s.is_empty() || self.list[..self.n].contains(&s) {
-            return Ok(());
-        }
-        if s.len() > 255 || self.n >= MAX_STRINGS {
-            return Err(SiiError::StringTable);
-        }
-        self.list[self.n] = s;
-        self.n += 1;
-        Ok(())
-    }
-    /// 1-based index, 0 for the empty string.
-    fn index(&self, s: Name) -> u8 {
-        self.list[..self.n]
-            .iter()
-            .position(|x| *x == s)
-            .map_or(0, |i| i as u8 + 1)
-    }
-    fn of(desc: &DeviceDescription, objects: &[Object], pdos: &[PdoMap]) -> Result<Self, SiiError> {
-        let mut t = Strings::new();
-        for s in [
-            desc.name,
-            desc.type_name,
-            desc.group_type,
-            desc.hardware_version,
-            desc.software_version,
-        ] {
-            t.add(Name::plain(s))?;
-        }
-        for m in desc.dc_op_modes {
-            t.add(Name::plain(m.name))?;
-            t.add(Name::plain(m.description))?;
-        }
-        for p in pdos {
-            t.add(p.name)?;
-            for e in p.entries.iter().map(|v| PdoEntry::decode(*v)) {
-                if let Some((name, _)) = esi::pdo_entry_name(objects, e) {
-                    t.add(name)?;
-                }
-            }
-        }
-        Ok(t)
-    }
-}
-
-/// Writes categories into a buffer, word-aligned, with bounds checks.
-struct Writer<'a> {
-    out: &'a mut [u8],
-    pos: usize,
-}
-
-impl Writer<'_> {
-    fn bytes(&mut self, b: &[u8]) -> Result<(), SiiError> {
-        let end = self.pos + b.len();
-        self.out
-            .get_mut(self.pos..end)
-            .ok_or(SiiError::BufferTooSmall)?
-            .copy_from_slice(b);
-        self.pos = end;
-        Ok(())
-    }
-    fn u16(&mut self, v: u16) -> Result<(), SiiError> {
-        self.bytes(&v.to_le_bytes())
-    }
-    fn u32(&mut self, v: u32) -> Result<(), SiiError> {
-        self.bytes(&v.to_le_bytes())
-    }
-    fn pad(&mut self) -> Result<(), SiiError> {
-        if self.pos % 2 == 1 {
-            self.bytes(&[0])?;
-        }
-        Ok(())
-    }
-    /// Starts a category; returns the position of its size word.
-    fn begin(&mut self, kind: u16) -> Result<usize, SiiError> {
-        self.u16(kind)?;
-        let at = self.pos;
-        self.u16(0)?;
-        Ok(at)
-    }
-    /// Pads the category to a word and fills in its size.
-    fn end(&mut self, size_at: usize) -> Result<(), SiiError> {
-        self.pad()?;
-        let words = ((self.pos - size_at - 2) / 2) as u16;
-        self.out[size_at..size_at + 2].copy_from_slice(&words.to_le_bytes());
-        Ok(())
-    }
-}
-
-/// Builds the SII image of `desc` into `out` without PDO categories (see
-/// [`build_with_pdos`]) and returns its length in bytes (the end marker included).
-/// The rest of the EEPROM should read 0xFF.
-pub fn build(desc: &DeviceDescription, out: &mut [u8]) -> Result<usize, SiiError> {
-    build_with_pdos(desc, &[], &[], out)
-}
-
-/// Writes one PDO category (TxPDO or RxPDO): per PDO an 8-byte header (index, entry
-/// count, SyncManager of the default assignment or 0xFF, DC sync 0, name string,
-/// flags: 0x0001 mandatory, 0x0010 fixed content), then 8 bytes per entry (index,
-/// sub-index, name string, CoE data type, bit length, flags 0).
-fn pdo_category(
-    w: &mut Writer<'_>,
-    kind: u16,
-    strings: &Strings,
-    objects: &[Object],
-    pdos: &[PdoMap],
-) -> Result<(), SiiError> {
-    let rx = kind == category::RXPDO;
-    let mut list = pdos
-        .iter()
-        .filter(|p| p.is_rx() == rx && p.is_rx() != p.is_tx());
-    if list.clone().next().is_none() {
-        return Ok(());
-    }
-    let at = w.begin(kind)?;
-    for p in list.by_ref() {
-        let n = u8::try_from(p.entries.len()).map_err(|_| SiiError::InvalidDescription)?;
-        w.u16(p.index)?;
-        let flags = (p.mandatory as u16) | (p.fixed as u16) << 4;
-        w.bytes(&[n, p.sm.unwrap_or(0xFF), 0, strings.index(p.name)])?;
-        w.u16(flags)?;
-        for e in p.entries.iter().map(|v| PdoEntry::decode(*v)) {
-            let (name, ty) = match esi::pdo_entry_name(objects, e) {
-                Some((name, entry)) => (strings.index(name), entry.data_type.code() as u8),
-                None => (0, 0),
-            };
-            w.u16(e.index)?;
-            w.bytes(&[e.sub, name, ty, e.bits])?;
-            w.u16(0)?;
-        }
-    }
-    w.end(at)
-}
-
-/// Builds the SII image of `desc` into `out`, with the PDO categories (TxPDO 0x32,
-/// RxPDO 0x33) of `pdos` — the list the ESI's `RxPdo`/`TxPdo` are written from
-/// ([`esi::pdo_maps`]), entry names and data types from `objects` as in the ESI —
-/// and returns its length in bytes (the end marker included). The rest of the
-/// EEPROM should read 0xFF.
-pub fn build_with_pdos(
-    desc: &DeviceDescription,
-    objects: &[Object],
-    pdos: &[PdoMap],
-    out: &mut [u8],
-) -> Result<usize, SiiError> {
-    desc.validate()?;
-    let strings = Strings::of(desc, objects, pdos)?;
-    let header_len = word::CATEGORIES * 2;
-    out.get_mut(..header_len)
-        .ok_or(SiiError::BufferTooSmall)?
-        .fill(0);
-    let mut w = Writer { out, pos: 0 };
-    fixed_area(&mut w, desc)?;
-    strings_category(&mut w, &strings)?;
-    general_category(&mut w, desc, &strings)?;
-    layout_categories(&mut w, desc, &strings)?;
-    pdo_category(&mut w, category::TXPDO, &strings, objects, pdos)?;
-    pdo_category(&mut w, category::RXPDO, &strings, objects, pdos)?;
-
-    w.u16(category::END)?;
-    if w.pos > desc.eeprom_bytes as usize {
-        return Err(SiiError::EepromTooSmall);
-    }
-    let len = w.pos;
-    if let Some(boot) = &desc.bootstrap {
-        set_bootstrap_mailbox(out, boot)?;
-    }
-    Ok(len)
-}
-
-/// Words 0x00–0x3F: ESC configuration area, identity, mailbox offsets and sizes,
-/// protocols, EEPROM size and version (the bootstrap words stay 0 here).
-fn fixed_area(w: &mut Writer<'_>, desc: &DeviceDescription) -> Result<(), SiiError> {
-    w.bytes(&desc.config_area())?;
-    for v in [
-        desc.vendor_id,
-        desc.product_code,
-        desc.revision,
-        desc.serial,
-    ] {
-        w.u32(v)?;
-    }
-    // 0x10-0x13 reserved and 0x14-0x17 bootstrap mailbox: zero (no Bootstrap).
-    w.pos = word::MBX_RX_OFFSET * 2;
-    let (_, rx) = desc
-        .sync_manager(SmType::MailboxOut)
-        .ok_or(SiiError::MissingMailbox)?;
-    let (_, tx) = desc
-        .sync_manager(SmType::MailboxIn)
-        .ok_or(SiiError::MissingMailbox)?;
-    for v in [
-        rx.start,
-        rx.default_size,
-        tx.start,
-        tx.default_size,
-        desc.mailbox_protocols,
-    ] {
-        w.u16(v)?;
-    }
-    w.pos = word::SIZE * 2;
-    w.u16(desc.eeprom_bytes / 128 - 1)?;
-    w.u16(1)?;
-    Ok(())
-}
-
-/// The STRINGS category: count, then each string with its length byte.
-fn strings_category(w: &mut Writer<'_>, strings: &Strings) -> Result<(), SiiError> {
-    let at = w.begin(category::STRINGS)?;
-    w.bytes(&[strings.n as u8])?;
-    for s in &strings.list[..strings.n] {
-        w.bytes(&[s.len() as u8])?;
-        for b in s.bytes() {
-            w.bytes(&[b])?;
-        }
-    }
-    w.end(at)?;
-    Ok(())
-}
-
-/// The GENERAL category, exactly 32 bytes.
-fn general_category(
-    w: &mut Writer<'_>,
-    desc: &DeviceDescription,
-    strings: &Strings,
-) -> Result<(), SiiError> {
-    let at = w.begin(category::GENERAL)?;
-    let group = strings.index(Name::plain(desc.group_type));
-    let mut g = [0u8; 32];
-    g[0] = group;
-    g[1] = 0; // image
-    g[2] = strings.index(Name::plain(desc.type_name));
-    g[3] = strings.index(Name::plain(desc.name));
-    g[5] = desc.coe.bits();
-    g[6] = (desc.mailbox_protocols & MBOX_FOE != 0) as u8;
-    g[0x0B] = (desc.mailbox_data_link_layer as u8) << 2;
-    g[0x0C..0x0E].copy_from_slice(&desc.ebus_current_ma.to_le_bytes());
-    g[0x0E] = group;
-    g[0x10..0x12].copy_from_slice(&desc.physical_ports.to_le_bytes());
-    w.bytes(&g)?;
-    w.end(at)?;
-    Ok(())
-}
-
-/// The FMMU, SYNC_MANAGER and (with DC op modes) DC categories.
-fn layout_categories(
-    w: &mut Writer<'_>,
-    desc: &DeviceDescription,
-    strings: &Strings,
-) -> Result<(), SiiError> {
-    // FMMU usage.
-    let at = w.begin(category::FMMU)?;
-    for f in desc.fmmus {
-        w.bytes(&[*f as u8])?;
-    }
-    w.end(at)?;
-
-    // SyncManagers.
-    let at = w.begin(category::SYNC_MANAGER)?;
-    for sm in desc.sync_managers {
-        w.u16(sm.start)?;
-        w.u16(sm.default_size)?;
-        w.bytes(&[sm.control, 0, sm.enable as u8, sm.kind as u8])?;
-    }
-    w.end(at)?;
-
-    // Distributed clocks.
-    if !desc.dc_op_modes.is_empty() {
-        let at = w.begin(category::DC)?;
-        for m in desc.dc_op_modes {
-            w.u32(m.cycle_time_sync0)?;
-            w.u32(m.shift_time_sync0)?;
-            w.u32(m.shift_time_sync1)?;
-            w.bytes(&m.sync1_factor.to_le_bytes())?;
-            w.u16(m.assign_activate)?;
-            w.bytes(&m.sync0_factor.to_le_bytes())?;
-            w.bytes(&[
-                strings.index(Name::plain(m.name)),
-                strings.index(Name::plain(m.description)),
-                0,
-                0,
-                0,
-                0,
-            ])?;
-        }
-        w.end(at)?;
-    }
-    Ok(())
-}
-
-/// Writes the bootstrap mailbox (words 0x14–0x17, outside the checksummed area) into
-/// a built image; `image` must hold at least the fixed part (0x40 words).
-pub fn set_bootstrap_mailbox(
-    image: &mut [u8],
-    boot: &crate::sm::BootMailbox,
-) -> Result<(), SiiError> {
-    let at = word::BOOT_RX_OFFSET * 2;
-    let dst = image.get_mut(at..at + 8).ok_or(SiiError::BufferTooSmall)?;
-    for (d, w) in dst.chunks_exact_mut(2).zip(boot.sii_words()) {
-        d.copy_from_slice(&w.to_le_bytes());
-    }
-    Ok(())
 }

@@ -37,7 +37,8 @@
 //! transfer is aborted when the mailbox stops (→ Init) and after
 //! [`SlaveConfig::foe_timeout_us`] without a request.
 //!
-//! Objects 0x1600-0x1C33 and 0x2200 are served by the runtime itself (its
+//! Objects 0x1600-0x1C33 and the timing diagnostics object
+//! ([`SlaveConfig::timing_diag_index`]) are served by the runtime itself (its
 //! [`PdoConfig`] and [`SyncState`]); every other index goes to the application's
 //! [`Dictionary`] ([`CommDictionary`]).
 
@@ -52,8 +53,11 @@ use crate::registers::{self as reg, AlControl, AlEvent};
 use crate::sm::{self, BootMailbox, MailboxLimits, PdDirection, RamWindow, SmRegs};
 use crate::sync::{self, SyncEvent, SyncMode, SyncState};
 
+mod dc;
 mod mailbox;
+mod objects;
 mod process_data;
+pub use objects::{CommDictionary, RuntimeObjects};
 
 /// Longest time between two reads of the process-data watchdog status, µs.
 pub const WD_CHECK_US: u64 = 1000;
@@ -135,6 +139,9 @@ pub struct SlaveConfig {
     /// A FoE transfer without a request for this long is aborted, µs (default
     /// [`crate::foe::DEFAULT_TIMEOUT_US`], 10 s; applied by [`Slave::init`]).
     pub foe_timeout_us: u64,
+    /// Index at which the runtime serves the timing diagnostics object (the product
+    /// lists [`sync::timing_diag_object`] of the same index); `None` (default): none.
+    pub timing_diag_index: Option<u16>,
 }
 
 impl Default for SlaveConfig {
@@ -147,6 +154,7 @@ impl Default for SlaveConfig {
             min_cycle_ns: sync::MIN_CYCLE_NS,
             bootstrap: None,
             foe_timeout_us: crate::foe::DEFAULT_TIMEOUT_US,
+            timing_diag_index: None,
         }
     }
 }
@@ -168,99 +176,6 @@ pub struct EscInfo {
     pub ram_kib: u8,
     /// 0x0008.
     pub features: u16,
-}
-
-/// The dictionary seen by the mailbox: the runtime's communication objects in front
-/// of the application's dictionary.
-pub struct CommDictionary<'a, A: Dictionary + ?Sized> {
-    /// Mapping and assignment.
-    pub pdo: &'a mut PdoConfig,
-    /// Sync objects and timing diagnostics.
-    pub sync: &'a mut SyncState,
-    /// Everything else.
-    pub app: &'a mut A,
-}
-
-impl<A: Dictionary + ?Sized> Dictionary for CommDictionary<'_, A> {
-    fn objects(&self) -> &'static [Object] {
-        self.app.objects()
-    }
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        if is_runtime_index(index) {
-            self.runtime().read(index, sub, buf)
-        } else {
-            self.app.read(index, sub, buf)
-        }
-    }
-    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
-        if is_runtime_index(index) {
-            self.runtime().write(index, sub, data, state)
-        } else {
-            let mut runtime = RuntimeObjects {
-                pdo: self.pdo,
-                sync: self.sync,
-                objects: self.app.objects(),
-            };
-            self.app
-                .write_with_runtime(index, sub, data, state, &mut runtime)
-        }
-    }
-}
-
-impl<A: Dictionary + ?Sized> CommDictionary<'_, A> {
-    /// The runtime's own objects, with the application's table for the mappability
-    /// rules.
-    fn runtime(&mut self) -> RuntimeObjects<'_> {
-        RuntimeObjects {
-            pdo: self.pdo,
-            sync: self.sync,
-            objects: self.app.objects(),
-        }
-    }
-}
-
-/// True for the indices the runtime serves itself (mapping, assignment, sync).
-fn is_runtime_index(index: u16) -> bool {
-    pdo::is_pdo_index(index) || sync::is_sync_index(index)
-}
-
-/// The objects the runtime serves itself (mapping, assignment, sync parameters,
-/// timing diagnostics), as a dictionary of their own; every other index answers
-/// "object does not exist". Handed to [`Dictionary::write_with_runtime`] and, at
-/// power-up, to the parameter store ([`Slave::runtime_objects`]).
-pub struct RuntimeObjects<'a> {
-    /// Mapping and assignment.
-    pub pdo: &'a mut PdoConfig,
-    /// Sync objects and timing diagnostics.
-    pub sync: &'a mut SyncState,
-    /// The whole product table (for the mappability rules).
-    pub objects: &'static [Object],
-}
-
-impl Dictionary for RuntimeObjects<'_> {
-    fn objects(&self) -> &'static [Object] {
-        self.objects
-    }
-    #[inline(never)]
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        if pdo::is_pdo_index(index) {
-            self.pdo.read(index, sub, buf)
-        } else if sync::is_sync_index(index) {
-            self.sync.read(index, sub, buf)
-        } else {
-            Err(SdoAbort::ObjectDoesNotExist)
-        }
-    }
-    #[inline(never)]
-    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
-        if pdo::is_pdo_index(index) {
-            self.pdo.write(index, sub, data, state, self.objects)
-        } else if sync::is_sync_index(index) {
-            self.sync.write(index, sub, data, state)
-        } else {
-            Err(SdoAbort::ObjectDoesNotExist)
-        }
-    }
 }
 
 enum Step {
@@ -311,6 +226,7 @@ impl<E: EscAccess> Slave<E> {
             pdo: PdoConfig::new(cfg.pdo_defaults),
             sync: SyncState {
                 min_cycle_ns: cfg.min_cycle_ns,
+                diag_index: cfg.timing_diag_index,
                 ..SyncState::new(cfg.calc_copy_ns)
             },
             plan: CopyPlan::EMPTY,
@@ -592,15 +508,13 @@ impl<E: EscAccess> Slave<E> {
         self.repeat_ack = sm1.repeat_request();
         // Make sure neither mailbox SM is deactivated from the PDI side; start the
         // repeat handshake from the master's current toggle value.
+        self.esc.write_u8(
+            reg::sm_register(0) + reg::sm::PDI_CONTROL,
+            sm::PdiControl::new(false, false).0,
+        )?;
+        let ack = sm::PdiControl::new(false, self.repeat_ack);
         self.esc
-            .write_u8(reg::sm_register(0) + reg::sm::PDI_CONTROL, 0)?;
-        let ack = if self.repeat_ack {
-            sm::pdi_control::REPEAT_ACK
-        } else {
-            0
-        };
-        self.esc
-            .write_u8(reg::sm_register(1) + reg::sm::PDI_CONTROL, ack)
+            .write_u8(reg::sm_register(1) + reg::sm::PDI_CONTROL, ack.0)
     }
 
     fn start_process_data<A: SlaveApplication>(
@@ -642,86 +556,6 @@ impl<E: EscAccess> Slave<E> {
         // First inputs, so the master never reads an undefined image.
         self.write_inputs(app)?;
         Ok(Ok(()))
-    }
-
-    /// Applies a sync mode (0x1C32/0x1C33 SI1, SI2, SI0A, supervision); entering DC
-    /// mode acknowledges a SYNC0 event left over from before (0x098E), so the first
-    /// cycle belongs to the first SYNC0 of the new configuration.
-    fn enter_sync(&mut self, mode: SyncMode, cycle: u32, outputs: bool) -> Result<(), EscError> {
-        if mode == SyncMode::DcSync0 {
-            self.esc.get(reg::DC_SYNC0_STATUS)?;
-        }
-        self.sync.enter(mode, cycle, outputs);
-        Ok(())
-    }
-
-    /// Safe-Op: follows the DC activation 0x0981 and SYNC0 cycle 0x09A0 the master
-    /// changed after Pre-Op→Safe-Op. SOEM arms SYNC0 only then (its
-    /// `ecx_config_map_group` requests Safe-Op, `ecx_dcsync0` comes later), so the
-    /// mode is derived again from the same rules as at P→S ([`sync::resolve_mode`]
-    /// with the sync types written in Pre-Op): a consistent change switches the mode
-    /// at once (0x1C32:01/02, 0x1C33:01 report it, SYNC0 supervision starts);
-    /// an inconsistent one keeps the mode and is remembered as the code the S→O
-    /// transition is refused with (0x0028 / 0x0030 / 0x0035 / 0x001F). Reads the two
-    /// registers at most once per [`WD_CHECK_US`] unless `force` (the S→O request).
-    fn follow_dc(&mut self, now: u64, force: bool) -> Result<(), EscError> {
-        if !force && now.saturating_sub(self.last_dc_check) < WD_CHECK_US {
-            return Ok(());
-        }
-        self.last_dc_check = now;
-        let outputs = self.plan.rx.bytes() > 0;
-        let sm2 = self.active[2];
-        let (mode, cycle, _) = match self.derive_sync(&sm2, outputs)? {
-            Ok(d) => d,
-            Err(c) => {
-                self.dc_refusal = Some(c);
-                return Ok(());
-            }
-        };
-        self.dc_refusal = None;
-        if mode == self.sync.mode
-            && (mode != SyncMode::DcSync0 || cycle == self.sync.sm2.sync0_cycle_ns)
-        {
-            return Ok(());
-        }
-        self.enter_sync(mode, cycle, outputs)?;
-        self.write_event_mask()
-    }
-
-    /// The sync decision shared by P→S and the Safe-Op follow-up: reads 0x0981 and
-    /// 0x09A0, resolves the mode with the sync types written
-    /// in Pre-Op ([`sync::resolve_mode`]) and checks the process-data watchdog against
-    /// the cycle. Returns (mode, SYNC0 cycle, watchdog time 0x0420) or the refusal.
-    #[inline(never)]
-    fn derive_sync(
-        &mut self,
-        sm2: &SmRegs,
-        outputs: bool,
-    ) -> Result<Result<(SyncMode, u32, u16), AlStatusCode>, EscError> {
-        let activation = self.esc.get(reg::DC_ACTIVATION)?;
-        let cycle = self.esc.get(reg::DC_SYNC0_CYCLE)?;
-        let mode = match sync::resolve_mode(
-            self.sync.sm2.written_type,
-            self.sync.sm3.written_type,
-            activation,
-            cycle,
-            outputs,
-            self.sync.min_cycle_ns,
-        ) {
-            Ok(m) => m,
-            Err(c) => return Ok(Err(c)),
-        };
-        let wd_div = self.esc.get(reg::WATCHDOG_DIVIDER)?;
-        let wd_time = self.esc.get(reg::WATCHDOG_TIME_PD)?;
-        let cycle_for_wd = if mode == SyncMode::DcSync0 {
-            cycle
-        } else {
-            self.sync.sm2.cycle_ns
-        };
-        Ok(
-            sm::validate_watchdog(sm2, outputs, wd_div, wd_time, cycle_for_wd)
-                .map(|()| (mode, cycle, wd_time)),
-        )
     }
 
     /// Side effects of a state change (both directions) and the application hook.

@@ -23,46 +23,154 @@
 use crate::al_status::AlStatusCode;
 use crate::registers;
 
-/// Control byte bits.
-pub mod control {
-    /// Mode field, bits 1:0.
-    pub const MODE_MASK: u8 = 0x03;
-    /// Buffered (3-buffer) mode.
-    pub const MODE_BUFFERED: u8 = 0x00;
+/// Buffer type of a SyncManager (control bits 1:0).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SmMode {
+    /// Buffered (3-buffer) mode: process data.
+    Buffered,
     /// Mailbox (1-buffer) mode.
-    pub const MODE_MAILBOX: u8 = 0x02;
-    /// Direction field, bits 3:2.
-    pub const DIR_MASK: u8 = 0x0C;
+    Mailbox,
+    /// A reserved code (1 or 3).
+    Reserved(u8),
+}
+
+/// Direction of a SyncManager (control bits 3:2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SmDirection {
     /// ECAT reads, PDI writes (inputs, mailbox in).
-    pub const DIR_READ: u8 = 0x00;
+    Read,
     /// ECAT writes, PDI reads (outputs, mailbox out).
-    pub const DIR_WRITE: u8 = 0x04;
-    /// Interrupt into the AL event register.
-    pub const AL_EVENT_IRQ: u8 = 0x20;
-    /// Watchdog trigger.
-    pub const WATCHDOG: u8 = 0x40;
+    Write,
+    /// A reserved code (2 or 3).
+    Reserved(u8),
 }
 
-/// Status byte bits.
-pub mod status {
-    /// Mailbox full (1-buffer mode).
-    pub const MAILBOX_FULL: u8 = 0x08;
+/// The control byte (0x0804 + 8·n): mode, direction, interrupts, watchdog.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Control(pub u8);
+
+impl Control {
+    const MODE_MASK: u8 = 0x03;
+    const DIR_SHIFT: u8 = 2;
+    const ECAT_EVENT_IRQ: u8 = 0x10;
+    const AL_EVENT_IRQ: u8 = 0x20;
+    const WATCHDOG: u8 = 0x40;
+
+    /// A control byte with this mode and direction, no interrupts, no watchdog.
+    pub const fn new(mode: SmMode, direction: SmDirection) -> Self {
+        let m = match mode {
+            SmMode::Buffered => 0,
+            SmMode::Mailbox => 2,
+            SmMode::Reserved(x) => x & Self::MODE_MASK,
+        };
+        let d = match direction {
+            SmDirection::Read => 0,
+            SmDirection::Write => 1,
+            SmDirection::Reserved(x) => x & 3,
+        };
+        Control(m | d << Self::DIR_SHIFT)
+    }
+    /// The same byte with the AL event interrupt (bit 5) set or cleared.
+    pub const fn with_al_event_irq(self, on: bool) -> Self {
+        Control(set_bit(self.0, Self::AL_EVENT_IRQ, on))
+    }
+    /// The same byte with the watchdog trigger (bit 6) set or cleared.
+    pub const fn with_watchdog(self, on: bool) -> Self {
+        Control(set_bit(self.0, Self::WATCHDOG, on))
+    }
+    /// Buffer type, bits 1:0.
+    pub const fn mode(self) -> SmMode {
+        match self.0 & Self::MODE_MASK {
+            0 => SmMode::Buffered,
+            2 => SmMode::Mailbox,
+            x => SmMode::Reserved(x),
+        }
+    }
+    /// Direction, bits 3:2.
+    pub const fn direction(self) -> SmDirection {
+        match (self.0 >> Self::DIR_SHIFT) & 3 {
+            0 => SmDirection::Read,
+            1 => SmDirection::Write,
+            x => SmDirection::Reserved(x),
+        }
+    }
+    /// Interrupt into the ECAT event register (bit 4).
+    pub const fn ecat_event_irq(self) -> bool {
+        self.0 & Self::ECAT_EVENT_IRQ != 0
+    }
+    /// Interrupt into the AL event register (bit 5).
+    pub const fn al_event_irq(self) -> bool {
+        self.0 & Self::AL_EVENT_IRQ != 0
+    }
+    /// Watchdog trigger (bit 6).
+    pub const fn watchdog(self) -> bool {
+        self.0 & Self::WATCHDOG != 0
+    }
 }
 
-/// Activate byte bits.
-pub mod activate {
-    /// SM enabled.
-    pub const ENABLE: u8 = 0x01;
-    /// Repeat request (toggled by the master).
-    pub const REPEAT_REQUEST: u8 = 0x02;
+/// The status byte (0x0805 + 8·n).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Status(pub u8);
+
+impl Status {
+    /// Interrupt write (bit 0): the master wrote a buffer.
+    pub const fn interrupt_write(self) -> bool {
+        self.0 & 0x01 != 0
+    }
+    /// Interrupt read (bit 1): the master read a buffer.
+    pub const fn interrupt_read(self) -> bool {
+        self.0 & 0x02 != 0
+    }
+    /// Mailbox full (bit 3, 1-buffer mode).
+    pub const fn mailbox_full(self) -> bool {
+        self.0 & 0x08 != 0
+    }
+    /// Buffer state (bits 5:4, 3-buffer mode): the last written buffer.
+    pub const fn buffer_state(self) -> u8 {
+        (self.0 >> 4) & 3
+    }
 }
 
-/// PDI control byte bits.
-pub mod pdi_control {
-    /// Deactivate the SM from the PDI.
-    pub const DEACTIVATE: u8 = 0x01;
-    /// Repeat acknowledge.
-    pub const REPEAT_ACK: u8 = 0x02;
+/// The activate byte (0x0806 + 8·n), written by the master.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Activate(pub u8);
+
+impl Activate {
+    /// SM enabled (bit 0).
+    pub const fn enabled(self) -> bool {
+        self.0 & 0x01 != 0
+    }
+    /// Repeat request (bit 1), toggled by the master.
+    pub const fn repeat_request(self) -> bool {
+        self.0 & 0x02 != 0
+    }
+}
+
+/// The PDI control byte (0x0807 + 8·n), written by this side.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PdiControl(pub u8);
+
+impl PdiControl {
+    /// A PDI control byte: deactivate the SM (bit 0), repeat acknowledge (bit 1).
+    pub const fn new(deactivate: bool, repeat_ack: bool) -> Self {
+        PdiControl(set_bit(0, 0x01, deactivate) | set_bit(0, 0x02, repeat_ack))
+    }
+    /// Deactivate bit.
+    pub const fn deactivate(self) -> bool {
+        self.0 & 0x01 != 0
+    }
+    /// Repeat acknowledge bit.
+    pub const fn repeat_ack(self) -> bool {
+        self.0 & 0x02 != 0
+    }
+}
+
+const fn set_bit(byte: u8, bit: u8, on: bool) -> u8 {
+    if on {
+        byte | bit
+    } else {
+        byte & !bit
+    }
 }
 
 /// One SyncManager register block.
@@ -73,13 +181,13 @@ pub struct SmRegs {
     /// Length in bytes.
     pub len: u16,
     /// Control byte.
-    pub control: u8,
+    pub control: Control,
     /// Status byte.
-    pub status: u8,
+    pub status: Status,
     /// Activate byte.
-    pub activate: u8,
+    pub activate: Activate,
     /// PDI control byte.
-    pub pdi_control: u8,
+    pub pdi_control: PdiControl,
 }
 
 impl SmRegs {
@@ -88,10 +196,10 @@ impl SmRegs {
         SmRegs {
             start: u16::from_le_bytes([b[0], b[1]]),
             len: u16::from_le_bytes([b[2], b[3]]),
-            control: b[4],
-            status: b[5],
-            activate: b[6],
-            pdi_control: b[7],
+            control: Control(b[4]),
+            status: Status(b[5]),
+            activate: Activate(b[6]),
+            pdi_control: PdiControl(b[7]),
         }
     }
     /// Encodes the 8 register bytes.
@@ -103,10 +211,10 @@ impl SmRegs {
             s[1],
             l[0],
             l[1],
-            self.control,
-            self.status,
-            self.activate,
-            self.pdi_control,
+            self.control.0,
+            self.status.0,
+            self.activate.0,
+            self.pdi_control.0,
         ]
     }
     /// Decodes SM `n` from a block of consecutive SM registers starting at SM0.
@@ -119,23 +227,23 @@ impl SmRegs {
     }
     /// Activate bit 0.
     pub const fn enabled(&self) -> bool {
-        self.activate & activate::ENABLE != 0
+        self.activate.enabled()
     }
-    /// Mode field.
-    pub const fn mode(&self) -> u8 {
-        self.control & control::MODE_MASK
+    /// Buffer type.
+    pub const fn mode(&self) -> SmMode {
+        self.control.mode()
     }
-    /// Direction field.
-    pub const fn direction(&self) -> u8 {
-        self.control & control::DIR_MASK
+    /// Direction.
+    pub const fn direction(&self) -> SmDirection {
+        self.control.direction()
     }
     /// Repeat request bit of the activate byte.
     pub const fn repeat_request(&self) -> bool {
-        self.activate & activate::REPEAT_REQUEST != 0
+        self.activate.repeat_request()
     }
     /// Bytes of RAM this SM occupies: 3 × length in buffered mode.
     pub const fn footprint(&self) -> u32 {
-        if self.mode() == control::MODE_BUFFERED {
+        if matches!(self.mode(), SmMode::Buffered) {
             3 * self.len as u32
         } else {
             self.len as u32
@@ -262,17 +370,14 @@ const fn overlap(a: (u32, u32), b: (u32, u32)) -> bool {
 fn check_mailbox_sm(
     sm: &SmRegs,
     len: (u16, u16),
-    dir: u8,
+    dir: SmDirection,
     ram: RamWindow,
 ) -> Result<(), AlStatusCode> {
     let bad = Err(AlStatusCode::InvalidMailboxConfig);
     if !sm.enabled() || sm.len < len.0 || sm.len > len.1 || !sm.start.is_multiple_of(2) {
         return bad;
     }
-    if sm.mode() != control::MODE_MAILBOX
-        || sm.direction() != dir
-        || sm.control & control::AL_EVENT_IRQ == 0
-    {
+    if sm.mode() != SmMode::Mailbox || sm.direction() != dir || !sm.control.al_event_irq() {
         return bad;
     }
     let (a, b) = sm.range();
@@ -291,8 +396,8 @@ pub fn validate_mailbox(
     limits: &MailboxLimits,
     ram: RamWindow,
 ) -> Result<(), AlStatusCode> {
-    check_mailbox_sm(sm0, limits.sm0_len, control::DIR_WRITE, ram)?;
-    check_mailbox_sm(sm1, limits.sm1_len, control::DIR_READ, ram)?;
+    check_mailbox_sm(sm0, limits.sm0_len, SmDirection::Write, ram)?;
+    check_mailbox_sm(sm1, limits.sm1_len, SmDirection::Read, ram)?;
     if overlap(sm0.range(), sm1.range()) {
         return Err(AlStatusCode::InvalidMailboxConfig);
     }
@@ -348,10 +453,10 @@ impl PdDirection {
             Self::Inputs => AlStatusCode::InvalidInputConfig,
         }
     }
-    const fn dir_bits(self) -> u8 {
+    const fn sm_direction(self) -> SmDirection {
         match self {
-            Self::Outputs => control::DIR_WRITE,
-            Self::Inputs => control::DIR_READ,
+            Self::Outputs => SmDirection::Write,
+            Self::Inputs => SmDirection::Read,
         }
     }
 }
@@ -378,11 +483,11 @@ pub fn validate_process_data(
     if !sm.enabled() || sm.len != mapped_bytes {
         return bad;
     }
-    if sm.mode() != control::MODE_BUFFERED || sm.direction() != dir.dir_bits() {
+    if sm.mode() != SmMode::Buffered || sm.direction() != dir.sm_direction() {
         return bad;
     }
     // The runtime learns about new outputs from the SM2 AL event only.
-    if dir == PdDirection::Outputs && sm.control & control::AL_EVENT_IRQ == 0 {
+    if dir == PdDirection::Outputs && !sm.control.al_event_irq() {
         return bad;
     }
     let (a, b) = sm.range();
@@ -415,7 +520,7 @@ pub fn validate_watchdog(
     if !outputs {
         return Ok(());
     }
-    let trigger = sm2.control & control::WATCHDOG != 0;
+    let trigger = sm2.control.watchdog();
     if (time != 0) != trigger {
         return Err(AlStatusCode::InvalidWatchdogConfig);
     }
@@ -433,10 +538,10 @@ mod tests {
         SmRegs {
             start,
             len,
-            control,
-            status: 0,
-            activate: 1,
-            pdi_control: 0,
+            control: Control(control),
+            status: Status(0),
+            activate: Activate(1),
+            pdi_control: PdiControl(0),
         }
     }
     const RAM: RamWindow = RamWindow::from_kib(4);
@@ -475,7 +580,13 @@ mod tests {
             (sm(0x1000, 64, 0x26), sm1),
             (sm(0x1002, 128, 0x26), sm1),
             (sm0, sm(0x1080, 128, 0x26)),
-            (sm0, SmRegs { activate: 0, ..sm1 }),
+            (
+                sm0,
+                SmRegs {
+                    activate: Activate(0),
+                    ..sm1
+                },
+            ),
             (sm(0x1000, 128, 0x24), sm1),
         ] {
             assert_eq!(validate_boot_mailbox(&s0, &s1, &b, RAM), bad);
@@ -497,14 +608,52 @@ mod tests {
     }
 
     #[test]
+    fn control_status_activate_views() {
+        let mbx_out = Control(0x26);
+        assert_eq!(mbx_out.mode(), SmMode::Mailbox);
+        assert_eq!(mbx_out.direction(), SmDirection::Write);
+        assert!(mbx_out.al_event_irq() && !mbx_out.watchdog() && !mbx_out.ecat_event_irq());
+        let outputs = Control(0x64);
+        assert_eq!(outputs.mode(), SmMode::Buffered);
+        assert!(outputs.watchdog() && outputs.al_event_irq());
+        assert_eq!(Control(0x01).mode(), SmMode::Reserved(1));
+        assert_eq!(Control(0x08).direction(), SmDirection::Reserved(2));
+        assert!(Control(0x10).ecat_event_irq());
+        assert_eq!(
+            Control::new(SmMode::Mailbox, SmDirection::Write).with_al_event_irq(true),
+            mbx_out
+        );
+        assert_eq!(
+            Control::new(SmMode::Buffered, SmDirection::Write)
+                .with_al_event_irq(true)
+                .with_watchdog(true),
+            outputs
+        );
+        assert_eq!(
+            Control::new(SmMode::Mailbox, SmDirection::Read).with_al_event_irq(true),
+            Control(0x22)
+        );
+        assert_eq!(Control(0x64).with_watchdog(false), Control(0x24));
+        let st = Status(0x2B);
+        assert!(st.interrupt_write() && st.interrupt_read() && st.mailbox_full());
+        assert_eq!(st.buffer_state(), 2);
+        assert!(!Status(0x04).mailbox_full());
+        assert!(Activate(3).enabled() && Activate(3).repeat_request());
+        assert!(!Activate(2).enabled());
+        assert_eq!(PdiControl::new(true, false), PdiControl(1));
+        assert_eq!(PdiControl::new(false, true), PdiControl(2));
+        assert!(PdiControl(3).deactivate() && PdiControl(3).repeat_ack());
+    }
+
+    #[test]
     fn register_bytes_round_trip() {
         let r = SmRegs {
             start: 0x1234,
             len: 0x0056,
-            control: 0x64,
-            status: 0x08,
-            activate: 3,
-            pdi_control: 2,
+            control: Control(0x64),
+            status: Status(0x08),
+            activate: Activate(3),
+            pdi_control: PdiControl(2),
         };
         assert_eq!(SmRegs::from_bytes(&r.to_bytes()), r);
         assert_eq!(SmRegs::from_block(&[0u8; 3], 1), SmRegs::default());

@@ -1,5 +1,6 @@
 //! Synchronisation: free-run, SM2-synchronous and DC SYNC0 operation, the objects
-//! 0x1C32 / 0x1C33, SYNC0 supervision and the timing diagnostics object 0x2200.
+//! 0x1C32 / 0x1C33, SYNC0 supervision and the timing diagnostics object (at the
+//! index the product chooses in its range, [`SyncState::diag_index`]).
 //!
 //! # Modes
 //! * **Free run** (0x1C32:01 = 0): the application cycle runs on a local timer with
@@ -37,8 +38,10 @@
 //! computation outlasts the cycle time counts in 0x1C32:0C. 0x1C32:20 is set while
 //! the missed counter is above the limit or 0x1C32:0C is non-zero.
 //!
-//! # Timing diagnostics 0x2200 (read-only, µs, reset on P→S and by writing 1 to
-//! 0x1C32:08)
+//! # Timing diagnostics (read-only, µs, reset on P→S and by writing 1 to 0x1C32:08)
+//! The product lists [`timing_diag_object`] of its index in its dictionary and passes
+//! the same index in `SlaveConfig::timing_diag_index`; without one the runtime serves
+//! no diagnostics object.
 //! | sub | name | meaning |
 //! |---|---|---|
 //! | 1 | PDI period | time between the last two process-data cycles |
@@ -58,8 +61,6 @@ use crate::registers::DcActivation;
 pub const SM2_SYNC: u16 = 0x1C32;
 /// SM3 (inputs) sync parameters.
 pub const SM3_SYNC: u16 = 0x1C33;
-/// Timing diagnostics object (vendor range).
-pub const TIMING_DIAG: u16 = 0x2200;
 /// Supported sync types (0x1C32:04): free run, SM-synchronous, DC SYNC0.
 pub const SUPPORTED_TYPES: u16 = 0x0007;
 /// Smallest DC cycle accepted, ns.
@@ -310,7 +311,7 @@ pub struct SyncParams {
     pub sync_error: bool,
 }
 
-/// Timing diagnostics (0x2200), µs.
+/// Timing diagnostics, µs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct TimingDiag {
     /// :01 PDI period.
@@ -353,8 +354,11 @@ pub struct SyncState {
     pub sm3: SyncParams,
     /// SYNC0 lock supervision.
     pub sup: Sync0Supervisor,
-    /// 0x2200.
+    /// The timing diagnostics object's values.
     pub diag: TimingDiag,
+    /// Index of the timing diagnostics object (the product's choice); `None`: not
+    /// served.
+    pub diag_index: Option<u16>,
     /// Time of the last SM2 event (µs).
     pub last_sm2: Option<u64>,
     /// Time of the last process-data cycle (µs).
@@ -476,9 +480,15 @@ impl SyncState {
         self.sm3.cycle_too_small = self.sm2.cycle_too_small;
     }
 
-    /// Reads 0x1C32 / 0x1C33 / 0x2200.
+    /// True for the indices this state serves: 0x1C32, 0x1C33 and the timing
+    /// diagnostics object.
+    pub fn serves(&self, index: u16) -> bool {
+        is_sync_index(index) || self.diag_index == Some(index)
+    }
+
+    /// Reads 0x1C32 / 0x1C33 / the timing diagnostics.
     pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        if index == TIMING_DIAG {
+        if self.diag_index == Some(index) {
             let d = &self.diag;
             let v = match sub {
                 0 => return put(buf, &[6]),
@@ -537,7 +547,7 @@ impl SyncState {
         data: &[u8],
         state: EsmState,
     ) -> Result<(), SdoAbort> {
-        if index == TIMING_DIAG {
+        if self.diag_index == Some(index) {
             return if sub <= 6 {
                 Err(SdoAbort::WriteReadOnly)
             } else {
@@ -592,9 +602,10 @@ impl SyncState {
     }
 }
 
-/// True for the indices this module serves.
+/// True for the sync parameter objects 0x1C32 / 0x1C33 (the timing diagnostics
+/// object is at the product's index: [`SyncState::serves`]).
 pub const fn is_sync_index(index: u16) -> bool {
-    matches!(index, SM2_SYNC | SM3_SYNC | TIMING_DIAG)
+    matches!(index, SM2_SYNC | SM3_SYNC)
 }
 
 macro_rules! sync_entries {
@@ -674,143 +685,11 @@ const DIAG_ENTRIES: &[EntryDesc] = &[
     EntryDesc::new(6, "Computation time", DataType::Unsigned32, Access::RO).unit("us"),
 ];
 
-/// The timing diagnostics object 0x2200 (to be listed in the product's 0x2000 range).
-pub const DIAG_OBJECTS: &[ObjectDesc] = &[ObjectDesc::record(TIMING_DIAG, "Timing diagnostics", DIAG_ENTRIES, "Measured periods and times of the cyclic path in µs; reset on Pre-Op→Safe-Op and by 0x1C32:08 = 1")];
+/// The timing diagnostics object at `index` (the product's choice in its range; the
+/// same index goes into `SlaveConfig::timing_diag_index`).
+pub const fn timing_diag_object(index: u16) -> ObjectDesc {
+    ObjectDesc::record(index, "Timing diagnostics", DIAG_ENTRIES, "Measured periods and times of the cyclic path in µs; reset on Pre-Op→Safe-Op and by 0x1C32:08 = 1")
+}
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn read_lengths_of_every_sub_index() {
-        let mut s = SyncState::new((11, 22));
-        s.sm2.sync_type = 2;
-        s.sm2.cycle_ns = 1_000_000;
-        s.sm3.sm_event_missed = 7;
-        s.sm3.sync_error = true;
-        s.measuring = true;
-        let rd = |s: &SyncState, index: u16, sub: u8| {
-            let mut b = [0xEEu8; 8];
-            s.read(index, sub, &mut b).map(|n| b[..n].to_vec())
-        };
-        let len = [1, 2, 4, 4, 2, 4, 4, 4, 2, 4, 4, 2, 2, 2, 2];
-        for index in [SM2_SYNC, SM3_SYNC] {
-            for (sub, n) in len.iter().enumerate() {
-                assert_eq!(rd(&s, index, sub as u8).map(|v| v.len()), Ok(*n));
-            }
-            assert_eq!(rd(&s, index, 0x20).map(|v| v.len()), Ok(1));
-            for sub in [0x0F, 0x1F, 0x21, 0xFF] {
-                assert_eq!(rd(&s, index, sub), Err(SdoAbort::SubindexDoesNotExist));
-            }
-        }
-        assert_eq!(rd(&s, SM2_SYNC, 0), Ok(vec![0x20]));
-        assert_eq!(rd(&s, SM2_SYNC, 1), Ok(vec![2, 0]));
-        assert_eq!(rd(&s, SM2_SYNC, 2), Ok(1_000_000u32.to_le_bytes().to_vec()));
-        assert_eq!(
-            rd(&s, SM2_SYNC, 4),
-            Ok(SUPPORTED_TYPES.to_le_bytes().to_vec())
-        );
-        assert_eq!(rd(&s, SM2_SYNC, 5), Ok(MIN_CYCLE_NS.to_le_bytes().to_vec()));
-        assert_eq!(rd(&s, SM2_SYNC, 6), Ok(11u32.to_le_bytes().to_vec()));
-        assert_eq!(rd(&s, SM3_SYNC, 6), Ok(22u32.to_le_bytes().to_vec()));
-        assert_eq!(rd(&s, SM3_SYNC, 8), Ok(vec![1, 0]));
-        assert_eq!(rd(&s, SM3_SYNC, 0x0B), Ok(vec![7, 0]));
-        assert_eq!(rd(&s, SM3_SYNC, 0x20), Ok(vec![1]));
-        assert_eq!(rd(&s, SM2_SYNC, 0x20), Ok(vec![0]));
-        assert_eq!(rd(&s, 0x1C31, 0), Err(SdoAbort::ObjectDoesNotExist));
-        let mut short = [0u8; 3];
-        assert_eq!(
-            s.read(SM2_SYNC, 2, &mut short),
-            Err(SdoAbort::ExceedsMailbox)
-        );
-        assert_eq!(s.read(SM2_SYNC, 0, &mut []), Err(SdoAbort::ExceedsMailbox));
-    }
-
-    #[test]
-    fn cycle_times() {
-        for k in 1..=32u32 {
-            assert_eq!(check_cycle(k * 125_000), Ok(()));
-        }
-        for bad in [0, 62_500, 124_999, 125_001, 4_125_000, 1_000_001, u32::MAX] {
-            assert_eq!(check_cycle(bad), Err(AlStatusCode::DcInvalidCycleTime));
-        }
-        assert_eq!(check_cycle_min(62_500, 62_500), Ok(()));
-        assert_eq!(check_cycle_min(125_000, 62_500), Ok(()));
-        assert_eq!(
-            check_cycle_min(93_750, 62_500),
-            Err(AlStatusCode::DcInvalidCycleTime)
-        );
-        assert_eq!(
-            check_cycle_min(125_000, 250_000),
-            Err(AlStatusCode::DcInvalidCycleTime)
-        );
-        assert_eq!(check_cycle_min(250_000, 250_000), Ok(()));
-    }
-
-    #[test]
-    fn resolve_mode_table() {
-        use AlStatusCode::*;
-        use SyncMode::*;
-        let ms = 1_000_000;
-        // (0x1C32:01 written, 0x1C33:01 written, 0x0981, 0x09A0, outputs, result)
-        type Case = (
-            Option<u16>,
-            Option<u16>,
-            u8,
-            u32,
-            bool,
-            Result<SyncMode, AlStatusCode>,
-        );
-        let cases: &[Case] = &[
-            (None, None, 0, 0, true, Ok(SmSync)),
-            (None, None, 0, 0, false, Ok(SmSync)),
-            (None, Some(0), 0, 0, false, Ok(FreeRun)),
-            (Some(0), None, 0, 0, true, Ok(FreeRun)),
-            (Some(0), Some(0), 0, 0, true, Ok(FreeRun)),
-            (Some(0), Some(0x22), 0, 0, true, Err(SyncModeNotSupported)),
-            (Some(1), None, 0, 0, true, Ok(SmSync)),
-            (Some(1), Some(0x22), 0, 0, true, Ok(SmSync)),
-            (None, Some(1), 0, 0, false, Ok(SmSync)),
-            (Some(1), Some(2), 0, 0, true, Err(SyncModeNotSupported)),
-            (Some(2), None, 0, ms, true, Err(SyncModeNotSupported)),
-            (Some(3), None, 0, 0, true, Err(SyncModeNotSupported)),
-            (Some(0x22), None, 0, 0, true, Err(SyncModeNotSupported)),
-            (None, None, 3, ms, true, Ok(DcSync0)),
-            (Some(2), Some(2), 3, ms, true, Ok(DcSync0)),
-            (Some(1), None, 3, ms, true, Err(SyncModeNotSupported)),
-            (None, Some(0x22), 3, ms, true, Err(SyncModeNotSupported)),
-            (None, None, 0x0B, ms, true, Ok(DcSync0)),
-            (None, None, 3, 300_000, true, Err(DcInvalidCycleTime)),
-            (None, None, 1, ms, true, Err(InvalidDcSync)),
-            (None, None, 7, ms, true, Err(InvalidDcSync)),
-            (Some(2), None, 5, ms, true, Err(InvalidDcSync)),
-        ];
-        for (i, c) in cases.iter().enumerate() {
-            assert_eq!(
-                resolve_mode(c.0, c.1, c.2, c.3, c.4, MIN_CYCLE_NS),
-                c.5,
-                "case {i}"
-            );
-        }
-    }
-
-    #[test]
-    fn lock_and_loss() {
-        let mut s = Sync0Supervisor::default();
-        s.start(1_000_000);
-        let mut t = 0;
-        let mut locked_at = None;
-        for i in 0..10 {
-            if let (SyncEvent::Locked, _) = s.on_sync0(t) {
-                locked_at = Some(i);
-            }
-            t += 1000;
-        }
-        assert_eq!(locked_at, Some(LOCK_COUNT as usize));
-        assert_eq!(s.check(t), SyncEvent::None);
-        assert_eq!(
-            s.check(t + 2000),
-            SyncEvent::Error(AlStatusCode::FatalSyncError)
-        );
-    }
-}
+mod tests;

@@ -283,6 +283,7 @@ const DESC: DeviceDescription = DeviceDescription {
     software_version: "0.1.0",
     esc: EscFlavour::Lan9252,
     sync_pulse_length: 1000,
+    sync0_drive: sii::SyncDrive::PushPullActiveHigh,
     station_alias: 0,
     mailbox_protocols: sii::MBOX_COE,
     mailbox_data_link_layer: true,

@@ -198,8 +198,11 @@ const E_2101: &[EntryDesc] = &[EntryDesc::new(
 const E_2102: &[EntryDesc] =
     &[EntryDesc::new(0, "big", DataType::Unsigned64, Access::RW).pdo(PdoMappable::RxTx)];
 
-static OBJECTS: &[Object] =
-    ecat_slave_stack::packed_dictionary!(&[pdo::OBJECTS, LOCAL, sync::DIAG_OBJECTS]);
+static OBJECTS: &[Object] = ecat_slave_stack::packed_dictionary!(&[
+    pdo::OBJECTS,
+    LOCAL,
+    &[sync::timing_diag_object(0x2200)]
+]);
 const LOCAL: &[ObjectDesc] = &[
     var(0x2100, "flag", DataType::Boolean, PdoMappable::RxTx, E_2100),
     var(0x2101, "nm", DataType::Unsigned16, PdoMappable::No, E_2101),
@@ -425,6 +428,7 @@ fn cfg() -> SlaveConfig {
     SlaveConfig {
         station_alias: None,
         pdo_defaults: DEFAULTS,
+        timing_diag_index: Some(0x2200),
         ..SlaveConfig::default()
     }
 }

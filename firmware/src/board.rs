@@ -26,7 +26,7 @@
 //! | ESC SPI MOSI, SPI2_MOSI | PB15 | AF5 | |
 //! | ESC SPI /CS | PB12 | GPIO out, idle high | software chip select |
 //! | ESC IRQ (PDI interrupt) | PC2 | EXTI2, falling edge | active low, open drain on the ESC side, pull-up |
-//! | ESC SYNC0 | PC3 | EXTI3, rising edge, pull-down | ESC drives it push-pull active high (SII 0x0151 = `ecat_slave_stack::sii::SYNC_LATCH_CONFIG`; the edge is `firmware::identity::SYNC0_ACTIVE_EDGE`, derived from it) |
+//! | ESC SYNC0 | PC3 | EXTI3, rising edge, pull-down | ESC drives it push-pull active high (SII 0x0151 = `firmware::identity::SYNC_LATCH_CONFIG`; the edge is `firmware::identity::SYNC0_ACTIVE_EDGE`, derived from it) |
 //! | phase A current I_A | PA0 | ADC1_IN1 | injected rank 1 of ADC1 |
 //! | phase B current I_B | PA1 | ADC2_IN2 | injected rank 1 of ADC2 (same instant as I_A) |
 //! | DC-bus voltage V_BUS | PC0 | ADC1_IN6 | injected rank 2 of ADC1 |

@@ -4,8 +4,9 @@
 //! Which module owns which index range is stated once, in [`OWNERS`]; the SDO and PDO
 //! dispatch ([`owner_of`]) and the modules' own look-ups ([`find_entry_in`]) use it.
 //! The objects the slave runtime serves itself (mapping, assignment, sync manager
-//! parameters, timing diagnostics) are the stack's to name
-//! (`ecat_slave_stack::pdo::is_pdo_index`, `ecat_slave_stack::sync::is_sync_index`).
+//! parameters) are the stack's to name (`ecat_slave_stack::pdo::is_pdo_index`,
+//! `ecat_slave_stack::sync::is_sync_index`); it also serves the timing diagnostics at
+//! the index the product gives it ([`crate::identity::TIMING_DIAG`]).
 //!
 //! The same table feeds the SDO server, PDO mapping rules, SDO information, the ESI,
 //! the SII and the generated reference (`cargo xtask od-doc`), so they cannot disagree.
@@ -22,7 +23,9 @@ pub const PARTS: &[&[ObjectDesc]] = &[
     crate::comm::OBJECTS,
     ecat_slave_stack::pdo::OBJECTS,
     crate::params::OBJECTS,
-    ecat_slave_stack::sync::DIAG_OBJECTS,
+    &[ecat_slave_stack::sync::timing_diag_object(
+        crate::identity::TIMING_DIAG,
+    )],
     crate::faults::OBJECTS,
     crate::monitor::OBJECTS,
     crate::scope::OBJECTS,
@@ -75,7 +78,10 @@ pub const OWNERS: &[(u16, u16, Owner)] = &[
 
 /// The owner of `index`: the slave runtime's objects first, then [`OWNERS`].
 pub fn owner_of(index: u16) -> Option<Owner> {
-    if ecat_slave_stack::pdo::is_pdo_index(index) || ecat_slave_stack::sync::is_sync_index(index) {
+    if ecat_slave_stack::pdo::is_pdo_index(index)
+        || ecat_slave_stack::sync::is_sync_index(index)
+        || index == crate::identity::TIMING_DIAG
+    {
         return Some(Owner::SlaveRuntime);
     }
     OWNERS
@@ -178,7 +184,9 @@ mod tests {
         }
         for part in [
             ecat_slave_stack::pdo::OBJECTS,
-            ecat_slave_stack::sync::DIAG_OBJECTS,
+            &[ecat_slave_stack::sync::timing_diag_object(
+                crate::identity::TIMING_DIAG,
+            )],
         ] {
             for o in part {
                 assert_eq!(

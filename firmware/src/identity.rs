@@ -142,13 +142,19 @@ pub const MAILBOX_LIMITS: ecat_slave_stack::sm::MailboxLimits =
         sm1_len: (40, 256),
     };
 
+/// Index of the timing diagnostics object the slave runtime serves
+/// (`ecat_slave_stack::sync::timing_diag_object`, listed in [`crate::dictionary`]).
+pub const TIMING_DIAG: u16 = 0x2200;
+
 /// The slave runtime's configuration of the product (the board's and the
-/// simulation's): the mailbox limits, the default PDO maps and the Bootstrap mailbox.
+/// simulation's): the mailbox limits, the default PDO maps, the Bootstrap mailbox and
+/// the timing diagnostics object.
 pub fn slave_config() -> ecat_slave_stack::slave::SlaveConfig {
     ecat_slave_stack::slave::SlaveConfig {
         mailbox_limits: MAILBOX_LIMITS,
         pdo_defaults: crate::pdo_defaults::PDO_DEFAULTS,
         bootstrap: BOOTSTRAP,
+        timing_diag_index: Some(TIMING_DIAG),
         ..ecat_slave_stack::slave::SlaveConfig::default()
     }
 }
@@ -177,6 +183,7 @@ pub const fn device_description(
         esc,
         // 10 µs SYNC pulse (1000 × 10 ns), the usual ESC default.
         sync_pulse_length: 1000,
+        sync0_drive: SYNC0_DRIVE,
         station_alias: 0,
         mailbox_protocols: sii::MBOX_COE | sii::MBOX_FOE,
         mailbox_data_link_layer: true,
@@ -220,12 +227,20 @@ pub const fn sync0_active_edge(sync_latch_config: u8) -> Option<PulseEdge> {
     )
 }
 
+/// SYNC0 pin drive of this product (both ESC flavours): the one definition of the
+/// SYNC0 polarity, written to the SII's 0x0151 value ([`device_description`]) and
+/// waited for by the board ([`SYNC0_ACTIVE_EDGE`]).
+pub const SYNC0_DRIVE: sii::SyncDrive = sii::SyncDrive::PushPullActiveHigh;
+
+/// Value of 0x0151 in SII word 1 (high byte) of this product.
+pub const SYNC_LATCH_CONFIG: u8 = sii::sync_latch_config(SYNC0_DRIVE);
+
 /// The edge the board's SYNC0 input waits for: derived from the SII image's 0x0151
-/// value, which [`sii::SYNC0_DRIVE`] defines (the same for both ESC flavours; checked
+/// value, which [`SYNC0_DRIVE`] defines (the same for both ESC flavours; checked
 /// at compile time and in `tests/portable_board_glue.rs`).
 pub const SYNC0_ACTIVE_EDGE: PulseEdge = {
-    let lan = sync0_active_edge((sii::EscFlavour::Lan9252.pdi_config() >> 8) as u8);
-    let et = sync0_active_edge((sii::EscFlavour::Et1100.pdi_config() >> 8) as u8);
+    let lan = sync0_active_edge((sii::EscFlavour::Lan9252.pdi_config(SYNC0_DRIVE) >> 8) as u8);
+    let et = sync0_active_edge((sii::EscFlavour::Et1100.pdi_config(SYNC0_DRIVE) >> 8) as u8);
     match (lan, et) {
         (Some(PulseEdge::Rising), Some(PulseEdge::Rising)) => PulseEdge::Rising,
         (Some(PulseEdge::Falling), Some(PulseEdge::Falling)) => PulseEdge::Falling,
@@ -246,14 +261,16 @@ mod tests {
     #[test]
     fn the_product_refuses_mailboxes_shorter_than_its_limits() {
         use ecat_slave_stack::al_status::AlStatusCode;
-        use ecat_slave_stack::sm::{validate_mailbox, RamWindow, SmRegs};
+        use ecat_slave_stack::sm::{
+            validate_mailbox, Activate, Control, PdiControl, RamWindow, SmRegs, Status,
+        };
         let sm = |start: u16, len: u16, control: u8| SmRegs {
             start,
             len,
-            control,
-            status: 0,
-            activate: 1,
-            pdi_control: 0,
+            control: Control(control),
+            status: Status(0),
+            activate: Activate(1),
+            pdi_control: PdiControl(0),
         };
         let ram = RamWindow::from_kib(4);
         let cfg = slave_config();

@@ -15,14 +15,14 @@ qemu_runner::tests! {
                 assert!(n.is_ok());
                 // SII word 1, high byte: what the ESC loads into 0x0151.
                 let reg = img[3];
-                assert_eq!(reg, sii::SYNC_LATCH_CONFIG);
+                assert_eq!(reg, identity::SYNC_LATCH_CONFIG);
                 assert_eq!(
                     identity::sync0_active_edge(reg),
                     Some(identity::SYNC0_ACTIVE_EDGE)
                 );
                 // The board waits for the leading edge of the pulse the ESC drives.
                 let drive = SyncDrive::from_code(reg & 0b11);
-                assert_eq!(drive, sii::SYNC0_DRIVE);
+                assert_eq!(drive, identity::SYNC0_DRIVE);
                 let expect = if drive.active_high() {
                     PulseEdge::Rising
                 } else {

@@ -389,8 +389,11 @@ const E_607A: &[EntryDesc] =
 
 /// The test application's dictionary: 0x1000, the PDO objects, the timing
 /// diagnostics and four CiA 402 objects.
-pub static TEST_OBJECTS: &[Object] =
-    ecat_slave_stack::packed_dictionary!(&[pdo::OBJECTS, TEST_OBJECTS_LOCAL, sync::DIAG_OBJECTS]);
+pub static TEST_OBJECTS: &[Object] = ecat_slave_stack::packed_dictionary!(&[
+    pdo::OBJECTS,
+    TEST_OBJECTS_LOCAL,
+    &[sync::timing_diag_object(0x2200)]
+]);
 const TEST_OBJECTS_LOCAL: &[ObjectDesc] = &[
     var(0x1000, "Device type", E_1000),
     var(0x6040, "Controlword", E_6040),
@@ -512,6 +515,7 @@ impl SlaveApplication for TestDrive {
 pub fn test_slave_config() -> SlaveConfig {
     SlaveConfig {
         pdo_defaults: TEST_PDO_DEFAULTS,
+        timing_diag_index: Some(0x2200),
         ..SlaveConfig::default()
     }
 }
@@ -536,6 +540,7 @@ pub fn test_description(flavour: Flavour) -> DeviceDescription {
             Flavour::Et1100 => sii::EscFlavour::Et1100,
         },
         sync_pulse_length: 1000,
+        sync0_drive: sii::SyncDrive::PushPullActiveHigh,
         station_alias: 0,
         mailbox_protocols: sii::MBOX_COE,
         mailbox_data_link_layer: true,

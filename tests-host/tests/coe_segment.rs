@@ -36,8 +36,11 @@ const E_6064: &[EntryDesc] =
     ];
 
 /// The example objects, the runtime's PDO objects and the timing diagnostics, sorted.
-static OBJECTS: &[Object] =
-    ecat_slave_stack::packed_dictionary!(&[pdo::OBJECTS, OBJECTS_LOCAL, sync::DIAG_OBJECTS]);
+static OBJECTS: &[Object] = ecat_slave_stack::packed_dictionary!(&[
+    pdo::OBJECTS,
+    OBJECTS_LOCAL,
+    &[sync::timing_diag_object(0x2200)]
+]);
 const OBJECTS_LOCAL: &[ObjectDesc] = &[
     example::SOURCE[0],  // 0x1000
     example::SOURCE[1],  // 0x1001

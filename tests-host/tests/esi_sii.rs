@@ -856,7 +856,11 @@ fn coe_details_fmmus_dc_and_eeprom_agree() {
             let d = identity::device_description(v, esc, 0);
             assert_eq!(
                 [0, 1, 3].map(|w| img.word(w)),
-                [esc.pdi_control(), esc.pdi_config(), esc.pdi_config2()]
+                [
+                    esc.pdi_control(),
+                    esc.pdi_config(d.sync0_drive),
+                    esc.pdi_config2()
+                ]
             );
             assert_eq!(img.word(2), d.sync_pulse_length);
         }

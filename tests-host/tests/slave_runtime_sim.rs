@@ -113,6 +113,7 @@ impl Bench {
         let sim = SharedEsc::new(EscSim::new(flavour, vec![0; 256]));
         let cfg = SlaveConfig {
             pdo_defaults: DEFAULTS,
+            timing_diag_index: Some(0x2200),
             ..SlaveConfig::default()
         };
         let mut slave = Slave::new(SharedEsc(sim.0.clone()), cfg);

@@ -779,6 +779,7 @@ fn sii_image(esc: ecat_slave_stack::sii::EscFlavour) -> Vec<u8> {
         software_version: "0.1.0",
         esc,
         sync_pulse_length: 1000,
+        sync0_drive: sii::SyncDrive::PushPullActiveHigh,
         station_alias: 0x0042,
         mailbox_protocols: sii::MBOX_COE,
         mailbox_data_link_layer: true,

@@ -29,288 +29,12 @@
 //! * Missing object → error 0x06020000, missing sub-index → 0x06090011, unknown list type
 //!   → 0x06010000, unknown opcode → 0x05040001.
 
-use super::{Header, Service, HEADER_LEN as COE_HEADER_LEN};
 use crate::mailbox::ErrorDetail;
 use crate::od::{
     self, DefaultValue, Dictionary, Entry, Name, Object, ObjectCode, OdListType, SdoAbort,
 };
 
-/// Size of the SDO information header (opcode, reserved, fragments left).
-pub const INFO_HEADER_LEN: usize = 4;
-/// CoE header + SDO information header.
-pub const PREFIX_LEN: usize = COE_HEADER_LEN + INFO_HEADER_LEN;
-/// Data type code reported for RECORD objects.
-pub const RECORD_TYPE: u16 = 0x002A;
-
-/// Byte offsets after the CoE header.
-pub mod field {
-    use core::ops::{Range, RangeFrom};
-    /// Opcode (bits 6:0) and incomplete flag (bit 7).
-    pub const OPCODE: usize = 0;
-    /// Fragments left (u16).
-    pub const FRAGMENTS_LEFT: Range<usize> = 2..4;
-    /// Service data.
-    pub const DATA: RangeFrom<usize> = 4..;
-}
-
-/// Opcodes.
-pub mod opcode {
-    /// Get OD list request.
-    pub const OD_LIST_REQUEST: u8 = 0x01;
-    /// Get OD list response.
-    pub const OD_LIST_RESPONSE: u8 = 0x02;
-    /// Get object description request.
-    pub const OBJECT_DESCRIPTION_REQUEST: u8 = 0x03;
-    /// Get object description response.
-    pub const OBJECT_DESCRIPTION_RESPONSE: u8 = 0x04;
-    /// Get entry description request.
-    pub const ENTRY_DESCRIPTION_REQUEST: u8 = 0x05;
-    /// Get entry description response.
-    pub const ENTRY_DESCRIPTION_RESPONSE: u8 = 0x06;
-    /// SDO information error.
-    pub const ERROR: u8 = 0x07;
-    /// Incomplete flag (more fragments follow).
-    pub const INCOMPLETE: u8 = 0x80;
-}
-
-/// Value-info flags of the entry description.
-pub mod value_info {
-    /// Unit type (never answered by this server, see the module docs).
-    pub const UNIT_TYPE: u8 = 0x08;
-    /// Default value.
-    pub const DEFAULT: u8 = 0x10;
-    /// Minimum value.
-    pub const MINIMUM: u8 = 0x20;
-    /// Maximum value.
-    pub const MAXIMUM: u8 = 0x40;
-    /// The flags that carry no data and are echoed.
-    pub const ECHOED: u8 = 0x07;
-}
-
-/// A zero-copy view of an SDO information frame (after the CoE header).
-#[derive(Debug, Clone)]
-pub struct Frame<T: AsRef<[u8]>> {
-    buffer: T,
-}
-
-impl<T: AsRef<[u8]>> Frame<T> {
-    /// Wraps a buffer; accessors read 0 / empty beyond its end.
-    pub const fn new(buffer: T) -> Self {
-        Frame { buffer }
-    }
-    fn byte(&self, i: usize) -> u8 {
-        self.buffer.as_ref().get(i).copied().unwrap_or(0)
-    }
-    /// True when the buffer holds the 4-byte header.
-    pub fn has_header(&self) -> bool {
-        self.buffer.as_ref().len() >= INFO_HEADER_LEN
-    }
-    /// Opcode without the incomplete flag.
-    pub fn opcode(&self) -> u8 {
-        self.byte(field::OPCODE) & 0x7F
-    }
-    /// Incomplete flag.
-    pub fn incomplete(&self) -> bool {
-        self.byte(field::OPCODE) & opcode::INCOMPLETE != 0
-    }
-    /// Fragments left.
-    pub fn fragments_left(&self) -> u16 {
-        u16::from_le_bytes([
-            self.byte(field::FRAGMENTS_LEFT.start),
-            self.byte(field::FRAGMENTS_LEFT.end - 1),
-        ])
-    }
-    /// Service data.
-    pub fn data(&self) -> &[u8] {
-        self.buffer.as_ref().get(field::DATA).unwrap_or(&[])
-    }
-}
-
-impl<T: AsRef<[u8]>> Frame<T> {
-    /// Wraps a buffer after [`Frame::check_len`].
-    pub fn new_checked(buffer: T) -> Result<Self, WireError> {
-        let f = Self::new(buffer);
-        f.check_len()?;
-        Ok(f)
-    }
-    /// Checks that the 4-byte header fits.
-    pub fn check_len(&self) -> Result<(), WireError> {
-        if self.has_header() {
-            Ok(())
-        } else {
-            Err(WireError::Truncated)
-        }
-    }
-}
-
-impl<T: AsRef<[u8]> + AsMut<[u8]>> Frame<T> {
-    /// Sets opcode, incomplete flag and fragments left (a buffer shorter than the header
-    /// is left as it is).
-    pub fn set_header(&mut self, op: u8, incomplete: bool, fragments_left: u16) {
-        let op = (op & 0x7F) | if incomplete { opcode::INCOMPLETE } else { 0 };
-        let [f0, f1] = fragments_left.to_le_bytes();
-        if let Some(b) = self.buffer.as_mut().get_mut(..INFO_HEADER_LEN) {
-            b.copy_from_slice(&[op, 0, f0, f1]);
-        }
-    }
-    /// Service data, writable (empty for a buffer shorter than the header).
-    pub fn data_mut(&mut self) -> &mut [u8] {
-        self.buffer
-            .as_mut()
-            .get_mut(field::DATA)
-            .unwrap_or_default()
-    }
-}
-
-/// Why a buffer could not be read as an SDO information frame.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum WireError {
-    /// Shorter than the header, or than the service data its opcode carries.
-    Truncated,
-}
-
-/// An SDO information request, or the error response (the frames of a whole message;
-/// responses other than the error are written fragment by fragment by [`InfoJob`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Repr {
-    /// Get OD list request (0x01).
-    OdList {
-        /// List type (0 = counts, 1 = all, 2 = RxPDO, 3 = TxPDO, 4 = backup, 5 = settings).
-        list: u16,
-    },
-    /// Get object description request (0x03).
-    ObjectDescription {
-        /// Index.
-        index: u16,
-    },
-    /// Get entry description request (0x05).
-    EntryDescription {
-        /// Index.
-        index: u16,
-        /// Sub-index.
-        sub: u8,
-        /// Value-info request ([`value_info`] flags).
-        value_info: u8,
-    },
-    /// SDO information error (0x07).
-    Error {
-        /// Abort code.
-        code: u32,
-    },
-    /// Any other opcode (its service data is not read).
-    Unknown {
-        /// Opcode without the incomplete flag.
-        opcode: u8,
-    },
-}
-
-impl Repr {
-    /// Parses a frame (header fragments-left and incomplete flag not checked).
-    pub fn parse<T: AsRef<[u8]>>(frame: &Frame<T>) -> Result<Self, WireError> {
-        frame.check_len()?;
-        let d = frame.data();
-        let need = |n: usize| {
-            if d.len() < n {
-                Err(WireError::Truncated)
-            } else {
-                Ok(())
-            }
-        };
-        let u16_at = |i: usize| u16::from_le_bytes([d[i], d[i + 1]]);
-        Ok(match frame.opcode() {
-            opcode::OD_LIST_REQUEST => {
-                need(2)?;
-                Repr::OdList { list: u16_at(0) }
-            }
-            opcode::OBJECT_DESCRIPTION_REQUEST => {
-                need(2)?;
-                Repr::ObjectDescription { index: u16_at(0) }
-            }
-            opcode::ENTRY_DESCRIPTION_REQUEST => {
-                need(4)?;
-                Repr::EntryDescription {
-                    index: u16_at(0),
-                    sub: d[2],
-                    value_info: d[3],
-                }
-            }
-            opcode::ERROR => {
-                need(4)?;
-                Repr::Error {
-                    code: u32::from_le_bytes([d[0], d[1], d[2], d[3]]),
-                }
-            }
-            op => Repr::Unknown { opcode: op },
-        })
-    }
-
-    /// Length of the emitted frame after the CoE header.
-    pub const fn buffer_len(&self) -> usize {
-        INFO_HEADER_LEN
-            + match self {
-                Repr::OdList { .. } | Repr::ObjectDescription { .. } => 2,
-                Repr::EntryDescription { .. } | Repr::Error { .. } => 4,
-                Repr::Unknown { .. } => 0,
-            }
-    }
-
-    /// Writes the frame (after the CoE header, as one complete fragment) into the start
-    /// of `frame`'s buffer; returns its length, or 0 (buffer untouched) when the buffer
-    /// is shorter than [`Repr::buffer_len`].
-    pub fn emit<T: AsRef<[u8]> + AsMut<[u8]>>(&self, frame: &mut Frame<T>) -> usize {
-        let n = self.buffer_len();
-        if frame.buffer.as_ref().len() < n {
-            return 0;
-        }
-        let (op, data): (u8, [u8; 4]) = match *self {
-            Repr::OdList { list } => {
-                let [a, b] = list.to_le_bytes();
-                (opcode::OD_LIST_REQUEST, [a, b, 0, 0])
-            }
-            Repr::ObjectDescription { index } => {
-                let [a, b] = index.to_le_bytes();
-                (opcode::OBJECT_DESCRIPTION_REQUEST, [a, b, 0, 0])
-            }
-            Repr::EntryDescription {
-                index,
-                sub,
-                value_info,
-            } => {
-                let [a, b] = index.to_le_bytes();
-                (opcode::ENTRY_DESCRIPTION_REQUEST, [a, b, sub, value_info])
-            }
-            Repr::Error { code } => (opcode::ERROR, code.to_le_bytes()),
-            Repr::Unknown { opcode } => (opcode, [0; 4]),
-        };
-        frame.set_header(op, false, 0);
-        let len = n - INFO_HEADER_LEN;
-        frame.data_mut()[..len].copy_from_slice(&data[..len]);
-        n
-    }
-
-    /// Writes the CoE header (service 8) and the frame into `out`; returns the length of
-    /// both, or 0 (nothing written) when `out` is too short.
-    pub fn emit_coe(&self, out: &mut [u8]) -> usize {
-        if out.len() < COE_HEADER_LEN + self.buffer_len() {
-            return 0;
-        }
-        let (head, body) = out.split_at_mut(COE_HEADER_LEN);
-        Header::of(Service::SdoInformation).emit(head);
-        COE_HEADER_LEN + self.emit(&mut Frame::new(body))
-    }
-}
-
-/// Writes the CoE header and the information header of a response fragment into
-/// `out[..6]` (a shorter `out` is left as it is).
-fn emit_prefix(out: &mut [u8], op: u8, incomplete: bool, fragments_left: u16) {
-    if let Some((head, body)) = out
-        .get_mut(..PREFIX_LEN)
-        .map(|b| b.split_at_mut(COE_HEADER_LEN))
-    {
-        Header::of(Service::SdoInformation).emit(head);
-        Frame::new(body).set_header(op, incomplete, fragments_left);
-    }
-}
+pub use crate::wire::sdo_info::*;
 
 /// The SDO information error for an abort.
 const fn error(abort: SdoAbort) -> Repr {
@@ -524,13 +248,16 @@ pub fn on_request(
                 return Ok(err(out, SdoAbort::ObjectDoesNotExist));
             };
             let mut head = [0u8; HEAD_MAX];
-            head[0..2].copy_from_slice(&index.to_le_bytes());
-            head[2..4].copy_from_slice(&object_data_type(obj).to_le_bytes());
-            head[4] = obj.max_sub();
-            head[5] = obj.code() as u8;
+            let head_len = ObjectDescriptionHead {
+                index,
+                data_type: object_data_type(obj),
+                max_sub: obj.max_sub(),
+                object_code: obj.code() as u8,
+            }
+            .emit(&mut head);
             let body = Body::Bytes {
                 head,
-                head_len: 6,
+                head_len: head_len as u8,
                 name: obj.name(),
                 tail: [&[], &[], &[]],
             };
@@ -561,12 +288,7 @@ pub fn on_request(
 
 fn entry_body(index: u16, e: &'static Entry, request: u8) -> Body {
     let mut head = [0u8; HEAD_MAX];
-    head[0..2].copy_from_slice(&index.to_le_bytes());
-    head[2] = e.sub;
-    head[4..6].copy_from_slice(&e.data_type.code().to_le_bytes());
-    head[6..8].copy_from_slice(&e.bits().to_le_bytes());
-    head[8..10].copy_from_slice(&entry_access_word(e).to_le_bytes());
-    let mut len = 10usize;
+    let mut len = EntryDescriptionHead::LEN;
     let mut vi = request & value_info::ECHOED;
     let n = e.byte_len();
     let numeric = od::has_numeric_range(e.data_type) && (1..=8).contains(&n);
@@ -588,7 +310,15 @@ fn entry_body(index: u16, e: &'static Entry, request: u8) -> Body {
             }
         }
     }
-    head[3] = vi;
+    EntryDescriptionHead {
+        index,
+        sub: e.sub,
+        value_info: vi,
+        data_type: e.data_type.code(),
+        bit_length: e.bits(),
+        access: entry_access_word(e),
+    }
+    .emit(&mut head);
     let tail: [&'static [u8]; 3] = if e.unit_text().is_empty() {
         [&[], &[], &[]]
     } else {
@@ -605,6 +335,36 @@ fn entry_body(index: u16, e: &'static Entry, request: u8) -> Body {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn description_heads_bytes() {
+        let mut b = [0xEEu8; 12];
+        let o = ObjectDescriptionHead {
+            index: 0x1C12,
+            data_type: 0x0006,
+            max_sub: 4,
+            object_code: 8,
+        };
+        assert_eq!(o.emit(&mut b), 6);
+        assert_eq!(b[..7], [0x12, 0x1C, 0x06, 0x00, 4, 8, 0xEE]);
+        assert_eq!(o.emit(&mut b[..5]), 0);
+        let e = EntryDescriptionHead {
+            index: 0x6040,
+            sub: 0,
+            value_info: 0x70,
+            data_type: 0x0006,
+            bit_length: 16,
+            access: 0x023F,
+        };
+        assert_eq!(e.emit(&mut b), 10);
+        assert_eq!(
+            b[..11],
+            [0x40, 0x60, 0, 0x70, 6, 0, 16, 0, 0x3F, 0x02, 0xEE]
+        );
+        let mut short = [0u8; 9];
+        assert_eq!(e.emit(&mut short), 0);
+        assert_eq!(short, [0; 9]);
+    }
 
     #[test]
     fn info_frame_view_and_error() {

@@ -53,25 +53,33 @@ pub const TRANSFER_TIMEOUT_US: u64 = 1_000_000;
 /// Length of an initiate / abort frame after the mailbox header (CoE header + 8).
 pub const INITIATE_LEN: usize = COE_HEADER_LEN + 8;
 
-mod wire;
-pub use wire::*;
+pub use crate::wire::sdo::*;
+
+/// A segmented download in progress.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Download {
+    to: Address,
+    /// Complete size announced by the initiate request.
+    total: usize,
+    /// Toggle bit the next segment must carry.
+    toggle: bool,
+}
+
+/// A segmented upload in progress.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Upload {
+    to: Address,
+    /// Bytes of the buffer already sent.
+    pos: usize,
+    /// Toggle bit the next segment request must carry.
+    toggle: bool,
+}
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Transfer {
     Idle,
-    Download {
-        index: u16,
-        sub: u8,
-        ca: bool,
-        total: usize,
-        toggle: bool,
-    },
-    Upload {
-        index: u16,
-        sub: u8,
-        pos: usize,
-        toggle: bool,
-    },
+    Download(Download),
+    Upload(Upload),
 }
 
 /// The state of the SDO server: at most one segmented transfer.
@@ -116,8 +124,8 @@ impl SdoServer {
     fn target(&self) -> Option<(u16, u8)> {
         match self.t {
             Transfer::Idle => None,
-            Transfer::Download { index, sub, .. } | Transfer::Upload { index, sub, .. } => {
-                Some((index, sub))
+            Transfer::Download(Download { to, .. }) | Transfer::Upload(Upload { to, .. }) => {
+                Some((to.index, to.sub))
             }
         }
     }
@@ -153,93 +161,49 @@ impl SdoServer {
         }
         let req = Request::parse(body)?;
         let n = match req {
-            Request::InitiateDownload {
-                index,
-                sub,
-                complete_access,
-                expedited,
-                size_indicated,
-                size,
-                data,
-            } => {
+            Request::InitiateDownload(r) => {
                 self.t = Transfer::Idle;
-                let r = if expedited {
-                    self.expedited_download(
-                        index,
-                        sub,
-                        complete_access,
-                        size_indicated,
-                        data,
-                        dict,
-                        state,
-                    )
+                let to = r.address;
+                let done = if r.expedited {
+                    expedited_download(&r, dict, state)
                 } else {
-                    self.initiate_normal_download(
-                        index,
-                        sub,
-                        complete_access,
-                        size as usize,
-                        data,
-                        dict,
-                        state,
-                        now_us,
-                    )
+                    self.initiate_normal_download(&r, dict, state, now_us)
                 };
-                match r {
+                match done {
                     Ok(()) => Response::Download {
-                        index,
-                        sub,
-                        complete_access,
+                        index: to.index,
+                        sub: to.sub,
+                        complete_access: to.complete_access,
                     }
                     .emit_coe(out),
-                    Err(a) => Response::abort(index, sub, a).emit_coe(out),
+                    Err(a) => Response::abort(to.index, to.sub, a).emit_coe(out),
                 }
             }
-            Request::DownloadSegment { toggle, last, data } => match self.t {
-                Transfer::Download {
-                    index,
-                    sub,
-                    ca,
-                    total,
-                    toggle: expected,
-                } => {
-                    match self.download_segment(
-                        index, sub, ca, total, expected, toggle, last, data, dict, state,
-                    ) {
-                        Ok(()) => {
-                            self.last_us = now_us;
-                            Response::DownloadSegment { toggle }.emit_coe(out)
-                        }
-                        Err(a) => {
-                            self.t = Transfer::Idle;
-                            Response::abort(index, sub, a).emit_coe(out)
-                        }
+            Request::DownloadSegment(seg) => match self.t {
+                Transfer::Download(d) => match self.download_segment(d, &seg, dict, state) {
+                    Ok(()) => {
+                        self.last_us = now_us;
+                        Response::DownloadSegment { toggle: seg.toggle }.emit_coe(out)
                     }
-                }
+                    Err(a) => {
+                        self.t = Transfer::Idle;
+                        Response::abort(d.to.index, d.to.sub, a).emit_coe(out)
+                    }
+                },
                 _ => self.no_transfer(out, expired),
             },
-            Request::InitiateUpload {
-                index,
-                sub,
-                complete_access,
-            } => {
+            Request::InitiateUpload(to) => {
                 self.t = Transfer::Idle;
-                self.initiate_upload(out, index, sub, complete_access, dict, state, now_us)
+                self.initiate_upload(out, to, dict, state, now_us)
             }
             Request::UploadSegment { toggle } => match self.t {
-                Transfer::Upload {
-                    index,
-                    sub,
-                    pos,
-                    toggle: expected,
-                } => {
-                    if toggle != expected {
-                        self.t = Transfer::Idle;
-                        Response::abort(index, sub, SdoAbort::ToggleBit).emit_coe(out)
-                    } else {
-                        self.last_us = now_us;
-                        self.upload_segment(out, index, sub, pos, toggle)
-                    }
+                Transfer::Upload(u) if toggle != u.toggle => {
+                    self.t = Transfer::Idle;
+                    Response::abort(u.to.index, u.to.sub, SdoAbort::ToggleBit).emit_coe(out)
+                }
+                Transfer::Upload(u) => {
+                    self.last_us = now_us;
+                    self.upload_segment(out, u)
                 }
                 _ => self.no_transfer(out, expired),
             },
@@ -265,138 +229,75 @@ impl SdoServer {
         Response::abort(index, sub, SdoAbort::InvalidCommand).emit_coe(out)
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn expedited_download(
-        &mut self,
-        index: u16,
-        sub: u8,
-        ca: bool,
-        size_indicated: bool,
-        data: &[u8],
-        dict: &mut impl Dictionary,
-        state: EsmState,
-    ) -> Result<(), SdoAbort> {
-        let mut data = data;
-        if !size_indicated && !ca {
-            // Size not indicated: the entry's own length (at most the 4 bytes carried).
-            let e = od::find_entry(dict.objects(), index, sub)?;
-            data = data.get(..e.byte_len().clamp(1, 4)).unwrap_or(data);
-        }
-        download(dict, state, index, sub, ca, data)
-    }
-
-    #[allow(clippy::too_many_arguments)]
     fn initiate_normal_download(
         &mut self,
-        index: u16,
-        sub: u8,
-        ca: bool,
-        total: usize,
-        data: &[u8],
+        r: &InitiateDownload<'_>,
         dict: &mut impl Dictionary,
         state: EsmState,
         now_us: u64,
     ) -> Result<(), SdoAbort> {
-        let objects = dict.objects();
-        // Refuse early what can never succeed, before a segmented transfer starts.
-        if ca {
-            let obj = od::find(objects, index).ok_or(SdoAbort::ObjectDoesNotExist)?;
-            if obj.code() == ObjectCode::Var || sub > 1 {
-                return Err(SdoAbort::UnsupportedAccess);
-            }
-            if total > TRANSFER_MAX {
-                return Err(SdoAbort::OutOfMemory);
-            }
-        } else {
-            let e = od::find_entry(objects, index, sub)?;
-            if !e.access.writable() {
-                return Err(SdoAbort::WriteReadOnly);
-            }
-            if !e.access.writable_in(state) {
-                return Err(SdoAbort::StateConflict);
-            }
-            if total > e.byte_len() {
-                return Err(SdoAbort::LengthTooHigh);
-            }
-            if !e.data_type.is_variable_length() && total < e.byte_len() {
-                return Err(SdoAbort::LengthTooLow);
-            }
-            if total > TRANSFER_MAX {
-                return Err(SdoAbort::OutOfMemory);
-            }
-        }
+        let to = r.address;
+        let total = r.size as usize;
+        check_normal_download(dict.objects(), to, total, state)?;
+        let data = r.data;
         if data.len() >= total {
-            return download(dict, state, index, sub, ca, &data[..total]);
+            return download(dict, state, to, &data[..total]);
         }
         self.buf[..data.len()].copy_from_slice(data);
         self.len = data.len();
-        self.t = Transfer::Download {
-            index,
-            sub,
-            ca,
+        self.t = Transfer::Download(Download {
+            to,
             total,
             toggle: false,
-        };
+        });
         self.last_us = now_us;
         Ok(())
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn download_segment(
         &mut self,
-        index: u16,
-        sub: u8,
-        ca: bool,
-        total: usize,
-        expected: bool,
-        toggle: bool,
-        last: bool,
-        data: &[u8],
+        d: Download,
+        seg: &DownloadSegment<'_>,
         dict: &mut impl Dictionary,
         state: EsmState,
     ) -> Result<(), SdoAbort> {
-        if toggle != expected {
+        if seg.toggle != d.toggle {
             return Err(SdoAbort::ToggleBit);
         }
-        let end = self.len + data.len();
-        if end > total {
+        let end = self.len + seg.data.len();
+        if end > d.total {
             return Err(SdoAbort::TypeMismatch);
         }
-        self.buf[self.len..end].copy_from_slice(data);
+        self.buf[self.len..end].copy_from_slice(seg.data);
         self.len = end;
-        if !last {
-            self.t = Transfer::Download {
-                index,
-                sub,
-                ca,
-                total,
-                toggle: !toggle,
-            };
+        if !seg.last {
+            self.t = Transfer::Download(Download {
+                toggle: !seg.toggle,
+                ..d
+            });
             return Ok(());
         }
         self.t = Transfer::Idle;
-        if end != total {
+        if end != d.total {
             return Err(SdoAbort::TypeMismatch);
         }
-        download(dict, state, index, sub, ca, &self.buf[..end])
+        download(dict, state, d.to, &self.buf[..end])
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn initiate_upload(
         &mut self,
         out: &mut [u8],
-        index: u16,
-        sub: u8,
-        ca: bool,
+        to: Address,
         dict: &mut impl Dictionary,
         state: EsmState,
         now_us: u64,
     ) -> usize {
-        let len = match upload(dict, state, index, sub, ca, &mut self.buf) {
+        let (index, sub) = (to.index, to.sub);
+        let len = match upload(dict, state, to, &mut self.buf) {
             Ok(n) => n,
             Err(a) => return Response::abort(index, sub, a).emit_coe(out),
         };
-        if !ca && (1..=4).contains(&len) {
+        if !to.complete_access && (1..=4).contains(&len) {
             let data = &self.buf[..len];
             return Response::UploadExpedited { index, sub, data }.emit_coe(out);
         }
@@ -405,67 +306,106 @@ impl SdoServer {
         Response::Upload {
             index,
             sub,
-            complete_access: ca,
+            complete_access: to.complete_access,
             size: len as u32,
             data: &self.buf[..first],
         }
         .emit_coe(out);
         if first < len {
             self.len = len;
-            self.t = Transfer::Upload {
-                index,
-                sub,
+            self.t = Transfer::Upload(Upload {
+                to,
                 pos: first,
                 toggle: false,
-            };
+            });
             self.last_us = now_us;
         }
         INITIATE_LEN + first
     }
 
-    fn upload_segment(
-        &mut self,
-        out: &mut [u8],
-        index: u16,
-        sub: u8,
-        pos: usize,
-        toggle: bool,
-    ) -> usize {
+    fn upload_segment(&mut self, out: &mut [u8], u: Upload) -> usize {
         let room = out.len() - COE_HEADER_LEN - 1;
-        let end = (pos + room).min(self.len);
+        let end = (u.pos + room).min(self.len);
         let last = end == self.len;
-        let data = self.buf.get(pos.min(end)..end).unwrap_or_default();
+        let data = self.buf.get(u.pos.min(end)..end).unwrap_or_default();
+        let toggle = u.toggle;
         let n = Response::UploadSegment { toggle, last, data }.emit_coe(out);
         self.t = if last {
             Transfer::Idle
         } else {
-            Transfer::Upload {
-                index,
-                sub,
+            Transfer::Upload(Upload {
                 pos: end,
                 toggle: !toggle,
-            }
+                ..u
+            })
         };
         n
     }
+}
+
+/// An expedited download: the value is in the request.
+fn expedited_download(
+    r: &InitiateDownload<'_>,
+    dict: &mut impl Dictionary,
+    state: EsmState,
+) -> Result<(), SdoAbort> {
+    let to = r.address;
+    let mut data = r.data;
+    if !r.size_indicated && !to.complete_access {
+        // Size not indicated: the entry's own length (at most the 4 bytes carried).
+        let e = od::find_entry(dict.objects(), to.index, to.sub)?;
+        data = data.get(..e.byte_len().clamp(1, 4)).unwrap_or(data);
+    }
+    download(dict, state, to, data)
+}
+
+/// Refuses early what can never succeed, before a segmented transfer starts.
+fn check_normal_download(
+    objects: &'static [Object],
+    to: Address,
+    total: usize,
+    state: EsmState,
+) -> Result<(), SdoAbort> {
+    if to.complete_access {
+        let obj = od::find(objects, to.index).ok_or(SdoAbort::ObjectDoesNotExist)?;
+        if obj.code() == ObjectCode::Var || to.sub > 1 {
+            return Err(SdoAbort::UnsupportedAccess);
+        }
+    } else {
+        let e = od::find_entry(objects, to.index, to.sub)?;
+        if !e.access.writable() {
+            return Err(SdoAbort::WriteReadOnly);
+        }
+        if !e.access.writable_in(state) {
+            return Err(SdoAbort::StateConflict);
+        }
+        if total > e.byte_len() {
+            return Err(SdoAbort::LengthTooHigh);
+        }
+        if !e.data_type.is_variable_length() && total < e.byte_len() {
+            return Err(SdoAbort::LengthTooLow);
+        }
+    }
+    if total > TRANSFER_MAX {
+        return Err(SdoAbort::OutOfMemory);
+    }
+    Ok(())
 }
 
 /// Reads one entry (or a complete-access image) into `buf`; returns its length.
 fn upload(
     dict: &mut impl Dictionary,
     state: EsmState,
-    index: u16,
-    sub: u8,
-    ca: bool,
+    to: Address,
     buf: &mut [u8],
 ) -> Result<usize, SdoAbort> {
-    let obj = od::find(dict.objects(), index).ok_or(SdoAbort::ObjectDoesNotExist)?;
-    if ca {
-        return ca_upload(obj, dict, state, sub, buf);
+    let obj = od::find(dict.objects(), to.index).ok_or(SdoAbort::ObjectDoesNotExist)?;
+    if to.complete_access {
+        return ca_upload(obj, dict, state, to.sub, buf);
     }
-    let e = obj.entry(sub).ok_or(SdoAbort::SubindexDoesNotExist)?;
+    let e = obj.entry(to.sub).ok_or(SdoAbort::SubindexDoesNotExist)?;
     od::check_read(e, state)?;
-    let n = dict.read(index, sub, buf)?;
+    let n = dict.read(to.index, to.sub, buf)?;
     Ok(n.min(buf.len()))
 }
 
@@ -473,19 +413,17 @@ fn upload(
 fn download(
     dict: &mut impl Dictionary,
     state: EsmState,
-    index: u16,
-    sub: u8,
-    ca: bool,
+    to: Address,
     data: &[u8],
 ) -> Result<(), SdoAbort> {
     let objects = dict.objects();
-    if ca {
-        let obj = od::find(objects, index).ok_or(SdoAbort::ObjectDoesNotExist)?;
-        return ca_download(obj, dict, state, sub, data);
+    if to.complete_access {
+        let obj = od::find(objects, to.index).ok_or(SdoAbort::ObjectDoesNotExist)?;
+        return ca_download(obj, dict, state, to.sub, data);
     }
-    let e = od::find_entry(objects, index, sub)?;
+    let e = od::find_entry(objects, to.index, to.sub)?;
     od::check_write(e, data, state)?;
-    dict.write(index, sub, data, state)
+    dict.write(to.index, to.sub, data, state)
 }
 
 /// Writes `nbits` (≤ 64) of `v` at bit position `pos` of `buf` (LSB first).
@@ -624,20 +562,33 @@ fn ca_value(data: &[u8], e: &Entry, start: usize) -> [u8; 8] {
     }
 }
 
+/// Where the entries of a complete-access download image are.
+#[derive(Debug, Clone, Copy)]
+struct CaLayout {
+    /// Entries 1..=count.
+    count: u8,
+    /// Bit position of the first entry.
+    first_bit: usize,
+    /// Stop before the entry that would end after this bit (the data length).
+    stop_at_data_end: Option<usize>,
+}
+
 /// Walks the entries of a complete-access download image and returns the end bit:
 /// checks every writable entry's value (`write` false) or writes it (`write` true).
 /// One walk for both passes of [`ca_download`].
-#[allow(clippy::too_many_arguments)]
 fn ca_walk(
     obj: &Object,
     dict: &mut impl Dictionary,
     state: EsmState,
     data: &[u8],
-    count: u8,
-    first_bit: usize,
-    stop_at_data_end: Option<usize>,
+    layout: CaLayout,
     write: bool,
 ) -> Result<usize, SdoAbort> {
+    let CaLayout {
+        count,
+        first_bit,
+        stop_at_data_end,
+    } = layout;
     let mut bit = first_bit;
     for e in ca_entries(obj, count) {
         let nbits = e.bits() as usize;
@@ -692,7 +643,12 @@ fn ca_download(
         (obj.max_sub(), 0, Some(data_bits))
     };
     // Pass 1: layout and checks, nothing written.
-    let end = ca_walk(obj, dict, state, data, count, first_bit, stop, false)?;
+    let layout = CaLayout {
+        count,
+        first_bit,
+        stop_at_data_end: stop,
+    };
+    let end = ca_walk(obj, dict, state, data, layout, false)?;
     if end.div_ceil(8) != data.len() {
         return Err(SdoAbort::TypeMismatch);
     }
@@ -702,7 +658,7 @@ fn ca_download(
     if si0_written && e0.min() <= 0 {
         dict.write(index, 0, &[0], state)?;
     }
-    ca_walk(obj, dict, state, data, count, first_bit, stop, true)?;
+    ca_walk(obj, dict, state, data, layout, true)?;
     if si0_written {
         dict.write(index, 0, &[count], state)?;
     }

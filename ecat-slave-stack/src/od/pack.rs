@@ -519,7 +519,11 @@ mod tests {
             "",
         ),
     ];
-    const PARTS: &[&[ObjectDesc]] = &[crate::pdo::OBJECTS, LOCAL, crate::sync::DIAG_OBJECTS];
+    const PARTS: &[&[ObjectDesc]] = &[
+        crate::pdo::OBJECTS,
+        LOCAL,
+        &[crate::sync::timing_diag_object(0x2200)],
+    ];
     const WORDS: &[&str] = &["Fault ", "Position ", "actual value", "Device "];
     static PACKED: &[Object] = crate::packed_dictionary!(PARTS, WORDS);
 

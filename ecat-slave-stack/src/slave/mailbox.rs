@@ -58,7 +58,7 @@ impl<E: EscAccess> Slave<E> {
         }
         if self.sm1_busy {
             let st = self.esc.read_u8(reg::sm_register(1) + reg::sm::STATUS)?;
-            if st & sm::status::MAILBOX_FULL != 0 {
+            if sm::Status(st).mailbox_full() {
                 return Ok(());
             }
             self.sm1_busy = false;
@@ -88,24 +88,18 @@ impl<E: EscAccess> Slave<E> {
         let n = self.mbx.repeat_last(&mut self.mbx_buf[..len]);
         let pdi = reg::sm_register(1) + reg::sm::PDI_CONTROL;
         let new_ack = sm1.repeat_request();
-        let ack_bits = if new_ack {
-            sm::pdi_control::REPEAT_ACK
-        } else {
-            0
-        };
         if n > 0 {
-            if sm1.status & sm::status::MAILBOX_FULL != 0 {
+            if sm1.status.mailbox_full() {
                 // An unread mailbox is in the way: flush SM1 by deactivating it.
-                self.esc.write_u8(
-                    pdi,
-                    sm::pdi_control::DEACTIVATE | (ack_bits ^ sm::pdi_control::REPEAT_ACK),
-                )?;
                 self.esc
-                    .write_u8(pdi, ack_bits ^ sm::pdi_control::REPEAT_ACK)?;
+                    .write_u8(pdi, sm::PdiControl::new(true, !new_ack).0)?;
+                self.esc
+                    .write_u8(pdi, sm::PdiControl::new(false, !new_ack).0)?;
             }
             self.write_sm1(sm1, n)?;
         }
-        self.esc.write_u8(pdi, ack_bits)?;
+        self.esc
+            .write_u8(pdi, sm::PdiControl::new(false, new_ack).0)?;
         self.repeat_ack = new_ack;
         Ok(())
     }

@@ -169,7 +169,7 @@ pub const SYNC0_IDLE_PULL: Pull = match firmware::identity::SYNC0_ACTIVE_EDGE {
 
 /// Waits for the leading edge of the next SYNC0 pulse: the edge
 /// [`firmware::identity::SYNC0_ACTIVE_EDGE`] derives from the SII's 0x0151 value (the
-/// one definition of the polarity, `ecat_slave_stack::sii::SYNC0_DRIVE`).
+/// one definition of the polarity, `firmware::identity::SYNC0_DRIVE`).
 pub async fn sync0_edge(pin: &mut ExtiInput<'static, Async>) {
     match firmware::identity::SYNC0_ACTIVE_EDGE {
         PulseEdge::Rising => pin.wait_for_rising_edge().await,

@@ -5,68 +5,72 @@ use crate::coe::Service;
 fn request_parse() {
     assert_eq!(
         Request::parse(&[0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]),
-        Ok(Request::InitiateUpload {
+        Ok(Request::InitiateUpload(Address {
             index: 0x1000,
             sub: 0,
             complete_access: false
-        })
+        }))
     );
     assert_eq!(
         Request::parse(&[0x50, 0x12, 0x1C, 0x01, 0, 0, 0, 0]),
-        Ok(Request::InitiateUpload {
+        Ok(Request::InitiateUpload(Address {
             index: 0x1C12,
             sub: 1,
             complete_access: true
-        })
+        }))
     );
     assert_eq!(
         Request::parse(&[0x2B, 0x40, 0x60, 0x00, 0x0F, 0x00, 0xAA, 0xBB]),
-        Ok(Request::InitiateDownload {
-            index: 0x6040,
-            sub: 0,
-            complete_access: false,
+        Ok(Request::InitiateDownload(InitiateDownload {
+            address: Address {
+                index: 0x6040,
+                sub: 0,
+                complete_access: false,
+            },
             expedited: true,
             size_indicated: true,
             size: 0xBBAA_000F,
             data: &[0x0F, 0x00],
-        })
+        }))
     );
     let b = [0x21, 0x02, 0x20, 0x00, 5, 0, 0, 0, 1, 2, 3];
     assert_eq!(
         Request::parse(&b),
-        Ok(Request::InitiateDownload {
-            index: 0x2002,
-            sub: 0,
-            complete_access: false,
+        Ok(Request::InitiateDownload(InitiateDownload {
+            address: Address {
+                index: 0x2002,
+                sub: 0,
+                complete_access: false,
+            },
             expedited: false,
             size_indicated: true,
             size: 5,
             data: &[1, 2, 3],
-        })
+        }))
     );
     assert_eq!(
         Request::parse(&[0x0B, 1, 2, 3, 4, 5, 6, 7]),
-        Ok(Request::DownloadSegment {
+        Ok(Request::DownloadSegment(DownloadSegment {
             toggle: false,
             last: true,
             data: &[1, 2]
-        })
+        }))
     );
     assert_eq!(
         Request::parse(&[0x10, 1, 2, 3, 4, 5, 6, 7, 8]),
-        Ok(Request::DownloadSegment {
+        Ok(Request::DownloadSegment(DownloadSegment {
             toggle: true,
             last: false,
             data: &[1, 2, 3, 4, 5, 6, 7, 8]
-        })
+        }))
     );
     assert_eq!(
         Request::parse(&[0x0E, 1, 2, 3, 4, 5, 6, 7]),
-        Ok(Request::DownloadSegment {
+        Ok(Request::DownloadSegment(DownloadSegment {
             toggle: false,
             last: false,
             data: &[]
-        })
+        }))
     );
     assert_eq!(
         Request::parse(&[0x70]),

@@ -1,8 +1,8 @@
 //! The SDO wire format: a zero-copy [`Frame`] view with its [`field`] offsets and
 //! [`cmd`] bits, the master's [`Request`] and this server's [`Response`].
 
-use crate::coe::{Header, Service, HEADER_LEN as COE_HEADER_LEN};
-use crate::mailbox::ErrorDetail;
+use super::coe::{Header, Service, HEADER_LEN as COE_HEADER_LEN};
+use super::mailbox::ErrorDetail;
 use crate::od::SdoAbort;
 
 /// Byte offsets of the SDO frame after the CoE header.
@@ -136,6 +136,14 @@ impl<T: AsRef<[u8]>> Frame<T> {
     pub fn sub(&self) -> u8 {
         self.buffer.as_ref()[field::SUB]
     }
+    /// Index, sub-index and the complete access flag of an initiate frame.
+    pub fn address(&self) -> Address {
+        Address {
+            index: self.index(),
+            sub: self.sub(),
+            complete_access: self.command() & cmd::COMPLETE_ACCESS != 0,
+        }
+    }
     /// The 4 data bytes of an initiate or abort frame.
     pub fn data4(&self) -> [u8; 4] {
         let b = &self.buffer.as_ref()[field::DATA];
@@ -182,45 +190,54 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> Frame<T> {
     }
 }
 
+/// The entry an SDO request addresses, or with complete access the object from this
+/// sub-index on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Address {
+    /// Index.
+    pub index: u16,
+    /// Sub-index.
+    pub sub: u8,
+    /// Complete access.
+    pub complete_access: bool,
+}
+
+/// An initiate download request (expedited: `data` is the value; normal: `size` is the
+/// complete size and `data` the part carried in this frame).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct InitiateDownload<'a> {
+    /// The entry or object written.
+    pub address: Address,
+    /// Expedited transfer.
+    pub expedited: bool,
+    /// Size indicated (expedited: `data.len()` is exact).
+    pub size_indicated: bool,
+    /// Complete size (normal transfer).
+    pub size: u32,
+    /// Data carried in this frame.
+    pub data: &'a [u8],
+}
+
+/// A download segment request.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DownloadSegment<'a> {
+    /// Toggle bit.
+    pub toggle: bool,
+    /// Last segment.
+    pub last: bool,
+    /// Data of this segment.
+    pub data: &'a [u8],
+}
+
 /// An SDO request from the master.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Request<'a> {
-    /// Initiate download (expedited: `data` is the value; normal: `size` is the complete
-    /// size and `data` the part carried in this frame).
-    InitiateDownload {
-        /// Index.
-        index: u16,
-        /// Sub-index.
-        sub: u8,
-        /// Complete access.
-        complete_access: bool,
-        /// Expedited transfer.
-        expedited: bool,
-        /// Size indicated (expedited: `data.len()` is exact).
-        size_indicated: bool,
-        /// Complete size (normal transfer).
-        size: u32,
-        /// Data carried in this frame.
-        data: &'a [u8],
-    },
+    /// Initiate download.
+    InitiateDownload(InitiateDownload<'a>),
     /// Download segment.
-    DownloadSegment {
-        /// Toggle bit.
-        toggle: bool,
-        /// Last segment.
-        last: bool,
-        /// Data of this segment.
-        data: &'a [u8],
-    },
-    /// Initiate upload.
-    InitiateUpload {
-        /// Index.
-        index: u16,
-        /// Sub-index.
-        sub: u8,
-        /// Complete access.
-        complete_access: bool,
-    },
+    DownloadSegment(DownloadSegment<'a>),
+    /// Initiate upload of this entry or object.
+    InitiateUpload(Address),
     /// Upload segment.
     UploadSegment {
         /// Toggle bit.
@@ -246,6 +263,31 @@ pub enum Request<'a> {
     },
 }
 
+/// The data of a segment frame `b` with command `c`: a frame longer than the minimum
+/// carries data up to its end; a minimum frame (7 data bytes) says in bits 3:1 how many
+/// of them are unused.
+fn segment_data(c: u8, b: &[u8]) -> &[u8] {
+    let seg = b.get(field::SEGMENT_DATA).unwrap_or_default();
+    let n = if seg.len() > 7 {
+        seg.len()
+    } else {
+        7 - usize::from((c >> 1) & 7)
+    };
+    seg.get(..n).unwrap_or(seg)
+}
+
+/// The data of an expedited frame `b` with command `c`: 4 bytes, less the unused ones
+/// bits 3:2 give when the size is indicated.
+fn expedited_data(c: u8, b: &[u8]) -> &[u8] {
+    let n = if c & cmd::SIZE_INDICATED != 0 {
+        4 - usize::from((c >> 2) & 3)
+    } else {
+        4
+    };
+    b.get(field::DATA.start..field::DATA.start + n)
+        .unwrap_or_default()
+}
+
 impl<'a> Request<'a> {
     /// Parses the SDO part of a request (after the CoE header). `Err` = too short for the
     /// command it carries.
@@ -253,47 +295,28 @@ impl<'a> Request<'a> {
         let f = Frame::new_checked(b)?;
         let c = f.command();
         match c >> 5 {
-            0 => {
-                let seg: &'a [u8] = &b[field::SEGMENT_DATA];
-                let n = if seg.len() > 7 {
-                    seg.len()
-                } else {
-                    7 - ((c >> 1) & 7) as usize
-                };
-                Ok(Request::DownloadSegment {
-                    toggle: c & cmd::TOGGLE != 0,
-                    last: c & cmd::LAST != 0,
-                    data: &seg[..n],
-                })
-            }
+            0 => Ok(Request::DownloadSegment(DownloadSegment {
+                toggle: c & cmd::TOGGLE != 0,
+                last: c & cmd::LAST != 0,
+                data: segment_data(c, b),
+            })),
             1 => {
                 let expedited = c & cmd::EXPEDITED != 0;
                 let size_indicated = c & cmd::SIZE_INDICATED != 0;
                 let data: &'a [u8] = if expedited {
-                    let n = if size_indicated {
-                        4 - ((c >> 2) & 3) as usize
-                    } else {
-                        4
-                    };
-                    &b[field::DATA.start..field::DATA.start + n]
+                    expedited_data(c, b)
                 } else {
                     &b[field::NORMAL_DATA]
                 };
-                Ok(Request::InitiateDownload {
-                    index: f.index(),
-                    sub: f.sub(),
-                    complete_access: c & cmd::COMPLETE_ACCESS != 0,
+                Ok(Request::InitiateDownload(InitiateDownload {
+                    address: f.address(),
                     expedited,
                     size_indicated,
                     size: f.data_u32(),
                     data,
-                })
+                }))
             }
-            2 => Ok(Request::InitiateUpload {
-                index: f.index(),
-                sub: f.sub(),
-                complete_access: c & cmd::COMPLETE_ACCESS != 0,
-            }),
+            2 => Ok(Request::InitiateUpload(f.address())),
             3 => Ok(Request::UploadSegment {
                 toggle: c & cmd::TOGGLE != 0,
             }),
@@ -416,34 +439,19 @@ impl<'a> Response<'a> {
         let (index, sub) = (frame.index(), frame.sub());
         let ca = c & cmd::COMPLETE_ACCESS != 0;
         Ok(match c >> 5 {
-            0 => {
-                let seg: &'a [u8] = &b[field::SEGMENT_DATA];
-                let n = if seg.len() > 7 {
-                    seg.len()
-                } else {
-                    7 - ((c >> 1) & 7) as usize
-                };
-                Response::UploadSegment {
-                    toggle: c & cmd::TOGGLE != 0,
-                    last: c & cmd::LAST != 0,
-                    data: &seg[..n],
-                }
-            }
+            0 => Response::UploadSegment {
+                toggle: c & cmd::TOGGLE != 0,
+                last: c & cmd::LAST != 0,
+                data: segment_data(c, b),
+            },
             1 => Response::DownloadSegment {
                 toggle: c & cmd::TOGGLE != 0,
             },
-            2 if c & cmd::EXPEDITED != 0 => {
-                let n = if c & cmd::SIZE_INDICATED != 0 {
-                    4 - ((c >> 2) & 3) as usize
-                } else {
-                    4
-                };
-                Response::UploadExpedited {
-                    index,
-                    sub,
-                    data: &b[field::DATA.start..field::DATA.start + n],
-                }
-            }
+            2 if c & cmd::EXPEDITED != 0 => Response::UploadExpedited {
+                index,
+                sub,
+                data: expedited_data(c, b),
+            },
             2 => Response::Upload {
                 index,
                 sub,
@@ -506,7 +514,7 @@ impl<'a> Response<'a> {
                 let c = cmd::UPLOAD_RESPONSE
                     | cmd::EXPEDITED
                     | cmd::SIZE_INDICATED
-                    | (((4 - len) as u8 & 3) << 2);
+                    | ((u8::try_from(4 - len).unwrap_or(0) & 3) << 2);
                 (c, index, sub, d)
             }
             Response::Upload {
@@ -525,7 +533,7 @@ impl<'a> Response<'a> {
             Response::Abort { index, sub, code } => (cmd::ABORT, index, sub, code.to_le_bytes()),
             Response::UploadSegment { toggle, last, data } => {
                 // A segment has no index field: command and 7 or more data bytes.
-                let pad = (7 - data.len().min(7)) as u8;
+                let pad = u8::try_from(7 - data.len().min(7)).unwrap_or(0);
                 frame.set_command(flag(toggle, cmd::TOGGLE) | (pad << 1) | flag(last, cmd::LAST));
                 let (d, rest) = frame.segment_data_mut()[..n - 1].split_at_mut(data.len());
                 d.copy_from_slice(data);

@@ -1,0 +1,98 @@
+//! The dictionary the mailbox serves: the runtime's own communication objects
+//! (mapping, assignment, sync) in front of the application's dictionary.
+
+use super::*;
+
+/// The dictionary seen by the mailbox: the runtime's communication objects in front
+/// of the application's dictionary.
+pub struct CommDictionary<'a, A: Dictionary + ?Sized> {
+    /// Mapping and assignment.
+    pub pdo: &'a mut PdoConfig,
+    /// Sync objects and timing diagnostics.
+    pub sync: &'a mut SyncState,
+    /// Everything else.
+    pub app: &'a mut A,
+}
+
+impl<A: Dictionary + ?Sized> Dictionary for CommDictionary<'_, A> {
+    fn objects(&self) -> &'static [Object] {
+        self.app.objects()
+    }
+    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        if is_runtime_index(self.sync, index) {
+            self.runtime().read(index, sub, buf)
+        } else {
+            self.app.read(index, sub, buf)
+        }
+    }
+    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        if is_runtime_index(self.sync, index) {
+            self.runtime().write(index, sub, data, state)
+        } else {
+            let mut runtime = RuntimeObjects {
+                pdo: self.pdo,
+                sync: self.sync,
+                objects: self.app.objects(),
+            };
+            self.app
+                .write_with_runtime(index, sub, data, state, &mut runtime)
+        }
+    }
+}
+
+impl<A: Dictionary + ?Sized> CommDictionary<'_, A> {
+    /// The runtime's own objects, with the application's table for the mappability
+    /// rules.
+    fn runtime(&mut self) -> RuntimeObjects<'_> {
+        RuntimeObjects {
+            pdo: self.pdo,
+            sync: self.sync,
+            objects: self.app.objects(),
+        }
+    }
+}
+
+/// True for the indices the runtime serves itself (mapping, assignment, sync, timing
+/// diagnostics).
+fn is_runtime_index(sync: &SyncState, index: u16) -> bool {
+    pdo::is_pdo_index(index) || sync.serves(index)
+}
+
+/// The objects the runtime serves itself (mapping, assignment, sync parameters,
+/// timing diagnostics), as a dictionary of their own; every other index answers
+/// "object does not exist". Handed to [`Dictionary::write_with_runtime`] and, at
+/// power-up, to the parameter store ([`Slave::runtime_objects`]).
+pub struct RuntimeObjects<'a> {
+    /// Mapping and assignment.
+    pub pdo: &'a mut PdoConfig,
+    /// Sync objects and timing diagnostics.
+    pub sync: &'a mut SyncState,
+    /// The whole product table (for the mappability rules).
+    pub objects: &'static [Object],
+}
+
+impl Dictionary for RuntimeObjects<'_> {
+    fn objects(&self) -> &'static [Object] {
+        self.objects
+    }
+    #[inline(never)]
+    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        if pdo::is_pdo_index(index) {
+            self.pdo.read(index, sub, buf)
+        } else if self.sync.serves(index) {
+            self.sync.read(index, sub, buf)
+        } else {
+            Err(SdoAbort::ObjectDoesNotExist)
+        }
+    }
+    #[inline(never)]
+    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        if pdo::is_pdo_index(index) {
+            self.pdo.write(index, sub, data, state, self.objects)
+        } else if self.sync.serves(index) {
+            self.sync.write(index, sub, data, state)
+        } else {
+            Err(SdoAbort::ObjectDoesNotExist)
+        }
+    }
+}
