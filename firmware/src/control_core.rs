@@ -34,7 +34,7 @@ use crate::commutation::{CommutatedMotion, Commutation};
 use crate::current_supervisor::{CurrentSupervisor, SupervisorConfig};
 use crate::latch::{units_at_count, Edges, Seen};
 use crate::motion::{CurrentReference, Frame, MotionConfig};
-use crate::power_gate::{bridge_mode, BridgeMode, GateInputs};
+use crate::power_gate::{bridge_mode, BrakeOut, BridgeMode, GateInputs};
 use crate::sampling::{AnalogScale, RawSample};
 use crate::scope::ServoPoint;
 use foc::current_loop::{robust_bandwidth, AdcSample, CurrentLoop, CurrentLoopConfig, Sense};
@@ -76,6 +76,8 @@ pub trait ControlHw {
     fn disable_outputs(&mut self);
     /// Loads the compare registers.
     fn set_duties(&mut self, d: Duties);
+    /// Drives the brake output (true: released). Called only when the level changes.
+    fn set_brake_released(&mut self, released: bool);
     /// Hands the drive this servo period's point for the scope at the servo rate
     /// (only while the command asks for it, [`ControlCommand::trace`]; the board
     /// queues it in a [`crate::scope::PointRing`]). Without a scope: nothing.
@@ -154,6 +156,9 @@ pub struct ControlCore {
     bridges_on: bool,
     /// Power permission of the last command (read at the servo rate).
     permitted: bool,
+    /// The last command's brake decision and the brake output ([`BrakeOut`]).
+    brake_wanted: bool,
+    brake: BrakeOut,
     /// Encoder counter at the last update.
     raw: u32,
     index_seq: u32,
@@ -233,6 +238,8 @@ impl ControlCore {
             seen_config: 0,
             bridges_on: false,
             permitted: false,
+            brake_wanted: false,
+            brake: BrakeOut::default(),
             raw: raw_count,
             index_seq: 0,
             index_units: 0,
@@ -265,6 +272,7 @@ impl ControlCore {
             // hardware at once).
             let cmd = hw.command();
             self.permitted = cmd.as_ref().is_some_and(ControlCommand::permits_power);
+            self.brake_wanted = cmd.as_ref().is_some_and(|k| k.brake_released);
             if !self.permitted {
                 // The drive has withdrawn the power (it took the trip's fault): re-armed.
                 self.sup.rearm();
@@ -287,6 +295,25 @@ impl ControlCore {
             ib: s.ib,
             vbus: s.vbus,
         };
+        self.bridges(hw, mode, &adc);
+        // The brake follows the bridges in this very period: engaged as they go off
+        // (the power stage lost), released only with them on and the runtime's
+        // decision. The measurements report the bridges after this decision.
+        if let Some(released) = self.brake.update(self.brake_wanted, self.bridges_on) {
+            hw.set_brake_released(released);
+        }
+        if let Some(f) = feedback.as_mut() {
+            f.bridges_on = self.bridges_on;
+        }
+        feedback
+    }
+
+    /// The bridges for `mode` in this period: on, the current loop (or the tune) and
+    /// the duties unless the fast protection trips; off, zero volts and the
+    /// protection watching.
+    #[inline(always)]
+    fn bridges<H: ControlHw>(&mut self, hw: &mut H, mode: BridgeMode, adc: &AdcSample) {
+        let adc = *adc;
         if mode != BridgeMode::Off {
             if !self.bridges_on {
                 self.cl.reset();
@@ -342,7 +369,11 @@ impl ControlCore {
             self.cl.voltage_step(&adc, 0.0, 0.0);
             self.sup.protect(&self.cl);
         }
-        feedback
+    }
+
+    /// The brake output is released (as last written to [`ControlHw::set_brake_released`]).
+    pub fn brake_released(&self) -> bool {
+        self.brake.released()
     }
 
     /// The servo period: the command's news, the motion layer's step, the latches and
@@ -521,6 +552,9 @@ mod tests {
         enables: u32,
         duties: Option<Duties>,
         traced: Vec<ServoPoint>,
+        /// The brake pin (true: released) and how often it was written.
+        brake: bool,
+        brake_writes: u32,
     }
 
     impl ControlHw for ModelHw {
@@ -553,6 +587,10 @@ mod tests {
         }
         fn disable_outputs(&mut self) {
             self.on = false;
+        }
+        fn set_brake_released(&mut self, released: bool) {
+            self.brake = released;
+            self.brake_writes += 1;
         }
         fn set_duties(&mut self, d: Duties) {
             self.duties = Some(d);
@@ -604,6 +642,7 @@ mod tests {
             supervisor: sup,
             tune_allowed: false,
             trace: false,
+            brake_released: false,
         };
         (c, cmd)
     }
@@ -706,6 +745,66 @@ mod tests {
             run(&mut c, &mut hw, 200);
             assert!(!hw.on && !c.bridges_on(), "halted {halted} break {brk}");
         }
+    }
+
+    #[test]
+    fn the_brake_engages_in_the_period_the_bridges_go_off() {
+        type Loss = fn(&mut ModelHw, &ControlCommand);
+        let losses: [(&str, Loss); 4] = [
+            ("break latched", |hw, _| hw.break_latched = true),
+            ("halted", |hw, _| hw.halted = true),
+            ("permission withdrawn", |hw, cmd| {
+                hw.command = Some(ControlCommand {
+                    power_allowed: false,
+                    ..*cmd
+                })
+            }),
+            ("offsets lost", |hw, cmd| {
+                hw.command = Some(ControlCommand {
+                    offsets: None,
+                    ..*cmd
+                })
+            }),
+        ];
+        for (what, lose) in losses {
+            let (mut c, cmd) = core(Variant::OpenLoop);
+            let cmd = ControlCommand {
+                brake_released: true,
+                ..cmd
+            };
+            let mut hw = ModelHw {
+                command: Some(cmd),
+                ..ModelHw::default()
+            };
+            run(&mut c, &mut hw, 200);
+            assert!(hw.on && hw.brake && c.brake_released(), "{what}: released");
+            lose(&mut hw, &cmd);
+            // Period by period: the pin is never released with the bridges off, and
+            // the measurements of a period report its bridges.
+            let mut periods = 0;
+            while hw.on {
+                let fb = c.period(&mut hw, REST);
+                periods += 1;
+                assert_eq!(hw.brake, hw.on, "{what}: period {periods}");
+                assert!(fb.is_none_or(|f| f.bridges_on == hw.on), "{what}");
+                assert!(periods <= u32::from(SERVO_DIVIDER), "{what}: still on");
+            }
+            assert!(!hw.brake && !c.brake_released(), "{what}");
+            assert_eq!(hw.brake_writes, 2, "{what}: released once, engaged once");
+        }
+        // The runtime's decision alone engages it at the next servo period.
+        let (mut c, cmd) = core(Variant::OpenLoop);
+        let mut hw = ModelHw {
+            command: Some(ControlCommand {
+                brake_released: true,
+                ..cmd
+            }),
+            ..ModelHw::default()
+        };
+        run(&mut c, &mut hw, 200);
+        hw.command = Some(cmd);
+        run(&mut c, &mut hw, u32::from(SERVO_DIVIDER));
+        assert!(hw.on && !hw.brake, "engaged, the motor still holding");
     }
 
     #[test]

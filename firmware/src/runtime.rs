@@ -213,6 +213,7 @@ impl Runtime {
             supervisor: supervisor_config(&spec, drive),
             tune_allowed: false,
             trace: false,
+            brake_released: false,
         };
         Runtime {
             spec,
@@ -350,10 +351,14 @@ impl Runtime {
     ) {
         let hold = self.brake_hold(drive, ctl.break_latched());
         self.glue.set_hold(hold);
-        let c = *self.glue.publish(drive);
+        let mut c = *self.glue.publish(drive);
         if hold.is_some() || !c.permits_power() {
             self.engage_brake(drive);
         }
+        // The control path drives the pin from this decision, and engages it on its
+        // own in the period its bridges go off (`crate::power_gate::BrakeOut`).
+        self.glue.set_brake_released(self.pins.brake_released);
+        c.brake_released = self.pins.brake_released;
         ctl.send(&c);
     }
 
@@ -433,13 +438,6 @@ impl Runtime {
             self.configure(drive);
             ctl.parameters(&drive.params);
         }
-        self.after_step(drive, ctl);
-        if let Some(v) = esm {
-            self.esm = v;
-        }
-        self.status.update(self.esm.state, self.esm.err, now_ms);
-        let leds = drive.leds(now_ms);
-        let (run, err) = self.status.levels(now_ms);
         let (outputs, brake) = drive.outputs();
         // The brake releases only once the control path has reported its bridges on
         // for the release delay 0x2159 (the motor holds the load before the brake
@@ -458,9 +456,18 @@ impl Runtime {
             // The close delay 0x215A runs from here ([`Runtime::brake_hold`]).
             self.brake_engaged_at = Some(now_ms);
         }
+        self.pins.brake_released = released;
+        // The command carries the decision (and the brake-close hold).
+        self.after_step(drive, ctl);
+        if let Some(v) = esm {
+            self.esm = v;
+        }
+        self.status.update(self.esm.state, self.esm.err, now_ms);
+        let leds = drive.leds(now_ms);
+        let (run, err) = self.status.levels(now_ms);
         self.pins = Pins {
             outputs,
-            brake_released: released,
+            brake_released: self.pins.brake_released,
             green: leds.green,
             red: leds.red,
             run,

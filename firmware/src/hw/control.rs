@@ -168,6 +168,10 @@ impl ControlHw for BoardHw {
         pwm::disable_outputs();
     }
     #[inline(always)]
+    fn set_brake_released(&mut self, released: bool) {
+        crate::hw::io::set_brake_released(released);
+    }
+    #[inline(always)]
     fn set_duties(&mut self, d: Duties) {
         pwm::set_compare(d.a1, d.a2, d.b1, d.b2);
     }
