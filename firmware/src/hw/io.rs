@@ -146,9 +146,13 @@ impl<'d> Ports<'d> {
 /// driver keeps the pin configured as an output.
 #[inline(always)]
 pub fn set_brake_released(released: bool) {
-    pac::GPIOB
-        .bsrr()
-        .write(|w| if released { w.set_bs(9, true) } else { w.set_br(9, true) });
+    pac::GPIOB.bsrr().write(|w| {
+        if released {
+            w.set_bs(9, true)
+        } else {
+            w.set_br(9, true)
+        }
+    });
 }
 
 #[cfg(feature = "selftest")]

@@ -58,11 +58,13 @@
 //! * `Slave::poll` runs in **thread mode** (task `ecat`), `Slave::cycle` on the
 //!   **interrupt executor** (task `cyclic`, SYNC0; each SYNC0 is run once, by
 //!   whichever of the two sees it first, see `cyclic`). A 'save' (0x1010) arrives as an SDO
-//!   inside `poll`; the parameter store is `FlashStore<hw::flash::StagedFlash>`: the
-//!   record is serialised into a 2 KiB RAM image inside `poll` (the SDO answer reports
-//!   the serialisation's result) and the `ecat` task programs it into the flash *after*
-//!   releasing the lock ([`hw::flash::commit`]: erase, payload, header last — the
-//!   storage's power-loss order). So no flash erase ever runs under the lock and the
+//!   inside `poll`; the parameter store is `hw::flash::BoardStore`
+//!   (`firmware::staged_flash::StagedRecords`): inside `poll` the dictionary is only
+//!   read into a 2 KiB RAM stage (no flash access, no CRC; the SDO answer reports the
+//!   serialisation's result) and the `ecat` task writes the record *after* releasing
+//!   the lock ([`hw::flash::commit`]: the newest record looked up, the entries a partial
+//!   command keeps, the CRC, then erase, payload, header last — the storage's
+//!   power-loss order). So no flash erase ever runs under the lock and the
 //!   cyclic path keeps its timing during a save; a flash error at commit time is
 //!   logged and sent as an emergency (0x5530). The fault history's record
 //!   (`Drive::persist_history`, polled after `poll` when no 'save' record waits) goes

@@ -407,7 +407,10 @@ fn brake_released_only_after_the_bridges_are_on_for_the_delay() {
     for k in 0..100u64 {
         let pins = rt.tick(&mut d, &mut path, (200 + k) * 1000, 0, 0, None);
         // The control path drives the pin from the command: it carries the decision.
-        assert_eq!(path.sent.last().map(|c| c.brake_released), Some(pins.brake_released));
+        assert_eq!(
+            path.sent.last().map(|c| c.brake_released),
+            Some(pins.brake_released)
+        );
         if pins.brake_released && released_at.is_none() {
             released_at = Some(k);
         }
