@@ -43,6 +43,10 @@ pub struct Leds<'d> {
 pub struct Ports<'d> {
     in3_5: [Input<'d>; 3],
     outputs: [Output<'d>; 3],
+    /// Keeps PB9 configured as an output (low: engaged); the current-loop interrupt
+    /// writes it through the register ([`set_brake_released`]), the self-test reads
+    /// it back.
+    #[cfg_attr(not(feature = "selftest"), allow(dead_code))]
     brake: Output<'d>,
 }
 
