@@ -853,6 +853,9 @@ impl Storage {
     }
 }
 
+/// Where [`entries`] hands each entry (its head, its value).
+type EmitEntry<'a> = dyn FnMut(&[u8], &[u8]) -> Result<(), StorageError> + 'a;
+
 /// Every `saved` entry of `dict` inside `scope` (for mapping-like objects only the
 /// sub-indices inside the count: the rest may hold values the rules refuse) to `emit`
 /// as its entry head `index u16, sub u8, len u8` and value, counted in `report`;
@@ -861,7 +864,7 @@ fn entries<D: Dictionary + ?Sized>(
     dict: &mut D,
     scope: Scope,
     report: &mut SaveReport,
-    emit: &mut dyn FnMut(&[u8], &[u8]) -> Result<(), StorageError>,
+    emit: &mut EmitEntry<'_>,
 ) -> Result<(), StorageError> {
     let mut value = [0u8; MAX_VALUE_LEN];
     for obj in dict.objects().iter().filter(|o| scope.contains(o.index)) {
