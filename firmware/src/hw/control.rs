@@ -43,6 +43,12 @@
 //! withdrawn the permission), and the motion layer wants current
 //! (`CurrentReference::power`).
 //!
+//! The brake pin (PB9) is this interrupt's alone (`firmware::power_gate::BrakeOut`,
+//! [`BoardHw`] writes the register): released only while the command carries the
+//! runtime's decision ([`ControlCommand::brake_released`]) and the bridges are on,
+//! engaged in the PWM period in which the bridges go off — a lost power stage never
+//! waits for the 1 ms tick.
+//!
 //! What the drive side does with [`Feedback`] and how it builds [`ControlCommand`]
 //! (index and probe latches pending until a drive step, probe polarity, alignment
 //! failures → fault, power permission) is the library's `firmware::board_glue`.
