@@ -59,6 +59,10 @@ pub trait ControlPath {
     fn feedback(&mut self) -> Option<(u32, Feedback)>;
     /// The power stage's over-current (break) latch is set.
     fn break_latched(&self) -> bool;
+    /// The bridges are on now, as the control path last switched them (between its
+    /// published measurements: a trip in the middle of a servo period shows here at
+    /// once).
+    fn bridges_on_now(&self) -> bool;
     /// Publishes a command to the control path.
     fn send(&mut self, command: &ControlCommand);
     /// Tries to re-arm the break after an over-current; true when it is re-armed.
@@ -329,11 +333,17 @@ impl Runtime {
                 self.engage_brake(drive);
             }
         }
+        if !ctl.bridges_on_now() {
+            // Switched off since its last measurements (a fast-protection trip).
+            self.bridges_on = false;
+            self.engage_brake(drive);
+        }
     }
 
-    /// The brake output engages now, between ticks (0x2157 with it; the board's pin
-    /// follows at its next tick): the power stage is lost or the drive has stopped
-    /// holding the motor.
+    /// The brake decision engages now, between ticks (0x2157 with it; the next command
+    /// carries it to the control path, which engages the pin itself as soon as its
+    /// bridges go off): the power stage is lost or the drive has stopped holding the
+    /// motor.
     fn engage_brake<S: ParameterStore>(&mut self, drive: &mut Drive<S>) {
         if self.pins.brake_released {
             self.pins.brake_released = false;
@@ -443,7 +453,8 @@ impl Runtime {
         // for the release delay 0x2159 (the motor holds the load before the brake
         // lets go), never while the power stage is latched off.
         let latched = ctl.break_latched();
-        let on_since = match (self.bridges_on && !latched, self.bridges_on_since) {
+        let on = self.bridges_on && ctl.bridges_on_now() && !latched;
+        let on_since = match (on, self.bridges_on_since) {
             (true, Some(t)) => Some(t),
             (true, None) => Some(now_ms),
             (false, _) => None,

@@ -272,6 +272,9 @@ impl ControlPath for SimPath<'_> {
     fn break_latched(&self) -> bool {
         self.st.tripped
     }
+    fn bridges_on_now(&self) -> bool {
+        self.st.powered && !self.st.tripped
+    }
     fn send(&mut self, c: &ControlCommand) {
         self.st.tune_allowed = c.tune_allowed;
         self.st.powered = c.permits_power() && c.command.power_stage;

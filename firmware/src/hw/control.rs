@@ -195,6 +195,9 @@ unsafe impl Sync for IsrOwned {}
 /// initialised image of the whole state in flash).
 static CONTROL: IsrOwned = IsrOwned(UnsafeCell::new(MaybeUninit::uninit()));
 static READY: AtomicBool = AtomicBool::new(false);
+/// Interrupt → runtime: the bridges as this PWM period left them
+/// (`firmware::runtime::ControlPath::bridges_on_now`).
+static BRIDGES_ON: AtomicBool = AtomicBool::new(false);
 
 /// Builds the control state. Call once, before the current-loop interrupt is
 /// enabled. `motor`: the current loop's motor constants (until an auto-tune
@@ -260,6 +263,7 @@ pub fn on_sample(s: RawSample) {
         // SAFETY: this interrupt is the one writer of FEEDBACK.
         unsafe { FEEDBACK.write(fb) };
     }
+    BRIDGES_ON.store(c.bridges_on(), Ordering::Release);
 }
 
 /// The current-loop interrupt and the break latch as the runtime reaches them
@@ -272,6 +276,9 @@ impl firmware::runtime::ControlPath for BoardPath {
     }
     fn break_latched(&self) -> bool {
         crate::hw::pwm::break_latched() != 0
+    }
+    fn bridges_on_now(&self) -> bool {
+        BRIDGES_ON.load(Ordering::Acquire)
     }
     fn send(&mut self, command: &ControlCommand) {
         send_command(command);
