@@ -72,6 +72,10 @@ pub struct ControlCommand {
     /// The scope records at the servo rate ([`Drive::scope_wants_servo_points`]): hand
     /// over a [`crate::scope::ServoPoint`] every servo period.
     pub trace: bool,
+    /// The runtime's brake decision (0x2157 bit 8, [`BoardGlue::set_brake_released`]):
+    /// the control path releases the pin only with it and its bridges on, and engages
+    /// it in the period its bridges go off (`crate::power_gate::BrakeOut`).
+    pub brake_released: bool,
 }
 
 impl ControlCommand {
@@ -228,6 +232,12 @@ impl BoardGlue {
     /// auto-tune.
     pub fn set_hold(&mut self, hold: Option<DriveCommand>) {
         self.hold = hold;
+    }
+
+    /// The runtime's brake decision, carried by every command from now on
+    /// ([`ControlCommand::brake_released`]).
+    pub fn set_brake_released(&mut self, released: bool) {
+        self.ctl.brake_released = released;
     }
 
     /// The command for the control path after the drive may have stepped: a new

@@ -110,3 +110,32 @@ pub const fn bridge_mode(i: GateInputs) -> BridgeMode {
         BridgeMode::Off
     }
 }
+
+/// The brake output as the current-loop interrupt drives it: released only while
+/// the runtime's decision ([`crate::board_glue::ControlCommand::brake_released`]: the
+/// bridges reported on for the release delay, no brake-close sequence, 0x60FE) says so
+/// *and* the bridges are on in this period; engaged in the very period the bridges
+/// go off (break latched, fast protection, a withdrawn permission, halted), without
+/// waiting for the 1 ms tick. One writer of the pin: the control path.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct BrakeOut {
+    released: bool,
+}
+
+impl BrakeOut {
+    /// The level for this period from the runtime's `decision` and whether the bridges
+    /// are on after this period's bridge decision; `Some(released)` when the pin must
+    /// change.
+    pub fn update(&mut self, decision: bool, bridges_on: bool) -> Option<bool> {
+        let released = decision && bridges_on;
+        (released != self.released).then(|| {
+            self.released = released;
+            released
+        })
+    }
+
+    /// The level last written (true: released).
+    pub fn released(&self) -> bool {
+        self.released
+    }
+}

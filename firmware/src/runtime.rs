@@ -59,6 +59,10 @@ pub trait ControlPath {
     fn feedback(&mut self) -> Option<(u32, Feedback)>;
     /// The power stage's over-current (break) latch is set.
     fn break_latched(&self) -> bool;
+    /// The bridges are on now, as the control path last switched them (between its
+    /// published measurements: a trip in the middle of a servo period shows here at
+    /// once).
+    fn bridges_on_now(&self) -> bool;
     /// Publishes a command to the control path.
     fn send(&mut self, command: &ControlCommand);
     /// Tries to re-arm the break after an over-current; true when it is re-armed.
@@ -213,6 +217,7 @@ impl Runtime {
             supervisor: supervisor_config(&spec, drive),
             tune_allowed: false,
             trace: false,
+            brake_released: false,
         };
         Runtime {
             spec,
@@ -328,11 +333,17 @@ impl Runtime {
                 self.engage_brake(drive);
             }
         }
+        if !ctl.bridges_on_now() {
+            // Switched off since its last measurements (a fast-protection trip).
+            self.bridges_on = false;
+            self.engage_brake(drive);
+        }
     }
 
-    /// The brake output engages now, between ticks (0x2157 with it; the board's pin
-    /// follows at its next tick): the power stage is lost or the drive has stopped
-    /// holding the motor.
+    /// The brake decision engages now, between ticks (0x2157 with it; the next command
+    /// carries it to the control path, which engages the pin itself as soon as its
+    /// bridges go off): the power stage is lost or the drive has stopped holding the
+    /// motor.
     fn engage_brake<S: ParameterStore>(&mut self, drive: &mut Drive<S>) {
         if self.pins.brake_released {
             self.pins.brake_released = false;
@@ -350,10 +361,14 @@ impl Runtime {
     ) {
         let hold = self.brake_hold(drive, ctl.break_latched());
         self.glue.set_hold(hold);
-        let c = *self.glue.publish(drive);
+        let mut c = *self.glue.publish(drive);
         if hold.is_some() || !c.permits_power() {
             self.engage_brake(drive);
         }
+        // The control path drives the pin from this decision, and engages it on its
+        // own in the period its bridges go off (`crate::power_gate::BrakeOut`).
+        self.glue.set_brake_released(self.pins.brake_released);
+        c.brake_released = self.pins.brake_released;
         ctl.send(&c);
     }
 
@@ -433,19 +448,13 @@ impl Runtime {
             self.configure(drive);
             ctl.parameters(&drive.params);
         }
-        self.after_step(drive, ctl);
-        if let Some(v) = esm {
-            self.esm = v;
-        }
-        self.status.update(self.esm.state, self.esm.err, now_ms);
-        let leds = drive.leds(now_ms);
-        let (run, err) = self.status.levels(now_ms);
         let (outputs, brake) = drive.outputs();
         // The brake releases only once the control path has reported its bridges on
         // for the release delay 0x2159 (the motor holds the load before the brake
         // lets go), never while the power stage is latched off.
         let latched = ctl.break_latched();
-        let on_since = match (self.bridges_on && !latched, self.bridges_on_since) {
+        let on = self.bridges_on && ctl.bridges_on_now() && !latched;
+        let on_since = match (on, self.bridges_on_since) {
             (true, Some(t)) => Some(t),
             (true, None) => Some(now_ms),
             (false, _) => None,
@@ -458,9 +467,18 @@ impl Runtime {
             // The close delay 0x215A runs from here ([`Runtime::brake_hold`]).
             self.brake_engaged_at = Some(now_ms);
         }
+        self.pins.brake_released = released;
+        // The command carries the decision (and the brake-close hold).
+        self.after_step(drive, ctl);
+        if let Some(v) = esm {
+            self.esm = v;
+        }
+        self.status.update(self.esm.state, self.esm.err, now_ms);
+        let leds = drive.leds(now_ms);
+        let (run, err) = self.status.levels(now_ms);
         self.pins = Pins {
             outputs,
-            brake_released: released,
+            brake_released: self.pins.brake_released,
             green: leds.green,
             red: leds.red,
             run,

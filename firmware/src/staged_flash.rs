@@ -9,12 +9,24 @@
 //! of milliseconds; staging keeps only the serialisation under the lock and moves
 //! the erase/program out of it.
 //!
+//! The board's store, [`StagedRecords`], goes further: under the lock a 'save' only
+//! reads the dictionary into the stage ([`Storage::serialise`]: no flash read, no
+//! CRC); finding the newest record (its headers and its payload's CRC), keeping its
+//! entries outside a partial command's scope, the CRC, the header, the erase and the
+//! programming all run in [`commit_staged`], after the lock is released. A fault
+//! history record is staged the same way (its payload copied).
+//!
 //! Geometry: write unit [`WRITE_UNIT`] bytes (double word, STM32G4), erase unit
 //! `ERASE` bytes (a const parameter), image of `N` bytes from the start of the erased
 //! range (a record that does not fit is refused, never truncated).
 use embedded_storage::nor_flash::{
     ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
+
+use crate::comm::StoreCommand;
+use crate::drive::ParameterStore;
+use crate::storage::{LoadReport, SaveReport, Scope, Storage, StorageError};
+use ecat_slave_stack::od::Dictionary;
 
 /// Program granularity handled by [`StagedFlash`] (and [`commit`]).
 pub const WRITE_UNIT: usize = 8;
@@ -48,6 +60,9 @@ pub struct Stage<const N: usize> {
     erase: Option<(u32, u32)>,
     /// Bytes of the image written (from `erase.0`).
     written: usize,
+    /// Instead of an image: a record's serialised payload (`bytes[..len]`), the
+    /// records it goes to and the command's scope ([`StagedFlash::stage_record`]).
+    record: Option<(Storage, Scope, usize)>,
     bytes: [u8; N],
 }
 
@@ -58,6 +73,7 @@ impl<const N: usize> Stage<N> {
         Stage {
             erase: None,
             written: 0,
+            record: None,
             bytes: [0; N],
         }
     }
@@ -108,7 +124,26 @@ impl<'a, R: ReadNorFlash, const N: usize, const ERASE: usize> StagedFlash<'a, R,
     pub fn give_back(&mut self, stage: &'a mut Stage<N>) {
         stage.erase = None;
         stage.written = 0;
+        stage.record = None;
         self.stage = Some(stage);
+    }
+
+    /// Stages a record of `storage` for [`commit_staged`]: `fill` writes its payload
+    /// into the stage and returns the length (no flash access). Refused like a write
+    /// while storage is off or a staged record waits.
+    pub fn stage_record(
+        &mut self,
+        storage: Storage,
+        scope: Scope,
+        fill: impl FnOnce(&mut [u8]) -> Result<usize, StorageError>,
+    ) -> Result<(), StorageError> {
+        let st = self.writable().map_err(crate::storage::flash_error)?;
+        let len = fill(&mut st.bytes)?;
+        st.erase = None;
+        st.written = 0;
+        st.record = Some((storage, scope, len.min(N)));
+        self.ready = true;
+        Ok(())
     }
 
     fn span(&self, offset: u32, len: usize) -> Result<(), StageError> {
@@ -247,4 +282,234 @@ pub fn commit<F: NorFlash, const N: usize>(
         flash.write(from, &st.bytes[..commit])?;
     }
     Ok(())
+}
+
+/// Programs a staged record: a serialised payload ([`StagedFlash::stage_record`]) is
+/// written by [`Storage::write_serialised`] (the newest record looked up, the CRC and
+/// the header computed here, outside the drive's lock); an image by [`commit`].
+pub fn commit_staged<F: NorFlash, const N: usize>(
+    flash: &mut F,
+    st: &Stage<N>,
+) -> Result<(), StorageError> {
+    match st.record {
+        Some((storage, scope, len)) => storage
+            .write_serialised(flash, &st.bytes[..len.min(N)], scope)
+            .map(|_| ()),
+        None => commit(flash, st, crate::storage::HEADER_LEN).map_err(crate::storage::flash_error),
+    }
+}
+
+/// The board's parameter store: the parameter and fault-history records of
+/// [`Storage`] over a [`StagedFlash`], whose 'save', 'load' (restore) and history
+/// writes only stage the payload ([`StagedFlash::stage_record`]; see the module docs).
+/// Reads (the power-up load, the history) go to the flash as in
+/// `crate::drive::FlashStore`.
+pub struct StagedRecords<'a, R, const N: usize, const E: usize> {
+    /// Layout of the two parameter records.
+    pub storage: Storage,
+    /// Layout of the two fault-history records (`None`: RAM only).
+    pub history: Option<Storage>,
+    /// The staged view of the record region.
+    pub flash: StagedFlash<'a, R, N, E>,
+}
+
+impl<R: ReadNorFlash, const N: usize, const E: usize> ParameterStore
+    for StagedRecords<'_, R, N, E>
+{
+    fn execute(
+        &mut self,
+        cmd: StoreCommand,
+        dict: &mut dyn Dictionary,
+    ) -> Result<SaveReport, StorageError> {
+        let (scope, dict) = match cmd {
+            StoreCommand::Save(scope) => (scope, Some(dict)),
+            StoreCommand::RestoreDefaults(scope) => (scope, None),
+        };
+        let storage = self.storage;
+        let mut report = None;
+        self.flash.stage_record(storage, scope, |out| {
+            let r = storage.serialise(dict, scope, out)?;
+            report = Some(r);
+            Ok(r.payload_len as usize)
+        })?;
+        report.ok_or(StorageError::Geometry)
+    }
+    fn load(&mut self, dict: &mut dyn Dictionary) -> LoadReport {
+        self.storage.load(&mut self.flash, dict)
+    }
+    fn load_history(&mut self, out: &mut [u8]) -> Option<usize> {
+        self.history?.read_newest(&mut self.flash, out)
+    }
+    fn write_history(&mut self, payload: &[u8]) -> Result<bool, StorageError> {
+        let Some(h) = self.history else {
+            return Ok(false);
+        };
+        self.flash.stage_record(h, Scope::All, |out| {
+            out.get_mut(..payload.len())
+                .ok_or(StorageError::RecordTooLarge)?
+                .copy_from_slice(payload);
+            Ok(payload.len())
+        })?;
+        Ok(true)
+    }
+}
+
+impl<'a, R: ReadNorFlash, const N: usize, const E: usize> crate::drive::StagedStore<'a, R, N, E>
+    for StagedRecords<'a, R, N, E>
+{
+    fn staged(&mut self) -> &mut StagedFlash<'a, R, N, E> {
+        &mut self.flash
+    }
+}
+
+/// A flash whose reads go through `read` and whose erases and writes go to `flash`:
+/// on the board, [`commit_staged`] reads the records through the ECC-checked view
+/// (`crate::storage::ecc`) and programs the region's driver.
+pub struct ReadVia<R, F> {
+    /// The reader.
+    pub read: R,
+    /// The programmer (its geometry is the flash's).
+    pub flash: F,
+}
+
+/// An error of [`ReadVia`]: the kind of the reader's or the programmer's error.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ViaError(pub NorFlashErrorKind);
+
+impl NorFlashError for ViaError {
+    fn kind(&self) -> NorFlashErrorKind {
+        self.0
+    }
+}
+
+impl<R, F> ErrorType for ReadVia<R, F> {
+    type Error = ViaError;
+}
+
+impl<R: ReadNorFlash, F: NorFlash> ReadNorFlash for ReadVia<R, F> {
+    const READ_SIZE: usize = R::READ_SIZE;
+
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), ViaError> {
+        self.read
+            .read(offset, bytes)
+            .map_err(|e| ViaError(e.kind()))
+    }
+
+    fn capacity(&self) -> usize {
+        self.flash.capacity()
+    }
+}
+
+impl<R: ReadNorFlash, F: NorFlash> NorFlash for ReadVia<R, F> {
+    const WRITE_SIZE: usize = F::WRITE_SIZE;
+    const ERASE_SIZE: usize = F::ERASE_SIZE;
+
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), ViaError> {
+        self.flash.erase(from, to).map_err(|e| ViaError(e.kind()))
+    }
+
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), ViaError> {
+        self.flash
+            .write(offset, bytes)
+            .map_err(|e| ViaError(e.kind()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::drive::Drive;
+    use crate::identity::Variant;
+    use crate::storage::{region, RamFlash};
+    use ecat_slave_stack::esm::EsmState;
+
+    type Ram = RamFlash<{ region::SIZE as usize }>;
+    type Records<'a, 'r> = StagedRecords<'a, &'r mut Ram, 4096, 2048>;
+
+    fn read_u32(d: &mut Drive, index: u16) -> u32 {
+        let mut b = [0u8; 4];
+        let n = d.read(index, 0, &mut b).unwrap();
+        u32::from_le_bytes(b) & (u32::MAX >> (32 - 8 * n))
+    }
+
+    fn set(d: &mut Drive, index: u16, v: &[u8]) {
+        d.write(index, 0, v, EsmState::PreOp).unwrap();
+    }
+
+    /// Stages `cmd` through the board's store ("under the lock") and returns the flash
+    /// reads and byte operations it did, then writes the record ("after the lock").
+    fn stage_then_commit(ram: &mut Ram, d: &mut Drive, cmd: StoreCommand) -> (usize, usize) {
+        let mut stage = Stage::<4096>::new();
+        let (reads, ops) = (ram.reads, ram.ops);
+        let staged = {
+            let mut store: Records = StagedRecords {
+                storage: region::PARAMS,
+                history: Some(region::HISTORY),
+                flash: StagedFlash::new(&mut *ram, &mut stage, true),
+            };
+            store.execute(cmd, d).unwrap();
+            // A second command while one waits is refused; nothing is lost.
+            assert!(store.execute(cmd, d).is_err());
+            store.flash.take_ready().expect("staged")
+        };
+        let done = (ram.reads - reads, ram.ops - ops);
+        commit_staged(ram, staged).unwrap();
+        // The erase and the programming happen here.
+        assert!(ram.ops > ops + done.1);
+        done
+    }
+
+    #[test]
+    fn a_staged_save_only_reads_the_dictionary_under_the_lock() {
+        let mut ram = Ram::new();
+        let mut d = Drive::new(Variant::HybridServo, 7);
+        set(&mut d, 0x2000, &3100u16.to_le_bytes());
+        set(&mut d, 0x6065, &7000u32.to_le_bytes());
+        // Under the lock: no flash read (no header, no CRC check of the newest record),
+        // no erase, no write — on a blank flash and over an existing record.
+        assert_eq!(
+            stage_then_commit(&mut ram, &mut d, StoreCommand::Save(Scope::All)),
+            (0, 0)
+        );
+        set(&mut d, 0x2000, &2500u16.to_le_bytes());
+        set(&mut d, 0x6065, &9000u32.to_le_bytes());
+        let app = StoreCommand::Save(Scope::Application);
+        assert_eq!(stage_then_commit(&mut ram, &mut d, app), (0, 0));
+        // The record written after the lock: the application scope new, the entries
+        // outside it kept from the previous record.
+        let mut fresh = Drive::new(Variant::HybridServo, 7);
+        let rep = region::PARAMS.load(&mut ram, &mut fresh);
+        assert_eq!(rep.source.map(|(_, seq)| seq), Some(2));
+        assert_eq!(read_u32(&mut fresh, 0x6065), 9000);
+        assert_eq!(read_u32(&mut fresh, 0x2000), 3100);
+        // Restoring the defaults stages nothing from the flash either.
+        let restore = StoreCommand::RestoreDefaults(Scope::All);
+        assert_eq!(stage_then_commit(&mut ram, &mut d, restore), (0, 0));
+        let mut fresh = Drive::new(Variant::HybridServo, 7);
+        region::PARAMS.load(&mut ram, &mut fresh);
+        assert_eq!(
+            read_u32(&mut fresh, 0x2000),
+            read_u32(&mut Drive::new(Variant::HybridServo, 7), 0x2000)
+        );
+    }
+
+    #[test]
+    fn a_staged_history_record_is_written_after_the_lock() {
+        let mut ram = Ram::new();
+        let mut stage = Stage::<4096>::new();
+        let staged = {
+            let mut store: Records = StagedRecords {
+                storage: region::PARAMS,
+                history: Some(region::HISTORY),
+                flash: StagedFlash::new(&mut ram, &mut stage, true),
+            };
+            assert_eq!(store.write_history(&[5; 100]), Ok(true));
+            store.flash.take_ready().expect("staged")
+        };
+        assert_eq!((ram.reads, ram.ops), (0, 0));
+        commit_staged(&mut ram, staged).unwrap();
+        let mut out = [0u8; 200];
+        assert_eq!(region::HISTORY.read_newest(&mut ram, &mut out), Some(100));
+        assert_eq!(out[..100], [5; 100]);
+    }
 }

@@ -139,7 +139,7 @@ impl StorageError {
 }
 
 /// The storage error of a flash driver error (its kind).
-fn flash_error<E: NorFlashError>(e: E) -> StorageError {
+pub(crate) fn flash_error<E: NorFlashError>(e: E) -> StorageError {
     StorageError::Flash(e.kind())
 }
 
@@ -652,6 +652,85 @@ impl Storage {
         scope: Scope,
     ) -> Result<SaveReport, StorageError> {
         let (mut w, target, sequence, best) = self.begin(flash)?;
+        let mut report = self.keep_outside(flash, &mut w, target, sequence, best, scope)?;
+        if let Some(dict) = dict {
+            entries(dict, scope, &mut report, &mut |head, value| {
+                w.push(flash, head)?;
+                w.push(flash, value)
+            })?;
+        }
+        report.payload_len = self.finish(flash, w, target, sequence)?;
+        Ok(report)
+    }
+
+    /// The dictionary part of a 'save' / 'load' command serialised into `out` with no
+    /// flash access, no CRC and no look at the existing records (what a staged save
+    /// does under the drive's lock, `crate::staged_flash::StagedRecords`): the entries
+    /// of `dict` inside `scope` (none for a restore, `dict` = `None`). The record is
+    /// written later by [`Storage::write_serialised`]. Returns the report with the
+    /// payload length so far (slot and sequence are decided when it is written).
+    pub fn serialise<D: Dictionary + ?Sized>(
+        &self,
+        dict: Option<&mut D>,
+        scope: Scope,
+        out: &mut [u8],
+    ) -> Result<SaveReport, StorageError> {
+        let limit = out
+            .len()
+            .min((self.slot_size as usize).saturating_sub(HEADER_LEN));
+        let mut report = SaveReport {
+            slot: 0,
+            sequence: 0,
+            entries: 0,
+            unreadable: 0,
+            payload_len: 0,
+        };
+        let mut at = 0usize;
+        if let Some(dict) = dict {
+            entries(dict, scope, &mut report, &mut |head, value| {
+                for part in [head, value] {
+                    let end = at + part.len();
+                    out.get_mut(at..end)
+                        .filter(|_| end <= limit)
+                        .ok_or(StorageError::RecordTooLarge)?
+                        .copy_from_slice(part);
+                    at = end;
+                }
+                Ok(())
+            })?;
+        }
+        report.payload_len = at as u32;
+        Ok(report)
+    }
+
+    /// Writes a record whose dictionary part [`Storage::serialise`] produced
+    /// (`payload`), with the power-loss order of [`Storage::save`]: the newest record
+    /// found (header, then its payload's CRC), its entries outside `scope` kept first
+    /// (a partial command), then `payload`, the CRC and the header last.
+    pub fn write_serialised<F: NorFlash>(
+        &self,
+        flash: &mut F,
+        payload: &[u8],
+        scope: Scope,
+    ) -> Result<SaveReport, StorageError> {
+        let (mut w, target, sequence, best) = self.begin(flash)?;
+        let mut report = self.keep_outside(flash, &mut w, target, sequence, best, scope)?;
+        w.push(flash, payload)?;
+        report.payload_len = self.finish(flash, w, target, sequence)?;
+        Ok(report)
+    }
+
+    /// A new record's report, with the entries of the previous record (`best`) outside
+    /// `scope` pushed to `w` first: they survive a partial command.
+    fn keep_outside<F: NorFlash>(
+        &self,
+        flash: &mut F,
+        w: &mut Writer,
+        target: usize,
+        sequence: u32,
+        best: Option<Newest>,
+        scope: Scope,
+    ) -> Result<SaveReport, StorageError> {
         let mut report = SaveReport {
             slot: target,
             sequence,
@@ -659,7 +738,6 @@ impl Storage {
             unreadable: 0,
             payload_len: 0,
         };
-        // Entries of the previous record outside the scope survive a partial command.
         if let (Some((old, _, len)), true) = (best, scope != Scope::All) {
             let old_end = self.slot_address(old) + self.slot_size;
             let mut rd = Reader::new(self.slot_address(old) + HEADER_LEN as u32, len);
@@ -680,38 +758,6 @@ impl Storage {
                 }
             }
         }
-        if let Some(dict) = dict {
-            let objects = dict.objects();
-            let mut value = [0u8; MAX_VALUE_LEN];
-            for obj in objects.iter().filter(|o| scope.contains(o.index)) {
-                // Mapping-like objects: only the sub-indices inside the count are part
-                // of the configuration (the rest may hold values the rules refuse).
-                let limit = if has_count_first(obj) {
-                    match dict.read(obj.index, 0, &mut value) {
-                        Ok(1) => Some(value[0]),
-                        _ => None,
-                    }
-                } else {
-                    None
-                };
-                for e in obj
-                    .entries()
-                    .iter()
-                    .filter(|e| e.is_saved() && limit.is_none_or(|n| e.sub <= n))
-                {
-                    match dict.read(obj.index, e.sub, &mut value) {
-                        Ok(n) if n <= MAX_VALUE_LEN => {
-                            let i = obj.index.to_le_bytes();
-                            w.push(flash, &[i[0], i[1], e.sub, n as u8])?;
-                            w.push(flash, &value[..n])?;
-                            report.entries += 1;
-                        }
-                        _ => report.unreadable += 1,
-                    }
-                }
-            }
-        }
-        report.payload_len = self.finish(flash, w, target, sequence)?;
         Ok(report)
     }
 
@@ -788,16 +834,7 @@ impl Storage {
         flash: &mut F,
         payload: &[u8],
     ) -> Result<SaveReport, StorageError> {
-        let (mut w, target, sequence, _) = self.begin(flash)?;
-        w.push(flash, payload)?;
-        let payload_len = self.finish(flash, w, target, sequence)?;
-        Ok(SaveReport {
-            slot: target,
-            sequence,
-            entries: 0,
-            unreadable: 0,
-            payload_len,
-        })
+        self.write_serialised(flash, payload, Scope::All)
     }
 
     /// The payload of the newest valid record, copied into `out`: its length, or
@@ -814,6 +851,47 @@ impl Storage {
             _ => None,
         }
     }
+}
+
+/// Where [`entries`] hands each entry (its head, its value).
+type EmitEntry<'a> = dyn FnMut(&[u8], &[u8]) -> Result<(), StorageError> + 'a;
+
+/// Every `saved` entry of `dict` inside `scope` (for mapping-like objects only the
+/// sub-indices inside the count: the rest may hold values the rules refuse) to `emit`
+/// as its entry head `index u16, sub u8, len u8` and value, counted in `report`;
+/// unreadable ones are left out and counted.
+fn entries<D: Dictionary + ?Sized>(
+    dict: &mut D,
+    scope: Scope,
+    report: &mut SaveReport,
+    emit: &mut EmitEntry<'_>,
+) -> Result<(), StorageError> {
+    let mut value = [0u8; MAX_VALUE_LEN];
+    for obj in dict.objects().iter().filter(|o| scope.contains(o.index)) {
+        let limit = if has_count_first(obj) {
+            match dict.read(obj.index, 0, &mut value) {
+                Ok(1) => Some(value[0]),
+                _ => None,
+            }
+        } else {
+            None
+        };
+        for e in obj
+            .entries()
+            .iter()
+            .filter(|e| e.is_saved() && limit.is_none_or(|n| e.sub <= n))
+        {
+            match dict.read(obj.index, e.sub, &mut value) {
+                Ok(n) if n <= MAX_VALUE_LEN => {
+                    let i = obj.index.to_le_bytes();
+                    emit(&[i[0], i[1], e.sub, n as u8], &value[..n])?;
+                    report.entries += 1;
+                }
+                _ => report.unreadable += 1,
+            }
+        }
+    }
+    Ok(())
 }
 
 /// True when `index` is an object whose saved, writable sub-index 0 must be written 0

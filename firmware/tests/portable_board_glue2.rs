@@ -44,6 +44,7 @@ fn start_command(d: &Drive) -> ControlCommand {
         supervisor: SupervisorConfig::from_params(&d.params, 25e-6, 2125),
         tune_allowed: false,
         trace: false,
+        brake_released: false,
     }
 }
 

@@ -221,6 +221,19 @@ struct PathState {
     tripped: bool,
     /// The last command switches the model's bridges on.
     powered: bool,
+    /// The last command's brake decision and the brake pin, driven as the board's
+    /// current-loop interrupt drives it (`firmware::power_gate::BrakeOut`).
+    brake_wanted: bool,
+    brake: firmware::power_gate::BrakeOut,
+}
+
+impl PathState {
+    /// The model's bridges are on; the brake pin follows them at once.
+    fn bridges(&mut self) -> bool {
+        let on = self.powered && !self.tripped;
+        self.brake.update(self.brake_wanted, on);
+        on
+    }
 }
 
 /// The axis as the runtime's [`ControlPath`] (what `hw::control::BoardPath` is on
@@ -239,6 +252,7 @@ impl ControlPath for SimPath<'_> {
             st.index_units = u;
         }
         st.tripped = axis.overcurrent_trip;
+        let bridges_on = st.bridges();
         let current = self.axis.current_control(st.tune_allowed);
         st.fb_seq = st.fb_seq.wrapping_add(1).max(1);
         Some((
@@ -250,7 +264,7 @@ impl ControlPath for SimPath<'_> {
                 align_failures: self.axis.commutation_failures(),
                 current,
                 // The model's bridges follow the command at once.
-                bridges_on: st.powered && !st.tripped,
+                bridges_on,
                 ..Feedback::default()
             },
         ))
@@ -258,9 +272,14 @@ impl ControlPath for SimPath<'_> {
     fn break_latched(&self) -> bool {
         self.st.tripped
     }
+    fn bridges_on_now(&self) -> bool {
+        self.st.powered && !self.st.tripped
+    }
     fn send(&mut self, c: &ControlCommand) {
         self.st.tune_allowed = c.tune_allowed;
         self.st.powered = c.permits_power() && c.command.power_stage;
+        self.st.brake_wanted = c.brake_released;
+        self.st.bridges();
         if c.cycle != self.st.seen_cycle {
             self.st.seen_cycle = c.cycle;
             self.axis.command(&c.command, f64::from(c.cycle_s));
@@ -270,6 +289,7 @@ impl ControlPath for SimPath<'_> {
         // The model's trip is its condition: re-armed once the model no longer
         // reports it.
         self.st.tripped = self.axis.state().overcurrent_trip;
+        self.st.bridges();
         !self.st.tripped
     }
     fn drain_trace(&mut self, wanted: bool, sink: &mut dyn FnMut(&firmware::scope::ServoPoint)) {
@@ -384,9 +404,13 @@ impl SimDrive {
         self.esm = Some(esm);
     }
 
-    /// The levels the last tick drove (outputs, brake, LEDs): the board's pins.
+    /// The board's pins: the levels the last tick drove (outputs, LEDs) and the brake
+    /// pin as the control path drives it.
     pub fn pins(&self) -> firmware::runtime::Pins {
-        self.rt.pins()
+        firmware::runtime::Pins {
+            brake_released: self.path.brake.released(),
+            ..self.rt.pins()
+        }
     }
 
     /// The model's bridges are on (the last command permits the power stage and no

@@ -245,6 +245,7 @@ fn masked_trips_are_still_reported() {
         ),
         tune_allowed: false,
         trace: false,
+        brake_released: false,
     });
     glue.offset_check_failed();
     glue.raise_board_faults(&mut d, 5);

@@ -7,8 +7,9 @@
 use core::mem::MaybeUninit;
 
 use ecat_slave_stack::slave::Slave;
-use firmware::drive::{Drive, FlashStore};
+use firmware::drive::Drive;
 use firmware::runtime::{self, Runtime};
+use firmware::staged_flash::StagedRecords;
 
 use crate::board;
 use crate::hw;
@@ -17,7 +18,7 @@ use crate::hw::esc::Esc;
 use crate::hw::flash::{ParamFlash, Stage, StagedFlash};
 
 /// The drive with its parameter store of this board.
-pub type BoardDrive = Drive<FlashStore<StagedFlash>>;
+pub type BoardDrive = Drive<hw::flash::BoardStore>;
 
 /// The parameter-record store in the flash region (offsets relative to the region;
 /// the layout of `firmware::storage::region`: parameters, then the fault history).
@@ -97,7 +98,7 @@ pub fn place_drive_and_slave(
         drive_slot,
         firmware::identity::BOARD_VARIANT,
         serial,
-        FlashStore {
+        StagedRecords {
             storage: PARAM_STORE,
             history: Some(firmware::storage::region::HISTORY),
             flash: staged,

@@ -43,6 +43,12 @@
 //! withdrawn the permission), and the motion layer wants current
 //! (`CurrentReference::power`).
 //!
+//! The brake pin (PB9) is this interrupt's alone (`firmware::power_gate::BrakeOut`,
+//! [`BoardHw`] writes the register): released only while the command carries the
+//! runtime's decision ([`ControlCommand::brake_released`]) and the bridges are on,
+//! engaged in the PWM period in which the bridges go off — a lost power stage never
+//! waits for the 1 ms tick.
+//!
 //! What the drive side does with [`Feedback`] and how it builds [`ControlCommand`]
 //! (index and probe latches pending until a drive step, probe polarity, alignment
 //! failures → fault, power permission) is the library's `firmware::board_glue`.
@@ -168,6 +174,10 @@ impl ControlHw for BoardHw {
         pwm::disable_outputs();
     }
     #[inline(always)]
+    fn set_brake_released(&mut self, released: bool) {
+        crate::hw::io::set_brake_released(released);
+    }
+    #[inline(always)]
     fn set_duties(&mut self, d: Duties) {
         pwm::set_compare(d.a1, d.a2, d.b1, d.b2);
     }
@@ -185,6 +195,9 @@ unsafe impl Sync for IsrOwned {}
 /// initialised image of the whole state in flash).
 static CONTROL: IsrOwned = IsrOwned(UnsafeCell::new(MaybeUninit::uninit()));
 static READY: AtomicBool = AtomicBool::new(false);
+/// Interrupt → runtime: the bridges as this PWM period left them
+/// (`firmware::runtime::ControlPath::bridges_on_now`).
+static BRIDGES_ON: AtomicBool = AtomicBool::new(false);
 
 /// Builds the control state. Call once, before the current-loop interrupt is
 /// enabled. `motor`: the current loop's motor constants (until an auto-tune
@@ -250,6 +263,7 @@ pub fn on_sample(s: RawSample) {
         // SAFETY: this interrupt is the one writer of FEEDBACK.
         unsafe { FEEDBACK.write(fb) };
     }
+    BRIDGES_ON.store(c.bridges_on(), Ordering::Release);
 }
 
 /// The current-loop interrupt and the break latch as the runtime reaches them
@@ -262,6 +276,9 @@ impl firmware::runtime::ControlPath for BoardPath {
     }
     fn break_latched(&self) -> bool {
         crate::hw::pwm::break_latched() != 0
+    }
+    fn bridges_on_now(&self) -> bool {
+        BRIDGES_ON.load(Ordering::Acquire)
     }
     fn send(&mut self, command: &ControlCommand) {
         send_command(command);

@@ -119,12 +119,15 @@ const REGION_ADDR: u32 = 0x0800_0000 + board::PARAM_FLASH_OFFSET;
 /// The RAM image of a record being saved.
 pub type Stage = firmware::staged_flash::Stage<STAGE_LEN>;
 
-/// The parameter store's view of the flash (`drive::FlashStore<StagedFlash>`): reads
-/// from the memory-mapped region (a read that hits a double ECC error fails:
-/// [`BoardEcc`]), erases and writes into a [`Stage`], programmed by [`commit`] in
-/// thread mode outside the drive's lock (see `firmware::staged_flash` and main.rs,
-/// "Who owns what").
+/// The parameter store's view of the flash (`firmware::staged_flash::StagedRecords`):
+/// reads from the memory-mapped region (a read that hits a double ECC error fails:
+/// [`BoardEcc`]); a save or history write only stages its payload in a [`Stage`],
+/// written by [`commit`] in thread mode outside the drive's lock (see
+/// `firmware::staged_flash` and main.rs, "Who owns what").
 pub type StagedFlash = firmware::staged_flash::StagedFlash<'static, EccRegion, STAGE_LEN, PAGE>;
+
+/// The drive's parameter store over [`StagedFlash`].
+pub type BoardStore = firmware::staged_flash::StagedRecords<'static, EccRegion, STAGE_LEN, PAGE>;
 
 /// The memory-mapped record region, its reads checked for double ECC errors
 /// (`firmware::storage::ecc`).
@@ -180,15 +183,15 @@ impl embedded_storage::nor_flash::ReadNorFlash for MappedRegion {
     }
 }
 
-/// Error of the real region.
-pub type RegionErrorOf = firmware::flash_region::RegionError<
-    embassy_embedded_hal::flash::partition::Error<embassy_stm32::flash::Error>,
->;
-
-/// Programs a staged record into the flash (`firmware::staged_flash::commit`: erase,
-/// payload, header last). Blocking (erase ≈ 20 ms per 2 KiB page, program ≈ 85 µs
-/// per double word); runs in thread mode without any lock (bank 2, read-while-write:
-/// the interrupts keep running from bank 1).
-pub fn commit(flash: &mut ParamFlash, st: &Stage) -> Result<(), RegionErrorOf> {
-    firmware::staged_flash::commit(flash, st, firmware::storage::HEADER_LEN)
+/// Writes a staged record into the flash (`firmware::staged_flash::commit_staged`:
+/// the newest record looked up through the ECC-checked reads, the kept entries, the
+/// CRC and the header computed, then erase, payload, header last). Blocking (erase ≈
+/// 20 ms per 2 KiB page, program ≈ 85 µs per double word); runs in thread mode without
+/// any lock (bank 2, read-while-write: the interrupts keep running from bank 1).
+pub fn commit(flash: &mut ParamFlash, st: &Stage) -> Result<(), firmware::storage::StorageError> {
+    let mut via = firmware::staged_flash::ReadVia {
+        read: ecc_region(),
+        flash,
+    };
+    firmware::staged_flash::commit_staged(&mut via, st)
 }

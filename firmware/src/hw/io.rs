@@ -43,6 +43,10 @@ pub struct Leds<'d> {
 pub struct Ports<'d> {
     in3_5: [Input<'d>; 3],
     outputs: [Output<'d>; 3],
+    /// Keeps PB9 configured as an output (low: engaged); the current-loop interrupt
+    /// writes it through the register ([`set_brake_released`]), the self-test reads
+    /// it back.
+    #[cfg_attr(not(feature = "selftest"), allow(dead_code))]
     brake: Output<'d>,
 }
 
@@ -138,11 +142,21 @@ impl<'d> Ports<'d> {
             ("brake (PB9)", &mut self.brake, pac::GPIOB, 9),
         ]
     }
+}
 
-    /// Releases (true) or engages (false) the holding brake.
-    pub fn set_brake_released(&mut self, released: bool) {
-        set_output(&mut self.brake, released);
-    }
+/// Releases (true) or engages (false) the holding brake (PB9), straight through the
+/// register: the current-loop interrupt's one write
+/// (`firmware::power_gate::BrakeOut`, from `hw::control::BoardHw`). The [`Ports`]
+/// driver keeps the pin configured as an output.
+#[inline(always)]
+pub fn set_brake_released(released: bool) {
+    pac::GPIOB.bsrr().write(|w| {
+        if released {
+            w.set_bs(9, true)
+        } else {
+            w.set_br(9, true)
+        }
+    });
 }
 
 #[cfg(feature = "selftest")]
@@ -211,10 +225,10 @@ pub fn emergency_indicators() {
     pac::GPIOB.bsrr().write(|w| w.set_br(9, true));
 }
 
-/// Drives the outputs, the brake and the LEDs to the levels the runtime's tick chose.
+/// Drives the outputs and the LEDs to the levels the runtime's tick chose (the brake
+/// pin is the current-loop interrupt's: [`set_brake_released`]).
 pub fn write_pins(leds: &mut Leds<'_>, ports: &mut Ports<'_>, pins: &firmware::runtime::Pins) {
     ports.write_outputs(pins.outputs);
-    ports.set_brake_released(pins.brake_released);
     set_output(&mut leds.green, pins.green);
     set_output(&mut leds.red, pins.red);
     set_output(&mut leds.run, pins.run);

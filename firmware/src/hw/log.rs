@@ -33,35 +33,6 @@ pub fn esc_error(e: ecat_slave_stack::EscError) -> defmt::Str {
     }
 }
 
-/// Log text of a parameter-region flash error.
-pub fn region_error(e: &hw::flash::RegionErrorOf) -> defmt::Str {
-    use embassy_embedded_hal::flash::partition::Error as PartitionError;
-    use embassy_stm32::flash::Error as FlashError;
-    use firmware::flash_region::RegionError;
-    match e {
-        RegionError::OutOfBounds | RegionError::Flash(PartitionError::OutOfBounds) => {
-            defmt::intern!("outside the parameter region")
-        }
-        RegionError::NotAligned => defmt::intern!("not aligned to the flash granularity"),
-        RegionError::Flash(PartitionError::Flash(FlashError::Prog)) => {
-            defmt::intern!("flash: programming error")
-        }
-        RegionError::Flash(PartitionError::Flash(FlashError::Size)) => {
-            defmt::intern!("flash: size error")
-        }
-        RegionError::Flash(PartitionError::Flash(FlashError::Miss)) => {
-            defmt::intern!("flash: fast programming data miss")
-        }
-        RegionError::Flash(PartitionError::Flash(FlashError::Seq)) => {
-            defmt::intern!("flash: sequence error")
-        }
-        RegionError::Flash(PartitionError::Flash(FlashError::Protected)) => {
-            defmt::intern!("flash: write protected")
-        }
-        RegionError::Flash(_) => defmt::intern!("flash: driver error"),
-    }
-}
-
 /// Log text of a parameter-store error.
 pub fn storage_error(e: StorageError) -> defmt::Str {
     match e {

@@ -43,7 +43,7 @@
 //! | embassy time driver | `TIM5` ISR | 4 | alarms | < 2 µs |
 //! | EtherCAT: ESC IRQ (or every 1 ms) → `Slave::poll` (AL control, ESM, mailbox/SDO, watchdog supervision; the cycle in SM-synchronous / free-run mode), emergencies forwarded | thread executor, holding the priority-ceiling lock | thread (ceiling 3) | ESC IRQ, ≥ 1 kHz | one SDO ≈ 2 × 128-byte SPI transfers + dictionary access; a 'save' adds the record serialisation (≈ 1.7 KiB of dictionary reads); delays the cyclic path by at most this; to be measured |
 //! | parameter storage: staged record → flash (erase ≈ 20 ms per 2 KiB page, ≤ 40 ms max; program ≈ 85 µs per 8 bytes) | thread executor, after `poll`, **no lock** | thread | on 'save' / 'load' | ≤ 4 × 40 ms + 20 ms; the cyclic path and the ISRs keep running (bank 2 read-while-write); the thread tasks pause — the watchdog (300 ms) covers it |
-//! | 1 ms supervision tick, the drive's own clock: raw inputs → `Drive::tick` (filter, protections, over-current and current-sensing faults from the board, a failed commutation alignment → following error 0x8611, and — unless a cycle just did it — the control step: PDS, fault reactions, ramps, generators, brake, in every ESM state), outputs + brake from `Drive::outputs`, LEDs (`Drive::leds`, RUN/ERR from the ESM state and AL status code) | interrupt executor `UART4` (so a flash commit in thread mode never stops it; lock held for the drive part) | 3 | 1 kHz | < 20 µs; the control step ≈ 1 k instructions (QEMU count), to be measured |
+//! | 1 ms supervision tick, the drive's own clock: raw inputs → `Drive::tick` (filter, protections, over-current and current-sensing faults from the board, a failed commutation alignment → following error 0x8611, and — unless a cycle just did it — the control step: PDS, fault reactions, ramps, generators, brake, in every ESM state), outputs from `Drive::outputs`, the brake decision into the command (the pin is the current-loop interrupt's: `firmware::power_gate::BrakeOut`), LEDs (`Drive::leds`, RUN/ERR from the ESM state and AL status code) | interrupt executor `UART4` (so a flash commit in thread mode never stops it; lock held for the drive part) | 3 | 1 kHz | < 20 µs; the control step ≈ 1 k instructions (QEMU count), to be measured |
 //! | supervisor: offset self-check at start, watchdog feeding, status line | thread executor | thread | 100 Hz | < 100 µs per tick |
 //!
 //! ## Who owns what
@@ -58,11 +58,13 @@
 //! * `Slave::poll` runs in **thread mode** (task `ecat`), `Slave::cycle` on the
 //!   **interrupt executor** (task `cyclic`, SYNC0; each SYNC0 is run once, by
 //!   whichever of the two sees it first, see `cyclic`). A 'save' (0x1010) arrives as an SDO
-//!   inside `poll`; the parameter store is `FlashStore<hw::flash::StagedFlash>`: the
-//!   record is serialised into a 2 KiB RAM image inside `poll` (the SDO answer reports
-//!   the serialisation's result) and the `ecat` task programs it into the flash *after*
-//!   releasing the lock ([`hw::flash::commit`]: erase, payload, header last — the
-//!   storage's power-loss order). So no flash erase ever runs under the lock and the
+//!   inside `poll`; the parameter store is `hw::flash::BoardStore`
+//!   (`firmware::staged_flash::StagedRecords`): inside `poll` the dictionary is only
+//!   read into a 2 KiB RAM stage (no flash access, no CRC; the SDO answer reports the
+//!   serialisation's result) and the `ecat` task writes the record *after* releasing
+//!   the lock ([`hw::flash::commit`]: the newest record looked up, the entries a partial
+//!   command keeps, the CRC, then erase, payload, header last — the storage's
+//!   power-loss order). So no flash erase ever runs under the lock and the
 //!   cyclic path keeps its timing during a save; a flash error at commit time is
 //!   logged and sent as an emergency (0x5530). The fault history's record
 //!   (`Drive::persist_history`, polled after `poll` when no 'save' record waits) goes

@@ -38,7 +38,7 @@ pub fn commit_logged(flash: Option<&mut ParamFlash>, stage: &Stage) -> bool {
             hw::log::FLASH_ERRORS.fetch_add(1, Ordering::Relaxed);
             defmt::error!(
                 "flash record: programming failed: {=istr}",
-                hw::log::region_error(&e)
+                hw::log::storage_error(e)
             );
             true
         }

@@ -28,6 +28,8 @@ struct FakePath {
     rearms: u32,
     /// The bridges do not switch on (a power stage that fails to start).
     bridges_dead: bool,
+    /// The bridges went off since the last measurements (a trip between them).
+    tripped_between: bool,
 }
 
 impl ControlPath for FakePath {
@@ -45,6 +47,11 @@ impl ControlPath for FakePath {
     }
     fn break_latched(&self) -> bool {
         self.latched
+    }
+    fn bridges_on_now(&self) -> bool {
+        !self.bridges_dead
+            && !self.tripped_between
+            && self.sent.last().is_some_and(|c| c.permits_power())
     }
     fn send(&mut self, command: &ControlCommand) {
         self.sent.push(*command);
@@ -406,6 +413,11 @@ fn brake_released_only_after_the_bridges_are_on_for_the_delay() {
     let mut released_at = None;
     for k in 0..100u64 {
         let pins = rt.tick(&mut d, &mut path, (200 + k) * 1000, 0, 0, None);
+        // The control path drives the pin from the command: it carries the decision.
+        assert_eq!(
+            path.sent.last().map(|c| c.brake_released),
+            Some(pins.brake_released)
+        );
         if pins.brake_released && released_at.is_none() {
             released_at = Some(k);
         }
@@ -421,6 +433,25 @@ fn brake_released_only_after_the_bridges_are_on_for_the_delay() {
         !rt.tick(&mut d, &mut path, 400_000, 0, 0, None)
             .brake_released
     );
+}
+
+#[test]
+fn a_trip_between_two_measurements_engages_the_brake_decision_at_once() {
+    let (mut d, mut rt, mut path) = started(SPEC, DipBanks::default(), |_| {});
+    enable(&mut d, &mut rt, &mut path);
+    for k in 0..50 {
+        rt.tick(&mut d, &mut path, (100 + k) * 1000, 0, 0, None);
+    }
+    assert!(rt.pins().brake_released, "released once the bridges held");
+    // The interrupt switched its bridges off after its last published measurements
+    // (they still say "on"): the decision and 0x2157 engage at this tick, and so
+    // does the next cycle's.
+    path.tripped_between = true;
+    rt.before_step(&mut d, &mut path);
+    assert!(!rt.pins().brake_released, "0x2157 at the cycle");
+    let pins = rt.tick(&mut d, &mut path, 200_000, 0, 0, None);
+    assert!(!pins.brake_released);
+    assert_eq!(path.sent.last().map(|c| c.brake_released), Some(false));
 }
 
 #[test]
