@@ -8,7 +8,7 @@
 //! | 0x2000-0x21FF | [`crate::params`] (vendor parameters) |
 //! | 0x2200 | `ecat_slave_stack::sync` (timing diagnostics; served by the slave runtime) |
 //! | 0x2300-0x2308 | [`crate::monitor`] (monitoring) |
-//! | 0x2400-0x2406 | [`crate::faults`] (fault history) |
+//! | 0x2400-0x2406 | [`fault_history`] (fault history of [`crate::faults`]) |
 //! | 0x2500-0x2510 | [`crate::scope`] (scope, trace buffer) |
 //! | 0x6000-0x6FFF | [`crate::cia402`] (drive profile) |
 //!
@@ -17,6 +17,7 @@
 
 use ecat_slave_stack::od::{self, Entry, Object, ObjectDesc, SdoAbort};
 
+pub mod fault_history;
 mod vocabulary;
 
 pub use vocabulary::VOCABULARY;
@@ -28,7 +29,7 @@ pub const PARTS: &[&[ObjectDesc]] = &[
     ecat_slave_stack::pdo::OBJECTS,
     crate::params::OBJECTS,
     ecat_slave_stack::sync::DIAG_OBJECTS,
-    crate::faults::OBJECTS,
+    fault_history::OBJECTS,
     crate::monitor::OBJECTS,
     crate::scope::OBJECTS,
     crate::cia402::objects::OBJECTS,
@@ -102,7 +103,7 @@ mod tests {
             (crate::comm::OBJECTS, COMM),
             (crate::params::OBJECTS, PARAMS),
             (crate::monitor::OBJECTS, MONITOR),
-            (crate::faults::OBJECTS, FAULTS),
+            (fault_history::OBJECTS, FAULTS),
             (crate::scope::OBJECTS, SCOPE),
             (crate::cia402::objects::OBJECTS, CIA402),
         ];

@@ -281,7 +281,7 @@ impl<S: ParameterStore> Drive<S> {
             0x1000..=0x10FF => self.comm.read(&self.faults, index, sub, buf),
             0x2000..=0x21FF => self.params.read(index, sub, buf),
             0x2300..=0x23FF => self.monitor.read(index, sub, buf),
-            0x2400..=0x24FF => self.faults.read(index, sub, buf),
+            0x2400..=0x24FF => dictionary::fault_history::read(&self.faults, index, sub, buf),
             0x2500..=0x25FF => self.read_scope(index, sub, buf),
             0x6000..=0x6FFF => self.cia402.read(index, sub, buf),
             _ => Err(SdoAbort::ObjectDoesNotExist),

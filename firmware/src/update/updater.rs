@@ -65,8 +65,8 @@ pub trait Updater {
 /// [`Updater`] over embassy-boot: its firmware state (the state partition: marking,
 /// boot state), the DFU partition for the writes and the check's reads, and the
 /// active partition, read for the running image's header. The image check itself is
-/// [`Update`](super::Update)'s, in steps (embassy-boot's `verify_and_mark_updated` would hash the
-/// whole image in one call).
+/// [`Update`](super::Update)'s, in steps (embassy-boot's `verify_and_mark_updated`
+/// would hash the whole image in one call).
 ///
 /// The image is written page by page here rather than by embassy-boot's
 /// `write_firmware`: that one erases a page only when it is not the last page it
