@@ -70,8 +70,8 @@ use heapless::Deque;
 
 mod table;
 
-pub use table::{FaultInfo, FaultKind, KINDS, NO_MASK, TABLE};
 use table::POWER_CUT_MASK;
+pub use table::{FaultInfo, FaultKind, KINDS, NO_MASK, TABLE};
 
 /// Values captured when a fault occurs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
