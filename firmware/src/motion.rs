@@ -67,6 +67,10 @@
 //! Nothing here panics on any parameter value: ratios are guarded, divisions are by
 //! values ≥ 1, non-finite inputs fall back to zero.
 //!
+//! [`ServoGains`]: foc::servo::ServoGains
+//! [`ServoGains::from_bandwidth`]: foc::servo::ServoGains::from_bandwidth
+//! [`ServoGains::scaled`]: foc::servo::ServoGains::scaled
+//!
 //! Submodules: `config` (motor constants, [`MotionConfig`] from the parameters),
 //! `scale` (command units ↔ counts), `interp` (set-point interpolation), `stall`
 //! (open-loop stall detection), `torque` (CST and the measured torque), `tune` (the

@@ -1,4 +1,4 @@
-//! The fault history objects 0x2400-0x2406 (owner range [`super::FAULTS`]): their
+//! The fault history objects 0x2400-0x2406 (owner range `dictionary::FAULTS`): their
 //! descriptions and their SDO read from the drive's [`Faults`]. They live with the
 //! dictionary (which reads the fault state) rather than in [`crate::faults`], so the
 //! fault logic does not depend on the dictionary.

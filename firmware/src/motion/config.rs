@@ -40,7 +40,7 @@ pub const TC86_45: MotorConstants = MotorConstants {
     inductance: 3.0e-3,
 };
 
-/// Configuration of [`Motion`] (from the parameters: [`MotionConfig::from_params`]).
+/// Configuration of [`Motion`](super::Motion) (from the parameters: [`MotionConfig::from_params`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MotionConfig {
     /// Servo period, s.
