@@ -67,27 +67,27 @@
 //! Nothing here panics on any parameter value: ratios are guarded, divisions are by
 //! values ≥ 1, non-finite inputs fall back to zero.
 //!
+//! Submodules: `config` (motor constants, [`MotionConfig`] from the parameters),
+//! `signals` (the current loop's feedback and reference), `scale` (command units ↔
+//! counts), `interp` (set-point interpolation), `stall` (open-loop stall detection),
+//! `torque` (CST and the measured torque), `tune` (the servo tune's move).
+//!
 //! [`ServoGains`]: foc::servo::ServoGains
 //! [`ServoGains::from_bandwidth`]: foc::servo::ServoGains::from_bandwidth
 //! [`ServoGains::scaled`]: foc::servo::ServoGains::scaled
-//!
-//! Submodules: `config` (motor constants, [`MotionConfig`] from the parameters),
-//! `scale` (command units ↔ counts), `interp` (set-point interpolation), `stall`
-//! (open-loop stall detection), `torque` (CST and the measured torque), `tune` (the
-//! servo tune's move).
 
 use crate::cia402::{DriveCommand, SetpointKind};
 use crate::drive::AxisState;
 use foc::angle::{Angle, CountScale, POLE_PAIRS};
 use foc::open_loop::OpenLoop;
 use foc::servo::{handover_currents, Demand, Servo};
-use foc::transforms::Dq;
 use interp::Interp;
 use stall::Stall;
 
 mod config;
 mod interp;
 mod scale;
+mod signals;
 mod stall;
 
 pub use config::{MotionConfig, MotorConstants, ECN57_20, TC86_45};
@@ -95,6 +95,7 @@ pub use config::{MotionConfig, MotorConstants, ECN57_20, TC86_45};
 use scale::floor_div_i32;
 pub(crate) use scale::floor_div_i64;
 use scale::Scale;
+pub use signals::{CurrentReference, Feedback, Frame};
 
 /// Velocity bandwidth of the base gains (0x2140 = 100), Hz.
 pub const BASE_BANDWIDTH_HZ: f32 = 400.0;
@@ -125,63 +126,6 @@ fn clampf(x: f32, lo: f32, hi: f32) -> f32 {
     } else {
         y
     }
-}
-
-/// What the encoder measured at the start of this servo period.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Feedback {
-    /// Multi-turn position, motor counts (`foc::encoder::Encoder::position`).
-    pub position: i32,
-    /// Velocity estimate, motor counts/s.
-    pub velocity: f32,
-    /// Electrical angle of the rotor (alignment offset included).
-    pub electrical_angle: Angle,
-    /// The current loop limited its voltage vector in the last period.
-    pub voltage_limited: bool,
-    /// The current loop's commanded d/q voltages, mean over the last servo period, V.
-    pub v_dq: Dq,
-    /// The current loop's measured d/q currents, mean over the last servo period, A.
-    pub i_dq: Dq,
-}
-
-/// Which angle the current loop works on.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Frame {
-    /// The encoder's electrical angle and velocity (closed loop).
-    Encoder,
-    /// A commanded angle and electrical velocity, rad/s (open loop).
-    Command {
-        /// Electrical angle of the d axis.
-        angle: Angle,
-        /// Electrical angular velocity (back-EMF / decoupling feed-forward), rad/s.
-        omega_e: f32,
-    },
-}
-
-/// The current loop's reference for the next servo period.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CurrentReference {
-    /// Bridges on (false: all outputs off, current 0).
-    pub power: bool,
-    /// Clear the current loop's integrators (first period after enable).
-    pub reset: bool,
-    /// Frame of `id`/`iq`.
-    pub frame: Frame,
-    /// d current, A.
-    pub id: f32,
-    /// q current, A.
-    pub iq: f32,
-}
-
-impl CurrentReference {
-    /// No current, bridges off.
-    pub const OFF: CurrentReference = CurrentReference {
-        power: false,
-        reset: false,
-        frame: Frame::Encoder,
-        id: 0.0,
-        iq: 0.0,
-    };
 }
 
 /// The motion layer's state (see the module docs).
