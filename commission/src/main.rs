@@ -85,6 +85,29 @@ fn has_link(iface: &str) -> bool {
         .is_ok_and(|c| c.trim() == "1")
 }
 
+/// `--virtual N`: `virtual-drive --drives N` started in a network namespace of its
+/// own (kept for the tool's life), or what is missing.
+fn start_virtual(o: &Options, n: usize) -> Result<tests_host::vd_master::Running, String> {
+    let program = o.virtual_drive.clone().unwrap_or_else(|| {
+        std::env::current_exe()
+            .ok()
+            .and_then(|p| Some(p.parent()?.join("virtual-drive")))
+            .map(|p| p.display().to_string())
+            .unwrap_or_default()
+    });
+    if !std::path::Path::new(&program).exists() {
+        return Err(format!(
+            "no virtual-drive at '{program}': build it with \
+             `cargo build -p tests-host --bin virtual-drive` or give --virtual-drive PATH"
+        ));
+    }
+    if !tests_host::netns::is_root() {
+        return Err("--virtual needs root (network namespace and raw socket)".into());
+    }
+    tests_host::vd_master::Running::start(&program, "cm", n, &o.faults)
+        .map_err(|e| format!("virtual-drive: {e}"))
+}
+
 fn main() -> ExitCode {
     let o = match options() {
         Ok(o) => o,
@@ -97,39 +120,17 @@ fn main() -> ExitCode {
     let mut vd_running = None;
     let iface = match (&o.iface, o.virtual_drives) {
         (Some(i), _) => i.clone(),
-        (None, Some(n)) => {
-            let program = o.virtual_drive.clone().unwrap_or_else(|| {
-                std::env::current_exe()
-                    .ok()
-                    .and_then(|p| Some(p.parent()?.join("virtual-drive")))
-                    .map(|p| p.display().to_string())
-                    .unwrap_or_default()
-            });
-            if !std::path::Path::new(&program).exists() {
-                eprintln!(
-                    "ecs-commission: no virtual-drive at '{program}': build it with \
-                     `cargo build -p tests-host --bin virtual-drive` or give --virtual-drive PATH"
-                );
+        (None, Some(n)) => match start_virtual(&o, n) {
+            Ok(r) => {
+                let i = r.net.host_if.clone();
+                vd_running = Some(r);
+                i
+            }
+            Err(e) => {
+                eprintln!("ecs-commission: {e}");
                 return ExitCode::FAILURE;
             }
-            if !tests_host::netns::is_root() {
-                eprintln!(
-                    "ecs-commission: --virtual needs root (network namespace and raw socket)"
-                );
-                return ExitCode::FAILURE;
-            }
-            match tests_host::vd_master::Running::start(&program, "cm", n, &o.faults) {
-                Ok(r) => {
-                    let i = r.net.host_if.clone();
-                    vd_running = Some(r);
-                    i
-                }
-                Err(e) => {
-                    eprintln!("ecs-commission: virtual-drive: {e}");
-                    return ExitCode::FAILURE;
-                }
-            }
-        }
+        },
         _ => unreachable!("checked by options()"),
     };
     // One clear line when the socket or the link is missing.

@@ -13,6 +13,7 @@
 
 use ecat_slave_stack::od::{self, Entry, Object, ObjectDesc, SdoAbort};
 
+pub mod fault_history;
 mod vocabulary;
 
 pub use vocabulary::VOCABULARY;
@@ -26,7 +27,7 @@ pub const PARTS: &[&[ObjectDesc]] = &[
     &[ecat_slave_stack::sync::timing_diag_object(
         crate::identity::TIMING_DIAG,
     )],
-    crate::faults::OBJECTS,
+    fault_history::OBJECTS,
     crate::monitor::OBJECTS,
     crate::scope::OBJECTS,
     crate::cia402::objects::OBJECTS,
@@ -57,7 +58,7 @@ pub enum Owner {
     Params,
     /// [`crate::monitor`]: monitoring values.
     Monitor,
-    /// [`crate::faults`]: the fault history.
+    /// [`fault_history`]: the fault history of [`crate::faults`].
     Faults,
     /// [`crate::scope`]: scope and trace buffer.
     Scope,
@@ -140,7 +141,7 @@ mod tests {
             (crate::comm::OBJECTS, COMM),
             (crate::params::OBJECTS, PARAMS),
             (crate::monitor::OBJECTS, MONITOR),
-            (crate::faults::OBJECTS, FAULTS),
+            (fault_history::OBJECTS, FAULTS),
             (crate::scope::OBJECTS, SCOPE),
             (crate::cia402::objects::OBJECTS, CIA402),
         ];

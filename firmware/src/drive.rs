@@ -28,6 +28,14 @@
 //!
 //! Emergencies produced by faults are collected here and forwarded by the owner to
 //! the mailbox with [`Drive::pop_emergency`].
+//!
+//! # Where it is
+//! This file holds the drive's state, its construction and the control step; the
+//! submodules add one concern each to [`Drive`]: `clock` (the supervision tick and
+//! the steps on the drive's clock), `stack` (the slave runtime's view: dictionary,
+//! process data, ESM hooks, cycle), `store` (parameter and fault-history
+//! persistence), `report` (the current-loop supervisor's report), `boot` (firmware
+//! update and Bootstrap), `tune` (the servo tune), `trace` (the scope's samples).
 
 use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
@@ -329,127 +337,6 @@ impl<S: ParameterStore> Drive<S> {
         self.variant.has_encoder() && self.params.get(Param::LoopMode) == 2
     }
 
-    /// Power-up: loads the stored parameters (drive objects and, through `runtime` —
-    /// [`ecat_slave_stack::slave::Slave::runtime_objects`] — the PDO mapping), latches
-    /// the "effective after restart" parameters and counts the power-up. A corrupt or
-    /// lost record is reported as an emergency.
-    pub fn power_up(&mut self, runtime: &mut dyn Dictionary) -> LoadReport {
-        let report = match self.store.take() {
-            Some(mut store) => {
-                let r = store.load(&mut WholeDictionary {
-                    drive: &mut *self,
-                    runtime,
-                });
-                self.store = Some(store);
-                r
-            }
-            None => NoStore.load(runtime),
-        };
-        if let Some((code, data)) = report.emergency() {
-            self.storage_emergency = Some((code, data));
-            self.faults
-                .diagnosis_mut()
-                .push(crate::diagnosis::parameter_message(
-                    false,
-                    code,
-                    self.now_ms,
-                ));
-        }
-        self.load_report = Some(report);
-        self.params.latch_power_up();
-        self.monitor.power_up();
-        self.load_history();
-        self.apply_parameters();
-        report
-    }
-
-    /// Power-up: the fault history from its flash record (nothing, i.e. an empty
-    /// history, for erased, torn or garbage records) and the operating time stored
-    /// with it — the larger of that and the parameter record's 0x2307 counts, the
-    /// history being written more often than the parameters.
-    fn load_history(&mut self) {
-        let mut buf = [0u8; crate::faults::HISTORY_PAYLOAD_MAX];
-        let n = self.store.as_mut().and_then(|s| s.load_history(&mut buf));
-        if let Some(op) = n.and_then(|n| self.faults.restore_history(&buf[..n.min(buf.len())])) {
-            self.monitor.running_time_at_least(op);
-        }
-        self.faults
-            .set_operating_base(self.monitor.running_time_s());
-    }
-
-    /// Deferred work for whoever services 'save' (the board's `ecat` task after
-    /// `poll`, the simulator's housekeeping): when the fault history changed since
-    /// the last call, writes it with the operating time 0x2307 as a new history record.
-    /// The fault path only marks the history dirty; this is never called from it.
-    ///
-    /// The board's flash rule holds as for a parameter 'save': through the staged
-    /// store this only serialises the record (≈ 170 bytes) into the RAM stage under
-    /// the shared lock; the erase and programming run afterwards in thread mode
-    /// outside the lock (bank 2 read-while-write: the current loop and the cyclic
-    /// path keep running, also with the power stage on). Call it only while no staged
-    /// parameter record waits for programming (the stage is shared).
-    ///
-    /// Rate-limited ([`crate::storage::rate`]: ≥ 10 s between records, at most
-    /// 8 + hours / 2 records): a change waits (still dirty) until the limit lets it
-    /// through, at most 2 h; the history in RAM is complete meanwhile.
-    ///
-    /// `None`: nothing to do now (or no history memory); `Some(result)` of the write.
-    /// The history counts as written either way (a failed write is reported once, not
-    /// retried every tick; the next change writes again).
-    pub fn persist_history(&mut self) -> Option<Result<(), StorageError>> {
-        if !self.faults.history_dirty() || !self.history_rate.may_write(self.now_ms) {
-            return None;
-        }
-        self.history_rate.wrote();
-        self.faults.history_written();
-        let mut buf = [0u8; crate::faults::HISTORY_PAYLOAD_MAX];
-        let n = self
-            .faults
-            .encode_history(self.monitor.running_time_s(), &mut buf);
-        match self.store.as_mut()?.write_history(&buf[..n.min(buf.len())]) {
-            Ok(true) => Some(Ok(())),
-            Ok(false) => None,
-            Err(e) => Some(Err(e)),
-        }
-    }
-
-    /// The next record for the board to program outside its lock, from a staged
-    /// store: a record a 'save' staged comes first; only when none waits is a changed
-    /// fault history staged ([`Drive::persist_history`]: the stage is shared). Returns
-    /// the stage to program (give it back with `StagedFlash::give_back` afterwards),
-    /// and the error of a history that could not be staged.
-    pub fn next_staged_record<'a, R, const N: usize, const E: usize>(
-        &mut self,
-    ) -> (
-        Option<&'a mut crate::staged_flash::Stage<N>>,
-        Option<StorageError>,
-    )
-    where
-        S: StagedStore<'a, R, N, E>,
-        R: embedded_storage::nor_flash::ReadNorFlash,
-    {
-        let take = |d: &mut Self| d.store.as_mut().and_then(|st| st.staged().take_ready());
-        if let Some(stage) = take(self) {
-            return (Some(stage), None);
-        }
-        let err = match self.persist_history() {
-            Some(Err(e)) => Some(e),
-            _ => None,
-        };
-        (take(self), err)
-    }
-
-    /// The parameter store (the board takes a finished staged record out of it to
-    /// program the flash outside its lock).
-    pub fn store_mut(&mut self) -> Option<&mut S> {
-        self.store.as_mut()
-    }
-
-    /// What the power-up load found.
-    pub fn load_report(&self) -> Option<LoadReport> {
-        self.load_report
-    }
-
     /// The motor side's measurements for the next cycle.
     pub fn set_axis(&mut self, a: AxisState) {
         self.axis = a;
@@ -470,59 +357,6 @@ impl<S: ParameterStore> Drive<S> {
     /// The set-points produced by the last cycle.
     pub fn command(&self) -> &DriveCommand {
         &self.command
-    }
-
-    /// Gives the drive its firmware update ([`crate::update`]): FoE in Bootstrap, the
-    /// boot state 0x2309, 0x100A from the running image's header, and the trial
-    /// image's confirmation once [`Drive::startup_checks_done`] reported success and
-    /// the runtime reached Pre-Op.
-    pub fn attach_update(&mut self, update: &'static mut (dyn FirmwareUpdate + Send)) {
-        self.monitor.set_boot_state(update.boot_state() as u8);
-        self.update = Some(update);
-    }
-
-    /// The board's start-up checks (current-sensor offsets, the board self-test) are
-    /// over: `passed` or not. A trial image is confirmed only after a pass.
-    pub fn startup_checks_done(&mut self, passed: bool) {
-        self.startup_checks = Some(passed);
-    }
-
-    /// An accepted update waits for the reset into the bootloader (set on Bootstrap →
-    /// Init): the board resets; the simulation restarts the drive.
-    pub fn reset_requested(&self) -> bool {
-        self.reset_request
-    }
-
-    /// The update's housekeeping, every tick: its events as diagnosis messages, the
-    /// boot state 0x2309. (No flash access here: the tick may run in an interrupt.)
-    fn update_housekeeping(&mut self) {
-        let Some(u) = self.update.as_deref_mut() else {
-            return;
-        };
-        if let Some(e) = u.take_event() {
-            self.faults
-                .diagnosis_mut()
-                .push(crate::diagnosis::update_message(e, self.now_ms));
-        }
-        self.monitor.set_boot_state(u.boot_state() as u8);
-    }
-
-    /// Confirms a new image on trial (embassy-boot's `mark_booted`) once its start-up
-    /// checks passed and the runtime reached Pre-Op, and only while the power stage
-    /// is off: the confirmation writes embassy-boot's state partition, in the flash
-    /// bank the code runs from, which stalls the current-loop interrupt for the page
-    /// erase. Call it from thread mode, where the flash is used (the board's `ecat`
-    /// task after `poll`); returns true when it confirmed now.
-    pub fn confirm_update(&mut self) -> bool {
-        // Not while the current auto-tune may drive the bridges either.
-        let due = self.startup_checks == Some(true)
-            && !self.command.power_stage
-            && self.power_up_tune_over;
-        let runtime_up = self.reached_preop;
-        match self.update.as_deref_mut() {
-            Some(u) => u.confirm(due, runtime_up),
-            None => false,
-        }
     }
 
     /// The last cycle enabled the drive function (Operation enabled and the stopping
@@ -547,31 +381,6 @@ impl<S: ParameterStore> Drive<S> {
             });
         }
         self.faults.pop_emergency()
-    }
-
-    /// Runs a store / restore command now over the whole dictionary.
-    fn run_store(
-        &mut self,
-        cmd: StoreCommand,
-        runtime: &mut dyn Dictionary,
-    ) -> Result<(), SdoAbort> {
-        let Some(mut store) = self.store.take() else {
-            return Err(SdoAbort::DataCannotBeStored);
-        };
-        let r = store.execute(
-            cmd,
-            &mut WholeDictionary {
-                drive: &mut *self,
-                runtime,
-            },
-        );
-        self.store = Some(store);
-        if r.is_ok() && matches!(cmd, StoreCommand::RestoreDefaults(_)) {
-            self.faults
-                .diagnosis_mut()
-                .push(crate::diagnosis::parameter_message(true, 0, self.now_ms));
-        }
-        r.map(|_| ()).map_err(StorageError::abort)
     }
 
     /// A stall the motion layer confirmed since the last step (where it began, command
@@ -603,147 +412,6 @@ impl<S: ParameterStore> Drive<S> {
             position_error: self.cia402.following_error(),
             speed: self.axis.velocity,
         }
-    }
-
-    /// The supervision tick, on the drive's own clock (`now_us`, µs; every
-    /// [`TICK_US`] on the board, in every ESM state and sync mode): input filter and
-    /// functions, protections from the measured values, fault reset by input,
-    /// monitoring, then — unless the master's cycle did one within
-    /// [`TICK_STEP_AFTER_US`] — a control step ([`Drive::step`]): the power drive
-    /// system, the fault reactions and stop ramps, the profile and homing generators
-    /// and the brake advance whether or not frames arrive. A fault this tick detects
-    /// starts its reaction in the same tick. Last, the scope's sample when it records
-    /// ([`crate::scope`]). `raw_inputs`: bit n = level of IN n+1.
-    pub fn tick(&mut self, now_us: u64, raw_inputs: u8) {
-        let now = now_us as Stamp;
-        // Whole milliseconds of the clock since the last tick (the clock's millisecond
-        // boundaries, as `now_us / 1000` counts them).
-        let dt_ms = match self.last_tick_us.map(|prev| elapsed_us(now, prev)) {
-            Some(Some(d)) => {
-                let us = self.tick_phase_us + d;
-                self.tick_phase_us = us % 1000;
-                us / 1000
-            }
-            Some(None) => 0,
-            None => {
-                self.tick_phase_us = (now_us % 1000) as u32;
-                (TICK_US / 1000) as u32
-            }
-        };
-        self.last_tick_us = Some(now);
-        self.now_ms = self.now_ms.wrapping_add(dt_ms);
-        self.faults.set_clock(self.now_ms);
-        self.monitor.tick_ms(dt_ms);
-        self.update_housekeeping();
-        self.inputs
-            .update(raw_inputs, dt_ms.saturating_mul(1000), &self.params);
-        self.params.set_raw_inputs(self.inputs.raw());
-        // Input function "probe" (0x2152 bit 5): an edge latches the position at this
-        // tick for touch probe 1, beside IN1's capture.
-        if let Some(active) = self.inputs.probe_edge() {
-            self.probe_tick = self.probe_tick.or(active, self.axis.position);
-        }
-        let snap = self.snapshot();
-        let now_ms = self.now_ms;
-        if self.axis.bus_mv > 0 {
-            self.faults
-                .check_bus_voltage(self.axis.bus_mv, snap, now_ms);
-        }
-        // Over-current: the measured phase currents against the limit (software check)
-        // and the power stage's break latch. The condition is gone once the currents
-        // are below the limit and the latch is re-armed; then a fault reset (with
-        // 0x2057 = 1, the fault being latched) clears it.
-        self.faults.check_phase_currents(
-            i32::from(self.axis.ia_ma),
-            i32::from(self.axis.ib_ma),
-            snap,
-            now_ms,
-        );
-        if self.axis.overcurrent_trip {
-            self.faults.raise(FaultKind::OverCurrent, snap, now_ms);
-        }
-        if self.inputs.fault_clear_edge() {
-            self.faults.fault_reset();
-        }
-        if self.params.take_fault_history_clear() {
-            self.faults.clear_history();
-        }
-        self.servo_tune_tick(dt_ms);
-        let after = match self.cycles_running(now) {
-            Some(p) => (TICK_STEP_AFTER_US as u32).max(p + p / 2),
-            None => TICK_STEP_AFTER_US as u32,
-        };
-        let due = self
-            .last_step_us
-            .is_none_or(|t| elapsed_us(now, t).is_none_or(|d| d >= after));
-        // A fault the PDS has not taken yet starts its reaction in this tick.
-        let fault_news = self.faults.any_active()
-            && !matches!(
-                self.cia402.state(),
-                crate::cia402::pds::PdsState::Fault
-                    | crate::cia402::pds::PdsState::FaultReactionActive
-            );
-        if due || fault_news || core::mem::take(&mut self.react_now) {
-            self.step_at(now, SetpointArrival::Stale);
-        }
-        if self.cia402.take_following_error_fault() {
-            // The CiA 402 following-error supervision (0x6065 / 0x6066) faulted the
-            // PDS: the fault module reports it like every other fault (emergency,
-            // history, red LED 7, alarm output); an event, so a reset clears it.
-            let snap = self.snapshot();
-            self.faults
-                .raise(FaultKind::FollowingError, snap, self.now_ms);
-            self.faults.condition_gone(FaultKind::FollowingError);
-        }
-        if self.scope.running() {
-            self.sample_scope();
-        }
-    }
-
-    /// One control step at `now_us` on the drive's clock: [`Drive::run_cycle`] over the
-    /// time since the previous step. Called by the supervision tick and by the
-    /// master's cycle (`setpoint`: whether that cycle brought new outputs).
-    pub fn step(&mut self, now_us: u64, setpoint: SetpointArrival) -> DriveCommand {
-        self.step_at(now_us as Stamp, setpoint)
-    }
-
-    /// [`Drive::step`] at a [`Stamp`]: steps of at most 10 ms (a longer pause is not
-    /// integrated), 1 µs when the clock stood still or went back.
-    fn step_at(&mut self, now: Stamp, setpoint: SetpointArrival) -> DriveCommand {
-        let dt = match self.last_step_us.map(|prev| elapsed_us(now, prev)) {
-            Some(Some(d)) if d > 0 => d.min(10_000) as f32 * 1e-6,
-            Some(_) => 1e-6,
-            None => TICK_US as f32 * 1e-6,
-        };
-        self.last_step_us = Some(now);
-        self.steps = self.steps.wrapping_add(1);
-        self.control_step(dt, setpoint)
-    }
-
-    /// The period of the master's cycles (µs) while they run at 1 ms or faster (the
-    /// last one less than two periods ago).
-    fn cycles_running(&self, now: Stamp) -> Option<u32> {
-        let p = self.cycle_period_us;
-        let since = elapsed_us(now, self.last_cycle_us?)?;
-        (p > 0 && p <= TICK_US as u32 && since < 2 * p).then_some(p)
-    }
-
-    /// How long the motion layer takes to reach a new step's set-points, s: the
-    /// master's cycle while it runs at 1 ms or faster (the steps come with it), else
-    /// the tick period. Not the length of the last step: the tick and the cycle may
-    /// land close together, and the motion layer must not rush to the second one.
-    pub fn segment_s(&self) -> f32 {
-        let us = self
-            .last_step_us
-            .and_then(|t| self.cycles_running(t))
-            .unwrap_or(TICK_US as u32);
-        us as f32 * 1e-6
-    }
-
-    /// Control steps so far (wrapping): a new value means new set-points in
-    /// [`Drive::command`], for the motion layer to start a new segment with.
-    pub fn steps(&self) -> u32 {
-        self.steps
     }
 
     /// The power stage may be on: the last step's command wants it, the PDS state has
@@ -792,129 +460,6 @@ impl<S: ParameterStore> Drive<S> {
         ) && self.esm != EsmState::Bootstrap
             && !self.command.power_stage
             && !self.command.brake_release
-    }
-
-    /// A stop ramp runs (quick stop or fault reaction).
-    #[cold]
-    fn stopping(&self) -> bool {
-        use crate::cia402::pds::PdsState;
-        matches!(
-            self.cia402.state(),
-            PdsState::QuickStopActive | PdsState::FaultReactionActive
-        )
-    }
-
-    /// Entering Bootstrap: the power stage goes off now unless a stop ramp runs (the
-    /// 0x6007 reaction of the ESM change), in which case it goes off at its end.
-    fn bootstrap_stop(&mut self) {
-        if !self.stopping() {
-            self.command.power_stage = false;
-            self.command.drive_enabled = false;
-            self.command.brake_release = false;
-            // The PDS leaves the enabled states (disable voltage, as with 0x6007 = 2):
-            // leaving Bootstrap re-energises nothing without a new enable.
-            self.cia402.set_controlword(0);
-            self.react_now = true;
-        }
-    }
-
-    /// The current-loop supervisor's report (control path → drive; call every tick,
-    /// before [`Drive::tick`]). A finished tune writes 0x2020 (mΩ), 0x2021 (µH), 0x2015
-    /// and 0x2016 (the gains the loop now uses) and the calibration 0x2022; a failed one, or a phase without
-    /// current while running, raises motor open 0x7120; a "current does not follow" detection raises 0x5210; a trip of the fast
-    /// protection raises over-current 0x2310 or over-voltage 0x3210. Both are events:
-    /// the condition is reported gone at once, so a fault reset clears them (see the
-    /// module docs of [`crate::current_supervisor`] for the retry).
-    ///
-    /// Until the first tune since power-up has finished (with 0x2013 = 1) the power-up
-    /// self-test is running: the PDS stays in Not ready to switch on.
-    pub fn current_report(&mut self, r: &CurrentReport) {
-        if !self.power_up_tune_over {
-            let running = self.params.get(Param::AutoTune) == 1
-                && r.tune_seq == 0
-                && matches!(r.tune, TuneStatus::Pending | TuneStatus::Running);
-            self.power_up_tune_over = !running;
-            self.cia402.set_self_test(running);
-        }
-        if r.tune_seq != self.seen_tune_seq {
-            self.seen_tune_seq = r.tune_seq;
-            match r.tune {
-                TuneStatus::Done => {
-                    let t = r.tuned;
-                    self.params
-                        .set_internal(Param::MotorResistance, i32::from(t.r_mohm));
-                    self.params
-                        .set_internal(Param::MotorInductance, i32::from(t.l_uh));
-                    self.params.set_internal(Param::CurrentKp, i32::from(t.kp));
-                    self.params.set_internal(Param::CurrentKi, i32::from(t.ki));
-                    self.params.set_calibration(t.calibration);
-                }
-                TuneStatus::Failed(e) => {
-                    use foc::autotune::{Phase, TuneError};
-                    // No retry of the auto-tune by itself: a new 0x2013 write asks
-                    // for one. (With 0x2013 = 0 this was the first enable's phase
-                    // check, which a fault reset re-arms.)
-                    self.tune_failed = self.params.get(Param::AutoTune) == 1;
-                    // A calibration outside its band is the current sensing's fault
-                    // (0x5210, detail 2); the others are the motor's.
-                    let (kind, detail) = match e {
-                        TuneError::OpenPhase(Phase::A) => (FaultKind::MotorOpen, [1, 0]),
-                        TuneError::OpenPhase(Phase::B) => (FaultKind::MotorOpen, [1, 1]),
-                        TuneError::Unbalanced => (FaultKind::MotorOpen, [2, 0]),
-                        TuneError::Implausible => (FaultKind::MotorOpen, [3, 0]),
-                        TuneError::Sensing => (FaultKind::PhaseSensing, [2, 0]),
-                    };
-                    let snap = self.snapshot();
-                    self.faults.raise_detail(kind, detail, snap, self.now_ms);
-                    self.faults.condition_gone(kind);
-                }
-                _ => {}
-            }
-        }
-        if r.trip_seq != self.seen_trip_seq {
-            // The current loop's fast protection switched the bridges off: the fault
-            // with the sample it tripped on (the tick's checks then follow the
-            // condition until it is gone).
-            self.seen_trip_seq = r.trip_seq;
-            let kind = match r.trip {
-                crate::current_supervisor::Trip::OverVoltage => Some(FaultKind::OverVoltage),
-                crate::current_supervisor::Trip::OverCurrent => Some(FaultKind::OverCurrent),
-                crate::current_supervisor::Trip::None => None,
-            };
-            if let Some(kind) = kind {
-                let snap = Snapshot {
-                    ia_ma: r.trip_ia_ma,
-                    ib_ma: r.trip_ib_ma,
-                    bus_dv: r.trip_bus_dv,
-                    ..self.snapshot()
-                };
-                // The trip has already latched the bridges off: reported whatever
-                // 0x2056 says (a masked detection would leave the drive enabled with
-                // no torque and nothing to see).
-                self.faults.raise_unmaskable(kind, snap, self.now_ms);
-            }
-        }
-        if r.open_seq != self.seen_open_seq {
-            // A phase without current while running: motor open, detail 4 and the
-            // phase (0 = A, 1 = B).
-            self.seen_open_seq = r.open_seq;
-            let phase = u8::from(r.open_phase == foc::autotune::Phase::B);
-            let snap = self.snapshot();
-            self.faults
-                .raise_detail(FaultKind::MotorOpen, [4, phase], snap, self.now_ms);
-            self.faults.condition_gone(FaultKind::MotorOpen);
-        }
-        if r.follow_seq != self.seen_follow_seq {
-            self.seen_follow_seq = r.follow_seq;
-            let snap = self.snapshot();
-            self.faults.raise_detail(
-                FaultKind::PhaseSensing,
-                r.follow_ref_ma.to_le_bytes(),
-                snap,
-                self.now_ms,
-            );
-            self.faults.condition_gone(FaultKind::PhaseSensing);
-        }
     }
 
     /// The drive's LEDs at `now_ms`.
@@ -1026,6 +571,9 @@ impl<S: ParameterStore> Drive<S> {
     }
 }
 
+mod boot;
+mod clock;
+mod report;
 mod stack;
 mod store;
 mod trace;

@@ -21,17 +21,15 @@ use core::cell::RefCell;
 use core::mem::MaybeUninit;
 use core::sync::atomic::Ordering;
 
+use defmt::intern;
 use defmt_rtt as _;
 use ecat_slave_stack::slave::Slave;
 use embassy_executor::{InterruptExecutor, SendSpawner, SpawnError, SpawnToken, Spawner};
 use embassy_futures::select::{select, Either};
 use embassy_stm32::exti::{self, ExtiInput};
-use embassy_stm32::gpio::Pull;
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::InterruptExt;
-use embassy_stm32::mode::Async;
-use embassy_stm32::spi::Spi;
-use embassy_stm32::{bind_interrupts, dma, peripherals};
+use embassy_stm32::{bind_interrupts, dma, gpio::Pull, mode::Async, peripherals, spi::Spi};
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_time::{Duration, Instant, Ticker, Timer};
 use firmware::latch::Edges;
@@ -44,6 +42,9 @@ use hw::esc::Esc;
 use hw::flash::ParamFlash;
 use hw::io;
 use hw::lock::{CyclicCeiling, CYCLIC_PRIORITY};
+
+/// An EXTI input line of the board (ESC IRQ, SYNC0, IN2).
+type Exti = ExtiInput<'static, Async>;
 
 bind_interrupts!(struct Irqs {
     EXTI1 => exti::InterruptHandler<interrupt::typelevel::EXTI1>;
@@ -61,7 +62,7 @@ static EXECUTOR_CYCLIC: InterruptExecutor = InterruptExecutor::new();
 #[interrupt]
 fn UART4() {
     // SAFETY: `on_interrupt` runs only here, in the handler of UART4, the interrupt
-    // `spawn_drive_tasks` starts EXECUTOR_CYCLIC on; the vector serves nothing else
+    // `main` starts EXECUTOR_CYCLIC on; the vector serves nothing else
     // (UART4's pins carry TIM8).
     unsafe { EXECUTOR_CYCLIC.on_interrupt() }
 }
@@ -96,10 +97,7 @@ static mut DRIVE_STATE_SLOT: MaybeUninit<DriveState> = MaybeUninit::uninit();
 /// Runs `f` on the drive state under the priority-ceiling lock; `None` before the
 /// state exists.
 fn with_drive_state<R>(f: impl FnOnce(&mut DriveState) -> R) -> Option<R> {
-    DRIVE_STATE.lock(|c| match c.try_borrow_mut() {
-        Ok(mut g) => g.as_deref_mut().map(f),
-        Err(_) => None,
-    })
+    DRIVE_STATE.lock(|c| c.try_borrow_mut().ok()?.as_deref_mut().map(f))
 }
 
 defmt::timestamp!("{=u64:us}", Instant::now().as_micros());
@@ -132,8 +130,55 @@ async fn main(spawner: Spawner) {
     let (leds, ports, mut dip) = io::init(r.io);
     let banks = dip.read();
 
-    // EtherCAT slave controller.
-    let e = r.esc;
+    let (esc, esc_irq, sync0) = start_esc(r.esc);
+    let in2 = ExtiInput::new(r.in2.0, r.in2.1, Pull::None, Irqs);
+    for irq in [interrupt::EXTI1, interrupt::EXTI2, interrupt::EXTI3] {
+        irq.set_priority(CYCLIC_PRIORITY);
+    }
+
+    let (flash, has_slave) = place_drive_state(r.flash, esc, banks);
+    hw::adc::init(r.analog);
+
+    let thread_spawner = spawner.make_send();
+    // The self-test build: the checks instead of the drive's tasks (bridges off).
+    #[cfg(feature = "selftest")]
+    {
+        let _ = (sync0, esc_irq, in2, enc, r.iwdg, has_slave);
+        let parts = hw::selftest::Parts {
+            dip,
+            leds,
+            ports,
+            flash,
+            encoder_counts: with_drive_state(|s| s.rt.command().motion.counts_per_rev / 4)
+                .unwrap_or(0),
+        };
+        spawn(thread_spawner, selftest(parts), intern!("selftest"));
+    }
+    #[cfg(not(feature = "selftest"))]
+    {
+        // Cyclic path, tick and touch probe on the interrupt executor, so a flash
+        // commit in thread mode never stops the drive's own clock.
+        interrupt::UART4.set_priority(CYCLIC_PRIORITY);
+        let cyclic_spawner = EXECUTOR_CYCLIC.start(interrupt::UART4);
+        if has_slave {
+            spawn(cyclic_spawner, cyclic(sync0), intern!("cyclic"));
+            spawn(thread_spawner, ecat(esc_irq, flash), intern!("ecat"));
+        }
+        spawn(
+            cyclic_spawner,
+            touch_probe2(in2, enc),
+            intern!("touch_probe2"),
+        );
+        let mut wdg = hw::safety::Watchdog::new(r.iwdg);
+        wdg.unleash();
+        spawn(cyclic_spawner, tick(leds, ports, dip), intern!("tick"));
+        spawn(thread_spawner, supervisor(wdg, enc), intern!("supervisor"));
+    }
+}
+
+/// The EtherCAT slave controller (`None` when it does not answer: the drive then runs
+/// locally), its IRQ line and SYNC0.
+fn start_esc(e: board::EscPins) -> (Option<Esc>, Exti, Exti) {
     let spi = Spi::new(
         e.spi,
         e.sck,
@@ -148,18 +193,21 @@ async fn main(spawner: Spawner) {
     let esc_ok = hw::esc::probe_logged(&mut esc);
     let esc_irq = ExtiInput::new(e.irq, e.irq_exti, Pull::Up, Irqs);
     let sync0 = ExtiInput::new(e.sync0, e.sync0_exti, hw::esc::SYNC0_IDLE_PULL, Irqs);
-    let in2 = ExtiInput::new(r.in2.0, r.in2.1, Pull::None, Irqs);
-    for irq in [interrupt::EXTI1, interrupt::EXTI2, interrupt::EXTI3] {
-        irq.set_priority(CYCLIC_PRIORITY);
-    }
+    (esc_ok.then_some(esc), esc_irq, sync0)
+}
 
-    let (chip, flash, staged) = hw::boot::start_flash(r.flash);
-    let (drive, mut slave) = hw::boot::place_drive_and_slave(chip, staged, esc_ok.then_some(esc));
+/// The drive state built in place (flash, drive, slave, power-up, motor control) and
+/// put under the lock: the parameter flash for `ecat`, and whether there is a slave.
+fn place_drive_state(
+    flash: embassy_stm32::Peri<'static, peripherals::FLASH>,
+    esc: Option<Esc>,
+    banks: io::DipBanks,
+) -> (Option<ParamFlash>, bool) {
+    let (chip, flash, staged) = hw::boot::start_flash(flash);
+    let (drive, mut slave) = hw::boot::place_drive_and_slave(chip, staged, esc);
     let mut rt = Runtime::new(board::SPEC, drive);
-    let dips = DipBanks {
-        id: banks.id,
-        function: banks.function,
-    };
+    let io::DipBanks { id, function } = banks;
+    let dips = DipBanks { id, function };
     let up = match slave.as_deref_mut() {
         Some(s) => rt.power_up(
             drive,
@@ -182,51 +230,7 @@ async fn main(spawner: Spawner) {
     let slot = unsafe { &mut *core::ptr::addr_of_mut!(DRIVE_STATE_SLOT) };
     let state: &'static mut DriveState = slot.write(DriveState { drive, slave, rt });
     DRIVE_STATE.lock(|c| *c.borrow_mut() = Some(state));
-    hw::adc::init(r.analog);
-
-    let thread_spawner = spawner.make_send();
-    // The self-test build: the checks instead of the drive's tasks (bridges off).
-    #[cfg(feature = "selftest")]
-    {
-        let _ = (sync0, esc_irq, in2, enc, r.iwdg, has_slave);
-        let parts = hw::selftest::Parts {
-            dip,
-            leds,
-            ports,
-            flash,
-            encoder_counts: with_drive_state(|s| s.rt.command().motion.counts_per_rev / 4)
-                .unwrap_or(0),
-        };
-        spawn(thread_spawner, selftest(parts), defmt::intern!("selftest"));
-    }
-    #[cfg(not(feature = "selftest"))]
-    {
-        // Cyclic path, tick and touch probe on the interrupt executor, so a flash
-        // commit in thread mode never stops the drive's own clock.
-        interrupt::UART4.set_priority(CYCLIC_PRIORITY);
-        let cyclic_spawner = EXECUTOR_CYCLIC.start(interrupt::UART4);
-        if has_slave {
-            spawn(cyclic_spawner, cyclic(sync0), defmt::intern!("cyclic"));
-            spawn(thread_spawner, ecat(esc_irq, flash), defmt::intern!("ecat"));
-        }
-        spawn(
-            cyclic_spawner,
-            touch_probe2(in2, enc),
-            defmt::intern!("touch_probe2"),
-        );
-        let mut wdg = hw::safety::Watchdog::new(r.iwdg);
-        wdg.unleash();
-        spawn(
-            cyclic_spawner,
-            tick(leds, ports, dip),
-            defmt::intern!("tick"),
-        );
-        spawn(
-            thread_spawner,
-            supervisor(wdg, enc),
-            defmt::intern!("supervisor"),
-        );
-    }
+    (flash, has_slave)
 }
 
 /// Spawns a task, or logs why it could not.
@@ -244,7 +248,7 @@ fn spawn<S: Send>(spawner: SendSpawner, task: Result<SpawnToken<S>, SpawnError>,
 /// is then skipped, so every SYNC0 is handled exactly once. Outside DC mode `poll`
 /// runs the cycles.
 #[embassy_executor::task]
-async fn cyclic(mut sync0: ExtiInput<'static, Async>) {
+async fn cyclic(mut sync0: Exti) {
     let mut mine: Option<u64> = None;
     loop {
         hw::esc::sync0_edge(&mut sync0).await;
@@ -269,7 +273,7 @@ async fn cyclic(mut sync0: ExtiInput<'static, Async>) {
 /// millisecond, between the runtime's `before_poll` and `after_poll`; a staged flash
 /// record is programmed after the lock is released.
 #[embassy_executor::task]
-async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>) {
+async fn ecat(mut irq: Exti, mut flash: Option<ParamFlash>) {
     loop {
         if irq.is_high() {
             let timeout = Timer::after(Duration::from_millis(1));
@@ -323,7 +327,7 @@ async fn ecat(mut irq: ExtiInput<'static, Async>, mut flash: Option<ParamFlash>)
 /// direction and hands it to the current-loop interrupt ([`PROBE2_RAW`]). Touch probe
 /// 1 (IN1) is latched by TIM2 CH4 in hardware (`hw::control`).
 #[embassy_executor::task]
-async fn touch_probe2(mut in2: ExtiInput<'static, Async>, enc: Encoder) {
+async fn touch_probe2(mut in2: Exti, enc: Encoder) {
     let mut edges: Edges<u32> = Edges::default();
     loop {
         in2.wait_for_any_edge().await;
@@ -343,15 +347,12 @@ async fn tick(
     mut ports: io::Ports<'static>,
     mut dip: io::Dip<'static>,
 ) {
+    let single_bank = matches!(board::SPEC.dip, firmware::dip::Board::SingleBank(_));
     let mut ticker = ticker(Duration::from_millis(1));
     loop {
         ticker.next().await;
         let raw = ports.read_inputs();
-        let dip_bits = if matches!(board::SPEC.dip, firmware::dip::Board::SingleBank(_)) {
-            dip.read().function
-        } else {
-            0
-        };
+        let dip_bits = if single_bank { dip.read().function } else { 0 };
         let pins = with_drive_state(|s| {
             let esm = s.esm();
             s.rt.tick(s.drive, &mut BoardPath, now_us(), raw, dip_bits, Some(esm))

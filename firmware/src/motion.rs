@@ -66,23 +66,36 @@
 //!
 //! Nothing here panics on any parameter value: ratios are guarded, divisions are by
 //! values ≥ 1, non-finite inputs fall back to zero.
+//!
+//! Submodules: `config` (motor constants, [`MotionConfig`] from the parameters),
+//! `signals` (the current loop's feedback and reference), `scale` (command units ↔
+//! counts), `interp` (set-point interpolation), `stall` (open-loop stall detection),
+//! `torque` (CST and the measured torque), `tune` (the servo tune's move).
+//!
+//! [`ServoGains`]: foc::servo::ServoGains
+//! [`ServoGains::from_bandwidth`]: foc::servo::ServoGains::from_bandwidth
+//! [`ServoGains::scaled`]: foc::servo::ServoGains::scaled
 
 use crate::cia402::{DriveCommand, SetpointKind};
 use crate::drive::AxisState;
-use crate::identity::Variant;
-use crate::params::{Param, Params};
-use crate::servo_tune::TuneSetup;
-use core::num::{NonZeroU32, NonZeroU64};
 use foc::angle::{Angle, CountScale, POLE_PAIRS};
-use foc::open_loop::{OpenLoop, OpenLoopConfig};
-use foc::servo::{handover_currents, Demand, Servo, ServoGains};
-use foc::stall::StallConfig;
-use foc::transforms::Dq;
+use foc::open_loop::OpenLoop;
+use foc::servo::{handover_currents, Demand, Servo};
 use interp::Interp;
 use stall::Stall;
 
+mod config;
 mod interp;
+mod scale;
+mod signals;
 mod stall;
+
+pub use config::{MotionConfig, MotorConstants, ECN57_20, TC86_45};
+#[cfg(test)]
+use scale::floor_div_i32;
+pub(crate) use scale::floor_div_i64;
+use scale::Scale;
+pub use signals::{CurrentReference, Feedback, Frame};
 
 /// Velocity bandwidth of the base gains (0x2140 = 100), Hz.
 pub const BASE_BANDWIDTH_HZ: f32 = 400.0;
@@ -98,71 +111,6 @@ pub const VELOCITY_REPORT_TAU: f32 = 0.005;
 /// 0x2030 (60 000), small enough that the sum keeps its resolution in an `f32`.
 pub const LAG_LIMIT: f32 = 1.0e6;
 
-/// Mechanical constants the base gains need (not among the vendor parameters: the
-/// board knows its motor).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MotorConstants {
-    /// Rotor (+ load) inertia, kg·m².
-    pub inertia: f32,
-    /// Torque constant, N·m/A (FOC peak current); also the back-EMF constant, V·s/rad.
-    pub kt: f32,
-    /// Phase resistance, Ω (the stall detection's model until 0x2020/0x2021 hold a
-    /// tuned motor).
-    pub resistance: f32,
-    /// Phase inductance, H (likewise).
-    pub inductance: f32,
-}
-
-/// ECN57-20 (NEMA 23): 480 g·cm², 0.283 N·m/A, 0.40 Ω, 1.8 mH.
-pub const ECN57_20: MotorConstants = MotorConstants {
-    inertia: 480e-7,
-    kt: 0.283,
-    resistance: 0.40,
-    inductance: 1.8e-3,
-};
-/// TC86-45 (NEMA 34): 1400 g·cm², 0.530 N·m/A, 0.325 Ω, 3.0 mH.
-pub const TC86_45: MotorConstants = MotorConstants {
-    inertia: 1400e-7,
-    kt: 0.530,
-    resistance: 0.325,
-    inductance: 3.0e-3,
-};
-
-/// Configuration of [`Motion`] (from the parameters: [`MotionConfig::from_params`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MotionConfig {
-    /// Servo period, s.
-    pub ts: f32,
-    /// Command units per revolution (0x2001, active copy).
-    pub pulses_per_rev: u32,
-    /// Encoder counts per revolution (0x2029 × 4; 0 = no encoder).
-    pub counts_per_rev: u32,
-    /// Closed loop (0x2024 = 2 and an encoder).
-    pub closed_loop: bool,
-    /// Peak current 0x2000, A.
-    pub peak_current: f32,
-    /// Holding current 0x2026, % (open loop).
-    pub holding_percent: u8,
-    /// Stand-still time before the holding current 0x2002, s.
-    pub standby_s: f32,
-    /// Soft start 0x2058, s.
-    pub soft_start_s: f32,
-    /// Command smoothing (0x2009 on: 0x2010:2), s; 0 = off.
-    pub filter_s: f32,
-    /// Direction reversal 0x2051.
-    pub reverse: bool,
-    /// Following-error limit 0x2030, counts.
-    pub following_error_limit: u32,
-    /// Servo gains (physical units, after the parameter scaling).
-    pub gains: ServoGains,
-    /// Open-loop anti-resonance damping gain 0x2059, s (0 = off; `foc::damping`).
-    pub damping_s: f32,
-    /// Open-loop stall detection (0x2060 = 1; 0x2061 → threshold), `None` when off.
-    pub stall: Option<StallConfig>,
-    /// The servo tune's move (0x2163, the motor; [`crate::servo_tune`]).
-    pub tune: TuneSetup,
-}
-
 fn finite_pos(x: f32) -> f32 {
     if x.is_finite() && x > 0.0 {
         x
@@ -177,221 +125,6 @@ fn clampf(x: f32, lo: f32, hi: f32) -> f32 {
         hi
     } else {
         y
-    }
-}
-
-impl MotionConfig {
-    /// The configuration the parameters describe for a motor with `motor` constants and
-    /// servo period `ts` (see the module docs for the gain scaling).
-    pub fn from_params(p: &Params, variant: Variant, motor: &MotorConstants, ts: f32) -> Self {
-        let ts = if ts.is_finite() && ts > 0.0 {
-            ts
-        } else {
-            SERVO_TS
-        };
-        let counts = if variant.has_encoder() {
-            (p.get(Param::EncoderResolution).clamp(1, 1 << 20) as u32) * 4
-        } else {
-            0
-        };
-        let ppr = match p.active().pulses_per_rev {
-            0 => p.get(Param::PulsesPerRev),
-            n => n as i32,
-        }
-        .clamp(1, 1 << 24) as u32;
-        // Peak and holding current, direction and smoothing: the objects' or the DIP
-        // function switches' (`Params::settings`).
-        let settings = p.settings();
-        let peak = f32::from(settings.peak_current_ma) * 1e-3;
-        // Parameter values are always inside their range in the `params` table (every
-        // write is checked, internal sets are clamped): the gains and the holding
-        // current need no clamp of their own here.
-        let g = |x: Param| p.get(x) as u16;
-        // Rotor inertia × (1 + load ratio 0x2160 %).
-        let load = 1.0 + p.get(Param::LoadInertiaRatio).clamp(0, 5000) as f32 * 0.01;
-        let base = ServoGains::from_bandwidth(
-            finite_pos(motor.inertia).max(1e-9) * load,
-            finite_pos(motor.kt).max(1e-6),
-            counts.max(4),
-            BASE_BANDWIDTH_HZ,
-            peak,
-        );
-        let gains = base.scaled(
-            g(Param::PosKp),
-            g(Param::PosKi),
-            g(Param::VelFf),
-            g(Param::SpeedKp).max(1),
-        );
-        let filter_s = settings.smoothing_us.min(1_000_000) as f32 * 1e-6;
-        MotionConfig {
-            ts,
-            pulses_per_rev: ppr,
-            counts_per_rev: counts,
-            closed_loop: counts > 0 && p.get(Param::LoopMode) == 2,
-            peak_current: peak,
-            holding_percent: settings.holding_percent,
-            standby_s: p.get(Param::StandbyTime).clamp(0, 100_000) as f32 * 1e-3,
-            soft_start_s: p.get(Param::SoftStart).clamp(0, 100_000) as f32 * 50e-6,
-            filter_s,
-            reverse: settings.direction_reversed,
-            following_error_limit: p.get(Param::FollowingErrorLimit).clamp(1, 1 << 24) as u32,
-            gains,
-            damping_s: p.get(Param::ResonanceDamping) as f32 * 1e-6,
-            stall: stall::config_from_params(p, motor, ts),
-            tune: TuneSetup::from_params(p, counts, motor.kt, motor.inertia, load),
-        }
-    }
-
-    fn open_loop_config(&self) -> OpenLoopConfig {
-        OpenLoopConfig {
-            pulses_per_rev: self.pulses_per_rev.max(1),
-            ts: self.ts,
-            running_current: self.peak_current,
-            holding_percent: self.holding_percent,
-            standby: self.standby_s,
-            soft_start: self.soft_start_s,
-            filter_time: self.filter_s,
-        }
-    }
-}
-
-/// What the encoder measured at the start of this servo period.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Feedback {
-    /// Multi-turn position, motor counts (`foc::encoder::Encoder::position`).
-    pub position: i32,
-    /// Velocity estimate, motor counts/s.
-    pub velocity: f32,
-    /// Electrical angle of the rotor (alignment offset included).
-    pub electrical_angle: Angle,
-    /// The current loop limited its voltage vector in the last period.
-    pub voltage_limited: bool,
-    /// The current loop's commanded d/q voltages, mean over the last servo period, V.
-    pub v_dq: Dq,
-    /// The current loop's measured d/q currents, mean over the last servo period, A.
-    pub i_dq: Dq,
-}
-
-/// Which angle the current loop works on.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Frame {
-    /// The encoder's electrical angle and velocity (closed loop).
-    Encoder,
-    /// A commanded angle and electrical velocity, rad/s (open loop).
-    Command {
-        /// Electrical angle of the d axis.
-        angle: Angle,
-        /// Electrical angular velocity (back-EMF / decoupling feed-forward), rad/s.
-        omega_e: f32,
-    },
-}
-
-/// The current loop's reference for the next servo period.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CurrentReference {
-    /// Bridges on (false: all outputs off, current 0).
-    pub power: bool,
-    /// Clear the current loop's integrators (first period after enable).
-    pub reset: bool,
-    /// Frame of `id`/`iq`.
-    pub frame: Frame,
-    /// d current, A.
-    pub id: f32,
-    /// q current, A.
-    pub iq: f32,
-}
-
-impl CurrentReference {
-    /// No current, bridges off.
-    pub const OFF: CurrentReference = CurrentReference {
-        power: false,
-        reset: false,
-        frame: Frame::Encoder,
-        id: 0.0,
-        iq: 0.0,
-    };
-}
-
-/// Exact scaling between command units and encoder counts.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Scale {
-    // Both ≥ 1 (no division checks) and below 2^24.
-    units: NonZeroU32,
-    counts: NonZeroU32,
-    // Precomputed ratios (i64 → f32 conversions are library calls on the M4).
-    cpu: f32,
-    upc: f32,
-}
-
-/// `x.div_euclid(d)` for `d > 0` by one unsigned division: for `x < 0`,
-/// `floor(x / d) = !((!x) / d)` with `!x = −x − 1 ≥ 0` (no overflow or zero checks).
-#[inline]
-fn floor_div_i32(x: i32, d: NonZeroU32) -> i32 {
-    let m = x >> 31;
-    (((x ^ m) as u32) / d) as i32 ^ m
-}
-
-/// [`floor_div_i32`] in 64 bits.
-#[inline]
-pub(crate) fn floor_div_i64(x: i64, d: NonZeroU64) -> i64 {
-    let m = x >> 63;
-    (((x ^ m) as u64) / d) as i64 ^ m
-}
-
-impl Scale {
-    fn new(units: u32, counts: u32) -> Self {
-        let (u, c) = (units.max(1), counts.max(1));
-        Scale {
-            units: NonZeroU32::new(u).unwrap_or(NonZeroU32::MIN),
-            counts: NonZeroU32::new(c).unwrap_or(NonZeroU32::MIN),
-            // Both are below 2^24 (pulses per revolution ≤ 51 200, encoder counts per
-            // revolution ≤ 240 000), so they are exact in f32 and the quotient is
-            // correctly rounded without pulling f64 soft-float into the image.
-            cpu: c as f32 / u as f32,
-            upc: u as f32 / c as f32,
-        }
-    }
-    /// Command units → counts: integer part and fraction in [0, 1).
-    #[inline(never)]
-    fn to_counts(self, p: i32) -> (i32, f32) {
-        let (u, c) = (self.units.get(), self.counts.get());
-        if u64::from(u) * u64::from(c) < (1 << 31) {
-            // p = a·U + b, 0 ≤ b < U: counts = a·C + (b·C)/U with 32-bit hardware
-            // divisions only (b·C < U·C < 2^31).
-            let a = floor_div_i32(p, self.units);
-            let b = p.wrapping_sub(a.wrapping_mul(u as i32)) as u32;
-            let t = b * c;
-            let q = t / self.units;
-            let r = t - q * u;
-            return (
-                a.wrapping_mul(c as i32).wrapping_add(q as i32),
-                r as f32 / u as f32,
-            );
-        }
-        self.to_counts_wide(p)
-    }
-    /// [`Scale::to_counts`] in 64 bits (any U·C).
-    fn to_counts_wide(self, p: i32) -> (i32, f32) {
-        let units = i64::from(self.units.get());
-        let n = i64::from(p) * i64::from(self.counts.get());
-        // One 64-bit division (a library call on the M4); the remainder from it.
-        let q = floor_div_i64(n, NonZeroU64::from(self.units));
-        let r = n - q * units;
-        (q as i32, r as f32 / units as f32)
-    }
-    /// Counts → command units, rounded to nearest.
-    #[inline(never)]
-    fn to_units(self, n: i32) -> i32 {
-        let c = u64::from(self.counts.get());
-        let x = 2 * i64::from(n) * i64::from(self.units.get()) + c as i64;
-        // 2·C ≥ 2.
-        floor_div_i64(x, NonZeroU64::new(2 * c).unwrap_or(NonZeroU64::MIN)) as i32
-    }
-    fn counts_per_unit(self) -> f32 {
-        self.cpu
-    }
-    fn units_per_count(self) -> f32 {
-        self.upc
     }
 }
 

@@ -11,7 +11,7 @@ use ecat_slave_stack::od::{
 };
 use firmware::comm::{self, Comm, StoreCommand, LOAD, SAVE};
 use firmware::dip::{self, AliasSource, Board};
-use firmware::faults::{self, Faults};
+use firmware::faults::Faults;
 use firmware::identity::{Identity, Variant};
 use firmware::monitor::{self, Monitor};
 use firmware::params::{self, Params, P};
@@ -71,7 +71,7 @@ const PARTS: &[&[ObjectDesc]] = &[
     MAPPING,
     params::OBJECTS,
     monitor::OBJECTS,
-    faults::OBJECTS,
+    firmware::dictionary::fault_history::OBJECTS,
 ];
 
 static ALL: &[Object] =
@@ -178,7 +178,9 @@ impl Dictionary for Drive {
                 Ok(len)
             }
             0x2000..=0x21FF => self.params.read(index, sub, buf),
-            0x2400..=0x24FF => self.faults.read(index, sub, buf),
+            0x2400..=0x24FF => {
+                firmware::dictionary::fault_history::read(&self.faults, index, sub, buf)
+            }
             0x2300..=0x23FF => self.monitor.read(index, sub, buf),
             _ => Err(SdoAbort::ObjectDoesNotExist),
         }

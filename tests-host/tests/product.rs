@@ -23,7 +23,7 @@ const PARTS: &[&[ObjectDesc]] = &[
     pdo::OBJECTS,
     params::OBJECTS,
     monitor::OBJECTS,
-    firmware::faults::OBJECTS,
+    firmware::dictionary::fault_history::OBJECTS,
 ];
 
 fn all_objects() -> &'static [Object] {
@@ -228,7 +228,9 @@ impl Dictionary for Drive {
             0x1600..=0x1C13 => self.pdo.read(index, sub, buf),
             0x2000..=0x21FF => self.params.read(index, sub, buf),
             0x2300..=0x23FF => self.monitor.read(index, sub, buf),
-            0x2400..=0x24FF => self.faults.read(index, sub, buf),
+            0x2400..=0x24FF => {
+                firmware::dictionary::fault_history::read(&self.faults, index, sub, buf)
+            }
             _ => Err(SdoAbort::ObjectDoesNotExist),
         }
     }

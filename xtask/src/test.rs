@@ -158,7 +158,7 @@ fn summary(t: &Tally) -> bool {
 }
 
 /// Clippy with warnings denied: host crates, bare-metal libraries, bootloader, every
-/// board firmware flavour.
+/// board firmware flavour; rustdoc on the libraries after the host crates.
 fn clippy_steps(t: &mut Tally) {
     t.step(
         "clippy (host crates)",
@@ -170,24 +170,7 @@ fn clippy_steps(t: &mut Tally) {
             "warnings",
         ])),
     );
-    t.step(
-        "rustdoc (libraries: no broken or private doc links)",
-        run_status(
-            cargo(&[
-                "doc",
-                "--no-deps",
-                "-p",
-                "foc",
-                "-p",
-                "ecat-slave-stack",
-                "-p",
-                "firmware",
-                "-p",
-                "efw",
-            ])
-            .env("RUSTDOCFLAGS", "-D warnings"),
-        ),
-    );
+    rustdoc_step(t);
     t.step(
         "clippy (bare-metal libraries)",
         run_status(&mut cargo(&[
@@ -207,8 +190,12 @@ fn clippy_steps(t: &mut Tally) {
             "warnings",
         ])),
     );
-    // The board image in both flavours, and the self-test image (docs/board/bring-up.md, "Board
-    // self-test") in both.
+    board_clippy_steps(t);
+}
+
+/// Clippy on the bootloader, and on the board image in both flavours and the self-test
+/// image (docs/board/bring-up.md, "Board self-test") in both.
+fn board_clippy_steps(t: &mut Tally) {
     t.step(
         "clippy (bootloader)",
         run_status(&mut cargo(&[
@@ -243,6 +230,28 @@ fn clippy_steps(t: &mut Tally) {
             ])),
         );
     }
+}
+
+/// Rustdoc on the libraries with warnings as errors: no broken or private doc links.
+fn rustdoc_step(t: &mut Tally) {
+    t.step(
+        "rustdoc (libraries: no broken or private doc links)",
+        run_status(
+            cargo(&[
+                "doc",
+                "--no-deps",
+                "-p",
+                "foc",
+                "-p",
+                "ecat-slave-stack",
+                "-p",
+                "firmware",
+                "-p",
+                "efw",
+            ])
+            .env("RUSTDOCFLAGS", "-D warnings"),
+        ),
+    );
 }
 
 /// Harness self-test: an image with a deliberately failing test must fail, on the

@@ -282,7 +282,7 @@ impl<S: ParameterStore> Drive<S> {
             Some(Owner::Comm) => self.comm.read(&self.faults, index, sub, buf),
             Some(Owner::Params) => self.params.read(index, sub, buf),
             Some(Owner::Monitor) => self.monitor.read(index, sub, buf),
-            Some(Owner::Faults) => self.faults.read(index, sub, buf),
+            Some(Owner::Faults) => dictionary::fault_history::read(&self.faults, index, sub, buf),
             Some(Owner::Scope) => self.read_scope(index, sub, buf),
             Some(Owner::Cia402) => self.cia402.read(index, sub, buf),
             Some(Owner::SlaveRuntime) | None => Err(SdoAbort::ObjectDoesNotExist),

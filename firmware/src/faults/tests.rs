@@ -1,5 +1,6 @@
 use super::*;
-use ecat_slave_stack::od;
+use crate::dictionary::fault_history::{read, OBJECTS};
+use ecat_slave_stack::od::{self, SdoAbort};
 
 /// The table as the product packs it.
 static PACKED: &[od::Object] = ecat_slave_stack::packed_dictionary!(&[OBJECTS]);
@@ -219,7 +220,7 @@ fn history_keeps_six_newest_readable_by_sdo() {
     assert_eq!(f.history_len(), 6);
     let mut buf = [0u8; 4];
     let rd = |f: &Faults, i, s, buf: &mut [u8; 4]| {
-        let n = f.read(i, s, buf).unwrap();
+        let n = read(f, i, s, buf).unwrap();
         let e = od::find_entry(PACKED, i, s).unwrap();
         od::decode_int(e.data_type, &buf[..n]).unwrap()
     };
@@ -244,15 +245,15 @@ fn history_keeps_six_newest_readable_by_sdo() {
     assert_eq!(rd(&f, 0x2401, 1, &mut buf), 0);
     assert_eq!(rd(&f, 0x2400, 2, &mut buf), 0);
     assert_eq!(
-        f.read(0x2407, 0, &mut buf),
+        read(&f, 0x2407, 0, &mut buf),
         Err(SdoAbort::ObjectDoesNotExist)
     );
     assert_eq!(
-        f.read(0x2401, 9, &mut buf),
+        read(&f, 0x2401, 9, &mut buf),
         Err(SdoAbort::SubindexDoesNotExist)
     );
     assert_eq!(
-        f.read(0x2401, 5, &mut [0u8; 2]),
+        read(&f, 0x2401, 5, &mut [0u8; 2]),
         Err(SdoAbort::ExceedsMailbox)
     );
 }
