@@ -226,6 +226,20 @@ impl Drop for MasterPriority {
     }
 }
 
+/// SOEM's `ecx_configdc` (ec_dc.c) for every station at once: one broadcast write
+/// latches the receive times of all drives as the same frame passes them, then each
+/// drive's offset (0x0920) makes its system time `master_time` at that pass. The
+/// drives then share one time base, and SYNC0 pulses started for the same system
+/// time come together.
+fn configdc_all(m: &mut SocketMaster, stations: impl Iterator<Item = u16>, master_time: u64) {
+    m.bwr(0x0900, &[0; 4]);
+    for st in stations {
+        let _ports = m.fprd(st, 0x0900, 16);
+        let local = m.fprd_u64(st, 0x0918);
+        m.fpwr(st, 0x0920, &master_time.wrapping_sub(local).to_le_bytes());
+    }
+}
+
 /// Waits (up to 20 s each, polling every 1 ms) until every station is in `state`.
 fn all_in(
     m: &mut SocketMaster,
@@ -304,8 +318,8 @@ pub fn soem_style(
             return Err(format!("SyncManagers / FMMUs of {st:#06x}"));
         }
     }
+    configdc_all(&mut m, stations(), 789_000_000_000);
     for st in stations() {
-        m.soem_configdc(st, 789_000_000_000);
         m.soem_dcsync(st, 1_000_000, 0, 0x03);
         m.request_state(st, 0x0004);
     }

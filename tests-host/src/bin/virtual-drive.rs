@@ -6,6 +6,7 @@
 //! virtual-drive --iface NAME [--drives N] [--motor ECN57-20|TC86-45]
 //!               [--esc lan9252|et1100] [--flash FILE] [--rt-priority 1..99|off]
 //!               [--fault KIND@TIME]... [--dip-id BITS] [--dip-function BITS]
+//!               [--input INn=on|off|pulse:PERIOD]...
 //! ```
 //!
 //! Runs in real time: simulated time follows the wall clock, from the end of the
@@ -25,6 +26,11 @@
 //! ID bank gives the station alias, the function bank the peak and standstill
 //! current, the direction and the smoothing while 0x2025 = 0 (0x2158 shows what they
 //! select). The log shows every change of the output pins and the brake.
+//!
+//! `--input INn=LEVEL` (repeatable) holds input n of every drive at a level (`on`,
+//! `off`) or toggles it (`pulse:200ms`: high the first half of every period), so
+//! that the input functions of 0x2152 (e.g. "probe" for touch probe 1) can be tried;
+//! see [`tests_host::sim_inputs`].
 //!
 //! `--fault KIND@TIME` (repeatable) makes every drive's plant develop a fault TIME
 //! after the start (`5s`, `250ms`): see `tests_host::fault_inject` for the kinds; the
@@ -46,6 +52,7 @@ use tests_host::raw_socket::RawSocket;
 use tests_host::realtime::{self, Irq, WireStats};
 use tests_host::segment::Segment;
 use tests_host::sim_drive::{self, Motor, SimDrive, SimDriveConfig};
+use tests_host::sim_inputs::{ForcedInput, ForcedInputs};
 
 /// Set by SIGINT / SIGTERM; both threads end within a wait.
 static STOP: AtomicBool = AtomicBool::new(false);
@@ -62,6 +69,7 @@ struct Options {
     flash: Option<String>,
     faults: Vec<Injection>,
     dips: DipBanks,
+    inputs: ForcedInputs,
     /// SCHED_FIFO priority of the frame thread (`None`: normal priority).
     rt_priority: Option<i32>,
 }
@@ -73,7 +81,7 @@ fn usage() -> String {
     let mut u = String::from(
         "usage: virtual-drive --iface NAME [--drives N] [--motor ECN57-20|TC86-45] \
          [--esc lan9252|et1100] [--flash FILE] [--rt-priority 1..99|off] \
-         [--fault KIND@TIME]... [--dip-id BITS] [--dip-function BITS]\n\
+         [--fault KIND@TIME]... [--dip-id BITS] [--dip-function BITS] [--input INn=LEVEL]...\n\
          \n  --rt-priority P    SCHED_FIFO priority of the thread that answers frames\n\
          \x20                    (default 20; needs root or CAP_SYS_NICE, else normal);\n\
          \x20                    the drives' thread runs at P-1 while it needs < 80 %\n\
@@ -83,6 +91,10 @@ fn usage() -> String {
          \x20 --dip-function BITS  the function bank likewise: SW1-3 peak current, SW4\n\
          \x20                    standstill current, SW5 direction, SW6-7 smoothing; used\n\
          \x20                    while 0x2025 = 0 (default 11111111)\n\
+         \n  --input INn=LEVEL  holds input n (1-5) of every drive at LEVEL: on, off, or\n\
+         \x20                    pulse:PERIOD (high the first half of every PERIOD, e.g.\n\
+         \x20                    pulse:200ms); repeatable. Without it IN1-IN3 follow the\n\
+         \x20                    model's home and limit switches, IN4-IN5 stay low\n\
          \n  --fault KIND@TIME  the plant develops a fault TIME after start (e.g. 5s, 250ms);\n\
          \x20                    repeatable. KIND:",
     );
@@ -101,6 +113,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
         flash: None,
         faults: Vec::new(),
         dips: sim_drive::DIPS_ALL_ON,
+        inputs: ForcedInputs::default(),
         rt_priority: Some(DEFAULT_RT_PRIORITY),
     };
     let mut it = args.iter();
@@ -139,6 +152,7 @@ fn parse(args: &[String]) -> Result<Options, String> {
             "--dip-function" => {
                 o.dips.function = fault_inject::parse_dip(&value("--dip-function")?)?
             }
+            "--input" => o.inputs.0.push(ForcedInput::parse(&value("--input")?)?),
             "--rt-priority" => {
                 o.rt_priority = match value("--rt-priority")?.as_str() {
                     "off" => None,
@@ -210,6 +224,7 @@ fn main() -> ExitCode {
     // Real time: the plant models may skip their work while the axes rest.
     for d in seg.drives_mut() {
         d.app.axis.skip_rest(true);
+        d.app.inputs = opts.inputs.clone();
     }
     if cfg.flash_file.is_none() {
         // Without --flash the update's partitions live in memory (lost at exit).
