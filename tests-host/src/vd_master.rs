@@ -273,7 +273,6 @@ pub fn soem_style(
 ) -> Result<SoemReport, String> {
     let _priority = MasterPriority::take();
     let mut m = SocketMaster::open(iface, timeout).map_err(|e| e.to_string())?;
-    let mut rep = SoemReport::default();
     let lost = |m: &SocketMaster, step: &str| -> Result<(), String> {
         if m.lost == 0 {
             Ok(())
@@ -284,8 +283,31 @@ pub fn soem_style(
             ))
         }
     };
-    let stations = || (0..drives).map(|i| 0x1001 + i);
-    // ecx_config_init: Init + ack to all, count, station addresses, identity.
+    to_pre_op(&mut m, drives)?;
+    lost(&m, "Pre-Op")?;
+    to_safe_op(&mut m, drives)?;
+    lost(&m, "Safe-Op")?;
+    start_cyclic_between_pulses(&mut m, drives);
+    for st in stations(drives) {
+        m.request_state(st, 0x0008);
+    }
+    all_in(&mut m, stations(drives), 0x08, "Op")?;
+    lost(&m, "Op")?;
+    let rep = run_cycles(&mut m, drives, cycles, pid);
+    for st in stations(drives) {
+        m.request_state(st, 0x0001);
+    }
+    Ok(rep)
+}
+
+/// The station addresses of `drives` drives: 0x1001…
+fn stations(drives: u16) -> impl Iterator<Item = u16> {
+    (0..drives).map(|i| 0x1001 + i)
+}
+
+/// `ecx_config_init`: Init + ack to all, count, station addresses, identity,
+/// mailboxes, Pre-Op; then the SM types over SDO as `ecx_readPDOmap` starts.
+fn to_pre_op(m: &mut SocketMaster, drives: u16) -> Result<(), String> {
     m.bwr(0x0120, &0x0011u16.to_le_bytes());
     let (_, found) = m.brd(0x0000, 2);
     if found != drives {
@@ -293,7 +315,7 @@ pub fn soem_style(
             "{found} drive(s) answered the count, {drives} expected"
         ));
     }
-    for (pos, st) in stations().enumerate() {
+    for (pos, st) in stations(drives).enumerate() {
         if m.apwr(pos as u16, 0x0010, &st.to_le_bytes()) != 1 {
             return Err(format!("station address of position {pos}"));
         }
@@ -304,31 +326,37 @@ pub fn soem_style(
         m.configure_mailbox(st, (0x1000, 128, 0x1080, 128));
         m.request_state(st, 0x0002);
     }
-    all_in(&mut m, stations(), 0x02, "Pre-Op")?;
-    for st in stations() {
-        // ecx_readPDOmap starts with the SM types over SDO.
+    all_in(m, stations(drives), 0x02, "Pre-Op")?;
+    for st in stations(drives) {
         m.sdo_upload(st, 0x1C00, 3)
             .map_err(|e| format!("SDO 0x1C00:03 of {st:#06x}: {e:?}"))?;
     }
-    lost(&m, "Pre-Op")?;
-    // ecx_config_map_group: SMs and FMMUs, Safe-Op; ecx_configdc, ecx_dcsync0.
+    Ok(())
+}
+
+/// `ecx_config_map_group` (SMs and FMMUs), `ecx_configdc`, `ecx_dcsync0` at 1 ms,
+/// Safe-Op.
+fn to_safe_op(m: &mut SocketMaster, drives: u16) -> Result<(), String> {
     let per = OUT_BYTES + IN_BYTES;
-    for (k, st) in stations().enumerate() {
+    for (k, st) in stations(drives).enumerate() {
         if m.process_data_sms(st, (k * per) as u32, OUT_BYTES, IN_BYTES) != 2 {
             return Err(format!("SyncManagers / FMMUs of {st:#06x}"));
         }
     }
-    configdc_all(&mut m, stations(), 789_000_000_000);
-    for st in stations() {
+    configdc_all(m, stations(drives), 789_000_000_000);
+    for st in stations(drives) {
         m.soem_dcsync(st, 1_000_000, 0, 0x03);
         m.request_state(st, 0x0004);
     }
-    all_in(&mut m, stations(), 0x04, "Safe-Op")?;
-    lost(&m, "Safe-Op")?;
-    // Process data before and during the Op request, as SOEM's applications do, in
-    // the middle between two SYNC0 pulses (SOEM's examples align their cycle to the
-    // DC time, `ec_sync`): the next pulse's system time (0x0990) against the system
-    // time now (0x0910) gives the pulse on the master's clock.
+    all_in(m, stations(drives), 0x04, "Safe-Op")
+}
+
+/// Process data before and during the Op request, as SOEM's applications do, in
+/// the middle between two SYNC0 pulses (SOEM's examples align their cycle to the
+/// DC time, `ec_sync`): the next pulse's system time (0x0990) against the system
+/// time now (0x0910) gives the pulse on the master's clock.
+fn start_cyclic_between_pulses(m: &mut SocketMaster, drives: u16) {
+    let per = OUT_BYTES + IN_BYTES;
     let wkc = 3 * drives;
     let t0 = m.link.now_ns();
     let st = m.fprd_u64(0x1001, 0x0910);
@@ -347,26 +375,29 @@ pub fn soem_style(
         };
     }
     m.wait(20_000_000, 1_000_000);
-    for st in stations() {
-        m.request_state(st, 0x0008);
-    }
-    all_in(&mut m, stations(), 0x08, "Op")?;
-    lost(&m, "Op")?;
-    rep.setup_frames = (m.frames, m.lost);
+}
+
+/// `cycles` LRWs in Op, measured: counts, round trips, CPU time of process `pid`,
+/// then the AL status of every drive (LRWs between the reads).
+fn run_cycles(m: &mut SocketMaster, drives: u16, cycles: u64, pid: Option<u32>) -> SoemReport {
+    let mut rep = SoemReport {
+        setup_frames: (m.frames, m.lost),
+        ..SoemReport::default()
+    };
     let counts = |m: &SocketMaster| m.cyclic.map_or((0, 0), |c| (c.sent, c.good));
-    let (c0, l0, r0) = (counts(&m), m.lost, m.rtt_ns.len());
+    let (c0, l0, r0) = (counts(m), m.lost, m.rtt_ns.len());
     let cpu0 = (pid.and_then(process_cpu_s).unwrap_or(0.0), Instant::now());
     // `cycles` LRWs, however long the host keeps the master itself from running (given
     // up after three times their time and a second).
     let limit = Instant::now() + Duration::from_millis(3 * cycles + 1000);
-    while counts(&m).0 < c0.0 + cycles && Instant::now() < limit {
+    while counts(m).0 < c0.0 + cycles && Instant::now() < limit {
         m.wait(1_000_000, 1_000_000);
     }
     rep.cyclic_cpu_s = (
         pid.and_then(process_cpu_s).unwrap_or(0.0) - cpu0.0,
         cpu0.1.elapsed().as_secs_f64(),
     );
-    let c1 = counts(&m);
+    let c1 = counts(m);
     rep.rtt_us = m.rtt_ns[r0..].iter().map(|&n| n as f64 * 1e-3).collect();
     rep.rtt_us.sort_by(f64::total_cmp);
     rep.lrw = (c1.0 - c0.0, c1.1 - c0.1);
@@ -374,15 +405,12 @@ pub fn soem_style(
     rep.stray = m.stray;
     // LRWs between the reads: a drive whose outputs stop coming leaves Op (0x001A)
     // within a few SYNC0 pulses, as it should.
-    rep.al_after = stations()
+    rep.al_after = stations(drives)
         .map(|st| {
             let s = m.al_status(st);
             m.wait(50_000, 50_000);
             s
         })
         .collect();
-    for st in stations() {
-        m.request_state(st, 0x0001);
-    }
-    Ok(rep)
+    rep
 }
