@@ -210,17 +210,8 @@ pub fn process_frame<E: DerefMut<Target = EscSim>>(
     t_ns: u64,
     hop_ns: u64,
 ) -> FrameOutcome {
-    let dgs = match parse_for_processing(frame) {
-        Ok(d) => d,
-        Err(outcome) => return outcome,
-    };
     let n = escs.len();
-    for (i, e) in escs.iter_mut().enumerate() {
-        if !pass_esc(e, (i, n), &dgs, frame, t_ns, hop_ns) {
-            return FrameOutcome::Destroyed { at: i };
-        }
-    }
-    processed(frame, n, dgs.len())
+    through_chain(escs.iter_mut().map(|e| &mut **e), n, frame, t_ns, hop_ns)
 }
 
 /// [`process_frame`] through shared simulators, each locked only while the frame
@@ -233,14 +224,27 @@ pub fn process_frame_in_turn(
     t_ns: u64,
     hop_ns: u64,
 ) -> FrameOutcome {
+    let locked = escs.iter().map(|e| {
+        let mut esc = e.borrow_mut();
+        esc.advance_to(t_ns);
+        esc
+    });
+    through_chain(locked, escs.len(), frame, t_ns, hop_ns)
+}
+
+/// The frame through the `n` ESCs `escs` yields, one after the other.
+fn through_chain<E: DerefMut<Target = EscSim>>(
+    escs: impl Iterator<Item = E>,
+    n: usize,
+    frame: &mut [u8],
+    t_ns: u64,
+    hop_ns: u64,
+) -> FrameOutcome {
     let dgs = match parse_for_processing(frame) {
         Ok(d) => d,
         Err(outcome) => return outcome,
     };
-    let n = escs.len();
-    for (i, e) in escs.iter().enumerate() {
-        let mut esc = e.borrow_mut();
-        esc.advance_to(t_ns);
+    for (i, mut esc) in escs.enumerate() {
         if !pass_esc(&mut esc, (i, n), &dgs, frame, t_ns, hop_ns) {
             return FrameOutcome::Destroyed { at: i };
         }
