@@ -19,7 +19,7 @@
 use std::time::{Duration, Instant};
 
 use crate::netns::{self, Killed, Netns};
-use crate::raw_master::{SocketMaster, Transport};
+use crate::raw_master::{Cyclic, SocketMaster, Transport};
 
 /// User + system CPU time of process `pid` (all threads, exited ones included), s.
 pub fn process_cpu_s(pid: u32) -> Option<f64> {
@@ -363,17 +363,24 @@ fn start_cyclic_between_pulses(m: &mut SocketMaster, drives: u16) {
     let t1 = m.link.now_ns();
     let next = m.fprd_u64(0x1001, 0x0990);
     let pulse = (t0 + t1) / 2 + next.saturating_sub(st);
-    m.start_cyclic(1_000_000, usize::from(drives) * per, wkc);
-    if let Some(c) = m.cyclic.as_mut() {
-        c.chunk = DRIVES_PER_FRAME * per;
-        let aim = pulse + 500_000;
-        let now = m.link.now_ns();
-        c.next_ns = if aim >= now {
+    let aim = pulse + 500_000;
+    let now = m.link.now_ns();
+    // Set up whole, chunks included, before the first LRW (`start_cyclic` would send
+    // one LRW of every drive's data at once: more than one frame holds beyond 47
+    // drives).
+    m.cyclic = Some(Cyclic {
+        period_ns: 1_000_000,
+        next_ns: if aim >= now {
             aim - (aim - now) / 1_000_000 * 1_000_000
         } else {
             aim + (now - aim).div_ceil(1_000_000) * 1_000_000
-        };
-    }
+        },
+        len: usize::from(drives) * per,
+        sent: 0,
+        good: 0,
+        wkc,
+        chunk: DRIVES_PER_FRAME * per,
+    });
     m.wait(20_000_000, 1_000_000);
 }
 
