@@ -259,9 +259,15 @@ fn main() -> ExitCode {
         }
     }
     sim_drive::shutdown(&mut seg);
+    // AL control writes an ESC did not take because the drive had not read the
+    // previous one yet (ETG.1000.4): a master's state request lost that way.
+    let not_taken: u64 = (0..seg.len())
+        .map(|i| seg.esc(i).stats().al_control_writes_ignored)
+        .sum();
     println!(
         "virtual-drive: stopped after {} frames ({} send errors, longest answer {:.3} ms; \
-         drives' thread: latest wake {:.3} ms, longest step {:.3} ms)",
+         drives' thread: latest wake {:.3} ms, longest step {:.3} ms; AL control writes \
+         not taken: {not_taken})",
         wire_stats.frames.load(Ordering::Relaxed),
         wire_stats.send_errors.load(Ordering::Relaxed),
         wire_stats.longest_ns.load(Ordering::Relaxed) as f64 * 1e-6,
