@@ -16,9 +16,11 @@
 //! * the **application thread** (the caller of [`step`]) runs the MCU side of every
 //!   drive — the slave runtime's `poll` / cycle, the drive's 1 ms tick and the axis
 //!   model ([`SimDrive::catch_up`]), the work after each poll
-//!   ([`sim_drive::forward_emergencies`]) — against the same simulators. It sleeps
-//!   until the interrupt line rises or the next deadline ([`next_deadline_ns`]: the
-//!   next SYNC0 pulse of any drive, the next 1 ms tick), whichever comes first.
+//!   ([`sim_drive::forward_emergencies`]) — against the same simulators, each
+//!   drive's cycle at its own SYNC0 pulse's time. It sleeps until the interrupt line
+//!   rises or the next deadline ([`next_deadline_ns`]: the next SYNC0 pulse of any
+//!   drive, at most one wake per [`PULSE_WAKE_NS`] for them, the next 1 ms tick),
+//!   whichever comes first.
 //!
 //! Nothing busy-waits: with no master the process wakes once per tick, once per
 //! [`IDLE_TICKS`] ticks while every axis rests (the plant model then skips its PWM

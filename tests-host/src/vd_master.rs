@@ -19,7 +19,7 @@
 use std::time::{Duration, Instant};
 
 use crate::netns::{self, Killed, Netns};
-use crate::raw_master::{Cyclic, SocketMaster, Transport};
+use crate::raw_master::{Cyclic, Master, SocketMaster, Transport};
 
 /// User + system CPU time of process `pid` (all threads, exited ones included), s.
 pub fn process_cpu_s(pid: u32) -> Option<f64> {
@@ -231,7 +231,11 @@ impl Drop for MasterPriority {
 /// drive's offset (0x0920) makes its system time `master_time` at that pass. The
 /// drives then share one time base, and SYNC0 pulses started for the same system
 /// time come together.
-fn configdc_all(m: &mut SocketMaster, stations: impl Iterator<Item = u16>, master_time: u64) {
+fn configdc_all<T: Transport>(
+    m: &mut Master<T>,
+    stations: impl Iterator<Item = u16>,
+    master_time: u64,
+) {
     m.bwr(0x0900, &[0; 4]);
     for st in stations {
         let _ports = m.fprd(st, 0x0900, 16);
@@ -241,8 +245,8 @@ fn configdc_all(m: &mut SocketMaster, stations: impl Iterator<Item = u16>, maste
 }
 
 /// Waits (up to 20 s each, polling every 1 ms) until every station is in `state`.
-fn all_in(
-    m: &mut SocketMaster,
+fn all_in<T: Transport>(
+    m: &mut Master<T>,
     stations: impl Iterator<Item = u16>,
     state: u16,
     name: &str,
@@ -285,7 +289,7 @@ pub fn soem_style(
     };
     to_pre_op(&mut m, drives)?;
     lost(&m, "Pre-Op")?;
-    to_safe_op(&mut m, drives)?;
+    to_safe_op(&mut m, drives, TimeBase::Shared)?;
     lost(&m, "Safe-Op")?;
     start_cyclic_between_pulses(&mut m, drives);
     for st in stations(drives) {
@@ -301,13 +305,13 @@ pub fn soem_style(
 }
 
 /// The station addresses of `drives` drives: 0x1001…
-fn stations(drives: u16) -> impl Iterator<Item = u16> {
+pub fn stations(drives: u16) -> impl Iterator<Item = u16> {
     (0..drives).map(|i| 0x1001 + i)
 }
 
 /// `ecx_config_init`: Init + ack to all, count, station addresses, identity,
 /// mailboxes, Pre-Op; then the SM types over SDO as `ecx_readPDOmap` starts.
-fn to_pre_op(m: &mut SocketMaster, drives: u16) -> Result<(), String> {
+pub fn to_pre_op<T: Transport>(m: &mut Master<T>, drives: u16) -> Result<(), String> {
     m.bwr(0x0120, &0x0011u16.to_le_bytes());
     let (_, found) = m.brd(0x0000, 2);
     if found != drives {
@@ -334,16 +338,40 @@ fn to_pre_op(m: &mut SocketMaster, drives: u16) -> Result<(), String> {
     Ok(())
 }
 
-/// `ecx_config_map_group` (SMs and FMMUs), `ecx_configdc`, `ecx_dcsync0` at 1 ms,
-/// Safe-Op.
-fn to_safe_op(m: &mut SocketMaster, drives: u16) -> Result<(), String> {
+/// How a master gives the drives their distributed-clock time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TimeBase {
+    /// One time base for all drives, as SOEM's `ecx_configdc` ([`configdc_all`]):
+    /// SYNC0 pulses started for the same system time come together.
+    Shared,
+    /// A latch and an offset per drive, one drive after the other: each drive's
+    /// system time is off by the time between the set-up of the drives, so their
+    /// SYNC0 pulses have phases of their own (what a master may do; the drives must
+    /// keep their cycles whatever the phases).
+    PerDrive,
+}
+
+/// `ecx_config_map_group` (SMs and FMMUs), the distributed clocks (`base`),
+/// `ecx_dcsync0` at 1 ms, Safe-Op.
+pub fn to_safe_op<T: Transport>(
+    m: &mut Master<T>,
+    drives: u16,
+    base: TimeBase,
+) -> Result<(), String> {
     let per = OUT_BYTES + IN_BYTES;
     for (k, st) in stations(drives).enumerate() {
         if m.process_data_sms(st, (k * per) as u32, OUT_BYTES, IN_BYTES) != 2 {
             return Err(format!("SyncManagers / FMMUs of {st:#06x}"));
         }
     }
-    configdc_all(m, stations(drives), 789_000_000_000);
+    match base {
+        TimeBase::Shared => configdc_all(m, stations(drives), 789_000_000_000),
+        TimeBase::PerDrive => {
+            for st in stations(drives) {
+                m.soem_configdc(st, 789_000_000_000);
+            }
+        }
+    }
     for st in stations(drives) {
         m.soem_dcsync(st, 1_000_000, 0, 0x03);
         m.request_state(st, 0x0004);
@@ -355,7 +383,7 @@ fn to_safe_op(m: &mut SocketMaster, drives: u16) -> Result<(), String> {
 /// the middle between two SYNC0 pulses (SOEM's examples align their cycle to the
 /// DC time, `ec_sync`): the next pulse's system time (0x0990) against the system
 /// time now (0x0910) gives the pulse on the master's clock.
-fn start_cyclic_between_pulses(m: &mut SocketMaster, drives: u16) {
+pub fn start_cyclic_between_pulses<T: Transport>(m: &mut Master<T>, drives: u16) {
     let per = OUT_BYTES + IN_BYTES;
     let wkc = 3 * drives;
     let t0 = m.link.now_ns();
