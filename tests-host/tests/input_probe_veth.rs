@@ -39,6 +39,31 @@ struct Probe {
     statusword: u16,
 }
 
+/// The CiA 402 enable sequence over SDO (controlword 0x6040, statusword 0x6041),
+/// 10 ms per step; the statusword reached.
+async fn enable_by_sdo(
+    sd: &ethercrab::SubDeviceRef<'_, &ethercrab::SubDevice>,
+) -> Result<u16, Failed> {
+    let mut statusword = 0u16;
+    for _ in 0..300 {
+        let cw: u16 = match statusword & 0x6F {
+            0x21 => 0x0007,
+            0x23 | 0x27 => 0x000F,
+            _ if statusword & 0x4F == 0x40 => 0x0006,
+            _ => 0x0000,
+        };
+        sd.sdo_write(0x6040, 0, cw)
+            .await
+            .map_err(|e| ("0x6040", e))?;
+        async_io::Timer::after(Duration::from_millis(10)).await;
+        statusword = sd.sdo_read(0x6041, 0).await.map_err(|e| ("0x6041", e))?;
+        if statusword & 0x6F == 0x27 {
+            break;
+        }
+    }
+    Ok(statusword)
+}
+
 #[test]
 fn input_function_probe_latches_touch_probe_1_over_a_veth_pair() {
     let _one = tests_host::netns::one_at_a_time();
@@ -68,23 +93,7 @@ fn input_function_probe_latches_touch_probe_1_over_a_veth_pair() {
         sd.sdo_write(0x60FF, 0, 20_000i32)
             .await
             .map_err(|e| ("0x60FF", e))?;
-        let mut statusword = 0u16;
-        for _ in 0..300 {
-            let cw: u16 = match statusword & 0x6F {
-                0x21 => 0x0007,
-                0x23 | 0x27 => 0x000F,
-                _ if statusword & 0x4F == 0x40 => 0x0006,
-                _ => 0x0000,
-            };
-            sd.sdo_write(0x6040, 0, cw)
-                .await
-                .map_err(|e| ("0x6040", e))?;
-            wait(10).await;
-            statusword = sd.sdo_read(0x6041, 0).await.map_err(|e| ("0x6041", e))?;
-            if statusword & 0x6F == 0x27 {
-                break;
-            }
-        }
+        let statusword = enable_by_sdo(&sd).await?;
         wait(200).await;
         // IN4 assigned "probe"; touch probe 1 re-armed (off, then on).
         sd.sdo_write(0x2152, 4, 32u16)

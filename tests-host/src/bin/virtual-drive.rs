@@ -259,6 +259,13 @@ fn main() -> ExitCode {
         }
     }
     sim_drive::shutdown(&mut seg);
+    report_stop(&seg, &wire_stats, &app);
+    code
+}
+
+/// The last line: frames, the frame thread's longest answer, the drives' thread's
+/// timing, and the AL control writes an ESC did not take.
+fn report_stop(seg: &Segment<SimDrive>, wire_stats: &WireStats, app: &AppTiming) {
     // AL control writes an ESC did not take because the drive had not read the
     // previous one yet (ETG.1000.4): a master's state request lost that way.
     let not_taken: u64 = (0..seg.len())
@@ -274,7 +281,6 @@ fn main() -> ExitCode {
         app.late_ns as f64 * 1e-6,
         app.step_ns as f64 * 1e-6
     );
-    code
 }
 
 /// The raw socket and the powered-up drives (the plant models tune their current
