@@ -24,6 +24,7 @@ pub mod scope_host;
 pub mod segment;
 pub mod sim_axis;
 pub mod sim_drive;
+pub mod sim_inputs;
 pub mod sim_update;
 pub mod spi_models;
 pub mod vd_master;

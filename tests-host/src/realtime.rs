@@ -8,16 +8,19 @@
 //!
 //! * the **wire thread** ([`spawn_wire`]) owns the raw socket. It sleeps until a
 //!   frame arrives, moves the ESC simulators' clocks to the wall clock, runs the
-//!   frame through them ([`process_frame`]) and sends it back at once, then raises
+//!   frame through them ([`process_frame_in_turn`]: each ESC busy only while the
+//!   frame passes it) and sends it back at once, then raises
 //!   the interrupt line ([`Irq`]). It never waits for the application or the plant,
 //!   only for a PDI access in progress ([`SharedEsc`] holds its lock for one
 //!   access).
 //! * the **application thread** (the caller of [`step`]) runs the MCU side of every
 //!   drive — the slave runtime's `poll` / cycle, the drive's 1 ms tick and the axis
 //!   model ([`SimDrive::catch_up`]), the work after each poll
-//!   ([`sim_drive::forward_emergencies`]) — against the same simulators. It sleeps
-//!   until the interrupt line rises or the next deadline ([`next_deadline_ns`]: the
-//!   next SYNC0 pulse of any drive, the next 1 ms tick), whichever comes first.
+//!   ([`sim_drive::forward_emergencies`]) — against the same simulators, each
+//!   drive's cycle at its own SYNC0 pulse's time. It sleeps until the interrupt line
+//!   rises or the next deadline ([`next_deadline_ns`]: the next SYNC0 pulse of any
+//!   drive, at most one wake per [`PULSE_WAKE_NS`] for them, the next 1 ms tick),
+//!   whichever comes first.
 //!
 //! Nothing busy-waits: with no master the process wakes once per tick, once per
 //! [`IDLE_TICKS`] ticks while every axis rests (the plant model then skips its PWM
@@ -35,7 +38,7 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use crate::esc_sim::frame::process_frame;
+use crate::esc_sim::frame::process_frame_in_turn;
 use crate::esc_sim::SharedEsc;
 use crate::raw_socket::RawSocket;
 use crate::segment::Segment;
@@ -227,13 +230,7 @@ pub fn spawn_wire(
                     let received = Instant::now();
                     let now_ns = received.duration_since(start).as_nanos() as u64;
                     let frame = &mut buf[..n];
-                    {
-                        let mut chain: Vec<_> = escs.iter().map(|e| e.borrow_mut()).collect();
-                        for esc in chain.iter_mut() {
-                            esc.advance_to(now_ns);
-                        }
-                        process_frame(&mut chain, frame, now_ns, hop_ns);
-                    }
+                    process_frame_in_turn(&escs, frame, now_ns, hop_ns);
                     if sock.send(frame).is_err() {
                         stats.send_errors.fetch_add(1, Ordering::Relaxed);
                     }
@@ -247,34 +244,39 @@ pub fn spawn_wire(
         })
 }
 
-/// The application side at time `now_ns`: the ESCs' clocks move on (SYNC0,
-/// watchdogs: one event for any number of pulses due; the first pulse due is
-/// handled at its own time), the slaves poll as on the board — each one whose ESC
-/// raises its interrupt, every one at least once per millisecond
-/// ([`Segment::poll_pending`]; its cycle runs on a SYNC0 or SyncManager event), every drive's ticks and axis catch up to
-/// `now_ns` ([`SimDrive::catch_up`]), then the work after the poll
-/// ([`sim_drive::forward_emergencies`]). A time not ahead of the segment's polls
-/// without moving time.
+/// The application side at time `now_ns`: every ESC's clock moves on (SYNC0,
+/// watchdogs: one event for any number of pulses due); each slave whose ESC raised
+/// SYNC0 since its last poll is polled at that pulse's own time, as the board's SYNC0
+/// interrupt runs the cycle then (however late this thread wakes, and whatever the
+/// phase of each drive's pulses: a master may give every drive its own); then the
+/// slaves poll as on the board — each one whose ESC raises its interrupt, every one
+/// at least once per millisecond ([`Segment::poll_pending`]) — the drives' 1 ms
+/// ticks due by `now_ns` run ([`SimDrive::catch_up`]; a cycle brings its axis up to
+/// its own time), then the work after the poll for the drives polled
+/// ([`sim_drive::forward_emergencies_where`]). A time not ahead of the segment's
+/// polls without moving time.
+///
+/// The cost is per drive with work: a drive without a pulse, an interrupt or a tick
+/// due costs one look at its ESC.
 pub fn step(seg: &mut Segment<SimDrive>, now_ns: u64) {
-    // A SYNC0 pulse runs the cycles at the pulse's own time, as the board's SYNC0
-    // interrupt does: a late wake of this thread does not count against the drives'
-    // SYNC0 monitoring. Either one the frame thread already raised (pending) or the
-    // next one due by now.
-    let pulse = (0..seg.len())
-        .filter_map(|i| {
-            let e = seg.esc(i);
-            e.sync0_pending_since()
-                .or_else(|| e.next_sync0_ns().filter(|&t| t <= now_ns))
-        })
-        .min();
     let polls: Vec<u64> = seg.drives_mut().iter().map(|d| d.polls).collect();
-    if let Some(t) = pulse {
-        seg.advance_pending(t);
+    let now_ns = now_ns.max(seg.now_ns());
+    for i in 0..seg.len() {
+        let pulse = {
+            let mut e = seg.esc(i);
+            e.advance_to(now_ns);
+            e.sync0_pending_since()
+        };
+        if let Some(t) = pulse {
+            seg.poll_at(i, t);
+        }
     }
     seg.advance_pending(now_ns);
     let now_us = seg.now_ns() / 1000;
     for d in seg.drives_mut() {
-        d.app.catch_up(now_us);
+        if d.app.tick_due(now_us) {
+            d.app.catch_up(now_us);
+        }
     }
     // The work after each poll, for the drives polled in this step.
     let polled: Vec<bool> = seg
@@ -291,16 +293,25 @@ pub fn step(seg: &mut Segment<SimDrive>, now_ns: u64) {
 /// `IDLE_TICKS` of them at once.
 pub const IDLE_TICKS: u64 = 10;
 
+/// Shortest time between two wakes for SYNC0 pulses, ns: with many drives whose
+/// pulses have different phases, one wake serves every pulse of the last
+/// `PULSE_WAKE_NS` (each at its own time, [`step`]) instead of one wake per drive.
+/// Shorter than half a 1 ms cycle, so that each drive's cycle has run before a
+/// master that exchanges in the middle between two pulses reads it.
+pub const PULSE_WAKE_NS: u64 = 200_000;
+
 /// When the application next has work without a frame, ns: the next SYNC0 pulse of
-/// any drive or the next 1 ms tick after the segment's time — the
-/// [`IDLE_TICKS`]-th while every axis rests.
+/// any drive (not before [`PULSE_WAKE_NS`] after the last step) or the next 1 ms tick
+/// after the segment's time — the [`IDLE_TICKS`]-th while every axis rests.
 pub fn next_deadline_ns(seg: &mut Segment<SimDrive>) -> u64 {
     let idle = seg.drives_mut().iter().all(|d| d.app.axis.resting());
     let ticks = if idle { IDLE_TICKS } else { 1 };
-    let tick = (seg.now_ns() / TICK_NS + ticks) * TICK_NS;
+    let now = seg.now_ns();
+    let tick = (now / TICK_NS + ticks) * TICK_NS;
     (0..seg.len())
         .filter_map(|i| seg.esc(i).next_sync0_ns())
-        .fold(tick, u64::min)
+        .min()
+        .map_or(tick, |p| tick.min(p.max(now + PULSE_WAKE_NS)))
 }
 
 /// Longest power-up [`power_up`] runs, ns of simulated time.

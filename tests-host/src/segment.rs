@@ -118,6 +118,18 @@ pub struct Drive<A> {
     pub polls: u64,
 }
 
+impl<A: SlaveApplication> Drive<A> {
+    fn poll_at(&mut self, t_ns: u64) {
+        let t_ns = t_ns.max(self.polled_ns);
+        self.polled_ns = t_ns;
+        self.polls += 1;
+        if self.slave.poll(&mut self.app, t_ns / 1000).is_err() {
+            self.poll_errors += 1;
+        }
+        self.slave.esc_mut().trim_logs();
+    }
+}
+
 /// Longest time between two polls of a slave by [`Segment::poll_pending`] when its
 /// ESC raises no interrupt, ns: the board's `ecat` task polls on each IRQ edge and at
 /// least every millisecond.
@@ -302,19 +314,20 @@ impl<A: SlaveApplication> Segment<A> {
     }
 
     fn poll_where(&mut self, due: impl Fn(&Drive<A>, bool) -> bool) {
-        let now_us = self.now_ns / 1000;
+        let now = self.now_ns;
         for d in &mut self.drives {
             let irq = d.esc.borrow().pdi_irq();
-            if !due(d, irq) {
-                continue;
+            if due(d, irq) {
+                d.poll_at(now);
             }
-            d.polled_ns = self.now_ns;
-            d.polls += 1;
-            if d.slave.poll(&mut d.app, now_us).is_err() {
-                d.poll_errors += 1;
-            }
-            d.slave.esc_mut().trim_logs();
         }
+    }
+
+    /// Runs drive `i`'s `poll()` at `t_ns` (not before its previous poll) without
+    /// moving the segment's time: the microcontroller of one drive answering its own
+    /// interrupt, e.g. a SYNC0 pulse at the pulse's time (`crate::realtime::step`).
+    pub fn poll_at(&mut self, i: usize, t_ns: u64) {
+        self.drives[i].poll_at(t_ns);
     }
 
     /// Moves simulated time to `t_ns` (nothing if that is not ahead) and runs

@@ -198,6 +198,8 @@ pub struct SimDrive {
     poll_errors_seen: u64,
     /// 0x1018:04.
     serial: u32,
+    /// Inputs held at a level from outside the axis model (`virtual-drive --input`).
+    pub inputs: crate::sim_inputs::ForcedInputs,
     /// The boot flash and ESC of the firmware update, when attached.
     boot: Option<(&'static crate::sim_update::SharedFlash, Flavour)>,
     /// What the bootloader did at this start.
@@ -325,6 +327,7 @@ impl SimDrive {
             esm: None,
             poll_errors_seen: 0,
             serial,
+            inputs: Default::default(),
             boot: None,
             boot_state: None,
         };
@@ -381,9 +384,9 @@ impl SimDrive {
         let parked =
             crate::sim_axis::boxed_model(Motor::Ecn57_20, crate::sim_axis::AxisModel::Kinematic, 1);
         let axis = std::mem::replace(&mut self.axis, parked);
-        let (boot, dips) = (self.boot, self.dips);
+        let (boot, dips, inputs) = (self.boot, self.dips, std::mem::take(&mut self.inputs));
         *self = SimDrive::new(self.serial, flash, axis);
-        self.dips = dips;
+        (self.dips, self.inputs) = (dips, inputs);
         if let Some((shared, esc)) = boot {
             self.attach_update(shared, esc);
         }
@@ -419,6 +422,11 @@ impl SimDrive {
         self.path.powered && !self.path.tripped
     }
 
+    /// True when a 1 ms tick is due by `now_us` (what [`SimDrive::catch_up`] would run).
+    pub fn tick_due(&self, now_us: u64) -> bool {
+        self.tick_us + 1000 <= now_us
+    }
+
     /// Brings the axis and the 1 ms housekeeping up to `now_us`.
     pub fn catch_up(&mut self, now_us: u64) {
         if now_us > self.axis_us {
@@ -430,7 +438,8 @@ impl SimDrive {
         while self.tick_us + 1000 <= now_us {
             self.tick_us += 1000;
             // The board's `tick` task: the runtime's tick with the raw inputs.
-            let (raw, t, esm) = (self.axis.raw_inputs(), self.tick_us, self.esm);
+            let t = self.tick_us;
+            let (raw, esm) = (self.inputs.apply(self.axis.raw_inputs(), t), self.esm);
             let dip_bits = self.dips.function;
             let (drive, rt, mut path) = self.parts();
             rt.tick(drive, &mut path, t, raw, dip_bits, esm);

@@ -19,7 +19,7 @@
 use std::time::{Duration, Instant};
 
 use crate::netns::{self, Killed, Netns};
-use crate::raw_master::{SocketMaster, Transport};
+use crate::raw_master::{Cyclic, Master, SocketMaster, Transport};
 
 /// User + system CPU time of process `pid` (all threads, exited ones included), s.
 pub fn process_cpu_s(pid: u32) -> Option<f64> {
@@ -226,9 +226,27 @@ impl Drop for MasterPriority {
     }
 }
 
+/// SOEM's `ecx_configdc` (ec_dc.c) for every station at once: one broadcast write
+/// latches the receive times of all drives as the same frame passes them, then each
+/// drive's offset (0x0920) makes its system time `master_time` at that pass. The
+/// drives then share one time base, and SYNC0 pulses started for the same system
+/// time come together.
+fn configdc_all<T: Transport>(
+    m: &mut Master<T>,
+    stations: impl Iterator<Item = u16>,
+    master_time: u64,
+) {
+    m.bwr(0x0900, &[0; 4]);
+    for st in stations {
+        let _ports = m.fprd(st, 0x0900, 16);
+        let local = m.fprd_u64(st, 0x0918);
+        m.fpwr(st, 0x0920, &master_time.wrapping_sub(local).to_le_bytes());
+    }
+}
+
 /// Waits (up to 20 s each, polling every 1 ms) until every station is in `state`.
-fn all_in(
-    m: &mut SocketMaster,
+fn all_in<T: Transport>(
+    m: &mut Master<T>,
     stations: impl Iterator<Item = u16>,
     state: u16,
     name: &str,
@@ -259,7 +277,6 @@ pub fn soem_style(
 ) -> Result<SoemReport, String> {
     let _priority = MasterPriority::take();
     let mut m = SocketMaster::open(iface, timeout).map_err(|e| e.to_string())?;
-    let mut rep = SoemReport::default();
     let lost = |m: &SocketMaster, step: &str| -> Result<(), String> {
         if m.lost == 0 {
             Ok(())
@@ -270,8 +287,31 @@ pub fn soem_style(
             ))
         }
     };
-    let stations = || (0..drives).map(|i| 0x1001 + i);
-    // ecx_config_init: Init + ack to all, count, station addresses, identity.
+    to_pre_op(&mut m, drives)?;
+    lost(&m, "Pre-Op")?;
+    to_safe_op(&mut m, drives, TimeBase::Shared)?;
+    lost(&m, "Safe-Op")?;
+    start_cyclic_between_pulses(&mut m, drives);
+    for st in stations(drives) {
+        m.request_state(st, 0x0008);
+    }
+    all_in(&mut m, stations(drives), 0x08, "Op")?;
+    lost(&m, "Op")?;
+    let rep = run_cycles(&mut m, drives, cycles, pid);
+    for st in stations(drives) {
+        m.request_state(st, 0x0001);
+    }
+    Ok(rep)
+}
+
+/// The station addresses of `drives` drives: 0x1001…
+pub fn stations(drives: u16) -> impl Iterator<Item = u16> {
+    (0..drives).map(|i| 0x1001 + i)
+}
+
+/// `ecx_config_init`: Init + ack to all, count, station addresses, identity,
+/// mailboxes, Pre-Op; then the SM types over SDO as `ecx_readPDOmap` starts.
+pub fn to_pre_op<T: Transport>(m: &mut Master<T>, drives: u16) -> Result<(), String> {
     m.bwr(0x0120, &0x0011u16.to_le_bytes());
     let (_, found) = m.brd(0x0000, 2);
     if found != drives {
@@ -279,7 +319,7 @@ pub fn soem_style(
             "{found} drive(s) answered the count, {drives} expected"
         ));
     }
-    for (pos, st) in stations().enumerate() {
+    for (pos, st) in stations(drives).enumerate() {
         if m.apwr(pos as u16, 0x0010, &st.to_le_bytes()) != 1 {
             return Err(format!("station address of position {pos}"));
         }
@@ -290,69 +330,109 @@ pub fn soem_style(
         m.configure_mailbox(st, (0x1000, 128, 0x1080, 128));
         m.request_state(st, 0x0002);
     }
-    all_in(&mut m, stations(), 0x02, "Pre-Op")?;
-    for st in stations() {
-        // ecx_readPDOmap starts with the SM types over SDO.
+    all_in(m, stations(drives), 0x02, "Pre-Op")?;
+    for st in stations(drives) {
         m.sdo_upload(st, 0x1C00, 3)
             .map_err(|e| format!("SDO 0x1C00:03 of {st:#06x}: {e:?}"))?;
     }
-    lost(&m, "Pre-Op")?;
-    // ecx_config_map_group: SMs and FMMUs, Safe-Op; ecx_configdc, ecx_dcsync0.
+    Ok(())
+}
+
+/// How a master gives the drives their distributed-clock time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TimeBase {
+    /// One time base for all drives, as SOEM's `ecx_configdc` ([`configdc_all`]):
+    /// SYNC0 pulses started for the same system time come together.
+    Shared,
+    /// A latch and an offset per drive, one drive after the other: each drive's
+    /// system time is off by the time between the set-up of the drives, so their
+    /// SYNC0 pulses have phases of their own (what a master may do; the drives must
+    /// keep their cycles whatever the phases).
+    PerDrive,
+}
+
+/// `ecx_config_map_group` (SMs and FMMUs), the distributed clocks (`base`),
+/// `ecx_dcsync0` at 1 ms, Safe-Op.
+pub fn to_safe_op<T: Transport>(
+    m: &mut Master<T>,
+    drives: u16,
+    base: TimeBase,
+) -> Result<(), String> {
     let per = OUT_BYTES + IN_BYTES;
-    for (k, st) in stations().enumerate() {
+    for (k, st) in stations(drives).enumerate() {
         if m.process_data_sms(st, (k * per) as u32, OUT_BYTES, IN_BYTES) != 2 {
             return Err(format!("SyncManagers / FMMUs of {st:#06x}"));
         }
     }
-    for st in stations() {
-        m.soem_configdc(st, 789_000_000_000);
+    match base {
+        TimeBase::Shared => configdc_all(m, stations(drives), 789_000_000_000),
+        TimeBase::PerDrive => {
+            for st in stations(drives) {
+                m.soem_configdc(st, 789_000_000_000);
+            }
+        }
+    }
+    for st in stations(drives) {
         m.soem_dcsync(st, 1_000_000, 0, 0x03);
         m.request_state(st, 0x0004);
     }
-    all_in(&mut m, stations(), 0x04, "Safe-Op")?;
-    lost(&m, "Safe-Op")?;
-    // Process data before and during the Op request, as SOEM's applications do, in
-    // the middle between two SYNC0 pulses (SOEM's examples align their cycle to the
-    // DC time, `ec_sync`): the next pulse's system time (0x0990) against the system
-    // time now (0x0910) gives the pulse on the master's clock.
+    all_in(m, stations(drives), 0x04, "Safe-Op")
+}
+
+/// Process data before and during the Op request, as SOEM's applications do, in
+/// the middle between two SYNC0 pulses (SOEM's examples align their cycle to the
+/// DC time, `ec_sync`): the next pulse's system time (0x0990) against the system
+/// time now (0x0910) gives the pulse on the master's clock.
+pub fn start_cyclic_between_pulses<T: Transport>(m: &mut Master<T>, drives: u16) {
+    let per = OUT_BYTES + IN_BYTES;
     let wkc = 3 * drives;
     let t0 = m.link.now_ns();
     let st = m.fprd_u64(0x1001, 0x0910);
     let t1 = m.link.now_ns();
     let next = m.fprd_u64(0x1001, 0x0990);
     let pulse = (t0 + t1) / 2 + next.saturating_sub(st);
-    m.start_cyclic(1_000_000, usize::from(drives) * per, wkc);
-    if let Some(c) = m.cyclic.as_mut() {
-        c.chunk = DRIVES_PER_FRAME * per;
-        let aim = pulse + 500_000;
-        let now = m.link.now_ns();
-        c.next_ns = if aim >= now {
+    let aim = pulse + 500_000;
+    let now = m.link.now_ns();
+    // Set up whole, chunks included, before the first LRW (`start_cyclic` would send
+    // one LRW of every drive's data at once: more than one frame holds beyond 47
+    // drives).
+    m.cyclic = Some(Cyclic {
+        period_ns: 1_000_000,
+        next_ns: if aim >= now {
             aim - (aim - now) / 1_000_000 * 1_000_000
         } else {
             aim + (now - aim).div_ceil(1_000_000) * 1_000_000
-        };
-    }
+        },
+        len: usize::from(drives) * per,
+        sent: 0,
+        good: 0,
+        wkc,
+        chunk: DRIVES_PER_FRAME * per,
+    });
     m.wait(20_000_000, 1_000_000);
-    for st in stations() {
-        m.request_state(st, 0x0008);
-    }
-    all_in(&mut m, stations(), 0x08, "Op")?;
-    lost(&m, "Op")?;
-    rep.setup_frames = (m.frames, m.lost);
+}
+
+/// `cycles` LRWs in Op, measured: counts, round trips, CPU time of process `pid`,
+/// then the AL status of every drive (LRWs between the reads).
+fn run_cycles(m: &mut SocketMaster, drives: u16, cycles: u64, pid: Option<u32>) -> SoemReport {
+    let mut rep = SoemReport {
+        setup_frames: (m.frames, m.lost),
+        ..SoemReport::default()
+    };
     let counts = |m: &SocketMaster| m.cyclic.map_or((0, 0), |c| (c.sent, c.good));
-    let (c0, l0, r0) = (counts(&m), m.lost, m.rtt_ns.len());
+    let (c0, l0, r0) = (counts(m), m.lost, m.rtt_ns.len());
     let cpu0 = (pid.and_then(process_cpu_s).unwrap_or(0.0), Instant::now());
     // `cycles` LRWs, however long the host keeps the master itself from running (given
     // up after three times their time and a second).
     let limit = Instant::now() + Duration::from_millis(3 * cycles + 1000);
-    while counts(&m).0 < c0.0 + cycles && Instant::now() < limit {
+    while counts(m).0 < c0.0 + cycles && Instant::now() < limit {
         m.wait(1_000_000, 1_000_000);
     }
     rep.cyclic_cpu_s = (
         pid.and_then(process_cpu_s).unwrap_or(0.0) - cpu0.0,
         cpu0.1.elapsed().as_secs_f64(),
     );
-    let c1 = counts(&m);
+    let c1 = counts(m);
     rep.rtt_us = m.rtt_ns[r0..].iter().map(|&n| n as f64 * 1e-3).collect();
     rep.rtt_us.sort_by(f64::total_cmp);
     rep.lrw = (c1.0 - c0.0, c1.1 - c0.1);
@@ -360,15 +440,12 @@ pub fn soem_style(
     rep.stray = m.stray;
     // LRWs between the reads: a drive whose outputs stop coming leaves Op (0x001A)
     // within a few SYNC0 pulses, as it should.
-    rep.al_after = stations()
+    rep.al_after = stations(drives)
         .map(|st| {
             let s = m.al_status(st);
             m.wait(50_000, 50_000);
             s
         })
         .collect();
-    for st in stations() {
-        m.request_state(st, 0x0001);
-    }
-    Ok(rep)
+    rep
 }

@@ -50,8 +50,10 @@ fn strict_master_run(tag: &str, drives: u16) {
         Duration::from_millis(2),
         1000,
         None,
-    )
-    .unwrap_or_else(|e| panic!("{drives} drive(s), 2 ms timeout, no resend: {e}"));
+    );
+    // virtual-drive's own account (its log, ignored AL control writes) either way.
+    stop(vd, &format!("{drives} drive(s) after the master"));
+    let rep = rep.unwrap_or_else(|e| panic!("{drives} drive(s), 2 ms timeout, no resend: {e}"));
     eprintln!(
         "{drives} drive(s): set-up {:?}, LRWs {:?}, lost in Op {}, round trip p99 {:.0} µs, \
          max {:.0} µs",
@@ -61,7 +63,6 @@ fn strict_master_run(tag: &str, drives: u16) {
         rep.rtt_percentile(99.0),
         rep.rtt_max()
     );
-    stop(vd, &format!("{drives} drive(s) after the cycles"));
     assert_eq!(rep.setup_frames.1, 0, "frames lost in the set-up");
     assert!(rep.lrw.0 >= 1000, "LRWs sent: {}", rep.lrw.0);
     assert_eq!(
@@ -86,11 +87,18 @@ fn strict_master_run(tag: &str, drives: u16) {
 /// development VM while other builds ran (load 4-6): 12 of 14 runs of this file
 /// passed; in the two others the host ran none of the SCHED_FIFO threads (the
 /// master's included: it sent its LRWs late) for several milliseconds, and 6 LRWs or
-/// one set-up frame missed the 2 ms. Hence ignored: run it with `--ignored` on a
-/// machine that is not overloaded. `cargo xtask bench` (vd-bench) measures the same
-/// run with 1, 4 and 128 drives for BENCHMARKS.md.
+/// one set-up frame missed the 2 ms. Again at load 7 after the per-pulse SYNC0 times
+/// and the frame thread holding one ESC at a time: 28 of 32 runs of these two tests
+/// passed, each failure 1-4 LRWs over the 2 ms with the set-up intact. In one of the
+/// four virtual-drive answered every frame within 0.15 ms (the frame was late between
+/// the master and virtual-drive, in the host); in the three others its frame thread
+/// took 1.4-3.8 ms for one answer (normally under 0.2 ms: a few ESCs' work) while the
+/// drives' thread's longest step was under 0.4 ms, i.e. the frame thread itself was
+/// not run. Hence ignored: run it with `--ignored` on a machine that is not
+/// overloaded. `cargo xtask bench` (vd-bench) measures the same run with 1, 4 and
+/// 128 drives for BENCHMARKS.md.
 #[test]
-#[ignore = "real-time: a 2 ms deadline per frame; an overloaded host that stalls its SCHED_FIFO threads for milliseconds fails it (about 1 run in 7 on the 2-core VM under build load); measured by `cargo xtask bench` (vd-bench)"]
+#[ignore = "real-time: a 2 ms deadline per frame; an overloaded host that stalls its SCHED_FIFO threads (the frame thread's included) for milliseconds fails it (about 1 run in 7-8 on the 2-core VM under build load); measured by `cargo xtask bench` (vd-bench)"]
 fn strict_master_sets_up_one_drive_and_runs_1000_cycles_without_a_lost_frame() {
     strict_master_run("rt1", 1);
 }
@@ -98,7 +106,7 @@ fn strict_master_sets_up_one_drive_and_runs_1000_cycles_without_a_lost_frame() {
 /// The same with four drives, each with the electrical plant model (the most
 /// `virtual-drive` runs the plant model for).
 #[test]
-#[ignore = "real-time: a 2 ms deadline per frame; an overloaded host that stalls its SCHED_FIFO threads for milliseconds fails it (about 1 run in 7 on the 2-core VM under build load); measured by `cargo xtask bench` (vd-bench)"]
+#[ignore = "real-time: a 2 ms deadline per frame; an overloaded host that stalls its SCHED_FIFO threads (the frame thread's included) for milliseconds fails it (about 1 run in 7-8 on the 2-core VM under build load); measured by `cargo xtask bench` (vd-bench)"]
 fn strict_master_sets_up_four_plant_drives_and_runs_1000_cycles_without_a_lost_frame() {
     strict_master_run("rt4", 4);
 }

@@ -94,6 +94,23 @@ fn model(n: u16) -> &'static str {
 }
 
 fn report(rows: &[(u16, Result<Measured, String>)], cycles: u64, idle: f64) -> String {
+    let mut md = intro(cycles, idle);
+    let _ = writeln!(
+        md,
+        "| drives | axis model | idle CPU per drive (goal {GOAL_IDLE}) | CPU per drive in Op \
+         | lost frames, set-up + Op (goal 0) | LRW cycles with a wrong WKC (goal 0) | round \
+         trip p50 | p99 | max (goal {GOAL_RTT}) | longest answer | AL status after | \
+         SIGTERM to exit |"
+    );
+    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for (n, r) in rows {
+        md.push_str(&row(*n, r));
+    }
+    md
+}
+
+/// The section's heading, what was measured and how, and the machine.
+fn intro(cycles: u64, idle: f64) -> String {
     let mut md = String::new();
     let _ = writeln!(md, "{SECTION}\n");
     let _ = writeln!(
@@ -106,7 +123,8 @@ fn report(rows: &[(u16, Result<Measured, String>)], cycles: u64, idle: f64) -> S
          after `ready`, {idle:.0} s with no master (idle), then a SOEM-style master \
          (synchronous, SCHED_FIFO above virtual-drive's threads) that waits \
          **2 ms for every frame and never resends** sets the drives up (SII, mailbox, SDO, \
-         SyncManagers and FMMUs, DC SYNC0 at 1 ms, Safe-Op, Op) and runs {cycles} cycles \
+         SyncManagers and FMMUs, distributed clocks with one time base for all drives as \
+         SOEM's `ecx_configdc` gives them, SYNC0 at 1 ms, Safe-Op, Op) and runs {cycles} cycles \
          of LRW at 1 ms, in the middle between two SYNC0 pulses (one frame per 32 \
          drives). CPU is the process's user + system time (`/proc/PID/stat`, both threads: \
          the frame thread that answers every frame at once, the drives' thread with the \
@@ -131,68 +149,64 @@ fn report(rows: &[(u16, Result<Measured, String>)], cycles: u64, idle: f64) -> S
             .map(|l| l.split_whitespace().take(3).collect::<Vec<_>>().join(", "))
             .unwrap_or_else(|| "unknown".into())
     );
-    let _ = writeln!(
-        md,
-        "| drives | axis model | idle CPU per drive (goal {GOAL_IDLE}) | CPU per drive in Op \
-         | lost frames, set-up + Op (goal 0) | LRW cycles with a wrong WKC (goal 0) | round \
-         trip p50 | p99 | max (goal {GOAL_RTT}) | longest answer | AL status after | \
-         SIGTERM to exit |"
-    );
-    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|---|");
-    for (n, r) in rows {
-        let m = match r {
-            Ok(m) => m,
-            Err(e) => {
-                let _ = writeln!(
-                    md,
-                    "| {n} | {} | failed to start: {e} |||||||||||",
-                    model(*n)
-                );
-                continue;
-            }
-        };
-        let pct = |(cpu, wall): (f64, f64)| 100.0 * cpu / wall.max(1e-9) / f64::from(*n);
-        let sigterm = if m.sigterm.0 {
-            format!("{:.0} ms", m.sigterm.1.as_secs_f64() * 1e3)
-        } else {
-            "did not end".into()
-        };
-        match &m.run {
-            Ok(r) => {
-                let mut states: Vec<String> = r
-                    .al_after
-                    .iter()
-                    .map(|s| format!("{:#04x}/{:#06x}", s.0, s.1))
-                    .collect();
-                states.sort();
-                states.dedup();
-                let _ = writeln!(
-                    md,
-                    "| {n} | {} | {:.2} % | {:.2} % | {} | {} of {} | {:.0} µs | {:.0} µs | \
-                     {:.0} µs | {:.0} µs | {} | {sigterm} |",
-                    model(*n),
-                    pct(m.idle_cpu_s),
-                    pct(r.cyclic_cpu_s),
-                    r.setup_frames.1 + r.lost_in_op,
-                    r.lrw.0 - r.lrw.1,
-                    r.lrw.0,
-                    r.rtt_percentile(50.0),
-                    r.rtt_percentile(99.0),
-                    r.rtt_max(),
-                    m.longest_answer_us,
-                    states.join(", "),
-                );
-            }
-            Err(e) => {
-                let e = e.split("; virtual-drive said").next().unwrap_or(e);
-                let _ = writeln!(
-                    md,
-                    "| {n} | {} | {:.2} % | master failed: {e} ||||||| {:.0} µs | | {sigterm} |",
-                    model(*n),
-                    pct(m.idle_cpu_s),
-                    m.longest_answer_us
-                );
-            }
+    md
+}
+
+/// One table row: drive `n`'s measurement or what failed.
+fn row(n: u16, r: &Result<Measured, String>) -> String {
+    let mut md = String::new();
+    let m = match r {
+        Ok(m) => m,
+        Err(e) => {
+            let _ = writeln!(
+                md,
+                "| {n} | {} | failed to start: {e} |||||||||||",
+                model(n)
+            );
+            return md;
+        }
+    };
+    let pct = |(cpu, wall): (f64, f64)| 100.0 * cpu / wall.max(1e-9) / f64::from(n);
+    let sigterm = if m.sigterm.0 {
+        format!("{:.0} ms", m.sigterm.1.as_secs_f64() * 1e3)
+    } else {
+        "did not end".into()
+    };
+    match &m.run {
+        Ok(r) => {
+            let mut states: Vec<String> = r
+                .al_after
+                .iter()
+                .map(|s| format!("{:#04x}/{:#06x}", s.0, s.1))
+                .collect();
+            states.sort();
+            states.dedup();
+            let _ = writeln!(
+                md,
+                "| {n} | {} | {:.2} % | {:.2} % | {} | {} of {} | {:.0} µs | {:.0} µs | \
+                 {:.0} µs | {:.0} µs | {} | {sigterm} |",
+                model(n),
+                pct(m.idle_cpu_s),
+                pct(r.cyclic_cpu_s),
+                r.setup_frames.1 + r.lost_in_op,
+                r.lrw.0 - r.lrw.1,
+                r.lrw.0,
+                r.rtt_percentile(50.0),
+                r.rtt_percentile(99.0),
+                r.rtt_max(),
+                m.longest_answer_us,
+                states.join(", "),
+            );
+        }
+        Err(e) => {
+            let e = e.split("; virtual-drive said").next().unwrap_or(e);
+            let _ = writeln!(
+                md,
+                "| {n} | {} | {:.2} % | master failed: {e} ||||||| {:.0} µs | | {sigterm} |",
+                model(n),
+                pct(m.idle_cpu_s),
+                m.longest_answer_us
+            );
         }
     }
     md

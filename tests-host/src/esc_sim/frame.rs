@@ -13,7 +13,7 @@
 //! it as lost. Frames of another EtherType, or EtherCAT frames of another type, pass
 //! through unchanged.
 
-use super::{EscSim, FrameTiming, Side};
+use super::{EscSim, FrameTiming, SharedEsc, Side};
 use core::ops::DerefMut;
 
 /// EtherType of EtherCAT.
@@ -210,45 +210,97 @@ pub fn process_frame<E: DerefMut<Target = EscSim>>(
     t_ns: u64,
     hop_ns: u64,
 ) -> FrameOutcome {
-    let dgs = match parse(frame) {
-        Err(m) => return FrameOutcome::Malformed(m),
-        Ok(None) => return FrameOutcome::PassedThrough,
-        Ok(Some(d)) => d,
+    let n = escs.len();
+    through_chain(escs.iter_mut().map(|e| &mut **e), n, frame, t_ns, hop_ns)
+}
+
+/// [`process_frame`] through shared simulators, each locked only while the frame
+/// passes it (as an ESC's memory is busy for the frame only while the frame passes
+/// that ESC), after moving its clock to `t_ns`: the microcontroller side
+/// ([`SharedEsc`]'s other users) reaches every other ESC meanwhile.
+pub fn process_frame_in_turn(
+    escs: &[SharedEsc],
+    frame: &mut [u8],
+    t_ns: u64,
+    hop_ns: u64,
+) -> FrameOutcome {
+    let locked = escs.iter().map(|e| {
+        let mut esc = e.borrow_mut();
+        esc.advance_to(t_ns);
+        esc
+    });
+    through_chain(locked, escs.len(), frame, t_ns, hop_ns)
+}
+
+/// The frame through the `n` ESCs `escs` yields, one after the other.
+fn through_chain<E: DerefMut<Target = EscSim>>(
+    escs: impl Iterator<Item = E>,
+    n: usize,
+    frame: &mut [u8],
+    t_ns: u64,
+    hop_ns: u64,
+) -> FrameOutcome {
+    let dgs = match parse_for_processing(frame) {
+        Ok(d) => d,
+        Err(outcome) => return outcome,
     };
-    let n = escs.len() as u64;
-    for (i, e) in escs.iter_mut().enumerate() {
-        let esc: &mut EscSim = e;
-        let i = i as u64;
-        let timing = FrameTiming {
-            port0_ns: t_ns + i * hop_ns,
-            port1_ns: (i + 1 < n).then(|| t_ns + (2 * (n - 1) - i) * hop_ns),
-        };
-        esc.set_frame_timing(timing);
-        if esc.port0_loop_closed() {
-            // Circulating-frame rule: an ESC with a closed port 0 marks frames passing
-            // its processing unit; a frame already marked has gone round once without
-            // reaching a master and is destroyed.
-            let circulating = dgs.iter().any(|d| frame[d.header + 7] & 0x40 != 0);
-            if circulating {
-                return FrameOutcome::Destroyed { at: i as usize };
-            }
-            for d in &dgs {
-                frame[d.header + 7] |= 0x40;
-            }
-        }
-        for d in &dgs {
-            process_datagram(
-                esc,
-                &mut frame[d.header..d.header + DATAGRAM_HEADER_LEN + d.len + 2],
-            );
+    for (i, mut esc) in escs.enumerate() {
+        if !pass_esc(&mut esc, (i, n), &dgs, frame, t_ns, hop_ns) {
+            return FrameOutcome::Destroyed { at: i };
         }
     }
-    if !escs.is_empty() {
+    processed(frame, n, dgs.len())
+}
+
+/// The datagrams of `frame`, or the outcome when there is nothing to process.
+fn parse_for_processing(frame: &[u8]) -> Result<Vec<DatagramPos>, FrameOutcome> {
+    match parse(frame) {
+        Err(m) => Err(FrameOutcome::Malformed(m)),
+        Ok(None) => Err(FrameOutcome::PassedThrough),
+        Ok(Some(d)) => Ok(d),
+    }
+}
+
+/// The frame at ESC `i` of `n` (`at`); false when that ESC destroys it.
+fn pass_esc(
+    esc: &mut EscSim,
+    at: (usize, usize),
+    dgs: &[DatagramPos],
+    frame: &mut [u8],
+    t_ns: u64,
+    hop_ns: u64,
+) -> bool {
+    let (i, n) = (at.0 as u64, at.1 as u64);
+    let timing = FrameTiming {
+        port0_ns: t_ns + i * hop_ns,
+        port1_ns: (i + 1 < n).then(|| t_ns + (2 * (n - 1) - i) * hop_ns),
+    };
+    esc.set_frame_timing(timing);
+    if esc.port0_loop_closed() {
+        // Circulating-frame rule: an ESC with a closed port 0 marks frames passing
+        // its processing unit; a frame already marked has gone round once without
+        // reaching a master and is destroyed.
+        if dgs.iter().any(|d| frame[d.header + 7] & 0x40 != 0) {
+            return false;
+        }
+        for d in dgs {
+            frame[d.header + 7] |= 0x40;
+        }
+    }
+    for d in dgs {
+        process_datagram(
+            esc,
+            &mut frame[d.header..d.header + DATAGRAM_HEADER_LEN + d.len + 2],
+        );
+    }
+    true
+}
+
+fn processed(frame: &mut [u8], n: usize, datagrams: usize) -> FrameOutcome {
+    if n > 0 {
         frame[6] |= 0x02;
     }
-    FrameOutcome::Processed {
-        datagrams: dgs.len(),
-    }
+    FrameOutcome::Processed { datagrams }
 }
 
 /// Executes one datagram (header + data + WKC, structure already checked) in `esc`.

@@ -24,6 +24,7 @@
 
 mod dc;
 pub mod frame;
+mod registers;
 mod sii;
 mod sm;
 
@@ -32,7 +33,6 @@ pub use sii::sii_crc8;
 use crate::pi_mutex::{PiGuard, PiMutex};
 use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::{EscAccess, EscError};
-use sii::SII_CTRL_BUSY;
 use sm::SmRuntime;
 use std::sync::Arc;
 
@@ -200,7 +200,7 @@ fn put_u64(m: &mut [u8], a: usize, v: u64) {
 }
 
 /// ECAT event request bit: AL status changed.
-const ECAT_EVENT_AL_STATUS: u16 = 1 << 3;
+pub(super) const ECAT_EVENT_AL_STATUS: u16 = 1 << 3;
 
 impl EscSim {
     /// A freshly powered ESC that has loaded `sii` (the EEPROM image). A too short
@@ -482,181 +482,6 @@ impl EscSim {
     }
     fn sm_end(&self) -> usize {
         reg::SM_BASE as usize + 8 * self.flavour.sm_count() as usize
-    }
-
-    fn read_registers(&mut self, side: Side, start: usize, buf: &mut [u8]) {
-        let end = start + buf.len();
-        let overlaps = |a: usize, len: usize| start < a + len && a < end;
-        // Dynamic values first.
-        if overlaps(reg::DC_SYSTEM_TIME.addr() as usize, 8) {
-            let st = self.system_time_at(self.access_time(side));
-            put_u64(&mut self.mem, reg::DC_SYSTEM_TIME.addr() as usize, st);
-        }
-        buf.copy_from_slice(&self.mem[start..end]);
-        // Read side effects.
-        match side {
-            Side::Pdi => {
-                if overlaps(reg::AL_CONTROL.addr() as usize, 2) {
-                    self.al_control_unread = false;
-                    self.al_event_clear(reg::al_event::AL_CONTROL);
-                }
-                if overlaps(reg::DC_SYNC0_STATUS.addr() as usize, 1) {
-                    self.mem[reg::DC_SYNC0_STATUS.addr() as usize] = 0;
-                    self.al_event_clear(reg::al_event::SYNC0);
-                }
-                if overlaps(reg::WATCHDOG_STATUS_PD.addr() as usize, 2) {
-                    self.al_event_clear(reg::al_event::WATCHDOG);
-                }
-                for n in 0..self.sms.len() {
-                    if overlaps(reg::sm_register(n as u8) as usize + 6, 1) {
-                        self.al_event_clear(reg::al_event::SM_CHANGE);
-                    }
-                }
-            }
-            Side::Ecat => {
-                if overlaps(reg::AL_STATUS.addr() as usize, 2) {
-                    self.ecat_event_clear(ECAT_EVENT_AL_STATUS);
-                }
-            }
-        }
-        if overlaps(reg::SII_CONTROL.addr() as usize + 1, 1) && self.sii_busy_reads > 0 {
-            self.sii_busy_reads -= 1;
-            if self.sii_busy_reads == 0 {
-                self.sii_finish_busy();
-            }
-        }
-    }
-
-    /// Who may drive the EEPROM interface: the PDI once the master has offered it
-    /// (0x0500 bit 0) and the PDI has taken it (0x0501 bit 0); the master otherwise.
-    fn sii_owner(&self) -> Side {
-        let offered = self.mem[reg::SII_CONFIG.addr() as usize] & 0x01 != 0;
-        let taken = self.mem[reg::SII_PDI_ACCESS.addr() as usize] & 0x01 != 0;
-        if offered && taken {
-            Side::Pdi
-        } else {
-            Side::Ecat
-        }
-    }
-
-    #[allow(clippy::collapsible_match)] // one arm per register range reads better
-    fn write_registers(&mut self, side: Side, start: usize, data: &[u8]) {
-        let end = start + data.len();
-        let overlaps = |a: usize, len: usize| start < a + len && a < end;
-        let emulation = self.mem[reg::ESC_CONFIG.addr() as usize] & 0x01 != 0;
-        let sync_owner_pdi = self.mem[reg::DC_CYCLIC_UNIT_CONTROL.addr() as usize] & 0x01 != 0;
-        let old_activation = self.mem[reg::DC_ACTIVATION.addr() as usize];
-        let sii_busy = get_u16(&self.mem, reg::SII_CONTROL.addr() as usize) & SII_CTRL_BUSY != 0;
-        let mut al_control_written = false;
-        let mut sii_cmd_written = false;
-        for (i, &v) in data.iter().enumerate() {
-            let a = start + i;
-            match side {
-                Side::Ecat => match a {
-                    0x0010..=0x0011 | 0x0100..=0x0103 | 0x0108..=0x0109 | 0x0138..=0x0139 => {
-                        self.mem[a] = v
-                    }
-                    0x0120..=0x0121 => {
-                        if self.al_control_unread && !emulation {
-                            // AL control behaves like a mailbox: the PDI has not read
-                            // the previous request yet, the write is not taken.
-                            continue;
-                        }
-                        self.mem[a] = v;
-                        al_control_written = true;
-                    }
-                    0x0200..=0x0201 => self.mem[a] = v,
-                    // Error counters: any write clears them.
-                    0x0300..=0x0313 | 0x0442..=0x0443 => self.mem[a] = 0,
-                    0x0400..=0x0401 | 0x0410..=0x0411 | 0x0420..=0x0421 => self.mem[a] = v,
-                    0x0500 => {
-                        self.mem[a] = v & 0x03;
-                        if v & 0x02 != 0 {
-                            // Force ECAT access: reset the PDI access flag.
-                            self.mem[reg::SII_PDI_ACCESS.addr() as usize] &= !0x01;
-                            self.mem[a] &= !0x01;
-                        }
-                    }
-                    0x0502..=0x050F => {
-                        if self.sii_owner() == Side::Ecat && !sii_busy {
-                            self.sii_reg_write(a, v);
-                            sii_cmd_written |= a == 0x0503;
-                        }
-                    }
-                    0x0510..=0x0517 => self.mem[a] = v,
-                    _ if (0x0600..self.fmmu_end()).contains(&a) => {
-                        if (a - 0x0600) % 16 < 0x0D {
-                            self.mem[a] = v;
-                        }
-                    }
-                    _ if (0x0800..self.sm_end()).contains(&a) => self.sm_reg_write_ecat(a, v),
-                    0x0900..=0x0903 => {
-                        // A write to receive time port 0 latches the receive times.
-                        if a == start || a == 0x0900 {
-                            self.latch_receive_times();
-                        }
-                    }
-                    0x0920..=0x092B | 0x0930..=0x0935 => self.mem[a] = v,
-                    0x0980 => self.mem[a] = v,
-                    0x0981 | 0x0990..=0x0997 | 0x09A0..=0x09A7 if !sync_owner_pdi => {
-                        self.mem[a] = v
-                    }
-                    0x09A8..=0x09A9 => self.mem[a] = v,
-                    0x0F80..=0x0FFF => self.mem[a] = v,
-                    _ => {}
-                },
-                Side::Pdi => match a {
-                    0x0012..=0x0013 | 0x0138..=0x0139 | 0x0204..=0x0207 => self.mem[a] = v,
-                    0x0130..=0x0135 => {
-                        if !emulation {
-                            self.mem[a] = v;
-                            if a <= 0x0131 {
-                                self.ecat_event_set(ECAT_EVENT_AL_STATUS);
-                            }
-                        }
-                    }
-                    0x0501 => self.mem[a] = v & 0x01,
-                    0x0502..=0x050F => {
-                        if self.sii_owner() == Side::Pdi && !sii_busy {
-                            self.sii_reg_write(a, v);
-                            sii_cmd_written |= a == 0x0503;
-                        }
-                    }
-                    _ if (0x0800..self.sm_end()).contains(&a) => {
-                        if (a - 0x0800) % 8 == 7 {
-                            self.sm_pdi_control_write(a, v);
-                        }
-                    }
-                    0x0981 | 0x0990..=0x0997 | 0x09A0..=0x09A7 if sync_owner_pdi => self.mem[a] = v,
-                    0x0F80..=0x0FFF => self.mem[a] = v,
-                    _ => {}
-                },
-            }
-        }
-        if al_control_written {
-            if emulation {
-                let ctl = get_u16(&self.mem, reg::AL_CONTROL.addr() as usize);
-                put_u16(&mut self.mem, reg::AL_STATUS.addr() as usize, ctl & 0x000F);
-            } else {
-                self.al_control_unread = true;
-                self.al_event_set(reg::al_event::AL_CONTROL);
-            }
-        } else if side == Side::Ecat && overlaps(reg::AL_CONTROL.addr() as usize, 2) {
-            self.stats.al_control_writes_ignored += 1;
-        }
-        if sii_cmd_written {
-            self.sii_execute();
-        }
-        if side == Side::Ecat && overlaps(reg::DC_SYSTEM_TIME.addr() as usize, 8) {
-            self.system_time_write(start, data);
-        }
-        let owner_wrote = (side == Side::Pdi) == sync_owner_pdi;
-        if owner_wrote
-            && overlaps(reg::DC_ACTIVATION.addr() as usize, 1)
-            && old_activation != self.mem[reg::DC_ACTIVATION.addr() as usize]
-        {
-            self.sync_activation_changed();
-        }
     }
 
     // ---------------------------------------------------------------- SyncManagers

@@ -124,82 +124,106 @@ impl SmRuntime {
             SmOp::Write(d) => d.len(),
         };
         let covers_last = off + len >= win;
-        let mut event = None;
-        let bad = Outcome {
-            accepted: false,
-            event: None,
-        };
-        if mailbox {
-            let Some(area) = mem.get_mut(start + off..start + off + len) else {
-                return bad;
-            };
-            match op {
-                SmOp::Write(d) => {
-                    if self.full {
-                        return bad;
-                    }
-                    self.irq_read = false;
-                    area.copy_from_slice(d);
-                    if covers_last {
-                        self.full = true;
-                        self.irq_write = true;
-                        event = Some(Event::Written);
-                    }
-                }
-                SmOp::Read(b) => {
-                    if !self.full {
-                        return bad;
-                    }
-                    self.irq_write = false;
-                    b.copy_from_slice(area);
-                    if covers_last {
-                        self.full = false;
-                        self.irq_read = true;
-                        event = Some(Event::Read);
-                    }
-                }
+        let event = if mailbox {
+            match mem.get_mut(start + off..start + off + len) {
+                Some(area) => self.mailbox_access(area, covers_last, op),
+                None => Err(()),
             }
+        } else if self.bufs[0].len() < win {
+            Err(())
         } else {
-            if self.bufs[0].len() < win {
-                return bad;
-            }
-            match op {
-                SmOp::Write(d) => {
-                    let k = match self.producer_open {
-                        Some(k) => k,
-                        None => {
-                            let k = self.free_buffer();
-                            self.producer_open = Some(k);
-                            self.irq_read = false;
-                            k
-                        }
-                    };
-                    self.bufs[k][off..off + len].copy_from_slice(d);
-                    if covers_last {
-                        self.latest = Some(k);
-                        self.producer_open = None;
-                        self.irq_write = true;
-                        event = Some(Event::Written);
-                    }
+            Ok(self.buffered_access(off..off + len, covers_last, op))
+        };
+        match event {
+            Ok(event) => Outcome {
+                accepted: true,
+                event,
+            },
+            Err(()) => Outcome {
+                accepted: false,
+                event: None,
+            },
+        }
+    }
+
+    /// Mailbox mode: `area` is the accessed part of the buffer in process RAM; a
+    /// write while full or a read while empty is refused (`Err`).
+    fn mailbox_access(
+        &mut self,
+        area: &mut [u8],
+        covers_last: bool,
+        op: SmOp<'_>,
+    ) -> Result<Option<Event>, ()> {
+        match op {
+            SmOp::Write(d) => {
+                if self.full {
+                    return Err(());
                 }
-                SmOp::Read(b) => {
-                    let k = self.consumer_buffer();
-                    if self.consumer_open.is_none() {
-                        self.irq_write = false;
-                    }
-                    self.consumer_open = Some(k);
-                    b.copy_from_slice(&self.bufs[k][off..off + len]);
-                    if covers_last {
-                        self.consumer_open = None;
-                        self.irq_read = true;
-                        event = Some(Event::Read);
-                    }
+                self.irq_read = false;
+                area.copy_from_slice(d);
+                if covers_last {
+                    self.full = true;
+                    self.irq_write = true;
+                    return Ok(Some(Event::Written));
+                }
+            }
+            SmOp::Read(b) => {
+                if !self.full {
+                    return Err(());
+                }
+                self.irq_write = false;
+                b.copy_from_slice(area);
+                if covers_last {
+                    self.full = false;
+                    self.irq_read = true;
+                    return Ok(Some(Event::Read));
                 }
             }
         }
-        Outcome {
-            accepted: true,
-            event,
+        Ok(None)
+    }
+
+    /// Buffered mode: `range` inside the producer's free buffer (write) or the
+    /// consumer's newest complete one (read).
+    fn buffered_access(
+        &mut self,
+        range: std::ops::Range<usize>,
+        covers_last: bool,
+        op: SmOp<'_>,
+    ) -> Option<Event> {
+        match op {
+            SmOp::Write(d) => {
+                let k = match self.producer_open {
+                    Some(k) => k,
+                    None => {
+                        let k = self.free_buffer();
+                        self.producer_open = Some(k);
+                        self.irq_read = false;
+                        k
+                    }
+                };
+                self.bufs[k][range].copy_from_slice(d);
+                if covers_last {
+                    self.latest = Some(k);
+                    self.producer_open = None;
+                    self.irq_write = true;
+                    return Some(Event::Written);
+                }
+            }
+            SmOp::Read(b) => {
+                let k = self.consumer_buffer();
+                if self.consumer_open.is_none() {
+                    self.irq_write = false;
+                }
+                self.consumer_open = Some(k);
+                b.copy_from_slice(&self.bufs[k][range]);
+                if covers_last {
+                    self.consumer_open = None;
+                    self.irq_read = true;
+                    return Some(Event::Read);
+                }
+            }
         }
+        None
     }
 }
