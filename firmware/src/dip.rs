@@ -180,34 +180,6 @@ pub struct Settings {
     pub smoothing_us: u32,
 }
 
-/// Chooses between the parameters and the DIP functions (`dip`: what
-/// [`power_up`] read; `None` when the board has none or is in station entry).
-pub fn settings(p: &crate::params::Params, dip: Option<DipFunctions>) -> Settings {
-    use crate::params::Param;
-    match dip {
-        Some(f) if p.get(Param::ControlMode) == 0 => Settings {
-            peak_current_ma: f.peak_current_ma,
-            holding_percent: match f.standstill {
-                Standstill::Software => p.get(Param::HoldingCurrent) as u8,
-                Standstill::Full => 100,
-                Standstill::Half => 50,
-            },
-            direction_reversed: f.direction_cw,
-            smoothing_us: f.smoothing_us,
-        },
-        _ => Settings {
-            peak_current_ma: p.get(Param::PeakCurrent) as u16,
-            holding_percent: p.get(Param::HoldingCurrent) as u8,
-            direction_reversed: p.get(Param::DirectionReversal) == 1,
-            smoothing_us: if p.get(Param::CmdFilterEnable) == 1 {
-                p.get(Param::CmdFilterTime) as u32
-            } else {
-                0
-            },
-        },
-    }
-}
-
 /// Station-number entry of a single bank: while SW8 is ON, SW1-SW7 (ON = 1) are the
 /// station number; when SW8 returns OFF that number is to be stored (the caller saves
 /// it in flash and uses it as the DIP address from the next power-up).
@@ -386,7 +358,7 @@ mod tests {
         let mut p = Params::new(Variant::OpenLoop);
         let f = est584_functions(0b0001_1000); // SW4, SW5 ON; SW1-3 OFF: 8.4 A; 25 ms
         assert_eq!(p.get(Param::ControlMode), 5);
-        let s = settings(&p, Some(f));
+        let s = p.settings_with(Some(f));
         assert_eq!(
             s,
             Settings {
@@ -397,7 +369,7 @@ mod tests {
             }
         );
         p.set_internal(Param::ControlMode, 0);
-        let s = settings(&p, Some(f));
+        let s = p.settings_with(Some(f));
         assert_eq!(
             s,
             Settings {
@@ -409,15 +381,15 @@ mod tests {
         );
         // SW4 OFF: the software holding current.
         p.set_internal(Param::HoldingCurrent, 30);
-        assert_eq!(settings(&p, Some(est584_functions(0))).holding_percent, 30);
+        assert_eq!(p.settings_with(Some(est584_functions(0))).holding_percent, 30);
         assert_eq!(
-            settings(&p, Some(dp3cl705_functions(0))).holding_percent,
+            p.settings_with(Some(dp3cl705_functions(0))).holding_percent,
             50
         );
         // No function switches (station entry, or none on the board): parameters rule.
         p.set_internal(Param::CmdFilterEnable, 1);
-        assert_eq!(settings(&p, None).smoothing_us, 1000);
-        assert_eq!(settings(&p, None).peak_current_ma, 3200);
+        assert_eq!(p.settings_with(None).smoothing_us, 1000);
+        assert_eq!(p.settings_with(None).peak_current_ma, 3200);
     }
 
     #[test]

@@ -88,7 +88,6 @@ const _: () = {
     assert!(DFU.size == ACTIVE.size + PAGE);
     assert!(DFU.offset + DFU.size <= RECORDS.offset);
     assert!(RECORDS.offset + RECORDS.size == FLASH_SIZE);
-    assert!(RECORDS.size == crate::storage::region::SIZE);
     // Every partition is whole pages in either bank mode (4 KiB pages single-bank).
     assert!(BOOTLOADER.size.is_multiple_of(4096) && BOOT_STATE.offset.is_multiple_of(4096));
     assert!(ACTIVE.offset.is_multiple_of(4096) && RECORDS.offset.is_multiple_of(4096));

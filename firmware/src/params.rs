@@ -555,10 +555,39 @@ impl Params {
 
     /// The motor settings in effect (peak and holding current, direction, command
     /// smoothing): the function switches' when 0x2025 = 0 and the board has function
-    /// switches in that position, otherwise the objects' ([`crate::dip::settings`]).
+    /// switches in that position, otherwise the objects' ([`Params::settings_with`]).
     /// Everything that uses these settings reads them here.
     pub fn settings(&self) -> crate::dip::Settings {
-        crate::dip::settings(self, self.dip.functions)
+        self.settings_with(self.dip.functions)
+    }
+
+    /// Chooses between the parameters and the DIP functions (`dip`: what
+    /// `dip::power_up` read; `None` when the board has none or is in station entry).
+    pub fn settings_with(&self, dip: Option<crate::dip::DipFunctions>) -> crate::dip::Settings {
+        use crate::dip::{Settings, Standstill};
+        let p = self;
+        match dip {
+            Some(f) if p.get(Param::ControlMode) == 0 => Settings {
+                peak_current_ma: f.peak_current_ma,
+                holding_percent: match f.standstill {
+                    Standstill::Software => p.get(Param::HoldingCurrent) as u8,
+                    Standstill::Full => 100,
+                    Standstill::Half => 50,
+                },
+                direction_reversed: f.direction_cw,
+                smoothing_us: f.smoothing_us,
+            },
+            _ => Settings {
+                peak_current_ma: p.get(Param::PeakCurrent) as u16,
+                holding_percent: p.get(Param::HoldingCurrent) as u8,
+                direction_reversed: p.get(Param::DirectionReversal) == 1,
+                smoothing_us: if p.get(Param::CmdFilterEnable) == 1 {
+                    p.get(Param::CmdFilterTime) as u32
+                } else {
+                    0
+                },
+            },
+        }
     }
 
     /// Sets the estimated load angle reported by 0x2063, 0.1° electrical.

@@ -23,10 +23,7 @@ use embedded_storage::nor_flash::{
     ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
 
-use crate::comm::StoreCommand;
-use crate::drive::ParameterStore;
-use crate::storage::{LoadReport, SaveReport, Scope, Storage, StorageError};
-use ecat_slave_stack::od::Dictionary;
+use crate::storage::{Scope, Storage, StorageError};
 
 /// Program granularity handled by [`StagedFlash`] (and [`commit`]).
 pub const WRITE_UNIT: usize = 8;
@@ -302,8 +299,8 @@ pub fn commit_staged<F: NorFlash, const N: usize>(
 /// The board's parameter store: the parameter and fault-history records of
 /// [`Storage`] over a [`StagedFlash`], whose 'save', 'load' (restore) and history
 /// writes only stage the payload ([`StagedFlash::stage_record`]; see the module docs).
-/// Reads (the power-up load, the history) go to the flash as in
-/// `crate::drive::FlashStore`.
+/// Reads (the power-up load, the history) go to the flash as in the drive's
+/// `FlashStore`; the drive implements its store traits for it (`drive/store.rs`).
 pub struct StagedRecords<'a, R, const N: usize, const E: usize> {
     /// Layout of the two parameter records.
     pub storage: Storage,
@@ -311,55 +308,6 @@ pub struct StagedRecords<'a, R, const N: usize, const E: usize> {
     pub history: Option<Storage>,
     /// The staged view of the record region.
     pub flash: StagedFlash<'a, R, N, E>,
-}
-
-impl<R: ReadNorFlash, const N: usize, const E: usize> ParameterStore
-    for StagedRecords<'_, R, N, E>
-{
-    fn execute(
-        &mut self,
-        cmd: StoreCommand,
-        dict: &mut dyn Dictionary,
-    ) -> Result<SaveReport, StorageError> {
-        let (scope, dict) = match cmd {
-            StoreCommand::Save(scope) => (scope, Some(dict)),
-            StoreCommand::RestoreDefaults(scope) => (scope, None),
-        };
-        let storage = self.storage;
-        let mut report = None;
-        self.flash.stage_record(storage, scope, |out| {
-            let r = storage.serialise(dict, scope, out)?;
-            report = Some(r);
-            Ok(r.payload_len as usize)
-        })?;
-        report.ok_or(StorageError::Geometry)
-    }
-    fn load(&mut self, dict: &mut dyn Dictionary) -> LoadReport {
-        self.storage.load(&mut self.flash, dict)
-    }
-    fn load_history(&mut self, out: &mut [u8]) -> Option<usize> {
-        self.history?.read_newest(&mut self.flash, out)
-    }
-    fn write_history(&mut self, payload: &[u8]) -> Result<bool, StorageError> {
-        let Some(h) = self.history else {
-            return Ok(false);
-        };
-        self.flash.stage_record(h, Scope::All, |out| {
-            out.get_mut(..payload.len())
-                .ok_or(StorageError::RecordTooLarge)?
-                .copy_from_slice(payload);
-            Ok(payload.len())
-        })?;
-        Ok(true)
-    }
-}
-
-impl<'a, R: ReadNorFlash, const N: usize, const E: usize> crate::drive::StagedStore<'a, R, N, E>
-    for StagedRecords<'a, R, N, E>
-{
-    fn staged(&mut self) -> &mut StagedFlash<'a, R, N, E> {
-        &mut self.flash
-    }
 }
 
 /// A flash whose reads go through `read` and whose erases and writes go to `flash`:
@@ -418,7 +366,9 @@ impl<R: ReadNorFlash, F: NorFlash> NorFlash for ReadVia<R, F> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::drive::Drive;
+    use crate::comm::StoreCommand;
+    use crate::drive::{Drive, ParameterStore};
+    use ecat_slave_stack::od::Dictionary;
     use crate::identity::Variant;
     use crate::storage::{region, RamFlash};
     use ecat_slave_stack::esm::EsmState;

@@ -965,6 +965,7 @@ pub mod region {
     use super::{Storage, HISTORY_MAGIC};
     /// Size of the region.
     pub const SIZE: u32 = 16 * 1024;
+    const _: () = assert!(SIZE == crate::flash_layout::RECORDS.size);
     /// The parameter records.
     pub const PARAMS: Storage = Storage::new(0, 4 * 1024);
     /// The fault-history records.

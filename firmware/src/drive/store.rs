@@ -248,3 +248,53 @@ impl<S: ParameterStore> Drive<S> {
         r.map(|_| ()).map_err(StorageError::abort)
     }
 }
+
+/// The board's staged records ([`crate::staged_flash::StagedRecords`]) as the drive's store.
+impl<R: embedded_storage::nor_flash::ReadNorFlash, const N: usize, const E: usize> ParameterStore
+    for crate::staged_flash::StagedRecords<'_, R, N, E>
+{
+    fn execute(
+        &mut self,
+        cmd: StoreCommand,
+        dict: &mut dyn Dictionary,
+    ) -> Result<SaveReport, StorageError> {
+        let (scope, dict) = match cmd {
+            StoreCommand::Save(scope) => (scope, Some(dict)),
+            StoreCommand::RestoreDefaults(scope) => (scope, None),
+        };
+        let storage = self.storage;
+        let mut report = None;
+        self.flash.stage_record(storage, scope, |out| {
+            let r = storage.serialise(dict, scope, out)?;
+            report = Some(r);
+            Ok(r.payload_len as usize)
+        })?;
+        report.ok_or(StorageError::Geometry)
+    }
+    fn load(&mut self, dict: &mut dyn Dictionary) -> LoadReport {
+        self.storage.load(&mut self.flash, dict)
+    }
+    fn load_history(&mut self, out: &mut [u8]) -> Option<usize> {
+        self.history?.read_newest(&mut self.flash, out)
+    }
+    fn write_history(&mut self, payload: &[u8]) -> Result<bool, StorageError> {
+        let Some(h) = self.history else {
+            return Ok(false);
+        };
+        self.flash.stage_record(h, crate::storage::Scope::All, |out| {
+            out.get_mut(..payload.len())
+                .ok_or(StorageError::RecordTooLarge)?
+                .copy_from_slice(payload);
+            Ok(payload.len())
+        })?;
+        Ok(true)
+    }
+}
+
+impl<'a, R: embedded_storage::nor_flash::ReadNorFlash, const N: usize, const E: usize> StagedStore<'a, R, N, E>
+    for crate::staged_flash::StagedRecords<'a, R, N, E>
+{
+    fn staged(&mut self) -> &mut crate::staged_flash::StagedFlash<'a, R, N, E> {
+        &mut self.flash
+    }
+}
