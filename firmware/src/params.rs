@@ -40,7 +40,6 @@ use ecat_slave_stack::od::{
     SdoAbort,
 };
 
-use crate::current_supervisor::Calibration;
 use crate::identity::Variant;
 
 /// A saved read-write entry: range `min..=max`, default `def`, unit `unit`.
@@ -729,6 +728,60 @@ fn default_of(index: u16, sub: u8) -> i32 {
     {
         Ok(DefaultValue::Int(v)) => v as i32,
         _ => 0,
+    }
+}
+
+/// The auto-tune's current-sensing calibration in the integer units of 0x2022.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Calibration {
+    /// Channel B gain relative to channel A, 1/10000 (10000 = equal).
+    pub gain_b_e4: u16,
+    /// Channel offsets with the bridges switching (A, B), mA.
+    pub offset_ma: [i16; 2],
+    /// Dead-time voltage loss of the bridges, mV.
+    pub dead_time_mv: u16,
+    /// Inductance at half the test current (mean of both phases), µH.
+    pub l_low_uh: u16,
+}
+
+impl Calibration {
+    /// The offsets the loop adds to the start-up offsets, counts of `amps_per_count`
+    /// (A per count; 0 without a scale).
+    pub fn offset_trim(&self, amps_per_count: f32) -> [f32; 2] {
+        if amps_per_count > 0.0 {
+            self.offset_ma
+                .map(|ma| f32::from(ma) * 1e-3 / amps_per_count)
+        } else {
+            [0.0; 2]
+        }
+    }
+
+    /// Each channel's gain (A, B) from channel B's relative gain: both referred to
+    /// their geometric mean (`foc::autotune`, "Channel gains"). `[1, 1]` before a tune.
+    pub fn channel_gains(&self) -> [f32; 2] {
+        if self.gain_b_e4 == 0 {
+            return [1.0; 2];
+        }
+        let g = foc::num::sqrtf(f32::from(self.gain_b_e4) * 1e-4);
+        [1.0 / g, g]
+    }
+
+    /// The integer form of a tune's results.
+    pub fn from_tune(r: &foc::autotune::TuneResult) -> Self {
+        let round = |x: f32, lo: f32, hi: f32| {
+            if x.is_finite() {
+                (x + 0.5 * x.signum()).clamp(lo, hi)
+            } else {
+                0.0
+            }
+        };
+        let ma = |a: f32| round(a * 1e3, -32768.0, 32767.0) as i16;
+        Calibration {
+            gain_b_e4: round(r.gain_b * 1e4, 0.0, 65535.0) as u16,
+            offset_ma: [ma(r.offset[0]), ma(r.offset[1])],
+            dead_time_mv: round(r.dead_time_v * 1e3, 0.0, 65535.0) as u16,
+            l_low_uh: round(0.5 * (r.l_low[0] + r.l_low[1]) * 1e6, 0.0, 65535.0) as u16,
+        }
     }
 }
 

@@ -239,7 +239,8 @@ fn torque_objects_refuse_bad_values() {
 #[test]
 fn rated_torque_is_kt_times_the_rated_current() {
     let mut d = Cia402::new();
-    // ECN57-20: 0.283 N·m/A at 3.2 A.
+    // ECN57-20: 0.283 N·m/A at 3.2 A (the power-up value is the motion layer's motor).
+    assert_eq!(d.torque_constant, crate::motion::ECN57_20.kt);
     assert_eq!(d.value(0x6076, 0), Some(906));
     d.set_torque_constant(0.530);
     d.set_rated_current_ma(6000);

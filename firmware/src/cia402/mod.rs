@@ -526,7 +526,8 @@ impl Cia402 {
             assigned_inputs: homing::DI_NEG_LIMIT | homing::DI_POS_LIMIT | homing::DI_HOME,
             stall_homing: None,
             rated_current_ma: 3200,
-            torque_constant: crate::motion::ECN57_20.kt,
+            // ECN57-20, the motion layer's `ECN57_20.kt` (equal: `cst_tests`).
+            torque_constant: 0.283,
             torque_control: true,
             servo_tune: false,
             encoder_increments: 4000,

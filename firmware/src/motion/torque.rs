@@ -30,7 +30,7 @@
 //! angle: 0.
 
 use super::{clampf, Motion};
-use crate::drive::AxisState;
+use crate::motion::AxisState;
 
 impl Motion {
     /// One closed-loop servo period with a torque set-point: the rest of the position

@@ -5,7 +5,7 @@
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use crate::cia402::DriveCommand;
-use crate::drive::AxisState;
+use crate::motion::AxisState;
 
 /// The internal signals of one servo period (the fields of [`AxisState`] that
 /// 0x2510 shows).
