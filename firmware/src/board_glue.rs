@@ -226,7 +226,7 @@ impl BoardGlue {
         axis
     }
 
-    /// While `Some`, the power authority ([`crate::runtime`]) keeps the motor holding
+    /// While `Some`, the power authority (`runtime`) keeps the motor holding
     /// through the brake-close delay: every [`BoardGlue::publish`] sends these
     /// set-points with the power permitted, whatever the drive's step says, and no
     /// auto-tune.

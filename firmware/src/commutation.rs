@@ -32,7 +32,7 @@
 //!
 //! # Reported to CiA 402
 //! [`CommutatedMotion::enable_pending`] (closed loop requested, offset not known) is
-//! what the motor side reports as `crate::drive::AxisState::commutation_pending`: the
+//! what the motor side reports as `motion::AxisState::commutation_pending`: the
 //! PDS then stays in Switched on while the enable it passes down runs the alignment,
 //! and enters Operation enabled once the motion layer holds the actual position in
 //! closed loop (see `crate::cia402`, "transition 4 waits for the power stage"). A

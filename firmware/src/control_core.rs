@@ -416,7 +416,7 @@ impl ControlCore {
             self.index_pulse(z);
         }
         self.probe_latches(hw);
-        let mut axis = crate::drive::AxisState::default();
+        let mut axis = crate::motion::AxisState::default();
         self.motion.motion().fill_axis_state(&mut axis);
         // CiA 402 transition 4 waits while the closed loop still needs its alignment.
         axis.commutation_pending = self.motion.enable_pending();

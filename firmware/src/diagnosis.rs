@@ -6,7 +6,7 @@
 //! ([`message_for_emergency`]): diagnosis code 0xE800 with the emergency's error code
 //! in bits 16-31, the text of the fault kind (manufacturer byte 0), and two
 //! parameters: the bus voltage (0.1 V, bytes 1-2) and the detail (bytes 3-4, see
-//! [`crate::faults`]). Notable events without an emergency of their own (parameters
+//! `faults`). Notable events without an emergency of their own (parameters
 //! restored, a corrupt record) have their own code and text. Time stamps are local:
 //! milliseconds since power-up, in ns.
 
@@ -89,7 +89,7 @@ const OTHER_TEXTS: [Text; 8] = [
     },
 ];
 
-/// The fault kinds' texts (from [`crate::faults::TABLE`]) and then the others.
+/// The fault kinds' texts (from `faults::TABLE`) and then the others.
 const ALL_TEXTS: [Text; KINDS + OTHER_TEXTS.len()] = {
     let mut all = [OTHER_TEXTS[0]; KINDS + OTHER_TEXTS.len()];
     let mut i = 0;

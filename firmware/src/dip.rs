@@ -381,7 +381,10 @@ mod tests {
         );
         // SW4 OFF: the software holding current.
         p.set_internal(Param::HoldingCurrent, 30);
-        assert_eq!(p.settings_with(Some(est584_functions(0))).holding_percent, 30);
+        assert_eq!(
+            p.settings_with(Some(est584_functions(0))).holding_percent,
+            30
+        );
         assert_eq!(
             p.settings_with(Some(dp3cl705_functions(0))).holding_percent,
             50

@@ -414,7 +414,7 @@ impl<S: ParameterStore> Drive<S> {
 
     /// Output pin levels (bit n = output n+1) and whether the drive wants the brake
     /// released (the runtime adds the power stage's confirmation:
-    /// [`crate::runtime`]).
+    /// `runtime`).
     pub fn outputs(&self) -> (u8, bool) {
         let op_enabled = self.command.drive_enabled;
         let master = (

@@ -18,7 +18,7 @@
 //! The rows are in order of severity (the red LED shows the most severe active fault;
 //! 0x603F reports the most severe active fault's code, 0 when none). Motor blocked
 //! comes last: its kind number (7) follows the older kinds, so the stored histories
-//! keep their meaning. It is an event of the stall detector ([`crate::motion`]); its
+//! keep their meaning. It is an event of the stall detector (`motion`); its
 //! condition is gone at once, so a fault reset clears it.
 //!
 //! **0x2056** (default 0x00C3): a set bit *enables* the detection of the kind whose
@@ -46,7 +46,7 @@
 //! (`AxisState::overcurrent_trip`); the condition is gone once both are clear (latch
 //! re-armed), so a fault reset with 0x2057 = 1 clears the fault. Motor open (failed
 //! power-up tune) and "current does not follow" are events (`Drive::current_report`,
-//! [`crate::current_supervisor`]): a fault reset clears them.
+//! `current_supervisor`): a fault reset clears them.
 //!
 //! **Persistent history**: the six history entries (and the operating-time counter
 //! 0x2307 at the time of writing) survive power cycles in a record pair of their own

@@ -9,7 +9,7 @@
 //! | active | 0x0800_9000 | 228 KiB | the running firmware; its last page the `.efw` header of the image |
 //! | DFU | 0x0804_2000 | 230 KiB | an update being received, then the previous image |
 //! | (spare) | 0x0807_B800 | 2 KiB | |
-//! | records | 0x0807_C000 | 16 KiB | parameters and fault history ([`crate::storage::region`]) |
+//! | records | 0x0807_C000 | 16 KiB | parameters and fault history (`storage::region`) |
 //!
 //! The DFU partition is one page larger than the active one, as embassy-boot's swap
 //! needs. The records sit outside every partition that an update touches, so the

@@ -2,7 +2,7 @@
 //! `embedded_storage::nor_flash::NorFlash` with offsets relative to the window and
 //! refuses every access that leaves it, before the underlying driver sees it.
 //!
-//! The board gives the parameter-record code (`crate::storage`) only this window over
+//! The board gives the parameter-record code (`storage`) only this window over
 //! the chip's flash, so no record offset — whatever a corrupt header or a bug says —
 //! can erase or program the firmware itself. Alignment is checked here too, so the
 //! driver's own error paths are never the only guard.

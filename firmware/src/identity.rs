@@ -129,7 +129,7 @@ pub const VENDOR_NAME: &str = "ECS open drive firmware";
 /// SII EEPROM size in bytes (16 Kibit part).
 pub const EEPROM_BYTES: u16 = 2048;
 
-/// The Bootstrap mailbox of firmware updates over FoE ([`crate::update`]).
+/// The Bootstrap mailbox of firmware updates over FoE (`update`).
 pub const BOOTSTRAP: Option<ecat_slave_stack::sm::BootMailbox> =
     Some(ecat_slave_stack::sm::BootMailbox::STANDARD);
 
@@ -143,7 +143,7 @@ pub const MAILBOX_LIMITS: ecat_slave_stack::sm::MailboxLimits =
     };
 
 /// Index of the timing diagnostics object the slave runtime serves
-/// (`ecat_slave_stack::sync::timing_diag_object`, listed in [`crate::dictionary`]).
+/// (`ecat_slave_stack::sync::timing_diag_object`, listed in `dictionary`).
 pub const TIMING_DIAG: u16 = 0x2200;
 
 /// The slave runtime's configuration of the product (the board's and the

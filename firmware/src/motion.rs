@@ -774,7 +774,7 @@ pub struct AxisState {
     /// Position latched at an encoder index pulse since the previous cycle.
     pub index: Option<i32>,
     /// Positions latched at the edges of input 1 since the previous cycle (touch probe
-    /// 1; logical edges, 0x2154 applied: see [`crate::latch`]).
+    /// 1; logical edges, 0x2154 applied: see `latch`).
     pub probe1: crate::cia402::EdgeLatch,
     /// Positions latched at the edges of input 2 since the previous cycle (touch probe 2).
     pub probe2: crate::cia402::EdgeLatch,
@@ -786,7 +786,7 @@ pub struct AxisState {
     /// compared with 0x2030).
     pub servo_following_error: i32,
     /// The motor side cannot follow set-points at an enable yet: closed loop requested
-    /// and the commutation alignment not done (`crate::commutation::CommutatedMotion::
+    /// and the commutation alignment not done (`commutation::CommutatedMotion::
     /// enable_pending`). CiA 402 transition 4 waits for it to clear while the motor side
     /// aligns ([`crate::cia402::DriveFeedback::enable_pending`]). False (the default):
     /// open loop, no encoder, aligned — no wait.

@@ -1,6 +1,6 @@
 //! Vendor parameters 0x2000-0x2165 (`docs/object-dictionary.md`; 0x2156, the
 //! anti-resonance damping 0x2059, the stall detection 0x2060-0x2063, and
-//! 0x2160-0x2165 of the servo tune, [`crate::servo_tune`]): the one table of their
+//! 0x2160-0x2165 of the servo tune, `servo_tune`): the one table of their
 //! access, default, range, unit and saved flag, and the values.
 //!
 //! The generic SDO checks (`od::check_write`) refuse out-of-range writes from this
@@ -27,7 +27,7 @@
 //!   stall detector ([`Params::set_load_angle`]).
 //! * 0x2162:01 (servo tune start/stop) is a command the drive carries out at once
 //!   after the write ([`Params::take_servo_tune_request`], `Drive::write`,
-//!   [`crate::servo_tune::TuneControl`]: a refusal is the write's abort); it reads 1
+//!   `servo_tune::TuneControl`: a refusal is the write's abort); it reads 1
 //!   while a tune runs. 0x2162:02, 0x2164 and 0x2165 are the tune's state and result
 //!   ([`Params::set_servo_tune`]).
 //! * 0x2156 (ours) keeps the station number entered on a single-bank DIP board (SW8

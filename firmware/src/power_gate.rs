@@ -74,7 +74,7 @@ pub struct GateInputs {
     /// A break (hardware over-current) is latched.
     pub break_latched: bool,
     /// The current loop's fast protection has tripped
-    /// (`crate::current_supervisor::CurrentSupervisor::tripped`).
+    /// (`current_supervisor::CurrentSupervisor::tripped`).
     pub tripped: bool,
     /// The power-up auto-tune drives the bridges (voltage mode).
     pub tuning: bool,
@@ -112,7 +112,7 @@ pub const fn bridge_mode(i: GateInputs) -> BridgeMode {
 }
 
 /// The brake output as the current-loop interrupt drives it: released only while
-/// the runtime's decision ([`crate::board_glue::ControlCommand::brake_released`]: the
+/// the runtime's decision (`board_glue::ControlCommand::brake_released`: the
 /// bridges reported on for the release delay, no brake-close sequence, 0x60FE) says so
 /// *and* the bridges are on in this period; engaged in the very period the bridges
 /// go off (break latched, fast protection, a withdrawn permission, halted), without

@@ -4,8 +4,8 @@
 //! Chip-independent. The board binary reads the ADC injected data registers in the
 //! ADC end-of-sequence interrupt (once per PWM period, at the PWM centre) into a
 //! [`RawSample`] and runs the current loop on it there
-//! ([`crate::control_core::ControlCore::period`]); the rest of the drive reads the
-//! supervised values through [`crate::board_glue::Exchange`], the one seqlock of the
+//! (`control_core::ControlCore::period`); the rest of the drive reads the
+//! supervised values through `board_glue::Exchange`, the one seqlock of the
 //! board.
 //!
 //! * [`OffsetCalibrator`] — with the PWM outputs off, the phase currents are zero, so

@@ -23,7 +23,7 @@
 //!
 //! # Sampling
 //!
-//! The supervision tick (`Drive::tick`, every [`crate::drive::TICK_US`] = 1 ms on the
+//! The supervision tick (`Drive::tick`, every `drive::TICK_US` = 1 ms on the
 //! board, in every ESM state) takes one sample every `divisor` ticks while the scope is
 //! armed or triggered: each channel read as the TxPDO would read it (the CiA 402
 //! objects through their slots, the others through the dictionary read), sign- or

@@ -1,6 +1,6 @@
 //! Servo gains from the load inertia and a stiffness level (0x2160, 0x2161).
 //!
-//! The base gains of the motion layer ([`crate::motion`]) are designed for the rotor
+//! The base gains of the motion layer (`motion`) are designed for the rotor
 //! inertia times `1 + 0x2160/100`, so with the load ratio known the parameters
 //! 0x2137-0x2140 only choose the bandwidth. The stiffness 0x2161 names that choice:
 //!
@@ -34,7 +34,7 @@
 //!   is at most min([`SPEED_MAX`], 0x607F, 0x6080); a limit switch or the axis
 //!   outside 0x607D during the move ends it (failed), and the mode stops the axis
 //!   from where it is.
-//! * **Move** (`crate::motion`, `motion/tune.rs`): the drive hands the set-points to
+//! * **Move** (`motion`, `motion/tune.rs`): the drive hands the set-points to
 //!   the motion layer ([`crate::cia402::SetpointKind::Tune`]); its generator follows
 //!   the actual position and speed, so that any stop ramp starts from the actual
 //!   motion. The motion layer runs a [`TuneRun`] ([`foc::identify::IdentMove`]: a
@@ -132,7 +132,7 @@ pub enum TuneState {
 }
 
 /// The move's configuration from the parameters and the motor (part of
-/// [`crate::motion::MotionConfig`]).
+/// `motion::MotionConfig`).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct TuneSetup {
     /// Stroke 0x2163 in encoder counts.
@@ -223,7 +223,7 @@ pub fn settle_gains(cfg: &MotionConfig, ratio_percent: f32) -> ServoGains {
     }
 }
 
-/// What the motion layer reports of its tunes ([`crate::drive::AxisState::servo_tune`]).
+/// What the motion layer reports of its tunes (`motion::AxisState::servo_tune`).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct TuneReport {
     /// Moves started so far (wrapping).

@@ -368,10 +368,10 @@ mod tests {
     use super::*;
     use crate::comm::StoreCommand;
     use crate::drive::{Drive, ParameterStore};
-    use ecat_slave_stack::od::Dictionary;
     use crate::identity::Variant;
     use crate::storage::{region, RamFlash};
     use ecat_slave_stack::esm::EsmState;
+    use ecat_slave_stack::od::Dictionary;
 
     type Ram = RamFlash<{ region::SIZE as usize }>;
     type Records<'a, 'r> = StagedRecords<'a, &'r mut Ram, 4096, 2048>;

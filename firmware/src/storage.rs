@@ -212,7 +212,7 @@ impl LoadReport {
 /// The two-slot record store at `base` in a [`NorFlash`].
 ///
 /// The parameter records are its dictionary payload ([`Storage::save`],
-/// [`Storage::load`]); other records (the fault history, `crate::faults`) use the same
+/// [`Storage::load`]); other records (the fault history, `faults`) use the same
 /// slots, header, CRC and slot selection with a payload of their own
 /// ([`Storage::write_bytes`], [`Storage::read_newest`]) and their own magic, so one
 /// piece of code carries the power-loss rules for every record in flash.
@@ -665,7 +665,7 @@ impl Storage {
 
     /// The dictionary part of a 'save' / 'load' command serialised into `out` with no
     /// flash access, no CRC and no look at the existing records (what a staged save
-    /// does under the drive's lock, `crate::staged_flash::StagedRecords`): the entries
+    /// does under the drive's lock, `staged_flash::StagedRecords`): the entries
     /// of `dict` inside `scope` (none for a restore, `dict` = `None`). The record is
     /// written later by [`Storage::write_serialised`]. Returns the report with the
     /// payload length so far (slot and sequence are decided when it is written).

@@ -17,10 +17,26 @@ const ALLOWED_BACK_EDGES: &[(&str, &str, &str)] = &[
         "the owner's SDO read/write finds its entry in the packed dictionary \
          (`dictionary::find_entry_in`, `put_le`), which is merged from the owners' tables",
     ),
-    ("comm", "dictionary", "as params: entry look-up in the packed dictionary"),
-    ("monitor", "dictionary", "as params: entry look-up in the packed dictionary"),
-    ("scope", "dictionary", "as params: entry look-up, and the traced object's slot"),
-    ("cia402", "dictionary", "as params: entry look-up in the packed dictionary"),
+    (
+        "comm",
+        "dictionary",
+        "as params: entry look-up in the packed dictionary",
+    ),
+    (
+        "monitor",
+        "dictionary",
+        "as params: entry look-up in the packed dictionary",
+    ),
+    (
+        "scope",
+        "dictionary",
+        "as params: entry look-up, and the traced object's slot",
+    ),
+    (
+        "cia402",
+        "dictionary",
+        "as params: entry look-up in the packed dictionary",
+    ),
     (
         "servo_tune",
         "motion",
@@ -41,8 +57,9 @@ fn firmware_src() -> PathBuf {
 
 /// The layer table of `ARCHITECTURE.md`: module → layer number (1 = bottom).
 fn layers() -> BTreeMap<String, u32> {
-    let doc = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../ARCHITECTURE.md"))
-        .expect("ARCHITECTURE.md");
+    let doc =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../ARCHITECTURE.md"))
+            .expect("ARCHITECTURE.md");
     let section = doc
         .split("### Module layers of the firmware library")
         .nth(1)
@@ -86,7 +103,10 @@ fn code_of(src: &str) -> (String, Vec<String>) {
             continue;
         }
         if cfg_test {
-            if let Some(rest) = t.strip_prefix("mod ").or_else(|| t.strip_prefix("pub(crate) mod ")) {
+            if let Some(rest) = t
+                .strip_prefix("mod ")
+                .or_else(|| t.strip_prefix("pub(crate) mod "))
+            {
                 match rest.trim_end().strip_suffix(';') {
                     Some(name) => {
                         test_files.push(name.trim().to_string());
@@ -183,7 +203,11 @@ fn imports(modules: &BTreeSet<String>) -> BTreeMap<String, BTreeSet<String>> {
     let mut all = BTreeMap::new();
     for m in modules {
         let file = src.join(format!("{m}.rs"));
-        let file = if file.exists() { file } else { src.join(m).join("mod.rs") };
+        let file = if file.exists() {
+            file
+        } else {
+            src.join(m).join("mod.rs")
+        };
         let mut deps = BTreeSet::new();
         walk(&file, m, &mut BTreeSet::new(), &mut deps);
         deps.retain(|d| modules.contains(d));
@@ -207,7 +231,10 @@ fn every_library_module_has_a_layer() {
 fn imports_point_down_or_are_listed() {
     let layers = layers();
     let deps = imports(&library_modules());
-    assert!(deps.values().any(|d| !d.is_empty()), "no imports found at all");
+    assert!(
+        deps.values().any(|d| !d.is_empty()),
+        "no imports found at all"
+    );
     let mut back = BTreeSet::new();
     for (m, ds) in &deps {
         for d in ds {

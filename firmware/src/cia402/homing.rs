@@ -26,7 +26,7 @@
 //! Methods 33/34 search the index directly (0x6099:02); 35/37 take the present position.
 //!
 //! **Stall homing** (−1 in the positive, −2 in the negative direction; open loop with
-//! the stall detection 0x2060 on, `crate::motion`): search at 0x6099:01 until the
+//! the stall detection 0x2060 on, `motion`): search at 0x6099:01 until the
 //! motion layer confirms a stall against a hard stop ([`HomingInputs::stall`]: the
 //! position where the stall began). That position is the home position: the demand
 //! stops at once (the rotor stands at the stop; a ramp would drive the field on past

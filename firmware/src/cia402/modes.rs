@@ -50,7 +50,7 @@ impl Cia402 {
         }
     }
 
-    /// The servo tune's move goes on (`crate::servo_tune`) in PP and CSP unless
+    /// The servo tune's move goes on (`servo_tune`) in PP and CSP unless
     /// `stopped` (halt, a limit switch) or the axis is outside the software limits;
     /// otherwise it ends here.
     fn servo_tune_moves(&mut self, stopped: bool) -> bool {

@@ -10,7 +10,7 @@
 //! Every sub-index takes any value from 1 (0 is refused by the range). A master writes
 //! the sub-indices one after the other, so a write stores its value even when the set
 //! does not describe a whole number of units per revolution yet; the drive
-//! ([`crate::drive::Drive`]'s SDO write) hands a whole result to 0x2001, and when 0x2001
+//! (`drive::Drive`'s SDO write) hands a whole result to 0x2001, and when 0x2001
 //! takes it (its range) the other view follows: after 0x6091 / 0x6092 the factor is
 //! derived again, after 0x6093 the gear ratio becomes 1:1 and the feed (units, 1). A
 //! write of 0x2001 sets gear 1:1, feed (0x2001, 1) and the derived factor.

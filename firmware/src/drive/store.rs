@@ -281,18 +281,19 @@ impl<R: embedded_storage::nor_flash::ReadNorFlash, const N: usize, const E: usiz
         let Some(h) = self.history else {
             return Ok(false);
         };
-        self.flash.stage_record(h, crate::storage::Scope::All, |out| {
-            out.get_mut(..payload.len())
-                .ok_or(StorageError::RecordTooLarge)?
-                .copy_from_slice(payload);
-            Ok(payload.len())
-        })?;
+        self.flash
+            .stage_record(h, crate::storage::Scope::All, |out| {
+                out.get_mut(..payload.len())
+                    .ok_or(StorageError::RecordTooLarge)?
+                    .copy_from_slice(payload);
+                Ok(payload.len())
+            })?;
         Ok(true)
     }
 }
 
-impl<'a, R: embedded_storage::nor_flash::ReadNorFlash, const N: usize, const E: usize> StagedStore<'a, R, N, E>
-    for crate::staged_flash::StagedRecords<'a, R, N, E>
+impl<'a, R: embedded_storage::nor_flash::ReadNorFlash, const N: usize, const E: usize>
+    StagedStore<'a, R, N, E> for crate::staged_flash::StagedRecords<'a, R, N, E>
 {
     fn staged(&mut self) -> &mut crate::staged_flash::StagedFlash<'a, R, N, E> {
         &mut self.flash

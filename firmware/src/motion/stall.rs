@@ -6,7 +6,7 @@ use foc::stall::{StallConfig, StallDetector, StallState};
 
 /// The stall detector's settings: 0x2061 % as the threshold, the motor model from
 /// 0x2020 / 0x2021 once 0x2021 holds a plausible inductance (≥ 100 µH, as after an
-/// auto-tune; the rule of `crate::control_core::LoopMotor::from_params`), else the
+/// auto-tune; the rule of `control_core::LoopMotor::from_params`), else the
 /// board motor's.
 pub(super) fn config_from_params(
     p: &Params,

@@ -7,7 +7,7 @@
 //! records. The STM32G4's flash is specified for at least 10 000 erase cycles per
 //! page (data sheet, "Flash memory endurance"), i.e. ≥ 20 000 history records.
 //!
-//! A record is written only when the history changed ([`Drive::persist_history`]),
+//! A record is written only when the history changed (`Drive::persist_history`),
 //! and then only when
 //! - at least [`MIN_INTERVAL_MS`] (10 s) passed since the previous record: the
 //!   changes of a fault storm are coalesced into one record, and
@@ -21,8 +21,6 @@
 //! 10 s apart) are written within 10 s. The history in RAM (0x10F3, 0x2400) always
 //! holds every entry; a changed history waits at most [`MAX_DELAY_MS`] (2 h) for its
 //! record, and only a power cut inside that wait loses the newest entries from flash.
-//!
-//! [`Drive::persist_history`]: crate::drive::Drive::persist_history
 
 /// Least time between two history records, ms.
 pub const MIN_INTERVAL_MS: u32 = 10_000;
