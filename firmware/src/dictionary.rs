@@ -2,7 +2,7 @@
 //! tables of the modules that own the values.
 //!
 //! Which module owns which index range is stated once, in [`OWNERS`]; the SDO and PDO
-//! dispatch ([`owner_of`]) and the modules' own look-ups ([`find_entry_in`]) use it.
+//! dispatch ([`owner_of`]) and the modules' own look-ups (`find_entry_in`) use it.
 //! The objects the slave runtime serves itself (mapping, assignment, sync manager
 //! parameters) are the stack's to name (`ecat_slave_stack::pdo::is_pdo_index`,
 //! `ecat_slave_stack::sync::is_sync_index`); it also serves the timing diagnostics at
