@@ -287,9 +287,12 @@ impl Cia402 {
         self.cyc.since_fresh += dt;
         self.cyc.elapsed += dt;
         let was_interpolating = self.cyc.interpolate;
+        // Where the running segment's demand is now, by that segment's own period and
+        // kind (`csp_segment_due` sets the next one's).
+        let now_demand = self.cyc.demand(0.0).0;
         let new_segment = self.csp_segment_due(setpoint, nominal, dt);
         if new_segment {
-            self.csp_segment(target, setpoint, was_interpolating, dt);
+            self.csp_segment(target, setpoint, was_interpolating, now_demand, dt);
         }
         let (mut demand, moving) = self.cyc.demand(velocity_offset);
         let mut vel = moving;
@@ -306,7 +309,8 @@ impl Cia402 {
     }
 
     /// CSP: a new segment towards `target` (this step's set-point arrival `setpoint`;
-    /// `was_interpolating`: the last segment was interpolated), its speed limited by
+    /// `was_interpolating`: the last segment was interpolated; `now_demand`: where its
+    /// demand is at this step), its speed limited by
     /// `Params::csp_segment_speed`. (Inlined: the CSP cycle's path.)
     #[inline(always)]
     fn csp_segment(
@@ -314,6 +318,7 @@ impl Cia402 {
         target: i32,
         setpoint: SetpointArrival,
         was_interpolating: bool,
+        now_demand: i32,
         dt: f32,
     ) {
         // An interpolated segment starts where the last one's demand is now (on
@@ -321,7 +326,7 @@ impl Cia402 {
         // from the last target (its velocity is the set-points' difference).
         let fresh = setpoint == SetpointArrival::Fresh;
         self.cyc.from = if fresh && (self.cyc.interpolate || was_interpolating) {
-            self.cyc.demand(0.0).0
+            now_demand
         } else {
             self.cyc.to
         };
