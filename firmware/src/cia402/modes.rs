@@ -352,13 +352,24 @@ impl Cia402 {
                 self.cyc.v = dist / t;
             }
             Some(v) => {
-                // The limited speed (not its whole increments) carries over.
-                self.cyc.to = self.cyc.from.wrapping_add(round_i32(v * t));
+                // The limited speed (not its whole increments) carries over. With
+                // set-points on their own clock the segment runs on at it until the
+                // next one (for up to twice the longer of its period and a tick, when
+                // that stays short of the target): a late set-point does not halt the
+                // demand, the next starts where it is, and it is never faster than
+                // `v` on the drive's clock.
+                let run = 2.0 * t.max(STEP_PERIOD_S);
+                let span = if fresh && v * dist >= 0.0 && (v * run).abs() <= dist.abs() {
+                    run
+                } else {
+                    t
+                };
+                self.cyc.to = self.cyc.from.wrapping_add(round_i32(v * span));
                 self.cyc.extrapolate = false;
                 self.internal_limit = true;
                 self.cyc.v = v;
                 if fresh {
-                    self.cyc.period = t;
+                    self.cyc.period = span;
                     self.cyc.interpolate = true;
                 }
             }
