@@ -334,9 +334,10 @@ impl Cia402 {
         // last segment's by at most 0x60C5 / 0x60C6 over its period: a jump of the
         // target is followed on that profile (statusword bit 11, internal limit),
         // segment by segment, not at once; no run-on then. With set-points on
-        // their own clock (fresh), a limited segment interpolates over the longer
-        // of its period and the time since the last set-point, so that the speed
-        // holds whatever the master's jitter.
+        // their own clock (fresh), a limited segment's speed is planned over the
+        // longer of its period and the time since the last set-point (and it runs
+        // on at that speed, below), so that the speed holds whatever the master's
+        // jitter.
         let dist = target.wrapping_sub(self.cyc.from) as f32;
         let t = if fresh {
             self.cyc.period.max(self.cyc.last_gap)
