@@ -180,14 +180,20 @@ fn a_csp_target_jump_is_followed_no_faster_than_0x6080() {
     assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
 }
 
-#[test]
-fn a_csp_jump_is_no_faster_than_0x6080_on_the_drives_clock_when_set_points_jitter() {
+/// A drive in CSP with the limits of [`limited`], enabled, its target 100 revolutions
+/// ahead; returns it and the target.
+fn limited_jump() -> (Drive, i32) {
     let mut d = csp_in_op();
     limited(&mut d);
     enable(&mut d);
-    let start = d.command().position;
-    let target = start.wrapping_add(5_000_000);
+    let target = d.command().position.wrapping_add(5_000_000);
     sdo_write(&mut d, 0x607A, 0, &target.to_le_bytes()).unwrap();
+    (d, target)
+}
+
+#[test]
+fn a_csp_jump_is_no_faster_than_0x6080_on_the_drives_clock_when_set_points_jitter() {
+    let (mut d, _) = limited_jump();
     // Set-points 1 ms apart on average, on the drive's clock alternately early and
     // late (a master's jitter); the demand after each, with its time.
     const GAPS_US: [u64; 5] = [400, 1600, 700, 1300, 1000];
@@ -391,13 +397,9 @@ fn a_csv_setpoint_jump_is_limited_by_0x6080_and_the_acceleration_limits() {
 
 #[test]
 fn a_csp_target_jump_respects_the_acceleration_limits_and_lands_on_it() {
-    let mut d = csp_in_op();
-    limited(&mut d);
-    enable(&mut d);
-    let start = d.command().position;
     // A jump of 100 revolutions, then of 1 revolution back.
-    let target = start.wrapping_add(5_000_000);
-    sdo_write(&mut d, 0x607A, 0, &target.to_le_bytes()).unwrap();
+    let (mut d, target) = limited_jump();
+    let start = target.wrapping_sub(5_000_000);
     let mut max_pos = start;
     for _ in 0..11_000 {
         let c = run_limited(&mut d, 1);
