@@ -1,7 +1,7 @@
-//! Monitoring objects (the Xinje U0 group, in our vendor range 0x2300-0x2308):
+//! Monitoring objects (the Xinje U0 group, in our vendor range 0x2300-0x230A):
 //! electrical angle, phase currents set and measured, bus voltage, power-on count,
-//! running time. All read-only over SDO; the values that change every cycle are
-//! TxPDO-mappable.
+//! running time, the time of the last control step. All read-only over SDO; the
+//! values that change every cycle are TxPDO-mappable.
 //!
 //! The power-on count and the accumulated running time are `saved` entries: they are
 //! written to flash with every 'save' and restored at power-up (the storage restore is
@@ -88,6 +88,12 @@ pub const OBJECTS: &[ObjectDesc] = &[
         &[EntryDesc::new(0, "Firmware boot state", DataType::Unsigned8, Access::RO).default(3)],
         "0 confirmed, 1 on trial (a new image not yet confirmed: a reset reverts it), 2 reverted (an unconfirmed image was replaced by the previous one), 3 no firmware update",
     ),
+    ObjectDesc::var(
+        0x230A,
+        "Control step time",
+        &[tx("Control step time", DataType::Unsigned32, "us")],
+        "The drive's clock (us, wrapping) at its last control step: the instant of the 0x6064 and 0x606C in the same TxPDO",
+    ),
 ];
 
 /// Values measured by the control loops, updated by the application.
@@ -116,6 +122,7 @@ pub struct Monitor {
     base_running_s: u32,
     since_power_up_ms: u64,
     boot_state: u8,
+    step_us: u32,
 }
 
 /// 0x2309 of a drive without firmware update.
@@ -129,6 +136,7 @@ impl Default for Monitor {
             base_running_s: 0,
             since_power_up_ms: 0,
             boot_state: NO_UPDATE,
+            step_us: 0,
         }
     }
 }
@@ -142,6 +150,11 @@ impl Monitor {
     /// 0x2309 ([`crate::update::BootState`] as a number, or [`NO_UPDATE`]).
     pub fn set_boot_state(&mut self, state: u8) {
         self.boot_state = state;
+    }
+
+    /// 0x230A: a control step ran at `now_us` (µs, the drive's clock, wrapping).
+    pub fn set_step_us(&mut self, now_us: u32) {
+        self.step_us = now_us;
     }
 
     /// Counts this power-up (after the stored values were restored).
@@ -192,6 +205,7 @@ impl Monitor {
             0x2306 => self.power_on_count,
             0x2307 => self.running_time_s(),
             0x2309 => u32::from(self.boot_state),
+            0x230A => self.step_us,
             _ => self.since_power_up_ms(),
         };
         crate::dictionary::put_le(entry, u64::from(v), buf)
@@ -267,8 +281,10 @@ mod tests {
         assert_eq!(rd(&m, 0x2309, &mut buf), i64::from(NO_UPDATE));
         m.set_boot_state(1);
         assert_eq!(rd(&m, 0x2309, &mut buf), 1);
+        m.set_step_us(0x8000_0001);
+        assert_eq!(rd(&m, 0x230A, &mut buf), 0x8000_0001);
         assert_eq!(
-            m.read(0x230A, 0, &mut buf),
+            m.read(0x230B, 0, &mut buf),
             Err(SdoAbort::ObjectDoesNotExist)
         );
         assert_eq!(

@@ -28,7 +28,8 @@
 //! application thread falls behind (a loaded machine), frames are still answered;
 //! on its next wake the missed SYNC0 pulses raise one event (as a DC unit's pulses
 //! happen at their times: the drive runs one cycle, not a burst), the drive's ticks
-//! run up to the present on its own clock, and the axis moves on in one step.
+//! run up to the present on its own clock, each after the axis moved to its time
+//! (ticks due before a cycle run before it: [`SimDrive::catch_up`]).
 //!
 //! [`step`] takes the time as an argument, so the in-process tests drive it with
 //! simulated time.

@@ -427,22 +427,31 @@ impl SimDrive {
         self.tick_us + 1000 <= now_us
     }
 
-    /// Brings the axis and the 1 ms housekeeping up to `now_us`.
+    /// Brings the axis and the 1 ms housekeeping up to `now_us`, in time order as on
+    /// the board: the axis moves to each tick due, under the command of the step
+    /// before it, and the tick runs there (however late this is called); then the
+    /// axis moves on to `now_us`.
     pub fn catch_up(&mut self, now_us: u64) {
-        if now_us > self.axis_us {
-            let dt = (now_us - self.axis_us) as f64 * 1e-6;
-            let cmd = self.rt.command().command;
-            self.axis.advance(dt, &cmd);
-            self.axis_us = now_us;
-        }
         while self.tick_us + 1000 <= now_us {
             self.tick_us += 1000;
-            // The board's `tick` task: the runtime's tick with the raw inputs.
             let t = self.tick_us;
+            self.advance_axis(t);
+            // The board's `tick` task: the runtime's tick with the raw inputs.
             let (raw, esm) = (self.inputs.apply(self.axis.raw_inputs(), t), self.esm);
             let dip_bits = self.dips.function;
             let (drive, rt, mut path) = self.parts();
             rt.tick(drive, &mut path, t, raw, dip_bits, esm);
+        }
+        self.advance_axis(now_us);
+    }
+
+    /// The axis model moved on to `t_us` under the last step's command.
+    fn advance_axis(&mut self, t_us: u64) {
+        if t_us > self.axis_us {
+            let dt = (t_us - self.axis_us) as f64 * 1e-6;
+            let cmd = self.rt.command().command;
+            self.axis.advance(dt, &cmd);
+            self.axis_us = t_us;
         }
     }
 

@@ -287,9 +287,12 @@ impl Cia402 {
         self.cyc.since_fresh += dt;
         self.cyc.elapsed += dt;
         let was_interpolating = self.cyc.interpolate;
+        // Where the running segment's demand is now, by that segment's own period and
+        // kind (`csp_segment_due` sets the next one's).
+        let now_demand = self.cyc.demand(0.0).0;
         let new_segment = self.csp_segment_due(setpoint, nominal, dt);
         if new_segment {
-            self.csp_segment(target, setpoint, was_interpolating, dt);
+            self.csp_segment(target, setpoint, was_interpolating, now_demand, dt);
         }
         let (mut demand, moving) = self.cyc.demand(velocity_offset);
         let mut vel = moving;
@@ -306,7 +309,8 @@ impl Cia402 {
     }
 
     /// CSP: a new segment towards `target` (this step's set-point arrival `setpoint`;
-    /// `was_interpolating`: the last segment was interpolated), its speed limited by
+    /// `was_interpolating`: the last segment was interpolated; `now_demand`: where its
+    /// demand is at this step), its speed limited by
     /// `Params::csp_segment_speed`. (Inlined: the CSP cycle's path.)
     #[inline(always)]
     fn csp_segment(
@@ -314,6 +318,7 @@ impl Cia402 {
         target: i32,
         setpoint: SetpointArrival,
         was_interpolating: bool,
+        now_demand: i32,
         dt: f32,
     ) {
         // An interpolated segment starts where the last one's demand is now (on
@@ -321,7 +326,7 @@ impl Cia402 {
         // from the last target (its velocity is the set-points' difference).
         let fresh = setpoint == SetpointArrival::Fresh;
         self.cyc.from = if fresh && (self.cyc.interpolate || was_interpolating) {
-            self.cyc.demand(0.0).0
+            now_demand
         } else {
             self.cyc.to
         };
@@ -329,9 +334,10 @@ impl Cia402 {
         // last segment's by at most 0x60C5 / 0x60C6 over its period: a jump of the
         // target is followed on that profile (statusword bit 11, internal limit),
         // segment by segment, not at once; no run-on then. With set-points on
-        // their own clock (fresh), a limited segment interpolates over the longer
-        // of its period and the time since the last set-point, so that the speed
-        // holds whatever the master's jitter.
+        // their own clock (fresh), a limited segment's speed is planned over the
+        // longer of its period and the time since the last set-point (and it runs
+        // on at that speed, below), so that the speed holds whatever the master's
+        // jitter.
         let dist = target.wrapping_sub(self.cyc.from) as f32;
         let t = if fresh {
             self.cyc.period.max(self.cyc.last_gap)
@@ -347,13 +353,24 @@ impl Cia402 {
                 self.cyc.v = dist / t;
             }
             Some(v) => {
-                // The limited speed (not its whole increments) carries over.
-                self.cyc.to = self.cyc.from.wrapping_add(round_i32(v * t));
+                // The limited speed (not its whole increments) carries over. With
+                // set-points on their own clock the segment runs on at it until the
+                // next one (for up to twice the longer of its period and a tick, when
+                // that stays short of the target): a late set-point does not halt the
+                // demand, the next starts where it is, and it is never faster than
+                // `v` on the drive's clock.
+                let run = 2.0 * t.max(STEP_PERIOD_S);
+                let span = if fresh && v * dist >= 0.0 && (v * run).abs() <= dist.abs() {
+                    run
+                } else {
+                    t
+                };
+                self.cyc.to = self.cyc.from.wrapping_add(round_i32(v * span));
                 self.cyc.extrapolate = false;
                 self.internal_limit = true;
                 self.cyc.v = v;
                 if fresh {
-                    self.cyc.period = t;
+                    self.cyc.period = span;
                     self.cyc.interpolate = true;
                 }
             }

@@ -123,6 +123,7 @@ impl<S: ParameterStore> Drive<S> {
             None => TICK_US as f32 * 1e-6,
         };
         self.last_step_us = Some(now);
+        self.monitor.set_step_us(now);
         self.steps = self.steps.wrapping_add(1);
         self.control_step(dt, setpoint)
     }

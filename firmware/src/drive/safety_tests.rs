@@ -180,6 +180,62 @@ fn a_csp_target_jump_is_followed_no_faster_than_0x6080() {
     assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
 }
 
+/// A drive in CSP with the limits of [`limited`], enabled, its target 100 revolutions
+/// ahead; returns it and the target.
+fn limited_jump() -> (Drive, i32) {
+    let mut d = csp_in_op();
+    limited(&mut d);
+    enable(&mut d);
+    let target = d.command().position.wrapping_add(5_000_000);
+    sdo_write(&mut d, 0x607A, 0, &target.to_le_bytes()).unwrap();
+    (d, target)
+}
+
+#[test]
+fn a_csp_jump_is_no_faster_than_0x6080_on_the_drives_clock_when_set_points_jitter() {
+    let (mut d, _) = limited_jump();
+    // Set-points 1 ms apart on average, on the drive's clock alternately early and
+    // late (a master's jitter); the demand after each, with its time.
+    const GAPS_US: [u64; 5] = [400, 1600, 700, 1300, 1000];
+    let mut seen = [(0u64, 0i32); 1500];
+    let mut now = 1_000_000u64;
+    for (k, s) in seen.iter_mut().enumerate() {
+        now += GAPS_US[k % GAPS_US.len()];
+        let c = d.step(now, SetpointArrival::Fresh);
+        *s = (now, c.position);
+        d.set_axis(AxisState {
+            bus_mv: 48_000,
+            position: c.position,
+            ..AxisState::default()
+        });
+    }
+    // Every 200 ms of the drive's time after the 50 ms acceleration: no more than
+    // 0x6080 allows, give or take the whole increments (½ inc per segment, 1 at the
+    // ends); and at least 95 % of it.
+    for (k, &(t0, p0)) in seen.iter().enumerate().skip(50) {
+        let Some((n, &(t1, p1))) = seen[k..]
+            .iter()
+            .enumerate()
+            .find(|(_, (t, _))| t - t0 >= 200_000)
+        else {
+            break;
+        };
+        let most = 500_000.0 * (t1 - t0) as f32 * 1e-6;
+        let moved = p1.wrapping_sub(p0) as f32;
+        assert!(
+            moved <= most + 0.5 * n as f32 + 1.0,
+            "{moved} inc in {} µs from {k}: faster than 0x6080",
+            t1 - t0
+        );
+        assert!(
+            moved >= 0.95 * most,
+            "{moved} inc in {} µs from {k}",
+            t1 - t0
+        );
+    }
+    assert_eq!(d.cia402.state(), PdsState::OperationEnabled);
+}
+
 #[test]
 fn the_0x6065_following_error_goes_through_the_fault_module() {
     let mut d = csp_in_op();
@@ -341,13 +397,9 @@ fn a_csv_setpoint_jump_is_limited_by_0x6080_and_the_acceleration_limits() {
 
 #[test]
 fn a_csp_target_jump_respects_the_acceleration_limits_and_lands_on_it() {
-    let mut d = csp_in_op();
-    limited(&mut d);
-    enable(&mut d);
-    let start = d.command().position;
     // A jump of 100 revolutions, then of 1 revolution back.
-    let target = start.wrapping_add(5_000_000);
-    sdo_write(&mut d, 0x607A, 0, &target.to_le_bytes()).unwrap();
+    let (mut d, target) = limited_jump();
+    let start = target.wrapping_sub(5_000_000);
     let mut max_pos = start;
     for _ in 0..11_000 {
         let c = run_limited(&mut d, 1);
