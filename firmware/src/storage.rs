@@ -37,7 +37,7 @@
 //! power-up, as CiA 301 specifies for 0x1011.
 
 use ecat_slave_stack::esm::EsmState;
-use ecat_slave_stack::od::{self, Dictionary, SdoAbort};
+use ecat_slave_stack::od::{Dictionary, SdoAbort};
 use embedded_storage::nor_flash::{NorFlash, NorFlashError, NorFlashErrorKind};
 
 /// Largest value stored per entry (longer values are skipped).
@@ -703,7 +703,7 @@ struct NoDict;
 
 #[cfg(test)]
 impl Dictionary for NoDict {
-    fn objects(&self) -> &'static [od::Object] {
+    fn objects(&self) -> &'static [ecat_slave_stack::od::Object] {
         &[]
     }
     fn read(&mut self, _: u16, _: u8, _: &mut [u8]) -> Result<usize, SdoAbort> {
