@@ -1,20 +1,11 @@
 //! Power-loss-safe parameter storage: two alternating flash records with a sequence
 //! number and a CRC-32, behind the `embedded_storage` [`NorFlash`] trait.
 //!
-//! # Record format (version 1)
+//! # Record format
 //! A record lives in one of two equal *slots* (`slot_size` bytes each, a multiple of
-//! the erase size). Little-endian throughout:
-//!
-//! | offset | size | field |
-//! |---|---|---|
-//! | 0 | 4 | magic `0x50534345` ("ECSP") |
-//! | 4 | 2 | format version (1) |
-//! | 6 | 2 | flags (0) |
-//! | 8 | 4 | sequence number (wrapping; the newer record wins) |
-//! | 12 | 4 | payload length in bytes |
-//! | 16 | 4 | CRC-32 (IEEE) of the payload followed by bytes 0..16 |
-//! | 20 | 12 | reserved (0) |
-//! | 32 | n | payload: entries `index u16, sub u8, len u8, value[len]` |
+//! the erase size): a [`HEADER_LEN`]-byte header ([`RecordHeader`], its layout in
+//! [`record`]) and the payload. A parameter record's payload holds entries
+//! `index u16, sub u8, len u8, value[len]` (little-endian).
 //!
 //! The payload holds one entry per `saved` entry of the *whole* dictionary, read
 //! through [`Dictionary::read`] while iterating [`Dictionary::objects`]: the vendor
@@ -46,27 +37,19 @@
 //! power-up, as CiA 301 specifies for 0x1011.
 
 use ecat_slave_stack::esm::EsmState;
-use ecat_slave_stack::od::{self, Dictionary, ObjectCode, SdoAbort};
+use ecat_slave_stack::od::{Dictionary, SdoAbort};
 use embedded_storage::nor_flash::{NorFlash, NorFlashError, NorFlashErrorKind};
 
-/// Record magic of the parameter records ("ECSP" little-endian).
-pub const RECORD_MAGIC: u32 = 0x5053_4345;
-/// Record magic of the fault-history records ("ECSH" little-endian): a store of
-/// another kind (or a slot of an older layout) never passes for one of these.
-pub const HISTORY_MAGIC: u32 = 0x4853_4345;
-/// Record format version.
-pub const FORMAT_VERSION: u16 = 1;
-/// Header length; also the write/read granularity the storage needs (WRITE_SIZE and
-/// READ_SIZE must divide it).
-pub const HEADER_LEN: usize = 32;
-/// The header's first double word (magic, format, flags): written last, it commits a
-/// record (when the flash's write unit divides it; else the header is one write).
-pub const COMMIT_WORD: usize = 8;
 /// Largest value stored per entry (longer values are skipped).
 pub const MAX_VALUE_LEN: usize = 64;
 const CHUNK: usize = 64;
 
 pub use crc::{crc32, Crc32};
+use entries::{apply, count_first, entries, PendingCount};
+use payload::{Reader, Writer};
+pub use record::{
+    RecordHeader, COMMIT_WORD, FORMAT_VERSION, HEADER_LEN, HISTORY_MAGIC, RECORD_MAGIC,
+};
 
 /// Which part of the dictionary a store / restore command covers (0x1010 / 0x1011
 /// sub-index 1-4).
@@ -223,164 +206,12 @@ pub struct Storage {
     magic: u32,
 }
 
-/// Header fields.
-#[derive(Debug, Clone, Copy)]
-struct Header {
-    sequence: u32,
-    payload_len: u32,
-    crc: u32,
-}
-
-fn header_bytes(magic: u32, sequence: u32, payload_len: u32) -> [u8; HEADER_LEN] {
-    let mut h = [0u8; HEADER_LEN];
-    h[0..4].copy_from_slice(&magic.to_le_bytes());
-    h[4..6].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
-    h[6..8].copy_from_slice(&0u16.to_le_bytes());
-    h[8..12].copy_from_slice(&sequence.to_le_bytes());
-    h[12..16].copy_from_slice(&payload_len.to_le_bytes());
-    h
-}
-
-/// The little-endian `u32` in the first 4 bytes of `b` (at least 4 long).
-fn u32_le(b: &[u8]) -> u32 {
-    let mut a = [0u8; 4];
-    a.copy_from_slice(&b[..4]);
-    u32::from_le_bytes(a)
-}
-
 /// The newest valid record: slot, sequence number, payload length.
 type Newest = (usize, u32, u32);
 
 /// True when sequence `a` is newer than `b` (wrapping comparison).
 pub fn newer(a: u32, b: u32) -> bool {
     (a.wrapping_sub(b) as i32) > 0
-}
-
-/// Sequential reader of a slot's payload.
-struct Reader {
-    start: u32,
-    end: u32,
-    pos: u32,
-    buf: [u8; CHUNK],
-    buf_at: u32,
-    buf_len: u32,
-}
-
-impl Reader {
-    fn new(start: u32, len: u32) -> Self {
-        Reader {
-            start,
-            end: len,
-            pos: 0,
-            buf: [0; CHUNK],
-            buf_at: 0,
-            buf_len: 0,
-        }
-    }
-    fn remaining(&self) -> u32 {
-        self.end - self.pos
-    }
-    /// Reads `out.len()` bytes; `Ok(false)` when the payload ends first.
-    fn read<F: NorFlash>(
-        &mut self,
-        flash: &mut F,
-        slot_end: u32,
-        out: &mut [u8],
-    ) -> Result<bool, StorageError> {
-        if (out.len() as u32) > self.remaining() {
-            self.pos = self.end;
-            return Ok(false);
-        }
-        for b in out.iter_mut() {
-            if self.pos < self.buf_at || self.pos >= self.buf_at + self.buf_len {
-                let at = self.pos - self.pos % CHUNK as u32;
-                let abs = self.start + at;
-                let n = (slot_end.saturating_sub(abs)).min(CHUNK as u32);
-                if n == 0 {
-                    return Ok(false);
-                }
-                flash
-                    .read(abs, &mut self.buf[..n as usize])
-                    .map_err(flash_error)?;
-                self.buf_at = at;
-                self.buf_len = n;
-            }
-            // pos - buf_at < buf_len ≤ CHUNK here: `get` only drops the bounds check.
-            let Some(&v) = self.buf.get((self.pos - self.buf_at) as usize) else {
-                return Ok(false);
-            };
-            *b = v;
-            self.pos += 1;
-        }
-        Ok(true)
-    }
-}
-
-/// Buffered, CRC-computing writer of a slot's payload.
-struct Writer {
-    start: u32,
-    limit: u32,
-    flushed: u32,
-    buf: [u8; CHUNK],
-    fill: usize,
-    crc: Crc32,
-}
-
-impl Writer {
-    fn push<F: NorFlash>(&mut self, flash: &mut F, bytes: &[u8]) -> Result<(), StorageError> {
-        for &b in bytes {
-            if self.flushed + self.fill as u32 >= self.limit {
-                return Err(StorageError::RecordTooLarge);
-            }
-            // fill < CHUNK (flushed when full): `get_mut` only drops the bounds check.
-            let Some(slot) = self.buf.get_mut(self.fill) else {
-                return Err(StorageError::RecordTooLarge);
-            };
-            *slot = b;
-            self.fill += 1;
-            if self.fill == CHUNK {
-                self.flush(flash)?;
-            }
-        }
-        self.crc.update(bytes);
-        Ok(())
-    }
-    fn flush<F: NorFlash>(&mut self, flash: &mut F) -> Result<(), StorageError> {
-        if self.fill == 0 {
-            return Ok(());
-        }
-        // fill ≤ CHUNK, a multiple of HEADER_LEN: the `min` and `skip` only let the
-        // compiler drop the bounds checks.
-        let padded = (self.fill.div_ceil(HEADER_LEN) * HEADER_LEN).min(CHUNK);
-        let data = &mut self.buf[..padded];
-        for b in data.iter_mut().skip(self.fill) {
-            *b = 0xFF;
-        }
-        flash
-            .write(self.start + self.flushed, data)
-            .map_err(flash_error)?;
-        self.flushed += self.fill as u32;
-        self.fill = 0;
-        Ok(())
-    }
-    fn len(&self) -> u32 {
-        self.flushed + self.fill as u32
-    }
-}
-
-/// A restored sub-index 0 waiting for the other sub-indices of its object.
-struct PendingCount {
-    index: u16,
-    value: [u8; 8],
-    len: usize,
-}
-
-impl PendingCount {
-    /// The value's bytes (`len` ≤ 8 by construction; `min` keeps the slice checked
-    /// without a panic path).
-    fn bytes(&self) -> &[u8] {
-        &self.value[..self.len.min(8)]
-    }
 }
 
 impl Storage {
@@ -425,27 +256,22 @@ impl Storage {
         }
     }
 
+    /// Slot `slot`'s header when it is one of this store's records (magic, format)
+    /// with a payload length that fits the slot.
     fn read_header<F: NorFlash>(
         &self,
         flash: &mut F,
         slot: usize,
-    ) -> Result<Option<Header>, StorageError> {
+    ) -> Result<Option<RecordHeader<[u8; HEADER_LEN]>>, StorageError> {
         let mut h = [0u8; HEADER_LEN];
         flash
             .read(self.slot_address(slot), &mut h)
             .map_err(flash_error)?;
-        if u32_le(&h[0..]) != self.magic || u16::from_le_bytes([h[4], h[5]]) != FORMAT_VERSION {
-            return Ok(None);
-        }
-        let payload_len = u32_le(&h[12..]);
-        if payload_len > self.slot_size - HEADER_LEN as u32 {
-            return Ok(None);
-        }
-        Ok(Some(Header {
-            sequence: u32_le(&h[8..]),
-            payload_len,
-            crc: u32_le(&h[16..]),
-        }))
+        let h = RecordHeader::new_unchecked(h);
+        let ok = h.magic() == self.magic
+            && h.format_version() == FORMAT_VERSION
+            && h.payload_len() <= self.slot_size - HEADER_LEN as u32;
+        Ok(ok.then_some(h))
     }
 
     fn payload_crc<F: NorFlash>(
@@ -453,7 +279,7 @@ impl Storage {
         flash: &mut F,
         slot: usize,
         payload_len: u32,
-        head: &[u8; HEADER_LEN],
+        checked: &[u8],
     ) -> Result<u32, StorageError> {
         let mut crc = Crc32::new();
         let mut buf = [0u8; CHUNK];
@@ -471,7 +297,7 @@ impl Storage {
             crc.update(&buf[..n as usize]);
             done += n;
         }
-        crc.update(&head[..16]);
+        crc.update(checked);
         Ok(crc.finish())
     }
 
@@ -490,11 +316,10 @@ impl Storage {
     ) -> Result<SlotStatus, StorageError> {
         self.check(flash)?;
         if let Some(h) = self.read_header(flash, slot)? {
-            let head = header_bytes(self.magic, h.sequence, h.payload_len);
-            if self.payload_crc(flash, slot, h.payload_len, &head)? == h.crc {
+            if self.payload_crc(flash, slot, h.payload_len(), h.checked_part())? == h.crc() {
                 return Ok(SlotStatus::Valid {
-                    sequence: h.sequence,
-                    payload_len: h.payload_len,
+                    sequence: h.sequence(),
+                    payload_len: h.payload_len(),
                 });
             }
             return Ok(SlotStatus::Corrupt);
@@ -521,7 +346,7 @@ impl Storage {
     /// (a 'save' runs this under the drive's lock: one payload less to read and check).
     pub fn newest<F: NorFlash>(&self, flash: &mut F) -> Option<(usize, u32, u32)> {
         self.check(flash).ok()?;
-        let seq = |flash: &mut F, i| Some(self.read_header(flash, i).ok()??.sequence);
+        let seq = |flash: &mut F, i| Some(self.read_header(flash, i).ok()??.sequence());
         let (s0, s1) = (seq(flash, 0), seq(flash, 1));
         let first = usize::from(matches!((s0, s1), (Some(a), Some(b)) if newer(b, a)));
         [first, 1 - first]
@@ -779,14 +604,7 @@ impl Storage {
         flash
             .erase(base, base + self.slot_size)
             .map_err(flash_error)?;
-        let w = Writer {
-            start: base + HEADER_LEN as u32,
-            limit: self.slot_size - HEADER_LEN as u32,
-            flushed: 0,
-            buf: [0; CHUNK],
-            fill: 0,
-            crc: Crc32::new(),
-        };
+        let w = Writer::new(base + HEADER_LEN as u32, self.slot_size - HEADER_LEN as u32);
         Ok((w, target, sequence, best))
     }
 
@@ -801,10 +619,11 @@ impl Storage {
     ) -> Result<u32, StorageError> {
         let payload_len = w.len();
         w.flush(flash)?;
-        let mut head = header_bytes(self.magic, sequence, payload_len);
+        let mut header = RecordHeader::new(self.magic, sequence, payload_len);
         let mut crc = w.crc;
-        crc.update(&head[..16]);
-        head[16..20].copy_from_slice(&crc.finish().to_le_bytes());
+        crc.update(header.checked_part());
+        header.set_crc(crc.finish());
+        let head = header.into_inner();
         // The magic's double word last: a cut in the header's other words leaves no
         // magic, a cut in the magic's word a torn word (an ECC error on the chip):
         // either way no record, until the very last write.
@@ -853,99 +672,6 @@ impl Storage {
     }
 }
 
-/// Where [`entries`] hands each entry (its head, its value).
-type EmitEntry<'a> = dyn FnMut(&[u8], &[u8]) -> Result<(), StorageError> + 'a;
-
-/// Every `saved` entry of `dict` inside `scope` (for mapping-like objects only the
-/// sub-indices inside the count: the rest may hold values the rules refuse) to `emit`
-/// as its entry head `index u16, sub u8, len u8` and value, counted in `report`;
-/// unreadable ones are left out and counted.
-fn entries<D: Dictionary + ?Sized>(
-    dict: &mut D,
-    scope: Scope,
-    report: &mut SaveReport,
-    emit: &mut EmitEntry<'_>,
-) -> Result<(), StorageError> {
-    let mut value = [0u8; MAX_VALUE_LEN];
-    for obj in dict.objects().iter().filter(|o| scope.contains(o.index)) {
-        let limit = if has_count_first(obj) {
-            match dict.read(obj.index, 0, &mut value) {
-                Ok(1) => Some(value[0]),
-                _ => None,
-            }
-        } else {
-            None
-        };
-        for e in obj
-            .entries()
-            .iter()
-            .filter(|e| e.is_saved() && limit.is_none_or(|n| e.sub <= n))
-        {
-            match dict.read(obj.index, e.sub, &mut value) {
-                Ok(n) if n <= MAX_VALUE_LEN => {
-                    let i = obj.index.to_le_bytes();
-                    emit(&[i[0], i[1], e.sub, n as u8], &value[..n])?;
-                    report.entries += 1;
-                }
-                _ => report.unreadable += 1,
-            }
-        }
-    }
-    Ok(())
-}
-
-/// True when `index` is an object whose saved, writable sub-index 0 must be written 0
-/// before its other sub-indices (PDO mapping / assignment).
-fn count_first<D: Dictionary + ?Sized>(dict: &D, index: u16) -> bool {
-    od::find(dict.objects(), index).is_some_and(has_count_first)
-}
-
-fn has_count_first(o: &od::Object) -> bool {
-    o.code() != ObjectCode::Var
-        && o.entries().len() > 1
-        && o.entry(0)
-            .is_some_and(|e| e.is_saved() && e.access.writable())
-}
-
-fn apply<D: Dictionary + ?Sized>(
-    dict: &mut D,
-    index: u16,
-    sub: u8,
-    data: &[u8],
-    report: &mut LoadReport,
-) {
-    let ok = match od::find_entry(dict.objects(), index, sub) {
-        Ok(e) if e.is_saved() => {
-            let len_ok = if e.data_type.is_variable_length() {
-                data.len() <= e.byte_len()
-            } else {
-                data.len() == e.byte_len()
-            };
-            let range_ok = match od::decode_int(e.data_type, data) {
-                Some(v) => v >= e.min() && v <= e.max(),
-                None => true,
-            };
-            len_ok
-                && range_ok
-                && match dict.write(index, sub, data, EsmState::PreOp) {
-                    Ok(()) => true,
-                    // The device owns the value right now (e.g. current gains while
-                    // auto-tune is on): not an error of the record.
-                    Err(SdoAbort::LocalControl) => {
-                        return;
-                    }
-                    Err(_) => false,
-                }
-        }
-        _ => false,
-    };
-    if ok {
-        report.applied = report.applied.saturating_add(1);
-    } else {
-        report.skipped = report.skipped.saturating_add(1);
-    }
-}
-
 /// The record layout of the drive's 16 KiB record region (the board's `PARAMS` region
 /// in memory.x, the file of `virtual-drive --flash`; offsets relative to the region):
 ///
@@ -978,7 +704,7 @@ struct NoDict;
 
 #[cfg(test)]
 impl Dictionary for NoDict {
-    fn objects(&self) -> &'static [od::Object] {
+    fn objects(&self) -> &'static [ecat_slave_stack::od::Object] {
         &[]
     }
     fn read(&mut self, _: u16, _: u8, _: &mut [u8]) -> Result<usize, SdoAbort> {
@@ -991,8 +717,11 @@ impl Dictionary for NoDict {
 
 mod crc;
 pub mod ecc;
+mod entries;
+mod payload;
 mod ram_flash;
 pub mod rate;
+pub mod record;
 
 pub use ram_flash::{erase_range, read_range, write_range, PagedRamFlash, RamFlash};
 

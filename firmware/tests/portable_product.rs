@@ -16,8 +16,8 @@ use firmware::identity::{Identity, Variant};
 use firmware::monitor::{self, Monitor};
 use firmware::params::{self, Params, P};
 use firmware::storage::{
-    crc32, RamFlash, SlotStatus, Storage, EMCY_PARAMETERS_LOST, EMCY_RECORD_CORRUPT, HEADER_LEN,
-    RECORD_MAGIC,
+    crc32, RamFlash, RecordHeader, SlotStatus, Storage, EMCY_PARAMETERS_LOST, EMCY_RECORD_CORRUPT,
+    HEADER_LEN, RECORD_MAGIC,
 };
 
 // ---- a test dictionary -------------------------------------------------------------
@@ -506,8 +506,9 @@ qemu_runner::tests! {
             }
             if round % 2 == 1 {
                 // A plausible header with a wrong CRC / absurd length.
-                f.mem[..4].copy_from_slice(&RECORD_MAGIC.to_le_bytes());
-                f.mem[4..6].copy_from_slice(&1u16.to_le_bytes());
+                let mut head = RecordHeader::new_unchecked(&mut f.mem[..HEADER_LEN]);
+                head.set_magic(RECORD_MAGIC);
+                head.set_format_version(1);
             }
             let (mut d, r) = boot(&mut f);
             assert_eq!(r.source, None, "round {round}");
@@ -540,16 +541,12 @@ qemu_runner::tests! {
                     at += 4 + usize::from(payload[at + 3]);
                 }
             }
-            let mut head = [0u8; HEADER_LEN];
-            head[0..4].copy_from_slice(&RECORD_MAGIC.to_le_bytes());
-            head[4..6].copy_from_slice(&1u16.to_le_bytes());
-            head[8..12].copy_from_slice(&5u32.to_le_bytes());
-            head[12..16].copy_from_slice(&(len as u32).to_le_bytes());
+            let mut head = RecordHeader::new(RECORD_MAGIC, 5, len as u32);
             let mut c = firmware::storage::Crc32::new();
             c.update(&payload[..len]);
-            c.update(&head[..16]);
-            head[16..20].copy_from_slice(&c.finish().to_le_bytes());
-            f.mem[..HEADER_LEN].copy_from_slice(&head);
+            c.update(head.checked_part());
+            head.set_crc(c.finish());
+            f.mem[..HEADER_LEN].copy_from_slice(&head.into_inner());
             f.mem[HEADER_LEN..HEADER_LEN + len].copy_from_slice(&payload[..len]);
             let (mut d, r) = boot(&mut f);
             assert_eq!(r.source, Some((0, 5)));

@@ -32,22 +32,7 @@ const CRATES: &[&str] = &[
 /// Files (`None`) and functions (`Some(name)`) still over the limits: being split in
 /// other branches now. The integrator empties this list after merging them; an entry
 /// that is no longer over its limit fails the test, so the list cannot go stale.
-const ALLOWED: &[(&str, Option<&str>)] = &[
-    // being split
-    ("firmware/src/storage.rs", None),
-    ("tests-host/src/sim_axis.rs", None),
-    ("tests-host/src/sim_axis.rs", Some("tick")),
-    ("tests-host/qemu/bench/src/board_benches.rs", Some("run")),
-    (
-        "tests-host/qemu/bench/src/ecat_benches/foe_rows.rs",
-        Some("run"),
-    ),
-    (
-        "tests-host/qemu/bench/src/firmware_benches.rs",
-        Some("csp_cycle"),
-    ),
-    ("tests-host/qemu/bench/src/foc_benches.rs", Some("run")),
-];
+const ALLOWED: &[(&str, Option<&str>)] = &[];
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")

@@ -593,7 +593,7 @@ fn save_then_power_cycle_restores_parameters_and_mapping() {
 /// 'save' writes a record of this image's format.
 #[test]
 fn a_record_of_an_unknown_format_is_refused_and_defaults_apply() {
-    use crate::storage::{RamFlash, FORMAT_VERSION};
+    use crate::storage::{record::field, RamFlash, FORMAT_VERSION};
     let storage = Storage::new(0, 4096);
     let store = |flash| FlashStore {
         storage,
@@ -606,11 +606,11 @@ fn a_record_of_an_unknown_format_is_refused_and_defaults_apply() {
     let save = crate::comm::SAVE.to_le_bytes();
     sdo_write_any(&mut d, 0x1010, 1, &save).expect("save");
     let FlashStore { mut flash, .. } = d.store.take().expect("store");
-    // The format version (header bytes 4-5) of every slot one higher.
+    // The format version of every slot one higher.
     let newer = (FORMAT_VERSION + 1).to_le_bytes();
     for slot in 0..2 {
-        let at = storage.slot_address(slot) as usize + 4;
-        flash.mem[at..at + 2].copy_from_slice(&newer);
+        let at = storage.slot_address(slot) as usize;
+        flash.mem[at + field::FORMAT.start..at + field::FORMAT.end].copy_from_slice(&newer);
     }
     let mut d2 = Drive::with_store(Variant::HybridServo, 0, store(flash));
     let report = d2.power_up(&mut NoRuntime);

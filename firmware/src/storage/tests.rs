@@ -171,3 +171,43 @@ fn a_new_record_checks_only_the_newest_payload() {
     let r = h.write_bytes(&mut f, &[4; 400]).unwrap();
     assert_eq!((r.slot, r.sequence), (0, 3));
 }
+
+/// The header view writes the version-1 layout byte for byte (records stored by
+/// earlier images load), reads it back, and a short buffer reads zeros without a panic.
+#[test]
+fn record_header_view_keeps_the_layout() {
+    let mut h = RecordHeader::new(RECORD_MAGIC, 0x0102_0304, 0x20);
+    h.set_crc(0xA1B2_C3D4);
+    let b = h.into_inner();
+    let mut want = [0u8; HEADER_LEN];
+    want[..20].copy_from_slice(&[
+        0x45, 0x43, 0x53, 0x50, 1, 0, 0, 0, 4, 3, 2, 1, 0x20, 0, 0, 0, 0xD4, 0xC3, 0xB2, 0xA1,
+    ]);
+    assert_eq!(b, want);
+    let v = RecordHeader::new_checked(&b[..]).expect("whole header");
+    assert_eq!(
+        (
+            v.magic(),
+            v.format_version(),
+            v.flags(),
+            v.sequence(),
+            v.payload_len(),
+            v.crc()
+        ),
+        (
+            RECORD_MAGIC,
+            FORMAT_VERSION,
+            0,
+            0x0102_0304,
+            0x20,
+            0xA1B2_C3D4
+        )
+    );
+    assert_eq!(v.checked_part(), &b[..16]);
+    assert!(RecordHeader::new_checked(&b[..HEADER_LEN - 1]).is_none());
+    let mut short = [0xFFu8; 6];
+    let mut s = RecordHeader::new_unchecked(&mut short[..]);
+    s.set_sequence(7);
+    assert_eq!((s.sequence(), s.format_version()), (0, 0xFFFF));
+    assert_eq!(short, [0xFF; 6]);
+}

@@ -14,6 +14,12 @@ use firmware::params::Params;
 use foc::angle::Angle;
 
 pub fn run() {
+    control_rows();
+    mem_rows();
+}
+
+/// The commutated servo step, the alignment step and the latch conversion.
+fn control_rows() {
     let p = Params::new(Variant::HybridServo);
     let cfg = crate::setup::servo_config(&p);
     let mut cmd = crate::setup::moving_command();
@@ -65,7 +71,10 @@ pub fn run() {
         units_at_count(&c, black_box(123_456), black_box(37))
     });
     black_box(out);
+}
 
+/// The board's `memcpy` / `memset` beside `compiler_builtins`'.
+fn mem_rows() {
     // The board's memcpy / memset against compiler_builtins' (`core::ptr`), on a
     // word-aligned 256-byte copy (a struct exchange of the current-loop interrupt is
     // of this kind), a 64-byte copy one byte off alignment (process data at an odd

@@ -208,36 +208,21 @@ fn motion() {
 /// `firmware::motion::Motion`, and the TxPDO image packed. Drive enabled in Op, CSP,
 /// moving at one revolution per second.
 fn csp_cycle() {
-    use ecat_slave_stack::esm::{EsmHooks, EsmState};
+    use ecat_slave_stack::esm::EsmState;
     use ecat_slave_stack::pdo::{self, PdoConfig};
     use ecat_slave_stack::slave::{CycleInfo, SlaveApplication};
     use ecat_slave_stack::sync::SyncMode;
     use firmware::drive::{AxisState, Drive};
-    use firmware::identity::Variant;
     use firmware::motion::{Feedback, Motion};
 
-    let mut d = Drive::new(Variant::HybridServo, 1);
+    let mut d = csp_drive_in_op();
     let cfg = PdoConfig::new(firmware::pdo_defaults::PDO_DEFAULTS);
     let Ok(plan) = cfg.compile(&d, firmware::dictionary::OBJECTS) else {
         return;
     };
-    for (from, to) in [
-        (EsmState::Init, EsmState::PreOp),
-        (EsmState::PreOp, EsmState::SafeOp),
-        (EsmState::SafeOp, EsmState::Op),
-    ] {
-        d.on_state_change(from, to);
-    }
-    d.cia402.set_mode(mode::CSP);
     let mcfg = crate::setup::servo_config(&d.params);
     let mut m = Motion::new(mcfg);
-    // RxPDO 0x1600: 6040 (2 B), 607A (4 B), 60B0 (4 B), 60B8 (2 B).
-    let image = |cw: u16, target: i32| {
-        let mut b = [0u8; 12];
-        b[0..2].copy_from_slice(&cw.to_le_bytes());
-        b[2..6].copy_from_slice(&target.to_le_bytes());
-        b
-    };
+    let image = csp_rx_image;
     let mut inputs = [0u8; 64];
     let tx_len = (plan.tx.bytes() as usize).min(inputs.len());
     let mut fb = crate::setup::AT_REST;
@@ -296,6 +281,30 @@ fn csp_cycle() {
     black_box(inputs);
     // The drive is enabled (statusword "operation enabled") in the measured cycle.
     black_box(d.cia402.statusword() & 0x6F == 0x27);
+}
+
+/// The drive of [`csp_cycle`]: in Op (through Pre-Op and Safe-Op), mode CSP.
+fn csp_drive_in_op() -> firmware::drive::Drive {
+    use ecat_slave_stack::esm::{EsmHooks, EsmState};
+    let mut d = firmware::drive::Drive::new(firmware::identity::Variant::HybridServo, 1);
+    for (from, to) in [
+        (EsmState::Init, EsmState::PreOp),
+        (EsmState::PreOp, EsmState::SafeOp),
+        (EsmState::SafeOp, EsmState::Op),
+    ] {
+        d.on_state_change(from, to);
+    }
+    d.cia402.set_mode(mode::CSP);
+    d
+}
+
+/// The RxPDO image of the default map 0x1600: 6040 (2 B), 607A (4 B), 60B0 (4 B),
+/// 60B8 (2 B).
+fn csp_rx_image(cw: u16, target: i32) -> [u8; 12] {
+    let mut b = [0u8; 12];
+    b[0..2].copy_from_slice(&cw.to_le_bytes());
+    b[2..6].copy_from_slice(&target.to_le_bytes());
+    b
 }
 
 /// The supervision tick of the drive's own clock (`Drive::tick`: input filter,

@@ -14,6 +14,13 @@ use foc::trig::{PolySinCos, SinCos};
 const TS: f32 = 25e-6;
 
 pub fn run() {
+    current_loop();
+    servo_rows();
+    math_rows();
+}
+
+/// The current-loop step and the encoder update (both at 40 kHz).
+fn current_loop() {
     // Current loop: ECN57-20 gains, 40 kHz, 2125-count PWM period.
     let wc = 2.0 * core::f32::consts::PI / (20.0 * TS);
     let (kp, ki) = CurrentLoopConfig::gains_for(0.4, 1.8e-3, wc);
@@ -56,7 +63,10 @@ pub fn run() {
         let d = enc.update(black_box(5));
         (d, enc.electrical_angle())
     });
+}
 
+/// The servo-rate steps: position + velocity loop, open loop.
+fn servo_rows() {
     // Servo: position + velocity loop, 10 kHz.
     let g = ServoGains::from_bandwidth(4.8e-5, 0.283, 4000, 250.0, 7.07);
     let mut servo = Servo::new(g, 1e-4, 1000);
@@ -89,7 +99,10 @@ pub fn run() {
         ol.step(k * 7);
     }
     crate::bench("open-loop step", || ol.step(black_box(707)));
+}
 
+/// The PI update and the sin/cos + Park transform.
+fn math_rows() {
     let mut pi = Pi::new(22.6, 5026.0, TS, 45.6);
     pi.update(0.1, 0.0);
     crate::bench("PI update", || pi.update(black_box(0.3), black_box(0.0)));

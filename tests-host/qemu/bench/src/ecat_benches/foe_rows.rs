@@ -148,22 +148,7 @@ pub fn run() {
     for (k, data) in FILE.chunks(seg).enumerate() {
         let packet = k as u32 + 1;
         let req = Repr::Data { packet, data };
-        let (name, want) = match packet {
-            HEADER_PACKET => (
-                Some("FoE DATA 116 B completing the header: checks (ed25519) + page erase → BUSY"),
-                6,
-            ),
-            PLAIN_PACKET => (Some("FoE DATA 116 B, buffered (SM0 → ACK)"), 4),
-            FLUSH_PACKET => (
-                Some("FoE DATA 116 B with a 256 B write to the DFU (SM0 → ACK)"),
-                4,
-            ),
-            p if p == last => (
-                Some("FoE last DATA: 4 KiB image complete, taken → BUSY (the check follows)"),
-                6,
-            ),
-            _ => (None, 0),
-        };
+        let (name, want) = data_row(packet, last);
         if let Some(n) = name {
             let op = crate::bench(n, || exchange(black_box(&req)));
             assert_eq!(op, want, "packet {packet}");
@@ -172,18 +157,7 @@ pub fn run() {
             // The image check, one step per repeat of the last DATA
             // (`firmware::update`): last chunk, header, SHA-512 of the 4 KiB image
             // (each → BUSY), the image signature and embassy-boot's mark (→ ACK).
-            for (step, row, want) in [
-                (
-                    3,
-                    "FoE last DATA repeat: SHA-512 of 4 KiB of image → BUSY",
-                    6,
-                ),
-                (
-                    4,
-                    "FoE last DATA repeat: ed25519 image signature + mark → ACK",
-                    4,
-                ),
-            ] {
+            for (step, row, want) in CHECK_ROWS {
                 while step > repeats {
                     assert_eq!(exchange(&req), 6, "check step {repeats}");
                     repeats += 1;
@@ -207,6 +181,47 @@ pub fn run() {
         }
     }
     assert!(files.accepted().is_some(), "the update is accepted");
+    digest_row();
+}
+
+/// The measured row of DATA packet `packet` (of `last`) and the opcode it answers
+/// (4 ACK, 6 BUSY); `None` for the packets sent unmeasured.
+fn data_row(packet: u32, last: u32) -> (Option<&'static str>, u8) {
+    match packet {
+        HEADER_PACKET => (
+            Some("FoE DATA 116 B completing the header: checks (ed25519) + page erase → BUSY"),
+            6,
+        ),
+        PLAIN_PACKET => (Some("FoE DATA 116 B, buffered (SM0 → ACK)"), 4),
+        FLUSH_PACKET => (
+            Some("FoE DATA 116 B with a 256 B write to the DFU (SM0 → ACK)"),
+            4,
+        ),
+        p if p == last => (
+            Some("FoE last DATA: 4 KiB image complete, taken → BUSY (the check follows)"),
+            6,
+        ),
+        _ => (None, 0),
+    }
+}
+
+/// The measured repeats of the last DATA: the check step (from 1), the row and the
+/// opcode it answers.
+const CHECK_ROWS: [(u32, &str, u8); 2] = [
+    (
+        3,
+        "FoE last DATA repeat: SHA-512 of 4 KiB of image → BUSY",
+        6,
+    ),
+    (
+        4,
+        "FoE last DATA repeat: ed25519 image signature + mark → ACK",
+        4,
+    ),
+];
+
+/// The image digest alone, on 1 KiB.
+fn digest_row() {
     let img = &FILE[efw::HEADER_LEN..efw::HEADER_LEN + 1024];
     let d = crate::bench("SHA-512 of 1 KiB of image (efw::image_digest)", || {
         efw::image_digest(black_box(img))
