@@ -387,8 +387,7 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
     }
 
     /// Polls command register `cmd_reg` (ECAT_CSR_CMD or ECAT_PRAM_*_CMD) until its
-    /// busy bit reads 0. One out-of-line copy for the CSR commands and the PRAM aborts.
-    #[inline(never)]
+    /// busy bit reads 0. Shared by the CSR commands and the PRAM aborts.
     fn wait_idle(&mut self, cmd_reg: u16) -> Result<(), EscError> {
         const { assert!(CSR_BUSY == PRAM_BUSY) };
         for _ in 0..self.cfg.max_polls.max(1) {
@@ -400,10 +399,9 @@ impl<SPI: SpiDevice> Lan9252<SPI> {
     }
 
     /// CSR-window access of `data` at ESC register `addr`, split into naturally
-    /// aligned 1-, 2- and 4-byte commands. One out-of-line copy for reads and writes:
+    /// aligned 1-, 2- and 4-byte commands. One routine for reads and writes:
     /// a write puts each chunk into ECAT_CSR_DATA before its command, a read takes it
     /// from there once the command is done.
-    #[inline(never)]
     fn csr(&mut self, mut addr: u16, mut data: Data<'_>) -> Result<(), EscError> {
         let len = data.len();
         let mut done = 0;

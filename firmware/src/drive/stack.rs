@@ -271,7 +271,6 @@ impl<S: ParameterStore> Drive<S> {
 
     /// SDO read of a product entry, dispatched on the index range (the dictionary
     /// read and the TxPDO entries outside 0x6xxx share it).
-    #[inline(never)]
     pub(super) fn read_entry(
         &self,
         index: u16,
@@ -297,7 +296,6 @@ impl<S: ParameterStore> Drive<S> {
     /// drive function enabled, 0x6007 = 1 raises the EtherCAT fault `code` with `diag`
     /// (emergency, history; an event, so a fault reset may clear it); 2 and 3 send the
     /// emergency `code` without a fault; 0 does nothing.
-    #[inline(never)]
     fn left_op(&mut self, code: u16, diag: [u8; 2]) {
         use crate::cia402::pds::PdsState;
         let before = self.cia402.state();
