@@ -172,6 +172,8 @@ impl MailboxServer {
     /// clamped like [`Self::new`], and resets like [`Self::reset`]: answers are
     /// bounded by the smaller one ([`Self::mailbox_size`]), FoE segments follow SM0
     /// ([`Self::foe_segment`]).
+    // Measured (cargo xtask size, LAN9252 image): without it, `clear`'s and
+    // `answer_error`'s, +104 B flash.
     #[inline(never)]
     pub fn set_mailbox_sizes(&mut self, sm0_len: usize, sm1_len: usize) {
         self.size = clamp_size(if sm0_len < sm1_len { sm0_len } else { sm1_len });
@@ -187,6 +189,7 @@ impl MailboxServer {
     /// Drops every transfer and answer, restarts the counters (sizes and the
     /// emergency overrun counter are kept). The FoE transfer is forgotten without
     /// telling its backend: call [`Self::foe_abort`] first.
+    // Measured (cargo xtask size, LAN9252 image): see `set_mailbox_sizes`.
     #[inline(never)]
     fn clear(&mut self) {
         self.reply_len = 0;
@@ -338,6 +341,7 @@ impl MailboxServer {
         self.last_answer = LastAnswer::None;
     }
 
+    // Measured (cargo xtask size, LAN9252 image): see `set_mailbox_sizes`.
     #[inline(never)]
     fn answer_error(&mut self, detail: ErrorDetail) {
         self.reply_len = emit_error(&mut self.reply, detail);

@@ -298,7 +298,8 @@ impl Entry {
         self.strings.name(self.name_at, self.name_len as usize)
     }
     /// Length in bits (for strings: the maximum length).
-    // Read by most SDO paths: one copy instead of one per caller.
+    // Measured (cargo xtask size, LAN9252 image): without it, `Object::entries`'s and
+    // `pdo::map_slot`'s, ≈ +620 B flash over the SDO and mapping paths.
     #[inline(never)]
     pub const fn bits(&self) -> u16 {
         if self.data_type.is_variable_length() {
@@ -543,7 +544,7 @@ impl Object {
     }
     /// Entries sorted by sub-index. A VAR has exactly one entry (sub-index 0); an
     /// ARRAY or RECORD has its sub-index 0 (UINT8 count) first.
-    // One copy of the offset arithmetic and its bounds check for every caller.
+    // Measured (cargo xtask size, LAN9252 image): see `Entry::bits`.
     #[inline(never)]
     pub fn entries(&self) -> &'static [Entry] {
         let at = self.entries_at as usize;

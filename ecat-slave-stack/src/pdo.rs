@@ -521,6 +521,7 @@ impl PdoConfig {
 
 /// (direction, 0-3) of a mapping object index. Out of line: the SDO and P→S paths
 /// call it in many places (never the cyclic copy).
+// Measured (cargo xtask size, LAN9252 image): see `od::Entry::bits`.
 #[inline(never)]
 pub const fn map_slot(index: u16) -> Option<(Dir, usize)> {
     if index >= RX_MAP_BASE && index < RX_MAP_BASE + MAPS as u16 {

@@ -562,7 +562,6 @@ impl CurrentSupervisor {
         false
     }
 
-    #[inline(never)]
     fn check_follow(&mut self, cl: &CurrentLoop, omega_e: f32) {
         let (id, iq) = (cl.id_ref, cl.iq_ref);
         let ed = id - cl.i_dq.d;
@@ -624,7 +623,6 @@ impl CurrentSupervisor {
         self.tripped
     }
 
-    #[inline(never)]
     fn trip_now(&mut self, cl: &CurrentLoop, over_current: bool) {
         let milliamps = |a: f32| (a * 1000.0).clamp(-32000.0, 32000.0) as i16;
         self.tripped = true;

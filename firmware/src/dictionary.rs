@@ -111,9 +111,8 @@ pub(crate) fn find_in(owner: Owner, index: u16) -> Option<&'static Object> {
 }
 
 /// The answer of a module's SDO read: the low `entry.byte_len()` bytes of `v`
-/// (little-endian) into `buf`; "exceeds mailbox" when they do not fit. One copy for
-/// every module's read instead of one inlined per module.
-#[inline(never)]
+/// (little-endian) into `buf`; "exceeds mailbox" when they do not fit. Shared by
+/// every module's read.
 pub(crate) fn put_le(entry: &Entry, v: u64, buf: &mut [u8]) -> Result<usize, SdoAbort> {
     let len = entry.byte_len();
     let out = buf.get_mut(..len).ok_or(SdoAbort::ExceedsMailbox)?;

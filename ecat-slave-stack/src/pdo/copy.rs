@@ -102,6 +102,8 @@ pub fn extract(data: &[u8], bit_offset: u16, bits: u8) -> u64 {
 
 /// [`extract`] for any offset and length: out of line, so that the byte-aligned
 /// fast path stays small enough to inline into the copy loops.
+// Measured (cargo xtask size, LAN9252 image): dropped with the other hot-path attributes
+// the image grew 1184 B; this and `insert_bits` inline into the cyclic copy, +204 B.
 #[inline(never)]
 fn extract_bits(data: &[u8], bit_offset: u16, bits: u8) -> u64 {
     let byte = (bit_offset / 8) as usize;
@@ -153,6 +155,8 @@ pub fn insert(data: &mut [u8], bit_offset: u16, bits: u8, value: u64) {
 }
 
 /// [`insert`] for any offset and length (out of line, as [`extract_bits`]).
+// Measured (cargo xtask size, LAN9252 image): dropped with the other hot-path attributes
+// the image grew 1184 B; see `extract_bits`.
 #[inline(never)]
 fn insert_bits(data: &mut [u8], bit_offset: u16, bits: u8, value: u64) {
     let byte = (bit_offset / 8) as usize;

@@ -57,7 +57,6 @@ impl<E: EscAccess> Slave<E> {
     /// 0x09A0, resolves the mode with the sync types written
     /// in Pre-Op ([`sync::resolve_mode`]) and checks the process-data watchdog against
     /// the cycle. Returns (mode, SYNC0 cycle, watchdog time 0x0420) or the refusal.
-    #[inline(never)]
     pub(super) fn derive_sync(
         &mut self,
         sm2: &SmRegs,

@@ -75,7 +75,6 @@ impl Dictionary for RuntimeObjects<'_> {
     fn objects(&self) -> &'static [Object] {
         self.objects
     }
-    #[inline(never)]
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
         if pdo::is_pdo_index(index) {
             self.pdo.read(index, sub, buf)
@@ -85,7 +84,6 @@ impl Dictionary for RuntimeObjects<'_> {
             Err(SdoAbort::ObjectDoesNotExist)
         }
     }
-    #[inline(never)]
     fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
         if pdo::is_pdo_index(index) {
             self.pdo.write(index, sub, data, state, self.objects)

@@ -56,6 +56,7 @@ impl Cia402 {
         self.error_code
     }
     /// Touch probe value `k` (0x60BA + k), in the position range 0x607B when one is set.
+    // Measured (cargo xtask size, LAN9252 image): see `Faults::error_code`.
     #[inline(never)]
     pub(crate) fn probe_position(&self, k: usize) -> i32 {
         self.params.wrap_position(self.probe.value(k))

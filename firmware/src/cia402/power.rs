@@ -90,7 +90,6 @@ impl Cia402 {
         self.fire_found(ev, fault_now)
     }
 
-    #[inline(never)]
     fn fire_found(&mut self, ev: Event, fault_now: u16) -> Option<u8> {
         let t = pds::find(self.state, ev, |g| self.guard_ok(g, fault_now))?;
         self.enter(t.to);

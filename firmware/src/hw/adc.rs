@@ -200,7 +200,6 @@ const _: () = assert!(TIMING.vbus_window.0 > TIMING.current_window.1);
 /// single conversions and no regular trigger: the register sequence of
 /// embassy-stm32's `Adc::new` for the G4 with the default `AdcConfig`, one routine for
 /// both ADCs (the clock is set up once, in [`init`]).
-#[inline(never)]
 fn power_up(a: pac::adc::Adc) {
     // 20 µs (regulator start-up, between the calibrations and before enabling).
     let wait = || cortex_m::asm::delay(board::SYSCLK_HZ / 1_000_000 * 20);

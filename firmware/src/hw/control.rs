@@ -237,8 +237,7 @@ pub fn ready() -> bool {
 }
 
 /// The interrupt's latest measurements and their sequence number, for the thread-mode
-/// and cyclic users (not inlined: one copy of the volatile word-by-word read).
-#[inline(never)]
+/// and cyclic users (one copy of the volatile word-by-word read).
 pub fn feedback() -> Option<(u32, Feedback)> {
     FEEDBACK.read_looped()
 }
@@ -294,6 +293,8 @@ impl firmware::runtime::ControlPath for BoardPath {
 
 /// Publishes a command to the current-loop interrupt (not inlined: one copy of the
 /// volatile write for every caller).
+// Measured (cargo xtask size, LAN9252 image): dropped with the other hot-path attributes
+// the image grew 1184 B (inlined into each caller).
 #[inline(never)]
 pub fn send_command(c: &ControlCommand) {
     // SAFETY: every caller holds the drive's lock (or runs at start-up before the

@@ -84,9 +84,8 @@ impl EscSpi {
     /// Polled transfer of max(`read`, `write`) bytes: embassy's blocking transfer pads
     /// `write` with zeros and drops what comes after `read` is full, so with an empty
     /// `write` it is exactly its blocking read (same register accesses, zeros
-    /// clocked out). Nothing for two empty buffers. Not inlined: the polled reads and
-    /// transfers share it.
-    #[inline(never)]
+    /// clocked out). Nothing for two empty buffers. The polled reads and transfers
+    /// share it.
     fn polled_transfer(&mut self, read: &mut [u8], write: &[u8]) -> Result<(), spi::Error> {
         if read.is_empty() && write.is_empty() {
             return Ok(());

@@ -106,6 +106,7 @@ pub fn init(p: IoPins<'static>) -> (Leds<'static>, Ports<'static>, Dip<'static>)
 
 /// Drives an output high (`true`) or low. Not inlined: the 1 ms tick's LEDs, outputs
 /// and brake share it.
+// Measured (cargo xtask size, LAN9252 image): see `hw::pwm::af_pin`.
 #[inline(never)]
 pub fn set_output(pin: &mut Output<'_>, high: bool) {
     pin.set_level(Level::from(high));

@@ -57,7 +57,6 @@ impl Tuning {
 impl Motion {
     /// Tune set-points begin (`on`, the move no faster than `speed_limit` counts/s)
     /// or end (module docs).
-    #[inline(never)]
     pub(super) fn tune_setpoints(&mut self, on: bool, speed_limit: f32) {
         let runs = self.tune.report.runs;
         if on {
