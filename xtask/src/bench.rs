@@ -41,7 +41,9 @@ const OVER_GOAL: &[(&str, &str)] = &[
         "1490 before the CSP set-points were limited by the acceleration limits \
          0x60C5 / 0x60C6 (a set-point jump is followed within 0x6080 and the acceleration \
          limits, `Params::csp_segment_speed`) and the position range 0x607B was added \
-         (positions shown wrapped); not optimised yet. What it costs of a cycle: \
+         (positions shown wrapped); 1685 before a limited segment started from the \
+         demand at the new set-point's arrival and kept its speed under set-point jitter \
+         (issue 33); not optimised yet. What it costs of a cycle: \
          \"Cycle time budget\" below.",
     ),
     (
