@@ -10,7 +10,7 @@
 //! restored, a corrupt record) have their own code and text. Time stamps are local:
 //! milliseconds since power-up, in ns.
 
-use crate::faults::{Emergency, FaultKind, KINDS, TABLE};
+use crate::fault_table::{Emergency, FaultKind, KINDS, TABLE};
 use ecat_slave_stack::diag::{emergency_code, DiagMessage, DiagText, Param, Severity};
 
 /// Messages the history holds (0x10F3:01).
@@ -89,7 +89,7 @@ const OTHER_TEXTS: [Text; 8] = [
     },
 ];
 
-/// The fault kinds' texts (from `faults::TABLE`) and then the others.
+/// The fault kinds' texts (from `fault_table::TABLE`) and then the others.
 const ALL_TEXTS: [Text; KINDS + OTHER_TEXTS.len()] = {
     let mut all = [OTHER_TEXTS[0]; KINDS + OTHER_TEXTS.len()];
     let mut i = 0;

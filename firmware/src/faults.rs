@@ -61,17 +61,16 @@
 //! record (erased, torn by a power cut, garbage) gives the previous record or an empty
 //! history. Clearing (0x2093 = 1, 0x1003:00 = 0) is written to the flash the same way.
 //!
-//! The table and the [`FaultKind`] accessors are in `faults/table.rs`; the objects
-//! 0x2400-0x2406 that show the history are described and read in
-//! `dictionary/fault_history.rs` (the dictionary reads the fault state; the fault
-//! logic does not look into the dictionary).
+//! The table, the [`FaultKind`] accessors and [`Emergency`] are in `fault_table.rs`
+//! (a layer below the diagnosis texts made from it); the objects 0x2400-0x2406 that
+//! show the history are described and read in `dictionary/fault_history.rs` (the
+//! dictionary reads the fault state; the fault logic does not look into the
+//! dictionary).
 
 use heapless::Deque;
 
-mod table;
-
-use table::POWER_CUT_MASK;
-pub use table::{FaultInfo, FaultKind, KINDS, NO_MASK, TABLE};
+use crate::fault_table::POWER_CUT_MASK;
+pub use crate::fault_table::{Emergency, FaultInfo, FaultKind, KINDS, NO_MASK, TABLE};
 
 /// Values captured when a fault occurs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -112,17 +111,6 @@ const RECORD_BYTES: usize = 26;
 /// Bytes of the history record's payload: operating time u32 (0x2307 when written),
 /// entry count u8, 3 × 0, then the entries newest first ([`Faults::encode_history`]).
 pub const HISTORY_PAYLOAD_MAX: usize = 8 + HISTORY * RECORD_BYTES;
-
-/// An emergency for `MailboxServer::emergency`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Emergency {
-    /// Error code.
-    pub code: u16,
-    /// Error register (0x1001) at the time.
-    pub register: u8,
-    /// Manufacturer-specific data.
-    pub data: [u8; 5],
-}
 
 /// Thresholds of the protections.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -40,6 +40,7 @@ pub mod dictionary;
 pub mod dip;
 pub mod drive;
 pub mod fault_led;
+pub mod fault_table;
 pub mod faults;
 pub mod flash_layout;
 pub mod flash_region;

@@ -32,13 +32,14 @@
 //! # Gains (0x2137-0x2140 → [`ServoGains`])
 //! Base gains are [`ServoGains::from_bandwidth`] for the motor's inertia times
 //! `1 + 0x2160/100` (load inertia ratio, [`crate::servo_tune`]) and torque constant
-//! ([`MotorConstants`]) at [`BASE_BANDWIDTH_HZ`] and the peak current 0x2000;
-//! the parameters apply [`ServoGains::scaled`]: 0x2137 scales the position gain
-//! (100 % = ¼ of the base velocity bandwidth), 0x2138 the position integral
-//! (`Kp_base²/10 · x/100`), 0x2139 is the velocity feed-forward in %, 0x2140 scales the
-//! velocity loop (its bandwidth is `BASE_BANDWIDTH_HZ · x/100`). With the defaults
-//! (120 / 50 / 70 / 60) the velocity bandwidth is 240 Hz and the position gain half of
-//! it (ζ ≈ 0.5). 0x2140 = 0 is taken as 1 (the velocity loop cannot be switched off).
+//! ([`MotorConstants`]) at [`BASE_BANDWIDTH_HZ`](crate::servo_tune::BASE_BANDWIDTH_HZ)
+//! and the peak current 0x2000; the parameters apply [`ServoGains::scaled`]: 0x2137
+//! scales the position gain (100 % = ¼ of the base velocity bandwidth), 0x2138 the
+//! position integral (`Kp_base²/10 · x/100`), 0x2139 is the velocity feed-forward in
+//! %, 0x2140 scales the velocity loop (its bandwidth is `BASE_BANDWIDTH_HZ · x/100`).
+//! With the defaults (120 / 50 / 70 / 60) the velocity bandwidth is 240 Hz and the
+//! position gain half of it (ζ ≈ 0.5). 0x2140 = 0 is taken as 1 (the velocity loop
+//! cannot be switched off).
 //!
 //! # Enable, disable, switching
 //! * Disabled (`drive_enabled` false): zero current, bridges off; the demand tracks the
@@ -96,8 +97,6 @@ pub(crate) use scale::floor_div_i64;
 use scale::Scale;
 pub use signals::{AxisState, CurrentReference, Feedback, Frame};
 
-/// Velocity bandwidth of the base gains (0x2140 = 100), Hz.
-pub const BASE_BANDWIDTH_HZ: f32 = 400.0;
 /// Time in which the d current left over from an open → closed handover ramps to 0, s.
 pub const D_RAMP_S: f32 = 0.01;
 /// Servo period of the board, s (10 kHz).

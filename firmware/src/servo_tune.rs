@@ -9,7 +9,7 @@
 //! | velocity bandwidth, Hz | 20 | 30 | 40 | 50 | 65 | 80 | 100 | 120 | 140 | 170 | 200 | 240 | 280 | 320 | 360 | 400 |
 //!
 //! For a velocity bandwidth `f` the gains are ([`StiffnessGains::for_level`]):
-//! * 0x2140 (velocity loop) `= 100·f/BASE_BANDWIDTH_HZ`;
+//! * 0x2140 (velocity loop) `= 100·f/`[`BASE_BANDWIDTH_HZ`];
 //! * 0x2137 (position gain) `= 2·0x2140` (the position bandwidth half the velocity
 //!   bandwidth, ζ ≈ 0.5 as the defaults), at most 150;
 //! * 0x2138 (position integral) `= 50·(0x2137/120)²` (its corner in the same
@@ -55,11 +55,14 @@
 //! `servo_tune`); the friction is a by-product: the Coulomb term is of the order of
 //! the fit's noise on a lightly loaded axis, so 0x2165 is indicative.
 
-use crate::motion::{MotionConfig, BASE_BANDWIDTH_HZ};
 use crate::params::{Param, Params};
 use ecat_slave_stack::od::SdoAbort;
 use foc::identify::{IdentConfig, IdentMove, IdentState};
 use foc::servo::{Demand, ServoGains};
+
+/// Velocity bandwidth of the base gains (0x2140 = 100), Hz: the motion layer designs
+/// its base gains for it (`motion::MotionConfig`), the stiffness levels scale from it.
+pub const BASE_BANDWIDTH_HZ: f32 = 400.0;
 
 /// Velocity bandwidth of the stiffness levels 1..=16, Hz.
 pub const STIFFNESS_HZ: [u16; 16] = [
@@ -167,44 +170,44 @@ pub const SPEED_MAX: f32 = 10.0;
 /// Peak current the fitted cycles aim at, fraction of the current limit.
 pub const IQ_TARGET: f32 = 0.4;
 
-/// The identification move for `cfg`: [`PROBE_ACCEL`], [`ACCEL_MAX`], [`SPEED_MAX`],
-/// [`IQ_TARGET`] of the peak current, three fitted cycles.
-pub fn ident_config(cfg: &MotionConfig) -> IdentConfig {
-    let rev = cfg.counts_per_rev as f32;
+/// The identification move of `tune` at the servo period `ts` (s), `counts_per_rev`
+/// encoder counts per revolution and the current limit `iq_max` (A): [`PROBE_ACCEL`],
+/// [`ACCEL_MAX`], [`SPEED_MAX`], [`IQ_TARGET`] of `iq_max`, three fitted cycles.
+pub fn ident_config(tune: &TuneSetup, ts: f32, counts_per_rev: u32, iq_max: f32) -> IdentConfig {
+    let rev = counts_per_rev as f32;
     IdentConfig {
-        ts: cfg.ts,
-        kt: cfg.tune.kt,
-        cpr: cfg.counts_per_rev,
-        travel: cfg.tune.travel,
+        ts,
+        kt: tune.kt,
+        cpr: counts_per_rev,
+        travel: tune.travel,
         accel: PROBE_ACCEL * rev,
         accel_max: ACCEL_MAX * rev,
         speed_max: SPEED_MAX * rev,
-        iq_target: IQ_TARGET * cfg.gains.iq_max,
-        iq_max: cfg.gains.iq_max,
+        iq_target: IQ_TARGET * iq_max,
+        iq_max,
         cycles: 3,
     }
 }
 
 /// The load factor `1 + 0x2160/100` the configured gains were designed for.
-fn designed_load(cfg: &MotionConfig) -> f32 {
-    if cfg.tune.load >= 1.0 {
-        cfg.tune.load
+fn designed_load(tune: &TuneSetup) -> f32 {
+    if tune.load >= 1.0 {
+        tune.load
     } else {
         1.0
     }
 }
 
 /// The servo gains of the move: [`foc::identify::move_gains`] of the base gains for
-/// the rotor alone (`cfg.gains` designed for `load` × the rotor inertia, the velocity
-/// loop's gains divided by it).
-pub fn move_gains(cfg: &MotionConfig) -> ServoGains {
-    let load = designed_load(cfg);
-    let g = cfg.gains;
+/// the rotor alone (the configured `gains`, designed for `tune.load` × the rotor
+/// inertia, the velocity loop's gains divided by it).
+pub fn move_gains(gains: &ServoGains, tune: &TuneSetup) -> ServoGains {
+    let load = designed_load(tune);
     foc::identify::move_gains(&ServoGains {
-        kv: g.kv / load,
-        ki_vel: g.ki_vel / load,
-        acc_ff: g.acc_ff / load,
-        ..g
+        kv: gains.kv / load,
+        ki_vel: gains.ki_vel / load,
+        acc_ff: gains.acc_ff / load,
+        ..*gains
     })
 }
 
@@ -215,11 +218,11 @@ pub fn move_gains(cfg: &MotionConfig) -> ServoGains {
 /// loop's integral for that lower bandwidth (`ki_vel/(1 + ratio)`, the corner in the
 /// same proportion as designed): the move has none, and friction would hold the axis
 /// off the start.
-pub fn settle_gains(cfg: &MotionConfig, ratio_percent: f32) -> ServoGains {
+pub fn settle_gains(gains: &ServoGains, tune: &TuneSetup, ratio_percent: f32) -> ServoGains {
     let found = 1.0 + foc::num::clamp(ratio_percent, 0.0, 5000.0) * 0.01;
     ServoGains {
-        ki_vel: cfg.gains.ki_vel / designed_load(cfg) / found,
-        ..move_gains(cfg)
+        ki_vel: gains.ki_vel / designed_load(tune) / found,
+        ..move_gains(gains, tune)
     }
 }
 

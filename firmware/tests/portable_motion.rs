@@ -107,7 +107,7 @@ qemu_runner::tests! {
         assert!(!c.reverse);
         assert_eq!(c.following_error_limit, 1000);
         let base = ServoGains::from_bandwidth(ECN57_20.inertia, ECN57_20.kt, 4000,
-            firmware::motion::BASE_BANDWIDTH_HZ, 3.2);
+            firmware::servo_tune::BASE_BANDWIDTH_HZ, 3.2);
         assert_eq!(c.gains, base.scaled(120, 50, 70, 60));
         // The open-loop variant has no encoder and never runs closed loop.
         let p = Params::new(Variant::OpenLoop);

@@ -37,18 +37,6 @@ const ALLOWED_BACK_EDGES: &[(&str, &str, &str)] = &[
         "dictionary",
         "as params: entry look-up in the packed dictionary",
     ),
-    (
-        "servo_tune",
-        "motion",
-        "the gain design reads the motion layer's configuration (`MotionConfig`) while \
-         the motion layer runs the tune's generator (`servo_tune::TuneRun`)",
-    ),
-    (
-        "diagnosis",
-        "faults",
-        "the diagnosis texts come from the fault table while `Faults` keeps the \
-         diagnosis history it reports",
-    ),
 ];
 
 fn firmware_src() -> PathBuf {

@@ -2,10 +2,10 @@
 //! [`MotionConfig`], taken from the vendor parameters (gain scaling: see the module
 //! docs of [`super`]).
 
-use super::{finite_pos, stall, BASE_BANDWIDTH_HZ, SERVO_TS};
+use super::{finite_pos, stall, SERVO_TS};
 use crate::identity::Variant;
 use crate::params::{Param, Params};
-use crate::servo_tune::TuneSetup;
+use crate::servo_tune::{TuneSetup, BASE_BANDWIDTH_HZ};
 use foc::open_loop::OpenLoopConfig;
 use foc::servo::ServoGains;
 use foc::stall::StallConfig;

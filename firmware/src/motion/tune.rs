@@ -61,9 +61,8 @@ impl Motion {
         let runs = self.tune.report.runs;
         if on {
             let start = self.actual_axis_counts(&self.last_fb);
-            let mut cfg = servo_tune::ident_config(&self.cfg);
-            cfg.iq_max = self.iq_limit;
-            cfg.iq_target = servo_tune::IQ_TARGET * self.iq_limit;
+            let c = &self.cfg;
+            let mut cfg = servo_tune::ident_config(&c.tune, c.ts, c.counts_per_rev, self.iq_limit);
             if speed_limit.is_finite() && speed_limit > 0.0 {
                 cfg.speed_max = cfg.speed_max.min(speed_limit);
             }
@@ -114,8 +113,10 @@ impl Motion {
             TunePhase::Ended
         };
         let mut g = match phase {
-            TunePhase::Moving => servo_tune::move_gains(&self.cfg),
-            TunePhase::Settling(ratio) => servo_tune::settle_gains(&self.cfg, ratio),
+            TunePhase::Moving => servo_tune::move_gains(&self.cfg.gains, &self.cfg.tune),
+            TunePhase::Settling(ratio) => {
+                servo_tune::settle_gains(&self.cfg.gains, &self.cfg.tune, ratio)
+            }
             TunePhase::Ended => self.cfg.gains,
         };
         g.iq_max = self.iq_limit;

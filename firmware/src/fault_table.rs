@@ -1,6 +1,9 @@
 //! The fault table ([`TABLE`]): every fault kind's code, error-register bits, red-LED
 //! flashes, reaction, latching, 0x2056 bit, protection class and text, stated once,
-//! and the [`FaultKind`] accessors derived from it at compile time.
+//! the [`FaultKind`] accessors derived from it at compile time, and the [`Emergency`]
+//! a fault sends. The fault logic that uses them is `faults` (which re-exports them);
+//! the diagnosis texts of `diagnosis` are made from the table, below the fault logic
+//! that keeps their history.
 
 /// The kinds of fault, most severe first.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -49,12 +52,24 @@ pub struct FaultInfo {
     /// Protects the hardware or the load: a detection of this kind whose cause has
     /// already taken the torque away (a latched hardware trip, a failed current-sensor
     /// check) is reported whatever 0x2056 says
-    /// ([`Faults::raise_unmaskable`](super::Faults::raise_unmaskable)), so it can never
+    /// (`Faults::raise_unmaskable`), so it can never
     /// be masked into "enabled with no torque".
     pub protective: bool,
     /// The diagnosis text (0x10F3, the ESI's `<DiagMessages>`): the two parameters
     /// are the bus voltage (0.1 V) and the emergency's detail bytes.
     pub text: &'static str,
+}
+
+/// An emergency for `MailboxServer::emergency` (a fault's manufacturer data: see the
+/// module docs of `faults`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Emergency {
+    /// Error code.
+    pub code: u16,
+    /// Error register (0x1001) at the time.
+    pub register: u8,
+    /// Manufacturer-specific data.
+    pub data: [u8; 5],
 }
 
 /// [`FaultInfo::mask_bit`] of a kind 0x2056 cannot switch off.
@@ -206,7 +221,7 @@ const REGISTERS: [u8; KINDS] = column!(register: u8);
 const FLASHES: [u8; KINDS] = column!(flashes: u8);
 const MASK_BITS: [u8; KINDS] = column!(mask_bit: u8);
 /// Bit n set: [`FaultKind`] n cuts the power at once ([`FaultKind::cuts_power`]).
-pub(super) const POWER_CUT_MASK: u8 = kinds_where!(cuts_power);
+pub(crate) const POWER_CUT_MASK: u8 = kinds_where!(cuts_power);
 const LATCHED_MASK: u8 = kinds_where!(latched);
 const PROTECTIVE_MASK: u8 = kinds_where!(protective);
 
