@@ -51,9 +51,8 @@ pub struct FaultInfo {
     pub mask_bit: u8,
     /// Protects the hardware or the load: a detection of this kind whose cause has
     /// already taken the torque away (a latched hardware trip, a failed current-sensor
-    /// check) is reported whatever 0x2056 says
-    /// (`Faults::raise_unmaskable`), so it can never
-    /// be masked into "enabled with no torque".
+    /// check) is reported whatever 0x2056 says (`Faults::raise_unmaskable`), so it can
+    /// never be masked into "enabled with no torque".
     pub protective: bool,
     /// The diagnosis text (0x10F3, the ESI's `<DiagMessages>`): the two parameters
     /// are the bus voltage (0.1 V) and the emergency's detail bytes.
