@@ -56,6 +56,37 @@ pub struct Fit {
     pub bootloader: bool,
 }
 
+/// The `--config` value of the board image's builds (`size`, `update-image`,
+/// `flash`): each crates.io source directory of cargo's registry
+/// (`$CARGO_HOME/registry/src/index.crates.io-…/`) remapped to nothing, so the panic
+/// locations of the dependencies name `embassy-stm32-0.6.0/src/…` instead of a
+/// 60-character absolute prefix stored in flash with each (about 1 KiB in all). Only
+/// file-name strings change, not the code.
+pub fn board_rustflags() -> String {
+    let home = std::env::var_os("CARGO_HOME")
+        .map(std::path::PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| Path::new(&h).join(".cargo")));
+    let mut dirs: Vec<String> = home
+        .and_then(|h| std::fs::read_dir(h.join("registry").join("src")).ok())
+        .into_iter()
+        .flatten()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.path().is_dir())
+        .filter_map(|e| e.path().to_str().map(str::to_owned))
+        .collect();
+    dirs.sort();
+    let flags: Vec<String> = dirs
+        .iter()
+        .map(|d| format!("\"--remap-path-prefix={}/=\"", toml_escape(d)))
+        .collect();
+    format!("target.{THUMB}.rustflags=[{}]", flags.join(","))
+}
+
+/// `s` inside a TOML basic string.
+fn toml_escape(s: &str) -> String {
+    s.replace('\\', "\\\\").replace('"', "\\\"")
+}
+
 /// Builds the board firmware of `flavour` (feature `esc-…`) in release (for
 /// [`size_report`] and `update-image`) and returns the path of its ELF copy.
 pub fn build_board_elf(flavour: &str) -> Result<String, String> {
@@ -74,6 +105,8 @@ pub fn build_board_elf(flavour: &str) -> Result<String, String> {
         THUMB,
         "--target-dir",
         target_dir,
+        "--config",
+        &board_rustflags(),
     ])) {
         return Err(format!("firmware build ({flavour}) failed"));
     }
