@@ -304,7 +304,9 @@ pub fn commit_staged<F: NorFlash, const N: usize>(
         Content::Record(storage, scope, len) => storage
             .write_serialised(flash, &st.bytes[..len.min(N)], scope)
             .map(|_| ()),
-        Content::Image => commit(flash, st, crate::storage::HEADER_LEN).map_err(crate::storage::flash_error),
+        Content::Image => {
+            commit(flash, st, crate::storage::HEADER_LEN).map_err(crate::storage::flash_error)
+        }
     }
 }
 
