@@ -22,7 +22,8 @@ use crate::{stack, THUMB};
 /// (172.9 KiB, budget 176 KiB for a while); issue 32 brought the image back to 168 KiB
 /// without removing a feature (the record stage out of `.data`, no soft-float f64 or
 /// `memmove` in the current loop, the update's signature check at opt-level "z", the
-/// dependencies' panic file names shortened: 166.5 KiB). The hard limits are the end
+/// dependencies' panic file names shortened, one copy loop for `firmware.info`'s text:
+/// 166.1 KiB). The hard limits are the end
 /// of flash bank 1 (the read-while-write argument, checked below) and the partition.
 /// RAM: 40 KiB for the static RAM plus the static worst-case
 /// stack (of the chip's 128 KiB). It was 32 KiB until the servo tune's move (its fit
