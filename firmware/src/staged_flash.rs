@@ -57,10 +57,22 @@ pub struct Stage<const N: usize> {
     erase: Option<(u32, u32)>,
     /// Bytes of the image written (from `erase.0`).
     written: usize,
-    /// Instead of an image: a record's serialised payload (`bytes[..len]`), the
-    /// records it goes to and the command's scope ([`StagedFlash::stage_record`]).
-    record: Option<(Storage, Scope, usize)>,
+    /// An image, or instead a record's serialised payload.
+    content: Content,
     bytes: [u8; N],
+}
+
+/// What a [`Stage`] holds. `repr(u8)` with [`Content::Image`] first: its tag is 0, so
+/// an empty stage is all zeros and a `static` of it is `.bss`, not a 2 KiB `.data`
+/// image in flash (an `Option` would put its `None` in `Scope`'s unused values).
+#[repr(u8)]
+#[derive(Clone, Copy)]
+enum Content {
+    /// A flash image (`erase`, `written`).
+    Image,
+    /// A record's serialised payload (`bytes[..len]`), the records it goes to and the
+    /// command's scope ([`StagedFlash::stage_record`]).
+    Record(Storage, Scope, usize),
 }
 
 impl<const N: usize> Stage<N> {
@@ -70,7 +82,7 @@ impl<const N: usize> Stage<N> {
         Stage {
             erase: None,
             written: 0,
-            record: None,
+            content: Content::Image,
             bytes: [0; N],
         }
     }
@@ -121,7 +133,7 @@ impl<'a, R: ReadNorFlash, const N: usize, const ERASE: usize> StagedFlash<'a, R,
     pub fn give_back(&mut self, stage: &'a mut Stage<N>) {
         stage.erase = None;
         stage.written = 0;
-        stage.record = None;
+        stage.content = Content::Image;
         self.stage = Some(stage);
     }
 
@@ -138,7 +150,7 @@ impl<'a, R: ReadNorFlash, const N: usize, const ERASE: usize> StagedFlash<'a, R,
         let len = fill(&mut st.bytes)?;
         st.erase = None;
         st.written = 0;
-        st.record = Some((storage, scope, len.min(N)));
+        st.content = Content::Record(storage, scope, len.min(N));
         self.ready = true;
         Ok(())
     }
@@ -288,11 +300,13 @@ pub fn commit_staged<F: NorFlash, const N: usize>(
     flash: &mut F,
     st: &Stage<N>,
 ) -> Result<(), StorageError> {
-    match st.record {
-        Some((storage, scope, len)) => storage
+    match st.content {
+        Content::Record(storage, scope, len) => storage
             .write_serialised(flash, &st.bytes[..len.min(N)], scope)
             .map(|_| ()),
-        None => commit(flash, st, crate::storage::HEADER_LEN).map_err(crate::storage::flash_error),
+        Content::Image => {
+            commit(flash, st, crate::storage::HEADER_LEN).map_err(crate::storage::flash_error)
+        }
     }
 }
 

@@ -43,8 +43,12 @@ impl Angle {
             return Angle::ZERO;
         }
         let frac = turns - libm::floorf(turns);
-        // frac in [0, 1]; ×2^32 as f64 keeps the 24-bit mantissa exact.
-        Angle(((frac as f64) * 4_294_967_296.0) as u64 as u32)
+        // frac in [0, 1]; ×2^32 is exact in f32 (a power of two) and the cast one
+        // `vcvt` (a detour through f64 and u64 cost soft-float routines: 1.3 KiB of
+        // flash and their cycles). 1.0 (a tiny negative `turns` rounds to it) is a
+        // whole turn: 0.
+        let lsb = frac * 4_294_967_296.0;
+        Angle(if lsb < 4_294_967_296.0 { lsb as u32 } else { 0 })
     }
 
     /// From radians (any value, wraps).
@@ -141,6 +145,40 @@ mod tests {
         let a = Angle::from_turns(1.0 / 200.0); // one full step = ¼ electrical turn
         let e = a.electrical();
         assert!((e.to_turns() - 0.25).abs() < 1e-6);
+    }
+
+    #[test]
+    fn from_turns_is_the_exact_fraction() {
+        // The f32 fraction of a turn ×2^32, truncated, computed in f64 (exact there)
+        // and wrapped.
+        let exact = |t: f32| {
+            let frac = t - libm::floorf(t);
+            ((frac as f64) * 4_294_967_296.0) as u64 as u32
+        };
+        let mut x = 0x1234_5678u32;
+        for i in 0..20_000 {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            let t = f32::from_bits(x);
+            let t = if t.is_finite() {
+                t
+            } else {
+                i as f32 * 0.37 - 3000.0
+            };
+            assert_eq!(Angle::from_turns(t).0, exact(t), "{t}");
+        }
+        assert_eq!(Angle::from_turns(0.25), Angle::QUARTER);
+        assert_eq!(Angle::from_turns(-0.5), Angle::HALF);
+        assert_eq!(Angle::from_turns(3.0), Angle::ZERO);
+        assert_eq!(
+            Angle::from_turns(1.0 - f32::EPSILON / 2.0).0,
+            u32::MAX - 255
+        );
+        // A tiny negative turn rounds to a whole turn in f32: 0, not a saturated cast.
+        assert_eq!(Angle::from_turns(-1e-10), Angle::ZERO);
+        assert_eq!(Angle::from_turns(f32::NAN), Angle::ZERO);
+        assert_eq!(Angle::from_turns(f32::INFINITY), Angle::ZERO);
     }
 
     #[test]

@@ -131,7 +131,8 @@ fn main() -> ExitCode {
 }
 
 /// Builds the board firmware (the same command and code generation as [`size::size_report`]
-/// and the QEMU test images: no board-only compiler flags) and runs it through
+/// and the QEMU test images: no board-only code-generation flags; the one flag,
+/// [`size::board_rustflags`], shortens file names) and runs it through
 /// probe-rs (`probe-rs run`: flashes, resets, prints the defmt log). Extra arguments
 /// go to cargo, e.g. `--features esc-et1100`. The firmware is linked at the active
 /// partition (0x0800_9000): the board needs the bootloader (`bootloader/`, flashed
@@ -153,6 +154,8 @@ fn flash(extra: &[String]) -> bool {
             "target/firmware",
             "--config",
             &format!("target.{THUMB}.runner='probe-rs run --chip STM32G474RETx'"),
+            "--config",
+            &size::board_rustflags(),
         ])
         .args(extra),
     )
