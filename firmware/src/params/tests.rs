@@ -4,6 +4,7 @@ static PACKED: &[ecat_slave_stack::od::Object] =
 
 extern crate std;
 use super::*;
+use crate::dictionary::Sdo;
 use ecat_slave_stack::esm::EsmState;
 
 fn w(p: &mut Params, index: u16, sub: u8, v: i64) -> Result<(), SdoAbort> {
