@@ -12,32 +12,6 @@ use std::path::{Path, PathBuf};
 /// Imports that point to a higher layer, kept on purpose: (from, to, why).
 const ALLOWED_BACK_EDGES: &[(&str, &str, &str)] = &[
     (
-        "params",
-        "dictionary",
-        "the owner's SDO read/write finds its entry in the packed dictionary \
-         (`dictionary::find_entry_in`, `put_le`), which is merged from the owners' tables",
-    ),
-    (
-        "comm",
-        "dictionary",
-        "as params: entry look-up in the packed dictionary",
-    ),
-    (
-        "monitor",
-        "dictionary",
-        "as params: entry look-up in the packed dictionary",
-    ),
-    (
-        "scope",
-        "dictionary",
-        "as params: entry look-up, and the traced object's slot",
-    ),
-    (
-        "cia402",
-        "dictionary",
-        "as params: entry look-up in the packed dictionary",
-    ),
-    (
         "servo_tune",
         "motion",
         "the gain design reads the motion layer's configuration (`MotionConfig`) while \
