@@ -396,7 +396,6 @@ mod tests {
         write(c, f, index, sub, data)
     }
 
-    /// The dispatcher's write, then the store command it decoded.
     fn write(
         c: &mut Comm,
         f: &mut Faults,
@@ -404,8 +403,7 @@ mod tests {
         sub: u8,
         data: &[u8],
     ) -> Result<Option<StoreCommand>, SdoAbort> {
-        crate::dictionary::write(c, f, ObjectKey::new(index, sub), data)?;
-        Ok(c.take_store_command())
+        crate::dictionary::write_comm(c, f, ObjectKey::new(index, sub), data)
     }
 
     fn read(c: &Comm, f: &Faults, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {

@@ -151,6 +151,18 @@ pub fn write<C: ?Sized, V: Values<C> + ?Sized>(
     owner.set(cx, key, entry, v)
 }
 
+/// [`write`] of a communication object, then the store / restore command it decoded
+/// (0x1010 / 0x1011), for the caller to run with `comm::execute`.
+pub fn write_comm(
+    comm: &mut crate::comm::Comm,
+    faults: &mut crate::faults::Faults,
+    key: ObjectKey,
+    data: &[u8],
+) -> Result<Option<crate::comm::StoreCommand>, SdoAbort> {
+    write(comm, faults, key, data)?;
+    Ok(comm.take_store_command())
+}
+
 /// SDO-style access to one owner's values without the drive (tests, tools): [`read`]
 /// and [`write`] by index and sub-index.
 pub trait Sdo {

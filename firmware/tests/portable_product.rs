@@ -125,7 +125,12 @@ impl Drive {
         let data = &v.to_le_bytes()[..e.byte_len()];
         od::check_write(e, data, EsmState::PreOp)?;
         match index {
-            0x1000..=0x10FF => comm_write(&mut self.comm, &mut self.faults, index, sub, data),
+            0x1000..=0x10FF => firmware::dictionary::write_comm(
+                &mut self.comm,
+                &mut self.faults,
+                ObjectKey::new(index, sub),
+                data,
+            ),
             _ => self.write(index, sub, data, EsmState::PreOp).map(|_| None),
         }
     }
@@ -150,11 +155,10 @@ impl Drive {
         self.write(0x1600, 3, &0x6060_0008u32.to_le_bytes(), EsmState::PreOp)
             .unwrap();
         self.write(0x1600, 0, &[3], EsmState::PreOp).unwrap();
-        comm_write(
+        firmware::dictionary::write_comm(
             &mut self.comm,
             &mut self.faults,
-            0x10F1,
-            2,
+            ObjectKey::new(0x10F1, 2),
             &9u16.to_le_bytes(),
         )
         .unwrap();
@@ -202,9 +206,13 @@ impl Dictionary for Drive {
         b[..n].copy_from_slice(&data[..n]);
         let v = u32::from_le_bytes(b);
         match index {
-            0x1000..=0x10FF => {
-                comm_write(&mut self.comm, &mut self.faults, index, sub, data).map(|_| ())
-            }
+            0x1000..=0x10FF => firmware::dictionary::write_comm(
+                &mut self.comm,
+                &mut self.faults,
+                ObjectKey::new(index, sub),
+                data,
+            )
+            .map(|_| ()),
             0x1600 | 0x1C12 => {
                 if state != EsmState::PreOp {
                     return Err(SdoAbort::StateConflict);
@@ -236,18 +244,6 @@ impl Dictionary for Drive {
 }
 
 // ---- helpers ------------------------------------------------------------------------
-
-/// The drive's write of a communication object, then the store command it decoded.
-fn comm_write(
-    comm: &mut Comm,
-    faults: &mut Faults,
-    index: u16,
-    sub: u8,
-    data: &[u8],
-) -> Result<Option<StoreCommand>, SdoAbort> {
-    firmware::dictionary::write(comm, faults, ObjectKey::new(index, sub), data)?;
-    Ok(comm.take_store_command())
-}
 
 const SLOT: u32 = 512;
 const ST: Storage = Storage::new(0, SLOT);

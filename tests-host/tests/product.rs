@@ -7,7 +7,7 @@ use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::mailbox::MailboxServer;
 use ecat_slave_stack::od::{self, Dictionary, Object, ObjectDesc, ObjectKey, SdoAbort};
 use ecat_slave_stack::pdo::{self, PdoConfig, PdoDefaults};
-use firmware::comm::{self, Comm, StoreCommand, LOAD, SAVE};
+use firmware::comm::{self, Comm, LOAD, SAVE};
 use firmware::dictionary::Sdo;
 use firmware::fault_led::FaultLed;
 use firmware::faults::{FaultKind, Faults, Snapshot};
@@ -243,7 +243,12 @@ impl Dictionary for Drive {
     fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
         match index {
             0x1000..=0x10FF => {
-                if let Some(cmd) = comm_write(&mut self.comm, &mut self.faults, index, sub, data)? {
+                if let Some(cmd) = firmware::dictionary::write_comm(
+                    &mut self.comm,
+                    &mut self.faults,
+                    ObjectKey::new(index, sub),
+                    data,
+                )? {
                     let mut flash = std::mem::take(&mut self.flash);
                     let r = comm::execute(cmd, &STORE, &mut flash, self);
                     self.flash = flash;
@@ -257,18 +262,6 @@ impl Dictionary for Drive {
             _ => Err(SdoAbort::ObjectDoesNotExist),
         }
     }
-}
-
-/// The drive's write of a communication object, then the store command it decoded.
-fn comm_write(
-    comm: &mut Comm,
-    faults: &mut Faults,
-    index: u16,
-    sub: u8,
-    data: &[u8],
-) -> Result<Option<StoreCommand>, SdoAbort> {
-    firmware::dictionary::write(comm, faults, ObjectKey::new(index, sub), data)?;
-    Ok(comm.take_store_command())
 }
 
 fn new_drive() -> Drive {

@@ -305,8 +305,7 @@ impl<S: ParameterStore> Drive<S> {
         data: &[u8],
         runtime: &mut dyn Dictionary,
     ) -> Result<(), SdoAbort> {
-        dictionary::write(&mut self.comm, &mut self.faults, key, data)?;
-        match self.comm.take_store_command() {
+        match dictionary::write_comm(&mut self.comm, &mut self.faults, key, data)? {
             Some(cmd) => self.run_store(cmd, runtime),
             None => Ok(()),
         }
