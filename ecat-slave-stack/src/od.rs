@@ -864,14 +864,5 @@ pub trait Values<C: ?Sized = ()> {
     }
 }
 
-/// The value of an entry bound to its description's numeric default (the count of an
-/// array or record); "no sub-index" for an entry without one.
-pub fn default_int(entry: &Entry) -> Result<i64, SdoAbort> {
-    match entry.default_value() {
-        DefaultValue::Int(v) => Ok(v),
-        _ => Err(SdoAbort::SubindexDoesNotExist),
-    }
-}
-
 #[cfg(test)]
 mod reference_tests;

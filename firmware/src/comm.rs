@@ -283,13 +283,11 @@ impl Values<Faults> for Comm {
             (0x1003, n) => faults
                 .history(usize::from(n) - 1)
                 .map_or(0, |r| u32::from(r.code) | u32::from(r.kind as u8) << 16),
-            (0x1010 | 0x1011 | 0x1018, 0) => 4,
             (0x1010 | 0x1011, _) => 1,
             (0x1018, 1) => self.identity.vendor_id(),
             (0x1018, 2) => self.identity.product_code(),
             (0x1018, 3) => self.identity.revision(),
             (0x1018, _) => self.identity.serial,
-            (0x10F1, 0) => 2,
             (0x10F1, 1) => self.local_error_reaction,
             (0x10F1, _) => u32::from(self.sync_error_limit),
             _ => return Err(SdoAbort::ObjectDoesNotExist),

@@ -15,7 +15,9 @@
 //! the SII and the generated reference (`cargo xtask od-doc`), so they cannot disagree.
 
 use ecat_slave_stack::esm::EsmState;
-use ecat_slave_stack::od::{self, Entry, Object, ObjectDesc, ObjectKey, SdoAbort, Values};
+use ecat_slave_stack::od::{
+    self, DefaultValue, Entry, Object, ObjectCode, ObjectDesc, ObjectKey, SdoAbort, Values,
+};
 
 pub mod fault_history;
 mod vocabulary;
@@ -120,21 +122,30 @@ pub(crate) fn checked_value(entry: &Entry, data: &[u8]) -> Result<i64, SdoAbort>
 
 /// The dispatcher's read of entry `key` of an owner's values (`cx`: what else they
 /// are made of): the entry of [`OBJECTS`] (no object / no sub-index), readable, the
-/// owner's bytes or its number in little-endian.
+/// owner's bytes, else its number in little-endian. The read-only sub-index 0 of an
+/// array or record (its count) is bound to its description: it reads as its default.
 pub fn read<C: ?Sized, V: Values<C> + ?Sized>(
     owner: &V,
     cx: &C,
     key: ObjectKey,
     buf: &mut [u8],
 ) -> Result<usize, SdoAbort> {
-    let entry = od::find_entry(OBJECTS, key.index, key.sub)?;
+    let obj = od::find(OBJECTS, key.index).ok_or(SdoAbort::ObjectDoesNotExist)?;
+    let entry = obj.entry(key.sub).ok_or(SdoAbort::SubindexDoesNotExist)?;
     if !entry.access.readable() {
         return Err(SdoAbort::ReadWriteOnly);
     }
     if let Some(r) = owner.read_bytes(cx, key, entry, buf) {
         return r;
     }
-    let v = owner.get(cx, key, entry)?;
+    let v = match (key.sub, obj.code(), entry.default_value()) {
+        (0, ObjectCode::Array | ObjectCode::Record, DefaultValue::Int(n))
+            if !entry.access.writable() =>
+        {
+            n
+        }
+        _ => owner.get(cx, key, entry)?,
+    };
     put_le(entry, v as u64, buf)
 }
 

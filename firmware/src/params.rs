@@ -648,12 +648,12 @@ impl Params {
     }
 }
 
-/// The values of 0x2000-0x21FF: the stored parameters by their slot, the run-time
-/// values, and the counts of the arrays and records (their entries' defaults). A write
+/// The values of 0x2000-0x21FF: the stored parameters by their slot and the run-time
+/// values (the counts of the arrays and records are their descriptions'). A write
 /// has passed the entry's access, length and range checks; the rules of the module
 /// docs follow.
 impl Values for Params {
-    fn get(&self, _: &(), key: ObjectKey, entry: &Entry) -> Result<i64, SdoAbort> {
+    fn get(&self, _: &(), key: ObjectKey, _: &Entry) -> Result<i64, SdoAbort> {
         let value: i64 = match (key.index, key.sub) {
             (0x2039, 0) => (self.command_pulses >> 16).into(),
             (0x2040, 0) => (self.command_pulses & 0xFFFF).into(),
@@ -681,7 +681,7 @@ impl Values for Params {
             (0x2022, 5) => self.calibration.l_low_uh.into(),
             (index, sub) => match slot_of(index, sub).and_then(|slot| self.values.get(slot)) {
                 Some(&v) => v.into(),
-                None => return od::default_int(entry),
+                None => return Err(SdoAbort::SubindexDoesNotExist),
             },
         };
         Ok(value)

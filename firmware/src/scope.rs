@@ -586,10 +586,9 @@ impl Scope {
 /// The values of 0x2500-0x2503 (those of 0x2510 are the drive's, see `Drive`):
 /// configuration writes follow the scope's rules (module docs).
 impl Values for Scope {
-    fn get(&self, _: &(), key: ObjectKey, entry: &Entry) -> Result<i64, SdoAbort> {
+    fn get(&self, _: &(), key: ObjectKey, _: &Entry) -> Result<i64, SdoAbort> {
         let v: u32 = match (key.index, key.sub) {
             (CHANNEL_LIST, 0) => u32::from(self.count),
-            (_, 0) => return od::default_int(entry),
             (CHANNEL_LIST, s) => self.channels[usize::from(s - 1) % CHANNELS],
             (CONFIG, 1) => u32::from(self.divisor),
             (CONFIG, 2) => u32::from(self.trigger_channel),

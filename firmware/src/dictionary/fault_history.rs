@@ -72,13 +72,11 @@ impl Values for FaultHistory<'_> {
         let faults = self.0;
         let (index, sub) = (key.index, key.sub);
         let v: u32 = match (index, sub) {
-            (0x2400, 0) => 8,
             (0x2400, 1) => u32::from(faults.count()),
             (0x2400, 2..=7) => faults
                 .history(usize::from(sub) - 2)
                 .map_or(0, |r| u32::from(r.code)),
             (0x2400, 8) => u32::from(faults.active_mask()),
-            (0x2401..=0x2406, 0) => 8,
             (0x2401..=0x2406, _) => match faults.history(usize::from(index - 0x2401)) {
                 None => 0,
                 Some(r) => match sub {
