@@ -124,8 +124,8 @@ pub(crate) fn checked_value(entry: &Entry, data: &[u8]) -> Result<i64, SdoAbort>
 /// are made of): the entry of [`OBJECTS`] (no object / no sub-index), readable, the
 /// owner's bytes, else its number in little-endian. The read-only sub-index 0 of an
 /// array or record (its count) is bound to its description: it reads as its default.
-pub fn read<C: ?Sized, V: Values<C> + ?Sized>(
-    owner: &V,
+pub fn read<C: ?Sized>(
+    owner: &dyn Values<C>,
     cx: &C,
     key: ObjectKey,
     buf: &mut [u8],
@@ -151,8 +151,8 @@ pub fn read<C: ?Sized, V: Values<C> + ?Sized>(
 
 /// The dispatcher's write of entry `key` of an owner's values: the entry of
 /// [`OBJECTS`], [`checked_value`], then the owner stores the number.
-pub fn write<C: ?Sized, V: Values<C> + ?Sized>(
-    owner: &mut V,
+pub fn write<C: ?Sized>(
+    owner: &mut dyn Values<C>,
     cx: &mut C,
     key: ObjectKey,
     data: &[u8],

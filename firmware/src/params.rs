@@ -94,8 +94,9 @@ macro_rules! param_slots {
         pub const KEYS: [(u16, u8); [$(Param::$variant),*].len()] = [$($key,)*];
 
         /// `[min, max, default]` of each [`Param`] from its entry, for the values set
-        /// inside the drive (compile time).
-        const LIMITS: [[u16; 3]; KEYS.len()] = [$($limit,)*];
+        /// inside the drive (made at compile time; a `static`, so that the defaults are
+        /// copied in a loop rather than written one by one).
+        static LIMITS: [[u16; 3]; KEYS.len()] = [$($limit,)*];
     };
     ([$($variant:ident)*] [$($key:expr,)*] [$($limit:expr,)*] ($index:literal, _, $entry:expr)
         $($rest:tt)*) => {
@@ -452,7 +453,10 @@ impl Params {
     /// All parameters at their defaults for `variant` (0x2024 follows the variant);
     /// the active copy equals the defaults.
     pub fn new(variant: Variant) -> Self {
-        let mut values = LIMITS.map(|[_, _, def]| i32::from(def));
+        let mut values = [0i32; N];
+        for (v, [_, _, def]) in values.iter_mut().zip(&LIMITS) {
+            *v = i32::from(*def);
+        }
         values[Param::LoopMode as usize] = i32::from(variant.default_loop_mode());
         let mut p = Params {
             variant,
