@@ -4,8 +4,8 @@
 //! Which module owns which index range is stated once, in [`OWNERS`]; the SDO and PDO
 //! dispatch ([`owner_of`]) uses it. Every owner binds its entries to its state the one
 //! way, by implementing `ecat_slave_stack::od::Values`; the dispatcher (`Drive`) finds
-//! the entry here once and runs the generic checks and the byte conversion ([`read`],
-//! [`write`]).
+//! the entry here once and runs the generic checks and the byte conversion ([`read()`],
+//! [`write()`]).
 //! The objects the slave runtime serves itself (mapping, assignment, sync manager
 //! parameters) are the stack's to name (`ecat_slave_stack::pdo::is_pdo_index`,
 //! `ecat_slave_stack::sync::is_sync_index`); it also serves the timing diagnostics at
@@ -150,7 +150,7 @@ pub fn read<C: ?Sized>(
 }
 
 /// The dispatcher's write of entry `key` of an owner's values: the entry of
-/// [`OBJECTS`], [`checked_value`], then the owner stores the number.
+/// [`OBJECTS`], `checked_value`, then the owner stores the number.
 pub fn write<C: ?Sized>(
     owner: &mut dyn Values<C>,
     cx: &mut C,
@@ -162,7 +162,7 @@ pub fn write<C: ?Sized>(
     owner.set(cx, key, entry, v)
 }
 
-/// [`write`] of a communication object, then the store / restore command it decoded
+/// [`write()`] of a communication object, then the store / restore command it decoded
 /// (0x1010 / 0x1011), for the caller to run with `comm::execute`.
 pub fn write_comm(
     comm: &mut crate::comm::Comm,
@@ -174,12 +174,12 @@ pub fn write_comm(
     Ok(comm.take_store_command())
 }
 
-/// SDO-style access to one owner's values without the drive (tests, tools): [`read`]
-/// and [`write`] by index and sub-index.
+/// SDO-style access to one owner's values without the drive (tests, tools): [`read()`]
+/// and [`write()`] by index and sub-index.
 pub trait Sdo {
-    /// [`read`] of `index:sub`.
+    /// [`read()`] of `index:sub`.
     fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort>;
-    /// [`write`] of `index:sub`.
+    /// [`write()`] of `index:sub`.
     fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort>;
 }
 

@@ -36,8 +36,8 @@
 //!   the next power-up.
 
 use ecat_slave_stack::od::{
-    self, Access, DataType, DefaultValue, Entry, EntryDesc, ObjectDesc, ObjectKey, PdoMappable,
-    SdoAbort, Values,
+    Access, DataType, DefaultValue, Entry, EntryDesc, ObjectDesc, ObjectKey, PdoMappable, SdoAbort,
+    Values,
 };
 
 use crate::identity::Variant;
