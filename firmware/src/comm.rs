@@ -11,8 +11,8 @@
 //!
 //! Sub-index 1 and 4 cover all parameters, 2 the communication area (0x1000-0x1FFF,
 //! including the PDO mapping and assignment), 3 the application area (0x6000-0x9FFF).
-//! [`Comm::write`] only decodes the command; the dictionary owner runs it with
-//! [`execute`] (it needs the whole dictionary and the flash) and answers the SDO with
+//! A write of 0x1010 / 0x1011 only decodes the command
+//! ([`Comm::take_store_command`]); the dictionary owner runs it with [`execute`] (it needs the whole dictionary and the flash) and answers the SDO with
 //! its result. Restored defaults take effect at the next power-up (CiA 301).
 //! Reading 0x1010 / 0x1011 sub 1-4 gives 1: "saves / restores on command".
 //!
@@ -21,7 +21,8 @@
 //! kind (bits 16-23) of the n-th newest fault.
 
 use ecat_slave_stack::od::{
-    Access, DataType, Dictionary, EntryDesc, ObjectDesc, PdoMappable, SdoAbort,
+    Access, DataType, Dictionary, Entry, EntryDesc, ObjectDesc, ObjectKey, PdoMappable, SdoAbort,
+    Values,
 };
 use embedded_storage::nor_flash::NorFlash;
 
@@ -234,6 +235,7 @@ pub struct Comm {
     identity: Identity,
     local_error_reaction: u32,
     sync_error_limit: u16,
+    store: Option<StoreCommand>,
 }
 
 impl Comm {
@@ -243,6 +245,7 @@ impl Comm {
             identity,
             local_error_reaction: 1,
             sync_error_limit: 4,
+            store: None,
         }
     }
 
@@ -261,110 +264,102 @@ impl Comm {
         self.local_error_reaction
     }
 
-    /// SDO read.
-    pub fn read(
-        &self,
-        faults: &Faults,
-        index: u16,
-        sub: u8,
-        buf: &mut [u8],
-    ) -> Result<usize, SdoAbort> {
-        let entry = crate::dictionary::find_entry_in(crate::dictionary::COMM, index, sub)?;
-        let text = match index {
-            0x1008 => Some(self.identity.device_name()),
-            0x1009 => Some(identity::HARDWARE_VERSION),
-            0x100A => Some(identity::SOFTWARE_VERSION),
-            _ => None,
-        };
-        if let Some(t) = text {
-            let out = buf.get_mut(..t.len()).ok_or(SdoAbort::ExceedsMailbox)?;
-            out.copy_from_slice(t.as_bytes());
-            return Ok(t.len());
-        }
-        if index == 0x10F3 {
-            return faults.diagnosis().peek(sub, buf);
-        }
-        let v: u32 = match (index, sub) {
+    /// The store / restore command the last write of 0x1010 / 0x1011 decoded, once:
+    /// the dictionary owner runs it with [`execute`] and answers the SDO with its
+    /// result.
+    pub fn take_store_command(&mut self) -> Option<StoreCommand> {
+        self.store.take()
+    }
+}
+
+/// The values of 0x1000-0x10FF; the error register, the error field and the diagnosis
+/// history are the drive's [`Faults`].
+impl Values<Faults> for Comm {
+    fn get(&self, faults: &Faults, key: ObjectKey, _: &Entry) -> Result<i64, SdoAbort> {
+        let v: u32 = match (key.index, key.sub) {
             (0x1000, _) => self.identity.variant.device_type(),
             (0x1001, _) => u32::from(faults.error_register()),
             (0x1003, 0) => faults.history_len() as u32,
             (0x1003, n) => faults
                 .history(usize::from(n) - 1)
                 .map_or(0, |r| u32::from(r.code) | u32::from(r.kind as u8) << 16),
-            (0x1010 | 0x1011 | 0x1018, 0) => 4,
             (0x1010 | 0x1011, _) => 1,
             (0x1018, 1) => self.identity.vendor_id(),
             (0x1018, 2) => self.identity.product_code(),
             (0x1018, 3) => self.identity.revision(),
             (0x1018, _) => self.identity.serial,
-            (0x10F1, 0) => 2,
             (0x10F1, 1) => self.local_error_reaction,
             (0x10F1, _) => u32::from(self.sync_error_limit),
             _ => return Err(SdoAbort::ObjectDoesNotExist),
         };
-        crate::dictionary::put_le(entry, u64::from(v), buf)
+        Ok(i64::from(v))
     }
 
-    /// SDO write (after the generic checks). A store / restore command is returned for
-    /// the dictionary owner to run with [`execute`].
-    pub fn write(
+    /// A store / restore command is kept for [`Comm::take_store_command`].
+    fn set(
         &mut self,
         faults: &mut Faults,
-        index: u16,
-        sub: u8,
-        data: &[u8],
-    ) -> Result<Option<StoreCommand>, SdoAbort> {
-        let entry = crate::dictionary::find_entry_in(crate::dictionary::COMM, index, sub)?;
-        if !entry.access.writable() {
-            return Err(SdoAbort::WriteReadOnly);
-        }
-        if data.len() != entry.byte_len() {
-            return Err(if data.len() > entry.byte_len() {
-                SdoAbort::LengthTooHigh
-            } else {
-                SdoAbort::LengthTooLow
-            });
-        }
-        // Writable entries here are 1 to 4 bytes (no bounds-check panic for longer).
-        let mut b = [0u8; 4];
-        for (d, s) in b.iter_mut().zip(data) {
-            *d = *s;
-        }
-        let v = u32::from_le_bytes(b);
-        match (index, sub) {
+        key: ObjectKey,
+        entry: &Entry,
+        value: i64,
+    ) -> Result<(), SdoAbort> {
+        let v = value as u32;
+        match (key.index, key.sub) {
             (0x1003, 0) => {
                 if v != 0 {
                     return Err(SdoAbort::ValueRangeExceeded);
                 }
                 faults.clear_history();
-                Ok(None)
             }
             (0x1010, s) => {
                 let scope = Scope::from_sub(s).ok_or(SdoAbort::SubindexDoesNotExist)?;
-                match v {
-                    SAVE => Ok(Some(StoreCommand::Save(scope))),
-                    LOAD if s == 4 => Ok(Some(StoreCommand::RestoreDefaults(Scope::All))),
-                    _ => Err(SdoAbort::DataCannotBeStored),
-                }
+                self.store = Some(match v {
+                    SAVE => StoreCommand::Save(scope),
+                    LOAD if s == 4 => StoreCommand::RestoreDefaults(Scope::All),
+                    _ => return Err(SdoAbort::DataCannotBeStored),
+                });
             }
             (0x1011, s) => {
                 let scope = Scope::from_sub(s).ok_or(SdoAbort::SubindexDoesNotExist)?;
-                match v {
-                    LOAD => Ok(Some(StoreCommand::RestoreDefaults(scope))),
-                    _ => Err(SdoAbort::DataCannotBeStored),
-                }
+                self.store = Some(match v {
+                    LOAD => StoreCommand::RestoreDefaults(scope),
+                    _ => return Err(SdoAbort::DataCannotBeStored),
+                });
             }
-            (0x10F3, s) => faults.diagnosis_mut().write(s, data).map(|()| None),
-            (0x10F1, 1) => {
-                self.local_error_reaction = v;
-                Ok(None)
+            (0x10F3, s) => {
+                let bytes = value.to_le_bytes();
+                let len = entry.byte_len().min(bytes.len());
+                faults.diagnosis_mut().write(s, &bytes[..len])?;
             }
-            (0x10F1, 2) => {
-                self.sync_error_limit = v as u16;
-                Ok(None)
-            }
-            _ => Err(SdoAbort::WriteReadOnly),
+            (0x10F1, 1) => self.local_error_reaction = v,
+            (0x10F1, 2) => self.sync_error_limit = v as u16,
+            _ => return Err(SdoAbort::WriteReadOnly),
         }
+        Ok(())
+    }
+
+    /// The names and versions, and the diagnosis history (kept in its wire form).
+    fn read_bytes(
+        &self,
+        faults: &Faults,
+        key: ObjectKey,
+        _: &Entry,
+        buf: &mut [u8],
+    ) -> Option<Result<usize, SdoAbort>> {
+        let text = match key.index {
+            0x1008 => self.identity.device_name(),
+            0x1009 => identity::HARDWARE_VERSION,
+            0x100A => identity::SOFTWARE_VERSION,
+            0x10F3 => return Some(faults.diagnosis().peek(key.sub, buf)),
+            _ => return None,
+        };
+        Some(match buf.get_mut(..text.len()) {
+            Some(out) => {
+                out.copy_from_slice(text.as_bytes());
+                Ok(text.len())
+            }
+            None => Err(SdoAbort::ExceedsMailbox),
+        })
     }
 }
 
@@ -396,12 +391,26 @@ mod tests {
         let e = od::find_entry(PACKED, index, sub)?;
         let data = &v.to_le_bytes()[..e.byte_len()];
         od::check_write(e, data, EsmState::PreOp)?;
-        c.write(f, index, sub, data)
+        write(c, f, index, sub, data)
+    }
+
+    fn write(
+        c: &mut Comm,
+        f: &mut Faults,
+        index: u16,
+        sub: u8,
+        data: &[u8],
+    ) -> Result<Option<StoreCommand>, SdoAbort> {
+        crate::dictionary::write_comm(c, f, ObjectKey::new(index, sub), data)
+    }
+
+    fn read(c: &Comm, f: &Faults, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        crate::dictionary::read(c, f, ObjectKey::new(index, sub), buf)
     }
 
     fn rd(c: &Comm, f: &Faults, index: u16, sub: u8) -> u32 {
         let mut buf = [0u8; 4];
-        let n = c.read(f, index, sub, &mut buf).unwrap();
+        let n = read(c, f, index, sub, &mut buf).unwrap();
         let mut b = [0u8; 4];
         b[..n].copy_from_slice(&buf[..n]);
         u32::from_le_bytes(b)
@@ -423,12 +432,12 @@ mod tests {
             assert_eq!(rd(&c, &f, 0x1018, 3), 0x0001_0000);
             assert_eq!(rd(&c, &f, 0x1018, 4), 0xABCD);
             let mut buf = [0u8; 64];
-            let n = c.read(&f, 0x1008, 0, &mut buf).unwrap();
+            let n = read(&c, &f, 0x1008, 0, &mut buf).unwrap();
             assert_eq!(&buf[..n], v.device_name().as_bytes());
-            let n = c.read(&f, 0x100A, 0, &mut buf).unwrap();
+            let n = read(&c, &f, 0x100A, 0, &mut buf).unwrap();
             assert_eq!(&buf[..n], env!("CARGO_PKG_VERSION").as_bytes());
             assert_eq!(
-                c.read(&f, 0x1008, 0, &mut buf[..4]),
+                read(&c, &f, 0x1008, 0, &mut buf[..4]),
                 Err(SdoAbort::ExceedsMailbox)
             );
         }
@@ -443,7 +452,7 @@ mod tests {
             Err(SdoAbort::WriteReadOnly)
         );
         assert_eq!(
-            c.write(&mut f, 0x1018, 1, &[0; 4]),
+            write(&mut c, &mut f, 0x1018, 1, &[0; 4]),
             Err(SdoAbort::WriteReadOnly)
         );
     }
@@ -497,11 +506,11 @@ mod tests {
             Err(SdoAbort::SubindexDoesNotExist)
         );
         assert_eq!(
-            c.write(&mut f, 0x1010, 1, &[0x73, 0x61, 0x76]),
+            write(&mut c, &mut f, 0x1010, 1, &[0x73, 0x61, 0x76]),
             Err(SdoAbort::LengthTooLow)
         );
         assert_eq!(
-            c.write(&mut f, 0x1010, 1, &[0; 5]),
+            write(&mut c, &mut f, 0x1010, 1, &[0; 5]),
             Err(SdoAbort::LengthTooHigh)
         );
     }
@@ -553,7 +562,7 @@ mod tests {
         assert_eq!(sdo_write(&mut c, &mut f, 0x10F1, 1, 0), Ok(None));
         assert_eq!(c.local_error_reaction(), 0);
         assert_eq!(
-            c.read(&f, 0x10F2, 0, &mut [0; 4]),
+            read(&c, &f, 0x10F2, 0, &mut [0; 4]),
             Err(SdoAbort::ObjectDoesNotExist)
         );
     }

@@ -2,7 +2,10 @@
 //! tables of the modules that own the values.
 //!
 //! Which module owns which index range is stated once, in [`OWNERS`]; the SDO and PDO
-//! dispatch ([`owner_of`]) and the modules' own look-ups (`find_entry_in`) use it.
+//! dispatch ([`owner_of`]) uses it. Every owner binds its entries to its state the one
+//! way, by implementing `ecat_slave_stack::od::Values`; the dispatcher (`Drive`) finds
+//! the entry here once and runs the generic checks and the byte conversion ([`read()`],
+//! [`write()`]).
 //! The objects the slave runtime serves itself (mapping, assignment, sync manager
 //! parameters) are the stack's to name (`ecat_slave_stack::pdo::is_pdo_index`,
 //! `ecat_slave_stack::sync::is_sync_index`); it also serves the timing diagnostics at
@@ -11,7 +14,10 @@
 //! The same table feeds the SDO server, PDO mapping rules, SDO information, the ESI,
 //! the SII and the generated reference (`cargo xtask od-doc`), so they cannot disagree.
 
-use ecat_slave_stack::od::{self, Entry, Object, ObjectDesc, SdoAbort};
+use ecat_slave_stack::esm::EsmState;
+use ecat_slave_stack::od::{
+    self, DefaultValue, Entry, Object, ObjectCode, ObjectDesc, ObjectKey, SdoAbort, Values,
+};
 
 pub mod fault_history;
 mod vocabulary;
@@ -91,28 +97,8 @@ pub fn owner_of(index: u16) -> Option<Owner> {
         .map(|&(_, _, owner)| owner)
 }
 
-// The owners as the modules name themselves in their look-ups.
-pub(crate) const COMM: Owner = Owner::Comm;
-pub(crate) const PARAMS: Owner = Owner::Params;
-pub(crate) const MONITOR: Owner = Owner::Monitor;
-pub(crate) const FAULTS: Owner = Owner::Faults;
-pub(crate) const SCOPE: Owner = Owner::Scope;
-pub(crate) const CIA402: Owner = Owner::Cia402;
-
-/// Object `index` of the module `owner`: the same answer as
-/// `od::find(module::OBJECTS, index)`, without a second copy of the module's table in
-/// flash (a module's `const OBJECTS` used at run time is its own array beside
-/// [`OBJECTS`]).
-pub(crate) fn find_in(owner: Owner, index: u16) -> Option<&'static Object> {
-    if owner_of(index) != Some(owner) {
-        return None;
-    }
-    od::find(OBJECTS, index)
-}
-
-/// The answer of a module's SDO read: the low `entry.byte_len()` bytes of `v`
-/// (little-endian) into `buf`; "exceeds mailbox" when they do not fit. Shared by
-/// every module's read.
+/// The answer of a read: the low `entry.byte_len()` bytes of `v` (little-endian) into
+/// `buf`; "exceeds mailbox" when they do not fit.
 pub(crate) fn put_le(entry: &Entry, v: u64, buf: &mut [u8]) -> Result<usize, SdoAbort> {
     let len = entry.byte_len();
     let out = buf.get_mut(..len).ok_or(SdoAbort::ExceedsMailbox)?;
@@ -121,11 +107,89 @@ pub(crate) fn put_le(entry: &Entry, v: u64, buf: &mut [u8]) -> Result<usize, Sdo
     Ok(len)
 }
 
-/// Entry `index:sub` of the module `owner` (as `od::find_entry(module::OBJECTS,
-/// ..)`: no object → `ObjectDoesNotExist`, no sub-index → `SubindexDoesNotExist`).
-pub(crate) fn find_entry_in(owner: Owner, index: u16, sub: u8) -> Result<&'static Entry, SdoAbort> {
-    let obj = find_in(owner, index).ok_or(SdoAbort::ObjectDoesNotExist)?;
-    obj.entry(sub).ok_or(SdoAbort::SubindexDoesNotExist)
+/// The checks of a write to `entry` and its value: access, length and range as the
+/// stack's `check_write` in Pre-Op (a write may come from the storage restore or a
+/// PDO as well as from the SDO server), except that a read-only entry marked saved
+/// (the monitoring counters) takes the value the restore brings.
+pub(crate) fn checked_value(entry: &Entry, data: &[u8]) -> Result<i64, SdoAbort> {
+    let mut e = *entry;
+    if e.is_saved() && !e.access.writable() {
+        e.access = od::Access::RW;
+    }
+    od::check_write(&e, data, EsmState::PreOp)?;
+    od::decode_int(e.data_type, data).ok_or(SdoAbort::TypeMismatch)
+}
+
+/// The dispatcher's read of entry `key` of an owner's values (`cx`: what else they
+/// are made of): the entry of [`OBJECTS`] (no object / no sub-index), readable, the
+/// owner's bytes, else its number in little-endian. The read-only sub-index 0 of an
+/// array or record (its count) is bound to its description: it reads as its default.
+pub fn read<C: ?Sized>(
+    owner: &dyn Values<C>,
+    cx: &C,
+    key: ObjectKey,
+    buf: &mut [u8],
+) -> Result<usize, SdoAbort> {
+    let obj = od::find(OBJECTS, key.index).ok_or(SdoAbort::ObjectDoesNotExist)?;
+    let entry = obj.entry(key.sub).ok_or(SdoAbort::SubindexDoesNotExist)?;
+    if !entry.access.readable() {
+        return Err(SdoAbort::ReadWriteOnly);
+    }
+    if let Some(r) = owner.read_bytes(cx, key, entry, buf) {
+        return r;
+    }
+    let v = match (key.sub, obj.code(), entry.default_value()) {
+        (0, ObjectCode::Array | ObjectCode::Record, DefaultValue::Int(n))
+            if !entry.access.writable() =>
+        {
+            n
+        }
+        _ => owner.get(cx, key, entry)?,
+    };
+    put_le(entry, v as u64, buf)
+}
+
+/// The dispatcher's write of entry `key` of an owner's values: the entry of
+/// [`OBJECTS`], `checked_value`, then the owner stores the number.
+pub fn write<C: ?Sized>(
+    owner: &mut dyn Values<C>,
+    cx: &mut C,
+    key: ObjectKey,
+    data: &[u8],
+) -> Result<(), SdoAbort> {
+    let entry = od::find_entry(OBJECTS, key.index, key.sub)?;
+    let v = checked_value(entry, data)?;
+    owner.set(cx, key, entry, v)
+}
+
+/// [`write()`] of a communication object, then the store / restore command it decoded
+/// (0x1010 / 0x1011), for the caller to run with `comm::execute`.
+pub fn write_comm(
+    comm: &mut crate::comm::Comm,
+    faults: &mut crate::faults::Faults,
+    key: ObjectKey,
+    data: &[u8],
+) -> Result<Option<crate::comm::StoreCommand>, SdoAbort> {
+    write(comm, faults, key, data)?;
+    Ok(comm.take_store_command())
+}
+
+/// SDO-style access to one owner's values without the drive (tests, tools): [`read()`]
+/// and [`write()`] by index and sub-index.
+pub trait Sdo {
+    /// [`read()`] of `index:sub`.
+    fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort>;
+    /// [`write()`] of `index:sub`.
+    fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort>;
+}
+
+impl<V: Values> Sdo for V {
+    fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        read(self, &(), ObjectKey::new(index, sub), buf)
+    }
+    fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
+        write(self, &mut (), ObjectKey::new(index, sub), data)
+    }
 }
 
 #[cfg(test)]
@@ -137,44 +201,46 @@ mod tests {
     #[test]
     fn module_ranges_hold_exactly_the_module_tables() {
         let modules: [(&[ObjectDesc], Owner); 6] = [
-            (crate::comm::OBJECTS, COMM),
-            (crate::params::OBJECTS, PARAMS),
-            (crate::monitor::OBJECTS, MONITOR),
-            (fault_history::OBJECTS, FAULTS),
-            (crate::scope::OBJECTS, SCOPE),
-            (crate::cia402::objects::OBJECTS, CIA402),
+            (crate::comm::OBJECTS, Owner::Comm),
+            (crate::params::OBJECTS, Owner::Params),
+            (crate::monitor::OBJECTS, Owner::Monitor),
+            (fault_history::OBJECTS, Owner::Faults),
+            (crate::scope::OBJECTS, Owner::Scope),
+            (crate::cia402::objects::OBJECTS, Owner::Cia402),
         ];
         for (own, owner) in modules {
             for o in own {
                 assert_eq!(owner_of(o.index), Some(owner), "{:#06x}", o.index);
             }
-            for index in 0..=u16::MAX {
-                let mine = own.iter().find(|o| o.index == index);
-                let found = find_in(owner, index);
-                assert_eq!(mine.is_some(), found.is_some(), "{index:#06x}");
-                if let (Some(a), Some(b)) = (mine, found) {
-                    assert_eq!(a.name(), b.name());
-                    assert_eq!(a.entries().len(), b.entries().len());
-                    for sub in 0..=u8::MAX {
-                        assert_eq!(
-                            a.entry(sub)
-                                .map(|e| (e.sub(), e.name().to_string()))
-                                .ok_or(SdoAbort::SubindexDoesNotExist),
-                            find_entry_in(owner, index, sub).map(|e| (e.sub, e.name().to_string())),
-                            "{index:#06x}:{sub}"
-                        );
-                    }
-                }
-                if mine.is_none() {
-                    for sub in [0, 1, 255] {
-                        assert_eq!(
-                            find_entry_in(owner, index, sub).err(),
-                            Some(SdoAbort::ObjectDoesNotExist)
-                        );
-                    }
+            for o in OBJECTS.iter().filter(|o| owner_of(o.index) == Some(owner)) {
+                let mine = own.iter().find(|d| d.index == o.index);
+                assert_eq!(
+                    mine.map(|d| d.name().to_string()),
+                    Some(o.name().to_string())
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn only_the_saved_counters_are_restored_into_read_only_entries() {
+        let mut restored = std::vec::Vec::new();
+        for o in OBJECTS
+            .iter()
+            .filter(|o| owner_of(o.index) != Some(Owner::SlaveRuntime))
+        {
+            for e in o.entries() {
+                if e.is_saved() && !e.access.writable() {
+                    restored.push((o.index, e.sub));
                 }
             }
         }
+        assert_eq!(restored, [(0x2306, 0), (0x2307, 0)]);
+        let e = od::find_entry(OBJECTS, 0x2306, 0).unwrap();
+        assert_eq!(checked_value(e, &7u32.to_le_bytes()), Ok(7));
+        assert_eq!(checked_value(e, &[7]), Err(SdoAbort::LengthTooLow));
+        let e = od::find_entry(OBJECTS, 0x2300, 0).unwrap();
+        assert_eq!(checked_value(e, &[7, 0]), Err(SdoAbort::WriteReadOnly));
     }
 
     #[test]

@@ -181,7 +181,7 @@ macro_rules! power_up_fields {
             cia402: Cia402::new(),
             faults: Faults::default(),
             monitor: Monitor::new(),
-            scope: Scope::new(),
+            scope: Scope::new(dictionary::OBJECTS),
             inputs: Inputs::default(),
             probe_tick: crate::cia402::EdgeLatch::default(),
             axis: AxisState::default(),

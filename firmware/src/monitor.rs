@@ -5,11 +5,13 @@
 //!
 //! The power-on count and the accumulated running time are `saved` entries: they are
 //! written to flash with every 'save' and restored at power-up (the storage restore is
-//! the only writer, [`Monitor::write`]); [`Monitor::power_up`] then counts the new
+//! the only writer, through the `Values` binding); [`Monitor::power_up`] then counts the new
 //! power-up. They are thus exact up to the last save (the board may also save on a
 //! power-fail warning).
 
-use ecat_slave_stack::od::{Access, DataType, EntryDesc, ObjectDesc, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    Access, DataType, Entry, EntryDesc, ObjectDesc, ObjectKey, PdoMappable, SdoAbort, Values,
+};
 
 const fn tx(name: &'static str, t: DataType, unit: &'static str) -> EntryDesc {
     EntryDesc::new(0, name, t, Access::RO)
@@ -191,42 +193,32 @@ impl Monitor {
     pub fn since_power_up_ms(&self) -> u32 {
         self.since_power_up_ms as u32
     }
+}
 
-    /// SDO / PDO read.
-    pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        let entry = crate::dictionary::find_entry_in(crate::dictionary::MONITOR, index, sub)?;
-        let v: u32 = match index {
-            0x2300 => u32::from(self.m.electrical_angle),
-            0x2301 => self.m.ia_set_ma as u16 as u32,
-            0x2302 => self.m.ib_set_ma as u16 as u32,
-            0x2303 => self.m.ia_ma as u16 as u32,
-            0x2304 => self.m.ib_ma as u16 as u32,
-            0x2305 => u32::from(self.m.bus_10mv),
-            0x2306 => self.power_on_count,
-            0x2307 => self.running_time_s(),
-            0x2309 => u32::from(self.boot_state),
-            0x230A => self.step_us,
-            _ => self.since_power_up_ms(),
-        };
-        crate::dictionary::put_le(entry, u64::from(v), buf)
+/// The values of 0x2300-0x230A. Only the storage restore of the two saved counters
+/// writes (SDO writes are refused by the generic read-only check before).
+impl Values for Monitor {
+    fn get(&self, _: &(), key: ObjectKey, _: &Entry) -> Result<i64, SdoAbort> {
+        Ok(match key.index {
+            0x2300 => i64::from(self.m.electrical_angle),
+            0x2301 => i64::from(self.m.ia_set_ma),
+            0x2302 => i64::from(self.m.ib_set_ma),
+            0x2303 => i64::from(self.m.ia_ma),
+            0x2304 => i64::from(self.m.ib_ma),
+            0x2305 => i64::from(self.m.bus_10mv),
+            0x2306 => i64::from(self.power_on_count),
+            0x2307 => i64::from(self.running_time_s()),
+            0x2309 => i64::from(self.boot_state),
+            0x230A => i64::from(self.step_us),
+            _ => i64::from(self.since_power_up_ms()),
+        })
     }
 
-    /// Write: only the storage restore of the two saved counters reaches here (SDO
-    /// writes are refused by the generic read-only check before).
-    pub fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
-        crate::dictionary::find_entry_in(crate::dictionary::MONITOR, index, sub)?;
-        let b: [u8; 4] = data.try_into().map_err(|_| {
-            if data.len() > 4 {
-                SdoAbort::LengthTooHigh
-            } else {
-                SdoAbort::LengthTooLow
-            }
-        })?;
-        let v = u32::from_le_bytes(b);
-        match index {
-            0x2306 => self.power_on_count = v,
+    fn set(&mut self, _: &mut (), key: ObjectKey, _: &Entry, v: i64) -> Result<(), SdoAbort> {
+        match key.index {
+            0x2306 => self.power_on_count = v as u32,
             0x2307 => {
-                self.base_running_s = v;
+                self.base_running_s = v as u32;
                 self.since_power_up_ms %= 1000;
             }
             _ => return Err(SdoAbort::WriteReadOnly),
@@ -242,6 +234,7 @@ mod tests {
         ecat_slave_stack::packed_dictionary!(&[super::OBJECTS]);
 
     use super::*;
+    use crate::dictionary::Sdo;
     use ecat_slave_stack::od;
 
     #[test]
@@ -272,11 +265,8 @@ mod tests {
         assert_eq!(rd(&m, 0x2306, &mut buf), 42);
         assert_eq!(rd(&m, 0x2307, &mut buf), 3602);
         assert_eq!(rd(&m, 0x2308, &mut buf), 2500);
-        assert_eq!(m.write(0x2300, 0, &[0, 0]), Err(SdoAbort::LengthTooLow));
-        assert_eq!(
-            m.write(0x2300, 0, &[0, 0, 0, 0]),
-            Err(SdoAbort::WriteReadOnly)
-        );
+        assert_eq!(m.write(0x2300, 0, &[0, 0]), Err(SdoAbort::WriteReadOnly));
+        assert_eq!(m.write(0x2306, 0, &[0, 0]), Err(SdoAbort::LengthTooLow));
         assert_eq!(m.write(0x2306, 0, &[0; 5]), Err(SdoAbort::LengthTooHigh));
         assert_eq!(rd(&m, 0x2309, &mut buf), i64::from(NO_UPDATE));
         m.set_boot_state(1);

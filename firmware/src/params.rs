@@ -4,8 +4,8 @@
 //! access, default, range, unit and saved flag, and the values.
 //!
 //! The generic SDO checks (`od::check_write`) refuse out-of-range writes from this
-//! table with 0x06090031 / 0x06090032; [`Params::write`] repeats the range check (the
-//! storage restore path also comes here) and adds the product rules:
+//! table with 0x06090031 / 0x06090032; the dictionary's write repeats them (the
+//! storage restore path also comes there) and the `Values` binding adds the product rules:
 //!
 //! * 0x2015 / 0x2016 (current Kp / Ki) are read-only while 0x2013 (auto-tune at
 //!   power-up) is 1: a write is refused with **0x08000021** ("cannot be stored because
@@ -36,8 +36,8 @@
 //!   the next power-up.
 
 use ecat_slave_stack::od::{
-    self, Access, DataType, DefaultValue, Entry, EntryDesc, ObjectCode, ObjectDesc, PdoMappable,
-    SdoAbort,
+    Access, DataType, DefaultValue, Entry, EntryDesc, ObjectDesc, ObjectKey, PdoMappable, SdoAbort,
+    Values,
 };
 
 use crate::identity::Variant;
@@ -64,7 +64,7 @@ use DataType::{Integer16 as I16, Unsigned16 as U16, Unsigned32 as U32, Unsigned8
 /// Generates [`OBJECTS`], [`Param`] and [`KEYS`] from the table below: per object
 /// `index code "name", "description" { slot = entry, .. }`, where `slot` is the
 /// [`Param`] variant holding the entry's value in [`Params`], or `_` for entries
-/// without a stored value (counts and the run-time values served by [`Params::read`]).
+/// without a stored value (counts and the run-time values of the `Values` binding).
 macro_rules! vendor_params {
     ($($index:literal $code:ident $name:literal, $description:literal {
         $($slot:tt = $entry:expr,)*
@@ -73,13 +73,14 @@ macro_rules! vendor_params {
         pub const OBJECTS: &[ObjectDesc] = &[
             $(ObjectDesc::$code($index, $name, &[$($entry),*], $description),)*
         ];
-        param_slots!([] [] $($(($index, $slot, $entry))*)*);
+        param_slots!([] [] [] $($(($index, $slot, $entry))*)*);
     };
 }
 
-/// Collects the entries with a value slot into [`Param`] and [`KEYS`] (same order).
+/// Collects the entries with a value slot into [`Param`], [`KEYS`] and `LIMITS` (same
+/// order).
 macro_rules! param_slots {
-    ([$($variant:ident)*] [$($key:expr,)*]) => {
+    ([$($variant:ident)*] [$($key:expr,)*] [$($limit:expr,)*]) => {
         /// One stored vendor parameter (the ones with a value slot in [`Params`]),
         /// named after its object; the order is that of [`KEYS`].
         #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -91,14 +92,39 @@ macro_rules! param_slots {
 
         /// (index, sub-index) of each [`Param`], in the same order.
         pub const KEYS: [(u16, u8); [$(Param::$variant),*].len()] = [$($key,)*];
+
+        /// `[min, max, default]` of each [`Param`] from its entry, for the values set
+        /// inside the drive (made at compile time; a `static`, so that the defaults are
+        /// copied in a loop rather than written one by one).
+        static LIMITS: [[u16; 3]; KEYS.len()] = [$($limit,)*];
     };
-    ([$($variant:ident)*] [$($key:expr,)*] ($index:literal, _, $entry:expr) $($rest:tt)*) => {
-        param_slots!([$($variant)*] [$($key,)*] $($rest)*);
-    };
-    ([$($variant:ident)*] [$($key:expr,)*] ($index:literal, $slot:ident, $entry:expr)
+    ([$($variant:ident)*] [$($key:expr,)*] [$($limit:expr,)*] ($index:literal, _, $entry:expr)
         $($rest:tt)*) => {
-        param_slots!([$($variant)* $slot] [$($key,)* ($index, $entry.sub()),] $($rest)*);
+        param_slots!([$($variant)*] [$($key,)*] [$($limit,)*] $($rest)*);
     };
+    ([$($variant:ident)*] [$($key:expr,)*] [$($limit:expr,)*] ($index:literal, $slot:ident,
+        $entry:expr) $($rest:tt)*) => {
+        param_slots!([$($variant)* $slot] [$($key,)* ($index, $entry.sub()),]
+            [$($limit,)* limits(&$entry),] $($rest)*);
+    };
+}
+
+/// `[min, max, default]` of a stored parameter's entry; every one fits 16 bits
+/// (checked at compile time).
+const fn limits(e: &EntryDesc) -> [u16; 3] {
+    let def = match e.default_value() {
+        DefaultValue::Int(v) => v,
+        _ => 0,
+    };
+    assert!(
+        fits16(e.min()) && fits16(e.max()) && fits16(def),
+        "vendor parameter outside 0..=65535"
+    );
+    [e.min() as u16, e.max() as u16, def as u16]
+}
+
+const fn fits16(v: i64) -> bool {
+    v >= 0 && v <= u16::MAX as i64
 }
 
 vendor_params! {
@@ -428,8 +454,8 @@ impl Params {
     /// the active copy equals the defaults.
     pub fn new(variant: Variant) -> Self {
         let mut values = [0i32; N];
-        for (slot, &(index, sub)) in KEYS.iter().enumerate() {
-            values[slot] = default_of(index, sub);
+        for (v, [_, _, def]) in values.iter_mut().zip(&LIMITS) {
+            *v = i32::from(*def);
         }
         values[Param::LoopMode as usize] = i32::from(variant.default_loop_mode());
         let mut p = Params {
@@ -490,14 +516,10 @@ impl Params {
     /// Sets a parameter from inside the drive (auto-tune results, DIP values), clamped
     /// to the table range. Not subject to the SDO rules (auto-tune lock).
     pub fn set_internal(&mut self, p: Param, value: i32) {
-        let (index, sub) = KEYS[p as usize];
-        let v = match crate::dictionary::find_entry_in(crate::dictionary::PARAMS, index, sub) {
-            // max/min rather than clamp: clamp's min > max panic would bring
-            // core::fmt's integer formatting into the image (the table keeps min ≤ max).
-            Ok(e) => i64::from(value).max(e.min()).min(e.max()) as i32,
-            Err(_) => value,
-        };
-        self.values[p as usize] = v;
+        let [min, max, _] = LIMITS[p as usize];
+        // max/min rather than clamp: clamp's min > max panic would bring core::fmt's
+        // integer formatting into the image (the table keeps min ≤ max).
+        self.values[p as usize] = value.max(i32::from(min)).min(i32::from(max));
     }
 
     /// Input function bits of input `n` (0-based, 0..5).
@@ -628,59 +650,49 @@ impl Params {
     pub fn take_fault_history_clear(&mut self) -> bool {
         core::mem::take(&mut self.fault_history_clear)
     }
+}
 
-    /// SDO read of a vendor parameter: little-endian value into `buf`, returns its length.
-    pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        let entry = crate::dictionary::find_entry_in(crate::dictionary::PARAMS, index, sub)?;
-        // Sub-index 0 of an array / record is its count (one object look-up).
-        let count = match sub {
-            0 => crate::dictionary::find_in(crate::dictionary::PARAMS, index)
-                .filter(|o| o.code() != ObjectCode::Var)
-                .map(|o| o.max_sub()),
-            _ => None,
-        };
-        let value: u32 = match (count, index, sub) {
-            (Some(n), _, _) => u32::from(n),
-            (None, 0x2039, 0) => self.command_pulses >> 16,
-            (None, 0x2040, 0) => self.command_pulses & 0xFFFF,
-            (None, 0x2041, 0) => self.encoder_counts >> 16,
-            (None, 0x2042, 0) => self.encoder_counts & 0xFFFF,
-            (None, 0x2093, 0) => u32::from(self.fault_history_clear),
-            (None, 0x2155, 0) => u32::from(self.raw_inputs),
-            (None, 0x2157, 0) => u32::from(self.output_state),
-            (None, 0x2158, 1) => u32::from(self.dip.id_bits),
-            (None, 0x2158, 2) => u32::from(self.dip.function_bits),
-            (None, 0x2158, 3) => u32::from(self.dip.address),
-            (None, 0x2158, 4) => u32::from(self.settings().peak_current_ma),
-            (None, 0x2158, 5) => u32::from(self.settings().holding_percent),
-            (None, 0x2158, 6) => u32::from(self.settings().direction_reversed),
-            (None, 0x2158, 7) => self.settings().smoothing_us,
-            (None, 0x2063, 0) => self.load_angle_ddeg as u32,
-            (None, 0x2162, 1) => u32::from(self.servo_tune.state == 1),
-            (None, 0x2162, 2) => u32::from(self.servo_tune.state),
-            (None, 0x2164, 0) => u32::from(self.servo_tune.ratio_percent),
-            (None, 0x2165, 0) => u32::from(self.servo_tune.friction_mnm),
-            (None, 0x2022, 1) => u32::from(self.calibration.gain_b_e4),
-            (None, 0x2022, 2) => self.calibration.offset_ma[0] as u32,
-            (None, 0x2022, 3) => self.calibration.offset_ma[1] as u32,
-            (None, 0x2022, 4) => u32::from(self.calibration.dead_time_mv),
-            (None, 0x2022, 5) => u32::from(self.calibration.l_low_uh),
-            _ => match slot_of(index, sub).and_then(|slot| self.values.get(slot)) {
-                Some(&v) => v as u32,
+/// The values of 0x2000-0x21FF: the stored parameters by their slot and the run-time
+/// values (the counts of the arrays and records are their descriptions'). A write
+/// has passed the entry's access, length and range checks; the rules of the module
+/// docs follow.
+impl Values for Params {
+    fn get(&self, _: &(), key: ObjectKey, _: &Entry) -> Result<i64, SdoAbort> {
+        let value: i64 = match (key.index, key.sub) {
+            (0x2039, 0) => (self.command_pulses >> 16).into(),
+            (0x2040, 0) => (self.command_pulses & 0xFFFF).into(),
+            (0x2041, 0) => (self.encoder_counts >> 16).into(),
+            (0x2042, 0) => (self.encoder_counts & 0xFFFF).into(),
+            (0x2093, 0) => self.fault_history_clear.into(),
+            (0x2155, 0) => self.raw_inputs.into(),
+            (0x2157, 0) => self.output_state.into(),
+            (0x2158, 1) => self.dip.id_bits.into(),
+            (0x2158, 2) => self.dip.function_bits.into(),
+            (0x2158, 3) => self.dip.address.into(),
+            (0x2158, 4) => self.settings().peak_current_ma.into(),
+            (0x2158, 5) => self.settings().holding_percent.into(),
+            (0x2158, 6) => self.settings().direction_reversed.into(),
+            (0x2158, 7) => self.settings().smoothing_us.into(),
+            (0x2063, 0) => self.load_angle_ddeg.into(),
+            (0x2162, 1) => (self.servo_tune.state == 1).into(),
+            (0x2162, 2) => self.servo_tune.state.into(),
+            (0x2164, 0) => self.servo_tune.ratio_percent.into(),
+            (0x2165, 0) => self.servo_tune.friction_mnm.into(),
+            (0x2022, 1) => self.calibration.gain_b_e4.into(),
+            (0x2022, 2) => self.calibration.offset_ma[0].into(),
+            (0x2022, 3) => self.calibration.offset_ma[1].into(),
+            (0x2022, 4) => self.calibration.dead_time_mv.into(),
+            (0x2022, 5) => self.calibration.l_low_uh.into(),
+            (index, sub) => match slot_of(index, sub).and_then(|slot| self.values.get(slot)) {
+                Some(&v) => v.into(),
                 None => return Err(SdoAbort::SubindexDoesNotExist),
             },
         };
-        crate::dictionary::put_le(entry, u64::from(value), buf)
+        Ok(value)
     }
 
-    /// SDO write of a vendor parameter (after the generic checks; repeated here).
-    pub fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
-        let entry = crate::dictionary::find_entry_in(crate::dictionary::PARAMS, index, sub)?;
-        // The stack's checks (access, length, range; every entry here is RW or RO and
-        // an integer, so the state argument changes nothing).
-        od::check_write(entry, data, ecat_slave_stack::esm::EsmState::PreOp)?;
-        let v = od::decode_int(entry.data_type, data).ok_or(SdoAbort::TypeMismatch)?;
-        match (index, sub) {
+    fn set(&mut self, _: &mut (), key: ObjectKey, _: &Entry, v: i64) -> Result<(), SdoAbort> {
+        match (key.index, key.sub) {
             (0x2162, 1) => {
                 self.servo_tune_request = Some(v == 1);
                 return Ok(());
@@ -714,20 +726,11 @@ impl Params {
             }
             _ => {}
         }
-        let slot = slot_of(index, sub)
+        let slot = slot_of(key.index, key.sub)
             .and_then(|slot| self.values.get_mut(slot))
             .ok_or(SdoAbort::SubindexDoesNotExist)?;
         *slot = v as i32;
         Ok(())
-    }
-}
-
-fn default_of(index: u16, sub: u8) -> i32 {
-    match crate::dictionary::find_entry_in(crate::dictionary::PARAMS, index, sub)
-        .map(Entry::default_value)
-    {
-        Ok(DefaultValue::Int(v)) => v as i32,
-        _ => 0,
     }
 }
 

@@ -74,7 +74,10 @@
 //! The last block is shorter; blocks past the end, and every block while no record is
 //! done, answer 0x08000024 (no data available).
 
-use ecat_slave_stack::od::{self, Access, DataType, EntryDesc, ObjectDesc, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    self, Access, DataType, Entry, EntryDesc, Object, ObjectDesc, ObjectKey, PdoMappable, SdoAbort,
+    Values,
+};
 
 /// Channels of one record at most.
 pub const CHANNELS: usize = 8;
@@ -255,30 +258,24 @@ impl Source {
         signed: false,
     };
 
-    /// The source of channel value `v` (`index << 16 | sub << 8 | bits`): the PDO
-    /// mapping rules (0x06040041 not mappable or wider than 32 bits, 0x06040043 a
+    /// The source of channel value `v` (`index << 16 | sub << 8 | bits`) in the
+    /// dictionary `objects`: the PDO mapping rules (0x06040041 not mappable or wider than 32 bits, 0x06040043 a
     /// length other than the entry's).
-    pub fn resolve(v: u32) -> Result<Source, SdoAbort> {
+    pub fn resolve(objects: &'static [Object], v: u32) -> Result<Source, SdoAbort> {
         let index = (v >> 16) as u16;
         let sub = (v >> 8) as u8;
         let bits = v as u8;
-        let e = od::find_entry(crate::dictionary::OBJECTS, index, sub)
-            .map_err(|_| SdoAbort::NotMappable)?;
+        let e = od::find_entry(objects, index, sub).map_err(|_| SdoAbort::NotMappable)?;
         if e.pdo_mappable() == PdoMappable::No || e.bits() == 0 || e.bits() > 32 {
             return Err(SdoAbort::NotMappable);
         }
         if e.bits() != u16::from(bits) {
             return Err(SdoAbort::ParameterIncompatibility);
         }
-        let slot = if crate::dictionary::owner_of(index) == Some(crate::dictionary::Owner::Cia402) {
-            crate::cia402::objects::tx_slot(index, sub)
-        } else {
-            None
-        };
         Ok(Source {
             index,
             sub,
-            slot,
+            slot: crate::cia402::objects::tx_slot(index, sub),
             bits,
             signed: e.data_type.is_signed(),
         })
@@ -314,6 +311,8 @@ pub fn condition_met(cond: u8, prev: Option<i32>, v: i32, level: i32) -> bool {
 
 /// The scope: configuration, state and the buffer.
 pub struct Scope {
+    /// The dictionary the channels are resolved in.
+    objects: &'static [Object],
     divisor: u16,
     trigger_channel: u8,
     level: i32,
@@ -346,12 +345,6 @@ pub struct Scope {
     force: bool,
     records: u16,
     buf: [i32; BUFFER_WORDS],
-}
-
-impl Default for Scope {
-    fn default() -> Self {
-        Self::new()
-    }
 }
 
 /// The default of entry `sub` of `index` in [`OBJECTS`] (compile time).
@@ -397,9 +390,11 @@ const DEF_COUNT: u8 = default_of(CHANNEL_LIST, 0) as u8;
 const DEF_CHANNELS: [u32; CHANNELS] = default_channels();
 
 impl Scope {
-    /// Idle, at the defaults of the table.
-    pub const fn new() -> Self {
+    /// Idle, at the defaults of the table; channels are entries of `objects` (the
+    /// drive's dictionary).
+    pub const fn new(objects: &'static [Object]) -> Self {
         Scope {
+            objects,
             divisor: DEF_DIVISOR,
             trigger_channel: DEF_TRIGGER_CHANNEL,
             level: DEF_LEVEL,
@@ -515,7 +510,7 @@ impl Scope {
         }
         let mut sources = [Source::NONE; CHANNELS];
         for (s, &v) in sources.iter_mut().zip(&self.channels[..usize::from(n)]) {
-            *s = Source::resolve(v)?;
+            *s = Source::resolve(self.objects, v)?;
         }
         self.sources = sources;
         self.n = n;
@@ -586,24 +581,18 @@ impl Scope {
             self.restart();
         }
     }
+}
 
-    /// SDO read of a scope entry (0x2500-0x2503; the values of 0x2510 are the
-    /// drive's, see `Drive`).
-    pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        let entry = crate::dictionary::find_entry_in(crate::dictionary::SCOPE, index, sub)?;
-        if index == DATA && sub > 0 {
-            return self.read_block(sub, buf);
-        }
-        let v: u32 = match (index, sub) {
-            (_, 0) if index != CHANNEL_LIST => match entry.default_value() {
-                od::DefaultValue::Int(n) => n as u32,
-                _ => 0,
-            },
+/// The values of 0x2500-0x2503 (those of 0x2510 are the drive's, see `Drive`):
+/// configuration writes follow the scope's rules (module docs).
+impl Values for Scope {
+    fn get(&self, _: &(), key: ObjectKey, _: &Entry) -> Result<i64, SdoAbort> {
+        let v: u32 = match (key.index, key.sub) {
             (CHANNEL_LIST, 0) => u32::from(self.count),
             (CHANNEL_LIST, s) => self.channels[usize::from(s - 1) % CHANNELS],
             (CONFIG, 1) => u32::from(self.divisor),
             (CONFIG, 2) => u32::from(self.trigger_channel),
-            (CONFIG, 3) => self.level as u32,
+            (CONFIG, 3) => return Ok(i64::from(self.level)),
             (CONFIG, 4) => u32::from(self.condition),
             (CONFIG, 5) => u32::from(self.pretrigger),
             (CONFIG, 6) => u32::from(self.normal),
@@ -619,22 +608,17 @@ impl Scope {
             (STATUS, _) => u32::from(self.records),
             _ => return Err(SdoAbort::ObjectDoesNotExist),
         };
-        crate::dictionary::put_le(entry, u64::from(v), buf)
+        Ok(i64::from(v))
     }
 
-    /// SDO write of a scope entry: the entry's access, length and range, then the
-    /// scope's rules (module docs).
-    pub fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
-        let e = crate::dictionary::find_entry_in(crate::dictionary::SCOPE, index, sub)?;
-        od::check_write(e, data, ecat_slave_stack::esm::EsmState::PreOp)?;
-        let v = od::decode_int(e.data_type, data).ok_or(SdoAbort::TypeMismatch)?;
-        if (index, sub) == (CONFIG, 7) {
+    fn set(&mut self, _: &mut (), key: ObjectKey, _: &Entry, v: i64) -> Result<(), SdoAbort> {
+        if (key.index, key.sub) == (CONFIG, 7) {
             return self.command(v as u8);
         }
         if self.running() {
             return Err(SdoAbort::StateConflict);
         }
-        match (index, sub) {
+        match (key.index, key.sub) {
             (CONFIG, 1) => self.divisor = v as u16,
             (CONFIG, 2) => self.trigger_channel = v as u8,
             (CONFIG, 3) => self.level = v as i32,
@@ -644,7 +628,7 @@ impl Scope {
             (CONFIG, 8) => self.servo_rate = v == 1,
             (CHANNEL_LIST, 0) => self.count = v as u8,
             (CHANNEL_LIST, s) => {
-                Source::resolve(v as u32)?;
+                Source::resolve(self.objects, v as u32)?;
                 self.channels[usize::from(s - 1) % CHANNELS] = v as u32;
             }
             _ => return Err(SdoAbort::WriteReadOnly),
@@ -652,6 +636,19 @@ impl Scope {
         Ok(())
     }
 
+    /// The record's blocks (0x2503:01-06).
+    fn read_bytes(
+        &self,
+        _: &(),
+        key: ObjectKey,
+        _: &Entry,
+        buf: &mut [u8],
+    ) -> Option<Result<usize, SdoAbort>> {
+        (key.index == DATA && key.sub > 0).then(|| self.read_block(key.sub, buf))
+    }
+}
+
+impl Scope {
     /// 0x2500:07.
     fn command(&mut self, c: u8) -> Result<(), SdoAbort> {
         match c {

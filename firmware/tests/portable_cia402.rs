@@ -7,6 +7,7 @@ use firmware::cia402::{
     mode, sw, AbortConnection, Cia402, DriveCommand, DriveFeedback, EdgeLatch, SetpointArrival,
     ERR_FOLLOWING,
 };
+use firmware::dictionary::Sdo;
 
 const DT: f32 = 0.001;
 

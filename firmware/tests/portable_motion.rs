@@ -5,6 +5,7 @@
 //! direction reversal, open loop, bumpless open ↔ closed switching and garbage
 //! inputs. Runs on the host and under QEMU.
 use firmware::cia402::{DriveCommand, SetpointKind};
+use firmware::dictionary::Sdo;
 use firmware::drive::AxisState;
 use firmware::identity::Variant;
 use firmware::motion::{

@@ -7,9 +7,10 @@
 
 use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::od::{
-    self, Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, SdoAbort,
+    self, Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, ObjectKey, SdoAbort,
 };
 use firmware::comm::{self, Comm, StoreCommand, LOAD, SAVE};
+use firmware::dictionary::Sdo;
 use firmware::dip::{self, AliasSource, Board};
 use firmware::faults::Faults;
 use firmware::identity::{Identity, Variant};
@@ -124,7 +125,12 @@ impl Drive {
         let data = &v.to_le_bytes()[..e.byte_len()];
         od::check_write(e, data, EsmState::PreOp)?;
         match index {
-            0x1000..=0x10FF => self.comm.write(&mut self.faults, index, sub, data),
+            0x1000..=0x10FF => firmware::dictionary::write_comm(
+                &mut self.comm,
+                &mut self.faults,
+                ObjectKey::new(index, sub),
+                data,
+            ),
             _ => self.write(index, sub, data, EsmState::PreOp).map(|_| None),
         }
     }
@@ -149,9 +155,13 @@ impl Drive {
         self.write(0x1600, 3, &0x6060_0008u32.to_le_bytes(), EsmState::PreOp)
             .unwrap();
         self.write(0x1600, 0, &[3], EsmState::PreOp).unwrap();
-        self.comm
-            .write(&mut self.faults, 0x10F1, 2, &9u16.to_le_bytes())
-            .unwrap();
+        firmware::dictionary::write_comm(
+            &mut self.comm,
+            &mut self.faults,
+            ObjectKey::new(0x10F1, 2),
+            &9u16.to_le_bytes(),
+        )
+        .unwrap();
         self.monitor.power_up();
     }
 }
@@ -162,7 +172,12 @@ impl Dictionary for Drive {
     }
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
         match index {
-            0x1000..=0x10FF => self.comm.read(&self.faults, index, sub, buf),
+            0x1000..=0x10FF => firmware::dictionary::read(
+                &self.comm,
+                &self.faults,
+                ObjectKey::new(index, sub),
+                buf,
+            ),
             0x1600 | 0x1C12 => {
                 let v: u32 = match (index, sub) {
                     (0x1600, 0) => u32::from(self.map_count),
@@ -191,10 +206,13 @@ impl Dictionary for Drive {
         b[..n].copy_from_slice(&data[..n]);
         let v = u32::from_le_bytes(b);
         match index {
-            0x1000..=0x10FF => self
-                .comm
-                .write(&mut self.faults, index, sub, data)
-                .map(|_| ()),
+            0x1000..=0x10FF => firmware::dictionary::write_comm(
+                &mut self.comm,
+                &mut self.faults,
+                ObjectKey::new(index, sub),
+                data,
+            )
+            .map(|_| ()),
             0x1600 | 0x1C12 => {
                 if state != EsmState::PreOp {
                     return Err(SdoAbort::StateConflict);

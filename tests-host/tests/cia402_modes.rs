@@ -7,6 +7,7 @@ use ecat_slave_stack::od::{self, DataType, SdoAbort};
 use firmware::cia402::objects::{RX_SLOTS, TX_SLOTS};
 use firmware::cia402::pds::PdsState;
 use firmware::cia402::{mode, sw, Cia402, DriveCommand, DriveFeedback, EdgeLatch, SetpointKind};
+use firmware::dictionary::Sdo;
 
 /// The CiA 402 table as the product packs it.
 static OBJECTS: &[ecat_slave_stack::od::Object] =

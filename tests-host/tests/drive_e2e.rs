@@ -18,6 +18,7 @@
 
 use ethercrab::{MainDevice, PduStorage};
 use firmware::cia402::DriveCommand;
+use firmware::dictionary::Sdo;
 use std::cell::RefCell;
 use std::rc::Rc;
 use tests_host::esc_sim::frame::{datagrams, FrameOutcome, Wire};

@@ -10,34 +10,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 /// Imports that point to a higher layer, kept on purpose: (from, to, why).
-const ALLOWED_BACK_EDGES: &[(&str, &str, &str)] = &[
-    (
-        "params",
-        "dictionary",
-        "the owner's SDO read/write finds its entry in the packed dictionary \
-         (`dictionary::find_entry_in`, `put_le`), which is merged from the owners' tables",
-    ),
-    (
-        "comm",
-        "dictionary",
-        "as params: entry look-up in the packed dictionary",
-    ),
-    (
-        "monitor",
-        "dictionary",
-        "as params: entry look-up in the packed dictionary",
-    ),
-    (
-        "scope",
-        "dictionary",
-        "as params: entry look-up, and the traced object's slot",
-    ),
-    (
-        "cia402",
-        "dictionary",
-        "as params: entry look-up in the packed dictionary",
-    ),
-];
+const ALLOWED_BACK_EDGES: &[(&str, &str, &str)] = &[];
 
 fn firmware_src() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware/src")

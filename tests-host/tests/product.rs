@@ -5,9 +5,10 @@
 
 use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::mailbox::MailboxServer;
-use ecat_slave_stack::od::{self, Dictionary, Object, ObjectDesc, SdoAbort};
+use ecat_slave_stack::od::{self, Dictionary, Object, ObjectDesc, ObjectKey, SdoAbort};
 use ecat_slave_stack::pdo::{self, PdoConfig, PdoDefaults};
 use firmware::comm::{self, Comm, LOAD, SAVE};
+use firmware::dictionary::Sdo;
 use firmware::fault_led::FaultLed;
 use firmware::faults::{FaultKind, Faults, Snapshot};
 use firmware::identity::{Identity, Variant};
@@ -224,7 +225,12 @@ impl Dictionary for Drive {
     }
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
         match index {
-            0x1000..=0x10FF => self.comm.read(&self.faults, index, sub, buf),
+            0x1000..=0x10FF => firmware::dictionary::read(
+                &self.comm,
+                &self.faults,
+                ObjectKey::new(index, sub),
+                buf,
+            ),
             0x1600..=0x1C13 => self.pdo.read(index, sub, buf),
             0x2000..=0x21FF => self.params.read(index, sub, buf),
             0x2300..=0x23FF => self.monitor.read(index, sub, buf),
@@ -237,7 +243,12 @@ impl Dictionary for Drive {
     fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
         match index {
             0x1000..=0x10FF => {
-                if let Some(cmd) = self.comm.write(&mut self.faults, index, sub, data)? {
+                if let Some(cmd) = firmware::dictionary::write_comm(
+                    &mut self.comm,
+                    &mut self.faults,
+                    ObjectKey::new(index, sub),
+                    data,
+                )? {
                     let mut flash = std::mem::take(&mut self.flash);
                     let r = comm::execute(cmd, &STORE, &mut flash, self);
                     self.flash = flash;

@@ -4,6 +4,7 @@
 
 extern crate std;
 use super::*;
+use crate::dictionary::Sdo;
 use ecat_slave_stack::od::SdoAbort;
 
 const DT: f32 = 0.001;

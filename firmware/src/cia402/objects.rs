@@ -1,6 +1,6 @@
 //! The CiA 402 objects (0x6000-0x6FFF) of the dictionary, described once in the table
 //! at the end of this file. From it come the static descriptions ([`OBJECTS`]), the
-//! SDO read and write of [`Cia402`], and the cyclic accessors by compact slot ids
+//! `Values` binding of [`Cia402`] (SDO read and write), and the cyclic accessors by compact slot ids
 //! ([`RX_SLOTS`], [`TX_SLOTS`]).
 //!
 //! Units: positions in command units ("inc", 0x2001 per motor revolution), velocities
@@ -28,7 +28,9 @@
 //!   abort code).
 
 use super::{homing, mode_supported, probe, Cia402, Controlword, SUPPORTED_MODES};
-use ecat_slave_stack::od::{self, Access, DataType, EntryDesc, ObjectDesc, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    Access, DataType, Entry, EntryDesc, ObjectDesc, ObjectKey, PdoMappable, SdoAbort, Values,
+};
 
 const RO: Access = Access::RO;
 const RW: Access = Access::RW;
@@ -339,27 +341,16 @@ fn u32_from_le_prefix(data: &[u8]) -> u32 {
     u32::from_le_bytes(b)
 }
 
-impl Cia402 {
-    /// SDO read of a 0x6xxx entry: little-endian value into `buf`, returns its length.
-    pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        let e = crate::dictionary::find_entry_in(crate::dictionary::CIA402, index, sub)?;
-        if !e.access.readable() {
-            return Err(SdoAbort::ReadWriteOnly);
-        }
-        let v = self
-            .value(index, sub)
-            .ok_or(SdoAbort::SubindexDoesNotExist)?;
-        crate::dictionary::put_le(e, v as u64, buf)
+/// The values of 0x6000-0x6FFF, bound by the table below: the dictionary's read and
+/// write hand over the entry after the generic checks; the object's own rules follow.
+impl Values for Cia402 {
+    fn get(&self, _: &(), key: ObjectKey, _: &Entry) -> Result<i64, SdoAbort> {
+        self.value(key.index, key.sub)
+            .ok_or(SdoAbort::SubindexDoesNotExist)
     }
 
-    /// SDO write of a 0x6xxx entry: checks access, length and range (the same checks
-    /// as the stack's `check_write`, so a direct call is safe too) and the object's own
-    /// rules, then stores the value.
-    pub fn write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
-        let e = crate::dictionary::find_entry_in(crate::dictionary::CIA402, index, sub)?;
-        od::check_write(e, data, ecat_slave_stack::esm::EsmState::PreOp)?;
-        let v = od::decode_int(e.data_type, data).ok_or(SdoAbort::TypeMismatch)?;
-        self.write_value(index, sub, v)
+    fn set(&mut self, _: &mut (), key: ObjectKey, _: &Entry, v: i64) -> Result<(), SdoAbort> {
+        self.write_value(key.index, key.sub, v)
     }
 }
 

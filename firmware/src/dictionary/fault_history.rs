@@ -1,9 +1,11 @@
-//! The fault history objects 0x2400-0x2406 (owner range `dictionary::FAULTS`): their
-//! descriptions and their SDO read from the drive's [`Faults`]. They live with the
+//! The fault history objects 0x2400-0x2406 (owner `Owner::Faults`): their
+//! descriptions and their values from the drive's [`Faults`]. They live with the
 //! dictionary (which reads the fault state) rather than in [`crate::faults`], so the
 //! fault logic does not depend on the dictionary.
 
-use ecat_slave_stack::od::{Access, DataType, EntryDesc, ObjectDesc, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    Access, DataType, Entry, EntryDesc, ObjectDesc, ObjectKey, PdoMappable, SdoAbort, Values,
+};
 
 use crate::faults::Faults;
 
@@ -61,31 +63,40 @@ pub const OBJECTS: &[ObjectDesc] = &[
     snap_obj(0x2406, "Fault 6 snapshot"),
 ];
 
-/// SDO read of 0x2400-0x2406 from `faults`.
-pub fn read(faults: &Faults, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-    let entry = super::find_entry_in(super::FAULTS, index, sub)?;
-    let v: u32 = match (index, sub) {
-        (0x2400, 0) => 8,
-        (0x2400, 1) => u32::from(faults.count()),
-        (0x2400, 2..=7) => faults
-            .history(usize::from(sub) - 2)
-            .map_or(0, |r| u32::from(r.code)),
-        (0x2400, 8) => u32::from(faults.active_mask()),
-        (0x2401..=0x2406, 0) => 8,
-        (0x2401..=0x2406, _) => match faults.history(usize::from(index - 0x2401)) {
-            None => 0,
-            Some(r) => match sub {
-                1 => u32::from(r.code),
-                2 => r.snapshot.ia_ma as u16 as u32,
-                3 => r.snapshot.ib_ma as u16 as u32,
-                4 => u32::from(r.snapshot.bus_dv),
-                5 => r.snapshot.position_error as u32,
-                6 => r.snapshot.speed as u32,
-                7 => r.time_ms,
-                _ => r.operating_s,
+/// The values of 0x2400-0x2406: the drive's [`Faults`] as its history reports them
+/// (read-only).
+pub struct FaultHistory<'a>(pub &'a Faults);
+
+impl Values for FaultHistory<'_> {
+    fn get(&self, _: &(), key: ObjectKey, _: &Entry) -> Result<i64, SdoAbort> {
+        let faults = self.0;
+        let (index, sub) = (key.index, key.sub);
+        let v: u32 = match (index, sub) {
+            (0x2400, 1) => u32::from(faults.count()),
+            (0x2400, 2..=7) => faults
+                .history(usize::from(sub) - 2)
+                .map_or(0, |r| u32::from(r.code)),
+            (0x2400, 8) => u32::from(faults.active_mask()),
+            (0x2401..=0x2406, _) => match faults.history(usize::from(index - 0x2401)) {
+                None => 0,
+                Some(r) => match sub {
+                    1 => u32::from(r.code),
+                    2 => r.snapshot.ia_ma as u16 as u32,
+                    3 => r.snapshot.ib_ma as u16 as u32,
+                    4 => u32::from(r.snapshot.bus_dv),
+                    5 => r.snapshot.position_error as u32,
+                    6 => r.snapshot.speed as u32,
+                    7 => r.time_ms,
+                    _ => r.operating_s,
+                },
             },
-        },
-        _ => return Err(SdoAbort::ObjectDoesNotExist),
-    };
-    super::put_le(entry, u64::from(v), buf)
+            _ => return Err(SdoAbort::ObjectDoesNotExist),
+        };
+        Ok(i64::from(v))
+    }
+}
+
+/// SDO read of 0x2400-0x2406 from `faults` (the dispatcher's read of [`FaultHistory`]).
+pub fn read(faults: &Faults, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+    super::read(&FaultHistory(faults), &(), ObjectKey::new(index, sub), buf)
 }

@@ -3,7 +3,9 @@
 //! hooks and the application cycle ([`SlaveApplication`]).
 
 use super::*;
+use crate::dictionary::fault_history::FaultHistory;
 use crate::dictionary::Owner;
+use ecat_slave_stack::od::ObjectKey;
 
 /// The whole dictionary as 'save' sees it: the drive's objects plus those the slave
 /// runtime serves (mapping, assignment, sync).
@@ -44,7 +46,7 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
     fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
         if index == 0x10F3 {
             // Reading the newest diagnosis message clears "new messages available".
-            crate::dictionary::find_entry_in(crate::dictionary::COMM, index, sub)?;
+            od::find_entry(dictionary::OBJECTS, index, sub)?;
             return self.faults.diagnosis_mut().read(sub, buf);
         }
         if let (0x100A, Some(v)) = (
@@ -52,7 +54,7 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
             self.update.as_deref().and_then(|u| u.running_version()),
         ) {
             // The version of the running image's update header.
-            crate::dictionary::find_entry_in(crate::dictionary::COMM, index, sub)?;
+            od::find_entry(dictionary::OBJECTS, index, sub)?;
             let n = crate::update::format_version(v, buf);
             return if n == 0 {
                 Err(SdoAbort::ExceedsMailbox)
@@ -75,12 +77,10 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
         data: &[u8],
         _state: EsmState,
     ) -> Result<(), SdoAbort> {
+        let key = ObjectKey::new(index, sub);
         match dictionary::owner_of(index) {
-            Some(Owner::Comm) => match self.comm.write(&mut self.faults, index, sub, data)? {
-                // Without the runtime's objects a save would miss the PDO mapping.
-                Some(cmd) => self.run_store(cmd, &mut NoRuntime),
-                None => Ok(()),
-            },
+            // Without the runtime's objects a save would miss the PDO mapping.
+            Some(Owner::Comm) => self.write_comm(key, data, &mut NoRuntime),
             Some(Owner::Params) => {
                 if (index, sub) == (0x2013, 0) && data.first() == Some(&1) {
                     // The current auto-tune energises the motor without an enable: only
@@ -89,13 +89,13 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
                     if !self.tune_state_allows() {
                         return Err(SdoAbort::StateConflict);
                     }
-                    self.params.write(index, sub, data)?;
+                    dictionary::write(&mut self.params, &mut (), key, data)?;
                     // A new request: a failed tune may run again.
                     self.tune_failed = false;
                     self.faults.configure_from(&self.params);
                     return Ok(());
                 }
-                self.params.write(index, sub, data)?;
+                dictionary::write(&mut self.params, &mut (), key, data)?;
                 if index == 0x2001 {
                     // 0x6091-0x6093 show the new value.
                     let units = self.params.get(crate::params::Param::PulsesPerRev) as u32;
@@ -110,20 +110,22 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
                 self.control_config_changed();
                 Ok(())
             }
-            Some(Owner::Monitor) => self.monitor.write(index, sub, data),
-            Some(Owner::Scope) => self.scope.write(index, sub, data),
+            Some(Owner::Monitor) => dictionary::write(&mut self.monitor, &mut (), key, data),
+            Some(Owner::Scope) => dictionary::write(&mut self.scope, &mut (), key, data),
             Some(Owner::Cia402) if (0x6091..=0x6093).contains(&index) => {
                 // The scaling views: a whole result goes to 0x2001 (its range
                 // decides), then the other views follow (`cia402::scaling`).
-                self.cia402.write(index, sub, data)?;
+                dictionary::write(&mut self.cia402, &mut (), key, data)?;
                 if let Some(units) = self.cia402.scaling_candidate() {
-                    if self.params.write(0x2001, 0, &units.to_le_bytes()).is_ok() {
+                    let k = ObjectKey::new(0x2001, 0);
+                    if dictionary::write(&mut self.params, &mut (), k, &units.to_le_bytes()).is_ok()
+                    {
                         self.cia402.settle_scaling();
                     }
                 }
                 Ok(())
             }
-            Some(Owner::Cia402) => self.cia402.write(index, sub, data),
+            Some(Owner::Cia402) => dictionary::write(&mut self.cia402, &mut (), key, data),
             Some(Owner::Faults | Owner::SlaveRuntime) | None => Err(SdoAbort::WriteReadOnly),
         }
     }
@@ -137,10 +139,7 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
         runtime: &mut dyn Dictionary,
     ) -> Result<(), SdoAbort> {
         if dictionary::owner_of(index) == Some(Owner::Comm) {
-            if let Some(cmd) = self.comm.write(&mut self.faults, index, sub, data)? {
-                return self.run_store(cmd, runtime);
-            }
-            return Ok(());
+            return self.write_comm(ObjectKey::new(index, sub), data, runtime);
         }
         self.write(index, sub, data, state)
     }
@@ -212,7 +211,10 @@ impl<S: ParameterStore> ProcessData for Drive<S> {
         if dictionary::owner_of(index) == Some(Owner::Cia402) {
             return ProcessData::rx_slot(&self.cia402, index, sub);
         }
-        let e = dictionary::find_entry_in(dictionary::PARAMS, index, sub).ok()?;
+        if dictionary::owner_of(index) != Some(Owner::Params) {
+            return None;
+        }
+        let e = od::find_entry(dictionary::OBJECTS, index, sub).ok()?;
         if !e.pdo_mappable().rx() {
             return None;
         }
@@ -264,7 +266,8 @@ impl<S: ParameterStore> Drive<S> {
         let Some(&(index, sub)) = crate::params::KEYS.get(usize::from(n)) else {
             return;
         };
-        if let Ok(e) = dictionary::find_entry_in(dictionary::PARAMS, index, sub) {
+        // (`KEYS` holds vendor parameters only.)
+        if let Ok(e) = od::find_entry(dictionary::OBJECTS, index, sub) {
             if e.pdo_mappable().rx() {
                 let bytes = raw.to_le_bytes();
                 let len = e.byte_len().min(8);
@@ -273,22 +276,38 @@ impl<S: ParameterStore> Drive<S> {
         }
     }
 
-    /// SDO read of a product entry, dispatched on the index range (the dictionary
-    /// read and the TxPDO entries outside 0x6xxx share it).
+    /// SDO read of a product entry, dispatched on the owner of the index (the
+    /// dictionary read and the TxPDO entries outside 0x6xxx share it): the owner's
+    /// `Values` through [`dictionary::read`].
     pub(super) fn read_entry(
         &self,
         index: u16,
         sub: u8,
         buf: &mut [u8],
     ) -> Result<usize, SdoAbort> {
+        let key = ObjectKey::new(index, sub);
         match dictionary::owner_of(index) {
-            Some(Owner::Comm) => self.comm.read(&self.faults, index, sub, buf),
-            Some(Owner::Params) => self.params.read(index, sub, buf),
-            Some(Owner::Monitor) => self.monitor.read(index, sub, buf),
-            Some(Owner::Faults) => dictionary::fault_history::read(&self.faults, index, sub, buf),
-            Some(Owner::Scope) => self.read_scope(index, sub, buf),
-            Some(Owner::Cia402) => self.cia402.read(index, sub, buf),
+            Some(Owner::Comm) => dictionary::read(&self.comm, &self.faults, key, buf),
+            Some(Owner::Params) => dictionary::read(&self.params, &(), key, buf),
+            Some(Owner::Monitor) => dictionary::read(&self.monitor, &(), key, buf),
+            Some(Owner::Faults) => dictionary::read(&FaultHistory(&self.faults), &(), key, buf),
+            Some(Owner::Scope) => self.read_scope(key, buf),
+            Some(Owner::Cia402) => dictionary::read(&self.cia402, &(), key, buf),
             Some(Owner::SlaveRuntime) | None => Err(SdoAbort::ObjectDoesNotExist),
+        }
+    }
+
+    /// SDO write of a communication object; a store / restore command it decoded runs
+    /// against the whole dictionary (`runtime`: the slave runtime's objects).
+    fn write_comm(
+        &mut self,
+        key: ObjectKey,
+        data: &[u8],
+        runtime: &mut dyn Dictionary,
+    ) -> Result<(), SdoAbort> {
+        match dictionary::write_comm(&mut self.comm, &mut self.faults, key, data)? {
+            Some(cmd) => self.run_store(cmd, runtime),
+            None => Ok(()),
         }
     }
 

@@ -46,6 +46,46 @@ fn other_tx_entry_is_the_chains_nth() {
 }
 
 #[test]
+fn every_product_entry_is_bound_to_its_owners_values() {
+    // Each owner binds its entries through `od::Values`: every readable entry answers
+    // with its length (a string with at most its length), and a writable numeric entry
+    // given back its own value reaches a binding (no "does not exist", no
+    // "read-only"); only the scope's blocks wait for a record.
+    let mut d = Drive::new(Variant::HybridServo, 42);
+    let unbound = [
+        SdoAbort::ObjectDoesNotExist,
+        SdoAbort::SubindexDoesNotExist,
+        SdoAbort::WriteReadOnly,
+    ];
+    let mut n = 0;
+    for o in dictionary::OBJECTS {
+        if dictionary::owner_of(o.index) == Some(dictionary::Owner::SlaveRuntime) {
+            continue;
+        }
+        for e in o.entries() {
+            let mut b = [0u8; crate::scope::BLOCK_BYTES];
+            let at = (o.index, e.sub);
+            match d.read(o.index, e.sub, &mut b) {
+                Ok(len) if e.data_type.is_variable_length() => assert!(len <= e.byte_len()),
+                Ok(len) => assert_eq!(len, e.byte_len(), "{at:x?}"),
+                Err(SdoAbort::NoDataAvailable) => assert_eq!(o.index, crate::scope::DATA),
+                Err(err) => panic!("{at:x?}: {err:?}"),
+            }
+            if e.access.writable() && !e.data_type.is_variable_length() {
+                let len = e.byte_len();
+                let r = d.write(o.index, e.sub, &b[..len], EsmState::PreOp);
+                assert!(
+                    !r.is_err_and(|err| unbound.contains(&err)),
+                    "{at:x?}: {r:?}"
+                );
+            }
+            n += 1;
+        }
+    }
+    assert!(n > 300, "{n} entries");
+}
+
+#[test]
 fn dictionary_reads_reach_every_module() {
     let mut d = Drive::new(Variant::HybridServo, 42);
     assert_eq!(sdo_read_u32(&mut d, 0x1000, 0), 0x0002_0192);

@@ -4,6 +4,7 @@
 
 use super::*;
 use crate::scope::{self, ServoPoint, Source};
+use ecat_slave_stack::od::{Entry, ObjectKey, Values};
 
 impl<S: ParameterStore> Drive<S> {
     /// One tick of the recording scope: every `divisor`-th tick, each channel's value
@@ -63,17 +64,21 @@ impl<S: ParameterStore> Drive<S> {
 
     /// SDO / PDO read of 0x2500-0x25FF: the internal signals 0x2510 from the axis and
     /// the last command, the rest from the scope.
-    pub(super) fn read_scope(
-        &self,
-        index: u16,
-        sub: u8,
-        buf: &mut [u8],
-    ) -> Result<usize, SdoAbort> {
-        if index != scope::SIGNALS || sub == 0 {
-            return self.scope.read(index, sub, buf);
+    pub(super) fn read_scope(&self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        if key.index != scope::SIGNALS || key.sub == 0 {
+            return dictionary::read(&self.scope, &(), key, buf);
         }
-        let entry = dictionary::find_entry_in(dictionary::SCOPE, index, sub)?;
-        let v = scope::internal_signal(&ServoPoint::of(&self.axis), &self.command, sub);
-        dictionary::put_le(entry, u64::from(v), buf)
+        let signals = InternalSignals(ServoPoint::of(&self.axis), &self.command);
+        dictionary::read(&signals, &(), key, buf)
+    }
+}
+
+/// The values of 0x2510:01-0A: the internal signals of a servo point and the last
+/// command (read-only).
+struct InternalSignals<'a>(ServoPoint, &'a DriveCommand);
+
+impl Values for InternalSignals<'_> {
+    fn get(&self, _: &(), key: ObjectKey, _: &Entry) -> Result<i64, SdoAbort> {
+        Ok(i64::from(scope::internal_signal(&self.0, self.1, key.sub)))
     }
 }

@@ -1,5 +1,6 @@
 use super::*;
 use crate::dictionary::fault_history::{read, OBJECTS};
+use crate::dictionary::Sdo;
 use ecat_slave_stack::od::{self, SdoAbort};
 
 /// The table as the product packs it.

@@ -4,7 +4,9 @@ static PACKED: &[ecat_slave_stack::od::Object] =
 
 extern crate std;
 use super::*;
+use crate::dictionary::Sdo;
 use ecat_slave_stack::esm::EsmState;
+use ecat_slave_stack::od;
 
 fn w(p: &mut Params, index: u16, sub: u8, v: i64) -> Result<(), SdoAbort> {
     let e = od::find_entry(PACKED, index, sub)?;

@@ -1,5 +1,6 @@
 extern crate std;
 use super::*;
+use crate::dictionary::Sdo;
 use std::vec;
 use std::vec::Vec;
 
@@ -68,10 +69,13 @@ fn one_channel_rising(s: &mut Scope) {
 #[test]
 fn table_is_well_formed_and_defaults_resolve() {
     assert!(od::is_well_formed(PACKED));
-    let s = Scope::new();
+    let s = Scope::new(crate::dictionary::OBJECTS);
     for sub in 1..=CHANNELS as u8 {
         let v = rd(&s, CHANNEL_LIST, sub) as u32;
-        assert!(Source::resolve(v).is_ok(), "default channel {v:#010x}");
+        assert!(
+            Source::resolve(crate::dictionary::OBJECTS, v).is_ok(),
+            "default channel {v:#010x}"
+        );
     }
     assert_eq!(rd(&s, CONFIG, 0), 8);
     assert_eq!(rd(&s, CONFIG, 1), 1);
@@ -83,7 +87,7 @@ fn table_is_well_formed_and_defaults_resolve() {
 
 #[test]
 fn edge_trigger_keeps_the_pre_trigger_samples() {
-    let mut s = Scope::new();
+    let mut s = Scope::new(crate::dictionary::OBJECTS);
     one_channel_rising(&mut s);
     w8(&mut s, CONFIG, 7, command::ARM).unwrap();
     assert_eq!(s.state(), State::Armed);
@@ -107,7 +111,7 @@ fn edge_trigger_keeps_the_pre_trigger_samples() {
 
 #[test]
 fn trigger_waits_for_the_pre_trigger_fill() {
-    let mut s = Scope::new();
+    let mut s = Scope::new(crate::dictionary::OBJECTS);
     one_channel_rising(&mut s);
     w32(&mut s, CONFIG, 3, 3).unwrap();
     w16(&mut s, CONFIG, 5, 20).unwrap();
@@ -141,7 +145,7 @@ fn falling_either_and_level_conditions() {
     assert!(condition_met(0, None, 0, 1000));
 
     // A falling edge on the second of two channels (a triangle around 0).
-    let mut s = Scope::new();
+    let mut s = Scope::new(crate::dictionary::OBJECTS);
     w8(&mut s, CHANNEL_LIST, 0, 2).unwrap();
     w8(&mut s, CONFIG, 2, 2).unwrap();
     w32(&mut s, CONFIG, 3, 0).unwrap();
@@ -166,7 +170,7 @@ fn falling_either_and_level_conditions() {
 
 #[test]
 fn divisor_samples_every_nth_tick() {
-    let mut s = Scope::new();
+    let mut s = Scope::new(crate::dictionary::OBJECTS);
     w8(&mut s, CHANNEL_LIST, 0, 8).unwrap();
     w16(&mut s, CONFIG, 1, 4).unwrap();
     w8(&mut s, CONFIG, 4, 0).unwrap();
@@ -198,7 +202,7 @@ fn divisor_samples_every_nth_tick() {
 
 #[test]
 fn force_trigger_before_the_pre_trigger_fill() {
-    let mut s = Scope::new();
+    let mut s = Scope::new(crate::dictionary::OBJECTS);
     one_channel_rising(&mut s);
     w16(&mut s, CONFIG, 5, 100).unwrap();
     w32(&mut s, CONFIG, 3, 1_000_000).unwrap();
@@ -221,7 +225,7 @@ fn force_trigger_before_the_pre_trigger_fill() {
 
 #[test]
 fn single_stays_done_normal_rearms_after_the_last_block() {
-    let mut s = Scope::new();
+    let mut s = Scope::new(crate::dictionary::OBJECTS);
     w8(&mut s, CHANNEL_LIST, 0, 8).unwrap();
     w8(&mut s, CONFIG, 4, 0).unwrap();
     w8(&mut s, CONFIG, 7, command::ARM).unwrap();
@@ -262,7 +266,7 @@ fn single_stays_done_normal_rearms_after_the_last_block() {
 
 #[test]
 fn short_record_ends_early_in_the_blocks() {
-    let mut s = Scope::new();
+    let mut s = Scope::new(crate::dictionary::OBJECTS);
     one_channel_rising(&mut s);
     w8(&mut s, CONFIG, 4, 0).unwrap();
     w16(&mut s, CONFIG, 5, 700).unwrap();
@@ -283,7 +287,7 @@ fn short_record_ends_early_in_the_blocks() {
 
 #[test]
 fn bad_configuration_gets_the_standard_aborts() {
-    let mut s = Scope::new();
+    let mut s = Scope::new(crate::dictionary::OBJECTS);
     // The table's ranges.
     assert_eq!(w16(&mut s, CONFIG, 1, 0), Err(SdoAbort::ValueTooLow));
     assert_eq!(w16(&mut s, CONFIG, 1, 1001), Err(SdoAbort::ValueTooHigh));
@@ -369,13 +373,13 @@ fn bad_configuration_gets_the_standard_aborts() {
 
 #[test]
 fn sources_decode_their_entries() {
-    let s = Source::resolve(0x6078_0010).unwrap();
+    let s = Source::resolve(crate::dictionary::OBJECTS, 0x6078_0010).unwrap();
     assert_eq!(s.decode(0xFFFF), -1);
     assert_eq!(s.decode(0x1_7FFF), 0x7FFF, "only the entry's bits");
-    let u = Source::resolve(0x2305_0010).unwrap();
+    let u = Source::resolve(crate::dictionary::OBJECTS, 0x2305_0010).unwrap();
     assert_eq!(u.decode(0xFFFF), 0xFFFF);
     assert_eq!(u.slot, None);
-    let p = Source::resolve(0x6064_0020).unwrap();
+    let p = Source::resolve(crate::dictionary::OBJECTS, 0x6064_0020).unwrap();
     assert_eq!(p.decode(0xFFFF_FFFE), -2);
     assert_eq!(
         p.slot,
@@ -383,7 +387,7 @@ fn sources_decode_their_entries() {
         "CiA 402 entries read through their slot"
     );
     assert!(p.slot.is_some());
-    let b = Source::resolve(0x2510_0410).unwrap();
+    let b = Source::resolve(crate::dictionary::OBJECTS, 0x2510_0410).unwrap();
     assert_eq!(b.decode(0x0000_0009), 9);
 }
 

@@ -1,5 +1,7 @@
 extern crate std;
 use super::*;
+use crate::dictionary::Sdo;
+use ecat_slave_stack::od;
 use ecat_slave_stack::od::{DefaultValue, Entry, Object};
 
 /// The table as the product packs it.

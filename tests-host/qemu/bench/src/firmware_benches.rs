@@ -2,6 +2,7 @@
 
 use core::hint::black_box;
 use firmware::cia402::{mode, Cia402, DriveFeedback};
+use firmware::dictionary::Sdo;
 
 pub fn run() {
     cia402();
