@@ -74,7 +74,9 @@
 //! The last block is shorter; blocks past the end, and every block while no record is
 //! done, answer 0x08000024 (no data available).
 
-use ecat_slave_stack::od::{self, Access, DataType, EntryDesc, ObjectDesc, PdoMappable, SdoAbort};
+use ecat_slave_stack::od::{
+    self, Access, DataType, EntryDesc, ObjectDesc, ObjectKey, PdoMappable, SdoAbort,
+};
 
 /// Channels of one record at most.
 pub const CHANNELS: usize = 8;
@@ -262,7 +264,7 @@ impl Source {
         let index = (v >> 16) as u16;
         let sub = (v >> 8) as u8;
         let bits = v as u8;
-        let e = od::find_entry(crate::dictionary::OBJECTS, index, sub)
+        let e = od::find_entry(crate::dictionary::OBJECTS, ObjectKey::new(index, sub))
             .map_err(|_| SdoAbort::NotMappable)?;
         if e.pdo_mappable() == PdoMappable::No || e.bits() == 0 || e.bits() > 32 {
             return Err(SdoAbort::NotMappable);

@@ -4,6 +4,7 @@
 
 use super::*;
 use crate::dictionary::Owner;
+use ecat_slave_stack::od::ObjectKey;
 
 /// The whole dictionary as 'save' sees it: the drive's objects plus those the slave
 /// runtime serves (mapping, assignment, sync).
@@ -20,18 +21,18 @@ impl<S: ParameterStore> Dictionary for WholeDictionary<'_, S> {
     fn objects(&self) -> &'static [Object] {
         dictionary::OBJECTS
     }
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        if is_runtime_index(index) {
-            self.runtime.read(index, sub, buf)
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        if is_runtime_index(key.index) {
+            self.runtime.read(key, buf)
         } else {
-            self.drive.read(index, sub, buf)
+            self.drive.read(key, buf)
         }
     }
-    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
-        if is_runtime_index(index) {
-            self.runtime.write(index, sub, data, state)
+    fn write(&mut self, key: ObjectKey, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        if is_runtime_index(key.index) {
+            self.runtime.write(key, data, state)
         } else {
-            self.drive.write(index, sub, data, state)
+            self.drive.write(key, data, state)
         }
     }
 }
@@ -41,7 +42,8 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
         dictionary::OBJECTS
     }
 
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        let ObjectKey { index, sub } = key;
         if index == 0x10F3 {
             // Reading the newest diagnosis message clears "new messages available".
             crate::dictionary::find_entry_in(crate::dictionary::COMM, index, sub)?;
@@ -68,13 +70,8 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
         r
     }
 
-    fn write(
-        &mut self,
-        index: u16,
-        sub: u8,
-        data: &[u8],
-        _state: EsmState,
-    ) -> Result<(), SdoAbort> {
+    fn write(&mut self, key: ObjectKey, data: &[u8], _state: EsmState) -> Result<(), SdoAbort> {
+        let ObjectKey { index, sub } = key;
         match dictionary::owner_of(index) {
             Some(Owner::Comm) => match self.comm.write(&mut self.faults, index, sub, data)? {
                 // Without the runtime's objects a save would miss the PDO mapping.
@@ -130,19 +127,19 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
 
     fn write_with_runtime(
         &mut self,
-        index: u16,
-        sub: u8,
+        key: ObjectKey,
         data: &[u8],
         state: EsmState,
         runtime: &mut dyn Dictionary,
     ) -> Result<(), SdoAbort> {
+        let ObjectKey { index, sub } = key;
         if dictionary::owner_of(index) == Some(Owner::Comm) {
             if let Some(cmd) = self.comm.write(&mut self.faults, index, sub, data)? {
                 return self.run_store(cmd, runtime);
             }
             return Ok(());
         }
-        self.write(index, sub, data, state)
+        self.write(key, data, state)
     }
 }
 
@@ -155,16 +152,10 @@ impl Dictionary for NoRuntime {
     fn objects(&self) -> &'static [Object] {
         dictionary::OBJECTS
     }
-    fn read(&mut self, _index: u16, _sub: u8, _buf: &mut [u8]) -> Result<usize, SdoAbort> {
+    fn read(&mut self, _key: ObjectKey, _buf: &mut [u8]) -> Result<usize, SdoAbort> {
         Err(SdoAbort::ObjectDoesNotExist)
     }
-    fn write(
-        &mut self,
-        _index: u16,
-        _sub: u8,
-        _data: &[u8],
-        _state: EsmState,
-    ) -> Result<(), SdoAbort> {
+    fn write(&mut self, _key: ObjectKey, _data: &[u8], _state: EsmState) -> Result<(), SdoAbort> {
         Err(SdoAbort::ObjectDoesNotExist)
     }
 }
@@ -208,9 +199,10 @@ pub(super) fn other_tx_entry(n: usize) -> Option<(u16, u8)> {
 }
 
 impl<S: ParameterStore> ProcessData for Drive<S> {
-    fn rx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+    fn rx_slot(&self, key: ObjectKey) -> Option<u16> {
+        let ObjectKey { index, sub } = key;
         if dictionary::owner_of(index) == Some(Owner::Cia402) {
-            return ProcessData::rx_slot(&self.cia402, index, sub);
+            return ProcessData::rx_slot(&self.cia402, key);
         }
         let e = dictionary::find_entry_in(dictionary::PARAMS, index, sub).ok()?;
         if !e.pdo_mappable().rx() {
@@ -219,9 +211,10 @@ impl<S: ParameterStore> ProcessData for Drive<S> {
         crate::params::slot_of(index, sub).map(|n| OTHER_RX_SLOT + n as u16)
     }
 
-    fn tx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+    fn tx_slot(&self, key: ObjectKey) -> Option<u16> {
+        let ObjectKey { index, sub } = key;
         if dictionary::owner_of(index) == Some(Owner::Cia402) {
-            return ProcessData::tx_slot(&self.cia402, index, sub);
+            return ProcessData::tx_slot(&self.cia402, key);
         }
         other_tx_entries()
             .position(|k| k == (index, sub))
@@ -268,7 +261,12 @@ impl<S: ParameterStore> Drive<S> {
             if e.pdo_mappable().rx() {
                 let bytes = raw.to_le_bytes();
                 let len = e.byte_len().min(8);
-                let _ = Dictionary::write(self, index, sub, &bytes[..len], EsmState::Op);
+                let _ = Dictionary::write(
+                    self,
+                    ObjectKey::new(index, sub),
+                    &bytes[..len],
+                    EsmState::Op,
+                );
             }
         }
     }
@@ -404,5 +402,5 @@ impl<S: ParameterStore> SlaveApplication for Drive<S> {
 /// True when `index` is stored by 'save' somewhere in the dictionary (for tests and
 /// the storage layout documentation).
 pub fn is_saved(index: u16, sub: u8) -> bool {
-    od::find_entry(dictionary::OBJECTS, index, sub).is_ok_and(|e| e.is_saved())
+    od::find_entry(dictionary::OBJECTS, ObjectKey::new(index, sub)).is_ok_and(|e| e.is_saved())
 }
