@@ -188,7 +188,7 @@ impl Dictionary for Drive {
                     (0x1C12, 1) => u32::from(self.assign),
                     _ => return Err(SdoAbort::SubindexDoesNotExist),
                 };
-                let len = od::find_entry(ALL, ObjectKey::new(index, sub))?.byte_len();
+                let len = od::find_entry(ALL, key)?.byte_len();
                 buf.get_mut(..len)
                     .ok_or(SdoAbort::ExceedsMailbox)?
                     .copy_from_slice(&v.to_le_bytes()[..len]);
