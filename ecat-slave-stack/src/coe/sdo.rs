@@ -125,7 +125,7 @@ impl SdoServer {
         match self.t {
             Transfer::Idle => None,
             Transfer::Download(Download { to, .. }) | Transfer::Upload(Upload { to, .. }) => {
-                Some(to.key)
+                Some(to.key())
             }
         }
     }
@@ -171,11 +171,11 @@ impl SdoServer {
                 };
                 match done {
                     Ok(()) => Response::Download {
-                        key: to.key,
+                        key: to.key(),
                         complete_access: to.complete_access,
                     }
                     .emit_coe(out),
-                    Err(a) => Response::abort(to.key, a).emit_coe(out),
+                    Err(a) => Response::abort(to.key(), a).emit_coe(out),
                 }
             }
             Request::DownloadSegment(seg) => match self.t {
@@ -186,7 +186,7 @@ impl SdoServer {
                     }
                     Err(a) => {
                         self.t = Transfer::Idle;
-                        Response::abort(d.to.key, a).emit_coe(out)
+                        Response::abort(d.to.key(), a).emit_coe(out)
                     }
                 },
                 _ => self.no_transfer(out, expired),
@@ -198,7 +198,7 @@ impl SdoServer {
             Request::UploadSegment { toggle } => match self.t {
                 Transfer::Upload(u) if toggle != u.toggle => {
                     self.t = Transfer::Idle;
-                    Response::abort(u.to.key, SdoAbort::ToggleBit).emit_coe(out)
+                    Response::abort(u.to.key(), SdoAbort::ToggleBit).emit_coe(out)
                 }
                 Transfer::Upload(u) => {
                     self.last_us = now_us;
@@ -291,7 +291,7 @@ impl SdoServer {
         state: EsmState,
         now_us: u64,
     ) -> usize {
-        let key = to.key;
+        let key = to.key();
         let len = match upload(dict, state, to, &mut self.buf) {
             Ok(n) => n,
             Err(a) => return Response::abort(key, a).emit_coe(out),
@@ -351,7 +351,7 @@ fn expedited_download(
     let mut data = r.data;
     if !r.size_indicated && !to.complete_access {
         // Size not indicated: the entry's own length (at most the 4 bytes carried).
-        let e = od::find_entry(dict.objects(), to.key)?;
+        let e = od::find_entry(dict.objects(), to.key())?;
         data = data.get(..e.byte_len().clamp(1, 4)).unwrap_or(data);
     }
     download(dict, state, to, data)
@@ -365,12 +365,12 @@ fn check_normal_download(
     state: EsmState,
 ) -> Result<(), SdoAbort> {
     if to.complete_access {
-        let obj = od::find(objects, to.key.index).ok_or(SdoAbort::ObjectDoesNotExist)?;
-        if obj.code() == ObjectCode::Var || to.key.sub > 1 {
+        let obj = od::find(objects, to.index).ok_or(SdoAbort::ObjectDoesNotExist)?;
+        if obj.code() == ObjectCode::Var || to.sub > 1 {
             return Err(SdoAbort::UnsupportedAccess);
         }
     } else {
-        let e = od::find_entry(objects, to.key)?;
+        let e = od::find_entry(objects, to.key())?;
         if !e.access.writable() {
             return Err(SdoAbort::WriteReadOnly);
         }
@@ -397,15 +397,13 @@ fn upload(
     to: Address,
     buf: &mut [u8],
 ) -> Result<usize, SdoAbort> {
-    let obj = od::find(dict.objects(), to.key.index).ok_or(SdoAbort::ObjectDoesNotExist)?;
+    let obj = od::find(dict.objects(), to.index).ok_or(SdoAbort::ObjectDoesNotExist)?;
     if to.complete_access {
-        return ca_upload(obj, dict, state, to.key.sub, buf);
+        return ca_upload(obj, dict, state, to.sub, buf);
     }
-    let e = obj
-        .entry(to.key.sub)
-        .ok_or(SdoAbort::SubindexDoesNotExist)?;
+    let e = obj.entry(to.sub).ok_or(SdoAbort::SubindexDoesNotExist)?;
     od::check_read(e, state)?;
-    let n = dict.read(to.key, buf)?;
+    let n = dict.read(to.key(), buf)?;
     Ok(n.min(buf.len()))
 }
 
@@ -418,12 +416,12 @@ fn download(
 ) -> Result<(), SdoAbort> {
     let objects = dict.objects();
     if to.complete_access {
-        let obj = od::find(objects, to.key.index).ok_or(SdoAbort::ObjectDoesNotExist)?;
-        return ca_download(obj, dict, state, to.key.sub, data);
+        let obj = od::find(objects, to.index).ok_or(SdoAbort::ObjectDoesNotExist)?;
+        return ca_download(obj, dict, state, to.sub, data);
     }
-    let e = od::find_entry(objects, to.key)?;
+    let e = od::find_entry(objects, to.key())?;
     od::check_write(e, data, state)?;
-    dict.write(to.key, data, state)
+    dict.write(to.key(), data, state)
 }
 
 /// Writes `nbits` (≤ 64) of `v` at bit position `pos` of `buf` (LSB first).

@@ -6,14 +6,16 @@ fn request_parse() {
     assert_eq!(
         Request::parse(&[0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]),
         Ok(Request::InitiateUpload(Address {
-            key: ObjectKey::new(0x1000, 0),
+            index: 0x1000,
+            sub: 0,
             complete_access: false
         }))
     );
     assert_eq!(
         Request::parse(&[0x50, 0x12, 0x1C, 0x01, 0, 0, 0, 0]),
         Ok(Request::InitiateUpload(Address {
-            key: ObjectKey::new(0x1C12, 1),
+            index: 0x1C12,
+            sub: 1,
             complete_access: true
         }))
     );
@@ -21,7 +23,8 @@ fn request_parse() {
         Request::parse(&[0x2B, 0x40, 0x60, 0x00, 0x0F, 0x00, 0xAA, 0xBB]),
         Ok(Request::InitiateDownload(InitiateDownload {
             address: Address {
-                key: ObjectKey::new(0x6040, 0),
+                index: 0x6040,
+                sub: 0,
                 complete_access: false,
             },
             expedited: true,
@@ -35,7 +38,8 @@ fn request_parse() {
         Request::parse(&b),
         Ok(Request::InitiateDownload(InitiateDownload {
             address: Address {
-                key: ObjectKey::new(0x2002, 0),
+                index: 0x2002,
+                sub: 0,
                 complete_access: false,
             },
             expedited: false,
