@@ -612,6 +612,10 @@ impl core::fmt::Debug for Object {
 /// let key = ObjectKey::new(0x6040, 0);
 /// assert!(key < ObjectKey::new(0x6040, 1));
 /// assert_eq!(key.index, 0x6040);
+/// // As a PDO mapping entry of 16 bits, and back.
+/// assert_eq!(key.mapping_word(16), 0x6040_0010);
+/// assert_eq!(ObjectKey::from_mapping_word(0x6099_0220), ObjectKey::new(0x6099, 2));
+/// assert_eq!(ObjectKey::new(0x6099, 2).to_string(), "0x6099:02");
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct ObjectKey {
