@@ -25,7 +25,9 @@
 use core::fmt::{self, Write};
 
 use crate::diag::DiagText;
-use crate::od::{Access, DataType, DefaultValue, Entry, Name, Object, ObjectCode, PdoMappable};
+use crate::od::{
+    Access, DataType, DefaultValue, Entry, Name, Object, ObjectCode, ObjectKey, PdoMappable,
+};
 use crate::sii::{DeviceDescription, SiiError, SmType};
 
 mod dictionary;
@@ -33,13 +35,11 @@ use dictionary::{write_data_types, write_objects, Hex, TypeName};
 
 /// One entry of a PDO mapping (index 0 = padding of `bits` bits), decoded from the
 /// 32-bit value a mapping object holds (`index << 16 | sub << 8 | bits`, the
-/// encoding of [`crate::pdo::entry`]).
+/// encoding of [`ObjectKey::mapping_word`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PdoEntry {
-    /// Object index (0 for a gap).
-    pub index: u16,
-    /// Sub-index.
-    pub sub: u8,
+    /// The mapped entry (index 0 for a gap).
+    pub key: ObjectKey,
     /// Length in bits.
     pub bits: u8,
 }
@@ -48,14 +48,13 @@ impl PdoEntry {
     /// Decodes a mapping-object value.
     pub const fn decode(v: u32) -> Self {
         PdoEntry {
-            index: (v >> 16) as u16,
-            sub: (v >> 8) as u8,
+            key: ObjectKey::from_mapping_word(v),
             bits: v as u8,
         }
     }
     /// The mapping-object value.
     pub const fn encode(self) -> u32 {
-        (self.index as u32) << 16 | (self.sub as u32) << 8 | self.bits as u32
+        self.key.mapping_word(self.bits)
     }
 }
 
@@ -74,7 +73,7 @@ pub struct PdoMap {
     /// Must always be assigned.
     pub mandatory: bool,
     /// Entries in order, encoded as in the mapping objects (`index << 16 | sub << 8 |
-    /// bits`, see [`crate::pdo::entry`]).
+    /// bits`, see [`ObjectKey::mapping_word`]).
     pub entries: &'static [u32],
 }
 
@@ -160,28 +159,22 @@ pub enum EsiError {
     UnknownEntry {
         /// PDO.
         pdo: u16,
-        /// Mapped index.
-        index: u16,
-        /// Mapped sub-index.
-        sub: u8,
+        /// Mapped entry.
+        key: ObjectKey,
     },
     /// A mapped entry is not mappable in the PDO's direction.
     NotMappable {
         /// PDO.
         pdo: u16,
-        /// Mapped index.
-        index: u16,
-        /// Mapped sub-index.
-        sub: u8,
+        /// Mapped entry.
+        key: ObjectKey,
     },
     /// A mapped entry's bit length differs from the object table.
     BitLength {
         /// PDO.
         pdo: u16,
-        /// Mapped index.
-        index: u16,
-        /// Mapped sub-index.
-        sub: u8,
+        /// Mapped entry.
+        key: ObjectKey,
     },
 }
 
@@ -191,10 +184,10 @@ impl From<fmt::Error> for EsiError {
     }
 }
 
-fn find_entry(objects: &[Object], index: u16, sub: u8) -> Option<(&Object, &Entry)> {
-    let i = objects.binary_search_by_key(&index, |o| o.index).ok()?;
+fn find_entry(objects: &[Object], key: ObjectKey) -> Option<(&Object, &Entry)> {
+    let i = objects.binary_search_by_key(&key.index, |o| o.index).ok()?;
     let o = &objects[i];
-    o.entry(sub).map(|e| (o, e))
+    o.entry(key.sub).map(|e| (o, e))
 }
 
 /// Checks the PDO maps against the object table and the SyncManagers.
@@ -223,25 +216,21 @@ pub fn validate(
             }
         }
         for e in p.entries.iter().map(|v| PdoEntry::decode(*v)) {
-            if e.index == 0 {
+            if e.key.index == 0 {
                 continue;
             }
-            let (pdo, index, sub) = (p.index, e.index, e.sub);
-            let (_, entry) = find_entry(objects, e.index, e.sub).ok_or(EsiError::UnknownEntry {
-                pdo,
-                index,
-                sub,
-            })?;
+            let (pdo, key) = (p.index, e.key);
+            let (_, entry) = find_entry(objects, key).ok_or(EsiError::UnknownEntry { pdo, key })?;
             let ok = if p.is_rx() {
                 entry.pdo_mappable().rx()
             } else {
                 entry.pdo_mappable().tx()
             };
             if !ok {
-                return Err(EsiError::NotMappable { pdo, index, sub });
+                return Err(EsiError::NotMappable { pdo, key });
             }
             if entry.bits() != e.bits as u16 {
-                return Err(EsiError::BitLength { pdo, index, sub });
+                return Err(EsiError::BitLength { pdo, key });
             }
         }
     }
@@ -297,8 +286,8 @@ pub fn excludes<'a>(pdos: &'a [PdoMap], p: &'a PdoMap) -> impl Iterator<Item = u
         m.entries
             .iter()
             .map(|v| PdoEntry::decode(*v))
-            .filter(|e| e.index != 0)
-            .map(|e| (e.index, e.sub))
+            .filter(|e| e.key.index != 0)
+            .map(|e| e.key)
     };
     pdos.iter()
         .filter(move |q| q.index != p.index && q.is_rx() == p.is_rx())
@@ -310,10 +299,10 @@ pub fn excludes<'a>(pdos: &'a [PdoMap], p: &'a PdoMap) -> impl Iterator<Item = u
 /// for a variable, the entry's name for a record or array member; `None` for a gap
 /// or an entry missing from the table.
 pub fn pdo_entry_name(objects: &[Object], e: PdoEntry) -> Option<(Name, &Entry)> {
-    if e.index == 0 {
+    if e.key.index == 0 {
         return None;
     }
-    let (o, entry) = find_entry(objects, e.index, e.sub)?;
+    let (o, entry) = find_entry(objects, e.key)?;
     let name = if o.code() == ObjectCode::Var {
         o.name()
     } else {
@@ -358,8 +347,8 @@ fn write_pdo<W: Write>(
                 writeln!(
                     out,
                     "<Entry><Index>#x{:04X}</Index><SubIndex>{}</SubIndex><BitLen>{}</BitLen><Name>{}</Name><DataType>{}</DataType></Entry>",
-                    e.index,
-                    e.sub,
+                    e.key.index,
+                    e.key.sub,
                     e.bits,
                     Esc(name),
                     TypeName(entry)

@@ -32,7 +32,7 @@
 use crate::coe::{self, emcy::EmergencyQueue, info::InfoJob, sdo::SdoServer};
 use crate::esm::EsmState;
 use crate::foe::{self, FoeFiles, FoeServer};
-use crate::od::Dictionary;
+use crate::od::{Dictionary, ObjectKey};
 
 pub use crate::wire::mailbox::*;
 
@@ -301,7 +301,7 @@ impl MailboxServer {
         dict: &mut D,
         state: EsmState,
         now_us: u64,
-        expired: Option<(u16, u8)>,
+        expired: Option<ObjectKey>,
     ) {
         let Some(hdr) = coe::Header::parse(payload) else {
             self.answer_error(ErrorDetail::SizeTooShort);
@@ -453,8 +453,8 @@ impl MailboxServer {
     /// [`crate::coe::sdo::TRANSFER_TIMEOUT_US`] is aborted with 0x05040000 (the abort is
     /// queued as the answer).
     pub fn tick(&mut self, now_us: u64) {
-        if let Some((index, sub)) = self.sdo.expire(now_us) {
-            let abort = coe::sdo::Response::abort(index, sub, crate::od::SdoAbort::Timeout);
+        if let Some(key) = self.sdo.expire(now_us) {
+            let abort = coe::sdo::Response::abort(key, crate::od::SdoAbort::Timeout);
             let n = abort.emit_coe(reply_area(&mut self.reply, self.size));
             self.answer_coe(n);
         }

@@ -612,6 +612,10 @@ impl core::fmt::Debug for Object {
 /// let key = ObjectKey::new(0x6040, 0);
 /// assert!(key < ObjectKey::new(0x6040, 1));
 /// assert_eq!(key.index, 0x6040);
+/// // As a PDO mapping entry of 16 bits, and back.
+/// assert_eq!(key.mapping_word(16), 0x6040_0010);
+/// assert_eq!(ObjectKey::from_mapping_word(0x6099_0220), ObjectKey::new(0x6099, 2));
+/// assert_eq!(ObjectKey::new(0x6099, 2).to_string(), "0x6099:02");
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct ObjectKey {
@@ -654,13 +658,9 @@ pub fn find(objects: &'static [Object], index: u16) -> Option<&'static Object> {
 }
 
 /// Finds an entry, distinguishing "no object" from "no sub-index".
-pub fn find_entry(
-    objects: &'static [Object],
-    index: u16,
-    sub: u8,
-) -> Result<&'static Entry, SdoAbort> {
-    let obj = find(objects, index).ok_or(SdoAbort::ObjectDoesNotExist)?;
-    obj.entry(sub).ok_or(SdoAbort::SubindexDoesNotExist)
+pub fn find_entry(objects: &'static [Object], key: ObjectKey) -> Result<&'static Entry, SdoAbort> {
+    let obj = find(objects, key.index).ok_or(SdoAbort::ObjectDoesNotExist)?;
+    obj.entry(key.sub).ok_or(SdoAbort::SubindexDoesNotExist)
 }
 
 /// True when `objects` is strictly sorted by index and every object's entries are
@@ -743,23 +743,22 @@ pub trait Dictionary {
     /// The objects, sorted by index.
     fn objects(&self) -> &'static [Object];
     /// Writes the entry's current value into `buf` (little-endian) and returns its length.
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort>;
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort>;
     /// Stores a new value (already checked for access, length and range).
-    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort>;
+    fn write(&mut self, key: ObjectKey, data: &[u8], state: EsmState) -> Result<(), SdoAbort>;
     /// A write arriving through the slave runtime, which passes the objects it serves
     /// itself (PDO mapping/assignment, sync parameters) as `runtime`. Needed where one
     /// write acts on the whole dictionary — 0x1010 'save' must store the mapping too.
     /// The default is a plain [`Dictionary::write`].
     fn write_with_runtime(
         &mut self,
-        index: u16,
-        sub: u8,
+        key: ObjectKey,
         data: &[u8],
         state: EsmState,
         runtime: &mut dyn Dictionary,
     ) -> Result<(), SdoAbort> {
         let _ = runtime;
-        self.write(index, sub, data, state)
+        self.write(key, data, state)
     }
 }
 

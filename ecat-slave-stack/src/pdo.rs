@@ -32,7 +32,7 @@
 
 use crate::al_status::AlStatusCode;
 use crate::esm::EsmState;
-use crate::od::{self, Access, DataType, EntryDesc, Object, ObjectDesc, SdoAbort};
+use crate::od::{self, Access, DataType, EntryDesc, Object, ObjectDesc, ObjectKey, SdoAbort};
 
 mod copy;
 pub use copy::{extract, insert, pack, unpack, CopyPlan, DirPlan, PlanEntry};
@@ -80,11 +80,11 @@ impl Dir {
 /// Slots are the application's own numbering of the values it exchanges; they are
 /// resolved once per P→S and then used on every cycle.
 pub trait ProcessData {
-    /// Slot receiving the RxPDO entry `index:sub`, `None` if the application cannot
-    /// take it (then the mapping is refused at P→S with 0x0025).
-    fn rx_slot(&self, index: u16, sub: u8) -> Option<u16>;
-    /// Slot providing the TxPDO entry `index:sub`, `None` → 0x0024 at P→S.
-    fn tx_slot(&self, index: u16, sub: u8) -> Option<u16>;
+    /// Slot receiving the RxPDO entry `key`, `None` if the application cannot take it
+    /// (then the mapping is refused at P→S with 0x0025).
+    fn rx_slot(&self, key: ObjectKey) -> Option<u16>;
+    /// Slot providing the TxPDO entry `key`, `None` → 0x0024 at P→S.
+    fn tx_slot(&self, key: ObjectKey) -> Option<u16>;
     /// Stores a received raw value (zero-extended little-endian bit pattern).
     fn set_rx(&mut self, slot: u16, raw: u64);
     /// The raw value to send (only the mapped number of low bits is used).
@@ -161,11 +161,6 @@ impl PdoDefaults {
     };
 }
 
-/// Encodes a mapping entry.
-pub const fn entry(index: u16, sub: u8, bits: u8) -> u32 {
-    (index as u32) << 16 | (sub as u32) << 8 | bits as u32
-}
-
 /// The mapping and assignment objects' values.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct PdoConfig {
@@ -177,17 +172,16 @@ pub struct PdoConfig {
 }
 
 fn check_entry(value: u32, dir: Dir, objects: &'static [Object]) -> Result<(), SdoAbort> {
-    let index = (value >> 16) as u16;
-    let sub = (value >> 8) as u8;
+    let key = ObjectKey::from_mapping_word(value);
     let bits = (value & 0xFF) as u16;
-    if index == 0 {
-        return if sub == 0 && (1..=64).contains(&bits) {
+    if key.index == 0 {
+        return if key.sub == 0 && (1..=64).contains(&bits) {
             Ok(())
         } else {
             Err(SdoAbort::NotMappable)
         };
     }
-    let e = od::find_entry(objects, index, sub).map_err(|_| SdoAbort::NotMappable)?;
+    let e = od::find_entry(objects, key).map_err(|_| SdoAbort::NotMappable)?;
     let ok = match dir {
         Dir::Rx => e.pdo_mappable().rx(),
         Dir::Tx => e.pdo_mappable().tx(),
@@ -297,7 +291,8 @@ impl PdoConfig {
     }
 
     /// Reads one entry of 0x1600-0x1603, 0x1A00-0x1A03, 0x1C00, 0x1C12, 0x1C13.
-    pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+    pub fn read(&self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        let ObjectKey { index, sub } = key;
         // (sub-index 0, entry length in bytes, entry `sub`): one answer path for all.
         let i = sub.wrapping_sub(1) as usize;
         let (n, len, v) = if let Some((dir, m)) = map_slot(index) {
@@ -328,12 +323,12 @@ impl PdoConfig {
     /// dictionary, used to check mappability.
     pub fn write(
         &mut self,
-        index: u16,
-        sub: u8,
+        key: ObjectKey,
         data: &[u8],
         state: EsmState,
         objects: &'static [Object],
     ) -> Result<(), SdoAbort> {
+        let ObjectKey { index, sub } = key;
         if let Some((dir, i)) = map_slot(index) {
             return self.write_map(dir, i, sub, data, state, objects);
         }
@@ -479,13 +474,12 @@ impl PdoConfig {
             }
             for e in self.maps(dir)[i].entries() {
                 check_entry(*e, dir, objects).map_err(|_| err)?;
-                let index = (*e >> 16) as u16;
-                let sub = (*e >> 8) as u8;
+                let key = ObjectKey::from_mapping_word(*e);
                 let bits = (*e & 0xFF) as u8;
-                if index != 0 {
+                if key.index != 0 {
                     let slot = match dir {
-                        Dir::Rx => app.rx_slot(index, sub),
-                        Dir::Tx => app.tx_slot(index, sub),
+                        Dir::Rx => app.rx_slot(key),
+                        Dir::Tx => app.tx_slot(key),
                     }
                     .ok_or(err)?;
                     let n = plan.n as usize;

@@ -47,7 +47,7 @@ use crate::esc::{EscAccess, EscError};
 use crate::esm::{Decision, Esm, EsmHooks, EsmState};
 use crate::foe::FoeFiles;
 use crate::mailbox::{Frame as MailboxFrame, Handlers, MailboxServer, MailboxType};
-use crate::od::{Dictionary, Object, SdoAbort};
+use crate::od::{Dictionary, Object, ObjectKey, SdoAbort};
 use crate::pdo::{self, CopyPlan, PdoConfig, PdoDefaults, ProcessData};
 use crate::registers::{self as reg, AlControl, AlEvent};
 use crate::sm::{self, BootMailbox, MailboxLimits, PdDirection, RamWindow, SmRegs};

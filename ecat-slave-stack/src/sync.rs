@@ -53,7 +53,7 @@
 
 use crate::al_status::AlStatusCode;
 use crate::esm::EsmState;
-use crate::od::{Access, DataType, EntryDesc, ObjectDesc, SdoAbort};
+use crate::od::{Access, DataType, EntryDesc, ObjectDesc, ObjectKey, SdoAbort};
 use crate::pdo;
 use crate::registers::DcActivation;
 
@@ -487,7 +487,8 @@ impl SyncState {
     }
 
     /// Reads 0x1C32 / 0x1C33 / the timing diagnostics.
-    pub fn read(&self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+    pub fn read(&self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        let ObjectKey { index, sub } = key;
         if self.diag_index == Some(index) {
             let d = &self.diag;
             let v = match sub {
@@ -540,13 +541,8 @@ impl SyncState {
 
     /// Writes 0x1C32 / 0x1C33 (SI1 and SI2 in Pre-Op, SI8 always) and refuses the
     /// rest as read-only.
-    pub fn write(
-        &mut self,
-        index: u16,
-        sub: u8,
-        data: &[u8],
-        state: EsmState,
-    ) -> Result<(), SdoAbort> {
+    pub fn write(&mut self, key: ObjectKey, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        let ObjectKey { index, sub } = key;
         if self.diag_index == Some(index) {
             return if sub <= 6 {
                 Err(SdoAbort::WriteReadOnly)

@@ -6,7 +6,7 @@
 use ecat_slave_stack::coe::example::{ExampleDictionary, DEVICE_NAME};
 use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::mailbox::MailboxServer;
-use ecat_slave_stack::od::SdoAbort;
+use ecat_slave_stack::od::{ObjectKey, SdoAbort};
 
 const MAX: usize = 256;
 
@@ -181,7 +181,7 @@ qemu_runner::tests! {
         assert_eq!(o.payload(), &[0x00, 0x30, 0x43, 0x00, 0x10, 0x00, 0x92, 0x01, 0x02, 0x00]);
         let o = h.upload(0x1001, 0);
         assert_eq!(o.payload(), &[0x00, 0x30, 0x4F, 0x01, 0x10, 0x00, 0, 0, 0, 0]);
-        h.dict.set_value(0x6041, 0, 0x0237);
+        h.dict.set_value(ObjectKey::new(0x6041, 0), 0x0237);
         let o = h.upload(0x6041, 0);
         assert_eq!(o.payload(), &[0x00, 0x30, 0x4B, 0x41, 0x60, 0x00, 0x37, 0x02, 0, 0]);
         let o = h.upload(0x2003, 4);
@@ -194,25 +194,25 @@ qemu_runner::tests! {
         let mut h = H::new(128);
         let o = h.download4(0x23, 0x2000, 0, 500i32.to_le_bytes());
         assert_eq!(o.payload(), &DL_OK_2000);
-        assert_eq!(h.dict.value(0x2000, 0) as u32 as i32, 500);
+        assert_eq!(h.dict.value(ObjectKey::new(0x2000, 0)) as u32 as i32, 500);
         let o = h.download4(0x23, 0x2000, 0, (-1000i32).to_le_bytes());
         assert_eq!(o.payload(), &DL_OK_2000);
         // 2-byte expedited with size indicated into a u16.
         let o = h.download4(0x2B, 0x6040, 0, [0x0F, 0x00, 0xEE, 0xEE]);
         assert_eq!(o.payload(), &[0x00, 0x30, 0x60, 0x40, 0x60, 0x00, 0, 0, 0, 0]);
-        assert_eq!(h.dict.value(0x6040, 0), 0x000F);
+        assert_eq!(h.dict.value(ObjectKey::new(0x6040, 0)), 0x000F);
         // Size not indicated: the entry's length is used.
         let o = h.download4(0x22, 0x6040, 0, [0x06, 0x00, 0xEE, 0xEE]);
         assert_eq!(o.payload(), &[0x00, 0x30, 0x60, 0x40, 0x60, 0x00, 0, 0, 0, 0]);
-        assert_eq!(h.dict.value(0x6040, 0), 0x0006);
+        assert_eq!(h.dict.value(ObjectKey::new(0x6040, 0)), 0x0006);
         // 1 byte into a u8 entry of a record.
         let o = h.download4(0x2F, 0x2003, 3, [200, 0, 0, 0]);
         assert_eq!(o.payload(), &[0x00, 0x30, 0x60, 0x03, 0x20, 0x03, 0, 0, 0, 0]);
-        assert_eq!(h.dict.value(0x2003, 3), 200);
+        assert_eq!(h.dict.value(ObjectKey::new(0x2003, 3)), 200);
         // Write-only entry accepts a write.
         let o = h.download4(0x2B, 0x2001, 0, [0x34, 0x12, 0, 0]);
         assert_eq!(o.payload(), &[0x00, 0x30, 0x60, 0x01, 0x20, 0x00, 0, 0, 0, 0]);
-        assert_eq!(h.dict.value(0x2001, 0), 0x1234);
+        assert_eq!(h.dict.value(ObjectKey::new(0x2001, 0)), 0x1234);
         // A short string written expedited.
         let o = h.download4(0x27, 0x2002, 0, *b"abc\0");
         assert_eq!(o.payload(), &[0x00, 0x30, 0x60, 0x02, 0x20, 0x00, 0, 0, 0, 0]);
@@ -509,10 +509,10 @@ qemu_runner::tests! {
         assert_eq!(&o.payload()[..10], &[0x00, 0x30, 0x51, 0x18, 0x10, 0x01, 16, 0, 0, 0]);
         assert_eq!(&o.payload()[10..14], &[0x5C, 0x0E, 0, 0]);
         // Bit packing, read-only and write-only (zeros) entries.
-        h.dict.set_value(0x2003, 1, 1);
-        h.dict.set_value(0x2003, 2, 2);
-        h.dict.set_value(0x2003, 3, 7);
-        h.dict.set_value(0x2003, 5, 0xDEAD_BEEF);
+        h.dict.set_value(ObjectKey::new(0x2003, 1), 1);
+        h.dict.set_value(ObjectKey::new(0x2003, 2), 2);
+        h.dict.set_value(ObjectKey::new(0x2003, 3), 7);
+        h.dict.set_value(ObjectKey::new(0x2003, 5), 0xDEAD_BEEF);
         let o = h.coe(&[0x00, 0x20, 0x50, 0x03, 0x20, 0x00, 0, 0, 0, 0]);
         assert_eq!(
             o.payload(),
@@ -574,8 +574,8 @@ qemu_runner::tests! {
         let o = h.coe(&[0x00, 0x20, 0x19, image[39], image[40], image[41], 0, 0, 0, 0]);
         assert_eq!(o.payload(), &SEG_ACK1);
         assert_eq!(h.dict.writes, 40);
-        assert_eq!(h.dict.value(0x2004, 1), 200);
-        assert_eq!(h.dict.value(0x2004, 40), 161);
+        assert_eq!(h.dict.value(ObjectKey::new(0x2004, 1)), 200);
+        assert_eq!(h.dict.value(ObjectKey::new(0x2004, 40)), 161);
     }
 
     fn complete_access_download() {
@@ -587,17 +587,17 @@ qemu_runner::tests! {
             0x60, 0x08, 0x00, 0x60, 0x60,
         ]);
         assert_eq!(o.payload(), &[0x00, 0x30, 0x70, 0x00, 0x16, 0x00, 0, 0, 0, 0]);
-        assert_eq!(h.dict.value(0x1600, 0), 3);
-        assert_eq!(h.dict.value(0x1600, 3), 0x6060_0008);
+        assert_eq!(h.dict.value(ObjectKey::new(0x1600, 0)), 3);
+        assert_eq!(h.dict.value(ObjectKey::new(0x1600, 3)), 0x6060_0008);
         assert_eq!(h.dict.writes, 5);
         // Record from sub-index 1: bits, byte, RO word (ignored), WO dword.
         let o = h.coe(&[0x00, 0x20, 0x31, 0x03, 0x20, 0x01, 8, 0, 0, 0, 0x03, 9, 0x34, 0x12, 1, 2, 3, 4]);
         assert_eq!(o.payload(), &[0x00, 0x30, 0x70, 0x03, 0x20, 0x01, 0, 0, 0, 0]);
-        assert_eq!(h.dict.value(0x2003, 1), 1);
-        assert_eq!(h.dict.value(0x2003, 2), 1);
-        assert_eq!(h.dict.value(0x2003, 3), 9);
-        assert_eq!(h.dict.value(0x2003, 4) as u16 as i16, -2);
-        assert_eq!(h.dict.value(0x2003, 5), 0x0403_0201);
+        assert_eq!(h.dict.value(ObjectKey::new(0x2003, 1)), 1);
+        assert_eq!(h.dict.value(ObjectKey::new(0x2003, 2)), 1);
+        assert_eq!(h.dict.value(ObjectKey::new(0x2003, 3)), 9);
+        assert_eq!(h.dict.value(ObjectKey::new(0x2003, 4)) as u16 as i16, -2);
+        assert_eq!(h.dict.value(ObjectKey::new(0x2003, 5)), 0x0403_0201);
         // Expedited complete access from sub-index 1 (3 bytes: bits, byte C, ... ) is too
         // short for the record's layout.
         let o = h.download4(0x37, 0x2003, 1, [0x01, 5, 0, 0]);
@@ -605,7 +605,7 @@ qemu_runner::tests! {
         // Expedited complete access of two bytes of 0x1C12 from sub-index 1: one entry.
         let o = h.download4(0x3B, 0x1C12, 1, [0x01, 0x16, 0, 0]);
         assert_eq!(o.payload(), &[0x00, 0x30, 0x70, 0x12, 0x1C, 0x01, 0, 0, 0, 0]);
-        assert_eq!(h.dict.value(0x1C12, 1), 0x1601);
+        assert_eq!(h.dict.value(ObjectKey::new(0x1C12, 1)), 0x1601);
         // Array 0x2004 from sub-index 0, all 40 entries (SI0 read-only: ignored).
         let mut f = [0u8; 52];
         f[..10].copy_from_slice(&[0x00, 0x20, 0x31, 0x04, 0x20, 0x00, 42, 0, 0, 0]);
@@ -615,7 +615,7 @@ qemu_runner::tests! {
         }
         let o = h.coe(&f);
         assert_eq!(o.payload()[2], 0x70);
-        assert_eq!(h.dict.value(0x2004, 40), 139);
+        assert_eq!(h.dict.value(ObjectKey::new(0x2004, 40)), 139);
     }
 
     fn complete_access_download_is_all_or_nothing() {
@@ -625,7 +625,7 @@ qemu_runner::tests! {
         let o = h.coe(&[0x00, 0x20, 0x31, 0x03, 0x20, 0x01, 8, 0, 0, 0, 0x03, 250, 0, 0, 1, 2, 3, 4]);
         h.expect_abort(&o, 0x2003, 1, SdoAbort::ValueTooHigh);
         assert_eq!(h.dict.writes, w);
-        assert_eq!(h.dict.value(0x2003, 1), 0);
+        assert_eq!(h.dict.value(ObjectKey::new(0x2003, 1)), 0);
         // Safe-Op: byte C is Pre-Op-only.
         h.state = EsmState::SafeOp;
         let o = h.coe(&[0x00, 0x20, 0x31, 0x03, 0x20, 0x01, 8, 0, 0, 0, 0x03, 9, 0, 0, 1, 2, 3, 4]);

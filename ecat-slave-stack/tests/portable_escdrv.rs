@@ -11,7 +11,7 @@ use ecat_slave_stack::et1100::{self, Et1100, Et1100Config};
 use ecat_slave_stack::lan9252::{self, Lan9252, Lan9252Config};
 use ecat_slave_stack::leds::{self, ErrCondition, Indicator, Pattern, StatusLeds};
 use ecat_slave_stack::od::{
-    Access, DataType, EntryDesc, Name, Object, ObjectCode, ObjectDesc, PdoMappable,
+    Access, DataType, EntryDesc, Name, Object, ObjectCode, ObjectDesc, ObjectKey, PdoMappable,
 };
 use ecat_slave_stack::pdo;
 use ecat_slave_stack::sii::{self, DeviceDescription, EscFlavour, Sii, SiiError, SmType};
@@ -248,8 +248,11 @@ const SOURCE: [ObjectDesc; 10] = [
     obj(0x607A, "Target position", ObjectCode::Var, &V607A),
 ];
 
-static RX1: [u32; 2] = [pdo::entry(0x6040, 0, 16), pdo::entry(0, 0, 16)];
-static TX1: [u32; 1] = [pdo::entry(0x6041, 0, 16)];
+static RX1: [u32; 2] = [
+    ObjectKey::new(0x6040, 0).mapping_word(16),
+    ObjectKey::new(0, 0).mapping_word(16),
+];
+static TX1: [u32; 1] = [ObjectKey::new(0x6041, 0).mapping_word(16)];
 static PDOS: [PdoMap; 2] = [
     PdoMap {
         index: 0x1600,
@@ -708,16 +711,16 @@ qemu_runner::tests! {
 
     fn esi_rejects_inconsistent_pdo_maps() {
         let mut out = Buf::<32768>::new();
-        static BAD_ENTRY: [u32; 1] = [PdoEntry { index: 0x6099, sub: 0, bits: 16 }.encode()];
-        static WRONG_DIR: [u32; 1] = [pdo::entry(0x6041, 0, 16)];
-        static WRONG_BITS: [u32; 1] = [pdo::entry(0x6040, 0, 32)];
+        static BAD_ENTRY: [u32; 1] = [PdoEntry { key: ObjectKey::new(0x6099, 0), bits: 16 }.encode()];
+        static WRONG_DIR: [u32; 1] = [ObjectKey::new(0x6041, 0).mapping_word(16)];
+        static WRONG_BITS: [u32; 1] = [ObjectKey::new(0x6040, 0).mapping_word(32)];
         let p = |index, sm, entries| [PdoMap { index, name: Name::plain("x"), sm, fixed: false, mandatory: false, entries }];
         assert_eq!(esi::write(&DESC, OBJECTS, &p(0x1600, Some(2), &BAD_ENTRY), &mut out),
-            Err(EsiError::UnknownEntry { pdo: 0x1600, index: 0x6099, sub: 0 }));
+            Err(EsiError::UnknownEntry { pdo: 0x1600, key: ObjectKey::new(0x6099, 0) }));
         assert_eq!(esi::write(&DESC, OBJECTS, &p(0x1600, Some(2), &WRONG_DIR), &mut out),
-            Err(EsiError::NotMappable { pdo: 0x1600, index: 0x6041, sub: 0 }));
+            Err(EsiError::NotMappable { pdo: 0x1600, key: ObjectKey::new(0x6041, 0) }));
         assert_eq!(esi::write(&DESC, OBJECTS, &p(0x1600, Some(2), &WRONG_BITS), &mut out),
-            Err(EsiError::BitLength { pdo: 0x1600, index: 0x6040, sub: 0 }));
+            Err(EsiError::BitLength { pdo: 0x1600, key: ObjectKey::new(0x6040, 0) }));
         assert_eq!(esi::write(&DESC, OBJECTS, &p(0x1600, Some(3), &RX1), &mut out),
             Err(EsiError::PdoSyncManager(0x1600)));
         assert_eq!(esi::write(&DESC, OBJECTS, &p(0x1234, None, &RX1), &mut out), Err(EsiError::PdoIndex(0x1234)));
@@ -744,8 +747,8 @@ qemu_runner::tests! {
     }
 
     fn esi_pdo_maps_from_the_stack_defaults() {
-        static RXD: [u32; 1] = [pdo::entry(0x6040, 0, 16)];
-        static TXD: [u32; 1] = [pdo::entry(0x6041, 0, 16)];
+        static RXD: [u32; 1] = [ObjectKey::new(0x6040, 0).mapping_word(16)];
+        static TXD: [u32; 1] = [ObjectKey::new(0x6041, 0).mapping_word(16)];
         static RXA: [u16; 1] = [0x1600];
         static TXA: [u16; 1] = [0x1A00];
         let defaults = pdo::PdoDefaults {
@@ -762,7 +765,7 @@ qemu_runner::tests! {
         assert_eq!(maps[1].name, "RxPDO");
         assert_eq!((maps[2].index, maps[2].sm), (0x1A00, Some(3)));
         assert_eq!(maps[2].name, "TxPDO 1");
-        assert_eq!(PdoEntry::decode(maps[2].entries[0]), PdoEntry { index: 0x6041, sub: 0, bits: 16 });
+        assert_eq!(PdoEntry::decode(maps[2].entries[0]), PdoEntry { key: ObjectKey::new(0x6041, 0), bits: 16 });
         let mut out = Buf::<32768>::new();
         esi::write(&DESC, OBJECTS, &maps, &mut out).unwrap();
         let x = out.as_str();
@@ -774,7 +777,7 @@ qemu_runner::tests! {
     }
 
     fn sii_pdo_categories_byte_by_byte() {
-        static RX2: [u32; 1] = [pdo::entry(0x607A, 0, 32)];
+        static RX2: [u32; 1] = [ObjectKey::new(0x607A, 0).mapping_word(32)];
         let mut maps = [PDOS[0], PDOS[1], PDOS[0]];
         maps[2] = PdoMap { index: 0x1601, name: Name::plain("RxPDO 2"), sm: None, fixed: true, mandatory: true, entries: &RX2 };
         let mut img = [0xFFu8; 2048];

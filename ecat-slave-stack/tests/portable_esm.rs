@@ -10,9 +10,9 @@ use ecat_slave_stack::esm::{self, Decision, EsmHooks, EsmState};
 use ecat_slave_stack::foe::{ErrorCode, FoeFiles, WriteStatus};
 use ecat_slave_stack::leds::{ErrCondition, Pattern, StatusLeds};
 use ecat_slave_stack::od::{
-    Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+    Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, ObjectKey, PdoMappable, SdoAbort,
 };
-use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
+use ecat_slave_stack::pdo::{self, PdoDefaults, ProcessData};
 use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
 use ecat_slave_stack::sm::BootMailbox;
@@ -227,14 +227,20 @@ const LOCAL: &[ObjectDesc] = &[
     ObjectDesc::array(0x60FE, "outputs", E_60FE, ""),
 ];
 
-const RX1: &[u32] = &[entry(0x6040, 0, 16), entry(0x607A, 0, 32)];
-const RX2: &[u32] = &[
-    entry(0x6040, 0, 16),
-    entry(0x6060, 0, 8),
-    entry(0x2100, 0, 1),
-    entry(0, 0, 7),
+const RX1: &[u32] = &[
+    ObjectKey::new(0x6040, 0).mapping_word(16),
+    ObjectKey::new(0x607A, 0).mapping_word(32),
 ];
-const TX1: &[u32] = &[entry(0x6041, 0, 16), entry(0x6064, 0, 32)];
+const RX2: &[u32] = &[
+    ObjectKey::new(0x6040, 0).mapping_word(16),
+    ObjectKey::new(0x6060, 0).mapping_word(8),
+    ObjectKey::new(0x2100, 0).mapping_word(1),
+    ObjectKey::new(0, 0).mapping_word(7),
+];
+const TX1: &[u32] = &[
+    ObjectKey::new(0x6041, 0).mapping_word(16),
+    ObjectKey::new(0x6064, 0).mapping_word(32),
+];
 const DEFAULTS: PdoDefaults = PdoDefaults {
     rx: [RX1, RX2, &[], &[]],
     tx: [TX1, &[], &[], &[]],
@@ -330,26 +336,22 @@ impl Dictionary for App {
     fn objects(&self) -> &'static [Object] {
         OBJECTS
     }
-    fn read(&mut self, index: u16, _sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        let ObjectKey { index, .. } = key;
         if index == 0x6041 {
             buf[..2].copy_from_slice(&(self.v[4] as u16).to_le_bytes());
             return Ok(2);
         }
         Err(SdoAbort::ObjectDoesNotExist)
     }
-    fn write(
-        &mut self,
-        _index: u16,
-        _sub: u8,
-        _data: &[u8],
-        _state: EsmState,
-    ) -> Result<(), SdoAbort> {
+    fn write(&mut self, _key: ObjectKey, _data: &[u8], _state: EsmState) -> Result<(), SdoAbort> {
         Err(SdoAbort::WriteReadOnly)
     }
 }
 
 impl ProcessData for App {
-    fn rx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+    fn rx_slot(&self, key: ObjectKey) -> Option<u16> {
+        let ObjectKey { index, sub } = key;
         match (index, sub) {
             (0x6040, 0) => Some(0),
             (0x607A, 0) => Some(1),
@@ -360,7 +362,8 @@ impl ProcessData for App {
             _ => None,
         }
     }
-    fn tx_slot(&self, index: u16, _sub: u8) -> Option<u16> {
+    fn tx_slot(&self, key: ObjectKey) -> Option<u16> {
+        let ObjectKey { index, .. } = key;
         if self.refuse_tx {
             return None;
         }
@@ -546,12 +549,16 @@ fn sdo_write(
     data: &[u8],
 ) -> Result<(), SdoAbort> {
     let state = s.state();
-    s.dictionary(app).write(index, sub, data, state)
+    s.dictionary(app)
+        .write(ObjectKey::new(index, sub), data, state)
 }
 
 fn sdo_read_u32(s: &mut Slave<FakeEsc>, app: &mut App, index: u16, sub: u8) -> u32 {
     let mut b = [0u8; 8];
-    let n = s.dictionary(app).read(index, sub, &mut b).unwrap();
+    let n = s
+        .dictionary(app)
+        .read(ObjectKey::new(index, sub), &mut b)
+        .unwrap();
     let mut w = [0u8; 4];
     w[..n.min(4)].copy_from_slice(&b[..n.min(4)]);
     u32::from_le_bytes(w)
@@ -629,9 +636,9 @@ qemu_runner::tests! {
 
     fn oversized_default_maps_are_refused_at_preop_to_safeop() {
         const BIG: &[u32] = &[
-            entry(0x2102, 0, 64), entry(0x2102, 0, 64), entry(0x2102, 0, 64), entry(0x2102, 0, 64),
-            entry(0x2102, 0, 64), entry(0x2102, 0, 64), entry(0x2102, 0, 64), entry(0x2102, 0, 64),
-            entry(0x2100, 0, 1),
+            ObjectKey::new(0x2102, 0).mapping_word(64), ObjectKey::new(0x2102, 0).mapping_word(64), ObjectKey::new(0x2102, 0).mapping_word(64), ObjectKey::new(0x2102, 0).mapping_word(64),
+            ObjectKey::new(0x2102, 0).mapping_word(64), ObjectKey::new(0x2102, 0).mapping_word(64), ObjectKey::new(0x2102, 0).mapping_word(64), ObjectKey::new(0x2102, 0).mapping_word(64),
+            ObjectKey::new(0x2100, 0).mapping_word(1),
         ];
         for (rx, tx, code) in [(BIG, TX1, 0x0025u16), (RX1, BIG, 0x0024)] {
             let d = PdoDefaults { rx: [rx, &[], &[], &[]], tx: [tx, &[], &[], &[]], ..DEFAULTS };
@@ -1168,7 +1175,7 @@ qemu_runner::tests! {
         // Map an entry the application has no slot for: 0x60FE:01 (mappable, no slot).
         sdo_write(&mut s, &mut app, 0x1C12, 0, &[0]).unwrap();
         sdo_write(&mut s, &mut app, 0x1602, 0, &[0]).unwrap();
-        sdo_write(&mut s, &mut app, 0x1602, 1, &entry(0x60FE, 1, 32).to_le_bytes()).unwrap();
+        sdo_write(&mut s, &mut app, 0x1602, 1, &ObjectKey::new(0x60FE, 1).mapping_word(32).to_le_bytes()).unwrap();
         sdo_write(&mut s, &mut app, 0x1602, 0, &[1]).unwrap();
         sdo_write(&mut s, &mut app, 0x1C12, 1, &0x1602u16.to_le_bytes()).unwrap();
         sdo_write(&mut s, &mut app, 0x1C12, 0, &[1]).unwrap();
@@ -1458,7 +1465,7 @@ qemu_runner::tests! {
     fn pdo_sdo_rules() {
         let (mut s, mut app) = new_slave();
         to_preop(&mut s, &mut app);
-        let e = |i, sub, b| entry(i, sub, b).to_le_bytes();
+        let e = |i, sub, b| ObjectKey::new(i, sub).mapping_word(b).to_le_bytes();
         // Sub-index 0 first.
         assert_eq!(sdo_write(&mut s, &mut app, 0x1600, 1, &e(0x6040, 0, 16)), Err(SdoAbort::SubindexZeroFirst));
         sdo_write(&mut s, &mut app, 0x1600, 0, &[0]).unwrap();
@@ -1519,9 +1526,9 @@ qemu_runner::tests! {
         sdo_write(&mut s, &mut app, 0x1C12, 0, &[0]).unwrap();
         sdo_write(&mut s, &mut app, 0x1C12, 1, &0x1601u16.to_le_bytes()).unwrap();
         sdo_write(&mut s, &mut app, 0x1C12, 0, &[1]).unwrap();
-        sdo_write(&mut s, &mut app, 0x1A01, 1, &entry(0x2100, 0, 1).to_le_bytes()).unwrap();
-        sdo_write(&mut s, &mut app, 0x1A01, 2, &entry(0, 0, 7).to_le_bytes()).unwrap();
-        sdo_write(&mut s, &mut app, 0x1A01, 3, &entry(0x6041, 0, 16).to_le_bytes()).unwrap();
+        sdo_write(&mut s, &mut app, 0x1A01, 1, &ObjectKey::new(0x2100, 0).mapping_word(1).to_le_bytes()).unwrap();
+        sdo_write(&mut s, &mut app, 0x1A01, 2, &ObjectKey::new(0, 0).mapping_word(7).to_le_bytes()).unwrap();
+        sdo_write(&mut s, &mut app, 0x1A01, 3, &ObjectKey::new(0x6041, 0).mapping_word(16).to_le_bytes()).unwrap();
         sdo_write(&mut s, &mut app, 0x1A01, 0, &[3]).unwrap();
         sdo_write(&mut s, &mut app, 0x1C13, 0, &[0]).unwrap();
         sdo_write(&mut s, &mut app, 0x1C13, 1, &0x1A01u16.to_le_bytes()).unwrap();
@@ -1582,9 +1589,9 @@ qemu_runner::tests! {
                         let idx = [0x1600u16, 0x1A01, 0x1C12, 0x1C13, 0x1C32, 0x1C33, 0x2200, 0x1C00][(r % 8) as usize];
                         let d = lcg(&mut x).to_le_bytes();
                         let st = s.state();
-                        let _ = s.dictionary(&mut app).write(idx, (lcg(&mut x) % 40) as u8, &d[..(r as usize % 5)], st);
+                        let _ = s.dictionary(&mut app).write(ObjectKey::new(idx, (lcg(&mut x) % 40) as u8), &d[..(r as usize % 5)], st);
                         let mut b = [0u8; 8];
-                        let _ = s.dictionary(&mut app).read(idx, (lcg(&mut x) % 40) as u8, &mut b);
+                        let _ = s.dictionary(&mut app).read(ObjectKey::new(idx, (lcg(&mut x) % 40) as u8), &mut b);
                     }
                 }
                 s.poll(&mut app, lcg(&mut x) as u64).unwrap();

@@ -379,7 +379,7 @@ mod tests {
     use crate::faults::{FaultKind, Snapshot};
     use crate::identity::Variant;
     use ecat_slave_stack::esm::EsmState;
-    use ecat_slave_stack::od;
+    use ecat_slave_stack::od::{self, ObjectKey};
 
     fn sdo_write(
         c: &mut Comm,
@@ -388,7 +388,7 @@ mod tests {
         sub: u8,
         v: u32,
     ) -> Result<Option<StoreCommand>, SdoAbort> {
-        let e = od::find_entry(PACKED, index, sub)?;
+        let e = od::find_entry(PACKED, ObjectKey::new(index, sub))?;
         let data = &v.to_le_bytes()[..e.byte_len()];
         od::check_write(e, data, EsmState::PreOp)?;
         write(c, f, index, sub, data)

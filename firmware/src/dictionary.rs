@@ -157,7 +157,7 @@ pub fn write<C: ?Sized>(
     key: ObjectKey,
     data: &[u8],
 ) -> Result<(), SdoAbort> {
-    let entry = od::find_entry(OBJECTS, key.index, key.sub)?;
+    let entry = od::find_entry(OBJECTS, key)?;
     let v = checked_value(entry, data)?;
     owner.set(cx, key, entry, v)
 }
@@ -236,10 +236,10 @@ mod tests {
             }
         }
         assert_eq!(restored, [(0x2306, 0), (0x2307, 0)]);
-        let e = od::find_entry(OBJECTS, 0x2306, 0).unwrap();
+        let e = od::find_entry(OBJECTS, ObjectKey::new(0x2306, 0)).unwrap();
         assert_eq!(checked_value(e, &7u32.to_le_bytes()), Ok(7));
         assert_eq!(checked_value(e, &[7]), Err(SdoAbort::LengthTooLow));
-        let e = od::find_entry(OBJECTS, 0x2300, 0).unwrap();
+        let e = od::find_entry(OBJECTS, ObjectKey::new(0x2300, 0)).unwrap();
         assert_eq!(checked_value(e, &[7, 0]), Err(SdoAbort::WriteReadOnly));
     }
 

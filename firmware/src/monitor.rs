@@ -235,7 +235,7 @@ mod tests {
 
     use super::*;
     use crate::dictionary::Sdo;
-    use ecat_slave_stack::od;
+    use ecat_slave_stack::od::{self, ObjectKey};
 
     #[test]
     fn objects_and_values() {
@@ -252,7 +252,13 @@ mod tests {
         let mut buf = [0u8; 4];
         let rd = |m: &Monitor, i: u16, buf: &mut [u8; 4]| {
             let n = m.read(i, 0, buf).unwrap();
-            od::decode_int(od::find_entry(PACKED, i, 0).unwrap().data_type, &buf[..n]).unwrap()
+            od::decode_int(
+                od::find_entry(PACKED, ObjectKey::new(i, 0))
+                    .unwrap()
+                    .data_type,
+                &buf[..n],
+            )
+            .unwrap()
         };
         assert_eq!(rd(&m, 0x2300, &mut buf), 0x8000);
         assert_eq!(rd(&m, 0x2301, &mut buf), -1500);

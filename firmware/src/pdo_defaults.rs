@@ -16,59 +16,60 @@
 //!
 //! Assigned by default: 0x1C12 = {0x1600}, 0x1C13 = {0x1A00}.
 
-use ecat_slave_stack::pdo::{entry, PdoDefaults};
+use ecat_slave_stack::od::ObjectKey;
+use ecat_slave_stack::pdo::PdoDefaults;
 
 /// 0x1600 RxPDO1: controlword, target position, position offset, touch probe function.
 pub const RX_PDO1: &[u32] = &[
-    entry(0x6040, 0, 16),
-    entry(0x607A, 0, 32),
-    entry(0x60B0, 0, 32),
-    entry(0x60B8, 0, 16),
+    ObjectKey::new(0x6040, 0).mapping_word(16),
+    ObjectKey::new(0x607A, 0).mapping_word(32),
+    ObjectKey::new(0x60B0, 0).mapping_word(32),
+    ObjectKey::new(0x60B8, 0).mapping_word(16),
 ];
 
 /// 0x1601 RxPDO2: controlword, target position, profile velocity, acceleration,
 /// deceleration, modes of operation.
 pub const RX_PDO2: &[u32] = &[
-    entry(0x6040, 0, 16),
-    entry(0x607A, 0, 32),
-    entry(0x6081, 0, 32),
-    entry(0x6083, 0, 32),
-    entry(0x6084, 0, 32),
-    entry(0x6060, 0, 8),
+    ObjectKey::new(0x6040, 0).mapping_word(16),
+    ObjectKey::new(0x607A, 0).mapping_word(32),
+    ObjectKey::new(0x6081, 0).mapping_word(32),
+    ObjectKey::new(0x6083, 0).mapping_word(32),
+    ObjectKey::new(0x6084, 0).mapping_word(32),
+    ObjectKey::new(0x6060, 0).mapping_word(8),
 ];
 
 /// 0x1602 RxPDO3: controlword, target velocity, acceleration, deceleration, modes of
 /// operation.
 pub const RX_PDO3: &[u32] = &[
-    entry(0x6040, 0, 16),
-    entry(0x60FF, 0, 32),
-    entry(0x6083, 0, 32),
-    entry(0x6084, 0, 32),
-    entry(0x6060, 0, 8),
+    ObjectKey::new(0x6040, 0).mapping_word(16),
+    ObjectKey::new(0x60FF, 0).mapping_word(32),
+    ObjectKey::new(0x6083, 0).mapping_word(32),
+    ObjectKey::new(0x6084, 0).mapping_word(32),
+    ObjectKey::new(0x6060, 0).mapping_word(8),
 ];
 
 /// 0x1603 RxPDO4: controlword, homing method, homing speeds (switch, zero), homing
 /// acceleration, home offset, modes of operation.
 pub const RX_PDO4: &[u32] = &[
-    entry(0x6040, 0, 16),
-    entry(0x6098, 0, 8),
-    entry(0x6099, 1, 32),
-    entry(0x6099, 2, 32),
-    entry(0x609A, 0, 32),
-    entry(0x607C, 0, 32),
-    entry(0x6060, 0, 8),
+    ObjectKey::new(0x6040, 0).mapping_word(16),
+    ObjectKey::new(0x6098, 0).mapping_word(8),
+    ObjectKey::new(0x6099, 1).mapping_word(32),
+    ObjectKey::new(0x6099, 2).mapping_word(32),
+    ObjectKey::new(0x609A, 0).mapping_word(32),
+    ObjectKey::new(0x607C, 0).mapping_word(32),
+    ObjectKey::new(0x6060, 0).mapping_word(8),
 ];
 
 /// 0x1A00 TxPDO1: error code, statusword, modes of operation display, position actual
 /// value, touch probe status, touch probe 1 positive edge, digital inputs.
 pub const TX_PDO1: &[u32] = &[
-    entry(0x603F, 0, 16),
-    entry(0x6041, 0, 16),
-    entry(0x6061, 0, 8),
-    entry(0x6064, 0, 32),
-    entry(0x60B9, 0, 16),
-    entry(0x60BA, 0, 32),
-    entry(0x60FD, 0, 32),
+    ObjectKey::new(0x603F, 0).mapping_word(16),
+    ObjectKey::new(0x6041, 0).mapping_word(16),
+    ObjectKey::new(0x6061, 0).mapping_word(8),
+    ObjectKey::new(0x6064, 0).mapping_word(32),
+    ObjectKey::new(0x60B9, 0).mapping_word(16),
+    ObjectKey::new(0x60BA, 0).mapping_word(32),
+    ObjectKey::new(0x60FD, 0).mapping_word(32),
 ];
 
 /// The default mapping and assignment (0x1600 / 0x1A00, 0x1C12 / 0x1C13).
@@ -103,17 +104,17 @@ mod tests {
     fn every_entry_is_mappable_with_its_length() {
         for (maps, rx) in [(&PDO_DEFAULTS.rx, true), (&PDO_DEFAULTS.tx, false)] {
             for v in maps.iter().flat_map(|m| m.iter()) {
-                let (index, sub, bits) = ((v >> 16) as u16, (v >> 8) as u8, (v & 0xFF) as u16);
-                let e = od::find_entry(OBJECTS, index, sub)
-                    .unwrap_or_else(|_| panic!("{index:#06x}:{sub} not in the dictionary"));
-                assert_eq!(e.bits(), bits, "{index:#06x}:{sub} length");
+                let (key, bits) = (ObjectKey::from_mapping_word(*v), (v & 0xFF) as u16);
+                let e = od::find_entry(OBJECTS, key)
+                    .unwrap_or_else(|_| panic!("{key} not in the dictionary"));
+                assert_eq!(e.bits(), bits, "{key} length");
                 assert!(
                     if rx {
                         e.pdo_mappable().rx()
                     } else {
                         e.pdo_mappable().tx()
                     },
-                    "{index:#06x}:{sub} not mappable in this direction"
+                    "{key} not mappable in this direction"
                 );
             }
         }

@@ -262,10 +262,10 @@ impl Source {
     /// dictionary `objects`: the PDO mapping rules (0x06040041 not mappable or wider than 32 bits, 0x06040043 a
     /// length other than the entry's).
     pub fn resolve(objects: &'static [Object], v: u32) -> Result<Source, SdoAbort> {
-        let index = (v >> 16) as u16;
-        let sub = (v >> 8) as u8;
+        let key = ObjectKey::from_mapping_word(v);
+        let ObjectKey { index, sub } = key;
         let bits = v as u8;
-        let e = od::find_entry(objects, index, sub).map_err(|_| SdoAbort::NotMappable)?;
+        let e = od::find_entry(objects, key).map_err(|_| SdoAbort::NotMappable)?;
         if e.pdo_mappable() == PdoMappable::No || e.bits() == 0 || e.bits() > 32 {
             return Err(SdoAbort::NotMappable);
         }

@@ -267,6 +267,7 @@ pub fn break_path(o: BreakObservation) -> Verdict {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use ecat_slave_stack::od::ObjectKey;
 
     #[test]
     fn summary_counts_and_needs_one_check() {
@@ -393,8 +394,12 @@ mod tests {
             },
         );
         d.power_up(&mut NoRuntime);
-        d.write(0x2000, 0, &2100u16.to_le_bytes(), EsmState::PreOp)
-            .expect("2000");
+        d.write(
+            ObjectKey::new(0x2000, 0),
+            &2100u16.to_le_bytes(),
+            EsmState::PreOp,
+        )
+        .expect("2000");
         let save = u32::from_le_bytes(*b"save").to_le_bytes();
         for (round, spare) in [(1u32, 0usize), (2, 1), (3, 0)] {
             let st = d.store_mut().expect("store");
@@ -406,8 +411,13 @@ mod tests {
                     sequence: round
                 }
             );
-            d.write_with_runtime(0x1010, 1, &save, EsmState::PreOp, &mut NoRuntime)
-                .expect("save");
+            d.write_with_runtime(
+                ObjectKey::new(0x1010, 1),
+                &save,
+                EsmState::PreOp,
+                &mut NoRuntime,
+            )
+            .expect("save");
             let st = d.store_mut().expect("store");
             assert_eq!(record_check(&storage, &mut st.flash, probe), Verdict::Pass);
         }
@@ -416,7 +426,12 @@ mod tests {
         let st = d.store_mut().expect("store");
         let probe = record_probe(&storage, &mut st.flash);
         st.flash.cut_power_after(0);
-        let _ = d.write_with_runtime(0x1010, 1, &save, EsmState::PreOp, &mut NoRuntime);
+        let _ = d.write_with_runtime(
+            ObjectKey::new(0x1010, 1),
+            &save,
+            EsmState::PreOp,
+            &mut NoRuntime,
+        );
         let st = d.store_mut().expect("store");
         st.flash.power_on();
         assert!(!record_check(&storage, &mut st.flash, probe).passed());
@@ -432,7 +447,7 @@ mod tests {
         );
         assert!(d2.power_up(&mut NoRuntime).source.is_some());
         let mut b = [0u8; 8];
-        d2.read(0x2000, 0, &mut b).expect("read");
+        d2.read(ObjectKey::new(0x2000, 0), &mut b).expect("read");
         assert_eq!(u16::from_le_bytes([b[0], b[1]]), 2100);
     }
 

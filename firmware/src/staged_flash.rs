@@ -385,19 +385,20 @@ mod tests {
     use crate::identity::Variant;
     use crate::storage::{region, RamFlash};
     use ecat_slave_stack::esm::EsmState;
-    use ecat_slave_stack::od::Dictionary;
+    use ecat_slave_stack::od::{Dictionary, ObjectKey};
 
     type Ram = RamFlash<{ region::SIZE as usize }>;
     type Records<'a, 'r> = StagedRecords<'a, &'r mut Ram, 4096, 2048>;
 
     fn read_u32(d: &mut Drive, index: u16) -> u32 {
         let mut b = [0u8; 4];
-        let n = d.read(index, 0, &mut b).unwrap();
+        let n = d.read(ObjectKey::new(index, 0), &mut b).unwrap();
         u32::from_le_bytes(b) & (u32::MAX >> (32 - 8 * n))
     }
 
     fn set(d: &mut Drive, index: u16, v: &[u8]) {
-        d.write(index, 0, v, EsmState::PreOp).unwrap();
+        d.write(ObjectKey::new(index, 0), v, EsmState::PreOp)
+            .unwrap();
     }
 
     /// Stages `cmd` through the board's store ("under the lock") and returns the flash

@@ -37,7 +37,7 @@
 //! power-up, as CiA 301 specifies for 0x1011.
 
 use ecat_slave_stack::esm::EsmState;
-use ecat_slave_stack::od::{Dictionary, SdoAbort};
+use ecat_slave_stack::od::{Dictionary, ObjectKey, SdoAbort};
 use embedded_storage::nor_flash::{NorFlash, NorFlashError, NorFlashErrorKind};
 
 /// Largest value stored per entry (longer values are skipped).
@@ -424,12 +424,12 @@ impl Storage {
             }
             if pending.as_ref().is_some_and(|p| p.index != index) {
                 if let Some(p) = pending.take() {
-                    apply(dict, p.index, 0, p.bytes(), &mut report);
+                    apply(dict, ObjectKey::new(p.index, 0), p.bytes(), &mut report);
                 }
             }
             if sub == 0 && n <= 8 && count_first(dict, index) {
                 let zero = [0u8; 8];
-                let _ = dict.write(index, 0, &zero[..n], EsmState::PreOp);
+                let _ = dict.write(ObjectKey::new(index, 0), &zero[..n], EsmState::PreOp);
                 let mut v = [0u8; 8];
                 v[..n].copy_from_slice(&value[..n]);
                 pending = Some(PendingCount {
@@ -439,10 +439,10 @@ impl Storage {
                 });
                 continue;
             }
-            apply(dict, index, sub, &value[..n], &mut report);
+            apply(dict, ObjectKey::new(index, sub), &value[..n], &mut report);
         }
         if let Some(p) = pending.take() {
-            apply(dict, p.index, 0, p.bytes(), &mut report);
+            apply(dict, ObjectKey::new(p.index, 0), p.bytes(), &mut report);
         }
         report
     }
@@ -707,10 +707,10 @@ impl Dictionary for NoDict {
     fn objects(&self) -> &'static [ecat_slave_stack::od::Object] {
         &[]
     }
-    fn read(&mut self, _: u16, _: u8, _: &mut [u8]) -> Result<usize, SdoAbort> {
+    fn read(&mut self, _: ObjectKey, _: &mut [u8]) -> Result<usize, SdoAbort> {
         Err(SdoAbort::ObjectDoesNotExist)
     }
-    fn write(&mut self, _: u16, _: u8, _: &[u8], _: EsmState) -> Result<(), SdoAbort> {
+    fn write(&mut self, _: ObjectKey, _: &[u8], _: EsmState) -> Result<(), SdoAbort> {
         Err(SdoAbort::ObjectDoesNotExist)
     }
 }

@@ -4,7 +4,7 @@
 //! vector, and the touch-probe latches (`firmware::latch`) up to the drive's
 //! 0x60B9/0x60BA-0x60BD. Runs on the host and under QEMU.
 use ecat_slave_stack::esm::EsmState;
-use ecat_slave_stack::od::Dictionary;
+use ecat_slave_stack::od::{Dictionary, ObjectKey};
 use firmware::cia402::{DriveCommand, EdgeLatch, SetpointKind};
 use firmware::commutation::{
     align_config, CommutatedMotion, Commutation, Step, ALIGN_RAMP_S, ALIGN_SETTLE_S,
@@ -291,7 +291,7 @@ qemu_runner::tests! {
         let mut d = Drive::new(Variant::HybridServo, 1);
         // 0x60B8: probe 1 enabled, rising + falling; probe 2 enabled, rising, continuous.
         let f: u16 = 0x0031 | (0x0013 << 8);
-        assert!(d.write(0x60B8, 0, &f.to_le_bytes(), EsmState::Op).is_ok());
+        assert!(d.write(ObjectKey::new(0x60B8, 0), &f.to_le_bytes(), EsmState::Op).is_ok());
         d.set_axis(AxisState { bus_mv: 48_000, ..AxisState::default() });
         d.run_cycle(0.001);
         d.set_axis(AxisState {
@@ -303,7 +303,7 @@ qemu_runner::tests! {
         d.run_cycle(0.001);
         let mut b = [0u8; 4];
         let rd = |d: &mut Drive, i: u16, b: &mut [u8; 4]| {
-            let n = d.read(i, 0, b).unwrap_or(0);
+            let n = d.read(ObjectKey::new(i, 0), b).unwrap_or(0);
             let mut v = [0u8; 4];
             v[..n].copy_from_slice(&b[..n]);
             i32::from_le_bytes(v)

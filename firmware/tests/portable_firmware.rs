@@ -3,16 +3,16 @@
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 use ecat_slave_stack::esm::EsmState;
-use ecat_slave_stack::od::{self, Dictionary, SdoAbort};
+use ecat_slave_stack::od::{self, Dictionary, ObjectKey, SdoAbort};
 use firmware::cia402::pds::PdsState;
 use firmware::dictionary::OBJECTS;
 use firmware::drive::{AxisState, Drive};
 use firmware::identity::Variant;
 
 fn write(d: &mut Drive, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
-    let e = od::find_entry(OBJECTS, index, sub)?;
+    let e = od::find_entry(OBJECTS, ObjectKey::new(index, sub))?;
     od::check_write(e, data, EsmState::PreOp)?;
-    d.write(index, sub, data, EsmState::PreOp)
+    d.write(ObjectKey::new(index, sub), data, EsmState::PreOp)
 }
 
 qemu_runner::tests! {
@@ -32,11 +32,11 @@ qemu_runner::tests! {
             for e in o.entries() {
                 if o.index == firmware::scope::DATA && e.sub > 0 {
                     // The scope's blocks: no record yet.
-                    assert_eq!(d.read(o.index, e.sub, &mut buf), Err(SdoAbort::NoDataAvailable));
+                    assert_eq!(d.read(ObjectKey::new(o.index, e.sub), &mut buf), Err(SdoAbort::NoDataAvailable));
                     continue;
                 }
                 if e.access.readable() {
-                    let n = d.read(o.index, e.sub, &mut buf);
+                    let n = d.read(ObjectKey::new(o.index, e.sub), &mut buf);
                     assert!(n.is_ok(), "{:#06x}:{} read failed: {:?}", o.index, e.sub, n);
                     if !e.data_type.is_variable_length() {
                         assert_eq!(n.unwrap_or(0), e.byte_len(), "{:#06x}:{} length", o.index, e.sub);

@@ -121,7 +121,7 @@ impl Drive {
         ]
     }
     fn sdo(&mut self, index: u16, sub: u8, v: u32) -> Result<Option<StoreCommand>, SdoAbort> {
-        let e = od::find_entry(ALL, index, sub)?;
+        let e = od::find_entry(ALL, ObjectKey::new(index, sub))?;
         let data = &v.to_le_bytes()[..e.byte_len()];
         od::check_write(e, data, EsmState::PreOp)?;
         match index {
@@ -131,7 +131,9 @@ impl Drive {
                 ObjectKey::new(index, sub),
                 data,
             ),
-            _ => self.write(index, sub, data, EsmState::PreOp).map(|_| None),
+            _ => self
+                .write(ObjectKey::new(index, sub), data, EsmState::PreOp)
+                .map(|_| None),
         }
     }
     /// A different parameter set.
@@ -147,14 +149,28 @@ impl Drive {
         self.params
             .write(0x2015, 0, &5000u16.to_le_bytes())
             .unwrap();
-        self.write(0x1600, 0, &[0], EsmState::PreOp).unwrap();
-        self.write(0x1600, 1, &0x6040_0010u32.to_le_bytes(), EsmState::PreOp)
+        self.write(ObjectKey::new(0x1600, 0), &[0], EsmState::PreOp)
             .unwrap();
-        self.write(0x1600, 2, &0x60FF_0020u32.to_le_bytes(), EsmState::PreOp)
+        self.write(
+            ObjectKey::new(0x1600, 1),
+            &0x6040_0010u32.to_le_bytes(),
+            EsmState::PreOp,
+        )
+        .unwrap();
+        self.write(
+            ObjectKey::new(0x1600, 2),
+            &0x60FF_0020u32.to_le_bytes(),
+            EsmState::PreOp,
+        )
+        .unwrap();
+        self.write(
+            ObjectKey::new(0x1600, 3),
+            &0x6060_0008u32.to_le_bytes(),
+            EsmState::PreOp,
+        )
+        .unwrap();
+        self.write(ObjectKey::new(0x1600, 0), &[3], EsmState::PreOp)
             .unwrap();
-        self.write(0x1600, 3, &0x6060_0008u32.to_le_bytes(), EsmState::PreOp)
-            .unwrap();
-        self.write(0x1600, 0, &[3], EsmState::PreOp).unwrap();
         firmware::dictionary::write_comm(
             &mut self.comm,
             &mut self.faults,
@@ -170,7 +186,8 @@ impl Dictionary for Drive {
     fn objects(&self) -> &'static [Object] {
         ALL
     }
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        let ObjectKey { index, sub } = key;
         match index {
             0x1000..=0x10FF => firmware::dictionary::read(
                 &self.comm,
@@ -186,7 +203,7 @@ impl Dictionary for Drive {
                     (0x1C12, 1) => u32::from(self.assign),
                     _ => return Err(SdoAbort::SubindexDoesNotExist),
                 };
-                let len = od::find_entry(ALL, index, sub)?.byte_len();
+                let len = od::find_entry(ALL, key)?.byte_len();
                 buf.get_mut(..len)
                     .ok_or(SdoAbort::ExceedsMailbox)?
                     .copy_from_slice(&v.to_le_bytes()[..len]);
@@ -200,7 +217,8 @@ impl Dictionary for Drive {
             _ => Err(SdoAbort::ObjectDoesNotExist),
         }
     }
-    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+    fn write(&mut self, key: ObjectKey, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        let ObjectKey { index, sub } = key;
         let mut b = [0u8; 4];
         let n = data.len().min(4);
         b[..n].copy_from_slice(&data[..n]);
@@ -271,7 +289,7 @@ fn all_values_in_range(d: &mut Drive) -> bool {
     let mut buf = [0u8; 64];
     ALL.iter().all(|o| {
         o.entries().iter().filter(|e| e.is_saved()).all(|e| {
-            match d.read(o.index, e.sub, &mut buf) {
+            match d.read(ObjectKey::new(o.index, e.sub), &mut buf) {
                 Ok(n) => od::decode_int(e.data_type, &buf[..n])
                     .is_none_or(|v| v >= e.min() && v <= e.max()),
                 Err(_) => false,

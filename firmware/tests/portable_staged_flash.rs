@@ -5,7 +5,7 @@
 //! second save before the commit are refused; a power cut during the commit keeps
 //! the previous record.
 use ecat_slave_stack::esm::EsmState;
-use ecat_slave_stack::od::Dictionary;
+use ecat_slave_stack::od::{Dictionary, ObjectKey};
 use embedded_storage::nor_flash::{NorFlash, ReadNorFlash};
 use firmware::drive::Drive;
 use firmware::identity::Variant;
@@ -22,14 +22,18 @@ fn store() -> Storage {
 
 fn drive_with_peak(ma: u16) -> Drive {
     let mut d = Drive::new(Variant::HybridServo, 7);
-    d.write(0x2000, 0, &ma.to_le_bytes(), EsmState::PreOp)
-        .unwrap();
+    d.write(
+        ObjectKey::new(0x2000, 0),
+        &ma.to_le_bytes(),
+        EsmState::PreOp,
+    )
+    .unwrap();
     d
 }
 
 fn peak(d: &mut Drive) -> u16 {
     let mut b = [0u8; 4];
-    let n = d.read(0x2000, 0, &mut b).unwrap();
+    let n = d.read(ObjectKey::new(0x2000, 0), &mut b).unwrap();
     assert_eq!(n, 2);
     u16::from_le_bytes([b[0], b[1]])
 }

@@ -10,7 +10,7 @@
 use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::diag::{DiagMessage, Param};
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
-use ecat_slave_stack::od::{Dictionary, SdoAbort};
+use ecat_slave_stack::od::{Dictionary, ObjectKey, SdoAbort};
 use ecat_slave_stack::slave::{CycleInfo, SlaveApplication};
 use ecat_slave_stack::sync::SyncMode;
 use firmware::cia402::mode;
@@ -280,19 +280,19 @@ qemu_runner::tests! {
         assert_eq!(r.emergencies()[0].code, 0x3210);
         // The same fault in the ETG.1020 diagnosis history, as a master reads it.
         let mut b = [0u8; 32];
-        assert_eq!(r.d.read(0x10F3, 2, &mut b), Ok(1));
+        assert_eq!(r.d.read(ObjectKey::new(0x10F3, 2), &mut b), Ok(1));
         let newest = b[0];
         assert_eq!(newest, 6, "first message in SI6");
-        assert_eq!(r.d.read(0x10F3, 4, &mut b).map(|_| b[0]), Ok(1), "new message");
-        assert_eq!(r.d.read(0x10F3, newest, &mut b), Ok(28));
+        assert_eq!(r.d.read(ObjectKey::new(0x10F3, 4), &mut b).map(|_| b[0]), Ok(1), "new message");
+        assert_eq!(r.d.read(ObjectKey::new(0x10F3, newest), &mut b), Ok(28));
         let m = DiagMessage::parse(&b).expect("a message");
         assert_eq!(m.code, 0x3210_E800);
         assert_eq!(m.text_id, firmware::diagnosis::fault_text_id(firmware::faults::FaultKind::OverVoltage));
         assert_eq!(m.params[0], Param::U16(600), "bus 60.0 V");
-        assert_eq!(r.d.read(0x10F3, 4, &mut b).map(|_| b[0]), Ok(0), "read: no new message");
-        assert_eq!(r.d.write(0x10F3, 3, &[7], EsmState::PreOp), Err(SdoAbort::ValueRangeExceeded));
-        assert_eq!(r.d.write(0x10F3, 3, &[0], EsmState::PreOp), Ok(()));
-        assert_eq!(r.d.read(0x10F3, 2, &mut b).map(|_| b[0]), Ok(0), "cleared");
+        assert_eq!(r.d.read(ObjectKey::new(0x10F3, 4), &mut b).map(|_| b[0]), Ok(0), "read: no new message");
+        assert_eq!(r.d.write(ObjectKey::new(0x10F3, 3), &[7], EsmState::PreOp), Err(SdoAbort::ValueRangeExceeded));
+        assert_eq!(r.d.write(ObjectKey::new(0x10F3, 3), &[0], EsmState::PreOp), Ok(()));
+        assert_eq!(r.d.read(ObjectKey::new(0x10F3, 2), &mut b).map(|_| b[0]), Ok(0), "cleared");
 
         // Phase short (the break latch): power off at once.
         let mut r = Rig::enabled(mode::PV, 1);

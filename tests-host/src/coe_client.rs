@@ -303,7 +303,7 @@ impl Mailbox {
     {
         let (index, sub) = match req {
             info::Repr::ObjectDescription { index } => (index, 0),
-            info::Repr::EntryDescription { index, sub, .. } => (index, sub),
+            info::Repr::EntryDescription { key, .. } => (key.index, key.sub),
             _ => (0, 0),
         };
         let mut buf = [0u8; 16];

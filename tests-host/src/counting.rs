@@ -8,7 +8,7 @@
 
 use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
-use ecat_slave_stack::od::{Dictionary, Object, SdoAbort};
+use ecat_slave_stack::od::{Dictionary, Object, ObjectKey, SdoAbort};
 use ecat_slave_stack::pdo::ProcessData;
 use ecat_slave_stack::slave::{CycleInfo, SlaveApplication};
 use ecat_slave_stack::sync::SyncMode;
@@ -57,31 +57,29 @@ impl<A: Dictionary> Dictionary for Counting<A> {
     fn objects(&self) -> &'static [Object] {
         self.inner.objects()
     }
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        self.inner.read(index, sub, buf)
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        self.inner.read(key, buf)
     }
-    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
-        self.inner.write(index, sub, data, state)
+    fn write(&mut self, key: ObjectKey, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        self.inner.write(key, data, state)
     }
     fn write_with_runtime(
         &mut self,
-        index: u16,
-        sub: u8,
+        key: ObjectKey,
         data: &[u8],
         state: EsmState,
         runtime: &mut dyn Dictionary,
     ) -> Result<(), SdoAbort> {
-        self.inner
-            .write_with_runtime(index, sub, data, state, runtime)
+        self.inner.write_with_runtime(key, data, state, runtime)
     }
 }
 
 impl<A: ProcessData> ProcessData for Counting<A> {
-    fn rx_slot(&self, index: u16, sub: u8) -> Option<u16> {
-        self.inner.rx_slot(index, sub)
+    fn rx_slot(&self, key: ObjectKey) -> Option<u16> {
+        self.inner.rx_slot(key)
     }
-    fn tx_slot(&self, index: u16, sub: u8) -> Option<u16> {
-        self.inner.tx_slot(index, sub)
+    fn tx_slot(&self, key: ObjectKey) -> Option<u16> {
+        self.inner.tx_slot(key)
     }
     fn set_rx(&mut self, slot: u16, raw: u64) {
         self.inner.set_rx(slot, raw)

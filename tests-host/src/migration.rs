@@ -13,7 +13,7 @@
 use std::fmt::Write as _;
 
 use ecat_slave_stack::leds::{ErrCondition, Pattern};
-use ecat_slave_stack::od::{self, Object, PdoMappable};
+use ecat_slave_stack::od::{self, Object, ObjectKey, PdoMappable};
 use firmware::faults::FaultKind;
 
 mod dp3cl;
@@ -116,7 +116,7 @@ pub struct Change {
 pub fn check(objects: &'static [Object], here: Here) -> Option<String> {
     match here {
         Here::Entry(index, sub, acc, pdo) => {
-            let Ok(e) = od::find_entry(objects, index, sub) else {
+            let Ok(e) = od::find_entry(objects, ObjectKey::new(index, sub)) else {
                 return Some(format!("{index:#06x}:{sub} is not in the dictionary"));
             };
             let (a, p) = (e.access.esi(), e.pdo_mappable());
@@ -161,25 +161,27 @@ fn pattern_text(p: Pattern) -> &'static str {
 fn cells(objects: &'static [Object], here: Here) -> [String; 5] {
     let dash = || "—".to_string();
     match here {
-        Here::Entry(index, sub, _, _) => match od::find_entry(objects, index, sub) {
-            Ok(e) => [
-                format!("0x{index:04X}:{sub:02X}"),
-                e.name().to_string(),
-                e.access.esi().to_string(),
-                pdo_text(e.pdo_mappable()).to_string(),
-                match e.unit_text() {
-                    "" => dash(),
-                    u => u.to_string(),
-                },
-            ],
-            Err(_) => [
-                format!("0x{index:04X}:{sub:02X}"),
-                "MISSING".into(),
-                dash(),
-                dash(),
-                dash(),
-            ],
-        },
+        Here::Entry(index, sub, _, _) => {
+            match od::find_entry(objects, ObjectKey::new(index, sub)) {
+                Ok(e) => [
+                    format!("0x{index:04X}:{sub:02X}"),
+                    e.name().to_string(),
+                    e.access.esi().to_string(),
+                    pdo_text(e.pdo_mappable()).to_string(),
+                    match e.unit_text() {
+                        "" => dash(),
+                        u => u.to_string(),
+                    },
+                ],
+                Err(_) => [
+                    format!("0x{index:04X}:{sub:02X}"),
+                    "MISSING".into(),
+                    dash(),
+                    dash(),
+                    dash(),
+                ],
+            }
+        }
         Here::Object(index) => match od::find(objects, index) {
             Some(o) => [
                 format!("0x{index:04X}"),

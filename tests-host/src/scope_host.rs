@@ -71,7 +71,7 @@ impl Channel {
 
     /// The 0x2501 value: `index << 16 | sub << 8 | bits`.
     pub fn mapping(&self) -> u32 {
-        u32::from(self.index) << 16 | u32::from(self.sub) << 8 | u32::from(self.bits)
+        od::ObjectKey::new(self.index, self.sub).mapping_word(self.bits)
     }
 
     /// CSV column / legend: `0x6064 Position actual value [inc]`.

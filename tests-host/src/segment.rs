@@ -28,9 +28,9 @@ use ecat_slave_stack::esm::{EsmHooks, EsmState};
 use ecat_slave_stack::et1100::{Et1100, Et1100Config};
 use ecat_slave_stack::lan9252::{Lan9252, Lan9252Config};
 use ecat_slave_stack::od::{
-    Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+    Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, ObjectKey, PdoMappable, SdoAbort,
 };
-use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
+use ecat_slave_stack::pdo::{self, PdoDefaults, ProcessData};
 use ecat_slave_stack::sii::{self, DeviceDescription};
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
 use ecat_slave_stack::{sync, EscAccess, EscError};
@@ -415,8 +415,14 @@ const TEST_OBJECTS_LOCAL: &[ObjectDesc] = &[
     var(0x607A, "Target position", E_607A),
 ];
 
-const RX: &[u32] = &[entry(0x6040, 0, 16), entry(0x607A, 0, 32)];
-const TX: &[u32] = &[entry(0x6041, 0, 16), entry(0x6064, 0, 32)];
+const RX: &[u32] = &[
+    ObjectKey::new(0x6040, 0).mapping_word(16),
+    ObjectKey::new(0x607A, 0).mapping_word(32),
+];
+const TX: &[u32] = &[
+    ObjectKey::new(0x6041, 0).mapping_word(16),
+    ObjectKey::new(0x6064, 0).mapping_word(32),
+];
 
 /// Default mapping of [`TestDrive`]: 6 bytes each way.
 pub const TEST_PDO_DEFAULTS: PdoDefaults = PdoDefaults {
@@ -446,7 +452,8 @@ impl Dictionary for TestDrive {
     fn objects(&self) -> &'static [Object] {
         TEST_OBJECTS
     }
-    fn read(&mut self, index: u16, _sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        let ObjectKey { index, .. } = key;
         let (v, n) = match index {
             0x1000 => (0x0002_0192u64, 4),
             0x6040 => (self.values[0], 2),
@@ -459,13 +466,8 @@ impl Dictionary for TestDrive {
         out.copy_from_slice(&v.to_le_bytes()[..n]);
         Ok(n)
     }
-    fn write(
-        &mut self,
-        index: u16,
-        _sub: u8,
-        data: &[u8],
-        _state: EsmState,
-    ) -> Result<(), SdoAbort> {
+    fn write(&mut self, key: ObjectKey, data: &[u8], _state: EsmState) -> Result<(), SdoAbort> {
+        let ObjectKey { index, .. } = key;
         let mut b = [0u8; 8];
         let n = data.len().min(8);
         b[..n].copy_from_slice(&data[..n]);
@@ -480,14 +482,16 @@ impl Dictionary for TestDrive {
 }
 
 impl ProcessData for TestDrive {
-    fn rx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+    fn rx_slot(&self, key: ObjectKey) -> Option<u16> {
+        let ObjectKey { index, sub } = key;
         match (index, sub) {
             (0x6040, 0) => Some(0),
             (0x607A, 0) => Some(1),
             _ => None,
         }
     }
-    fn tx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+    fn tx_slot(&self, key: ObjectKey) -> Option<u16> {
+        let ObjectKey { index, sub } = key;
         match (index, sub) {
             (0x6041, 0) => Some(2),
             (0x6064, 0) => Some(3),

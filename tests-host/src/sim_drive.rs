@@ -26,7 +26,7 @@ use std::path::PathBuf;
 
 use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
-use ecat_slave_stack::od::{Dictionary, Object, SdoAbort};
+use ecat_slave_stack::od::{Dictionary, Object, ObjectKey, SdoAbort};
 use ecat_slave_stack::pdo::ProcessData;
 use ecat_slave_stack::sii::EscFlavour;
 use ecat_slave_stack::slave::{CycleInfo, SlaveApplication, SlaveConfig};
@@ -472,35 +472,33 @@ impl Dictionary for SimDrive {
     fn objects(&self) -> &'static [Object] {
         self.drive.objects()
     }
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        self.drive.read(index, sub, buf)
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        self.drive.read(key, buf)
     }
-    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
-        self.drive.write(index, sub, data, state)?;
+    fn write(&mut self, key: ObjectKey, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        self.drive.write(key, data, state)?;
         self.axis.parameters(&self.drive.params);
         Ok(())
     }
     fn write_with_runtime(
         &mut self,
-        index: u16,
-        sub: u8,
+        key: ObjectKey,
         data: &[u8],
         state: EsmState,
         runtime: &mut dyn Dictionary,
     ) -> Result<(), SdoAbort> {
-        self.drive
-            .write_with_runtime(index, sub, data, state, runtime)?;
+        self.drive.write_with_runtime(key, data, state, runtime)?;
         self.axis.parameters(&self.drive.params);
         Ok(())
     }
 }
 
 impl ProcessData for SimDrive {
-    fn rx_slot(&self, index: u16, sub: u8) -> Option<u16> {
-        self.drive.rx_slot(index, sub)
+    fn rx_slot(&self, key: ObjectKey) -> Option<u16> {
+        self.drive.rx_slot(key)
     }
-    fn tx_slot(&self, index: u16, sub: u8) -> Option<u16> {
-        self.drive.tx_slot(index, sub)
+    fn tx_slot(&self, key: ObjectKey) -> Option<u16> {
+        self.drive.tx_slot(key)
     }
     fn set_rx(&mut self, slot: u16, raw: u64) {
         self.drive.set_rx(slot, raw)
@@ -737,10 +735,10 @@ impl Dictionary for NoRuntime {
     fn objects(&self) -> &'static [Object] {
         &[]
     }
-    fn read(&mut self, _: u16, _: u8, _: &mut [u8]) -> Result<usize, SdoAbort> {
+    fn read(&mut self, _: ObjectKey, _: &mut [u8]) -> Result<usize, SdoAbort> {
         Err(SdoAbort::ObjectDoesNotExist)
     }
-    fn write(&mut self, _: u16, _: u8, _: &[u8], _: EsmState) -> Result<(), SdoAbort> {
+    fn write(&mut self, _: ObjectKey, _: &[u8], _: EsmState) -> Result<(), SdoAbort> {
         Err(SdoAbort::ObjectDoesNotExist)
     }
 }

@@ -18,7 +18,7 @@ use std::cell::RefCell;
 use std::rc::Rc;
 
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
-use ecat_slave_stack::od::Dictionary;
+use ecat_slave_stack::od::{Dictionary, ObjectKey};
 use ecat_slave_stack::slave::{CycleInfo, SlaveApplication};
 use ecat_slave_stack::sync::SyncMode;
 use firmware::cia402::pds::PdsState;
@@ -92,7 +92,7 @@ impl Bench {
     }
 
     fn sdo_write(&mut self, index: u16, sub: u8, data: &[u8]) {
-        Dictionary::write(&mut self.d, index, sub, data, EsmState::Op)
+        Dictionary::write(&mut self.d, ObjectKey::new(index, sub), data, EsmState::Op)
             .unwrap_or_else(|e| panic!("write {index:#06x}:{sub}: {e:?}"));
     }
 
@@ -119,8 +119,13 @@ impl Bench {
             let sw = self.statusword();
             if self.track && sw & 0x6F != 0x27 {
                 let here = self.d.drive.cia402.position_actual();
-                Dictionary::write(&mut self.d, 0x607A, 0, &here.to_le_bytes(), EsmState::Op)
-                    .unwrap();
+                Dictionary::write(
+                    &mut self.d,
+                    ObjectKey::new(0x607A, 0),
+                    &here.to_le_bytes(),
+                    EsmState::Op,
+                )
+                .unwrap();
             }
             self.now_us += 1000;
             self.d.catch_up(self.now_us);

@@ -4,6 +4,7 @@
 //! the single test `ethercrab_bringup`. Segments of 1 and 8 drives, LAN9252 and ET1100
 //! flavours, PDI direct and through the chip driver + SPI model.
 
+use ecat_slave_stack::od::ObjectKey;
 use ethercrab::{MainDevice, PduStorage, SubDeviceState};
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -800,14 +801,14 @@ fn unsupported_sync_type_0x0028_via_sdo() {
 
 #[test]
 fn invalid_default_mappings_0x0024_0x0025() {
-    use ecat_slave_stack::pdo::{entry, PdoDefaults};
+    use ecat_slave_stack::pdo::PdoDefaults;
     use tests_host::segment::{sii_image, test_description, test_slave_config};
     // RxPDO mapping an object the application cannot receive (0x6041 is input-only).
-    const RX_BAD: &[u32] = &[entry(0x6041, 0, 16)];
-    const TX_OK: &[u32] = &[entry(0x6041, 0, 16)];
+    const RX_BAD: &[u32] = &[ObjectKey::new(0x6041, 0).mapping_word(16)];
+    const TX_OK: &[u32] = &[ObjectKey::new(0x6041, 0).mapping_word(16)];
     // TxPDO mapping an object the application cannot send.
-    const TX_BAD: &[u32] = &[entry(0x6040, 0, 16)];
-    const RX_OK: &[u32] = &[entry(0x6040, 0, 16)];
+    const TX_BAD: &[u32] = &[ObjectKey::new(0x6040, 0).mapping_word(16)];
+    const RX_OK: &[u32] = &[ObjectKey::new(0x6040, 0).mapping_word(16)];
     let cases: [(PdoDefaults, u16); 2] = [
         (
             PdoDefaults {

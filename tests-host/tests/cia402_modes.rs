@@ -3,7 +3,7 @@
 //! from many start positions, the PDS against an independent reference model, long
 //! randomized runs with garbage controlwords / SDO / PDO values, and the touch probe on
 //! a moving axis.
-use ecat_slave_stack::od::{self, DataType, SdoAbort};
+use ecat_slave_stack::od::{self, DataType, ObjectKey, SdoAbort};
 use firmware::cia402::objects::{RX_SLOTS, TX_SLOTS};
 use firmware::cia402::pds::PdsState;
 use firmware::cia402::{mode, sw, Cia402, DriveCommand, DriveFeedback, EdgeLatch, SetpointKind};
@@ -151,7 +151,7 @@ fn enable(d: &mut Cia402, ax: &mut Axis, m: i8) {
 }
 
 fn sdo_u32(d: &mut Cia402, index: u16, sub: u8, v: u32) {
-    let e = od::find_entry(OBJECTS, index, sub).unwrap();
+    let e = od::find_entry(OBJECTS, ObjectKey::new(index, sub)).unwrap();
     d.write(index, sub, &v.to_le_bytes()[..e.byte_len()])
         .unwrap();
 }
@@ -456,12 +456,17 @@ fn dictionary_types_lengths_and_access() {
     }
     // Every mappable entry in the tables is at most 32 bits.
     for &(i, s) in RX_SLOTS.iter().chain(TX_SLOTS) {
-        assert!(od::find_entry(OBJECTS, i, s).unwrap().bits() <= 32);
+        assert!(
+            od::find_entry(OBJECTS, ObjectKey::new(i, s))
+                .unwrap()
+                .bits()
+                <= 32
+        );
     }
     // Signed entries sign-extend.
     d.write(0x607C, 0, &(-5i32).to_le_bytes()).unwrap();
     assert_eq!(d.value(0x607C, 0), Some(-5));
-    let e = od::find_entry(OBJECTS, 0x6060, 0).unwrap();
+    let e = od::find_entry(OBJECTS, ObjectKey::new(0x6060, 0)).unwrap();
     assert_eq!(e.data_type, DataType::Integer8);
 }
 

@@ -13,7 +13,8 @@
 use ecat_slave_stack::coe::example::{self, ExampleDictionary, DEVICE_NAME};
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
 use ecat_slave_stack::od::{
-    self, Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+    self, Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, ObjectKey, PdoMappable,
+    SdoAbort,
 };
 use ecat_slave_stack::pdo::{self, ProcessData};
 use ecat_slave_stack::slave::SlaveApplication;
@@ -70,28 +71,31 @@ impl Dictionary for CoeDrive {
     fn objects(&self) -> &'static [Object] {
         OBJECTS
     }
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        let ObjectKey { index, .. } = key;
         if index == 0x6064 {
             let b = buf.get_mut(..4).ok_or(SdoAbort::GeneralError)?;
             b.copy_from_slice(&self.position.to_le_bytes());
             return Ok(4);
         }
-        self.ex.read(index, sub, buf)
+        self.ex.read(key, buf)
     }
-    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
-        self.ex.write(index, sub, data, state)
+    fn write(&mut self, key: ObjectKey, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        self.ex.write(key, data, state)
     }
 }
 
 impl ProcessData for CoeDrive {
-    fn rx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+    fn rx_slot(&self, key: ObjectKey) -> Option<u16> {
+        let ObjectKey { index, sub } = key;
         match (index, sub) {
             (0x6040, 0) => Some(0),
             (0x607A, 0) => Some(1),
             _ => None,
         }
     }
-    fn tx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+    fn tx_slot(&self, key: ObjectKey) -> Option<u16> {
+        let ObjectKey { index, sub } = key;
         match (index, sub) {
             (0x6041, 0) => Some(2),
             (0x6064, 0) => Some(3),
@@ -100,13 +104,13 @@ impl ProcessData for CoeDrive {
     }
     fn set_rx(&mut self, slot: u16, raw: u64) {
         match slot {
-            0 => self.ex.set_value(0x6040, 0, raw),
-            _ => self.ex.set_value(0x607A, 0, raw),
+            0 => self.ex.set_value(ObjectKey::new(0x6040, 0), raw),
+            _ => self.ex.set_value(ObjectKey::new(0x607A, 0), raw),
         }
     }
     fn get_tx(&self, slot: u16) -> u64 {
         match slot {
-            2 => self.ex.value(0x6041, 0),
+            2 => self.ex.value(ObjectKey::new(0x6041, 0)),
             _ => self.position as u32 as u64,
         }
     }
@@ -288,7 +292,7 @@ fn ethercrab_sdo_through_the_simulated_esc() {
         );
         assert_eq!(s.drive(0).poll_errors, 0, "{ctx}");
         assert_eq!(
-            s.drive(0).app.ex.value(0x2000, 0) as u32 as i32,
+            s.drive(0).app.ex.value(ObjectKey::new(0x2000, 0)) as u32 as i32,
             -250,
             "{ctx}"
         );

@@ -38,7 +38,7 @@ use std::rc::Rc;
 
 use ecat_slave_stack::diag::DiagMessage;
 use ecat_slave_stack::leds::Pattern;
-use ecat_slave_stack::od::Dictionary;
+use ecat_slave_stack::od::{Dictionary, ObjectKey};
 use ecat_slave_stack::registers as reg;
 use firmware::cia402::pds::PdsState;
 use tests_host::esc_sim::{Flavour, Side};
@@ -848,7 +848,9 @@ fn run_case(mode: Mode, option: i16, loss: Loss) -> Outcome {
     let sw = m.sdo_read(0x6041, 0).expect("0x6041") as u16;
     let err = m.sdo_read(0x603F, 0).expect("0x603F") as u16;
     let mut dict = [0u8; 2];
-    m.app().read(0x6041, 0, &mut dict).expect("0x6041 direct");
+    m.app()
+        .read(ObjectKey::new(0x6041, 0), &mut dict)
+        .expect("0x6041 direct");
     assert_eq!(
         sw,
         u16::from_le_bytes(dict),
@@ -889,9 +891,10 @@ fn run_case(mode: Mode, option: i16, loss: Loss) -> Outcome {
     // emergency code in bits 16-31).
     if let Some(&code) = want.first() {
         let mut b = [0u8; 64];
-        Dictionary::read(m.app(), 0x10F3, 2, &mut b).expect("0x10F3:02");
+        Dictionary::read(m.app(), ObjectKey::new(0x10F3, 2), &mut b).expect("0x10F3:02");
         let newest = b[0];
-        let n = Dictionary::read(m.app(), 0x10F3, newest, &mut b).expect("0x10F3 message");
+        let n = Dictionary::read(m.app(), ObjectKey::new(0x10F3, newest), &mut b)
+            .expect("0x10F3 message");
         let msg = DiagMessage::parse(&b[..n]).expect("a diagnosis message");
         assert_eq!(
             msg.code,

@@ -22,7 +22,7 @@ use drive_docs::{FLAVOURS, VARIANTS};
 use ecat_slave_stack::esi::{self, EsiDevice, EsiError};
 use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::od::{
-    Access, DataType, DefaultValue, Dictionary, Entry, Object, ObjectCode, PdoMappable,
+    Access, DataType, DefaultValue, Dictionary, Entry, Object, ObjectCode, ObjectKey, PdoMappable,
 };
 use ecat_slave_stack::pdo::PdoConfig;
 use ecat_slave_stack::sii::{self, EscFlavour, SiiError};
@@ -179,7 +179,7 @@ fn image(v: Variant, esc: EscFlavour) -> Image {
 fn read(d: &mut impl Dictionary, index: u16, sub: u8) -> Vec<u8> {
     let mut buf = [0u8; 256];
     let n = d
-        .read(index, sub, &mut buf)
+        .read(ObjectKey::new(index, sub), &mut buf)
         .unwrap_or_else(|e| panic!("read {index:#06x}:{sub}: {e:?}"));
     buf[..n].to_vec()
 }
@@ -200,16 +200,14 @@ impl Dictionary for Runtime {
     }
     fn read(
         &mut self,
-        index: u16,
-        sub: u8,
+        key: ObjectKey,
         buf: &mut [u8],
     ) -> Result<usize, ecat_slave_stack::od::SdoAbort> {
-        self.0.read(index, sub, buf)
+        self.0.read(key, buf)
     }
     fn write(
         &mut self,
-        _: u16,
-        _: u8,
+        _: ObjectKey,
         _: &[u8],
         _: EsmState,
     ) -> Result<(), ecat_slave_stack::od::SdoAbort> {
@@ -1026,25 +1024,25 @@ impl Dictionary for WholeDrive {
     }
     fn read(
         &mut self,
-        index: u16,
-        sub: u8,
+        key: ObjectKey,
         buf: &mut [u8],
     ) -> Result<usize, ecat_slave_stack::od::SdoAbort> {
+        let ObjectKey { index, .. } = key;
         match index {
-            0x1600..=0x1C13 => self.pdo.read(index, sub, buf),
-            _ => self.drive.read(index, sub, buf),
+            0x1600..=0x1C13 => self.pdo.read(key, buf),
+            _ => self.drive.read(key, buf),
         }
     }
     fn write(
         &mut self,
-        index: u16,
-        sub: u8,
+        key: ObjectKey,
         data: &[u8],
         state: EsmState,
     ) -> Result<(), ecat_slave_stack::od::SdoAbort> {
+        let ObjectKey { index, .. } = key;
         match index {
-            0x1600..=0x1C13 => self.pdo.write(index, sub, data, state, OBJECTS),
-            _ => self.drive.write(index, sub, data, state),
+            0x1600..=0x1C13 => self.pdo.write(key, data, state, OBJECTS),
+            _ => self.drive.write(key, data, state),
         }
     }
 }
@@ -1242,8 +1240,8 @@ fn the_ethercat_esi_crate_parses_both_esi_files() {
                         assert_eq!(p.entries.len(), m.entries.len());
                         for (e, raw) in p.entries.iter().zip(m.entries) {
                             let pe = esi::PdoEntry::decode(*raw);
-                            assert_eq!(u16::from(e.entry_idx.idx), pe.index);
-                            assert_eq!(u8::from(e.entry_idx.sub_idx), pe.sub);
+                            assert_eq!(u16::from(e.entry_idx.idx), pe.key.index);
+                            assert_eq!(u8::from(e.entry_idx.sub_idx), pe.key.sub);
                             assert_eq!(e.bit_len, usize::from(pe.bits));
                         }
                     }

@@ -25,7 +25,7 @@ use std::rc::Rc;
 
 use ecat_slave_stack::diag::{DiagMessage, Param};
 use ecat_slave_stack::esm::EsmState;
-use ecat_slave_stack::od::{Dictionary, SdoAbort};
+use ecat_slave_stack::od::{Dictionary, ObjectKey, SdoAbort};
 use ecat_slave_stack::slave::{CycleInfo, SlaveApplication};
 use ecat_slave_stack::sync::SyncMode;
 use firmware::cia402::pds::PdsState;
@@ -126,12 +126,12 @@ impl Bench {
     }
 
     fn sdo_write(&mut self, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
-        Dictionary::write(&mut self.d, index, sub, data, EsmState::Op)
+        Dictionary::write(&mut self.d, ObjectKey::new(index, sub), data, EsmState::Op)
     }
 
     fn sdo_read(&mut self, index: u16, sub: u8) -> u32 {
         let mut buf = [0u8; 8];
-        let n = Dictionary::read(&mut self.d, index, sub, &mut buf).unwrap();
+        let n = Dictionary::read(&mut self.d, ObjectKey::new(index, sub), &mut buf).unwrap();
         let mut v = [0u8; 4];
         v[..n.min(4)].copy_from_slice(&buf[..n.min(4)]);
         u32::from_le_bytes(v)
@@ -320,7 +320,7 @@ fn check_fault_reaction(b: &mut Bench, kind: FaultKind, code: u16, register: u8)
     // error code in bits 16-31, the fault kind's text, the bus voltage parameter).
     let newest = b.sdo_read(0x10F3, 2) as u8;
     let mut msg = [0u8; 64];
-    let n = Dictionary::read(&mut b.d, 0x10F3, newest, &mut msg).expect("message");
+    let n = Dictionary::read(&mut b.d, ObjectKey::new(0x10F3, newest), &mut msg).expect("message");
     let m = DiagMessage::parse(&msg[..n]).expect("a diagnosis message");
     assert_eq!(m.code, 0xE800 | (u32::from(code) << 16), "diagnosis code");
     assert_eq!(m.text_id, diagnosis::fault_text_id(kind), "text");

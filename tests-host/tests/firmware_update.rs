@@ -5,7 +5,7 @@
 //! 0x2309; refused images (FoE error, the running image unchanged); the revert of
 //! an image that never confirmed; the information file; the AL codes of Bootstrap.
 
-use ecat_slave_stack::od::Dictionary;
+use ecat_slave_stack::od::{Dictionary, ObjectKey};
 use firmware::update::INFO_FILE;
 use tests_host::esc_sim::Flavour;
 use tests_host::raw_master::{FoeError, RawMaster};
@@ -95,9 +95,9 @@ fn newest_diag_code(m: &mut Master) -> u32 {
     m.wait(3_000_000, 1_000_000);
     let app = &mut m.seg.drive_mut(0).app;
     let mut b = [0u8; 64];
-    Dictionary::read(app, 0x10F3, 2, &mut b).unwrap();
+    Dictionary::read(app, ObjectKey::new(0x10F3, 2), &mut b).unwrap();
     let newest = b[0];
-    let n = Dictionary::read(app, 0x10F3, newest, &mut b).unwrap();
+    let n = Dictionary::read(app, ObjectKey::new(0x10F3, newest), &mut b).unwrap();
     u32::from_le_bytes([b[0], b[1], b[2], b[3]]) * u32::from(n >= 4)
 }
 

@@ -12,8 +12,8 @@ use std::rc::Rc;
 
 use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
-use ecat_slave_stack::od::{Dictionary, Object, SdoAbort};
-use ecat_slave_stack::pdo::{entry, ProcessData};
+use ecat_slave_stack::od::{Dictionary, Object, ObjectKey, SdoAbort};
+use ecat_slave_stack::pdo::ProcessData;
 use ecat_slave_stack::slave::{CycleInfo, SlaveApplication};
 use ethercrab::error::{Error, MailboxError};
 use ethercrab::{MainDevice, PduStorage, SubDeviceState};
@@ -71,23 +71,35 @@ async fn remap(md: Rc<MainDevice<'static>>, wire: Rc<RefCell<DriveWire>>) -> Res
         sd.sdo_write(0x1A01, 0, 0u8).await?;
         r.aborts.push((
             "Rx-only object into a TxPDO map",
-            abort(sd.sdo_write(0x1A01, 1, entry(0x6040, 0, 16)).await),
+            abort(
+                sd.sdo_write(0x1A01, 1, ObjectKey::new(0x6040, 0).mapping_word(16))
+                    .await,
+            ),
         ));
         r.aborts.push((
             "object that does not exist",
-            abort(sd.sdo_write(0x1A01, 1, entry(0x5FF0, 0, 32)).await),
+            abort(
+                sd.sdo_write(0x1A01, 1, ObjectKey::new(0x5FF0, 0).mapping_word(32))
+                    .await,
+            ),
         ));
-        sd.sdo_write(0x1A01, 1, entry(0x606C, 0, 32)).await?;
-        sd.sdo_write(0x1A01, 2, entry(0x60F4, 0, 32)).await?;
+        sd.sdo_write(0x1A01, 1, ObjectKey::new(0x606C, 0).mapping_word(32))
+            .await?;
+        sd.sdo_write(0x1A01, 2, ObjectKey::new(0x60F4, 0).mapping_word(32))
+            .await?;
         sd.sdo_write(0x1A01, 0, 2u8).await?;
         r.aborts.push((
             "entry written while sub 0 != 0",
-            abort(sd.sdo_write(0x1A01, 1, entry(0x6064, 0, 32)).await),
+            abort(
+                sd.sdo_write(0x1A01, 1, ObjectKey::new(0x6064, 0).mapping_word(32))
+                    .await,
+            ),
         ));
         // 0x1A02: 10 × 32 bit = 40 bytes; assigned with 0x1A00 (19) + 0x1A01 (8) = 67.
         sd.sdo_write(0x1A02, 0, 0u8).await?;
         for k in 1..=10u8 {
-            sd.sdo_write(0x1A02, k, entry(0x6064, 0, 32)).await?;
+            sd.sdo_write(0x1A02, k, ObjectKey::new(0x6064, 0).mapping_word(32))
+                .await?;
         }
         sd.sdo_write(0x1A02, 0, 10u8).await?;
         sd.sdo_write(0x1C13, 0, 0u8).await?;
@@ -102,15 +114,18 @@ async fn remap(md: Rc<MainDevice<'static>>, wire: Rc<RefCell<DriveWire>>) -> Res
         // An assigned map growing beyond 64 bytes in total.
         sd.sdo_write(0x1A01, 0, 0u8).await?;
         for k in 1..=12u8 {
-            sd.sdo_write(0x1A01, k, entry(0x6064, 0, 32)).await?;
+            sd.sdo_write(0x1A01, k, ObjectKey::new(0x6064, 0).mapping_word(32))
+                .await?;
         }
         r.aborts.push((
             "assigned map above 64 bytes in total",
             abort(sd.sdo_write(0x1A01, 0, 12u8).await),
         ));
         sd.sdo_write(0x1A01, 0, 0u8).await?;
-        sd.sdo_write(0x1A01, 1, entry(0x606C, 0, 32)).await?;
-        sd.sdo_write(0x1A01, 2, entry(0x60F4, 0, 32)).await?;
+        sd.sdo_write(0x1A01, 1, ObjectKey::new(0x606C, 0).mapping_word(32))
+            .await?;
+        sd.sdo_write(0x1A01, 2, ObjectKey::new(0x60F4, 0).mapping_word(32))
+            .await?;
         sd.sdo_write(0x1A01, 0, 2u8).await?;
         // 0x1C12 = {0x1601}.
         sd.sdo_write(0x1C12, 0, 0u8).await?;
@@ -279,34 +294,34 @@ impl Dictionary for NoSlot {
     fn objects(&self) -> &'static [Object] {
         self.inner.objects()
     }
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        self.inner.read(index, sub, buf)
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        self.inner.read(key, buf)
     }
-    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
-        self.inner.write(index, sub, data, state)
+    fn write(&mut self, key: ObjectKey, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        self.inner.write(key, data, state)
     }
     fn write_with_runtime(
         &mut self,
-        index: u16,
-        sub: u8,
+        key: ObjectKey,
         data: &[u8],
         state: EsmState,
         runtime: &mut dyn Dictionary,
     ) -> Result<(), SdoAbort> {
-        self.inner
-            .write_with_runtime(index, sub, data, state, runtime)
+        self.inner.write_with_runtime(key, data, state, runtime)
     }
 }
 
 impl ProcessData for NoSlot {
-    fn rx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+    fn rx_slot(&self, key: ObjectKey) -> Option<u16> {
+        let ObjectKey { index, .. } = key;
         (index != self.index)
-            .then(|| self.inner.rx_slot(index, sub))
+            .then(|| self.inner.rx_slot(key))
             .flatten()
     }
-    fn tx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+    fn tx_slot(&self, key: ObjectKey) -> Option<u16> {
+        let ObjectKey { index, .. } = key;
         (index != self.index)
-            .then(|| self.inner.tx_slot(index, sub))
+            .then(|| self.inner.tx_slot(key))
             .flatten()
     }
     fn set_rx(&mut self, slot: u16, raw: u64) {
@@ -415,10 +430,16 @@ fn sync_manager_length_follows_the_remapped_image() {
     {
         let d = r.seg.drive_mut(0);
         let mut rt = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
-        rt.write(0x1C12, 0, &[0], EsmState::PreOp).unwrap();
-        rt.write(0x1C12, 1, &0x1601u16.to_le_bytes(), EsmState::PreOp)
+        rt.write(ObjectKey::new(0x1C12, 0), &[0], EsmState::PreOp)
             .unwrap();
-        rt.write(0x1C12, 0, &[1], EsmState::PreOp).unwrap();
+        rt.write(
+            ObjectKey::new(0x1C12, 1),
+            &0x1601u16.to_le_bytes(),
+            EsmState::PreOp,
+        )
+        .unwrap();
+        rt.write(ObjectKey::new(0x1C12, 0), &[1], EsmState::PreOp)
+            .unwrap();
     }
     r.sm(2, 0x1100, 12, 0x64);
     r.sm(3, 0x1400, 19, 0x20);
@@ -463,12 +484,18 @@ fn a_map_the_application_cannot_serve_is_refused_at_p_to_s() {
     {
         let d = r.seg.drive_mut(0);
         let mut rt = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
-        let w =
-            |rt: &mut dyn Dictionary, i: u16, s: u8, v: &[u8]| rt.write(i, s, v, EsmState::PreOp);
+        let w = |rt: &mut dyn Dictionary, i: u16, s: u8, v: &[u8]| {
+            rt.write(ObjectKey::new(i, s), v, EsmState::PreOp)
+        };
         // The dictionary says mappable: the SDO layer accepts it.
         assert_eq!(w(&mut rt, 0x1A01, 0, &[0]), Ok(()));
         assert_eq!(
-            w(&mut rt, 0x1A01, 1, &entry(0x606C, 0, 32).to_le_bytes()),
+            w(
+                &mut rt,
+                0x1A01,
+                1,
+                &ObjectKey::new(0x606C, 0).mapping_word(32).to_le_bytes()
+            ),
             Ok(())
         );
         assert_eq!(w(&mut rt, 0x1A01, 0, &[1]), Ok(()));
@@ -486,10 +513,16 @@ fn a_map_the_application_cannot_serve_is_refused_at_p_to_s() {
     {
         let d = r.seg.drive_mut(0);
         let mut rt = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
-        rt.write(0x1C12, 0, &[0], EsmState::PreOp).unwrap();
-        rt.write(0x1C12, 1, &0x1601u16.to_le_bytes(), EsmState::PreOp)
+        rt.write(ObjectKey::new(0x1C12, 0), &[0], EsmState::PreOp)
             .unwrap();
-        rt.write(0x1C12, 0, &[1], EsmState::PreOp).unwrap();
+        rt.write(
+            ObjectKey::new(0x1C12, 1),
+            &0x1601u16.to_le_bytes(),
+            EsmState::PreOp,
+        )
+        .unwrap();
+        rt.write(ObjectKey::new(0x1C12, 0), &[1], EsmState::PreOp)
+            .unwrap();
     }
     r.sm(2, 0x1100, 19, 0x64);
     r.sm(3, 0x1400, 19, 0x20);
@@ -499,12 +532,22 @@ fn a_map_the_application_cannot_serve_is_refused_at_p_to_s() {
     {
         let d = r.seg.drive_mut(0);
         let mut rt = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
-        rt.write(0x1C12, 1, &0x1600u16.to_le_bytes(), EsmState::PreOp)
-            .unwrap_err();
-        rt.write(0x1C12, 0, &[0], EsmState::PreOp).unwrap();
-        rt.write(0x1C12, 1, &0x1600u16.to_le_bytes(), EsmState::PreOp)
+        rt.write(
+            ObjectKey::new(0x1C12, 1),
+            &0x1600u16.to_le_bytes(),
+            EsmState::PreOp,
+        )
+        .unwrap_err();
+        rt.write(ObjectKey::new(0x1C12, 0), &[0], EsmState::PreOp)
             .unwrap();
-        rt.write(0x1C12, 0, &[1], EsmState::PreOp).unwrap();
+        rt.write(
+            ObjectKey::new(0x1C12, 1),
+            &0x1600u16.to_le_bytes(),
+            EsmState::PreOp,
+        )
+        .unwrap();
+        rt.write(ObjectKey::new(0x1C12, 0), &[1], EsmState::PreOp)
+            .unwrap();
     }
     r.sm(2, 0x1100, 12, 0x64);
     assert_eq!(r.request(0x04), (0x04, 0));
@@ -518,10 +561,10 @@ fn every_mappable_entry_of_the_product_has_a_slot() {
     let mut missing = Vec::new();
     for o in firmware::dictionary::OBJECTS {
         for e in o.entries() {
-            if e.pdo_mappable().rx() && d.rx_slot(o.index, e.sub).is_none() {
+            if e.pdo_mappable().rx() && d.rx_slot(ObjectKey::new(o.index, e.sub)).is_none() {
                 missing.push(("rx", o.index, e.sub));
             }
-            if e.pdo_mappable().tx() && d.tx_slot(o.index, e.sub).is_none() {
+            if e.pdo_mappable().tx() && d.tx_slot(ObjectKey::new(o.index, e.sub)).is_none() {
                 missing.push(("tx", o.index, e.sub));
             }
         }

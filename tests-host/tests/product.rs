@@ -33,7 +33,10 @@ fn all_objects() -> &'static [Object] {
     ALL
 }
 
-const TX1: &[u32] = &[pdo::entry(0x1001, 0, 8), pdo::entry(0x2155, 0, 8)];
+const TX1: &[u32] = &[
+    ObjectKey::new(0x1001, 0).mapping_word(8),
+    ObjectKey::new(0x2155, 0).mapping_word(8),
+];
 const DEFAULTS: PdoDefaults = PdoDefaults {
     rx: [&[], &[], &[], &[]],
     tx: [TX1, &[], &[], &[]],
@@ -223,15 +226,11 @@ impl Dictionary for Drive {
     fn objects(&self) -> &'static [Object] {
         all_objects()
     }
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        let ObjectKey { index, sub } = key;
         match index {
-            0x1000..=0x10FF => firmware::dictionary::read(
-                &self.comm,
-                &self.faults,
-                ObjectKey::new(index, sub),
-                buf,
-            ),
-            0x1600..=0x1C13 => self.pdo.read(index, sub, buf),
+            0x1000..=0x10FF => firmware::dictionary::read(&self.comm, &self.faults, key, buf),
+            0x1600..=0x1C13 => self.pdo.read(key, buf),
             0x2000..=0x21FF => self.params.read(index, sub, buf),
             0x2300..=0x23FF => self.monitor.read(index, sub, buf),
             0x2400..=0x24FF => {
@@ -240,7 +239,8 @@ impl Dictionary for Drive {
             _ => Err(SdoAbort::ObjectDoesNotExist),
         }
     }
-    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+    fn write(&mut self, key: ObjectKey, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        let ObjectKey { index, sub } = key;
         match index {
             0x1000..=0x10FF => {
                 if let Some(cmd) = firmware::dictionary::write_comm(
@@ -256,7 +256,7 @@ impl Dictionary for Drive {
                 }
                 Ok(())
             }
-            0x1600..=0x1C13 => self.pdo.write(index, sub, data, state, all_objects()),
+            0x1600..=0x1C13 => self.pdo.write(key, data, state, all_objects()),
             0x2000..=0x21FF => self.params.write(index, sub, data),
             0x2300..=0x23FF => self.monitor.write(index, sub, data),
             _ => Err(SdoAbort::ObjectDoesNotExist),
@@ -404,14 +404,26 @@ fn save_power_cycle_restores_parameters_and_pdo_mapping() {
     d.sdo_download(0x10F1, 2, &le_bytes(8, 2)).unwrap();
     // New TxPDO1 mapping and TxPDO2 assigned as well.
     d.sdo_download(0x1A00, 0, &[0]).unwrap();
-    d.sdo_download(0x1A00, 1, &le_bytes(pdo::entry(0x2303, 0, 16) as i64, 4))
-        .unwrap();
-    d.sdo_download(0x1A00, 2, &le_bytes(pdo::entry(0x2039, 0, 16) as i64, 4))
-        .unwrap();
+    d.sdo_download(
+        0x1A00,
+        1,
+        &le_bytes(ObjectKey::new(0x2303, 0).mapping_word(16) as i64, 4),
+    )
+    .unwrap();
+    d.sdo_download(
+        0x1A00,
+        2,
+        &le_bytes(ObjectKey::new(0x2039, 0).mapping_word(16) as i64, 4),
+    )
+    .unwrap();
     d.sdo_download(0x1A00, 0, &[2]).unwrap();
     d.sdo_download(0x1A01, 0, &[0]).unwrap();
-    d.sdo_download(0x1A01, 1, &le_bytes(pdo::entry(0x1001, 0, 8) as i64, 4))
-        .unwrap();
+    d.sdo_download(
+        0x1A01,
+        1,
+        &le_bytes(ObjectKey::new(0x1001, 0).mapping_word(8) as i64, 4),
+    )
+    .unwrap();
     d.sdo_download(0x1A01, 0, &[1]).unwrap();
     d.sdo_download(0x1C13, 0, &[0]).unwrap();
     d.sdo_download(0x1C13, 1, &le_bytes(0x1A00, 2)).unwrap();
@@ -432,8 +444,14 @@ fn save_power_cycle_restores_parameters_and_pdo_mapping() {
     assert_eq!(d.sdo_upload(0x2152, 5), Ok(16));
     assert_eq!(d.sdo_upload(0x10F1, 2), Ok(8));
     assert_eq!(d.sdo_upload(0x1A00, 0), Ok(2));
-    assert_eq!(d.sdo_upload(0x1A00, 1), Ok(pdo::entry(0x2303, 0, 16)));
-    assert_eq!(d.sdo_upload(0x1A00, 2), Ok(pdo::entry(0x2039, 0, 16)));
+    assert_eq!(
+        d.sdo_upload(0x1A00, 1),
+        Ok(ObjectKey::new(0x2303, 0).mapping_word(16))
+    );
+    assert_eq!(
+        d.sdo_upload(0x1A00, 2),
+        Ok(ObjectKey::new(0x2039, 0).mapping_word(16))
+    );
     assert_eq!(d.sdo_upload(0x1A01, 0), Ok(1));
     assert_eq!(d.sdo_upload(0x1C13, 0), Ok(2));
     assert_eq!(d.sdo_upload(0x1C13, 2), Ok(0x1A01));
@@ -446,7 +464,10 @@ fn save_power_cycle_restores_parameters_and_pdo_mapping() {
     let mut d = d.power_cycle();
     assert_eq!(d.sdo_upload(0x2000, 0), Ok(3200));
     assert_eq!(d.sdo_upload(0x1A00, 0), Ok(2));
-    assert_eq!(d.sdo_upload(0x1A00, 1), Ok(pdo::entry(0x1001, 0, 8)));
+    assert_eq!(
+        d.sdo_upload(0x1A00, 1),
+        Ok(ObjectKey::new(0x1001, 0).mapping_word(8))
+    );
     assert_eq!(d.sdo_upload(0x1C13, 0), Ok(1));
 }
 
@@ -748,7 +769,7 @@ fn composed_drive_fault_reaches_pds_emergency_led_outputs_and_0x603f() {
     assert!(d.pop_emergency().is_none(), "one emergency per occurrence");
     assert_eq!(d.cia402.statusword() & 0x0008, 0x0008, "PDS in Fault");
     let mut b = [0u8; 4];
-    assert_eq!(d.read(0x603F, 0, &mut b), Ok(2));
+    assert_eq!(d.read(ObjectKey::new(0x603F, 0), &mut b), Ok(2));
     assert_eq!(u16::from_le_bytes([b[0], b[1]]), 0x3210);
     assert_eq!(d.outputs().0, 0b00, "alarm outputs active (low)");
     // Voltage back, fault-clear input: latched (0x2057 = 0), stays.
@@ -757,7 +778,10 @@ fn composed_drive_fault_reaches_pds_emergency_led_outputs_and_0x603f() {
     run(&mut d, ok, 0, 5);
     assert!(d.faults.is_active(FaultKind::OverVoltage));
     // 0x2057 = 1 and the input again: cleared, error-reset emergency, LED dark.
-    assert_eq!(d.write(0x2057, 0, &[1], EsmState::PreOp), Ok(()));
+    assert_eq!(
+        d.write(ObjectKey::new(0x2057, 0), &[1], EsmState::PreOp),
+        Ok(())
+    );
     run(&mut d, ok, 0b1000, 5);
     let tl = run(&mut d, ok, 0, 3000);
     assert!(!d.faults.any_active());

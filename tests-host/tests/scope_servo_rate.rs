@@ -4,7 +4,7 @@
 //! recorded with 0x2500:08 = 1 and divisor 1 has a sample every 100 µs: the motor
 //! position moves within each millisecond, where the 1 ms tick would see one value.
 
-use ecat_slave_stack::od::Dictionary;
+use ecat_slave_stack::od::{Dictionary, ObjectKey};
 use tests_host::plant::drive_tune::DriveBench;
 use tests_host::sim_drive::{Axis, Motor};
 
@@ -12,7 +12,7 @@ fn scope_record(b: &mut DriveBench, channels: usize) -> Vec<Vec<i32>> {
     let mut bytes = Vec::new();
     let mut buf = [0u8; 512];
     for sub in 1..=6u8 {
-        match Dictionary::read(&mut b.d, 0x2503, sub, &mut buf) {
+        match Dictionary::read(&mut b.d, ObjectKey::new(0x2503, sub), &mut buf) {
             Ok(n) => bytes.extend_from_slice(&buf[..n]),
             Err(_) => break,
         }

@@ -21,6 +21,7 @@
 //! Needs root (network namespaces, raw sockets) and iproute2, like
 //! `virtual_drive_veth.rs`: without root the tests fail and say so.
 
+use ecat_slave_stack::od::ObjectKey;
 use std::time::Duration;
 
 use ethercrab::std::ethercat_now;
@@ -46,7 +47,7 @@ enum V {
 type Step = (u16, u8, V);
 
 const fn map(index: u16, sub: u8, bits: u8) -> V {
-    V::U32(ecat_slave_stack::pdo::entry(index, sub, bits))
+    V::U32(ObjectKey::new(index, sub).mapping_word(bits))
 }
 
 /// The DP3CL-style list: scaling, interpolation, supervision, then the maps.

@@ -52,7 +52,7 @@ fn tuned_servo_meets_the_goals_on_each_load() {
 
 /// The servo tune as the drive runs it (`tests_host::plant::drive_tune`).
 mod on_the_drive {
-    use ecat_slave_stack::od::{Dictionary, SdoAbort};
+    use ecat_slave_stack::od::{Dictionary, ObjectKey, SdoAbort};
     use firmware::cia402::pds::PdsState;
     use firmware::params::P;
     use firmware::servo_tune::StiffnessGains;
@@ -141,7 +141,7 @@ mod on_the_drive {
         assert!(lo >= -200.0 && hi <= 1200.0, "{lo}..{hi}");
         // On the quick-stop ramp 0x6085 from that speed: v²/2a (units → counts).
         let mut buf = [0u8; 4];
-        Dictionary::read(&mut b.d, 0x6085, 0, &mut buf).unwrap();
+        Dictionary::read(&mut b.d, ObjectKey::new(0x6085, 0), &mut buf).unwrap();
         let (v, a) = (f64::from(speed), f64::from(u32::from_le_bytes(buf)));
         let ramp = v * v / (2.0 * a) * 4000.0 / 50_000.0;
         assert!(

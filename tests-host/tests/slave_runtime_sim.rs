@@ -6,9 +6,9 @@
 use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
 use ecat_slave_stack::od::{
-    Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+    Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, ObjectKey, PdoMappable, SdoAbort,
 };
-use ecat_slave_stack::pdo::{self, entry, PdoDefaults, ProcessData};
+use ecat_slave_stack::pdo::{self, PdoDefaults, ProcessData};
 use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
 use tests_host::esc_sim::{EscSim, Flavour, SharedEsc, Side};
@@ -34,8 +34,14 @@ const OBJECTS_LOCAL: &[ObjectDesc] = &[
     var(0x607A, E_607A),
 ];
 
-const RX1: &[u32] = &[entry(0x6040, 0, 16), entry(0x607A, 0, 32)];
-const TX1: &[u32] = &[entry(0x6041, 0, 16), entry(0x6064, 0, 32)];
+const RX1: &[u32] = &[
+    ObjectKey::new(0x6040, 0).mapping_word(16),
+    ObjectKey::new(0x607A, 0).mapping_word(32),
+];
+const TX1: &[u32] = &[
+    ObjectKey::new(0x6041, 0).mapping_word(16),
+    ObjectKey::new(0x6064, 0).mapping_word(32),
+];
 const DEFAULTS: PdoDefaults = PdoDefaults {
     rx: [RX1, &[], &[], &[]],
     tx: [TX1, &[], &[], &[]],
@@ -54,23 +60,25 @@ impl Dictionary for App {
     fn objects(&self) -> &'static [Object] {
         OBJECTS
     }
-    fn read(&mut self, _i: u16, _s: u8, _b: &mut [u8]) -> Result<usize, SdoAbort> {
+    fn read(&mut self, _key: ObjectKey, _b: &mut [u8]) -> Result<usize, SdoAbort> {
         Err(SdoAbort::ObjectDoesNotExist)
     }
-    fn write(&mut self, _i: u16, _s: u8, _d: &[u8], _st: EsmState) -> Result<(), SdoAbort> {
+    fn write(&mut self, _key: ObjectKey, _d: &[u8], _st: EsmState) -> Result<(), SdoAbort> {
         Err(SdoAbort::ObjectDoesNotExist)
     }
 }
 
 impl ProcessData for App {
-    fn rx_slot(&self, index: u16, _sub: u8) -> Option<u16> {
+    fn rx_slot(&self, key: ObjectKey) -> Option<u16> {
+        let ObjectKey { index, .. } = key;
         match index {
             0x6040 => Some(0),
             0x607A => Some(1),
             _ => None,
         }
     }
-    fn tx_slot(&self, index: u16, _sub: u8) -> Option<u16> {
+    fn tx_slot(&self, key: ObjectKey) -> Option<u16> {
+        let ObjectKey { index, .. } = key;
         match index {
             0x6041 => Some(2),
             0x6064 => Some(3),
@@ -288,7 +296,7 @@ fn dc_sync0_locks_and_missing_sync0_is_reported() {
         assert_eq!(b.ecat_u16(reg::AL_STATUS.addr()), 0x08, "{cycle_us} µs");
         let mut buf = [0u8; 4];
         let mut d = b.slave.dictionary(&mut b.app);
-        d.read(0x2200, 2, &mut buf).unwrap();
+        d.read(ObjectKey::new(0x2200, 2), &mut buf).unwrap();
         assert_eq!(u32::from_le_bytes(buf) as u64, cycle_us);
         // SYNC0 stops.
         b.ecat_write(reg::DC_ACTIVATION.addr(), &[0x00]);

@@ -36,7 +36,7 @@ fn stall_homing_within_one_full_step() {
 }
 
 use ecat_slave_stack::esm::EsmState;
-use ecat_slave_stack::od::Dictionary;
+use ecat_slave_stack::od::{Dictionary, ObjectKey};
 use firmware::drive::Drive;
 use firmware::identity::Variant;
 use tests_host::plant::motor::HardStop;
@@ -50,7 +50,7 @@ fn drive_on_plant(extra: &[(u16, u8, &[u8])]) -> (Drive, PlantAxis, f64) {
     let mut d: Drive = Drive::new(Variant::HybridServo, 0);
     let base: [(u16, u8, &[u8]); 3] = [(0x2013, 0, &[0]), (0x2024, 0, &[1]), (0x2060, 0, &[1])];
     for &(i, s, v) in base.iter().chain(extra) {
-        Dictionary::write(&mut d, i, s, v, EsmState::PreOp)
+        Dictionary::write(&mut d, ObjectKey::new(i, s), v, EsmState::PreOp)
             .unwrap_or_else(|e| panic!("{i:x}: {e:?}"));
     }
     let mut ax = PlantAxis::new(Motor::Ecn57_20);

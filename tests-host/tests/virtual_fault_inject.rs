@@ -8,7 +8,7 @@
 
 use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::leds::Pattern;
-use ecat_slave_stack::od::Dictionary;
+use ecat_slave_stack::od::{Dictionary, ObjectKey};
 use firmware::cia402::pds::PdsState;
 use firmware::faults::Emergency;
 use tests_host::esc_sim::Flavour;
@@ -79,13 +79,18 @@ impl Run {
     }
 
     fn write(&mut self, index: u16, sub: u8, data: &[u8]) {
-        Dictionary::write(self.app(), index, sub, data, EsmState::PreOp)
-            .unwrap_or_else(|e| panic!("write {index:#06x}:{sub}: {e:?}"));
+        Dictionary::write(
+            self.app(),
+            ObjectKey::new(index, sub),
+            data,
+            EsmState::PreOp,
+        )
+        .unwrap_or_else(|e| panic!("write {index:#06x}:{sub}: {e:?}"));
     }
 
     fn read(&mut self, index: u16, sub: u8) -> u32 {
         let mut buf = [0u8; 32];
-        let n = Dictionary::read(self.app(), index, sub, &mut buf)
+        let n = Dictionary::read(self.app(), ObjectKey::new(index, sub), &mut buf)
             .unwrap_or_else(|e| panic!("read {index:#06x}:{sub}: {e:?}"));
         let mut v = [0u8; 4];
         v[..n.min(4)].copy_from_slice(&buf[..n.min(4)]);
@@ -164,7 +169,7 @@ fn check_kind(fault: InjectedFault, at_ms: u64, mask: u16, motion: Motion, code:
     let newest = r.read(0x10F3, 2) as u8;
     assert!(newest >= 6, "{fault:?}: a message");
     let mut msg = [0u8; 32];
-    let n = Dictionary::read(r.app(), 0x10F3, newest, &mut msg).expect("message");
+    let n = Dictionary::read(r.app(), ObjectKey::new(0x10F3, newest), &mut msg).expect("message");
     assert!(n >= 16);
     assert_eq!(
         u32::from_le_bytes([msg[0], msg[1], msg[2], msg[3]]),

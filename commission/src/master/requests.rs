@@ -3,6 +3,7 @@
 //! diagnosis history 0x10F3, the scope, the tunes and the firmware update over FoE
 //! (Init → Bootstrap → Init).
 
+use ecat_slave_stack::od::ObjectKey;
 use std::ops::Deref;
 use std::time::{Duration, Instant};
 
@@ -258,8 +259,7 @@ async fn object<S: Deref<Target = ethercrab::SubDevice>>(
     let first = u8::from(obj.code != 7 && obj.max_sub > 0);
     for sub in (0..=obj.max_sub).filter(|&s| s == 0 || s >= first) {
         let req = info::Repr::EntryDescription {
-            index,
-            sub,
+            key: ObjectKey::new(index, sub),
             value_info: 0x70,
         };
         let Ok(d) = mbx.info(sd, req, emcy).await else {
@@ -294,8 +294,7 @@ async fn write<S: Deref<Target = ethercrab::SubDevice>>(
     emcy: &mut Vec<Emergency>,
 ) -> Reply {
     let req = info::Repr::EntryDescription {
-        index,
-        sub,
+        key: ObjectKey::new(index, sub),
         value_info: 0,
     };
     let d = mbx.info(sd, req, emcy).await.map_err(err)?;

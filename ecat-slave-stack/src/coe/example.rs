@@ -10,8 +10,8 @@
 
 use crate::esm::EsmState;
 use crate::od::{
-    self, Access, DataType, DefaultValue, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable,
-    SdoAbort,
+    self, Access, DataType, DefaultValue, Dictionary, EntryDesc, Object, ObjectDesc, ObjectKey,
+    PdoMappable, SdoAbort,
 };
 
 const U8: DataType = DataType::Unsigned8;
@@ -236,11 +236,11 @@ impl Default for ExampleDictionary {
     }
 }
 
-fn slot(index: u16, sub: u8) -> Option<usize> {
+fn slot(key: ObjectKey) -> Option<usize> {
     let mut n = 0;
     for o in OBJECTS {
         for e in o.entries() {
-            if o.index == index && e.sub == sub {
+            if ObjectKey::new(o.index, e.sub) == key {
                 return (n < SLOTS).then_some(n);
             }
             n += 1;
@@ -260,7 +260,9 @@ impl ExampleDictionary {
         };
         for o in OBJECTS {
             for e in o.entries() {
-                if let (DefaultValue::Int(v), Some(s)) = (e.default_value(), slot(o.index, e.sub)) {
+                if let (DefaultValue::Int(v), Some(s)) =
+                    (e.default_value(), slot(ObjectKey::new(o.index, e.sub)))
+                {
                     d.values[s] = v as u64;
                 }
             }
@@ -269,13 +271,13 @@ impl ExampleDictionary {
     }
 
     /// The raw value of a numeric entry (0 for unknown entries).
-    pub fn value(&self, index: u16, sub: u8) -> u64 {
-        slot(index, sub).map_or(0, |s| self.values[s])
+    pub fn value(&self, key: ObjectKey) -> u64 {
+        slot(key).map_or(0, |s| self.values[s])
     }
 
     /// Sets a numeric value directly (as the application would).
-    pub fn set_value(&mut self, index: u16, sub: u8, v: u64) {
-        if let Some(s) = slot(index, sub) {
+    pub fn set_value(&mut self, key: ObjectKey, v: u64) {
+        if let Some(s) = slot(key) {
             self.values[s] = v;
         }
     }
@@ -291,13 +293,13 @@ impl Dictionary for ExampleDictionary {
         OBJECTS
     }
 
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        let e = od::find_entry(OBJECTS, index, sub)?;
-        let src: &[u8] = match (index, e.default_value()) {
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        let e = od::find_entry(OBJECTS, key)?;
+        let src: &[u8] = match (key.index, e.default_value()) {
             (0x2002, _) => &self.text[..self.text_len],
             (_, DefaultValue::Text(t)) => t.as_bytes(),
             _ => {
-                let s = slot(index, sub).ok_or(SdoAbort::GeneralError)?;
+                let s = slot(key).ok_or(SdoAbort::GeneralError)?;
                 let bytes = self.values[s].to_le_bytes();
                 let n = e.byte_len().min(8);
                 let dst = buf.get_mut(..n).ok_or(SdoAbort::OutOfMemory)?;
@@ -310,14 +312,8 @@ impl Dictionary for ExampleDictionary {
         Ok(src.len())
     }
 
-    fn write(
-        &mut self,
-        index: u16,
-        sub: u8,
-        data: &[u8],
-        _state: EsmState,
-    ) -> Result<(), SdoAbort> {
-        match index {
+    fn write(&mut self, key: ObjectKey, data: &[u8], _state: EsmState) -> Result<(), SdoAbort> {
+        match key.index {
             0x2002 => {
                 let dst = self
                     .text
@@ -337,10 +333,11 @@ impl Dictionary for ExampleDictionary {
             }
             _ => {
                 // PDO mapping rule: entries only while sub-index 0 is 0.
-                if index == 0x1600 && sub != 0 && self.value(0x1600, 0) != 0 {
+                if key.index == 0x1600 && key.sub != 0 && self.value(ObjectKey::new(0x1600, 0)) != 0
+                {
                     return Err(SdoAbort::SubindexZeroFirst);
                 }
-                let s = slot(index, sub).ok_or(SdoAbort::SubindexDoesNotExist)?;
+                let s = slot(key).ok_or(SdoAbort::SubindexDoesNotExist)?;
                 let mut b = [0u8; 8];
                 let n = data.len().min(8);
                 b[..n].copy_from_slice(&data[..n]);
@@ -363,11 +360,14 @@ mod tests {
         assert!(n <= SLOTS);
         let mut d = ExampleDictionary::new();
         let mut b = [0u8; 64];
-        assert_eq!(d.read(0x1008, 0, &mut b), Ok(DEVICE_NAME.len()));
-        assert_eq!(d.read(0x2003, 4, &mut b), Ok(2));
+        assert_eq!(
+            d.read(ObjectKey::new(0x1008, 0), &mut b),
+            Ok(DEVICE_NAME.len())
+        );
+        assert_eq!(d.read(ObjectKey::new(0x2003, 4), &mut b), Ok(2));
         assert_eq!(i16::from_le_bytes([b[0], b[1]]), -2);
         assert_eq!(
-            d.read(0x1600, 9, &mut b),
+            d.read(ObjectKey::new(0x1600, 9), &mut b),
             Err(SdoAbort::SubindexDoesNotExist)
         );
     }

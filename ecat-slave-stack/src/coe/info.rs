@@ -31,7 +31,8 @@
 
 use crate::mailbox::ErrorDetail;
 use crate::od::{
-    self, DefaultValue, Dictionary, Entry, Name, Object, ObjectCode, OdListType, SdoAbort,
+    self, DefaultValue, Dictionary, Entry, Name, Object, ObjectCode, ObjectKey, OdListType,
+    SdoAbort,
 };
 
 pub use crate::wire::sdo_info::*;
@@ -267,18 +268,14 @@ pub fn on_request(
                 cap,
             )))
         }
-        Repr::EntryDescription {
-            index,
-            sub,
-            value_info,
-        } => {
-            let e = match od::find_entry(objects, index, sub) {
+        Repr::EntryDescription { key, value_info } => {
+            let e = match od::find_entry(objects, key) {
                 Ok(e) => e,
                 Err(a) => return Ok(err(out, a)),
             };
             Ok(Answer::Series(InfoJob::new(
                 opcode::ENTRY_DESCRIPTION_RESPONSE,
-                entry_body(index, e, value_info),
+                entry_body(key, e, value_info),
                 cap,
             )))
         }
@@ -286,7 +283,7 @@ pub fn on_request(
     }
 }
 
-fn entry_body(index: u16, e: &'static Entry, request: u8) -> Body {
+fn entry_body(key: ObjectKey, e: &'static Entry, request: u8) -> Body {
     let mut head = [0u8; HEAD_MAX];
     let mut len = EntryDescriptionHead::LEN;
     let mut vi = request & value_info::ECHOED;
@@ -311,8 +308,7 @@ fn entry_body(index: u16, e: &'static Entry, request: u8) -> Body {
         }
     }
     EntryDescriptionHead {
-        index,
-        sub: e.sub,
+        key,
         value_info: vi,
         data_type: e.data_type.code(),
         bit_length: e.bits(),
@@ -349,8 +345,7 @@ mod tests {
         assert_eq!(b[..7], [0x12, 0x1C, 0x06, 0x00, 4, 8, 0xEE]);
         assert_eq!(o.emit(&mut b[..5]), 0);
         let e = EntryDescriptionHead {
-            index: 0x6040,
-            sub: 0,
+            key: ObjectKey::new(0x6040, 0),
             value_info: 0x70,
             data_type: 0x0006,
             bit_length: 16,
@@ -401,8 +396,7 @@ mod tests {
             (
                 &[0x05, 0, 0, 0, 0x40, 0x60, 0x00, 0x70],
                 Repr::EntryDescription {
-                    index: 0x6040,
-                    sub: 0,
+                    key: ObjectKey::new(0x6040, 0),
                     value_info: 0x70,
                 },
             ),

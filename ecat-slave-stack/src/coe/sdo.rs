@@ -44,7 +44,7 @@
 use super::HEADER_LEN as COE_HEADER_LEN;
 use crate::esm::EsmState;
 use crate::mailbox::ErrorDetail;
-use crate::od::{self, Dictionary, Entry, Object, ObjectCode, SdoAbort};
+use crate::od::{self, Dictionary, Entry, Object, ObjectCode, ObjectKey, SdoAbort};
 
 /// Largest object (or complete-access image) a segmented transfer can carry.
 pub const TRANSFER_MAX: usize = 512;
@@ -121,18 +121,18 @@ impl SdoServer {
         self.t != Transfer::Idle
     }
 
-    fn target(&self) -> Option<(u16, u8)> {
+    fn target(&self) -> Option<ObjectKey> {
         match self.t {
             Transfer::Idle => None,
             Transfer::Download(Download { to, .. }) | Transfer::Upload(Upload { to, .. }) => {
-                Some((to.index, to.sub))
+                Some(to.key())
             }
         }
     }
 
-    /// Ends a transfer idle for longer than [`TRANSFER_TIMEOUT_US`]; returns its
-    /// index and sub-index.
-    pub fn expire(&mut self, now_us: u64) -> Option<(u16, u8)> {
+    /// Ends a transfer idle for longer than [`TRANSFER_TIMEOUT_US`]; returns the entry
+    /// (or object) it addressed.
+    pub fn expire(&mut self, now_us: u64) -> Option<ObjectKey> {
         let target = self.target()?;
         if now_us.saturating_sub(self.last_us) > TRANSFER_TIMEOUT_US {
             self.t = Transfer::Idle;
@@ -154,7 +154,7 @@ impl SdoServer {
         dict: &mut impl Dictionary,
         state: EsmState,
         now_us: u64,
-        expired: Option<(u16, u8)>,
+        expired: Option<ObjectKey>,
     ) -> Result<usize, ErrorDetail> {
         if out.len() < INITIATE_LEN {
             return Err(ErrorDetail::NoMoreMemory);
@@ -171,12 +171,11 @@ impl SdoServer {
                 };
                 match done {
                     Ok(()) => Response::Download {
-                        index: to.index,
-                        sub: to.sub,
+                        key: to.key(),
                         complete_access: to.complete_access,
                     }
                     .emit_coe(out),
-                    Err(a) => Response::abort(to.index, to.sub, a).emit_coe(out),
+                    Err(a) => Response::abort(to.key(), a).emit_coe(out),
                 }
             }
             Request::DownloadSegment(seg) => match self.t {
@@ -187,7 +186,7 @@ impl SdoServer {
                     }
                     Err(a) => {
                         self.t = Transfer::Idle;
-                        Response::abort(d.to.index, d.to.sub, a).emit_coe(out)
+                        Response::abort(d.to.key(), a).emit_coe(out)
                     }
                 },
                 _ => self.no_transfer(out, expired),
@@ -199,7 +198,7 @@ impl SdoServer {
             Request::UploadSegment { toggle } => match self.t {
                 Transfer::Upload(u) if toggle != u.toggle => {
                     self.t = Transfer::Idle;
-                    Response::abort(u.to.index, u.to.sub, SdoAbort::ToggleBit).emit_coe(out)
+                    Response::abort(u.to.key(), SdoAbort::ToggleBit).emit_coe(out)
                 }
                 Transfer::Upload(u) => {
                     self.last_us = now_us;
@@ -211,22 +210,22 @@ impl SdoServer {
                 self.t = Transfer::Idle;
                 0
             }
-            Request::Unknown { index, sub, .. } => {
+            Request::Unknown { key, .. } => {
                 self.t = Transfer::Idle;
-                Response::abort(index, sub, SdoAbort::InvalidCommand).emit_coe(out)
+                Response::abort(key, SdoAbort::InvalidCommand).emit_coe(out)
             }
         };
         Ok(n)
     }
 
     /// A segment request that does not belong to the current transfer.
-    fn no_transfer(&mut self, out: &mut [u8], expired: Option<(u16, u8)>) -> usize {
-        if let Some((index, sub)) = expired {
-            return Response::abort(index, sub, SdoAbort::Timeout).emit_coe(out);
+    fn no_transfer(&mut self, out: &mut [u8], expired: Option<ObjectKey>) -> usize {
+        if let Some(key) = expired {
+            return Response::abort(key, SdoAbort::Timeout).emit_coe(out);
         }
-        let (index, sub) = self.target().unwrap_or((0, 0));
+        let key = self.target().unwrap_or(ObjectKey::new(0, 0));
         self.t = Transfer::Idle;
-        Response::abort(index, sub, SdoAbort::InvalidCommand).emit_coe(out)
+        Response::abort(key, SdoAbort::InvalidCommand).emit_coe(out)
     }
 
     fn initiate_normal_download(
@@ -292,20 +291,19 @@ impl SdoServer {
         state: EsmState,
         now_us: u64,
     ) -> usize {
-        let (index, sub) = (to.index, to.sub);
+        let key = to.key();
         let len = match upload(dict, state, to, &mut self.buf) {
             Ok(n) => n,
-            Err(a) => return Response::abort(index, sub, a).emit_coe(out),
+            Err(a) => return Response::abort(key, a).emit_coe(out),
         };
         if !to.complete_access && (1..=4).contains(&len) {
             let data = &self.buf[..len];
-            return Response::UploadExpedited { index, sub, data }.emit_coe(out);
+            return Response::UploadExpedited { key, data }.emit_coe(out);
         }
         let room = out.len() - INITIATE_LEN;
         let first = len.min(room);
         Response::Upload {
-            index,
-            sub,
+            key,
             complete_access: to.complete_access,
             size: len as u32,
             data: &self.buf[..first],
@@ -353,7 +351,7 @@ fn expedited_download(
     let mut data = r.data;
     if !r.size_indicated && !to.complete_access {
         // Size not indicated: the entry's own length (at most the 4 bytes carried).
-        let e = od::find_entry(dict.objects(), to.index, to.sub)?;
+        let e = od::find_entry(dict.objects(), to.key())?;
         data = data.get(..e.byte_len().clamp(1, 4)).unwrap_or(data);
     }
     download(dict, state, to, data)
@@ -372,7 +370,7 @@ fn check_normal_download(
             return Err(SdoAbort::UnsupportedAccess);
         }
     } else {
-        let e = od::find_entry(objects, to.index, to.sub)?;
+        let e = od::find_entry(objects, to.key())?;
         if !e.access.writable() {
             return Err(SdoAbort::WriteReadOnly);
         }
@@ -405,7 +403,7 @@ fn upload(
     }
     let e = obj.entry(to.sub).ok_or(SdoAbort::SubindexDoesNotExist)?;
     od::check_read(e, state)?;
-    let n = dict.read(to.index, to.sub, buf)?;
+    let n = dict.read(to.key(), buf)?;
     Ok(n.min(buf.len()))
 }
 
@@ -421,9 +419,9 @@ fn download(
         let obj = od::find(objects, to.index).ok_or(SdoAbort::ObjectDoesNotExist)?;
         return ca_download(obj, dict, state, to.sub, data);
     }
-    let e = od::find_entry(objects, to.index, to.sub)?;
+    let e = od::find_entry(objects, to.key())?;
     od::check_write(e, data, state)?;
-    dict.write(to.index, to.sub, data, state)
+    dict.write(to.key(), data, state)
 }
 
 /// Writes `nbits` (≤ 64) of `v` at bit position `pos` of `buf` (LSB first).
@@ -483,7 +481,7 @@ fn ca_upload(
     let e0 = ca_checks(obj, sub)?;
     od::check_read(e0, state)?;
     let mut tmp = [0u8; 8];
-    dict.read(obj.index, 0, &mut tmp)?;
+    dict.read(ObjectKey::new(obj.index, 0), &mut tmp)?;
     let raw_count = tmp[0];
     let count = raw_count.min(obj.max_sub());
     // A VISIBLE_STRING's length is its content's; an OCTET_STRING keeps its declared
@@ -505,7 +503,9 @@ fn ca_upload(
             let end = start + nbits / 8;
             let out = buf.get_mut(start..end).ok_or(SdoAbort::OutOfMemory)?;
             od::check_read(e, state)?;
-            let n = dict.read(obj.index, e.sub, out)?.min(out.len());
+            let n = dict
+                .read(ObjectKey::new(obj.index, e.sub), out)?
+                .min(out.len());
             out[n..].fill(0);
             bit = end * 8;
             continue;
@@ -516,7 +516,7 @@ fn ca_upload(
         let mut val = [0u8; 8];
         match od::check_read(e, state) {
             Ok(()) => {
-                dict.read(obj.index, e.sub, &mut val)?;
+                dict.read(ObjectKey::new(obj.index, e.sub), &mut val)?;
             }
             // Write-only entries read as zeros in a complete access.
             Err(SdoAbort::ReadWriteOnly) => {}
@@ -608,7 +608,7 @@ fn ca_walk(
             let v = ca_value(data, e, start);
             let v = &v[..e.byte_len().min(8)];
             if write {
-                dict.write(obj.index, e.sub, v, state)?;
+                dict.write(ObjectKey::new(obj.index, e.sub), v, state)?;
             } else {
                 od::check_write(e, v, state)?;
             }
@@ -653,14 +653,14 @@ fn ca_download(
         return Err(SdoAbort::TypeMismatch);
     }
     // Pass 2: the writes, in the PDO-mapping edit order.
-    let index = obj.index;
+    let count_key = ObjectKey::new(obj.index, 0);
     let si0_written = sub == 0 && e0.access.writable_in(state);
     if si0_written && e0.min() <= 0 {
-        dict.write(index, 0, &[0], state)?;
+        dict.write(count_key, &[0], state)?;
     }
     ca_walk(obj, dict, state, data, layout, true)?;
     if si0_written {
-        dict.write(index, 0, &[count], state)?;
+        dict.write(count_key, &[count], state)?;
     }
     Ok(())
 }

@@ -24,8 +24,8 @@ const SOURCE: [ObjectDesc; 5] = [
 ];
 /// The stack's PDO objects, packed.
 static PDO_OBJECTS: &[Object] = crate::packed_dictionary!(&[crate::pdo::OBJECTS]);
-static RX: [u32; 1] = [crate::pdo::entry(0x6040, 0, 16)];
-static TX: [u32; 2] = [crate::pdo::entry(0x6041, 0, 16), 0x0000_0010];
+static RX: [u32; 1] = [ObjectKey::new(0x6040, 0).mapping_word(16)];
+static TX: [u32; 2] = [ObjectKey::new(0x6041, 0).mapping_word(16), 0x0000_0010];
 static PDOS: [PdoMap; 2] = [
     PdoMap {
         index: 0x1600,
@@ -308,10 +308,10 @@ fn the_stacks_own_object_tables_give_a_valid_document() {
 /// each other, both ways; a PDO sharing nothing (or only padding) excludes none.
 #[test]
 fn alternatives_carry_no_sm_and_exclude_what_they_share() {
-    static A: [u32; 2] = [crate::pdo::entry(0x6040, 0, 16), 0x0000_0010];
-    static B: [u32; 1] = [crate::pdo::entry(0x6040, 0, 16)];
+    static A: [u32; 2] = [ObjectKey::new(0x6040, 0).mapping_word(16), 0x0000_0010];
+    static B: [u32; 1] = [ObjectKey::new(0x6040, 0).mapping_word(16)];
     static C: [u32; 1] = [0x0000_0010];
-    static T: [u32; 1] = [crate::pdo::entry(0x6041, 0, 16)];
+    static T: [u32; 1] = [ObjectKey::new(0x6041, 0).mapping_word(16)];
     let map = |index, sm, entries| PdoMap {
         index,
         name: Name::plain("P"),

@@ -3,8 +3,11 @@ use super::*;
 
 #[test]
 fn read_every_sub_index_and_the_errors() {
-    const RX0: &[u32] = &[entry(0x6040, 0, 16), entry(0x607A, 0, 32)];
-    const TX3: &[u32] = &[entry(0x6041, 0, 16)];
+    const RX0: &[u32] = &[
+        ObjectKey::new(0x6040, 0).mapping_word(16),
+        ObjectKey::new(0x607A, 0).mapping_word(32),
+    ];
+    const TX3: &[u32] = &[ObjectKey::new(0x6041, 0).mapping_word(16)];
     let c = PdoConfig::new(PdoDefaults {
         rx: [RX0, &[], &[], &[]],
         tx: [&[], &[], &[], TX3],
@@ -13,7 +16,8 @@ fn read_every_sub_index_and_the_errors() {
     });
     let rd = |index: u16, sub: u8| {
         let mut b = [0xEEu8; 8];
-        c.read(index, sub, &mut b).map(|n| b[..n].to_vec())
+        c.read(ObjectKey::new(index, sub), &mut b)
+            .map(|n| b[..n].to_vec())
     };
     assert_eq!(rd(0x1600, 0), Ok(vec![2]));
     assert_eq!(rd(0x1600, 1), Ok(0x6040_0010u32.to_le_bytes().to_vec()));
@@ -44,10 +48,16 @@ fn read_every_sub_index_and_the_errors() {
     }
     // A buffer too short for the value: the mailbox-size abort, nothing panics.
     let mut short = [0u8; 3];
-    assert_eq!(c.read(0x1600, 1, &mut short), Err(SdoAbort::ExceedsMailbox));
-    assert_eq!(c.read(RX_ASSIGN, 0, &mut []), Err(SdoAbort::ExceedsMailbox));
     assert_eq!(
-        c.read(TX_ASSIGN, 1, &mut short[..1]),
+        c.read(ObjectKey::new(0x1600, 1), &mut short),
+        Err(SdoAbort::ExceedsMailbox)
+    );
+    assert_eq!(
+        c.read(ObjectKey::new(RX_ASSIGN, 0), &mut []),
+        Err(SdoAbort::ExceedsMailbox)
+    );
+    assert_eq!(
+        c.read(ObjectKey::new(TX_ASSIGN, 1), &mut short[..1]),
         Err(SdoAbort::ExceedsMailbox)
     );
 }

@@ -147,8 +147,8 @@ fn pdo_category(
                 Some((name, entry)) => (strings.index(name), entry.data_type.code() as u8),
                 None => (0, 0),
             };
-            w.u16(e.index)?;
-            w.bytes(&[e.sub, name, ty, e.bits])?;
+            w.u16(e.key.index)?;
+            w.bytes(&[e.key.sub, name, ty, e.bits])?;
             w.u16(0)?;
         }
     }

@@ -18,24 +18,23 @@ impl<A: Dictionary + ?Sized> Dictionary for CommDictionary<'_, A> {
     fn objects(&self) -> &'static [Object] {
         self.app.objects()
     }
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        if is_runtime_index(self.sync, index) {
-            self.runtime().read(index, sub, buf)
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        if is_runtime_index(self.sync, key.index) {
+            self.runtime().read(key, buf)
         } else {
-            self.app.read(index, sub, buf)
+            self.app.read(key, buf)
         }
     }
-    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
-        if is_runtime_index(self.sync, index) {
-            self.runtime().write(index, sub, data, state)
+    fn write(&mut self, key: ObjectKey, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        if is_runtime_index(self.sync, key.index) {
+            self.runtime().write(key, data, state)
         } else {
             let mut runtime = RuntimeObjects {
                 pdo: self.pdo,
                 sync: self.sync,
                 objects: self.app.objects(),
             };
-            self.app
-                .write_with_runtime(index, sub, data, state, &mut runtime)
+            self.app.write_with_runtime(key, data, state, &mut runtime)
         }
     }
 }
@@ -75,20 +74,20 @@ impl Dictionary for RuntimeObjects<'_> {
     fn objects(&self) -> &'static [Object] {
         self.objects
     }
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        if pdo::is_pdo_index(index) {
-            self.pdo.read(index, sub, buf)
-        } else if self.sync.serves(index) {
-            self.sync.read(index, sub, buf)
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        if pdo::is_pdo_index(key.index) {
+            self.pdo.read(key, buf)
+        } else if self.sync.serves(key.index) {
+            self.sync.read(key, buf)
         } else {
             Err(SdoAbort::ObjectDoesNotExist)
         }
     }
-    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
-        if pdo::is_pdo_index(index) {
-            self.pdo.write(index, sub, data, state, self.objects)
-        } else if self.sync.serves(index) {
-            self.sync.write(index, sub, data, state)
+    fn write(&mut self, key: ObjectKey, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        if pdo::is_pdo_index(key.index) {
+            self.pdo.write(key, data, state, self.objects)
+        } else if self.sync.serves(key.index) {
+            self.sync.write(key, data, state)
         } else {
             Err(SdoAbort::ObjectDoesNotExist)
         }

@@ -10,7 +10,8 @@ fn read_lengths_of_every_sub_index() {
     s.measuring = true;
     let rd = |s: &SyncState, index: u16, sub: u8| {
         let mut b = [0xEEu8; 8];
-        s.read(index, sub, &mut b).map(|n| b[..n].to_vec())
+        s.read(ObjectKey::new(index, sub), &mut b)
+            .map(|n| b[..n].to_vec())
     };
     let len = [1, 2, 4, 4, 2, 4, 4, 4, 2, 4, 4, 2, 2, 2, 2];
     for index in [SM2_SYNC, SM3_SYNC] {
@@ -39,10 +40,13 @@ fn read_lengths_of_every_sub_index() {
     assert_eq!(rd(&s, 0x1C31, 0), Err(SdoAbort::ObjectDoesNotExist));
     let mut short = [0u8; 3];
     assert_eq!(
-        s.read(SM2_SYNC, 2, &mut short),
+        s.read(ObjectKey::new(SM2_SYNC, 2), &mut short),
         Err(SdoAbort::ExceedsMailbox)
     );
-    assert_eq!(s.read(SM2_SYNC, 0, &mut []), Err(SdoAbort::ExceedsMailbox));
+    assert_eq!(
+        s.read(ObjectKey::new(SM2_SYNC, 0), &mut []),
+        Err(SdoAbort::ExceedsMailbox)
+    );
 }
 
 #[test]

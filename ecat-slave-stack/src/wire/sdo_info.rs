@@ -3,6 +3,7 @@
 //! server that answers requests is [`crate::coe::info`].
 
 use super::coe::{Header, Service, HEADER_LEN as COE_HEADER_LEN};
+use crate::od::ObjectKey;
 
 /// Size of the SDO information header (opcode, reserved, fragments left).
 pub const INFO_HEADER_LEN: usize = 4;
@@ -165,10 +166,8 @@ impl ObjectDescriptionHead {
 /// (default, minimum, maximum as `value_info` says) and the entry's name.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct EntryDescriptionHead {
-    /// Index.
-    pub index: u16,
-    /// Sub-index.
-    pub sub: u8,
+    /// Index and sub-index.
+    pub key: ObjectKey,
     /// Value info: which value fields follow ([`value_info`] flags).
     pub value_info: u8,
     /// Data type code.
@@ -188,11 +187,12 @@ impl EntryDescriptionHead {
         let Some(b) = out.get_mut(..Self::LEN) else {
             return 0;
         };
-        let [i0, i1] = self.index.to_le_bytes();
+        let [i0, i1] = self.key.index.to_le_bytes();
         let [t0, t1] = self.data_type.to_le_bytes();
         let [l0, l1] = self.bit_length.to_le_bytes();
         let [a0, a1] = self.access.to_le_bytes();
-        b.copy_from_slice(&[i0, i1, self.sub, self.value_info, t0, t1, l0, l1, a0, a1]);
+        let sub = self.key.sub;
+        b.copy_from_slice(&[i0, i1, sub, self.value_info, t0, t1, l0, l1, a0, a1]);
         Self::LEN
     }
 }
@@ -221,10 +221,8 @@ pub enum Repr {
     },
     /// Get entry description request (0x05).
     EntryDescription {
-        /// Index.
-        index: u16,
-        /// Sub-index.
-        sub: u8,
+        /// Index and sub-index.
+        key: ObjectKey,
         /// Value-info request ([`value_info`] flags).
         value_info: u8,
     },
@@ -265,8 +263,7 @@ impl Repr {
             opcode::ENTRY_DESCRIPTION_REQUEST => {
                 need(4)?;
                 Repr::EntryDescription {
-                    index: u16_at(0),
-                    sub: d[2],
+                    key: ObjectKey::new(u16_at(0), d[2]),
                     value_info: d[3],
                 }
             }
@@ -307,13 +304,12 @@ impl Repr {
                 let [a, b] = index.to_le_bytes();
                 (opcode::OBJECT_DESCRIPTION_REQUEST, [a, b, 0, 0])
             }
-            Repr::EntryDescription {
-                index,
-                sub,
-                value_info,
-            } => {
-                let [a, b] = index.to_le_bytes();
-                (opcode::ENTRY_DESCRIPTION_REQUEST, [a, b, sub, value_info])
+            Repr::EntryDescription { key, value_info } => {
+                let [a, b] = key.index.to_le_bytes();
+                (
+                    opcode::ENTRY_DESCRIPTION_REQUEST,
+                    [a, b, key.sub, value_info],
+                )
             }
             Repr::Error { code } => (opcode::ERROR, code.to_le_bytes()),
             Repr::Unknown { opcode } => (opcode, [0; 4]),

@@ -22,18 +22,18 @@ impl<S: ParameterStore> Dictionary for WholeDictionary<'_, S> {
     fn objects(&self) -> &'static [Object] {
         dictionary::OBJECTS
     }
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
-        if is_runtime_index(index) {
-            self.runtime.read(index, sub, buf)
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        if is_runtime_index(key.index) {
+            self.runtime.read(key, buf)
         } else {
-            self.drive.read(index, sub, buf)
+            self.drive.read(key, buf)
         }
     }
-    fn write(&mut self, index: u16, sub: u8, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
-        if is_runtime_index(index) {
-            self.runtime.write(index, sub, data, state)
+    fn write(&mut self, key: ObjectKey, data: &[u8], state: EsmState) -> Result<(), SdoAbort> {
+        if is_runtime_index(key.index) {
+            self.runtime.write(key, data, state)
         } else {
-            self.drive.write(index, sub, data, state)
+            self.drive.write(key, data, state)
         }
     }
 }
@@ -43,10 +43,11 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
         dictionary::OBJECTS
     }
 
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        let ObjectKey { index, sub } = key;
         if index == 0x10F3 {
             // Reading the newest diagnosis message clears "new messages available".
-            od::find_entry(dictionary::OBJECTS, index, sub)?;
+            od::find_entry(dictionary::OBJECTS, ObjectKey::new(index, sub))?;
             return self.faults.diagnosis_mut().read(sub, buf);
         }
         if let (0x100A, Some(v)) = (
@@ -54,7 +55,7 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
             self.update.as_deref().and_then(|u| u.running_version()),
         ) {
             // The version of the running image's update header.
-            od::find_entry(dictionary::OBJECTS, index, sub)?;
+            od::find_entry(dictionary::OBJECTS, ObjectKey::new(index, sub))?;
             let n = crate::update::format_version(v, buf);
             return if n == 0 {
                 Err(SdoAbort::ExceedsMailbox)
@@ -70,14 +71,8 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
         r
     }
 
-    fn write(
-        &mut self,
-        index: u16,
-        sub: u8,
-        data: &[u8],
-        _state: EsmState,
-    ) -> Result<(), SdoAbort> {
-        let key = ObjectKey::new(index, sub);
+    fn write(&mut self, key: ObjectKey, data: &[u8], _state: EsmState) -> Result<(), SdoAbort> {
+        let ObjectKey { index, sub } = key;
         match dictionary::owner_of(index) {
             // Without the runtime's objects a save would miss the PDO mapping.
             Some(Owner::Comm) => self.write_comm(key, data, &mut NoRuntime),
@@ -132,16 +127,16 @@ impl<S: ParameterStore> Dictionary for Drive<S> {
 
     fn write_with_runtime(
         &mut self,
-        index: u16,
-        sub: u8,
+        key: ObjectKey,
         data: &[u8],
         state: EsmState,
         runtime: &mut dyn Dictionary,
     ) -> Result<(), SdoAbort> {
+        let ObjectKey { index, sub } = key;
         if dictionary::owner_of(index) == Some(Owner::Comm) {
             return self.write_comm(ObjectKey::new(index, sub), data, runtime);
         }
-        self.write(index, sub, data, state)
+        self.write(key, data, state)
     }
 }
 
@@ -154,16 +149,10 @@ impl Dictionary for NoRuntime {
     fn objects(&self) -> &'static [Object] {
         dictionary::OBJECTS
     }
-    fn read(&mut self, _index: u16, _sub: u8, _buf: &mut [u8]) -> Result<usize, SdoAbort> {
+    fn read(&mut self, _key: ObjectKey, _buf: &mut [u8]) -> Result<usize, SdoAbort> {
         Err(SdoAbort::ObjectDoesNotExist)
     }
-    fn write(
-        &mut self,
-        _index: u16,
-        _sub: u8,
-        _data: &[u8],
-        _state: EsmState,
-    ) -> Result<(), SdoAbort> {
+    fn write(&mut self, _key: ObjectKey, _data: &[u8], _state: EsmState) -> Result<(), SdoAbort> {
         Err(SdoAbort::ObjectDoesNotExist)
     }
 }
@@ -207,23 +196,25 @@ pub(super) fn other_tx_entry(n: usize) -> Option<(u16, u8)> {
 }
 
 impl<S: ParameterStore> ProcessData for Drive<S> {
-    fn rx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+    fn rx_slot(&self, key: ObjectKey) -> Option<u16> {
+        let ObjectKey { index, sub } = key;
         if dictionary::owner_of(index) == Some(Owner::Cia402) {
-            return ProcessData::rx_slot(&self.cia402, index, sub);
+            return ProcessData::rx_slot(&self.cia402, key);
         }
         if dictionary::owner_of(index) != Some(Owner::Params) {
             return None;
         }
-        let e = od::find_entry(dictionary::OBJECTS, index, sub).ok()?;
+        let e = od::find_entry(dictionary::OBJECTS, ObjectKey::new(index, sub)).ok()?;
         if !e.pdo_mappable().rx() {
             return None;
         }
         crate::params::slot_of(index, sub).map(|n| OTHER_RX_SLOT + n as u16)
     }
 
-    fn tx_slot(&self, index: u16, sub: u8) -> Option<u16> {
+    fn tx_slot(&self, key: ObjectKey) -> Option<u16> {
+        let ObjectKey { index, sub } = key;
         if dictionary::owner_of(index) == Some(Owner::Cia402) {
-            return ProcessData::tx_slot(&self.cia402, index, sub);
+            return ProcessData::tx_slot(&self.cia402, key);
         }
         other_tx_entries()
             .position(|k| k == (index, sub))
@@ -267,11 +258,16 @@ impl<S: ParameterStore> Drive<S> {
             return;
         };
         // (`KEYS` holds vendor parameters only.)
-        if let Ok(e) = od::find_entry(dictionary::OBJECTS, index, sub) {
+        if let Ok(e) = od::find_entry(dictionary::OBJECTS, ObjectKey::new(index, sub)) {
             if e.pdo_mappable().rx() {
                 let bytes = raw.to_le_bytes();
                 let len = e.byte_len().min(8);
-                let _ = Dictionary::write(self, index, sub, &bytes[..len], EsmState::Op);
+                let _ = Dictionary::write(
+                    self,
+                    ObjectKey::new(index, sub),
+                    &bytes[..len],
+                    EsmState::Op,
+                );
             }
         }
     }
@@ -423,5 +419,5 @@ impl<S: ParameterStore> SlaveApplication for Drive<S> {
 /// True when `index` is stored by 'save' somewhere in the dictionary (for tests and
 /// the storage layout documentation).
 pub fn is_saved(index: u16, sub: u8) -> bool {
-    od::find_entry(dictionary::OBJECTS, index, sub).is_ok_and(|e| e.is_saved())
+    od::find_entry(dictionary::OBJECTS, ObjectKey::new(index, sub)).is_ok_and(|e| e.is_saved())
 }

@@ -3,11 +3,12 @@
 use super::*;
 use crate::cia402::homing::HomingStatus;
 use crate::cia402::pds::PdsState;
+use ecat_slave_stack::od::ObjectKey;
 
 fn sdo_write(d: &mut Drive, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
-    let e = od::find_entry(dictionary::OBJECTS, index, sub)?;
+    let e = od::find_entry(dictionary::OBJECTS, ObjectKey::new(index, sub))?;
     od::check_write(e, data, EsmState::PreOp)?;
-    d.write(index, sub, data, EsmState::PreOp)
+    d.write(ObjectKey::new(index, sub), data, EsmState::PreOp)
 }
 
 fn axis(position: i32, stall_seq: u32, stall_position: i32) -> AxisState {
@@ -69,7 +70,7 @@ fn stall_objects_ranges_and_read_only_load_angle() {
     assert_eq!(d.params.get(Param::StallSensitivity), 45);
     d.set_axis(axis(0, 0, 0));
     let mut b = [0u8; 2];
-    assert_eq!(d.read(0x2063, 0, &mut b), Ok(2));
+    assert_eq!(d.read(ObjectKey::new(0x2063, 0), &mut b), Ok(2));
     assert_eq!(i16::from_le_bytes(b), -1234);
     // The motion configuration takes the threshold and the motor model.
     let cfg = crate::motion::MotionConfig::from_params(

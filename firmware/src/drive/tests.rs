@@ -1,16 +1,17 @@
 use super::stack::{other_tx_entries, other_tx_entry, OTHER_TX_SLOT};
 use super::*;
 use crate::cia402::pds::PdsState;
+use ecat_slave_stack::od::ObjectKey;
 
 pub(super) fn sdo_write(d: &mut Drive, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
-    let e = od::find_entry(dictionary::OBJECTS, index, sub)?;
+    let e = od::find_entry(dictionary::OBJECTS, ObjectKey::new(index, sub))?;
     od::check_write(e, data, EsmState::PreOp)?;
-    d.write(index, sub, data, EsmState::PreOp)
+    d.write(ObjectKey::new(index, sub), data, EsmState::PreOp)
 }
 
 pub(super) fn sdo_read_u32(d: &mut Drive, index: u16, sub: u8) -> u32 {
     let mut b = [0u8; 8];
-    let n = d.read(index, sub, &mut b).expect("read");
+    let n = d.read(ObjectKey::new(index, sub), &mut b).expect("read");
     let mut v = [0u8; 4];
     v[..n.min(4)].copy_from_slice(&b[..n.min(4)]);
     u32::from_le_bytes(v)
@@ -25,8 +26,8 @@ fn init_in_equals_with_store() {
     for o in dictionary::OBJECTS {
         for e in o.entries() {
             let (mut x, mut y) = ([0u8; 64], [0u8; 64]);
-            let rx = a.read(o.index, e.sub, &mut x);
-            let ry = b.read(o.index, e.sub, &mut y);
+            let rx = a.read(ObjectKey::new(o.index, e.sub), &mut x);
+            let ry = b.read(ObjectKey::new(o.index, e.sub), &mut y);
             assert_eq!(rx, ry, "{:#06x}:{}", o.index, e.sub);
             assert_eq!(x, y, "{:#06x}:{}", o.index, e.sub);
         }
@@ -65,7 +66,7 @@ fn every_product_entry_is_bound_to_its_owners_values() {
         for e in o.entries() {
             let mut b = [0u8; crate::scope::BLOCK_BYTES];
             let at = (o.index, e.sub);
-            match d.read(o.index, e.sub, &mut b) {
+            match d.read(ObjectKey::new(o.index, e.sub), &mut b) {
                 Ok(len) if e.data_type.is_variable_length() => assert!(len <= e.byte_len()),
                 Ok(len) => assert_eq!(len, e.byte_len(), "{at:x?}"),
                 Err(SdoAbort::NoDataAvailable) => assert_eq!(o.index, crate::scope::DATA),
@@ -73,7 +74,7 @@ fn every_product_entry_is_bound_to_its_owners_values() {
             }
             if e.access.writable() && !e.data_type.is_variable_length() {
                 let len = e.byte_len();
-                let r = d.write(o.index, e.sub, &b[..len], EsmState::PreOp);
+                let r = d.write(ObjectKey::new(o.index, e.sub), &b[..len], EsmState::PreOp);
                 assert!(
                     !r.is_err_and(|err| unbound.contains(&err)),
                     "{at:x?}: {r:?}"
@@ -96,7 +97,10 @@ fn dictionary_reads_reach_every_module() {
         crate::cia402::SUPPORTED_MODES
     );
     let mut b = [0u8; 8];
-    assert_eq!(d.read(0x5000, 0, &mut b), Err(SdoAbort::ObjectDoesNotExist));
+    assert_eq!(
+        d.read(ObjectKey::new(0x5000, 0), &mut b),
+        Err(SdoAbort::ObjectDoesNotExist)
+    );
 }
 
 #[test]
@@ -119,8 +123,13 @@ fn out_of_range_vendor_write_is_refused_and_value_kept() {
 fn mapped_peak_current_takes_the_sdo_range_check() {
     for (variant, max) in [(Variant::HybridServo, 8000u16), (Variant::OpenLoop, 8400)] {
         let mut d = Drive::new(variant, 0);
-        let slot = ProcessData::rx_slot(&d, 0x2000, 0).expect("0x2000 RxPDO-mappable");
-        assert_eq!(ProcessData::rx_slot(&d, 0x2001, 0), None, "0x2001 is not");
+        let slot =
+            ProcessData::rx_slot(&d, ObjectKey::new(0x2000, 0)).expect("0x2000 RxPDO-mappable");
+        assert_eq!(
+            ProcessData::rx_slot(&d, ObjectKey::new(0x2001, 0)),
+            None,
+            "0x2001 is not"
+        );
         ProcessData::set_rx(&mut d, slot, 4000);
         assert_eq!(sdo_read_u32(&mut d, 0x2000, 0), 4000);
         // What the SDO write refuses (above the variant's maximum, below 1) is not
@@ -499,7 +508,7 @@ fn current_report_writes_tune_results_and_raises_its_faults() {
         Err(SdoAbort::WriteReadOnly)
     );
     assert_eq!(
-        d.read(0x2022, 6, &mut [0u8; 8]),
+        d.read(ObjectKey::new(0x2022, 6), &mut [0u8; 8]),
         Err(SdoAbort::SubindexDoesNotExist)
     );
     // Default mask 0x00C3: motor open and current sensing are off.
@@ -586,13 +595,18 @@ fn save_then_power_cycle_restores_parameters_and_mapping() {
             sync: &mut sync,
             objects: dictionary::OBJECTS,
         };
-        rt.write(0x1C12, 0, &[0], EsmState::PreOp)
+        rt.write(ObjectKey::new(0x1C12, 0), &[0], EsmState::PreOp)
             .expect("sub 0 to 0");
-        rt.write(0x1C12, 1, &0x1601u16.to_le_bytes(), EsmState::PreOp)
-            .expect("assign");
-        rt.write(0x1C12, 0, &[1], EsmState::PreOp).expect("count");
+        rt.write(
+            ObjectKey::new(0x1C12, 1),
+            &0x1601u16.to_le_bytes(),
+            EsmState::PreOp,
+        )
+        .expect("assign");
+        rt.write(ObjectKey::new(0x1C12, 0), &[1], EsmState::PreOp)
+            .expect("count");
         let save = crate::comm::SAVE.to_le_bytes();
-        d.write_with_runtime(0x1010, 1, &save, EsmState::PreOp, &mut rt)
+        d.write_with_runtime(ObjectKey::new(0x1010, 1), &save, EsmState::PreOp, &mut rt)
             .expect("save");
     }
     // Power cycle: a new drive and runtime over the same flash.
@@ -619,7 +633,8 @@ fn save_then_power_cycle_restores_parameters_and_mapping() {
     assert!(report.source.is_some(), "{report:?}");
     assert_eq!(sdo_read_u32_any(&mut d2, 0x2000, 0), 2100);
     let mut b = [0u8; 4];
-    pdo2.read(0x1C12, 1, &mut b).expect("read assign");
+    pdo2.read(ObjectKey::new(0x1C12, 1), &mut b)
+        .expect("read assign");
     assert_eq!(u16::from_le_bytes([b[0], b[1]]), 0x1601);
     assert!(
         d2.pop_emergency().is_none(),
@@ -735,7 +750,8 @@ fn staged_store_programs_a_save_before_the_history() {
         d.faults
             .raise(FaultKind::OverVoltage, Snapshot::default(), 5);
         let save = u32::from_le_bytes(*b"save").to_le_bytes();
-        d.write(0x1010, 1, &save, EsmState::PreOp).expect("save");
+        d.write(ObjectKey::new(0x1010, 1), &save, EsmState::PreOp)
+            .expect("save");
         let (first, err) = d.next_staged_record();
         assert!(err.is_none());
         let first = first.expect("the save's record");
@@ -790,7 +806,7 @@ fn diagnosis_history_by_complete_access() {
     fault_at(&mut d, FaultKind::UnderVoltage, 100, 10);
     let mut single = [([0u8; 32], 0usize); 22];
     for (sub, (b, n)) in single.iter_mut().enumerate() {
-        *n = Dictionary::read(&mut d, 0x10F3, sub as u8, b).unwrap();
+        *n = Dictionary::read(&mut d, ObjectKey::new(0x10F3, sub as u8), b).unwrap();
     }
     let single: [&[u8]; 22] = core::array::from_fn(|k| &single[k].0[..single[k].1]);
     let mut server = SdoServer::new();
@@ -1074,14 +1090,14 @@ fn sdo_write_any<S: ParameterStore>(
     sub: u8,
     data: &[u8],
 ) -> Result<(), SdoAbort> {
-    let e = od::find_entry(dictionary::OBJECTS, index, sub)?;
+    let e = od::find_entry(dictionary::OBJECTS, ObjectKey::new(index, sub))?;
     od::check_write(e, data, EsmState::PreOp)?;
-    d.write(index, sub, data, EsmState::PreOp)
+    d.write(ObjectKey::new(index, sub), data, EsmState::PreOp)
 }
 
 fn sdo_read_u32_any<S: ParameterStore>(d: &mut Drive<S>, index: u16, sub: u8) -> u32 {
     let mut b = [0u8; 8];
-    let n = d.read(index, sub, &mut b).expect("read");
+    let n = d.read(ObjectKey::new(index, sub), &mut b).expect("read");
     let mut v = [0u8; 4];
     v[..n.min(4)].copy_from_slice(&b[..n.min(4)]);
     u32::from_le_bytes(v)

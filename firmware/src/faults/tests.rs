@@ -1,7 +1,7 @@
 use super::*;
 use crate::dictionary::fault_history::{read, OBJECTS};
 use crate::dictionary::Sdo;
-use ecat_slave_stack::od::{self, SdoAbort};
+use ecat_slave_stack::od::{self, ObjectKey, SdoAbort};
 
 /// The table as the product packs it.
 static PACKED: &[od::Object] = ecat_slave_stack::packed_dictionary!(&[OBJECTS]);
@@ -222,7 +222,7 @@ fn history_keeps_six_newest_readable_by_sdo() {
     let mut buf = [0u8; 4];
     let rd = |f: &Faults, i, s, buf: &mut [u8; 4]| {
         let n = read(f, i, s, buf).unwrap();
-        let e = od::find_entry(PACKED, i, s).unwrap();
+        let e = od::find_entry(PACKED, ObjectKey::new(i, s)).unwrap();
         od::decode_int(e.data_type, &buf[..n]).unwrap()
     };
     assert_eq!(rd(&f, 0x2400, 0, &mut buf), 8);

@@ -181,7 +181,7 @@ async fn pad_check(
 /// The parameter-slot check ([`st::record_probe`], the drive's 'save', commit,
 /// [`st::record_check`]).
 fn record_check(flash: Option<&mut flash::ParamFlash>) -> Verdict {
-    use ecat_slave_stack::od::Dictionary;
+    use ecat_slave_stack::od::{Dictionary, ObjectKey};
     let Some(flash) = flash else {
         return Verdict::Fail("no parameter flash (option byte DBANK = 0)");
     };
@@ -195,16 +195,14 @@ fn record_check(flash: Option<&mut flash::ParamFlash>) -> Verdict {
             Some(slave) => {
                 let mut rt = slave.runtime_objects(firmware::dictionary::OBJECTS);
                 s.drive.write_with_runtime(
-                    0x1010,
-                    1,
+                    ObjectKey::new(0x1010, 1),
                     &save,
                     ecat_slave_stack::esm::EsmState::PreOp,
                     &mut rt,
                 )
             }
             None => s.drive.write_with_runtime(
-                0x1010,
-                1,
+                ObjectKey::new(0x1010, 1),
                 &save,
                 ecat_slave_stack::esm::EsmState::PreOp,
                 &mut firmware::drive::NoRuntime,

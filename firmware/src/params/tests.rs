@@ -7,9 +7,10 @@ use super::*;
 use crate::dictionary::Sdo;
 use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::od;
+use ecat_slave_stack::od::ObjectKey;
 
 fn w(p: &mut Params, index: u16, sub: u8, v: i64) -> Result<(), SdoAbort> {
-    let e = od::find_entry(PACKED, index, sub)?;
+    let e = od::find_entry(PACKED, ObjectKey::new(index, sub))?;
     let bytes = (v as u64).to_le_bytes();
     let data = &bytes[..e.byte_len()];
     od::check_write(e, data, EsmState::Op)?;
@@ -19,7 +20,7 @@ fn w(p: &mut Params, index: u16, sub: u8, v: i64) -> Result<(), SdoAbort> {
 fn r(p: &Params, index: u16, sub: u8) -> i64 {
     let mut buf = [0u8; 8];
     let n = p.read(index, sub, &mut buf).unwrap();
-    let e = od::find_entry(PACKED, index, sub).unwrap();
+    let e = od::find_entry(PACKED, ObjectKey::new(index, sub)).unwrap();
     od::decode_int(e.data_type, &buf[..n]).unwrap()
 }
 
@@ -51,7 +52,7 @@ fn table_is_well_formed_and_keys_match_saved_entries() {
 #[test]
 fn every_parameter_default_and_range_edges() {
     for &(index, sub) in KEYS.iter() {
-        let e = od::find_entry(PACKED, index, sub).unwrap();
+        let e = od::find_entry(PACKED, ObjectKey::new(index, sub)).unwrap();
         // The table's 0x2000 range is the widest of the variants' (the open-loop
         // drive's 8.4 A; the hybrid servo's 8.0 A: `peak_current_limit_per_variant`).
         let variant = if index == 0x2000 {
@@ -171,7 +172,7 @@ fn spec_table_values() {
         (0x2161, 0, 12, 1, 16),
     ];
     for &(i, s, d, lo, hi) in expect {
-        let e = od::find_entry(PACKED, i, s).unwrap();
+        let e = od::find_entry(PACKED, ObjectKey::new(i, s)).unwrap();
         assert_eq!(
             (e.default_value(), e.min(), e.max()),
             (DefaultValue::Int(d), lo, hi),

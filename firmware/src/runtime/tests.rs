@@ -7,7 +7,7 @@ use crate::dictionary;
 use crate::drive::{AxisState, NoRuntime, NoStore};
 use crate::identity::Variant;
 use ecat_slave_stack::esm::EsmHooks;
-use ecat_slave_stack::od::{self, SdoAbort};
+use ecat_slave_stack::od::{self, ObjectKey, SdoAbort};
 
 const SPEC: BoardSpec = BoardSpec {
     dip: dip::Board::TwoBanks,
@@ -67,14 +67,14 @@ impl ControlPath for FakePath {
 }
 
 fn sdo_write(d: &mut Drive, index: u16, sub: u8, data: &[u8]) -> Result<(), SdoAbort> {
-    let e = od::find_entry(dictionary::OBJECTS, index, sub)?;
+    let e = od::find_entry(dictionary::OBJECTS, ObjectKey::new(index, sub))?;
     od::check_write(e, data, EsmState::PreOp)?;
-    d.write(index, sub, data, EsmState::PreOp)
+    d.write(ObjectKey::new(index, sub), data, EsmState::PreOp)
 }
 
 fn read_u32(d: &mut Drive, index: u16, sub: u8) -> u32 {
     let mut b = [0u8; 8];
-    let n = d.read(index, sub, &mut b).expect("read");
+    let n = d.read(ObjectKey::new(index, sub), &mut b).expect("read");
     let mut v = [0u8; 4];
     v[..n.min(4)].copy_from_slice(&b[..n.min(4)]);
     u32::from_le_bytes(v)

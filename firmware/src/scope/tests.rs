@@ -18,7 +18,9 @@ fn w32(s: &mut Scope, index: u16, sub: u8, v: u32) -> Result<(), SdoAbort> {
 fn rd(s: &Scope, index: u16, sub: u8) -> i64 {
     let mut b = [0u8; 8];
     let n = s.read(index, sub, &mut b).expect("read");
-    let t = od::find_entry(PACKED, index, sub).unwrap().data_type;
+    let t = od::find_entry(PACKED, ObjectKey::new(index, sub))
+        .unwrap()
+        .data_type;
     od::decode_int(t, &b[..n]).unwrap()
 }
 
@@ -401,9 +403,9 @@ fn sdo_write(
 ) -> Result<(), SdoAbort> {
     use ecat_slave_stack::esm::EsmState;
     use ecat_slave_stack::od::Dictionary;
-    let e = od::find_entry(crate::dictionary::OBJECTS, index, sub)?;
+    let e = od::find_entry(crate::dictionary::OBJECTS, ObjectKey::new(index, sub))?;
     od::check_write(e, data, EsmState::PreOp)?;
-    d.write(index, sub, data, EsmState::PreOp)
+    d.write(ObjectKey::new(index, sub), data, EsmState::PreOp)
 }
 
 /// The scope in the drive: armed over the dictionary, sampled by the supervision tick
@@ -445,7 +447,7 @@ fn the_drive_samples_on_its_tick() {
     assert_eq!(d.scope.state(), State::Done);
     let mut b = [0u8; BLOCK_BYTES];
     let mut status = |d: &mut Drive, sub: u8| {
-        let n = d.read(STATUS, sub, &mut b).unwrap();
+        let n = d.read(ObjectKey::new(STATUS, sub), &mut b).unwrap();
         od::decode_int(DataType::Unsigned16, &b[..n]).unwrap()
     };
     assert_eq!(status(&mut d, 2), 192);
@@ -453,7 +455,7 @@ fn the_drive_samples_on_its_tick() {
     // 192 samples × 4 channels × 4 bytes: blocks 1-6, the last one ends the record.
     let mut rows = Vec::new();
     for sub in 1..=BLOCKS as u8 {
-        let n = d.read(DATA, sub, &mut b).unwrap();
+        let n = d.read(ObjectKey::new(DATA, sub), &mut b).unwrap();
         assert_eq!(n, BLOCK_BYTES);
         let words: Vec<i32> = b[..n]
             .chunks_exact(4)
@@ -476,7 +478,10 @@ fn the_drive_samples_on_its_tick() {
     w(&mut d, CONFIG, 7, &[command::STOP]).unwrap();
     d.tick(601_000, 0);
     assert_eq!(d.scope.state(), State::Idle);
-    assert_eq!(d.read(DATA, 1, &mut b), Err(SdoAbort::NoDataAvailable));
+    assert_eq!(
+        d.read(ObjectKey::new(DATA, 1), &mut b),
+        Err(SdoAbort::NoDataAvailable)
+    );
 }
 
 /// The scope at the servo rate (0x2500:08 = 1): the control path's points are the
@@ -549,6 +554,6 @@ fn the_drive_samples_the_servo_points_at_the_servo_rate() {
     }
     // The internal signals read over SDO are the axis state's.
     let mut b = [0u8; 4];
-    let n = d.read(SIGNALS, 5, &mut b).unwrap();
+    let n = d.read(ObjectKey::new(SIGNALS, 5), &mut b).unwrap();
     assert_eq!(od::decode_int(DataType::Integer32, &b[..n]), Some(777));
 }

@@ -4,7 +4,7 @@
 
 use super::{LoadReport, SaveReport, Scope, StorageError, MAX_VALUE_LEN};
 use ecat_slave_stack::esm::EsmState;
-use ecat_slave_stack::od::{self, Dictionary, ObjectCode, SdoAbort};
+use ecat_slave_stack::od::{self, Dictionary, ObjectCode, ObjectKey, SdoAbort};
 
 /// A restored sub-index 0 waiting for the other sub-indices of its object.
 pub(super) struct PendingCount {
@@ -37,7 +37,7 @@ pub(super) fn entries<D: Dictionary + ?Sized>(
     let mut value = [0u8; MAX_VALUE_LEN];
     for obj in dict.objects().iter().filter(|o| scope.contains(o.index)) {
         let limit = if has_count_first(obj) {
-            match dict.read(obj.index, 0, &mut value) {
+            match dict.read(ObjectKey::new(obj.index, 0), &mut value) {
                 Ok(1) => Some(value[0]),
                 _ => None,
             }
@@ -49,7 +49,7 @@ pub(super) fn entries<D: Dictionary + ?Sized>(
             .iter()
             .filter(|e| e.is_saved() && limit.is_none_or(|n| e.sub <= n))
         {
-            match dict.read(obj.index, e.sub, &mut value) {
+            match dict.read(ObjectKey::new(obj.index, e.sub), &mut value) {
                 Ok(n) if n <= MAX_VALUE_LEN => {
                     let i = obj.index.to_le_bytes();
                     emit(&[i[0], i[1], e.sub, n as u8], &value[..n])?;
@@ -77,12 +77,11 @@ fn has_count_first(o: &od::Object) -> bool {
 
 pub(super) fn apply<D: Dictionary + ?Sized>(
     dict: &mut D,
-    index: u16,
-    sub: u8,
+    key: ObjectKey,
     data: &[u8],
     report: &mut LoadReport,
 ) {
-    let ok = match od::find_entry(dict.objects(), index, sub) {
+    let ok = match od::find_entry(dict.objects(), key) {
         Ok(e) if e.is_saved() => {
             let len_ok = if e.data_type.is_variable_length() {
                 data.len() <= e.byte_len()
@@ -95,7 +94,7 @@ pub(super) fn apply<D: Dictionary + ?Sized>(
             };
             len_ok
                 && range_ok
-                && match dict.write(index, sub, data, EsmState::PreOp) {
+                && match dict.write(key, data, EsmState::PreOp) {
                     Ok(()) => true,
                     // The device owns the value right now (e.g. current gains while
                     // auto-tune is on): not an error of the record.

@@ -38,7 +38,9 @@ use std::sync::OnceLock;
 
 use ecat_slave_stack::esi::{self, EsiDevice, EsiError, PdoMap};
 use ecat_slave_stack::od::Dictionary as _;
-use ecat_slave_stack::od::{self, DataType, DefaultValue, Entry, EntryDesc, Object, ObjectDesc};
+use ecat_slave_stack::od::{
+    self, DataType, DefaultValue, Entry, EntryDesc, Object, ObjectDesc, ObjectKey,
+};
 use ecat_slave_stack::pdo::PdoConfig;
 use ecat_slave_stack::sii::{self, DeviceDescription, EscFlavour, SiiError};
 use firmware::drive::Drive;
@@ -134,10 +136,12 @@ pub fn power_up_bytes(variant: Variant, index: u16, sub: u8) -> Option<Vec<u8>> 
     let mut buf = [0u8; 256];
     let n = if is_mapping_or_assignment(index) {
         PdoConfig::new(PDO_DEFAULTS)
-            .read(index, sub, &mut buf)
+            .read(ObjectKey::new(index, sub), &mut buf)
             .ok()?
     } else {
-        Drive::new(variant, 0).read(index, sub, &mut buf).ok()?
+        Drive::new(variant, 0)
+            .read(ObjectKey::new(index, sub), &mut buf)
+            .ok()?
     };
     Some(buf[..n].to_vec())
 }

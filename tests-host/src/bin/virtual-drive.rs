@@ -44,7 +44,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use ecat_slave_stack::od::Dictionary;
+use ecat_slave_stack::od::{Dictionary, ObjectKey};
 use firmware::runtime::DipBanks;
 use tests_host::esc_sim::Flavour;
 use tests_host::fault_inject::{self, Injection, LedLog, PinLog, Schedule};
@@ -181,7 +181,7 @@ fn restart_after_update(seg: &mut Segment<SimDrive>, log: &mut dyn FnMut(String)
     for i in sim_drive::restart_requested(seg) {
         let d = &mut seg.drive_mut(i).app;
         let mut v = [0u8; 16];
-        let n = Dictionary::read(d, 0x100A, 0, &mut v).unwrap_or(0);
+        let n = Dictionary::read(d, ObjectKey::new(0x100A, 0), &mut v).unwrap_or(0);
         log(format!(
             "drive {}: firmware update accepted; reset into the bootloader ({:?}); now \
              running {} on trial (0x2309 = 1) until it reaches Pre-Op",

@@ -7,7 +7,7 @@
 use crate::sim_axis::PlantAxis;
 use crate::sim_drive::{Axis, Motor};
 use ecat_slave_stack::esm::EsmState;
-use ecat_slave_stack::od::{Dictionary, SdoAbort};
+use ecat_slave_stack::od::{Dictionary, ObjectKey, SdoAbort};
 use firmware::cia402::pds::PdsState;
 use firmware::drive::Drive;
 use firmware::identity::Variant;
@@ -32,7 +32,7 @@ impl DriveBench {
         let mut d: Drive = Drive::new(Variant::HybridServo, 0);
         let base: [(u16, u8, &[u8]); 3] = [(0x2013, 0, &[0]), (0x2024, 0, &[2]), (0x6060, 0, &[1])];
         for &(i, s, v) in base.iter().chain(extra) {
-            Dictionary::write(&mut d, i, s, v, EsmState::PreOp)
+            Dictionary::write(&mut d, ObjectKey::new(i, s), v, EsmState::PreOp)
                 .unwrap_or_else(|e| panic!("{i:x}: {e:?}"));
         }
         let mut ax = PlantAxis::with_plant(motor, true, |pc| {
@@ -81,13 +81,13 @@ impl DriveBench {
 
     /// SDO download.
     pub fn write(&mut self, index: u16, sub: u8, v: &[u8]) -> Result<(), SdoAbort> {
-        Dictionary::write(&mut self.d, index, sub, v, EsmState::Op)
+        Dictionary::write(&mut self.d, ObjectKey::new(index, sub), v, EsmState::Op)
     }
 
     /// SDO upload of an entry of up to 16 bits.
     pub fn read_u16(&mut self, index: u16, sub: u8) -> u16 {
         let mut b = [0u8; 4];
-        let n = Dictionary::read(&mut self.d, index, sub, &mut b).unwrap_or(0);
+        let n = Dictionary::read(&mut self.d, ObjectKey::new(index, sub), &mut b).unwrap_or(0);
         assert!(n <= 2);
         u16::from_le_bytes([b[0], b[1]])
     }

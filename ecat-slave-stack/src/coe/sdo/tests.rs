@@ -79,8 +79,7 @@ fn request_parse() {
     assert_eq!(
         Request::parse(&[0x80, 0x00, 0x10, 0x02, 0x00, 0x00, 0x04, 0x05]),
         Ok(Request::Abort {
-            index: 0x1000,
-            sub: 2,
+            key: ObjectKey::new(0x1000, 2),
             code: 0x0504_0000
         })
     );
@@ -88,8 +87,7 @@ fn request_parse() {
         Request::parse(&[0xC0]),
         Ok(Request::Unknown {
             command: 0xC0,
-            index: 0,
-            sub: 0
+            key: ObjectKey::new(0, 0)
         })
     );
     assert_eq!(Request::parse(&[]), Err(ErrorDetail::SizeTooShort));
@@ -111,8 +109,8 @@ fn request_parse() {
 fn frame_view_and_emitters() {
     let f = Frame::new_unchecked(&[0x41u8, 0x08, 0x10, 0x00, 3, 0, 0, 0, b'a', b'b', b'c'][..]);
     assert_eq!(
-        (f.command(), f.index(), f.sub(), f.data_u32()),
-        (0x41, 0x1008, 0, 3)
+        (f.command(), f.key(), f.data_u32()),
+        (0x41, ObjectKey::new(0x1008, 0), 3)
     );
     assert_eq!(f.normal_data(), b"abc");
     let e = Frame::new_unchecked(&[][..] as &[u8]);
@@ -122,7 +120,7 @@ fn frame_view_and_emitters() {
     assert!(Frame::new_checked(&[0x60u8][..]).is_ok());
     let mut out = [0u8; 16];
     assert_eq!(
-        Response::abort(0x6040, 0, SdoAbort::ValueTooHigh).emit_coe(&mut out),
+        Response::abort(ObjectKey::new(0x6040, 0), SdoAbort::ValueTooHigh).emit_coe(&mut out),
         10
     );
     assert_eq!(
@@ -130,7 +128,7 @@ fn frame_view_and_emitters() {
         [0x00, 0x20, 0x80, 0x40, 0x60, 0x00, 0x31, 0x00, 0x09, 0x06]
     );
     assert_eq!(
-        Response::abort(0, 0, SdoAbort::Timeout).emit_coe(&mut out[..9]),
+        Response::abort(ObjectKey::new(0, 0), SdoAbort::Timeout).emit_coe(&mut out[..9]),
         0
     );
     let seg = |toggle, last, data| Response::UploadSegment { toggle, last, data };
@@ -138,8 +136,7 @@ fn frame_view_and_emitters() {
     assert_eq!(out[..10], [0x00, 0x30, 0x1B, 9, 8, 0, 0, 0, 0, 0]);
     assert_eq!(seg(false, false, &[1]).emit_coe(&mut out[..9]), 0);
     let download = Response::Download {
-        index: 0x1C12,
-        sub: 2,
+        key: ObjectKey::new(0x1C12, 2),
         complete_access: true,
     };
     assert_eq!(download.emit_coe(&mut out), 10);
@@ -178,8 +175,7 @@ fn response_round_trips() {
             0x4B, 0x41, 0x60, 0x00, 0x37, 0x02, 0, 0
         ])),
         Ok(Response::UploadExpedited {
-            index: 0x6041,
-            sub: 0,
+            key: ObjectKey::new(0x6041, 0),
             data: &[0x37, 0x02]
         })
     );
@@ -192,7 +188,7 @@ fn response_round_trips() {
         Err(WireError::UnknownCommand(0xA0))
     );
     assert_eq!(
-        Response::abort(0x1000, 0, SdoAbort::Timeout).service(),
+        Response::abort(ObjectKey::new(0x1000, 0), SdoAbort::Timeout).service(),
         Service::SdoRequest
     );
     assert_eq!(
@@ -216,8 +212,7 @@ fn request_frame_checks() {
         Request::parse(&[0xC0, 0x34]),
         Ok(Request::Unknown {
             command: 0xC0,
-            index: 0x34,
-            sub: 0
+            key: ObjectKey::new(0x34, 0)
         })
     );
 }

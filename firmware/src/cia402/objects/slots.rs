@@ -3,6 +3,7 @@
 
 use super::{u32_from_le_prefix, OBJECTS};
 use crate::cia402::Cia402;
+use ecat_slave_stack::od::ObjectKey;
 
 /// Number of entries of [`OBJECTS`] mappable in the direction `rx` (else tx).
 const fn mappable_count(rx: bool) -> usize {
@@ -94,11 +95,11 @@ impl Cia402 {
 /// (The drive's own `ProcessData` dispatches to these when it combines several
 /// modules' objects.)
 impl ecat_slave_stack::pdo::ProcessData for Cia402 {
-    fn rx_slot(&self, index: u16, sub: u8) -> Option<u16> {
-        rx_slot(index, sub).map(u16::from)
+    fn rx_slot(&self, key: ObjectKey) -> Option<u16> {
+        rx_slot(key.index, key.sub).map(u16::from)
     }
-    fn tx_slot(&self, index: u16, sub: u8) -> Option<u16> {
-        tx_slot(index, sub).map(u16::from)
+    fn tx_slot(&self, key: ObjectKey) -> Option<u16> {
+        tx_slot(key.index, key.sub).map(u16::from)
     }
     #[inline]
     fn set_rx(&mut self, slot: u16, raw: u64) {

@@ -2,7 +2,7 @@ extern crate std;
 use super::*;
 use crate::dictionary::Sdo;
 use ecat_slave_stack::od;
-use ecat_slave_stack::od::{DefaultValue, Entry, Object};
+use ecat_slave_stack::od::{DefaultValue, Entry, Object, ObjectKey};
 
 /// The table as the product packs it.
 static PACKED: &[Object] = ecat_slave_stack::packed_dictionary!(&[OBJECTS]);
@@ -36,12 +36,12 @@ fn every_entry_has_a_value_and_defaults_match() {
 #[test]
 fn slots_match_the_table() {
     for (i, &(idx, sub)) in RX_SLOTS.iter().enumerate() {
-        let e = od::find_entry(PACKED, idx, sub).unwrap();
+        let e = od::find_entry(PACKED, ObjectKey::new(idx, sub)).unwrap();
         assert!(e.pdo_mappable().rx(), "{idx:#06x}");
         assert_eq!(rx_slot(idx, sub), Some(i as u8));
     }
     for (i, &(idx, sub)) in TX_SLOTS.iter().enumerate() {
-        let e = od::find_entry(PACKED, idx, sub).unwrap();
+        let e = od::find_entry(PACKED, ObjectKey::new(idx, sub)).unwrap();
         assert!(e.pdo_mappable().tx(), "{idx:#06x}");
         assert_eq!(tx_slot(idx, sub), Some(i as u8));
     }
@@ -159,7 +159,7 @@ fn written_and_read_back(e: &Entry, idx: u16, sub: u8, val: i64) -> Cia402 {
 fn rx_slots_and_sdo_write_agree() {
     // Writing each Rx slot and reading the entry back by SDO gives the same value.
     for (i, &(idx, sub)) in RX_SLOTS.iter().enumerate() {
-        let e = od::find_entry(PACKED, idx, sub).unwrap();
+        let e = od::find_entry(PACKED, ObjectKey::new(idx, sub)).unwrap();
         let val: i64 = match (idx, sub) {
             (0x6060, 0) => 3,
             (0x6098, 0) => 17,
@@ -216,11 +216,11 @@ fn control_effort_follows_the_feedback_and_the_position_polarity() {
 fn stack_process_data_trait() {
     use ecat_slave_stack::pdo::ProcessData;
     let mut d = Cia402::new();
-    let cw = ProcessData::rx_slot(&d, 0x6040, 0).unwrap();
-    let m = ProcessData::rx_slot(&d, 0x6060, 0).unwrap();
-    let t = ProcessData::rx_slot(&d, 0x607A, 0).unwrap();
-    assert_eq!(ProcessData::rx_slot(&d, 0x6041, 0), None);
-    assert_eq!(ProcessData::tx_slot(&d, 0x6040, 0), None);
+    let cw = ProcessData::rx_slot(&d, ObjectKey::new(0x6040, 0)).unwrap();
+    let m = ProcessData::rx_slot(&d, ObjectKey::new(0x6060, 0)).unwrap();
+    let t = ProcessData::rx_slot(&d, ObjectKey::new(0x607A, 0)).unwrap();
+    assert_eq!(ProcessData::rx_slot(&d, ObjectKey::new(0x6041, 0)), None);
+    assert_eq!(ProcessData::tx_slot(&d, ObjectKey::new(0x6040, 0)), None);
     ProcessData::set_rx(&mut d, cw, 0x0006);
     ProcessData::set_rx(&mut d, m, 0xF8); // -8: not a mode, ignored
     ProcessData::set_rx(&mut d, m, 0x08);
@@ -236,8 +236,8 @@ fn stack_process_data_trait() {
         },
         0.001,
     );
-    let sw = ProcessData::tx_slot(&d, 0x6041, 0).unwrap();
-    let pos = ProcessData::tx_slot(&d, 0x6064, 0).unwrap();
+    let sw = ProcessData::tx_slot(&d, ObjectKey::new(0x6041, 0)).unwrap();
+    let pos = ProcessData::tx_slot(&d, ObjectKey::new(0x6064, 0)).unwrap();
     assert_eq!(ProcessData::get_tx(&d, sw) as u16 & 0x6F, 0x21);
     assert_eq!(ProcessData::get_tx(&d, pos) as u32 as i32, -5);
     assert_eq!(ProcessData::get_tx(&d, 0x1234), 0);

@@ -1,6 +1,7 @@
 //! Benchmarks of the `firmware` area. Each call to [`crate::bench`] is one row of BENCHMARKS.md.
 
 use core::hint::black_box;
+use ecat_slave_stack::od::ObjectKey;
 use firmware::cia402::{mode, Cia402, DriveFeedback};
 use firmware::dictionary::Sdo;
 
@@ -139,19 +140,19 @@ fn product() {
         }
         fn read(
             &mut self,
-            i: u16,
-            s: u8,
+            key: ObjectKey,
             b: &mut [u8],
         ) -> Result<usize, ecat_slave_stack::od::SdoAbort> {
+            let ObjectKey { index: i, sub: s } = key;
             self.0.read(i, s, b)
         }
         fn write(
             &mut self,
-            i: u16,
-            s: u8,
+            key: ObjectKey,
             d: &[u8],
             _: ecat_slave_stack::esm::EsmState,
         ) -> Result<(), ecat_slave_stack::od::SdoAbort> {
+            let ObjectKey { index: i, sub: s } = key;
             self.0.write(i, s, d)
         }
     }

@@ -23,8 +23,7 @@
 use std::fmt::Write as _;
 
 use ecat_slave_stack::esm::EsmState;
-use ecat_slave_stack::od::{self, Dictionary};
-use ecat_slave_stack::pdo::entry;
+use ecat_slave_stack::od::{self, Dictionary, ObjectKey};
 use firmware::identity::{self, Variant};
 use tests_host::esc_sim::frame::{datagrams, process_frame, Command, FrameBuilder};
 use tests_host::esc_sim::Flavour;
@@ -117,19 +116,20 @@ fn map_32(candidates: &[(u16, u8)]) -> Vec<u32> {
     let mut out = Vec::new();
     let mut bits = 0u32;
     for &(index, sub) in candidates {
-        let Ok(e) = od::find_entry(firmware::dictionary::OBJECTS, index, sub) else {
+        let Ok(e) = od::find_entry(firmware::dictionary::OBJECTS, ObjectKey::new(index, sub))
+        else {
             continue;
         };
         let b = u32::from(e.bits());
         if bits + b > 256 || out.len() >= 14 {
             continue;
         }
-        out.push(entry(index, sub, e.bits() as u8));
+        out.push(ObjectKey::new(index, sub).mapping_word(e.bits() as u8));
         bits += b;
     }
     while bits < 256 {
         let pad = (256 - bits).min(32);
-        out.push(entry(0, 0, pad as u8));
+        out.push(ObjectKey::new(0, 0).mapping_word(pad as u8));
         bits += pad;
     }
     out

@@ -51,11 +51,19 @@ pub(super) fn write_map(
     let d = seg.drive_mut(0);
     let mut rt = d.slave.runtime_objects(firmware::dictionary::OBJECTS);
     let e = |r: Result<(), od::SdoAbort>| r.map_err(|a| format!("{index:#06x}: {a:?}"));
-    e(rt.write(index, 0, &[0], EsmState::PreOp))?;
+    e(rt.write(ObjectKey::new(index, 0), &[0], EsmState::PreOp))?;
     for (k, v) in entries.iter().enumerate() {
-        e(rt.write(index, k as u8 + 1, &v.to_le_bytes(), EsmState::PreOp))?;
+        e(rt.write(
+            ObjectKey::new(index, k as u8 + 1),
+            &v.to_le_bytes(),
+            EsmState::PreOp,
+        ))?;
     }
-    e(rt.write(index, 0, &[entries.len() as u8], EsmState::PreOp))
+    e(rt.write(
+        ObjectKey::new(index, 0),
+        &[entries.len() as u8],
+        EsmState::PreOp,
+    ))
 }
 
 pub(super) fn spi_log(pdi: &mut Pdi) -> Option<&mut Vec<Transaction>> {

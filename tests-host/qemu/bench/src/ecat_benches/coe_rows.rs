@@ -11,7 +11,8 @@ use core::hint::black_box;
 use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::mailbox::MailboxServer;
 use ecat_slave_stack::od::{
-    self, Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+    self, Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, ObjectKey, PdoMappable,
+    SdoAbort,
 };
 
 macro_rules! objects {
@@ -40,23 +41,19 @@ impl Dictionary for BenchDict {
     fn objects(&self) -> &'static [Object] {
         OBJECTS
     }
-    fn read(&mut self, index: u16, sub: u8, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+    fn read(&mut self, key: ObjectKey, buf: &mut [u8]) -> Result<usize, SdoAbort> {
+        let ObjectKey { index, .. } = key;
         let p = OBJECTS
             .binary_search_by_key(&index, |o| o.index)
             .map_err(|_| SdoAbort::ObjectDoesNotExist)?;
-        let e = od::find_entry(OBJECTS, index, sub)?;
+        let e = od::find_entry(OBJECTS, key)?;
         let n = e.byte_len();
         let dst = buf.get_mut(..n).ok_or(SdoAbort::GeneralError)?;
         dst.copy_from_slice(&self.v[p].to_le_bytes()[..n]);
         Ok(n)
     }
-    fn write(
-        &mut self,
-        index: u16,
-        _sub: u8,
-        data: &[u8],
-        _state: EsmState,
-    ) -> Result<(), SdoAbort> {
+    fn write(&mut self, key: ObjectKey, data: &[u8], _state: EsmState) -> Result<(), SdoAbort> {
+        let ObjectKey { index, .. } = key;
         let p = OBJECTS
             .binary_search_by_key(&index, |o| o.index)
             .map_err(|_| SdoAbort::ObjectDoesNotExist)?;

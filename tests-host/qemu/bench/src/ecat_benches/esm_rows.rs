@@ -10,9 +10,9 @@ use ecat_slave_stack::al_status::AlStatusCode;
 use ecat_slave_stack::esc::{EscAccess, EscError};
 use ecat_slave_stack::esm::{EsmHooks, EsmState};
 use ecat_slave_stack::od::{
-    Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, PdoMappable, SdoAbort,
+    Access, DataType, Dictionary, EntryDesc, Object, ObjectDesc, ObjectKey, PdoMappable, SdoAbort,
 };
-use ecat_slave_stack::pdo::{self, entry, PdoConfig, PdoDefaults, ProcessData};
+use ecat_slave_stack::pdo::{self, PdoConfig, PdoDefaults, ProcessData};
 use ecat_slave_stack::registers as reg;
 use ecat_slave_stack::slave::{CycleInfo, Slave, SlaveApplication, SlaveConfig};
 
@@ -98,46 +98,46 @@ const SOURCE: &[ObjectDesc] = objects![
 
 /// RxPDO1 / TxPDO1, the default maps.
 const RX1: &[u32] = &[
-    entry(0x6040, 0, 16),
-    entry(0x607A, 0, 32),
-    entry(0x60B0, 0, 32),
-    entry(0x60B8, 0, 16),
+    ObjectKey::new(0x6040, 0).mapping_word(16),
+    ObjectKey::new(0x607A, 0).mapping_word(32),
+    ObjectKey::new(0x60B0, 0).mapping_word(32),
+    ObjectKey::new(0x60B8, 0).mapping_word(16),
 ];
 const TX1: &[u32] = &[
-    entry(0x603F, 0, 16),
-    entry(0x6041, 0, 16),
-    entry(0x6061, 0, 8),
-    entry(0x6064, 0, 32),
-    entry(0x60B9, 0, 16),
-    entry(0x60BA, 0, 32),
-    entry(0x60FD, 0, 32),
+    ObjectKey::new(0x603F, 0).mapping_word(16),
+    ObjectKey::new(0x6041, 0).mapping_word(16),
+    ObjectKey::new(0x6061, 0).mapping_word(8),
+    ObjectKey::new(0x6064, 0).mapping_word(32),
+    ObjectKey::new(0x60B9, 0).mapping_word(16),
+    ObjectKey::new(0x60BA, 0).mapping_word(32),
+    ObjectKey::new(0x60FD, 0).mapping_word(32),
 ];
 /// 32-byte images.
 const RX32: &[u32] = &[
-    entry(0x6040, 0, 16),
-    entry(0x607A, 0, 32),
-    entry(0x60FF, 0, 32),
-    entry(0x60B0, 0, 32),
-    entry(0x60B1, 0, 32),
-    entry(0x6081, 0, 32),
-    entry(0x6083, 0, 32),
-    entry(0x60B2, 0, 16),
-    entry(0x6060, 0, 8),
-    entry(0x6098, 0, 8),
-    entry(0x60B8, 0, 16),
+    ObjectKey::new(0x6040, 0).mapping_word(16),
+    ObjectKey::new(0x607A, 0).mapping_word(32),
+    ObjectKey::new(0x60FF, 0).mapping_word(32),
+    ObjectKey::new(0x60B0, 0).mapping_word(32),
+    ObjectKey::new(0x60B1, 0).mapping_word(32),
+    ObjectKey::new(0x6081, 0).mapping_word(32),
+    ObjectKey::new(0x6083, 0).mapping_word(32),
+    ObjectKey::new(0x60B2, 0).mapping_word(16),
+    ObjectKey::new(0x6060, 0).mapping_word(8),
+    ObjectKey::new(0x6098, 0).mapping_word(8),
+    ObjectKey::new(0x60B8, 0).mapping_word(16),
 ];
 const TX32: &[u32] = &[
-    entry(0x603F, 0, 16),
-    entry(0x6041, 0, 16),
-    entry(0x6061, 0, 8),
-    entry(0, 0, 8),
-    entry(0x6064, 0, 32),
-    entry(0x606C, 0, 32),
-    entry(0x6077, 0, 16),
-    entry(0x60F4, 0, 32),
-    entry(0x60BA, 0, 32),
-    entry(0x60BB, 0, 32),
-    entry(0x60FD, 0, 32),
+    ObjectKey::new(0x603F, 0).mapping_word(16),
+    ObjectKey::new(0x6041, 0).mapping_word(16),
+    ObjectKey::new(0x6061, 0).mapping_word(8),
+    ObjectKey::new(0, 0).mapping_word(8),
+    ObjectKey::new(0x6064, 0).mapping_word(32),
+    ObjectKey::new(0x606C, 0).mapping_word(32),
+    ObjectKey::new(0x6077, 0).mapping_word(16),
+    ObjectKey::new(0x60F4, 0).mapping_word(32),
+    ObjectKey::new(0x60BA, 0).mapping_word(32),
+    ObjectKey::new(0x60BB, 0).mapping_word(32),
+    ObjectKey::new(0x60FD, 0).mapping_word(32),
 ];
 
 struct App {
@@ -155,25 +155,21 @@ impl Dictionary for App {
     fn objects(&self) -> &'static [Object] {
         OBJECTS
     }
-    fn read(&mut self, _index: u16, _sub: u8, _buf: &mut [u8]) -> Result<usize, SdoAbort> {
+    fn read(&mut self, _key: ObjectKey, _buf: &mut [u8]) -> Result<usize, SdoAbort> {
         Err(SdoAbort::ObjectDoesNotExist)
     }
-    fn write(
-        &mut self,
-        _index: u16,
-        _sub: u8,
-        _data: &[u8],
-        _state: EsmState,
-    ) -> Result<(), SdoAbort> {
+    fn write(&mut self, _key: ObjectKey, _data: &[u8], _state: EsmState) -> Result<(), SdoAbort> {
         Err(SdoAbort::ObjectDoesNotExist)
     }
 }
 
 impl ProcessData for App {
-    fn rx_slot(&self, index: u16, _sub: u8) -> Option<u16> {
+    fn rx_slot(&self, key: ObjectKey) -> Option<u16> {
+        let ObjectKey { index, .. } = key;
         slot_of(index)
     }
-    fn tx_slot(&self, index: u16, _sub: u8) -> Option<u16> {
+    fn tx_slot(&self, key: ObjectKey) -> Option<u16> {
+        let ObjectKey { index, .. } = key;
         slot_of(index)
     }
     fn set_rx(&mut self, slot: u16, raw: u64) {

@@ -14,7 +14,7 @@ use core::hint::black_box;
 use ecat_slave_stack::esm::EsmState;
 use ecat_slave_stack::foe::{Frame, Repr};
 use ecat_slave_stack::mailbox::{Handlers, MailboxServer};
-use ecat_slave_stack::od::{Dictionary, Object, SdoAbort};
+use ecat_slave_stack::od::{Dictionary, Object, ObjectKey, SdoAbort};
 use embassy_embedded_hal::flash::partition::BlockingPartition;
 use embassy_sync::blocking_mutex::{raw::NoopRawMutex, Mutex};
 use embedded_storage::nor_flash::{ErrorType, NorFlash, NorFlashErrorKind, ReadNorFlash};
@@ -75,10 +75,10 @@ impl Dictionary for NoDict {
     fn objects(&self) -> &'static [Object] {
         &[]
     }
-    fn read(&mut self, _: u16, _: u8, _: &mut [u8]) -> Result<usize, SdoAbort> {
+    fn read(&mut self, _: ObjectKey, _: &mut [u8]) -> Result<usize, SdoAbort> {
         Err(SdoAbort::ObjectDoesNotExist)
     }
-    fn write(&mut self, _: u16, _: u8, _: &[u8], _: EsmState) -> Result<(), SdoAbort> {
+    fn write(&mut self, _: ObjectKey, _: &[u8], _: EsmState) -> Result<(), SdoAbort> {
         Err(SdoAbort::ObjectDoesNotExist)
     }
 }
