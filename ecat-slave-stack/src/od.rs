@@ -17,15 +17,19 @@ use crate::esm::EsmState;
 
 mod abort;
 mod desc;
+mod key;
 mod name;
 pub mod pack;
 mod reference;
 mod types;
+mod values;
 
 pub use abort::SdoAbort;
 pub use desc::{EntryDesc, ObjectDesc};
+pub use key::ObjectKey;
 pub use reference::write_reference;
 pub use types::*;
+pub use values::Values;
 
 pub use name::{pack_into, packed_len, words_into, words_len, Name, NameBytes, COE_WORDS};
 
@@ -604,51 +608,6 @@ impl core::fmt::Debug for Object {
     }
 }
 
-/// The address of one entry of the dictionary: object index and sub-index
-/// (ETG.1000.6 / CiA 301). Ordered by index, then sub-index, as the dictionary is.
-///
-/// ```
-/// use ecat_slave_stack::od::ObjectKey;
-/// let key = ObjectKey::new(0x6040, 0);
-/// assert!(key < ObjectKey::new(0x6040, 1));
-/// assert_eq!(key.index, 0x6040);
-/// // As a PDO mapping entry of 16 bits, and back.
-/// assert_eq!(key.mapping_word(16), 0x6040_0010);
-/// assert_eq!(ObjectKey::from_mapping_word(0x6099_0220), ObjectKey::new(0x6099, 2));
-/// assert_eq!(ObjectKey::new(0x6099, 2).to_string(), "0x6099:02");
-/// ```
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub struct ObjectKey {
-    /// Object index.
-    pub index: u16,
-    /// Sub-index (0 for a variable).
-    pub sub: u8,
-}
-
-impl ObjectKey {
-    /// `index:sub`.
-    pub const fn new(index: u16, sub: u8) -> Self {
-        Self { index, sub }
-    }
-
-    /// The mapping-entry form of ETG.1000.6 (index << 16 | sub << 8 | bit length),
-    /// as PDO mapping objects and the scope's channel list hold it.
-    pub const fn mapping_word(self, bits: u8) -> u32 {
-        (self.index as u32) << 16 | (self.sub as u32) << 8 | bits as u32
-    }
-
-    /// The key of a mapping word (its low byte, the bit length, is dropped).
-    pub const fn from_mapping_word(word: u32) -> Self {
-        Self::new((word >> 16) as u16, (word >> 8) as u8)
-    }
-}
-
-impl core::fmt::Display for ObjectKey {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        write!(f, "0x{:04X}:{:02X}", self.index, self.sub)
-    }
-}
-
 /// Finds an object in a table sorted by index (binary search).
 pub fn find(objects: &'static [Object], index: u16) -> Option<&'static Object> {
     objects
@@ -825,41 +784,6 @@ impl OdListType {
     /// Number of objects of `objects` in this list.
     pub fn count(self, objects: &[Object]) -> usize {
         objects.iter().filter(|o| self.contains(o)).count()
-    }
-}
-
-/// The values behind one owner's objects: how an application module binds its entries
-/// to its state. The dispatcher finds the entry in the dictionary, runs the generic
-/// checks and the conversion between bytes and numbers once, and hands the owner the
-/// entry's key and description; the owner reads or stores the number. `C` is what else
-/// the owner's values are made of and it does not own (nothing for most owners).
-pub trait Values<C: ?Sized = ()> {
-    /// The value of the numeric entry `key` (described by `entry`), sign- or
-    /// zero-extended as its data type says.
-    fn get(&self, cx: &C, key: ObjectKey, entry: &Entry) -> Result<i64, SdoAbort>;
-    /// Stores `value` for `key`; it has passed the access, length and range checks of
-    /// `entry`. The default refuses: read-only values.
-    fn set(
-        &mut self,
-        cx: &mut C,
-        key: ObjectKey,
-        entry: &Entry,
-        value: i64,
-    ) -> Result<(), SdoAbort> {
-        let _ = (cx, key, entry, value);
-        Err(SdoAbort::WriteReadOnly)
-    }
-    /// The bytes of an entry the owner answers as bytes (strings, octet strings, a
-    /// record kept in its wire form), `None` for the numeric ones ([`Values::get`]).
-    fn read_bytes(
-        &self,
-        cx: &C,
-        key: ObjectKey,
-        entry: &Entry,
-        buf: &mut [u8],
-    ) -> Option<Result<usize, SdoAbort>> {
-        let _ = (cx, key, entry, buf);
-        None
     }
 }
 
