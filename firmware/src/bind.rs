@@ -22,9 +22,13 @@
 //! - `get |s, cx, key| value` — the value (any integer or `bool`; it becomes the `i64`
 //!   of [`Values::get`]); `s` is the owner, the context `cx` and the `ObjectKey` `key`
 //!   may be left out from the right;
-//! - `bytes` — the owner answers the entry in its hand-written `read_bytes`;
+//! - `bytes` — the owner answers the entry as bytes, in the function the header names
+//!   (`impl Values<C> for T, bytes by T::f;`, `f(&self, &C, ObjectKey, &mut [u8])`
+//!   being `Values::read_bytes`);
 //! - `count` — the read-only count of an array or record, answered by the dictionary
 //!   from the description;
+//! - `elsewhere` — another owner's `Values` answers it (the scope's internal signals
+//!   0x2510 are the drive's);
 //!
 //! optionally followed by `, set |s, v, cx, key| store` (`v` the checked `i64`; the
 //! store is `()` or a `Result<(), SdoAbort>`, and may use `?`). Every entry has one row,
@@ -66,7 +70,7 @@ impl Stored for Result<(), SdoAbort> {
 /// module documentation).
 macro_rules! bound_objects {
     (
-        impl Values<$cx_ty:ty> for $owner:ty;
+        impl Values<$cx_ty:ty> for $owner:ty $(, bytes by $bytes:path)?;
         $(
             $code:ident $index:expr, $name:literal, $text:expr, {
                 $(
@@ -114,6 +118,18 @@ macro_rules! bound_objects {
                 )?)*)*
                 Err(::ecat_slave_stack::od::SdoAbort::WriteReadOnly)
             }
+
+            $(
+                fn read_bytes(
+                    &self,
+                    cx: &$cx_ty,
+                    key: ::ecat_slave_stack::od::ObjectKey,
+                    _: &::ecat_slave_stack::od::Entry,
+                    buf: &mut [u8],
+                ) -> Option<Result<usize, ::ecat_slave_stack::od::SdoAbort>> {
+                    $bytes(self, cx, key, buf)
+                }
+            )?
         }
     };
     (@get $s:ident, $cx:ident, $key:ident, $k:ident, $index:expr, $entry:expr, get
@@ -125,6 +141,7 @@ macro_rules! bound_objects {
     };
     (@get $s:ident, $cx:ident, $key:ident, $k:ident, $index:expr, $entry:expr, bytes) => {};
     (@get $s:ident, $cx:ident, $key:ident, $k:ident, $index:expr, $entry:expr, count) => {};
+    (@get $s:ident, $cx:ident, $key:ident, $k:ident, $index:expr, $entry:expr, elsewhere) => {};
     // The binding's parameters, from the left, as the owner's arguments.
     (@let [$p:tt $(, $ps:tt)*] [$a:ident $(, $as:ident)*]) => {
         let $p = $a;
