@@ -19,9 +19,9 @@
 //! ```
 //!
 //! A binding is one of
-//! - `get |s, cx, key| value` — the value (any integer or `bool`; it becomes the `i64`
-//!   of [`Values::get`]); `s` is the owner, the context `cx` and the `ObjectKey` `key`
-//!   may be left out from the right;
+//! - `get |s, cx, key, entry| value` — the value (any integer or `bool`; it becomes
+//!   the `i64` of [`Values::get`]); `s` is the owner, the context `cx`, the
+//!   `ObjectKey` `key` and the packed `Entry` may be left out from the right;
 //! - `bytes` — the owner answers the entry as bytes, in the function the header names
 //!   (`impl Values<C> for T, bytes by T::f;`, `f(&self, &C, ObjectKey, &mut [u8])`
 //!   being `Values::read_bytes`);
@@ -30,7 +30,7 @@
 //! - `elsewhere` — another owner's `Values` answers it (the scope's internal signals
 //!   0x2510 are the drive's);
 //!
-//! optionally followed by `, set |s, v, cx, key| store` (`v` the checked `i64`; the
+//! optionally followed by `, set |s, v, cx, key, entry| store` (`v` the checked `i64`; the
 //! store is `()` or a `Result<(), SdoAbort>`, and may use `?`). Every entry has one row,
 //! so every entry has a binding; a read of an entry without a `get` (a `bytes` or
 //! `count` row the dispatcher did not answer) is "object does not exist", a write
@@ -91,11 +91,11 @@ macro_rules! bound_objects {
                 &self,
                 cx: &$cx_ty,
                 key: ::ecat_slave_stack::od::ObjectKey,
-                _: &::ecat_slave_stack::od::Entry,
+                entry: &::ecat_slave_stack::od::Entry,
             ) -> Result<i64, ::ecat_slave_stack::od::SdoAbort> {
                 let k = u32::from(key.index) << 8 | u32::from(key.sub);
                 $($(
-                    $crate::bind::bound_objects!(@get self, cx, key, k, $index, $entry, $kind
+                    $crate::bind::bound_objects!(@get self, cx, key, entry, k, $index, $entry, $kind
                         $([$($gp),+] $get)?);
                 )*)*
                 Err(::ecat_slave_stack::od::SdoAbort::ObjectDoesNotExist)
@@ -106,13 +106,13 @@ macro_rules! bound_objects {
                 &mut self,
                 cx: &mut $cx_ty,
                 key: ::ecat_slave_stack::od::ObjectKey,
-                _: &::ecat_slave_stack::od::Entry,
+                entry: &::ecat_slave_stack::od::Entry,
                 value: i64,
             ) -> Result<(), ::ecat_slave_stack::od::SdoAbort> {
                 let k = u32::from(key.index) << 8 | u32::from(key.sub);
                 $($($(
                     if k == { const K: u32 = $crate::bind::key($index, &$entry); K } {
-                        $crate::bind::bound_objects!(@let [$($sp),+] [self, value, cx, key]);
+                        $crate::bind::bound_objects!(@let [$($sp),+] [self, value, cx, key, entry]);
                         return $crate::bind::Stored::stored($set);
                     }
                 )?)*)*
@@ -132,16 +132,16 @@ macro_rules! bound_objects {
             )?
         }
     };
-    (@get $s:ident, $cx:ident, $key:ident, $k:ident, $index:expr, $entry:expr, get
+    (@get $s:ident, $cx:ident, $key:ident, $e:ident, $k:ident, $index:expr, $entry:expr, get
         [$($gp:tt),+] $get:expr) => {
         if $k == { const K: u32 = $crate::bind::key($index, &$entry); K } {
-            $crate::bind::bound_objects!(@let [$($gp),+] [$s, $cx, $key]);
+            $crate::bind::bound_objects!(@let [$($gp),+] [$s, $cx, $key, $e]);
             return Ok(i64::from($get));
         }
     };
-    (@get $s:ident, $cx:ident, $key:ident, $k:ident, $index:expr, $entry:expr, bytes) => {};
-    (@get $s:ident, $cx:ident, $key:ident, $k:ident, $index:expr, $entry:expr, count) => {};
-    (@get $s:ident, $cx:ident, $key:ident, $k:ident, $index:expr, $entry:expr, elsewhere) => {};
+    (@get $s:ident, $cx:ident, $key:ident, $e:ident, $k:ident, $index:expr, $entry:expr, bytes) => {};
+    (@get $s:ident, $cx:ident, $key:ident, $e:ident, $k:ident, $index:expr, $entry:expr, count) => {};
+    (@get $s:ident, $cx:ident, $key:ident, $e:ident, $k:ident, $index:expr, $entry:expr, elsewhere) => {};
     // The binding's parameters, from the left, as the owner's arguments.
     (@let [$p:tt $(, $ps:tt)*] [$a:ident $(, $as:ident)*]) => {
         let $p = $a;
