@@ -34,17 +34,12 @@
 //! store is `()` or a `Result<(), SdoAbort>`, and may use `?`). Every entry has one row,
 //! so every entry has a binding; a read of an entry without a `get` (a `bytes` or
 //! `count` row the dispatcher did not answer) is "object does not exist", a write
-//! without a `set` "write a read-only object". Arms match on the entry's
-//! `(index, sub-index)` as the description states it.
+//! without a `set` "write a read-only object". Arms match on `index << 8 | sub-index`, the
+//! sub-index as the entry's description states it.
 //!
 //! [`Values::get`]: ecat_slave_stack::od::Values::get
 
-use ecat_slave_stack::od::{EntryDesc, SdoAbort};
-
-/// The `(index, sub-index)` of an entry as one number (what the arms compare).
-pub const fn key(index: u16, entry: &EntryDesc) -> u32 {
-    (index as u32) << 8 | entry.sub() as u32
-}
+use ecat_slave_stack::od::SdoAbort;
 
 /// The result of a `set` binding: a plain store or one that can refuse.
 pub trait Stored {
@@ -94,11 +89,14 @@ macro_rules! bound_objects {
                 entry: &::ecat_slave_stack::od::Entry,
             ) -> Result<i64, ::ecat_slave_stack::od::SdoAbort> {
                 let k = u32::from(key.index) << 8 | u32::from(key.sub);
-                $($(
-                    $crate::bind::bound_objects!(@get self, cx, key, entry, k, $index, $entry, $kind
-                        $([$($gp),+] $get)?);
-                )*)*
-                Err(::ecat_slave_stack::od::SdoAbort::ObjectDoesNotExist)
+                let v: i64 = 'bound: {
+                    $($(
+                        $crate::bind::bound_objects!(@get 'bound, self, cx, key, entry, k,
+                            $index, $entry, $kind $([$($gp),+] $get)?);
+                    )*)*
+                    return Err(::ecat_slave_stack::od::SdoAbort::ObjectDoesNotExist);
+                };
+                Ok(v)
             }
 
             #[allow(unused_variables, clippy::unnecessary_cast, clippy::useless_conversion)]
@@ -111,7 +109,7 @@ macro_rules! bound_objects {
             ) -> Result<(), ::ecat_slave_stack::od::SdoAbort> {
                 let k = u32::from(key.index) << 8 | u32::from(key.sub);
                 $($($(
-                    if k == { const K: u32 = $crate::bind::key($index, &$entry); K } {
+                    if k == $crate::bind::bound_objects!(@key $index, $entry) {
                         $crate::bind::bound_objects!(@let [$($sp),+] [self, value, cx, key, entry]);
                         return $crate::bind::Stored::stored($set);
                     }
@@ -132,16 +130,23 @@ macro_rules! bound_objects {
             )?
         }
     };
-    (@get $s:ident, $cx:ident, $key:ident, $e:ident, $k:ident, $index:expr, $entry:expr, get
-        [$($gp:tt),+] $get:expr) => {
-        if $k == { const K: u32 = $crate::bind::key($index, &$entry); K } {
+    // `index << 8 | sub-index` of a row, the sub-index from its description (compile
+    // time).
+    (@key $index:expr, $entry:expr) => {{
+        const KEY: u32 =
+            ($index as u32) << 8 | ::ecat_slave_stack::od::EntryDesc::sub(&$entry) as u32;
+        KEY
+    }};
+    (@get $l:lifetime, $s:ident, $cx:ident, $key:ident, $e:ident, $k:ident, $index:expr,
+        $entry:expr, get [$($gp:tt),+] $get:expr) => {
+        if $k == $crate::bind::bound_objects!(@key $index, $entry) {
             $crate::bind::bound_objects!(@let [$($gp),+] [$s, $cx, $key, $e]);
-            return Ok(i64::from($get));
+            break $l i64::from($get);
         }
     };
-    (@get $s:ident, $cx:ident, $key:ident, $e:ident, $k:ident, $index:expr, $entry:expr, bytes) => {};
-    (@get $s:ident, $cx:ident, $key:ident, $e:ident, $k:ident, $index:expr, $entry:expr, count) => {};
-    (@get $s:ident, $cx:ident, $key:ident, $e:ident, $k:ident, $index:expr, $entry:expr, elsewhere) => {};
+    (@get $l:lifetime, $s:ident, $cx:ident, $key:ident, $e:ident, $k:ident, $index:expr, $entry:expr, bytes) => {};
+    (@get $l:lifetime, $s:ident, $cx:ident, $key:ident, $e:ident, $k:ident, $index:expr, $entry:expr, count) => {};
+    (@get $l:lifetime, $s:ident, $cx:ident, $key:ident, $e:ident, $k:ident, $index:expr, $entry:expr, elsewhere) => {};
     // The binding's parameters, from the left, as the owner's arguments.
     (@let [$p:tt $(, $ps:tt)*] [$a:ident $(, $as:ident)*]) => {
         let $p = $a;
@@ -151,3 +156,90 @@ macro_rules! bound_objects {
 }
 
 pub(crate) use bound_objects;
+
+#[cfg(test)]
+mod tests {
+    use ecat_slave_stack::od::{
+        self, Access, DataType, EntryDesc, ObjectKey, PdoMappable, SdoAbort, Values,
+    };
+
+    /// An owner with every kind of row.
+    #[derive(Default)]
+    struct Toy {
+        a: i16,
+        b: u8,
+    }
+
+    impl Toy {
+        fn bytes(&self, _: &(), key: ObjectKey, buf: &mut [u8]) -> Option<Result<usize, SdoAbort>> {
+            (key == ObjectKey::new(0x2001, 2)).then(|| {
+                buf[0] = 7;
+                Ok(1)
+            })
+        }
+    }
+
+    super::bound_objects! {
+        impl Values<()> for Toy, bytes by Toy::bytes;
+        var 0x2000, "A", "a", {
+            EntryDesc::new(0, "A", DataType::Integer16, Access::RW).pdo(PdoMappable::Tx)
+                => get |t| t.a, set |t, v| t.a = v as i16;
+        }
+        record 0x2001, "B", "b", {
+            EntryDesc::count(3) => count;
+            EntryDesc::new(1, "B", DataType::Unsigned8, Access::RW)
+                => get |t, _, key| t.b + key.sub, set |t, v| {
+                    if v > 100 {
+                        return Err(SdoAbort::ValueRangeExceeded);
+                    }
+                    t.b = v as u8
+                };
+            EntryDesc::octets(2, "Block", 1) => bytes;
+            EntryDesc::new(3, "Other", DataType::Unsigned8, Access::RO) => elsewhere;
+        }
+    }
+
+    #[test]
+    fn rows_describe_and_bind() {
+        static PACKED: &[od::Object] = ecat_slave_stack::packed_dictionary!(&[OBJECTS]);
+        assert!(od::is_well_formed(PACKED));
+        let e = |i, s| *od::find_entry(PACKED, ObjectKey::new(i, s)).unwrap();
+        let mut t = Toy::default();
+        let k = ObjectKey::new;
+        assert_eq!(t.set(&mut (), k(0x2000, 0), &e(0x2000, 0), -5), Ok(()));
+        assert_eq!(t.get(&(), k(0x2000, 0), &e(0x2000, 0)), Ok(-5));
+        assert_eq!(t.set(&mut (), k(0x2001, 1), &e(0x2001, 1), 40), Ok(()));
+        assert_eq!(t.get(&(), k(0x2001, 1), &e(0x2001, 1)), Ok(41));
+        // A refused store keeps the value.
+        assert_eq!(
+            t.set(&mut (), k(0x2001, 1), &e(0x2001, 1), 101),
+            Err(SdoAbort::ValueRangeExceeded)
+        );
+        assert_eq!(t.b, 40);
+        // Rows without a `get` / `set`, and keys without a row.
+        for s in [0, 2, 3] {
+            assert_eq!(
+                t.get(&(), k(0x2001, s), &e(0x2001, s)),
+                Err(SdoAbort::ObjectDoesNotExist)
+            );
+            assert_eq!(
+                t.set(&mut (), k(0x2001, s), &e(0x2001, s), 1),
+                Err(SdoAbort::WriteReadOnly)
+            );
+        }
+        assert_eq!(
+            t.get(&(), k(0x2002, 0), &e(0x2000, 0)),
+            Err(SdoAbort::ObjectDoesNotExist)
+        );
+        let mut buf = [0u8; 1];
+        assert_eq!(
+            t.read_bytes(&(), k(0x2001, 2), &e(0x2001, 2), &mut buf),
+            Some(Ok(1))
+        );
+        assert_eq!(buf[0], 7);
+        assert_eq!(
+            t.read_bytes(&(), k(0x2000, 0), &e(0x2000, 0), &mut buf),
+            None
+        );
+    }
+}

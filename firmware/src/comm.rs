@@ -86,12 +86,12 @@ bound_objects! {
     array 0x1003, "Pre-defined error field", "Newest fault first: bits 0-15 error code, bits 16-23 fault kind; write 0 to sub 0 clears", {
         EntryDesc::new(0, "Number of errors", DataType::Unsigned8, Access::RW).default(0)
             => get |_, f| f.history_len() as u32, set |_, v, f| clear_history(f, v);
-        ro32(1, "Standard error field 1") => get |_, f| error_field(f, 0);
-        ro32(2, "Standard error field 2") => get |_, f| error_field(f, 1);
-        ro32(3, "Standard error field 3") => get |_, f| error_field(f, 2);
-        ro32(4, "Standard error field 4") => get |_, f| error_field(f, 3);
-        ro32(5, "Standard error field 5") => get |_, f| error_field(f, 4);
-        ro32(6, "Standard error field 6") => get |_, f| error_field(f, 5);
+        ro32(1, "Standard error field 1") => get |_, f, key| error_field(f, key.sub);
+        ro32(2, "Standard error field 2") => get |_, f, key| error_field(f, key.sub);
+        ro32(3, "Standard error field 3") => get |_, f, key| error_field(f, key.sub);
+        ro32(4, "Standard error field 4") => get |_, f, key| error_field(f, key.sub);
+        ro32(5, "Standard error field 5") => get |_, f, key| error_field(f, key.sub);
+        ro32(6, "Standard error field 6") => get |_, f, key| error_field(f, key.sub);
     }
     var 0x1008, "Device name", "Device name", {
         EntryDesc::text(0, "Device name", NAME_BITS, "ECS-HS EtherCAT hybrid servo") => bytes;
@@ -215,10 +215,10 @@ impl Comm {
     }
 }
 
-/// 0x1003:n + 1 (the n-th newest fault): error code and fault kind, 0 when empty.
-fn error_field(faults: &Faults, n: usize) -> u32 {
+/// 0x1003:`sub` (the sub-th newest fault): error code and fault kind, 0 when empty.
+fn error_field(faults: &Faults, sub: u8) -> u32 {
     faults
-        .history(n)
+        .history(usize::from(sub) - 1)
         .map_or(0, |r| u32::from(r.code) | u32::from(r.kind as u8) << 16)
 }
 

@@ -588,6 +588,7 @@ impl Scope {
 
 impl Scope {
     /// The scope for a configuration write: refused while it records.
+    #[inline(never)]
     fn idle(&mut self) -> Result<&mut Self, SdoAbort> {
         if self.running() {
             return Err(SdoAbort::StateConflict);
