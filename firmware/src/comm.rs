@@ -21,11 +21,11 @@
 //! kind (bits 16-23) of the n-th newest fault.
 
 use ecat_slave_stack::od::{
-    Access, DataType, Dictionary, Entry, EntryDesc, ObjectDesc, ObjectKey, PdoMappable, SdoAbort,
-    Values,
+    Access, DataType, Dictionary, Entry, EntryDesc, ObjectKey, PdoMappable, SdoAbort,
 };
 use embedded_storage::nor_flash::NorFlash;
 
+use crate::bind::bound_objects;
 use crate::diagnosis::HISTORY_LEN;
 use crate::faults::{Faults, HISTORY};
 use crate::identity::{self, Identity};
@@ -70,158 +70,101 @@ const fn ro32(sub: u8, name: &'static str) -> EntryDesc {
 
 const NAME_BITS: u16 = identity::MAX_NAME_LEN as u16;
 
-/// The communication objects of the product, sorted.
-pub const OBJECTS: &[ObjectDesc] = &[
-    ObjectDesc::var(
-        0x1000,
-        "Device type",
-        &[ro32(0, "Device type").default(0x0002_0192)],
-        "CiA 402 drive: 0x00020192 hybrid servo, 0x00040192 stepper",
-    ),
-    ObjectDesc::var(
-        0x1001,
-        "Error register",
-        &[
-            EntryDesc::new(0, "Error register", DataType::Unsigned8, Access::RO)
-                .pdo(PdoMappable::Tx)
-                .default(0),
-        ],
-        "b0 generic, b1 current, b2 voltage, b4 communication (EtherCAT), b5 profile, b7 drive alarm (any fault but the EtherCAT one)",
-    ),
-    ObjectDesc::array(
-        0x1003,
-        "Pre-defined error field",
-        &[
-            EntryDesc::new(0, "Number of errors", DataType::Unsigned8, Access::RW).default(0),
-            ro32(1, "Standard error field 1"),
-            ro32(2, "Standard error field 2"),
-            ro32(3, "Standard error field 3"),
-            ro32(4, "Standard error field 4"),
-            ro32(5, "Standard error field 5"),
-            ro32(6, "Standard error field 6"),
-        ],
-        "Newest fault first: bits 0-15 error code, bits 16-23 fault kind; write 0 to sub 0 clears",
-    ),
-    ObjectDesc::var(
-        0x1008,
-        "Device name",
-        &[EntryDesc::text(
-            0,
-            "Device name",
-            NAME_BITS,
-            "ECS-HS EtherCAT hybrid servo",
-        )],
-        "Device name",
-    ),
-    ObjectDesc::var(
-        0x1009,
-        "Hardware version",
-        &[EntryDesc::text(
-            0,
-            "Hardware version",
-            8,
-            identity::HARDWARE_VERSION,
-        )],
-        "Hardware version",
-    ),
-    ObjectDesc::var(
-        0x100A,
-        "Software version",
-        &[EntryDesc::text(
-            0,
-            "Software version",
-            16,
-            identity::SOFTWARE_VERSION,
-        )],
-        "Software version",
-    ),
-    ObjectDesc::array(
-        0x1010,
-        "Store parameters",
-        &[
-            EntryDesc::count(4),
-            cmd(1, "Save all parameters"),
-            cmd(2, "Save communication parameters"),
-            cmd(3, "Save application parameters"),
-            cmd(4, "Save all parameters (E5)"),
-        ],
-        "Write 'save' (0x65766173); 'load' to sub 4 restores defaults",
-    ),
-    ObjectDesc::array(
-        0x1011,
-        "Restore default parameters",
-        &[
-            EntryDesc::count(4),
-            cmd(1, "Restore all defaults"),
-            cmd(2, "Restore communication defaults"),
-            cmd(3, "Restore application defaults"),
-            cmd(4, "Restore all defaults (E5)"),
-        ],
-        "Write 'load' (0x64616F6C); effective after restart",
-    ),
-    ObjectDesc::record(
-        0x1018,
-        "Identity",
-        &[
-            EntryDesc::count(4),
-            ro32(1, "Vendor ID").default(identity::VENDOR_ID as i64),
-            ro32(2, "Product code").default(0x5840),
-            ro32(3, "Revision").default(identity::REVISION as i64),
-            ro32(4, "Serial number"),
-        ],
-        "Identity (equals the SII)",
-    ),
-    ObjectDesc::record(
-        0x10F1,
-        "Error settings",
-        &[
-            EntryDesc::count(2),
-            EntryDesc::new(1, "Local error reaction", DataType::Unsigned32, Access::RW)
-                .default(1)
-                .saved(),
-            EntryDesc::new(
-                2,
-                "Sync error counter limit",
-                DataType::Unsigned16,
-                Access::RW,
-            )
+// The communication objects of the product and their values; the error register, the
+// error field and the diagnosis history are the drive's [`Faults`].
+bound_objects! {
+    impl Values<Faults> for Comm, bytes by Comm::bytes;
+    var 0x1000, "Device type", "CiA 402 drive: 0x00020192 hybrid servo, 0x00040192 stepper", {
+        ro32(0, "Device type").default(0x0002_0192) => get |c| c.identity.variant.device_type();
+    }
+    var 0x1001, "Error register", "b0 generic, b1 current, b2 voltage, b4 communication (EtherCAT), b5 profile, b7 drive alarm (any fault but the EtherCAT one)", {
+        EntryDesc::new(0, "Error register", DataType::Unsigned8, Access::RO)
+            .pdo(PdoMappable::Tx)
+            .default(0)
+            => get |_, f| f.error_register();
+    }
+    array 0x1003, "Pre-defined error field", "Newest fault first: bits 0-15 error code, bits 16-23 fault kind; write 0 to sub 0 clears", {
+        EntryDesc::new(0, "Number of errors", DataType::Unsigned8, Access::RW).default(0)
+            => get |_, f| f.history_len() as u32, set |_, v, f| clear_history(f, v);
+        ro32(1, "Standard error field 1") => get |_, f, key| error_field(f, key.sub);
+        ro32(2, "Standard error field 2") => get |_, f, key| error_field(f, key.sub);
+        ro32(3, "Standard error field 3") => get |_, f, key| error_field(f, key.sub);
+        ro32(4, "Standard error field 4") => get |_, f, key| error_field(f, key.sub);
+        ro32(5, "Standard error field 5") => get |_, f, key| error_field(f, key.sub);
+        ro32(6, "Standard error field 6") => get |_, f, key| error_field(f, key.sub);
+    }
+    var 0x1008, "Device name", "Device name", {
+        EntryDesc::text(0, "Device name", NAME_BITS, "ECS-HS EtherCAT hybrid servo") => bytes;
+    }
+    var 0x1009, "Hardware version", "Hardware version", {
+        EntryDesc::text(0, "Hardware version", 8, identity::HARDWARE_VERSION) => bytes;
+    }
+    var 0x100A, "Software version", "Software version", {
+        EntryDesc::text(0, "Software version", 16, identity::SOFTWARE_VERSION) => bytes;
+    }
+    array 0x1010, "Store parameters", "Write 'save' (0x65766173); 'load' to sub 4 restores defaults", {
+        EntryDesc::count(4) => count;
+        cmd(1, "Save all parameters") => get |_| 1, set |c, v| c.store(1, v);
+        cmd(2, "Save communication parameters") => get |_| 1, set |c, v| c.store(2, v);
+        cmd(3, "Save application parameters") => get |_| 1, set |c, v| c.store(3, v);
+        cmd(4, "Save all parameters (E5)") => get |_| 1, set |c, v| c.store(4, v);
+    }
+    array 0x1011, "Restore default parameters", "Write 'load' (0x64616F6C); effective after restart", {
+        EntryDesc::count(4) => count;
+        cmd(1, "Restore all defaults") => get |_| 1, set |c, v| c.restore(1, v);
+        cmd(2, "Restore communication defaults") => get |_| 1, set |c, v| c.restore(2, v);
+        cmd(3, "Restore application defaults") => get |_| 1, set |c, v| c.restore(3, v);
+        cmd(4, "Restore all defaults (E5)") => get |_| 1, set |c, v| c.restore(4, v);
+    }
+    record 0x1018, "Identity", "Identity (equals the SII)", {
+        EntryDesc::count(4) => count;
+        ro32(1, "Vendor ID").default(identity::VENDOR_ID as i64) => get |c| c.identity.vendor_id();
+        ro32(2, "Product code").default(0x5840) => get |c| c.identity.product_code();
+        ro32(3, "Revision").default(identity::REVISION as i64) => get |c| c.identity.revision();
+        ro32(4, "Serial number") => get |c| c.identity.serial;
+    }
+    record 0x10F1, "Error settings", "Sync error counter limit used by the sync supervision", {
+        EntryDesc::count(2) => count;
+        EntryDesc::new(1, "Local error reaction", DataType::Unsigned32, Access::RW)
+            .default(1)
+            .saved()
+            => get |c| c.local_error_reaction, set |c, v| c.local_error_reaction = v as u32;
+        EntryDesc::new(2, "Sync error counter limit", DataType::Unsigned16, Access::RW)
             .default(4)
-            .saved(),
-        ],
-        "Sync error counter limit used by the sync supervision",
-    ),
-    ObjectDesc::record(
-        0x10F3,
-        "Diagnosis history",
-        &[
-            EntryDesc::count(diag::FIRST_MESSAGE_SUB - 1 + HISTORY_LEN as u8),
-            EntryDesc::new(1, "Maximum messages", DataType::Unsigned8, Access::RO)
-                .default(HISTORY_LEN as i64),
-            EntryDesc::new(2, "Newest message", DataType::Unsigned8, Access::RO).default(0),
-            EntryDesc::new(3, "Newest acknowledged message", DataType::Unsigned8, Access::RW)
-                .default(0),
-            EntryDesc::new(4, "New messages available", DataType::Boolean, Access::RO).default(0),
-            EntryDesc::new(5, "Flags", DataType::Unsigned16, Access::RW).default(0),
-            msg(6, "Diagnosis message 001"),
-            msg(7, "Diagnosis message 002"),
-            msg(8, "Diagnosis message 003"),
-            msg(9, "Diagnosis message 004"),
-            msg(10, "Diagnosis message 005"),
-            msg(11, "Diagnosis message 006"),
-            msg(12, "Diagnosis message 007"),
-            msg(13, "Diagnosis message 008"),
-            msg(14, "Diagnosis message 009"),
-            msg(15, "Diagnosis message 010"),
-            msg(16, "Diagnosis message 011"),
-            msg(17, "Diagnosis message 012"),
-            msg(18, "Diagnosis message 013"),
-            msg(19, "Diagnosis message 014"),
-            msg(20, "Diagnosis message 015"),
-            msg(21, "Diagnosis message 016"),
-        ],
-        "ETG.1020 diagnosis history: one message per fault, emergency and notable event (ring of 16; SI3 = 0 clears, SI3 = n acknowledges)",
-    ),
-];
+            .saved()
+            => get |c| c.sync_error_limit, set |c, v| c.sync_error_limit = v as u16;
+    }
+    record 0x10F3, "Diagnosis history", "ETG.1020 diagnosis history: one message per fault, emergency and notable event (ring of 16; SI3 = 0 clears, SI3 = n acknowledges)", {
+        EntryDesc::count(diag::FIRST_MESSAGE_SUB - 1 + HISTORY_LEN as u8) => count;
+        EntryDesc::new(1, "Maximum messages", DataType::Unsigned8, Access::RO)
+            .default(HISTORY_LEN as i64)
+            => bytes;
+        EntryDesc::new(2, "Newest message", DataType::Unsigned8, Access::RO).default(0) => bytes;
+        EntryDesc::new(3, "Newest acknowledged message", DataType::Unsigned8, Access::RW)
+            .default(0)
+            => bytes, set |_, v, f, key, e| write_diagnosis(f, key.sub, e, v);
+        EntryDesc::new(4, "New messages available", DataType::Boolean, Access::RO).default(0)
+            => bytes;
+        EntryDesc::new(5, "Flags", DataType::Unsigned16, Access::RW).default(0)
+            => bytes, set |_, v, f, key, e| write_diagnosis(f, key.sub, e, v);
+        msg(6, "Diagnosis message 001") => bytes;
+        msg(7, "Diagnosis message 002") => bytes;
+        msg(8, "Diagnosis message 003") => bytes;
+        msg(9, "Diagnosis message 004") => bytes;
+        msg(10, "Diagnosis message 005") => bytes;
+        msg(11, "Diagnosis message 006") => bytes;
+        msg(12, "Diagnosis message 007") => bytes;
+        msg(13, "Diagnosis message 008") => bytes;
+        msg(14, "Diagnosis message 009") => bytes;
+        msg(15, "Diagnosis message 010") => bytes;
+        msg(16, "Diagnosis message 011") => bytes;
+        msg(17, "Diagnosis message 012") => bytes;
+        msg(18, "Diagnosis message 013") => bytes;
+        msg(19, "Diagnosis message 014") => bytes;
+        msg(20, "Diagnosis message 015") => bytes;
+        msg(21, "Diagnosis message 016") => bytes;
+    }
+}
 
 const fn msg(sub: u8, name: &'static str) -> EntryDesc {
     EntryDesc::octets(sub, name, diag::MESSAGE_LEN as u16)
@@ -272,78 +215,56 @@ impl Comm {
     }
 }
 
-/// The values of 0x1000-0x10FF; the error register, the error field and the diagnosis
-/// history are the drive's [`Faults`].
-impl Values<Faults> for Comm {
-    fn get(&self, faults: &Faults, key: ObjectKey, _: &Entry) -> Result<i64, SdoAbort> {
-        let v: u32 = match (key.index, key.sub) {
-            (0x1000, _) => self.identity.variant.device_type(),
-            (0x1001, _) => u32::from(faults.error_register()),
-            (0x1003, 0) => faults.history_len() as u32,
-            (0x1003, n) => faults
-                .history(usize::from(n) - 1)
-                .map_or(0, |r| u32::from(r.code) | u32::from(r.kind as u8) << 16),
-            (0x1010 | 0x1011, _) => 1,
-            (0x1018, 1) => self.identity.vendor_id(),
-            (0x1018, 2) => self.identity.product_code(),
-            (0x1018, 3) => self.identity.revision(),
-            (0x1018, _) => self.identity.serial,
-            (0x10F1, 1) => self.local_error_reaction,
-            (0x10F1, _) => u32::from(self.sync_error_limit),
-            _ => return Err(SdoAbort::ObjectDoesNotExist),
-        };
-        Ok(i64::from(v))
+/// 0x1003:`sub` (the sub-th newest fault): error code and fault kind, 0 when empty.
+fn error_field(faults: &Faults, sub: u8) -> u32 {
+    faults
+        .history(usize::from(sub) - 1)
+        .map_or(0, |r| u32::from(r.code) | u32::from(r.kind as u8) << 16)
+}
+
+/// 0x1003:00 = `v`: 0 clears the history, anything else is refused.
+fn clear_history(faults: &mut Faults, v: i64) -> Result<(), SdoAbort> {
+    if v != 0 {
+        return Err(SdoAbort::ValueRangeExceeded);
+    }
+    faults.clear_history();
+    Ok(())
+}
+
+/// 0x10F3:`sub` = `v` (an entry of the history's own rules: acknowledge, flags).
+fn write_diagnosis(faults: &mut Faults, sub: u8, entry: &Entry, v: i64) -> Result<(), SdoAbort> {
+    let bytes = v.to_le_bytes();
+    let len = entry.byte_len().min(bytes.len());
+    faults.diagnosis_mut().write(sub, &bytes[..len])
+}
+
+impl Comm {
+    /// 0x1010:`sub` = `v`: kept for [`Comm::take_store_command`].
+    fn store(&mut self, sub: u8, v: i64) -> Result<(), SdoAbort> {
+        let scope = Scope::from_sub(sub).ok_or(SdoAbort::SubindexDoesNotExist)?;
+        self.store = Some(match v as u32 {
+            SAVE => StoreCommand::Save(scope),
+            LOAD if sub == 4 => StoreCommand::RestoreDefaults(Scope::All),
+            _ => return Err(SdoAbort::DataCannotBeStored),
+        });
+        Ok(())
     }
 
-    /// A store / restore command is kept for [`Comm::take_store_command`].
-    fn set(
-        &mut self,
-        faults: &mut Faults,
-        key: ObjectKey,
-        entry: &Entry,
-        value: i64,
-    ) -> Result<(), SdoAbort> {
-        let v = value as u32;
-        match (key.index, key.sub) {
-            (0x1003, 0) => {
-                if v != 0 {
-                    return Err(SdoAbort::ValueRangeExceeded);
-                }
-                faults.clear_history();
-            }
-            (0x1010, s) => {
-                let scope = Scope::from_sub(s).ok_or(SdoAbort::SubindexDoesNotExist)?;
-                self.store = Some(match v {
-                    SAVE => StoreCommand::Save(scope),
-                    LOAD if s == 4 => StoreCommand::RestoreDefaults(Scope::All),
-                    _ => return Err(SdoAbort::DataCannotBeStored),
-                });
-            }
-            (0x1011, s) => {
-                let scope = Scope::from_sub(s).ok_or(SdoAbort::SubindexDoesNotExist)?;
-                self.store = Some(match v {
-                    LOAD => StoreCommand::RestoreDefaults(scope),
-                    _ => return Err(SdoAbort::DataCannotBeStored),
-                });
-            }
-            (0x10F3, s) => {
-                let bytes = value.to_le_bytes();
-                let len = entry.byte_len().min(bytes.len());
-                faults.diagnosis_mut().write(s, &bytes[..len])?;
-            }
-            (0x10F1, 1) => self.local_error_reaction = v,
-            (0x10F1, 2) => self.sync_error_limit = v as u16,
-            _ => return Err(SdoAbort::WriteReadOnly),
-        }
+    /// 0x1011:`sub` = `v`: kept for [`Comm::take_store_command`].
+    fn restore(&mut self, sub: u8, v: i64) -> Result<(), SdoAbort> {
+        let scope = Scope::from_sub(sub).ok_or(SdoAbort::SubindexDoesNotExist)?;
+        self.store = Some(match v as u32 {
+            LOAD => StoreCommand::RestoreDefaults(scope),
+            _ => return Err(SdoAbort::DataCannotBeStored),
+        });
         Ok(())
     }
 
     /// The names and versions, and the diagnosis history (kept in its wire form).
-    fn read_bytes(
+    fn bytes(
         &self,
         faults: &Faults,
         key: ObjectKey,
-        _: &Entry,
         buf: &mut [u8],
     ) -> Option<Result<usize, SdoAbort>> {
         let text = match key.index {

@@ -28,6 +28,7 @@
 #![no_std]
 #![warn(missing_docs)]
 #![deny(clippy::undocumented_unsafe_blocks)]
+pub mod bind;
 pub mod board_glue;
 pub mod boot_state;
 pub mod cia402;

@@ -9,9 +9,9 @@
 //! power-up. They are thus exact up to the last save (the board may also save on a
 //! power-fail warning).
 
-use ecat_slave_stack::od::{
-    Access, DataType, Entry, EntryDesc, ObjectDesc, ObjectKey, PdoMappable, SdoAbort, Values,
-};
+use ecat_slave_stack::od::{Access, DataType, EntryDesc, PdoMappable};
+
+use crate::bind::bound_objects;
 
 const fn tx(name: &'static str, t: DataType, unit: &'static str) -> EntryDesc {
     EntryDesc::new(0, name, t, Access::RO)
@@ -19,84 +19,55 @@ const fn tx(name: &'static str, t: DataType, unit: &'static str) -> EntryDesc {
         .unit(unit)
 }
 
-/// Monitoring objects, sorted.
-pub const OBJECTS: &[ObjectDesc] = &[
-    ObjectDesc::var(
-        0x2300,
-        "Electrical angle",
-        &[tx("Electrical angle", DataType::Unsigned16, "1/65536 turn")],
-        "Electrical angle used by the current loop",
-    ),
-    ObjectDesc::var(
-        0x2301,
-        "Phase A current set",
-        &[tx("Phase A current set", DataType::Integer16, "mA")],
-        "Phase A current set-point",
-    ),
-    ObjectDesc::var(
-        0x2302,
-        "Phase B current set",
-        &[tx("Phase B current set", DataType::Integer16, "mA")],
-        "Phase B current set-point",
-    ),
-    ObjectDesc::var(
-        0x2303,
-        "Phase A current",
-        &[tx("Phase A current", DataType::Integer16, "mA")],
-        "Measured phase A current",
-    ),
-    ObjectDesc::var(
-        0x2304,
-        "Phase B current",
-        &[tx("Phase B current", DataType::Integer16, "mA")],
-        "Measured phase B current",
-    ),
-    ObjectDesc::var(
-        0x2305,
-        "Bus voltage",
-        &[tx("Bus voltage", DataType::Unsigned16, "10mV")],
-        "Measured DC bus voltage",
-    ),
-    ObjectDesc::var(
-        0x2306,
-        "Power-on count",
-        &[
-            EntryDesc::new(0, "Power-on count", DataType::Unsigned32, Access::RO)
-                .default(0)
-                .saved(),
-        ],
-        "Number of power-ups (as of the last save)",
-    ),
-    ObjectDesc::var(
-        0x2307,
-        "Running time",
-        &[
-            EntryDesc::new(0, "Running time", DataType::Unsigned32, Access::RO)
-                .unit("s")
-                .default(0)
-                .saved(),
-        ],
-        "Accumulated powered time (as of the last save)",
-    ),
-    ObjectDesc::var(
-        0x2308,
-        "Time since power-up",
-        &[tx("Time since power-up", DataType::Unsigned32, "ms")],
-        "Milliseconds since this power-up",
-    ),
-    ObjectDesc::var(
-        0x2309,
-        "Firmware boot state",
-        &[EntryDesc::new(0, "Firmware boot state", DataType::Unsigned8, Access::RO).default(3)],
-        "0 confirmed, 1 on trial (a new image not yet confirmed: a reset reverts it), 2 reverted (an unconfirmed image was replaced by the previous one), 3 no firmware update",
-    ),
-    ObjectDesc::var(
-        0x230A,
-        "Control step time",
-        &[tx("Control step time", DataType::Unsigned32, "us")],
-        "The drive's clock (us, wrapping) at its last control step: the instant of the 0x6064 and 0x606C in the same TxPDO",
-    ),
-];
+// The monitoring objects and their values (only the storage restore of the two saved
+// counters writes: SDO writes are refused by the generic read-only check before).
+bound_objects! {
+    impl Values<()> for Monitor;
+    var 0x2300, "Electrical angle", "Electrical angle used by the current loop", {
+        tx("Electrical angle", DataType::Unsigned16, "1/65536 turn") => get |m| m.m.electrical_angle;
+    }
+    var 0x2301, "Phase A current set", "Phase A current set-point", {
+        tx("Phase A current set", DataType::Integer16, "mA") => get |m| m.m.ia_set_ma;
+    }
+    var 0x2302, "Phase B current set", "Phase B current set-point", {
+        tx("Phase B current set", DataType::Integer16, "mA") => get |m| m.m.ib_set_ma;
+    }
+    var 0x2303, "Phase A current", "Measured phase A current", {
+        tx("Phase A current", DataType::Integer16, "mA") => get |m| m.m.ia_ma;
+    }
+    var 0x2304, "Phase B current", "Measured phase B current", {
+        tx("Phase B current", DataType::Integer16, "mA") => get |m| m.m.ib_ma;
+    }
+    var 0x2305, "Bus voltage", "Measured DC bus voltage", {
+        tx("Bus voltage", DataType::Unsigned16, "10mV") => get |m| m.m.bus_10mv;
+    }
+    var 0x2306, "Power-on count", "Number of power-ups (as of the last save)", {
+        EntryDesc::new(0, "Power-on count", DataType::Unsigned32, Access::RO)
+            .default(0)
+            .saved()
+            => get |m| m.power_on_count, set |m, v| m.power_on_count = v as u32;
+    }
+    var 0x2307, "Running time", "Accumulated powered time (as of the last save)", {
+        EntryDesc::new(0, "Running time", DataType::Unsigned32, Access::RO)
+            .unit("s")
+            .default(0)
+            .saved()
+            => get |m| m.running_time_s(), set |m, v| {
+                m.base_running_s = v as u32;
+                m.since_power_up_ms %= 1000;
+            };
+    }
+    var 0x2308, "Time since power-up", "Milliseconds since this power-up", {
+        tx("Time since power-up", DataType::Unsigned32, "ms") => get |m| m.since_power_up_ms();
+    }
+    var 0x2309, "Firmware boot state", "0 confirmed, 1 on trial (a new image not yet confirmed: a reset reverts it), 2 reverted (an unconfirmed image was replaced by the previous one), 3 no firmware update", {
+        EntryDesc::new(0, "Firmware boot state", DataType::Unsigned8, Access::RO).default(3)
+            => get |m| m.boot_state;
+    }
+    var 0x230A, "Control step time", "The drive's clock (us, wrapping) at its last control step: the instant of the 0x6064 and 0x606C in the same TxPDO", {
+        tx("Control step time", DataType::Unsigned32, "us") => get |m| m.step_us;
+    }
+}
 
 /// Values measured by the control loops, updated by the application.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -195,38 +166,6 @@ impl Monitor {
     }
 }
 
-/// The values of 0x2300-0x230A. Only the storage restore of the two saved counters
-/// writes (SDO writes are refused by the generic read-only check before).
-impl Values for Monitor {
-    fn get(&self, _: &(), key: ObjectKey, _: &Entry) -> Result<i64, SdoAbort> {
-        Ok(match key.index {
-            0x2300 => i64::from(self.m.electrical_angle),
-            0x2301 => i64::from(self.m.ia_set_ma),
-            0x2302 => i64::from(self.m.ib_set_ma),
-            0x2303 => i64::from(self.m.ia_ma),
-            0x2304 => i64::from(self.m.ib_ma),
-            0x2305 => i64::from(self.m.bus_10mv),
-            0x2306 => i64::from(self.power_on_count),
-            0x2307 => i64::from(self.running_time_s()),
-            0x2309 => i64::from(self.boot_state),
-            0x230A => i64::from(self.step_us),
-            _ => i64::from(self.since_power_up_ms()),
-        })
-    }
-
-    fn set(&mut self, _: &mut (), key: ObjectKey, _: &Entry, v: i64) -> Result<(), SdoAbort> {
-        match key.index {
-            0x2306 => self.power_on_count = v as u32,
-            0x2307 => {
-                self.base_running_s = v as u32;
-                self.since_power_up_ms %= 1000;
-            }
-            _ => return Err(SdoAbort::WriteReadOnly),
-        }
-        Ok(())
-    }
-}
-
 #[cfg(test)]
 mod tests {
     /// The table as the product packs it (with the plain names of its words).
@@ -235,7 +174,7 @@ mod tests {
 
     use super::*;
     use crate::dictionary::Sdo;
-    use ecat_slave_stack::od::{self, ObjectKey};
+    use ecat_slave_stack::od::{self, ObjectKey, SdoAbort};
 
     #[test]
     fn objects_and_values() {

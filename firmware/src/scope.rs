@@ -75,9 +75,10 @@
 //! done, answer 0x08000024 (no data available).
 
 use ecat_slave_stack::od::{
-    self, Access, DataType, Entry, EntryDesc, Object, ObjectDesc, ObjectKey, PdoMappable, SdoAbort,
-    Values,
+    self, Access, DataType, EntryDesc, Object, ObjectKey, PdoMappable, SdoAbort,
 };
+
+use crate::bind::bound_objects;
 
 /// Channels of one record at most.
 pub const CHANNELS: usize = 8;
@@ -138,88 +139,77 @@ use DataType::{
     Integer16 as I16, Integer32 as I32, Unsigned16 as U16, Unsigned32 as U32, Unsigned8 as U8,
 };
 
-/// The scope's objects, sorted.
-pub const OBJECTS: &[ObjectDesc] = &[
-    ObjectDesc::record(
-        CONFIG,
-        "Scope configuration",
-        &[
-            EntryDesc::count(8),
-            rw(1, "Sample divisor", U16, 1, 1, 1000),
-            rw(2, "Trigger channel", U8, 1, 1, CHANNELS as i64),
-            rw(3, "Trigger level", I32, 0, i32::MIN as i64, i32::MAX as i64),
-            rw(4, "Trigger condition", U8, 1, 0, 5),
-            rw(5, "Pre-trigger samples", U16, 0, 0, BUFFER_WORDS as i64 - 1),
-            rw(6, "Trigger mode", U8, 0, 0, 1),
-            rw(7, "Command", U8, 0, 0, 2),
-            rw(8, "Time base", U8, 0, 0, 1),
-        ],
-        "Scope: sub 1 sample every n time-base periods; 2 trigger channel (0x2501 sub); 3 trigger level; 4 condition 0 immediate, 1 rising, 2 falling, 3 either edge, 4 value >= level, 5 value <= level; 5 samples kept before the trigger; 6 mode 0 single, 1 normal (re-arms after the record was read); 7 command 0 stop, 1 arm, 2 force trigger; 8 time base 0 supervision tick (1 ms), 1 servo period (100 us: the internal signals 0x2510 at that rate, the other channels as the last tick left them)",
-    ),
-    ObjectDesc::array(
-        CHANNEL_LIST,
-        "Scope channels",
-        &[
-            EntryDesc::new(0, "Number of entries", U8, Access::RW)
-                .range(0, CHANNELS as i64)
-                .default(2),
-            channel(1, "Channel 1", 0x6064_0020),
-            channel(2, "Channel 2", 0x60F4_0020),
-            channel(3, "Channel 3", 0x606C_0020),
-            channel(4, "Channel 4", 0x6078_0010),
-            channel(5, "Channel 5", 0x2301_0010),
-            channel(6, "Channel 6", 0x2303_0010),
-            channel(7, "Channel 7", 0x2305_0010),
-            channel(8, "Channel 8", 0x2510_0120),
-        ],
-        "Signals recorded: index << 16 | sub-index << 8 | bit length of a PDO-mappable entry of at most 32 bits (0x2510 for the internal signals); sub 0 the number of channels",
-    ),
-    ObjectDesc::record(
-        STATUS,
-        "Scope status",
-        &[
-            EntryDesc::count(5),
-            ro(1, "State", U8),
-            ro(2, "Samples recorded", U16),
-            ro(3, "Trigger position", U16),
-            ro(4, "Samples per channel", U16),
-            ro(5, "Records completed", U16),
-        ],
-        "Scope: sub 1 state 0 idle, 1 armed, 2 triggered, 3 done; 2 samples per channel in the record; 3 sample number of the trigger (oldest = 0); 4 samples per channel the buffer holds (of the record being or last recorded); 5 records completed (wrapping)",
-    ),
-    ObjectDesc::array(
-        DATA,
-        "Scope data",
-        &[
-            EntryDesc::count(BLOCKS as u8),
-            EntryDesc::octets(1, "Block 1", BLOCK_BYTES as u16),
-            EntryDesc::octets(2, "Block 2", BLOCK_BYTES as u16),
-            EntryDesc::octets(3, "Block 3", BLOCK_BYTES as u16),
-            EntryDesc::octets(4, "Block 4", BLOCK_BYTES as u16),
-            EntryDesc::octets(5, "Block 5", BLOCK_BYTES as u16),
-            EntryDesc::octets(6, "Block 6", BLOCK_BYTES as u16),
-        ],
-        "The done record, 512 bytes per sub-index: samples oldest first, each the channels' values as INTEGER32 little-endian in channel order; the last block is shorter; no record or a block past its end: abort 0x08000024",
-    ),
-    ObjectDesc::record(
-        SIGNALS,
-        "Scope internal signals",
-        &[
-            EntryDesc::count(10),
-            signal(1, "Motor following error", I32, ""),
-            signal(2, "Acceleration demand", I32, "inc/s²"),
-            signal(3, "Bus voltage", U32, "mV"),
-            signal(4, "Drive flags", U16, ""),
-            signal(5, "Motor position", I32, "inc"),
-            signal(6, "Motor velocity", I32, "inc/s"),
-            signal(7, "Current demand", I16, "0.1 %"),
-            signal(8, "Current actual", I16, "0.1 %"),
-            signal(9, "Phase A current", I16, "mA"),
-            signal(10, "Phase B current", I16, "mA"),
-        ],
-        "Signals without an object of their own, also at the servo rate (0x2500:08 = 1): sub 1 servo demand minus encoder, encoder counts; 2 acceleration feed-forward of the demand; 3 DC bus voltage; 4 bit 0 power stage on, bit 1 drive function enabled, bit 2 at the current limit, bit 3 brake released; 5 position, 6 velocity of the motor side, command units; 7 q current demand, 8 q current actual, per mille of the rated current; 9, 10 phase currents",
-    ),
-];
+// The scope's objects and their values (those of 0x2510 are the drive's, see `Drive`):
+// configuration writes follow the scope's rules (module docs).
+bound_objects! {
+    impl Values<()> for Scope, bytes by Scope::data_bytes;
+    record CONFIG, "Scope configuration", "Scope: sub 1 sample every n time-base periods; 2 trigger channel (0x2501 sub); 3 trigger level; 4 condition 0 immediate, 1 rising, 2 falling, 3 either edge, 4 value >= level, 5 value <= level; 5 samples kept before the trigger; 6 mode 0 single, 1 normal (re-arms after the record was read); 7 command 0 stop, 1 arm, 2 force trigger; 8 time base 0 supervision tick (1 ms), 1 servo period (100 us: the internal signals 0x2510 at that rate, the other channels as the last tick left them)", {
+        EntryDesc::count(8) => count;
+        rw(1, "Sample divisor", U16, 1, 1, 1000)
+            => get |s| s.divisor, set |s, v| s.idle()?.divisor = v as u16;
+        rw(2, "Trigger channel", U8, 1, 1, CHANNELS as i64)
+            => get |s| s.trigger_channel, set |s, v| s.idle()?.trigger_channel = v as u8;
+        rw(3, "Trigger level", I32, 0, i32::MIN as i64, i32::MAX as i64)
+            => get |s| s.level, set |s, v| s.idle()?.level = v as i32;
+        rw(4, "Trigger condition", U8, 1, 0, 5)
+            => get |s| s.condition, set |s, v| s.idle()?.condition = v as u8;
+        rw(5, "Pre-trigger samples", U16, 0, 0, BUFFER_WORDS as i64 - 1)
+            => get |s| s.pretrigger, set |s, v| s.idle()?.pretrigger = v as u16;
+        rw(6, "Trigger mode", U8, 0, 0, 1)
+            => get |s| s.normal, set |s, v| s.idle()?.normal = v == 1;
+        rw(7, "Command", U8, 0, 0, 2)
+            => get |s| s.running(), set |s, v| s.command(v as u8);
+        rw(8, "Time base", U8, 0, 0, 1)
+            => get |s| s.servo_rate, set |s, v| s.idle()?.servo_rate = v == 1;
+    }
+    array CHANNEL_LIST, "Scope channels", "Signals recorded: index << 16 | sub-index << 8 | bit length of a PDO-mappable entry of at most 32 bits (0x2510 for the internal signals); sub 0 the number of channels", {
+        EntryDesc::new(0, "Number of entries", U8, Access::RW)
+            .range(0, CHANNELS as i64)
+            .default(2)
+            => get |s| s.count, set |s, v| s.idle()?.count = v as u8;
+        channel(1, "Channel 1", 0x6064_0020) => get |s| s.channels[0], set |s, v| s.set_channel(0, v);
+        channel(2, "Channel 2", 0x60F4_0020) => get |s| s.channels[1], set |s, v| s.set_channel(1, v);
+        channel(3, "Channel 3", 0x606C_0020) => get |s| s.channels[2], set |s, v| s.set_channel(2, v);
+        channel(4, "Channel 4", 0x6078_0010) => get |s| s.channels[3], set |s, v| s.set_channel(3, v);
+        channel(5, "Channel 5", 0x2301_0010) => get |s| s.channels[4], set |s, v| s.set_channel(4, v);
+        channel(6, "Channel 6", 0x2303_0010) => get |s| s.channels[5], set |s, v| s.set_channel(5, v);
+        channel(7, "Channel 7", 0x2305_0010) => get |s| s.channels[6], set |s, v| s.set_channel(6, v);
+        channel(8, "Channel 8", 0x2510_0120) => get |s| s.channels[7], set |s, v| s.set_channel(7, v);
+    }
+    record STATUS, "Scope status", "Scope: sub 1 state 0 idle, 1 armed, 2 triggered, 3 done; 2 samples per channel in the record; 3 sample number of the trigger (oldest = 0); 4 samples per channel the buffer holds (of the record being or last recorded); 5 records completed (wrapping)", {
+        EntryDesc::count(5) => count;
+        ro(1, "State", U8) => get |s| s.state as u8;
+        ro(2, "Samples recorded", U16) => get |s| match s.state {
+            State::Idle => 0,
+            _ => s.stored,
+        };
+        ro(3, "Trigger position", U16) => get |s| s.trigger_position();
+        ro(4, "Samples per channel", U16) => get |s| s.depth;
+        ro(5, "Records completed", U16) => get |s| s.records;
+    }
+    array DATA, "Scope data", "The done record, 512 bytes per sub-index: samples oldest first, each the channels' values as INTEGER32 little-endian in channel order; the last block is shorter; no record or a block past its end: abort 0x08000024", {
+        EntryDesc::count(BLOCKS as u8) => count;
+        EntryDesc::octets(1, "Block 1", BLOCK_BYTES as u16) => bytes;
+        EntryDesc::octets(2, "Block 2", BLOCK_BYTES as u16) => bytes;
+        EntryDesc::octets(3, "Block 3", BLOCK_BYTES as u16) => bytes;
+        EntryDesc::octets(4, "Block 4", BLOCK_BYTES as u16) => bytes;
+        EntryDesc::octets(5, "Block 5", BLOCK_BYTES as u16) => bytes;
+        EntryDesc::octets(6, "Block 6", BLOCK_BYTES as u16) => bytes;
+    }
+    record SIGNALS, "Scope internal signals", "Signals without an object of their own, also at the servo rate (0x2500:08 = 1): sub 1 servo demand minus encoder, encoder counts; 2 acceleration feed-forward of the demand; 3 DC bus voltage; 4 bit 0 power stage on, bit 1 drive function enabled, bit 2 at the current limit, bit 3 brake released; 5 position, 6 velocity of the motor side, command units; 7 q current demand, 8 q current actual, per mille of the rated current; 9, 10 phase currents", {
+        EntryDesc::count(10) => count;
+        signal(1, "Motor following error", I32, "") => elsewhere;
+        signal(2, "Acceleration demand", I32, "inc/s²") => elsewhere;
+        signal(3, "Bus voltage", U32, "mV") => elsewhere;
+        signal(4, "Drive flags", U16, "") => elsewhere;
+        signal(5, "Motor position", I32, "inc") => elsewhere;
+        signal(6, "Motor velocity", I32, "inc/s") => elsewhere;
+        signal(7, "Current demand", I16, "0.1 %") => elsewhere;
+        signal(8, "Current actual", I16, "0.1 %") => elsewhere;
+        signal(9, "Phase A current", I16, "mA") => elsewhere;
+        signal(10, "Phase B current", I16, "mA") => elsewhere;
+    }
+}
 
 /// What the scope is doing (0x2502:01).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -583,65 +573,13 @@ impl Scope {
     }
 }
 
-/// The values of 0x2500-0x2503 (those of 0x2510 are the drive's, see `Drive`):
-/// configuration writes follow the scope's rules (module docs).
-impl Values for Scope {
-    fn get(&self, _: &(), key: ObjectKey, _: &Entry) -> Result<i64, SdoAbort> {
-        let v: u32 = match (key.index, key.sub) {
-            (CHANNEL_LIST, 0) => u32::from(self.count),
-            (CHANNEL_LIST, s) => self.channels[usize::from(s - 1) % CHANNELS],
-            (CONFIG, 1) => u32::from(self.divisor),
-            (CONFIG, 2) => u32::from(self.trigger_channel),
-            (CONFIG, 3) => return Ok(i64::from(self.level)),
-            (CONFIG, 4) => u32::from(self.condition),
-            (CONFIG, 5) => u32::from(self.pretrigger),
-            (CONFIG, 6) => u32::from(self.normal),
-            (CONFIG, 8) => u32::from(self.servo_rate),
-            (CONFIG, _) => u32::from(self.running()),
-            (STATUS, 1) => self.state as u32,
-            (STATUS, 2) => u32::from(match self.state {
-                State::Idle => 0,
-                _ => self.stored,
-            }),
-            (STATUS, 3) => u32::from(self.trigger_position()),
-            (STATUS, 4) => u32::from(self.depth),
-            (STATUS, _) => u32::from(self.records),
-            _ => return Err(SdoAbort::ObjectDoesNotExist),
-        };
-        Ok(i64::from(v))
-    }
-
-    fn set(&mut self, _: &mut (), key: ObjectKey, _: &Entry, v: i64) -> Result<(), SdoAbort> {
-        if (key.index, key.sub) == (CONFIG, 7) {
-            return self.command(v as u8);
-        }
-        if self.running() {
-            return Err(SdoAbort::StateConflict);
-        }
-        match (key.index, key.sub) {
-            (CONFIG, 1) => self.divisor = v as u16,
-            (CONFIG, 2) => self.trigger_channel = v as u8,
-            (CONFIG, 3) => self.level = v as i32,
-            (CONFIG, 4) => self.condition = v as u8,
-            (CONFIG, 5) => self.pretrigger = v as u16,
-            (CONFIG, 6) => self.normal = v == 1,
-            (CONFIG, 8) => self.servo_rate = v == 1,
-            (CHANNEL_LIST, 0) => self.count = v as u8,
-            (CHANNEL_LIST, s) => {
-                Source::resolve(self.objects, v as u32)?;
-                self.channels[usize::from(s - 1) % CHANNELS] = v as u32;
-            }
-            _ => return Err(SdoAbort::WriteReadOnly),
-        }
-        Ok(())
-    }
-
-    /// The record's blocks (0x2503:01-06).
-    fn read_bytes(
+/// The record's blocks (0x2503:01-06); the numbers are bound in the table.
+impl Scope {
+    /// SDO read of a block of 0x2503 (the bytes the dictionary answers the read with).
+    fn data_bytes(
         &self,
         _: &(),
         key: ObjectKey,
-        _: &Entry,
         buf: &mut [u8],
     ) -> Option<Result<usize, SdoAbort>> {
         (key.index == DATA && key.sub > 0).then(|| self.read_block(key.sub, buf))
@@ -649,6 +587,23 @@ impl Values for Scope {
 }
 
 impl Scope {
+    /// The scope for a configuration write: refused while it records.
+    #[inline(never)]
+    fn idle(&mut self) -> Result<&mut Self, SdoAbort> {
+        if self.running() {
+            return Err(SdoAbort::StateConflict);
+        }
+        Ok(self)
+    }
+
+    /// 0x2501:`n + 1` = `v`: a source the dictionary has, while idle.
+    fn set_channel(&mut self, n: usize, v: i64) -> Result<(), SdoAbort> {
+        let s = self.idle()?;
+        Source::resolve(s.objects, v as u32)?;
+        s.channels[n] = v as u32;
+        Ok(())
+    }
+
     /// 0x2500:07.
     fn command(&mut self, c: u8) -> Result<(), SdoAbort> {
         match c {
