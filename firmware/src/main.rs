@@ -67,9 +67,8 @@ fn UART4() {
     unsafe { EXECUTOR_CYCLIC.on_interrupt() }
 }
 
-/// The drive state shared by the cyclic path and the thread-mode tasks ([`hw`],
-/// "Who owns what"): the drive, the slave runtime (`None` when the ESC did not answer
-/// at start-up: the drive still runs locally) and the runtime.
+/// Shared by the cyclic path and the thread-mode tasks ([`hw`], "Who owns what"): the
+/// drive, the slave runtime (`None` if no ESC answered; the drive runs on) and the runtime.
 struct DriveState {
     drive: &'static mut BoardDrive,
     slave: Option<&'static mut Slave<Esc>>,

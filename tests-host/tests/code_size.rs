@@ -14,6 +14,9 @@ use std::path::{Path, PathBuf};
 const MAX_FILE_LINES: usize = 800;
 /// Longest function, lines (signature and closing brace included).
 const MAX_FN_LINES: usize = 80;
+/// Longest board `main.rs`, lines: it creates peripherals and spawns tasks that call
+/// the runtime, and decides nothing itself (ARCHITECTURE.md, "One runtime").
+const MAX_BOARD_MAIN_LINES: usize = 400;
 
 /// The crates whose `src/` is checked.
 const CRATES: &[&str] = &[
@@ -198,6 +201,19 @@ fn no_file_or_function_over_the_limits() {
     assert!(
         stale.is_empty(),
         "within the limits now, remove from ALLOWED: {stale:?}"
+    );
+}
+
+#[test]
+fn the_board_main_stays_a_wiring_file() {
+    let path = root().join("firmware/src/main.rs");
+    let text = std::fs::read_to_string(&path).expect("firmware/src/main.rs");
+    let lines = text.lines().count();
+    assert!(
+        lines <= MAX_BOARD_MAIN_LINES,
+        "{} has {lines} lines, more than {MAX_BOARD_MAIN_LINES}: move the logic into the \
+         runtime or `hw/`",
+        path.display()
     );
 }
 
