@@ -1,7 +1,7 @@
 //! One row per entry: its description and its binding to the owner's state, for the
 //! owners of plain object tables (`monitor`, `comm`, `scope`, the fault history).
 //!
-//! [`bound_objects!`] takes the owner's objects, each a list of
+//! `bound_objects!` takes the owner's objects, each a list of
 //! rows `description => binding;`, and writes both the owner's `OBJECTS` table and its
 //! `impl Values` (`get` / `set`), so an entry is described and bound in one place:
 //!
